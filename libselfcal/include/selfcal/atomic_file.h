@@ -1,0 +1,38 @@
+/* selfcal/atomic_file.h — write a file so that a crash never leaves half of it under its name.
+ *
+ * Writes go to a temporary file in the same directory; commit flushes, fsyncs, renames it over
+ * the final name and fsyncs the directory; abort removes the temporary file.
+ */
+#ifndef SELFCAL_ATOMIC_FILE_H
+#define SELFCAL_ATOMIC_FILE_H
+
+#include <stdio.h>
+
+#include "selfcal/error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sc_afile {
+    FILE *fp;            /* write through this between open and commit/abort */
+    char path[4096];     /* the final name */
+    char tmp_path[4096]; /* the temporary file */
+} sc_afile;
+
+/* Create the temporary file for path ("-" writes straight to stdout). */
+sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err);
+
+/* Flush, fsync, rename to the final name; on failure the temporary file is removed. */
+sc_status sc_afile_commit(sc_afile *f, sc_error *err);
+
+/* Discard everything written; the final name is untouched. Safe after commit (does nothing). */
+void sc_afile_abort(sc_afile *f);
+
+/* Write len bytes to path atomically in one call. */
+sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, sc_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,99 @@
+/* selfcal/correct.h — the correction core: validate a lookup table once, then correct positions
+ * in constant time without allocating.
+ *
+ * Freestanding C: this header and its implementation use only <stddef.h>, <stdint.h>,
+ * <float.h> and <limits.h>, so the same code runs in selfcald and on a microcontroller.
+ * The table structure is fixed-size and owned by the caller (static storage in the daemon);
+ * sc_corr_apply only reads it, so several threads may call it on one table.
+ * The sizes below may be lowered at compile time for small targets.
+ */
+#ifndef SELFCAL_CORRECT_H
+#define SELFCAL_CORRECT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#ifndef SC_CORR_MAX_NX
+#define SC_CORR_MAX_NX 101 /* grid nodes along x */
+#endif
+#ifndef SC_CORR_MAX_NY
+#define SC_CORR_MAX_NY 101 /* grid nodes along y */
+#endif
+#ifndef SC_CORR_MAX_PROFILES
+#define SC_CORR_MAX_PROFILES 8
+#endif
+#ifndef SC_CORR_MAX_PROFILE_POINTS
+#define SC_CORR_MAX_PROFILE_POINTS 2048
+#endif
+
+/* Status bits returned by sc_corr_apply (the same bits as the Modbus status register). */
+#define SC_CORR_ST_LOADED 0x01u  /* a valid table is loaded */
+#define SC_CORR_ST_OUTSIDE 0x02u /* the position was outside the table: clamped */
+#define SC_CORR_ST_INVALID 0x04u /* the input was NaN or infinite: returned unchanged */
+
+typedef enum sc_corr_mode {
+    SC_CORR_MEASURE = 0, /* input: indicated position p; output p - G(p) - profile offsets */
+    SC_CORR_POSITION = 1 /* input: target; output target + G(target) + profile offsets */
+} sc_corr_mode;
+
+/* Axis / direction codes for profiles. */
+enum { SC_CORR_AXIS_X = 0, SC_CORR_AXIS_Y = 1, SC_CORR_AXIS_Z = 2 };
+
+typedef struct sc_corr_profile {
+    uint8_t axis;      /* the coordinate the error is a function of */
+    uint8_t dir;       /* the coordinate the error applies to */
+    uint16_t n;        /* points */
+    double start_mm;   /* position of point 0 */
+    double step_mm;    /* spacing (> 0) */
+    double inv_step;   /* 1 / step_mm, computed at load */
+    float err_um[SC_CORR_MAX_PROFILE_POINTS];
+} sc_corr_profile;
+
+typedef struct sc_corr_table {
+    uint32_t loaded;       /* 1 after a successful sc_corr_load */
+    uint16_t nx, ny;       /* grid nodes along x and y */
+    double x0_mm, y0_mm;   /* position of node (0, 0) */
+    double px_mm, py_mm;   /* pitch along x and y */
+    double inv_px, inv_py; /* computed at load */
+    float gx_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY]; /* node (i, j) at i*nx + j, i along y */
+    float gy_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY];
+    uint8_t n_profiles;
+    sc_corr_profile profile[SC_CORR_MAX_PROFILES];
+} sc_corr_table;
+
+/* Error codes of sc_corr_load (0 = success). */
+enum {
+    SC_CORR_OK = 0,
+    SC_CORR_E_SIZE = -1,     /* buffer too short or its length disagrees with the header */
+    SC_CORR_E_MAGIC = -2,    /* not a selfcal table */
+    SC_CORR_E_VERSION = -3,  /* unsupported format version */
+    SC_CORR_E_CRC = -4,      /* checksum mismatch */
+    SC_CORR_E_RANGE = -5,    /* a field is out of range (sizes, pitch, non-finite values) */
+    SC_CORR_E_CAPACITY = -6  /* valid, but larger than this build's SC_CORR_MAX_* */
+};
+
+/* Validate a table image (the LUT file's bytes) and decode it into *t. On failure *t is marked
+ * not loaded and the code says why. All the expensive work happens here, once. */
+int sc_corr_load(sc_corr_table *t, const void *buf, size_t len);
+
+/* A constant, one-line description of a load error code. */
+const char *sc_corr_strerror(int code);
+
+/* Correct one position (mm; z passes through unless a profile has DIR z). Returns status bits.
+ * NaN or infinite input: out = in, SC_CORR_ST_INVALID set. Constant time, no allocation. */
+unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
+                       double out_mm[3]);
+
+/* measure mode solved exactly: find p_true with p_true + G(p_true) + offsets = p by fixed-point
+ * iteration (iterations: fixed count, e.g. 3). Returns status bits like sc_corr_apply. */
+unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3], double out_mm[3],
+                               int iterations);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,64 @@
+/* selfcal/csv.h — a strict line reader for selfcal's CSV formats.
+ *
+ * Reads one line at a time, counts lines (1-based) for error messages, strips CR/LF, refuses NUL
+ * bytes and over-long lines, splits at commas and parses numbers strictly (no trailing junk,
+ * no NaN or infinity). Comment/header lines start with '#'.
+ */
+#ifndef SELFCAL_CSV_H
+#define SELFCAL_CSV_H
+
+#include <stdio.h>
+
+#include "selfcal/error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SC_CSV_MAX_FIELDS 64
+#define SC_CSV_MAX_LINE 65536
+
+typedef struct sc_csv {
+    FILE *fp;
+    int owns_fp;
+    char path[256];
+    long line;                       /* number of the current line, 1-based */
+    char *text;                      /* the current line, without its line end */
+    size_t cap;
+    int nfields;                     /* after sc_csv_split */
+    char *field[SC_CSV_MAX_FIELDS];  /* point into text (split modifies it) */
+} sc_csv;
+
+/* Open path for reading ("-" reads stdin). */
+sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err);
+
+/* Close the file and free the line buffer; safe to call twice. */
+void sc_csv_close(sc_csv *r);
+
+/* Read the next line into r->text: 1 = a line, 0 = end of file, -1 = error (err says which). */
+int sc_csv_next_line(sc_csv *r, sc_error *err);
+
+/* 1 if the current line is empty or only white space. */
+int sc_csv_is_blank(const sc_csv *r);
+
+/* Split the current line at commas, trimming blanks around fields; returns the field count or -1. */
+int sc_csv_split(sc_csv *r, sc_error *err);
+
+/* Parse field k as a finite double; name is used in the error message. */
+sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, sc_error *err);
+
+/* Parse field k as a whole number (decimal, optional sign). */
+sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out, sc_error *err);
+
+/* Parse s strictly as a finite double / a long; 0 on success, -1 otherwise. */
+int sc_parse_double(const char *s, double *out);
+int sc_parse_long(const char *s, long *out);
+
+/* For a header line "# key = value", copy the trimmed key and point *value at the trimmed value
+ * (the value is the rest of the line with trailing blanks removed in place). 1 if it has that form. */
+int sc_header_kv(char *line, char *key, size_t keylen, char **value);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

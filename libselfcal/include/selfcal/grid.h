@@ -1,0 +1,108 @@
+/* selfcal/grid.h — grid-plate self-calibration of an XY stage: shared types and geometry.
+ *
+ * Conventions (SPEC §1): N x N marks, N odd, pitch P (mm), c = (N-1)/2. Mark (i, j): i = plate row
+ * (y), j = plate column (x). Stage node (i, j) sits at origin + ((j-c)P, (i-c)P). A view places the
+ * plate rotated by rot (CCW, degrees) and shifted by (sx, sy) pitches. Arrays over marks or nodes
+ * are row-major, index i*N + j.
+ *
+ * Model, all in µm: dev = measured - nominal stage position
+ *       = G(node) + Rot(A(mark)) + (tx - θ·y, ty + θ·x) + noise,
+ * with (x, y) the node's nominal position relative to the grid centre in mm and θ in µrad
+ * (1 µrad × 1 mm = 1 nm = 1e-3 µm).
+ * Gauge of the reported maps: ΣGx = ΣGy = 0, Σ(x·Gy - y·Gx) = 0, Σ(x·Gx + y·Gy) = 0 over the
+ * stage nodes; ΣAx = ΣAy = 0, Σ(x·Ay - y·Ax) = 0 over the marks. O and R as Petrò eqs. (4)-(6):
+ * Gx = O·y + R·x + Fx, Gy = O·x - R·y + Fy (O and R dimensionless, µm per µm).
+ */
+#ifndef SELFCAL_GRID_H
+#define SELFCAL_GRID_H
+
+#include "selfcal/error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SC_GRID_MAX_VIEWS 16
+#define SC_GRID_MAX_N 513
+
+typedef struct sc_grid_view {
+    int rot_deg;                        /* 0, 90, 180 or 270, counter-clockwise */
+    int shift_x, shift_y;               /* in pitches */
+    int restricted;                     /* 1: only the rows/cols selected below are measured */
+    unsigned char row_sel[SC_GRID_MAX_N]; /* plate rows measured (when restricted) */
+    unsigned char col_sel[SC_GRID_MAX_N]; /* plate columns measured (when restricted) */
+} sc_grid_view;
+
+typedef struct sc_grid_plan {
+    int n;                /* marks per side (odd) */
+    double pitch_mm;      /* P */
+    double origin_mm[2];  /* stage position of the grid centre */
+    int n_views;
+    sc_grid_view view[SC_GRID_MAX_VIEWS];
+} sc_grid_plan;
+
+/* Measurements: dev = measured - nominal stage position in µm for mark (i, j) of each view;
+ * NaN where the mark was not measured. Arrays are n*n, owned by whoever filled them. */
+typedef struct sc_grid_data {
+    sc_grid_plan plan;
+    double *dx_um[SC_GRID_MAX_VIEWS];
+    double *dy_um[SC_GRID_MAX_VIEWS];
+} sc_grid_data;
+
+/* What a method reports. The caller allocates every array (n*n doubles) it wants filled and sets
+ * the pointer; a NULL array is skipped. Uncertainties are NaN where the method gives none. */
+typedef struct sc_grid_result {
+    double *gx_um, *gy_um;    /* stage error at node (i, j) */
+    double *ugx_um, *ugy_um;  /* standard uncertainty (k = 1) of gx, gy */
+    double *ax_um, *ay_um;    /* plate error of mark (i, j), plate frame */
+    double O, R;              /* non-orthogonality and scale, dimensionless */
+    double tx_um[SC_GRID_MAX_VIEWS], ty_um[SC_GRID_MAX_VIEWS]; /* per view misalignment */
+    double theta_urad[SC_GRID_MAX_VIEWS];
+    double residual_rms_um;   /* RMS of the measurement residuals (NaN if not defined) */
+    double sigma_r_est_um;    /* noise estimated from the residuals (NaN if no redundancy) */
+    double sigma_r_used_um;   /* the σ_r the uncertainties were computed with */
+    long n_measurements;      /* scalar equations used (2 per measured mark) */
+    long dof;                 /* residual degrees of freedom */
+} sc_grid_result;
+
+/* ---- geometry (grid_geometry.c) ---- */
+
+/* Stage node where mark (i, j) lands in view v: 1 and (*ni, *nj) if on the grid, else 0. */
+int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj);
+
+/* 1 if view v measures mark (i, j): it lands on the grid and, if restricted, its row or column is selected. */
+int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
+
+/* Nominal node position relative to the grid centre, in mm: x = (j-c)P, y = (i-c)P. */
+void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
+
+/* Rotate a plate-frame vector (ax, ay) by rot_deg CCW into the stage frame. */
+void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy);
+
+/* Index of the first view with this rot and shift, or -1. */
+int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift_y);
+
+/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, pitch > 0, rotations, shifts). */
+sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);
+
+/* Forward model without noise: fill d->dx_um/dy_um (arrays provided by the caller) from a stage
+ * error G (nodes), plate error A (marks, plate frame) and per-view misalignment. NaN where a view
+ * does not measure a mark. */
+void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                        const double *ax_um, const double *ay_um, const double *tx_um,
+                        const double *ty_um, const double *theta_urad, sc_grid_data *d);
+
+/* Remove translation, rotation and magnification from a stage map in place (the SPEC gauge). */
+void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx_um, double *gy_um);
+
+/* Remove translation and rotation from a plate error map in place. */
+void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax_um, double *ay_um);
+
+/* O and R of a stage map (Petrò eqs. 4-5). */
+void sc_grid_first_order(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                         double *O, double *R);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,193 @@
+#include "selfcal/csv.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err)
+{
+    memset(r, 0, sizeof *r);
+    snprintf(r->path, sizeof r->path, "%s", path);
+    if (strcmp(path, "-") == 0) {
+        r->fp = stdin;
+        r->owns_fp = 0;
+        return SC_OK;
+    }
+    r->fp = fopen(path, "rb");
+    if (!r->fp)
+        return sc_error_set(err, SC_E_INPUT, path, 0, "cannot open: %s", strerror(errno));
+    r->owns_fp = 1;
+    return SC_OK;
+}
+
+void sc_csv_close(sc_csv *r)
+{
+    if (r->fp && r->owns_fp)
+        fclose(r->fp);
+    r->fp = NULL;
+    free(r->text);
+    r->text = NULL;
+    r->cap = 0;
+}
+
+int sc_csv_next_line(sc_csv *r, sc_error *err)
+{
+    if (!r->fp)
+        return 0;
+    if (!r->text) {
+        r->cap = 256;
+        r->text = malloc(r->cap);
+        if (!r->text) {
+            sc_error_set(err, SC_E_NOMEM, r->path, r->line, "out of memory");
+            return -1;
+        }
+    }
+    size_t len = 0;
+    int c, got = 0;
+    while ((c = fgetc(r->fp)) != EOF) {
+        got = 1;
+        if (c == '\n')
+            break;
+        if (c == '\0') {
+            sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file");
+            return -1;
+        }
+        if (len + 1 >= SC_CSV_MAX_LINE) {
+            sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "line longer than %d bytes",
+                         SC_CSV_MAX_LINE);
+            return -1;
+        }
+        if (len + 1 >= r->cap) {
+            size_t ncap = r->cap * 2;
+            char *p = realloc(r->text, ncap);
+            if (!p) {
+                sc_error_set(err, SC_E_NOMEM, r->path, r->line + 1, "out of memory");
+                return -1;
+            }
+            r->text = p;
+            r->cap = ncap;
+        }
+        r->text[len++] = (char)c;
+    }
+    if (ferror(r->fp)) {
+        sc_error_set(err, SC_E_IO, r->path, r->line + 1, "read error: %s", strerror(errno));
+        return -1;
+    }
+    if (!got)
+        return 0;
+    if (len > 0 && r->text[len - 1] == '\r')
+        --len;
+    r->text[len] = '\0';
+    r->line++;
+    r->nfields = 0;
+    return 1;
+}
+
+int sc_csv_is_blank(const sc_csv *r)
+{
+    for (const char *p = r->text; p && *p; ++p)
+        if (!isspace((unsigned char)*p))
+            return 0;
+    return 1;
+}
+
+static char *trim(char *s)
+{
+    while (*s && isspace((unsigned char)*s))
+        ++s;
+    char *e = s + strlen(s);
+    while (e > s && isspace((unsigned char)e[-1]))
+        *--e = '\0';
+    return s;
+}
+
+int sc_csv_split(sc_csv *r, sc_error *err)
+{
+    int n = 0;
+    char *p = r->text;
+    for (;;) {
+        if (n == SC_CSV_MAX_FIELDS) {
+            sc_error_set(err, SC_E_INPUT, r->path, r->line, "more than %d fields",
+                         SC_CSV_MAX_FIELDS);
+            return -1;
+        }
+        char *comma = strchr(p, ',');
+        if (comma)
+            *comma = '\0';
+        r->field[n++] = trim(p);
+        if (!comma)
+            break;
+        p = comma + 1;
+    }
+    r->nfields = n;
+    return n;
+}
+
+int sc_parse_double(const char *s, double *out)
+{
+    if (!s || !*s)
+        return -1;
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end != '\0' || errno == ERANGE || !isfinite(v))
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int sc_parse_long(const char *s, long *out)
+{
+    if (!s || !*s)
+        return -1;
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (end == s || *end != '\0' || errno == ERANGE)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, sc_error *err)
+{
+    if (k < 0 || k >= r->nfields)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line, "missing field '%s'", name);
+    if (sc_parse_double(r->field[k], out) != 0)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                            "field '%s' is not a finite number: '%.40s'", name, r->field[k]);
+    return SC_OK;
+}
+
+sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out, sc_error *err)
+{
+    if (k < 0 || k >= r->nfields)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line, "missing field '%s'", name);
+    if (sc_parse_long(r->field[k], out) != 0)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                            "field '%s' is not a whole number: '%.40s'", name, r->field[k]);
+    return SC_OK;
+}
+
+int sc_header_kv(char *line, char *key, size_t keylen, char **value)
+{
+    char *p = line;
+    if (*p != '#')
+        return 0;
+    ++p;
+    char *eq = strchr(p, '=');
+    if (!eq)
+        return 0;
+    *eq = '\0';
+    char *k = trim(p);
+    char *v = trim(eq + 1);
+    if (!*k || strlen(k) >= keylen) {
+        *eq = '=';
+        return 0;
+    }
+    snprintf(key, keylen, "%s", k);
+    *value = v;
+    return 1;
+}

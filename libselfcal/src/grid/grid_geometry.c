@@ -1,0 +1,182 @@
+/* Geometry of views, the noise-free forward model and the gauge of SPEC §1. */
+#include "selfcal/grid.h"
+
+#include <math.h>
+
+int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj)
+{
+    const sc_grid_view *w = &p->view[v];
+    int c = (p->n - 1) / 2;
+    int u = j - c, q = i - c; /* plate-centred, in pitches: x = u, y = q */
+    int ru, rq;
+    switch (w->rot_deg) {
+    case 0: ru = u; rq = q; break;
+    case 90: ru = -q; rq = u; break;
+    case 180: ru = -u; rq = -q; break;
+    case 270: ru = q; rq = -u; break;
+    default: return 0;
+    }
+    int jn = c + ru + w->shift_x, in = c + rq + w->shift_y;
+    if (jn < 0 || jn >= p->n || in < 0 || in >= p->n)
+        return 0;
+    *ni = in;
+    *nj = jn;
+    return 1;
+}
+
+int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j)
+{
+    int ni, nj;
+    if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
+        return 0;
+    const sc_grid_view *w = &p->view[v];
+    if (w->restricted && !w->row_sel[i] && !w->col_sel[j])
+        return 0;
+    return 1;
+}
+
+void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm)
+{
+    double c = (p->n - 1) / 2.0;
+    *x_mm = (j - c) * p->pitch_mm;
+    *y_mm = (i - c) * p->pitch_mm;
+}
+
+void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy)
+{
+    switch (rot_deg) {
+    case 90: *sx = -ay; *sy = ax; break;
+    case 180: *sx = -ax; *sy = -ay; break;
+    case 270: *sx = ay; *sy = -ax; break;
+    default: *sx = ax; *sy = ay; break;
+    }
+}
+
+int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift_y)
+{
+    for (int v = 0; v < p->n_views; ++v)
+        if (p->view[v].rot_deg == rot_deg && p->view[v].shift_x == shift_x &&
+            p->view[v].shift_y == shift_y)
+            return v;
+    return -1;
+}
+
+sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
+{
+    if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "N must be odd and in 3..%d (got %d)",
+                            SC_GRID_MAX_N, p->n);
+    if (!(p->pitch_mm > 0) || !isfinite(p->pitch_mm))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "pitch must be positive");
+    if (p->n_views < 1 || p->n_views > SC_GRID_MAX_VIEWS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d",
+                            SC_GRID_MAX_VIEWS);
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);
+        if (w->shift_x <= -p->n || w->shift_x >= p->n || w->shift_y <= -p->n ||
+            w->shift_y >= p->n)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "view %d: shift (%d,%d) moves the plate off the grid", v,
+                                w->shift_x, w->shift_y);
+    }
+    return SC_OK;
+}
+
+void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                        const double *ax_um, const double *ay_um, const double *tx_um,
+                        const double *ty_um, const double *theta_urad, sc_grid_data *d)
+{
+    int n = p->n;
+    for (int v = 0; v < p->n_views; ++v) {
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                int k = i * n + j, ni, nj;
+                if (!sc_grid_view_measures(p, v, i, j)) {
+                    d->dx_um[v][k] = NAN;
+                    d->dy_um[v][k] = NAN;
+                    continue;
+                }
+                sc_grid_mark_node(p, v, i, j, &ni, &nj);
+                int q = ni * n + nj;
+                double x, y, rax, ray;
+                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+                sc_grid_rotate(p->view[v].rot_deg, ax_um[k], ay_um[k], &rax, &ray);
+                d->dx_um[v][k] = gx_um[q] + rax + tx_um[v] - theta_urad[v] * y * 1e-3;
+                d->dy_um[v][k] = gy_um[q] + ray + ty_um[v] + theta_urad[v] * x * 1e-3;
+            }
+    }
+}
+
+/* Project out span{(1,0), (0,1), (-y,x), (x,y)} — the four are mutually orthogonal over a
+ * centred square grid, so the projection is four independent dot products. */
+void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx, double *gy)
+{
+    int n = p->n, nn = n * n;
+    double sx = 0, sy = 0, srot = 0, smag = 0, r2 = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            int k = i * n + j;
+            sx += gx[k];
+            sy += gy[k];
+            srot += x * gy[k] - y * gx[k];
+            smag += x * gx[k] + y * gy[k];
+            r2 += x * x + y * y;
+        }
+    double tx = sx / nn, ty = sy / nn, rot = srot / r2, mag = smag / r2;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            int k = i * n + j;
+            gx[k] -= tx - rot * y + mag * x;
+            gy[k] -= ty + rot * x + mag * y;
+        }
+}
+
+void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax, double *ay)
+{
+    int n = p->n, nn = n * n;
+    double sx = 0, sy = 0, srot = 0, r2 = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            int k = i * n + j;
+            sx += ax[k];
+            sy += ay[k];
+            srot += x * ay[k] - y * ax[k];
+            r2 += x * x + y * y;
+        }
+    double tx = sx / nn, ty = sy / nn, rot = srot / r2;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            int k = i * n + j;
+            ax[k] -= tx - rot * y;
+            ay[k] -= ty + rot * x;
+        }
+}
+
+void sc_grid_first_order(const sc_grid_plan *p, const double *gx, const double *gy, double *O,
+                         double *R)
+{
+    int n = p->n;
+    double so = 0, sr = 0, r2 = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            int k = i * n + j;
+            so += x * gy[k] + y * gx[k];
+            sr += x * gx[k] - y * gy[k];
+            r2 += x * x + y * y;
+        }
+    *O = so / r2;
+    *R = sr / r2;
+}

@@ -1,0 +1,142 @@
+/* Unit tests of the common module: strict CSV reading, atomic writes, the seeded RNG. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "selfcal/rng.h"
+
+static void write_text(const char *path, const char *text, size_t len)
+{
+    FILE *f = fopen(path, "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(text, 1, len, f), len);
+    fclose(f);
+}
+
+static void test_parse_numbers(void **state)
+{
+    (void)state;
+    double d;
+    long l;
+    assert_int_equal(sc_parse_double("1.5e-3", &d), 0);
+    assert_true(d == 1.5e-3);
+    assert_int_equal(sc_parse_double("-0", &d), 0);
+    assert_int_equal(sc_parse_double("1.5x", &d), -1);
+    assert_int_equal(sc_parse_double("", &d), -1);
+    assert_int_equal(sc_parse_double("nan", &d), -1);
+    assert_int_equal(sc_parse_double("inf", &d), -1);
+    assert_int_equal(sc_parse_double("1e999", &d), -1);
+    assert_int_equal(sc_parse_long("42", &l), 0);
+    assert_int_equal(l, 42);
+    assert_int_equal(sc_parse_long("4.2", &l), -1);
+    assert_int_equal(sc_parse_long("99999999999999999999999", &l), -1);
+}
+
+static void test_csv_lines_and_errors(void **state)
+{
+    (void)state;
+    const char *path = SELFCAL_TEST_TMP "/common.csv";
+    write_text(path, "# a = 1\r\nx,y\n 1 , 2.5\n3,abc\n", strlen("# a = 1\r\nx,y\n 1 , 2.5\n3,abc\n"));
+    sc_csv r;
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_csv_open(&r, path, &err), SC_OK);
+    assert_int_equal(sc_csv_next_line(&r, &err), 1);
+    char key[32], *val;
+    assert_int_equal(sc_header_kv(r.text, key, sizeof key, &val), 1);
+    assert_string_equal(key, "a");
+    assert_string_equal(val, "1");
+    assert_int_equal(sc_csv_next_line(&r, &err), 1);
+    assert_int_equal(sc_csv_next_line(&r, &err), 1);
+    assert_int_equal(sc_csv_split(&r, &err), 2);
+    double v;
+    assert_int_equal(sc_csv_double(&r, 1, "y", &v, &err), SC_OK);
+    assert_true(v == 2.5);
+    assert_int_equal(sc_csv_next_line(&r, &err), 1);
+    assert_int_equal(sc_csv_split(&r, &err), 2);
+    assert_int_equal(sc_csv_double(&r, 1, "y", &v, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 4);
+    assert_non_null(strstr(err.msg, "'y'"));
+    char buf[600];
+    sc_error_format(&err, buf, sizeof buf);
+    assert_non_null(strstr(buf, "common.csv:4:"));
+    assert_int_equal(sc_csv_next_line(&r, &err), 0);
+    sc_csv_close(&r);
+
+    write_text(path, "a\0b\n", 4);
+    assert_int_equal(sc_csv_open(&r, path, &err), SC_OK);
+    assert_int_equal(sc_csv_next_line(&r, &err), -1);
+    assert_int_equal(err.code, SC_E_INPUT);
+    sc_csv_close(&r);
+
+    assert_int_equal(sc_csv_open(&r, SELFCAL_TEST_TMP "/does-not-exist.csv", &err), SC_E_INPUT);
+}
+
+static void test_atomic_file(void **state)
+{
+    (void)state;
+    const char *path = SELFCAL_TEST_TMP "/atomic.txt";
+    sc_error err;
+    assert_int_equal(sc_write_file_atomic(path, "old\n", 4, &err), SC_OK);
+    sc_afile f;
+    assert_int_equal(sc_afile_open(&f, path, &err), SC_OK);
+    fputs("half written", f.fp);
+    sc_afile_abort(&f); /* the old content must survive and no temporary file stay */
+    FILE *in = fopen(path, "r");
+    char buf[32] = {0};
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "old\n");
+    struct stat st;
+    assert_int_not_equal(stat(f.tmp_path, &st), 0);
+    assert_int_equal(sc_afile_open(&f, path, &err), SC_OK);
+    fputs("new\n", f.fp);
+    assert_int_equal(sc_afile_commit(&f, &err), SC_OK);
+    in = fopen(path, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "new\n");
+    assert_int_equal(sc_write_file_atomic(SELFCAL_TEST_TMP "/no/such/dir/x", "x", 1, &err), SC_E_IO);
+}
+
+static void test_rng(void **state)
+{
+    (void)state;
+    sc_rng a, b;
+    sc_rng_seed(&a, 7);
+    sc_rng_seed(&b, 7);
+    for (int k = 0; k < 100; ++k)
+        assert_true(sc_rng_u64(&a) == sc_rng_u64(&b));
+    sc_rng_seed(&a, 1);
+    double s = 0, s2 = 0;
+    const int n = 200000;
+    for (int k = 0; k < n; ++k) {
+        double z = sc_rng_normal(&a);
+        s += z;
+        s2 += z * z;
+    }
+    double mean = s / n, var = s2 / n - mean * mean;
+    assert_true(fabs(mean) < 0.01);
+    assert_true(fabs(var - 1.0) < 0.01);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_parse_numbers),
+        cmocka_unit_test(test_csv_lines_and_errors),
+        cmocka_unit_test(test_atomic_file),
+        cmocka_unit_test(test_rng),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

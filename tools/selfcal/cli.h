@@ -1,0 +1,32 @@
+/* cli.h — what the selfcal subcommands share: exit codes, error reporting, small helpers. */
+#ifndef SELFCAL_CLI_H
+#define SELFCAL_CLI_H
+
+#include "selfcal/error.h"
+
+/* Exit statuses (SPEC §3): 0 success, 2 bad input, 1 anything else. */
+enum { CLI_OK = 0, CLI_FAIL = 1, CLI_BAD_INPUT = 2 };
+
+/* Print "selfcal: file:line: message" on stderr and return the exit status for err->code. */
+int cli_report(const sc_error *err);
+
+/* Print "selfcal <cmd>: message" (a usage problem) on stderr and return CLI_BAD_INPUT. */
+int cli_usage_error(const char *cmd, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* Subcommands: argv[0] is the subcommand's own name. */
+int cmd_grid(int argc, char **argv);
+int cmd_plan(int argc, char **argv);
+int cmd_profile(int argc, char **argv);
+int cmd_profile_plan(int argc, char **argv);
+int cmd_lut(int argc, char **argv);
+int cmd_export(int argc, char **argv);
+int cmd_simulate_grid(int argc, char **argv);
+int cmd_simulate_profile(int argc, char **argv);
+int cmd_plot_map(int argc, char **argv);
+int cmd_plot_profile(int argc, char **argv);
+
+#endif

@@ -1,0 +1,80 @@
+/* selfcal — the command line: simulate, calibrate, build and inspect tables, draw. */
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+
+int cli_report(const sc_error *err)
+{
+    char buf[1024];
+    sc_error_format(err, buf, sizeof buf);
+    fprintf(stderr, "selfcal: %s\n", buf);
+    return (err->code == SC_E_INPUT || err->code == SC_E_UNSOLVABLE) ? CLI_BAD_INPUT : CLI_FAIL;
+}
+
+int cli_usage_error(const char *cmd, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "selfcal %s: ", cmd);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    return CLI_BAD_INPUT;
+}
+
+typedef struct command {
+    const char *name, *sub; /* sub: second word, or NULL */
+    int (*run)(int argc, char **argv);
+    const char *help;
+} command;
+
+static const command commands[] = {
+    {"grid", NULL, cmd_grid, "grid --method {ye,double-shift,lsq} IN.csv --map G.csv [--artifact A.csv] [--summary S]"},
+    {"plan", NULL, cmd_plan, "plan PLAN.csv            does a view plan identify G? predicted uncertainty"},
+    {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv"},
+    {"profile-plan", NULL, cmd_profile_plan, "profile-plan ...          rank sensor spacings (d1, d2)"},
+    {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv ...] -o TABLE | lut dump TABLE"},
+    {"export", NULL, cmd_export, "export --format ...       resample the map for a machine controller"},
+    {"simulate", "grid", cmd_simulate_grid, "simulate grid ...         simulated plate measurements + truth"},
+    {"simulate", "profile", cmd_simulate_profile, "simulate profile ...      simulated two-scan data + truth"},
+    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg     arrow plot of an error map"},
+    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg   profile and uncertainty curves"},
+};
+
+static void usage(FILE *to)
+{
+    fprintf(to, "usage: selfcal COMMAND [options]   (selfcal COMMAND --help for details)\n\n");
+    for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k)
+        fprintf(to, "  selfcal %s\n", commands[k].help);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return CLI_BAD_INPUT;
+    }
+    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+        usage(stdout);
+        return CLI_OK;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("selfcal 0.1.0\n");
+        return CLI_OK;
+    }
+    for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k) {
+        const command *c = &commands[k];
+        if (strcmp(argv[1], c->name) != 0)
+            continue;
+        if (!c->sub)
+            return c->run(argc - 1, argv + 1);
+        if (argc >= 3 && !strcmp(argv[2], c->sub))
+            return c->run(argc - 2, argv + 2);
+    }
+    fprintf(stderr, "selfcal: unknown command '%s%s%s'\n", argv[1], argc >= 3 ? " " : "",
+            argc >= 3 ? argv[2] : "");
+    usage(stderr);
+    return CLI_BAD_INPUT;
+}
