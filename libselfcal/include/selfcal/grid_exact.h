@@ -1,0 +1,38 @@
+/* selfcal/grid_exact.h — the exact (closed-form) grid self-calibration methods:
+ *   Ye et al. (1997): views {rot 0}, {rot 90}, {shift +1,0};
+ *   Petrò (2019) double shift: {rot 0}, {rot 90}, {shift +2,0}, {shift -3,0: row c, columns c, c+1}.
+ * Plan objects in the manner of FFTW: create once for a size N (allocates the FFTW plans and the
+ * workspace), execute on any number of data sets, destroy.
+ */
+#ifndef SELFCAL_GRID_EXACT_H
+#define SELFCAL_GRID_EXACT_H
+
+#include "selfcal/grid.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sc_grid_exact_method {
+    SC_GRID_YE = 0,
+    SC_GRID_DOUBLE_SHIFT = 1
+} sc_grid_exact_method;
+
+typedef struct sc_grid_exact_plan sc_grid_exact_plan;
+
+/* Make a plan for method m and plate size n (Ye: n odd >= 3; double shift: n odd >= 9). */
+sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact_plan **out,
+                                    sc_error *err);
+
+/* Separate G and A from d (its views are found by rot/shift; a missing or incomplete needed view
+ * is SC_E_INPUT). Fills res (G, A, O, R, misalignments, residual RMS; uncertainties NaN). */
+sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d, sc_grid_result *res,
+                                sc_error *err);
+
+/* Free the plan (NULL is fine). */
+void sc_grid_exact_plan_destroy(sc_grid_exact_plan *p);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,54 @@
+/* selfcal/grid_lsq.h — the optimal (least-squares) grid self-calibration for any view plan.
+ *
+ * Unknowns: G at every stage node, A at every mark, (tx, ty, θ) per view; the SPEC gauge as hard
+ * constraints. The structure (which marks each view measures) is analysed once when the estimator
+ * is created: whether the plan identifies G, how many degrees of freedom stay free, and each node's
+ * standard uncertainty per unit σ_r from the exact estimator covariance. Sparse: each measurement
+ * touches one node, one mark, one view.
+ */
+#ifndef SELFCAL_GRID_LSQ_H
+#define SELFCAL_GRID_LSQ_H
+
+#include "selfcal/grid.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct sc_grid_lsq sc_grid_lsq;
+
+typedef struct sc_grid_lsq_info {
+    int identifiable;         /* 1 if the plan determines G (in the SPEC gauge) */
+    long free_dof;            /* independent G patterns beyond the gauge left free; 0 if identifiable */
+    long n_unknowns;          /* G, A and misalignment unknowns */
+    long n_equations;         /* scalar measurement equations (2 per measured mark) */
+    long n_constraints;       /* gauge constraints */
+    double sigma_c_ratio_rms; /* predicted RMS over nodes and both components of std(G)/σ_r */
+    double sigma_c_ratio_max; /* the worst node component */
+} sc_grid_lsq_info;
+
+/* Analyse and factor a plan. mask: NULL to measure what the plan says (sc_grid_view_measures),
+ * else the marks with finite values in mask->dx_um are the measured ones. A plan that does not
+ * identify G is not an error here: *out is made and its info says so. */
+sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
+                             sc_error *err);
+
+/* The plan's analysis. */
+void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info);
+
+/* Per-node std(Gx)/σ_r and std(Gy)/σ_r (arrays n*n, caller-owned). SC_E_UNSOLVABLE if G is not identified. */
+sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy, sc_error *err);
+
+/* Estimate from data measured as the estimator was made for. sigma_r_um > 0: use it for the
+ * uncertainties; otherwise the noise estimated from the residuals. SC_E_UNSOLVABLE if G is not
+ * identified; SC_E_INPUT if d's measured marks differ from the estimator's. */
+sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
+                            sc_grid_result *res, sc_error *err);
+
+/* Free the estimator (NULL is fine). */
+void sc_grid_lsq_destroy(sc_grid_lsq *q);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
