@@ -1,0 +1,858 @@
+/* Reading and writing the grid files of SPEC §1 (selfcal-grid v1 input/plan, map, artifact,
+ * summary). */
+#include "selfcal/grid_io.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+
+#define COLUMN_HEADER "view,i,j,x_mm,y_mm"
+
+sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err)
+{
+    size_t nn = (size_t)d->plan.n * (size_t)d->plan.n;
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        d->dx_um[v] = d->dy_um[v] = NULL;
+    for (int v = 0; v < d->plan.n_views; ++v) {
+        d->dx_um[v] = malloc(nn * sizeof(double));
+        d->dy_um[v] = malloc(nn * sizeof(double));
+        if (!d->dx_um[v] || !d->dy_um[v]) {
+            sc_grid_data_free(d);
+            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (grid data, N = %d)",
+                                d->plan.n);
+        }
+        for (size_t k = 0; k < nn; ++k)
+            d->dx_um[v][k] = d->dy_um[v][k] = NAN;
+    }
+    return SC_OK;
+}
+
+void sc_grid_data_free(sc_grid_data *d)
+{
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+        free(d->dx_um[v]);
+        free(d->dy_um[v]);
+        d->dx_um[v] = d->dy_um[v] = NULL;
+    }
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Reader
+ * ------------------------------------------------------------------------------------------- */
+
+static char *trim(char *s)
+{
+    while (*s && isspace((unsigned char)*s))
+        ++s;
+    char *e = s + strlen(s);
+    while (e > s && isspace((unsigned char)e[-1]))
+        *--e = '\0';
+    return s;
+}
+
+/* Parse "a,b" into two longs. */
+static int parse_long_pair(char *s, long *a, long *b)
+{
+    char *comma = strchr(s, ',');
+    if (!comma)
+        return -1;
+    *comma = '\0';
+    int ok = sc_parse_long(trim(s), a) == 0 && sc_parse_long(trim(comma + 1), b) == 0;
+    *comma = ',';
+    return ok ? 0 : -1;
+}
+
+static int parse_double_pair(char *s, double *a, double *b)
+{
+    char *comma = strchr(s, ',');
+    if (!comma)
+        return -1;
+    *comma = '\0';
+    int ok = sc_parse_double(trim(s), a) == 0 && sc_parse_double(trim(comma + 1), b) == 0;
+    *comma = ',';
+    return ok ? 0 : -1;
+}
+
+/* A view line as written, validated once N is known. */
+typedef struct view_decl {
+    int id;
+    long line;
+    long rot, sx, sy;
+    int n_rows_sel, n_cols_sel;
+    long rows[SC_GRID_MAX_N], cols[SC_GRID_MAX_N];
+} view_decl;
+
+/* Parse a comma list of indices into out (at most SC_GRID_MAX_N). */
+static int parse_index_list(char *s, long *out, int *count)
+{
+    int n = 0;
+    char *p = s;
+    for (;;) {
+        char *comma = strchr(p, ',');
+        if (comma)
+            *comma = '\0';
+        if (n == SC_GRID_MAX_N || sc_parse_long(trim(p), &out[n]) != 0)
+            return -1;
+        ++n;
+        if (!comma)
+            break;
+        p = comma + 1;
+    }
+    *count = n;
+    return 0;
+}
+
+/* "# view K: rot=R shift=SX,SY rows=.. cols=.." (text = after '#', trimmed, starting with "view"). */
+static sc_status parse_view_line(const char *path, long line, char *text, view_decl *vd,
+                                 sc_error *err)
+{
+    memset(vd, 0, sizeof *vd);
+    vd->line = line;
+    char *p = text + 4;
+    char *colon = strchr(p, ':');
+    if (!colon)
+        return sc_error_set(err, SC_E_INPUT, path, line,
+                            "view line must read '# view K: rot=R shift=SX,SY [rows=..] [cols=..]'");
+    *colon = '\0';
+    long id;
+    if (sc_parse_long(trim(p), &id) != 0 || id < 0 || id > 1000000)
+        return sc_error_set(err, SC_E_INPUT, path, line, "view number is not a whole number >= 0");
+    vd->id = (int)id;
+    int have_rot = 0, have_shift = 0, have_rows = 0, have_cols = 0;
+    char *save = NULL;
+    for (char *tok = strtok_r(colon + 1, " \t", &save); tok; tok = strtok_r(NULL, " \t", &save)) {
+        char *eq = strchr(tok, '=');
+        if (!eq)
+            return sc_error_set(err, SC_E_INPUT, path, line,
+                                "view %ld: expected key=value, got '%.40s'", id, tok);
+        *eq = '\0';
+        char *val = eq + 1;
+        if (!strcmp(tok, "rot")) {
+            if (have_rot++ || sc_parse_long(val, &vd->rot) != 0)
+                return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: bad or repeated rot",
+                                    id);
+            if (vd->rot != 0 && vd->rot != 90 && vd->rot != 180 && vd->rot != 270)
+                return sc_error_set(err, SC_E_INPUT, path, line,
+                                    "view %ld: rot must be 0, 90, 180 or 270 (got %ld)", id,
+                                    vd->rot);
+        } else if (!strcmp(tok, "shift")) {
+            if (have_shift++ || parse_long_pair(val, &vd->sx, &vd->sy) != 0)
+                return sc_error_set(err, SC_E_INPUT, path, line,
+                                    "view %ld: shift must be two whole numbers SX,SY", id);
+        } else if (!strcmp(tok, "rows")) {
+            if (have_rows++ || parse_index_list(val, vd->rows, &vd->n_rows_sel) != 0)
+                return sc_error_set(err, SC_E_INPUT, path, line,
+                                    "view %ld: rows must be a comma list of plate rows", id);
+        } else if (!strcmp(tok, "cols")) {
+            if (have_cols++ || parse_index_list(val, vd->cols, &vd->n_cols_sel) != 0)
+                return sc_error_set(err, SC_E_INPUT, path, line,
+                                    "view %ld: cols must be a comma list of plate columns", id);
+        } else {
+            return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: unknown attribute '%.40s'",
+                                id, tok);
+        }
+    }
+    if (!have_rot)
+        return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: rot= is missing", id);
+    if (!have_shift)
+        return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: shift= is missing", id);
+    return SC_OK;
+}
+
+static int is_column_header(sc_csv *r)
+{
+    static const char *names[5] = {"view", "i", "j", "x_mm", "y_mm"};
+    if (r->nfields != 5)
+        return 0;
+    for (int k = 0; k < 5; ++k)
+        if (strcmp(r->field[k], names[k]) != 0)
+            return 0;
+    return 1;
+}
+
+typedef struct read_state {
+    sc_csv csv;
+    view_decl *decl;     /* SC_GRID_MAX_VIEWS entries */
+    long *mark_line[SC_GRID_MAX_VIEWS];
+} read_state;
+
+static void read_state_free(read_state *s)
+{
+    sc_csv_close(&s->csv);
+    free(s->decl);
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        free(s->mark_line[v]);
+}
+
+sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *info, sc_error *err)
+{
+    sc_grid_file_info local_info;
+    if (!info)
+        info = &local_info;
+    memset(info, 0, sizeof *info);
+    memset(d, 0, sizeof *d);
+    read_state s;
+    memset(&s, 0, sizeof s);
+    sc_status st = sc_csv_open(&s.csv, path, err);
+    if (st != SC_OK)
+        return st;
+    s.decl = calloc(SC_GRID_MAX_VIEWS, sizeof *s.decl);
+    if (!s.decl) {
+        read_state_free(&s);
+        return sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
+    }
+    sc_grid_plan *p = &d->plan;
+    long n_val = 0;
+    double pitch = 0, ox = 0, oy = 0;
+    long pitch_line = 0, origin_line = 0;
+    int n_decl = 0, have_columns = 0;
+    int got;
+
+    /* First line: the format tag. */
+    got = sc_csv_next_line(&s.csv, err);
+    if (got < 0) {
+        st = err ? err->code : SC_E_INPUT;
+        goto fail;
+    }
+    {
+        char *t = got ? s.csv.text : (char *)"";
+        int ok = 0;
+        if (t[0] == '#') {
+            char *rest = trim(t + 1);
+            char a[32], b[32], extra[8];
+            ok = sscanf(rest, "%31s %31s %7s", a, b, extra) == 2 && !strcmp(a, "selfcal-grid") &&
+                 !strcmp(b, "v1");
+        }
+        if (!ok) {
+            st = sc_error_set(err, SC_E_INPUT, path, got ? 1 : 0,
+                              "not a selfcal-grid v1 file (the first line must be "
+                              "'# selfcal-grid v1')");
+            goto fail;
+        }
+        info->first_line = 1;
+    }
+
+    /* Header lines, up to the column header or the first data row. */
+    while ((got = sc_csv_next_line(&s.csv, err)) > 0) {
+        long ln = s.csv.line;
+        if (sc_csv_is_blank(&s.csv))
+            continue;
+        if (s.csv.text[0] == '#') {
+            char *body = trim(s.csv.text + 1);
+            if (!strncmp(body, "view", 4) && (isspace((unsigned char)body[4]) || isdigit((unsigned char)body[4]))) {
+                if (n_decl == SC_GRID_MAX_VIEWS) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "more than %d views",
+                                      SC_GRID_MAX_VIEWS);
+                    goto fail;
+                }
+                view_decl *vd = &s.decl[n_decl];
+                st = parse_view_line(path, ln, body, vd, err);
+                if (st != SC_OK)
+                    goto fail;
+                for (int k = 0; k < n_decl; ++k)
+                    if (s.decl[k].id == vd->id) {
+                        st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                          "view %d is declared twice (first on line %ld)", vd->id,
+                                          s.decl[k].line);
+                        goto fail;
+                    }
+                ++n_decl;
+                info->header_end_line = ln;
+                continue;
+            }
+            char key[64], *val;
+            char copy[512];
+            snprintf(copy, sizeof copy, "%s", s.csv.text);
+            if (!sc_header_kv(s.csv.text, key, sizeof key, &val)) {
+                if (strchr(copy, '=')) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "unreadable header line '%.60s'",
+                                      copy);
+                    goto fail;
+                }
+                continue; /* a plain comment */
+            }
+            if (!strcmp(key, "N")) {
+                if (info->n_line) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "N is given twice");
+                    goto fail;
+                }
+                if (sc_parse_long(val, &n_val) != 0) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "N is not a whole number: '%.40s'",
+                                      val);
+                    goto fail;
+                }
+                if (n_val < 3 || n_val > SC_GRID_MAX_N) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "N = %ld is out of range 3..%d",
+                                      n_val, SC_GRID_MAX_N);
+                    goto fail;
+                }
+                if (n_val % 2 == 0) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                      "N = %ld is even (the plate needs a centre mark: N odd)",
+                                      n_val);
+                    goto fail;
+                }
+                info->n_line = ln;
+            } else if (!strcmp(key, "pitch_mm")) {
+                if (pitch_line) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "pitch_mm is given twice");
+                    goto fail;
+                }
+                if (sc_parse_double(val, &pitch) != 0 || !(pitch > 0) || pitch > 1e6) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                      "pitch_mm must be a positive number: '%.40s'", val);
+                    goto fail;
+                }
+                pitch_line = ln;
+            } else if (!strcmp(key, "origin_mm")) {
+                if (origin_line) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "origin_mm is given twice");
+                    goto fail;
+                }
+                if (parse_double_pair(val, &ox, &oy) != 0 || fabs(ox) > 1e6 || fabs(oy) > 1e6) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                      "origin_mm must be two numbers x,y: '%.40s'", val);
+                    goto fail;
+                }
+                origin_line = ln;
+            } else {
+                st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                  "unknown header '%.40s' (expected N, pitch_mm, origin_mm or view)",
+                                  key);
+                goto fail;
+            }
+            info->header_end_line = ln;
+            continue;
+        }
+        /* Not a comment: the column header, or data without one. */
+        if (sc_csv_split(&s.csv, err) < 0) {
+            st = err ? err->code : SC_E_INPUT;
+            goto fail;
+        }
+        if (is_column_header(&s.csv)) {
+            have_columns = 1;
+            info->header_end_line = ln;
+            break;
+        }
+        st = sc_error_set(err, SC_E_INPUT, path, ln,
+                          "expected the column header '" COLUMN_HEADER "' before the data");
+        goto fail;
+    }
+    if (got < 0) {
+        st = err ? err->code : SC_E_INPUT;
+        goto fail;
+    }
+
+    /* The header is complete: check and build the plan. */
+    long where = info->header_end_line ? info->header_end_line : 1;
+    if (!info->n_line) {
+        st = sc_error_set(err, SC_E_INPUT, path, where, "header line '# N = ...' is missing");
+        goto fail;
+    }
+    if (!pitch_line) {
+        st = sc_error_set(err, SC_E_INPUT, path, where, "header line '# pitch_mm = ...' is missing");
+        goto fail;
+    }
+    if (n_decl == 0) {
+        st = sc_error_set(err, SC_E_INPUT, path, where,
+                          "no '# view K: rot=R shift=SX,SY' line in the header");
+        goto fail;
+    }
+    p->n = (int)n_val;
+    p->pitch_mm = pitch;
+    p->origin_mm[0] = ox;
+    p->origin_mm[1] = oy;
+    p->n_views = n_decl;
+    int n = p->n;
+    for (int v = 0; v < n_decl; ++v) {
+        view_decl *vd = &s.decl[v];
+        sc_grid_view *w = &p->view[v];
+        memset(w, 0, sizeof *w);
+        if (vd->sx <= -n || vd->sx >= n || vd->sy <= -n || vd->sy >= n) {
+            st = sc_error_set(err, SC_E_INPUT, path, vd->line,
+                              "view %d: shift %ld,%ld moves the plate off the %dx%d grid", vd->id,
+                              vd->sx, vd->sy, n, n);
+            goto fail;
+        }
+        w->rot_deg = (int)vd->rot;
+        w->shift_x = (int)vd->sx;
+        w->shift_y = (int)vd->sy;
+        w->restricted = vd->n_rows_sel > 0 || vd->n_cols_sel > 0;
+        for (int k = 0; k < vd->n_rows_sel; ++k) {
+            if (vd->rows[k] < 0 || vd->rows[k] >= n) {
+                st = sc_error_set(err, SC_E_INPUT, path, vd->line,
+                                  "view %d: row %ld is off the plate (0..%d)", vd->id, vd->rows[k],
+                                  n - 1);
+                goto fail;
+            }
+            w->row_sel[vd->rows[k]] = 1;
+        }
+        for (int k = 0; k < vd->n_cols_sel; ++k) {
+            if (vd->cols[k] < 0 || vd->cols[k] >= n) {
+                st = sc_error_set(err, SC_E_INPUT, path, vd->line,
+                                  "view %d: column %ld is off the plate (0..%d)", vd->id,
+                                  vd->cols[k], n - 1);
+                goto fail;
+            }
+            w->col_sel[vd->cols[k]] = 1;
+        }
+        int any = 0;
+        for (int i = 0; i < n && !any; ++i)
+            for (int j = 0; j < n && !any; ++j)
+                any = sc_grid_view_measures(p, v, i, j);
+        if (!any) {
+            st = sc_error_set(err, SC_E_INPUT, path, vd->line, "view %d measures no mark",
+                              vd->id);
+            goto fail;
+        }
+        info->view_line[v] = vd->line;
+        info->view_id[v] = vd->id;
+    }
+    st = sc_grid_plan_check(p, err);
+    if (st != SC_OK) {
+        if (err) {
+            snprintf(err->file, sizeof err->file, "%s", path);
+            err->line = where;
+        }
+        goto fail;
+    }
+    st = sc_grid_data_alloc(d, err);
+    if (st != SC_OK)
+        goto fail;
+
+    /* Data rows. */
+    size_t nn = (size_t)n * (size_t)n;
+    while (have_columns && (got = sc_csv_next_line(&s.csv, err)) > 0) {
+        long ln = s.csv.line;
+        if (sc_csv_is_blank(&s.csv))
+            continue;
+        if (s.csv.text[0] == '#') {
+            if (strchr(s.csv.text, '=') || strstr(s.csv.text, "view")) {
+                st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                  "header line after the column header (headers come first)");
+                goto fail;
+            }
+            continue;
+        }
+        if (sc_csv_split(&s.csv, err) < 0) {
+            st = err ? err->code : SC_E_INPUT;
+            goto fail;
+        }
+        if (s.csv.nfields != 5) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln,
+                              "expected 5 fields (" COLUMN_HEADER "), got %d", s.csv.nfields);
+            goto fail;
+        }
+        long vid, i, j;
+        double x, y;
+        if ((st = sc_csv_long(&s.csv, 0, "view", &vid, err)) != SC_OK ||
+            (st = sc_csv_long(&s.csv, 1, "i", &i, err)) != SC_OK ||
+            (st = sc_csv_long(&s.csv, 2, "j", &j, err)) != SC_OK ||
+            (st = sc_csv_double(&s.csv, 3, "x_mm", &x, err)) != SC_OK ||
+            (st = sc_csv_double(&s.csv, 4, "y_mm", &y, err)) != SC_OK)
+            goto fail;
+        int v = -1;
+        for (int k = 0; k < n_decl; ++k)
+            if (s.decl[k].id == vid)
+                v = k;
+        if (v < 0) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln, "view %ld is not declared in the header",
+                              vid);
+            goto fail;
+        }
+        if (i < 0 || i >= n || j < 0 || j >= n) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln,
+                              "mark (%ld,%ld) is off the plate (i, j in 0..%d)", i, j, n - 1);
+            goto fail;
+        }
+        int ni, nj;
+        if (!sc_grid_mark_node(p, v, (int)i, (int)j, &ni, &nj)) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln,
+                              "mark (%ld,%ld) does not land on the stage grid in view %ld "
+                              "(rot=%d shift=%d,%d)",
+                              i, j, vid, p->view[v].rot_deg, p->view[v].shift_x,
+                              p->view[v].shift_y);
+            goto fail;
+        }
+        if (!sc_grid_view_measures(p, v, (int)i, (int)j)) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln,
+                              "mark (%ld,%ld) is not selected by view %ld's rows=/cols=", i, j,
+                              vid);
+            goto fail;
+        }
+        if (!s.mark_line[v]) {
+            s.mark_line[v] = calloc(nn, sizeof(long));
+            if (!s.mark_line[v]) {
+                st = sc_error_set(err, SC_E_NOMEM, path, ln, "out of memory");
+                goto fail;
+            }
+        }
+        size_t k = (size_t)i * n + (size_t)j;
+        if (s.mark_line[v][k]) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln,
+                              "duplicate measurement of mark (%ld,%ld) in view %ld (first on line "
+                              "%ld)",
+                              i, j, vid, s.mark_line[v][k]);
+            goto fail;
+        }
+        s.mark_line[v][k] = ln;
+        double nx, ny;
+        sc_grid_node_xy_mm(p, ni, nj, &nx, &ny);
+        nx += p->origin_mm[0];
+        ny += p->origin_mm[1];
+        double ex = x - nx, ey = y - ny;
+        if (fabs(ex) > 0.5 * p->pitch_mm || fabs(ey) > 0.5 * p->pitch_mm) {
+            st = sc_error_set(err, SC_E_INPUT, path, ln,
+                              "header (N/pitch/origin/rot/shift) contradicts the data: mark "
+                              "(%ld,%ld) of view %ld measured at (%.6g, %.6g) mm, more than half a "
+                              "pitch from its nominal position (%.6g, %.6g) mm",
+                              i, j, vid, x, y, nx, ny);
+            goto fail;
+        }
+        d->dx_um[v][k] = ex * 1000.0;
+        d->dy_um[v][k] = ey * 1000.0;
+        info->n_rows++;
+        info->view_rows[v]++;
+    }
+    if (got < 0) {
+        st = err ? err->code : SC_E_INPUT;
+        goto fail;
+    }
+    read_state_free(&s);
+    return SC_OK;
+
+fail:
+    read_state_free(&s);
+    sc_grid_data_free(d);
+    return st == SC_OK ? SC_E_INTERNAL : st;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Writers
+ * ------------------------------------------------------------------------------------------- */
+
+void sc_grid_write_header(FILE *fp, const sc_grid_plan *p)
+{
+    fprintf(fp, "# selfcal-grid v1\n# N = %d\n# pitch_mm = %.15g\n", p->n, p->pitch_mm);
+    fprintf(fp, "# origin_mm = %.15g,%.15g\n", p->origin_mm[0], p->origin_mm[1]);
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        fprintf(fp, "# view %d: rot=%d shift=%d,%d", v, w->rot_deg, w->shift_x, w->shift_y);
+        if (w->restricted) {
+            const char *sep = " rows=";
+            for (int k = 0; k < p->n; ++k)
+                if (w->row_sel[k]) {
+                    fprintf(fp, "%s%d", sep, k);
+                    sep = ",";
+                }
+            sep = " cols=";
+            for (int k = 0; k < p->n; ++k)
+                if (w->col_sel[k]) {
+                    fprintf(fp, "%s%d", sep, k);
+                    sep = ",";
+                }
+        }
+        fputc('\n', fp);
+    }
+}
+
+static sc_status finish(sc_afile *f, sc_error *err)
+{
+    if (ferror(f->fp)) {
+        sc_afile_abort(f);
+        return sc_error_set(err, SC_E_IO, f->path, 0, "write error");
+    }
+    return sc_afile_commit(f, err);
+}
+
+sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_write_header(f.fp, p);
+    fprintf(f.fp, COLUMN_HEADER "\n");
+    int n = p->n;
+    for (int v = 0; v < p->n_views; ++v)
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                int k = i * n + j, ni, nj;
+                if (!isfinite(d->dx_um[v][k]) || !isfinite(d->dy_um[v][k]))
+                    continue;
+                if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                double x, y;
+                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+                x += p->origin_mm[0] + d->dx_um[v][k] * 1e-3;
+                y += p->origin_mm[1] + d->dy_um[v][k] * 1e-3;
+                fprintf(f.fp, "%d,%d,%d,%.15f,%.15f\n", v, i, j, x, y);
+            }
+    return finish(&f, err);
+}
+
+static void put_num(FILE *fp, const double *a, int k)
+{
+    if (a && isfinite(a[k]))
+        fprintf(fp, "%.15g", a[k]);
+}
+
+void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                        const double *ugx_um, const double *ugy_um)
+{
+    int n = p->n;
+    fprintf(fp, "i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n");
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            int k = i * n + j;
+            double x, y;
+            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            fprintf(fp, "%d,%d,%.15g,%.15g,%.15g,%.15g,", i, j, x + p->origin_mm[0],
+                    y + p->origin_mm[1], gx_um[k], gy_um[k]);
+            put_num(fp, ugx_um, k);
+            fputc(',', fp);
+            put_num(fp, ugy_um, k);
+            fputc('\n', fp);
+        }
+}
+
+sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, const double *gx_um,
+                            const double *gy_um, const double *ugx_um, const double *ugy_um,
+                            sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_fprint_map(f.fp, p, gx_um, gy_um, ugx_um, ugy_um);
+    return finish(&f, err);
+}
+
+void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_um,
+                             const double *ay_um)
+{
+    int n = p->n;
+    fprintf(fp, "i,j,ax_um,ay_um\n");
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            fprintf(fp, "%d,%d,%.15g,%.15g\n", i, j, ax_um[i * n + j], ay_um[i * n + j]);
+}
+
+sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p, const double *ax_um,
+                                 const double *ay_um, sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_fprint_artifact(f.fp, p, ax_um, ay_um);
+    return finish(&f, err);
+}
+
+static void json_num(FILE *fp, double v)
+{
+    if (isfinite(v))
+        fprintf(fp, "%.15g", v);
+    else
+        fputs("null", fp);
+}
+
+void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
+                            const sc_grid_result *res)
+{
+    fprintf(fp, "{\n  \"format\": \"selfcal-grid-summary v1\",\n  \"method\": \"%s\",\n", method);
+    fprintf(fp, "  \"N\": %d,\n  \"pitch_mm\": %.15g,\n  \"origin_mm\": [%.15g, %.15g],\n", p->n,
+            p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
+    fputs("  \"O\": ", fp);
+    json_num(fp, res->O);
+    fputs(",\n  \"R\": ", fp);
+    json_num(fp, res->R);
+    fputs(",\n  \"views\": [\n", fp);
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        fprintf(fp, "    {\"view\": %d, \"rot\": %d, \"shift\": [%d, %d], \"tx_um\": ", v,
+                w->rot_deg, w->shift_x, w->shift_y);
+        json_num(fp, res->tx_um[v]);
+        fputs(", \"ty_um\": ", fp);
+        json_num(fp, res->ty_um[v]);
+        fputs(", \"theta_urad\": ", fp);
+        json_num(fp, res->theta_urad[v]);
+        fprintf(fp, "}%s\n", v + 1 < p->n_views ? "," : "");
+    }
+    fputs("  ],\n  \"residual_rms_um\": ", fp);
+    json_num(fp, res->residual_rms_um);
+    fputs(",\n  \"sigma_r_est_um\": ", fp);
+    json_num(fp, res->sigma_r_est_um);
+    fputs(",\n  \"sigma_r_used_um\": ", fp);
+    json_num(fp, res->sigma_r_used_um);
+    fprintf(fp, ",\n  \"n_measurements\": %ld,\n  \"dof\": %ld\n}\n", res->n_measurements,
+            res->dof);
+}
+
+sc_status sc_grid_write_summary(const char *path, const char *method, const sc_grid_plan *p,
+                                const sc_grid_result *res, sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_fprint_summary(f.fp, method, p, res);
+    return finish(&f, err);
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Map reader
+ * ------------------------------------------------------------------------------------------- */
+
+void sc_grid_map_free(sc_grid_map *m)
+{
+    free(m->x_mm);
+    free(m->y_mm);
+    free(m->gx_um);
+    free(m->gy_um);
+    free(m->ugx_um);
+    free(m->ugy_um);
+    memset(m, 0, sizeof *m);
+}
+
+typedef struct map_row {
+    long i, j, line;
+    double v[6];
+} map_row;
+
+sc_status sc_grid_read_map(const char *path, sc_grid_map *m, sc_error *err)
+{
+    static const char *names[8] = {"i", "j", "x_mm", "y_mm", "gx_um", "gy_um", "ugx_um", "ugy_um"};
+    memset(m, 0, sizeof *m);
+    sc_csv r;
+    sc_status st = sc_csv_open(&r, path, err);
+    if (st != SC_OK)
+        return st;
+    map_row *rows = NULL;
+    size_t nrows = 0, cap = 0;
+    int ncols = 0, got;
+    while ((got = sc_csv_next_line(&r, err)) > 0) {
+        if (sc_csv_is_blank(&r) || r.text[0] == '#')
+            continue;
+        if (sc_csv_split(&r, err) < 0) {
+            got = -1;
+            break;
+        }
+        if (!ncols) {
+            int k = 0;
+            while (k < r.nfields && k < 8 && !strcmp(r.field[k], names[k]))
+                ++k;
+            if (k < 6 || k == 7) {
+                st = sc_error_set(err, SC_E_INPUT, path, r.line,
+                                  "expected the map header 'i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um'");
+                goto fail;
+            }
+            ncols = k;
+            continue;
+        }
+        if (r.nfields < ncols) {
+            st = sc_error_set(err, SC_E_INPUT, path, r.line, "expected %d fields, got %d", ncols,
+                              r.nfields);
+            goto fail;
+        }
+        if (nrows == cap) {
+            cap = cap ? 2 * cap : 256;
+            map_row *nr = realloc(rows, cap * sizeof *rows);
+            if (!nr) {
+                st = sc_error_set(err, SC_E_NOMEM, path, r.line, "out of memory");
+                goto fail;
+            }
+            rows = nr;
+        }
+        map_row *row = &rows[nrows];
+        row->line = r.line;
+        if ((st = sc_csv_long(&r, 0, "i", &row->i, err)) != SC_OK ||
+            (st = sc_csv_long(&r, 1, "j", &row->j, err)) != SC_OK)
+            goto fail;
+        for (int k = 2; k < 8; ++k) {
+            row->v[k - 2] = NAN;
+            if (k >= ncols || (k >= 6 && r.field[k][0] == '\0'))
+                continue;
+            if ((st = sc_csv_double(&r, k, names[k], &row->v[k - 2], err)) != SC_OK)
+                goto fail;
+        }
+        ++nrows;
+    }
+    if (got < 0) {
+        st = err ? err->code : SC_E_INPUT;
+        goto fail;
+    }
+    if (!ncols || nrows == 0) {
+        st = sc_error_set(err, SC_E_INPUT, path, r.line, "no map rows");
+        goto fail;
+    }
+    int n = (int)lround(sqrt((double)nrows));
+    if ((size_t)n * (size_t)n != nrows || n % 2 == 0 || n < 3 || n > SC_GRID_MAX_N) {
+        st = sc_error_set(err, SC_E_INPUT, path, r.line,
+                          "%zu rows do not make an N x N map with N odd in 3..%d", nrows,
+                          SC_GRID_MAX_N);
+        goto fail;
+    }
+    size_t nn = nrows;
+    m->n = n;
+    double **arr[6] = {&m->x_mm, &m->y_mm, &m->gx_um, &m->gy_um, &m->ugx_um, &m->ugy_um};
+    for (int a = 0; a < 6; ++a) {
+        *arr[a] = malloc(nn * sizeof(double));
+        if (!*arr[a]) {
+            st = sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
+            goto fail;
+        }
+        for (size_t k = 0; k < nn; ++k)
+            (*arr[a])[k] = NAN;
+    }
+    unsigned char *seen = calloc(nn, 1);
+    if (!seen) {
+        st = sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
+        goto fail;
+    }
+    for (size_t q = 0; q < nrows; ++q) {
+        map_row *row = &rows[q];
+        if (row->i < 0 || row->i >= n || row->j < 0 || row->j >= n || seen[row->i * n + row->j]) {
+            st = sc_error_set(err, SC_E_INPUT, path, row->line,
+                              "node (%ld,%ld) is off the %dx%d map or repeated", row->i, row->j,
+                              n, n);
+            free(seen);
+            goto fail;
+        }
+        size_t k = (size_t)row->i * n + (size_t)row->j;
+        seen[k] = 1;
+        for (int a = 0; a < 6; ++a)
+            (*arr[a])[k] = row->v[a];
+        if (isfinite(row->v[4]) || isfinite(row->v[5]))
+            m->has_u = 1;
+        if (!isfinite(row->v[0]) || !isfinite(row->v[1]) || !isfinite(row->v[2]) ||
+            !isfinite(row->v[3])) {
+            st = sc_error_set(err, SC_E_INPUT, path, row->line, "empty position or error field");
+            free(seen);
+            goto fail;
+        }
+    }
+    free(seen);
+    int c = (n - 1) / 2;
+    m->origin_mm[0] = m->x_mm[c * n + c];
+    m->origin_mm[1] = m->y_mm[c * n + c];
+    m->pitch_mm = (m->x_mm[c * n + c + 1] - m->x_mm[c * n + c - 1]) / 2.0;
+    if (!(m->pitch_mm > 0)) {
+        st = sc_error_set(err, SC_E_INPUT, path, 0,
+                          "node positions do not increase with j (pitch <= 0)");
+        goto fail;
+    }
+    free(rows);
+    sc_csv_close(&r);
+    return SC_OK;
+fail:
+    free(rows);
+    sc_csv_close(&r);
+    sc_grid_map_free(m);
+    return st == SC_OK ? SC_E_INTERNAL : st;
+}

@@ -1,0 +1,204 @@
+/* Simulated grid-plate measurements after Petrò (2019) §5 (see selfcal/grid_sim.h). */
+#include "selfcal/grid_sim.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "selfcal/rng.h"
+
+void sc_grid_sim_defaults(sc_grid_sim_params *sp)
+{
+    sp->sigma_g_um = 1.0;
+    sp->rho = 0.9;
+    sp->O = 1e-5;
+    sp->R = 1e-5;
+    sp->sigma_a_um = 1.0;
+    sp->sigma_t_um = 0.1;
+    sp->sigma_theta_urad = 100.0;
+    sp->sigma_r_um = 0.01;
+    sp->seed = 1;
+}
+
+size_t sc_grid_sim_work_doubles(int n) { return 2 * (size_t)n * (size_t)n; }
+
+static sc_status plan_base(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
+                           sc_error *err)
+{
+    memset(p, 0, sizeof *p);
+    p->n = n;
+    p->pitch_mm = pitch_mm;
+    p->origin_mm[0] = ox;
+    p->origin_mm[1] = oy;
+    if (!isfinite(ox) || !isfinite(oy))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "origin must be finite");
+    return SC_OK;
+}
+
+sc_status sc_grid_plan_ye(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
+                          sc_error *err)
+{
+    sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
+    if (st != SC_OK)
+        return st;
+    p->n_views = 3;
+    p->view[1].rot_deg = 90;
+    p->view[2].shift_x = 1;
+    return sc_grid_plan_check(p, err);
+}
+
+sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double ox, double oy,
+                                    sc_grid_plan *p, sc_error *err)
+{
+    sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
+    if (st != SC_OK)
+        return st;
+    if (n < 9 || n > SC_GRID_MAX_N || n % 2 == 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "double shift needs N odd and >= 9 (got %d)", n);
+    int c = (n - 1) / 2;
+    p->n_views = 4;
+    p->view[1].rot_deg = 90;
+    p->view[2].shift_x = 2;
+    p->view[3].shift_x = -3;
+    p->view[3].restricted = 1;
+    p->view[3].row_sel[c] = 1;
+    p->view[3].col_sel[c] = 1;
+    p->view[3].col_sel[c + 1] = 1;
+    return sc_grid_plan_check(p, err);
+}
+
+/* Solve (I − ρW) f = e in place (f holds e on entry) by Gauss-Seidel, W row-standardised
+ * 4-neighbour adjacency. Returns the sweeps used, or -1 if it did not converge. */
+static int sar_solve(int n, double rho, const double *e, double *f)
+{
+    size_t nn = (size_t)n * n;
+    memcpy(f, e, nn * sizeof *f);
+    for (int sweep = 1; sweep <= 100000; ++sweep) {
+        double change = 0, size = 0;
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                double s = 0;
+                int deg = 0;
+                if (i > 0) s += f[(i - 1) * n + j], ++deg;
+                if (i < n - 1) s += f[(i + 1) * n + j], ++deg;
+                if (j > 0) s += f[i * n + j - 1], ++deg;
+                if (j < n - 1) s += f[i * n + j + 1], ++deg;
+                int k = i * n + j;
+                double nv = e[k] + rho * s / deg;
+                change = fmax(change, fabs(nv - f[k]));
+                size = fmax(size, fabs(nv));
+                f[k] = nv;
+            }
+        if (change <= 1e-15 * size || size == 0)
+            return sweep;
+    }
+    return -1;
+}
+
+sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                          sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err)
+{
+    sc_status st = sc_grid_plan_check(plan, err);
+    if (st != SC_OK)
+        return st;
+    if (!(fabs(sp->rho) < 1))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "SAR rho must be in (-1, 1) (got %g)",
+                            sp->rho);
+    if (!(sp->sigma_g_um >= 0) || !(sp->sigma_a_um >= 0) || !(sp->sigma_t_um >= 0) ||
+        !(sp->sigma_theta_urad >= 0) || !(sp->sigma_r_um >= 0) || !isfinite(sp->sigma_g_um) ||
+        !isfinite(sp->sigma_a_um) || !isfinite(sp->sigma_t_um) ||
+        !isfinite(sp->sigma_theta_urad) || !isfinite(sp->sigma_r_um))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "standard deviations must be finite and >= 0");
+    if (!isfinite(sp->O) || !isfinite(sp->R))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "O and R must be finite");
+    int n = plan->n;
+    size_t nn = (size_t)n * n;
+    double *ex = work, *ey = work + nn;
+    sc_rng rng;
+    sc_rng_seed(&rng, sp->seed);
+
+    /* Second-order part: SAR(1) fields, unit white noise. */
+    for (size_t k = 0; k < nn; ++k)
+        ex[k] = sc_rng_normal(&rng);
+    for (size_t k = 0; k < nn; ++k)
+        ey[k] = sc_rng_normal(&rng);
+    int it1 = sar_solve(n, sp->rho, ex, truth->gx_um);
+    int it2 = sar_solve(n, sp->rho, ey, truth->gy_um);
+    if (it1 < 0 || it2 < 0)
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "SAR(1) solve did not converge");
+    truth->sar_iterations = it1 > it2 ? it1 : it2;
+    double *fx = truth->gx_um, *fy = truth->gy_um;
+    sc_grid_gauge_stage(plan, fx, fy);
+    /* Remove O and R components of F: the patterns (y, x) and (x, −y), orthogonal to the gauge. */
+    double so = 0, sr = 0, r2 = 0, first2 = 0, f2 = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(plan, i, j, &x, &y);
+            int k = i * n + j;
+            so += y * fx[k] + x * fy[k];
+            sr += x * fx[k] - y * fy[k];
+            r2 += x * x + y * y;
+        }
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(plan, i, j, &x, &y);
+            int k = i * n + j;
+            fx[k] -= (so * y + sr * x) / r2;
+            fy[k] -= (so * x - sr * y) / r2;
+            f2 += fx[k] * fx[k] + fy[k] * fy[k];
+            double gx1 = (sp->O * y + sp->R * x) * 1e3, gy1 = (sp->O * x - sp->R * y) * 1e3;
+            first2 += gx1 * gx1 + gy1 * gy1;
+        }
+    /* All parts have zero mean, so the sample variance of the 2N² values is sum of squares / (2N²−1). */
+    double target2 = sp->sigma_g_um * sp->sigma_g_um * (double)(2 * nn - 1);
+    if (first2 > target2 * (1 + 1e-12))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "sigma_G = %g um is smaller than the dispersion of the first-order "
+                            "terms alone (%g um for O = %g, R = %g): raise sigma_G or lower O, R",
+                            sp->sigma_g_um, sqrt(first2 / (double)(2 * nn - 1)), sp->O, sp->R);
+    double s = f2 > 0 ? sqrt(fmax(0.0, target2 - first2) / f2) : 0.0;
+    truth->sar_scale = s;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(plan, i, j, &x, &y);
+            int k = i * n + j;
+            fx[k] = s * fx[k] + (sp->O * y + sp->R * x) * 1e3;
+            fy[k] = s * fy[k] + (sp->O * x - sp->R * y) * 1e3;
+        }
+    truth->O = sp->O;
+    truth->R = sp->R;
+
+    /* Plate error. */
+    for (size_t k = 0; k < nn; ++k)
+        truth->ax_um[k] = sp->sigma_a_um * sc_rng_normal(&rng);
+    for (size_t k = 0; k < nn; ++k)
+        truth->ay_um[k] = sp->sigma_a_um * sc_rng_normal(&rng);
+    sc_grid_gauge_plate(plan, truth->ax_um, truth->ay_um);
+
+    /* Misalignment. */
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        truth->tx_um[v] = truth->ty_um[v] = truth->theta_urad[v] = 0;
+    for (int v = 0; v < plan->n_views; ++v) {
+        truth->tx_um[v] = sp->sigma_t_um * sc_rng_normal(&rng);
+        truth->ty_um[v] = sp->sigma_t_um * sc_rng_normal(&rng);
+        truth->theta_urad[v] = sp->sigma_theta_urad * sc_rng_normal(&rng);
+    }
+
+    /* Measurements. */
+    if (&d->plan != plan)
+        d->plan = *plan;
+    sc_grid_synthesize(plan, truth->gx_um, truth->gy_um, truth->ax_um, truth->ay_um, truth->tx_um,
+                       truth->ty_um, truth->theta_urad, d);
+    for (int v = 0; v < plan->n_views; ++v)
+        for (size_t k = 0; k < nn; ++k) {
+            if (!isfinite(d->dx_um[v][k]))
+                continue;
+            d->dx_um[v][k] += sp->sigma_r_um * sc_rng_normal(&rng);
+            d->dy_um[v][k] += sp->sigma_r_um * sc_rng_normal(&rng);
+        }
+    return SC_OK;
+}
