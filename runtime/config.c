@@ -1,0 +1,357 @@
+/* runtime/config.c — configuration file and flags of selfcald. */
+#include "config.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "log.h"
+
+const char sc_config_usage[] =
+    "usage: selfcald --table TABLE [transports] [options]\n"
+    "transports (any combination; default --modbus-tcp 127.0.0.1:1502):\n"
+    "  --modbus-tcp HOST:PORT        Modbus TCP server (PORT 0: any free port, logged)\n"
+    "  --modbus-rtu DEV[:BAUD[:PARITY[:DATABITS[:STOPBITS]]]]  Modbus RTU server (19200:E:8:1)\n"
+    "  --can IFACE                   SocketCAN raw (ids 0x100 in, 0x101 out, 0x102 status)\n"
+    "options:\n"
+    "  --config FILE                 read 'key = value' lines (keys = these long options)\n"
+    "  --mode measure|position       measure: p - G(p) (default); position: t + G(t)\n"
+    "  --unit-id N                   Modbus unit id (default 1)\n"
+    "  --word-order high-first|low-first   32-bit word order (default high-first)\n"
+    "  --max-connections N           Modbus TCP connection cap (default 64)\n"
+    "  --byte-timeout-ms N           a started TCP request must complete within N ms (500)\n"
+    "  --idle-timeout-ms N           close TCP connections silent N ms; 0 = never (60000)\n"
+    "  --rtu-byte-timeout-ms N       RTU silence that ends a partial frame (50)\n"
+    "  --can-in-id ID --can-out-id ID --can-status-id ID --can-status-period-ms N\n"
+    "  --syslog                      log to syslog instead of stderr\n"
+    "  --log-level error|warning|notice|info|debug  (default info)\n"
+    "signals: SIGHUP reloads the table (kept if the new one is invalid); SIGTERM/SIGINT stop.\n";
+
+void sc_config_defaults(sc_config *c)
+{
+    memset(c, 0, sizeof *c);
+    c->mode = SC_CORR_MEASURE;
+    sc_mbtcp_config_defaults(&c->tcp);
+    sc_mbrtu_config_defaults(&c->rtu);
+#ifdef SELFCALD_HAVE_CAN
+    sc_can_config_defaults(&c->can);
+#else
+    c->can.in_id = 0x100; /* SPEC §4 ids; the CAN transport is not in this build */
+    c->can.out_id = 0x101;
+    c->can.status_id = 0x102;
+    c->can.status_period_ms = 1000;
+#endif
+    c->word_order = SC_WORD_HIGH_FIRST;
+    c->log_level = SC_LOG_INFO;
+}
+
+static int parse_ulong(const char *s, unsigned long max, unsigned long *out)
+{
+    if (s == NULL || *s == '\0' || *s == '-' || isspace((unsigned char)*s))
+        return -1;
+    char *end = NULL;
+    errno = 0;
+    unsigned long v = strtoul(s, &end, 0); /* decimal, or 0x... for CAN ids */
+    if (errno != 0 || end == s || *end != '\0' || v > max)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+static int copy_str(char *dst, size_t cap, const char *src)
+{
+    size_t n = strlen(src);
+    if (n == 0 || n >= cap)
+        return -1;
+    memcpy(dst, src, n + 1);
+    return 0;
+}
+
+#define BAD(...)                                                                              \
+    do {                                                                                       \
+        snprintf(why, (size_t)whylen, __VA_ARGS__);                                            \
+        return -1;                                                                             \
+    } while (0)
+
+static int parse_host_port(sc_config *c, const char *v, char *why, int whylen)
+{
+    const char *colon = strrchr(v, ':');
+    unsigned long port;
+    if (colon == NULL || parse_ulong(colon + 1, 65535, &port) != 0)
+        BAD("--modbus-tcp: expected HOST:PORT, got '%s'", v);
+    size_t hl = (size_t)(colon - v);
+    if (hl == 0) {
+        strcpy(c->tcp.host, "127.0.0.1");
+    } else {
+        if (hl >= sizeof c->tcp.host)
+            BAD("--modbus-tcp: host too long");
+        memcpy(c->tcp.host, v, hl);
+        c->tcp.host[hl] = '\0';
+    }
+    c->tcp.port = (uint16_t)port;
+    c->use_modbus_tcp = 1;
+    return 0;
+}
+
+static int parse_rtu(sc_config *c, const char *v, char *why, int whylen)
+{
+    /* DEV[:BAUD[:PARITY[:DATABITS[:STOPBITS]]]]; the device ends at the first ':' after its
+     * last '/'. */
+    char tmp[256];
+    if (copy_str(tmp, sizeof tmp, v) != 0)
+        BAD("--modbus-rtu: bad device '%s'", v);
+    char *slash = strrchr(tmp, '/');
+    char *rest = strchr(slash ? slash : tmp, ':');
+    if (rest != NULL)
+        *rest++ = '\0';
+    if (copy_str(c->rtu.device, sizeof c->rtu.device, tmp) != 0)
+        BAD("--modbus-rtu: bad device '%s'", v);
+    int field = 0;
+    while (rest != NULL && *rest != '\0') {
+        char *next = strchr(rest, ':');
+        if (next != NULL)
+            *next++ = '\0';
+        unsigned long n;
+        switch (field) {
+        case 0:
+            if (parse_ulong(rest, 4000000, &n) != 0 || n < 50)
+                BAD("--modbus-rtu: bad baud rate '%s'", rest);
+            c->rtu.baud = (int)n;
+            break;
+        case 1:
+            if (strlen(rest) != 1 || strchr("NEOneo", rest[0]) == NULL)
+                BAD("--modbus-rtu: parity must be N, E or O, got '%s'", rest);
+            c->rtu.parity = (char)toupper((unsigned char)rest[0]);
+            break;
+        case 2:
+            if (parse_ulong(rest, 8, &n) != 0 || n < 5)
+                BAD("--modbus-rtu: data bits must be 5..8, got '%s'", rest);
+            c->rtu.data_bits = (int)n;
+            break;
+        case 3:
+            if (parse_ulong(rest, 2, &n) != 0 || n < 1)
+                BAD("--modbus-rtu: stop bits must be 1 or 2, got '%s'", rest);
+            c->rtu.stop_bits = (int)n;
+            break;
+        default:
+            BAD("--modbus-rtu: too many fields in '%s'", v);
+        }
+        field++;
+        rest = next;
+    }
+    c->use_modbus_rtu = 1;
+    return 0;
+}
+
+static int is_yes(const char *v)
+{
+    return v == NULL || strcmp(v, "yes") == 0 || strcmp(v, "true") == 0 || strcmp(v, "1") == 0 ||
+           strcmp(v, "on") == 0;
+}
+
+static int is_no(const char *v)
+{
+    return v != NULL && (strcmp(v, "no") == 0 || strcmp(v, "false") == 0 ||
+                         strcmp(v, "0") == 0 || strcmp(v, "off") == 0);
+}
+
+/* Options that take no value (flags). */
+static int is_flag(const char *key)
+{
+    return strcmp(key, "syslog") == 0 || strcmp(key, "fake") == 0;
+}
+
+int sc_config_set(sc_config *c, const char *key, const char *value, char *why, int whylen)
+{
+    unsigned long n;
+    if (!is_flag(key) && value == NULL)
+        BAD("--%s needs a value", key);
+    if (strcmp(key, "table") == 0) {
+        if (copy_str(c->table, sizeof c->table, value) != 0)
+            BAD("--table: bad path");
+    } else if (strcmp(key, "modbus-tcp") == 0) {
+        return parse_host_port(c, value, why, whylen);
+    } else if (strcmp(key, "modbus-rtu") == 0) {
+        return parse_rtu(c, value, why, whylen);
+    } else if (strcmp(key, "can") == 0) {
+        if (copy_str(c->can.ifname, sizeof c->can.ifname, value) != 0)
+            BAD("--can: bad interface name '%s'", value);
+        c->use_can = 1;
+    } else if (strcmp(key, "mode") == 0) {
+        if (strcmp(value, "measure") == 0)
+            c->mode = SC_CORR_MEASURE;
+        else if (strcmp(value, "position") == 0)
+            c->mode = SC_CORR_POSITION;
+        else
+            BAD("--mode: expected measure or position, got '%s'", value);
+    } else if (strcmp(key, "unit-id") == 0) {
+        if (parse_ulong(value, 255, &n) != 0)
+            BAD("--unit-id: expected 0..255, got '%s'", value);
+        c->tcp.unit_id = (uint8_t)n;
+        c->rtu.unit_id = (uint8_t)n;
+    } else if (strcmp(key, "word-order") == 0) {
+        if (strcmp(value, "high-first") == 0 || strcmp(value, "big") == 0)
+            c->word_order = SC_WORD_HIGH_FIRST;
+        else if (strcmp(value, "low-first") == 0 || strcmp(value, "little") == 0)
+            c->word_order = SC_WORD_LOW_FIRST;
+        else
+            BAD("--word-order: expected high-first or low-first, got '%s'", value);
+    } else if (strcmp(key, "max-connections") == 0) {
+        if (parse_ulong(value, SC_MBTCP_MAX_CONN, &n) != 0 || n < 1)
+            BAD("--max-connections: expected 1..%d, got '%s'", SC_MBTCP_MAX_CONN, value);
+        c->tcp.max_connections = (int)n;
+    } else if (strcmp(key, "byte-timeout-ms") == 0) {
+        if (parse_ulong(value, 600000, &n) != 0 || n < 1)
+            BAD("--byte-timeout-ms: expected 1..600000, got '%s'", value);
+        c->tcp.byte_timeout_ms = (uint32_t)n;
+    } else if (strcmp(key, "idle-timeout-ms") == 0) {
+        if (parse_ulong(value, 86400000, &n) != 0)
+            BAD("--idle-timeout-ms: expected 0..86400000, got '%s'", value);
+        c->tcp.idle_timeout_ms = (uint32_t)n;
+    } else if (strcmp(key, "rtu-byte-timeout-ms") == 0) {
+        if (parse_ulong(value, 60000, &n) != 0 || n < 1)
+            BAD("--rtu-byte-timeout-ms: expected 1..60000, got '%s'", value);
+        c->rtu.byte_timeout_ms = (uint32_t)n;
+    } else if (strcmp(key, "can-in-id") == 0 || strcmp(key, "can-out-id") == 0 ||
+               strcmp(key, "can-status-id") == 0) {
+        if (parse_ulong(value, 0x7ff, &n) != 0)
+            BAD("--%s: expected an 11-bit id (0..0x7ff), got '%s'", key, value);
+        if (key[4] == 'i')
+            c->can.in_id = (uint32_t)n;
+        else if (key[4] == 'o')
+            c->can.out_id = (uint32_t)n;
+        else
+            c->can.status_id = (uint32_t)n;
+    } else if (strcmp(key, "can-status-period-ms") == 0) {
+        if (parse_ulong(value, 3600000, &n) != 0 || n < 10)
+            BAD("--can-status-period-ms: expected 10..3600000, got '%s'", value);
+        c->can.status_period_ms = (uint32_t)n;
+    } else if (strcmp(key, "syslog") == 0) {
+        if (is_yes(value))
+            c->use_syslog = 1;
+        else if (is_no(value))
+            c->use_syslog = 0;
+        else
+            BAD("syslog: expected yes or no, got '%s'", value);
+    } else if (strcmp(key, "fake") == 0) {
+        c->use_fake = is_yes(value);
+    } else if (strcmp(key, "log-level") == 0) {
+        static const char *const lv[] = {"error", "warning", "notice", "info", "debug"};
+        int found = -1;
+        for (int i = 0; i < 5; i++)
+            if (strcmp(value, lv[i]) == 0)
+                found = i;
+        if (found < 0)
+            BAD("--log-level: expected error, warning, notice, info or debug, got '%s'", value);
+        c->log_level = SC_LOG_ERR + found;
+    } else {
+        BAD("unknown option '%s'", key);
+    }
+    return 0;
+}
+
+static char *trim(char *s)
+{
+    while (isspace((unsigned char)*s))
+        s++;
+    size_t n = strlen(s);
+    while (n > 0 && isspace((unsigned char)s[n - 1]))
+        s[--n] = '\0';
+    return s;
+}
+
+int sc_config_load_file(sc_config *c, const char *path, char *why, int whylen)
+{
+    FILE *f = fopen(path, "r");
+    if (f == NULL)
+        BAD("%s: cannot open: %s", path, strerror(errno));
+    char line[1024];
+    int lineno = 0;
+    while (fgets(line, sizeof line, f) != NULL) {
+        lineno++;
+        if (strchr(line, '\n') == NULL && !feof(f)) {
+            fclose(f);
+            BAD("%s:%d: line too long", path, lineno);
+        }
+        char *hash = strchr(line, '#');
+        if (hash != NULL)
+            *hash = '\0';
+        char *s = trim(line);
+        if (*s == '\0')
+            continue;
+        char *eq = strchr(s, '=');
+        char *key = s, *value = NULL;
+        if (eq != NULL) {
+            *eq = '\0';
+            value = trim(eq + 1);
+            key = trim(s);
+        }
+        char inner[512];
+        if (sc_config_set(c, key, value, inner, sizeof inner) != 0) {
+            fclose(f);
+            BAD("%s:%d: %s", path, lineno, inner);
+        }
+    }
+    fclose(f);
+    return 0;
+}
+
+int sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *version, char *why,
+                         int whylen)
+{
+    *help = 0;
+    *version = 0;
+    /* The configuration file first, so the other flags override it. */
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (strcmp(a, "--config") == 0) {
+            if (i + 1 >= argc)
+                BAD("--config needs a file");
+            if (sc_config_load_file(c, argv[i + 1], why, whylen) != 0)
+                return -1;
+            i++;
+        } else if (strncmp(a, "--config=", 9) == 0) {
+            if (sc_config_load_file(c, a + 9, why, whylen) != 0)
+                return -1;
+        }
+    }
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            *help = 1;
+            return 0;
+        }
+        if (strcmp(a, "--version") == 0) {
+            *version = 1;
+            return 0;
+        }
+        if (strncmp(a, "--", 2) != 0)
+            BAD("unexpected argument '%s'", a);
+        char key[64];
+        const char *value = NULL;
+        const char *eq = strchr(a + 2, '=');
+        size_t kl = eq ? (size_t)(eq - (a + 2)) : strlen(a + 2);
+        if (kl == 0 || kl >= sizeof key)
+            BAD("bad option '%s'", a);
+        memcpy(key, a + 2, kl);
+        key[kl] = '\0';
+        if (eq != NULL) {
+            value = eq + 1;
+        } else if (!is_flag(key)) {
+            if (i + 1 >= argc)
+                BAD("--%s needs a value", key);
+            value = argv[++i];
+        }
+        if (strcmp(key, "config") == 0)
+            continue; /* already read */
+        if (sc_config_set(c, key, value, why, whylen) != 0)
+            return -1;
+    }
+    if (c->table[0] == '\0')
+        BAD("--table TABLE is required");
+    if (!c->use_modbus_tcp && !c->use_modbus_rtu && !c->use_can && !c->use_fake)
+        c->use_modbus_tcp = 1; /* SPEC §4 default: Modbus TCP on 127.0.0.1:1502 */
+    return 0;
+}

@@ -1,0 +1,121 @@
+/* runtime/engine.c — the table slots, reload and the nm <-> mm correction of selfcald. */
+#include "engine.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+/* Two slots: the one in use and the spare that a reload fills. */
+static sc_corr_table g_slot[2];
+static unsigned char g_filebuf[SC_ENGINE_MAX_TABLE_BYTES + 1];
+
+void sc_engine_init(sc_engine *e, sc_corr_mode mode)
+{
+    memset(e, 0, sizeof *e);
+    e->mode = mode;
+}
+
+static int read_file(const char *path, size_t *len, char *why, int whylen)
+{
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+        snprintf(why, (size_t)whylen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    size_t n = 0;
+    for (;;) {
+        ssize_t r = read(fd, g_filebuf + n, sizeof g_filebuf - n);
+        if (r < 0) {
+            if (errno == EINTR)
+                continue;
+            snprintf(why, (size_t)whylen, "%s: read error: %s", path, strerror(errno));
+            close(fd);
+            return -1;
+        }
+        if (r == 0)
+            break;
+        n += (size_t)r;
+        if (n == sizeof g_filebuf) {
+            snprintf(why, (size_t)whylen, "%s: larger than %u bytes, not a selfcal table", path,
+                     (unsigned)SC_ENGINE_MAX_TABLE_BYTES);
+            close(fd);
+            return -1;
+        }
+    }
+    close(fd);
+    *len = n;
+    return 0;
+}
+
+int sc_engine_load_file(sc_engine *e, const char *path, char *why, int whylen)
+{
+    size_t len = 0;
+    sc_corr_table *spare = (e->table == &g_slot[0]) ? &g_slot[1] : &g_slot[0];
+    int rc = read_file(path, &len, why, whylen);
+    if (rc == 0) {
+        int code = sc_corr_load(spare, g_filebuf, len);
+        if (code != SC_CORR_OK) {
+            snprintf(why, (size_t)whylen, "%s: not a valid table: %s", path,
+                     sc_corr_strerror(code));
+            rc = -1;
+        }
+    }
+    if (rc != 0) {
+        e->reload_failed++;
+        e->status |= SC_ENGINE_ST_RELOAD_FAILED;
+        return -1;
+    }
+    e->table = spare;
+    e->reload_ok++;
+    e->status = (uint16_t)((e->status & ~SC_ENGINE_ST_RELOAD_FAILED) | SC_CORR_ST_LOADED);
+    return 0;
+}
+
+int32_t sc_engine_mm_to_nm(double v_mm, int *saturated)
+{
+    double v = v_mm * 1e6;
+    if (!(v == v)) { /* NaN */
+        *saturated = 1;
+        return 0;
+    }
+    v = nearbyint(v); /* round half to even in the default mode: nearest nm */
+    if (v > (double)INT32_MAX) {
+        *saturated = 1;
+        return INT32_MAX;
+    }
+    if (v < (double)INT32_MIN) {
+        *saturated = 1;
+        return INT32_MIN;
+    }
+    return (int32_t)v;
+}
+
+uint16_t sc_engine_correct(sc_engine *e, int32_t x_nm, int32_t y_nm, int32_t *out_x_nm,
+                           int32_t *out_y_nm)
+{
+    const double in[3] = {(double)x_nm * 1e-6, (double)y_nm * 1e-6, 0.0};
+    double out[3] = {in[0], in[1], in[2]};
+    unsigned st = 0;
+    if (e->table != NULL && e->table->loaded)
+        st = sc_corr_apply(e->table, e->mode, in, out);
+    int sat = 0;
+    int32_t ox = sc_engine_mm_to_nm(out[0], &sat);
+    int32_t oy = sc_engine_mm_to_nm(out[1], &sat);
+    if (sat)
+        st |= SC_CORR_ST_INVALID;
+    st &= (SC_CORR_ST_LOADED | SC_CORR_ST_OUTSIDE | SC_CORR_ST_INVALID);
+    if (e->table != NULL && e->table->loaded)
+        st |= SC_CORR_ST_LOADED;
+    e->status = (uint16_t)(st | (e->status & SC_ENGINE_ST_RELOAD_FAILED));
+    e->corrections++;
+    e->last_in_x_nm = x_nm;
+    e->last_in_y_nm = y_nm;
+    e->last_out_x_nm = ox;
+    e->last_out_y_nm = oy;
+    *out_x_nm = ox;
+    *out_y_nm = oy;
+    return e->status;
+}

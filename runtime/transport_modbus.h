@@ -1,0 +1,48 @@
+/* runtime/transport_modbus.h — the Modbus TCP and Modbus RTU servers of selfcald (SPEC §4).
+ * Both answer from the one shared register map (modbus_map.h). */
+#ifndef SELFCALD_TRANSPORT_MODBUS_H
+#define SELFCALD_TRANSPORT_MODBUS_H
+
+#include <stdint.h>
+
+#include "transport.h"
+
+/* Compile-time cap on TCP connections (one pollfd each, plus the listening socket). */
+#define SC_MBTCP_MAX_CONN (SC_TRANSPORT_MAX_FDS - 1)
+
+typedef struct sc_mbtcp_config {
+    char host[64];             /* listen address, default "127.0.0.1" ("0.0.0.0": all) */
+    uint16_t port;             /* default 1502; 0 = any free port (logged) */
+    uint8_t unit_id;           /* default 1; 255 is always accepted */
+    int max_connections;       /* default 64, at most SC_MBTCP_MAX_CONN */
+    uint32_t byte_timeout_ms;  /* a started request must complete within this; default 500 */
+    uint32_t idle_timeout_ms;  /* close a connection silent this long; 0 = never; default 60000 */
+} sc_mbtcp_config;
+
+typedef struct sc_mbrtu_config {
+    char device[128];          /* serial device, e.g. /dev/ttyUSB0 */
+    int baud;                  /* default 19200 */
+    char parity;               /* 'N', 'E' (default) or 'O' */
+    int data_bits;             /* 8 */
+    int stop_bits;             /* 1 */
+    uint8_t unit_id;           /* default 1 (1..247) */
+    uint32_t byte_timeout_ms;  /* silence that ends/discards a partial frame; default 50 */
+} sc_mbrtu_config;
+
+void sc_mbtcp_config_defaults(sc_mbtcp_config *c);
+void sc_mbrtu_config_defaults(sc_mbrtu_config *c);
+
+/* Make t the Modbus TCP server for cfg (static state, one instance). */
+void sc_modbus_tcp_transport(sc_transport *t, const sc_mbtcp_config *cfg);
+/* The port actually listened on (after open; useful with port 0). */
+uint16_t sc_modbus_tcp_bound_port(void);
+/* Connections open now / refused because of the cap since start. */
+int sc_modbus_tcp_connections(void);
+uint32_t sc_modbus_tcp_refused(void);
+
+/* Make t the Modbus RTU server for cfg (static state, one instance). */
+void sc_modbus_rtu_transport(sc_transport *t, const sc_mbrtu_config *cfg);
+/* Frames dropped by the RTU server since start: bad CRC, or incomplete at a silence. */
+uint32_t sc_modbus_rtu_bad_frames(void);
+
+#endif
