@@ -1,0 +1,351 @@
+/* The two-set two-point method by the DFT (Ding et al. §2.2), with its exact per-point
+ * uncertainty in O(N log N). Derivation and notation: docs/profile.md, section "DFT method".
+ *
+ * In sample units (s = 1): scan k sees h_k(n) = f(n) + a_k·n with a_k = c_k/d_k, because
+ * y_k(n) = h_k(n + d_k) - h_k(n). The natural extension x_k(N-d_k+r) = -sum_{j=0}^{M_k-2}
+ * y_k(r + j·d_k) (M_k = N/d_k) makes x_k the periodic difference of h_k, so with X_k = DFT(x_k)
+ * and E_k(q) = exp(+2πi·d_k·q/N) - 1:  Y_k(q) = X_k(q)/E_k(q) = F(q) + a_k·Z(q) where E_k ≠ 0,
+ * Z(q) = DFT(n)(q) = N/(exp(-2πi·q/N) - 1). Var Y_k(q) = σ_k²·N/(2 sin²(π d_k q/N)) = δ_k(q).
+ */
+#include <complex.h>
+#include <fftw3.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/profile.h"
+#include "selfcal/profile_dft.h"
+
+struct sc_profile_dft {
+    int n, d[2], nh;
+    double w[2];
+    double *rbuf;               /* N reals (FFTW buffer) */
+    fftw_complex *cbuf;         /* N/2+1 complex (FFTW buffer) */
+    fftw_plan r2c, c2r;
+    double complex *alpha[2];   /* F(q) = alpha1·X1 + alpha2·X2 + a12·zeta */
+    double complex *zeta;
+    double complex *beta[2];    /* a12 = Re sum_q beta1·X1 - Re sum_q beta2·X2 (half spectrum) */
+    double complex *x1;         /* workspace: X1 */
+    double last_a12;
+};
+
+static long gcd_l(long a, long b)
+{
+    while (b) {
+        long t = a % b;
+        a = b;
+        b = t;
+    }
+    return a < 0 ? -a : a;
+}
+
+int sc_profile_dft_usable(int n, int d1, int d2, sc_error *err)
+{
+    if (d1 < 1 || d2 < 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "sensor spacings must be >= 1 (d1 = %d, d2 = %d)", d1, d2),
+               0;
+    if (d1 == d2 || gcd_l(d1, d2) != 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "d1 = %d and d2 = %d are not coprime (gcd = %ld): the harmonics that both "
+                            "scans lose cannot be recovered",
+                            d1, d2, gcd_l(d1, d2)),
+               0;
+    long prod = (long)d1 * d2;
+    if (n < 2 * (d1 > d2 ? d1 : d2) || n % prod != 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "N = %d is not a multiple of d1*d2 = %ld (the DFT method needs N = p*d1*d2; "
+                            "nearest: %ld; the lsq method has no such restriction)",
+                            n, prod, prod * (n / prod < 1 ? 1 : (n % prod) * 2 >= prod ? n / prod + 1 : n / prod)),
+               0;
+    return 1;
+}
+
+/* The natural extension of y (n - d values) to a full period x (n values). */
+static void extend(int n, int d, const double *y, double *x)
+{
+    int m = n - d;
+    memcpy(x, y, (size_t)m * sizeof(double));
+    for (int r = 0; r < d; ++r) {
+        double s = 0;
+        for (int i = r; i < m; i += d)
+            s += y[i];
+        x[m + r] = -s;
+    }
+}
+
+sc_status sc_profile_dft_create(int n, int d1, int d2, double w1, double w2,
+                                sc_profile_dft **out, sc_error *err)
+{
+    *out = NULL;
+    if (!sc_profile_dft_usable(n, d1, d2, err))
+        return SC_E_INPUT;
+    if (!(w1 > 0) || !(w2 > 0) || !isfinite(w1) || !isfinite(w2))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "scan weights must be positive (w1 = %g, w2 = %g)", w1, w2);
+    sc_profile_dft *p = calloc(1, sizeof *p);
+    if (!p)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    p->n = n;
+    p->d[0] = d1;
+    p->d[1] = d2;
+    p->w[0] = w1;
+    p->w[1] = w2;
+    p->nh = n / 2 + 1;
+    size_t nh = (size_t)p->nh;
+    p->rbuf = fftw_alloc_real((size_t)n);
+    p->cbuf = fftw_alloc_complex(nh);
+    p->zeta = malloc(nh * sizeof(double complex));
+    p->x1 = malloc(nh * sizeof(double complex));
+    for (int k = 0; k < 2; ++k) {
+        p->alpha[k] = malloc(nh * sizeof(double complex));
+        p->beta[k] = malloc(nh * sizeof(double complex));
+    }
+    if (!p->rbuf || !p->cbuf || !p->zeta || !p->x1 || !p->alpha[0] || !p->alpha[1] || !p->beta[0] ||
+        !p->beta[1]) {
+        sc_profile_dft_destroy(p);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    }
+    p->r2c = fftw_plan_dft_r2c_1d(n, p->rbuf, p->cbuf, FFTW_ESTIMATE);
+    p->c2r = fftw_plan_dft_c2r_1d(n, p->cbuf, p->rbuf, FFTW_ESTIMATE);
+    if (!p->r2c || !p->c2r) {
+        sc_profile_dft_destroy(p);
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "FFTW could not plan size %d", n);
+    }
+    /* spectral weights (eqs. 8, 9 with the scans' own noise variances 1/w_k) */
+    const double var[2] = {1.0 / w1, 1.0 / w2};
+    double wsum = 0;
+    for (int q = 1; q < p->nh; ++q) {
+        int ok[2];
+        double delta[2];
+        for (int k = 0; k < 2; ++k) {
+            ok[k] = ((long long)p->d[k] * q) % n != 0;
+            double sn = sin(M_PI * (double)(((long long)p->d[k] * q) % n) / n);
+            delta[k] = ok[k] ? var[k] * n / (2.0 * sn * sn) : INFINITY;
+        }
+        if (ok[0] && ok[1]) {
+            double complex z = n / (cexp(-2.0 * M_PI * I * q / n) - 1.0);
+            double mult = (2 * q == n) ? 1.0 : 2.0;
+            wsum += mult * creal(z * conj(z)) / (delta[0] + delta[1]);
+        }
+    }
+    if (!(wsum > 0)) {
+        sc_profile_dft_destroy(p);
+        return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no harmonic seen by both scans");
+    }
+    p->alpha[0][0] = p->alpha[1][0] = p->zeta[0] = p->beta[0][0] = p->beta[1][0] = 0;
+    for (int q = 1; q < p->nh; ++q) {
+        int ok[2];
+        double delta[2];
+        double complex e[2];
+        for (int k = 0; k < 2; ++k) {
+            long long r = ((long long)p->d[k] * q) % n;
+            ok[k] = r != 0;
+            double sn = sin(M_PI * (double)r / n);
+            delta[k] = ok[k] ? var[k] * n / (2.0 * sn * sn) : INFINITY;
+            e[k] = cexp(2.0 * M_PI * I * (double)r / n) - 1.0;
+        }
+        double complex z = n / (cexp(-2.0 * M_PI * I * q / n) - 1.0);
+        double z2 = creal(z * conj(z));
+        double mult = (2 * q == n) ? 1.0 : 2.0;
+        double w1q = ok[0] ? 1.0 / delta[0] : 0.0;
+        double w2q = ok[1] ? 1.0 / (delta[1] + z2 / wsum) : 0.0;
+        double ws = w1q + w2q; /* > 0: every q is seen by one scan at least (gcd = 1, N = p·d1·d2) */
+        p->alpha[0][q] = ok[0] ? w1q / (ws * e[0]) : 0;
+        p->alpha[1][q] = ok[1] ? w2q / (ws * e[1]) : 0;
+        p->zeta[q] = w2q * z / ws;
+        if (ok[0] && ok[1]) {
+            double wa = z2 / (delta[0] + delta[1]);
+            double complex b = mult * wa / (wsum * z);
+            p->beta[0][q] = b / e[0];
+            p->beta[1][q] = b / e[1];
+        } else {
+            p->beta[0][q] = p->beta[1][q] = 0;
+        }
+    }
+    *out = p;
+    return SC_OK;
+}
+
+/* x (N values, any real sequence) -> p->cbuf = DFT(x). */
+static void forward(sc_profile_dft *p, const double *x)
+{
+    memcpy(p->rbuf, x, (size_t)p->n * sizeof(double));
+    fftw_execute(p->r2c);
+}
+
+/* The estimator before the removal of the line: y1, y2 -> f_raw (N values) with mean 0. */
+static void solve_raw(sc_profile_dft *p, const double *y1, const double *y2, double *f)
+{
+    int n = p->n, nh = p->nh;
+    double complex *c = (double complex *)p->cbuf;
+    extend(n, p->d[0], y1, p->rbuf);
+    fftw_execute(p->r2c);
+    memcpy(p->x1, c, (size_t)nh * sizeof(double complex));
+    extend(n, p->d[1], y2, p->rbuf);
+    fftw_execute(p->r2c);
+    double a12 = 0;
+    for (int q = 1; q < nh; ++q)
+        a12 += creal(p->beta[0][q] * p->x1[q]) - creal(p->beta[1][q] * c[q]);
+    c[0] = 0;
+    for (int q = 1; q < nh; ++q)
+        c[q] = p->alpha[0][q] * p->x1[q] + p->alpha[1][q] * c[q] + a12 * p->zeta[q];
+    if (n % 2 == 0)
+        c[nh - 1] = creal(c[nh - 1]);
+    fftw_execute(p->c2r);
+    for (int i = 0; i < n; ++i)
+        f[i] = p->rbuf[i] / n;
+    p->last_a12 = a12;
+}
+
+sc_status sc_profile_dft_solve(sc_profile_dft *p, const double *y1_um, const double *y2_um,
+                               double *f_um, sc_error *err)
+{
+    (void)err;
+    solve_raw(p, y1_um, y2_um, f_um);
+    sc_profile_remove_line(p->n, f_um);
+    return SC_OK;
+}
+
+double sc_profile_dft_last_a12(const sc_profile_dft *p) { return p->last_a12; }
+
+/* out = IDFT(spec) (N reals) for a half spectrum spec (Hermitian). */
+static void inverse(sc_profile_dft *p, const double complex *spec, double *out)
+{
+    double complex *c = (double complex *)p->cbuf;
+    memcpy(c, spec, (size_t)p->nh * sizeof(double complex));
+    c[0] = creal(c[0]);
+    if (p->n % 2 == 0)
+        c[p->nh - 1] = creal(c[p->nh - 1]);
+    fftw_execute(p->c2r);
+    for (int i = 0; i < p->n; ++i)
+        out[i] = p->rbuf[i] / p->n;
+}
+
+/* out = h ⊛ u (circular convolution, N values); H = DFT(h) given. */
+static void convolve(sc_profile_dft *p, const double complex *H, const double *u, double *out,
+                     double complex *tmp)
+{
+    forward(p, u);
+    const double complex *c = (const double complex *)p->cbuf;
+    for (int q = 0; q < p->nh; ++q)
+        tmp[q] = H[q] * c[q];
+    inverse(p, tmp, out);
+}
+
+sc_status sc_profile_dft_uncertainty(sc_profile_dft *p, double *uf_um, sc_error *err)
+{
+    const int n = p->n, nh = p->nh;
+    const int dmax = p->d[0] > p->d[1] ? p->d[0] : p->d[1];
+    /* one block: 10 real arrays of N, 2 prefix arrays of 2N+1, d sums, 3 half spectra */
+    size_t nreal = 10 * (size_t)n + 2 * (2 * (size_t)n + 1) + (size_t)dmax;
+    double *blk = malloc(nreal * sizeof(double));
+    double complex *cblk = malloc(3 * (size_t)nh * sizeof(double complex));
+    if (!blk || !cblk) {
+        free(blk);
+        free(cblk);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    }
+    double *h = blk, *v = h + n, *g = v + n, *u = g + n, *psi = u + n, *t1 = psi + n, *t2 = t1 + n;
+    double *gam = t2 + n, *b = gam + n, *var = b + n, *pre = var + n, *pre2 = pre + 2 * n + 1;
+    double *csum = pre2 + 2 * n + 1;
+    double complex *tmp = cblk, *Psi = tmp + nh, *Hs = Psi + nh;
+    memset(var, 0, (size_t)n * sizeof(double));
+    /* psi(n) = t_n / sum t², the slope functional of the least-squares line (the estimator's
+     * output has mean 0 already: its zero-frequency coefficient is 0) */
+    double tc = 0.5 * (n - 1), tss = 0;
+    for (int i = 0; i < n; ++i)
+        tss += (i - tc) * (i - tc);
+    for (int i = 0; i < n; ++i)
+        psi[i] = (i - tc) / tss;
+    forward(p, psi);
+    memcpy(Psi, p->cbuf, (size_t)nh * sizeof(double complex));
+    inverse(p, p->zeta, v);
+    double psiv = 0;
+    for (int i = 0; i < n; ++i)
+        psiv += psi[i] * v[i];
+
+    for (int k = 0; k < 2; ++k) {
+        const int d = p->d[k], m = n - d, M = n / d;
+        const double sig2 = 1.0 / p->w[k];
+        const double sgn = k == 0 ? 1.0 : -1.0;
+        /* h = IDFT(alpha_k): the convolution kernel of scan k's extended data */
+        inverse(p, p->alpha[k], h);
+        forward(p, h);
+        memcpy(Hs, p->cbuf, (size_t)nh * sizeof(double complex));
+        /* gamma(m) = Re sum_q beta_k(q) e^{-2πi q m/N}: a12 = sum_m x_k(m)·gamma(m) */
+        for (int q = 0; q < nh; ++q)
+            tmp[q] = conj(p->beta[k][q]) / ((q == 0 || 2 * q == n) ? 1.0 : 2.0);
+        inverse(p, tmp, gam);
+        for (int i = 0; i < n; ++i)
+            gam[i] *= n * sgn;
+        /* g_i = gamma(i) - gamma(e(i)), e(i) = N - d + (i mod d): a12's weight of y_k(i) */
+        double g2 = 0;
+        for (int i = 0; i < m; ++i) {
+            g[i] = gam[i] - gam[m + i % d];
+            g2 += g[i] * g[i];
+        }
+        /* E - F = h ⊛ u with u(i) = g_i (i < m), u(m + r) = -sum_{i ≡ r mod d} g_i */
+        extend(n, d, g, u);
+        convolve(p, Hs, u, t2, tmp);
+        /* Q(n) = sum_i R(n,i)² = A + B + v²|g|² - 2 Cx + 2 v (E - F), with cyclic windows:
+         * A(n) = sum_{i<m} h(n-i)², B(n) = (M-1) sum_{j=n+1}^{n+d} h(j)²,
+         * Cx(n) = sum_{j=n+1}^{n+d} h(j)·C(j mod d) - h(j)², C(r) = sum_{j ≡ r} h(j) */
+        for (int c = 0; c < d; ++c)
+            csum[c] = 0;
+        for (int i = 0; i < n; ++i)
+            csum[i % d] += h[i];
+        pre[0] = pre2[0] = 0;
+        for (int i = 0; i < 2 * n; ++i) {
+            double hi = h[i % n];
+            pre[i + 1] = pre[i] + hi * hi;
+            pre2[i + 1] = pre2[i] + hi * csum[(i % n) % d];
+        }
+        for (int i = 0; i < n; ++i) {
+            double A = pre[i + n + 1] - pre[i + n + 1 - m];
+            double W2 = pre[i + d + 1] - pre[i + 1];
+            double hc = pre2[i + d + 1] - pre2[i + 1];
+            t1[i] = A + (M - 1) * W2 + v[i] * v[i] * g2 - 2.0 * (hc - W2) + 2.0 * v[i] * t2[i];
+        }
+        /* b_i = sum_n psi(n) R(n,i) = (psi ⋆ h)(i) - (psi ⋆ h)(e(i)) + g_i (psi·v) */
+        for (int q = 0; q < nh; ++q)
+            tmp[q] = Psi[q] * conj(Hs[q]);
+        inverse(p, tmp, gam);
+        double b2 = 0, gb = 0;
+        for (int i = 0; i < m; ++i) {
+            b[i] = gam[i] - gam[m + i % d] + g[i] * psiv;
+            b2 += b[i] * b[i];
+            gb += g[i] * b[i];
+        }
+        /* (R b)(n) = h ⊛ (T b) + v(n)·(g·b);  Var f'(n) = σ²·(Q - 2 t (R b) + t² |b|²) */
+        extend(n, d, b, u);
+        convolve(p, Hs, u, t2, tmp);
+        for (int i = 0; i < n; ++i) {
+            double t = i - tc;
+            double rb = t2[i] + v[i] * gb;
+            var[i] += sig2 * (t1[i] - 2.0 * t * rb + t * t * b2);
+        }
+    }
+    for (int i = 0; i < n; ++i)
+        uf_um[i] = sqrt(var[i] > 0 ? var[i] : 0);
+    free(blk);
+    free(cblk);
+    return SC_OK;
+}
+
+void sc_profile_dft_destroy(sc_profile_dft *p)
+{
+    if (!p)
+        return;
+    if (p->r2c)
+        fftw_destroy_plan(p->r2c);
+    if (p->c2r)
+        fftw_destroy_plan(p->c2r);
+    fftw_free(p->rbuf);
+    fftw_free(p->cbuf);
+    free(p->zeta);
+    free(p->x1);
+    for (int k = 0; k < 2; ++k) {
+        free(p->alpha[k]);
+        free(p->beta[k]);
+    }
+    free(p);
+}

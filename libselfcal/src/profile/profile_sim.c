@@ -1,0 +1,299 @@
+/* Simulated straightness measurements (SPEC §2 model) and the profiles they measure. */
+#include <ctype.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/csv.h"
+#include "selfcal/profile_sim.h"
+
+void sc_profile_sim_defaults(sc_profile_sim *p)
+{
+    memset(p, 0, sizeof *p);
+    p->n = 330;
+    p->s_mm = 1.0;
+    p->d1 = 10;
+    p->d2 = 11;
+    p->sigma_disp_um = 0.01;
+    p->sigma_angle_urad = 1.0;
+    p->ey_amp_um = 0.5;
+    p->ep_amp_urad = 2.0;
+    p->u1_um = 1.5;
+    p->u2_um = -0.7;
+    p->u3_urad = 3.0;
+    p->b0_um = 20.0;
+    p->write_sigma = 1;
+    p->seed = 1;
+}
+
+void sc_profile_random_smooth(int n, double amp_um, int harmonics, sc_rng *rng, double *f_um)
+{
+    for (int i = 0; i < n; ++i)
+        f_um[i] = 0;
+    if (harmonics < 1)
+        harmonics = 1;
+    for (int j = 1; j <= harmonics; ++j) {
+        double a = sc_rng_normal(rng) / pow(j, 1.5), ph = 2.0 * M_PI * sc_rng_uniform(rng);
+        /* half-integer frequencies too, so that the profile is not periodic on the scan */
+        double fr = 0.5 * j;
+        for (int i = 0; i < n; ++i)
+            f_um[i] += a * sin(2.0 * M_PI * fr * i / (n > 1 ? n - 1 : 1) + ph);
+    }
+    sc_profile_remove_line(n, f_um);
+    double ss = 0;
+    for (int i = 0; i < n; ++i)
+        ss += f_um[i] * f_um[i];
+    double rms = sqrt(ss / n);
+    if (rms > 0)
+        for (int i = 0; i < n; ++i)
+            f_um[i] *= amp_um / rms;
+}
+
+/* ---- DABAM ---------------------------------------------------------------------------------- */
+
+/* The value text of "key" in a flat JSON object (NULL if absent); copies at most len-1 chars. */
+static int json_value(const char *json, const char *key, char *out, size_t len)
+{
+    char pat[96];
+    snprintf(pat, sizeof pat, "\"%s\"", key);
+    const char *p = strstr(json, pat);
+    if (!p)
+        return 0;
+    p += strlen(pat);
+    while (isspace((unsigned char)*p))
+        ++p;
+    if (*p != ':')
+        return 0;
+    ++p;
+    while (isspace((unsigned char)*p))
+        ++p;
+    size_t k = 0;
+    if (*p == '"') {
+        ++p;
+        while (*p && *p != '"' && k + 1 < len)
+            out[k++] = *p++;
+    } else {
+        while (*p && *p != ',' && *p != '}' && !isspace((unsigned char)*p) && k + 1 < len)
+            out[k++] = *p++;
+    }
+    out[k] = '\0';
+    return 1;
+}
+
+static char *read_all(const char *path, sc_error *err)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        sc_error_set(err, SC_E_INPUT, path, 0, "cannot open");
+        return NULL;
+    }
+    size_t cap = 4096, len = 0;
+    char *buf = malloc(cap);
+    size_t got;
+    while (buf && (got = fread(buf + len, 1, cap - len - 1, f)) > 0) {
+        len += got;
+        if (len + 1 == cap) {
+            char *nb = realloc(buf, cap * 2);
+            if (!nb) {
+                free(buf);
+                buf = NULL;
+                break;
+            }
+            buf = nb;
+            cap *= 2;
+        }
+    }
+    fclose(f);
+    if (!buf) {
+        sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
+        return NULL;
+    }
+    buf[len] = '\0';
+    return buf;
+}
+
+sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double *f_um,
+                                char *info, size_t infolen, sc_error *err)
+{
+    char meta_path[4096];
+    size_t L = strlen(dat_path);
+    if (L < 4 || strcmp(dat_path + L - 4, ".dat") != 0 || L >= sizeof meta_path)
+        return sc_error_set(err, SC_E_INPUT, dat_path, 0, "a DABAM profile is a .dat file (with its .txt metadata)");
+    memcpy(meta_path, dat_path, L - 4);
+    strcpy(meta_path + L - 4, ".txt");
+    char *meta = read_all(meta_path, err);
+    if (!meta)
+        return err ? err->code : SC_E_INPUT;
+    char v[128];
+    long hdr = 0;
+    double xf = 1e-3, yf = 1.0;
+    int is_slope = 1;
+    if (!json_value(meta, "FILE_HEADER_LINES", v, sizeof v) || sscanf(v, "%ld", &hdr) != 1 || hdr < 0) {
+        free(meta);
+        return sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid FILE_HEADER_LINES");
+    }
+    if (!json_value(meta, "X1_FACTOR", v, sizeof v) || sc_parse_double(v, &xf) != 0 ||
+        !json_value(meta, "Y1_FACTOR", v, sizeof v) || sc_parse_double(v, &yf) != 0) {
+        free(meta);
+        return sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid X1_FACTOR / Y1_FACTOR");
+    }
+    char title[128] = "";
+    if (json_value(meta, "PLOT_TITLE_Y1", title, sizeof title)) {
+        char low[128];
+        size_t k = 0;
+        for (; title[k] && k + 1 < sizeof low; ++k)
+            low[k] = (char)tolower((unsigned char)title[k]);
+        low[k] = '\0';
+        if (strstr(low, "slope"))
+            is_slope = 1;
+        else if (strstr(low, "height") || strstr(low, "heigth"))
+            is_slope = 0;
+    } else if (json_value(meta, "FILE_FORMAT", v, sizeof v)) {
+        /* DABAM's convention: format 1 = slopes in column 2, format 2 = heights */
+        is_slope = strcmp(v, "2") != 0;
+    }
+    free(meta);
+
+    FILE *fp = fopen(dat_path, "rb");
+    if (!fp)
+        return sc_error_set(err, SC_E_INPUT, dat_path, 0, "cannot open");
+    size_t cap = 1024, cnt = 0;
+    double *xs = malloc(cap * sizeof(double)), *ys = malloc(cap * sizeof(double));
+    char line[4096];
+    long ln = 0;
+    sc_status st = SC_OK;
+    while (xs && ys && fgets(line, sizeof line, fp)) {
+        ++ln;
+        if (ln <= hdr)
+            continue;
+        char *p = line;
+        while (isspace((unsigned char)*p))
+            ++p;
+        if (!*p || *p == '#')
+            continue;
+        char *e1, *e2;
+        double a = strtod(p, &e1);
+        double b = strtod(e1, &e2);
+        if (e1 == p || e2 == e1 || !isfinite(a) || !isfinite(b)) {
+            st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "expected two numbers (abscissa, ordinate)");
+            break;
+        }
+        if (cnt == cap) {
+            cap *= 2;
+            double *nx = realloc(xs, cap * sizeof(double)), *ny = realloc(ys, cap * sizeof(double));
+            if (nx)
+                xs = nx;
+            if (ny)
+                ys = ny;
+            if (!nx || !ny) {
+                st = sc_error_set(err, SC_E_NOMEM, dat_path, ln, "out of memory");
+                break;
+            }
+        }
+        xs[cnt] = a * xf;
+        ys[cnt] = b * yf;
+        if (cnt > 0 && !(xs[cnt] > xs[cnt - 1])) {
+            st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "abscissa not increasing");
+            break;
+        }
+        ++cnt;
+    }
+    fclose(fp);
+    if (st == SC_OK && (!xs || !ys))
+        st = sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
+    if (st == SC_OK && cnt < 4)
+        st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "fewer than 4 points");
+    if (st != SC_OK) {
+        free(xs);
+        free(ys);
+        return st;
+    }
+    /* heights in µm at xs (m) */
+    double *hs = malloc(cnt * sizeof(double));
+    if (!hs) {
+        free(xs);
+        free(ys);
+        return sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
+    }
+    if (is_slope) {
+        hs[0] = 0;
+        for (size_t i = 1; i < cnt; ++i)
+            hs[i] = hs[i - 1] + 0.5 * (ys[i] + ys[i - 1]) * (xs[i] - xs[i - 1]) * 1e6;
+    } else {
+        for (size_t i = 0; i < cnt; ++i)
+            hs[i] = ys[i] * 1e6;
+    }
+    double len_m = xs[cnt - 1] - xs[0], span_m = (n - 1) * s_mm * 1e-3;
+    int true_scale = span_m <= len_m;
+    double x0 = true_scale ? xs[0] + 0.5 * (len_m - span_m) : xs[0];
+    double dx = true_scale ? s_mm * 1e-3 : len_m / (n - 1);
+    size_t j = 0;
+    for (int i = 0; i < n; ++i) {
+        double x = x0 + i * dx;
+        if (x > xs[cnt - 1])
+            x = xs[cnt - 1];
+        while (j + 2 < cnt && xs[j + 1] < x)
+            ++j;
+        double t = (x - xs[j]) / (xs[j + 1] - xs[j]);
+        if (t < 0)
+            t = 0;
+        if (t > 1)
+            t = 1;
+        f_um[i] = hs[j] + t * (hs[j + 1] - hs[j]);
+    }
+    sc_profile_remove_line(n, f_um);
+    if (info)
+        snprintf(info, infolen, "%s: %zu %s points over %.1f mm, %s", dat_path, cnt,
+                 is_slope ? "slope" : "height", len_m * 1e3,
+                 true_scale ? "true scale, centred" : "stretched onto the scan length");
+    free(xs);
+    free(ys);
+    free(hs);
+    return SC_OK;
+}
+
+sc_status sc_profile_simulate(const sc_profile_sim *p, const double *f_um, sc_profile_data *out,
+                              double *ey_um, sc_error *err)
+{
+    sc_status st = sc_profile_data_init(out, p->n, p->s_mm, p->d1, p->d2, err);
+    if (st != SC_OK)
+        return st;
+    if (!(p->sigma_disp_um >= 0) || !(p->sigma_angle_urad >= 0)) {
+        sc_profile_data_free(out);
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "noise levels must be non-negative");
+    }
+    const int n = p->n;
+    double *ep = malloc((size_t)n * sizeof(double));
+    if (!ep) {
+        sc_profile_data_free(out);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    sc_rng rng;
+    sc_rng_seed(&rng, p->seed);
+    /* the stage's motion errors: smooth, repeatable (the same in both scans) */
+    sc_profile_random_smooth(n, 1.0, 8, &rng, ey_um);
+    sc_profile_random_smooth(n, 1.0, 8, &rng, ep);
+    double tc = 0.5 * (n - 1);
+    for (int i = 0; i < n; ++i) {
+        /* plus a tilt, which a real stage also has */
+        ey_um[i] = p->ey_amp_um * (ey_um[i] + 0.8 * (i - tc) / (tc > 0 ? tc : 1));
+        ep[i] = p->ep_amp_urad * ep[i];
+    }
+    for (int k = 0; k < 2; ++k) {
+        const int d = out->d[k], m = n - d;
+        const double D_mm = d * p->s_mm;
+        for (int i = 0; i < m; ++i) {
+            out->m1_um[k][i] = f_um[i] + ey_um[i] + p->u1_um + p->b0_um +
+                               p->sigma_disp_um * sc_rng_normal(&rng);
+            out->m2_um[k][i] = f_um[i + d] + ey_um[i] + D_mm * ep[i] * 1e-3 + p->u2_um + p->b0_um +
+                               p->sigma_disp_um * sc_rng_normal(&rng);
+            out->m3_urad[k][i] = ep[i] + p->u3_urad + p->sigma_angle_urad * sc_rng_normal(&rng);
+        }
+    }
+    out->has_sigma_disp = out->has_sigma_angle = p->write_sigma ? 1 : 0;
+    out->sigma_disp_um = p->sigma_disp_um;
+    out->sigma_angle_urad = p->sigma_angle_urad;
+    free(ep);
+    return SC_OK;
+}
