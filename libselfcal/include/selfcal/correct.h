@@ -50,6 +50,8 @@ typedef struct sc_corr_profile {
     double start_mm;   /* position of point 0 */
     double step_mm;    /* spacing (> 0) */
     double inv_step;   /* 1 / step_mm, computed at load */
+    double end_mm;     /* position of the last point, computed at load */
+    double last;       /* n - 1 as a double, computed at load */
     float err_um[SC_CORR_MAX_PROFILE_POINTS];
 } sc_corr_profile;
 
@@ -59,6 +61,8 @@ typedef struct sc_corr_table {
     double x0_mm, y0_mm;   /* position of node (0, 0) */
     double px_mm, py_mm;   /* pitch along x and y */
     double inv_px, inv_py; /* computed at load */
+    double x1_mm, y1_mm;   /* position of the last node along x and y, computed at load */
+    double lastx, lasty;   /* nx - 1 and ny - 1 as doubles, computed at load */
     float gx_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY]; /* node (i, j) at i*nx + j, i along y */
     float gy_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY];
     uint8_t n_profiles;
@@ -76,9 +80,17 @@ enum {
     SC_CORR_E_CAPACITY = -6  /* valid, but larger than this build's SC_CORR_MAX_* */
 };
 
+/* CRC-32 (IEEE 802.3 polynomial, reflected, initial and final XOR 0xFFFFFFFF: the zlib/PNG
+ * CRC) of len bytes; the table file's checksum. crc32("123456789") = 0xCBF43926. */
+uint32_t sc_corr_crc32(const void *buf, size_t len);
+
 /* Validate a table image (the LUT file's bytes) and decode it into *t. On failure *t is marked
  * not loaded and the code says why. All the expensive work happens here, once. */
 int sc_corr_load(sc_corr_table *t, const void *buf, size_t len);
+
+/* Every format check of sc_corr_load (size, magic, version, CRC, ranges, layout) without decoding
+ * and without this build's capacity limits: SC_CORR_OK or the first problem found. */
+int sc_corr_validate(const void *buf, size_t len);
 
 /* A constant, one-line description of a load error code. */
 const char *sc_corr_strerror(int code);

@@ -1,0 +1,135 @@
+/* correct_apply.c — SPEC §4 runtime correction: bilinear grid G, clamped outside with a status
+ * bit, linear profile offsets, measure / position modes, and the exact inverse by fixed-point
+ * iteration.
+ *
+ * Freestanding: no libm (floor by a cast after clamping to the non-negative table range, the
+ * finiteness test by comparison with DBL_MAX). Positions are doubles (mm: nanometres at +-1000 km
+ * would still resolve); corrections are floats (micrometres; 24 bits are femtometres at 1 um).
+ * The table is only read, so any number of threads may call these functions on one table.
+ */
+#include <float.h>
+#include <limits.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "selfcal/correct.h"
+
+/* True for a finite double; false for NaN and +-infinity. */
+static inline int is_finite(double x)
+{
+    return x >= -DBL_MAX && x <= DBL_MAX;
+}
+
+/* Clamp coordinate x to [lo, hi]; sets *outside when it had to. */
+static inline double clamp_flag(double x, double lo, double hi, unsigned *outside)
+{
+    if (x < lo) {
+        *outside = 1u;
+        return lo;
+    }
+    if (x > hi) {
+        *outside = 1u;
+        return hi;
+    }
+    return x;
+}
+
+/* Cell index and fraction for the fractional node coordinate u in [0, last] (rounding may put it
+ * a hair outside; it is clamped again): index in [0, n-2], fraction in [0, 1]. */
+static inline unsigned cell(double u, double last, unsigned n, float *frac)
+{
+    if (u < 0.0)
+        u = 0.0;
+    if (u > last)
+        u = last;
+    unsigned k = (unsigned)u; /* u >= 0: the cast is floor */
+    if (k > n - 2u)
+        k = n - 2u;
+    *frac = (float)(u - (double)k);
+    return k;
+}
+
+/* The total correction at position in (grid G plus profile offsets), micrometres, per
+ * coordinate; returns SC_CORR_ST_OUTSIDE if the position was outside the grid. */
+static unsigned eval_um(const sc_corr_table *t, const double in[3], double c_um[3])
+{
+    unsigned outside = 0;
+    double x = clamp_flag(in[0], t->x0_mm, t->x1_mm, &outside);
+    double y = clamp_flag(in[1], t->y0_mm, t->y1_mm, &outside);
+    float fx, fy;
+    unsigned j = cell((x - t->x0_mm) * t->inv_px, t->lastx, t->nx, &fx);
+    unsigned i = cell((y - t->y0_mm) * t->inv_py, t->lasty, t->ny, &fy);
+    /* (1-f)a + f b: exactly a at f = 0 and exactly b at f = 1, so the value at a node is the
+     * node's value whichever of its cells the rounding picks (continuity across cell edges). */
+    const float wx = 1.0f - fx, wy = 1.0f - fy;
+    const size_t k = (size_t)i * t->nx + j, kn = k + t->nx;
+    const float gx = (t->gx_um[k] * wx + t->gx_um[k + 1] * fx) * wy +
+                     (t->gx_um[kn] * wx + t->gx_um[kn + 1] * fx) * fy;
+    const float gy = (t->gy_um[k] * wx + t->gy_um[k + 1] * fx) * wy +
+                     (t->gy_um[kn] * wx + t->gy_um[kn + 1] * fx) * fy;
+    c_um[0] = gx;
+    c_um[1] = gy;
+    c_um[2] = 0.0;
+    for (unsigned m = 0; m < t->n_profiles; ++m) {
+        const sc_corr_profile *p = &t->profile[m];
+        unsigned ignored = 0;
+        double s = clamp_flag(in[p->axis], p->start_mm, p->end_mm, &ignored);
+        float f;
+        unsigned q = cell((s - p->start_mm) * p->inv_step, p->last, p->n, &f);
+        c_um[p->dir] += (double)(p->err_um[q] * (1.0f - f) + p->err_um[q + 1] * f);
+    }
+    return outside ? SC_CORR_ST_OUTSIDE : 0u;
+}
+
+static unsigned pass_through(const sc_corr_table *t, const double in[3], double out[3])
+{
+    out[0] = in[0];
+    out[1] = in[1];
+    out[2] = in[2];
+    unsigned st = (t && t->loaded == 1u) ? SC_CORR_ST_LOADED : 0u;
+    if (!is_finite(in[0]) || !is_finite(in[1]) || !is_finite(in[2]))
+        st |= SC_CORR_ST_INVALID;
+    return st;
+}
+
+unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
+                       double out_mm[3])
+{
+    if (!t || t->loaded != 1u || !is_finite(in_mm[0]) || !is_finite(in_mm[1]) ||
+        !is_finite(in_mm[2]))
+        return pass_through(t, in_mm, out_mm);
+    double c[3];
+    unsigned st = SC_CORR_ST_LOADED | eval_um(t, in_mm, c);
+    const double sign_mm = mode == SC_CORR_POSITION ? 1e-3 : -1e-3;
+    out_mm[0] = in_mm[0] + sign_mm * c[0];
+    out_mm[1] = in_mm[1] + sign_mm * c[1];
+    out_mm[2] = in_mm[2] + sign_mm * c[2];
+    return st;
+}
+
+unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3], double out_mm[3],
+                               int iterations)
+{
+    if (!t || t->loaded != 1u || !is_finite(in_mm[0]) || !is_finite(in_mm[1]) ||
+        !is_finite(in_mm[2]))
+        return pass_through(t, in_mm, out_mm);
+    /* A fixed, bounded iteration count keeps the call constant-time. */
+    if (iterations < 1)
+        iterations = 1;
+    if (iterations > 16)
+        iterations = 16;
+    /* q <- p - C(q), starting from q = p (the first step is measure mode). The map contracts when
+     * the correction's slope is below 1, true for any real stage (slopes are ~1e-5). */
+    double q[3] = {in_mm[0], in_mm[1], in_mm[2]}, c[3];
+    unsigned st = SC_CORR_ST_LOADED;
+    for (int it = 0; it < iterations; ++it) {
+        st |= eval_um(t, q, c);
+        q[0] = in_mm[0] - 1e-3 * c[0];
+        q[1] = in_mm[1] - 1e-3 * c[1];
+        q[2] = in_mm[2] - 1e-3 * c[2];
+    }
+    out_mm[0] = q[0];
+    out_mm[1] = q[1];
+    out_mm[2] = q[2];
+    return st;
+}

@@ -1,0 +1,253 @@
+/* correct_load.c — validate a table image once and decode it into the caller's sc_corr_table.
+ *
+ * Freestanding: only <stddef.h>, <stdint.h>, <float.h>, <limits.h>. The byte layout is in
+ * lut_format.h and docs/lut-format.md.
+ */
+#include <float.h>
+#include <limits.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "lut_format.h"
+#include "selfcal/correct.h"
+
+/* CRC-32, reflected polynomial 0xEDB88320, one nibble at a time: a 64-byte table keeps the code
+ * small for microcontrollers, and loading is done once. */
+static const uint32_t crc_nibble[16] = {
+    0x00000000u, 0x1DB71064u, 0x3B6E20C8u, 0x26D930ACu, 0x76DC4190u, 0x6B6B51F4u,
+    0x4DB26158u, 0x5005713Cu, 0xEDB88320u, 0xF00F9344u, 0xD6D6A3E8u, 0xCB61B38Cu,
+    0x9B64C2B0u, 0x86D3D2D4u, 0xA00AE278u, 0xBDBDF21Cu};
+
+uint32_t sc_corr_crc32(const void *buf, size_t len)
+{
+    const uint8_t *p = (const uint8_t *)buf;
+    uint32_t c = 0xFFFFFFFFu;
+    for (size_t k = 0; k < len; ++k) {
+        c ^= p[k];
+        c = (c >> 4) ^ crc_nibble[c & 15u];
+        c = (c >> 4) ^ crc_nibble[c & 15u];
+    }
+    return c ^ 0xFFFFFFFFu;
+}
+
+const char *sc_corr_strerror(int code)
+{
+    switch (code) {
+    case SC_CORR_OK:
+        return "ok";
+    case SC_CORR_E_SIZE:
+        return "truncated or wrong length: the size disagrees with the table header";
+    case SC_CORR_E_MAGIC:
+        return "not a selfcal table (bad magic bytes)";
+    case SC_CORR_E_VERSION:
+        return "unsupported table format version";
+    case SC_CORR_E_CRC:
+        return "checksum mismatch: the table is corrupted";
+    case SC_CORR_E_RANGE:
+        return "a table field is out of range";
+    case SC_CORR_E_CAPACITY:
+        return "the table is larger than this build supports";
+    default:
+        return "unknown table error";
+    }
+}
+
+/* Finite and within +-limit (false for NaN: comparisons with NaN are false). */
+static int within(double x, double limit)
+{
+    return x >= -limit && x <= limit;
+}
+
+static int all_zero(const uint8_t *p, size_t n)
+{
+    for (size_t k = 0; k < n; ++k)
+        if (p[k] != 0)
+            return 0;
+    return 1;
+}
+
+static int scale_ok(uint32_t scale_pm)
+{
+    return scale_pm >= 1u && scale_pm <= SC_LUTF_MAX_SCALE_PM;
+}
+
+/* Checks a profile header; 0 or an error code. */
+static int check_profile_header(const uint8_t *h)
+{
+    unsigned axis = h[0], dir = h[1], enc = h[2];
+    uint16_t n = sc_lutf_get_u16(h + 4);
+    double start = sc_lutf_get_f64(h + 8), step = sc_lutf_get_f64(h + 16);
+    if (axis > SC_CORR_AXIS_Z || dir > SC_CORR_AXIS_Z)
+        return SC_CORR_E_RANGE;
+    if (enc != SC_LUTF_ENC_INT16 && enc != SC_LUTF_ENC_INT32)
+        return SC_CORR_E_RANGE;
+    if (h[3] != 0 || sc_lutf_get_u16(h + 6) != 0 || n < 2)
+        return SC_CORR_E_RANGE;
+    if (!within(start, SC_LUTF_MAX_ABS_MM) || !(step >= SC_LUTF_MIN_PITCH_MM) ||
+        !within(start + step * (double)(n - 1), SC_LUTF_MAX_ABS_MM))
+        return SC_CORR_E_RANGE;
+    if (!scale_ok(sc_lutf_get_u32(h + 24)))
+        return SC_CORR_E_RANGE;
+    return SC_CORR_OK;
+}
+
+static float decode(const uint8_t *p, unsigned enc, double um_per_code)
+{
+    return (float)((double)sc_lutf_get_code(p, enc) * um_per_code);
+}
+
+/* The validated layout of a table image. */
+typedef struct layout {
+    unsigned nx, ny, np, genc;
+    double x0, y0, px, py, x1, y1;
+    uint32_t gscale;
+    uint64_t poff[SC_LUTF_MAX_PROFILES];
+} layout;
+
+/* Every format check (size, magic, version, CRC, ranges, layout); fills *L. */
+static int check_image(const uint8_t *b, size_t len, layout *L)
+{
+    if (!b || len < (size_t)SC_LUTF_HEADER_BYTES + SC_LUTF_CRC_BYTES)
+        return SC_CORR_E_SIZE;
+    for (unsigned k = 0; k < SC_LUTF_MAGIC_LEN; ++k)
+        if (b[k] != sc_lutf_magic[k])
+            return SC_CORR_E_MAGIC;
+    if (sc_lutf_get_u16(b + 8) != SC_LUTF_VERSION)
+        return SC_CORR_E_VERSION;
+    if ((uint64_t)sc_lutf_get_u32(b + 12) != (uint64_t)len)
+        return SC_CORR_E_SIZE;
+    if (sc_corr_crc32(b, len - SC_LUTF_CRC_BYTES) != sc_lutf_get_u32(b + len - SC_LUTF_CRC_BYTES))
+        return SC_CORR_E_CRC;
+
+    /* Header fields. */
+    unsigned nx = sc_lutf_get_u16(b + 16), ny = sc_lutf_get_u16(b + 18);
+    unsigned np = b[20], genc = b[21];
+    double x0 = sc_lutf_get_f64(b + 24), y0 = sc_lutf_get_f64(b + 32);
+    double px = sc_lutf_get_f64(b + 40), py = sc_lutf_get_f64(b + 48);
+    uint32_t gscale = sc_lutf_get_u32(b + 56), prov = sc_lutf_get_u32(b + 60);
+    if (sc_lutf_get_u16(b + 10) != SC_LUTF_HEADER_BYTES || sc_lutf_get_u16(b + 22) != 0)
+        return SC_CORR_E_RANGE;
+    if (nx < 2 || ny < 2 || np > SC_LUTF_MAX_PROFILES)
+        return SC_CORR_E_RANGE;
+    if (genc != SC_LUTF_ENC_INT16 && genc != SC_LUTF_ENC_INT32)
+        return SC_CORR_E_RANGE;
+    if (!within(x0, SC_LUTF_MAX_ABS_MM) || !within(y0, SC_LUTF_MAX_ABS_MM))
+        return SC_CORR_E_RANGE;
+    if (!(px >= SC_LUTF_MIN_PITCH_MM) || !(py >= SC_LUTF_MIN_PITCH_MM))
+        return SC_CORR_E_RANGE;
+    double x1 = x0 + px * (double)(nx - 1), y1 = y0 + py * (double)(ny - 1);
+    if (!within(x1, SC_LUTF_MAX_ABS_MM) || !within(y1, SC_LUTF_MAX_ABS_MM))
+        return SC_CORR_E_RANGE;
+    if (!scale_ok(gscale))
+        return SC_CORR_E_RANGE;
+
+    /* Layout: every block must lie inside the file, and the blocks must fill it exactly.
+     * 64-bit offsets: nx * ny * 8 does not overflow them. */
+    const uint64_t body_end = (uint64_t)len - SC_LUTF_CRC_BYTES;
+    uint64_t off = SC_LUTF_HEADER_BYTES;
+    off += 2u * (uint64_t)nx * ny * sc_lutf_code_bytes(genc);
+    for (unsigned k = 0; k < np; ++k) {
+        if (off + SC_LUTF_PROFILE_HEADER_BYTES > body_end)
+            return SC_CORR_E_SIZE;
+        const uint8_t *h = b + (size_t)off;
+        int rc = check_profile_header(h);
+        if (rc != SC_CORR_OK)
+            return rc;
+        L->poff[k] = off;
+        off += SC_LUTF_PROFILE_HEADER_BYTES + (uint64_t)sc_lutf_get_u16(h + 4) * sc_lutf_code_bytes(h[2]);
+    }
+    if (off + SC_LUTF_PROV_FIXED_BYTES > body_end || off + prov != body_end)
+        return SC_CORR_E_SIZE;
+    /* Provenance: method a NUL-terminated string, sigma finite (negative = unknown), count <= 9,
+     * reserved bytes zero, one SHA-256 per source. */
+    const uint8_t *pv = b + (size_t)off;
+    if (pv[SC_LUTF_METHOD_BYTES - 1] != 0)
+        return SC_CORR_E_RANGE;
+    if (!within(sc_lutf_get_f64(pv + 40), DBL_MAX))
+        return SC_CORR_E_RANGE;
+    unsigned nsrc = pv[48];
+    if (nsrc > SC_LUTF_MAX_SOURCES || !all_zero(pv + 49, 7))
+        return SC_CORR_E_RANGE;
+    if (prov != SC_LUTF_PROV_FIXED_BYTES + nsrc * SC_LUTF_SHA256_BYTES)
+        return SC_CORR_E_SIZE;
+    L->nx = nx;
+    L->ny = ny;
+    L->np = np;
+    L->genc = genc;
+    L->x0 = x0;
+    L->y0 = y0;
+    L->px = px;
+    L->py = py;
+    L->x1 = x1;
+    L->y1 = y1;
+    L->gscale = gscale;
+    return SC_CORR_OK;
+}
+
+int sc_corr_validate(const void *buf, size_t len)
+{
+    layout L;
+    return check_image((const uint8_t *)buf, len, &L);
+}
+
+int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
+{
+    if (!t)
+        return SC_CORR_E_RANGE;
+    t->loaded = 0;
+    const uint8_t *b = (const uint8_t *)buf;
+    layout L;
+    int rc = check_image(b, len, &L);
+    if (rc != SC_CORR_OK)
+        return rc;
+    const unsigned nx = L.nx, ny = L.ny, np = L.np, genc = L.genc;
+    const uint64_t *poff = L.poff;
+    const uint64_t ncells = (uint64_t)nx * ny;
+
+    /* Valid: does it fit this build? */
+    if (nx > SC_CORR_MAX_NX || ny > SC_CORR_MAX_NY || np > SC_CORR_MAX_PROFILES)
+        return SC_CORR_E_CAPACITY;
+    for (unsigned k = 0; k < np; ++k)
+        if (sc_lutf_get_u16(b + (size_t)poff[k] + 4) > SC_CORR_MAX_PROFILE_POINTS)
+            return SC_CORR_E_CAPACITY;
+
+    /* Decode. */
+    t->nx = (uint16_t)nx;
+    t->ny = (uint16_t)ny;
+    t->x0_mm = L.x0;
+    t->y0_mm = L.y0;
+    t->px_mm = L.px;
+    t->py_mm = L.py;
+    t->inv_px = 1.0 / L.px;
+    t->inv_py = 1.0 / L.py;
+    t->x1_mm = L.x1;
+    t->y1_mm = L.y1;
+    t->lastx = (double)(nx - 1);
+    t->lasty = (double)(ny - 1);
+    const double gum = (double)L.gscale * 1e-6;
+    const unsigned gcb = sc_lutf_code_bytes(genc);
+    const uint8_t *gx = b + SC_LUTF_HEADER_BYTES, *gy = gx + (size_t)ncells * gcb;
+    for (size_t k = 0; k < (size_t)ncells; ++k) {
+        t->gx_um[k] = decode(gx + k * gcb, genc, gum);
+        t->gy_um[k] = decode(gy + k * gcb, genc, gum);
+    }
+    t->n_profiles = (uint8_t)np;
+    for (unsigned k = 0; k < np; ++k) {
+        const uint8_t *h = b + (size_t)poff[k];
+        sc_corr_profile *p = &t->profile[k];
+        p->axis = h[0];
+        p->dir = h[1];
+        p->n = sc_lutf_get_u16(h + 4);
+        p->start_mm = sc_lutf_get_f64(h + 8);
+        p->step_mm = sc_lutf_get_f64(h + 16);
+        p->inv_step = 1.0 / p->step_mm;
+        p->last = (double)(p->n - 1);
+        p->end_mm = p->start_mm + p->step_mm * p->last;
+        const double pum = (double)sc_lutf_get_u32(h + 24) * 1e-6;
+        const unsigned enc = h[2], cb = sc_lutf_code_bytes(enc);
+        for (unsigned m = 0; m < p->n; ++m)
+            p->err_um[m] = decode(h + SC_LUTF_PROFILE_HEADER_BYTES + m * cb, enc, pum);
+    }
+    t->loaded = 1;
+    return SC_CORR_OK;
+}
