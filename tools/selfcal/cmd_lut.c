@@ -1,11 +1,257 @@
-/* PLACEHOLDER — replaced by the area that owns this command. */
+/* cmd_lut.c — `selfcal lut build|dump|info`: build the binary lookup table from the SPEC map and
+ * profile files, print it back as CSV (SPEC §3), show its provenance. */
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
 
 #include "cli.h"
+#include "selfcal/correct.h"
+#include "selfcal/csv.h"
+#include "selfcal/lut.h"
+#include "selfcal/sha256.h"
+
+static void lut_usage(FILE *to)
+{
+    fprintf(to,
+            "usage: selfcal lut build --map G.csv [--profile AXIS:DIR:P.csv ...] -o TABLE\n"
+            "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
+            "                         [--created UNIX_SECONDS]\n"
+            "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
+            "       selfcal lut info TABLE     print size, encoding, quantization and provenance\n"
+            "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
+            "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to %d\n"
+            "  --sigma UM                estimated sigma of the map (provenance)\n"
+            "  --created                 creation time to record (default: SOURCE_DATE_EPOCH or now)\n",
+            SC_LUT_MAX_PROFILES);
+}
+
+typedef struct profile_arg {
+    int axis, dir;
+    const char *path;
+} profile_arg;
+
+/* "AXIS:DIR:path" (the path may itself contain ':'). */
+static int parse_profile_arg(const char *s, profile_arg *pa)
+{
+    if (strlen(s) < 5 || s[1] != ':' || s[3] != ':')
+        return -1;
+    char a[2] = {s[0], 0}, d[2] = {s[2], 0};
+    pa->axis = sc_lut_axis_from_name(a);
+    pa->dir = sc_lut_axis_from_name(d);
+    pa->path = s + 4;
+    return (pa->axis < 0 || pa->dir < 0) ? -1 : 0;
+}
+
+static int lut_build(int argc, char **argv)
+{
+    const char *map = NULL, *out = NULL, *method = NULL;
+    double sigma = -1.0;
+    long long created = -1;
+    sc_lut_encoding enc = SC_LUT_ENC_AUTO;
+    profile_arg pa[SC_LUT_MAX_PROFILES];
+    int np = 0;
+    for (int k = 1; k < argc; ++k) {
+        const char *a = argv[k];
+        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            lut_usage(stdout);
+            return CLI_OK;
+        }
+        if (!v)
+            return cli_usage_error("lut build", "option %s needs a value (see --help)", a);
+        ++k;
+        if (!strcmp(a, "--map"))
+            map = v;
+        else if (!strcmp(a, "-o") || !strcmp(a, "--out"))
+            out = v;
+        else if (!strcmp(a, "--method")) {
+            if (strlen(v) >= SC_LUT_METHOD_LEN)
+                return cli_usage_error("lut build", "--method: at most %d characters",
+                                       SC_LUT_METHOD_LEN - 1);
+            method = v;
+        } else if (!strcmp(a, "--sigma")) {
+            if (sc_parse_double(v, &sigma) != 0 || sigma < 0)
+                return cli_usage_error("lut build", "--sigma: a non-negative number in um, not '%s'", v);
+        } else if (!strcmp(a, "--created")) {
+            long c;
+            if (sc_parse_long(v, &c) != 0 || c < 0)
+                return cli_usage_error("lut build", "--created: Unix seconds, not '%s'", v);
+            created = c;
+        } else if (!strcmp(a, "--encoding")) {
+            if (!strcmp(v, "auto"))
+                enc = SC_LUT_ENC_AUTO;
+            else if (!strcmp(v, "int16"))
+                enc = SC_LUT_ENC_INT16;
+            else if (!strcmp(v, "int32"))
+                enc = SC_LUT_ENC_INT32;
+            else
+                return cli_usage_error("lut build", "--encoding: auto, int16 or int32, not '%s'", v);
+        } else if (!strcmp(a, "--profile")) {
+            if (np == SC_LUT_MAX_PROFILES)
+                return cli_usage_error("lut build", "at most %d profiles", SC_LUT_MAX_PROFILES);
+            if (parse_profile_arg(v, &pa[np]) != 0)
+                return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE with AXIS, DIR in x, y, z; not '%s'", v);
+            ++np;
+        } else
+            return cli_usage_error("lut build", "unknown option '%s' (see --help)", a);
+    }
+    if (!map || !out)
+        return cli_usage_error("lut build", "--map and -o are required (see --help)");
+    if (created < 0) {
+        const char *sde = getenv("SOURCE_DATE_EPOCH");
+        long c;
+        created = (sde && sc_parse_long(sde, &c) == 0 && c >= 0) ? c : (long long)time(NULL);
+    }
+
+    sc_lut *lut = malloc(sizeof *lut);
+    if (!lut) {
+        fprintf(stderr, "selfcal lut build: out of memory\n");
+        return CLI_FAIL;
+    }
+    sc_lut_init(lut);
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st = sc_lut_read_map(map, lut, &err);
+    for (int k = 0; st == SC_OK && k < np; ++k) {
+        st = sc_lut_read_profile(pa[k].path, pa[k].axis, pa[k].dir, &lut->profile[k], &err);
+        lut->n_profiles = k + 1;
+    }
+    /* Provenance: the hash of each source file, as `sha256sum` prints it. */
+    if (st == SC_OK)
+        st = sc_sha256_file(map, lut->prov.sha256[0], &err);
+    for (int k = 0; st == SC_OK && k < np; ++k)
+        st = sc_sha256_file(pa[k].path, lut->prov.sha256[k + 1], &err);
+    if (st == SC_OK) {
+        lut->prov.n_sources = 1 + np;
+        lut->prov.created_unix_s = created;
+        lut->prov.sigma_um = sigma;
+        if (method)
+            snprintf(lut->prov.method, sizeof lut->prov.method, "%s", method);
+        st = sc_lut_write_file(out, lut, enc, &err);
+    }
+    if (st != SC_OK) {
+        free(lut);
+        return cli_report(&err);
+    }
+    size_t bytes = sc_lut_encoded_size(lut, enc);
+    printf("table %s: %d x %d nodes, pitch %.6f x %.6f mm, %d profile(s), %zu bytes, "
+           "map quantization <= %.4f nm (%s)\n",
+           out, lut->nx, lut->ny, lut->px_mm, lut->py_mm, lut->n_profiles, bytes,
+           1e3 * sc_lut_quantization_um(lut->grid_scale_pm),
+           lut->grid_encoding == SC_LUT_ENC_INT16 ? "int16" : "int32");
+    free(lut);
+    return CLI_OK;
+}
+
+static int load_table(const char *cmd, int argc, char **argv, sc_lut **out)
+{
+    if (argc == 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
+        lut_usage(stdout);
+        return -1;
+    }
+    if (argc != 2)
+        return cli_usage_error(cmd, "expected one table file (see --help)");
+    sc_lut *lut = malloc(sizeof *lut);
+    if (!lut) {
+        fprintf(stderr, "selfcal %s: out of memory\n", cmd);
+        return CLI_FAIL;
+    }
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_lut_read_file(argv[1], lut, &err) != SC_OK) {
+        free(lut);
+        return cli_report(&err);
+    }
+    *out = lut;
+    return CLI_OK;
+}
+
+static int lut_dump(int argc, char **argv)
+{
+    sc_lut *lut = NULL;
+    int rc = load_table("lut dump", argc, argv, &lut);
+    if (rc != CLI_OK || !lut)
+        return rc < 0 ? CLI_OK : rc;
+    /* Values are whole picometres (code x integer pm scale): %.6f um prints them exactly. */
+    printf("i,j,x_mm,y_mm,gx_um,gy_um\n");
+    for (int i = 0; i < lut->ny; ++i)
+        for (int j = 0; j < lut->nx; ++j) {
+            size_t k = (size_t)i * lut->nx + j;
+            printf("%d,%d,%.6f,%.6f,%.6f,%.6f\n", i, j, lut->x0_mm + j * lut->px_mm,
+                   lut->y0_mm + i * lut->py_mm, lut->gx_um[k], lut->gy_um[k]);
+        }
+    for (int k = 0; k < lut->n_profiles; ++k) {
+        const sc_lut_profile *p = &lut->profile[k];
+        printf("# profile %d: axis=%s dir=%s\n", k, sc_lut_axis_name(p->axis),
+               sc_lut_axis_name(p->dir));
+        printf("n,pos_mm,err_um\n");
+        for (int n = 0; n < p->n; ++n)
+            printf("%d,%.6f,%.6f\n", n, p->start_mm + n * p->step_mm, p->err_um[n]);
+    }
+    free(lut);
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        fprintf(stderr, "selfcal lut dump: write error on standard output\n");
+        return CLI_FAIL;
+    }
+    return CLI_OK;
+}
+
+static const char *enc_name(int enc)
+{
+    return enc == SC_LUT_ENC_INT16 ? "int16" : enc == SC_LUT_ENC_INT32 ? "int32" : "?";
+}
+
+static int lut_info(int argc, char **argv)
+{
+    sc_lut *lut = NULL;
+    int rc = load_table("lut info", argc, argv, &lut);
+    if (rc != CLI_OK || !lut)
+        return rc < 0 ? CLI_OK : rc;
+    printf("format: selfcal table v1, %zu bytes\n", sc_lut_encoded_size(lut, SC_LUT_ENC_AUTO));
+    printf("grid: %d x %d nodes, origin %.6f,%.6f mm, pitch %.6f x %.6f mm\n", lut->nx, lut->ny,
+           lut->x0_mm, lut->y0_mm, lut->px_mm, lut->py_mm);
+    printf("grid encoding: %s, %u pm per code, quantization <= %.4f nm\n",
+           enc_name(lut->grid_encoding), (unsigned)lut->grid_scale_pm,
+           1e3 * sc_lut_quantization_um(lut->grid_scale_pm));
+    for (int k = 0; k < lut->n_profiles; ++k) {
+        const sc_lut_profile *p = &lut->profile[k];
+        printf("profile %d: error of %s along %s, %d points from %.6f mm step %.6f mm, %s, "
+               "%u pm per code\n",
+               k, sc_lut_axis_name(p->dir), sc_lut_axis_name(p->axis), p->n, p->start_mm,
+               p->step_mm, enc_name(p->encoding), (unsigned)p->scale_pm);
+    }
+    printf("method: %s\n", lut->prov.method[0] ? lut->prov.method : "(not recorded)");
+    time_t t = (time_t)lut->prov.created_unix_s;
+    struct tm tmv;
+    char when[64] = "?";
+    if (gmtime_r(&t, &tmv))
+        strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%SZ", &tmv);
+    printf("created: %s (%lld)\n", when, (long long)lut->prov.created_unix_s);
+    if (lut->prov.sigma_um >= 0)
+        printf("sigma_um: %g\n", lut->prov.sigma_um);
+    else
+        printf("sigma_um: (not recorded)\n");
+    for (int k = 0; k < lut->prov.n_sources; ++k) {
+        char hex[2 * SC_SHA256_BYTES + 1];
+        sc_sha256_hex(lut->prov.sha256[k], hex);
+        printf("source %d sha256: %s (%s)\n", k, hex, k == 0 ? "map" : "profile");
+    }
+    free(lut);
+    return CLI_OK;
+}
 
 int cmd_lut(int argc, char **argv)
 {
-    (void)argc;
-    fprintf(stderr, "selfcal %s: not built yet\n", argv[0]);
-    return CLI_FAIL;
+    if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+        lut_usage(argc < 2 ? stderr : stdout);
+        return argc < 2 ? CLI_BAD_INPUT : CLI_OK;
+    }
+    if (!strcmp(argv[1], "build"))
+        return lut_build(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "dump"))
+        return lut_dump(argc - 1, argv + 1);
+    if (!strcmp(argv[1], "info"))
+        return lut_info(argc - 1, argv + 1);
+    return cli_usage_error("lut", "unknown subcommand '%s' (build, dump or info)", argv[1]);
 }
