@@ -1,11 +1,269 @@
-/* PLACEHOLDER — replaced by the area that owns this command. */
+/* selfcal grid — separate the stage error G from the plate error A (Ye, double shift, least squares). */
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "cli.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "selfcal/grid_exact.h"
+#include "selfcal/grid_io.h"
+#include "selfcal/grid_lsq.h"
+
+/* From cmd_plot_map.c: draw a map (and optionally the estimation error against a truth). */
+void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
+                  double scale_um_per_pitch, const char *name);
+
+static const char *USAGE =
+    "usage: selfcal grid --method {ye,double-shift,lsq} IN.csv --map G.csv\n"
+    "                    [--artifact A.csv] [--summary S.json] [--sigma-r-um X] [--plot map.svg]\n"
+    "\n"
+    "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
+    "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
+    "i,j,ax_um,ay_um), a JSON summary (--summary: O, R, misalignment per view, residual RMS, noise\n"
+    "estimated and used) and an arrow plot (--plot).\n"
+    "  ye            Ye et al.: views {rot 0}, {rot 90}, {shift +1,0}, all marks on the grid.\n"
+    "  double-shift  Petro: {rot 0}, {rot 90}, {shift +2,0}, {shift -3,0: row c, cols c, c+1}; N >= 9.\n"
+    "  lsq           optimal least squares for any plan that identifies G (see selfcal plan);\n"
+    "                uncertainties (k = 1) use --sigma-r-um if given, else the noise estimated from\n"
+    "                the residuals. The exact methods give no uncertainties (columns left empty).\n"
+    "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n";
+
+typedef struct need_view {
+    int rot, sx, sy;
+    int partial; /* 1: only plate row c and columns c, c+1 are needed (double shift view 3) */
+} need_view;
+
+/* Check that the views a closed-form method needs are declared and completely measured. */
+static sc_status check_views(const char *path, const sc_grid_data *d, const sc_grid_file_info *info,
+                             const char *method, const need_view *need, int n_need, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    int n = p->n, c = (n - 1) / 2;
+    for (int k = 0; k < n_need; ++k) {
+        int v = sc_grid_find_view(p, need[k].rot, need[k].sx, need[k].sy);
+        if (v < 0)
+            return sc_error_set(err, SC_E_INPUT, path, info->header_end_line,
+                                "method %s needs a view rot=%d shift=%d,%d, which the header does "
+                                "not declare",
+                                method, need[k].rot, need[k].sx, need[k].sy);
+        if (info->view_rows[v] == 0)
+            return sc_error_set(err, SC_E_INPUT, path, info->view_line[v],
+                                "view %d (rot=%d shift=%d,%d), needed by method %s, has no data rows",
+                                info->view_id[v], need[k].rot, need[k].sx, need[k].sy, method);
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                int ni, nj;
+                if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                if (need[k].partial && i != c && j != c && j != c + 1)
+                    continue;
+                if (!isfinite(d->dx_um[v][i * n + j]))
+                    return sc_error_set(err, SC_E_INPUT, path, info->view_line[v],
+                                        "view %d (rot=%d shift=%d,%d) lacks mark (%d,%d), which "
+                                        "method %s needs",
+                                        info->view_id[v], need[k].rot, need[k].sx, need[k].sy, i,
+                                        j, method);
+            }
+    }
+    return SC_OK;
+}
 
 int cmd_grid(int argc, char **argv)
 {
-    (void)argc;
-    fprintf(stderr, "selfcal %s: not built yet\n", argv[0]);
-    return CLI_FAIL;
+    const char *method = NULL, *in = NULL, *map = NULL, *art = NULL, *sum = NULL, *plot = NULL;
+    double sigma_r = 0;
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        }
+        if (o[0] != '-' || !strcmp(o, "-")) {
+            if (in)
+                return cli_usage_error("grid", "more than one input file ('%s', '%s')", in, o);
+            in = o;
+            continue;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error("grid", "'%s' needs a value\n%s", o, USAGE);
+        const char *v = argv[++a];
+        if (!strcmp(o, "--method")) method = v;
+        else if (!strcmp(o, "--map")) map = v;
+        else if (!strcmp(o, "--artifact")) art = v;
+        else if (!strcmp(o, "--summary")) sum = v;
+        else if (!strcmp(o, "--plot")) plot = v;
+        else if (!strcmp(o, "--sigma-r-um")) {
+            if (sc_parse_double(v, &sigma_r) || !(sigma_r > 0))
+                return cli_usage_error("grid", "--sigma-r-um needs a positive number, got '%s'", v);
+        } else
+            return cli_usage_error("grid", "unknown option '%s'\n%s", o, USAGE);
+    }
+    if (!method || !in || !map)
+        return cli_usage_error("grid", "--method, IN.csv and --map are required\n%s", USAGE);
+    int m_ye = !strcmp(method, "ye"), m_ds = !strcmp(method, "double-shift"),
+        m_lsq = !strcmp(method, "lsq");
+    if (!m_ye && !m_ds && !m_lsq)
+        return cli_usage_error("grid", "--method must be ye, double-shift or lsq (got '%s')",
+                               method);
+
+    sc_error err;
+    sc_error_clear(&err);
+    sc_grid_data d;
+    sc_grid_file_info info;
+    sc_status st = sc_grid_read(in, &d, &info, &err);
+    if (st != SC_OK)
+        return cli_report(&err);
+    const sc_grid_plan *p = &d.plan;
+    int n = p->n, c = (n - 1) / 2;
+    size_t nn = (size_t)n * n;
+    double *buf = NULL;
+    sc_grid_result res;
+    memset(&res, 0, sizeof res);
+    sc_grid_exact_plan *xp = NULL;
+    sc_grid_lsq *q = NULL;
+
+    if (info.n_rows == 0) {
+        st = sc_error_set(&err, SC_E_INPUT, in, info.header_end_line,
+                          "no data rows (a plan file? use 'selfcal plan' for plans)");
+        goto done;
+    }
+    if (m_ye) {
+        need_view need[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+        st = check_views(in, &d, &info, "ye", need, 3, &err);
+    } else if (m_ds) {
+        if (n < 9) {
+            st = sc_error_set(&err, SC_E_INPUT, in, info.n_line,
+                              "method double-shift needs N >= 9 (N = %d)", n);
+            goto done;
+        }
+        need_view need[4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+        st = check_views(in, &d, &info, "double-shift", need, 4, &err);
+    }
+    (void)c;
+    if (st != SC_OK)
+        goto done;
+
+    buf = malloc(6 * nn * sizeof(double));
+    if (!buf) {
+        st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
+        goto done;
+    }
+    for (size_t k = 0; k < 6 * nn; ++k)
+        buf[k] = NAN;
+    res.gx_um = buf;
+    res.gy_um = buf + nn;
+    res.ugx_um = buf + 2 * nn;
+    res.ugy_um = buf + 3 * nn;
+    res.ax_um = buf + 4 * nn;
+    res.ay_um = buf + 5 * nn;
+    res.O = res.R = res.residual_rms_um = res.sigma_r_est_um = res.sigma_r_used_um = NAN;
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        res.tx_um[v] = res.ty_um[v] = res.theta_urad[v] = NAN;
+
+    if (m_lsq) {
+        st = sc_grid_lsq_create(p, &d, &q, &err);
+        if (st != SC_OK)
+            goto done;
+        sc_grid_lsq_info qi;
+        sc_grid_lsq_get_info(q, &qi);
+        if (!qi.identifiable) {
+            st = sc_error_set(&err, SC_E_UNSOLVABLE, in, info.header_end_line,
+                              "the measured views do not identify G: %ld degree(s) of freedom "
+                              "beyond the gauge stay free (see 'selfcal plan')",
+                              qi.free_dof);
+            goto done;
+        }
+        st = sc_grid_lsq_solve(q, &d, sigma_r, &res, &err);
+    } else {
+        st = sc_grid_exact_plan_create(m_ye ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT, n, &xp, &err);
+        if (st == SC_OK)
+            st = sc_grid_exact_execute(xp, &d, &res, &err);
+        if (st == SC_OK) {
+            for (size_t k = 0; k < nn; ++k)
+                res.ugx_um[k] = res.ugy_um[k] = NAN;
+            if (sigma_r > 0)
+                res.sigma_r_used_um = sigma_r;
+        }
+    }
+    if (st != SC_OK)
+        goto done;
+    for (size_t k = 0; k < nn; ++k)
+        if (!isfinite(res.gx_um[k]) || !isfinite(res.gy_um[k]) || !isfinite(res.ax_um[k]) ||
+            !isfinite(res.ay_um[k])) {
+            st = sc_error_set(&err, SC_E_INTERNAL, in, 0, "the %s solution is not finite", method);
+            goto done;
+        }
+
+    /* Everything is computed: write all outputs, commit them together. */
+    {
+        const char *paths[4] = {map, art, sum, plot};
+        sc_afile f[4];
+        int opened = 0;
+        sc_grid_map gm;
+        memset(&gm, 0, sizeof gm);
+        double *xy = NULL;
+        if (plot) {
+            xy = malloc(2 * nn * sizeof(double));
+            if (!xy) {
+                st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
+                goto done;
+            }
+            gm.n = n;
+            gm.pitch_mm = p->pitch_mm;
+            gm.origin_mm[0] = p->origin_mm[0];
+            gm.origin_mm[1] = p->origin_mm[1];
+            gm.x_mm = xy;
+            gm.y_mm = xy + nn;
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j < n; ++j) {
+                    sc_grid_node_xy_mm(p, i, j, &gm.x_mm[i * n + j], &gm.y_mm[i * n + j]);
+                    gm.x_mm[i * n + j] += p->origin_mm[0];
+                    gm.y_mm[i * n + j] += p->origin_mm[1];
+                }
+            gm.gx_um = res.gx_um;
+            gm.gy_um = res.gy_um;
+            gm.ugx_um = res.ugx_um;
+            gm.ugy_um = res.ugy_um;
+            gm.has_u = isfinite(res.ugx_um[0]);
+        }
+        for (; opened < 4; ++opened) {
+            if (!paths[opened])
+                continue;
+            st = sc_afile_open(&f[opened], paths[opened], &err);
+            if (st != SC_OK)
+                break;
+            switch (opened) {
+            case 0: sc_grid_fprint_map(f[0].fp, p, res.gx_um, res.gy_um, res.ugx_um, res.ugy_um); break;
+            case 1: sc_grid_fprint_artifact(f[1].fp, p, res.ax_um, res.ay_um); break;
+            case 2: sc_grid_fprint_summary(f[2].fp, method, p, &res); break;
+            case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, in); break;
+            }
+        }
+        for (int k = 0; k < opened; ++k) {
+            if (!paths[k])
+                continue;
+            if (st == SC_OK)
+                st = sc_afile_commit(&f[k], &err);
+            else
+                sc_afile_abort(&f[k]);
+        }
+        free(xy);
+    }
+
+done:
+    sc_grid_lsq_destroy(q);
+    sc_grid_exact_plan_destroy(xp);
+    free(buf);
+    sc_grid_data_free(&d);
+    if (st != SC_OK) {
+        if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
+            snprintf(err.file, sizeof err.file, "%s", in);
+            if (!err.line)
+                err.line = info.header_end_line;
+        }
+        return cli_report(&err);
+    }
+    return CLI_OK;
 }

@@ -45,6 +45,7 @@ void sc_grid_write_header(FILE *fp, const sc_grid_plan *p);
 /* Write a selfcal-grid v1 input file: the header, the column header and one row per finite
  * measurement in d (measured position in mm = origin + node + dev/1000, 15 decimals). */
 sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err);
+void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d);
 
 /* Write a stage error map `i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um` (x, y: stage node positions
  * including the origin). ugx/ugy may be NULL; NaN uncertainties are written as empty fields. */

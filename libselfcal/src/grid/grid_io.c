@@ -569,15 +569,11 @@ static sc_status finish(sc_afile *f, sc_error *err)
     return sc_afile_commit(f, err);
 }
 
-sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err)
+void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)
 {
     const sc_grid_plan *p = &d->plan;
-    sc_afile f;
-    sc_status st = sc_afile_open(&f, path, err);
-    if (st != SC_OK)
-        return st;
-    sc_grid_write_header(f.fp, p);
-    fprintf(f.fp, COLUMN_HEADER "\n");
+    sc_grid_write_header(fp, p);
+    fprintf(fp, COLUMN_HEADER "\n");
     int n = p->n;
     for (int v = 0; v < p->n_views; ++v)
         for (int i = 0; i < n; ++i)
@@ -591,8 +587,17 @@ sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error 
                 sc_grid_node_xy_mm(p, ni, nj, &x, &y);
                 x += p->origin_mm[0] + d->dx_um[v][k] * 1e-3;
                 y += p->origin_mm[1] + d->dy_um[v][k] * 1e-3;
-                fprintf(f.fp, "%d,%d,%d,%.15f,%.15f\n", v, i, j, x, y);
+                fprintf(fp, "%d,%d,%d,%.15f,%.15f\n", v, i, j, x, y);
             }
+}
+
+sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_fprint_input(f.fp, d);
     return finish(&f, err);
 }
 
