@@ -1,0 +1,26 @@
+/* profile_lsq_kernels.h — private: the two inner loops of the banded least-squares solver. */
+#ifndef SELFCAL_PROFILE_LSQ_KERNELS_H
+#define SELFCAL_PROFILE_LSQ_KERNELS_H
+
+/* Σ a[i]·b[i], i < len (four partial sums: independent chains the compiler can pipeline). */
+static inline double sc_lsq_dot(const double *a, const double *b, int len)
+{
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    int i = 0;
+    for (; i + 4 <= len; i += 4) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1] * b[i + 1];
+        s2 += a[i + 2] * b[i + 2];
+        s3 += a[i + 3] * b[i + 3];
+    }
+    for (; i < len; i++) s0 += a[i] * b[i];
+    return (s0 + s1) + (s2 + s3);
+}
+
+/* y[i] += alpha·x[i], i < len. */
+static inline void sc_lsq_axpy(double *restrict y, double alpha, const double *restrict x, int len)
+{
+    for (int i = 0; i < len; i++) y[i] += alpha * x[i];
+}
+
+#endif

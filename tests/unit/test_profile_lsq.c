@@ -1,0 +1,595 @@
+/* Unit tests of the fast profile least squares (selfcal/profile_lsq.h): solvability against the
+ * rank of the dense system, noise-free reconstruction (simulated and DABAM profiles), agreement
+ * with the dense LAPACK reference, uncertainties against Monte Carlo and against a long-double
+ * computation in another gauge at N = 10⁶, the paper's set-up. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "profile_lsq_dense.h"
+#include "selfcal/profile_lsq.h"
+#include "selfcal/rng.h"
+
+/* ---------- helpers ---------- */
+
+static double *dalloc(size_t n)
+{
+    double *p = calloc(n ? n : 1, sizeof(double));
+    assert_non_null(p);
+    return p;
+}
+
+/* Remove the least-squares line of v over its index (plain formulas, long double sums). */
+static void remove_line(int n, double *v)
+{
+    long double s0 = 0, s1 = 0, nc = 0.5L * (n - 1), sxx = 0;
+    for (int i = 0; i < n; i++) {
+        s0 += v[i];
+        s1 += (i - nc) * v[i];
+        sxx += (i - nc) * (i - nc);
+    }
+    long double mean = s0 / n, slope = s1 / sxx;
+    for (int i = 0; i < n; i++) v[i] = (double)(v[i] - mean - slope * (i - nc));
+}
+
+static double ls_slope(int n, const double *v)
+{
+    long double s1 = 0, nc = 0.5L * (n - 1), sxx = 0;
+    for (int i = 0; i < n; i++) {
+        s1 += (i - nc) * v[i];
+        sxx += (i - nc) * (i - nc);
+    }
+    return (double)(s1 / sxx);
+}
+
+/* y_k(j) = f(j + d_k) - f(j) + c_k (+ noise of standard deviation sigma_k if rng) */
+static void simulate(int n, int d1, int d2, const double *f, double c1, double c2, double *y1,
+                     double *y2, sc_rng *rng, double sigma1, double sigma2)
+{
+    for (int j = 0; j + d1 < n; j++)
+        y1[j] = f[j + d1] - f[j] + c1 + (rng ? sigma1 * sc_rng_normal(rng) : 0.0);
+    for (int j = 0; j + d2 < n; j++)
+        y2[j] = f[j + d2] - f[j] + c2 + (rng ? sigma2 * sc_rng_normal(rng) : 0.0);
+}
+
+/* A random profile: smooth waves + white roughness + a line (µm). */
+static void random_profile(int n, sc_rng *rng, double *f)
+{
+    double a[4], ph[4];
+    for (int q = 0; q < 4; q++) {
+        a[q] = sc_rng_normal(rng);
+        ph[q] = 6.283185307179586 * sc_rng_uniform(rng);
+    }
+    double tilt = 0.3 * sc_rng_normal(rng), off = sc_rng_normal(rng);
+    for (int i = 0; i < n; i++) {
+        double x = (double)i / n;
+        f[i] = off + tilt * i * 1e-2 + 0.05 * sc_rng_normal(rng);
+        for (int q = 0; q < 4; q++) f[i] += a[q] * sin(6.283185307179586 * (q + 1) * x + ph[q]);
+    }
+}
+
+/* Reconstruct noise-free data of profile f and return max |f_hat - f| after the LS line. */
+static double noise_free_error(int n, int d1, int d2, const double *f_in, double c1, double c2)
+{
+    double *f = dalloc((size_t)n), *y1 = dalloc((size_t)n), *y2 = dalloc((size_t)n);
+    double *fh = dalloc((size_t)n);
+    memcpy(f, f_in, (size_t)n * sizeof(double));
+    simulate(n, d1, d2, f, c1, c2, y1, y2, NULL, 0, 0);
+    double slope = ls_slope(n, f);
+    remove_line(n, f);
+    sc_profile_lsq *p = NULL;
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1.0, 2.0, &p, &err), SC_OK);
+    double c[2], wrss;
+    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, fh, c, &wrss, &err), SC_OK);
+    double e = 0.0;
+    for (int i = 0; i < n; i++) e = fmax(e, fabs(fh[i] - f[i]));
+    /* the offsets in the LS-line gauge: c_k + slope·d_k */
+    e = fmax(e, fabs(c[0] - (c1 + slope * d1)));
+    e = fmax(e, fabs(c[1] - (c2 + slope * d2)));
+    assert_true(wrss < 1e-15 * n);
+    sc_profile_lsq_destroy(p);
+    free(f);
+    free(y1);
+    free(y2);
+    free(fh);
+    return e;
+}
+
+/* ---------- solvability ---------- */
+
+static void test_solvable_matches_dense_rank(void **state)
+{
+    (void)state;
+    int checked = 0, solvable = 0;
+    for (int n = 2; n <= 40; n++)
+        for (int d1 = 1; d1 <= n; d1++)
+            for (int d2 = 1; d2 <= n; d2++) {
+                sc_error err;
+                sc_error_clear(&err);
+                int s = sc_profile_lsq_solvable(n, d1, d2, &err);
+                int rank = sc_profile_lsq_dense_rank(n, d1, d2);
+                assert_true(rank >= 0);
+                if (s != (rank == n)) {
+                    print_error("N=%d d1=%d d2=%d: solvable=%d but rank %d\n", n, d1, d2, s,
+                                rank);
+                    fail();
+                }
+                if (!s) {
+                    assert_int_equal(err.code, SC_E_INPUT);
+                    assert_true(strlen(err.msg) > 10);
+                }
+                checked++;
+                solvable += s;
+            }
+    assert_true(checked > 10000 && solvable > 1000);
+}
+
+static void test_refuses_bad_input(void **state)
+{
+    (void)state;
+    sc_profile_lsq *p = (sc_profile_lsq *)&p;
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_profile_lsq_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
+    assert_null(p);
+    assert_non_null(strstr(err.msg, "common divisor"));
+    assert_int_equal(sc_profile_lsq_create(20, 10, 11, 1, 1, &p, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "too small"));
+    assert_int_equal(sc_profile_lsq_create(330, 0, 11, 1, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_create(330, 10, 11, 1, NAN, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_create(330, 10, 11, 1, -1, &p, &err), SC_E_INPUT);
+    /* exactly N = d1 + d2 is solvable (no redundancy): see docs/profile-lsq.md */
+    assert_int_equal(sc_profile_lsq_create(21, 10, 11, 1, 1, &p, &err), SC_OK);
+    double y1[11] = {0}, y2[10] = {0}, f[21];
+    y1[3] = NAN;
+    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err), SC_E_INPUT);
+    sc_profile_lsq_destroy(p);
+    sc_profile_lsq_destroy(NULL);
+}
+
+/* ---------- noise-free reconstruction ---------- */
+
+static void test_noise_free_simulated(void **state)
+{
+    (void)state;
+    static const int cases[][3] = {
+        {330, 10, 11}, {330, 3, 11}, {110, 10, 11}, {2310, 10, 11}, /* the acceptance set */
+        {331, 10, 11}, {500, 10, 11}, {257, 7, 5},  {1000, 3, 8},   /* N not a multiple */
+        {21, 10, 11},  {22, 11, 10},  {40, 1, 2},   {60, 2, 1},     /* N = d1 + d2, d = 1 */
+        {5, 1, 1},     {777, 97, 101}, {1200, 13, 4}, {4000, 97, 101}};
+    sc_rng rng;
+    sc_rng_seed(&rng, 20261121);
+    for (size_t q = 0; q < sizeof cases / sizeof cases[0]; q++) {
+        int n = cases[q][0], d1 = cases[q][1], d2 = cases[q][2];
+        double *f = dalloc((size_t)n);
+        random_profile(n, &rng, f);
+        double e = noise_free_error(n, d1, d2, f, 0.7, -1.3);
+        print_message("noise-free N=%d d=%d/%d: max error %.2g um\n", n, d1, d2, e);
+        if (!(e <= 1e-9)) {
+            print_error("N=%d d1=%d d2=%d: max error %.3g um\n", n, d1, d2, e);
+            fail();
+        }
+        free(f);
+    }
+}
+
+/* A DABAM profile as heights in µm (native sampling), relative to its LS line. */
+static int read_dabam(const char *id, double **h_out)
+{
+    char path[512], buf[4096];
+    snprintf(path, sizeof path, "%s/data/dabam/dabam-%s.txt", SELFCAL_SHARED_DIR, id);
+    FILE *fp = fopen(path, "r");
+    assert_non_null(fp);
+    size_t len = fread(buf, 1, sizeof buf - 1, fp);
+    buf[len] = 0;
+    fclose(fp);
+    const char *keys[4] = {"\"FILE_HEADER_LINES\"", "\"X1_FACTOR\"", "\"Y1_FACTOR\"",
+                           "\"FILE_FORMAT\""};
+    double v[4];
+    for (int k = 0; k < 4; k++) {
+        char *s = strstr(buf, keys[k]);
+        assert_non_null(s);
+        s = strchr(s, ':');
+        assert_non_null(s);
+        v[k] = strtod(s + 1, NULL);
+    }
+    int header = (int)v[0], slopes = (int)v[3] == 1 || (int)v[3] == 3;
+    assert_true((int)v[3] >= 1 && (int)v[3] <= 4);
+    snprintf(path, sizeof path, "%s/data/dabam/dabam-%s.dat", SELFCAL_SHARED_DIR, id);
+    fp = fopen(path, "r");
+    assert_non_null(fp);
+    int cap = 4096, n = 0, line = 0;
+    double *x = dalloc((size_t)cap), *y = dalloc((size_t)cap);
+    while (fgets(buf, sizeof buf, fp)) {
+        if (line++ < header) continue;
+        char *end;
+        double a = strtod(buf, &end);
+        if (end == buf) continue; /* blank line */
+        double b = strtod(end, NULL);
+        assert_true(n < cap);
+        x[n] = a * v[1];
+        y[n] = b * v[2];
+        n++;
+    }
+    fclose(fp);
+    double *h = dalloc((size_t)n);
+    if (slopes) {
+        h[0] = 0.0; /* cumulative trapezoid: rad·m = m */
+        for (int i = 1; i < n; i++) h[i] = h[i - 1] + 0.5 * (y[i] + y[i - 1]) * (x[i] - x[i - 1]);
+    } else {
+        memcpy(h, y, (size_t)n * sizeof(double));
+    }
+    for (int i = 0; i < n; i++) h[i] *= 1e6; /* m -> µm */
+    remove_line(n, h);
+    free(x);
+    free(y);
+    *h_out = h;
+    return n;
+}
+
+static void test_noise_free_dabam(void **state)
+{
+    (void)state;
+    const char *ids[] = {"001", "002", "010", "020", "030"};
+    for (int q = 0; q < 5; q++) {
+        double *h;
+        int n = read_dabam(ids[q], &h);
+        assert_true(n > 200);
+        double rms = 0;
+        for (int i = 0; i < n; i++) rms += h[i] * h[i];
+        rms = sqrt(rms / n);
+        assert_true(rms > 1e-4); /* a real, non-flat profile (µm) */
+        double e1 = noise_free_error(n, 10, 11, h, 0.25, -0.4);
+        double e2 = noise_free_error(n, 3, 11, h, 0.25, -0.4);
+        double e3 = noise_free_error(n, 101, 97, h, 0.25, -0.4);
+        print_message("dabam-%s N=%d (rms %.3g um): max error %.2g %.2g %.2g um (d 10/11, 3/11, "
+                      "101/97)\n", ids[q], n, rms, e1, e2, e3);
+        if (!(e1 <= 1e-9 && e2 <= 1e-9 && e3 <= 1e-9)) {
+            print_error("dabam-%s (N=%d, rms %.3g um): errors %.3g %.3g %.3g um\n", ids[q], n,
+                        rms, e1, e2, e3);
+            fail();
+        }
+        free(h);
+    }
+}
+
+/* ---------- fast vs dense ---------- */
+
+static void compare_with_dense(int n, int d1, int d2, double w1, double w2, uint64_t seed)
+{
+    sc_rng rng;
+    sc_rng_seed(&rng, seed);
+    double *f = dalloc((size_t)n), *y1 = dalloc((size_t)n), *y2 = dalloc((size_t)n);
+    double *ff = dalloc((size_t)n), *uf = dalloc((size_t)n), *fd = dalloc((size_t)n),
+           *ud = dalloc((size_t)n);
+    random_profile(n, &rng, f);
+    simulate(n, d1, d2, f, 0.3, 0.1, y1, y2, &rng, 1 / sqrt(w1), 1 / sqrt(w2));
+    sc_profile_lsq *p = NULL;
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_profile_lsq_create(n, d1, d2, w1, w2, &p, &err), SC_OK);
+    double cf[2], cd[2];
+    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, ff, cf, NULL, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_dense_solve(n, d1, d2, w1, w2, y1, y2, fd, cd, ud), 0);
+    double fmax_ = 0, df = 0, du = 0;
+    for (int i = 0; i < n; i++) {
+        fmax_ = fmax(fmax_, fabs(fd[i]));
+        df = fmax(df, fabs(ff[i] - fd[i]));
+        assert_true(ud[i] > 0);
+        du = fmax(du, fabs(uf[i] - ud[i]) / ud[i]);
+    }
+    double dc = fmax(fabs(cf[0] - cd[0]), fabs(cf[1] - cd[1])) / fmax(fabs(cd[0]), fabs(cd[1]));
+    print_message("fast vs dense N=%d d=%d/%d: rel diff f %.2g, uf %.2g, c %.2g\n", n, d1, d2,
+                  df / fmax_, du, dc);
+    if (!(df <= 1e-9 * fmax_ && du <= 1e-9 && dc <= 1e-9)) {
+        print_error("N=%d d1=%d d2=%d: rel diff f %.3g, uf %.3g, c %.3g\n", n, d1, d2,
+                    df / fmax_, du, dc);
+        fail();
+    }
+    sc_profile_lsq_destroy(p);
+    free(f);
+    free(y1);
+    free(y2);
+    free(ff);
+    free(uf);
+    free(fd);
+    free(ud);
+}
+
+static void test_fast_matches_dense(void **state)
+{
+    (void)state;
+    compare_with_dense(330, 10, 11, 1.0 / 3e-4, 1.0 / 3.21e-4, 1);
+    compare_with_dense(330, 3, 11, 1.0, 1.0, 2);
+    compare_with_dense(331, 11, 10, 2.0, 0.5, 3);
+    compare_with_dense(110, 10, 11, 1.0, 1.0, 4);
+    compare_with_dense(21, 10, 11, 1.0, 3.0, 5);
+    compare_with_dense(60, 1, 2, 1.0, 1.0, 6);
+    compare_with_dense(50, 1, 1, 1.0, 4.0, 7);
+    compare_with_dense(700, 97, 101, 1.0, 1.0, 8);
+    compare_with_dense(2000, 10, 11, 1.0 / 3e-4, 1.0 / 3.21e-4, 9);
+}
+
+/* ---------- uncertainty ---------- */
+
+/* Ding's set-up: s = 1 mm, σ_disp = 10 nm, σ_angle = 1 nm/mm: var y_k = 2σ_disp² + (D_k σ_angle)². */
+static double ding_variance_um2(int d) { return 2 * 0.01 * 0.01 + (d * 1e-3) * (d * 1e-3); }
+
+static void test_uncertainty_vs_monte_carlo(void **state)
+{
+    (void)state;
+    const int n = 330, d1 = 10, d2 = 11, trials = 20000;
+    double v1 = ding_variance_um2(d1), v2 = ding_variance_um2(d2);
+    sc_profile_lsq *p = NULL;
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / v1, 1 / v2, &p, &err), SC_OK);
+    double *uf = dalloc(n), *f = dalloc(n), *ft = dalloc(n), *y1 = dalloc(n), *y2 = dalloc(n);
+    double *acc = dalloc(n);
+    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+    sc_rng rng;
+    sc_rng_seed(&rng, 42);
+    random_profile(n, &rng, ft);
+    simulate(n, d1, d2, ft, 0, 0, y1, y2, NULL, 0, 0);
+    remove_line(n, ft);
+    double wrss_sum = 0;
+    for (int t = 0; t < trials; t++) {
+        simulate(n, d1, d2, ft, 0.5, -0.2, y1, y2, &rng, sqrt(v1), sqrt(v2));
+        double wrss;
+        assert_int_equal(sc_profile_lsq_solve(p, y1, y2, f, NULL, &wrss, &err), SC_OK);
+        wrss_sum += wrss;
+        for (int i = 0; i < n; i++) acc[i] += (f[i] - ft[i]) * (f[i] - ft[i]);
+    }
+    double worst = 0, mean_ratio = 0;
+    for (int i = 0; i < n; i++) {
+        double mc = sqrt(acc[i] / trials);
+        double r = mc / uf[i];
+        worst = fmax(worst, fabs(r - 1));
+        mean_ratio += r / n;
+    }
+    /* statistical error of a standard deviation from 20000 samples: 0.5 % */
+    print_message("Monte Carlo (%d trials) / predicted: worst point %.4f, mean ratio %.4f\n",
+                  trials, worst, mean_ratio);
+    if (!(worst < 0.03 && fabs(mean_ratio - 1) < 0.01)) {
+        print_error("MC vs predicted: worst %.4f, mean ratio %.4f\n", worst, mean_ratio);
+        fail();
+    }
+    /* E[wrss] = degrees of freedom N - d1 - d2 */
+    double dof = n - d1 - d2;
+    assert_true(fabs(wrss_sum / trials / dof - 1) < 0.01);
+    sc_profile_lsq_destroy(p);
+    free(uf);
+    free(f);
+    free(ft);
+    free(y1);
+    free(y2);
+    free(acc);
+}
+
+static void test_paper_setup(void **state)
+{
+    (void)state;
+    const int n = 330;
+    const int ds[2][2] = {{10, 11}, {3, 11}};
+    for (int q = 0; q < 2; q++) {
+        int d1 = ds[q][0], d2 = ds[q][1];
+        sc_profile_lsq *p = NULL;
+        sc_error err;
+        sc_error_clear(&err);
+        assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / ding_variance_um2(d1),
+                                               1 / ding_variance_um2(d2), &p, &err),
+                         SC_OK);
+        double uf[330];
+        assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+        print_message("paper set-up d = %d/%d: uf(0) = %.2f nm, uf(N/4) = %.2f nm, uf(N/2) = %.2f "
+                      "nm\n",
+                      d1, d2, uf[0] * 1e3, uf[n / 4] * 1e3, uf[n / 2] * 1e3);
+        if (q == 0) {
+            /* Ding Fig. 4: about 12 nm in the middle */
+            assert_true(uf[n / 2] > 0.010 && uf[n / 2] < 0.014);
+        }
+        sc_profile_lsq_destroy(p);
+    }
+}
+
+/* ---------- N = 10⁶: against a long-double computation in another gauge ---------- */
+
+typedef long double ld;
+
+/* The pinned normal system in long double with pins a and b (other than the library's), solved
+ * by banded LDLᵀ; returns f for the data and the LS-gauge variance of f at the points idx. */
+static void long_double_reference(int n, int d1, int d2, double w1, double w2, const double *y1,
+                                  const double *y2, int pa, int pb, double *f_out, int npts,
+                                  const int *idx, double *var_out)
+{
+    int bw = d1 > d2 ? d1 : d2;
+    size_t ld_ = (size_t)bw + 1;
+    ld *l = calloc((size_t)n * ld_, sizeof(ld)), *dd = calloc((size_t)n, sizeof(ld));
+    ld *x = calloc((size_t)n, sizeof(ld)), *z1 = calloc((size_t)n, sizeof(ld)),
+       *z2 = calloc((size_t)n, sizeof(ld)), *e1 = calloc((size_t)n, sizeof(ld)),
+       *e2 = calloc((size_t)n, sizeof(ld));
+    assert_true(l && dd && x && z1 && z2 && e1 && e2);
+#define PIN(i) ((i) == pa || (i) == pb)
+    /* LDLᵀ with row-band storage: l[i][m] = L[i][i-bw+m] */
+    for (int i = 0; i < n; i++) {
+        ld *ri = l + (size_t)i * ld_;
+        int k0 = i - bw < 0 ? 0 : i - bw;
+        if (!PIN(i)) {
+            if (i - d1 >= 0 && !PIN(i - d1)) ri[bw - d1] -= w1;
+            if (i - d2 >= 0 && !PIN(i - d2)) ri[bw - d2] -= w2;
+        }
+        ld aii = 1;
+        if (!PIN(i)) {
+            aii = 0;
+            if (i >= d1) aii += w1;
+            if (i < n - d1) aii += w1;
+            if (i >= d2) aii += w2;
+            if (i < n - d2) aii += w2;
+        }
+        for (int j = k0; j < i; j++) {
+            ld *rj = l + (size_t)j * ld_, s = ri[j - i + bw];
+            for (int k = k0; k < j; k++) s -= ri[k - i + bw] * dd[k] * rj[k - j + bw];
+            ri[j - i + bw] = s / dd[j];
+        }
+        for (int k = k0; k < i; k++) aii -= ri[k - i + bw] * ri[k - i + bw] * dd[k];
+        dd[i] = aii;
+    }
+    /* solve B x = r in place */
+#define BSOLVE(v)                                                                                  \
+    do {                                                                                           \
+        for (int i = 0; i < n; i++) {                                                              \
+            ld *ri = l + (size_t)i * ld_;                                                          \
+            int k0 = i - bw < 0 ? 0 : i - bw;                                                      \
+            for (int k = k0; k < i; k++) (v)[i] -= ri[k - i + bw] * (v)[k];                        \
+        }                                                                                          \
+        for (int i = 0; i < n; i++) (v)[i] /= dd[i];                                               \
+        for (int i = n - 1; i >= 0; i--) {                                                         \
+            ld *ri = l + (size_t)i * ld_;                                                          \
+            int k0 = i - bw < 0 ? 0 : i - bw;                                                      \
+            for (int k = k0; k < i; k++) (v)[k] -= ri[k - i + bw] * (v)[i];                        \
+        }                                                                                          \
+    } while (0)
+    for (int i = 0; i < n; i++) {
+        e1[i] = PIN(i) ? 0 : (ld)w1 * ((i >= d1) - (i < n - d1));
+        e2[i] = PIN(i) ? 0 : (ld)w2 * ((i >= d2) - (i < n - d2));
+        z1[i] = e1[i];
+        z2[i] = e2[i];
+    }
+    BSOLVE(z1);
+    BSOLVE(z2);
+    ld s11 = (ld)w1 * (n - d1), s22 = (ld)w2 * (n - d2), s12 = 0;
+    for (int i = 0; i < n; i++) {
+        s11 -= e1[i] * z1[i];
+        s22 -= e2[i] * z2[i];
+        s12 -= e1[i] * z2[i];
+    }
+    ld det = s11 * s22 - s12 * s12;
+    ld nc = 0.5L * (n - 1), sxx = (ld)n * ((ld)n * n - 1) / 12;
+    /* data */
+    for (int i = 0; i < n; i++) x[i] = 0;
+    ld r1 = 0, r2 = 0;
+    for (int j = 0; j + d1 < n; j++) {
+        x[j + d1] += (ld)w1 * y1[j];
+        x[j] -= (ld)w1 * y1[j];
+        r1 += (ld)w1 * y1[j];
+    }
+    for (int j = 0; j + d2 < n; j++) {
+        x[j + d2] += (ld)w2 * y2[j];
+        x[j] -= (ld)w2 * y2[j];
+        r2 += (ld)w2 * y2[j];
+    }
+    x[pa] = x[pb] = 0;
+    BSOLVE(x);
+    ld t1 = r1, t2 = r2;
+    for (int i = 0; i < n; i++) {
+        t1 -= e1[i] * x[i];
+        t2 -= e2[i] * x[i];
+    }
+    ld c1 = (s22 * t1 - s12 * t2) / det, c2 = (s11 * t2 - s12 * t1) / det;
+    ld m0 = 0, m1 = 0;
+    for (int i = 0; i < n; i++) {
+        x[i] -= z1[i] * c1 + z2[i] * c2;
+        m0 += x[i];
+        m1 += (i - nc) * x[i];
+    }
+    for (int i = 0; i < n; i++) f_out[i] = (double)(x[i] - m0 / n - m1 / sxx * (i - nc));
+    /* variance at idx[q]: v = P e_i; C v = [M_r⁻¹ (v, 0)]_f; var = vᵀ C v */
+    for (int q = 0; q < npts; q++) {
+        int ii = idx[q];
+        for (int i = 0; i < n; i++) {
+            ld v = (i == ii) - 1.0L / n - (i - nc) * (ii - nc) / sxx;
+            x[i] = PIN(i) ? 0 : v;
+        }
+        BSOLVE(x);
+        ld u1 = 0, u2 = 0;
+        for (int i = 0; i < n; i++) {
+            u1 -= e1[i] * x[i];
+            u2 -= e2[i] * x[i];
+        }
+        ld cc1 = (s22 * u1 - s12 * u2) / det, cc2 = (s11 * u2 - s12 * u1) / det;
+        ld var = 0;
+        for (int i = 0; i < n; i++) {
+            ld cx = PIN(i) ? 0 : x[i] - z1[i] * cc1 - z2[i] * cc2;
+            ld v = (i == ii) - 1.0L / n - (i - nc) * (ii - nc) / sxx;
+            var += v * cx;
+        }
+        var_out[q] = (double)var;
+    }
+#undef BSOLVE
+#undef PIN
+    free(l);
+    free(dd);
+    free(x);
+    free(z1);
+    free(z2);
+    free(e1);
+    free(e2);
+}
+
+static void test_million_points_vs_long_double(void **state)
+{
+    (void)state;
+    const int n = 1000000, d1 = 10, d2 = 11;
+    double v1 = ding_variance_um2(d1), v2 = ding_variance_um2(d2);
+    double *ft = dalloc(n), *y1 = dalloc(n), *y2 = dalloc(n), *f = dalloc(n), *uf = dalloc(n),
+           *fr = dalloc(n);
+    sc_rng rng;
+    sc_rng_seed(&rng, 7);
+    random_profile(n, &rng, ft);
+    simulate(n, d1, d2, ft, 0.5, -0.2, y1, y2, &rng, sqrt(v1), sqrt(v2));
+    sc_profile_lsq *p = NULL;
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / v1, 1 / v2, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+    const int idx[5] = {0, 17, n / 3 + 5, n / 2, n - 1};
+    double var[5];
+    long_double_reference(n, d1, d2, 1 / v1, 1 / v2, y1, y2, n / 4, (3 * n) / 4, fr, 5, idx, var);
+    double fscale = 0, df = 0;
+    for (int i = 0; i < n; i++) {
+        fscale = fmax(fscale, fabs(fr[i]));
+        df = fmax(df, fabs(f[i] - fr[i]));
+    }
+    print_message("N = 1e6: max |f - f_ref| = %.3g um (max |f| %.3g um)\n", df, fscale);
+    assert_true(df <= 1e-8 * fscale);
+    for (int q = 0; q < 5; q++) {
+        double ref = sqrt(var[q]);
+        print_message("N = 1e6: uf(%d) = %.12g um, long double in another gauge %.12g um "
+                      "(rel %.2g)\n", idx[q], uf[idx[q]], ref, fabs(uf[idx[q]] - ref) / ref);
+        assert_true(fabs(uf[idx[q]] - ref) <= 1e-8 * ref);
+    }
+    sc_profile_lsq_destroy(p);
+    free(ft);
+    free(y1);
+    free(y2);
+    free(f);
+    free(uf);
+    free(fr);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_solvable_matches_dense_rank),
+        cmocka_unit_test(test_refuses_bad_input),
+        cmocka_unit_test(test_noise_free_simulated),
+        cmocka_unit_test(test_noise_free_dabam),
+        cmocka_unit_test(test_fast_matches_dense),
+        cmocka_unit_test(test_uncertainty_vs_monte_carlo),
+        cmocka_unit_test(test_paper_setup),
+        cmocka_unit_test(test_million_points_vs_long_double),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
