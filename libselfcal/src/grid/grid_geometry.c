@@ -93,7 +93,7 @@ void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double
     for (int v = 0; v < p->n_views; ++v) {
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
-                int k = i * n + j, ni, nj;
+                int k = i * n + j, ni = 0, nj = 0;
                 if (!sc_grid_view_measures(p, v, i, j)) {
                     d->dx_um[v][k] = NAN;
                     d->dy_um[v][k] = NAN;
