@@ -1,11 +1,249 @@
-/* PLACEHOLDER — replaced by the area that owns this command. */
+/* selfcal plot profile — charts of a profile result: f, its uncertainty, its error against a
+ * truth file, and the stage's e_y; optionally a second result to compare. */
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "cli.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/profile.h"
+#include "svg.h"
+
+typedef struct profile_plot_opts {
+    const char *title, *label_a, *label_b;
+    int uncertainty_only;
+} profile_plot_opts;
+
+sc_status profile_plot_write(const char *path, const sc_profile_result *a,
+                             const sc_profile_result *truth, const sc_profile_result *cmp,
+                             const profile_plot_opts *o, sc_error *err);
+
+static const char *COL_A = "#1f5fbf", *COL_B = "#d9731a", *COL_T = "#222222", *COL_U = "#999999";
+
+static void range_of(const double *v, int n, double scale, double *lo, double *hi)
+{
+    for (int i = 0; v && i < n; ++i)
+        if (isfinite(v[i])) {
+            double x = v[i] * scale;
+            if (x < *lo)
+                *lo = x;
+            if (x > *hi)
+                *hi = x;
+        }
+}
+
+static int any_finite(const double *v, int n)
+{
+    for (int i = 0; v && i < n; ++i)
+        if (isfinite(v[i]))
+            return 1;
+    return 0;
+}
+
+/* scaled copy into buf */
+static const double *scaled(const double *v, int n, double s, double *buf)
+{
+    for (int i = 0; i < n; ++i)
+        buf[i] = v[i] * s;
+    return buf;
+}
+
+sc_status profile_plot_write(const char *path, const sc_profile_result *a,
+                             const sc_profile_result *truth, const sc_profile_result *cmp,
+                             const profile_plot_opts *o, sc_error *err)
+{
+    const int n = a->n;
+    if (truth && truth->n != n)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "truth has %d points, the profile %d", truth->n, n);
+    if (cmp && cmp->n != n)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the compared profile has %d points, the profile %d",
+                            cmp->n, n);
+    const char *la = o && o->label_a ? o->label_a : "profile";
+    const char *lb = o && o->label_b ? o->label_b : "compare";
+    int uonly = o && o->uncertainty_only;
+    int p_f = !uonly, p_u = any_finite(a->uf_um, n) || (cmp && any_finite(cmp->uf_um, n));
+    int p_e = !uonly && truth, p_y = !uonly && any_finite(a->ey_um, n);
+    int panels = p_f + p_u + p_e + p_y;
+    if (!panels)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "nothing to plot (no uncertainty column)");
+    double *b1 = malloc((size_t)n * sizeof(double) * 3);
+    if (!b1)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    double *b2 = b1 + n, *b3 = b2 + n;
+    sc_afile af;
+    sc_status st = sc_afile_open(&af, path, err);
+    if (st != SC_OK) {
+        free(b1);
+        return st;
+    }
+    const int W = 900, PH = 250, top = o && o->title ? 40 : 15;
+    const int H = top + panels * (PH + 55) + 10;
+    FILE *fp = af.fp;
+    svg_begin(fp, W, H);
+    if (o && o->title)
+        svg_text(fp, W / 2.0, 26, 16, "middle", "#000", "%s", o->title);
+    double xmin = a->x_mm[0], xmax = a->x_mm[n - 1];
+    double y0 = top;
+    svg_chart c;
+    if (p_f) {
+        double lo = INFINITY, hi = -INFINITY;
+        range_of(a->f_um, n, 1, &lo, &hi);
+        if (truth)
+            range_of(truth->f_um, n, 1, &lo, &hi);
+        if (cmp)
+            range_of(cmp->f_um, n, 1, &lo, &hi);
+        svg_nice_range(&lo, &hi);
+        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
+        int k = 0;
+        if (truth) {
+            svg_polyline(&c, truth->x_mm, truth->f_um, n, COL_T, 1.2, "5,3");
+            svg_legend(&c, k++, "truth", COL_T, "5,3");
+        }
+        svg_polyline(&c, a->x_mm, a->f_um, n, COL_A, 1.5, NULL);
+        svg_legend(&c, k++, la, COL_A, NULL);
+        if (cmp) {
+            svg_polyline(&c, cmp->x_mm, cmp->f_um, n, COL_B, 1.2, "2,2");
+            svg_legend(&c, k++, lb, COL_B, "2,2");
+        }
+        y0 += PH + 55;
+    }
+    if (p_u) {
+        double lo = 0, hi = -INFINITY;
+        range_of(a->uf_um, n, 1e3, &lo, &hi);
+        if (cmp)
+            range_of(cmp->uf_um, n, 1e3, &lo, &hi);
+        svg_nice_range(&lo, &hi);
+        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_axes(&c, "x (mm)", "u(f) (nm)", "standard uncertainty of f (k = 1)");
+        int k = 0;
+        if (any_finite(a->uf_um, n)) {
+            svg_polyline(&c, a->x_mm, scaled(a->uf_um, n, 1e3, b1), n, COL_A, 1.5, NULL);
+            svg_legend(&c, k++, la, COL_A, NULL);
+        }
+        if (cmp && any_finite(cmp->uf_um, n)) {
+            svg_polyline(&c, cmp->x_mm, scaled(cmp->uf_um, n, 1e3, b1), n, COL_B, 1.5, "6,3");
+            svg_legend(&c, k++, lb, COL_B, "6,3");
+        }
+        y0 += PH + 55;
+    }
+    if (p_e) {
+        double lo = INFINITY, hi = -INFINITY;
+        for (int i = 0; i < n; ++i) {
+            b1[i] = (a->f_um[i] - truth->f_um[i]) * 1e3;
+            b2[i] = a->uf_um ? a->uf_um[i] * 1e3 : NAN;
+            b3[i] = -b2[i];
+        }
+        range_of(b1, n, 1, &lo, &hi);
+        range_of(b2, n, 1, &lo, &hi);
+        range_of(b3, n, 1, &lo, &hi);
+        if (cmp)
+            for (int i = 0; i < n; ++i) {
+                double e = (cmp->f_um[i] - truth->f_um[i]) * 1e3;
+                if (isfinite(e))
+                    lo = e < lo ? e : lo, hi = e > hi ? e : hi;
+            }
+        svg_nice_range(&lo, &hi);
+        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_axes(&c, "x (mm)", "error (nm)", "error of f against the truth");
+        int k = 0;
+        svg_polyline(&c, a->x_mm, b1, n, COL_A, 1.2, NULL);
+        svg_legend(&c, k++, la, COL_A, NULL);
+        if (any_finite(b2, n)) {
+            svg_polyline(&c, a->x_mm, b2, n, COL_U, 1.0, "4,3");
+            svg_polyline(&c, a->x_mm, b3, n, COL_U, 1.0, "4,3");
+            svg_legend(&c, k++, "± u(f)", COL_U, "4,3");
+        }
+        if (cmp) {
+            for (int i = 0; i < n; ++i)
+                b1[i] = (cmp->f_um[i] - truth->f_um[i]) * 1e3;
+            svg_polyline(&c, cmp->x_mm, b1, n, COL_B, 1.0, "2,2");
+            svg_legend(&c, k++, lb, COL_B, "2,2");
+        }
+        y0 += PH + 55;
+    }
+    if (p_y) {
+        double lo = INFINITY, hi = -INFINITY;
+        range_of(a->ey_um, n, 1, &lo, &hi);
+        if (truth)
+            range_of(truth->ey_um, n, 1, &lo, &hi);
+        svg_nice_range(&lo, &hi);
+        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_axes(&c, "x (mm)", "e_y (µm)", "stage straightness motion error e_y (scan 1)");
+        int k = 0;
+        if (truth && any_finite(truth->ey_um, n)) {
+            svg_polyline(&c, truth->x_mm, truth->ey_um, n, COL_T, 1.2, "5,3");
+            svg_legend(&c, k++, "truth", COL_T, "5,3");
+        }
+        svg_polyline(&c, a->x_mm, a->ey_um, n, COL_A, 1.5, NULL);
+        svg_legend(&c, k++, la, COL_A, NULL);
+    }
+    svg_end(fp);
+    free(b1);
+    if (ferror(fp)) {
+        sc_afile_abort(&af);
+        return sc_error_set(err, SC_E_IO, path, 0, "write failed");
+    }
+    return sc_afile_commit(&af, err);
+}
+
+static const char *USAGE =
+    "usage: selfcal plot profile P.csv -o p.svg [--truth T.csv] [--compare Q.csv]\n"
+    "                            [--label A] [--compare-label B] [--title T] [--uncertainty-only]\n"
+    "  Charts of a profile result (n,x_mm,f_um,uf_um,ey_um): f, u(f), the error against a truth\n"
+    "  file (selfcal simulate profile --truth) and e_y.\n";
 
 int cmd_plot_profile(int argc, char **argv)
 {
-    (void)argc;
-    fprintf(stderr, "selfcal %s: not built yet\n", argv[0]);
-    return CLI_FAIL;
+    const char *cmd = "plot profile";
+    const char *in = NULL, *out = NULL, *tpath = NULL, *cpath = NULL;
+    profile_plot_opts o = {NULL, NULL, NULL, 0};
+    for (int i = 1; i < argc; ++i) {
+        const char *a = argv[i];
+        int hv = i + 1 < argc;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        } else if ((!strcmp(a, "-o") || !strcmp(a, "--out")) && hv)
+            out = argv[++i];
+        else if (!strcmp(a, "--truth") && hv)
+            tpath = argv[++i];
+        else if (!strcmp(a, "--compare") && hv)
+            cpath = argv[++i];
+        else if (!strcmp(a, "--label") && hv)
+            o.label_a = argv[++i];
+        else if (!strcmp(a, "--compare-label") && hv)
+            o.label_b = argv[++i];
+        else if (!strcmp(a, "--title") && hv)
+            o.title = argv[++i];
+        else if (!strcmp(a, "--uncertainty-only"))
+            o.uncertainty_only = 1;
+        else if (a[0] == '-' && a[1])
+            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
+        else if (!in)
+            in = a;
+        else
+            return cli_usage_error(cmd, "more than one input file (%s, %s)", in, a);
+    }
+    if (!in || !out) {
+        fputs(USAGE, stderr);
+        return CLI_BAD_INPUT;
+    }
+    sc_error err;
+    sc_error_clear(&err);
+    sc_profile_result a, t, c;
+    memset(&t, 0, sizeof t);
+    memset(&c, 0, sizeof c);
+    if (sc_profile_read_result(in, &a, &err) != SC_OK)
+        return cli_report(&err);
+    int rc = CLI_OK;
+    if ((tpath && sc_profile_read_result(tpath, &t, &err) != SC_OK) ||
+        (cpath && sc_profile_read_result(cpath, &c, &err) != SC_OK) ||
+        profile_plot_write(out, &a, tpath ? &t : NULL, cpath ? &c : NULL, &o, &err) != SC_OK)
+        rc = cli_report(&err);
+    sc_profile_result_free(&a);
+    sc_profile_result_free(&t);
+    sc_profile_result_free(&c);
+    return rc;
 }

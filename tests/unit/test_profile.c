@@ -1,0 +1,529 @@
+/* Unit tests of the straightness-profile area: both methods against simulated truth (random and
+ * DABAM profiles, stage errors, zero-point errors), the DFT method's analytic uncertainty against
+ * its brute-force linear response and against Monte Carlo, the strict reader, the simulation. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/profile.h"
+#include "selfcal/profile_dft.h"
+#include "selfcal/profile_lsq.h"
+#include "selfcal/profile_sim.h"
+
+#define TMP SELFCAL_TEST_TMP
+#define DABAM SELFCAL_SHARED_DIR "/data/dabam/"
+
+/* Simulate a noise-free measurement of f with stage and zero-point errors; reconstruct it with
+ * method; return the worst |f - f_true| and |e_y - e_y true| (µm). */
+static void reconstruct_noise_free(int n, int d1, int d2, const double *f_true, sc_profile_method m,
+                                   double *err_f, double *err_ey)
+{
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    p.d1 = d1;
+    p.d2 = d2;
+    p.sigma_disp_um = p.sigma_angle_urad = 0;
+    p.seed = 1000u + (unsigned)n + 7u * (unsigned)d1;
+    sc_profile_data d;
+    sc_error err;
+    double *ey_true = malloc((size_t)n * sizeof(double)), *f = malloc((size_t)n * sizeof(double));
+    double *y1 = malloc((size_t)n * sizeof(double)), *y2 = malloc((size_t)n * sizeof(double));
+    double *ey = malloc((size_t)n * sizeof(double));
+    assert_int_equal(sc_profile_simulate(&p, f_true, &d, ey_true, &err), SC_OK);
+    sc_profile_combine(&d, 0, y1);
+    sc_profile_combine(&d, 1, y2);
+    /* unequal weights as for the real noise model */
+    double w1 = 1.0 / sc_profile_y_variance(d1, 1.0, 0.01, 1.0);
+    double w2 = 1.0 / sc_profile_y_variance(d2, 1.0, 0.01, 1.0);
+    if (m == SC_PROFILE_DFT) {
+        sc_profile_dft *pl;
+        assert_int_equal(sc_profile_dft_create(n, d1, d2, w1, w2, &pl, &err), SC_OK);
+        assert_int_equal(sc_profile_dft_solve(pl, y1, y2, f, &err), SC_OK);
+        sc_profile_dft_destroy(pl);
+    } else {
+        sc_profile_lsq *pl;
+        assert_int_equal(sc_profile_lsq_create(n, d1, d2, w1, w2, &pl, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_solve(pl, y1, y2, f, NULL, NULL, &err), SC_OK);
+        sc_profile_lsq_destroy(pl);
+    }
+    sc_profile_stage_error(&d, f, ey);
+    sc_profile_remove_line(n - d1, ey_true);
+    *err_f = *err_ey = 0;
+    for (int i = 0; i < n; ++i)
+        *err_f = fmax(*err_f, fabs(f[i] - f_true[i]));
+    for (int i = 0; i < n - d1; ++i)
+        *err_ey = fmax(*err_ey, fabs(ey[i] - ey_true[i]));
+    sc_profile_data_free(&d);
+    free(ey_true), free(f), free(y1), free(y2), free(ey);
+}
+
+static void random_profile(int n, uint64_t seed, double *f)
+{
+    sc_rng r;
+    sc_rng_seed(&r, seed);
+    sc_profile_random_smooth(n, 1.0, 40, &r, f);
+}
+
+static const int CONFIGS[][3] = {{330, 10, 11}, {330, 3, 11}, {110, 10, 11}, {2310, 10, 11}};
+
+static void test_noise_free_both_methods(void **state)
+{
+    (void)state;
+    for (size_t c = 0; c < sizeof CONFIGS / sizeof CONFIGS[0]; ++c) {
+        int n = CONFIGS[c][0], d1 = CONFIGS[c][1], d2 = CONFIGS[c][2];
+        double *f = malloc((size_t)n * sizeof(double));
+        random_profile(n, 42 + c, f);
+        for (int m = 0; m < 2; ++m) {
+            double ef, ey;
+            reconstruct_noise_free(n, d1, d2, f, (sc_profile_method)m, &ef, &ey);
+            print_message("N=%d d=%d/%d %s: max |f err| %.2e um, max |e_y err| %.2e um\n", n, d1, d2,
+                          m ? "lsq" : "dft", ef, ey);
+            assert_true(ef <= 1e-9);
+            assert_true(ey <= 1e-9);
+        }
+        free(f);
+    }
+}
+
+static void test_lsq_noise_free_any_n(void **state)
+{
+    (void)state;
+    static const int cfg[][3] = {{331, 10, 11}, {500, 7, 13}, {21, 10, 11}, {1000, 97, 101}, {257, 2, 3}};
+    for (size_t c = 0; c < sizeof cfg / sizeof cfg[0]; ++c) {
+        int n = cfg[c][0];
+        double *f = malloc((size_t)n * sizeof(double)), ef, ey;
+        random_profile(n, 7 + c, f);
+        reconstruct_noise_free(n, cfg[c][1], cfg[c][2], f, SC_PROFILE_LSQ, &ef, &ey);
+        print_message("lsq N=%d d=%d/%d: %.2e / %.2e um\n", n, cfg[c][1], cfg[c][2], ef, ey);
+        assert_true(ef <= 1e-9);
+        assert_true(ey <= 1e-9);
+        free(f);
+    }
+}
+
+static void test_dabam_profiles(void **state)
+{
+    (void)state;
+    static const char *files[] = {"dabam-001.dat", "dabam-002.dat", "dabam-010.dat", "dabam-020.dat",
+                                  "dabam-030.dat"};
+    for (size_t k = 0; k < sizeof files / sizeof files[0]; ++k) {
+        char path[512], info[512];
+        snprintf(path, sizeof path, DABAM "%s", files[k]);
+        for (int cfg = 0; cfg < 2; ++cfg) {
+            int n = cfg ? 401 : 330, d1 = cfg ? 7 : 10, d2 = cfg ? 13 : 11;
+            double *f = malloc((size_t)n * sizeof(double)), ef, ey;
+            sc_error err;
+            assert_int_equal(sc_profile_load_dabam(path, n, 1.0, f, info, sizeof info, &err), SC_OK);
+            double ss = 0;
+            for (int i = 0; i < n; ++i)
+                ss += f[i] * f[i];
+            assert_true(sqrt(ss / n) > 1e-4); /* a real profile, not zeros */
+            for (int m = cfg ? 1 : 0; m < 2; ++m) {
+                reconstruct_noise_free(n, d1, d2, f, (sc_profile_method)m, &ef, &ey);
+                print_message("%s (rms %.3f um) %s N=%d: %.2e um\n", info, sqrt(ss / n), m ? "lsq" : "dft",
+                              n, ef);
+                assert_true(ef <= 1e-9);
+                assert_true(ey <= 1e-9);
+            }
+            free(f);
+        }
+    }
+}
+
+/* A slope profile (linear slope) integrates exactly by the trapezoid rule to a parabola. */
+static void test_dabam_slope_integration(void **state)
+{
+    (void)state;
+    FILE *fp = fopen(TMP "/fake-dabam.txt", "w");
+    assert_non_null(fp);
+    fprintf(fp, "{\n \"FILE_FORMAT\": 1,\n \"FILE_HEADER_LINES\": 2,\n \"X1_FACTOR\": 0.001,\n"
+                " \"Y1_FACTOR\": 1e-06,\n \"PLOT_TITLE_Y1\": \"Slope (urad)\"\n}\n");
+    fclose(fp);
+    fp = fopen(TMP "/fake-dabam.dat", "w");
+    assert_non_null(fp);
+    fprintf(fp, "header one\r\nx(mm)\tslope(urad)\r\n");
+    /* slope(x) = 2 + 0.5 x  (x in mm, slope in µrad) -> height = 2x + x²/4 (µrad·mm = nm) */
+    for (int i = 0; i <= 200; ++i)
+        fprintf(fp, "%d\t%.10g\r\n", i - 100, 2 + 0.5 * (i - 100));
+    fclose(fp);
+    int n = 101;
+    double f[101], g[101];
+    sc_error err;
+    assert_int_equal(sc_profile_load_dabam(TMP "/fake-dabam.dat", n, 2.0, f, NULL, 0, &err), SC_OK);
+    for (int i = 0; i < n; ++i) {
+        double x = -100 + 2.0 * i;
+        g[i] = (2 * x + 0.25 * x * x) * 1e-3; /* µm */
+    }
+    sc_profile_remove_line(n, g);
+    for (int i = 0; i < n; ++i)
+        assert_true(fabs(f[i] - g[i]) < 1e-9);
+    /* longer than the file: stretched, still the parabola's shape */
+    assert_int_equal(sc_profile_load_dabam(TMP "/fake-dabam.dat", n, 5.0, f, NULL, 0, &err), SC_OK);
+    for (int i = 0; i < n; ++i)
+        assert_true(fabs(f[i] - g[i]) < 1e-9);
+}
+
+/* The DFT method's analytic uncertainty equals the one from its brute-force linear response. */
+static void test_dft_uncertainty_exact(void **state)
+{
+    (void)state;
+    static const int cfg[][3] = {{66, 3, 11}, {110, 10, 11}, {60, 4, 5}, {105, 5, 7}};
+    for (size_t c = 0; c < sizeof cfg / sizeof cfg[0]; ++c) {
+        int n = cfg[c][0], d1 = cfg[c][1], d2 = cfg[c][2];
+        double w[2] = {3.0, 0.7};
+        sc_profile_dft *p;
+        sc_error err;
+        assert_int_equal(sc_profile_dft_create(n, d1, d2, w[0], w[1], &p, &err), SC_OK);
+        double *u = malloc((size_t)n * sizeof(double)), *var = calloc((size_t)n, sizeof(double));
+        double *y[2] = {calloc((size_t)n, sizeof(double)), calloc((size_t)n, sizeof(double))};
+        double *f = malloc((size_t)n * sizeof(double));
+        assert_int_equal(sc_profile_dft_uncertainty(p, u, &err), SC_OK);
+        for (int k = 0; k < 2; ++k)
+            for (int i = 0; i < n - cfg[c][1 + k]; ++i) {
+                y[k][i] = 1.0;
+                assert_int_equal(sc_profile_dft_solve(p, y[0], y[1], f, &err), SC_OK);
+                y[k][i] = 0.0;
+                for (int j = 0; j < n; ++j)
+                    var[j] += f[j] * f[j] / w[k];
+            }
+        double worst = 0;
+        for (int j = 0; j < n; ++j)
+            worst = fmax(worst, fabs(u[j] - sqrt(var[j])) / sqrt(var[j]));
+        print_message("dft N=%d d=%d/%d: analytic vs response, worst relative difference %.2e\n", n, d1,
+                      d2, worst);
+        assert_true(worst < 1e-9);
+        sc_profile_dft_destroy(p);
+        free(u), free(var), free(y[0]), free(y[1]), free(f);
+    }
+}
+
+typedef struct mc_ctx {
+    sc_profile_dft *dft;
+    sc_profile_lsq *lsq;
+} mc_ctx;
+
+static sc_status mc_solve(void *vc, const double *y1, const double *y2, double *f, sc_error *err)
+{
+    mc_ctx *c = vc;
+    if (c->dft)
+        return sc_profile_dft_solve(c->dft, y1, y2, f, err);
+    return sc_profile_lsq_solve(c->lsq, y1, y2, f, NULL, NULL, err);
+}
+
+/* The paper's set-up: predicted uncertainty equals Monte Carlo; LS about 12 nm in the middle. */
+static void test_paper_setup_mc(void **state)
+{
+    (void)state;
+    const int n = 330;
+    const long trials = 3000;
+    static const int pairs[][2] = {{10, 11}, {3, 11}};
+    for (int pi = 0; pi < 2; ++pi) {
+        int d1 = pairs[pi][0], d2 = pairs[pi][1];
+        double v1 = sc_profile_y_variance(d1, 1.0, 0.010, 1.0), v2 = sc_profile_y_variance(d2, 1.0, 0.010, 1.0);
+        for (int m = 0; m < 2; ++m) {
+            mc_ctx c = {NULL, NULL};
+            sc_error err;
+            double *u = malloc(n * sizeof(double)), *umc = malloc(n * sizeof(double));
+            if (m == 0) {
+                assert_int_equal(sc_profile_dft_create(n, d1, d2, 1 / v1, 1 / v2, &c.dft, &err), SC_OK);
+                assert_int_equal(sc_profile_dft_uncertainty(c.dft, u, &err), SC_OK);
+            } else {
+                assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / v1, 1 / v2, &c.lsq, &err), SC_OK);
+                assert_int_equal(sc_profile_lsq_uncertainty(c.lsq, u, &err), SC_OK);
+            }
+            assert_int_equal(sc_profile_mc_uncertainty(n, d1, d2, sqrt(v1), sqrt(v2), mc_solve, &c, trials,
+                                                       99 + pi, NULL, NULL, umc, &err),
+                             SC_OK);
+            double s1 = 0, s2 = 0, worst = 0;
+            for (int i = 0; i < n; ++i) {
+                s1 += u[i] * u[i];
+                s2 += umc[i] * umc[i];
+                worst = fmax(worst, fabs(umc[i] / u[i] - 1));
+            }
+            double ratio = sqrt(s2 / s1);
+            print_message("%s d=%d/%d: u(mid) %.2f nm, u(0) %.2f nm, MC/predicted RMS %.4f, worst point %.3f\n",
+                          m ? "lsq" : "dft", d1, d2, u[n / 2] * 1e3, u[0] * 1e3, ratio, worst);
+            assert_true(fabs(ratio - 1) < 0.03);
+            assert_true(worst < 0.10); /* 3000 trials: 1.3 % per point standard error */
+            /* "most of the values close to 12 nm" in the middle */
+            assert_true(u[n / 2] > 0.010 && u[n / 2] < 0.014);
+            sc_profile_dft_destroy(c.dft);
+            sc_profile_lsq_destroy(c.lsq);
+            free(u), free(umc);
+        }
+    }
+}
+
+/* Noise estimated from the residuals (weights unknown) comes out near the simulated noise. */
+static void test_residual_noise_estimate(void **state)
+{
+    (void)state;
+    const int n = 1100, d1 = 10, d2 = 11;
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    p.sigma_angle_urad = 0; /* y noise = sqrt(2)·σ_disp on both scans */
+    p.sigma_disp_um = 0.02;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double)), *fe = malloc(n * sizeof(double));
+    double *y1 = malloc(n * sizeof(double)), *y2 = malloc(n * sizeof(double));
+    random_profile(n, 3, f);
+    sc_profile_data d;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &d, ey, &err), SC_OK);
+    sc_profile_combine(&d, 0, y1);
+    sc_profile_combine(&d, 1, y2);
+    sc_profile_lsq *pl;
+    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1, 1, &pl, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_solve(pl, y1, y2, fe, NULL, NULL, &err), SC_OK);
+    int dof;
+    double ss = sc_profile_residual_ss(n, d1, d2, y1, y2, fe, 1, 1, &dof);
+    double est = sqrt(ss / dof), truth = sqrt(2) * 0.02;
+    print_message("estimated sigma_y %.5f um, simulated %.5f um\n", est, truth);
+    assert_true(fabs(est / truth - 1) < 0.08);
+    sc_profile_lsq_destroy(pl);
+    sc_profile_data_free(&d);
+    free(f), free(ey), free(fe), free(y1), free(y2);
+}
+
+/* ---- the reader ------------------------------------------------------------------------------ */
+
+typedef struct text {
+    int nlines;
+    char *line[4096];
+} text;
+
+static void text_good(text *t, int n, int d1, int d2)
+{
+    char buf[256];
+    t->nlines = 0;
+#define ADD(...) (snprintf(buf, sizeof buf, __VA_ARGS__), t->line[t->nlines++] = strdup(buf))
+    ADD("# selfcal-profile v1");
+    ADD("# N = %d", n);
+    ADD("# s_mm = 1.0");
+    ADD("# scan 1: d=%d", d1);
+    ADD("# scan 2: d=%d", d2);
+    ADD("scan,n,m1_um,m2_um,m3_urad");
+    for (int k = 1; k <= 2; ++k)
+        for (int i = 0; i < n - (k == 1 ? d1 : d2); ++i)
+            ADD("%d,%d,%.6f,%.6f,%.6f", k, i, 0.01 * i, 0.02 * i + k, 0.5);
+#undef ADD
+}
+
+static void text_free(text *t)
+{
+    for (int i = 0; i < t->nlines; ++i)
+        free(t->line[i]);
+    t->nlines = 0;
+}
+
+/* line numbers are 1-based */
+static void text_delete(text *t, int ln)
+{
+    free(t->line[ln - 1]);
+    memmove(&t->line[ln - 1], &t->line[ln], (size_t)(t->nlines - ln) * sizeof(char *));
+    t->nlines--;
+}
+
+static void text_set(text *t, int ln, const char *s)
+{
+    free(t->line[ln - 1]);
+    t->line[ln - 1] = strdup(s);
+}
+
+static const char *text_write(const text *t)
+{
+    static const char *path = TMP "/profile_reader.csv";
+    FILE *fp = fopen(path, "w");
+    assert_non_null(fp);
+    for (int i = 0; i < t->nlines; ++i)
+        fprintf(fp, "%s\n", t->line[i]);
+    fclose(fp);
+    return path;
+}
+
+static void expect_bad(const text *t, long line, const char *what, int method)
+{
+    sc_profile_data d;
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st = sc_profile_read(text_write(t), &d, &err);
+    if (st == SC_OK && method >= 0) {
+        st = sc_profile_check_method(&d, (sc_profile_method)method, &err);
+        sc_profile_data_free(&d);
+    } else if (st == SC_OK) {
+        sc_profile_data_free(&d);
+    }
+    char msg[1024];
+    sc_error_format(&err, msg, sizeof msg);
+    print_message("  %s -> %s\n", what, msg);
+    assert_int_equal(st, SC_E_INPUT);
+    assert_int_equal(err.line, line);
+    assert_non_null(strstr(err.file, "profile_reader.csv"));
+    assert_non_null(strstr(err.msg, what));
+}
+
+static void test_reader_good_and_bad(void **state)
+{
+    (void)state;
+    const int n = 30, d1 = 3, d2 = 5; /* 30 = 2·3·5: both methods */
+    const int s1 = 7, s2 = 7 + (n - d1); /* first data lines of scans 1 and 2 */
+    text t;
+    sc_profile_data d;
+    sc_error err;
+    text_good(&t, n, d1, d2);
+    assert_int_equal(sc_profile_read(text_write(&t), &d, &err), SC_OK);
+    assert_int_equal(d.n, n);
+    assert_int_equal(d.d[0], d1);
+    assert_int_equal(d.d[1], d2);
+    assert_int_equal(d.has_sigma_disp, 0);
+    assert_true(d.m2_um[1][4] == 0.02 * 4 + 2);
+    assert_int_equal(sc_profile_check_method(&d, SC_PROFILE_DFT, &err), SC_OK);
+    assert_int_equal(sc_profile_check_method(&d, SC_PROFILE_LSQ, &err), SC_OK);
+    sc_profile_data_free(&d);
+
+    /* a scan missing: its header line, or all its rows */
+    text_delete(&t, 5);
+    expect_bad(&t, 5, "scan 2 missing", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    while (t.nlines >= s2)
+        text_delete(&t, t.nlines);
+    expect_bad(&t, 5, "scan 2 missing", -1);
+    text_free(&t);
+    /* not coprime: for both methods, at the scan line */
+    text_good(&t, n, 6, 10);
+    expect_bad(&t, 5, "common divisor", SC_PROFILE_LSQ);
+    expect_bad(&t, 5, "not coprime", SC_PROFILE_DFT);
+    text_free(&t);
+    /* N not a multiple of d1·d2: DFT only */
+    text_good(&t, 31, d1, d2);
+    expect_bad(&t, 2, "not a multiple", SC_PROFILE_DFT);
+    text_free(&t);
+    /* N too small: for least squares (N < d1 + d2) and with no sample at all */
+    text_good(&t, 7, d1, d2);
+    expect_bad(&t, 2, "too small", SC_PROFILE_LSQ);
+    text_free(&t);
+    text_good(&t, 8, 3, 5);
+    text_set(&t, 2, "# N = 5");
+    expect_bad(&t, 5, "N too small", -1);
+    text_free(&t);
+    /* a gap in n: reported at the row after it */
+    text_good(&t, n, d1, d2);
+    text_delete(&t, s1 + 4);
+    expect_bad(&t, s1 + 4, "gap in scan 1: no sample for n = 4", -1);
+    text_free(&t);
+    /* a gap at the end of scan 2: reported at the last line */
+    text_good(&t, n, d1, d2);
+    text_delete(&t, t.nlines);
+    expect_bad(&t, t.nlines, "gap in scan 2", -1);
+    text_free(&t);
+    /* a duplicate */
+    text_good(&t, n, d1, d2);
+    text_set(&t, s1 + 6, "1,5,0,0,0");
+    expect_bad(&t, s1 + 6, "duplicate", -1);
+    text_free(&t);
+    /* n out of range */
+    text_good(&t, n, d1, d2);
+    text_set(&t, s2 + 2, "2,25,0,0,0");
+    expect_bad(&t, s2 + 2, "out of range", -1);
+    text_free(&t);
+    /* non-numeric fields */
+    text_good(&t, n, d1, d2);
+    text_set(&t, s1 + 3, "1,3,0.1,abc,0");
+    expect_bad(&t, s1 + 3, "m2_um", -1);
+    text_set(&t, s1 + 3, "1,3.5,0.1,0.2,0");
+    expect_bad(&t, s1 + 3, "n", -1);
+    text_set(&t, s1 + 3, "1,3,0.1,0.2,nan");
+    expect_bad(&t, s1 + 3, "m3_urad", -1);
+    text_free(&t);
+    /* header problems */
+    text_good(&t, n, d1, d2);
+    text_set(&t, 1, "# selfcal-grid v1");
+    expect_bad(&t, 1, "selfcal-profile v1", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    text_set(&t, 3, "# s_mm = fast");
+    expect_bad(&t, 3, "s_mm", -1);
+    text_set(&t, 3, "# s_mm = 1");
+    text_set(&t, 6, "scan,n,m1,m2,m3");
+    expect_bad(&t, 6, "column header", -1);
+    text_free(&t);
+}
+
+static void test_write_read_roundtrip(void **state)
+{
+    (void)state;
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = 110;
+    double f[110], ey[110];
+    random_profile(110, 5, f);
+    sc_profile_data a, b;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &a, ey, &err), SC_OK);
+    assert_int_equal(sc_profile_write(TMP "/profile_rt.csv", &a, &err), SC_OK);
+    assert_int_equal(sc_profile_read(TMP "/profile_rt.csv", &b, &err), SC_OK);
+    assert_int_equal(b.has_sigma_disp, 1);
+    assert_true(b.sigma_disp_um == p.sigma_disp_um && b.sigma_angle_urad == p.sigma_angle_urad);
+    for (int k = 0; k < 2; ++k)
+        for (int i = 0; i < p.n - a.d[k]; ++i) {
+            assert_true(a.m1_um[k][i] == b.m1_um[k][i]);
+            assert_true(a.m2_um[k][i] == b.m2_um[k][i]);
+            assert_true(a.m3_urad[k][i] == b.m3_urad[k][i]);
+        }
+    /* the result file round trip, with the empty e_y tail */
+    double uf[110];
+    for (int i = 0; i < 110; ++i)
+        uf[i] = 0.001 * i;
+    assert_int_equal(sc_profile_write_result(TMP "/profile_res.csv", 110, 1.0, f, uf, ey, 100, &err), SC_OK);
+    sc_profile_result r;
+    assert_int_equal(sc_profile_read_result(TMP "/profile_res.csv", &r, &err), SC_OK);
+    assert_int_equal(r.n, 110);
+    for (int i = 0; i < 110; ++i) {
+        assert_true(r.f_um[i] == f[i] && r.uf_um[i] == uf[i] && r.x_mm[i] == i);
+        assert_true(i < 100 ? r.ey_um[i] == ey[i] : isnan(r.ey_um[i]));
+    }
+    sc_profile_result_free(&r);
+    sc_profile_data_free(&a);
+    sc_profile_data_free(&b);
+}
+
+static void test_dft_refuses(void **state)
+{
+    (void)state;
+    sc_error err;
+    sc_profile_dft *p = NULL;
+    assert_int_equal(sc_profile_dft_usable(330, 10, 11, &err), 1);
+    assert_int_equal(sc_profile_dft_usable(331, 10, 11, &err), 0);
+    assert_non_null(strstr(err.msg, "multiple"));
+    assert_int_equal(sc_profile_dft_usable(360, 10, 12, &err), 0);
+    assert_non_null(strstr(err.msg, "coprime"));
+    assert_int_equal(sc_profile_dft_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
+    assert_null(p);
+    assert_int_equal(sc_profile_dft_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_noise_free_both_methods),
+        cmocka_unit_test(test_lsq_noise_free_any_n),
+        cmocka_unit_test(test_dabam_profiles),
+        cmocka_unit_test(test_dabam_slope_integration),
+        cmocka_unit_test(test_dft_uncertainty_exact),
+        cmocka_unit_test(test_paper_setup_mc),
+        cmocka_unit_test(test_residual_noise_estimate),
+        cmocka_unit_test(test_reader_good_and_bad),
+        cmocka_unit_test(test_write_read_roundtrip),
+        cmocka_unit_test(test_dft_refuses),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
