@@ -92,53 +92,87 @@ static double normal_ff(const sc_profile_lsq *p, int i, int j)
 
 static int is_pinned(const sc_profile_lsq *p, int i) { return i == 0 || i == p->n - 1; }
 
+/* Assemble row i of B (pinned rows/columns are the identity) into its band slot. */
+static void assemble_row(const sc_profile_lsq *p, int i)
+{
+    int bw = p->bw;
+    double *ri = p->band + (size_t)i * p->ld;
+    for (int m = 0; m < bw; m++) ri[m] = 0.0;
+    if (is_pinned(p, i)) {
+        ri[bw] = 1.0;
+        return;
+    }
+    if (i - p->d1 >= 0 && !is_pinned(p, i - p->d1)) ri[bw - p->d1] += -p->w1;
+    if (i - p->d2 >= 0 && !is_pinned(p, i - p->d2)) ri[bw - p->d2] += -p->w2;
+    ri[bw] = normal_ff(p, i, i);
+}
+
+/* Right-looking banded Cholesky B = L·Lᵀ in row-band storage: for column j, take the square root
+ * of the (fully updated) pivot, scale the column below it, and subtract its outer product from
+ * the trailing bw×bw triangle — row by row, each a contiguous axpy (independent, vectorizable).
+ * Rows are assembled just before the first column that touches them, so the working window stays
+ * in cache. The diagonal slot keeps 1/L[i][i] (every later use multiplies by it). */
 static sc_status factor(sc_profile_lsq *p, sc_error *err)
 {
     int n = p->n, bw = p->bw;
-    for (int i = 0; i < n; i++) {
-        double *ri = p->band + (size_t)i * p->ld;
-        int k0 = i - bw < 0 ? 0 : i - bw;
-        /* assemble row i of B (pinned rows/columns are the identity) */
-        for (int m = 0; m < bw; m++) ri[m] = 0.0;
-        int pin_i = is_pinned(p, i);
-        if (!pin_i) {
-            if (i - p->d1 >= 0 && !is_pinned(p, i - p->d1)) ri[bw - p->d1] += -p->w1;
-            if (i - p->d2 >= 0 && !is_pinned(p, i - p->d2)) ri[bw - p->d2] += -p->w2;
-        }
-        double aii = pin_i ? 1.0 : normal_ff(p, i, i);
-        /* L[i][j] = (B[i][j] - sum_{k<j} L[i][k] L[j][k]) / L[j][j] */
-        for (int j = k0; j < i; j++) {
-            const double *rj = p->band + (size_t)j * p->ld;
-            double s = ri[j - i + bw] -
-                       sc_lsq_dot(ri + (k0 - i + bw), rj + (k0 - j + bw), j - k0);
-            ri[j - i + bw] = s / rj[bw];
-        }
-        double dsq = aii - sc_lsq_dot(ri + (k0 - i + bw), ri + (k0 - i + bw), i - k0);
-        if (!(dsq > 0.0) || !isfinite(dsq))
+    size_t ld = p->ld;
+    double *col = malloc((size_t)(bw + 1) * sizeof(double));
+    if (!col) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (factor)");
+    for (int i = 0; i <= bw && i < n; i++) assemble_row(p, i);
+    for (int j = 0; j < n; j++) {
+        if (j + bw < n && j > 0) assemble_row(p, j + bw);
+        double *rj = p->band + (size_t)j * ld;
+        double djj = rj[bw];
+        if (!(djj > 0.0) || !isfinite(djj)) {
+            free(col);
             return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
-                                "banded Cholesky factor lost positive definiteness at row %d", i);
-        ri[bw] = sqrt(dsq);
+                                "banded Cholesky factor lost positive definiteness at row %d", j);
+        }
+        double inv = 1.0 / sqrt(djj);
+        rj[bw] = inv;
+        int cnt = (j + bw < n - 1 ? j + bw : n - 1) - j;
+        double *rk = rj + ld + (bw - 1); /* L[j+1][j] */
+        for (int q = 0; q < cnt; q++, rk += ld - 1) {
+            double v = *rk * inv;
+            *rk = v;
+            col[q] = v;
+        }
+        for (int q = 0; q < cnt; q++) {
+            if (col[q] == 0.0) continue;
+            double *rowk = p->band + (size_t)(j + 1 + q) * ld;
+            /* row k = j+1+q, columns j+1..k: positions bw-q-... contiguous up to the diagonal */
+            sc_lsq_axpy(rowk + (bw - q), -col[q], col, q + 1);
+        }
     }
+    free(col);
     return SC_OK;
 }
 
-/* x <- B⁻¹ x in place (forward then backward substitution with the row-band factor). */
-static void band_solve(const sc_profile_lsq *p, double *x)
+/* x <- B⁻¹ x in place (and y <- B⁻¹ y when y is not NULL: two right-hand sides in one pass). */
+static void band_solve2(const sc_profile_lsq *p, double *x, double *y)
 {
     int n = p->n, bw = p->bw;
     for (int i = 0; i < n; i++) {
         const double *ri = p->band + (size_t)i * p->ld;
         int k0 = i - bw < 0 ? 0 : i - bw;
-        x[i] = (x[i] - sc_lsq_dot(ri + (k0 - i + bw), x + k0, i - k0)) / ri[bw];
+        x[i] = (x[i] - sc_lsq_dot(ri + (k0 - i + bw), x + k0, i - k0)) * ri[bw];
+        if (y) y[i] = (y[i] - sc_lsq_dot(ri + (k0 - i + bw), y + k0, i - k0)) * ri[bw];
     }
     for (int i = n - 1; i >= 0; i--) {
         const double *ri = p->band + (size_t)i * p->ld;
         int k0 = i - bw < 0 ? 0 : i - bw;
-        double xi = x[i] / ri[bw];
+        double xi = x[i] * ri[bw];
         x[i] = xi;
         sc_lsq_axpy(x + k0, -xi, ri + (k0 - i + bw), i - k0);
+        if (y) {
+            double yi = y[i] * ri[bw];
+            y[i] = yi;
+            sc_lsq_axpy(y + k0, -yi, ri + (k0 - i + bw), i - k0);
+        }
     }
 }
+
+static void band_solve(const sc_profile_lsq *p, double *x) { band_solve2(p, x, NULL); }
 
 sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
                                 sc_error *err)
@@ -193,9 +227,9 @@ sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_
             e[i] = v;
         }
         memcpy(p->z + (size_t)k * n, e, (size_t)n * sizeof(double));
-        band_solve(p, p->z + (size_t)k * n);
         p->g[k] = wk[k] * (double)(n - dk[k]);
     }
+    band_solve2(p, p->z, p->z + n);
     double s[4];
     for (int a = 0; a < 2; a++)
         for (int b = 0; b < 2; b++)
@@ -313,7 +347,7 @@ static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc
     double *t = win + w * w; /* accumulator over all w slots */
     double *l = t + w;       /* column i of L below the diagonal, l[k - i - 1] */
     for (int i = n - 1; i >= 0; i--) {
-        const double lii = p->band[(size_t)i * p->ld + bw];
+        const double rii = p->band[(size_t)i * p->ld + bw]; /* 1/L[i][i] */
         int kmax = i + bw < n - 1 ? i + bw : n - 1;
         int cnt = kmax - i;
         for (int q = 0; q < cnt; q++) {
@@ -321,9 +355,16 @@ static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc
             l[q] = p->band[(size_t)k * p->ld + (size_t)(i - k + bw)];
         }
         for (size_t s = 0; s < w; s++) t[s] = 0.0;
-        for (int q = 0; q < cnt; q++) {
+        int q = 0;
+        for (; q + 4 <= cnt; q += 4) {
             int k = i + 1 + q;
-            if (l[q] != 0.0) sc_lsq_axpy(t, l[q], win + (size_t)(k % (int)w) * w, (int)w);
+            sc_lsq_axpy4(t, l + q, win + (size_t)(k % (int)w) * w,
+                         win + (size_t)((k + 1) % (int)w) * w, win + (size_t)((k + 2) % (int)w) * w,
+                         win + (size_t)((k + 3) % (int)w) * w, (int)w);
+        }
+        for (; q < cnt; q++) {
+            int k = i + 1 + q;
+            sc_lsq_axpy(t, l[q], win + (size_t)(k % (int)w) * w, (int)w);
         }
         size_t si = (size_t)(i % (int)w);
         double *row_i = win + si * w;
@@ -331,12 +372,12 @@ static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc
         for (int q = 0; q < cnt; q++) {
             int k = i + 1 + q;
             size_t sk = (size_t)(k % (int)w);
-            double zik = -t[sk] / lii;
+            double zik = -t[sk] * rii;
             row_i[sk] = zik;
             win[sk * w + si] = zik;
             acc += l[q] * zik;
         }
-        double zii = (1.0 / lii - acc) / lii;
+        double zii = (rii - acc) * rii;
         row_i[si] = zii;
         diag[i] = zii;
     }
@@ -373,8 +414,7 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
         cu1[i] = pin ? 0.0 : a1;
         cu2[i] = pin ? 0.0 : a2 * ((double)i - nc);
     }
-    band_solve(p, cu1);
-    band_solve(p, cu2);
+    band_solve2(p, cu1, cu2);
     /* + Z S⁻¹ (Zᵀ U) */
     double ztu[4]; /* ztu[2a+b] = z_a · u_b */
     double s01 = 0, s11 = 0, s02 = 0, s12 = 0;

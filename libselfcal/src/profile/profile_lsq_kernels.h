@@ -23,4 +23,13 @@ static inline void sc_lsq_axpy(double *restrict y, double alpha, const double *r
     for (int i = 0; i < len; i++) y[i] += alpha * x[i];
 }
 
+/* y[i] += a[0]·x0[i] + a[1]·x1[i] + a[2]·x2[i] + a[3]·x3[i], i < len (one pass over y). */
+static inline void sc_lsq_axpy4(double *restrict y, const double *a, const double *restrict x0,
+                                const double *restrict x1, const double *restrict x2,
+                                const double *restrict x3, int len)
+{
+    double a0 = a[0], a1 = a[1], a2 = a[2], a3 = a[3];
+    for (int i = 0; i < len; i++) y[i] += (a0 * x0[i] + a1 * x1[i]) + (a2 * x2[i] + a3 * x3[i]);
+}
+
 #endif
