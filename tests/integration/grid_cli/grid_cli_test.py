@@ -1,0 +1,422 @@
+#!/usr/bin/env python3
+"""CLI tests of selfcal's grid commands (simulate grid, grid, plan, plot map).
+
+Usage: grid_cli_test.py CLI TMPDIR CASE [args]
+Every assertion compares against the simulated truth or against what the input file says, never
+against stored outputs of selfcal itself.
+"""
+import csv
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+CLI, TMP, CASE = sys.argv[1], sys.argv[2], sys.argv[3]
+ARGS = sys.argv[4:]
+
+
+def fail(msg):
+    print("FAIL: " + msg)
+    sys.exit(1)
+
+
+def run(*args, expect=0):
+    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=300)
+    if p.returncode != expect:
+        fail("selfcal %s: exit %d (want %d)\nstdout: %s\nstderr: %s"
+             % (" ".join(map(str, args)), p.returncode, expect, p.stdout, p.stderr))
+    return p
+
+
+def fresh_dir(name):
+    d = os.path.join(TMP, "grid_cli_" + name)
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    return d
+
+
+def read_map(path):
+    with open(path, newline="") as f:
+        r = csv.reader(f)
+        head = next(r)
+        if head[:8] != ["i", "j", "x_mm", "y_mm", "gx_um", "gy_um", "ugx_um", "ugy_um"]:
+            fail("%s: map header %s" % (path, head))
+        rows = {}
+        for row in r:
+            rows[(int(row[0]), int(row[1]))] = row
+        return rows
+
+
+def read_art(path):
+    with open(path, newline="") as f:
+        r = csv.reader(f)
+        if next(r) != ["i", "j", "ax_um", "ay_um"]:
+            fail("%s: artifact header" % path)
+        return {(int(a[0]), int(a[1])): (float(a[2]), float(a[3])) for a in r}
+
+
+def simulate(d, name, plan, n, *extra):
+    files = dict(inp=os.path.join(d, name + ".csv"), g=os.path.join(d, name + "_G.csv"),
+                 a=os.path.join(d, name + "_A.csv"), t=os.path.join(d, name + "_T.json"))
+    run("simulate", "grid", "--plan", plan, "--n", n, "--out", files["inp"], "--truth-map", files["g"],
+        "--truth-artifact", files["a"], "--truth-summary", files["t"], *extra)
+    return files
+
+
+def write(path, text):
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def plan_text(n, views, pitch=1.0, origin=None):
+    s = "# selfcal-grid v1\n# N = %d\n# pitch_mm = %g\n" % (n, pitch)
+    if origin:
+        s += "# origin_mm = %s\n" % origin
+    for k, v in enumerate(views):
+        s += "# view %d: %s\n" % (k, v)
+    return s
+
+
+# --------------------------------------------------------------------------------------------
+def case_end_to_end():
+    """Noise-free simulate -> grid: G and A equal the truth to 1e-9 um, O, R and misalignments too."""
+    method, plan, ns = ARGS[0], ARGS[1], [int(a) for a in ARGS[2].split(",")]
+    d = fresh_dir("e2e_%s_%s" % (method, "custom" if plan.startswith("views:") else plan))
+    for n in ns:
+        planarg = plan
+        if plan.startswith("views:"):  # a custom plan file written here
+            planarg = os.path.join(d, "plan%d.csv" % n)
+            write(planarg, plan_text(n, plan[6:].split("|"), origin="50.5,-20.25"))
+        sim = simulate(d, "n%d" % n, planarg, n, "--sigma-r-um", 0, "--seed", 100 + n,
+                       "--origin-mm", "50.5,-20.25", "--sigma-g-um", 2)
+        out = {k: os.path.join(d, "est%d_%s" % (n, k)) for k in ("G.csv", "A.csv", "S.json")}
+        run("grid", "--method", method, sim["inp"], "--map", out["G.csv"], "--artifact", out["A.csv"],
+            "--summary", out["S.json"])
+        g, gt = read_map(out["G.csv"]), read_map(sim["g"])
+        if len(g) != n * n or set(g) != set(gt):
+            fail("N=%d: map has %d nodes" % (n, len(g)))
+        worst = 0.0
+        for key, row in g.items():
+            t = gt[key]
+            if abs(float(row[2]) - float(t[2])) > 1e-9 or abs(float(row[3]) - float(t[3])) > 1e-9:
+                fail("N=%d node %s: position %s,%s vs truth %s,%s" % (n, key, row[2], row[3], t[2], t[3]))
+            worst = max(worst, abs(float(row[4]) - float(t[4])), abs(float(row[5]) - float(t[5])))
+        a, at = read_art(out["A.csv"]), read_art(sim["a"])
+        worst_a = max(max(abs(a[k][0] - at[k][0]), abs(a[k][1] - at[k][1])) for k in at)
+        s, tr = json.load(open(out["S.json"])), json.load(open(sim["t"]))
+        print("%s N=%d: max |G-G_true| = %.3g um, max |A-A_true| = %.3g um, O %.6g (true %.6g), R %.6g (true %.6g)"
+              % (method, n, worst, worst_a, s["O"], tr["O"], s["R"], tr["R"]))
+        if not worst <= 1e-9:
+            fail("N=%d: max |G - G_true| = %g um > 1e-9" % (n, worst))
+        if not worst_a <= 1e-9:
+            fail("N=%d: max |A - A_true| = %g um > 1e-9" % (n, worst_a))
+        if s["method"] != method or s["N"] != n:
+            fail("summary method/N: %s %s" % (s["method"], s["N"]))
+        if abs(s["O"] - tr["O"]) > 1e-12 or abs(s["R"] - tr["R"]) > 1e-12:
+            fail("N=%d: O, R = %g, %g; truth %g, %g" % (n, s["O"], s["R"], tr["O"], tr["R"]))
+        for sv, tv in zip(s["views"], tr["views"]):
+            if sv["tx_um"] is None:
+                continue
+            if (abs(sv["tx_um"] - tv["tx_um"]) > 1e-8 or abs(sv["ty_um"] - tv["ty_um"]) > 1e-8
+                    or abs(sv["theta_urad"] - tv["theta_urad"]) > 1e-6):
+                fail("N=%d view %d misalignment %s vs truth %s" % (n, sv["view"], sv, tv))
+        if s["residual_rms_um"] is not None and s["residual_rms_um"] > 1e-9:
+            fail("N=%d: residual RMS %g on noise-free data" % (n, s["residual_rms_um"]))
+
+
+def case_lsq_noise():
+    """lsq on noisy data: sigma_r estimated near the truth, uncertainties consistent with errors."""
+    d = fresh_dir("lsq_noise")
+    n, sr = 15, 0.05
+    zs, ests = [], []
+    for seed in range(1, 5):
+        sim = simulate(d, "s%d" % seed, "double-shift", n, "--sigma-r-um", sr, "--seed", seed)
+        gp, sp = os.path.join(d, "G%d.csv" % seed), os.path.join(d, "S%d.json" % seed)
+        run("grid", "--method", "lsq", sim["inp"], "--map", gp, "--summary", sp)
+        g, gt = read_map(gp), read_map(sim["g"])
+        for k, row in g.items():
+            for c, uc in ((4, 6), (5, 7)):
+                u = float(row[uc])
+                if not u > 0:
+                    fail("uncertainty %s at %s" % (row[uc], k))
+                zs.append((float(row[c]) - float(gt[k][c])) / u)
+        ests.append(json.load(open(sp))["sigma_r_est_um"])
+        # With --sigma-r-um the uncertainties scale with the given value.
+        if seed == 1:
+            g2p = os.path.join(d, "G_given.csv")
+            run("grid", "--method", "lsq", sim["inp"], "--map", g2p, "--sigma-r-um", 2 * sr)
+            s1 = json.load(open(sp))
+            g2 = read_map(g2p)
+            k = (n // 2, n // 2)
+            ratio = float(g2[k][6]) / float(g[k][6])
+            want = 2 * sr / s1["sigma_r_used_um"]
+            if abs(ratio / want - 1) > 1e-6:
+                fail("--sigma-r-um: uncertainty ratio %g, want %g" % (ratio, want))
+    zrms = math.sqrt(sum(z * z for z in zs) / len(zs))
+    print("lsq N=%d sigma_r=%g: sigma_r estimates %s, RMS of (G-G_true)/u = %.3f over %d values"
+          % (n, sr, ["%.4f" % e for e in ests], zrms, len(zs)))
+    for e in ests:
+        if abs(e / sr - 1) > 0.15:
+            fail("sigma_r estimate %g vs %g" % (e, sr))
+    if not 0.8 < zrms < 1.2:
+        fail("RMS of normalised errors %g not near 1" % zrms)
+
+
+def first_lines(out, k=4):
+    return out.splitlines()[:k]
+
+
+def case_plan():
+    d = fresh_dir("plan")
+    n = 25
+    c = (n - 1) // 2
+    cases = [
+        ("ye", ["rot=0 shift=0,0", "rot=90 shift=0,0", "rot=0 shift=1,0"], True),
+        ("petro", ["rot=0 shift=0,0", "rot=90 shift=0,0", "rot=0 shift=2,0",
+                   "rot=0 shift=-3,0 rows=%d cols=%d,%d" % (c, c, c + 1)], True),
+        ("rot_only", ["rot=0 shift=0,0", "rot=90 shift=0,0"], False),
+        ("rot180_shift", ["rot=0 shift=0,0", "rot=180 shift=0,0", "rot=0 shift=1,0"], False),
+        ("shift2_no_view3", ["rot=0 shift=0,0", "rot=90 shift=0,0", "rot=0 shift=2,0"], None),
+    ]
+    for name, views, ident in cases:
+        path = os.path.join(d, name + ".csv")
+        write(path, plan_text(n, views))
+        p = run("plan", path)
+        lines = first_lines(p.stdout)
+        print("%s: %s" % (name, " | ".join(lines)))
+        keys = [ln.split(":")[0] for ln in lines]
+        if keys != ["identifiable", "free", "sigma_c_ratio_rms", "sigma_c_ratio_max"]:
+            fail("%s: first lines %s" % (name, lines))
+        val = {ln.split(":")[0]: ln.split(":", 1)[1].strip() for ln in lines}
+        is_yes = val["identifiable"] == "yes"
+        if ident is not None and is_yes != ident:
+            fail("%s: identifiable %s, want %s" % (name, val["identifiable"], ident))
+        free = int(val["free"])
+        if is_yes:
+            rms, mx = float(val["sigma_c_ratio_rms"]), float(val["sigma_c_ratio_max"])
+            if free != 0 or not (0 < rms <= mx < 100):
+                fail("%s: free %d rms %g max %g" % (name, free, rms, mx))
+        else:
+            if free < 1 or val["sigma_c_ratio_rms"] != "inf" or val["sigma_c_ratio_max"] != "inf":
+                fail("%s: not identifiable but free %d, ratios %s %s"
+                     % (name, free, val["sigma_c_ratio_rms"], val["sigma_c_ratio_max"]))
+        if name == "ye":
+            ye_rms = float(val["sigma_c_ratio_rms"])
+            # A data file with the same plan gives the same analysis.
+            sim = simulate(d, "yedata", "ye", n, "--sigma-r-um", 0.01)
+            p2 = run("plan", sim["inp"])
+            if first_lines(p2.stdout) != lines:
+                fail("plan on a data file: %s vs %s" % (first_lines(p2.stdout), lines))
+        if name == "petro":
+            if not float(val["sigma_c_ratio_rms"]) < ye_rms:
+                fail("Petro's plan should predict less noise than Ye's")
+    # Bad plan files exit 2.
+    bad = os.path.join(d, "bad.csv")
+    write(bad, plan_text(24, ["rot=0 shift=0,0"]))
+    p = run("plan", bad, expect=2)
+    if "bad.csv:2:" not in p.stderr:
+        fail("plan on N even: %s" % p.stderr)
+
+
+def case_plot():
+    d = fresh_dir("plot")
+    n = 9
+    sim = simulate(d, "p", "ye", n, "--sigma-r-um", 0.02)
+    g = os.path.join(d, "G.csv")
+    svg1 = os.path.join(d, "grid.svg")
+    run("grid", "--method", "lsq", sim["inp"], "--map", g, "--plot", svg1)
+    svg2 = os.path.join(d, "map.svg")
+    run("plot", "map", g, "-o", svg2, "--truth", sim["g"], "--scale-um-per-pitch", 5)
+    svg3 = os.path.join(d, "truth.svg")
+    run("plot", "map", sim["g"], "-o", svg3)
+    for path, panels in ((svg1, 1), (svg2, 2), (svg3, 1)):
+        root = ET.parse(path).getroot()
+        ns = "{http://www.w3.org/2000/svg}"
+        arrows = len(root.findall(ns + "polygon"))
+        ellipses = len(root.findall(ns + "ellipse"))
+        texts = " ".join(t.text or "" for t in root.iter(ns + "text"))
+        if arrows < panels * n * n * 0.9:
+            fail("%s: %d arrow heads for %d panels of %d nodes" % (path, arrows, panels, n * n))
+        if "RMS" not in texts or "max" not in texts or "µm" not in texts:
+            fail("%s: title lacks RMS/max: %s" % (path, texts[:200]))
+        if path != svg3 and ellipses < n * n:
+            fail("%s: %d uncertainty ellipses" % (path, ellipses))
+        if path == svg3 and ellipses:
+            fail("truth map has no uncertainties but %d ellipses" % ellipses)
+    if "= 5 µm" not in open(svg2, encoding="utf-8").read():
+        fail("scale bar does not show the requested 5 um per pitch")
+    # Bad map input: exit 2, no SVG.
+    bad = os.path.join(d, "bad.csv")
+    write(bad, "i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n0,0,0,0,1,zz,,\n")
+    out = os.path.join(d, "bad.svg")
+    p = run("plot", "map", bad, "-o", out, expect=2)
+    if os.path.exists(out) or "bad.csv:2:" not in p.stderr:
+        fail("bad map: %s" % p.stderr)
+
+
+def case_simulate():
+    """Same seed: identical files; different seed: different; bad options exit 2 and write nothing."""
+    d = fresh_dir("simulate")
+    a = simulate(d, "a", "double-shift", 9, "--seed", 5)
+    b = simulate(d, "b", "double-shift", 9, "--seed", 5)
+    c = simulate(d, "c", "double-shift", 9, "--seed", 6)
+    for k in ("inp", "g", "a"):
+        if open(a[k]).read() != open(b[k]).read():
+            fail("same seed, different %s" % k)
+        if open(a[k]).read() == open(c[k]).read():
+            fail("different seed, same %s" % k)
+    # sigma_G of the truth map as requested (sample std over all gx, gy values).
+    g = read_map(a["g"])
+    vals = [float(r[4]) for r in g.values()] + [float(r[5]) for r in g.values()]
+    m = sum(vals) / len(vals)
+    sd = math.sqrt(sum((v - m) ** 2 for v in vals) / (len(vals) - 1))
+    if abs(sd - 1.0) > 1e-9:
+        fail("sigma_G of the truth %g" % sd)
+    # The input file follows SPEC §1: view 3 restricted to row c, columns c, c+1 for N = 9.
+    text = open(a["inp"]).read()
+    if "# view 3: rot=0 shift=-3,0 rows=4 cols=4,5" not in text:
+        fail("double-shift view 3 line:\n" + text[:400])
+    for args in (["--n", 8], ["--n", 7], ["--sigma-g-um", "abc"], ["--rho", 1],
+                 ["--pitch-mm", 10]):
+        out = os.path.join(d, "bad.csv")
+        tm = os.path.join(d, "bad_G.csv")
+        p = run("simulate", "grid", "--plan", "double-shift", "--out", out, "--truth-map", tm,
+                *(args if args[0] != "--n" else args), expect=2)
+        if os.path.exists(out) or os.path.exists(tm):
+            fail("simulate %s left a file" % args)
+        if len(p.stderr.strip().splitlines()) < 1:
+            fail("no message for %s" % args)
+
+
+# --------------------------------------------------------------------------------------------
+def case_bad_input():
+    """Each bad input: exit 2, 'selfcal: FILE:LINE: ...' on stderr, no output file."""
+    d = fresh_dir("bad")
+    ye = simulate(d, "ye9", "ye", 9, "--sigma-r-um", 0.001)
+    ds = simulate(d, "ds9", "double-shift", 9, "--sigma-r-um", 0.001)
+    ye_lines = open(ye["inp"]).read().splitlines(True)
+    ds_lines = open(ds["inp"]).read().splitlines(True)
+    # Layout of a file written by simulate: 1 tag, 2 N, 3 pitch, 4 origin, views, column header.
+    def header_len(lines):
+        return next(k for k, l in enumerate(lines) if l.startswith("view,")) + 1
+    hy = header_len(ye_lines)  # 8 for Ye (3 views)
+
+    def rows_of(lines, view):
+        return [k for k, l in enumerate(lines) if l.split(",")[0] == str(view) and k >= hy]
+
+    cases = []
+    # A view the method needs is missing from the header (and its rows gone).
+    lines = [l for k, l in enumerate(ye_lines) if not l.startswith("# view 2") and k not in rows_of(ye_lines, 2)]
+    cases.append(("missing_view", "ye", lines, hy - 1, "needs a view"))
+    # Declared but without data.
+    lines = [l for k, l in enumerate(ye_lines) if k not in rows_of(ye_lines, 2)]
+    cases.append(("view_without_rows", "ye", lines, 7, "no data rows"))
+    # A mark of a needed view missing.
+    r1 = rows_of(ye_lines, 1)
+    lines = [l for k, l in enumerate(ye_lines) if k != r1[10]]
+    cases.append(("incomplete_view", "ye", lines, 6, "lacks mark"))
+    # N even.
+    lines = list(ye_lines)
+    lines[1] = "# N = 10\n"
+    cases.append(("n_even", "ye", lines, 2, "even"))
+    # Duplicate mark.
+    lines = list(ye_lines)
+    k = rows_of(ye_lines, 0)[3]
+    lines.insert(k + 5, lines[k])
+    cases.append(("duplicate", "lsq", lines, k + 6, "duplicate"))
+    # A mark off the grid: view 2 (shift +1) mark in the last column.
+    lines = list(ye_lines)
+    k = rows_of(ye_lines, 2)[0]
+    f = lines[k].split(",")
+    f[2] = "8"
+    lines[k] = ",".join(f)
+    cases.append(("off_grid", "ye", lines, k + 1, "does not land on the stage grid"))
+    # Off the plate altogether.
+    lines = list(ye_lines)
+    f = lines[k].split(",")
+    f[1] = "9"
+    lines[k] = ",".join(f)
+    cases.append(("off_plate", "lsq", lines, k + 1, "off the plate"))
+    # Non-numeric field.
+    lines = list(ye_lines)
+    k = rows_of(ye_lines, 1)[5]
+    f = lines[k].split(",")
+    f[4] = "1.2.3\n"
+    lines[k] = ",".join(f)
+    cases.append(("non_numeric", "ye", lines, k + 1, "not a finite number"))
+    # Wrong field count.
+    lines = list(ye_lines)
+    lines[k] = lines[k].rstrip("\n") + ",7\n"
+    cases.append(("field_count", "lsq", lines, k + 1, "expected 5 fields"))
+    # Header contradicting the data: pitch 1.5 instead of 1 (first row is a corner mark).
+    lines = list(ye_lines)
+    lines[2] = "# pitch_mm = 1.5\n"
+    cases.append(("pitch_contradicts", "ye", lines, hy + 1, "contradicts the data"))
+    # ... or an origin that is off by a pitch.
+    lines = list(ye_lines)
+    lines[3] = "# origin_mm = 1,0\n"
+    cases.append(("origin_contradicts", "lsq", lines, hy + 1, "contradicts the data"))
+    # ... or a view rotation that is wrong (view 1 declared rot=270).
+    lines = list(ye_lines)
+    lines[5] = lines[5].replace("rot=90", "rot=270")
+    r1 = rows_of(ye_lines, 1)
+    cases.append(("rot_contradicts", "lsq", lines, r1[0] + 1, "contradicts the data"))
+    # A view not declared.
+    lines = list(ye_lines)
+    k = rows_of(ye_lines, 0)[0]
+    lines[k] = "7" + lines[k][1:]
+    cases.append(("undeclared_view", "ye", lines, k + 1, "not declared"))
+    # Unknown header.
+    lines = list(ye_lines)
+    lines.insert(2, "# temperature = 20\n")
+    cases.append(("unknown_header", "ye", lines, 3, "unknown header"))
+    # Double shift: N < 9 (a 7x7 plate simulated with Petrò's views from a plan file).
+    p7 = os.path.join(d, "ds7plan.csv")
+    write(p7, plan_text(7, ["rot=0 shift=0,0", "rot=90 shift=0,0", "rot=0 shift=2,0",
+                            "rot=0 shift=-3,0 rows=3 cols=3,4"]))
+    ds7 = simulate(d, "ds7", p7, 7)
+    cases.append(("ds_n_lt_9", "double-shift", open(ds7["inp"]).read().splitlines(True), 2, "N >= 9"))
+    # Double shift: view 3 missing its column c+1.
+    hd = header_len(ds_lines)
+    lines = [l for l in ds_lines if not (l.startswith("3,") and l.split(",")[2] == "5" and l.split(",")[1] != "4")]
+    cases.append(("ds_view3_incomplete", "double-shift", lines, 8, "lacks mark"))
+    # Double shift data given to Ye: shift +1 view missing.
+    cases.append(("ye_on_ds_data", "ye", ds_lines, hd, "needs a view"))
+    # lsq on a plan that does not identify G: views 0 and 1 only.
+    lines = [l for k, l in enumerate(ye_lines) if not l.startswith("# view 2") and k not in rows_of(ye_lines, 2)]
+    cases.append(("lsq_not_identifiable", "lsq", lines, hy - 1, "do not identify G"))
+    # A plan file (no data) given to grid.
+    lines = ye_lines[:hy]
+    cases.append(("no_data", "lsq", lines, hy, "no data rows"))
+
+    for name, method, lines, line, needle in cases:
+        path = os.path.join(d, name + ".csv")
+        write(path, "".join(lines))
+        outs = [os.path.join(d, name + s) for s in ("_G.csv", "_A.csv", "_S.json", "_plot.svg")]
+        p = run("grid", "--method", method, path, "--map", outs[0], "--artifact", outs[1],
+                "--summary", outs[2], "--plot", outs[3], expect=2)
+        err = p.stderr.strip().splitlines()
+        want = "selfcal: %s:%d: " % (path, line)
+        if len(err) != 1 or not err[0].startswith(want) or needle not in err[0]:
+            fail("%s: stderr %r, want one line starting %r containing %r" % (name, p.stderr, want, needle))
+        left = [o for o in outs if os.path.exists(o)]
+        if left:
+            fail("%s: output files left: %s" % (name, left))
+        if [f for f in os.listdir(d) if ".tmp" in f or f.startswith(".")]:
+            fail("%s: temporary files left: %s" % (name, os.listdir(d)))
+        print("ok %-22s %s" % (name, err[0]))
+    # Usage errors exit 2 too.
+    run("grid", "--method", "magic", ye["inp"], "--map", os.path.join(d, "x.csv"), expect=2)
+    run("grid", "--method", "ye", ye["inp"], expect=2)
+    run("grid", "--method", "ye", os.path.join(d, "does_not_exist.csv"), "--map", os.path.join(d, "x.csv"), expect=2)
+    if os.path.exists(os.path.join(d, "x.csv")):
+        fail("usage error left a map")
+
+
+CASES = {"end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
+         "plot": case_plot, "simulate": case_simulate, "bad_input": case_bad_input}
+CASES[CASE]()
+print("PASS " + CASE + " " + " ".join(ARGS))
