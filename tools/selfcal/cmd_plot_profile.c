@@ -78,7 +78,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         return st;
     }
     const int W = 900, PH = 250, top = o && o->title ? 40 : 15;
-    const int H = top + panels * (PH + 55) + 10;
+    const int H = top + panels * (PH + 80) + 10;
     FILE *fp = af.fp;
     svg_begin(fp, W, H);
     if (o && o->title)
@@ -94,7 +94,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         if (cmp)
             range_of(cmp->f_um, n, 1, &lo, &hi);
         svg_nice_range(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
         int k = 0;
         if (truth) {
@@ -107,7 +107,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
             svg_polyline(&c, cmp->x_mm, cmp->f_um, n, COL_B, 1.2, "2,2");
             svg_legend(&c, k++, lb, COL_B, "2,2");
         }
-        y0 += PH + 55;
+        y0 += PH + 80;
     }
     if (p_u) {
         double lo = 0, hi = -INFINITY;
@@ -115,7 +115,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         if (cmp)
             range_of(cmp->uf_um, n, 1e3, &lo, &hi);
         svg_nice_range(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "u(f) (nm)", "standard uncertainty of f (k = 1)");
         int k = 0;
         if (any_finite(a->uf_um, n)) {
@@ -126,7 +126,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
             svg_polyline(&c, cmp->x_mm, scaled(cmp->uf_um, n, 1e3, b1), n, COL_B, 1.5, "6,3");
             svg_legend(&c, k++, lb, COL_B, "6,3");
         }
-        y0 += PH + 55;
+        y0 += PH + 80;
     }
     if (p_e) {
         double lo = INFINITY, hi = -INFINITY;
@@ -145,7 +145,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
                     lo = e < lo ? e : lo, hi = e > hi ? e : hi;
             }
         svg_nice_range(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "error (nm)", "error of f against the truth");
         int k = 0;
         svg_polyline(&c, a->x_mm, b1, n, COL_A, 1.2, NULL);
@@ -161,7 +161,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
             svg_polyline(&c, cmp->x_mm, b1, n, COL_B, 1.0, "2,2");
             svg_legend(&c, k++, lb, COL_B, "2,2");
         }
-        y0 += PH + 55;
+        y0 += PH + 80;
     }
     if (p_y) {
         double lo = INFINITY, hi = -INFINITY;
@@ -169,7 +169,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         if (truth)
             range_of(truth->ey_um, n, 1, &lo, &hi);
         svg_nice_range(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 10, W - 110, PH, xmin, xmax, lo, hi);
+        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "e_y (µm)", "stage straightness motion error e_y (scan 1)");
         int k = 0;
         if (truth && any_finite(truth->ey_um, n)) {

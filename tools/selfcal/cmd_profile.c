@@ -146,6 +146,7 @@ int cmd_profile(int argc, char **argv)
     int rc = CLI_FAIL;
     double *blk = malloc((size_t)(2 * n + 4 * n) * sizeof(double));
     solver_ctx ctx = {method, NULL, NULL};
+    sc_profile_lsq *lres = NULL;
     if (!blk) {
         sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
         goto done;
@@ -160,9 +161,17 @@ int cmd_profile(int argc, char **argv)
         st = sc_profile_lsq_create(n, d1, d2, 1.0 / var1, 1.0 / var2, &ctx.lsq, &err);
     if (st != SC_OK || (st = solve_cb(&ctx, y1, y2, f, &err)) != SC_OK)
         goto done;
-    /* residual noise (weighted by the plan's weights) */
+    /* residual noise (weighted by the plan's weights), always from the least-squares fit: the
+     * DFT estimate is not the least-squares one, and its residuals overstate the noise */
+    const double *fres = f;
+    if (method == SC_PROFILE_DFT) {
+        if ((st = sc_profile_lsq_create(n, d1, d2, 1.0 / var1, 1.0 / var2, &lres, &err)) != SC_OK ||
+            (st = sc_profile_lsq_solve(lres, y1, y2, tmp, NULL, NULL, &err)) != SC_OK)
+            goto done;
+        fres = tmp;
+    }
     int dof;
-    double wrss = sc_profile_residual_ss(n, d1, d2, y1, y2, f, 1.0 / var1, 1.0 / var2, &dof);
+    double wrss = sc_profile_residual_ss(n, d1, d2, y1, y2, fres, 1.0 / var1, 1.0 / var2, &dof);
     double scale = 1.0; /* multiplies the plan's unit uncertainties */
     int have_uf = 1;
     if (zero_noise) {
@@ -193,7 +202,6 @@ int cmd_profile(int argc, char **argv)
             uf[i] *= scale;
     }
     sc_profile_stage_error(&d, f, ey);
-    (void)tmp;
     if ((st = sc_profile_write_result(out, n, d.s_mm, f, have_uf ? uf : NULL, ey, n - d1, &err)) != SC_OK)
         goto done;
     if (plot) {
@@ -243,6 +251,7 @@ done:
         rc = cli_report(&err);
     sc_profile_dft_destroy(ctx.dft);
     sc_profile_lsq_destroy(ctx.lsq);
+    sc_profile_lsq_destroy(lres);
     free(blk);
     sc_profile_data_free(&d);
     return rc;
