@@ -45,6 +45,21 @@ sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy
 sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
                             sc_grid_result *res, sc_error *err);
 
+/* Internals of the sparse factorization, for benchmarks and diagnostics. */
+typedef struct sc_grid_lsq_stats {
+    long n_reduced;              /* unknowns after eliminating A: 2N² (G) + 3V (misalignments) */
+    long nnz_matrix;             /* stored entries of the reduced matrix (upper triangle) */
+    long nnz_factor;             /* entries of L (strictly lower) */
+    int n_null_pivots;           /* pivots judged null in the pinned reduced matrix */
+    int nullity_misalignment;    /* null space of the misalignment block with G held (3 = plate motion) */
+    double min_kept_pivot_ratio; /* smallest pivot/diagonal kept: the margin to the tolerance */
+    double max_null_pivot_ratio; /* largest pivot/diagonal judged null (0 if none) */
+    size_t bytes;                /* memory the estimator holds (and used for assembly), bytes */
+} sc_grid_lsq_stats;
+
+/* Fill st with the estimator's internals. */
+void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st);
+
 /* Free the estimator (NULL is fine). */
 void sc_grid_lsq_destroy(sc_grid_lsq *q);
 

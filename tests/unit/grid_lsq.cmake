@@ -1,0 +1,8 @@
+# Least-squares grid estimator (grid_lsq.c, sparse_ldl.c).
+selfcal_unit_test(NAME test_grid_lsq SOURCES unit/test_grid_lsq.c LIBS selfcal_grid
+                  LABELS grid TIMEOUT 120)
+if(TARGET PkgConfig::LAPACKE)
+  # dense LAPACK reference for small N
+  selfcal_unit_test(NAME test_grid_lsq_dense SOURCES unit/test_grid_lsq_dense.c
+                    LIBS selfcal_grid PkgConfig::LAPACKE LABELS grid TIMEOUT 120)
+endif()

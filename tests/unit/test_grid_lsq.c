@@ -1,0 +1,436 @@
+/* Unit tests of the least-squares grid estimator against simulated truth: noise-free recovery,
+ * plan analysis on known cases, noise estimate, Monte Carlo check of the predicted uncertainty,
+ * bad input. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/grid_lsq.h"
+#include "test_grid_lsq_util.h"
+
+/* Noise-free data from a gauged truth: the estimate must equal the truth. */
+static void check_recovery(int n, int kind, uint64_t seed)
+{
+    sc_grid_plan p;
+    tu_plan(&p, n, kind);
+    sc_rng r;
+    sc_rng_seed(&r, seed);
+    tu_truth t;
+    tu_truth_make(&t, &p, &r);
+    sc_grid_data d;
+    tu_data_alloc(&d, &p);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+    sc_grid_lsq_info info;
+    sc_grid_lsq_get_info(q, &info);
+    assert_int_equal(info.identifiable, 1);
+    assert_int_equal(info.free_dof, 0);
+    tu_res res;
+    tu_res_alloc(&res, t.nn);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0.0, &res.r, &err), SC_OK);
+    double eg = 0, ea = 0, em = 0, et = 0;
+    for (int k = 0; k < t.nn; ++k) {
+        eg = fmax(eg, fmax(fabs(res.r.gx_um[k] - t.gx[k]), fabs(res.r.gy_um[k] - t.gy[k])));
+        ea = fmax(ea, fmax(fabs(res.r.ax_um[k] - t.ax[k]), fabs(res.r.ay_um[k] - t.ay[k])));
+    }
+    for (int v = 0; v < p.n_views; ++v) {
+        em = fmax(em, fmax(fabs(res.r.tx_um[v] - t.tx[v]), fabs(res.r.ty_um[v] - t.ty[v])));
+        et = fmax(et, fabs(res.r.theta_urad[v] - t.th[v]));
+    }
+    if (!(eg <= 1e-9 && ea <= 1e-9 && em <= 1e-9 && et <= 1e-6))
+        fprintf(stderr, "N=%d plan %d: |dG| %.3g |dA| %.3g |dt| %.3g |dθ| %.3g µrad\n", n, kind,
+                eg, ea, em, et);
+    assert_true(eg <= 1e-9);
+    assert_true(ea <= 1e-9);
+    assert_true(em <= 1e-9);
+    assert_true(et <= 1e-6);
+    assert_true(res.r.residual_rms_um < 1e-9);
+    /* O and R of the gauged truth */
+    double O, R;
+    sc_grid_first_order(&p, t.gx, t.gy, &O, &R);
+    assert_true(fabs(O - res.r.O) < 1e-12 && fabs(R - res.r.R) < 1e-12);
+    for (int k = 0; k < t.nn; ++k)
+        assert_true(isfinite(res.r.ugx_um[k]) || res.r.sigma_r_used_um != res.r.sigma_r_used_um);
+    tu_res_free(&res);
+    sc_grid_lsq_destroy(q);
+    tu_data_free(&d);
+    tu_truth_free(&t);
+}
+
+static const int sizes[] = {5, 7, 9, 11, 25, 41};
+
+static void test_recovery_ye(void **s)
+{
+    (void)s;
+    for (size_t i = 0; i < sizeof sizes / sizeof *sizes; ++i)
+        check_recovery(sizes[i], PLAN_YE, 100 + i);
+}
+
+static void test_recovery_petro(void **s)
+{
+    (void)s;
+    for (size_t i = 0; i < sizeof sizes / sizeof *sizes; ++i)
+        check_recovery(sizes[i], PLAN_PETRO, 200 + i);
+}
+
+static void test_recovery_rich(void **s)
+{
+    (void)s;
+    for (size_t i = 0; i < sizeof sizes / sizeof *sizes; ++i)
+        check_recovery(sizes[i], PLAN_RICH, 300 + i);
+}
+
+static long plan_free_dof(int n, int kind, int *identifiable)
+{
+    sc_grid_plan p;
+    tu_plan(&p, n, kind);
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+    sc_grid_lsq_info info;
+    sc_grid_lsq_get_info(q, &info);
+    sc_grid_lsq_stats st;
+    sc_grid_lsq_get_stats(q, &st);
+    /* the rank decisions must have a wide margin on both sides of the tolerance (1e-10) */
+    assert_true(st.min_kept_pivot_ratio > 1e-7);
+    assert_true(st.max_null_pivot_ratio < 1e-12);
+    *identifiable = info.identifiable;
+    if (info.identifiable) {
+        assert_true(info.sigma_c_ratio_rms > 0 && info.sigma_c_ratio_max >= info.sigma_c_ratio_rms);
+    } else {
+        assert_true(isnan(info.sigma_c_ratio_rms));
+        assert_int_equal(sc_grid_lsq_sigma_ratio(q, NULL, NULL, &err), SC_E_UNSOLVABLE);
+    }
+    sc_grid_lsq_destroy(q);
+    return info.free_dof;
+}
+
+static void test_plan_cases(void **s)
+{
+    (void)s;
+    const int ns[] = {5, 7, 9, 11, 15};
+    for (size_t i = 0; i < sizeof ns / sizeof *ns; ++i) {
+        int n = ns[i], id;
+        assert_int_equal(plan_free_dof(n, PLAN_YE, &id), 0);
+        assert_int_equal(id, 1);
+        assert_int_equal(plan_free_dof(n, PLAN_PETRO, &id), 0);
+        assert_int_equal(id, 1);
+        assert_int_equal(plan_free_dof(n, PLAN_RICH, &id), 0);
+        assert_int_equal(id, 1);
+        long k0 = plan_free_dof(n, PLAN_0_90, &id);
+        assert_int_equal(id, 0);
+        assert_true(k0 > 0);
+        long k1 = plan_free_dof(n, PLAN_0_180_1X, &id);
+        assert_int_equal(id, 0);
+        assert_true(k1 > 0);
+        long k2 = plan_free_dof(n, PLAN_0_90_2X, &id);
+        fprintf(stderr, "N=%2d: free dof {0,90}: %ld  {0,180,+1x}: %ld  {0,90,+2x}: %ld\n", n, k0,
+                k1, k2);
+        /* a 2-pitch x shift alone is blind to patterns G(i) of the row and to (-1)^j column
+         * parity, but the 90° view sees both: least squares identifies G without view 3 */
+        assert_int_equal(id, 1);
+        assert_int_equal(k2, 0);
+        /* {0,90}: every G with G(Rk) = Rot G(k) up to a rigid motion stays free */
+        assert_int_equal(k0, (long)(n * n - 5) / 2);
+        assert_int_equal(k1, n - 1);
+    }
+}
+
+/* With noise: σ_r estimated from the residuals, and uncertainties scale with the σ_r used. */
+static void test_sigma_estimate(void **s)
+{
+    (void)s;
+    int kinds[] = {PLAN_YE, PLAN_PETRO, PLAN_RICH};
+    for (int c = 0; c < 3; ++c) {
+        sc_grid_plan p;
+        tu_plan(&p, 25, kinds[c]);
+        sc_rng r;
+        sc_rng_seed(&r, 77 + c);
+        tu_truth t;
+        tu_truth_make(&t, &p, &r);
+        sc_grid_data d;
+        tu_data_alloc(&d, &p);
+        sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+        tu_add_noise(&d, 0.05, &r);
+        sc_grid_lsq *q = NULL;
+        sc_error err;
+        assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+        tu_res res;
+        tu_res_alloc(&res, t.nn);
+        assert_int_equal(sc_grid_lsq_solve(q, &d, 0.0, &res.r, &err), SC_OK);
+        /* dof ≈ 600..2500 here: the estimate is within a few per cent */
+        assert_true(res.r.dof > 100);
+        assert_true(fabs(res.r.sigma_r_est_um / 0.05 - 1) < 0.08);
+        assert_true(res.r.sigma_r_used_um == res.r.sigma_r_est_um);
+        double u_est = res.r.ugx_um[3];
+        assert_int_equal(sc_grid_lsq_solve(q, &d, 0.2, &res.r, &err), SC_OK);
+        assert_true(res.r.sigma_r_used_um == 0.2);
+        assert_true(fabs(res.r.ugx_um[3] / u_est - 0.2 / res.r.sigma_r_est_um) < 1e-12);
+        tu_res_free(&res);
+        sc_grid_lsq_destroy(q);
+        tu_data_free(&d);
+        tu_truth_free(&t);
+    }
+}
+
+/* Monte Carlo: the empirical per-node std of G equals the predicted one. */
+static void test_monte_carlo(void **s)
+{
+    (void)s;
+    const int n = 9, runs = 300;
+    const double sigma = 0.1;
+    int kinds[] = {PLAN_PETRO, PLAN_YE};
+    for (int c = 0; c < 2; ++c) {
+        sc_grid_plan p;
+        tu_plan(&p, n, kinds[c]);
+        int nn = n * n;
+        sc_grid_lsq *q = NULL;
+        sc_error err;
+        assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+        double *sgx = malloc(sizeof(double) * nn), *sgy = malloc(sizeof(double) * nn);
+        double *acc = calloc(2 * nn, sizeof(double));
+        assert_int_equal(sc_grid_lsq_sigma_ratio(q, sgx, sgy, &err), SC_OK);
+        sc_rng r;
+        sc_rng_seed(&r, 4242 + c);
+        sc_grid_data d;
+        tu_data_alloc(&d, &p);
+        tu_res res;
+        tu_res_alloc(&res, nn);
+        double est_sum = 0;
+        for (int run = 0; run < runs; ++run) {
+            tu_truth t;
+            tu_truth_make(&t, &p, &r);
+            sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+            tu_add_noise(&d, sigma, &r);
+            assert_int_equal(sc_grid_lsq_solve(q, &d, sigma, &res.r, &err), SC_OK);
+            for (int k = 0; k < nn; ++k) {
+                double ex = res.r.gx_um[k] - t.gx[k], ey = res.r.gy_um[k] - t.gy[k];
+                acc[2 * k] += ex * ex;
+                acc[2 * k + 1] += ey * ey;
+            }
+            est_sum += res.r.sigma_r_est_um;
+            tu_truth_free(&t);
+        }
+        double sp = 0, se = 0, worst = 0;
+        int beyond10 = 0;
+        for (int k = 0; k < nn; ++k)
+            for (int cc = 0; cc < 2; ++cc) {
+                double pred = sigma * (cc ? sgy[k] : sgx[k]);
+                double emp = sqrt(acc[2 * k + cc] / runs);
+                sp += pred * pred;
+                se += emp * emp;
+                double rel = fabs(emp / pred - 1);
+                worst = fmax(worst, rel);
+                beyond10 += rel > 0.10;
+            }
+        double rms_rel = sqrt(se / sp) - 1;
+        fprintf(stderr, "MC N=%d plan %d: RMS empirical/predicted - 1 = %+.4f, worst node %.3f, "
+                        "%d of %d beyond 10%%, mean σ_r est %.4f\n",
+                n, kinds[c], rms_rel, worst, beyond10, 2 * nn, est_sum / runs);
+        /* 300 runs: per-node relative SE of a std ≈ 4 %; over 162 components */
+        assert_true(fabs(rms_rel) < 0.03);
+        assert_true(worst < 0.16);
+        assert_true(beyond10 <= 2 * nn / 10);
+        assert_true(fabs(est_sum / runs / sigma - 1) < 0.03);
+        tu_res_free(&res);
+        tu_data_free(&d);
+        free(sgx), free(sgy), free(acc);
+        sc_grid_lsq_destroy(q);
+    }
+}
+
+/* A data set measured on a subset of marks: an estimator made with it as the mask recovers G;
+ * unmeasured marks get NaN plate errors. */
+static void test_mask_subset(void **s)
+{
+    (void)s;
+    int n = 11, nn = n * n;
+    sc_grid_plan p;
+    tu_plan(&p, n, PLAN_RICH);
+    sc_rng r;
+    sc_rng_seed(&r, 9);
+    tu_truth t;
+    tu_truth_make(&t, &p, &r);
+    sc_grid_data d;
+    tu_data_alloc(&d, &p);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    /* drop ~10 % of the measurements at random, and mark 0 from every view */
+    for (int v = 0; v < p.n_views; ++v)
+        for (int k = 0; k < nn; ++k)
+            if (k == 0 || sc_rng_uniform(&r) < 0.1)
+                d.dx_um[v][k] = d.dy_um[v][k] = NAN;
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, &err), SC_OK);
+    sc_grid_lsq_info info;
+    sc_grid_lsq_get_info(q, &info);
+    assert_int_equal(info.identifiable, 1);
+    tu_res res;
+    tu_res_alloc(&res, nn);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_OK);
+    double eg = 0;
+    for (int k = 0; k < nn; ++k)
+        eg = fmax(eg, fmax(fabs(res.r.gx_um[k] - t.gx[k]), fabs(res.r.gy_um[k] - t.gy[k])));
+    assert_true(eg < 1e-9);
+    assert_true(isnan(res.r.ax_um[0]) && isnan(res.r.ay_um[0]));
+    /* A is in its gauge over the measured marks: compare with the truth regauged there */
+    double sx = 0, sy = 0, srot = 0;
+    for (int k = 1; k < nn; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&p, k / n, k % n, &x, &y);
+        assert_true(isfinite(res.r.ax_um[k]));
+        sx += res.r.ax_um[k], sy += res.r.ay_um[k];
+        srot += x * res.r.ay_um[k] - y * res.r.ax_um[k];
+    }
+    assert_true(fabs(sx) < 1e-9 && fabs(sy) < 1e-9 && fabs(srot) < 1e-9);
+    /* the truth regauged over the measured marks (a rigid motion fitted and removed) */
+    double m3[3][3] = {{0}}, rh[3] = {0};
+    for (int k = 1; k < nn; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&p, k / n, k % n, &x, &y);
+        double bx[3] = {1, 0, -y}, by[3] = {0, 1, x};
+        for (int a = 0; a < 3; ++a) {
+            for (int b = 0; b < 3; ++b)
+                m3[a][b] += bx[a] * bx[b] + by[a] * by[b];
+            rh[a] += bx[a] * t.ax[k] + by[a] * t.ay[k];
+        }
+    }
+    /* solve the 3x3 by Cramer's rule */
+    double det = m3[0][0] * (m3[1][1] * m3[2][2] - m3[1][2] * m3[2][1]) -
+                 m3[0][1] * (m3[1][0] * m3[2][2] - m3[1][2] * m3[2][0]) +
+                 m3[0][2] * (m3[1][0] * m3[2][1] - m3[1][1] * m3[2][0]);
+    double sol[3];
+    for (int c = 0; c < 3; ++c) {
+        double m[3][3];
+        memcpy(m, m3, sizeof m);
+        for (int a = 0; a < 3; ++a)
+            m[a][c] = rh[a];
+        sol[c] = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                  m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                  m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])) / det;
+    }
+    double ea = 0;
+    for (int k = 1; k < nn; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&p, k / n, k % n, &x, &y);
+        ea = fmax(ea, fabs(res.r.ax_um[k] - (t.ax[k] - sol[0] + sol[2] * y)));
+        ea = fmax(ea, fabs(res.r.ay_um[k] - (t.ay[k] - sol[1] - sol[2] * x)));
+    }
+    assert_true(ea < 1e-9);
+    tu_res_free(&res);
+    sc_grid_lsq_destroy(q);
+    tu_data_free(&d);
+    tu_truth_free(&t);
+}
+
+static void test_bad_input(void **s)
+{
+    (void)s;
+    int n = 9, nn = n * n;
+    sc_grid_plan p;
+    tu_plan(&p, n, PLAN_YE);
+    sc_rng r;
+    sc_rng_seed(&r, 5);
+    tu_truth t;
+    tu_truth_make(&t, &p, &r);
+    sc_grid_data d;
+    tu_data_alloc(&d, &p);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+    tu_res res;
+    tu_res_alloc(&res, nn);
+    /* a measured mark missing */
+    double keep = d.dx_um[1][40];
+    d.dx_um[1][40] = d.dy_um[1][40] = NAN;
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "view 1"));
+    d.dx_um[1][40] = keep;
+    /* only one component */
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    /* a mark the shifted view cannot see (column N-1 falls off the grid) given a value */
+    assert_true(isnan(d.dx_um[2][n - 1]));
+    d.dx_um[2][n - 1] = d.dy_um[2][n - 1] = 0.5;
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    sc_grid_lsq *q2 = NULL;
+    assert_int_equal(sc_grid_lsq_create(&p, &d, &q2, &err), SC_E_INPUT);
+    assert_null(q2);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    /* a different view in the data */
+    d.plan.view[2].shift_x = 2;
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    d.plan.view[2].shift_x = 1;
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_OK);
+    /* bad plans */
+    sc_grid_plan bad = p;
+    bad.n = 8;
+    assert_int_equal(sc_grid_lsq_create(&bad, NULL, &q2, &err), SC_E_INPUT);
+    bad = p;
+    bad.view[1].rot_deg = 45;
+    assert_int_equal(sc_grid_lsq_create(&bad, NULL, &q2, &err), SC_E_INPUT);
+    sc_grid_lsq_destroy(q);
+    /* a plan that does not identify G: made, but solve refuses */
+    sc_grid_plan p2;
+    tu_plan(&p2, n, PLAN_0_90);
+    sc_grid_data d2;
+    tu_data_alloc(&d2, &p2);
+    sc_grid_synthesize(&p2, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d2);
+    assert_int_equal(sc_grid_lsq_create(&p2, NULL, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_solve(q, &d2, 0, &res.r, &err), SC_E_UNSOLVABLE);
+    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_destroy(NULL);
+    tu_data_free(&d2);
+    tu_res_free(&res);
+    tu_data_free(&d);
+    tu_truth_free(&t);
+}
+
+/* A plan with a never-measured stage node leaves that node's G free (2 patterns). */
+static void test_unmeasured_node(void **s)
+{
+    (void)s;
+    int n = 7, nn = n * n;
+    sc_grid_plan p;
+    tu_plan(&p, n, PLAN_YE);
+    sc_grid_data m;
+    tu_data_alloc(&m, &p);
+    for (int v = 0; v < p.n_views; ++v)
+        for (int k = 0; k < nn; ++k)
+            m.dx_um[v][k] = m.dy_um[v][k] = sc_grid_view_measures(&p, v, k / n, k % n) ? 0 : NAN;
+    /* node (3,3) is hit by mark (3,3) in views 0 and 90 and by mark (3,2) in the shifted view */
+    m.dx_um[0][24] = m.dy_um[0][24] = NAN;
+    m.dx_um[1][24] = m.dy_um[1][24] = NAN;
+    m.dx_um[2][23] = m.dy_um[2][23] = NAN;
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(&p, &m, &q, &err), SC_OK);
+    sc_grid_lsq_info info;
+    sc_grid_lsq_get_info(q, &info);
+    assert_int_equal(info.identifiable, 0);
+    assert_int_equal(info.free_dof, 2);
+    sc_grid_lsq_destroy(q);
+    tu_data_free(&m);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_recovery_ye),    cmocka_unit_test(test_recovery_petro),
+        cmocka_unit_test(test_recovery_rich),  cmocka_unit_test(test_plan_cases),
+        cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_monte_carlo),
+        cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
+        cmocka_unit_test(test_unmeasured_node),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

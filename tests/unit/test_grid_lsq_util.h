@@ -1,0 +1,137 @@
+/* Shared helpers of the grid least-squares tests: plans, simulated truth, data buffers. */
+#ifndef TEST_GRID_LSQ_UTIL_H
+#define TEST_GRID_LSQ_UTIL_H
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/grid.h"
+#include "selfcal/rng.h"
+
+enum { PLAN_YE, PLAN_PETRO, PLAN_RICH, PLAN_0_90, PLAN_0_180_1X, PLAN_0_90_2X };
+
+static void tu_add_view(sc_grid_plan *p, int rot, int sx, int sy)
+{
+    sc_grid_view *w = &p->view[p->n_views++];
+    memset(w, 0, sizeof *w);
+    w->rot_deg = rot;
+    w->shift_x = sx;
+    w->shift_y = sy;
+}
+
+static void tu_plan(sc_grid_plan *p, int n, int kind)
+{
+    memset(p, 0, sizeof *p);
+    p->n = n;
+    p->pitch_mm = 2.5;
+    p->origin_mm[0] = 10;
+    p->origin_mm[1] = -4;
+    int c = (n - 1) / 2;
+    switch (kind) {
+    case PLAN_YE:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 90, 0, 0), tu_add_view(p, 0, 1, 0);
+        break;
+    case PLAN_PETRO:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 90, 0, 0), tu_add_view(p, 0, 2, 0);
+        tu_add_view(p, 0, -3, 0);
+        p->view[3].restricted = 1;
+        p->view[3].row_sel[c] = 1;
+        p->view[3].col_sel[c] = 1;
+        p->view[3].col_sel[c + 1] = 1;
+        break;
+    case PLAN_RICH:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 90, 0, 0), tu_add_view(p, 180, 0, 0);
+        tu_add_view(p, 0, 1, 0), tu_add_view(p, 270, 0, -2);
+        break;
+    case PLAN_0_90:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 90, 0, 0);
+        break;
+    case PLAN_0_180_1X:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 180, 0, 0), tu_add_view(p, 0, 1, 0);
+        break;
+    case PLAN_0_90_2X:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 90, 0, 0), tu_add_view(p, 0, 2, 0);
+        break;
+    }
+}
+
+typedef struct tu_truth {
+    int nn;
+    double *gx, *gy, *ax, *ay;
+    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], th[SC_GRID_MAX_VIEWS];
+} tu_truth;
+
+/* Random truth in the SPEC gauge: G, A ~ N(0, 1 µm), misalignment ~ 2 µm, 30 µrad. */
+static void tu_truth_make(tu_truth *t, const sc_grid_plan *p, sc_rng *r)
+{
+    int nn = p->n * p->n;
+    t->nn = nn;
+    t->gx = malloc(sizeof(double) * nn), t->gy = malloc(sizeof(double) * nn);
+    t->ax = malloc(sizeof(double) * nn), t->ay = malloc(sizeof(double) * nn);
+    for (int k = 0; k < nn; ++k) {
+        t->gx[k] = sc_rng_normal(r), t->gy[k] = sc_rng_normal(r);
+        t->ax[k] = sc_rng_normal(r), t->ay[k] = sc_rng_normal(r);
+    }
+    sc_grid_gauge_stage(p, t->gx, t->gy);
+    sc_grid_gauge_plate(p, t->ax, t->ay);
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+        t->tx[v] = 2 * sc_rng_normal(r);
+        t->ty[v] = 2 * sc_rng_normal(r);
+        t->th[v] = 30 * sc_rng_normal(r);
+    }
+}
+
+static void tu_truth_free(tu_truth *t)
+{
+    free(t->gx), free(t->gy), free(t->ax), free(t->ay);
+}
+
+static void tu_data_alloc(sc_grid_data *d, const sc_grid_plan *p)
+{
+    memset(d, 0, sizeof *d);
+    d->plan = *p;
+    int nn = p->n * p->n;
+    for (int v = 0; v < p->n_views; ++v) {
+        d->dx_um[v] = malloc(sizeof(double) * nn);
+        d->dy_um[v] = malloc(sizeof(double) * nn);
+    }
+}
+
+static void tu_data_free(sc_grid_data *d)
+{
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        free(d->dx_um[v]), free(d->dy_um[v]);
+}
+
+/* Add N(0, sigma) to every finite value. */
+static void tu_add_noise(sc_grid_data *d, double sigma, sc_rng *r)
+{
+    int nn = d->plan.n * d->plan.n;
+    for (int v = 0; v < d->plan.n_views; ++v)
+        for (int k = 0; k < nn; ++k)
+            if (isfinite(d->dx_um[v][k])) {
+                d->dx_um[v][k] += sigma * sc_rng_normal(r);
+                d->dy_um[v][k] += sigma * sc_rng_normal(r);
+            }
+}
+
+typedef struct tu_res {
+    sc_grid_result r;
+    double *buf;
+} tu_res;
+
+static void tu_res_alloc(tu_res *t, int nn)
+{
+    memset(t, 0, sizeof *t);
+    t->buf = malloc(sizeof(double) * 6 * nn);
+    t->r.gx_um = t->buf, t->r.gy_um = t->buf + nn, t->r.ugx_um = t->buf + 2 * nn;
+    t->r.ugy_um = t->buf + 3 * nn, t->r.ax_um = t->buf + 4 * nn, t->r.ay_um = t->buf + 5 * nn;
+}
+
+static void tu_res_free(tu_res *t)
+{
+    free(t->buf);
+}
+
+#endif
