@@ -2,6 +2,7 @@
 #include "transport_fake.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/socket.h>
@@ -27,10 +28,12 @@ uint32_t sc_fake_bad_requests(void)
 static int fake_open(void *state, char *why, int whylen)
 {
     fake_state *s = state;
-    if (socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0, s->fd) != 0) {
+    if (socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, s->fd) != 0) {
         snprintf(why, (size_t)whylen, "fake: socketpair: %s", strerror(errno));
         return -1;
     }
+    /* The daemon's end never blocks; the test's end is an ordinary blocking socket. */
+    fcntl(s->fd[0], F_SETFL, fcntl(s->fd[0], F_GETFL) | O_NONBLOCK);
     s->bad = 0;
     return 0;
 }
