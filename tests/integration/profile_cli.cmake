@@ -1,0 +1,21 @@
+# CLI tests of the profile commands: end to end against the simulated truth (random and DABAM
+# profiles), bad input, predicted vs Monte Carlo uncertainty, profile-plan, plot.
+find_program(SELFCAL_PYTHON3 python3)
+if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
+  set(_profile_cli_py ${CMAKE_CURRENT_SOURCE_DIR}/integration/profile_cli/profile_cli_test.py)
+  function(profile_cli_test name)
+    add_test(NAME ${name} COMMAND ${SELFCAL_PYTHON3} ${_profile_cli_py} $<TARGET_FILE:selfcal_cli>
+             ${CMAKE_CURRENT_BINARY_DIR}/tmp ${SELFCAL_SHARED_DIR} ${ARGN})
+    set_tests_properties(${name} PROPERTIES TIMEOUT 120 LABELS "integration;profile")
+  endfunction()
+  profile_cli_test(profile_cli_bad_input bad_input)
+  profile_cli_test(profile_cli_e2e_dft end_to_end dft "330,10,11|330,3,11|110,10,11|2310,10,11")
+  profile_cli_test(profile_cli_e2e_lsq end_to_end lsq "330,10,11|330,3,11|110,10,11|2310,10,11|331,10,11|500,7,13|1000,97,101")
+  foreach(entry 001 002 010 020 030)
+    profile_cli_test(profile_cli_dabam_${entry}_lsq end_to_end lsq "330,10,11|401,7,13" dabam-${entry}.dat)
+    profile_cli_test(profile_cli_dabam_${entry}_dft end_to_end dft "330,10,11" dabam-${entry}.dat)
+  endforeach()
+  profile_cli_test(profile_cli_noise noise)
+  profile_cli_test(profile_cli_plan plan)
+  profile_cli_test(profile_cli_plot plot)
+endif()

@@ -1,0 +1,224 @@
+#!/usr/bin/env python3
+"""CLI tests of the straightness-profile commands (SPEC §2, §3): end to end against the simulated
+truth, DABAM mirror profiles, bad input (exit 2, file:line, no output file), predicted against
+Monte Carlo uncertainty, profile-plan and plot. Standard library only.
+
+usage: profile_cli_test.py SELFCAL TMPDIR SHARED_DIR CASE [args...]
+"""
+import math
+import os
+import re
+import subprocess
+import sys
+
+CLI, TMP, SHARED = sys.argv[1], sys.argv[2], sys.argv[3]
+CASE, ARGS = sys.argv[4], sys.argv[5:]
+os.makedirs(TMP, exist_ok=True)
+
+
+def run(*args, expect=0):
+    p = subprocess.run([CLI, *map(str, args)], capture_output=True, text=True, timeout=120)
+    if p.returncode != expect:
+        sys.exit(f"FAIL: selfcal {' '.join(map(str, args))} exited {p.returncode}, expected {expect}\n"
+                 f"stdout: {p.stdout}\nstderr: {p.stderr}")
+    return p
+
+
+def path(name):
+    return os.path.join(TMP, f"profile_cli_{CASE}_{name}")
+
+
+def read_csv(p):
+    with open(p) as fh:
+        lines = [ln.rstrip("\n") for ln in fh if ln.strip() and not ln.startswith("#")]
+    head = lines[0].split(",")
+    rows = []
+    for ln in lines[1:]:
+        f = ln.split(",")
+        assert len(f) == len(head), f"{p}: {ln}"
+        rows.append({h: (float(v) if v != "" else None) for h, v in zip(head, f)})
+    return head, rows
+
+
+def check_against_truth(out, truth, tol_um, d1):
+    head, rows = read_csv(out)
+    assert head == ["n", "x_mm", "f_um", "uf_um", "ey_um"], head
+    _, trows = read_csv(truth)
+    assert len(rows) == len(trows)
+    n = len(rows)
+    ef = max(abs(r["f_um"] - t["f_um"]) for r, t in zip(rows, trows))
+    ey = max(abs(r["ey_um"] - t["ey_um"]) for r, t in zip(rows[: n - d1], trows[: n - d1]))
+    assert all(r["ey_um"] is None for r in rows[n - d1:]), "ey must be empty for n >= N - d1"
+    assert all(int(r["n"]) == i for i, r in enumerate(rows))
+    if not (ef <= tol_um and ey <= tol_um):
+        sys.exit(f"FAIL: {out}: max |f err| {ef:.3g} um, max |e_y err| {ey:.3g} um > {tol_um}")
+    return ef, ey
+
+
+def case_end_to_end():
+    """Noise-free simulation with stage and zero-point errors: f and e_y to 1e-9 µm."""
+    method, configs = ARGS[0], ARGS[1]
+    profile = ARGS[2] if len(ARGS) > 2 else "random"
+    for cfg in configs.split("|"):
+        n, d1, d2 = map(int, cfg.split(","))
+        src = "random" if profile == "random" else os.path.join(SHARED, "data", "dabam", profile)
+        inp, truth, out = path(f"{cfg}_in.csv"), path(f"{cfg}_truth.csv"), path(f"{cfg}_out.csv")
+        run("simulate", "profile", "--n", n, "--s-mm", 1.0, "--d1", d1, "--d2", d2, "--profile", src,
+            "--sigma-disp-um", 0, "--sigma-angle-urad", 0, "--seed", n + d1, "--out", inp, "--truth", truth)
+        run("profile", "--method", method, inp, "--out", out)
+        ef, ey = check_against_truth(out, truth, 1e-9, d1)
+        print(f"{method} {profile} N={n} d={d1}/{d2}: max |f err| {ef:.2e} um, |e_y err| {ey:.2e} um")
+
+
+def write_lines(p, lines):
+    with open(p, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+
+
+def good_lines(n=30, d1=3, d2=5):
+    out = ["# selfcal-profile v1", f"# N = {n}", "# s_mm = 1.0", f"# scan 1: d={d1}", f"# scan 2: d={d2}",
+           "scan,n,m1_um,m2_um,m3_urad"]
+    for k, d in ((1, d1), (2, d2)):
+        out += [f"{k},{i},{0.01 * i:.6f},{0.02 * i + k:.6f},0.5" for i in range(n - d)]
+    return out
+
+
+def case_bad_input():
+    """Each bad file: exit 2, one line naming file:line and the problem, no output written."""
+    n, d1, d2 = 30, 3, 5
+    s1, s2 = 7, 7 + n - d1  # first data lines of the scans
+    cases = []
+    g = good_lines()
+    cases.append(("scan_missing_header", [ln for i, ln in enumerate(g) if i != 4], "dft", 5, "scan 2 missing"))
+    cases.append(("scan_missing_rows", g[: s2 - 1], "lsq", 5, "scan 2 missing"))
+    g = good_lines(30, 6, 10)
+    cases.append(("not_coprime_dft", g, "dft", 5, "not coprime"))
+    cases.append(("not_coprime_lsq", g, "lsq", 5, "common divisor"))
+    cases.append(("not_multiple_dft", good_lines(31, 3, 5), "dft", 2, "not a multiple"))
+    cases.append(("n_too_small_lsq", good_lines(7, 3, 5), "lsq", 2, "too small"))
+    g = good_lines(8, 3, 5)
+    g[1] = "# N = 5"
+    cases.append(("n_too_small", g, "lsq", 5, "N too small"))
+    g = good_lines()
+    cases.append(("gap", g[: s1 + 3] + g[s1 + 4:], "lsq", s1 + 4, "gap in scan 1"))
+    g = good_lines()
+    g[s1 + 5] = "1,5,0,0,0"
+    cases.append(("duplicate", g, "dft", s1 + 6, "duplicate"))
+    g = good_lines()
+    g[s2 + 1] = "2,25,0,0,0"
+    cases.append(("n_out_of_range", g, "lsq", s2 + 2, "out of range"))
+    g = good_lines()
+    g[s1 + 2] = "1,3,0.1,abc,0"
+    cases.append(("non_numeric", g, "lsq", s1 + 3, "m2_um"))
+    g = good_lines()
+    g[s1 + 2] = "1,3,0.1,0.2,"
+    cases.append(("empty_field", g, "dft", s1 + 3, "m3_urad"))
+    g = good_lines()
+    g[2] = "# s_mm = x"
+    cases.append(("bad_header_value", g, "dft", 3, "s_mm"))
+    for name, lines, method, line, what in cases:
+        inp, out = path(f"{name}.csv"), path(f"{name}_out.csv")
+        write_lines(inp, lines)
+        if os.path.exists(out):
+            os.remove(out)
+        p = run("profile", "--method", method, inp, "--out", out, expect=2)
+        err = p.stderr.strip()
+        if f"{inp}:{line}:" not in err or what not in err or len(err.splitlines()) != 1:
+            sys.exit(f"FAIL: {name}: expected one line with '{inp}:{line}:' and '{what}', got:\n{err}")
+        if os.path.exists(out):
+            sys.exit(f"FAIL: {name}: output file written despite bad input")
+        leftovers = [f for f in os.listdir(TMP) if f.startswith(os.path.basename(out))]
+        if leftovers:
+            sys.exit(f"FAIL: {name}: temporary files left: {leftovers}")
+        print(f"{name}: {err}")
+    # usage errors exit 2 too
+    run("profile", "--method", "fourier", path("gap.csv"), "--out", path("x.csv"), expect=2)
+    run("profile", path("gap.csv"), expect=2)
+    run("profile", "--method", "lsq", path("does_not_exist.csv"), "--out", path("x.csv"), expect=2)
+
+
+def case_noise():
+    """Noisy data: predicted uncertainty (analytic) against Monte Carlo through the CLI, the header
+    sigma lines against the command line, and the residual noise estimate; errors within ~3·u."""
+    n, d1, d2 = 330, 10, 11
+    inp, truth = path("in.csv"), path("truth.csv")
+    run("simulate", "profile", "--n", n, "--d1", d1, "--d2", d2, "--sigma-disp-um", 0.01,
+        "--sigma-angle-urad", 1.0, "--seed", 11, "--out", inp, "--truth", truth)
+    _, trows = read_csv(truth)
+    for method in ("dft", "lsq"):
+        out, mc = path(f"{method}.csv"), path(f"{method}_mc.csv")
+        run("profile", "--method", method, inp, "--out", out)
+        run("profile", "--method", method, inp, "--out", mc, "--mc", 2000, "--seed", 5)
+        _, a = read_csv(out)
+        _, b = read_csv(mc)
+        ua = [r["uf_um"] for r in a]
+        ub = [r["uf_um"] for r in b]
+        ratio = math.sqrt(sum(x * x for x in ub) / sum(x * x for x in ua))
+        mid = ua[n // 2] * 1e3
+        z = [(r["f_um"] - t["f_um"]) / r["uf_um"] for r, t in zip(a, trows)]
+        zrms = math.sqrt(sum(v * v for v in z) / n)
+        print(f"{method}: u(mid) {mid:.2f} nm, MC/predicted RMS {ratio:.4f}, RMS of error/u {zrms:.3f}")
+        assert abs(ratio - 1) < 0.03, ratio
+        assert 10 < mid < 14, mid
+        assert 0.6 < zrms < 1.4, zrms
+        # the command line wins over the header lines: 10× the noise, 10× the uncertainty
+        big = path(f"{method}_big.csv")
+        run("profile", "--method", method, inp, "--out", big, "--sigma-disp-um", 0.1, "--sigma-angle-urad", 10)
+        _, c = read_csv(big)
+        assert abs(c[n // 2]["uf_um"] / a[n // 2]["uf_um"] - 10) < 1e-6
+    # without sigma lines: the noise is estimated from the residuals
+    inp2 = path("in_nosigma.csv")
+    run("simulate", "profile", "--n", n, "--d1", d1, "--d2", d2, "--sigma-disp-um", 0.01,
+        "--sigma-angle-urad", 0, "--seed", 12, "--no-sigma-lines", "--out", inp2, "--truth", path("t2.csv"))
+    with open(inp2) as fh:
+        assert "sigma" not in fh.read()
+    out = path("est.csv")
+    p = run("profile", "--method", "lsq", inp2, "--out", out)
+    m = re.search(r"sigma_y1_um: ([0-9.eE+-]+)", p.stdout)
+    est = float(m.group(1))
+    print(f"estimated sigma_y {est:.5f} um (simulated {math.sqrt(2) * 0.01:.5f})")
+    assert abs(est / (math.sqrt(2) * 0.01) - 1) < 0.15
+
+
+def case_plan():
+    p = run("profile-plan", "--n", 330, "--s-mm", 1, "--sigma-disp-um", 0.01, "--sigma-angle-urad", 1,
+            "--d-max", 12, "--top", 100)
+    lines = [ln for ln in p.stdout.splitlines() if not ln.startswith("#")]
+    assert lines[0] == "rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm"
+    rows = [ln.split(",") for ln in lines[1:]]
+    pairs = {(int(r[1]), int(r[2])) for r in rows}
+    assert (10, 11) in pairs and (3, 11) in pairs
+    assert all(math.gcd(a, b) == 1 for a, b in pairs), "non-coprime pair listed"
+    rms = [float(r[5]) for r in rows]
+    assert rms == sorted(rms), "not ranked by RMS"
+    for r in rows:
+        a, b = int(r[1]), int(r[2])
+        assert (r[7] != "") == (330 % (a * b) == 0), f"DFT column wrong for {a}/{b}"
+    # the ranking's figures are those `selfcal profile` predicts
+    r1011 = next(r for r in rows if (int(r[1]), int(r[2])) == (10, 11))
+    inp = path("in.csv")
+    run("simulate", "profile", "--n", 330, "--d1", 10, "--d2", 11, "--out", inp, "--truth", path("t.csv"))
+    run("profile", "--method", "lsq", inp, "--out", path("p.csv"))
+    _, a = read_csv(path("p.csv"))
+    rms_nm = 1e3 * math.sqrt(sum(r["uf_um"] ** 2 for r in a) / len(a))
+    assert abs(rms_nm - float(r1011[5])) < 1e-3, (rms_nm, r1011)
+    run("profile-plan", "--n", 330, "--s-mm", 1, expect=2)
+    print(p.stdout)
+
+
+def case_plot():
+    inp, truth = path("in.csv"), path("truth.csv")
+    run("simulate", "profile", "--out", inp, "--truth", truth)
+    run("profile", "--method", "dft", inp, "--out", path("p.csv"), "--plot", path("p.svg"))
+    run("profile", "--method", "lsq", inp, "--out", path("q.csv"))
+    run("plot", "profile", path("p.csv"), "-o", path("pq.svg"), "--truth", truth, "--compare", path("q.csv"))
+    for f in ("p.svg", "pq.svg"):
+        with open(path(f)) as fh:
+            s = fh.read()
+        assert s.startswith("<?xml") and s.rstrip().endswith("</svg>") and s.count("<polyline") >= 3, f
+    run("plot", "profile", path("missing.csv"), "-o", path("x.svg"), expect=2)
+
+
+{"end_to_end": case_end_to_end, "bad_input": case_bad_input, "noise": case_noise, "plan": case_plan,
+ "plot": case_plot}[CASE]()
+print("OK")
