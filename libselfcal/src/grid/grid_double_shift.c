@@ -65,21 +65,20 @@ void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p)
     central_row(n, p->ey, p->hy, p->crow_y);
     /* view 3 misalignment from its central row: D3 = V3 - U0 = F(c,j-3) - F(c,j) + k3x (x),
      * ... + k3y + th3 (j - c) (y), j = 3..N-1 */
-    double sx = 0, m = 0, s1 = 0, sj = 0, sjj = 0, sy = 0, sjy = 0;
+    double sx = 0, s1 = 0, sj = 0, sjj = 0, sy = 0, sjy = 0;
     for (int j = 3; j < n; ++j) {
         int k = IDX(c, j);
         double rx = p->v3x[k] - p->u0x[k] - (p->crow_x[j - 3] - p->crow_x[j]);
         double ry = p->v3y[k] - p->u0y[k] - (p->crow_y[j - 3] - p->crow_y[j]);
         double x = j - c;
         sx += rx;
-        m += 1;
         s1 += 1;
         sj += x;
         sjj += x * x;
         sy += ry;
         sjy += x * ry;
     }
-    double k3x = sx / m;
+    double k3x = sx / s1;
     double th3 = (s1 * sjy - sj * sy) / (s1 * sjj - sj * sj);
     double k3y = (sy - th3 * sj) / s1;
     /* links from columns c and c+1 of view 3, then the wrap columns of every row */

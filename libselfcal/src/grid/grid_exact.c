@@ -307,9 +307,6 @@ static void view_2(sc_grid_exact_plan *p)
             p->hx[k] += -kx + th * (i - c); /* H = F(T_s - I), eq. 40 */
             p->hy[k] += -ky - th * (j - c);
         }
-    p->k2x = kx;
-    p->k2y = ky;
-    p->th2 = th;
 }
 
 /* ---- step 3: the spectra of Fx, Fy (eqs. 27, 28, 54, 55) and F ---- */

@@ -39,8 +39,7 @@ struct sc_grid_exact_plan {
 
     /* state of the current execution, shared between the steps */
     const double *v0x, *v0y, *v1x, *v1y, *v2x, *v2y, *v3x, *v3y;
-    double O, R;          /* first-order terms, µm per pitch */
-    double k2x, k2y, th2; /* view 2: constant terms and rotation after removing U0 (docs §4) */
+    double O, R; /* first-order terms, µm per pitch */
 };
 
 /* Double shift: fill the last two (wrap-around) columns of hx, hy from view 3 (docs §6).
