@@ -145,7 +145,7 @@ int main(int argc, char **argv)
         }
     }
     if (trials <= 0)
-        trials = full ? 100 : 8;
+        trials = full ? 200 : 10;
     const int ns_full[4] = {9, 15, 25, 41}, ns_short[4] = {9, 15, 25, 41};
     const int *ns = full ? ns_full : ns_short;
     const int n_n = 4;
@@ -184,15 +184,17 @@ int main(int argc, char **argv)
 
     /* Table 2: least squares, empirical vs predicted (pooled over the four σ_r). */
     printf("\n## 2. least squares: empirical sigma_C/sigma_r vs predicted (sigma_c_ratio_rms)\n\n");
-    printf("| N  | views  | empirical (4 x %d trials) | predicted | empirical/predicted | +- (1 s.e.) |\n", trials);
-    printf("|----|--------|--------------------------|-----------|---------------------|-------------|\n");
+    char head[64];
+    snprintf(head, sizeof head, "empirical (4 x %d trials)", trials);
+    printf("| N  | views  | %-26s | predicted | empirical/predicted | +- (1 s.e.) |\n", head);
+    printf("|----|--------|----------------------------|-----------|---------------------|-------------|\n");
     for (int a = 0; a < n_n; ++a)
         for (int m = M_LSQ_YE; m <= M_LSQ_DS; ++m) {
             double s2 = 0, r2 = 0;
             for (int s = 0; s < 4; ++s)
                 s2 += tab[a][m][s] * tab[a][m][s], r2 += se[a][m][s] * se[a][m][s];
             double emp = sqrt(s2 / 4), rse = sqrt(r2) / 4;
-            printf("| %-2d | %-6s | %24.4f | %9.4f | %19.4f | %11.4f |\n", ns[a],
+            printf("| %-2d | %-6s | %26.4f | %9.4f | %19.4f | %11.4f |\n", ns[a],
                    m == M_LSQ_YE ? "Ye" : "Petro", emp, pred[a][m], emp / pred[a][m], rse);
         }
 
@@ -201,7 +203,7 @@ int main(int argc, char **argv)
            "##    the same seeds for every sigma_G: same noise and plate, G scaled)\n\n");
     printf("| method            | sG=0.1 um | sG=1 um   | sG=10 um  | max rel. difference |\n");
     printf("|-------------------|-----------|-----------|-----------|---------------------|\n");
-    int tg = full ? 20 : 4;
+    int tg = full ? 20 : 3;
     for (int m = 0; m < N_METHODS; ++m) {
         estimator e;
         est_make(&e, m, 25);
@@ -216,15 +218,16 @@ int main(int argc, char **argv)
     }
 
     /* Table 4: growth with N, fits of σ_C/σ_r (mean over σ_r) = a·N^b and = a + b·N. */
-    printf("\n## 4. growth of sigma_C/sigma_r with N (mean over sigma_r): power law a*N^b and line a + b*N\n\n");
+    printf("\n## 4. growth of sigma_C/sigma_r with N (mean over sigma_r), least-squares fits:\n"
+           "##    power law a*N^b, line a + b*N, logarithm a + b*ln(N) (rms misfit of each)\n\n");
     printf("| method            |");
     for (int a = 0; a < n_n; ++a)
         printf(" N=%-2d   |", ns[a]);
-    printf(" a (power) | b (power) | a (line) | b (line) |\n");
+    printf(" power a, b     misfit | line a, b        misfit | log a, b        misfit |\n");
     printf("|-------------------|");
     for (int a = 0; a < n_n; ++a)
         printf("--------|");
-    printf("-----------|-----------|----------|----------|\n");
+    printf("------------------------|-------------------------|------------------------|\n");
     for (int m = 0; m < N_METHODS; ++m) {
         double X[4], Y[4], L[4], sx = 0, sy = 0, sxx = 0, sxy = 0, lx = 0, ly = 0, lxx = 0, lxy = 0;
         printf("| %-17s |", method_name[m]);
@@ -241,7 +244,44 @@ int main(int argc, char **argv)
         }
         double b = (n_n * sxy - sx * sy) / (n_n * sxx - sx * sx), la = (sy - b * sx) / n_n;
         double bl = (n_n * lxy - lx * ly) / (n_n * lxx - lx * lx), al = (ly - bl * lx) / n_n;
-        printf(" %9.4f | %9.3f | %8.4f | %8.5f |\n", exp(la), b, al, bl);
+        /* a + b ln N: regress Y on X = ln N. */
+        double gx = 0, gy = 0, gxx = 0, gxy = 0;
+        for (int a = 0; a < n_n; ++a)
+            gx += X[a], gy += Y[a], gxx += X[a] * X[a], gxy += X[a] * Y[a];
+        double bg = (n_n * gxy - gx * gy) / (n_n * gxx - gx * gx), ag = (gy - bg * gx) / n_n;
+        double e1 = 0, e2 = 0, e3 = 0;
+        for (int a = 0; a < n_n; ++a) {
+            double r1 = exp(la) * pow(ns[a], b) - Y[a], r2 = al + bl * ns[a] - Y[a],
+                   r3 = ag + bg * X[a] - Y[a];
+            e1 += r1 * r1, e2 += r2 * r2, e3 += r3 * r3;
+        }
+        printf(" %6.4f %6.4f %8.1e | %6.4f %7.5f %8.1e | %6.4f %6.4f %8.1e |\n", exp(la), b,
+               sqrt(e1 / n_n), al, bl, sqrt(e2 / n_n), ag, bg, sqrt(e3 / n_n));
+    }
+    /* Table 5 (--full): least squares' predicted ratio over a wider range of N (no simulation). */
+    if (full) {
+        const int big[7] = {9, 15, 25, 41, 61, 81, 101};
+        printf("\n## 5. least squares, predicted sigma_c_ratio_rms (and max) over a wider range of N\n\n");
+        printf("| views  |");
+        for (int a = 0; a < 7; ++a)
+            printf(" N=%-3d         |", big[a]);
+        printf("\n|--------|");
+        for (int a = 0; a < 7; ++a)
+            printf("---------------|");
+        printf("\n");
+        for (int m = M_LSQ_YE; m <= M_LSQ_DS; ++m) {
+            printf("| %-6s |", m == M_LSQ_YE ? "Ye" : "Petro");
+            for (int a = 0; a < 7; ++a) {
+                estimator e;
+                est_make(&e, m, big[a]);
+                sc_grid_lsq_info info;
+                sc_grid_lsq_get_info(e.q, &info);
+                printf(" %.4f (%.3f) |", info.sigma_c_ratio_rms, info.sigma_c_ratio_max);
+                fflush(stdout);
+                est_free(&e);
+            }
+            printf("\n");
+        }
     }
     printf("\n# CPU time: %.1f s\n", (double)(clock() - t0) / CLOCKS_PER_SEC);
     return 0;

@@ -59,7 +59,8 @@ static stats map_stats(int n, const double *gx, const double *gy)
 /* One panel: arrows at nodes; returns nothing, draws into fp at (x0, y0) with plot size sz px. */
 static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *m,
                   const double *gx, const double *gy, const double *ugx, const double *ugy,
-                  double scale_um_per_pitch, const char *title, const char *color)
+                  double scale_um_per_pitch, const char *title, const char *what,
+                  int ellipse_at_node, const char *color)
 {
     int n = m->n;
     double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
@@ -82,8 +83,8 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
     double mm_per_um = m->pitch_mm / scale;
     svg_text(fp, x0 + sz / 2, y0 - 30, 15, "middle", "#000", "%s", title);
     svg_text(fp, x0 + sz / 2, y0 - 12, 12, "middle", "#333",
-             "RMS |G| = %.3g µm (x %.3g, y %.3g)   max |G| = %.3g µm at node (%d,%d)", s.rms,
-             s.rms_x, s.rms_y, s.max, s.imax, s.jmax);
+             "RMS |%s| = %.3g µm (x %.3g, y %.3g)   max |%s| = %.3g µm at node (%d,%d)", what,
+             s.rms, s.rms_x, s.rms_y, what, s.max, s.imax, s.jmax);
     double dot = fmax(1.0, fmin(2.5, sz / n / 10));
     double width = fmax(0.7, fmin(1.6, sz / n / 18));
     for (int k = 0; k < n * n; ++k) {
@@ -97,7 +98,7 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
             fprintf(fp,
                     "<ellipse cx=\"%.2f\" cy=\"%.2f\" rx=\"%.2f\" ry=\"%.2f\" fill=\"#f0a30a\" "
                     "fill-opacity=\"0.25\" stroke=\"#c47f00\" stroke-width=\"0.6\"/>\n",
-                    tx, ty, rx, ry);
+                    ellipse_at_node ? px : tx, ellipse_at_node ? py : ty, rx, ry);
         }
         svg_arrow(fp, px, py, tx, ty, color, width);
     }
@@ -106,26 +107,30 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
     double blen = svg_px(&c, m->pitch_mm) - svg_px(&c, 0);
     svg_arrow(fp, bx, by, bx + blen, by, color, width + 0.4);
     svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
-             "= %g µm (arrow length: one pitch = %g mm per %g µm)", scale, m->pitch_mm, scale);
+             "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, m->pitch_mm,
+             scale);
     if (ugx && ugy && isfinite(ugx[0]))
-        svg_text(fp, x0 + sz - 4, by + 4, 12, "end", "#c47f00",
-                 "ellipses: standard uncertainty (k = 1)");
+        svg_text(fp, bx, by + 22, 12, "start", "#c47f00",
+                 "ellipses: standard uncertainty (k = 1) of gx, gy, same scale, %s",
+                 ellipse_at_node ? "centred on the node" : "at the arrow tip");
 }
 
 void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
                   double scale_um_per_pitch, const char *name)
 {
     int n = m->n;
-    double sz = 560, margin_l = 80, margin_t = 90, gap = 110, bottom = 80;
+    double sz = 560, margin_l = 80, margin_t = 100, gap = 110, bottom = 100;
     int panels = truth ? 2 : 1;
     int w = (int)(margin_l + panels * sz + (panels - 1) * gap + 30);
     int h = (int)(margin_t + sz + bottom);
     svg_begin(fp, w, h);
     svg_text(fp, w / 2.0, 24, 17, "middle", "#000", "Stage error map — %s (N = %d, pitch %g mm)",
              name, n, m->pitch_mm);
+    svg_text(fp, w / 2.0, 42, 11, "middle", "#555",
+             "stage error G = indicated − true position; SPEC gauge: no translation, rotation or "
+             "magnification");
     panel(fp, margin_l, margin_t, sz, m, m->gx_um, m->gy_um, m->has_u ? m->ugx_um : NULL,
-          m->has_u ? m->ugy_um : NULL, scale_um_per_pitch, "estimated stage error G",
-          "#1f4e9c");
+          m->has_u ? m->ugy_um : NULL, scale_um_per_pitch, "stage error G", "G", 0, "#1f4e9c");
     if (truth) {
         size_t nn = (size_t)n * n;
         double *ex = malloc(2 * nn * sizeof(double));
@@ -136,7 +141,7 @@ void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
             }
             panel(fp, margin_l + sz + gap, margin_t, sz, m, ex, ex + nn,
                   m->has_u ? m->ugx_um : NULL, m->has_u ? m->ugy_um : NULL, 0,
-                  "estimation error G - G_true", "#b3261e");
+                  "estimation error G − G_true", "error", 1, "#b3261e");
             free(ex);
         }
     }
