@@ -33,11 +33,31 @@ static int find_column(const sc_csv *r, const char *name)
     return -1;
 }
 
-/* Least-squares line v = a + b * k over points (k, v); *maxdev = largest |residual|, *worst its
- * index. */
-static void fit_line(const double *k, const double *v, size_t n, double *a, double *b,
-                     double *maxdev, size_t *worst)
+/* Fit v = a + b * k to points (k, v) given in any order, with lines[m] the file line of point m.
+ * Regularity is judged against the line through the points with the smallest and largest k
+ * (first of each), so that one bad point shows up alone; *bad = index of the deviating point with
+ * the smallest line number (or -1). The returned a, b are the least-squares line over all points. */
+static void fit_line(const double *k, const double *v, const long *lines, size_t n, double tol_frac,
+                     double *a, double *b, double *dev, long *bad)
 {
+    size_t lo = 0, hi = 0;
+    for (size_t m = 1; m < n; ++m) {
+        if (k[m] < k[lo])
+            lo = m;
+        if (k[m] > k[hi])
+            hi = m;
+    }
+    double b0 = k[hi] > k[lo] ? (v[hi] - v[lo]) / (k[hi] - k[lo]) : 0.0;
+    double tol = tol_frac * fabs(b0);
+    *bad = -1;
+    *dev = 0;
+    for (size_t m = 0; m < n; ++m) {
+        double d = fabs(v[m] - (v[lo] + b0 * (k[m] - k[lo])));
+        if (d > tol && (*bad < 0 || lines[m] < lines[*bad])) {
+            *bad = (long)m;
+            *dev = d;
+        }
+    }
     double km = 0, vm = 0;
     for (size_t m = 0; m < n; ++m) {
         km += k[m];
@@ -52,15 +72,6 @@ static void fit_line(const double *k, const double *v, size_t n, double *a, doub
     }
     *b = skk > 0 ? skv / skk : 0.0;
     *a = vm - *b * km;
-    *maxdev = 0;
-    *worst = 0;
-    for (size_t m = 0; m < n; ++m) {
-        double d = fabs(v[m] - (*a + *b * k[m]));
-        if (d > *maxdev) {
-            *maxdev = d;
-            *worst = m;
-        }
-    }
 }
 
 static const char *const map_columns[6] = {"i", "j", "x_mm", "y_mm", "gx_um", "gy_um"};
@@ -168,16 +179,16 @@ sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err)
             lines[n] = line_of[slot];
         }
     double x0, px, y0, py, dev;
-    size_t worst;
-    fit_line(kk, vv, n, &x0, &px, &dev, &worst);
+    long worst;
+    fit_line(kk, vv, lines, n, SC_LUT_REGULAR_TOL, &x0, &px, &dev, &worst);
     if (!(px > 0)) {
         st = sc_error_set(err, SC_E_INPUT, path, 0, "x_mm does not increase with j (pitch %g mm)", px);
         goto done;
     }
-    if (dev > SC_LUT_REGULAR_TOL * px) {
+    if (worst >= 0) {
         st = sc_error_set(err, SC_E_INPUT, path, lines[worst],
-                          "irregular grid: x_mm is %.3g mm off the regular grid (x0 %.6f, pitch %.6f mm)",
-                          dev, x0, px);
+                          "irregular grid: x_mm is %.3g mm off the regular grid (pitch %.6f mm)",
+                          dev, px);
         goto done;
     }
     n = 0;
@@ -187,15 +198,15 @@ sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err)
             kk[n] = i;
             vv[n] = ys[slot];
         }
-    fit_line(kk, vv, n, &y0, &py, &dev, &worst);
+    fit_line(kk, vv, lines, n, SC_LUT_REGULAR_TOL, &y0, &py, &dev, &worst);
     if (!(py > 0)) {
         st = sc_error_set(err, SC_E_INPUT, path, 0, "y_mm does not increase with i (pitch %g mm)", py);
         goto done;
     }
-    if (dev > SC_LUT_REGULAR_TOL * py) {
+    if (worst >= 0) {
         st = sc_error_set(err, SC_E_INPUT, path, lines[worst],
-                          "irregular grid: y_mm is %.3g mm off the regular grid (y0 %.6f, pitch %.6f mm)",
-                          dev, y0, py);
+                          "irregular grid: y_mm is %.3g mm off the regular grid (pitch %.6f mm)",
+                          dev, py);
         goto done;
     }
     /* Compact from stride SC_LUT_MAX_NX to stride nx (in place: destinations never pass sources). */
@@ -304,13 +315,13 @@ sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profil
         goto done;
     }
     double x0, step, dev;
-    size_t worst;
-    fit_line(kk, xs, (size_t)count, &x0, &step, &dev, &worst);
+    long worst;
+    fit_line(kk, xs, lines, (size_t)count, SC_LUT_REGULAR_TOL, &x0, &step, &dev, &worst);
     if (!(step > 0)) {
         st = sc_error_set(err, SC_E_INPUT, path, 0, "x_mm does not increase with n");
         goto done;
     }
-    if (dev > SC_LUT_REGULAR_TOL * step) {
+    if (worst >= 0) {
         st = sc_error_set(err, SC_E_INPUT, path, lines[worst],
                           "irregular profile: x_mm is %.3g mm off the regular spacing %.6f mm", dev,
                           step);

@@ -1,0 +1,216 @@
+#!/usr/bin/env python3
+"""Integration test of `selfcal lut build|dump|info` (SPEC §3) through the command line.
+
+Writes a simulated stage error map and two profile files (the truth), builds a table, and checks
+that `lut dump` reproduces them within the quantization the table states; that bad input exits 2
+with file:line on stderr and leaves no output (an existing output file untouched); that corrupted
+tables (bit flips, truncations) are refused with a reason. Standard library only.
+usage: test_lut_cli.py SELFCAL_BINARY WORK_DIR
+"""
+import hashlib
+import os
+import random
+import re
+import subprocess
+import sys
+
+SELFCAL, WORK = sys.argv[1], sys.argv[2]
+os.makedirs(WORK, exist_ok=True)
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print("FAIL:", what)
+
+
+def run(*args):
+    p = subprocess.run([SELFCAL, *args], capture_output=True, text=True, timeout=60)
+    return p.returncode, p.stdout, p.stderr
+
+
+def path(name):
+    return os.path.join(WORK, name)
+
+
+rng = random.Random(20261121)
+
+# ---- truth: a 25 x 25 map (rectangular variant below) and two profiles ----
+def write_map(name, nx, ny, x0, y0, px, py, amp, shuffle=True):
+    rows, truth = [], {}
+    for i in range(ny):
+        for j in range(nx):
+            gx, gy = rng.gauss(0, amp), rng.gauss(0, amp)
+            truth[(i, j)] = (x0 + j * px, y0 + i * py, round(gx, 6), round(gy, 6))
+            rows.append(f"{i},{j},{x0 + j * px:.6f},{y0 + i * py:.6f},{gx:.6f},{gy:.6f},0.002,0.002")
+    if shuffle:
+        rng.shuffle(rows)
+    with open(path(name), "w") as f:
+        f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n" + "\n".join(rows) + "\n")
+    return truth
+
+
+def write_profile(name, n_total, n_valid, s_mm, amp):
+    vals = []
+    with open(path(name), "w") as f:
+        f.write("n,x_mm,f_um,uf_um,ey_um\n")
+        for n in range(n_total):
+            ey = ""
+            if n < n_valid:
+                v = round(rng.gauss(0, amp), 6)
+                vals.append((n * s_mm, v))
+                ey = f"{v:.6f}"
+            f.write(f"{n},{n * s_mm:.6f},{rng.gauss(0, 1):.6f},0.01,{ey}\n")
+    return vals
+
+
+def parse_dump(text):
+    lines = text.splitlines()
+    check(lines[0] == "i,j,x_mm,y_mm,gx_um,gy_um", "dump header")
+    grid, profiles, k = {}, [], 1
+    while k < len(lines) and not lines[k].startswith("#"):
+        i, j, x, y, gx, gy = lines[k].split(",")
+        grid[(int(i), int(j))] = (float(x), float(y), float(gx), float(gy))
+        k += 1
+    while k < len(lines):
+        m = re.fullmatch(r"# profile (\d+): axis=([xyz]) dir=([xyz])", lines[k])
+        check(m is not None, f"profile line: {lines[k]!r}")
+        check(lines[k + 1] == "n,pos_mm,err_um", "profile header")
+        rows = []
+        k += 2
+        while k < len(lines) and not lines[k].startswith("#"):
+            n, pos, err = lines[k].split(",")
+            rows.append((int(n), float(pos), float(err)))
+            k += 1
+        profiles.append((m.group(2), m.group(3), rows))
+    return grid, profiles
+
+
+def quantization_nm(table):
+    rc, out, _ = run("lut", "info", table)
+    check(rc == 0, "lut info")
+    return float(re.search(r"grid encoding: \w+, \d+ pm per code, quantization <= ([0-9.]+) nm", out).group(1))
+
+
+# ---- 1. build -> dump reproduces the input ----
+truth = write_map("G.csv", 25, 25, -12.0, -12.0, 1.0, 1.0, 0.8)
+p1 = write_profile("P1.csv", 330, 320, 1.0, 0.3)
+p2 = write_profile("P2.csv", 330, 319, 1.0, 0.1)
+rc, out, err = run("lut", "build", "--map", path("G.csv"), "--profile", "x:y:" + path("P1.csv"),
+                   "--profile", "Y:Z:" + path("P2.csv"), "-o", path("T.lut"), "--method", "double-shift",
+                   "--sigma", "0.015")
+check(rc == 0, f"lut build exit {rc}: {err}")
+size = os.path.getsize(path("T.lut"))
+print(f"table size: {size} bytes (25 x 25 map + profiles of {len(p1)} and {len(p2)} points)")
+check(size <= 8192, f"table of {size} bytes exceeds 8 KiB")
+q_um = quantization_nm(path("T.lut")) * 1e-3
+rc, out, err = run("lut", "dump", path("T.lut"))
+check(rc == 0, f"lut dump exit {rc}: {err}")
+grid, profiles = parse_dump(out)
+check(len(grid) == 625, f"dump has {len(grid)} nodes")
+worst = 0.0
+for key, (x, y, gx, gy) in truth.items():
+    dx, dy, dgx, dgy = grid[key]
+    check(abs(dx - x) < 1e-9 and abs(dy - y) < 1e-9, f"node {key} position")
+    worst = max(worst, abs(dgx - gx), abs(dgy - gy))
+print(f"map: worst |dump - input| = {worst * 1e3:.4f} nm, stated quantization {q_um * 1e3:.4f} nm")
+check(worst <= q_um + 1e-9, "map reproduced within the stated quantization")
+check(len(profiles) == 2, "two profiles")
+for (axis, dirn, rows), vals, want in zip(profiles, (p1, p2), (("x", "y"), ("y", "z"))):
+    check((axis, dirn) == want, f"profile axis/dir {axis},{dirn}")
+    check(len(rows) == len(vals), f"profile length {len(rows)} vs {len(vals)} (trailing empties dropped)")
+    for (n, pos, e), (tpos, tv) in zip(rows, vals):
+        check(abs(pos - tpos) < 1e-9, "profile position")
+        check(abs(e - tv) <= 0.5e-3, "profile value within 0.5 nm")
+rc, out, _ = run("lut", "info", path("T.lut"))
+for k, f in enumerate(("G.csv", "P1.csv", "P2.csv")):
+    h = hashlib.sha256(open(path(f), "rb").read()).hexdigest()
+    check(f"source {k} sha256: {h}" in out, f"provenance hash of {f}")
+check("method: double-shift" in out and "sigma_um: 0.015" in out, "provenance method and sigma")
+
+# Rectangular grid, non-zero origin, large errors (int32 encoding), no profiles.
+truth = write_map("R.csv", 9, 4, 100.0, -50.0, 12.5, 7.5, 80.0)
+rc, out, err = run("lut", "build", "--map", path("R.csv"), "-o", path("R.lut"))
+check(rc == 0, f"rectangular build: {err}")
+q_um = quantization_nm(path("R.lut")) * 1e-3
+grid, profiles = parse_dump(run("lut", "dump", path("R.lut"))[1])
+check(len(grid) == 36 and not profiles, "rectangular dump")
+worst = max(max(abs(grid[k][2] - v[2]), abs(grid[k][3] - v[3])) for k, v in truth.items())
+check(worst <= q_um + 1e-9, f"rectangular map within quantization ({worst} > {q_um})")
+
+# ---- 2. bad input: exit 2, file:line on stderr, no output file, existing file untouched ----
+def expect_bad(args, needle, label):
+    out_path = path("bad.lut")
+    if os.path.exists(out_path):
+        os.remove(out_path)
+    rc, out, err = run("lut", "build", *args, "-o", out_path)
+    check(rc == 2, f"{label}: exit {rc} (want 2), stderr {err!r}")
+    check(re.search(needle, err) is not None, f"{label}: stderr {err!r} lacks {needle!r}")
+    check(len(err.strip().splitlines()) == 1, f"{label}: one line on stderr")
+    check(not os.path.exists(out_path), f"{label}: output file was created")
+    leftovers = [f for f in os.listdir(WORK) if f.startswith("bad.lut") or ".tmp" in f]
+    check(not leftovers, f"{label}: temporary files left: {leftovers}")
+
+
+with open(path("G.csv")) as f:
+    good = f.read().splitlines()
+def variant(name, lines):
+    with open(path(name), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    return path(name)
+
+missing = variant("missing.csv", good[:100] + good[101:])
+expect_bad(["--map", missing], r"missing\.csv.*missing", "missing node")
+dup = variant("dup.csv", good + [good[5]])
+expect_bad(["--map", dup], r"dup\.csv:%d: .*repeats" % (len(good) + 1), "duplicate node")
+f = good[7].split(",")
+f[2] = str(float(f[2]) + 0.3)
+irr = variant("irr.csv", good[:7] + [",".join(f)] + good[8:])
+expect_bad(["--map", irr], r"irr\.csv:8: .*irregular", "irregular grid")
+f = good[9].split(",")
+f[4] = "1.2.3"
+junk = variant("junk.csv", good[:9] + [",".join(f)] + good[10:])
+expect_bad(["--map", junk], r"junk\.csv:10: .*gx_um", "non-number")
+expect_bad(["--map", path("nope.csv")], r"nope\.csv", "nonexistent map")
+with open(path("P1.csv")) as fh:
+    pl = fh.read().splitlines()
+f = pl[50].split(",")
+f[4] = ""
+mid = variant("mid.csv", pl[:50] + [",".join(f)] + pl[51:])
+expect_bad(["--map", path("G.csv"), "--profile", "x:y:" + mid], r"mid\.csv:51: .*empty", "empty ey in the middle")
+expect_bad(["--map", path("G.csv"), "--profile", "w:y:" + path("P1.csv")], r"AXIS:DIR", "bad axis")
+expect_bad(["--map", path("G.csv"), "--profile", path("P1.csv")], r"AXIS:DIR", "no axis")
+
+# An existing table stays as it was when a rebuild fails.
+before = open(path("T.lut"), "rb").read()
+rc, _, _ = run("lut", "build", "--map", missing, "-o", path("T.lut"))
+check(rc == 2 and open(path("T.lut"), "rb").read() == before, "failed build left the old table intact")
+
+# ---- 3. corrupted tables: refused with a reason, exit 2 ----
+def expect_refused(data, label):
+    with open(path("corrupt.lut"), "wb") as fh:
+        fh.write(data)
+    rc, out, err = run("lut", "dump", path("corrupt.lut"))
+    check(rc == 2, f"{label}: exit {rc}")
+    check(out == "", f"{label}: printed something")
+    check(re.search(r"corrupt\.lut: not a valid table: \S", err) is not None, f"{label}: {err!r}")
+    return err
+
+reasons = set()
+for _ in range(60):
+    b = rng.randrange(len(before))
+    bit = rng.randrange(8)
+    data = bytearray(before)
+    data[b] ^= 1 << bit
+    reasons.add(expect_refused(bytes(data), f"flip byte {b} bit {bit}").split("not a valid table: ")[-1].strip())
+for n in sorted(set([0, 1, 7, 63, 64, 67, len(before) - 4, len(before) - 1] + [rng.randrange(len(before)) for _ in range(15)])):
+    reasons.add(expect_refused(before[:n], f"truncated to {n}").split("not a valid table: ")[-1].strip())
+reasons.add(expect_refused(before + b"\0", "one byte appended").split("not a valid table: ")[-1].strip())
+print("reasons seen:", sorted(reasons))
+check(any("checksum" in r for r in reasons) and any("truncated" in r for r in reasons), "reasons named")
+
+if failures:
+    print(f"{len(failures)} failure(s)")
+    sys.exit(1)
+print("lut CLI: all checks passed")
