@@ -321,6 +321,53 @@ static void test_fast_matches_dense(void **state)
     compare_with_dense(2000, 10, 11, 1.0 / 3e-4, 1.0 / 3.21e-4, 9);
 }
 
+/* The AVX2/FMA kernels (where the CPU has them) and the portable ones give the same answers. */
+static void test_portable_and_simd_agree(void **state)
+{
+    (void)state;
+    static const int cases[][3] = {{330, 10, 11}, {1003, 97, 101}, {64, 1, 2}, {23, 11, 12}};
+    for (size_t q = 0; q < sizeof cases / sizeof cases[0]; q++) {
+        int n = cases[q][0], d1 = cases[q][1], d2 = cases[q][2];
+        sc_rng rng;
+        sc_rng_seed(&rng, 100 + q);
+        double *f = dalloc(n), *y1 = dalloc(n), *y2 = dalloc(n);
+        double *fa = dalloc(n), *fb = dalloc(n), *ua = dalloc(n), *ub = dalloc(n);
+        random_profile(n, &rng, f);
+        simulate(n, d1, d2, f, 0.1, 0.2, y1, y2, &rng, 0.01, 0.012);
+        sc_profile_lsq *pa = NULL, *pb = NULL;
+        sc_error err;
+        sc_error_clear(&err);
+        assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, 0u, &pa, &err), SC_OK);
+        assert_int_equal(
+            sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_PORTABLE, &pb, &err),
+            SC_OK);
+        assert_int_equal(sc_profile_lsq_uses_simd(pb), 0);
+        assert_int_equal(sc_profile_lsq_dof(pa), n - d1 - d2);
+        assert_int_equal(sc_profile_lsq_solve(pa, y1, y2, fa, NULL, NULL, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, NULL, NULL, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+        double fs = 0, df = 0, du = 0;
+        for (int i = 0; i < n; i++) {
+            fs = fmax(fs, fabs(fb[i]));
+            df = fmax(df, fabs(fa[i] - fb[i]));
+            du = fmax(du, fabs(ua[i] - ub[i]) / ub[i]);
+        }
+        print_message("simd=%d vs portable N=%d d=%d/%d: rel diff f %.2g, uf %.2g\n",
+                      sc_profile_lsq_uses_simd(pa), n, d1, d2, df / fs, du);
+        assert_true(df <= 1e-11 * fs && du <= 1e-11);
+        sc_profile_lsq_destroy(pa);
+        sc_profile_lsq_destroy(pb);
+        free(f);
+        free(y1);
+        free(y2);
+        free(fa);
+        free(fb);
+        free(ua);
+        free(ub);
+    }
+}
+
 /* ---------- uncertainty ---------- */
 
 /* Ding's set-up: s = 1 mm, σ_disp = 10 nm, σ_angle = 1 nm/mm: var y_k = 2σ_disp² + (D_k σ_angle)². */
@@ -587,6 +634,7 @@ int main(void)
         cmocka_unit_test(test_noise_free_simulated),
         cmocka_unit_test(test_noise_free_dabam),
         cmocka_unit_test(test_fast_matches_dense),
+        cmocka_unit_test(test_portable_and_simd_agree),
         cmocka_unit_test(test_uncertainty_vs_monte_carlo),
         cmocka_unit_test(test_paper_setup),
         cmocka_unit_test(test_million_points_vs_long_double),

@@ -18,17 +18,17 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "profile_lsq_band.h"
 #include "profile_lsq_kernels.h"
 
 struct sc_profile_lsq {
     int n, d1, d2, bw;
     double w1, w2;
-    size_t ld;      /* row stride of band: bw + 1 */
-    double *band;   /* row i: L[i][i-bw .. i-1] at [0 .. bw-1], L[i][i] at [bw] */
-    double *z;      /* 2 columns of n: Z = B⁻¹·E (the border columns c1, c2 through B) */
-    double *e;      /* 2 columns of n: E, the f-c block of the normal matrix (pinned rows 0) */
-    double g[2];    /* diagonal c-c block: w_k (n - d_k) */
-    double sinv[4]; /* S⁻¹, S = G - Eᵀ Z (row-major 2×2) */
+    sc_lsq_band band; /* B and its factor (profile_lsq_band.h) */
+    double *z;        /* 2 columns of n: Z = B⁻¹·E (the border columns c1, c2 through B) */
+    double *e;        /* 2 columns of n: E, the f-c block of the normal matrix (pinned rows 0) */
+    double g[2];      /* diagonal c-c block: w_k (n - d_k) */
+    double sinv[4];   /* S⁻¹, S = G - Eᵀ Z (row-major 2×2) */
 };
 
 static int gcd_int(int a, int b)
@@ -40,6 +40,10 @@ static int gcd_int(int a, int b)
     }
     return a;
 }
+
+int sc_profile_lsq_dof(const sc_profile_lsq *p) { return p ? p->n - p->d1 - p->d2 : 0; }
+
+int sc_profile_lsq_uses_simd(const sc_profile_lsq *p) { return p ? p->band.simd : 0; }
 
 int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
 {
@@ -71,111 +75,23 @@ int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
     return 1;
 }
 
-/* Normal-matrix entry of the f-block (before pinning), j <= i, |i-j| <= bw. */
-static double normal_ff(const sc_profile_lsq *p, int i, int j)
-{
-    int n = p->n;
-    if (i == j) {
-        double a = 0.0;
-        if (i >= p->d1) a += p->w1;
-        if (i <= n - 1 - p->d1) a += p->w1;
-        if (i >= p->d2) a += p->w2;
-        if (i <= n - 1 - p->d2) a += p->w2;
-        return a;
-    }
-    int d = i - j;
-    double a = 0.0;
-    if (d == p->d1) a -= p->w1;
-    if (d == p->d2) a -= p->w2;
-    return a;
-}
-
 static int is_pinned(const sc_profile_lsq *p, int i) { return i == 0 || i == p->n - 1; }
 
-/* Assemble row i of B (pinned rows/columns are the identity) into its band slot. */
-static void assemble_row(const sc_profile_lsq *p, int i)
-{
-    int bw = p->bw;
-    double *ri = p->band + (size_t)i * p->ld;
-    for (int m = 0; m < bw; m++) ri[m] = 0.0;
-    if (is_pinned(p, i)) {
-        ri[bw] = 1.0;
-        return;
-    }
-    if (i - p->d1 >= 0 && !is_pinned(p, i - p->d1)) ri[bw - p->d1] += -p->w1;
-    if (i - p->d2 >= 0 && !is_pinned(p, i - p->d2)) ri[bw - p->d2] += -p->w2;
-    ri[bw] = normal_ff(p, i, i);
-}
-
-/* Right-looking banded Cholesky B = L·Lᵀ in row-band storage: for column j, take the square root
- * of the (fully updated) pivot, scale the column below it, and subtract its outer product from
- * the trailing bw×bw triangle — row by row, each a contiguous axpy (independent, vectorizable).
- * Rows are assembled just before the first column that touches them, so the working window stays
- * in cache. The diagonal slot keeps 1/L[i][i] (every later use multiplies by it). */
-static sc_status factor(sc_profile_lsq *p, sc_error *err)
-{
-    int n = p->n, bw = p->bw;
-    size_t ld = p->ld;
-    double *col = malloc((size_t)(bw + 1) * sizeof(double));
-    if (!col) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (factor)");
-    for (int i = 0; i <= bw && i < n; i++) assemble_row(p, i);
-    for (int j = 0; j < n; j++) {
-        if (j + bw < n && j > 0) assemble_row(p, j + bw);
-        double *rj = p->band + (size_t)j * ld;
-        double djj = rj[bw];
-        if (!(djj > 0.0) || !isfinite(djj)) {
-            free(col);
-            return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
-                                "banded Cholesky factor lost positive definiteness at row %d", j);
-        }
-        double inv = 1.0 / sqrt(djj);
-        rj[bw] = inv;
-        int cnt = (j + bw < n - 1 ? j + bw : n - 1) - j;
-        double *rk = rj + ld + (bw - 1); /* L[j+1][j] */
-        for (int q = 0; q < cnt; q++, rk += ld - 1) {
-            double v = *rk * inv;
-            *rk = v;
-            col[q] = v;
-        }
-        for (int q = 0; q < cnt; q++) {
-            if (col[q] == 0.0) continue;
-            double *rowk = p->band + (size_t)(j + 1 + q) * ld;
-            /* row k = j+1+q, columns j+1..k: positions bw-q-... contiguous up to the diagonal */
-            sc_lsq_axpy(rowk + (bw - q), -col[q], col, q + 1);
-        }
-    }
-    free(col);
-    return SC_OK;
-}
-
-/* x <- B⁻¹ x in place (and y <- B⁻¹ y when y is not NULL: two right-hand sides in one pass). */
 static void band_solve2(const sc_profile_lsq *p, double *x, double *y)
 {
-    int n = p->n, bw = p->bw;
-    for (int i = 0; i < n; i++) {
-        const double *ri = p->band + (size_t)i * p->ld;
-        int k0 = i - bw < 0 ? 0 : i - bw;
-        x[i] = (x[i] - sc_lsq_dot(ri + (k0 - i + bw), x + k0, i - k0)) * ri[bw];
-        if (y) y[i] = (y[i] - sc_lsq_dot(ri + (k0 - i + bw), y + k0, i - k0)) * ri[bw];
-    }
-    for (int i = n - 1; i >= 0; i--) {
-        const double *ri = p->band + (size_t)i * p->ld;
-        int k0 = i - bw < 0 ? 0 : i - bw;
-        double xi = x[i] * ri[bw];
-        x[i] = xi;
-        sc_lsq_axpy(x + k0, -xi, ri + (k0 - i + bw), i - k0);
-        if (y) {
-            double yi = y[i] * ri[bw];
-            y[i] = yi;
-            sc_lsq_axpy(y + k0, -yi, ri + (k0 - i + bw), i - k0);
-        }
-    }
+    sc_lsq_band_solve2(&p->band, x, y);
 }
 
 static void band_solve(const sc_profile_lsq *p, double *x) { band_solve2(p, x, NULL); }
 
 sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
                                 sc_error *err)
+{
+    return sc_profile_lsq_create_ex(n, d1, d2, w1, w2, 0u, out, err);
+}
+
+sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,
+                                   sc_profile_lsq **out, sc_error *err)
 {
     if (out) *out = NULL;
     if (!out) return sc_error_set(err, SC_E_INPUT, NULL, 0, "no output pointer");
@@ -191,27 +107,39 @@ sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_
     p->bw = d1 > d2 ? d1 : d2;
     p->w1 = w1;
     p->w2 = w2;
-    p->ld = (size_t)p->bw + 1;
-    if ((size_t)n > SIZE_MAX / sizeof(double) / (p->ld + 4)) {
+    sc_lsq_band *bd = &p->band;
+    bd->n = n;
+    bd->bw = p->bw;
+    bd->d1 = d1;
+    bd->d2 = d2;
+    bd->w1 = w1;
+    bd->w2 = w2;
+    bd->ld = (size_t)p->bw + 1;
+    bd->simd = (flags & SC_PROFILE_LSQ_PORTABLE) ? 0 : sc_lsq_band_cpu_has_simd();
+    if ((size_t)n > SIZE_MAX / sizeof(double) / (bd->ld + 4)) {
         int bw = p->bw;
         free(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "N = %d with d = %d needs too much memory",
                             n, bw);
     }
-    p->band = malloc((size_t)n * p->ld * sizeof(double));
+    bd->a = malloc((size_t)n * bd->ld * sizeof(double));
     p->z = malloc((size_t)2 * n * sizeof(double));
     p->e = malloc((size_t)2 * n * sizeof(double));
-    if (!p->band || !p->z || !p->e) {
+    double *col = malloc(4 * bd->ld * sizeof(double));
+    if (!bd->a || !p->z || !p->e || !col) {
         int bw = p->bw;
+        free(col);
         sc_profile_lsq_destroy(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0,
                             "out of memory for the banded factor (N = %d, d = %d: %.0f MB)", n,
                             bw, (double)n * (double)(bw + 1) * 8.0 / 1e6);
     }
-    sc_status st = factor(p, err);
-    if (st != SC_OK) {
+    int bad = sc_lsq_band_factor(bd, col);
+    free(col);
+    if (bad >= 0) {
         sc_profile_lsq_destroy(p);
-        return st;
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
+                            "banded Cholesky factor lost positive definiteness at row %d", bad);
     }
     /* border: E column k = d(normal eq. of f)/d c_k; G = diag(w_k (n - d_k)) */
     const int dk[2] = {d1, d2};
@@ -334,53 +262,12 @@ sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, con
     return SC_OK;
 }
 
-/* diag(B⁻¹) by the Takahashi recurrences on the banded Cholesky factor, i = n-1 down to 0:
- *   Z[i][j] = -(1/L[i][i]) Σ_{k=i+1}^{i+bw} L[k][i] Z[k][j]   (j = i+1 .. i+bw)
- *   Z[i][i] = (1/L[i][i]) (1/L[i][i] - Σ_k L[k][i] Z[k][i])
- * keeping only the (bw+1)×(bw+1) window of Z that the next step needs, in a circular buffer. */
 static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc_error *err)
 {
-    int n = p->n, bw = p->bw;
-    size_t w = (size_t)bw + 1;
-    double *win = calloc(w * w + 2 * w, sizeof(double));
+    size_t w = (size_t)p->bw + 1;
+    double *win = malloc((w * w + 2 * w) * sizeof(double));
     if (!win) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
-    double *t = win + w * w; /* accumulator over all w slots */
-    double *l = t + w;       /* column i of L below the diagonal, l[k - i - 1] */
-    for (int i = n - 1; i >= 0; i--) {
-        const double rii = p->band[(size_t)i * p->ld + bw]; /* 1/L[i][i] */
-        int kmax = i + bw < n - 1 ? i + bw : n - 1;
-        int cnt = kmax - i;
-        for (int q = 0; q < cnt; q++) {
-            int k = i + 1 + q;
-            l[q] = p->band[(size_t)k * p->ld + (size_t)(i - k + bw)];
-        }
-        for (size_t s = 0; s < w; s++) t[s] = 0.0;
-        int q = 0;
-        for (; q + 4 <= cnt; q += 4) {
-            int k = i + 1 + q;
-            sc_lsq_axpy4(t, l + q, win + (size_t)(k % (int)w) * w,
-                         win + (size_t)((k + 1) % (int)w) * w, win + (size_t)((k + 2) % (int)w) * w,
-                         win + (size_t)((k + 3) % (int)w) * w, (int)w);
-        }
-        for (; q < cnt; q++) {
-            int k = i + 1 + q;
-            sc_lsq_axpy(t, l[q], win + (size_t)(k % (int)w) * w, (int)w);
-        }
-        size_t si = (size_t)(i % (int)w);
-        double *row_i = win + si * w;
-        double acc = 0.0;
-        for (int q = 0; q < cnt; q++) {
-            int k = i + 1 + q;
-            size_t sk = (size_t)(k % (int)w);
-            double zik = -t[sk] * rii;
-            row_i[sk] = zik;
-            win[sk * w + si] = zik;
-            acc += l[q] * zik;
-        }
-        double zii = (rii - acc) * rii;
-        row_i[si] = zii;
-        diag[i] = zii;
-    }
+    sc_lsq_band_inverse_diag(&p->band, win, diag);
     free(win);
     return SC_OK;
 }
@@ -460,7 +347,7 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
 void sc_profile_lsq_destroy(sc_profile_lsq *p)
 {
     if (!p) return;
-    free(p->band);
+    free(p->band.a);
     free(p->z);
     free(p->e);
     free(p);

@@ -1,0 +1,68 @@
+/* profile_lsq_band.c — the banded kernels of the profile least squares (see profile_lsq_band.h):
+ * one portable copy, and on x86-64 a copy with AVX2/FMA inner loops chosen at run time. */
+#include "profile_lsq_band.h"
+
+#include <math.h>
+
+#include "profile_lsq_kernels.h"
+
+#define SC_SFX(name) name##_generic
+#define SC_ATTR
+#define SC_DOT sc_lsq_dot
+#define SC_AXPY sc_lsq_axpy
+#define SC_AXPY4 sc_lsq_axpy4
+#include "profile_lsq_band_impl.h"
+#undef SC_SFX
+#undef SC_ATTR
+#undef SC_DOT
+#undef SC_AXPY
+#undef SC_AXPY4
+
+#if SC_LSQ_HAVE_AVX2
+#define SC_SFX(name) name##_avx2
+#define SC_ATTR SC_LSQ_AVX2_ATTR
+#define SC_DOT sc_lsq_dot_avx2
+#define SC_AXPY sc_lsq_axpy_avx2
+#define SC_AXPY4 sc_lsq_axpy4_avx2
+#include "profile_lsq_band_impl.h"
+#endif
+
+int sc_lsq_band_cpu_has_simd(void)
+{
+#if SC_LSQ_HAVE_AVX2
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+#else
+    return 0;
+#endif
+}
+
+int sc_lsq_band_factor(sc_lsq_band *b, double *col)
+{
+#if SC_LSQ_HAVE_AVX2
+    if (b->simd) return factor_avx2(b, col);
+#endif
+    return factor_generic(b, col);
+}
+
+void sc_lsq_band_solve2(const sc_lsq_band *b, double *x, double *y)
+{
+#if SC_LSQ_HAVE_AVX2
+    if (b->simd) {
+        solve2_avx2(b, x, y);
+        return;
+    }
+#endif
+    solve2_generic(b, x, y);
+}
+
+void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag)
+{
+#if SC_LSQ_HAVE_AVX2
+    if (b->simd) {
+        inverse_diag_avx2(b, win, diag);
+        return;
+    }
+#endif
+    inverse_diag_generic(b, win, diag);
+}

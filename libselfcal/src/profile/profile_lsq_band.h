@@ -1,0 +1,32 @@
+/* profile_lsq_band.h — private: the banded part of the profile least squares (profile_lsq.c).
+ * B = the f-block of the normal matrix (weighted Laplacian of n ~ n+d1, n ~ n+d2) with the rows and
+ * columns of the pinned points 0 and N-1 replaced by the identity; half-width bw = max(d1, d2).
+ * Row-band storage: row i holds L[i][i-bw .. i-1] at [0 .. bw-1] and 1/L[i][i] at [bw]. */
+#ifndef SELFCAL_PROFILE_LSQ_BAND_H
+#define SELFCAL_PROFILE_LSQ_BAND_H
+
+#include <stddef.h>
+
+typedef struct sc_lsq_band {
+    int n, bw, d1, d2;
+    double w1, w2;
+    size_t ld; /* bw + 1 */
+    double *a; /* n·ld doubles */
+    int simd;  /* 1: use the AVX2/FMA kernels (set by sc_lsq_band_pick_simd) */
+} sc_lsq_band;
+
+/* 1 if this CPU runs the AVX2/FMA kernels (x86-64 with GCC/Clang), else 0. */
+int sc_lsq_band_cpu_has_simd(void);
+
+/* Assemble and factor B = L·Lᵀ in place; col: 4·bw doubles of scratch. Returns -1 on success, or
+ * the row where the pivot was not positive. */
+int sc_lsq_band_factor(sc_lsq_band *b, double *col);
+
+/* x <- B⁻¹x, and y <- B⁻¹y when y is not NULL (one pass, two right-hand sides). */
+void sc_lsq_band_solve2(const sc_lsq_band *b, double *x, double *y);
+
+/* diag[i] = (B⁻¹)[i][i] by the Takahashi recurrences (selected inversion) on the factor;
+ * win: (bw+1)·(bw+3) doubles of scratch. */
+void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag);
+
+#endif
