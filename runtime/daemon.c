@@ -43,7 +43,7 @@ int sc_daemon_add(sc_daemon *d, const sc_transport *t)
 int sc_daemon_start(sc_daemon *d, char *why, int whylen)
 {
     if (sc_engine_load_file(&d->engine, d->table_path, why, whylen) != 0)
-        return -1;
+        return 2;
     const sc_corr_table *tb = d->engine.table;
     sc_log(SC_LOG_NOTICE, "table %s loaded: %ux%u nodes, pitch %g x %g mm, %u profile(s), %s mode",
            d->table_path, (unsigned)tb->nx, (unsigned)tb->ny, tb->px_mm, tb->py_mm,
@@ -52,7 +52,7 @@ int sc_daemon_start(sc_daemon *d, char *why, int whylen)
         if (d->t[i].open(d->t[i].state, why, whylen) != 0) {
             for (int k = i - 1; k >= 0; k--)
                 d->t[k].close(d->t[k].state);
-            return -1;
+            return 1;
         }
     }
     uint64_t wd_usec = sc_notify_watchdog_usec();

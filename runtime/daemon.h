@@ -31,7 +31,8 @@ void sc_daemon_init(sc_daemon *d, const char *table_path, sc_corr_mode mode);
 /* Add a transport (copied). 0, or -1 if there are already SC_DAEMON_MAX_TRANSPORTS. */
 int sc_daemon_add(sc_daemon *d, const sc_transport *t);
 
-/* Load the table, open every transport. 0, or -1 with why (nothing left open). */
+/* Load the table, open every transport. 0; 2 if the table is missing or invalid (bad input);
+ * 1 if a transport cannot open (why says which; nothing is left open). */
 int sc_daemon_start(sc_daemon *d, char *why, int whylen);
 
 /* Route SIGHUP/SIGTERM/SIGINT into the loop (signalfd) and ignore SIGPIPE. 0 or -1. */

@@ -66,10 +66,11 @@ int main(int argc, char **argv)
         sc_log(SC_LOG_ERR, "cannot set up signal handling");
         return 1;
     }
-    if (sc_daemon_start(&g_daemon, why, sizeof why) != 0) {
+    int rc = sc_daemon_start(&g_daemon, why, sizeof why);
+    if (rc != 0) {
         sc_log(SC_LOG_ERR, "%s", why);
         sc_notify("STATUS=start failed");
-        return 1;
+        return rc; /* 2: bad table; 1: a transport could not open */
     }
     sc_log(SC_LOG_NOTICE, "ready");
     sc_notify("READY=1\nSTATUS=serving");
