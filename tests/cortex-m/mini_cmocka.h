@@ -42,7 +42,7 @@ static jmp_buf mini_cmocka_jmp;
 
 static inline int mini_cmocka_run(const struct CMUnitTest *t, size_t n, const char *group)
 {
-    int failed = 0;
+    volatile int failed = 0;
     printf("[==========] %s: running %u test(s)\n", group, (unsigned)n);
     for (size_t k = 0; k < n; ++k) {
         void *state = NULL;
