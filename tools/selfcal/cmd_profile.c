@@ -77,7 +77,7 @@ int cmd_profile(int argc, char **argv)
         int has_val = i + 1 < argc;
         if (!strcmp(a, "--method") && has_val)
             method_s = argv[++i];
-        else if (!strcmp(a, "--out") && has_val)
+        else if ((!strcmp(a, "--out") || !strcmp(a, "-o")) && has_val)
             out = argv[++i];
         else if (!strcmp(a, "--plot") && has_val)
             plot = argv[++i];

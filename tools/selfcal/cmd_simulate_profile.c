@@ -14,7 +14,7 @@ static const char *USAGE =
     "  --n N (330)  --s-mm S (1)  --d1 D1 (10)  --d2 D2 (11)\n"
     "  --profile random|FILE.dat (random; FILE.dat: a DABAM profile with its .txt metadata)\n"
     "  --amp-um A (1: RMS of a random profile)  --harmonics H (40)\n"
-    "  --sigma-disp-um X (0.01)  --sigma-angle-urad Y (1)  [--no-sigma-lines]\n"
+    "  --sigma-disp-um X (0.01)  --sigma-angle-urad Y (1)  [--noise-free] [--no-sigma-lines]\n"
     "  --ey-um A (0.5)  --ep-urad A (2)  --u1-um U (1.5)  --u2-um U (-0.7)  --u3-urad U (3)\n"
     "  --b0-um B (20)  --seed S (1)\n"
     "  Writes the selfcal-profile v1 data file and the truth n,x_mm,f_um,uf_um,ey_um (f and e_y\n"
@@ -50,13 +50,13 @@ int cmd_simulate_profile(int argc, char **argv)
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
-        } else if (!strcmp(a, "--out") && hv)
+        } else if ((!strcmp(a, "--out") || !strcmp(a, "-o")) && hv)
             out = argv[++i];
         else if (!strcmp(a, "--truth") && hv)
             truth = argv[++i];
         else if (!strcmp(a, "--profile") && hv)
             prof = argv[++i];
-        else if (!strcmp(a, "--n") && hv) {
+        else if ((!strcmp(a, "--n") || !strcmp(a, "--N")) && hv) {
             bad = get_int(a, argv[++i], 3, 100000000, &v);
             p.n = (int)v;
         } else if (!strcmp(a, "--d1") && hv) {
@@ -92,6 +92,8 @@ int cmd_simulate_profile(int argc, char **argv)
             bad = get_double(a, argv[++i], &p.u3_urad);
         else if (!strcmp(a, "--b0-um") && hv)
             bad = get_double(a, argv[++i], &p.b0_um);
+        else if (!strcmp(a, "--noise-free"))
+            p.sigma_disp_um = p.sigma_angle_urad = 0;
         else if (!strcmp(a, "--no-sigma-lines"))
             p.write_sigma = 0;
         else
