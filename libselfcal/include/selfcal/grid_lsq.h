@@ -50,6 +50,8 @@ typedef struct sc_grid_lsq_stats {
     long n_reduced;              /* unknowns after eliminating A: 2N² (G) + 3V (misalignments) */
     long nnz_matrix;             /* stored entries of the reduced matrix (upper triangle) */
     long nnz_factor;             /* entries of L (strictly lower) */
+    double factor_flops;         /* multiply-adds of the LDLᵀ factorization */
+    double selinv_work;          /* entries visited by the selected inverse */
     int n_null_pivots;           /* pivots judged null in the pinned reduced matrix */
     int nullity_misalignment;    /* null space of the misalignment block with G held (3 = plate motion) */
     double min_kept_pivot_ratio; /* smallest pivot/diagonal kept: the margin to the tolerance */

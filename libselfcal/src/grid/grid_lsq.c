@@ -669,6 +669,8 @@ void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st)
     st->n_reduced = q->nx;
     st->nnz_matrix = q->Ap ? q->Ap[q->nx] : 0;
     st->nnz_factor = q->f.Lp ? q->f.Lp[q->nx] : 0;
+    st->factor_flops = q->f.flops;
+    st->selinv_work = q->f.selinv_work;
     st->n_null_pivots = q->nullity_pin;
     st->nullity_misalignment = q->nullity_T;
     st->min_kept_pivot_ratio = q->f.min_kept_ratio;
@@ -693,6 +695,40 @@ static double eq_data(const sc_grid_lsq *q, const sc_grid_data *d, long e)
 {
     int v = q->eq_v[e], k = q->eq_k[e];
     return q->eq_c[e] ? d->dy_um[v][k] : d->dx_um[v][k];
+}
+
+/* r = b - S x evaluated from the equations themselves (not the assembled matrix, whose rounding
+ * slightly moves the gauge null space): r = Σ_e w_e (z_e - mean_group z), z_e = s_e d_e - w_e·x.
+ * Zero on pins. */
+static void data_residual(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, double *r)
+{
+    int idx[3];
+    double val[3];
+    memset(r, 0, sizeof(double) * (size_t)q->nx);
+    for (int c = 0; c < 2 * q->nn; ++c) {
+        long g0 = q->grp_ptr[c], cnt = q->grp_ptr[c + 1] - g0;
+        if (cnt < 2)
+            continue;
+        double mean = 0;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            eq_row(q, e, idx, val);
+            mean += q->eq_s[e] * eq_data(q, d, e) - val[0] * x[idx[0]] - val[1] * x[idx[1]] -
+                    val[2] * x[idx[2]];
+        }
+        mean /= (double)cnt;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            eq_row(q, e, idx, val);
+            double z = q->eq_s[e] * eq_data(q, d, e) - val[0] * x[idx[0]] -
+                       val[1] * x[idx[1]] - val[2] * x[idx[2]] - mean;
+            for (int k = 0; k < 3; ++k)
+                r[idx[k]] += val[k] * z;
+        }
+    }
+    for (int i = 0; i < q->nx; ++i)
+        if (q->pinned[i])
+            r[i] = 0;
 }
 
 sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
@@ -755,6 +791,16 @@ sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_
         }
     }
     pinned_solve(q, x);
+    {
+        double *r = malloc(sizeof(double) * (size_t)nx);
+        for (int it = 0; r && it < 3; ++it) {
+            data_residual(q, d, x, r);
+            pinned_solve(q, r);
+            for (int i = 0; i < nx; ++i)
+                x[i] += r[i];
+        }
+        free(r);
+    }
     /* G in the gauge; the magnification moved to A (the unobservable G+A pattern) */
     double *gx = g, *gy = g + nn;
     for (int k = 0; k < nn; ++k) {

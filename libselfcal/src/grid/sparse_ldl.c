@@ -94,8 +94,10 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm)
         for (int it = 0; it < 6; ++it) {
             int cand = w.queue[reached - 1], h2;
             nd_bfs(&w, cand, L, &h2);
-            if (h2 <= h)
+            if (h2 <= h) {
+                h = h2; /* the level structure in place is cand's */
                 break;
+            }
             h = h2;
             start = cand;
         }
@@ -105,25 +107,60 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm)
             cnt[l] = 0;
         for (int q = 0; q < reached; ++q)
             cnt[w.level[w.queue[q]]]++;
-        /* median level, kept inside 1..h-1; among the levels near it take the smallest */
-        int m = 0, cum = 0;
-        while (m < h && cum + cnt[m] < size / 2)
-            cum += cnt[m++];
-        if (m < 1)
-            m = 1;
-        if (m > h - 1)
-            m = h - 1;
-        int best = m;
-        for (int l = m - 2; l <= m + 2; ++l)
-            if (l >= 1 && l <= h - 1 && cnt[l] < cnt[best]) {
-                int below = 0;
-                for (int t = 0; t < l; ++t)
-                    below += cnt[t];
-                int above = size - below - cnt[l];
-                if (below * 3 >= size && above * 3 >= size)
-                    best = l;
+        /* Candidate separators: level l, thinned to the vertices that have a neighbour in
+         * level l+1 (the others are moved to the lower part: they touch nothing above). Among
+         * the levels that keep both parts >= size/4, take the smallest separator. */
+        int m = -1, best_sep = 1 << 30;
+        {
+            int cum = 0;
+            for (int l = 0; l <= h; ++l) {
+                int below = cum;
+                cum += cnt[l];
+                if (l < 1 || l > h - 1)
+                    continue;
+                int need = 0;
+                for (int q = 0; q < reached; ++q) {
+                    int v = w.queue[q];
+                    if (w.level[v] != l)
+                        continue;
+                    for (long pp = ptr[v]; pp < ptr[v + 1]; ++pp) {
+                        int u = idx[pp];
+                        if (w.lab[u] == L && w.stamp[u] == w.cur_stamp && w.level[u] == l + 1) {
+                            need++;
+                            break;
+                        }
+                    }
+                }
+                int lower = below + cnt[l] - need, upper = size - below - cnt[l];
+                if (lower * 4 < size || upper * 4 < size)
+                    continue;
+                if (need < best_sep)
+                    best_sep = need, m = l;
             }
-        m = best;
+        }
+        if (m < 0) {
+            int cum = 0;
+            m = 0;
+            while (m < h && cum + cnt[m] < size / 2)
+                cum += cnt[m++];
+            if (m < 1)
+                m = 1;
+            if (m > h - 1)
+                m = h - 1;
+        }
+        /* thin: separator vertices of level m without a neighbour in level m+1 go down */
+        for (int q = 0; q < reached; ++q) {
+            int v = w.queue[q];
+            if (w.level[v] != m)
+                continue;
+            int up = 0;
+            for (long pp = ptr[v]; pp < ptr[v + 1] && !up; ++pp) {
+                int u = idx[pp];
+                up = w.lab[u] == L && w.stamp[u] == w.cur_stamp && w.level[u] == m + 1;
+            }
+            if (!up)
+                w.level[v] = m - 1;
+        }
         int n1 = 0, n2 = 0, ns = 0;
         for (int q = 0; q < reached; ++q) {
             int v = w.queue[q];
@@ -201,8 +238,10 @@ int sc_ldl_factor(sc_ldl *f, int n, const long *Ap, const int *Ai, const double 
         }
     }
     f->Lp[0] = 0;
-    for (int k = 0; k < n; ++k)
+    for (int k = 0; k < n; ++k) {
         f->Lp[k + 1] = f->Lp[k] + lnz[k];
+        f->flops += (double)lnz[k] * (double)lnz[k];
+    }
     long nz = f->Lp[n];
     f->Li = malloc(sizeof(int) * (size_t)(nz + 1));
     f->Lx = malloc(sizeof(double) * (size_t)(nz + 1));
@@ -340,6 +379,7 @@ int sc_ldl_selinv(sc_ldl *f)
             int k = f->Li[p];
             double lkj = f->Lx[p];
             acc[k] += f->Zd[k] * lkj;
+            f->selinv_work += (double)(f->Lp[k + 1] - f->Lp[k]);
             for (long q = f->Lp[k]; q < f->Lp[k + 1]; ++q) {
                 int r = f->Li[q];
                 if (mark[r] != j)

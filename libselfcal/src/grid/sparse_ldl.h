@@ -31,6 +31,8 @@ typedef struct sc_ldl {
     double min_kept_ratio;  /* smallest pivot/diagonal among kept pivots */
     double max_null_ratio;  /* largest pivot/diagonal among null pivots (0 if none) */
     double *Zx, *Zd;     /* selected inverse on L's pattern (after sc_ldl_selinv) */
+    double flops;        /* multiply-adds of the factorization (sum of squared column counts) */
+    double selinv_work;  /* multiply-adds of the selected inverse */
     size_t bytes;        /* memory held by this object */
 } sc_ldl;
 
