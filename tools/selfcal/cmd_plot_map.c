@@ -20,7 +20,8 @@ static const char *USAGE =
     "the RMS and maximum of |G| in the title and, when the map has uncertainty columns, an\n"
     "ellipse of semi-axes (ugx, ugy) (k = 1) at each arrow tip. With --truth, a second panel shows\n"
     "the estimation error G - G_true (both maps on the same grid). --scale-um-per-pitch: the error\n"
-    "drawn as long as one pitch (default: a round number near the largest arrow).\n";
+    "drawn as long as one pitch (default: a round number at or above half the largest error,\n"
+    "so the longest arrow is at most two pitches).\n";
 
 /* A round number (1, 2, 2.5, 5 x 10^k) at or above v. */
 static double round_up(double v)
@@ -79,7 +80,8 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
                    cy + span / 2);
     svg_axes(&c, "x (mm, stage)", "y (mm, stage)", NULL);
     stats s = map_stats(n, gx, gy);
-    double scale = scale_um_per_pitch > 0 ? scale_um_per_pitch : round_up(s.max);
+    /* Default: a round number at or above half the largest arrow (longest arrow <= 2 pitches). */
+    double scale = scale_um_per_pitch > 0 ? scale_um_per_pitch : round_up(0.5 * s.max);
     double mm_per_um = m->pitch_mm / scale;
     svg_text(fp, x0 + sz / 2, y0 - 30, 15, "middle", "#000", "%s", title);
     svg_text(fp, x0 + sz / 2, y0 - 12, 12, "middle", "#333",

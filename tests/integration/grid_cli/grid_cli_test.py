@@ -246,7 +246,7 @@ def case_plot():
             fail("%s: %d uncertainty ellipses" % (path, ellipses))
         if path == svg3 and ellipses:
             fail("truth map has no uncertainties but %d ellipses" % ellipses)
-    if "= 5 µm" not in open(svg2, encoding="utf-8").read():
+    if "is 5 µm" not in open(svg2, encoding="utf-8").read():
         fail("scale bar does not show the requested 5 um per pitch")
     # Bad map input: exit 2, no SVG.
     bad = os.path.join(d, "bad.csv")
