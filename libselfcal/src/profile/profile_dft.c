@@ -110,55 +110,58 @@ sc_status sc_profile_dft_create(int n, int d1, int d2, double w1, double w2,
         sc_profile_dft_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "FFTW could not plan size %d", n);
     }
-    /* spectral weights (eqs. 8, 9 with the scans' own noise variances 1/w_k) */
+    /* spectral weights (eqs. 8, 9 with the scans' own noise variances 1/w_k). Every
+     * trigonometric value comes from one table H(j) = exp(iπj/N), j <= N/2 (kept in the x1
+     * workspace until the first solve): sin(πr/N) = Im H(r), exp(2πir/N) - 1 = 2i·sin(πr/N)·H(r)
+     * (no cancellation for small r), H(N - r) = -conj(H(r)). */
+    double complex *H = p->x1;
+    for (int j = 0; j < p->nh; ++j)
+        H[j] = cexp(I * M_PI * (double)j / n);
     const double var[2] = {1.0 / w1, 1.0 / w2};
     double wsum = 0;
-    for (int q = 1; q < p->nh; ++q) {
-        int ok[2];
-        double delta[2];
-        for (int k = 0; k < 2; ++k) {
-            ok[k] = ((long long)p->d[k] * q) % n != 0;
-            double sn = sin(M_PI * (double)(((long long)p->d[k] * q) % n) / n);
-            delta[k] = ok[k] ? var[k] * n / (2.0 * sn * sn) : INFINITY;
+    for (int pass = 0; pass < 2; ++pass) {
+        if (pass == 1) {
+            if (!(wsum > 0)) {
+                sc_profile_dft_destroy(p);
+                return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no harmonic seen by both scans");
+            }
+            p->alpha[0][0] = p->alpha[1][0] = p->zeta[0] = p->beta[0][0] = p->beta[1][0] = 0;
         }
-        if (ok[0] && ok[1]) {
-            double complex z = n / (cexp(-2.0 * M_PI * I * q / n) - 1.0);
+        for (int q = 1; q < p->nh; ++q) {
+            int ok[2];
+            double delta[2];
+            double complex e[2];
+            for (int k = 0; k < 2; ++k) {
+                long long r = ((long long)p->d[k] * q) % n;
+                double complex h = 2 * r <= n ? H[r] : -conj(H[n - r]);
+                double sn = cimag(h);
+                ok[k] = r != 0;
+                delta[k] = ok[k] ? var[k] * n / (2.0 * sn * sn) : INFINITY;
+                e[k] = 2.0 * I * sn * h; /* exp(2πi·d_k·q/N) - 1 */
+            }
+            /* Z(q) = N/(exp(-2πiq/N) - 1) = N / conj(2i·sin(πq/N)·H(q)) */
+            double complex z = n / conj(2.0 * I * cimag(H[q]) * H[q]);
+            double z2 = creal(z * conj(z));
             double mult = (2 * q == n) ? 1.0 : 2.0;
-            wsum += mult * creal(z * conj(z)) / (delta[0] + delta[1]);
-        }
-    }
-    if (!(wsum > 0)) {
-        sc_profile_dft_destroy(p);
-        return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no harmonic seen by both scans");
-    }
-    p->alpha[0][0] = p->alpha[1][0] = p->zeta[0] = p->beta[0][0] = p->beta[1][0] = 0;
-    for (int q = 1; q < p->nh; ++q) {
-        int ok[2];
-        double delta[2];
-        double complex e[2];
-        for (int k = 0; k < 2; ++k) {
-            long long r = ((long long)p->d[k] * q) % n;
-            ok[k] = r != 0;
-            double sn = sin(M_PI * (double)r / n);
-            delta[k] = ok[k] ? var[k] * n / (2.0 * sn * sn) : INFINITY;
-            e[k] = cexp(2.0 * M_PI * I * (double)r / n) - 1.0;
-        }
-        double complex z = n / (cexp(-2.0 * M_PI * I * q / n) - 1.0);
-        double z2 = creal(z * conj(z));
-        double mult = (2 * q == n) ? 1.0 : 2.0;
-        double w1q = ok[0] ? 1.0 / delta[0] : 0.0;
-        double w2q = ok[1] ? 1.0 / (delta[1] + z2 / wsum) : 0.0;
-        double ws = w1q + w2q; /* > 0: every q is seen by one scan at least (gcd = 1, N = p·d1·d2) */
-        p->alpha[0][q] = ok[0] ? w1q / (ws * e[0]) : 0;
-        p->alpha[1][q] = ok[1] ? w2q / (ws * e[1]) : 0;
-        p->zeta[q] = w2q * z / ws;
-        if (ok[0] && ok[1]) {
-            double wa = z2 / (delta[0] + delta[1]);
-            double complex b = mult * wa / (wsum * z);
-            p->beta[0][q] = b / e[0];
-            p->beta[1][q] = b / e[1];
-        } else {
-            p->beta[0][q] = p->beta[1][q] = 0;
+            if (pass == 0) {
+                if (ok[0] && ok[1])
+                    wsum += mult * z2 / (delta[0] + delta[1]);
+                continue;
+            }
+            double w1q = ok[0] ? 1.0 / delta[0] : 0.0;
+            double w2q = ok[1] ? 1.0 / (delta[1] + z2 / wsum) : 0.0;
+            double ws = w1q + w2q; /* > 0: every q is seen by one scan at least (gcd = 1, N = p·d1·d2) */
+            p->alpha[0][q] = ok[0] ? w1q / (ws * e[0]) : 0;
+            p->alpha[1][q] = ok[1] ? w2q / (ws * e[1]) : 0;
+            p->zeta[q] = w2q * z / ws;
+            if (ok[0] && ok[1]) {
+                double wa = z2 / (delta[0] + delta[1]);
+                double complex b = mult * wa / (wsum * z);
+                p->beta[0][q] = b / e[0];
+                p->beta[1][q] = b / e[1];
+            } else {
+                p->beta[0][q] = p->beta[1][q] = 0;
+            }
         }
     }
     *out = p;
