@@ -415,7 +415,7 @@ static void test_sd_notify(void **state)
                 watchdogs++;
         }
     }
-    assert_true(watchdogs >= 3 && watchdogs <= 7);
+    assert_true(watchdogs >= 2 && watchdogs <= 8); /* about 5; slack for a loaded machine */
     sc_daemon_request_reload(&g_d);
     sc_daemon_step(&g_d, 0);
     n = recv(s, buf, sizeof buf - 1, MSG_DONTWAIT);

@@ -29,11 +29,29 @@ class Table:
         rows = []
         lines = dump_text.splitlines()
         assert lines[0].strip() == "i,j,x_mm,y_mm,gx_um,gy_um", lines[0]
-        for ln in lines[1:]:
-            if ln.startswith("#") or not ln.strip():
-                break
-            i, j, x, y, gx, gy = ln.split(",")
+        k = 1
+        while k < len(lines) and lines[k].strip() and not lines[k].startswith("#"):
+            i, j, x, y, gx, gy = lines[k].split(",")
             rows.append((int(i), int(j), float(x), float(y), float(gx), float(gy)))
+            k += 1
+        # Profiles: "# profile k: axis=AXIS dir=DIR", header "n,pos_mm,err_um", rows.
+        self.profiles = []
+        axes = {"x": 0, "y": 1, "z": 2}
+        while k < len(lines):
+            ln = lines[k].strip()
+            k += 1
+            if not ln.startswith("# profile"):
+                continue
+            kv = dict(f.split("=") for f in ln.split(":", 1)[1].split())
+            assert lines[k].strip() == "n,pos_mm,err_um", lines[k]
+            k += 1
+            pos, err = [], []
+            while k < len(lines) and lines[k].strip() and not lines[k].startswith("#"):
+                _, pmm, e = lines[k].split(",")
+                pos.append(float(pmm))
+                err.append(float(e))
+                k += 1
+            self.profiles.append((axes[kv["axis"].lower()], axes[kv["dir"].lower()], pos, err))
         self.ny = max(r[0] for r in rows) + 1
         self.nx = max(r[1] for r in rows) + 1
         assert len(rows) == self.nx * self.ny
@@ -60,19 +78,48 @@ class Table:
                     + fv * ((1 - fu) * t[i + 1][j] + fu * t[i + 1][j + 1]))
         return bil(self.gx), bil(self.gy), outside
 
+    def profile_um(self, coords_mm):
+        """Sum of the profile offsets per coordinate (linear, clamped to each profile's range)."""
+        off = [0.0, 0.0, 0.0]
+        for axis, d, pos, err in self.profiles:
+            s = min(max(coords_mm[axis], pos[0]), pos[-1])
+            step = (pos[-1] - pos[0]) / (len(pos) - 1)
+            q = min(int(math.floor((s - pos[0]) / step)), len(pos) - 2)
+            f = (s - pos[0]) / step - q
+            off[d] += (1 - f) * err[q] + f * err[q + 1]
+        return off
+
     def correct_nm(self, x_nm, y_nm, mode="measure"):
         """Expected corrected position (float nm) and the expected outside flag."""
         gx, gy, out = self.g_um(x_nm * 1e-6, y_nm * 1e-6)
+        off = self.profile_um((x_nm * 1e-6, y_nm * 1e-6, 0.0))
+        gx += off[0]
+        gy += off[1]
         s = -1.0 if mode == "measure" else 1.0
         return x_nm + s * gx * 1e3, y_nm + s * gy * 1e3, out
 
 
-def make_table(cli, workdir, name="t", **kw):
-    """Map CSV -> `selfcal lut build` -> table; returns (table path, Table from `lut dump`)."""
+def write_profile(path, n=60, x0=-14.0, step=0.5, amp_um=0.4):
+    """A SPEC §2 profile output file whose ey_um column is a known smooth error (um)."""
+    with open(path, "w") as f:
+        f.write("n,x_mm,f_um,uf_um,ey_um\n")
+        for k in range(n):
+            x = x0 + k * step
+            f.write(f"{k},{x:.6f},0,0,{amp_um * math.sin(0.3 * x) + 0.01 * x:.6f}\n")
+
+
+def make_table(cli, workdir, name="t", profiles=(), **kw):
+    """Map CSV (+ profiles "AXIS:DIR") -> `selfcal lut build` -> table; returns (table path,
+    Table from `lut dump`)."""
     m = os.path.join(workdir, name + "_map.csv")
     t = os.path.join(workdir, name + ".lut")
     write_map(m, **kw)
-    subprocess.run([cli, "lut", "build", "--map", m, "-o", t], check=True)
+    args = [cli, "lut", "build", "--map", m, "-o", t]
+    for k, spec in enumerate(profiles):
+        pf = os.path.join(workdir, f"{name}_profile{k}.csv")
+        write_profile(pf, amp_um=0.4 + 0.2 * k)
+        args += ["--profile", f"{spec}:{pf}"]
+    subprocess.run(args, check=True)
     dump = subprocess.run([cli, "lut", "dump", t], check=True, capture_output=True, text=True)
     return t, Table(dump.stdout)
 

@@ -221,4 +221,20 @@ try:
 finally:
     rc = d.stop()
 check(rc == 0, f"selfcald exit status {rc}")
+
+# 11. A table with straightness profiles (y error along x, x error along y): grid + offsets.
+table3, ref3 = make_table(cli, work, "tcp3", n=11, pitch=2.0, profiles=("x:y", "y:x"))
+check(len(ref3.profiles) == 2, "lut dump shows the profiles")
+d = Daemon(selfcald, table3)
+try:
+    c = ModbusTcpClient("127.0.0.1", port=d.port, timeout=2, retries=0)
+    check(c.connect(), "connect")
+    for _ in range(300):
+        x, y = rng.randint(-16_000_000, 16_000_000), rng.randint(-16_000_000, 16_000_000)
+        gx, gy, st, _ = roundtrip(c, x, y)
+        check_point(x, y, gx, gy, st, r=ref3)
+    c.close()
+finally:
+    rc = d.stop()
+check(rc == 0, f"selfcald exit status {rc}")
 print(f"modbus tcp (pymodbus): ok; worst |corrected - independent| = {worst:.3f} nm")
