@@ -20,4 +20,5 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   # truth exactly from noise-free data confirms it independently of the plan analysis.
   grid_cli_test(grid_cli_e2e_lsq_shift2 end_to_end lsq "views:rot=0 shift=0,0|rot=90 shift=0,0|rot=0 shift=2,0" 9,25)
   grid_cli_test(grid_cli_lsq_noise lsq_noise)
+  grid_cli_test(grid_cli_fuzz fuzz 150)
 endif()

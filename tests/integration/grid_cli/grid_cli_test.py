@@ -416,7 +416,54 @@ def case_bad_input():
         fail("usage error left a map")
 
 
-CASES = {"end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
+def case_fuzz():
+    """Randomly damaged input files (seeded): selfcal grid/plan exit 0 or 2, never crash, and on
+    exit 2 leave no output file."""
+    import random
+    rnd = random.Random(12345)
+    d = fresh_dir("fuzz")
+    src = simulate(d, "src", "double-shift", 9, "--sigma-r-um", 0.001)
+    base = open(src["inp"]).read().splitlines(True)
+    junk = ["", "x", "-", "1e999", "nan", "0x10", " ", ",", "# view 0: rot=0 shift=0,0", "9999999999999999999",
+            "-1", "3.5", "# N = 9", "view,i,j,x_mm,y_mm", "\x00", "1,2", "rot=90", "ü"]
+    counts = {0: 0, 2: 0}
+    for t in range(int(ARGS[0]) if ARGS else 150):
+        lines = list(base)
+        for _ in range(rnd.randint(1, 3)):
+            k = rnd.randrange(len(lines))
+            op = rnd.randrange(5)
+            if op == 0:
+                del lines[k]
+            elif op == 1:
+                lines.insert(k, lines[rnd.randrange(len(lines))])
+            elif op == 2:
+                f = lines[k].rstrip("\n").split(",")
+                f[rnd.randrange(len(f))] = rnd.choice(junk)
+                lines[k] = ",".join(f) + "\n"
+            elif op == 3:
+                lines[k] = lines[k][: rnd.randrange(len(lines[k]) + 1)]
+            else:
+                lines.insert(k, rnd.choice(junk) + "\n")
+        path = os.path.join(d, "f%d.csv" % t)
+        with open(path, "w", encoding="utf-8", errors="surrogateescape") as f:
+            f.write("".join(lines).replace("\\x00", "\0"))
+        method = rnd.choice(["ye", "double-shift", "lsq"])
+        outs = [os.path.join(d, "f%d_%s" % (t, s)) for s in ("G.csv", "A.csv", "S.json")]
+        for args in (["grid", "--method", method, path, "--map", outs[0], "--artifact", outs[1],
+                      "--summary", outs[2]], ["plan", path]):
+            p = subprocess.run([CLI] + args, capture_output=True, text=True, timeout=120)
+            if p.returncode not in (0, 2):
+                fail("%s: exit %d\n%s" % (" ".join(args), p.returncode, p.stderr[-2000:]))
+            if p.returncode == 2:
+                if args[0] == "grid" and any(os.path.exists(o) for o in outs):
+                    fail("exit 2 but outputs left: %s" % path)
+                if not p.stderr.startswith("selfcal: ") or len(p.stderr.strip().splitlines()) != 1:
+                    fail("stderr for %s: %r" % (path, p.stderr))
+            counts[p.returncode] += 1
+    print("fuzz: exit codes %s" % counts)
+
+
+CASES = {"fuzz": case_fuzz, "end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
          "plot": case_plot, "simulate": case_simulate, "bad_input": case_bad_input}
 CASES[CASE]()
 print("PASS " + CASE + " " + " ".join(ARGS))
