@@ -9,7 +9,8 @@
 
 /* ---------------------------------------------------------------- nested dissection ordering */
 
-#define ND_LEAF 48
+int sc_amd_order(int n, const long *ptr, const int *idx, int *perm);
+
 
 typedef struct nd_ws {
     const long *ptr;
@@ -42,7 +43,45 @@ static int nd_bfs(nd_ws *w, int s, int L, int *height)
     return tail;
 }
 
-int sc_nd_order(int n, const long *ptr, const int *idx, int *perm)
+/* Order the segment perm[lo, hi) (nodes labelled L) by minimum degree on its induced subgraph. */
+static int nd_leaf_amd(nd_ws *w, int *perm, int lo, int hi, int L)
+{
+    int m = hi - lo;
+    if (m < 3)
+        return 0;
+    long ne = 0;
+    for (int t = lo; t < hi; ++t) {
+        int v = perm[t];
+        w->level[v] = t - lo; /* local index */
+        ne += w->ptr[v + 1] - w->ptr[v];
+    }
+    long *sp = malloc(sizeof(long) * (size_t)(m + 1));
+    int *si = malloc(sizeof(int) * (size_t)(ne + 1));
+    int *sperm = malloc(sizeof(int) * (size_t)(m + 1));
+    if (!sp || !si || !sperm) {
+        free(sp), free(si), free(sperm);
+        return -1;
+    }
+    sp[0] = 0;
+    long a = 0;
+    for (int t = 0; t < m; ++t) {
+        int v = perm[lo + t];
+        for (long p = w->ptr[v]; p < w->ptr[v + 1]; ++p)
+            if (w->lab[w->idx[p]] == L)
+                si[a++] = w->level[w->idx[p]];
+        sp[t + 1] = a;
+    }
+    int rc = sc_amd_order(m, sp, si, sperm);
+    if (rc == 0) {
+        for (int t = 0; t < m; ++t)
+            w->tmp[t] = perm[lo + sperm[t]];
+        memcpy(perm + lo, w->tmp, sizeof(int) * (size_t)m);
+    }
+    free(sp), free(si), free(sperm);
+    return rc;
+}
+
+int sc_nd_order(int n, const long *ptr, const int *idx, int *perm, int leaf, int amd_leaves)
 {
     nd_ws w;
     memset(&w, 0, sizeof w);
@@ -68,8 +107,11 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm)
     while (sp > 0) {
         int L = stk[--sp], hi = stk[--sp], lo = stk[--sp];
         int size = hi - lo;
-        if (size <= ND_LEAF)
+        if (size <= leaf) {
+            if (amd_leaves && nd_leaf_amd(&w, perm, lo, hi, L) != 0)
+                goto nomem;
             continue;
+        }
         int h, start = perm[lo];
         int reached = nd_bfs(&w, start, L, &h);
         int L1 = next_label++, L2 = next_label++;
@@ -101,8 +143,11 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm)
             h = h2;
             start = cand;
         }
-        if (h < 2)
-            continue; /* (nearly) a clique: order as it is */
+        if (h < 2) { /* (nearly) a clique */
+            if (amd_leaves && nd_leaf_amd(&w, perm, lo, hi, L) != 0)
+                goto nomem;
+            continue;
+        }
         for (int l = 0; l <= h; ++l)
             cnt[l] = 0;
         for (int q = 0; q < reached; ++q)
@@ -192,6 +237,234 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm)
     }
     free(w.lab), free(w.level), free(w.queue), free(w.stamp), free(w.tmp), free(stk), free(cnt);
     return 0;
+nomem:
+    free(w.lab), free(w.level), free(w.queue), free(w.stamp), free(w.tmp), free(stk), free(cnt);
+    return -1;
+}
+
+/* ---------------------------------------------------------------- approximate minimum degree */
+
+/* A growable list of ints. */
+typedef struct ilist {
+    int *v;
+    int len, cap;
+} ilist;
+
+static int il_push(ilist *l, int x)
+{
+    if (l->len == l->cap) {
+        int nc = l->cap ? 2 * l->cap : 4;
+        int *nv = realloc(l->v, sizeof(int) * (size_t)nc);
+        if (!nv)
+            return -1;
+        l->v = nv;
+        l->cap = nc;
+    }
+    l->v[l->len++] = x;
+    return 0;
+}
+
+/* Minimum degree on the quotient graph (variables and elements), with the approximate external
+ * degree and aggressive element absorption of Amestoy, Davis & Duff (AMD, 1996); no
+ * supervariables. */
+int sc_amd_order(int n, const long *ptr, const int *idx, int *perm)
+{
+    ilist *A = calloc((size_t)n + 1, sizeof(ilist)); /* variable neighbours */
+    ilist *E = calloc((size_t)n + 1, sizeof(ilist)); /* adjacent elements */
+    ilist *Le = calloc((size_t)n + 1, sizeof(ilist)); /* element members */
+    int *deg = malloc(sizeof(int) * (size_t)(n + 1));
+    int *head = malloc(sizeof(int) * (size_t)(n + 1)); /* degree buckets */
+    int *next = malloc(sizeof(int) * (size_t)(n + 1));
+    int *prev = malloc(sizeof(int) * (size_t)(n + 1));
+    int *w = malloc(sizeof(int) * (size_t)(n + 1));
+    int *wstamp = malloc(sizeof(int) * (size_t)(n + 1));
+    int *mark = malloc(sizeof(int) * (size_t)(n + 1));
+    unsigned char *state = calloc((size_t)n + 1, 1); /* 0 variable, 1 element (live), 2 dead */
+    int ok = A && E && Le && deg && head && next && prev && w && wstamp && mark && state;
+    for (int i = 0; ok && i < n; ++i) {
+        A[i].cap = (int)(ptr[i + 1] - ptr[i]);
+        A[i].v = malloc(sizeof(int) * (size_t)(A[i].cap + 1));
+        if (!A[i].v) {
+            ok = 0;
+            break;
+        }
+        for (long p = ptr[i]; p < ptr[i + 1]; ++p)
+            if (idx[p] != i)
+                A[i].v[A[i].len++] = idx[p];
+    }
+    if (ok) {
+        for (int d = 0; d <= n; ++d)
+            head[d] = -1;
+        for (int i = 0; i < n; ++i) {
+            deg[i] = A[i].len;
+            wstamp[i] = -1;
+            mark[i] = -1;
+            next[i] = head[deg[i]];
+            prev[i] = -1;
+            if (head[deg[i]] >= 0)
+                prev[head[deg[i]]] = i;
+            head[deg[i]] = i;
+        }
+    }
+    int mindeg = 0;
+    for (int k = 0; ok && k < n; ++k) {
+        while (mindeg < n && head[mindeg] < 0)
+            mindeg++;
+        int p = head[mindeg];
+        /* unlink p */
+        head[mindeg] = next[p];
+        if (next[p] >= 0)
+            prev[next[p]] = -1;
+        perm[k] = p;
+        state[p] = 1;
+        /* L_p = (A_p ∪ L_e for e ∈ E_p) \ {p}, over variables */
+        ilist *L = &Le[p];
+        mark[p] = k;
+        for (int t = 0; t < A[p].len; ++t) {
+            int j = A[p].v[t];
+            if (state[j] == 0 && mark[j] != k) {
+                mark[j] = k;
+                if (il_push(L, j)) ok = 0;
+            }
+        }
+        for (int t = 0; t < E[p].len; ++t) {
+            int e = E[p].v[t];
+            if (state[e] != 1)
+                continue;
+            for (int s = 0; s < Le[e].len; ++s) {
+                int j = Le[e].v[s];
+                if (state[j] == 0 && mark[j] != k) {
+                    mark[j] = k;
+                    if (il_push(L, j)) ok = 0;
+                }
+            }
+            state[e] = 2; /* absorbed into p */
+            free(Le[e].v);
+            Le[e].v = NULL;
+            Le[e].len = Le[e].cap = 0;
+        }
+        free(A[p].v), free(E[p].v);
+        A[p].v = E[p].v = NULL;
+        A[p].len = E[p].len = A[p].cap = E[p].cap = 0;
+        if (!ok)
+            break;
+        /* clean the lists of the members; |L_e \ L_p| for their other elements */
+        for (int t = 0; t < L->len; ++t) {
+            int i = L->v[t];
+            int a = 0;
+            for (int s = 0; s < A[i].len; ++s) {
+                int j = A[i].v[s];
+                if (state[j] == 0 && mark[j] != k)
+                    A[i].v[a++] = j;
+            }
+            A[i].len = a;
+            a = 0;
+            for (int s = 0; s < E[i].len; ++s) {
+                int e = E[i].v[s];
+                if (state[e] != 1)
+                    continue;
+                E[i].v[a++] = e;
+                if (wstamp[e] != k) {
+                    wstamp[e] = k;
+                    w[e] = Le[e].len;
+                }
+                w[e]--;
+            }
+            E[i].len = a;
+            if (il_push(&E[i], p)) {
+                ok = 0;
+                break;
+            }
+        }
+        if (!ok)
+            break;
+        /* approximate degrees; elements inside L_p are absorbed */
+        int lp = L->len;
+        for (int t = 0; t < lp; ++t) {
+            int i = L->v[t];
+            long d = A[i].len + (lp - 1);
+            int a = 0;
+            for (int s = 0; s < E[i].len; ++s) {
+                int e = E[i].v[s];
+                if (e != p && state[e] == 1 && w[e] == 0) {
+                    state[e] = 2;
+                    free(Le[e].v);
+                    Le[e].v = NULL;
+                    Le[e].len = Le[e].cap = 0;
+                    continue;
+                }
+                if (state[e] != 1)
+                    continue;
+                E[i].v[a++] = e;
+                if (e != p)
+                    d += w[e];
+            }
+            E[i].len = a;
+            if (d > n - k - 1)
+                d = n - k - 1;
+            /* move i to bucket d */
+            if (prev[i] >= 0)
+                next[prev[i]] = next[i];
+            else
+                head[deg[i]] = next[i];
+            if (next[i] >= 0)
+                prev[next[i]] = prev[i];
+            deg[i] = (int)d;
+            next[i] = head[d];
+            prev[i] = -1;
+            if (head[d] >= 0)
+                prev[head[d]] = i;
+            head[d] = i;
+            if (d < mindeg)
+                mindeg = (int)d;
+        }
+    }
+    for (int i = 0; A && i < n; ++i)
+        free(A[i].v);
+    for (int i = 0; E && i < n; ++i)
+        free(E[i].v);
+    for (int i = 0; Le && i < n; ++i)
+        free(Le[i].v);
+    free(A), free(E), free(Le), free(deg), free(head), free(next), free(prev), free(w);
+    free(wstamp), free(mark), free(state);
+    return ok ? 0 : -1;
+}
+
+/* Multiply-adds of the LDLᵀ factorization of the graph's matrix under perm (column counts from
+ * the elimination tree); -1 if memory ran out. */
+double sc_order_flops(int n, const long *ptr, const int *idx, const int *perm)
+{
+    int *iperm = malloc(sizeof(int) * (size_t)(n + 1));
+    int *parent = malloc(sizeof(int) * (size_t)(n + 1));
+    int *flag = malloc(sizeof(int) * (size_t)(n + 1));
+    long *cnt = calloc((size_t)n + 1, sizeof(long));
+    if (!iperm || !parent || !flag || !cnt) {
+        free(iperm), free(parent), free(flag), free(cnt);
+        return -1;
+    }
+    for (int k = 0; k < n; ++k)
+        iperm[perm[k]] = k;
+    for (int k = 0; k < n; ++k) {
+        parent[k] = -1;
+        flag[k] = k;
+        int v = perm[k];
+        for (long p = ptr[v]; p < ptr[v + 1]; ++p) {
+            int i = iperm[idx[p]];
+            if (i >= k)
+                continue;
+            for (; flag[i] != k; i = parent[i]) {
+                if (parent[i] == -1)
+                    parent[i] = k;
+                cnt[i]++;
+                flag[i] = k;
+            }
+        }
+    }
+    double f = 0;
+    for (int k = 0; k < n; ++k)
+        f += (double)cnt[k] * (double)cnt[k];
+    free(iperm), free(parent), free(flag), free(cnt);
+    return f;
 }
 
 /* ---------------------------------------------------------------- factorization */

@@ -14,8 +14,16 @@
 
 /* A fill-reducing order of the graph (CSR adjacency ptr/idx, symmetric, no self loops, n nodes) by
  * nested dissection with breadth-first level-set separators: perm[k] = old index of pivot k.
+ * Parts of at most `leaf` nodes are not split further; amd_leaves: order them by minimum degree.
  * Returns 0, or -1 if memory ran out. */
-int sc_nd_order(int n, const long *ptr, const int *idx, int *perm);
+int sc_nd_order(int n, const long *ptr, const int *idx, int *perm, int leaf, int amd_leaves);
+
+/* The same by approximate minimum degree (quotient graph, approximate external degree, aggressive
+ * absorption). Returns 0, or -1 if memory ran out. */
+int sc_amd_order(int n, const long *ptr, const int *idx, int *perm);
+
+/* Multiply-adds of factoring the graph's matrix in the order perm (-1 if memory ran out). */
+double sc_order_flops(int n, const long *ptr, const int *idx, const int *perm);
 
 typedef struct sc_ldl {
     int n;
