@@ -167,7 +167,7 @@ typedef struct bad_case {
 static const bad_case bad[] = {
     {"# selfcal-grid v2\n# N = 3\n", 1, "selfcal-grid v1"},
     {"view,i,j,x_mm,y_mm\n", 1, "selfcal-grid v1"},
-    {"", 0, "selfcal-grid v1"},
+    {"", 1, "selfcal-grid v1"},
     {"# selfcal-grid v1\n# pitch_mm = 1\n# view 0: rot=0 shift=0,0\n" COLS, 4, "N = ...' is missing"},
     {"# selfcal-grid v1\n# N = 4\n", 2, "even"},
     {"# selfcal-grid v1\n# N = 1\n", 2, "out of range"},
@@ -224,6 +224,50 @@ static void test_parser_errors(void **state)
     assert_int_equal(sc_grid_read(SELFCAL_TEST_TMP "/no/such/file.csv", &d, NULL, &err), SC_E_INPUT);
 }
 
+/* Map files that are not N x N maps are refused with the line. */
+static void test_map_errors(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        long line;
+        const char *needle;
+    } cases[] = {
+        {"i,j,x,y,gx_um,gy_um\n", 1, "map header"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um,ugx_um\n", 1, "map header"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1\n", 2, "expected 6 fields"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,q\n", 2, "not a finite number"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,1,0,1,1\n", 3, "N x N"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um\n", 1, "no map rows"},
+    };
+    char path[512];
+    tmp_path(path, sizeof path, "badmap.csv");
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        write_text(path, cases[k].text);
+        sc_grid_map m;
+        sc_error err;
+        sc_error_clear(&err);
+        sc_status st = sc_grid_read_map(path, &m, &err);
+        if (st != SC_E_INPUT || err.line != cases[k].line || !strstr(err.msg, cases[k].needle))
+            fail_msg("map case %zu: status %d line %ld msg '%s'", k, st, err.line, err.msg);
+        assert_null(m.gx_um);
+    }
+    /* 3 x 3 with a repeated node. */
+    char text[1024] = "i,j,x_mm,y_mm,gx_um,gy_um\n";
+    for (int k = 0; k < 9; ++k) {
+        char row[64];
+        int i = k == 8 ? 0 : k / 3, j = k == 8 ? 0 : k % 3;
+        snprintf(row, sizeof row, "%d,%d,%d,%d,0,0\n", i, j, j - 1, i - 1);
+        strcat(text, row);
+    }
+    write_text(path, text);
+    sc_grid_map m;
+    sc_error err;
+    assert_int_equal(sc_grid_read_map(path, &m, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "repeated"));
+    assert_int_equal(err.line, 10);
+}
+
 /* The summary is valid enough JSON for a quick look: the keys and null for NaN. */
 static void test_summary(void **state)
 {
@@ -265,6 +309,7 @@ int main(void)
         cmocka_unit_test(test_input_round_trip),
         cmocka_unit_test(test_hand_written_values),
         cmocka_unit_test(test_parser_errors),
+        cmocka_unit_test(test_map_errors),
         cmocka_unit_test(test_summary),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -228,7 +228,7 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
                  !strcmp(b, "v1");
         }
         if (!ok) {
-            st = sc_error_set(err, SC_E_INPUT, path, got ? 1 : 0,
+            st = sc_error_set(err, SC_E_INPUT, path, 1,
                               "not a selfcal-grid v1 file (the first line must be "
                               "'# selfcal-grid v1')");
             goto fail;
