@@ -6,3 +6,6 @@ if(TARGET PkgConfig::LAPACKE)
   selfcal_unit_test(NAME test_grid_lsq_dense SOURCES unit/test_grid_lsq_dense.c
                     LIBS selfcal_grid PkgConfig::LAPACKE LABELS grid TIMEOUT 120)
 endif()
+# the sparse LDLᵀ module itself (private header of the grid area)
+selfcal_unit_test(NAME test_grid_lsq_ldl SOURCES unit/test_grid_lsq_ldl.c LIBS selfcal_grid
+                  LABELS grid TIMEOUT 60)
