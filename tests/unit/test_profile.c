@@ -413,7 +413,7 @@ static void test_reader_good_and_bad(void **state)
     text_free(&t);
     text_good(&t, 8, 3, 5);
     text_set(&t, 2, "# N = 5");
-    expect_bad(&t, 5, "N too small", -1);
+    expect_bad(&t, 2, "N too small", -1);
     text_free(&t);
     /* a gap in n: reported at the row after it */
     text_good(&t, n, d1, d2);

@@ -261,7 +261,7 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
             goto fail;
         }
         if (d_val[k] >= n_val) {
-            st = sc_error_set(err, SC_E_INPUT, P, line_scan[k],
+            st = sc_error_set(err, SC_E_INPUT, P, line_n,
                               "N too small: scan %d spacing d = %ld leaves no sample (N = %ld)", k + 1,
                               d_val[k], n_val);
             goto fail;

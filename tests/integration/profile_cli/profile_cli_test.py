@@ -98,7 +98,7 @@ def case_bad_input():
     cases.append(("n_too_small_lsq", good_lines(7, 3, 5), "lsq", 2, "too small"))
     g = good_lines(8, 3, 5)
     g[1] = "# N = 5"
-    cases.append(("n_too_small", g, "lsq", 5, "N too small"))
+    cases.append(("n_too_small", g, "lsq", 2, "N too small"))
     g = good_lines()
     cases.append(("gap", g[: s1 + 3] + g[s1 + 4:], "lsq", s1 + 4, "gap in scan 1"))
     g = good_lines()
