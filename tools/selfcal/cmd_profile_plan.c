@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "selfcal/csv.h"
@@ -129,7 +130,10 @@ int cmd_profile_plan(int argc, char **argv)
     }
     size_t cnt = 0;
     int rc = CLI_OK;
+    const int tty = isatty(STDERR_FILENO);
     for (long d1 = dmin; d1 <= dmax && rc == CLI_OK; ++d1) {
+        if (tty)
+            fprintf(stderr, "\rprofile-plan: d1 = %ld of %ld", d1, dmax), fflush(stderr);
         for (long d2 = d1 + 1; d2 <= dmax; ++d2) {
             sc_error err;
             sc_error_clear(&err);
@@ -161,6 +165,8 @@ int cmd_profile_plan(int argc, char **argv)
             rows[cnt++] = r;
         }
     }
+    if (tty)
+        fprintf(stderr, "\r%40s\r", "");
     if (rc == CLI_OK) {
         if (cnt == 0) {
             sc_error err;
