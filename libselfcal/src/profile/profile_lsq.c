@@ -264,8 +264,7 @@ sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, con
 
 static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc_error *err)
 {
-    size_t w = (size_t)p->bw + 1;
-    double *win = malloc((w * w + 2 * w) * sizeof(double));
+    double *win = malloc(sc_lsq_band_inverse_scratch(p->bw) * sizeof(double));
     if (!win) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
     sc_lsq_band_inverse_diag(&p->band, win, diag);
     free(win);

@@ -11,12 +11,18 @@
 #define SC_DOT sc_lsq_dot
 #define SC_AXPY sc_lsq_axpy
 #define SC_AXPY4 sc_lsq_axpy4
+#define SC_DOT4 sc_lsq_dot4
+#define SC_GEMV_ROWS sc_lsq_gemv_rows
+#define SC_GEMV2_ROWS sc_lsq_gemv2_rows
 #include "profile_lsq_band_impl.h"
 #undef SC_SFX
 #undef SC_ATTR
 #undef SC_DOT
 #undef SC_AXPY
 #undef SC_AXPY4
+#undef SC_DOT4
+#undef SC_GEMV_ROWS
+#undef SC_GEMV2_ROWS
 
 #if SC_LSQ_HAVE_AVX2
 #define SC_SFX(name) name##_avx2
@@ -24,6 +30,9 @@
 #define SC_DOT sc_lsq_dot_avx2
 #define SC_AXPY sc_lsq_axpy_avx2
 #define SC_AXPY4 sc_lsq_axpy4_avx2
+#define SC_DOT4 sc_lsq_dot4_avx2
+#define SC_GEMV_ROWS sc_lsq_gemv_rows_avx2
+#define SC_GEMV2_ROWS sc_lsq_gemv2_rows_avx2
 #include "profile_lsq_band_impl.h"
 #endif
 
@@ -65,4 +74,10 @@ void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag)
     }
 #endif
     inverse_diag_generic(b, win, diag);
+}
+
+size_t sc_lsq_band_inverse_scratch(int bw)
+{
+    size_t w = (size_t)bw + 1, ws = (w + 3) & ~(size_t)3;
+    return ws * w + 2 * ws + 3 * w; /* window, t, u, l, m, row pointers */
 }

@@ -26,7 +26,8 @@ int sc_lsq_band_factor(sc_lsq_band *b, double *col);
 void sc_lsq_band_solve2(const sc_lsq_band *b, double *x, double *y);
 
 /* diag[i] = (B⁻¹)[i][i] by the Takahashi recurrences (selected inversion) on the factor;
- * win: (bw+1)·(bw+3) doubles of scratch. */
+ * win: sc_lsq_band_inverse_scratch(bw) doubles of scratch. */
+size_t sc_lsq_band_inverse_scratch(int bw);
 void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag);
 
 #endif

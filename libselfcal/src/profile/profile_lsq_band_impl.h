@@ -80,17 +80,98 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
     return -1;
 }
 
-SC_ATTR static void SC_SFX(solve2)(const sc_lsq_band *b, double *x, double *y)
+/* Forward substitution L·x = b in place, for one right-hand side (x) or two (x, y: each band row
+ * is read from memory once for both — the factor is far larger than the caches).
+ * Row i: x[i] = (b[i] - L[i][i-bw..i-1]·x) / L[i][i]. Four rows at a time where the band is full:
+ * their dot products over the columns already known share the loads of x (SC_DOT4), then the 4×4
+ * triangle is resolved. */
+SC_ATTR static inline void SC_SFX(forward_block)(int bw, const double *r0, size_t ld, double *x,
+                                                 int i)
+{
+    const double *r1 = r0 + ld, *r2 = r1 + ld, *r3 = r2 + ld;
+    double s[4];
+    /* common known columns i+3-bw .. i-1 */
+    SC_DOT4(x + i + 3 - bw, r0 + 3, r1 + 2, r2 + 1, r3, bw - 3, s);
+    /* heads: row i+r also has columns i+r-bw .. i+2-bw */
+    s[0] += r0[0] * x[i - bw] + r0[1] * x[i + 1 - bw] + r0[2] * x[i + 2 - bw];
+    s[1] += r1[0] * x[i + 1 - bw] + r1[1] * x[i + 2 - bw];
+    s[2] += r2[0] * x[i + 2 - bw];
+    /* the triangle: L[i+r][i+m] = r_r[bw - r + m] */
+    double x0 = (x[i] - s[0]) * r0[bw];
+    double x1 = (x[i + 1] - s[1] - r1[bw - 1] * x0) * r1[bw];
+    double x2 = (x[i + 2] - s[2] - r2[bw - 2] * x0 - r2[bw - 1] * x1) * r2[bw];
+    double x3 = (x[i + 3] - s[3] - r3[bw - 3] * x0 - r3[bw - 2] * x1 - r3[bw - 1] * x2) * r3[bw];
+    x[i] = x0;
+    x[i + 1] = x1;
+    x[i + 2] = x2;
+    x[i + 3] = x3;
+}
+
+SC_ATTR static void SC_SFX(forward)(const sc_lsq_band *b, double *x, double *y)
 {
     int n = b->n, bw = b->bw;
-    for (int i = 0; i < n; i++) {
-        const double *ri = b->a + (size_t)i * b->ld;
+    size_t ld = b->ld;
+    int i = 0;
+    if (bw >= 4) {
+        for (; i < bw && i < n; i++) {
+            const double *ri = b->a + (size_t)i * ld;
+            x[i] = (x[i] - SC_DOT(ri + (bw - i), x, i)) * ri[bw];
+            if (y) y[i] = (y[i] - SC_DOT(ri + (bw - i), y, i)) * ri[bw];
+        }
+        for (; i + 3 < n; i += 4) {
+            const double *r0 = b->a + (size_t)i * ld;
+            SC_SFX(forward_block)(bw, r0, ld, x, i);
+            if (y) SC_SFX(forward_block)(bw, r0, ld, y, i);
+        }
+    }
+    for (; i < n; i++) {
+        const double *ri = b->a + (size_t)i * ld;
         int k0 = i - bw < 0 ? 0 : i - bw;
         x[i] = (x[i] - SC_DOT(ri + (k0 - i + bw), x + k0, i - k0)) * ri[bw];
         if (y) y[i] = (y[i] - SC_DOT(ri + (k0 - i + bw), y + k0, i - k0)) * ri[bw];
     }
-    for (int i = n - 1; i >= 0; i--) {
-        const double *ri = b->a + (size_t)i * b->ld;
+}
+
+/* Backward substitution Lᵀ·x = y in place (one or two right-hand sides, as forward), column-
+ * oriented: x[i] is final once the rows below it are applied; then x[i-bw..i-1] -= L[i][..]·x[i].
+ * Four rows at a time where the band is full (one four-term axpy over the common columns instead
+ * of four overlapping ones). */
+SC_ATTR static inline void SC_SFX(backward_block)(int bw, const double *r0, size_t ld, double *x,
+                                                  int i)
+{
+    const double *r1 = r0 - ld, *r2 = r1 - ld, *r3 = r2 - ld;
+    /* the triangle: rows i, i-1, i-2, i-3 against columns i-1 .. i-3 */
+    double x0 = x[i] * r0[bw];
+    double x1 = (x[i - 1] - r0[bw - 1] * x0) * r1[bw];
+    double x2 = (x[i - 2] - r0[bw - 2] * x0 - r1[bw - 1] * x1) * r2[bw];
+    double x3 = (x[i - 3] - r0[bw - 3] * x0 - r1[bw - 2] * x1 - r2[bw - 1] * x2) * r3[bw];
+    x[i] = x0;
+    x[i - 1] = x1;
+    x[i - 2] = x2;
+    x[i - 3] = x3;
+    /* common columns i-bw .. i-4: row i-r at position c - (i-r) + bw */
+    double a[4] = {-x0, -x1, -x2, -x3};
+    SC_AXPY4(x + i - bw, a, r0, r1 + 1, r2 + 2, r3 + 3, bw - 3);
+    /* tails: row i-r also has columns i-r-bw .. i-bw-1 */
+    x[i - 1 - bw] -= r1[0] * x1 + r2[1] * x2 + r3[2] * x3;
+    x[i - 2 - bw] -= r2[0] * x2 + r3[1] * x3;
+    x[i - 3 - bw] -= r3[0] * x3;
+}
+
+SC_ATTR static void SC_SFX(backward)(const sc_lsq_band *b, double *x, double *y)
+{
+    int n = b->n, bw = b->bw;
+    size_t ld = b->ld;
+    int i = n - 1;
+    if (bw >= 4) {
+        for (; i - 3 - bw >= 0; i -= 4) {
+            const double *r0 = b->a + (size_t)i * ld;
+            SC_SFX(backward_block)(bw, r0, ld, x, i);
+            if (y) SC_SFX(backward_block)(bw, r0, ld, y, i);
+        }
+    }
+    for (; i >= 0; i--) {
+        const double *ri = b->a + (size_t)i * ld;
         int k0 = i - bw < 0 ? 0 : i - bw;
         double xi = x[i] * ri[bw];
         x[i] = xi;
@@ -103,50 +184,89 @@ SC_ATTR static void SC_SFX(solve2)(const sc_lsq_band *b, double *x, double *y)
     }
 }
 
+SC_ATTR static void SC_SFX(solve2)(const sc_lsq_band *b, double *x, double *y)
+{
+    SC_SFX(forward)(b, x, y);
+    SC_SFX(backward)(b, x, y);
+}
+
 /* diag(B⁻¹) by the Takahashi recurrences, i = n-1 down to 0 (Z = B⁻¹, L = the factor):
  *   Z[i][j] = -(1/L[i][i]) Σ_{k=i+1}^{i+bw} L[k][i] Z[k][j]   (j = i+1 .. i+bw)
  *   Z[i][i] = (1/L[i][i]) (1/L[i][i] - Σ_k L[k][i] Z[k][i])
  * keeping only the (bw+1)×(bw+1) window of Z the next step needs, as a circular buffer: index k
  * lives in row and column k mod (bw+1). t accumulates over all bw+1 columns (one of them, slot i,
  * is stale and ignored), so each step is bw contiguous axpys, four at a time. */
+/* Row i of Z from t (= Σ_k L[k][i]·Z[k][·] over the window slots): Z[i][k] = -t[slot k]/L[i][i],
+ * Z[i][i] = (1/L[i][i])(1/L[i][i] - Σ_k L[k][i]·Z[i][k]); written into row and column slot(i). */
+SC_ATTR static inline double SC_SFX(window_row)(double *win, int w, int ws, int i, double rii,
+                                                const double *t, const double *l, int cnt)
+{
+    int si = i % w;
+    double *row_i = win + (size_t)si * ws;
+    double acc = 0.0;
+    int sk = (i + 1) % w;
+    for (int q = 0; q < cnt; q++) {
+        double zik = -t[sk] * rii;
+        row_i[sk] = zik;
+        win[(size_t)sk * ws + si] = zik;
+        acc += l[q] * zik;
+        sk = sk + 1 == w ? 0 : sk + 1;
+    }
+    double zii = (rii - acc) * rii;
+    row_i[si] = zii;
+    return zii;
+}
+
+/* diag(B⁻¹) by the Takahashi recurrences, i = n-1 down to 0 (Z = B⁻¹, L = the factor):
+ *   Z[i][j] = -(1/L[i][i]) Σ_{k=i+1}^{i+bw} L[k][i] Z[k][j]   (j = i+1 .. i+bw)
+ *   Z[i][i] = (1/L[i][i]) (1/L[i][i] - Σ_k L[k][i] Z[k][i])
+ * keeping only the (bw+1)×(bw+1) window of Z the next step needs, as a circular buffer: index k
+ * lives in row and column k mod (bw+1) (row stride ws, a multiple of 4). t accumulates over all
+ * columns (the stale ones are never read). In the interior two steps i, i-1 share one pass over
+ * the window rows i+1 .. i+bw-1 (SC_GEMV2_ROWS); the terms that need row i of Z — not yet known
+ * during that pass — are added after it. */
 SC_ATTR static void SC_SFX(inverse_diag)(const sc_lsq_band *b, double *win, double *diag)
 {
     int n = b->n, bw = b->bw;
-    int w = bw + 1;
-    double *t = win + (size_t)w * w;
-    double *l = t + w;
-    for (size_t s = 0; s < (size_t)w * w; s++) win[s] = 0.0;
-    for (int i = n - 1; i >= 0; i--) {
-        const double rii = b->a[(size_t)i * b->ld + bw];
+    int w = bw + 1, ws = (w + 3) & ~3;
+    double *t = win + (size_t)ws * w;
+    double *u = t + ws;
+    double *l = u + ws;
+    double *m = l + w;
+    const double **rows = (const double **)(m + w);
+    size_t ldm1 = b->ld - 1;
+    for (size_t s = 0; s < (size_t)ws * w + 2 * (size_t)ws; s++) win[s] = 0.0;
+    int i = n - 1;
+    while (i >= 0) {
         int cnt = (i + bw < n - 1 ? i + bw : n - 1) - i;
+        const double rii = b->a[(size_t)i * b->ld + bw];
         const double *lk = b->a + (size_t)(i + 1) * b->ld + (bw - 1);
-        for (int q = 0; q < cnt; q++, lk += b->ld - 1) l[q] = *lk;
-        for (int s = 0; s < w; s++) t[s] = 0.0;
-        int q = 0, sk = (i + 1) % w;
-        for (; q + 4 <= cnt; q += 4) {
-            int s0 = sk, s1 = s0 + 1 == w ? 0 : s0 + 1, s2 = s1 + 1 == w ? 0 : s1 + 1,
-                s3 = s2 + 1 == w ? 0 : s2 + 1;
-            SC_AXPY4(t, l + q, win + (size_t)s0 * w, win + (size_t)s1 * w, win + (size_t)s2 * w,
-                     win + (size_t)s3 * w, w);
-            sk = s3 + 1 == w ? 0 : s3 + 1;
+        for (int q = 0; q < cnt; q++, lk += ldm1) l[q] = *lk;
+        for (int q = 0, sk = (i + 1) % w; q < cnt; q++, sk = sk + 1 == w ? 0 : sk + 1)
+            rows[q] = win + (size_t)sk * ws;
+        if (cnt == bw && i >= 1 && bw >= 2) {
+            /* the pair i, h = i-1: m[q] = L[i+q][h], q = 0 .. bw-1 */
+            int h = i - 1;
+            const double rhh = b->a[(size_t)h * b->ld + bw];
+            const double *mk = b->a + (size_t)i * b->ld + (bw - 1);
+            for (int q = 0; q < bw; q++, mk += ldm1) m[q] = *mk;
+            /* shared rows k = i+1 .. i+bw-1; row i+bw only for i */
+            SC_GEMV2_ROWS(t, u, l, m + 1, rows, bw - 1, ws);
+            SC_AXPY(t, l[bw - 1], rows[bw - 1], ws);
+            diag[i] = SC_SFX(window_row)(win, w, ws, i, rii, t, l, cnt);
+            /* the row-i terms of h: all columns, then column i itself by symmetry (row i) */
+            const double *row_i = win + (size_t)(i % w) * ws;
+            SC_AXPY(u, m[0], row_i, ws);
+            double ui = m[0] * row_i[i % w];
+            for (int q = 1, sk = (i + 1) % w; q < bw; q++, sk = sk + 1 == w ? 0 : sk + 1)
+                ui += m[q] * row_i[sk];
+            u[i % w] = ui;
+            diag[h] = SC_SFX(window_row)(win, w, ws, h, rhh, u, m, bw);
+            i -= 2;
+            continue;
         }
-        for (; q < cnt; q++) {
-            SC_AXPY(t, l[q], win + (size_t)sk * w, w);
-            sk = sk + 1 == w ? 0 : sk + 1;
-        }
-        int si = i % w;
-        double *row_i = win + (size_t)si * w;
-        double acc = 0.0;
-        sk = (i + 1) % w;
-        for (q = 0; q < cnt; q++) {
-            double zik = -t[sk] * rii;
-            row_i[sk] = zik;
-            win[(size_t)sk * w + si] = zik;
-            acc += l[q] * zik;
-            sk = sk + 1 == w ? 0 : sk + 1;
-        }
-        double zii = (rii - acc) * rii;
-        row_i[si] = zii;
-        diag[i] = zii;
+        SC_GEMV_ROWS(t, l, rows, cnt, ws);
+        diag[i] = SC_SFX(window_row)(win, w, ws, i, rii, t, l, cnt);
+        i -= 1;
     }
 }

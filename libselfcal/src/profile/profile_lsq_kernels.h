@@ -32,6 +32,43 @@ static inline void sc_lsq_axpy4(double *restrict y, const double *a, const doubl
     for (int i = 0; i < len; i++) y[i] += (a0 * x0[i] + a1 * x1[i]) + (a2 * x2[i] + a3 * x3[i]);
 }
 
+/* out[r] = Σ p_r[i]·x[i], i < len, r = 0..3 (four dot products sharing x). */
+static inline void sc_lsq_dot4(const double *x, const double *p0, const double *p1,
+                               const double *p2, const double *p3, int len, double *out)
+{
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    for (int i = 0; i < len; i++) {
+        double xi = x[i];
+        s0 += p0[i] * xi;
+        s1 += p1[i] * xi;
+        s2 += p2[i] * xi;
+        s3 += p3[i] * xi;
+    }
+    out[0] = s0;
+    out[1] = s1;
+    out[2] = s2;
+    out[3] = s3;
+}
+
+/* t[j] = Σ_q l[q]·rows[q][j], j < w, q < cnt. */
+static inline void sc_lsq_gemv_rows(double *restrict t, const double *l, const double *const *rows,
+                                    int cnt, int w)
+{
+    for (int j = 0; j < w; j++) t[j] = 0.0;
+    int q = 0;
+    for (; q + 4 <= cnt; q += 4)
+        sc_lsq_axpy4(t, l + q, rows[q], rows[q + 1], rows[q + 2], rows[q + 3], w);
+    for (; q < cnt; q++) sc_lsq_axpy(t, l[q], rows[q], w);
+}
+
+/* t[j] = Σ_q l[q]·rows[q][j] and u[j] = Σ_q m[q]·rows[q][j], j < w (two outputs). */
+static inline void sc_lsq_gemv2_rows(double *restrict t, double *restrict u, const double *l,
+                                     const double *m, const double *const *rows, int cnt, int w)
+{
+    sc_lsq_gemv_rows(t, l, rows, cnt, w);
+    sc_lsq_gemv_rows(u, m, rows, cnt, w);
+}
+
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define SC_LSQ_HAVE_AVX2 1
 #include <immintrin.h>
@@ -96,6 +133,152 @@ SC_LSQ_AVX2_ATTR static inline void sc_lsq_axpy4_avx2(double *restrict y, const 
         _mm256_storeu_pd(y + i, _mm256_add_pd(u, v));
     }
     for (; i < len; i++) y[i] += (a[0] * x0[i] + a[1] * x1[i]) + (a[2] * x2[i] + a[3] * x3[i]);
+}
+SC_LSQ_AVX2_ATTR static inline void sc_lsq_dot4_avx2(const double *x, const double *p0,
+                                                      const double *p1, const double *p2,
+                                                      const double *p3, int len, double *out)
+{
+    __m256d s0 = _mm256_setzero_pd(), s1 = _mm256_setzero_pd(), s2 = _mm256_setzero_pd(),
+            s3 = _mm256_setzero_pd(), u0 = _mm256_setzero_pd(), u1 = _mm256_setzero_pd(),
+            u2 = _mm256_setzero_pd(), u3 = _mm256_setzero_pd();
+    int i = 0;
+    for (; i + 8 <= len; i += 8) { /* eight independent chains */
+        __m256d xv = _mm256_loadu_pd(x + i), xw = _mm256_loadu_pd(x + i + 4);
+        s0 = _mm256_fmadd_pd(_mm256_loadu_pd(p0 + i), xv, s0);
+        s1 = _mm256_fmadd_pd(_mm256_loadu_pd(p1 + i), xv, s1);
+        s2 = _mm256_fmadd_pd(_mm256_loadu_pd(p2 + i), xv, s2);
+        s3 = _mm256_fmadd_pd(_mm256_loadu_pd(p3 + i), xv, s3);
+        u0 = _mm256_fmadd_pd(_mm256_loadu_pd(p0 + i + 4), xw, u0);
+        u1 = _mm256_fmadd_pd(_mm256_loadu_pd(p1 + i + 4), xw, u1);
+        u2 = _mm256_fmadd_pd(_mm256_loadu_pd(p2 + i + 4), xw, u2);
+        u3 = _mm256_fmadd_pd(_mm256_loadu_pd(p3 + i + 4), xw, u3);
+    }
+    if (i + 4 <= len) {
+        __m256d xv = _mm256_loadu_pd(x + i);
+        s0 = _mm256_fmadd_pd(_mm256_loadu_pd(p0 + i), xv, s0);
+        s1 = _mm256_fmadd_pd(_mm256_loadu_pd(p1 + i), xv, s1);
+        s2 = _mm256_fmadd_pd(_mm256_loadu_pd(p2 + i), xv, s2);
+        s3 = _mm256_fmadd_pd(_mm256_loadu_pd(p3 + i), xv, s3);
+        i += 4;
+    }
+    double r0 = sc_lsq_hsum_avx2(_mm256_add_pd(s0, u0)), r1 = sc_lsq_hsum_avx2(_mm256_add_pd(s1, u1)),
+           r2 = sc_lsq_hsum_avx2(_mm256_add_pd(s2, u2)), r3 = sc_lsq_hsum_avx2(_mm256_add_pd(s3, u3));
+    for (; i < len; i++) {
+        r0 = __builtin_fma(p0[i], x[i], r0);
+        r1 = __builtin_fma(p1[i], x[i], r1);
+        r2 = __builtin_fma(p2[i], x[i], r2);
+        r3 = __builtin_fma(p3[i], x[i], r3);
+    }
+    out[0] = r0;
+    out[1] = r1;
+    out[2] = r2;
+    out[3] = r3;
+}
+
+/* t[j] = Σ_q l[q]·rows[q][j], j < w (w a multiple of 4): 32 columns of t in eight registers
+ * while all rows stream past (eight independent chains), then the rest four columns at a time
+ * with the rows split over four chains. */
+SC_LSQ_AVX2_ATTR static inline void sc_lsq_gemv_rows_avx2(double *restrict t, const double *l,
+                                                           const double *const *rows, int cnt,
+                                                           int w)
+{
+    int j = 0;
+    for (; j + 32 <= w; j += 32) {
+        __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(),
+                a3 = _mm256_setzero_pd(), a4 = _mm256_setzero_pd(), a5 = _mm256_setzero_pd(),
+                a6 = _mm256_setzero_pd(), a7 = _mm256_setzero_pd();
+        for (int q = 0; q < cnt; q++) {
+            const double *r = rows[q] + j;
+            __m256d lq = _mm256_broadcast_sd(l + q);
+            a0 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r), a0);
+            a1 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 4), a1);
+            a2 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 8), a2);
+            a3 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 12), a3);
+            a4 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 16), a4);
+            a5 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 20), a5);
+            a6 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 24), a6);
+            a7 = _mm256_fmadd_pd(lq, _mm256_loadu_pd(r + 28), a7);
+        }
+        _mm256_storeu_pd(t + j, a0);
+        _mm256_storeu_pd(t + j + 4, a1);
+        _mm256_storeu_pd(t + j + 8, a2);
+        _mm256_storeu_pd(t + j + 12, a3);
+        _mm256_storeu_pd(t + j + 16, a4);
+        _mm256_storeu_pd(t + j + 20, a5);
+        _mm256_storeu_pd(t + j + 24, a6);
+        _mm256_storeu_pd(t + j + 28, a7);
+    }
+    for (; j < w; j += 4) {
+        __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(),
+                a3 = _mm256_setzero_pd();
+        int q = 0;
+        for (; q + 4 <= cnt; q += 4) {
+            a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q), _mm256_loadu_pd(rows[q] + j), a0);
+            a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q + 1), _mm256_loadu_pd(rows[q + 1] + j),
+                                 a1);
+            a2 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q + 2), _mm256_loadu_pd(rows[q + 2] + j),
+                                 a2);
+            a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q + 3), _mm256_loadu_pd(rows[q + 3] + j),
+                                 a3);
+        }
+        for (; q < cnt; q++)
+            a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q), _mm256_loadu_pd(rows[q] + j), a0);
+        _mm256_storeu_pd(t + j, _mm256_add_pd(_mm256_add_pd(a0, a1), _mm256_add_pd(a2, a3)));
+    }
+}
+/* Two outputs sharing every load of the rows: 16 columns at a time (eight chains). */
+SC_LSQ_AVX2_ATTR static inline void sc_lsq_gemv2_rows_avx2(double *restrict t, double *restrict u,
+                                                            const double *l, const double *m,
+                                                            const double *const *rows, int cnt,
+                                                            int w)
+{
+    int j = 0;
+    for (; j + 16 <= w; j += 16) {
+        __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(),
+                a3 = _mm256_setzero_pd(), b0 = _mm256_setzero_pd(), b1 = _mm256_setzero_pd(),
+                b2 = _mm256_setzero_pd(), b3 = _mm256_setzero_pd();
+        for (int q = 0; q < cnt; q++) {
+            const double *r = rows[q] + j;
+            __m256d lq = _mm256_broadcast_sd(l + q), mq = _mm256_broadcast_sd(m + q);
+            __m256d v0 = _mm256_loadu_pd(r), v1 = _mm256_loadu_pd(r + 4),
+                    v2 = _mm256_loadu_pd(r + 8), v3 = _mm256_loadu_pd(r + 12);
+            a0 = _mm256_fmadd_pd(lq, v0, a0);
+            b0 = _mm256_fmadd_pd(mq, v0, b0);
+            a1 = _mm256_fmadd_pd(lq, v1, a1);
+            b1 = _mm256_fmadd_pd(mq, v1, b1);
+            a2 = _mm256_fmadd_pd(lq, v2, a2);
+            b2 = _mm256_fmadd_pd(mq, v2, b2);
+            a3 = _mm256_fmadd_pd(lq, v3, a3);
+            b3 = _mm256_fmadd_pd(mq, v3, b3);
+        }
+        _mm256_storeu_pd(t + j, a0);
+        _mm256_storeu_pd(t + j + 4, a1);
+        _mm256_storeu_pd(t + j + 8, a2);
+        _mm256_storeu_pd(t + j + 12, a3);
+        _mm256_storeu_pd(u + j, b0);
+        _mm256_storeu_pd(u + j + 4, b1);
+        _mm256_storeu_pd(u + j + 8, b2);
+        _mm256_storeu_pd(u + j + 12, b3);
+    }
+    for (; j < w; j += 4) {
+        __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), b0 = _mm256_setzero_pd(),
+                b1 = _mm256_setzero_pd();
+        int q = 0;
+        for (; q + 2 <= cnt; q += 2) {
+            __m256d v0 = _mm256_loadu_pd(rows[q] + j), v1 = _mm256_loadu_pd(rows[q + 1] + j);
+            a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q), v0, a0);
+            b0 = _mm256_fmadd_pd(_mm256_broadcast_sd(m + q), v0, b0);
+            a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q + 1), v1, a1);
+            b1 = _mm256_fmadd_pd(_mm256_broadcast_sd(m + q + 1), v1, b1);
+        }
+        if (q < cnt) {
+            __m256d v0 = _mm256_loadu_pd(rows[q] + j);
+            a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(l + q), v0, a0);
+            b0 = _mm256_fmadd_pd(_mm256_broadcast_sd(m + q), v0, b0);
+        }
+        _mm256_storeu_pd(t + j, _mm256_add_pd(a0, a1));
+        _mm256_storeu_pd(u + j, _mm256_add_pd(b0, b1));
+    }
 }
 #else
 #define SC_LSQ_HAVE_AVX2 0
