@@ -637,36 +637,39 @@ int sc_ldl_selinv(sc_ldl *f)
         return -1;
     }
     f->bytes += (size_t)nz * sizeof(double) + (size_t)(n + 1) * sizeof(double);
-    for (int i = 0; i < n; ++i)
-        mark[i] = -1;
+    /* wl holds column j of L scattered (zero elsewhere), so the inner loop needs no test:
+     * acc[r] for rows r outside S_j collects garbage that is never read (acc[i], i ∈ S_j, is
+     * cleared first). */
+    (void)mark;
     for (int j = n - 1; j >= 0; --j) {
         long p0 = f->Lp[j], p1 = f->Lp[j + 1];
         double dinv = f->D[j] != 0 ? 1.0 / f->D[j] : 0.0;
         for (long p = p0; p < p1; ++p) {
             int k = f->Li[p];
-            mark[k] = j;
             wl[k] = f->Lx[p];
             acc[k] = 0;
         }
         for (long p = p0; p < p1; ++p) {
             int k = f->Li[p];
-            double lkj = f->Lx[p];
-            acc[k] += f->Zd[k] * lkj;
-            f->selinv_work += (double)(f->Lp[k + 1] - f->Lp[k]);
-            for (long q = f->Lp[k]; q < f->Lp[k + 1]; ++q) {
-                int r = f->Li[q];
-                if (mark[r] != j)
-                    continue;
-                double z = f->Zx[q]; /* Z_rk, r > k */
+            double lkj = f->Lx[p], sk = f->Zd[k] * lkj;
+            long q0 = f->Lp[k], q1 = f->Lp[k + 1];
+            const int *ri = f->Li;
+            const double *zx = f->Zx;
+            f->selinv_work += (double)(q1 - q0);
+            for (long q = q0; q < q1; ++q) {
+                int r = ri[q];
+                double z = zx[q]; /* Z_rk, r > k */
                 acc[r] += z * lkj;
-                acc[k] += z * wl[r];
+                sk += z * wl[r];
             }
+            acc[k] += sk;
         }
         double zjj = dinv;
         for (long p = p0; p < p1; ++p) {
             int i = f->Li[p];
             f->Zx[p] = -acc[i];
             zjj += f->Lx[p] * acc[i];
+            wl[i] = 0;
         }
         f->Zd[j] = f->D[j] != 0 ? zjj : 0.0;
         if (f->D[j] == 0)
