@@ -164,8 +164,8 @@ static size_t round_trip(sc_lut *in, sc_lut *out, sc_lut_encoding enc, int want_
     static sc_corr_table t;
     assert_int_equal(sc_corr_load(&t, buf, len), SC_CORR_OK);
     for (int k = 0; k < in->nx * in->ny; ++k) {
-        assert_true(t.gx_um[k] == (float)out->gx_um[k]);
-        assert_true(t.gy_um[k] == (float)out->gy_um[k]);
+        assert_true(t.g_um[k][0] == (float)out->gx_um[k]);
+        assert_true(t.g_um[k][1] == (float)out->gy_um[k]);
     }
     assert_int_equal(t.n_profiles, in->n_profiles);
     for (int p = 0; p < in->n_profiles; ++p)

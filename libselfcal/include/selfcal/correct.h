@@ -52,6 +52,7 @@ typedef struct sc_corr_profile {
     double inv_step;   /* 1 / step_mm, computed at load */
     double end_mm;     /* position of the last point, computed at load */
     double last;       /* n - 1 as a double, computed at load */
+    double dir_mask[3]; /* 1 for the coordinate dir, 0 for the others, computed at load */
     float err_um[SC_CORR_MAX_PROFILE_POINTS];
 } sc_corr_profile;
 
@@ -63,8 +64,9 @@ typedef struct sc_corr_table {
     double inv_px, inv_py; /* computed at load */
     double x1_mm, y1_mm;   /* position of the last node along x and y, computed at load */
     double lastx, lasty;   /* nx - 1 and ny - 1 as doubles, computed at load */
-    float gx_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY]; /* node (i, j) at i*nx + j, i along y */
-    float gy_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY];
+    /* G of node (i, j) at k = i*nx + j (i along y): g_um[k][0] = Gx, g_um[k][1] = Gy (pairs, so
+     * that one load fetches both) */
+    float g_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY][2];
     uint8_t n_profiles;
     sc_corr_profile profile[SC_CORR_MAX_PROFILES];
 } sc_corr_table;

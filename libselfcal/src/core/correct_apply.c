@@ -21,64 +21,62 @@ static inline int is_finite(double x)
     return x >= -DBL_MAX && x <= DBL_MAX;
 }
 
-/* Clamp coordinate x to [lo, hi]; sets *outside when it had to. */
-static inline double clamp_flag(double x, double lo, double hi, unsigned *outside)
+/* x limited to [lo, hi] (inputs are finite here). Written as selects so that compilers use
+ * min/max instructions or conditional moves: no data-dependent branches. */
+static inline double clampd(double x, double lo, double hi)
 {
-    if (x < lo) {
-        *outside = 1u;
-        return lo;
-    }
-    if (x > hi) {
-        *outside = 1u;
-        return hi;
-    }
-    return x;
+    x = x < lo ? lo : x;
+    return x > hi ? hi : x;
 }
 
-/* Cell index and fraction for the fractional node coordinate u in [0, last] (rounding may put it
- * a hair outside; it is clamped again): index in [0, n-2], fraction in [0, 1]. */
+/* Cell index and fraction for the fractional node coordinate u (already in [0, last] up to
+ * rounding; clamped again): index in [0, n-2], fraction in [0, 1]. */
 static inline unsigned cell(double u, double last, unsigned n, double *frac)
 {
-    if (u < 0.0)
-        u = 0.0;
-    if (u > last)
-        u = last;
+    u = clampd(u, 0.0, last);
     unsigned k = (unsigned)u; /* u >= 0: the cast is floor */
-    if (k > n - 2u)
-        k = n - 2u;
+    k = k > n - 2u ? n - 2u : k;
     *frac = u - (double)k;
     return k;
 }
 
 /* The total correction at position in (grid G plus profile offsets), micrometres, per
  * coordinate; returns SC_CORR_ST_OUTSIDE if the position was outside the grid. */
-static unsigned eval_um(const sc_corr_table *t, const double in[3], double c_um[3])
+static inline unsigned eval_um(const sc_corr_table *t, const double in[3], double c_um[3])
 {
-    unsigned outside = 0;
-    double x = clamp_flag(in[0], t->x0_mm, t->x1_mm, &outside);
-    double y = clamp_flag(in[1], t->y0_mm, t->y1_mm, &outside);
+    const unsigned outside = (unsigned)(in[0] < t->x0_mm) | (unsigned)(in[0] > t->x1_mm) |
+                             (unsigned)(in[1] < t->y0_mm) | (unsigned)(in[1] > t->y1_mm);
+    const double x = clampd(in[0], t->x0_mm, t->x1_mm);
+    const double y = clampd(in[1], t->y0_mm, t->y1_mm);
     double fx, fy;
-    unsigned j = cell((x - t->x0_mm) * t->inv_px, t->lastx, t->nx, &fx);
-    unsigned i = cell((y - t->y0_mm) * t->inv_py, t->lasty, t->ny, &fy);
+    const unsigned j = cell((x - t->x0_mm) * t->inv_px, t->lastx, t->nx, &fx);
+    const unsigned i = cell((y - t->y0_mm) * t->inv_py, t->lasty, t->ny, &fy);
     /* (1-f)a + f b: exactly a at f = 0 and exactly b at f = 1, so the value at a node is the
      * node's value whichever of its cells the rounding picks (continuity across cell edges). */
     const double wx = 1.0 - fx, wy = 1.0 - fy;
     const size_t k = (size_t)i * t->nx + j, kn = k + t->nx;
-    const double gx = (t->gx_um[k] * wx + t->gx_um[k + 1] * fx) * wy +
-                     (t->gx_um[kn] * wx + t->gx_um[kn + 1] * fx) * fy;
-    const double gy = (t->gy_um[k] * wx + t->gy_um[k + 1] * fx) * wy +
-                     (t->gy_um[kn] * wx + t->gy_um[kn + 1] * fx) * fy;
-    c_um[0] = gx;
-    c_um[1] = gy;
-    c_um[2] = 0.0;
+    const float *g00 = t->g_um[k], *g01 = t->g_um[k + 1], *g10 = t->g_um[kn], *g11 = t->g_um[kn + 1];
+    double c0 = ((double)g00[0] * wx + (double)g01[0] * fx) * wy +
+                ((double)g10[0] * wx + (double)g11[0] * fx) * fy;
+    double c1 = ((double)g00[1] * wx + (double)g01[1] * fx) * wy +
+                ((double)g10[1] * wx + (double)g11[1] * fx) * fy;
+    /* Profiles: clamped to their range without a status bit (SPEC §4: the out-of-range bit is
+     * about the grid). The offset goes to coordinate dir through a 0/1 mask, which keeps the
+     * sums in registers. */
+    double c2 = 0.0;
     for (unsigned m = 0; m < t->n_profiles; ++m) {
         const sc_corr_profile *p = &t->profile[m];
-        unsigned ignored = 0;
-        double s = clamp_flag(in[p->axis], p->start_mm, p->end_mm, &ignored);
+        const double s = clampd(in[p->axis], p->start_mm, p->end_mm);
         double f;
-        unsigned q = cell((s - p->start_mm) * p->inv_step, p->last, p->n, &f);
-        c_um[p->dir] += p->err_um[q] * (1.0 - f) + p->err_um[q + 1] * f;
+        const unsigned q = cell((s - p->start_mm) * p->inv_step, p->last, p->n, &f);
+        const double e = (double)p->err_um[q] * (1.0 - f) + (double)p->err_um[q + 1] * f;
+        c0 += e * p->dir_mask[0];
+        c1 += e * p->dir_mask[1];
+        c2 += e * p->dir_mask[2];
     }
+    c_um[0] = c0;
+    c_um[1] = c1;
+    c_um[2] = c2;
     return outside ? SC_CORR_ST_OUTSIDE : 0u;
 }
 

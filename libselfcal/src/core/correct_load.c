@@ -228,8 +228,8 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
     const unsigned gcb = sc_lutf_code_bytes(genc);
     const uint8_t *gx = b + SC_LUTF_HEADER_BYTES, *gy = gx + (size_t)ncells * gcb;
     for (size_t k = 0; k < (size_t)ncells; ++k) {
-        t->gx_um[k] = decode(gx + k * gcb, genc, gum);
-        t->gy_um[k] = decode(gy + k * gcb, genc, gum);
+        t->g_um[k][0] = decode(gx + k * gcb, genc, gum);
+        t->g_um[k][1] = decode(gy + k * gcb, genc, gum);
     }
     t->n_profiles = (uint8_t)np;
     for (unsigned k = 0; k < np; ++k) {
@@ -243,6 +243,8 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
         p->inv_step = 1.0 / p->step_mm;
         p->last = (double)(p->n - 1);
         p->end_mm = p->start_mm + p->step_mm * p->last;
+        for (unsigned d = 0; d < 3; ++d)
+            p->dir_mask[d] = d == p->dir ? 1.0 : 0.0;
         const double pum = (double)sc_lutf_get_u32(h + 24) * 1e-6;
         const unsigned enc = h[2], cb = sc_lutf_code_bytes(enc);
         for (unsigned m = 0; m < p->n; ++m)
