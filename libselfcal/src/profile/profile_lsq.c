@@ -17,6 +17,9 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "profile_lsq_band.h"
 #include "profile_lsq_kernels.h"
@@ -27,6 +30,7 @@ struct sc_profile_lsq {
     sc_lsq_band band; /* B and its factor (profile_lsq_band.h) */
     double *z;        /* 2 columns of n: Z = B⁻¹·E (the border columns c1, c2 through B) */
     double *e;        /* 2 columns of n: E, the f-c block of the normal matrix (pinned rows 0) */
+    double *bu;       /* 2 columns of n: B⁻¹·U, U = the orthonormal basis of span{1, n} (pins 0) */
     double g[2];      /* diagonal c-c block: w_k (n - d_k) */
     double sinv[4];   /* S⁻¹, S = G - Eᵀ Z (row-major 2×2) */
 };
@@ -77,12 +81,29 @@ int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
 
 static int is_pinned(const sc_profile_lsq *p, int i) { return i == 0 || i == p->n - 1; }
 
-static void band_solve2(const sc_profile_lsq *p, double *x, double *y)
+static void band_solve(const sc_profile_lsq *p, double *x)
 {
-    sc_lsq_band_solve2(&p->band, x, y);
+    double *xs[1] = {x};
+    sc_lsq_band_solve(&p->band, xs, 1);
 }
 
-static void band_solve(const sc_profile_lsq *p, double *x) { band_solve2(p, x, NULL); }
+/* Allocate a large array: 2 MB-aligned and marked for transparent huge pages where the system
+ * has them (fewer page faults on first touch); plain malloc otherwise. Free with free(). */
+static double *alloc_doubles(size_t count)
+{
+    size_t bytes = count * sizeof(double);
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    const size_t huge = (size_t)2 << 20;
+    if (bytes >= 2 * huge) {
+        void *q = NULL;
+        size_t len = (bytes + huge - 1) & ~(huge - 1);
+        if (posix_memalign(&q, huge, len) != 0) return NULL;
+        (void)madvise(q, len, MADV_HUGEPAGE);
+        return q;
+    }
+#endif
+    return malloc(bytes ? bytes : 1);
+}
 
 sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
                                 sc_error *err)
@@ -122,11 +143,12 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "N = %d with d = %d needs too much memory",
                             n, bw);
     }
-    bd->a = malloc((size_t)n * bd->ld * sizeof(double));
+    bd->a = alloc_doubles((size_t)n * bd->ld);
     p->z = malloc((size_t)2 * n * sizeof(double));
     p->e = malloc((size_t)2 * n * sizeof(double));
+    p->bu = malloc((size_t)2 * n * sizeof(double));
     double *col = malloc(4 * bd->ld * sizeof(double));
-    if (!bd->a || !p->z || !p->e || !col) {
+    if (!bd->a || !p->z || !p->e || !p->bu || !col) {
         int bw = p->bw;
         free(col);
         sc_profile_lsq_destroy(p);
@@ -157,7 +179,19 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         memcpy(p->z + (size_t)k * n, e, (size_t)n * sizeof(double));
         p->g[k] = wk[k] * (double)(n - dk[k]);
     }
-    band_solve2(p, p->z, p->z + n);
+    /* U = [1/√N, (i - nc)/√sxx] with the pinned entries zeroed; B⁻¹U for the uncertainty */
+    {
+        double nc = 0.5 * (double)(n - 1);
+        double sxx = (double)n * ((double)n * (double)n - 1.0) / 12.0;
+        double a1 = 1.0 / sqrt((double)n), a2 = 1.0 / sqrt(sxx);
+        for (int i = 0; i < n; i++) {
+            int pin = is_pinned(p, i);
+            p->bu[i] = pin ? 0.0 : a1;
+            p->bu[n + i] = pin ? 0.0 : a2 * ((double)i - nc);
+        }
+    }
+    double *rhs[4] = {p->z, p->z + n, p->bu, p->bu + n};
+    sc_lsq_band_solve(bd, rhs, 4);
     double s[4];
     for (int a = 0; a < 2; a++)
         for (int b = 0; b < 2; b++)
@@ -275,13 +309,8 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
 {
     if (!p || !uf_um) return sc_error_set(err, SC_E_INPUT, NULL, 0, "missing argument");
     int n = p->n;
-    double *cu = malloc((size_t)2 * n * sizeof(double));
-    if (!cu) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (uncertainty)");
     sc_status st = selected_inverse_diag(p, uf_um, err);
-    if (st != SC_OK) {
-        free(cu);
-        return st;
-    }
+    if (st != SC_OK) return st;
     /* C = B⁻¹ (pinned entries 0) + Z S⁻¹ Zᵀ: the pinned-gauge covariance of f */
     const double *z1 = p->z, *z2 = p->z + n;
     const double *si = p->sinv;
@@ -294,13 +323,7 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
     double nc = 0.5 * (double)(n - 1);
     double sxx = (double)n * ((double)n * (double)n - 1.0) / 12.0;
     double a1 = 1.0 / sqrt((double)n), a2 = 1.0 / sqrt(sxx);
-    double *cu1 = cu, *cu2 = cu + n;
-    for (int i = 0; i < n; i++) {
-        int pin = is_pinned(p, i);
-        cu1[i] = pin ? 0.0 : a1;
-        cu2[i] = pin ? 0.0 : a2 * ((double)i - nc);
-    }
-    band_solve2(p, cu1, cu2);
+    const double *bu1 = p->bu, *bu2 = p->bu + n;
     /* + Z S⁻¹ (Zᵀ U) */
     double ztu[4]; /* ztu[2a+b] = z_a · u_b */
     double s01 = 0, s11 = 0, s02 = 0, s12 = 0;
@@ -318,28 +341,28 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
     double m[4]; /* S⁻¹ (Zᵀ U): m[2a+b] */
     for (int a = 0; a < 2; a++)
         for (int b = 0; b < 2; b++) m[2 * a + b] = si[2 * a] * ztu[b] + si[2 * a + 1] * ztu[2 + b];
-    for (int i = 0; i < n; i++) {
-        cu1[i] += z1[i] * m[0] + z2[i] * m[2];
-        cu2[i] += z1[i] * m[1] + z2[i] * m[3];
-    }
+    /* CU = B⁻¹U + Z·m, formed on the fly below */
     /* Q = Uᵀ C U */
     double q11 = 0, q12 = 0, q21 = 0, q22 = 0;
     for (int i = 0; i < n; i++) {
         double u2 = a2 * ((double)i - nc);
-        q11 += a1 * cu1[i];
-        q12 += a1 * cu2[i];
-        q21 += u2 * cu1[i];
-        q22 += u2 * cu2[i];
+        double cu1 = bu1[i] + z1[i] * m[0] + z2[i] * m[2];
+        double cu2 = bu2[i] + z1[i] * m[1] + z2[i] * m[3];
+        q11 += a1 * cu1;
+        q12 += a1 * cu2;
+        q21 += u2 * cu1;
+        q22 += u2 * cu2;
     }
     double q12s = 0.5 * (q12 + q21);
     /* diag(P C P) = diag(C) - 2 diag(U (CU)ᵀ) + diag(U Q Uᵀ) */
     for (int i = 0; i < n; i++) {
         double u2 = a2 * ((double)i - nc);
-        double v = uf_um[i] - 2.0 * (a1 * cu1[i] + u2 * cu2[i]) + a1 * a1 * q11 +
+        double cu1 = bu1[i] + z1[i] * m[0] + z2[i] * m[2];
+        double cu2 = bu2[i] + z1[i] * m[1] + z2[i] * m[3];
+        double v = uf_um[i] - 2.0 * (a1 * cu1 + u2 * cu2) + a1 * a1 * q11 +
                    2.0 * a1 * u2 * q12s + u2 * u2 * q22;
         uf_um[i] = v > 0.0 ? sqrt(v) : 0.0;
     }
-    free(cu);
     return SC_OK;
 }
 
@@ -349,5 +372,6 @@ void sc_profile_lsq_destroy(sc_profile_lsq *p)
     free(p->band.a);
     free(p->z);
     free(p->e);
+    free(p->bu);
     free(p);
 }

@@ -54,15 +54,15 @@ int sc_lsq_band_factor(sc_lsq_band *b, double *col)
     return factor_generic(b, col);
 }
 
-void sc_lsq_band_solve2(const sc_lsq_band *b, double *x, double *y)
+void sc_lsq_band_solve(const sc_lsq_band *b, double *const *xs, int nrhs)
 {
 #if SC_LSQ_HAVE_AVX2
     if (b->simd) {
-        solve2_avx2(b, x, y);
+        solve_avx2(b, xs, nrhs);
         return;
     }
 #endif
-    solve2_generic(b, x, y);
+    solve_generic(b, xs, nrhs);
 }
 
 void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag)

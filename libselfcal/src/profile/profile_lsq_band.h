@@ -22,8 +22,9 @@ int sc_lsq_band_cpu_has_simd(void);
  * the row where the pivot was not positive. */
 int sc_lsq_band_factor(sc_lsq_band *b, double *col);
 
-/* x <- B⁻¹x, and y <- B⁻¹y when y is not NULL (one pass, two right-hand sides). */
-void sc_lsq_band_solve2(const sc_lsq_band *b, double *x, double *y);
+/* xs[r] <- B⁻¹·xs[r] for r < nrhs, in place: one pass over the factor forward and one backward
+ * for all of them (the factor is larger than the caches; the passes are memory-bound). */
+void sc_lsq_band_solve(const sc_lsq_band *b, double *const *xs, int nrhs);
 
 /* diag[i] = (B⁻¹)[i][i] by the Takahashi recurrences (selected inversion) on the factor;
  * win: sc_lsq_band_inverse_scratch(bw) doubles of scratch. */

@@ -107,7 +107,7 @@ SC_ATTR static inline void SC_SFX(forward_block)(int bw, const double *r0, size_
     x[i + 3] = x3;
 }
 
-SC_ATTR static void SC_SFX(forward)(const sc_lsq_band *b, double *x, double *y)
+SC_ATTR static void SC_SFX(forward)(const sc_lsq_band *b, double *const *xs, int nrhs)
 {
     int n = b->n, bw = b->bw;
     size_t ld = b->ld;
@@ -115,20 +115,23 @@ SC_ATTR static void SC_SFX(forward)(const sc_lsq_band *b, double *x, double *y)
     if (bw >= 4) {
         for (; i < bw && i < n; i++) {
             const double *ri = b->a + (size_t)i * ld;
-            x[i] = (x[i] - SC_DOT(ri + (bw - i), x, i)) * ri[bw];
-            if (y) y[i] = (y[i] - SC_DOT(ri + (bw - i), y, i)) * ri[bw];
+            for (int r = 0; r < nrhs; r++) {
+                double *x = xs[r];
+                x[i] = (x[i] - SC_DOT(ri + (bw - i), x, i)) * ri[bw];
+            }
         }
         for (; i + 3 < n; i += 4) {
             const double *r0 = b->a + (size_t)i * ld;
-            SC_SFX(forward_block)(bw, r0, ld, x, i);
-            if (y) SC_SFX(forward_block)(bw, r0, ld, y, i);
+            for (int r = 0; r < nrhs; r++) SC_SFX(forward_block)(bw, r0, ld, xs[r], i);
         }
     }
     for (; i < n; i++) {
         const double *ri = b->a + (size_t)i * ld;
         int k0 = i - bw < 0 ? 0 : i - bw;
-        x[i] = (x[i] - SC_DOT(ri + (k0 - i + bw), x + k0, i - k0)) * ri[bw];
-        if (y) y[i] = (y[i] - SC_DOT(ri + (k0 - i + bw), y + k0, i - k0)) * ri[bw];
+        for (int r = 0; r < nrhs; r++) {
+            double *x = xs[r];
+            x[i] = (x[i] - SC_DOT(ri + (k0 - i + bw), x + k0, i - k0)) * ri[bw];
+        }
     }
 }
 
@@ -158,7 +161,7 @@ SC_ATTR static inline void SC_SFX(backward_block)(int bw, const double *r0, size
     x[i - 3 - bw] -= r3[0] * x3;
 }
 
-SC_ATTR static void SC_SFX(backward)(const sc_lsq_band *b, double *x, double *y)
+SC_ATTR static void SC_SFX(backward)(const sc_lsq_band *b, double *const *xs, int nrhs)
 {
     int n = b->n, bw = b->bw;
     size_t ld = b->ld;
@@ -166,36 +169,28 @@ SC_ATTR static void SC_SFX(backward)(const sc_lsq_band *b, double *x, double *y)
     if (bw >= 4) {
         for (; i - 3 - bw >= 0; i -= 4) {
             const double *r0 = b->a + (size_t)i * ld;
-            SC_SFX(backward_block)(bw, r0, ld, x, i);
-            if (y) SC_SFX(backward_block)(bw, r0, ld, y, i);
+            for (int r = 0; r < nrhs; r++) SC_SFX(backward_block)(bw, r0, ld, xs[r], i);
         }
     }
     for (; i >= 0; i--) {
         const double *ri = b->a + (size_t)i * ld;
         int k0 = i - bw < 0 ? 0 : i - bw;
-        double xi = x[i] * ri[bw];
-        x[i] = xi;
-        SC_AXPY(x + k0, -xi, ri + (k0 - i + bw), i - k0);
-        if (y) {
-            double yi = y[i] * ri[bw];
-            y[i] = yi;
-            SC_AXPY(y + k0, -yi, ri + (k0 - i + bw), i - k0);
+        for (int r = 0; r < nrhs; r++) {
+            double *x = xs[r];
+            double xi = x[i] * ri[bw];
+            x[i] = xi;
+            SC_AXPY(x + k0, -xi, ri + (k0 - i + bw), i - k0);
         }
     }
 }
 
-SC_ATTR static void SC_SFX(solve2)(const sc_lsq_band *b, double *x, double *y)
+/* B·x_r = b_r for nrhs right-hand sides, one pass over the factor each way. */
+SC_ATTR static void SC_SFX(solve)(const sc_lsq_band *b, double *const *xs, int nrhs)
 {
-    SC_SFX(forward)(b, x, y);
-    SC_SFX(backward)(b, x, y);
+    SC_SFX(forward)(b, xs, nrhs);
+    SC_SFX(backward)(b, xs, nrhs);
 }
 
-/* diag(B⁻¹) by the Takahashi recurrences, i = n-1 down to 0 (Z = B⁻¹, L = the factor):
- *   Z[i][j] = -(1/L[i][i]) Σ_{k=i+1}^{i+bw} L[k][i] Z[k][j]   (j = i+1 .. i+bw)
- *   Z[i][i] = (1/L[i][i]) (1/L[i][i] - Σ_k L[k][i] Z[k][i])
- * keeping only the (bw+1)×(bw+1) window of Z the next step needs, as a circular buffer: index k
- * lives in row and column k mod (bw+1). t accumulates over all bw+1 columns (one of them, slot i,
- * is stale and ignored), so each step is bw contiguous axpys, four at a time. */
 /* Row i of Z from t (= Σ_k L[k][i]·Z[k][·] over the window slots): Z[i][k] = -t[slot k]/L[i][i],
  * Z[i][i] = (1/L[i][i])(1/L[i][i] - Σ_k L[k][i]·Z[i][k]); written into row and column slot(i). */
 SC_ATTR static inline double SC_SFX(window_row)(double *win, int w, int ws, int i, double rii,
