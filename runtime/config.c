@@ -26,6 +26,7 @@ const char sc_config_usage[] =
     "  --rtu-byte-timeout-ms N       RTU silence that ends a partial frame (50)\n"
     "  --can-in-id ID --can-out-id ID --can-status-id ID --can-status-period-ms N\n"
     "  --syslog                      log to syslog instead of stderr\n"
+    "  --syslog-socket PATH          the syslog datagram socket (/dev/log)\n"
     "  --log-level error|warning|notice|info|debug  (default info)\n"
     "signals: SIGHUP reloads the table (kept if the new one is invalid); SIGTERM/SIGINT stop.\n";
 
@@ -235,6 +236,9 @@ int sc_config_set(sc_config *c, const char *key, const char *value, char *why, i
             c->use_syslog = 0;
         else
             BAD("syslog: expected yes or no, got '%s'", value);
+    } else if (strcmp(key, "syslog-socket") == 0) {
+        if (copy_str(c->syslog_socket, sizeof c->syslog_socket, value) != 0)
+            BAD("--syslog-socket: bad path '%s'", value);
     } else if (strcmp(key, "fake") == 0) {
         c->use_fake = is_yes(value);
     } else if (strcmp(key, "log-level") == 0) {

@@ -17,6 +17,7 @@ typedef struct sc_config {
     sc_can_config can;
     sc_word_order word_order;
     int use_syslog;
+    char syslog_socket[108]; /* default /dev/log */
     int log_level; /* SC_LOG_* */
 } sc_config;
 

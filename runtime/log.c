@@ -15,6 +15,13 @@ static char g_line[1024];
 
 void sc_log_open(int use_syslog, int max_level)
 {
+    sc_log_open_at(use_syslog, max_level, NULL);
+}
+
+void sc_log_open_at(int use_syslog, int max_level, const char *syslog_path)
+{
+    if (syslog_path == NULL || syslog_path[0] == '\0')
+        syslog_path = "/dev/log";
     g_max_level = max_level;
     if (!use_syslog)
         return;
@@ -24,10 +31,15 @@ void sc_log_open(int use_syslog, int max_level)
     struct sockaddr_un a;
     memset(&a, 0, sizeof a);
     a.sun_family = AF_UNIX;
-    strcpy(a.sun_path, "/dev/log");
+    if (strlen(syslog_path) >= sizeof a.sun_path) {
+        close(fd);
+        fprintf(stderr, "selfcald: syslog socket path too long, logging to stderr\n");
+        return;
+    }
+    strcpy(a.sun_path, syslog_path);
     if (connect(fd, (struct sockaddr *)&a, sizeof a) != 0) {
         close(fd);
-        fprintf(stderr, "selfcald: syslog (/dev/log) unavailable, logging to stderr\n");
+        fprintf(stderr, "selfcald: syslog (%s) unavailable, logging to stderr\n", syslog_path);
         return;
     }
     g_syslog_fd = fd;

@@ -34,7 +34,7 @@ int main(int argc, char **argv)
         puts("selfcald 0.1.0");
         return 0;
     }
-    sc_log_open(g_cfg.use_syslog, g_cfg.log_level);
+    sc_log_open_at(g_cfg.use_syslog, g_cfg.log_level, g_cfg.syslog_socket);
     if (sc_notify_init() < 0)
         sc_log(SC_LOG_WARNING, "NOTIFY_SOCKET is set but unusable; not notifying systemd");
 

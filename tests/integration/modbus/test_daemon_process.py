@@ -106,4 +106,26 @@ try:
     check(rc == 1 and "cannot listen" in err, f"port taken: {rc} {err}")
 finally:
     d.stop()
+# 4. --syslog: RFC 3164 datagrams (facility daemon) to the syslog socket.
+log_path = os.path.join(work, "syslog.sock")
+if os.path.exists(log_path):
+    os.unlink(log_path)
+ls = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+ls.bind(log_path)
+ls.settimeout(5)
+p = subprocess.Popen([selfcald, "--table", table, "--modbus-tcp", "127.0.0.1:0", "--syslog",
+                      "--syslog-socket", log_path], stderr=subprocess.PIPE, text=True)
+try:
+    lines = []
+    while not any("ready" in m for m in lines):
+        lines.append(ls.recv(2048).decode())
+    check(all(m.startswith("<") and f"selfcald[{p.pid}]: " in m for m in lines), f"{lines}")
+    check(lines[0].startswith("<29>"), f"notice in facility daemon is <29>: {lines[0]}")
+    p.send_signal(signal.SIGTERM)
+    check(p.wait(5) == 0, "exit status with --syslog")
+    check(p.stderr.read() == "", "logged to stderr despite --syslog")
+finally:
+    if p.poll() is None:
+        p.kill()
+    ls.close()
 print("daemon process (notify, signals, exit statuses, config): ok")
