@@ -52,7 +52,8 @@ typedef struct can_state {
     int status_started;
     uint64_t next_status_ms;
     uint64_t next_reopen_ms;
-    uint64_t last_qfull_log_ms, last_ovfl_log_ms;
+    uint64_t now_ms; /* of the current serve/tick */
+    uint64_t last_qfull_log_ms, last_ovfl_log_ms, last_rxovfl_log_ms;
     int reopen_failed_logged;
     uint32_t rx_ovfl_seen; /* the kernel's cumulative drop count, last value seen */
     uint8_t flags_since_status; /* SC_CAN_ST_* seen since the last status frame */
@@ -258,8 +259,11 @@ static int open_socket(char *why, int whylen)
     if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FD_FRAMES, &on, sizeof on) == 0)
         S.fd_frames = 1;
     (void)setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
+    /* A receive queue for bursts: ~1 MB holds over a thousand frames. SO_RCVBUFFORCE needs
+     * CAP_NET_ADMIN; without it SO_RCVBUF is capped by net.core.rmem_max. */
     int rcvbuf = 1 << 20;
-    (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &rcvbuf, sizeof rcvbuf) < 0)
+        (void)setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
     struct sockaddr_can addr;
     memset(&addr, 0, sizeof addr);
     addr.can_family = AF_CAN;
@@ -471,6 +475,13 @@ static void account_overflow(const struct msghdr *h)
                 S.st.rx_overflow += delta;
                 S.rx_ovfl_seen = drops;
                 S.flags_since_status |= SC_CAN_ST_LOST;
+                if (S.now_ms >= S.last_rxovfl_log_ms + RATE_LOG_MS || S.last_rxovfl_log_ms == 0) {
+                    can_log(LOG_WARNING,
+                            "CAN %s: the kernel dropped %u input frames so far (receive queue "
+                            "full: the daemon is too slow, or raise net.core.rmem_max)",
+                            S.cfg.ifname, (unsigned)S.st.rx_overflow);
+                    S.last_rxovfl_log_ms = S.now_ms ? S.now_ms : 1;
+                }
             }
         }
     }
@@ -479,6 +490,7 @@ static void account_overflow(const struct msghdr *h)
 /* Read what is waiting (bounded), answer it. */
 static void rx_drain(sc_engine *e, uint64_t now_ms)
 {
+    S.now_ms = now_ms;
     for (int round = 0; round < RX_ROUNDS && S.fd >= 0; round++) {
         for (int k = 0; k < RX_BATCH; k++) {
             S.rx_iov[k].iov_base = &S.rx_frame[k];
