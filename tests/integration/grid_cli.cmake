@@ -13,7 +13,7 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   grid_cli_test(grid_cli_plot plot)
   grid_cli_test(grid_cli_e2e_ye end_to_end ye ye 5,7,9,11,25,41)
   grid_cli_test(grid_cli_e2e_double_shift end_to_end double-shift double-shift 9,11,25,41)
-  grid_cli_test(grid_cli_e2e_lsq_ye end_to_end lsq ye 5,7,9,11,25)
+  grid_cli_test(grid_cli_e2e_lsq_ye end_to_end lsq ye 5,7,9,11,25,41)
   grid_cli_test(grid_cli_e2e_lsq_petro end_to_end lsq double-shift 9,11,25,41)
   grid_cli_test(grid_cli_e2e_lsq_custom end_to_end lsq "views:rot=0 shift=0,0|rot=90 shift=0,0|rot=180 shift=0,0|rot=0 shift=1,0|rot=270 shift=0,-1 rows=0,1" 5,9)
   # {0°, 90°, +2} without Petrò's view 3: selfcal plan says it identifies G; recovering a random
