@@ -423,6 +423,62 @@ static void test_unmeasured_node(void **s)
     tu_data_free(&m);
 }
 
+/* A view measuring a single mark: its misalignment is not determined (3 unknowns, 2 equations),
+ * but G is, and is recovered; the view's misalignment is reported NaN. */
+static void test_undetermined_view(void **s)
+{
+    (void)s;
+    int n = 9, nn = n * n, c = (n - 1) / 2;
+    sc_grid_plan p;
+    tu_plan(&p, n, PLAN_YE);
+    tu_add_view(&p, 180, 0, 0);
+    sc_rng r;
+    sc_rng_seed(&r, 12);
+    tu_truth t;
+    tu_truth_make(&t, &p, &r);
+    sc_grid_data d;
+    tu_data_alloc(&d, &p);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    for (int k = 0; k < nn; ++k)
+        if (k != c * n + c + 1)
+            d.dx_um[3][k] = d.dy_um[3][k] = NAN;
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, &err), SC_OK);
+    sc_grid_lsq_info info;
+    sc_grid_lsq_stats st;
+    sc_grid_lsq_get_info(q, &info);
+    sc_grid_lsq_get_stats(q, &st);
+    assert_int_equal(info.identifiable, 1);
+    assert_int_equal(st.nullity_misalignment, 4);
+    tu_res res;
+    tu_res_alloc(&res, nn);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0.01, &res.r, &err), SC_OK);
+    double eg = 0;
+    for (int k = 0; k < nn; ++k)
+        eg = fmax(eg, fmax(fabs(res.r.gx_um[k] - t.gx[k]), fabs(res.r.gy_um[k] - t.gy[k])));
+    assert_true(eg < 1e-9);
+    assert_true(isnan(res.r.tx_um[3]) && isnan(res.r.theta_urad[3]));
+    assert_true(fabs(res.r.tx_um[2] - t.tx[2]) < 1e-9);
+    /* the uncertainties equal those of Ye's plan alone: the extra view adds no information */
+    sc_grid_plan pye;
+    tu_plan(&pye, n, PLAN_YE);
+    sc_grid_lsq *qy = NULL;
+    assert_int_equal(sc_grid_lsq_create(&pye, NULL, &qy, &err), SC_OK);
+    double *sx = malloc(sizeof(double) * nn), *sy = malloc(sizeof(double) * nn);
+    assert_int_equal(sc_grid_lsq_sigma_ratio(qy, sx, sy, &err), SC_OK);
+    for (int k = 0; k < nn; ++k) {
+        assert_true(fabs(res.r.ugx_um[k] - 0.01 * sx[k]) < 1e-12);
+        assert_true(fabs(res.r.ugy_um[k] - 0.01 * sy[k]) < 1e-12);
+    }
+    free(sx), free(sy);
+    sc_grid_lsq_destroy(qy);
+    tu_res_free(&res);
+    sc_grid_lsq_destroy(q);
+    tu_data_free(&d);
+    tu_truth_free(&t);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -430,7 +486,7 @@ int main(void)
         cmocka_unit_test(test_recovery_rich),  cmocka_unit_test(test_plan_cases),
         cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
-        cmocka_unit_test(test_unmeasured_node),
+        cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
