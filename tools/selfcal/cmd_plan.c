@@ -99,19 +99,35 @@ int cmd_plan(int argc, char **argv)
            p->origin_mm[1]);
     printf("source: %s\n", has_data ? "data file (the marks measured)" : "plan (the marks the views select)");
     printf("views: %d\n", p->n_views);
+    long empty_views = 0, unseen_marks = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            int seen = 0;
+            for (int v = 0; v < p->n_views && !seen; ++v)
+                seen = has_data ? isfinite(d.dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
+            unseen_marks += !seen;
+        }
     for (int v = 0; v < p->n_views; ++v) {
         long marks = 0;
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j)
                 marks += has_data ? isfinite(d.dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
+        empty_views += marks == 0;
         printf("view %d: rot=%d shift=%d,%d%s marks=%ld\n", fi.view_id[v], p->view[v].rot_deg,
                p->view[v].shift_x, p->view[v].shift_y, p->view[v].restricted ? " (rows/cols)" : "",
                marks);
     }
     printf("equations: %ld\nunknowns: %ld\nconstraints: %ld\n", qi.n_equations, qi.n_unknowns,
            qi.n_constraints);
+    /* Equations minus the rank: the gauge, a view without marks (its misalignment) and a mark no
+     * view measures (its plate error) leave unknowns undetermined without costing equations. */
     if (qi.identifiable)
-        printf("residual_dof: %ld\n", qi.n_equations + qi.n_constraints - qi.n_unknowns);
+        printf("residual_dof: %ld\n", qi.n_equations + qi.n_constraints - qi.n_unknowns +
+                                           3 * empty_views + 2 * unseen_marks);
+    if (empty_views || unseen_marks)
+        printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
+               "misalignment / plate error stay unknown)\n",
+               empty_views, unseen_marks);
     static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
     static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
     printf("method ye: %s\n", supports(&d, has_data, ye, 3) ? "yes" : "no");
