@@ -210,6 +210,20 @@ def case_plan():
             p2 = run("plan", sim["inp"])
             if first_lines(p2.stdout) != lines:
                 fail("plan on a data file: %s vs %s" % (first_lines(p2.stdout), lines))
+            # residual_dof of the plan = dof of the least-squares solution, also with a declared
+            # view that has no data (its misalignment is unknown, not an equation).
+            text = open(sim["inp"]).read().replace("# view 2: rot=0 shift=1,0\n",
+                                                   "# view 2: rot=0 shift=1,0\n# view 9: rot=180 shift=0,0\n")
+            extra = os.path.join(d, "ye_extra_view.csv")
+            write(extra, text)
+            for f in (sim["inp"], extra):
+                pl = run("plan", f).stdout
+                rd = int([ln for ln in pl.splitlines() if ln.startswith("residual_dof:")][0].split(":")[1])
+                sp = os.path.join(d, "dof.json")
+                run("grid", "--method", "lsq", f, "--map", os.path.join(d, "dofG.csv"), "--summary", sp)
+                dof = json.load(open(sp))["dof"]
+                if rd != dof or (f == extra and "view 9: rot=180 shift=0,0 marks=0" not in pl):
+                    fail("%s: plan residual_dof %d vs lsq dof %d\n%s" % (f, rd, dof, pl))
         if name == "petro":
             if not float(val["sigma_c_ratio_rms"]) < ye_rms:
                 fail("Petro's plan should predict less noise than Ye's")
