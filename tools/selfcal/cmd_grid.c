@@ -203,10 +203,10 @@ int cmd_grid(int argc, char **argv)
         if (st == SC_OK)
             st = sc_grid_exact_execute(xp, &d, &res, &err);
         if (st == SC_OK) {
+            /* No uncertainties from the closed forms: --sigma-r-um has nothing to scale. */
             for (size_t k = 0; k < nn; ++k)
                 res.ugx_um[k] = res.ugy_um[k] = NAN;
-            if (sigma_r > 0)
-                res.sigma_r_used_um = sigma_r;
+            res.sigma_r_used_um = NAN;
         }
     }
     if (st != SC_OK)
