@@ -6,7 +6,7 @@
  * and exits 0 only if all is well.
  *
  * usage: can_traffic -i IFACE -f FILE [-r RATE] [-d SECONDS] [-w WINDOW] [-T TOL_NM]
- *                    [-t WAIT_MS] [-b BAD_EXPECTED] [-c CORR_BEFORE]
+ *                    [-t WAIT_MS]
  *   FILE    lines "x_nm y_nm expected_x_nm expected_y_nm" ('#' lines ignored)
  *   RATE    position frames per second (default 1000; 0 = as fast as the window allows)
  *   SECONDS play for this long, repeating the file (default: the file once)

@@ -100,9 +100,33 @@ step "bus-off reported (status 0x41) and survived"
 
 ip link set "$IFACE" down || fail "ip link set down"
 sleep 0.5
+# back up as a CAN FD interface (MTU 72): classic frames keep working, FD frames are answered in FD
+ip link set "$IFACE" mtu 72 || fail "ip link set mtu 72"
 ip link set "$IFACE" up || fail "ip link set up"
 probe_answered "interface down and up"
 step "interface down/up survived"
+
+fd_probe="100##1${probe#100#}"      # CAN FD, bit-rate switch, length 8
+listen 101:7FF 3000 /tmp/ans
+l=$!
+sleep 0.1
+cansend "$IFACE" "$fd_probe" || fail "cansend $fd_probe"
+wait "$l"
+got=$(sed -n 's/.* //p' /tmp/ans)
+case $got in
+  "101##"?"${answer#101#}") ;;
+  *) fail "CAN FD probe: answer '$got', expected an FD frame 101##?${answer#101#}" ;;
+esac
+# an FD frame of length 12 is bad: no answer (counted; checked in the next status frame)
+listen 101:7FF 1000 /tmp/ans
+l=$!
+sleep 0.1
+cansend "$IFACE" "100##1${probe#100#}01020304" || fail "cansend FD length 12"
+wait "$l"
+[ -s /tmp/ans ] && fail "an FD frame of length 12 was answered: $(cat /tmp/ans)"
+s=$(listen 102:7FF 3000 /tmp/st; wait $!; sed -n 's/.*#....\(..\)\(..\).*/\2\1/p' /tmp/st)
+[ "$s" = "0007" ] || fail "status bad-frame count after the FD length-12 frame: 0x$s, expected 0x0007"
+step "CAN FD: answered in FD ($got); FD length 12 counted as bad"
 
 ip link del dev "$IFACE" || fail "ip link del"
 sleep 0.5
