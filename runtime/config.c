@@ -161,7 +161,7 @@ static int is_no(const char *v)
 /* Options that take no value (flags). */
 static int is_flag(const char *key)
 {
-    return strcmp(key, "syslog") == 0 || strcmp(key, "fake") == 0;
+    return strcmp(key, "syslog") == 0;
 }
 
 int sc_config_set(sc_config *c, const char *key, const char *value, char *why, int whylen)
@@ -239,8 +239,6 @@ int sc_config_set(sc_config *c, const char *key, const char *value, char *why, i
     } else if (strcmp(key, "syslog-socket") == 0) {
         if (copy_str(c->syslog_socket, sizeof c->syslog_socket, value) != 0)
             BAD("--syslog-socket: bad path '%s'", value);
-    } else if (strcmp(key, "fake") == 0) {
-        c->use_fake = is_yes(value);
     } else if (strcmp(key, "log-level") == 0) {
         static const char *const lv[] = {"error", "warning", "notice", "info", "debug"};
         int found = -1;
@@ -355,7 +353,7 @@ int sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *ve
     }
     if (c->table[0] == '\0')
         BAD("--table TABLE is required");
-    if (!c->use_modbus_tcp && !c->use_modbus_rtu && !c->use_can && !c->use_fake)
+    if (!c->use_modbus_tcp && !c->use_modbus_rtu && !c->use_can)
         c->use_modbus_tcp = 1; /* SPEC §4 default: Modbus TCP on 127.0.0.1:1502 */
     return 0;
 }

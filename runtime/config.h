@@ -11,7 +11,7 @@
 typedef struct sc_config {
     char table[512];
     sc_corr_mode mode;
-    int use_modbus_tcp, use_modbus_rtu, use_can, use_fake;
+    int use_modbus_tcp, use_modbus_rtu, use_can;
     sc_mbtcp_config tcp;
     sc_mbrtu_config rtu;
     sc_can_config can;

@@ -8,7 +8,6 @@
 #include "log.h"
 #include "modbus_map.h"
 #include "sd_notify.h"
-#include "transport_fake.h"
 #include "transport_modbus.h"
 #ifdef SELFCALD_HAVE_CAN
 #include "transport_can.h"
@@ -57,10 +56,6 @@ int main(int argc, char **argv)
         fprintf(stderr, "selfcald: --can: this build has no SocketCAN transport\n");
         return 1;
 #endif
-    }
-    if (g_cfg.use_fake) {
-        sc_fake_transport(&t);
-        sc_daemon_add(&g_daemon, &t);
     }
     if (sc_daemon_catch_signals(&g_daemon) != 0) {
         sc_log(SC_LOG_ERR, "cannot set up signal handling");
