@@ -13,7 +13,7 @@
 typedef struct sc_mbtcp_config {
     char host[64];             /* listen address, default "127.0.0.1" ("0.0.0.0": all) */
     uint16_t port;             /* default 1502; 0 = any free port (logged) */
-    uint8_t unit_id;           /* default 1; 255 is always accepted */
+    uint8_t unit_id;           /* default 1; 0 and 255 (this device) are always accepted */
     int max_connections;       /* default 64, at most SC_MBTCP_MAX_CONN */
     uint32_t byte_timeout_ms;  /* a started request must complete within this; default 500 */
     uint32_t idle_timeout_ms;  /* close a connection silent this long; 0 = never; default 60000 */

@@ -198,7 +198,7 @@ static int tcp_process(mbtcp_state *s, conn *c, sc_engine *e, uint64_t now_ms)
         unsigned unit = p[6];
         modbus_set_socket(s->ctx, c->fd);
         int rc;
-        if (unit == s->cfg.unit_id || unit == 0xff)
+        if (unit == s->cfg.unit_id || unit == 0xff || unit == 0) /* 0, 255: "this device" */
             rc = sc_modbus_map_reply(sc_modbus_map_shared(), s->ctx, p, total, MBAP_LEN, 0, e);
         else /* not us: what a gateway answers for an absent device */
             rc = modbus_reply_exception(s->ctx, p,
