@@ -525,8 +525,9 @@ out:
     return st;
 }
 
-/* x := pinned-system solve of b (original index space), with iterative refinement. */
-static void pinned_solve(sc_grid_lsq *q, double *x)
+/* x := pinned-system solve of b (original index space), with `refine` steps of iterative
+ * refinement against the assembled matrix. */
+static void pinned_solve(sc_grid_lsq *q, double *x, int refine)
 {
     int nx = q->nx;
     double *b = q->work, *r = q->work2;
@@ -541,7 +542,7 @@ static void pinned_solve(sc_grid_lsq *q, double *x)
     }
     memcpy(y, b, sizeof(double) * (size_t)nx);
     sc_ldl_solve(&q->f, y);
-    for (int it = 0; it < 2; ++it) {
+    for (int it = 0; it < refine; ++it) {
         sc_ldl_matvec(&q->f, y, r);
         for (int i = 0; i < nx; ++i)
             r[i] = b[i] - r[i];
@@ -585,7 +586,7 @@ static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
         double *w = W + (size_t)c * nx;
         for (int i = 0; i < nx; ++i)
             w[i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
-        pinned_solve(q, w);
+        pinned_solve(q, w, 2);
     }
     double M[4][4];
     for (int c = 0; c < 4; ++c)
@@ -818,12 +819,12 @@ sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_
                 x[idx[r]] += val[r] * z;
         }
     }
-    pinned_solve(q, x);
+    pinned_solve(q, x, 0);
     {
         double *r = malloc(sizeof(double) * (size_t)nx);
         for (int it = 0; r && it < 3; ++it) {
             data_residual(q, d, x, r);
-            pinned_solve(q, r);
+            pinned_solve(q, r, 0);
             for (int i = 0; i < nx; ++i)
                 x[i] += r[i];
         }
