@@ -1,0 +1,72 @@
+/* selfcal/export.h — resample a stage error map onto the compensation table of a real machine
+ * controller, write it, and report what the controller will actually apply: the residual
+ * (controller's interpolation of the written, quantized table minus our bilinear map) and the
+ * points clipped to a limit. Formats and their limits: docs/exporters.md.
+ *
+ * All formats write +G (the position-mode sign of SPEC §4: the controller adds the value to the
+ * commanded position, so the true position lands on the target); `negate` writes -G.
+ */
+#ifndef SELFCAL_EXPORT_H
+#define SELFCAL_EXPORT_H
+
+#include "selfcal/error.h"
+#include "selfcal/lut.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sc_export_format {
+    SC_EXPORT_BECKHOFF = 0,    /* TwinCAT CNC / ISG plane compensation list (kw.crosscomp2.*) */
+    SC_EXPORT_SIEMENS_CEC = 1, /* SINUMERIK 840D cross error compensation ($AN_CEC tables) */
+    SC_EXPORT_LINUXCNC = 2     /* LinuxCNC joint compensation file (COMP_FILE_TYPE = 1) */
+} sc_export_format;
+
+/* Controller limits (see docs/exporters.md). */
+#define SC_EXPORT_BECKHOFF_MAX_POINTS 101 /* per master axis: 101 x 101 = default max_points 10201 */
+#define SC_EXPORT_SIEMENS_MAX_POINTS 2000 /* per table (MD18342 upper limit) */
+#define SC_EXPORT_LINUXCNC_MAX_POINTS 256 /* triplets per joint */
+
+typedef struct sc_export_options {
+    sc_export_format format;
+    int axis;           /* compensated coordinate: 0 = x (Gx), 1 = y (Gy); -1 = both (Siemens only) */
+    double interval_mm; /* table spacing; 0 = from the map's pitch (Beckhoff: the smaller one) */
+    int use_line;       /* LinuxCNC: 1 = take G along the line `line_mm` of the other coordinate */
+    double line_mm;     /*   (default 0: the mean over the other coordinate, the best 1-D fit) */
+    double limit_um;    /* |value| above this is clipped to it and counted; 0 = the format's default */
+    int negate;         /* write -G */
+    /* Beckhoff: logical axis numbers of the x and y axes (masters; the slave is the compensated
+     * one). Siemens: machine axis names of x and y ("AX1", "AX2") and the first table index. */
+    int beckhoff_x_axis_nr, beckhoff_y_axis_nr;
+    const char *siemens_x_name, *siemens_y_name;
+    int siemens_first_table;
+} sc_export_options;
+
+typedef struct sc_export_report {
+    int tables;          /* tables written (Siemens: up to 4; others 1) */
+    int points[4];       /* entries per table (Beckhoff: points along x in [0], along y in [1]) */
+    double interval_mm;  /* spacing used */
+    double unit_um;      /* the format's value unit as written (Beckhoff 0.1 um; others 1 nm) */
+    long samples;        /* map positions compared */
+    double rms_um;       /* residual: controller interpolation of the written table - our map */
+    double max_um;       /* largest |residual| */
+    double max_at_mm[2]; /* where */
+    long clipped;        /* table entries clipped to the limit */
+    double limit_um;     /* the limit used */
+} sc_export_report;
+
+/* Defaults: axis x, interval from the map, no line, format limits, AX1/AX2, axis numbers 1/2. */
+void sc_export_options_init(sc_export_options *o, sc_export_format format);
+
+/* "beckhoff", "siemens-cec", "linuxcnc" -> format; -1 if unknown. */
+int sc_export_format_from_name(const char *name);
+
+/* Resample lut's grid (profiles are ignored) for the controller, write it atomically to path,
+ * fill *rep. SC_E_INPUT for options the format cannot honour (e.g. more entries than it holds). */
+sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,
+                          sc_export_report *rep, sc_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

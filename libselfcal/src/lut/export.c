@@ -1,0 +1,550 @@
+/* export.c — write a stage error map as a machine controller's compensation table and measure
+ * what the controller will apply (docs/exporters.md):
+ *   beckhoff     TwinCAT CNC / ISG plane compensation list: one slave axis, a 2-D table over the
+ *                two master axes with one interval, values and positions in 0.1 um integers.
+ *   siemens-cec  SINUMERIK 840D $AN_CEC tables: 1-D tables (input axis -> output axis) that add
+ *                up; the map is split into its best additive form A(x) + B(y) (row and column
+ *                means), the interaction part remains as residual. Values in mm.
+ *   linuxcnc     joint compensation file (COMP_FILE_TYPE = 1: nominal, forward trim, reverse
+ *                trim, mm), one joint: G of that axis as a function of that axis only (the mean
+ *                over the other coordinate, or along one line).
+ * Each exporter computes its table values, quantizes them to the format's unit, clips them to the
+ * limit, then evaluates the controller's interpolation of exactly those values on a fine sampling
+ * of the map (nodes and 4 x 4 sub-points per cell) against our bilinear map. */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/atomic_file.h"
+#include "selfcal/export.h"
+
+/* ---- a growing text buffer ---- */
+
+typedef struct textbuf {
+    char *s;
+    size_t len, cap;
+    int failed;
+} textbuf;
+
+static void tb_printf(textbuf *t, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+static void tb_printf(textbuf *t, const char *fmt, ...)
+{
+    if (t->failed)
+        return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(t->s ? t->s + t->len : NULL, t->s ? t->cap - t->len : 0, fmt, ap);
+        va_end(ap);
+        if (n < 0) {
+            t->failed = 1;
+            return;
+        }
+        if (t->s && t->len + (size_t)n < t->cap) {
+            t->len += (size_t)n;
+            return;
+        }
+        size_t ncap = t->cap ? t->cap * 2 : 65536;
+        while (ncap < t->len + (size_t)n + 1)
+            ncap *= 2;
+        char *p = realloc(t->s, ncap);
+        if (!p) {
+            t->failed = 1;
+            return;
+        }
+        t->s = p;
+        t->cap = ncap;
+    }
+}
+
+/* ---- common ---- */
+
+void sc_export_options_init(sc_export_options *o, sc_export_format format)
+{
+    memset(o, 0, sizeof *o);
+    o->format = format;
+    o->axis = 0;
+    o->beckhoff_x_axis_nr = 1;
+    o->beckhoff_y_axis_nr = 2;
+    o->siemens_x_name = "AX1";
+    o->siemens_y_name = "AX2";
+    o->siemens_first_table = 0;
+}
+
+int sc_export_format_from_name(const char *name)
+{
+    if (!strcmp(name, "beckhoff"))
+        return SC_EXPORT_BECKHOFF;
+    if (!strcmp(name, "siemens-cec"))
+        return SC_EXPORT_SIEMENS_CEC;
+    if (!strcmp(name, "linuxcnc"))
+        return SC_EXPORT_LINUXCNC;
+    return -1;
+}
+
+/* Component comp (0 = Gx, 1 = Gy) of the bilinear map at (x, y), um. */
+static double map_g(const sc_lut *lut, int comp, double x, double y)
+{
+    double gx, gy;
+    sc_lut_grid_eval(lut, x, y, &gx, &gy);
+    return comp == 0 ? gx : gy;
+}
+
+static double map_x(const sc_lut *lut, int j)
+{
+    return lut->x0_mm + j * lut->px_mm;
+}
+
+static double map_y(const sc_lut *lut, int i)
+{
+    return lut->y0_mm + i * lut->py_mm;
+}
+
+/* Quantize v (um) to the format's unit and clip to +-limit; counts clips. */
+static long long quantize(double v_um, double unit_um, double limit_um, long *clipped)
+{
+    if (limit_um > 0 && fabs(v_um) > limit_um) {
+        v_um = v_um > 0 ? limit_um : -limit_um;
+        ++*clipped;
+    }
+    return llround(v_um / unit_um);
+}
+
+/* Linear interpolation in a 1-D table (start, step, n values), clamped at the ends. */
+static double interp1(const double *v, int n, double start, double step, double s)
+{
+    double u = (s - start) / step;
+    if (u <= 0)
+        return v[0];
+    if (u >= n - 1)
+        return v[n - 1];
+    int k = (int)u;
+    if (k > n - 2)
+        k = n - 2;
+    double f = u - k;
+    return v[k] * (1 - f) + v[k + 1] * f;
+}
+
+/* The controller's value of component comp at (x, y), um (sign included). */
+typedef double (*ctrl_fn)(const void *ctx, int comp, double x, double y);
+
+/* Residual of the controller against sign * map over nodes and 4 x 4 sub-points per cell. */
+static void residual(const sc_lut *lut, const int *comps, int ncomp, double sign, ctrl_fn f,
+                     const void *ctx, sc_export_report *rep)
+{
+    const int sub = 4;
+    double ss = 0, mx = -1;
+    long n = 0;
+    for (int a = 0; a <= sub * (lut->ny - 1); ++a)
+        for (int b = 0; b <= sub * (lut->nx - 1); ++b) {
+            double x = lut->x0_mm + lut->px_mm * b / sub, y = lut->y0_mm + lut->py_mm * a / sub;
+            for (int c = 0; c < ncomp; ++c) {
+                double r = f(ctx, comps[c], x, y) - sign * map_g(lut, comps[c], x, y);
+                ss += r * r;
+                ++n;
+                if (fabs(r) > mx) {
+                    mx = fabs(r);
+                    rep->max_at_mm[0] = x;
+                    rep->max_at_mm[1] = y;
+                }
+            }
+        }
+    rep->samples = n;
+    rep->rms_um = sqrt(ss / (double)n);
+    rep->max_um = mx;
+}
+
+/* Number of points and end of a 1-D table covering [lo, hi] with spacing step. */
+static int cover_points(double lo, double hi, double step)
+{
+    return 1 + (int)ceil((hi - lo) / step - 1e-9);
+}
+
+static const char *axis_upper(int axis)
+{
+    return axis == 0 ? "X" : "Y";
+}
+
+/* ---- Beckhoff / ISG plane compensation ---- */
+
+typedef struct beckhoff_ctx {
+    long long start[2], interval; /* 0.1 um */
+    int n[2];                     /* points along x (master 1) and y (master 2) */
+    long long *code;              /* [j * n[0] + i], 0.1 um */
+} beckhoff_ctx;
+
+static double beckhoff_eval(const void *vctx, int comp, double x, double y)
+{
+    (void)comp;
+    const beckhoff_ctx *c = vctx;
+    double u = (x * 1e4 - (double)c->start[0]) / (double)c->interval;
+    double v = (y * 1e4 - (double)c->start[1]) / (double)c->interval;
+    u = fmin(fmax(u, 0.0), c->n[0] - 1.0);
+    v = fmin(fmax(v, 0.0), c->n[1] - 1.0);
+    int i = (int)u, j = (int)v;
+    if (i > c->n[0] - 2)
+        i = c->n[0] - 2;
+    if (j > c->n[1] - 2)
+        j = c->n[1] - 2;
+    double fu = u - i, fv = v - j;
+    const long long *r0 = c->code + (size_t)j * c->n[0], *r1 = r0 + c->n[0];
+    double val = ((double)r0[i] * (1 - fu) + (double)r0[i + 1] * fu) * (1 - fv) +
+                 ((double)r1[i] * (1 - fu) + (double)r1[i + 1] * fu) * fv;
+    return 0.1 * val;
+}
+
+static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+                                 sc_export_report *rep, sc_error *err)
+{
+    if (o->axis != 0 && o->axis != 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "beckhoff: choose the compensated (slave) axis, x or y");
+    const double x1 = map_x(lut, lut->nx - 1), y1 = map_y(lut, lut->ny - 1);
+    beckhoff_ctx c;
+    memset(&c, 0, sizeof c);
+    /* Positions in 0.1 um; the table starts at or before the map and covers it. */
+    c.start[0] = (long long)floor(lut->x0_mm * 1e4 + 1e-6);
+    c.start[1] = (long long)floor(lut->y0_mm * 1e4 + 1e-6);
+    if (o->interval_mm > 0) {
+        c.interval = llround(o->interval_mm * 1e4);
+        if (c.interval < 1)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "beckhoff: interval below 0.1 um");
+    } else {
+        c.interval = llround(fmin(lut->px_mm, lut->py_mm) * 1e4);
+        if (c.interval < 1)
+            c.interval = 1;
+        /* One interval for both masters, at most 101 points each: widen if needed. */
+        for (int a = 0; a < 2; ++a) {
+            double span = (a == 0 ? x1 : y1) * 1e4 - (double)c.start[a];
+            long long need = (long long)ceil(span / (SC_EXPORT_BECKHOFF_MAX_POINTS - 1) - 1e-9);
+            if (need > c.interval)
+                c.interval = need;
+        }
+    }
+    for (int a = 0; a < 2; ++a) {
+        double span = (a == 0 ? x1 : y1) * 1e4 - (double)c.start[a];
+        c.n[a] = 1 + (int)ceil(span / (double)c.interval - 1e-9);
+        if (c.n[a] < 2)
+            c.n[a] = 2;
+        if (c.n[a] > SC_EXPORT_BECKHOFF_MAX_POINTS)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "beckhoff: interval %.4f mm needs %d points along %s; the table "
+                                "holds %d (101 x 101 = max_points 10201)",
+                                (double)c.interval * 1e-4, c.n[a], a == 0 ? "x" : "y",
+                                SC_EXPORT_BECKHOFF_MAX_POINTS);
+    }
+    c.code = malloc(sizeof *c.code * (size_t)c.n[0] * (size_t)c.n[1]);
+    if (!c.code)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    const double sign = o->negate ? -1.0 : 1.0;
+    rep->limit_um = o->limit_um > 0 ? o->limit_um : 214748364.7; /* SGN32 in 0.1 um */
+    for (int j = 0; j < c.n[1]; ++j)
+        for (int i = 0; i < c.n[0]; ++i) {
+            double x = (double)(c.start[0] + i * c.interval) * 1e-4;
+            double y = (double)(c.start[1] + j * c.interval) * 1e-4;
+            c.code[(size_t)j * c.n[0] + i] =
+                quantize(sign * map_g(lut, o->axis, x, y), 0.1, rep->limit_um, &rep->clipped);
+        }
+    int comps[1] = {o->axis};
+    residual(lut, comps, 1, sign, beckhoff_eval, &c, rep);
+    rep->tables = 1;
+    rep->points[0] = c.n[0];
+    rep->points[1] = c.n[1];
+    rep->interval_mm = (double)c.interval * 1e-4;
+    rep->unit_um = 0.1;
+
+    const int slave_nr = o->axis == 0 ? o->beckhoff_x_axis_nr : o->beckhoff_y_axis_nr;
+    tb_printf(t, "# ****************************************\n");
+    tb_printf(t, "# Plane compensation of the %s axis, written by selfcal export\n", axis_upper(o->axis));
+    tb_printf(t, "# %s = %sG%s(X, Y) of the stage error map, in 0.1 um\n", axis_upper(o->axis),
+              o->negate ? "-" : "+", o->axis == 0 ? "x" : "y");
+    tb_printf(t, "# residual (table - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
+              rep->rms_um, rep->max_um, rep->clipped);
+    tb_printf(t, "# ****************************************\n");
+    tb_printf(t, "kopf.achs_nr                            %d\n", slave_nr);
+    tb_printf(t, "kopf.log_achs_name                      %s\n", axis_upper(o->axis));
+    tb_printf(t, "kw.crosscomp2.unit                      1   /* 0.1 um */\n");
+    tb_printf(t, "kw.crosscomp2.interval                  %lld   /* %.4f mm */\n", c.interval,
+              (double)c.interval * 1e-4);
+    tb_printf(t, "kw.crosscomp2.last_index_master1        %d\n", c.n[0] - 1);
+    tb_printf(t, "kw.crosscomp2.last_index_master2        %d\n", c.n[1] - 1);
+    tb_printf(t, "kw.crosscomp2.start_position_master1    %lld   /* %.4f mm */\n", c.start[0],
+              (double)c.start[0] * 1e-4);
+    tb_printf(t, "kw.crosscomp2.start_position_master2    %lld   /* %.4f mm */\n", c.start[1],
+              (double)c.start[1] * 1e-4);
+    tb_printf(t, "kw.crosscomp2.n_cycles                  10\n");
+    tb_printf(t, "kw.crosscomp2.master1_ax_nr             %d\n", o->beckhoff_x_axis_nr);
+    tb_printf(t, "kw.crosscomp2.master2_ax_nr             %d\n", o->beckhoff_y_axis_nr);
+    for (int j = 0; j < c.n[1]; ++j)
+        for (int i = 0; i < c.n[0]; ++i)
+            tb_printf(t, "kw.crosscomp2.table[%3d][%3d].correction %lld\n", j, i,
+                      c.code[(size_t)j * c.n[0] + i]);
+    tb_printf(t, "End\n");
+    free(c.code);
+    return SC_OK;
+}
+
+/* ---- Siemens 840D CEC ---- */
+
+typedef struct cec_table {
+    int input, output;   /* 0 = x, 1 = y */
+    int n;
+    double min_mm, step_mm;
+    long long *code_nm;  /* values in nm */
+    double *value_um;    /* the same, um, for interpolation */
+} cec_table;
+
+typedef struct cec_ctx {
+    int ntab;
+    cec_table tab[4];
+} cec_ctx;
+
+static double cec_eval(const void *vctx, int comp, double x, double y)
+{
+    const cec_ctx *c = vctx;
+    double sum = 0;
+    for (int k = 0; k < c->ntab; ++k) {
+        const cec_table *tb = &c->tab[k];
+        if (tb->output != comp)
+            continue;
+        sum += interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, tb->input == 0 ? x : y);
+    }
+    return sum;
+}
+
+/* Mean of component comp over the other coordinate's nodes, at position s along `along`. */
+static double mean_along(const sc_lut *lut, int comp, int along, double s)
+{
+    double sum = 0;
+    int n = along == 0 ? lut->ny : lut->nx;
+    for (int k = 0; k < n; ++k)
+        sum += along == 0 ? map_g(lut, comp, s, map_y(lut, k)) : map_g(lut, comp, map_x(lut, k), s);
+    return sum / n;
+}
+
+static double grand_mean(const sc_lut *lut, int comp)
+{
+    const double *g = comp == 0 ? lut->gx_um : lut->gy_um;
+    double sum = 0;
+    for (int k = 0; k < lut->nx * lut->ny; ++k)
+        sum += g[k];
+    return sum / (lut->nx * lut->ny);
+}
+
+static void free_cec(cec_ctx *c)
+{
+    for (int k = 0; k < c->ntab; ++k) {
+        free(c->tab[k].code_nm);
+        free(c->tab[k].value_um);
+    }
+}
+
+static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+                                sc_export_report *rep, sc_error *err)
+{
+    int comps[2], ncomp = 0;
+    if (o->axis < 0) {
+        comps[ncomp++] = 0;
+        comps[ncomp++] = 1;
+    } else if (o->axis <= 1)
+        comps[ncomp++] = o->axis;
+    else
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "siemens-cec: axis must be x, y or both");
+    if (o->siemens_first_table < 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "siemens-cec: table index must be >= 0");
+    const double sign = o->negate ? -1.0 : 1.0;
+    rep->limit_um = o->limit_um > 0 ? o->limit_um : 1000.0; /* MD32720 CEC_MAX_SUM default 1 mm */
+    cec_ctx c;
+    memset(&c, 0, sizeof c);
+    sc_status st = SC_OK;
+    for (int ci = 0; ci < ncomp && st == SC_OK; ++ci) {
+        const int comp = comps[ci];
+        const double gm = grand_mean(lut, comp);
+        for (int in = 0; in < 2; ++in) {
+            cec_table *tb = &c.tab[c.ntab];
+            tb->input = in;
+            tb->output = comp;
+            const double lo = in == 0 ? lut->x0_mm : lut->y0_mm;
+            const double hi = in == 0 ? map_x(lut, lut->nx - 1) : map_y(lut, lut->ny - 1);
+            tb->step_mm = o->interval_mm > 0 ? o->interval_mm : (in == 0 ? lut->px_mm : lut->py_mm);
+            tb->n = cover_points(lo, hi, tb->step_mm);
+            tb->min_mm = lo;
+            if (tb->n > SC_EXPORT_SIEMENS_MAX_POINTS) {
+                st = sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                  "siemens-cec: step %.6f mm needs %d points; a table holds %d "
+                                  "(MD18342)",
+                                  tb->step_mm, tb->n, SC_EXPORT_SIEMENS_MAX_POINTS);
+                break;
+            }
+            tb->code_nm = malloc(sizeof *tb->code_nm * (size_t)tb->n);
+            tb->value_um = malloc(sizeof *tb->value_um * (size_t)tb->n);
+            ++c.ntab;
+            if (!tb->code_nm || !tb->value_um) {
+                st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+                break;
+            }
+            /* Additive split: A(x) = mean over y (the comp's x table), B(y) = mean over x minus
+             * the grand mean (the y table); A(x_j) + B(y_i) is the least-squares additive fit. */
+            for (int k = 0; k < tb->n; ++k) {
+                double s = lo + k * tb->step_mm;
+                double v = mean_along(lut, comp, in, s) - (in == 1 ? gm : 0.0);
+                tb->code_nm[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
+                tb->value_um[k] = 1e-3 * (double)tb->code_nm[k];
+            }
+        }
+    }
+    if (st != SC_OK) {
+        free_cec(&c);
+        return st;
+    }
+    residual(lut, comps, ncomp, sign, cec_eval, &c, rep);
+    rep->tables = c.ntab;
+    for (int k = 0; k < c.ntab; ++k)
+        rep->points[k] = c.tab[k].n;
+    rep->interval_mm = c.tab[0].step_mm;
+    rep->unit_um = 1e-3;
+
+    const char *name[2] = {o->siemens_x_name, o->siemens_y_name};
+    tb_printf(t, "%%_N_NC_CEC_INI\n");
+    tb_printf(t, "CHANDATA(1)\n");
+    tb_printf(t, "; cross error compensation written by selfcal export: %d table(s), values in mm\n",
+              c.ntab);
+    tb_printf(t, "; map = A(x) + B(y) + residual; tables hold %sA and %sB of %s\n",
+              o->negate ? "-" : "+", o->negate ? "-" : "+", ncomp == 2 ? "Gx and Gy" : (comps[0] == 0 ? "Gx" : "Gy"));
+    tb_printf(t, "; residual (tables - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
+              rep->rms_um, rep->max_um, rep->clipped);
+    tb_printf(t, "; needs MD18342 $MN_MM_CEC_MAX_POINTS[t] >= points, MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
+    tb_printf(t, "; SD41300 $SN_CEC_TABLE_ENABLE[t] = 1 for each table t below\n");
+    for (int k = 0; k < c.ntab; ++k) {
+        const cec_table *tb = &c.tab[k];
+        const int ti = o->siemens_first_table + k;
+        tb_printf(t, "; table %d: %s of %s as a function of %s, %d points\n", ti,
+                  tb->output == 0 ? "X error" : "Y error", name[tb->output], name[tb->input], tb->n);
+        for (int p = 0; p < tb->n; ++p) {
+            long long v = tb->code_nm[p];
+            tb_printf(t, "$AN_CEC[%d,%d]=%s%lld.%06lld\n", ti, p, v < 0 ? "-" : "", llabs(v) / 1000000,
+                      llabs(v) % 1000000);
+        }
+        tb_printf(t, "$AN_CEC_INPUT_AXIS[%d]=(%s)\n", ti, name[tb->input]);
+        tb_printf(t, "$AN_CEC_OUTPUT_AXIS[%d]=(%s)\n", ti, name[tb->output]);
+        tb_printf(t, "$AN_CEC_STEP[%d]=%.6f\n", ti, tb->step_mm);
+        tb_printf(t, "$AN_CEC_MIN[%d]=%.6f\n", ti, tb->min_mm);
+        tb_printf(t, "$AN_CEC_MAX[%d]=%.6f\n", ti, tb->min_mm + (tb->n - 1) * tb->step_mm);
+        tb_printf(t, "$AN_CEC_DIRECTION[%d]=0\n", ti);
+        tb_printf(t, "$AN_CEC_MULT_BY_TABLE[%d]=0\n", ti);
+        tb_printf(t, "$AN_CEC_IS_MODULO[%d]=0\n", ti);
+    }
+    tb_printf(t, "M17\n");
+    free_cec(&c);
+    return SC_OK;
+}
+
+/* ---- LinuxCNC joint compensation ---- */
+
+typedef struct lcnc_ctx {
+    int axis, n;
+    double start_mm, step_mm;
+    double *value_um;
+} lcnc_ctx;
+
+static double lcnc_eval(const void *vctx, int comp, double x, double y)
+{
+    (void)comp;
+    const lcnc_ctx *c = vctx;
+    return interp1(c->value_um, c->n, c->start_mm, c->step_mm, c->axis == 0 ? x : y);
+}
+
+static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+                                 sc_export_report *rep, sc_error *err)
+{
+    if (o->axis != 0 && o->axis != 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "linuxcnc: one joint at a time: choose the axis, x or y");
+    lcnc_ctx c;
+    c.axis = o->axis;
+    const double lo = o->axis == 0 ? lut->x0_mm : lut->y0_mm;
+    const double hi = o->axis == 0 ? map_x(lut, lut->nx - 1) : map_y(lut, lut->ny - 1);
+    c.step_mm = o->interval_mm > 0 ? o->interval_mm : (o->axis == 0 ? lut->px_mm : lut->py_mm);
+    c.n = cover_points(lo, hi, c.step_mm);
+    c.start_mm = lo;
+    if (c.n > SC_EXPORT_LINUXCNC_MAX_POINTS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "linuxcnc: step %.6f mm needs %d entries; a joint holds %d",
+                            c.step_mm, c.n, SC_EXPORT_LINUXCNC_MAX_POINTS);
+    c.value_um = malloc(sizeof *c.value_um * (size_t)c.n);
+    long long *code = malloc(sizeof *code * (size_t)c.n);
+    if (!c.value_um || !code) {
+        free(c.value_um);
+        free(code);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    const double sign = o->negate ? -1.0 : 1.0;
+    rep->limit_um = o->limit_um; /* the format itself has no value limit */
+    for (int k = 0; k < c.n; ++k) {
+        double s = lo + k * c.step_mm, v;
+        if (o->use_line)
+            v = o->axis == 0 ? map_g(lut, 0, s, o->line_mm) : map_g(lut, 1, o->line_mm, s);
+        else
+            v = mean_along(lut, o->axis, o->axis, s);
+        code[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
+        c.value_um[k] = 1e-3 * (double)code[k];
+    }
+    int comps[1] = {o->axis};
+    residual(lut, comps, 1, sign, lcnc_eval, &c, rep);
+    rep->tables = 1;
+    rep->points[0] = c.n;
+    rep->interval_mm = c.step_mm;
+    rep->unit_um = 1e-3;
+    /* No comments: the file is nothing but "nominal forward-trim reverse-trim" lines, ascending. */
+    for (int k = 0; k < c.n; ++k) {
+        long long v = code[k];
+        char trim[48];
+        snprintf(trim, sizeof trim, "%s%lld.%06lld", v < 0 ? "-" : "", llabs(v) / 1000000,
+                 llabs(v) % 1000000);
+        tb_printf(t, "%.6f %s %s\n", lo + k * c.step_mm, trim, trim);
+    }
+    free(code);
+    free(c.value_um);
+    return SC_OK;
+}
+
+sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,
+                          sc_export_report *rep, sc_error *err)
+{
+    memset(rep, 0, sizeof *rep);
+    if (lut->nx < 2 || lut->ny < 2)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the map needs at least 2 x 2 nodes");
+    if (!(o->interval_mm >= 0) || !isfinite(o->interval_mm) || !(o->limit_um >= 0) ||
+        !isfinite(o->limit_um))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval and limit must be >= 0");
+    if (o->interval_mm > 0 && o->interval_mm < 1e-4)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval below 0.1 um");
+    textbuf t = {0};
+    sc_status st;
+    switch (o->format) {
+    case SC_EXPORT_BECKHOFF:
+        st = export_beckhoff(lut, o, &t, rep, err);
+        break;
+    case SC_EXPORT_SIEMENS_CEC:
+        st = export_siemens(lut, o, &t, rep, err);
+        break;
+    case SC_EXPORT_LINUXCNC:
+        st = export_linuxcnc(lut, o, &t, rep, err);
+        break;
+    default:
+        st = sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown export format %d", (int)o->format);
+    }
+    if (st == SC_OK && t.failed)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory while formatting");
+    if (st == SC_OK)
+        st = sc_write_file_atomic(path, t.s, t.len, err);
+    free(t.s);
+    return st;
+}

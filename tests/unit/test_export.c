@@ -1,0 +1,563 @@
+/* Unit tests of the controller exporters (selfcal/export.h): each exported file is read back here
+ * by an independent parser of the controller's format, interpolated the way the controller does
+ * (bilinear plane table, sums of linear 1-D tables, linear joint table), and compared with the
+ * map within the format's units; the reported residual and clipped count are recomputed. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "selfcal/export.h"
+#include "selfcal/lut.h"
+
+#define TMP SELFCAL_TEST_TMP "/export_"
+
+/* Smooth test maps (um). kind 0: with interaction terms; 1: separable a(x) + b(y). */
+static double gx_true(int kind, double x, double y)
+{
+    double s = 0.8 * sin(0.3 * x) + 0.02 * y * y - 0.5 + 0.05 * x;
+    return kind == 0 ? s + 0.004 * x * y : s;
+}
+
+static double gy_true(int kind, double x, double y)
+{
+    double s = -0.6 * cos(0.2 * y) + 0.01 * x * x * 0.5 - 0.03 * x;
+    return kind == 0 ? s + 0.02 * sin(0.1 * x * y) : s;
+}
+
+static sc_lut *make_map(int nx, int ny, double x0, double y0, double px, double py, int kind)
+{
+    sc_lut *lut = malloc(sizeof *lut);
+    assert_non_null(lut);
+    sc_lut_init(lut);
+    lut->nx = nx;
+    lut->ny = ny;
+    lut->x0_mm = x0;
+    lut->y0_mm = y0;
+    lut->px_mm = px;
+    lut->py_mm = py;
+    for (int i = 0; i < ny; ++i)
+        for (int j = 0; j < nx; ++j) {
+            double x = x0 + j * px, y = y0 + i * py;
+            lut->gx_um[i * nx + j] = gx_true(kind, x, y);
+            lut->gy_um[i * nx + j] = gy_true(kind, x, y);
+        }
+    return lut;
+}
+
+/* Independent bilinear evaluation of the map (cell by search). */
+static double map_ref(const sc_lut *m, int comp, double x, double y)
+{
+    const double *g = comp == 0 ? m->gx_um : m->gy_um;
+    x = fmin(fmax(x, m->x0_mm), m->x0_mm + (m->nx - 1) * m->px_mm);
+    y = fmin(fmax(y, m->y0_mm), m->y0_mm + (m->ny - 1) * m->py_mm);
+    int j = 0, i = 0;
+    while (j < m->nx - 2 && m->x0_mm + (j + 1) * m->px_mm <= x)
+        ++j;
+    while (i < m->ny - 2 && m->y0_mm + (i + 1) * m->py_mm <= y)
+        ++i;
+    double tx = (x - (m->x0_mm + j * m->px_mm)) / m->px_mm;
+    double ty = (y - (m->y0_mm + i * m->py_mm)) / m->py_mm;
+    int k = i * m->nx + j;
+    return (1 - tx) * (1 - ty) * g[k] + tx * (1 - ty) * g[k + 1] + (1 - tx) * ty * g[k + m->nx] +
+           tx * ty * g[k + m->nx + 1];
+}
+
+static char *slurp(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    assert_non_null(f);
+    static char buf[4 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    return buf;
+}
+
+/* ---- Beckhoff: parse the kw.crosscomp2 list ---- */
+
+typedef struct bk {
+    long interval, start1, start2, last1, last2, unit, m1, m2, achs;
+    char name[64];
+    long *tab; /* [j][i] */
+    int seen_end;
+} bk;
+
+static void parse_beckhoff(const char *path, bk *b)
+{
+    memset(b, 0, sizeof *b);
+    b->last1 = b->last2 = -1;
+    b->tab = calloc(101 * 101, sizeof *b->tab);
+    char *seen = calloc(101 * 101, 1);
+    assert_non_null(b->tab);
+    char *text = slurp(path), *save = NULL;
+    for (char *line = strtok_r(text, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
+        if (line[0] == '#')
+            continue;
+        char key[128];
+        long v;
+        int i, j;
+        if (!strcmp(line, "End")) {
+            b->seen_end = 1;
+            continue;
+        }
+        if (sscanf(line, "kw.crosscomp2.table[%d][%d].correction %ld", &j, &i, &v) == 3) {
+            assert_true(j >= 0 && j <= 100 && i >= 0 && i <= 100);
+            assert_false(seen[j * 101 + i]);
+            seen[j * 101 + i] = 1;
+            b->tab[j * 101 + i] = v;
+            continue;
+        }
+        char val[64];
+        assert_int_equal(sscanf(line, "%127s %63s", key, val), 2);
+        if (!strcmp(key, "kopf.log_achs_name")) {
+            snprintf(b->name, sizeof b->name, "%s", val);
+            continue;
+        }
+        char *end;
+        v = strtol(val, &end, 10);
+        assert_true(*end == '\0');
+        if (!strcmp(key, "kw.crosscomp2.interval"))
+            b->interval = v;
+        else if (!strcmp(key, "kw.crosscomp2.start_position_master1"))
+            b->start1 = v;
+        else if (!strcmp(key, "kw.crosscomp2.start_position_master2"))
+            b->start2 = v;
+        else if (!strcmp(key, "kw.crosscomp2.last_index_master1"))
+            b->last1 = v;
+        else if (!strcmp(key, "kw.crosscomp2.last_index_master2"))
+            b->last2 = v;
+        else if (!strcmp(key, "kw.crosscomp2.unit"))
+            b->unit = v;
+        else if (!strcmp(key, "kw.crosscomp2.master1_ax_nr"))
+            b->m1 = v;
+        else if (!strcmp(key, "kw.crosscomp2.master2_ax_nr"))
+            b->m2 = v;
+        else if (!strcmp(key, "kopf.achs_nr"))
+            b->achs = v;
+    }
+    assert_true(b->seen_end);
+    assert_int_equal(b->unit, 1);
+    assert_true(b->interval > 0 && b->last1 >= 1 && b->last2 >= 1);
+    assert_true(b->last1 <= 100 && b->last2 <= 100); /* 101 x 101 */
+    for (long j = 0; j <= b->last2; ++j)
+        for (long i = 0; i <= b->last1; ++i)
+            assert_true(seen[j * 101 + i]); /* complete */
+    free(seen);
+}
+
+/* The controller's bilinear interpolation of the table, um (inside the table). */
+static double bk_eval(const bk *b, double x, double y)
+{
+    double u = (x * 1e4 - b->start1) / b->interval, v = (y * 1e4 - b->start2) / b->interval;
+    assert_true(u >= -1e-9 && v >= -1e-9 && u <= b->last1 + 1e-9 && v <= b->last2 + 1e-9);
+    int i = (int)floor(u), j = (int)floor(v);
+    if (i > b->last1 - 1)
+        i = (int)b->last1 - 1;
+    if (j > b->last2 - 1)
+        j = (int)b->last2 - 1;
+    double fu = u - i, fv = v - j;
+    const long *t = b->tab;
+    double val = (1 - fu) * (1 - fv) * t[j * 101 + i] + fu * (1 - fv) * t[j * 101 + i + 1] +
+                 (1 - fu) * fv * t[(j + 1) * 101 + i] + fu * fv * t[(j + 1) * 101 + i + 1];
+    return 0.1 * val;
+}
+
+/* Independent residual: over nodes and 4 x 4 sub-points per cell. */
+static void check_residual(const sc_lut *m, const sc_export_report *rep, double (*ctrl)(const void *, int, double, double),
+                           const void *ctx, const int *comps, int nc, double sign)
+{
+    double ss = 0, mx = 0;
+    long n = 0;
+    for (int a = 0; a <= 4 * (m->ny - 1); ++a)
+        for (int b = 0; b <= 4 * (m->nx - 1); ++b) {
+            double x = m->x0_mm + m->px_mm * b / 4.0, y = m->y0_mm + m->py_mm * a / 4.0;
+            for (int c = 0; c < nc; ++c) {
+                double r = ctrl(ctx, comps[c], x, y) - sign * map_ref(m, comps[c], x, y);
+                ss += r * r;
+                mx = fmax(mx, fabs(r));
+                ++n;
+            }
+        }
+    assert_int_equal(rep->samples, n);
+    assert_true(fabs(rep->rms_um - sqrt(ss / n)) < 1e-9);
+    assert_true(fabs(rep->max_um - mx) < 1e-9);
+}
+
+static double bk_ctrl(const void *ctx, int comp, double x, double y)
+{
+    (void)comp;
+    return bk_eval(ctx, x, y);
+}
+
+static void test_beckhoff(void **state)
+{
+    (void)state;
+    const char *path = TMP "plane.lis";
+    sc_export_options o;
+    sc_export_report rep;
+    sc_error err;
+    bk b;
+    /* Square pitch: the table nodes are the map nodes, so table = map within 0.05 um. */
+    sc_lut *m = make_map(25, 25, -12.0, -12.0, 1.0, 1.0, 0);
+    for (int axis = 0; axis < 2; ++axis) {
+        sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+        o.axis = axis;
+        o.beckhoff_x_axis_nr = 3;
+        o.beckhoff_y_axis_nr = 4;
+        assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+        parse_beckhoff(path, &b);
+        assert_int_equal(b.achs, axis == 0 ? 3 : 4);
+        assert_string_equal(b.name, axis == 0 ? "X" : "Y");
+        assert_int_equal(b.m1, 3);
+        assert_int_equal(b.m2, 4);
+        assert_int_equal(b.interval, 10000);
+        assert_int_equal(b.start1, -120000);
+        assert_int_equal(b.last1, 24);
+        assert_int_equal(b.last2, 24);
+        for (int i = 0; i < 25; ++i)
+            for (int j = 0; j < 25; ++j) {
+                double x = -12.0 + j, y = -12.0 + i;
+                assert_true(fabs(0.1 * b.tab[i * 101 + j] - map_ref(m, axis, x, y)) <= 0.05 + 1e-9);
+            }
+        assert_true(rep.max_um <= 0.05 + 1e-9);
+        int comps[1] = {axis};
+        check_residual(m, &rep, bk_ctrl, &b, comps, 1, 1.0);
+        assert_int_equal(rep.clipped, 0);
+        free(b.tab);
+    }
+    free(m);
+
+    /* Rectangular pitch, offset origin: one interval for both axes (the smaller pitch). */
+    m = make_map(9, 7, 3.3, -20.05, 2.0, 3.0, 0);
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    o.axis = 1;
+    o.negate = 1;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_beckhoff(path, &b);
+    assert_int_equal(b.interval, 20000);
+    assert_true(b.start1 <= 33000 && b.start2 <= -200500);
+    assert_true(b.start1 + b.last1 * b.interval >= 3.3e4 + 8 * 2e4);
+    assert_true(b.start2 + b.last2 * b.interval >= -200500 + 6 * 3e4);
+    int comps[1] = {1};
+    check_residual(m, &rep, bk_ctrl, &b, comps, 1, -1.0);
+    assert_true(rep.max_um < 0.2); /* resampled along y: smooth map, small loss */
+    free(b.tab);
+    free(m);
+
+    /* 101 x 101 limit: a finer interval than fits is refused, nothing written. */
+    m = make_map(101, 101, 0.0, 0.0, 1.0, 1.0, 0);
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    o.interval_mm = 0.5;
+    unlink(path);
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "101"));
+    struct stat st;
+    assert_int_not_equal(stat(path, &st), 0);
+    free(m);
+    /* Auto interval widens when the finer pitch would need more than 101 points. */
+    m = make_map(101, 101, 0.0, 0.0, 1.0, 0.25, 1);
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_beckhoff(path, &b);
+    assert_int_equal(b.interval, 10000);
+    assert_int_equal(b.last1, 100);
+    assert_int_equal(b.last2, 25);
+    free(b.tab);
+
+    /* Clipping: entries beyond the limit are written at the limit and counted. */
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    o.limit_um = 0.5;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_beckhoff(path, &b);
+    long expect = 0;
+    for (long j = 0; j <= b.last2; ++j)
+        for (long i = 0; i <= b.last1; ++i) {
+            double v = map_ref(m, 0, (b.start1 + i * b.interval) * 1e-4, (b.start2 + j * b.interval) * 1e-4);
+            if (fabs(v) > 0.5) {
+                ++expect;
+                assert_true(labs(b.tab[j * 101 + i]) == 5);
+            }
+            assert_true(labs(b.tab[j * 101 + i]) <= 5);
+        }
+    assert_true(expect > 0);
+    assert_int_equal(rep.clipped, expect);
+    free(b.tab);
+    free(m);
+}
+
+/* ---- Siemens: parse the $AN_CEC part program ---- */
+
+typedef struct cec {
+    int used[8];
+    double step[8], min[8], max[8];
+    char in[8][16], out[8][16];
+    double val[8][2001];
+    int nval[8];
+} cec;
+
+static void parse_siemens(const char *path, cec *c)
+{
+    memset(c, 0, sizeof *c);
+    char *text = slurp(path), *save = NULL;
+    int first = 1, end = 0;
+    for (char *line = strtok_r(text, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
+        if (first) {
+            assert_string_equal(line, "%_N_NC_CEC_INI");
+            first = 0;
+            continue;
+        }
+        if (line[0] == ';' || !strcmp(line, "CHANDATA(1)"))
+            continue;
+        if (!strcmp(line, "M17")) {
+            end = 1;
+            continue;
+        }
+        int t, p;
+        double v;
+        char name[16];
+        if (sscanf(line, "$AN_CEC[%d,%d]=%lf", &t, &p, &v) == 3) {
+            assert_true(t >= 0 && t < 8 && p >= 0 && p <= 2000);
+            assert_int_equal(p, c->nval[t]); /* in order, none missing */
+            c->val[t][p] = v;
+            c->nval[t]++;
+            c->used[t] = 1;
+        } else if (sscanf(line, "$AN_CEC_INPUT_AXIS[%d]=(%15[^)])", &t, name) == 2)
+            snprintf(c->in[t], sizeof c->in[t], "%s", name);
+        else if (sscanf(line, "$AN_CEC_OUTPUT_AXIS[%d]=(%15[^)])", &t, name) == 2)
+            snprintf(c->out[t], sizeof c->out[t], "%s", name);
+        else if (sscanf(line, "$AN_CEC_STEP[%d]=%lf", &t, &v) == 2)
+            c->step[t] = v;
+        else if (sscanf(line, "$AN_CEC_MIN[%d]=%lf", &t, &v) == 2)
+            c->min[t] = v;
+        else if (sscanf(line, "$AN_CEC_MAX[%d]=%lf", &t, &v) == 2)
+            c->max[t] = v;
+        else if (sscanf(line, "$AN_CEC_DIRECTION[%d]=%lf", &t, &v) == 2 ||
+                 sscanf(line, "$AN_CEC_MULT_BY_TABLE[%d]=%lf", &t, &v) == 2 ||
+                 sscanf(line, "$AN_CEC_IS_MODULO[%d]=%lf", &t, &v) == 2)
+            assert_true(v == 0);
+        else
+            fail_msg("unexpected line '%s'", line);
+    }
+    assert_true(end);
+    for (int t = 0; t < 8; ++t)
+        if (c->used[t]) {
+            /* points = (MAX - MIN) / STEP + 1, as MD18342 is sized */
+            assert_true(fabs((c->max[t] - c->min[t]) / c->step[t] + 1 - c->nval[t]) < 1e-6);
+            assert_true(c->nval[t] <= 2000);
+        }
+}
+
+typedef struct cec_eval_ctx {
+    const cec *c;
+    const char *xname, *yname;
+} cec_eval_ctx;
+
+/* Sum of the tables whose output is comp's axis; each linear, clamped at MIN/MAX; mm -> um. */
+static double cec_ctrl(const void *vctx, int comp, double x, double y)
+{
+    const cec_eval_ctx *e = vctx;
+    const cec *c = e->c;
+    const char *outname = comp == 0 ? e->xname : e->yname;
+    double sum = 0;
+    for (int t = 0; t < 8; ++t) {
+        if (!c->used[t] || strcmp(c->out[t], outname) != 0)
+            continue;
+        double s = strcmp(c->in[t], e->xname) == 0 ? x : y;
+        double u = (s - c->min[t]) / c->step[t];
+        u = fmin(fmax(u, 0), c->nval[t] - 1);
+        int k = (int)floor(u);
+        if (k > c->nval[t] - 2)
+            k = c->nval[t] - 2;
+        double f = u - k;
+        sum += 1e3 * (c->val[t][k] * (1 - f) + c->val[t][k + 1] * f);
+    }
+    return sum;
+}
+
+static void test_siemens(void **state)
+{
+    (void)state;
+    const char *path = TMP "cec.mpf";
+    sc_export_options o;
+    sc_export_report rep;
+    sc_error err;
+    cec *c = malloc(sizeof *c);
+    assert_non_null(c);
+    /* A separable map is represented exactly (within 1 nm steps). */
+    sc_lut *m = make_map(21, 17, -50.0, 10.0, 5.0, 2.5, 1);
+    sc_export_options_init(&o, SC_EXPORT_SIEMENS_CEC);
+    o.axis = -1;
+    o.siemens_x_name = "X1";
+    o.siemens_y_name = "Y1";
+    o.siemens_first_table = 2;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_siemens(path, c);
+    int ntab = 0;
+    for (int t = 0; t < 8; ++t)
+        ntab += c->used[t];
+    assert_int_equal(ntab, 4);
+    assert_false(c->used[0] || c->used[1]);
+    assert_string_equal(c->in[2], "X1");
+    assert_string_equal(c->out[2], "X1");
+    assert_string_equal(c->in[3], "Y1");
+    assert_string_equal(c->out[3], "X1");
+    assert_true(fabs(c->step[2] - 5.0) < 1e-9 && fabs(c->min[2] + 50.0) < 1e-9);
+    assert_true(fabs(c->step[3] - 2.5) < 1e-9 && fabs(c->min[3] - 10.0) < 1e-9);
+    cec_eval_ctx e = {c, "X1", "Y1"};
+    int both[2] = {0, 1};
+    check_residual(m, &rep, cec_ctrl, &e, both, 2, 1.0);
+    assert_true(rep.max_um <= 1.0e-3 + 1e-9); /* two 0.5 nm roundings */
+    free(m);
+
+    /* With interaction terms the residual is that part: recomputed independently. */
+    m = make_map(21, 17, -50.0, 10.0, 5.0, 2.5, 0);
+    sc_export_options_init(&o, SC_EXPORT_SIEMENS_CEC);
+    o.axis = 1;
+    o.negate = 1;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_siemens(path, c);
+    assert_true(c->used[0] && c->used[1] && !c->used[2]);
+    assert_string_equal(c->out[0], "AX2");
+    e.xname = "AX1";
+    e.yname = "AX2";
+    int ycomp[1] = {1};
+    check_residual(m, &rep, cec_ctrl, &e, ycomp, 1, -1.0);
+    assert_true(rep.max_um > 0.01);
+    /* ... and it is the least-squares additive fit: at the nodes the residual sums to ~0 along
+     * every row and column. */
+    for (int i = 0; i < m->ny; ++i) {
+        double s = 0;
+        for (int j = 0; j < m->nx; ++j) {
+            double x = m->x0_mm + j * m->px_mm, y = m->y0_mm + i * m->py_mm;
+            s += cec_ctrl(&e, 1, x, y) + m->gy_um[i * m->nx + j];
+        }
+        assert_true(fabs(s / m->nx) < 2e-3);
+    }
+    /* Too many points for a table: refused. */
+    o.interval_mm = 0.01;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "2000"));
+    free(m);
+    free(c);
+}
+
+/* ---- LinuxCNC ---- */
+
+typedef struct lc {
+    int n;
+    double nom[300], fwd[300], rev[300];
+} lc;
+
+static void parse_linuxcnc(const char *path, lc *l)
+{
+    memset(l, 0, sizeof *l);
+    char *text = slurp(path), *save = NULL;
+    for (char *line = strtok_r(text, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
+        char extra;
+        assert_true(l->n < 300);
+        assert_int_equal(sscanf(line, "%lf %lf %lf %c", &l->nom[l->n], &l->fwd[l->n], &l->rev[l->n], &extra), 3);
+        if (l->n > 0)
+            assert_true(l->nom[l->n] > l->nom[l->n - 1]); /* ascending nominals */
+        l->n++;
+    }
+    assert_true(l->n >= 2 && l->n <= 256);
+}
+
+typedef struct lc_ctx {
+    const lc *l;
+    int axis;
+} lc_ctx;
+
+static double lc_ctrl(const void *vctx, int comp, double x, double y)
+{
+    (void)comp;
+    const lc_ctx *c = vctx;
+    const lc *l = c->l;
+    double s = c->axis == 0 ? x : y;
+    if (s <= l->nom[0])
+        return 1e3 * l->fwd[0];
+    if (s >= l->nom[l->n - 1])
+        return 1e3 * l->fwd[l->n - 1];
+    int k = 0;
+    while (l->nom[k + 1] < s)
+        ++k;
+    double f = (s - l->nom[k]) / (l->nom[k + 1] - l->nom[k]);
+    return 1e3 * (l->fwd[k] * (1 - f) + l->fwd[k + 1] * f);
+}
+
+static void test_linuxcnc(void **state)
+{
+    (void)state;
+    const char *path = TMP "joint.comp";
+    sc_export_options o;
+    sc_export_report rep;
+    sc_error err;
+    lc *l = malloc(sizeof *l);
+    assert_non_null(l);
+    sc_lut *m = make_map(31, 11, -15.0, 0.0, 1.0, 2.0, 0);
+    for (int axis = 0; axis < 2; ++axis) {
+        sc_export_options_init(&o, SC_EXPORT_LINUXCNC);
+        o.axis = axis;
+        assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+        parse_linuxcnc(path, l);
+        assert_int_equal(l->n, axis == 0 ? 31 : 11);
+        for (int k = 0; k < l->n; ++k) {
+            assert_true(l->fwd[k] == l->rev[k]);
+            /* the trim is the mean of G over the other coordinate's nodes */
+            double mean = 0;
+            int other = axis == 0 ? m->ny : m->nx;
+            for (int q = 0; q < other; ++q)
+                mean += axis == 0 ? m->gx_um[q * m->nx + k] : m->gy_um[k * m->nx + q];
+            mean /= other;
+            assert_true(fabs(1e3 * l->fwd[k] - mean) <= 0.5e-3 + 1e-9);
+        }
+        lc_ctx ctx = {l, axis};
+        int comps[1] = {axis};
+        check_residual(m, &rep, lc_ctrl, &ctx, comps, 1, 1.0);
+    }
+    /* Along one line: equal to the map on that line within 1 nm rounding. */
+    sc_export_options_init(&o, SC_EXPORT_LINUXCNC);
+    o.use_line = 1;
+    o.line_mm = 6.0;
+    o.interval_mm = 0.25;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_linuxcnc(path, l);
+    assert_int_equal(l->n, 121);
+    for (int k = 0; k < l->n; ++k)
+        assert_true(fabs(1e3 * l->fwd[k] - map_ref(m, 0, l->nom[k], 6.0)) <= 0.5e-3 + 1e-9);
+    lc_ctx ctx = {l, 0};
+    int comps[1] = {0};
+    check_residual(m, &rep, lc_ctrl, &ctx, comps, 1, 1.0);
+    /* 256 entries per joint. */
+    o.interval_mm = 0.1;
+    unlink(path);
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "256"));
+    struct stat st;
+    assert_int_not_equal(stat(path, &st), 0);
+    /* One joint at a time. */
+    o.interval_mm = 0;
+    o.axis = -1;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    free(m);
+    free(l);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_beckhoff),
+        cmocka_unit_test(test_siemens),
+        cmocka_unit_test(test_linuxcnc),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
