@@ -320,6 +320,13 @@ static void test_fast_matches_dense(void **state)
     compare_with_dense(60, 1, 2, 1.0, 1.0, 6);
     compare_with_dense(50, 1, 1, 1.0, 4.0, 7);
     compare_with_dense(700, 97, 101, 1.0, 1.0, 8);
+    /* the edges of the blocked kernels: half-width 4 (smallest blocked), N close to d1 + d2 */
+    compare_with_dense(50, 3, 4, 1.0, 2.0, 10);
+    compare_with_dense(9, 4, 5, 1.0, 1.0, 11);
+    compare_with_dense(30, 1, 4, 3.0, 1.0, 12);
+    compare_with_dense(17, 5, 12, 1.0, 1.0, 13);
+    compare_with_dense(198, 97, 101, 1.0, 1.0, 14);
+    compare_with_dense(203, 101, 97, 1.0, 2.0, 15);
     compare_with_dense(2000, 10, 11, 1.0 / 3e-4, 1.0 / 3.21e-4, 9);
 }
 
@@ -327,7 +334,8 @@ static void test_fast_matches_dense(void **state)
 static void test_portable_and_simd_agree(void **state)
 {
     (void)state;
-    static const int cases[][3] = {{330, 10, 11}, {1003, 97, 101}, {64, 1, 2}, {23, 11, 12}};
+    static const int cases[][3] = {{330, 10, 11}, {1003, 97, 101}, {64, 1, 2}, {23, 11, 12},
+                                   {50, 3, 4},    {9, 4, 5},       {31, 1, 4}, {206, 101, 97}};
     for (size_t q = 0; q < sizeof cases / sizeof cases[0]; q++) {
         int n = cases[q][0], d1 = cases[q][1], d2 = cases[q][2];
         sc_rng rng;
