@@ -210,6 +210,71 @@ reasons.add(expect_refused(before + b"\0", "one byte appended").split("not a val
 print("reasons seen:", sorted(reasons))
 check(any("checksum" in r for r in reasons) and any("truncated" in r for r in reasons), "reasons named")
 
+# ---- 4. selfcal export: re-read each controller file, compare with the map in its units ----
+def bilinear(truth, nx, ny, x0, y0, px, py, comp, x, y):
+    j = min(max(int((x - x0) // px), 0), nx - 2)
+    i = min(max(int((y - y0) // py), 0), ny - 2)
+    tx, ty = (x - (x0 + j * px)) / px, (y - (y0 + i * py)) / py
+    g = lambda a, b: truth[(a, b)][2 + comp]
+    return ((1 - tx) * (1 - ty) * g(i, j) + tx * (1 - ty) * g(i, j + 1)
+            + (1 - tx) * ty * g(i + 1, j) + tx * ty * g(i + 1, j + 1))
+
+truth = write_map("E.csv", 11, 9, -25.0, 40.0, 5.0, 5.0, 2.0)
+rc, out, err = run("export", "--format", "beckhoff", "--map", path("E.csv"), "--axis", "y", "-o", path("E.lis"))
+check(rc == 0, f"export beckhoff: {err}")
+check(re.search(r"residual .* rms [0-9.]+ um, max [0-9.]+ um", out) is not None, f"beckhoff report: {out}")
+tab, hdr = {}, {}
+for line in open(path("E.lis")):
+    m = re.match(r"kw\.crosscomp2\.table\[\s*(\d+)\]\[\s*(\d+)\]\.correction\s+(-?\d+)", line)
+    if m:
+        tab[(int(m.group(1)), int(m.group(2)))] = int(m.group(3))
+        continue
+    m = re.match(r"(kw\.crosscomp2\.\w+|kopf\.\w+)\s+(\S+)", line)
+    if m:
+        hdr[m.group(1)] = m.group(2)
+check(hdr.get("kw.crosscomp2.unit") == "1" and hdr.get("kopf.log_achs_name") == "Y", "beckhoff header")
+iv = int(hdr["kw.crosscomp2.interval"])
+s1, s2 = int(hdr["kw.crosscomp2.start_position_master1"]), int(hdr["kw.crosscomp2.start_position_master2"])
+check(len(tab) == (int(hdr["kw.crosscomp2.last_index_master1"]) + 1) * (int(hdr["kw.crosscomp2.last_index_master2"]) + 1), "beckhoff table complete")
+worst = 0.0
+for (i, j), v in truth.items():
+    x, y = v[0], v[1]
+    a, b = round((x * 1e4 - s1) / iv), round((y * 1e4 - s2) / iv)
+    worst = max(worst, abs(0.1 * tab[(b, a)] - v[3]))
+check(worst <= 0.05 + 1e-9, f"beckhoff nodes within 0.05 um ({worst})")
+
+rc, out, err = run("export", "--format", "siemens-cec", "--map", path("E.csv"), "-o", path("E.mpf"))
+check(rc == 0, f"export siemens: {err}")
+text = open(path("E.mpf")).read().splitlines()
+check(text[0] == "%_N_NC_CEC_INI" and text[-1] == "M17", "siemens framing")
+vals = {}
+for line in text:
+    m = re.match(r"\$AN_CEC\[(\d+),(\d+)\]=(-?[0-9.]+)$", line)
+    if m:
+        vals.setdefault(int(m.group(1)), []).append(float(m.group(3)))
+check(sorted(vals) == [0, 1, 2, 3], "siemens: four tables")
+check(all(len(v) == n for v, n in zip((vals[0], vals[1], vals[2], vals[3]), (11, 9, 11, 9))), "siemens table sizes")
+rep = re.search(r"max ([0-9.]+) um", out)
+# Sum of the X tables at a node minus the map: the reported max residual bounds it.
+worst = max(abs(1e3 * (vals[0][j] + vals[1][i]) - v[2]) for (i, j), v in truth.items())
+check(worst <= float(rep.group(1)) + 1e-3, f"siemens residual at nodes {worst} vs reported {rep.group(1)}")
+
+rc, out, err = run("export", "--format", "linuxcnc", "--map", path("E.csv"), "--axis", "x", "-o", path("E.comp"))
+check(rc == 0, f"export linuxcnc: {err}")
+rows = [list(map(float, l.split())) for l in open(path("E.comp"))]
+check(len(rows) == 11 and all(len(r) == 3 and r[1] == r[2] for r in rows), "linuxcnc triplets")
+for j, r in enumerate(rows):
+    mean = sum(truth[(i, j)][2] for i in range(9)) / 9
+    check(abs(r[0] - (-25.0 + 5.0 * j)) < 1e-9 and abs(1e3 * r[1] - mean) <= 0.5e-3 + 1e-9, "linuxcnc entry")
+if os.path.exists(path("bad.comp")):
+    os.remove(path("bad.comp"))
+rc, out, err = run("export", "--format", "linuxcnc", "--map", path("E.csv"), "--interval", "0.1", "-o", path("bad.comp"))
+check(rc == 2 and "256" in err and not os.path.exists(path("bad.comp")), "linuxcnc 256-entry limit")
+rc, out, err = run("export", "--format", "fanuc", "--map", path("E.csv"), "-o", path("bad.comp"))
+check(rc == 2, "unknown format")
+rc, out, err = run("export", "--format", "beckhoff", "--map", missing, "-o", path("bad.comp"))
+check(rc == 2 and "missing.csv" in err and not os.path.exists(path("bad.comp")), "export of a bad map")
+
 if failures:
     print(f"{len(failures)} failure(s)")
     sys.exit(1)
