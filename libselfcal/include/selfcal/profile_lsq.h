@@ -42,13 +42,15 @@ int sc_profile_lsq_dof(const sc_profile_lsq *p);
 int sc_profile_lsq_uses_simd(const sc_profile_lsq *p);
 
 /* Solve: y1 (n-d1 values), y2 (n-d2 values) in µm -> f (n values, µm, relative to its LS line),
- * c (2 values, µm; may be NULL), weighted residual sum of squares (may be NULL). */
+ * c (2 values, µm, the offsets c1, c2 that go with that f; may be NULL), weighted residual sum of
+ * squares Σ w_k·r² (may be NULL). O(N·d); the plan is not modified (concurrent calls are fine).
+ * A non-finite y -> SC_E_INPUT. */
 sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, const double *y2_um,
                                double *f_um, double *c_um, double *wrss, sc_error *err);
 
 /* Standard uncertainty of every f(n) (n values, µm) given the weights the plan was made with
  * (weights = 1/σ² of y_k in 1/µm²), i.e. sqrt of the diagonal of the estimator covariance in the
- * least-squares-line gauge; O(N·d²) time (selected inversion), O(d²) extra memory + 2N doubles.
+ * least-squares-line gauge; O(N·d²) time (selected inversion), O(d²) temporary memory.
  * Multiply by sqrt(wrss/dof) for the noise estimated from the residuals. */
 sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_error *err);
 

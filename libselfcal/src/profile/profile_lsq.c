@@ -72,7 +72,7 @@ int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
                      n, d1, d2, (long)d1 + d2);
         return 0;
     }
-    if (n > INT32_MAX / 2) {
+    if (n > INT32_MAX / 2 - 8) { /* indices up to 2N + a few stay in int */
         sc_error_set(err, SC_E_INPUT, NULL, 0, "N = %d is too large", n);
         return 0;
     }
