@@ -273,7 +273,8 @@ static void test_free_dof_vs_dense(void **s)
 {
     (void)s;
     const int ns[] = {5, 7, 9, 11, 15};
-    const int kinds[] = {PLAN_YE, PLAN_PETRO, PLAN_RICH, PLAN_0_90, PLAN_0_180_1X, PLAN_0_90_2X};
+    const int kinds[] = {PLAN_YE,       PLAN_PETRO,   PLAN_RICH,  PLAN_0_90,
+                         PLAN_0_180_1X, PLAN_0_90_2X, PLAN_SHIFTS};
     for (size_t i = 0; i < sizeof ns / sizeof *ns; ++i)
         for (size_t c = 0; c < sizeof kinds / sizeof *kinds; ++c) {
             if (ns[i] == 15 && kinds[c] != PLAN_0_90_2X && kinds[c] != PLAN_0_90)

@@ -9,7 +9,7 @@
 #include "selfcal/grid.h"
 #include "selfcal/rng.h"
 
-enum { PLAN_YE, PLAN_PETRO, PLAN_RICH, PLAN_0_90, PLAN_0_180_1X, PLAN_0_90_2X };
+enum { PLAN_YE, PLAN_PETRO, PLAN_RICH, PLAN_0_90, PLAN_0_180_1X, PLAN_0_90_2X, PLAN_SHIFTS };
 
 static void tu_add_view(sc_grid_plan *p, int rot, int sx, int sy)
 {
@@ -52,6 +52,9 @@ static void tu_plan(sc_grid_plan *p, int n, int kind)
         break;
     case PLAN_0_90_2X:
         tu_add_view(p, 0, 0, 0), tu_add_view(p, 90, 0, 0), tu_add_view(p, 0, 2, 0);
+        break;
+    case PLAN_SHIFTS:
+        tu_add_view(p, 0, 0, 0), tu_add_view(p, 0, 1, 0), tu_add_view(p, 0, 0, 1);
         break;
     }
 }

@@ -27,7 +27,7 @@
 
 #include "sparse_ldl.h"
 
-#define LSQ_PIVOT_TOL 1e-10 /* pivot / original diagonal below this: null */
+#define LSQ_PIVOT_TOL 1e-9 /* pivot / original diagonal below this: null */
 #define LSQ_SMALL_TOL 1e-11 /* relative tolerance of the small dense rank decision */
 
 struct sc_grid_lsq {
