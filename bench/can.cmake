@@ -1,6 +1,6 @@
 # CAN frames per second through selfcald with nothing lost: boots the vcan guest (or uses the
 # host's vcan), plays 10 s of positions at 10000 frames/s (above the ~8.7k frames/s of a saturated
-# 1 Mbit/s bus) checking every answer, then measures the maximum with 64 frames in flight, and
+# 1 Mbit/s bus) checking every answer, then measures the maximum with 512 frames in flight, and
 # prints a table. Run: `ninja -C <release build> bench_can` or <build>/bench/bench_can.
 if(TARGET selfcald AND TARGET selfcal_cli)
   if(NOT TARGET can_traffic)

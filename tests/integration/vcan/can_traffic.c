@@ -166,7 +166,10 @@ int main(int argc, char **argv)
     setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filt, sizeof filt);
     int on = 1, big = 4 << 20;
     setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
-    setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &big, sizeof big);
+    /* a deep receive queue so that the generator itself never drops an answer (FORCE needs
+     * CAP_NET_ADMIN, as root in the guest; otherwise capped by net.core.rmem_max) */
+    if (setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &big, sizeof big) < 0)
+        setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &big, sizeof big);
     setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &big, sizeof big);
     struct sockaddr_can addr = {.can_family = AF_CAN, .can_ifindex = ifr.ifr_ifindex};
     if (bind(fd, (struct sockaddr *)&addr, sizeof addr) < 0) {

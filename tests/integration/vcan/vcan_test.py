@@ -335,7 +335,7 @@ def print_bench(rate_file, max_file, args):
     print(f"{'run':<28}{'sent':>9}{'answered':>10}{'lost':>6}{'seconds':>9}{'frames/s in':>13}"
           f"{'bus frames/s':>14}{'p50 us':>8}{'p99 us':>8}")
     for name, path in ((f"fixed rate {int(args.rate or 10000)}/s", rate_file),
-                       ("max, window 64", max_file)):
+                       ("max, window 512", max_file)):
         f = fields(path)
         if f:
             sent, ans, lost, secs, rate, p50, p99 = f
