@@ -70,28 +70,6 @@ static sc_status check_views(const char *path, const sc_grid_data *d, const sc_g
     return SC_OK;
 }
 
-/* O and R of a stage map, dimensionless (µm per µm) as Petrò eqs. (4)-(5) and selfcal/grid.h:
- * the least-squares fit of Gx = O·y + R·x, Gy = O·x − R·y with x, y converted to µm. (Computed
- * here from G so that the summary's units do not depend on a method's internals.) */
-static void first_order(const sc_grid_plan *p, const double *gx, const double *gy, double *O,
-                        double *R)
-{
-    int n = p->n;
-    double so = 0, sr = 0, r2 = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double x, y;
-            sc_grid_node_xy_mm(p, i, j, &x, &y);
-            x *= 1e3, y *= 1e3;
-            int k = i * n + j;
-            so += x * gy[k] + y * gx[k];
-            sr += x * gx[k] - y * gy[k];
-            r2 += x * x + y * y;
-        }
-    *O = so / r2;
-    *R = sr / r2;
-}
-
 int cmd_grid(int argc, char **argv)
 {
     const char *method = NULL, *in = NULL, *map = NULL, *art = NULL, *sum = NULL, *plot = NULL;
@@ -211,7 +189,7 @@ int cmd_grid(int argc, char **argv)
     }
     if (st != SC_OK)
         goto done;
-    first_order(p, res.gx_um, res.gy_um, &res.O, &res.R);
+    sc_grid_first_order(p, res.gx_um, res.gy_um, &res.O, &res.R);
     for (size_t k = 0; k < nn; ++k)
         if (!isfinite(res.gx_um[k]) || !isfinite(res.gy_um[k]) || !isfinite(res.ax_um[k]) ||
             !isfinite(res.ay_um[k])) {

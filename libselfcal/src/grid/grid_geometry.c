@@ -177,6 +177,7 @@ void sc_grid_first_order(const sc_grid_plan *p, const double *gx, const double *
             sr += x * gx[k] - y * gy[k];
             r2 += x * x + y * y;
         }
-    *O = so / r2;
-    *R = sr / r2;
+    /* G in µm, x and y in mm: µm/mm -> dimensionless (µm/µm) */
+    *O = so / r2 * 1e-3;
+    *R = sr / r2 * 1e-3;
 }
