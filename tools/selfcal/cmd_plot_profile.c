@@ -41,6 +41,18 @@ static int any_finite(const double *v, int n)
     return 0;
 }
 
+/* a little headroom, then round numbers */
+static void pad_nice(double *lo, double *hi)
+{
+    double span = *hi - *lo;
+    if (span > 0) {
+        if (*lo != 0)
+            *lo -= 0.04 * span;
+        *hi += 0.04 * span;
+    }
+    svg_nice_range(lo, hi);
+}
+
 /* scaled copy into buf */
 static const double *scaled(const double *v, int n, double s, double *buf)
 {
@@ -93,7 +105,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
             range_of(truth->f_um, n, 1, &lo, &hi);
         if (cmp)
             range_of(cmp->f_um, n, 1, &lo, &hi);
-        svg_nice_range(&lo, &hi);
+        pad_nice(&lo, &hi);
         svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
         int k = 0;
@@ -114,7 +126,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         range_of(a->uf_um, n, 1e3, &lo, &hi);
         if (cmp)
             range_of(cmp->uf_um, n, 1e3, &lo, &hi);
-        svg_nice_range(&lo, &hi);
+        pad_nice(&lo, &hi);
         svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "u(f) (nm)", "standard uncertainty of f (k = 1)");
         int k = 0;
@@ -144,7 +156,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
                 if (isfinite(e))
                     lo = e < lo ? e : lo, hi = e > hi ? e : hi;
             }
-        svg_nice_range(&lo, &hi);
+        pad_nice(&lo, &hi);
         svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "error (nm)", "error of f against the truth");
         int k = 0;
@@ -168,7 +180,7 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         range_of(a->ey_um, n, 1, &lo, &hi);
         if (truth)
             range_of(truth->ey_um, n, 1, &lo, &hi);
-        svg_nice_range(&lo, &hi);
+        pad_nice(&lo, &hi);
         svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "e_y (µm)", "stage straightness motion error e_y (scan 1)");
         int k = 0;
