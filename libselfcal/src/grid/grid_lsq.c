@@ -272,12 +272,6 @@ static void choose_pins(sc_grid_lsq *q)
         q->pinned[q->ng + 3 * bestv + t] = 1;
 }
 
-static int cmp_int(const void *a, const void *b)
-{
-    int x = *(const int *)a, y = *(const int *)b;
-    return (x > y) - (x < y);
-}
-
 /* Assemble the reduced (A-eliminated) matrix, order, pin and factor. */
 static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
 {
@@ -390,7 +384,6 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
                 w++;
             }
         }
-        (void)last;
     }
     rp[ng] = w;
     /* the symmetric graph of G for the ordering */
@@ -512,7 +505,6 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
 #undef PUT
     free(fill);
     q->bytes += (size_t)nnz * (sizeof(int) + sizeof(double)) + (size_t)(nx + 1) * sizeof(long);
-    (void)cmp_int;
     if (sc_ldl_factor(&q->f, nx, q->Ap, q->Ai, q->Ax, LSQ_PIVOT_TOL) != 0)
         goto out;
     q->nullity_pin = q->f.n_null;

@@ -206,15 +206,13 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm, int leaf, int
             if (!up)
                 w.level[v] = m - 1;
         }
-        int n1 = 0, n2 = 0, ns = 0;
+        int n1 = 0, n2 = 0;
         for (int q = 0; q < reached; ++q) {
             int v = w.queue[q];
             if (w.level[v] < m)
                 n1++;
             else if (w.level[v] > m)
                 n2++;
-            else
-                ns++;
         }
         int a1 = 0, a2 = n1, as = n1 + n2;
         for (int q = 0; q < reached; ++q) {
@@ -230,7 +228,6 @@ int sc_nd_order(int n, const long *ptr, const int *idx, int *perm, int leaf, int
                 w.lab[v] = -1;
             }
         }
-        (void)ns;
         memcpy(perm + lo, w.tmp, sizeof(int) * (size_t)size);
         stk[sp++] = lo, stk[sp++] = lo + n1, stk[sp++] = L1;
         stk[sp++] = lo + n1, stk[sp++] = lo + n1 + n2, stk[sp++] = L2;
@@ -629,9 +626,8 @@ int sc_ldl_selinv(sc_ldl *f)
     f->Zd = malloc(sizeof(double) * (size_t)(n + 1));
     double *acc = calloc((size_t)n + 1, sizeof(double));
     double *wl = calloc((size_t)n + 1, sizeof(double));
-    int *mark = malloc(sizeof(int) * (size_t)(n + 1));
-    if (!f->Zx || !f->Zd || !acc || !wl || !mark) {
-        free(acc), free(wl), free(mark);
+    if (!f->Zx || !f->Zd || !acc || !wl) {
+        free(acc), free(wl);
         free(f->Zx), free(f->Zd);
         f->Zx = f->Zd = NULL;
         return -1;
@@ -640,7 +636,6 @@ int sc_ldl_selinv(sc_ldl *f)
     /* wl holds column j of L scattered (zero elsewhere), so the inner loop needs no test:
      * acc[r] for rows r outside S_j collects garbage that is never read (acc[i], i ∈ S_j, is
      * cleared first). */
-    (void)mark;
     for (int j = n - 1; j >= 0; --j) {
         long p0 = f->Lp[j], p1 = f->Lp[j + 1];
         double dinv = f->D[j] != 0 ? 1.0 / f->D[j] : 0.0;
@@ -676,6 +671,6 @@ int sc_ldl_selinv(sc_ldl *f)
             for (long p = p0; p < p1; ++p)
                 f->Zx[p] = 0;
     }
-    free(acc), free(wl), free(mark);
+    free(acc), free(wl);
     return 0;
 }
