@@ -110,6 +110,8 @@ int cmd_profile(int argc, char **argv)
         fputs(USAGE, stderr);
         return CLI_BAD_INPUT;
     }
+    if (!strcmp(out, "-"))
+        quiet = 1; /* the result goes to stdout: no summary there */
     sc_profile_method method;
     if (!strcmp(method_s, "dft"))
         method = SC_PROFILE_DFT;
