@@ -28,8 +28,7 @@ need() { command -v "$1" >/dev/null 2>&1 || die "$1 not found (${2:-run scripts/
 need cpio; need gzip; need ldd
 busybox=$(command -v busybox || true)
 [ -n "$busybox" ] || die "busybox not found (install busybox-static)"
-file -L "$busybox" 2>/dev/null | grep -q "statically linked" ||
-  [ -x /bin/busybox ] || die "busybox is not static (install busybox-static)"
+ldd "$busybox" >/dev/null 2>&1 && die "$busybox is not statically linked (install busybox-static)"
 ipbin=$(command -v ip || echo /usr/sbin/ip)
 [ -x "$ipbin" ] || die "iproute2's ip not found"
 can_utils=()

@@ -145,4 +145,25 @@ daemon=""
 grep -q "bus-off" "$OUT/selfcald.log" || fail "selfcald.log does not mention the bus-off"
 echo "---- selfcald.log"
 cat "$OUT/selfcald.log"
+
+# ---------------------------------------------------------------- position mode
+candump -L "$IFACE" > "$OUT/position.log" 2>/dev/null &
+dump=$!
+listen 102:7FF 15000 /tmp/status0
+l=$!
+selfcald --table "$P/table.lut" --can "$IFACE" --mode position > "$OUT/selfcald-position.log" 2>&1 &
+daemon=$!
+wait "$l"
+[ -s /tmp/status0 ] || fail "no status frame from selfcald --mode position within 15 s"
+while read -r frame; do cansend "$IFACE" "$frame" || fail "cansend $frame"; done < "$P/cansend_position.txt"
+sleep 0.5
+kill "$dump"
+wait "$dump" 2>/dev/null
+dump=""
+kill -TERM "$daemon"
+wait "$daemon"
+rc=$?
+daemon=""
+[ $rc -eq 0 ] || fail "selfcald --mode position: exit status $rc after SIGTERM"
+step "position mode: $(grep -c ' 101#' "$OUT/position.log") answers"
 echo "SELFCAL-VCAN-RUN: PASS"

@@ -219,6 +219,13 @@ def prepare(args, work):
     with open(os.path.join(work, "cansend2.txt"), "w") as f:
         x, y, _, _ = pts[-1]
         f.write(f"100#{le_hex(x, y)}\n")
+    # position mode (pre-compensation): a second daemon run, checked the same way
+    pos_pts = [(x, y) + ref.correct_nm(x, y, "position") for x, y, _, _ in pts[:12]]
+    write_points(os.path.join(work, "points_position.txt"), pos_pts)
+    with open(os.path.join(work, "cansend_position.txt"), "w") as f:
+        for x, y, _, _ in pos_pts:
+            f.write(f"100#{le_hex(x, y)}\n")
+    files["cansend_position.txt"] = os.path.join(work, "cansend_position.txt")
     # one frame and its expected answer for the bus-off / link tests
     x, y, ex, ey = pts[4]
     with open(os.path.join(work, "probe.txt"), "w") as f:
@@ -230,7 +237,7 @@ def prepare(args, work):
     write_points(os.path.join(work, "circle.txt"), circle(ref))
     files["raster.txt"] = os.path.join(work, "raster.txt")
     files["circle.txt"] = os.path.join(work, "circle.txt")
-    return files, pts, ref
+    return files, pts, pos_pts
 
 
 # ---------------------------------------------------------------- checks on the host
@@ -277,6 +284,27 @@ def parse_candump(path):
     return frames
 
 
+def check_answers(db, path, pts):
+    """Every valid position frame in the log answered in order with the expected value."""
+    frames = parse_candump(path)
+    inputs = [f for f in frames if f[1] == 0x100 and not f[2] and not f[3] and len(f[4]) == 8]
+    answers = [f for f in frames if f[1] == 0x101 and not f[2]]
+    if len(inputs) != len(pts) or len(answers) != len(pts):
+        fail(f"{path}: {len(inputs)} positions and {len(answers)} answers, expected {len(pts)} each")
+    worst = 0
+    for k, (inp, ans, p) in enumerate(zip(inputs, answers, pts)):
+        dec_in = db.decode_message(0x100, inp[4])
+        dec = db.decode_message(0x101, ans[4])
+        if (dec_in["X_nm"], dec_in["Y_nm"]) != (p[0], p[1]):
+            fail(f"{path}: position {k} is {dec_in}, the test sent {p[:2]}")
+        err = max(abs(dec["X_nm"] - p[2]), abs(dec["Y_nm"] - p[3]))
+        worst = max(worst, err)
+        if err > 1:
+            fail(f"{path}: position {k} ({p[0]}, {p[1]}) nm: selfcald answered "
+                 f"({dec['X_nm']}, {dec['Y_nm']}), the independent evaluation gives ({p[2]}, {p[3]})")
+    return worst
+
+
 def check_candump(db, path, pts, n_bad_sent):
     frames = parse_candump(path)
     if not frames:
@@ -308,10 +336,10 @@ def check_candump(db, path, pts, n_bad_sent):
     if len(status) < 3:
         fail(f"only {len(status)} status frames in the log")
     # 1 Hz: the daemon keeps the cadence (a late frame is followed by an earlier one), so the mean
-    # interval is 1 s closely even when the loaded emulated guest delays single frames
+    # interval is 1 s closely (the daemon ticks every <= 100 ms) even when the loaded emulated guest delays single frames
     gaps = [b[0] - a[0] for a, b in zip(status, status[1:])]
     mean = (status[-1][0] - status[0][0]) / (len(status) - 1)
-    if abs(mean - 1.0) > 0.05 or min(gaps) < 0.5 or max(gaps) > 1.5:
+    if abs(mean - 1.0) > 0.08 or min(gaps) < 0.5 or max(gaps) > 1.5:
         fail(f"status frame intervals {['%.3f' % g for g in gaps]} s (mean {mean:.3f}), expected 1 s")
     last = db.decode_message(0x102, status[-1][4])
     if last["BadFrames"] != n_bad_sent:
@@ -368,7 +396,7 @@ def main():
     work = os.path.abspath(args.work)
     os.makedirs(work, exist_ok=True)
     db = check_dbc(args.dbc)
-    files, pts, _ = prepare(args, work)
+    files, pts, pos_pts = prepare(args, work)
     cmd = [os.path.join(HERE, "run-vcan.sh"), "--work", work, "--timeout", str(args.timeout),
            "--bin", args.selfcald, "--bin", args.traffic]
     if args.bench:
@@ -395,8 +423,9 @@ def main():
         print_bench(os.path.join(out, "bench-rate.txt"), os.path.join(out, "bench-max.txt"), args)
         return 0
     worst, gaps, nframes = check_candump(db, os.path.join(out, "candump.log"), pts, n_bad_sent=6)
+    worst_pos = check_answers(db, os.path.join(out, "position.log"), pos_pts)
     print(f"vcan_test: PASS: {len(pts)} positions answered in order, worst difference {worst} nm "
-          f"from the independent evaluation; {nframes} frames in the log decoded with cantools; "
+          f"from the independent evaluation ({len(pos_pts)} in position mode, worst {worst_pos} nm); {nframes} frames in the log decoded with cantools; "
           f"status every {min(gaps):.3f}..{max(gaps):.3f} s; 6 bad frames counted; noise ignored")
     return 0
 
