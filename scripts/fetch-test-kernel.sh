@@ -41,7 +41,14 @@ fi
 work=$(mktemp -d "${TMPDIR:-/tmp}/selfcal-kernel.XXXXXX")
 chmod 755 "$work"  # apt-get download drops privileges to _apt when run as root
 trap 'rm -rf "$work"' EXIT
-(cd "$work" && apt-get download -q "$pkg" >/dev/null)
+if ! (cd "$work" && apt-get download -q "$pkg" >/dev/null 2>&1); then
+  # stale package lists name a version the mirror no longer has: refresh and resolve again
+  SUDO=""; if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -qq
+  pkg=$(apt-cache depends linux-image-amd64 |
+        sed -n 's/^ *Depends: \(linux-image-[0-9][^ ]*-amd64\)$/\1/p' | head -n 1)
+  (cd "$work" && apt-get download -q "$pkg" >/dev/null)
+fi
 deb=$(ls "$work"/*.deb)
 mkdir -p "$work/x"
 dpkg -x "$deb" "$work/x"
