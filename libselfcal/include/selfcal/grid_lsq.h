@@ -28,8 +28,10 @@ typedef struct sc_grid_lsq_info {
 } sc_grid_lsq_info;
 
 /* Analyse and factor a plan. mask: NULL to measure what the plan says (sc_grid_view_measures),
- * else the marks with finite values in mask->dx_um are the measured ones. A plan that does not
- * identify G is not an error here: *out is made and its info says so. */
+ * else the marks with finite values in mask->dx_um are the measured ones (dx and dy finite
+ * together, on marks that land on the grid: SC_E_INPUT otherwise). A plan that does not
+ * identify G is not an error here: *out is made and its info says so. Cost ~N³ time, ~N² log N
+ * memory (N = 101: ~0.6 s CPU, ~40 MiB); see docs/grid-lsq.md. */
 sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
                              sc_error *err);
 
