@@ -46,11 +46,10 @@ static inline unsigned eval_um(const sc_corr_table *t, const double in[3], doubl
 {
     const unsigned outside = (unsigned)(in[0] < t->x0_mm) | (unsigned)(in[0] > t->x1_mm) |
                              (unsigned)(in[1] < t->y0_mm) | (unsigned)(in[1] > t->y1_mm);
-    const double x = clampd(in[0], t->x0_mm, t->x1_mm);
-    const double y = clampd(in[1], t->y0_mm, t->y1_mm);
+    /* Clamping the node coordinate to [0, last] is clamping the position to the grid's edges. */
     double fx, fy;
-    const unsigned j = cell((x - t->x0_mm) * t->inv_px, t->lastx, t->nx, &fx);
-    const unsigned i = cell((y - t->y0_mm) * t->inv_py, t->lasty, t->ny, &fy);
+    const unsigned j = cell((in[0] - t->x0_mm) * t->inv_px, t->lastx, t->nx, &fx);
+    const unsigned i = cell((in[1] - t->y0_mm) * t->inv_py, t->lasty, t->ny, &fy);
     /* (1-f)a + f b: exactly a at f = 0 and exactly b at f = 1, so the value at a node is the
      * node's value whichever of its cells the rounding picks (continuity across cell edges). */
     const double wx = 1.0 - fx, wy = 1.0 - fy;
@@ -66,9 +65,8 @@ static inline unsigned eval_um(const sc_corr_table *t, const double in[3], doubl
     double c2 = 0.0;
     for (unsigned m = 0; m < t->n_profiles; ++m) {
         const sc_corr_profile *p = &t->profile[m];
-        const double s = clampd(in[p->axis], p->start_mm, p->end_mm);
         double f;
-        const unsigned q = cell((s - p->start_mm) * p->inv_step, p->last, p->n, &f);
+        const unsigned q = cell((in[p->axis] - p->start_mm) * p->inv_step, p->last, p->n, &f);
         const double e = (double)p->err_um[q] * (1.0 - f) + (double)p->err_um[q + 1] * f;
         c0 += e * p->dir_mask[0];
         c1 += e * p->dir_mask[1];
