@@ -147,7 +147,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     p->z = malloc((size_t)2 * n * sizeof(double));
     p->e = malloc((size_t)2 * n * sizeof(double));
     p->bu = malloc((size_t)2 * n * sizeof(double));
-    double *col = malloc(4 * bd->ld * sizeof(double));
+    double *col = malloc(4 * (bd->ld + 3) * sizeof(double));
     if (!bd->a || !p->z || !p->e || !p->bu || !col) {
         int bw = p->bw;
         free(col);

@@ -18,7 +18,7 @@ typedef struct sc_lsq_band {
 /* 1 if this CPU runs the AVX2/FMA kernels (x86-64 with GCC/Clang), else 0. */
 int sc_lsq_band_cpu_has_simd(void);
 
-/* Assemble and factor B = L·Lᵀ in place; col: 4·bw doubles of scratch. Returns -1 on success, or
+/* Assemble and factor B = L·Lᵀ in place; col: 4·(bw+4) doubles of scratch. Returns -1 on success, or
  * the row where the pivot was not positive. */
 int sc_lsq_band_factor(sc_lsq_band *b, double *col);
 

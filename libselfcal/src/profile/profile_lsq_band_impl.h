@@ -24,57 +24,64 @@ SC_ATTR static void SC_SFX(assemble_row)(const sc_lsq_band *b, int i)
     ri[bw] = aii;
 }
 
-/* Right-looking banded Cholesky in panels of four columns: factor the panel (pivot square roots,
- * column scaling, updates inside the panel), then subtract the panel's rank-4 outer product from
- * the trailing bw×bw triangle, row by row: each row a contiguous four-term axpy up to the diagonal
- * (four multiply-adds per load and store). Rows are assembled just before the first panel that
- * reaches them, so the working window stays in cache. */
+/* Right-looking banded Cholesky in panels of four columns: copy the panel (its four columns, rows
+ * j .. j+3+bw) into contiguous scratch, factor it there (pivot square roots, column scaling,
+ * updates inside the panel), write it back, then subtract its rank-4 outer product from the
+ * trailing bw×bw triangle, row by row: each row a contiguous four-term axpy up to the diagonal.
+ * Rows are assembled just before the first panel that reaches them, so the working window stays
+ * in cache. The diagonal slot keeps 1/L[i][i]. col: 4·(bw+4) doubles. */
 SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
 {
     int n = b->n, bw = b->bw;
     size_t ld = b->ld;
-    double *v[4] = {col, col + bw, col + 2 * (size_t)bw, col + 3 * (size_t)bw};
+    int h = bw + 4; /* panel rows j .. j+3+bw */
+    double *pc[4] = {col, col + h, col + 2 * (size_t)h, col + 3 * (size_t)h};
     int next_row = 0;
     for (int j = 0; j < n; j += 4) {
         int nb = n - j < 4 ? n - j : 4;
         int last = j + nb - 1 + bw < n - 1 ? j + nb - 1 + bw : n - 1;
         while (next_row <= last) SC_SFX(assemble_row)(b, next_row++);
-        /* the panel: columns j .. j+nb-1 */
+        /* gather: pc[c][k - j] = L[k][j+c] (0 outside the band, above the diagonal, past N) */
         for (int c = 0; c < nb; c++) {
-            int jc = j + c;
-            double *rj = b->a + (size_t)jc * ld;
-            double djj = rj[bw];
-            if (!(djj > 0.0) || !(djj < INFINITY)) return jc;
-            double inv = 1.0 / sqrt(djj);
-            rj[bw] = inv;
-            int kmax = jc + bw < n - 1 ? jc + bw : n - 1;
-            double *rk = rj + ld + (bw - 1); /* L[jc+1][jc] */
-            for (int k = jc + 1; k <= kmax; k++, rk += ld - 1) *rk *= inv;
-            for (int c2 = c + 1; c2 < nb; c2++) {
-                int jl = j + c2;
-                double m = b->a[(size_t)jl * ld + (size_t)(jc - jl + bw)];
-                if (m == 0.0) continue;
-                for (int k = jl; k <= kmax; k++) {
-                    double *row = b->a + (size_t)k * ld;
-                    row[jl - k + bw] -= row[jc - k + bw] * m;
-                }
+            double *pcc = pc[c];
+            for (int q = 0; q < h; q++) {
+                int k = j + q;
+                pcc[q] = (q >= c && k <= last && k <= j + c + bw)
+                             ? b->a[(size_t)k * ld + (size_t)(j + c - k + bw)]
+                             : 0.0;
             }
         }
-        if (nb < 4) continue; /* the last columns: nothing trails */
-        /* v[c][l - j - 4] = L[l][j+c] for l = j+4 .. j+3+bw (0 outside the band or the matrix) */
-        int l0 = j + 4;
-        for (int c = 0; c < 4; c++)
-            for (int q = 0; q < bw; q++) {
-                int l = l0 + q;
-                v[c][q] = (l <= last && l <= j + c + bw)
-                              ? b->a[(size_t)l * ld + (size_t)(j + c - l + bw)]
-                              : 0.0;
+        /* factor the panel in the scratch */
+        for (int c = 0; c < nb; c++) {
+            double *pcc = pc[c];
+            double djj = pcc[c];
+            if (!(djj > 0.0) || !(djj < INFINITY)) return j + c;
+            double inv = 1.0 / sqrt(djj);
+            pcc[c] = inv;
+            for (int q = c + 1; q < h; q++) pcc[q] *= inv;
+            for (int c2 = c + 1; c2 < nb; c2++) {
+                double m = pcc[c2];
+                if (m == 0.0) continue;
+                double *p2 = pc[c2];
+                for (int q = c2; q < h; q++) p2[q] -= pcc[q] * m;
             }
+        }
+        /* write the panel back */
+        for (int c = 0; c < nb; c++) {
+            const double *pcc = pc[c];
+            int kmax = j + c + bw < last ? j + c + bw : last;
+            for (int k = j + c; k <= kmax; k++)
+                b->a[(size_t)k * ld + (size_t)(j + c - k + bw)] = pcc[k - j];
+        }
+        if (nb < 4) continue; /* the last columns: nothing trails */
+        /* trailing rows k = j+4 .. last, columns j+4 .. k: row -= Σ_c L[k][j+c]·L[·][j+c] */
+        int l0 = j + 4;
+        const double *v0 = pc[0] + 4, *v1 = pc[1] + 4, *v2 = pc[2] + 4, *v3 = pc[3] + 4;
         for (int k = l0; k <= last; k++) {
             double *row = b->a + (size_t)k * ld;
-            double a[4];
-            for (int c = 0; c < 4; c++) a[c] = (k <= j + c + bw) ? -row[j + c - k + bw] : 0.0;
-            SC_AXPY4(row + (l0 - k + bw), a, v[0], v[1], v[2], v[3], k - l0 + 1);
+            int q = k - l0;
+            double a[4] = {-v0[q], -v1[q], -v2[q], -v3[q]};
+            SC_AXPY4(row + (l0 - k + bw), a, v0, v1, v2, v3, q + 1);
         }
     }
     return -1;
