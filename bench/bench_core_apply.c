@@ -99,7 +99,7 @@ int main(int argc, char **argv)
     size_t len16 = 0, len32 = 0;
     sc_error err;
     if (sc_lut_encode(lut, SC_LUT_ENC_INT32, img, sizeof img, &len32, &err) != SC_OK ||
-        sc_lut_encode(lut, SC_LUT_ENC_AUTO, img, sizeof img, &len16, &err) != SC_OK) {
+        sc_lut_encode(lut, SC_LUT_ENC_INT16, img, sizeof img, &len16, &err) != SC_OK) {
         fprintf(stderr, "encode: %s\n", err.msg);
         return 1;
     }

@@ -191,16 +191,19 @@ static void test_encode_decode_round_trip(void **state)
     sc_lut *in = malloc(sizeof *in), *out = malloc(sizeof *out);
     assert_non_null(in);
     assert_non_null(out);
-    /* Small map: int16 by default, quantization well below 0.5 nm. */
+    /* Small map (|G| < 3 um): int16 by default, quantization <= 0.05 nm. */
     random_lut(in, &rng, 25, 25, 3.0, 2, 330);
     size_t len = round_trip(in, out, SC_LUT_ENC_AUTO, SC_LUT_ENC_INT16);
     assert_true(len <= 8192); /* the budget of issue 4: 25 x 25 + two 330-point profiles */
-    assert_true(sc_lut_quantization_um(in->grid_scale_pm) <= 0.5e-3);
+    assert_true(sc_lut_quantization_um(in->grid_scale_pm) <= 0.05e-3);
     /* Even forced to int32 the same table fits in 8 KiB. */
     len = round_trip(in, out, SC_LUT_ENC_INT32, SC_LUT_ENC_INT32);
     assert_true(len <= 8192);
     assert_true(sc_lut_quantization_um(in->grid_scale_pm) <= 0.5e-6);
-    /* Large errors: auto switches to int32 (1 pm codes up to 2 mm). */
+    /* Larger errors: auto switches to int32 (1 pm codes up to 2 mm). */
+    random_lut(in, &rng, 7, 4, 4.0, 1, 17);
+    in->gx_um[5] = 3.5;
+    round_trip(in, out, SC_LUT_ENC_AUTO, SC_LUT_ENC_INT32);
     random_lut(in, &rng, 7, 4, 250.0, 1, 17);
     round_trip(in, out, SC_LUT_ENC_AUTO, SC_LUT_ENC_INT32);
     assert_true(sc_lut_quantization_um(in->grid_scale_pm) <= 0.5e-6);

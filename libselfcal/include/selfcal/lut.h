@@ -24,9 +24,12 @@ extern "C" {
 #define SC_LUT_MAX_SOURCES 9 /* the map and one file per profile */
 #define SC_LUT_METHOD_LEN 32 /* method text, NUL included */
 
-/* Encodings of the correction values (codes times a per-block scale in picometres). */
+/* Encodings of the correction values (codes times a per-block scale in picometres). Automatic
+ * choice: int16 when its scale is at most this (quantization <= 0.05 nm, |values| <= 3.2767 um),
+ * otherwise int32 (1 pm codes: quantization <= 0.0005 nm up to +-2147 um). */
+#define SC_LUT_AUTO_MAX_INT16_SCALE_PM 100u
 typedef enum sc_lut_encoding {
-    SC_LUT_ENC_AUTO = 0,  /* int16 if its quantization is <= 0.5 nm, else int32 */
+    SC_LUT_ENC_AUTO = 0,  /* int16 if its quantization is <= 0.05 nm, else int32 */
     SC_LUT_ENC_INT16 = 1, /* 2 bytes per value */
     SC_LUT_ENC_INT32 = 2  /* 4 bytes per value */
 } sc_lut_encoding;

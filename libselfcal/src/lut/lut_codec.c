@@ -88,7 +88,7 @@ static int choose_block(double max_abs_um, sc_lut_encoding want, int *enc, uint3
 {
     uint32_t s16 = choose_scale(max_abs_um, 32767.0);
     uint32_t s32 = choose_scale(max_abs_um, 2147483647.0);
-    if (want == SC_LUT_ENC_INT16 || (want == SC_LUT_ENC_AUTO && s16 != 0 && s16 <= 1000u)) {
+    if (want == SC_LUT_ENC_INT16 || (want == SC_LUT_ENC_AUTO && s16 != 0 && s16 <= SC_LUT_AUTO_MAX_INT16_SCALE_PM)) {
         if (s16 == 0)
             return -1;
         *enc = SC_LUTF_ENC_INT16;
