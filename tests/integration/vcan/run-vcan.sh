@@ -35,7 +35,7 @@ done
 [ -n "$script" ] && [ -n "$work" ] || { echo "run-vcan: --script and --work are required" >&2; exit 2; }
 die() { echo "run-vcan: FAIL: $*" >&2; exit 1; }
 
-rm -rf "$work/out" "$work/payload"
+rm -rf "$work/out" "$work/payload" "$work/where.txt"
 mkdir -p "$work/out" "$work/payload"
 cp "$script" "$work/payload/run.sh"
 for d in "${datas[@]}"; do cp "$d" "$work/payload/"; done
@@ -48,6 +48,7 @@ if [ "$force_qemu" != 1 ] && ip link add dev "$host_if" type vcan 2>/dev/null; t
   trap 'ip link del dev "$host_if" 2>/dev/null || true' EXIT
   ip link set up "$host_if"
   echo "run-vcan: running on the host's vcan interface $host_if"
+  echo "host vcan" > "$work/where.txt"
   path=$PATH
   for b in "${bins[@]}"; do path="$(cd "$(dirname "$b")" && pwd):$path"; done
   envs=(IFACE="$host_if" OUT="$work/out" PAYLOAD="$work/payload" PATH="$path")
@@ -67,6 +68,7 @@ vmlinuz=$(ls "$kdir"/boot/vmlinuz-* 2>/dev/null | head -n 1 || true)
 [ -n "$vmlinuz" ] ||
   die "no test kernel in $kdir and this host cannot create a vcan interface (run scripts/fetch-test-kernel.sh)"
 echo "run-vcan: this host has no vcan; booting $(basename "$vmlinuz") under QEMU"
+echo "QEMU guest ($(basename "$vmlinuz"), TCG, $smp vCPU)" > "$work/where.txt"
 mkargs=(-o "$work/initramfs.cpio.gz" -k "$kdir" -p "$work/payload")
 for b in "${bins[@]}"; do mkargs+=(-b "$b"); done
 "$here/mkinitramfs.sh" "${mkargs[@]}"

@@ -8,6 +8,7 @@
 # Ends with "SELFCAL-VCAN-RUN: PASS|FAIL <figures>".
 set -u
 : "${IFACE:?}" "${OUT:?}" "${PAYLOAD:?}"
+T=$(mktemp -d) # scratch files (private: on a host several tests may run at once)
 RATE=${SELFCAL_RATE:-10000}
 SECS=${SELFCAL_SECONDS:-10}
 P=$PAYLOAD
@@ -17,12 +18,12 @@ fail() {
   [ -n "$daemon" ] && kill "$daemon" 2>/dev/null
   exit 1
 }
-candump -L -n 1 -T 15000 "$IFACE,102:7FF" > /tmp/status0 &
+candump -L -n 1 -T 15000 "$IFACE,102:7FF" > $T/status0 &
 l=$!
 selfcald --table "$P/table.lut" --can "$IFACE" > "$OUT/selfcald.log" 2>&1 &
 daemon=$!
 wait "$l"
-[ -s /tmp/status0 ] || fail "no status frame from selfcald within 15 s"
+[ -s $T/status0 ] || fail "no status frame from selfcald within 15 s"
 
 can_traffic -i "$IFACE" -f "$P/circle.txt" -r "$RATE" -d "$SECS" > "$OUT/bench-rate.txt" 2>&1
 rc=$?

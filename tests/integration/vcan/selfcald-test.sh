@@ -5,6 +5,7 @@
 # Ends with "SELFCAL-VCAN-RUN: PASS|FAIL ...".
 set -u
 : "${IFACE:?}" "${OUT:?}" "${PAYLOAD:?}"
+T=$(mktemp -d) # scratch files (private: on a host several tests may run at once)
 RATE=${SELFCAL_RATE:-2000}
 P=$PAYLOAD
 daemon="" dump=""
@@ -25,13 +26,13 @@ listen() { candump -L -n 1 -T "$2" "$IFACE,$1" > "$3" 2>/dev/null & }
 # ---------------------------------------------------------------- start
 candump -L "$IFACE" > "$OUT/candump.log" 2>"$OUT/candump.err" &
 dump=$!
-listen 102:7FF 15000 /tmp/status0
+listen 102:7FF 15000 $T/status0
 l=$!
 selfcald --table "$P/table.lut" --can "$IFACE" > "$OUT/selfcald.log" 2>&1 &
 daemon=$!
 wait "$l"
-[ -s /tmp/status0 ] || fail "no status frame from selfcald within 15 s"
-step "selfcald up: $(cat /tmp/status0)"
+[ -s $T/status0 ] || fail "no status frame from selfcald within 15 s"
+step "selfcald up: $(cat $T/status0)"
 
 # ---------------------------------------------------------------- positions, bad frames, noise
 n=0
@@ -62,28 +63,28 @@ step "candump.log: $(wc -l < "$OUT/candump.log") frames"
 
 # ---------------------------------------------------------------- simulated traffic
 for traj in raster circle; do
-  can_traffic -i "$IFACE" -f "$P/$traj.txt" -r "$RATE" > /tmp/traffic.out 2>&1
+  can_traffic -i "$IFACE" -f "$P/$traj.txt" -r "$RATE" > $T/traffic.out 2>&1
   rc=$?
-  cat /tmp/traffic.out
-  cp /tmp/traffic.out "$OUT/traffic-$traj.txt"
+  cat $T/traffic.out
+  cp $T/traffic.out "$OUT/traffic-$traj.txt"
   [ $rc -eq 0 ] || fail "can_traffic $traj at $RATE frames/s"
 done
 
 # ---------------------------------------------------------------- bus-off, link down, interface gone
 read -r probe answer < "$P/probe.txt"
 probe_answered() { # $1: what happened before
-  listen 101:7FF 3000 /tmp/ans
+  listen 101:7FF 3000 $T/ans
   l=$!
   sleep 0.1
   cansend "$IFACE" "$probe" || fail "cansend probe ($1)"
   wait "$l"
-  got=$(sed -n 's/.* //p' /tmp/ans)
+  got=$(sed -n 's/.* //p' $T/ans)
   [ "$got" = "$answer" ] || fail "after $1: answer '$got', expected '$answer'"
 }
 status_byte() { # wait for the next status frame; print its byte 0 in hex
-  listen 102:7FF 3000 /tmp/st
+  listen 102:7FF 3000 $T/st
   wait $!
-  sed -n 's/.*#\(..\).*/\1/p' /tmp/st
+  sed -n 's/.*#\(..\).*/\1/p' $T/st
 }
 # An error frame as a controller reports bus-off (CAN_ERR_FLAG | CAN_ERR_BUSOFF): vcan loops it
 # to every socket subscribed to error frames.
@@ -107,24 +108,24 @@ probe_answered "interface down and up"
 step "interface down/up survived"
 
 fd_probe="100##1${probe#100#}"      # CAN FD, bit-rate switch, length 8
-listen 101:7FF 3000 /tmp/ans
+listen 101:7FF 3000 $T/ans
 l=$!
 sleep 0.1
 cansend "$IFACE" "$fd_probe" || fail "cansend $fd_probe"
 wait "$l"
-got=$(sed -n 's/.* //p' /tmp/ans)
+got=$(sed -n 's/.* //p' $T/ans)
 case $got in
   "101##"?"${answer#101#}") ;;
   *) fail "CAN FD probe: answer '$got', expected an FD frame 101##?${answer#101#}" ;;
 esac
 # an FD frame of length 12 is bad: no answer (counted; checked in the next status frame)
-listen 101:7FF 1000 /tmp/ans
+listen 101:7FF 1000 $T/ans
 l=$!
 sleep 0.1
 cansend "$IFACE" "100##1${probe#100#}01020304" || fail "cansend FD length 12"
 wait "$l"
-[ -s /tmp/ans ] && fail "an FD frame of length 12 was answered: $(cat /tmp/ans)"
-s=$(listen 102:7FF 3000 /tmp/st; wait $!; sed -n 's/.*#....\(..\)\(..\).*/\2\1/p' /tmp/st)
+[ -s $T/ans ] && fail "an FD frame of length 12 was answered: $(cat $T/ans)"
+s=$(listen 102:7FF 3000 $T/st; wait $!; sed -n 's/.*#....\(..\)\(..\).*/\2\1/p' $T/st)
 [ "$s" = "0007" ] || fail "status bad-frame count after the FD length-12 frame: 0x$s, expected 0x0007"
 step "CAN FD: answered in FD ($got); FD length 12 counted as bad"
 
@@ -149,12 +150,12 @@ cat "$OUT/selfcald.log"
 # ---------------------------------------------------------------- position mode
 candump -L "$IFACE" > "$OUT/position.log" 2>/dev/null &
 dump=$!
-listen 102:7FF 15000 /tmp/status0
+listen 102:7FF 15000 $T/status0
 l=$!
 selfcald --table "$P/table.lut" --can "$IFACE" --mode position > "$OUT/selfcald-position.log" 2>&1 &
 daemon=$!
 wait "$l"
-[ -s /tmp/status0 ] || fail "no status frame from selfcald --mode position within 15 s"
+[ -s $T/status0 ] || fail "no status frame from selfcald --mode position within 15 s"
 while read -r frame; do cansend "$IFACE" "$frame" || fail "cansend $frame"; done < "$P/cansend_position.txt"
 sleep 0.5
 kill "$dump"
@@ -166,4 +167,5 @@ rc=$?
 daemon=""
 [ $rc -eq 0 ] || fail "selfcald --mode position: exit status $rc after SIGTERM"
 step "position mode: $(grep -c ' 101#' "$OUT/position.log") answers"
+rm -rf "$T"
 echo "SELFCAL-VCAN-RUN: PASS"

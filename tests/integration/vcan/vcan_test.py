@@ -357,8 +357,7 @@ def print_bench(rate_file, max_file, args):
         m = re.search(r"sent (\d+) answered (\d+) lost (\d+) .*duration_s ([\d.]+) rate_per_s (\d+) "
                       r"latency_us p50 (\d+) p99 (\d+)", txt)
         return m.groups() if m else None
-    where = "host vcan" if "running on the host" in open(os.path.join(args.work, "console.log")).read() \
-        else "QEMU guest (TCG, 1 vCPU)"
+    where = open(os.path.join(args.work, "where.txt")).read().strip()
     print(f"\nCAN throughput through selfcald ({where}; position frames in, each answered)")
     print(f"{'run':<28}{'sent':>9}{'answered':>10}{'lost':>6}{'seconds':>9}{'frames/s in':>13}"
           f"{'bus frames/s':>14}{'p50 us':>8}{'p99 us':>8}")
