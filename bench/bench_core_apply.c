@@ -103,6 +103,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "encode: %s\n", err.msg);
         return 1;
     }
+    const double q16_nm = 1e3 * sc_lut_quantization_um(lut->grid_scale_pm);
     double t0 = now_s();
     int rc = 0;
     for (int k = 0; k < 1000; ++k)
@@ -140,7 +141,7 @@ int main(int argc, char **argv)
     printf("\nsc_corr_load (validate + decode):  %.2f us per table\n", load_us);
     printf("table file size: %zu bytes (int16 codes, quantization <= %.3f nm), "
            "%zu bytes with int32 codes (<= 0.0005 nm); budget 8192\n",
-           len16, 1e3 * sc_lut_quantization_um(lut->grid_scale_pm), len32);
+           len16, q16_nm, len32);
     printf("sizeof(sc_corr_table) = %zu bytes (host capacity %d x %d, %d x %d profile points)\n",
            sizeof table, SC_CORR_MAX_NX, SC_CORR_MAX_NY, SC_CORR_MAX_PROFILES, SC_CORR_MAX_PROFILE_POINTS);
     if (sink == 42.0)
