@@ -167,6 +167,12 @@ static int load_table(const char *cmd, int argc, char **argv, sc_lut **out)
     return CLI_OK;
 }
 
+/* v for printing with 6 decimals: values that would print as "-0.000000" print as 0. */
+static double print6(double v)
+{
+    return (v < 5e-7 && v > -5e-7) ? 0.0 : v;
+}
+
 static int lut_dump(int argc, char **argv)
 {
     sc_lut *lut = NULL;
@@ -178,8 +184,9 @@ static int lut_dump(int argc, char **argv)
     for (int i = 0; i < lut->ny; ++i)
         for (int j = 0; j < lut->nx; ++j) {
             size_t k = (size_t)i * lut->nx + j;
-            printf("%d,%d,%.6f,%.6f,%.6f,%.6f\n", i, j, lut->x0_mm + j * lut->px_mm,
-                   lut->y0_mm + i * lut->py_mm, lut->gx_um[k], lut->gy_um[k]);
+            printf("%d,%d,%.6f,%.6f,%.6f,%.6f\n", i, j, print6(lut->x0_mm + j * lut->px_mm),
+                   print6(lut->y0_mm + i * lut->py_mm), print6(lut->gx_um[k]),
+                   print6(lut->gy_um[k]));
         }
     for (int k = 0; k < lut->n_profiles; ++k) {
         const sc_lut_profile *p = &lut->profile[k];
@@ -187,7 +194,7 @@ static int lut_dump(int argc, char **argv)
                sc_lut_axis_name(p->dir));
         printf("n,pos_mm,err_um\n");
         for (int n = 0; n < p->n; ++n)
-            printf("%d,%.6f,%.6f\n", n, p->start_mm + n * p->step_mm, p->err_um[n]);
+            printf("%d,%.6f,%.6f\n", n, print6(p->start_mm + n * p->step_mm), print6(p->err_um[n]));
     }
     free(lut);
     if (fflush(stdout) != 0 || ferror(stdout)) {
