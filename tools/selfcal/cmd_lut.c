@@ -134,7 +134,7 @@ static int lut_build(int argc, char **argv)
         free(lut);
         return cli_report(&err);
     }
-    size_t bytes = sc_lut_encoded_size(lut, enc);
+    size_t bytes = sc_lut_encoded_size(lut, enc); /* what was just written */
     printf("table %s: %d x %d nodes, pitch %.6f x %.6f mm, %d profile(s), %zu bytes, "
            "map quantization <= %.4f nm (%s)\n",
            out, lut->nx, lut->ny, lut->px_mm, lut->py_mm, lut->n_profiles, bytes,
@@ -209,13 +209,23 @@ static const char *enc_name(int enc)
     return enc == SC_LUT_ENC_INT16 ? "int16" : enc == SC_LUT_ENC_INT32 ? "int32" : "?";
 }
 
+/* The file size from the stored encodings (docs/lut-format.md, "Size"). */
+static size_t stored_size(const sc_lut *lut)
+{
+    size_t cb = lut->grid_encoding == SC_LUT_ENC_INT16 ? 2 : 4;
+    size_t size = 64 + 2 * (size_t)lut->nx * (size_t)lut->ny * cb;
+    for (int k = 0; k < lut->n_profiles; ++k)
+        size += 28 + (size_t)lut->profile[k].n * (lut->profile[k].encoding == SC_LUT_ENC_INT16 ? 2 : 4);
+    return size + 56 + 32 * (size_t)lut->prov.n_sources + 4;
+}
+
 static int lut_info(int argc, char **argv)
 {
     sc_lut *lut = NULL;
     int rc = load_table("lut info", argc, argv, &lut);
     if (rc != CLI_OK || !lut)
         return rc < 0 ? CLI_OK : rc;
-    printf("format: selfcal table v1, %zu bytes\n", sc_lut_encoded_size(lut, SC_LUT_ENC_AUTO));
+    printf("format: selfcal table v1, %zu bytes\n", stored_size(lut));
     printf("grid: %d x %d nodes, origin %.6f,%.6f mm, pitch %.6f x %.6f mm\n", lut->nx, lut->ny,
            lut->x0_mm, lut->y0_mm, lut->px_mm, lut->py_mm);
     printf("grid encoding: %s, %u pm per code, quantization <= %.4f nm\n",
