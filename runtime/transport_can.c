@@ -12,6 +12,8 @@
 #define _GNU_SOURCE /* recvmmsg, sendmmsg */
 #include "transport_can.h"
 
+#include "log.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <linux/can.h>
@@ -194,7 +196,7 @@ __attribute__((format(printf, 2, 3))) static void can_log(int prio, const char *
     if (S.cfg.log)
         S.cfg.log(prio, msg);
     else
-        fprintf(stderr, "selfcald: %s\n", msg);
+        sc_log(prio, "%s", msg); /* the daemon's log: stderr or syslog */
 }
 
 /* ---------------------------------------------------------------- socket */
@@ -281,9 +283,9 @@ static int open_socket(char *why, int whylen)
 /* The interface went away (ENODEV/ENXIO): close now, reopen from tick. */
 static void lose_interface(uint64_t now_ms, int err)
 {
-    if (!S.st.link_down_now)
-        can_log(LOG_ERR, "CAN %s: interface lost (%s); retrying every %d ms", S.cfg.ifname,
-                strerror(err), REOPEN_MS);
+    /* once per loss: the socket is closed below */
+    can_log(LOG_ERR, "CAN %s: interface lost (%s); reopening every %d ms", S.cfg.ifname,
+            strerror(err), REOPEN_MS);
     S.st.link_down_now = 1;
     S.flags_since_status |= SC_CAN_ST_LOST;
     S.st.tx_dropped += S.tx_count;

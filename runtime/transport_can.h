@@ -28,7 +28,8 @@ typedef struct sc_can_config {
     uint32_t out_id;           /* corrected position out, default 0x101 */
     uint32_t status_id;        /* status frame, default 0x102 */
     uint32_t status_period_ms; /* default 1000 */
-    /* Optional log sink (prio: syslog LOG_* level; msg without newline). NULL: stderr. */
+    /* Optional log sink (prio: syslog LOG_* level; msg without newline). NULL: the daemon's
+     * log (runtime/log.h: stderr or syslog). */
     void (*log)(int prio, const char *msg);
 } sc_can_config;
 

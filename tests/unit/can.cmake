@@ -4,6 +4,7 @@
 if(SELFCAL_BUILD_RUNTIME)
   selfcal_unit_test(NAME test_can
     SOURCES unit/test_can.c ${PROJECT_SOURCE_DIR}/runtime/transport_can.c
+            ${PROJECT_SOURCE_DIR}/runtime/log.c
     LABELS can runtime TIMEOUT 60)
   target_include_directories(test_can PRIVATE ${PROJECT_SOURCE_DIR}/runtime ${SELFCAL_INCLUDE_DIR})
 endif()

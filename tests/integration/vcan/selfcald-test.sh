@@ -144,6 +144,8 @@ rc=$?
 daemon=""
 [ $rc -eq 0 ] || fail "selfcald exit status $rc after SIGTERM"
 grep -q "bus-off" "$OUT/selfcald.log" || fail "selfcald.log does not mention the bus-off"
+grep -q "interface lost" "$OUT/selfcald.log" || fail "selfcald.log does not mention the interface loss"
+grep -q "socket reopened" "$OUT/selfcald.log" || fail "selfcald.log does not mention the reopening"
 echo "---- selfcald.log"
 cat "$OUT/selfcald.log"
 
