@@ -6,6 +6,7 @@ Every assertion compares against the simulated truth or against what the input f
 against stored outputs of selfcal itself.
 """
 import csv
+import zlib
 import json
 import math
 import os
@@ -84,7 +85,9 @@ def plan_text(n, views, pitch=1.0, origin=None):
 def case_end_to_end():
     """Noise-free simulate -> grid: G and A equal the truth to 1e-9 um, O, R and misalignments too."""
     method, plan, ns = ARGS[0], ARGS[1], [int(a) for a in ARGS[2].split(",")]
-    d = fresh_dir("e2e_%s_%s" % (method, "custom" if plan.startswith("views:") else plan))
+    # one directory per (method, plan): tests run in parallel, so custom plans need distinct names
+    tag = ("custom_%08x" % zlib.crc32(plan.encode())) if plan.startswith("views:") else plan
+    d = fresh_dir("e2e_%s_%s" % (method, tag))
     for n in ns:
         planarg = plan
         if plan.startswith("views:"):  # a custom plan file written here
