@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Build Release (no sanitizers) and print every benchmark table. Speed and memory targets are
+# checked here, not in timed tests. Pass --full for the long runs (paper-size Monte Carlo, N = 10⁶
+# at d = 97/101, ...). Figures on a shared or virtual machine move by tens of per cent: repeat.
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+cd "$here"
+full=""
+[ "${1:-}" = "--full" ] && full="--full"
+[ "${SELFCAL_SKIP_DEPS:-0}" = 1 ] || scripts/install-deps.sh
+build=${SELFCAL_BENCH_BUILD_DIR:-build-bench}
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSELFCAL_SANITIZE=OFF \
+  -DSELFCAL_BUILD_TESTS=OFF >/dev/null
+cmake --build "$build" -j"$(nproc)"
+b="$build/bench"
+section() { printf '\n==================== %s ====================\n' "$*"; }
+section "grid: least squares, solve time and memory (issue: N = 25, 51, 101)"
+"$b/bench_grid_lsq" ${full:+--big}
+section "grid: Monte Carlo sigma_C / sigma_r, three methods"
+"$b/bench_grid_mc" $full
+section "profile: least squares, dense vs fast"
+"$b/bench_profile_lsq" $full
+section "profile: dense LS, fast LS, DFT"
+"$b/bench_profile" $full
+section "correction core: ns per apply(), table size"
+"$b/bench_core_apply"
+section "selfcald: Modbus TCP round trip, 1 and 64 clients"
+"$b/bench_modbus"
+section "selfcald: CAN frames/s through the daemon (QEMU guest with vcan)"
+"$b/bench_can"
