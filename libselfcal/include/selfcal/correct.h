@@ -30,6 +30,24 @@ extern "C" {
 #define SC_CORR_MAX_PROFILE_POINTS 2048
 #endif
 
+/* Storage of the decoded node and profile values (micrometres). The default, double, is what
+ * apply computes in, so no conversion is done per call (host). SC_CORR_COMPACT=1 stores floats
+ * instead: half the RAM, for targets without a double-precision FPU, where it is the default (a
+ * 32-bit Arm without __ARM_FP bit 3, e.g. Cortex-M4F). Either way the stored values are the
+ * decoded values rounded to float, so both layouts give the same corrections. */
+#ifndef SC_CORR_COMPACT
+#if (defined(__arm__) || defined(__thumb__)) && !(defined(__ARM_FP) && (__ARM_FP & 8))
+#define SC_CORR_COMPACT 1
+#else
+#define SC_CORR_COMPACT 0
+#endif
+#endif
+#if SC_CORR_COMPACT
+typedef float sc_corr_value;
+#else
+typedef double sc_corr_value;
+#endif
+
 /* Status bits returned by sc_corr_apply (the same bits as the Modbus status register). */
 #define SC_CORR_ST_LOADED 0x01u  /* a valid table is loaded */
 #define SC_CORR_ST_OUTSIDE 0x02u /* the position was outside the table: clamped */
@@ -53,7 +71,8 @@ typedef struct sc_corr_profile {
     double end_mm;     /* position of the last point, computed at load */
     double last;       /* n - 1 as a double, computed at load */
     double dir_mask[3]; /* 1 for the coordinate dir, 0 for the others, computed at load */
-    float err_um[SC_CORR_MAX_PROFILE_POINTS];
+    /* decoded values (float-rounded); err_um[n] = 0 pads the end (see g_um) */
+    sc_corr_value err_um[SC_CORR_MAX_PROFILE_POINTS + 1];
 } sc_corr_profile;
 
 typedef struct sc_corr_table {
@@ -65,8 +84,10 @@ typedef struct sc_corr_table {
     double x1_mm, y1_mm;   /* position of the last node along x and y, computed at load */
     double lastx, lasty;   /* nx - 1 and ny - 1 as doubles, computed at load */
     /* G of node (i, j) at k = i*nx + j (i along y): g_um[k][0] = Gx, g_um[k][1] = Gy (pairs, so
-     * that one load fetches both) */
-    float g_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY][2];
+     * that one load fetches both); decoded values rounded to float. nx + 1 zero pairs follow the
+     * last node, so that apply may take the cell of the last node with weight 0 on its
+     * neighbours (no index clamp). */
+    sc_corr_value g_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY + SC_CORR_MAX_NX + 1][2];
     uint8_t n_profiles;
     sc_corr_profile profile[SC_CORR_MAX_PROFILES];
 } sc_corr_table;

@@ -15,62 +15,64 @@
 
 #include "selfcal/correct.h"
 
-/* True for a finite double; false for NaN and +-infinity. */
-static inline int is_finite(double x)
+/* True if x, y and z are all finite: x - x is +0 for a finite x and NaN for NaN or +-infinity,
+ * and a NaN survives the sums. One compare and one branch instead of six. */
+static inline int all_finite(double x, double y, double z)
 {
-    return x >= -DBL_MAX && x <= DBL_MAX;
+    return (x - x) + (y - y) + (z - z) == 0.0;
 }
 
-/* x limited to [lo, hi] (inputs are finite here). Written as selects so that compilers use
- * min/max instructions or conditional moves: no data-dependent branches. */
-static inline double clampd(double x, double lo, double hi)
+/* Cell index and fraction for the fractional node coordinate u: u clamped to [0, last] (min
+ * then max: compilers emit selects, no data-dependent branch; an infinite u clamps too), index
+ * floor(u) in [0, last], fraction in [0, 1). At u = last the index is the last node's with
+ * fraction 0: the node and profile arrays are padded after their last value (correct.h), so
+ * (1 - 0) a + 0 b is exactly that node's value, as is the neighbouring cell's 0 a + 1 b. The index
+ * fits an int32 (last < 65535), so the conversion is a plain truncation. */
+static inline int32_t cell(double u, double last, double *frac)
 {
-    x = x < lo ? lo : x;
-    return x > hi ? hi : x;
-}
-
-/* Cell index and fraction for the fractional node coordinate u (already in [0, last] up to
- * rounding; clamped again): index in [0, n-2], fraction in [0, 1]. */
-static inline unsigned cell(double u, double last, unsigned n, double *frac)
-{
-    u = clampd(u, 0.0, last);
-    unsigned k = (unsigned)u; /* u >= 0: the cast is floor */
-    k = k > n - 2u ? n - 2u : k;
+    u = u < last ? u : last;
+    u = u > 0.0 ? u : 0.0;
+    const int32_t k = (int32_t)u; /* u >= 0: the cast is floor */
     *frac = u - (double)k;
     return k;
 }
 
-/* The total correction at position in (grid G plus profile offsets), micrometres, per
+/* The total correction at position (x, y, z) (grid G plus profile offsets), micrometres, per
  * coordinate; returns SC_CORR_ST_OUTSIDE if the position was outside the grid. */
-static inline unsigned eval_um(const sc_corr_table *t, const double in[3], double c_um[3])
+static inline unsigned eval_um(const sc_corr_table *t, double x, double y, double z,
+                               double c_um[3])
 {
-    const unsigned outside = (unsigned)(in[0] < t->x0_mm) | (unsigned)(in[0] > t->x1_mm) |
-                             (unsigned)(in[1] < t->y0_mm) | (unsigned)(in[1] > t->y1_mm);
+    const unsigned outside = (unsigned)(x < t->x0_mm) | (unsigned)(x > t->x1_mm) |
+                             (unsigned)(y < t->y0_mm) | (unsigned)(y > t->y1_mm);
     /* Clamping the node coordinate to [0, last] is clamping the position to the grid's edges. */
     double fx, fy;
-    const unsigned j = cell((in[0] - t->x0_mm) * t->inv_px, t->lastx, t->nx, &fx);
-    const unsigned i = cell((in[1] - t->y0_mm) * t->inv_py, t->lasty, t->ny, &fy);
+    const int32_t j = cell((x - t->x0_mm) * t->inv_px, t->lastx, &fx);
+    const int32_t i = cell((y - t->y0_mm) * t->inv_py, t->lasty, &fy);
     /* (1-f)a + f b: exactly a at f = 0 and exactly b at f = 1, so the value at a node is the
      * node's value whichever of its cells the rounding picks (continuity across cell edges). */
     const double wx = 1.0 - fx, wy = 1.0 - fy;
-    const size_t k = (size_t)i * t->nx + j, kn = k + t->nx;
-    const float *g00 = t->g_um[k], *g01 = t->g_um[k + 1], *g10 = t->g_um[kn], *g11 = t->g_um[kn + 1];
+    const int32_t k = i * (int32_t)t->nx + j, kn = k + (int32_t)t->nx;
+    const sc_corr_value *g00 = t->g_um[k], *g01 = t->g_um[k + 1], *g10 = t->g_um[kn],
+                        *g11 = t->g_um[kn + 1];
     double c0 = ((double)g00[0] * wx + (double)g01[0] * fx) * wy +
                 ((double)g10[0] * wx + (double)g11[0] * fx) * fy;
     double c1 = ((double)g00[1] * wx + (double)g01[1] * fx) * wy +
                 ((double)g10[1] * wx + (double)g11[1] * fx) * fy;
     /* Profiles: clamped to their range without a status bit (SPEC §4: the out-of-range bit is
-     * about the grid). The offset goes to coordinate dir through a 0/1 mask, which keeps the
-     * sums in registers. */
+     * about the grid). The offset goes to coordinate dir through selects, which keep the sums in
+     * registers. */
     double c2 = 0.0;
-    for (unsigned m = 0; m < t->n_profiles; ++m) {
+    const double pos[3] = {x, y, z};
+    const unsigned np = t->n_profiles;
+    for (unsigned m = 0; m < np; ++m) {
         const sc_corr_profile *p = &t->profile[m];
         double f;
-        const unsigned q = cell((in[p->axis] - p->start_mm) * p->inv_step, p->last, p->n, &f);
+        const int32_t q = cell((pos[p->axis] - p->start_mm) * p->inv_step, p->last, &f);
         const double e = (double)p->err_um[q] * (1.0 - f) + (double)p->err_um[q + 1] * f;
-        c0 += e * p->dir_mask[0];
-        c1 += e * p->dir_mask[1];
-        c2 += e * p->dir_mask[2];
+        const unsigned d = p->dir;
+        c0 += d == 0 ? e : 0.0;
+        c1 += d == 1 ? e : 0.0;
+        c2 += d == 2 ? e : 0.0;
     }
     c_um[0] = c0;
     c_um[1] = c1;
@@ -84,7 +86,7 @@ static unsigned pass_through(const sc_corr_table *t, const double in[3], double 
     out[1] = in[1];
     out[2] = in[2];
     unsigned st = (t && t->loaded == 1u) ? SC_CORR_ST_LOADED : 0u;
-    if (!is_finite(in[0]) || !is_finite(in[1]) || !is_finite(in[2]))
+    if (!all_finite(in[0], in[1], in[2]))
         st |= SC_CORR_ST_INVALID;
     return st;
 }
@@ -92,23 +94,22 @@ static unsigned pass_through(const sc_corr_table *t, const double in[3], double 
 unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
                        double out_mm[3])
 {
-    if (!t || t->loaded != 1u || !is_finite(in_mm[0]) || !is_finite(in_mm[1]) ||
-        !is_finite(in_mm[2]))
+    const double x = in_mm[0], y = in_mm[1], z = in_mm[2];
+    if (!t || t->loaded != 1u || !all_finite(x, y, z))
         return pass_through(t, in_mm, out_mm);
     double c[3];
-    unsigned st = SC_CORR_ST_LOADED | eval_um(t, in_mm, c);
+    unsigned st = SC_CORR_ST_LOADED | eval_um(t, x, y, z, c);
     const double sign_mm = mode == SC_CORR_POSITION ? 1e-3 : -1e-3;
-    out_mm[0] = in_mm[0] + sign_mm * c[0];
-    out_mm[1] = in_mm[1] + sign_mm * c[1];
-    out_mm[2] = in_mm[2] + sign_mm * c[2];
+    out_mm[0] = x + sign_mm * c[0];
+    out_mm[1] = y + sign_mm * c[1];
+    out_mm[2] = z + sign_mm * c[2];
     return st;
 }
 
 unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3], double out_mm[3],
                                int iterations)
 {
-    if (!t || t->loaded != 1u || !is_finite(in_mm[0]) || !is_finite(in_mm[1]) ||
-        !is_finite(in_mm[2]))
+    if (!t || t->loaded != 1u || !all_finite(in_mm[0], in_mm[1], in_mm[2]))
         return pass_through(t, in_mm, out_mm);
     /* A fixed, bounded iteration count keeps the call constant-time. */
     if (iterations < 1)
@@ -120,7 +121,7 @@ unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3], do
     double q[3] = {in_mm[0], in_mm[1], in_mm[2]}, c[3];
     unsigned st = SC_CORR_ST_LOADED;
     for (int it = 0; it < iterations; ++it) {
-        st |= eval_um(t, q, c);
+        st |= eval_um(t, q[0], q[1], q[2], c);
         q[0] = in_mm[0] - 1e-3 * c[0];
         q[1] = in_mm[1] - 1e-3 * c[1];
         q[2] = in_mm[2] - 1e-3 * c[2];

@@ -231,6 +231,8 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
         t->g_um[k][0] = decode(gx + k * gcb, genc, gum);
         t->g_um[k][1] = decode(gy + k * gcb, genc, gum);
     }
+    for (size_t k = (size_t)ncells; k <= (size_t)ncells + nx; ++k)
+        t->g_um[k][0] = t->g_um[k][1] = 0; /* the padding (see correct.h) */
     t->n_profiles = (uint8_t)np;
     for (unsigned k = 0; k < np; ++k) {
         const uint8_t *h = b + (size_t)poff[k];
@@ -249,6 +251,7 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
         const unsigned enc = h[2], cb = sc_lutf_code_bytes(enc);
         for (unsigned m = 0; m < p->n; ++m)
             p->err_um[m] = decode(h + SC_LUTF_PROFILE_HEADER_BYTES + m * cb, enc, pum);
+        p->err_um[p->n] = 0; /* the padding */
     }
     t->loaded = 1;
     return SC_CORR_OK;
