@@ -380,6 +380,70 @@ static void test_portable_and_simd_agree(void **state)
 
 /* ---------- uncertainty ---------- */
 
+
+/* The twisted factorization (two halves sharing one factor by persymmetry, separator of
+ * s ≡ N (mod 8) rows) and the one-sided banded one give the same f, c, wrss and u(f), for every
+ * separator size s - bw = 0..7, at the threshold N = 4·bw + 32, and with both kernel sets. */
+static void test_twisted_matches_serial(void **state)
+{
+    (void)state;
+    static const int cases[][3] = {
+        {330, 10, 11},  {331, 10, 11},  {332, 10, 11}, {333, 10, 11}, {334, 10, 11},
+        {335, 10, 11},  {336, 10, 11},  {337, 10, 11}, {76, 10, 11},  {77, 11, 10},
+        {1003, 97, 101}, {436, 97, 101}, {1200, 101, 97}, {2001, 3, 11}, {40, 1, 2},
+        {41, 2, 1},     {36, 1, 1},     {20011, 10, 11}, {4001, 13, 4}};
+    for (size_t q = 0; q < sizeof cases / sizeof cases[0]; q++) {
+        int n = cases[q][0], d1 = cases[q][1], d2 = cases[q][2];
+        for (unsigned portable = 0; portable <= SC_PROFILE_LSQ_PORTABLE; portable++) {
+            sc_rng rng;
+            sc_rng_seed(&rng, 300 + q);
+            double *f = dalloc(n), *y1 = dalloc(n), *y2 = dalloc(n);
+            double *fa = dalloc(n), *fb = dalloc(n), *ua = dalloc(n), *ub = dalloc(n);
+            random_profile(n, &rng, f);
+            simulate(n, d1, d2, f, 0.1, -0.2, y1, y2, &rng, 0.01, 0.012);
+            sc_profile_lsq *pa = NULL, *pb = NULL;
+            sc_error err;
+            sc_error_clear(&err);
+            assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, portable, &pa, &err),
+                             SC_OK);
+            assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3,
+                                                      portable | SC_PROFILE_LSQ_SERIAL, &pb, &err),
+                             SC_OK);
+            double ca[2], cb[2], wa, wb;
+            assert_int_equal(sc_profile_lsq_solve(pa, y1, y2, fa, ca, &wa, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+            double fs = 0, df = 0, du = 0;
+            for (int i = 0; i < n; i++) {
+                fs = fmax(fs, fabs(fb[i]));
+                df = fmax(df, fabs(fa[i] - fb[i]));
+                du = fmax(du, fabs(ua[i] - ub[i]) / ub[i]);
+            }
+            double dc = fmax(fabs(ca[0] - cb[0]), fabs(ca[1] - cb[1])) /
+                        fmax(fabs(cb[0]), fabs(cb[1]));
+            double dw = fabs(wa - wb) / wb;
+            if (q % 6 == 0 || n > 10000)
+                print_message("twisted vs serial N=%d d=%d/%d portable=%u: rel diff f %.2g, "
+                              "c %.2g, wrss %.2g, uf %.2g\n",
+                              n, d1, d2, portable, df / fs, dc, dw, du);
+            assert_true(df <= 1e-12 * fs);
+            assert_true(dc <= 1e-12);
+            assert_true(dw <= 1e-12);
+            assert_true(du <= 1e-12);
+            sc_profile_lsq_destroy(pa);
+            sc_profile_lsq_destroy(pb);
+            free(f);
+            free(y1);
+            free(y2);
+            free(fa);
+            free(fb);
+            free(ua);
+            free(ub);
+        }
+    }
+}
+
 /* Ding's set-up: s = 1 mm, σ_disp = 10 nm, σ_angle = 1 nm/mm: var y_k = 2σ_disp² + (D_k σ_angle)². */
 static double ding_variance_um2(int d) { return 2 * 0.01 * 0.01 + (d * 1e-3) * (d * 1e-3); }
 
@@ -645,6 +709,7 @@ int main(void)
         cmocka_unit_test(test_noise_free_dabam),
         cmocka_unit_test(test_fast_matches_dense),
         cmocka_unit_test(test_portable_and_simd_agree),
+        cmocka_unit_test(test_twisted_matches_serial),
         cmocka_unit_test(test_uncertainty_vs_monte_carlo),
         cmocka_unit_test(test_paper_setup),
         cmocka_unit_test(test_million_points_vs_long_double),

@@ -29,8 +29,10 @@ sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_
 
 /* Flags of sc_profile_lsq_create_ex. */
 #define SC_PROFILE_LSQ_PORTABLE 1u /* portable kernels even where AVX2/FMA ones exist (testing) */
+#define SC_PROFILE_LSQ_SERIAL 2u   /* one-sided banded factor even where the twisted one applies
+                                      (testing; the twisted one halves time and memory) */
 
-/* sc_profile_lsq_create with flags (0 or SC_PROFILE_LSQ_PORTABLE). */
+/* sc_profile_lsq_create with flags (0 or SC_PROFILE_LSQ_PORTABLE | SC_PROFILE_LSQ_SERIAL). */
 sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,
                                    sc_profile_lsq **out, sc_error *err);
 

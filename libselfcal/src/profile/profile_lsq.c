@@ -32,6 +32,12 @@ struct sc_profile_lsq {
     double *e;        /* 2 columns of n: E, the f-c block of the normal matrix (pinned rows 0) */
     double *bu;       /* 2 columns of n: B⁻¹·U, U = the orthonormal basis of span{1, n} (pins 0) */
     double g[2];      /* diagonal c-c block: w_k (n - d_k) */
+    /* twisted factorization (docs/profile-lsq.md §3): B is persymmetric, so with the order
+     * T = 0..m-1, then N-1 down to m+s, then the separator S = m..m+s-1, both halves share one
+     * factor L_A (rows 0..m-1 of the band storage; rows m..m+s-1 hold L_C = B_ST·L_A⁻ᵀ) and the
+     * separator's Schur complement is factored densely: ls = L_S (s×s row-major, lower). */
+    int twisted, m, s;
+    double *ls;
     double sinv[4];   /* S⁻¹, S = G - Eᵀ Z (row-major 2×2) */
 };
 
@@ -81,10 +87,137 @@ int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
 
 static int is_pinned(const sc_profile_lsq *p, int i) { return i == 0 || i == p->n - 1; }
 
+/* B[i][j] (pinned rows and columns are the identity), as assembled by the band kernels. */
+static double b_entry(const sc_profile_lsq *p, int i, int j)
+{
+    int n = p->n;
+    if (i == j) {
+        if (is_pinned(p, i)) return 1.0;
+        double aii = 0.0;
+        if (i >= p->d1) aii += p->w1;
+        if (i <= n - 1 - p->d1) aii += p->w1;
+        if (i >= p->d2) aii += p->w2;
+        if (i <= n - 1 - p->d2) aii += p->w2;
+        return aii;
+    }
+    if (is_pinned(p, i) || is_pinned(p, j)) return 0.0;
+    int dist = i > j ? i - j : j - i;
+    double v = 0.0;
+    if (dist == p->d1) v += -p->w1;
+    if (dist == p->d2) v += -p->w2;
+    return v;
+}
+
+/* Row r (0 <= r < s) of L_C: its entries L[m+r][c], c = c0 .. m-1, in the band storage. */
+static const double *lc_row(const sc_profile_lsq *p, int r, int *c0)
+{
+    int k = p->m + r;
+    int lo = k - p->bw < 0 ? 0 : k - p->bw;
+    *c0 = lo;
+    return p->band.a + (size_t)k * p->band.ld + (size_t)(lo - k + p->bw);
+}
+
+/* The separator: S_c = G + J·G·J - B_SS (G = the separator rows' block left by eliminating T,
+ * J the reversal of S) into ls, then its dense Cholesky in place. 0 if it is not positive. */
+static int twisted_separator(sc_profile_lsq *p)
+{
+    int s = p->s, m = p->m, bw = p->bw;
+    size_t ld = p->band.ld;
+    const double *a = p->band.a;
+    double *l = p->ls;
+    for (int r = 0; r < s; r++) {
+        for (int c = 0; c <= r; c++) {
+            double g = r - c <= bw ? a[(size_t)(m + r) * ld + (size_t)(c - r + bw)] : 0.0;
+            int rm = s - 1 - c, cm = s - 1 - r; /* (J G J)[r][c] = G[s-1-r][s-1-c], rm >= cm */
+            double gm = rm - cm <= bw ? a[(size_t)(m + rm) * ld + (size_t)(cm - rm + bw)] : 0.0;
+            l[(size_t)r * s + c] = g + gm - b_entry(p, m + r, m + c);
+        }
+        for (int c = r + 1; c < s; c++) l[(size_t)r * s + c] = 0.0;
+    }
+    for (int j = 0; j < s; j++) {
+        double djj = l[(size_t)j * s + j];
+        for (int k = 0; k < j; k++) djj -= l[(size_t)j * s + k] * l[(size_t)j * s + k];
+        if (!(djj > 0.0) || !isfinite(djj)) return 0;
+        double ljj = sqrt(djj);
+        l[(size_t)j * s + j] = ljj;
+        for (int i = j + 1; i < s; i++) {
+            double v = l[(size_t)i * s + j];
+            for (int k = 0; k < j; k++) v -= l[(size_t)i * s + k] * l[(size_t)j * s + k];
+            l[(size_t)i * s + j] = v / ljj;
+        }
+    }
+    return 1;
+}
+
+static void reverse(double *x, int len)
+{
+    for (int i = 0, j = len - 1; i < j; i++, j--) {
+        double t = x[i];
+        x[i] = x[j];
+        x[j] = t;
+    }
+}
+
+/* xs[r] <- B⁻¹·xs[r] (r < nrhs <= 4) through the twisted factor: the two halves T and reversed
+ * bottom share each pass over L_A (2·nrhs right-hand sides), the separator in between. */
+static void twisted_solve(const sc_profile_lsq *p, double *const *xs, int nrhs)
+{
+    int m = p->m, s = p->s;
+    double *half[8];
+    for (int r = 0; r < nrhs; r++) {
+        reverse(xs[r] + m + s, m); /* the bottom, N-1 down to m+s */
+        half[2 * r] = xs[r];
+        half[2 * r + 1] = xs[r] + m + s;
+    }
+    sc_lsq_band view = p->band;
+    view.n = m;
+    sc_lsq_band_forward(&view, half, 2 * nrhs);
+    const double *l = p->ls;
+    for (int r = 0; r < nrhs; r++) {
+        double *yt = xs[r], *xsep = xs[r] + m, *yb = xs[r] + m + s;
+        /* y_S = L_S⁻¹ (b_S - L_C y_T - J L_C y_B) */
+        for (int q = 0; q < s; q++) {
+            int c0, c1;
+            const double *lq = lc_row(p, q, &c0), *lm = lc_row(p, s - 1 - q, &c1);
+            double v = xsep[q];
+            for (int c = c0; c < m; c++) v -= lq[c - c0] * yt[c];
+            for (int c = c1; c < m; c++) v -= lm[c - c1] * yb[c];
+            for (int k = 0; k < q; k++) v -= l[(size_t)q * s + k] * xsep[k];
+            xsep[q] = v / l[(size_t)q * s + q];
+        }
+        /* x_S = L_S⁻ᵀ y_S */
+        for (int q = s - 1; q >= 0; q--) {
+            double v = xsep[q];
+            for (int k = q + 1; k < s; k++) v -= l[(size_t)k * s + q] * xsep[k];
+            xsep[q] = v / l[(size_t)q * s + q];
+        }
+        /* y_T -= L_Cᵀ x_S, y_B -= L_Cᵀ J x_S */
+        for (int q = 0; q < s; q++) {
+            int c0;
+            const double *lq = lc_row(p, q, &c0);
+            double xa = xsep[q], xb = xsep[s - 1 - q];
+            for (int c = c0; c < m; c++) {
+                yt[c] -= lq[c - c0] * xa;
+                yb[c] -= lq[c - c0] * xb;
+            }
+        }
+    }
+    sc_lsq_band_backward(&view, half, 2 * nrhs);
+    for (int r = 0; r < nrhs; r++) reverse(xs[r] + m + s, m);
+}
+
+static void solve_many(const sc_profile_lsq *p, double *const *xs, int nrhs)
+{
+    if (p->twisted)
+        twisted_solve(p, xs, nrhs);
+    else
+        sc_lsq_band_solve(&p->band, xs, nrhs);
+}
+
 static void band_solve(const sc_profile_lsq *p, double *x)
 {
     double *xs[1] = {x};
-    sc_lsq_band_solve(&p->band, xs, 1);
+    solve_many(p, xs, 1);
 }
 
 /* Allocate a large array: 2 MB-aligned and marked for transparent huge pages where the system
@@ -137,18 +270,31 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     bd->w2 = w2;
     bd->ld = (size_t)p->bw + 1;
     bd->simd = (flags & SC_PROFILE_LSQ_PORTABLE) ? 0 : sc_lsq_band_cpu_has_simd();
+    bd->nrow = bd->ncol = n;
+    /* twisted: separator s in [bw, bw+7] with s ≡ N (mod 8), so that m = (N - s)/2 is a
+     * multiple of 4 (whole panels); only where both halves are long against the band */
+    if (!(flags & SC_PROFILE_LSQ_SERIAL) && (long)n >= 4L * p->bw + 32) {
+        int sep = p->bw;
+        while ((n - sep) % 8 != 0) sep++;
+        p->twisted = 1;
+        p->s = sep;
+        p->m = (n - sep) / 2;
+        bd->nrow = p->m + sep;
+        bd->ncol = p->m;
+    }
     if ((size_t)n > SIZE_MAX / sizeof(double) / (bd->ld + 4)) {
         int bw = p->bw;
         free(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "N = %d with d = %d needs too much memory",
                             n, bw);
     }
-    bd->a = alloc_doubles((size_t)n * bd->ld);
+    bd->a = alloc_doubles((size_t)bd->nrow * bd->ld);
+    if (p->twisted) p->ls = malloc((size_t)p->s * (size_t)p->s * sizeof(double));
     p->z = malloc((size_t)2 * n * sizeof(double));
     p->e = malloc((size_t)2 * n * sizeof(double));
     p->bu = malloc((size_t)2 * n * sizeof(double));
     double *col = malloc(4 * (bd->ld + 3) * sizeof(double));
-    if (!bd->a || !p->z || !p->e || !p->bu || !col) {
+    if (!bd->a || !p->z || !p->e || !p->bu || !col || (p->twisted && !p->ls)) {
         int bw = p->bw;
         free(col);
         sc_profile_lsq_destroy(p);
@@ -162,6 +308,11 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         sc_profile_lsq_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
                             "banded Cholesky factor lost positive definiteness at row %d", bad);
+    }
+    if (p->twisted && !twisted_separator(p)) {
+        sc_profile_lsq_destroy(p);
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
+                            "the separator block of the twisted factor is not positive definite");
     }
     /* border: E column k = d(normal eq. of f)/d c_k; G = diag(w_k (n - d_k)) */
     const int dk[2] = {d1, d2};
@@ -191,7 +342,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         }
     }
     double *rhs[4] = {p->z, p->z + n, p->bu, p->bu + n};
-    sc_lsq_band_solve(bd, rhs, 4);
+    solve_many(p, rhs, 4);
     double s[4];
     for (int a = 0; a < 2; a++)
         for (int b = 0; b < 2; b++)
@@ -298,9 +449,39 @@ sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, con
 
 static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc_error *err)
 {
-    double *win = malloc(sc_lsq_band_inverse_scratch(p->bw) * sizeof(double));
+    size_t nwin = sc_lsq_band_inverse_scratch(p->bw);
+    size_t nz = p->twisted ? (size_t)p->s * (size_t)p->s : 0;
+    double *win = malloc((nwin + 2 * nz + 1) * sizeof(double));
     if (!win) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
-    sc_lsq_band_inverse_diag(&p->band, win, diag);
+    if (!p->twisted) {
+        sc_lsq_band_inverse_diag(&p->band, win, diag);
+        free(win);
+        return SC_OK;
+    }
+    /* twisted: Z_SS = S_c⁻¹ = L_S⁻ᵀ L_S⁻¹, then the recurrences from m-1 down to 0 (the bottom
+     * half's rows of L have no entries in T's columns); B⁻¹ is persymmetric like B, so the
+     * bottom half's diagonal is the mirror of the top's */
+    int s = p->s, m = p->m, n = p->n;
+    const double *l = p->ls;
+    double *li = win + nwin, *zss = li + nz; /* li = L_S⁻¹ (lower) */
+    for (int j = 0; j < s; j++) {
+        for (int i = 0; i < j; i++) li[(size_t)i * s + j] = 0.0;
+        li[(size_t)j * s + j] = 1.0 / l[(size_t)j * s + j];
+        for (int i = j + 1; i < s; i++) {
+            double v = 0.0;
+            for (int k = j; k < i; k++) v -= l[(size_t)i * s + k] * li[(size_t)k * s + j];
+            li[(size_t)i * s + j] = v / l[(size_t)i * s + i];
+        }
+    }
+    for (int i = 0; i < s; i++)
+        for (int j = 0; j <= i; j++) {
+            double v = 0.0;
+            for (int k = i; k < s; k++) v += li[(size_t)k * s + i] * li[(size_t)k * s + j];
+            zss[(size_t)i * s + j] = zss[(size_t)j * s + i] = v;
+        }
+    sc_lsq_band_inverse_diag_from(&p->band, win, diag, m - 1, zss, s);
+    for (int q = 0; q < s; q++) diag[m + q] = zss[(size_t)q * s + q];
+    for (int i = 0; i < m; i++) diag[n - 1 - i] = diag[i];
     free(win);
     return SC_OK;
 }
@@ -373,5 +554,6 @@ void sc_profile_lsq_destroy(sc_profile_lsq *p)
     free(p->z);
     free(p->e);
     free(p->bu);
+    free(p->ls);
     free(p);
 }

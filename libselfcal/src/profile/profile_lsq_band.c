@@ -65,15 +65,44 @@ void sc_lsq_band_solve(const sc_lsq_band *b, double *const *xs, int nrhs)
     solve_generic(b, xs, nrhs);
 }
 
-void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag)
+void sc_lsq_band_forward(const sc_lsq_band *b, double *const *xs, int nrhs)
 {
 #if SC_LSQ_HAVE_AVX2
     if (b->simd) {
-        inverse_diag_avx2(b, win, diag);
+        forward_avx2(b, xs, nrhs);
         return;
     }
 #endif
-    inverse_diag_generic(b, win, diag);
+    forward_generic(b, xs, nrhs);
+}
+
+void sc_lsq_band_backward(const sc_lsq_band *b, double *const *xs, int nrhs)
+{
+#if SC_LSQ_HAVE_AVX2
+    if (b->simd) {
+        backward_avx2(b, xs, nrhs);
+        return;
+    }
+#endif
+    backward_generic(b, xs, nrhs);
+}
+
+void sc_lsq_band_inverse_diag_from(const sc_lsq_band *b, double *win, double *diag, int i0,
+                                   const double *zss, int s)
+{
+#if SC_LSQ_HAVE_AVX2
+    if (b->simd) {
+        inverse_diag_avx2(b, win, diag, i0, zss, s);
+        return;
+    }
+#endif
+    inverse_diag_generic(b, win, diag, i0, zss, s);
+}
+
+void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag)
+{
+    static const double none = 0.0;
+    sc_lsq_band_inverse_diag_from(b, win, diag, b->n - 1, &none, 0);
 }
 
 size_t sc_lsq_band_inverse_scratch(int bw)

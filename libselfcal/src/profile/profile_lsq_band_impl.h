@@ -32,14 +32,14 @@ SC_ATTR static void SC_SFX(assemble_row)(const sc_lsq_band *b, int i)
  * in cache. The diagonal slot keeps 1/L[i][i]. col: 4·(bw+4) doubles. */
 SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
 {
-    int n = b->n, bw = b->bw;
+    int ncol = b->ncol, nrow = b->nrow, bw = b->bw;
     size_t ld = b->ld;
     int h = bw + 4; /* panel rows j .. j+3+bw */
     double *pc[4] = {col, col + h, col + 2 * (size_t)h, col + 3 * (size_t)h};
     int next_row = 0;
-    for (int j = 0; j < n; j += 4) {
-        int nb = n - j < 4 ? n - j : 4;
-        int last = j + nb - 1 + bw < n - 1 ? j + nb - 1 + bw : n - 1;
+    for (int j = 0; j < ncol; j += 4) {
+        int nb = ncol - j < 4 ? ncol - j : 4;
+        int last = j + nb - 1 + bw < nrow - 1 ? j + nb - 1 + bw : nrow - 1;
         while (next_row <= last) SC_SFX(assemble_row)(b, next_row++);
         /* gather: pc[c][k - j] = L[k][j+c] (0 outside the band, above the diagonal, past N) */
         for (int c = 0; c < nb; c++) {
@@ -73,7 +73,7 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
             for (int k = j + c; k <= kmax; k++)
                 b->a[(size_t)k * ld + (size_t)(j + c - k + bw)] = pcc[k - j];
         }
-        if (nb < 4) continue; /* the last columns: nothing trails */
+        if (nb < 4) continue; /* the last columns (ncol = nrow, or ncol % 4 = 0): nothing trails */
         /* trailing rows k = j+4 .. last, columns j+4 .. k: row -= Σ_c L[k][j+c]·L[·][j+c] */
         int l0 = j + 4;
         const double *v0 = pc[0] + 4, *v1 = pc[1] + 4, *v2 = pc[2] + 4, *v3 = pc[3] + 4;
@@ -84,6 +84,7 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
             SC_AXPY4(row + (l0 - k + bw), a, v0, v1, v2, v3, q + 1);
         }
     }
+    while (next_row < nrow) SC_SFX(assemble_row)(b, next_row++);
     return -1;
 }
 
@@ -227,7 +228,8 @@ SC_ATTR static inline double SC_SFX(window_row)(double *win, int w, int ws, int 
  * columns (the stale ones are never read). In the interior two steps i, i-1 share one pass over
  * the window rows i+1 .. i+bw-1 (SC_GEMV2_ROWS); the terms that need row i of Z — not yet known
  * during that pass — are added after it. */
-SC_ATTR static void SC_SFX(inverse_diag)(const sc_lsq_band *b, double *win, double *diag)
+SC_ATTR static void SC_SFX(inverse_diag)(const sc_lsq_band *b, double *win, double *diag, int i0,
+                                         const double *zss, int s)
 {
     int n = b->n, bw = b->bw;
     int w = bw + 1, ws = (w + 3) & ~3;
@@ -237,8 +239,14 @@ SC_ATTR static void SC_SFX(inverse_diag)(const sc_lsq_band *b, double *win, doub
     double *m = l + w;
     const double **rows = (const double **)(m + w);
     size_t ldm1 = b->ld - 1;
-    for (size_t s = 0; s < (size_t)ws * w + 2 * (size_t)ws; s++) win[s] = 0.0;
-    int i = n - 1;
+    for (size_t q = 0; q < (size_t)ws * w + 2 * (size_t)ws; q++) win[q] = 0.0;
+    /* the given block of B⁻¹ over i0+1 .. i0+s: the window needs i0+1 .. i0+bw of it */
+    int sw = s < w ? s : w;
+    for (int r = 0; r < sw; r++)
+        for (int c = 0; c < sw; c++)
+            win[(size_t)((i0 + 1 + r) % w) * ws + (size_t)((i0 + 1 + c) % w)] =
+                zss[(size_t)r * s + c];
+    int i = i0;
     while (i >= 0) {
         int cnt = (i + bw < n - 1 ? i + bw : n - 1) - i;
         const double rii = b->a[(size_t)i * b->ld + bw];
