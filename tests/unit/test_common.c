@@ -109,6 +109,58 @@ static void test_atomic_file(void **state)
     assert_int_equal(sc_write_file_atomic(SELFCAL_TEST_TMP "/no/such/dir/x", "x", 1, &err), SC_E_IO);
 }
 
+static int file_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+static void test_atomic_group(void **state)
+{
+    (void)state;
+    const char *a = SELFCAL_TEST_TMP "/group_a.txt", *b = SELFCAL_TEST_TMP "/group_b.txt";
+    unlink(a);
+    unlink(b);
+    sc_error err;
+    sc_afile f[3];
+    memset(f, 0, sizeof f); /* f[1] stays closed: skipped */
+    assert_int_equal(sc_afile_open(&f[0], a, &err), SC_OK);
+    assert_int_equal(sc_afile_open(&f[2], b, &err), SC_OK);
+    fputs("A\n", f[0].fp);
+    fputs("B\n", f[2].fp);
+    assert_false(file_exists(a));
+    assert_int_equal(sc_afile_commit_all(f, 3, &err), SC_OK);
+    assert_true(file_exists(a) && file_exists(b));
+
+    /* a write error in the second file: neither final name changes, no temporary file stays */
+    assert_int_equal(sc_write_file_atomic(a, "old a\n", 6, &err), SC_OK);
+    assert_int_equal(sc_write_file_atomic(b, "old b\n", 6, &err), SC_OK);
+    memset(f, 0, sizeof f);
+    assert_int_equal(sc_afile_open(&f[0], a, &err), SC_OK);
+    assert_int_equal(sc_afile_open(&f[1], b, &err), SC_OK);
+    fputs("new a\n", f[0].fp);
+    FILE *ro = fopen(f[1].tmp_path, "r"); /* swap in a read-only stream: writing sets its error */
+    assert_non_null(ro);
+    fclose(f[1].fp);
+    f[1].fp = ro;
+    fputs("new b\n", f[1].fp);
+    char tmp0[sizeof f[0].tmp_path], tmp1[sizeof f[1].tmp_path];
+    snprintf(tmp0, sizeof tmp0, "%s", f[0].tmp_path);
+    snprintf(tmp1, sizeof tmp1, "%s", f[1].tmp_path);
+    assert_int_equal(sc_afile_commit_all(f, 2, &err), SC_E_IO);
+    char buf[32] = {0};
+    FILE *in = fopen(a, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "old a\n");
+    in = fopen(b, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "old b\n");
+    assert_false(file_exists(tmp0));
+    assert_false(file_exists(tmp1));
+}
+
 static void test_rng(void **state)
 {
     (void)state;
@@ -136,6 +188,7 @@ int main(void)
         cmocka_unit_test(test_parse_numbers),
         cmocka_unit_test(test_csv_lines_and_errors),
         cmocka_unit_test(test_atomic_file),
+        cmocka_unit_test(test_atomic_group),
         cmocka_unit_test(test_rng),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -201,6 +201,7 @@ int cmd_grid(int argc, char **argv)
     {
         const char *paths[4] = {map, art, sum, plot};
         sc_afile f[4];
+        memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
         int opened = 0;
         sc_grid_map gm;
         memset(&gm, 0, sizeof gm);
@@ -242,14 +243,11 @@ int cmd_grid(int argc, char **argv)
             case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, in); break;
             }
         }
-        for (int k = 0; k < opened; ++k) {
-            if (!paths[k])
-                continue;
-            if (st == SC_OK)
-                st = sc_afile_commit(&f[k], &err);
-            else
-                sc_afile_abort(&f[k]);
-        }
+        /* all files or none: sync every one, then rename them together */
+        if (st == SC_OK)
+            st = sc_afile_commit_all(f, opened, &err);
+        else
+            sc_afile_abort_all(f, opened);
         free(xy);
     }
 

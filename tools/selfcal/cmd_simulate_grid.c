@@ -174,6 +174,7 @@ int cmd_simulate_grid(int argc, char **argv)
 
     /* Everything is computed: write all files, commit them together. */
     sc_afile f[4];
+    memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
     const char *paths[4] = {out, truth_map, truth_art, truth_sum};
     int opened = 0;
     for (; opened < 4; ++opened) {
@@ -189,14 +190,11 @@ int cmd_simulate_grid(int argc, char **argv)
         case 3: fprint_truth_summary(f[3].fp, plan_arg, &d.plan, &sp, &t); break;
         }
     }
-    for (int k = 0; k < opened; ++k) {
-        if (!paths[k])
-            continue;
-        if (st == SC_OK)
-            st = sc_afile_commit(&f[k], &err);
-        else
-            sc_afile_abort(&f[k]);
-    }
+    /* all files or none: sync every one, then rename them together */
+    if (st == SC_OK)
+        st = sc_afile_commit_all(f, opened, &err);
+    else
+        sc_afile_abort_all(f, opened);
     free(buf);
     sc_grid_data_free(&d);
     return st == SC_OK ? CLI_OK : cli_report(&err);

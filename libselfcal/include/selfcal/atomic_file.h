@@ -29,6 +29,15 @@ sc_status sc_afile_commit(sc_afile *f, sc_error *err);
 /* Discard everything written; the final name is untouched. Safe after commit (does nothing). */
 void sc_afile_abort(sc_afile *f);
 
+/* Commit n files as one group: flush and fsync every temporary file first and rename them into
+ * place only if all were written completely; a write failure removes every temporary file and
+ * touches no final name (a rename refused by the OS midway leaves the files renamed before it,
+ * each complete). Entries that are not open (fp == NULL) are skipped. */
+sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err);
+
+/* Abort every open entry of f[0..n-1]. */
+void sc_afile_abort_all(sc_afile *f, int n);
+
 /* Write len bytes to path atomically in one call. */
 sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, sc_error *err);
 
