@@ -80,6 +80,11 @@ static void test_csv_lines_and_errors(void **state)
     sc_csv_close(&r);
 
     assert_int_equal(sc_csv_open(&r, SELFCAL_TEST_TMP "/does-not-exist.csv", &err), SC_E_INPUT);
+    /* a directory is bad input too, said as such (not a read error later) */
+    assert_int_equal(sc_csv_open(&r, SELFCAL_TEST_TMP, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "directory"));
+    assert_null(sc_open_input(SELFCAL_TEST_TMP, &err));
+    assert_int_equal(err.code, SC_E_INPUT);
 }
 
 static void test_atomic_file(void **state)

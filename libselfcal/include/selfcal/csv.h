@@ -29,6 +29,10 @@ typedef struct sc_csv {
     char *field[SC_CSV_MAX_FIELDS];  /* point into text (split modifies it) */
 } sc_csv;
 
+/* Open an input file for reading (binary). A missing or unreadable file, or a directory, is bad
+ * input (SC_E_INPUT: the user named the wrong thing); NULL with err set on failure. */
+FILE *sc_open_input(const char *path, sc_error *err);
+
 /* Open path for reading ("-" reads stdin). */
 sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err);
 

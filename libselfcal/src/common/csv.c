@@ -5,6 +5,24 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+
+FILE *sc_open_input(const char *path, sc_error *err)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp) {
+        sc_error_set(err, errno == ENOMEM ? SC_E_NOMEM : SC_E_INPUT, path, 0, "cannot open: %s",
+                     strerror(errno));
+        return NULL;
+    }
+    struct stat st;
+    if (fstat(fileno(fp), &st) == 0 && S_ISDIR(st.st_mode)) {
+        fclose(fp);
+        sc_error_set(err, SC_E_INPUT, path, 0, "is a directory, not a file");
+        return NULL;
+    }
+    return fp;
+}
 
 sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err)
 {
@@ -15,9 +33,9 @@ sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err)
         r->owns_fp = 0;
         return SC_OK;
     }
-    r->fp = fopen(path, "rb");
+    r->fp = sc_open_input(path, err);
     if (!r->fp)
-        return sc_error_set(err, SC_E_INPUT, path, 0, "cannot open: %s", strerror(errno));
+        return err ? err->code : SC_E_INPUT;
     r->owns_fp = 1;
     return SC_OK;
 }

@@ -9,6 +9,7 @@
 #include "../core/lut_format.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/correct.h"
+#include "selfcal/csv.h"
 #include "selfcal/lut.h"
 
 void sc_lut_init(sc_lut *lut)
@@ -354,9 +355,9 @@ sc_status sc_lut_write_file(const char *path, sc_lut *lut, sc_lut_encoding enc, 
 
 sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err)
 {
-    FILE *f = fopen(path, "rb");
+    FILE *f = sc_open_input(path, err);
     if (!f)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+        return err ? err->code : SC_E_INPUT;
     uint8_t *buf = malloc(SC_LUT_MAX_FILE_BYTES + 1);
     if (!buf) {
         fclose(f);

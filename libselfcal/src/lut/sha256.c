@@ -1,4 +1,5 @@
 /* sha256.c — SHA-256 per FIPS 180-4 (tested against its example vectors in test_lut.c). */
+#include "selfcal/csv.h"
 #include "selfcal/sha256.h"
 
 #include <errno.h>
@@ -110,9 +111,9 @@ void sc_sha256_final(sc_sha256 *s, uint8_t digest[SC_SHA256_BYTES])
 
 sc_status sc_sha256_file(const char *path, uint8_t digest[SC_SHA256_BYTES], sc_error *err)
 {
-    FILE *f = fopen(path, "rb");
+    FILE *f = sc_open_input(path, err);
     if (!f)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+        return err ? err->code : SC_E_INPUT;
     sc_sha256 s;
     sc_sha256_init(&s);
     uint8_t buf[8192];
