@@ -73,8 +73,22 @@ int main(int argc, char **argv)
         if (argc >= 3 && !strcmp(argv[2], c->sub))
             return c->run(argc - 2, argv + 2);
     }
-    fprintf(stderr, "selfcal: unknown command '%s%s%s'\n", argv[1], argc >= 3 ? " " : "",
-            argc >= 3 ? argv[2] : "");
+    /* a known first word whose second word is missing or unknown: list the choices */
+    int known = 0;
+    for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k)
+        if (commands[k].sub && !strcmp(argv[1], commands[k].name)) {
+            if (!known)
+                fprintf(stderr, "selfcal %s: %s%s%sexpected one of:", argv[1],
+                        argc >= 3 ? "unknown subcommand '" : "", argc >= 3 ? argv[2] : "",
+                        argc >= 3 ? "'; " : "");
+            fprintf(stderr, " %s", commands[k].sub);
+            known = 1;
+        }
+    if (known) {
+        fputc('\n', stderr);
+        return CLI_BAD_INPUT;
+    }
+    fprintf(stderr, "selfcal: unknown command '%s'\n", argv[1]);
     usage(stderr);
     return CLI_BAD_INPUT;
 }
