@@ -48,6 +48,16 @@ typedef float sc_corr_value;
 typedef double sc_corr_value;
 #endif
 
+/* 16-byte alignment of the pairs apply loads at once (hosts; nothing for SC_CORR_COMPACT). */
+#if defined(__GNUC__) && !SC_CORR_COMPACT
+#define SC_CORR_ALIGN16 __attribute__((aligned(16)))
+#else
+#define SC_CORR_ALIGN16
+#endif
+
+/* Profile slots: SC_CORR_MAX_PROFILES rounded up to even (apply may take profiles in pairs). */
+#define SC_CORR_PROFILE_SLOTS (SC_CORR_MAX_PROFILES + (SC_CORR_MAX_PROFILES & 1))
+
 /* Status bits returned by sc_corr_apply (the same bits as the Modbus status register). */
 #define SC_CORR_ST_LOADED 0x01u  /* a valid table is loaded */
 #define SC_CORR_ST_OUTSIDE 0x02u /* the position was outside the table: clamped */
@@ -76,20 +86,33 @@ typedef struct sc_corr_profile {
 } sc_corr_profile;
 
 typedef struct sc_corr_table {
+    /* x and y pairs first, 16-byte aligned on hosts so that apply loads each pair at once. */
+    double x0_mm SC_CORR_ALIGN16, y0_mm; /* position of node (0, 0) */
+    double x1_mm SC_CORR_ALIGN16, y1_mm; /* position of the last node along x and y, computed at load */
+    double inv_px SC_CORR_ALIGN16, inv_py; /* 1 / pitch, computed at load */
+    double lastx SC_CORR_ALIGN16, lasty;   /* nx - 1 and ny - 1 as doubles, computed at load */
+    double px_mm, py_mm;   /* pitch along x and y */
     uint32_t loaded;       /* 1 after a successful sc_corr_load */
     uint16_t nx, ny;       /* grid nodes along x and y */
-    double x0_mm, y0_mm;   /* position of node (0, 0) */
-    double px_mm, py_mm;   /* pitch along x and y */
-    double inv_px, inv_py; /* computed at load */
-    double x1_mm, y1_mm;   /* position of the last node along x and y, computed at load */
-    double lastx, lasty;   /* nx - 1 and ny - 1 as doubles, computed at load */
+    uint8_t n_profiles;
+#if !SC_CORR_COMPACT
+    /* The profiles again, laid out for apply on hosts, which takes them two at a time: slot m
+     * holds profile m's AXIS, start_mm, inv_step and last, and bit masks (all ones or zero) that
+     * select its DIR. An odd count is padded with a slot that adds exactly 0. Computed at load. */
+    uint8_t p_slots; /* n_profiles rounded up to even */
+    uint8_t p_axis[SC_CORR_PROFILE_SLOTS];
+    double p_start_mm[SC_CORR_PROFILE_SLOTS] SC_CORR_ALIGN16;
+    double p_inv_step[SC_CORR_PROFILE_SLOTS] SC_CORR_ALIGN16;
+    double p_last[SC_CORR_PROFILE_SLOTS] SC_CORR_ALIGN16;
+    uint64_t p_dir_mask[SC_CORR_PROFILE_SLOTS][4] SC_CORR_ALIGN16; /* ones in lane d if DIR is
+                                                                      d; lane 3 = lane 2 */
+#endif
     /* G of node (i, j) at k = i*nx + j (i along y): g_um[k][0] = Gx, g_um[k][1] = Gy (pairs, so
      * that one load fetches both); decoded values rounded to float. nx + 1 zero pairs follow the
      * last node, so that apply may take the cell of the last node with weight 0 on its
      * neighbours (no index clamp). */
-    sc_corr_value g_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY + SC_CORR_MAX_NX + 1][2];
-    uint8_t n_profiles;
-    sc_corr_profile profile[SC_CORR_MAX_PROFILES];
+    sc_corr_value g_um[SC_CORR_MAX_NX * SC_CORR_MAX_NY + SC_CORR_MAX_NX + 1][2] SC_CORR_ALIGN16;
+    sc_corr_profile profile[SC_CORR_PROFILE_SLOTS];
 } sc_corr_table;
 
 /* Error codes of sc_corr_load (0 = success). */

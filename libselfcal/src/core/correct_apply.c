@@ -3,10 +3,16 @@
  * iteration.
  *
  * Freestanding: no libm (floor by a cast after clamping to the non-negative table range, the
- * finiteness test by comparison with DBL_MAX). Positions and the interpolation are doubles (mm:
- * 1e-16 relative, far below a nanometre at +-1000 mm); the stored node values are floats
- * (micrometres, 24-bit mantissa: 6e-8 relative, 6 pm at 100 um).
+ * finiteness test by x - x == 0). Positions and the interpolation are doubles (mm: 1e-16
+ * relative, far below a nanometre at +-1000 mm); the stored node values are the decoded values
+ * rounded to float (micrometres, 24-bit mantissa: 6e-8 relative, 6 pm at 100 um), held as
+ * doubles on the host (no conversion per call) or as floats with SC_CORR_COMPACT.
  * The table is only read, so any number of threads may call these functions on one table.
+ *
+ * Two implementations of one computation: portable scalar C, and on x86-64 (SSE2 is part of the
+ * base ISA, so no -march flag is needed) the same operations in the same order on pairs of
+ * doubles (x with y, two profiles at once) through GCC / Clang vector extensions (no header).
+ * Both give the same results bit for bit; the scalar one is what runs on a microcontroller.
  */
 #include <float.h>
 #include <limits.h>
@@ -14,6 +20,12 @@
 #include <stdint.h>
 
 #include "selfcal/correct.h"
+
+#if !SC_CORR_COMPACT && defined(__GNUC__) && defined(__SSE2__)
+#define SC_CORR_PAIRS 1
+#else
+#define SC_CORR_PAIRS 0
+#endif
 
 /* True if x, y and z are all finite: x - x is +0 for a finite x and NaN for NaN or +-infinity,
  * and a NaN survives the sums. One compare and one branch instead of six. */
@@ -23,11 +35,11 @@ static inline int all_finite(double x, double y, double z)
 }
 
 /* Cell index and fraction for the fractional node coordinate u: u clamped to [0, last] (min
- * then max: compilers emit selects, no data-dependent branch; an infinite u clamps too), index
- * floor(u) in [0, last], fraction in [0, 1). At u = last the index is the last node's with
- * fraction 0: the node and profile arrays are padded after their last value (correct.h), so
- * (1 - 0) a + 0 b is exactly that node's value, as is the neighbouring cell's 0 a + 1 b. The index
- * fits an int32 (last < 65535), so the conversion is a plain truncation. */
+ * then max: no data-dependent branch, and an infinite u clamps too), index floor(u) in
+ * [0, last], fraction in [0, 1). At u = last the index is the last node's with fraction 0: the
+ * node and profile arrays are padded after their last value (correct.h), so (1 - 0) a + 0 b is
+ * exactly that node's value, as is the neighbouring cell's 0 a + 1 b. The index fits an int32
+ * (last < 65535), so the conversion is a plain truncation. */
 static inline int32_t cell(double u, double last, double *frac)
 {
     u = u < last ? u : last;
@@ -37,11 +49,125 @@ static inline int32_t cell(double u, double last, double *frac)
     return k;
 }
 
+/* The offset of profile p at position pos (micrometres), clamped to the profile's range (SPEC
+ * §4: without a status bit; the out-of-range bit is about the grid). */
+static inline double profile_um(const sc_corr_profile *p, const double pos[3])
+{
+    double f;
+    const int32_t q = cell((pos[p->axis] - p->start_mm) * p->inv_step, p->last, &f);
+    return (double)p->err_um[q] * (1.0 - f) + (double)p->err_um[q + 1] * f;
+}
+
+/* c[dir] += e, through selects that keep the three sums in registers. */
+static inline void add_dir(unsigned dir, double e, double *c0, double *c1, double *c2)
+{
+    *c0 += dir == 0 ? e : 0.0;
+    *c1 += dir == 1 ? e : 0.0;
+    *c2 += dir == 2 ? e : 0.0;
+}
+
+#if SC_CORR_PAIRS
+typedef double v2d __attribute__((vector_size(16)));
+typedef double v2d_u8 __attribute__((vector_size(16), aligned(8))); /* 8-byte aligned access */
+typedef int32_t v2i __attribute__((vector_size(8)));
+
+/* A pair from the table (16-byte aligned there: correct.h), and from the caller's arrays. */
+static inline v2d load2(const void *p)
+{
+    return *(const v2d *)p;
+}
+
+static inline v2d load2u(const double *p)
+{
+    return *(const v2d_u8 *)p;
+}
+
+/* a & the 128-bit mask at m (in the table). */
+static inline v2d and2(v2d a, const uint64_t *m)
+{
+    return __builtin_ia32_andpd(a, load2(m));
+}
+
+static inline v2d dup0(v2d a)
+{
+    return (v2d){a[0], a[0]};
+}
+
+static inline v2d dup1(v2d a)
+{
+    return (v2d){a[1], a[1]};
+}
+
+/* cell() on two coordinates at once (minpd / maxpd select exactly as the scalar ?: do). */
+static inline v2i cell2(v2d u, v2d last, v2d *frac)
+{
+    u = __builtin_ia32_minpd(u, last);            /* u < last ? u : last */
+    u = __builtin_ia32_maxpd(u, (v2d){0.0, 0.0}); /* u > 0 ? u : 0 */
+    const v2i k = __builtin_convertvector(u, v2i); /* truncation: floor for u >= 0 */
+    *frac = u - __builtin_convertvector(k, v2d);
+    return k;
+}
+
+/* All of x, y (the pair) and z finite (as all_finite). */
+static inline int all_finite2(v2d xy, double z)
+{
+    const v2d d = (xy - xy) + (z - z);
+    return __builtin_ia32_movmskpd(__builtin_ia32_cmpunordpd(d, d)) == 0;
+}
+
+/* The total correction at pos = (x, y, z) = (xy, z) in micrometres: (x, y) components in *cxy,
+ * z in *cz; returns SC_CORR_ST_OUTSIDE if the position was outside the grid. */
+static inline unsigned eval2(const sc_corr_table *t, const double pos[3], v2d xy, v2d *cxy,
+                             double *cz)
+{
+    const v2d lo = load2(&t->x0_mm);
+    const v2d out = __builtin_ia32_orpd(__builtin_ia32_cmpltpd(xy, lo),
+                                        __builtin_ia32_cmpltpd(load2(&t->x1_mm), xy));
+    const unsigned outside = (unsigned)__builtin_ia32_movmskpd(out);
+    v2d f;
+    const v2i ji = cell2((xy - lo) * load2(&t->inv_px), load2(&t->lastx), &f);
+    const v2d w = 1.0 - f, wx = dup0(w), fx = dup0(f), wy = dup1(w), fy = dup1(f);
+    const size_t nx = t->nx;
+    const double *g0 = t->g_um[(uint32_t)ji[1] * nx + (uint32_t)ji[0]], *g1 = g0 + 2 * nx;
+    v2d c = (load2(g0) * wx + load2(g0 + 2) * fx) * wy + (load2(g1) * wx + load2(g1 + 2) * fx) * fy;
+    /* Profiles two at a time (an odd count is padded with a slot that adds 0; correct.h); the
+     * coordinate each one corrects is selected by bit masks, no branch. Adding 0 to the
+     * coordinates a profile does not correct is what the scalar code does too (c + 0 = c: these
+     * sums are never -0), and each sum is formed in profile order, so the results are those of
+     * the scalar code. */
+    v2d czz = {0.0, 0.0};
+    const unsigned ns = t->p_slots;
+    for (unsigned m = 0; m < ns; m += 2) {
+        v2d fq;
+        const v2i q = cell2(((v2d){pos[t->p_axis[m]], pos[t->p_axis[m + 1]]} -
+                             load2(t->p_start_mm + m)) * load2(t->p_inv_step + m),
+                            load2(t->p_last + m), &fq);
+        const double *ea = t->profile[m].err_um + (uint32_t)q[0];
+        const double *eb = t->profile[m + 1].err_um + (uint32_t)q[1];
+        const v2d e = (v2d){ea[0], eb[0]} * (1.0 - fq) + (v2d){ea[1], eb[1]} * fq;
+        const v2d e0 = dup0(e), e1 = dup1(e);
+        c = (c + and2(e0, t->p_dir_mask[m])) + and2(e1, t->p_dir_mask[m + 1]);
+        czz = (czz + and2(e0, t->p_dir_mask[m] + 2)) + and2(e1, t->p_dir_mask[m + 1] + 2);
+    }
+    *cxy = c;
+    *cz = czz[0];
+    return outside ? SC_CORR_ST_OUTSIDE : 0u;
+}
+#endif
+
 /* The total correction at position (x, y, z) (grid G plus profile offsets), micrometres, per
  * coordinate; returns SC_CORR_ST_OUTSIDE if the position was outside the grid. */
 static inline unsigned eval_um(const sc_corr_table *t, double x, double y, double z,
                                double c_um[3])
 {
+#if SC_CORR_PAIRS
+    v2d cxy;
+    const double pos[3] = {x, y, z};
+    const unsigned st = eval2(t, pos, (v2d){x, y}, &cxy, &c_um[2]);
+    c_um[0] = cxy[0];
+    c_um[1] = cxy[1];
+    return st;
+#else
     const unsigned outside = (unsigned)(x < t->x0_mm) | (unsigned)(x > t->x1_mm) |
                              (unsigned)(y < t->y0_mm) | (unsigned)(y > t->y1_mm);
     /* Clamping the node coordinate to [0, last] is clamping the position to the grid's edges. */
@@ -58,26 +184,16 @@ static inline unsigned eval_um(const sc_corr_table *t, double x, double y, doubl
                 ((double)g10[0] * wx + (double)g11[0] * fx) * fy;
     double c1 = ((double)g00[1] * wx + (double)g01[1] * fx) * wy +
                 ((double)g10[1] * wx + (double)g11[1] * fx) * fy;
-    /* Profiles: clamped to their range without a status bit (SPEC §4: the out-of-range bit is
-     * about the grid). The offset goes to coordinate dir through selects, which keep the sums in
-     * registers. */
     double c2 = 0.0;
     const double pos[3] = {x, y, z};
     const unsigned np = t->n_profiles;
-    for (unsigned m = 0; m < np; ++m) {
-        const sc_corr_profile *p = &t->profile[m];
-        double f;
-        const int32_t q = cell((pos[p->axis] - p->start_mm) * p->inv_step, p->last, &f);
-        const double e = (double)p->err_um[q] * (1.0 - f) + (double)p->err_um[q + 1] * f;
-        const unsigned d = p->dir;
-        c0 += d == 0 ? e : 0.0;
-        c1 += d == 1 ? e : 0.0;
-        c2 += d == 2 ? e : 0.0;
-    }
+    for (unsigned m = 0; m < np; ++m)
+        add_dir(t->profile[m].dir, profile_um(&t->profile[m], pos), &c0, &c1, &c2);
     c_um[0] = c0;
     c_um[1] = c1;
     c_um[2] = c2;
     return outside ? SC_CORR_ST_OUTSIDE : 0u;
+#endif
 }
 
 static unsigned pass_through(const sc_corr_table *t, const double in[3], double out[3])
@@ -94,16 +210,29 @@ static unsigned pass_through(const sc_corr_table *t, const double in[3], double 
 unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
                        double out_mm[3])
 {
+    const double sign_mm = mode == SC_CORR_POSITION ? 1e-3 : -1e-3;
+#if SC_CORR_PAIRS
+    const v2d xy = load2u(in_mm);
+    const double z = in_mm[2];
+    if (!t || t->loaded != 1u || !all_finite2(xy, z))
+        return pass_through(t, in_mm, out_mm);
+    v2d cxy;
+    double cz;
+    const unsigned st = SC_CORR_ST_LOADED | eval2(t, in_mm, xy, &cxy, &cz);
+    *(v2d_u8 *)out_mm = xy + sign_mm * cxy;
+    out_mm[2] = z + sign_mm * cz;
+    return st;
+#else
     const double x = in_mm[0], y = in_mm[1], z = in_mm[2];
     if (!t || t->loaded != 1u || !all_finite(x, y, z))
         return pass_through(t, in_mm, out_mm);
     double c[3];
-    unsigned st = SC_CORR_ST_LOADED | eval_um(t, x, y, z, c);
-    const double sign_mm = mode == SC_CORR_POSITION ? 1e-3 : -1e-3;
+    const unsigned st = SC_CORR_ST_LOADED | eval_um(t, x, y, z, c);
     out_mm[0] = x + sign_mm * c[0];
     out_mm[1] = y + sign_mm * c[1];
     out_mm[2] = z + sign_mm * c[2];
     return st;
+#endif
 }
 
 unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3], double out_mm[3],

@@ -253,6 +253,23 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
             p->err_um[m] = decode(h + SC_LUTF_PROFILE_HEADER_BYTES + m * cb, enc, pum);
         p->err_um[p->n] = 0; /* the padding */
     }
+#if !SC_CORR_COMPACT
+    /* The pair layout (correct.h); the padding slot reads two zero values with weight 1 and 0
+     * and adds them to no coordinate. */
+    t->p_slots = (uint8_t)(np + (np & 1u));
+    for (unsigned k = 0; k < t->p_slots; ++k) {
+        const int real = k < np;
+        const sc_corr_profile *p = &t->profile[k];
+        if (!real)
+            t->profile[k].err_um[0] = t->profile[k].err_um[1] = 0;
+        t->p_start_mm[k] = real ? p->start_mm : 0.0;
+        t->p_inv_step[k] = real ? p->inv_step : 0.0;
+        t->p_last[k] = real ? p->last : 0.0;
+        t->p_axis[k] = real ? p->axis : 0u;
+        for (unsigned d = 0; d < 4; ++d)
+            t->p_dir_mask[k][d] = real && p->dir == (d < 3 ? d : 2u) ? UINT64_MAX : 0u;
+    }
+#endif
     t->loaded = 1;
     return SC_CORR_OK;
 }
