@@ -20,6 +20,12 @@
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
+#if defined(__linux__) && defined(MADV_POPULATE_WRITE)
+#include <pthread.h>
+#define SC_LSQ_PREFAULT 1
+#else
+#define SC_LSQ_PREFAULT 0
+#endif
 
 #include "profile_lsq_band.h"
 #include "profile_lsq_kernels.h"
@@ -238,6 +244,31 @@ static double *alloc_doubles(size_t count)
     return malloc(bytes ? bytes : 1);
 }
 
+#if SC_LSQ_PREFAULT
+/* The factor's pages are faulted in (kernel zeroing, huge-page compaction: as much time as the
+ * factorization itself at N·d = 10⁸) by a second thread while the first factors: it populates
+ * the block from its end backwards, the factorization runs forwards and faults what the helper
+ * has not reached yet. MADV_POPULATE_WRITE never changes the content of a page (pages already
+ * present are left alone), so the two threads share no data. */
+typedef struct {
+    char *base;
+    size_t len;
+} prefault_job;
+
+static void *prefault_run(void *arg)
+{
+    const prefault_job *job = arg;
+    const size_t chunk = (size_t)8 << 20;
+    size_t end = job->len;
+    while (end > 0) {
+        size_t beg = end > chunk ? end - chunk : 0;
+        if (madvise(job->base + beg, end - beg, MADV_POPULATE_WRITE) != 0) break;
+        end = beg;
+    }
+    return NULL;
+}
+#endif
+
 sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
                                 sc_error *err)
 {
@@ -271,11 +302,11 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     bd->ld = (size_t)p->bw + 1;
     bd->simd = (flags & SC_PROFILE_LSQ_PORTABLE) ? 0 : sc_lsq_band_cpu_has_simd();
     bd->nrow = bd->ncol = n;
-    /* twisted: separator s in [bw, bw+7] with s ≡ N (mod 8), so that m = (N - s)/2 is a
-     * multiple of 4 (whole panels); only where both halves are long against the band */
+    /* twisted: separator s in [bw, bw+15] with s ≡ N (mod 16), so that m = (N - s)/2 is a
+     * multiple of 8 (whole panels); only where both halves are long against the band */
     if (!(flags & SC_PROFILE_LSQ_SERIAL) && (long)n >= 4L * p->bw + 32) {
         int sep = p->bw;
-        while ((n - sep) % 8 != 0) sep++;
+        while ((n - sep) % 16 != 0) sep++;
         p->twisted = 1;
         p->s = sep;
         p->m = (n - sep) / 2;
@@ -293,7 +324,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     p->z = malloc((size_t)2 * n * sizeof(double));
     p->e = malloc((size_t)2 * n * sizeof(double));
     p->bu = malloc((size_t)2 * n * sizeof(double));
-    double *col = malloc(4 * (bd->ld + 3) * sizeof(double));
+    double *col = malloc(8 * (bd->ld + 15) * sizeof(double));
     if (!bd->a || !p->z || !p->e || !p->bu || !col || (p->twisted && !p->ls)) {
         int bw = p->bw;
         free(col);
@@ -302,7 +333,18 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
                             "out of memory for the banded factor (N = %d, d = %d: %.0f MB)", n,
                             bw, (double)n * (double)(bw + 1) * 8.0 / 1e6);
     }
+#if SC_LSQ_PREFAULT
+    /* only where the faults cost more than a thread: factors of 64 MB and more, page-aligned */
+    prefault_job job = {(char *)bd->a, (size_t)bd->nrow * bd->ld * sizeof(double) & ~(size_t)4095};
+    pthread_t helper;
+    int helping = !(flags & SC_PROFILE_LSQ_SERIAL) && job.len >= ((size_t)64 << 20) &&
+                  ((uintptr_t)bd->a & 4095) == 0 &&
+                  pthread_create(&helper, NULL, prefault_run, &job) == 0;
+#endif
     int bad = sc_lsq_band_factor(bd, col);
+#if SC_LSQ_PREFAULT
+    if (helping) pthread_join(helper, NULL);
+#endif
     free(col);
     if (bad >= 0) {
         sc_profile_lsq_destroy(p);

@@ -3,6 +3,7 @@
 #include "profile_lsq_band.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "profile_lsq_kernels.h"
 
@@ -14,6 +15,8 @@
 #define SC_DOT4 sc_lsq_dot4
 #define SC_GEMV_ROWS sc_lsq_gemv_rows
 #define SC_GEMV2_ROWS sc_lsq_gemv2_rows
+#define SC_GEMM4 sc_lsq_gemm4
+#define SC_SYRK8X4 sc_lsq_syrk8x4
 #include "profile_lsq_band_impl.h"
 #undef SC_SFX
 #undef SC_ATTR
@@ -23,6 +26,8 @@
 #undef SC_DOT4
 #undef SC_GEMV_ROWS
 #undef SC_GEMV2_ROWS
+#undef SC_GEMM4
+#undef SC_SYRK8X4
 
 #if SC_LSQ_HAVE_AVX2
 #define SC_SFX(name) name##_avx2
@@ -33,6 +38,8 @@
 #define SC_DOT4 sc_lsq_dot4_avx2
 #define SC_GEMV_ROWS sc_lsq_gemv_rows_avx2
 #define SC_GEMV2_ROWS sc_lsq_gemv2_rows_avx2
+#define SC_GEMM4 sc_lsq_gemm4_avx2
+#define SC_SYRK8X4 sc_lsq_syrk8x4_avx2
 #include "profile_lsq_band_impl.h"
 #endif
 
@@ -108,5 +115,8 @@ void sc_lsq_band_inverse_diag(const sc_lsq_band *b, double *win, double *diag)
 size_t sc_lsq_band_inverse_scratch(int bw)
 {
     size_t w = (size_t)bw + 1, ws = (w + 3) & ~(size_t)3;
-    return ws * w + 2 * ws + 3 * w; /* window, t, u, l, m, row pointers */
+    size_t circ = ws * w + 2 * ws + 3 * w; /* window, t, u, l, m, row pointers */
+    size_t bwp = ((size_t)bw + 3) & ~(size_t)3, r = bwp + 64;
+    size_t blocked = r * r + 8 * bwp; /* sliding window, Lc, T */
+    return circ > blocked ? circ : blocked;
 }

@@ -12,7 +12,7 @@ typedef struct sc_lsq_band {
     double w1, w2;
     size_t ld; /* bw + 1 */
     int nrow;  /* rows stored and assembled: n, or m + s for the twisted factorization */
-    int ncol;  /* columns eliminated by sc_lsq_band_factor: n, or m (a multiple of 4) */
+    int ncol;  /* columns eliminated by sc_lsq_band_factor: n, or m (a multiple of 8) */
     double *a; /* nrow·ld doubles */
     int simd;  /* 1: use the AVX2/FMA kernels (set by sc_lsq_band_pick_simd) */
 } sc_lsq_band;
@@ -22,7 +22,8 @@ int sc_lsq_band_cpu_has_simd(void);
 
 /* Assemble rows 0 .. nrow-1 of B and eliminate columns 0 .. ncol-1 in place (ncol = nrow = n:
  * the whole factor B = L·Lᵀ; ncol < nrow: rows ncol .. nrow-1 keep L[k][0..ncol-1] and, from
- * column ncol on, their block of B minus the contributions of the eliminated columns); col: 4·(bw+4) doubles of scratch. Returns -1 on success, or
+ * column ncol on, their block of B minus the contributions of the eliminated columns);
+ * col: 8·(bw+16) doubles of scratch. Returns -1 on success, or
  * the row where the pivot was not positive. */
 int sc_lsq_band_factor(sc_lsq_band *b, double *col);
 

@@ -24,32 +24,35 @@ SC_ATTR static void SC_SFX(assemble_row)(const sc_lsq_band *b, int i)
     ri[bw] = aii;
 }
 
-/* Right-looking banded Cholesky in panels of four columns: copy the panel (its four columns, rows
- * j .. j+3+bw) into contiguous scratch, factor it there (pivot square roots, column scaling,
- * updates inside the panel), write it back, then subtract its rank-4 outer product from the
- * trailing bw×bw triangle, row by row: each row a contiguous four-term axpy up to the diagonal.
- * Rows are assembled just before the first panel that reaches them, so the working window stays
- * in cache. The diagonal slot keeps 1/L[i][i]. col: 4·(bw+4) doubles. */
+/* Right-looking banded Cholesky in panels of eight columns: copy the panel (its eight columns,
+ * rows j .. j+7+bw) into contiguous scratch, factor it there (pivot square roots, column scaling,
+ * updates inside the panel), write it back, then subtract its rank-8 outer product from the
+ * trailing bw×bw triangle: four rows at a time in register tiles of 4 rows × 8 columns over the
+ * columns all four rows have (SC_SYRK8x4: the tile is loaded and stored once per eight FMAs of
+ * each of its elements), the few entries near the diagonal one by one. Rows are assembled just
+ * before the first panel that reaches them, so the working window stays in cache. The diagonal
+ * slot keeps 1/L[i][i]. col: 8·(bw+16) doubles. */
 SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
 {
     int ncol = b->ncol, nrow = b->nrow, bw = b->bw;
     size_t ld = b->ld;
-    int h = bw + 4; /* panel rows j .. j+3+bw */
-    double *pc[4] = {col, col + h, col + 2 * (size_t)h, col + 3 * (size_t)h};
+    int h = bw + 8; /* panel rows j .. j+7+bw; each column padded with 8 zeros (stride h + 8) */
+    double *pc[8];
+    for (int c = 0; c < 8; c++) pc[c] = col + (size_t)c * (h + 8);
     int next_row = 0;
-    for (int j = 0; j < ncol; j += 4) {
-        int nb = ncol - j < 4 ? ncol - j : 4;
+    for (int j = 0; j < ncol; j += 8) {
+        int nb = ncol - j < 8 ? ncol - j : 8;
         int last = j + nb - 1 + bw < nrow - 1 ? j + nb - 1 + bw : nrow - 1;
         while (next_row <= last) SC_SFX(assemble_row)(b, next_row++);
         /* gather: pc[c][k - j] = L[k][j+c] (0 outside the band, above the diagonal, past N) */
-        for (int c = 0; c < nb; c++) {
+        for (int c = 0; c < 8; c++) {
             double *pcc = pc[c];
-            for (int q = 0; q < h; q++) {
-                int k = j + q;
-                pcc[q] = (q >= c && k <= last && k <= j + c + bw)
-                             ? b->a[(size_t)k * ld + (size_t)(j + c - k + bw)]
-                             : 0.0;
-            }
+            int qmax = c < nb ? (last - j < c + bw ? last - j : c + bw) : -1;
+            int q = 0;
+            for (; q < c && q < h; q++) pcc[q] = 0.0;
+            const double *src = b->a + (size_t)(j + q) * ld + (size_t)(c - q + bw);
+            for (; q <= qmax; q++, src += ld - 1) pcc[q] = *src;
+            for (; q < h + 8; q++) pcc[q] = 0.0;
         }
         /* factor the panel in the scratch */
         for (int c = 0; c < nb; c++) {
@@ -73,15 +76,23 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
             for (int k = j + c; k <= kmax; k++)
                 b->a[(size_t)k * ld + (size_t)(j + c - k + bw)] = pcc[k - j];
         }
-        if (nb < 4) continue; /* the last columns (ncol = nrow, or ncol % 4 = 0): nothing trails */
-        /* trailing rows k = j+4 .. last, columns j+4 .. k: row -= Σ_c L[k][j+c]·L[·][j+c] */
-        int l0 = j + 4;
-        const double *v0 = pc[0] + 4, *v1 = pc[1] + 4, *v2 = pc[2] + 4, *v3 = pc[3] + 4;
-        for (int k = l0; k <= last; k++) {
+        if (nb < 8) continue; /* the last columns (ncol = nrow, or ncol % 8 = 0): nothing trails */
+        /* trailing rows k = j+8 .. last, columns l0 = j+8 .. k: row -= Σ_c L[k][j+c]·L[l][j+c];
+         * four rows at a time — past `last` into rows not assembled yet (assembly overwrites
+         * them), except at the end of the storage, where the last rows go one by one */
+        int l0 = j + 8;
+        int k = l0;
+        for (; k <= last && (k + 3 < nrow); k += 4) {
+            double *y0 = b->a + (size_t)k * ld + (size_t)(l0 - k + bw);
+            SC_SYRK8X4(y0, (ptrdiff_t)ld - 1, col + 8, h + 8, k - j - 8, k - l0);
+        }
+        for (; k <= last; k++) {
             double *row = b->a + (size_t)k * ld;
-            int q = k - l0;
-            double a[4] = {-v0[q], -v1[q], -v2[q], -v3[q]};
-            SC_AXPY4(row + (l0 - k + bw), a, v0, v1, v2, v3, q + 1);
+            for (int l = l0; l <= k; l++) {
+                double v = 0.0;
+                for (int c = 0; c < 8; c++) v += pc[c][k - j] * pc[c][l - j];
+                row[l - k + bw] -= v;
+            }
         }
     }
     while (next_row < nrow) SC_SFX(assemble_row)(b, next_row++);
@@ -199,6 +210,101 @@ SC_ATTR static void SC_SFX(solve)(const sc_lsq_band *b, double *const *xs, int n
     SC_SFX(backward)(b, xs, nrhs);
 }
 
+/* The same recurrences four steps at a time (bw >= 8), over a sliding (non-circular) copy of the
+ * window: Z over the indices base .. base+R-1 at row/column (index - base), R = bwp + 64 (bwp = bw
+ * rounded up to 4); when the next block would fall below base, the live window (indices
+ * i+1 .. i+bw) is moved to the far end (one bw×bw copy per 64 steps). Block K = i-3 .. i:
+ *   1. T = Lc·W: Lc[r][q] = L[i+1+q][i-r] (0 past the band), W = Z over i+1 .. i+bw — a 4×bw by
+ *      bw×bw product, register-tiled (SC_GEMM4): the window is read once per four steps;
+ *   2. rows k = i, i-1, .. i-3 in turn: the terms from the rows of K above k (known by then)
+ *      are added, Z[k][·] = -T/L[k][k]; the columns inside K by symmetry; the diagonal last.
+ * Scratch: R·R + 8·bwp doubles. */
+SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *scr, double *diag,
+                                                 int i0, const double *zss, int s)
+{
+    const int n = b->n, nrow = b->nrow, bw = b->bw;
+    const size_t ld = b->ld;
+    const double *a = b->a;
+    const int bwp = (bw + 3) & ~3, R = bwp + 64;
+    double *zb = scr, *lc = zb + (size_t)R * R, *tw = lc + 4 * (size_t)bwp;
+    for (size_t q = 0; q < (size_t)R * R + 8 * (size_t)bwp; q++) scr[q] = 0.0;
+    long base = (long)i0 + 1 + bwp - R;
+#define ZB(k, j) zb[(size_t)((k) - base) * R + (size_t)((j) - base)]
+    int sw = s < bw ? s : bw;
+    for (int r = 0; r < sw; r++)
+        for (int c = 0; c < sw; c++) ZB(i0 + 1 + r, i0 + 1 + c) = zss[(size_t)r * s + c];
+    int i = i0;
+    while (i >= 0) {
+        int nb = i + 1 < 4 ? i + 1 : 4;
+        if (i - nb + 1 - base < 0) { /* move the window i+1 .. i+bw to the far end */
+            long nbase = (long)i + 1 + bwp - R;
+            long shift = base - nbase; /* > 0: positions grow */
+            for (int r = bw - 1; r >= 0; r--) {
+                double *src = zb + (size_t)(i + 1 + r - base) * R + (size_t)(i + 1 - base);
+                memmove(src + shift * R + shift, src, (size_t)bw * sizeof(double));
+            }
+            base = nbase;
+        }
+        /* column kk of L, a few blocks ahead, on its way from memory: each of its entries is in
+         * another row (another cache line), beyond what the hardware prefetcher follows */
+#if defined(__GNUC__)
+        {
+            int kk = i - 24;
+            if (kk >= 0)
+                for (int row = kk + 1; row <= kk + bw && row < nrow; row++)
+                    __builtin_prefetch(a + (size_t)row * ld + (size_t)(kk - row + bw), 0, 1);
+        }
+#endif
+        /* Lc[r][q] = L[i+1+q][i-r] */
+        for (int r = 0; r < 4; r++) {
+            double *lr = lc + (size_t)r * bwp;
+            int k = i - r;
+            for (int q = 0; q < bwp; q++) {
+                int row = i + 1 + q;
+                lr[q] = (r < nb && q < bw && row - k <= bw && row < nrow && row <= n - 1)
+                            ? a[(size_t)row * ld + (size_t)(k - row + bw)]
+                            : 0.0;
+            }
+        }
+        SC_GEMM4(tw, bwp, lc, bwp, &ZB(i + 1, i + 1), R, bw, bwp);
+        for (int r = 0; r < nb; r++) {
+            int k = i - r;
+            double rkk = a[(size_t)k * ld + bw];
+            const double *lr = lc + (size_t)r * bwp;
+            double *tr = tw + (size_t)r * bwp;
+            double *zk = &ZB(k, i + 1);
+            /* window columns: + Σ_{q=k+1}^{i} L[q][k]·Z[q][j] */
+            for (int q = k + 1; q <= i; q++) {
+                double lqk = a[(size_t)q * ld + (size_t)(k - q + bw)];
+                const double *zq = &ZB(q, i + 1);
+                for (int j = 0; j < bw; j++) tr[j] += lqk * zq[j];
+            }
+            double acc = 0.0;
+            for (int j = 0; j < bw; j++) {
+                double z = -tr[j] * rkk;
+                zk[j] = z;
+                ZB(i + 1 + j, k) = z;
+                acc += lr[j] * z;
+            }
+            /* columns inside the block: j = k+1 .. i */
+            for (int j = k + 1; j <= i; j++) {
+                double v = SC_DOT(lr, &ZB(j, i + 1), bw);
+                for (int q = k + 1; q <= i; q++)
+                    v += a[(size_t)q * ld + (size_t)(k - q + bw)] * ZB(q, j);
+                double z = -v * rkk;
+                ZB(k, j) = z;
+                ZB(j, k) = z;
+                acc += a[(size_t)j * ld + (size_t)(k - j + bw)] * z;
+            }
+            double zkk = (rkk - acc) * rkk;
+            ZB(k, k) = zkk;
+            diag[k] = zkk;
+        }
+        i -= nb;
+    }
+#undef ZB
+}
+
 /* Row i of Z from t (= Σ_k L[k][i]·Z[k][·] over the window slots): Z[i][k] = -t[slot k]/L[i][i],
  * Z[i][i] = (1/L[i][i])(1/L[i][i] - Σ_k L[k][i]·Z[i][k]); written into row and column slot(i). */
 SC_ATTR static inline double SC_SFX(window_row)(double *win, int w, int ws, int i, double rii,
@@ -239,6 +345,10 @@ SC_ATTR static void SC_SFX(inverse_diag)(const sc_lsq_band *b, double *win, doub
     double *m = l + w;
     const double **rows = (const double **)(m + w);
     size_t ldm1 = b->ld - 1;
+    if (bw >= 8) {
+        SC_SFX(inverse_diag_blocked)(b, win, diag, i0, zss, s);
+        return;
+    }
     for (size_t q = 0; q < (size_t)ws * w + 2 * (size_t)ws; q++) win[q] = 0.0;
     /* the given block of B⁻¹ over i0+1 .. i0+s: the window needs i0+1 .. i0+bw of it */
     int sw = s < w ? s : w;

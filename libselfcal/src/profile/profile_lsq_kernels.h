@@ -2,6 +2,8 @@
 #ifndef SELFCAL_PROFILE_LSQ_KERNELS_H
 #define SELFCAL_PROFILE_LSQ_KERNELS_H
 
+#include <stddef.h>
+
 /* Σ a[i]·b[i], i < len (four partial sums: independent chains the compiler can pipeline). */
 static inline double sc_lsq_dot(const double *a, const double *b, int len)
 {
@@ -67,6 +69,39 @@ static inline void sc_lsq_gemv2_rows(double *restrict t, double *restrict u, con
 {
     sc_lsq_gemv_rows(t, l, rows, cnt, w);
     sc_lsq_gemv_rows(u, m, rows, cnt, w);
+}
+
+
+/* t[r][j] = Σ_q l[r][q]·w[q][j] for r < 4, j < cols (a multiple of 4), q < kdim: l rows of stride
+ * ldl, w rows of stride ldw, t rows of stride ldt (four steps of the selected inversion). */
+static inline void sc_lsq_gemm4(double *restrict t, int ldt, const double *l, int ldl,
+                                const double *w, int ldw, int kdim, int cols)
+{
+    for (int r = 0; r < 4; r++) {
+        double *tr = t + (size_t)r * ldt;
+        for (int j = 0; j < cols; j++) tr[j] = 0.0;
+        for (int q = 0; q < kdim; q++) {
+            double a = l[(size_t)r * ldl + q];
+            const double *wq = w + (size_t)q * ldw;
+            for (int j = 0; j < cols; j++) tr[j] += a * wq[j];
+        }
+    }
+}
+
+/* Rank-8 update of four consecutive rows k .. k+3 of the band storage, each up to its diagonal:
+ * y_r[t] -= Σ_c v[c·h + qrow + r]·v[c·h + t], t = 0 .. cm + r (row r of y at y0 + r·ys; t = 0
+ * is column l0, t = cm column k; the band rows share columns at stride ld - 1). */
+static inline void sc_lsq_syrk8x4(double *y0, ptrdiff_t ys, const double *v, int h, int qrow,
+                                  int cm)
+{
+    for (int r = 0; r < 4; r++) {
+        double *y = y0 + r * ys;
+        for (int t = 0; t <= cm + r; t++) {
+            double acc = 0.0;
+            for (int c = 0; c < 8; c++) acc += v[(size_t)c * h + qrow + r] * v[(size_t)c * h + t];
+            y[t] -= acc;
+        }
+    }
 }
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
@@ -279,6 +314,152 @@ SC_LSQ_AVX2_ATTR static inline void sc_lsq_gemv2_rows_avx2(double *restrict t, d
         _mm256_storeu_pd(t + j, _mm256_add_pd(a0, a1));
         _mm256_storeu_pd(u + j, _mm256_add_pd(b0, b1));
     }
+}
+
+/* sc_lsq_gemm4 with 4×12 register tiles: per q three loads of w and four broadcasts of l feed
+ * twelve FMAs. */
+SC_LSQ_AVX2_ATTR static inline void sc_lsq_gemm4_avx2(double *restrict t, int ldt, const double *l,
+                                                       int ldl, const double *w, int ldw, int kdim,
+                                                       int cols)
+{
+    const double *l0 = l, *l1 = l + ldl, *l2 = l + 2 * (size_t)ldl, *l3 = l + 3 * (size_t)ldl;
+    int j = 0;
+    for (; j + 12 <= cols; j += 12) {
+        __m256d a00 = _mm256_setzero_pd(), a01 = _mm256_setzero_pd(), a02 = _mm256_setzero_pd();
+        __m256d a10 = _mm256_setzero_pd(), a11 = _mm256_setzero_pd(), a12 = _mm256_setzero_pd();
+        __m256d a20 = _mm256_setzero_pd(), a21 = _mm256_setzero_pd(), a22 = _mm256_setzero_pd();
+        __m256d a30 = _mm256_setzero_pd(), a31 = _mm256_setzero_pd(), a32 = _mm256_setzero_pd();
+        const double *wq = w + j;
+        for (int q = 0; q < kdim; q++, wq += ldw) {
+            __m256d w0 = _mm256_loadu_pd(wq), w1 = _mm256_loadu_pd(wq + 4),
+                    w2 = _mm256_loadu_pd(wq + 8);
+            __m256d b = _mm256_broadcast_sd(l0 + q);
+            a00 = _mm256_fmadd_pd(b, w0, a00);
+            a01 = _mm256_fmadd_pd(b, w1, a01);
+            a02 = _mm256_fmadd_pd(b, w2, a02);
+            b = _mm256_broadcast_sd(l1 + q);
+            a10 = _mm256_fmadd_pd(b, w0, a10);
+            a11 = _mm256_fmadd_pd(b, w1, a11);
+            a12 = _mm256_fmadd_pd(b, w2, a12);
+            b = _mm256_broadcast_sd(l2 + q);
+            a20 = _mm256_fmadd_pd(b, w0, a20);
+            a21 = _mm256_fmadd_pd(b, w1, a21);
+            a22 = _mm256_fmadd_pd(b, w2, a22);
+            b = _mm256_broadcast_sd(l3 + q);
+            a30 = _mm256_fmadd_pd(b, w0, a30);
+            a31 = _mm256_fmadd_pd(b, w1, a31);
+            a32 = _mm256_fmadd_pd(b, w2, a32);
+        }
+        double *t0 = t + j, *t1 = t0 + ldt, *t2 = t1 + ldt, *t3 = t2 + ldt;
+        _mm256_storeu_pd(t0, a00);
+        _mm256_storeu_pd(t0 + 4, a01);
+        _mm256_storeu_pd(t0 + 8, a02);
+        _mm256_storeu_pd(t1, a10);
+        _mm256_storeu_pd(t1 + 4, a11);
+        _mm256_storeu_pd(t1 + 8, a12);
+        _mm256_storeu_pd(t2, a20);
+        _mm256_storeu_pd(t2 + 4, a21);
+        _mm256_storeu_pd(t2 + 8, a22);
+        _mm256_storeu_pd(t3, a30);
+        _mm256_storeu_pd(t3 + 4, a31);
+        _mm256_storeu_pd(t3 + 8, a32);
+    }
+    for (; j < cols; j += 4) {
+        __m256d a0 = _mm256_setzero_pd(), a1 = _mm256_setzero_pd(), a2 = _mm256_setzero_pd(),
+                a3 = _mm256_setzero_pd();
+        const double *wq = w + j;
+        for (int q = 0; q < kdim; q++, wq += ldw) {
+            __m256d w0 = _mm256_loadu_pd(wq);
+            a0 = _mm256_fmadd_pd(_mm256_broadcast_sd(l0 + q), w0, a0);
+            a1 = _mm256_fmadd_pd(_mm256_broadcast_sd(l1 + q), w0, a1);
+            a2 = _mm256_fmadd_pd(_mm256_broadcast_sd(l2 + q), w0, a2);
+            a3 = _mm256_fmadd_pd(_mm256_broadcast_sd(l3 + q), w0, a3);
+        }
+        _mm256_storeu_pd(t + j, a0);
+        _mm256_storeu_pd(t + ldt + j, a1);
+        _mm256_storeu_pd(t + 2 * (size_t)ldt + j, a2);
+        _mm256_storeu_pd(t + 3 * (size_t)ldt + j, a3);
+    }
+}
+
+/* sc_lsq_syrk8x4 in 4×8 register tiles (eight accumulators; per c two loads and four broadcasts
+ * feed eight FMAs) over the columns all four rows have, then one masked 4×8 tile for the rest
+ * and the 4×4 diagonal block (lanes past a row's diagonal neither loaded nor stored). */
+SC_LSQ_AVX2_ATTR static inline void sc_lsq_syrk8x4_avx2(double *y0, ptrdiff_t ys, const double *v,
+                                                         int h, int qrow, int cm)
+{
+    double *y1 = y0 + ys, *y2 = y1 + ys, *y3 = y2 + ys;
+    const double *vr = v + qrow;
+    int t = 0;
+    for (; t + 8 <= cm; t += 8) {
+        __m256d a00 = _mm256_loadu_pd(y0 + t), a01 = _mm256_loadu_pd(y0 + t + 4);
+        __m256d a10 = _mm256_loadu_pd(y1 + t), a11 = _mm256_loadu_pd(y1 + t + 4);
+        __m256d a20 = _mm256_loadu_pd(y2 + t), a21 = _mm256_loadu_pd(y2 + t + 4);
+        __m256d a30 = _mm256_loadu_pd(y3 + t), a31 = _mm256_loadu_pd(y3 + t + 4);
+        for (int c = 0; c < 8; c++) {
+            const double *pr = vr + (size_t)c * h, *pq = v + (size_t)c * h + t;
+            __m256d w0 = _mm256_loadu_pd(pq), w1 = _mm256_loadu_pd(pq + 4);
+            __m256d bb = _mm256_broadcast_sd(pr);
+            a00 = _mm256_fnmadd_pd(bb, w0, a00);
+            a01 = _mm256_fnmadd_pd(bb, w1, a01);
+            bb = _mm256_broadcast_sd(pr + 1);
+            a10 = _mm256_fnmadd_pd(bb, w0, a10);
+            a11 = _mm256_fnmadd_pd(bb, w1, a11);
+            bb = _mm256_broadcast_sd(pr + 2);
+            a20 = _mm256_fnmadd_pd(bb, w0, a20);
+            a21 = _mm256_fnmadd_pd(bb, w1, a21);
+            bb = _mm256_broadcast_sd(pr + 3);
+            a30 = _mm256_fnmadd_pd(bb, w0, a30);
+            a31 = _mm256_fnmadd_pd(bb, w1, a31);
+        }
+        _mm256_storeu_pd(y0 + t, a00);
+        _mm256_storeu_pd(y0 + t + 4, a01);
+        _mm256_storeu_pd(y1 + t, a10);
+        _mm256_storeu_pd(y1 + t + 4, a11);
+        _mm256_storeu_pd(y2 + t, a20);
+        _mm256_storeu_pd(y2 + t + 4, a21);
+        _mm256_storeu_pd(y3 + t, a30);
+        _mm256_storeu_pd(y3 + t + 4, a31);
+    }
+    /* the rest: columns t .. cm + r of row r (at most 3 + 4 of them: one masked 4×8 tile) */
+    const __m256i lane0 = _mm256_set_epi64x(t + 3, t + 2, t + 1, t);
+    const __m256i lane1 = _mm256_set_epi64x(t + 7, t + 6, t + 5, t + 4);
+    __m256i m00 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 1), lane0);
+    __m256i m01 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 1), lane1);
+    __m256i m10 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 2), lane0);
+    __m256i m11 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 2), lane1);
+    __m256i m20 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 3), lane0);
+    __m256i m21 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 3), lane1);
+    __m256i m30 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 4), lane0);
+    __m256i m31 = _mm256_cmpgt_epi64(_mm256_set1_epi64x(cm + 4), lane1);
+    __m256d a00 = _mm256_maskload_pd(y0 + t, m00), a01 = _mm256_maskload_pd(y0 + t + 4, m01);
+    __m256d a10 = _mm256_maskload_pd(y1 + t, m10), a11 = _mm256_maskload_pd(y1 + t + 4, m11);
+    __m256d a20 = _mm256_maskload_pd(y2 + t, m20), a21 = _mm256_maskload_pd(y2 + t + 4, m21);
+    __m256d a30 = _mm256_maskload_pd(y3 + t, m30), a31 = _mm256_maskload_pd(y3 + t + 4, m31);
+    for (int c = 0; c < 8; c++) {
+        const double *pr = vr + (size_t)c * h, *pq = v + (size_t)c * h + t;
+        __m256d w0 = _mm256_maskload_pd(pq, m30), w1 = _mm256_maskload_pd(pq + 4, m31);
+        __m256d bb = _mm256_broadcast_sd(pr);
+        a00 = _mm256_fnmadd_pd(bb, w0, a00);
+        a01 = _mm256_fnmadd_pd(bb, w1, a01);
+        bb = _mm256_broadcast_sd(pr + 1);
+        a10 = _mm256_fnmadd_pd(bb, w0, a10);
+        a11 = _mm256_fnmadd_pd(bb, w1, a11);
+        bb = _mm256_broadcast_sd(pr + 2);
+        a20 = _mm256_fnmadd_pd(bb, w0, a20);
+        a21 = _mm256_fnmadd_pd(bb, w1, a21);
+        bb = _mm256_broadcast_sd(pr + 3);
+        a30 = _mm256_fnmadd_pd(bb, w0, a30);
+        a31 = _mm256_fnmadd_pd(bb, w1, a31);
+    }
+    _mm256_maskstore_pd(y0 + t, m00, a00);
+    _mm256_maskstore_pd(y0 + t + 4, m01, a01);
+    _mm256_maskstore_pd(y1 + t, m10, a10);
+    _mm256_maskstore_pd(y1 + t + 4, m11, a11);
+    _mm256_maskstore_pd(y2 + t, m20, a20);
+    _mm256_maskstore_pd(y2 + t + 4, m21, a21);
+    _mm256_maskstore_pd(y3 + t, m30, a30);
+    _mm256_maskstore_pd(y3 + t + 4, m31, a31);
 }
 #else
 #define SC_LSQ_HAVE_AVX2 0
