@@ -69,7 +69,8 @@ static inline void add_dir(unsigned dir, double e, double *c0, double *c1, doubl
 #if SC_CORR_PAIRS
 typedef double v2d __attribute__((vector_size(16)));
 typedef double v2d_u8 __attribute__((vector_size(16), aligned(8))); /* 8-byte aligned access */
-typedef int32_t v2i __attribute__((vector_size(8)));
+typedef int32_t v4i __attribute__((vector_size(16)));
+typedef int64_t v2l __attribute__((vector_size(16)));
 
 /* A pair from the table (16-byte aligned there: correct.h), and from the caller's arrays. */
 static inline v2d load2(const void *p)
@@ -98,14 +99,15 @@ static inline v2d dup1(v2d a)
     return (v2d){a[1], a[1]};
 }
 
-/* cell() on two coordinates at once (minpd / maxpd select exactly as the scalar ?: do). */
-static inline v2i cell2(v2d u, v2d last, v2d *frac)
+/* cell() on two coordinates at once (minpd / maxpd select exactly as the scalar ?: do): the
+ * fractions in *frac, the two indices in the low and high halves of the result. */
+static inline uint64_t cell2(v2d u, v2d last, v2d *frac)
 {
     u = __builtin_ia32_minpd(u, last);            /* u < last ? u : last */
     u = __builtin_ia32_maxpd(u, (v2d){0.0, 0.0}); /* u > 0 ? u : 0 */
-    const v2i k = __builtin_convertvector(u, v2i); /* truncation: floor for u >= 0 */
-    *frac = u - __builtin_convertvector(k, v2d);
-    return k;
+    const v4i k = __builtin_ia32_cvttpd2dq(u);    /* truncation: floor for u >= 0 */
+    *frac = u - __builtin_ia32_cvtdq2pd(k);
+    return (uint64_t)((v2l)k)[0];
 }
 
 /* All of x, y (the pair) and z finite (as all_finite). */
@@ -125,10 +127,10 @@ static inline unsigned eval2(const sc_corr_table *t, const double pos[3], v2d xy
                                         __builtin_ia32_cmpltpd(load2(&t->x1_mm), xy));
     const unsigned outside = (unsigned)__builtin_ia32_movmskpd(out);
     v2d f;
-    const v2i ji = cell2((xy - lo) * load2(&t->inv_px), load2(&t->lastx), &f);
+    const uint64_t ji = cell2((xy - lo) * load2(&t->inv_px), load2(&t->lastx), &f);
     const v2d w = 1.0 - f, wx = dup0(w), fx = dup0(f), wy = dup1(w), fy = dup1(f);
     const size_t nx = t->nx;
-    const double *g0 = t->g_um[(uint32_t)ji[1] * nx + (uint32_t)ji[0]], *g1 = g0 + 2 * nx;
+    const double *g0 = t->g_um[(ji >> 32) * nx + (uint32_t)ji], *g1 = g0 + 2 * nx;
     v2d c = (load2(g0) * wx + load2(g0 + 2) * fx) * wy + (load2(g1) * wx + load2(g1 + 2) * fx) * fy;
     /* Profiles two at a time (an odd count is padded with a slot that adds 0; correct.h); the
      * coordinate each one corrects is selected by bit masks, no branch. Adding 0 to the
@@ -139,11 +141,11 @@ static inline unsigned eval2(const sc_corr_table *t, const double pos[3], v2d xy
     const unsigned ns = t->p_slots;
     for (unsigned m = 0; m < ns; m += 2) {
         v2d fq;
-        const v2i q = cell2(((v2d){pos[t->p_axis[m]], pos[t->p_axis[m + 1]]} -
+        const uint64_t q = cell2(((v2d){pos[t->p_axis[m]], pos[t->p_axis[m + 1]]} -
                              load2(t->p_start_mm + m)) * load2(t->p_inv_step + m),
                             load2(t->p_last + m), &fq);
-        const double *ea = t->profile[m].err_um + (uint32_t)q[0];
-        const double *eb = t->profile[m + 1].err_um + (uint32_t)q[1];
+        const double *ea = t->profile[m].err_um + (uint32_t)q;
+        const double *eb = t->profile[m + 1].err_um + (q >> 32);
         const v2d e = (v2d){ea[0], eb[0]} * (1.0 - fq) + (v2d){ea[1], eb[1]} * fq;
         const v2d e0 = dup0(e), e1 = dup1(e);
         c = (c + and2(e0, t->p_dir_mask[m])) + and2(e1, t->p_dir_mask[m + 1]);
