@@ -461,6 +461,48 @@ static void test_profiles(void **state)
     assert_close(out[0], in[0] - 1e-3 * c[0], TOL_MM);
 }
 
+/* Every profile count from 1 to the build's maximum (odd counts included: the host code takes
+ * profiles in pairs and pads an odd count), random AXIS and DIR, ranges partly outside the grid;
+ * tables with fewer profiles loaded over ones with more (no stale profile may survive); and
+ * apply in place (out == in) gives the same as into another array. */
+static void test_profile_counts_axes_and_reload(void **state)
+{
+    (void)state;
+    const int maxp = SC_CORR_MAX_PROFILES < T_NPROF - 1 ? SC_CORR_MAX_PROFILES : T_NPROF - 1;
+    for (int round = 0; round < 2; ++round)
+        for (int np = round == 0 ? 1 : maxp; round == 0 ? np <= maxp : np >= 1;
+             np += round == 0 ? 1 : -1) {
+            make_grid(6, 5, 1, 100, 30000);
+            for (int k = 0; k < np; ++k) {
+                const int n = 2 + (int)(rnd_u32() % 40u);
+                add_profile((int)(rnd_u32() % 3u), (int)(rnd_u32() % 3u), n,
+                            rnd_uniform(-20.0, 5.0), rnd_uniform(0.1, 1.5), 50, 30000);
+            }
+            load_ok();
+            assert_int_equal(T.n_profiles, np);
+            const double x1 = S.x0 + (S.nx - 1) * S.px, y1 = S.y0 + (S.ny - 1) * S.py;
+            for (int k = 0; k < 300; ++k) {
+                const double x = rnd_uniform(S.x0 - 3.0, x1 + 3.0);
+                const double y = rnd_uniform(S.y0 - 3.0, y1 + 3.0);
+                const double z = rnd_uniform(-25.0, 25.0);
+                check_point(x, y, z);
+                double a[3] = {x, y, z}, b[3];
+                const unsigned st = sc_corr_apply(&T, SC_CORR_MEASURE, a, b);
+                assert_int_equal(sc_corr_apply(&T, SC_CORR_MEASURE, a, a), st);
+                assert_true(memcmp(a, b, sizeof a) == 0);
+            }
+            /* Exactly at each profile's first and last point. */
+            for (int k = 0; k < np; ++k) {
+                const tprofile *p = &S.p[k];
+                for (int e = 0; e < 2; ++e) {
+                    double in[3] = {0.5 * (S.x0 + x1), 0.5 * (S.y0 + y1), 0.0};
+                    in[p->axis] = p->start + (e ? p->n - 1 : 0) * p->step;
+                    check_point(in[0], in[1], in[2]);
+                }
+            }
+        }
+}
+
 static double make_nan(void)
 {
     volatile double z = 0.0;
@@ -726,6 +768,7 @@ int main(void)
         cmocka_unit_test(test_continuity_across_edges),
         cmocka_unit_test(test_clamping_and_status),
         cmocka_unit_test(test_profiles),
+        cmocka_unit_test(test_profile_counts_axes_and_reload),
         cmocka_unit_test(test_invalid_input),
         cmocka_unit_test(test_not_loaded_passes_through),
         cmocka_unit_test(test_inverse_iteration),

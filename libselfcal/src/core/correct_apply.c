@@ -21,7 +21,7 @@
 
 #include "selfcal/correct.h"
 
-#if !SC_CORR_COMPACT && defined(__GNUC__) && defined(__SSE2__)
+#if !SC_CORR_COMPACT && defined(__GNUC__) && !defined(__clang__) && defined(__SSE2__)
 #define SC_CORR_PAIRS 1
 #else
 #define SC_CORR_PAIRS 0
