@@ -31,8 +31,11 @@ sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_
 #define SC_PROFILE_LSQ_PORTABLE 1u /* portable kernels even where AVX2/FMA ones exist (testing) */
 #define SC_PROFILE_LSQ_SERIAL 2u   /* one-sided banded factor even where the twisted one applies
                                       (testing; the twisted one halves time and memory) */
+#define SC_PROFILE_LSQ_ONE_THREAD 4u /* no helper thread (by default, plans with 16 MB of factor
+                                        or more have its pages faulted in by a second thread
+                                        while the first factors; results are identical) */
 
-/* sc_profile_lsq_create with flags (0 or SC_PROFILE_LSQ_PORTABLE | SC_PROFILE_LSQ_SERIAL). */
+/* sc_profile_lsq_create with flags (0 or an OR of the SC_PROFILE_LSQ_* flags above). */
 sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,
                                    sc_profile_lsq **out, sc_error *err);
 

@@ -165,7 +165,7 @@ static void reverse(double *x, int len)
 }
 
 /* xs[r] <- B⁻¹·xs[r] (r < nrhs <= 4) through the twisted factor: the two halves T and reversed
- * bottom share each pass over L_A (2·nrhs right-hand sides), the separator in between. */
+ * bottom share each pass over L_A, the separator in between. */
 static void twisted_solve(const sc_profile_lsq *p, double *const *xs, int nrhs)
 {
     int m = p->m, s = p->s;
@@ -334,10 +334,10 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
                             bw, (double)n * (double)(bw + 1) * 8.0 / 1e6);
     }
 #if SC_LSQ_PREFAULT
-    /* only where the faults cost more than a thread: factors of 64 MB and more, page-aligned */
+    /* only where the faults cost more than a thread: factors of 16 MB and more, page-aligned */
     prefault_job job = {(char *)bd->a, (size_t)bd->nrow * bd->ld * sizeof(double) & ~(size_t)4095};
     pthread_t helper;
-    int helping = !(flags & SC_PROFILE_LSQ_SERIAL) && job.len >= ((size_t)64 << 20) &&
+    int helping = !(flags & (SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD)) && job.len >= ((size_t)16 << 20) &&
                   ((uintptr_t)bd->a & 4095) == 0 &&
                   pthread_create(&helper, NULL, prefault_run, &job) == 0;
 #endif

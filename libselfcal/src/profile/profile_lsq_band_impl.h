@@ -44,15 +44,13 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
         int nb = ncol - j < 8 ? ncol - j : 8;
         int last = j + nb - 1 + bw < nrow - 1 ? j + nb - 1 + bw : nrow - 1;
         while (next_row <= last) SC_SFX(assemble_row)(b, next_row++);
-        /* gather: pc[c][k - j] = L[k][j+c] (0 outside the band, above the diagonal, past N) */
-        for (int c = 0; c < 8; c++) {
-            double *pcc = pc[c];
-            int qmax = c < nb ? (last - j < c + bw ? last - j : c + bw) : -1;
-            int q = 0;
-            for (; q < c && q < h; q++) pcc[q] = 0.0;
-            const double *src = b->a + (size_t)(j + q) * ld + (size_t)(c - q + bw);
-            for (; q <= qmax; q++, src += ld - 1) pcc[q] = *src;
-            for (; q < h + 8; q++) pcc[q] = 0.0;
+        /* gather: pc[c][k - j] = L[k][j+c] (0 outside the band, above the diagonal, past N);
+         * row by row — a row's panel entries are contiguous in the band storage */
+        for (size_t q = 0; q < 8 * (size_t)(h + 8); q++) col[q] = 0.0;
+        for (int q = 0; q <= last - j; q++) {
+            const double *src = b->a + (size_t)(j + q) * ld + (size_t)(bw - q);
+            int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
+            for (int c = c0; c <= c1; c++) pc[c][q] = src[c];
         }
         /* factor the panel in the scratch */
         for (int c = 0; c < nb; c++) {
@@ -69,12 +67,11 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
                 for (int q = c2; q < h; q++) p2[q] -= pcc[q] * m;
             }
         }
-        /* write the panel back */
-        for (int c = 0; c < nb; c++) {
-            const double *pcc = pc[c];
-            int kmax = j + c + bw < last ? j + c + bw : last;
-            for (int k = j + c; k <= kmax; k++)
-                b->a[(size_t)k * ld + (size_t)(j + c - k + bw)] = pcc[k - j];
+        /* write the panel back, row by row */
+        for (int q = 0; q <= last - j; q++) {
+            double *dst = b->a + (size_t)(j + q) * ld + (size_t)(bw - q);
+            int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
+            for (int c = c0; c <= c1; c++) dst[c] = pc[c][q];
         }
         if (nb < 8) continue; /* the last columns (ncol = nrow, or ncol % 8 = 0): nothing trails */
         /* trailing rows k = j+8 .. last, columns l0 = j+8 .. k: row -= Σ_c L[k][j+c]·L[l][j+c];
