@@ -252,15 +252,16 @@ SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *s
                     __builtin_prefetch(a + (size_t)row * ld + (size_t)(kk - row + bw), 0, 1);
         }
 #endif
-        /* Lc[r][q] = L[i+1+q][i-r] */
-        for (int r = 0; r < 4; r++) {
-            double *lr = lc + (size_t)r * bwp;
-            int k = i - r;
-            for (int q = 0; q < bwp; q++) {
-                int row = i + 1 + q;
-                lr[q] = (r < nb && q < bw && row - k <= bw && row < nrow && row <= n - 1)
-                            ? a[(size_t)row * ld + (size_t)(k - row + bw)]
-                            : 0.0;
+        /* Lc[r][q] = L[i+1+q][i-r]: row i+1+q holds the four next to each other */
+        for (size_t q = 0; q < 4 * (size_t)bwp; q++) lc[q] = 0.0;
+        {
+            int qmax = bw - 1;
+            if (nrow - 2 - i < qmax) qmax = nrow - 2 - i;
+            if (n - 2 - i < qmax) qmax = n - 2 - i;
+            for (int q = 0; q <= qmax; q++) {
+                const double *src = a + (size_t)(i + 1 + q) * ld + (size_t)(bw - 1 - q);
+                int rmax = bw - 1 - q < nb - 1 ? bw - 1 - q : nb - 1;
+                for (int r = 0; r <= rmax; r++) lc[(size_t)r * bwp + q] = src[-r];
             }
         }
         SC_GEMM4(tw, bwp, lc, bwp, &ZB(i + 1, i + 1), R, bw, bwp);
@@ -280,7 +281,6 @@ SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *s
             for (int j = 0; j < bw; j++) {
                 double z = -tr[j] * rkk;
                 zk[j] = z;
-                ZB(i + 1 + j, k) = z;
                 acc += lr[j] * z;
             }
             /* columns inside the block: j = k+1 .. i */
@@ -296,6 +296,12 @@ SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *s
             double zkk = (rkk - acc) * rkk;
             ZB(k, k) = zkk;
             diag[k] = zkk;
+        }
+        /* the block's columns in the window rows, by symmetry (the block's rows are contiguous
+         * there: one short store per window row) */
+        for (int j = 0; j < bw; j++) {
+            double *dst = &ZB(i + 1 + j, i - nb + 1);
+            for (int r = 0; r < nb; r++) dst[nb - 1 - r] = ZB(i - r, i + 1 + j);
         }
         i -= nb;
     }
