@@ -5,7 +5,10 @@
  * <float.h> and <limits.h>, so the same code runs in selfcald and on a microcontroller.
  * The table structure is fixed-size and owned by the caller (static storage in the daemon);
  * sc_corr_apply only reads it, so several threads may call it on one table.
- * The sizes below may be lowered at compile time for small targets.
+ * The sizes below may be lowered at compile time for small targets, and SC_CORR_COMPACT (below)
+ * selects float storage of the decoded values. The fields of sc_corr_table are the decoded table
+ * laid out for sc_corr_apply (some duplicated, padded and aligned for it): read them, never
+ * write them.
  */
 #ifndef SELFCAL_CORRECT_H
 #define SELFCAL_CORRECT_H
