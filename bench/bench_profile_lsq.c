@@ -3,11 +3,12 @@
  * per-point uncertainties, for N = 10³..10⁶ and d = 10/11, 97/101.
  *
  * Every measurement runs in its own child process, so that the peak resident memory (ru_maxrss of
- * that child) belongs to that measurement alone. Usage: bench_profile_lsq [--full] [--reps R]
+ * that child) belongs to that measurement alone. Usage: bench_profile_lsq [--full] [--serial] [--reps R]
  *   default: N = 10³..10⁶ for d = 10/11, N = 10³..10⁵ for d = 97/101, dense up to N = 4000;
- *   --full:  also N = 10⁶ for d = 97/101 (about 1 GB of factor, a few seconds).
- * Times are CPU seconds of the measured part (the machine is shared; OpenBLAS runs on one thread),
- * the best of R runs (default 3). */
+ *   --full:  also N = 10⁶ for d = 97/101 (about 0.4 GB of factor, a few seconds).
+ * Times are CPU seconds of the measured part (all threads; the machine is shared; OpenBLAS runs on
+ * one thread) and wall-clock seconds, each the best of R runs (default 3). --serial adds the
+ * one-sided banded factor on one thread (SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,12 +23,19 @@
 #include "selfcal/profile_lsq.h"
 #include "selfcal/rng.h"
 
-enum mode { DENSE_SOLVE, DENSE_UNC, FAST_SOLVE, FAST_UNC, BASELINE };
+enum mode { DENSE_SOLVE, DENSE_UNC, FAST_SOLVE, FAST_UNC, SERIAL_UNC, BASELINE };
 
 static double now_s(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static double wall_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
@@ -47,15 +55,16 @@ static void make_data(int n, int d1, int d2, double *y1, double *y2, double *w1,
     free(f);
 }
 
-/* Run one measurement in this (child) process; returns the seconds of the timed part. */
-static double run(enum mode m, int n, int d1, int d2)
+/* Run one measurement in this (child) process; returns the CPU seconds of the timed part (all
+ * threads of the process), its wall-clock seconds in *wall. */
+static double run(enum mode m, int n, int d1, int d2, double *wall)
 {
     double *y1 = malloc((size_t)n * sizeof(double)), *y2 = malloc((size_t)n * sizeof(double));
     double *f = malloc((size_t)n * sizeof(double)), *uf = malloc((size_t)n * sizeof(double));
     if (!y1 || !y2 || !f || !uf) exit(3);
     double w1, w2;
     make_data(n, d1, d2, y1, y2, &w1, &w2);
-    double t0 = now_s(), t;
+    double t0 = now_s(), w0 = wall_s(), t;
     if (m == BASELINE) {
         t = 0;
     } else if (m == DENSE_SOLVE || m == DENSE_UNC) {
@@ -66,12 +75,14 @@ static double run(enum mode m, int n, int d1, int d2)
     } else {
         sc_profile_lsq *p = NULL;
         sc_error err;
-        if (sc_profile_lsq_create(n, d1, d2, w1, w2, &p, &err) != SC_OK) exit(5);
+        unsigned flags = m == SERIAL_UNC ? SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD : 0u;
+        if (sc_profile_lsq_create_ex(n, d1, d2, w1, w2, flags, &p, &err) != SC_OK) exit(5);
         if (sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err) != SC_OK) exit(6);
-        if (m == FAST_UNC && sc_profile_lsq_uncertainty(p, uf, &err) != SC_OK) exit(7);
+        if (m != FAST_SOLVE && sc_profile_lsq_uncertainty(p, uf, &err) != SC_OK) exit(7);
         t = now_s() - t0;
         sc_profile_lsq_destroy(p);
     }
+    *wall = wall_s() - w0;
     free(y1);
     free(y2);
     free(f);
@@ -79,10 +90,12 @@ static double run(enum mode m, int n, int d1, int d2)
     return t;
 }
 
-/* Best time of reps runs (each in a child) and the peak RSS (MB) above the baseline child's. */
-static int measure(enum mode m, int n, int d1, int d2, int reps, double *best_s, double *peak_mb)
+/* Best CPU time of reps runs (each in a child), the best wall time, and the peak RSS (MB). */
+static int measure(enum mode m, int n, int d1, int d2, int reps, double *best_s, double *best_wall,
+                   double *peak_mb)
 {
     *best_s = INFINITY;
+    *best_wall = INFINITY;
     *peak_mb = 0;
     for (int r = 0; r < reps; r++) {
         int fd[2];
@@ -91,20 +104,22 @@ static int measure(enum mode m, int n, int d1, int d2, int reps, double *best_s,
         if (pid < 0) return -1;
         if (pid == 0) {
             close(fd[0]);
-            double t = run(m, n, d1, d2);
-            if (write(fd[1], &t, sizeof t) != (ssize_t)sizeof t) _exit(8);
+            double tw[2];
+            tw[0] = run(m, n, d1, d2, &tw[1]);
+            if (write(fd[1], tw, sizeof tw) != (ssize_t)sizeof tw) _exit(8);
             _exit(0);
         }
         close(fd[1]);
-        double t = NAN;
-        ssize_t got = read(fd[0], &t, sizeof t);
+        double tw[2] = {NAN, NAN};
+        ssize_t got = read(fd[0], tw, sizeof tw);
         close(fd[0]);
         int status;
         struct rusage ru;
         if (wait4(pid, &status, 0, &ru) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0 ||
-            got != (ssize_t)sizeof t)
+            got != (ssize_t)sizeof tw)
             return -1;
-        if (t < *best_s) *best_s = t;
+        if (tw[0] < *best_s) *best_s = tw[0];
+        if (tw[1] < *best_wall) *best_wall = tw[1];
         double mb = ru.ru_maxrss / 1024.0;
         if (mb > *peak_mb) *peak_mb = mb;
     }
@@ -118,14 +133,16 @@ int main(int argc, char **argv)
         setenv("OPENBLAS_NUM_THREADS", "1", 1);
         execv("/proc/self/exe", argv);
     }
-    int full = 0, reps = 3;
+    int full = 0, reps = 3, serial = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--full"))
             full = 1;
+        else if (!strcmp(argv[i], "--serial"))
+            serial = 1;
         else if (!strcmp(argv[i], "--reps") && i + 1 < argc)
             reps = atoi(argv[++i]);
         else {
-            fprintf(stderr, "usage: %s [--full] [--reps R]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--full] [--serial] [--reps R]\n", argv[0]);
             return 2;
         }
     }
@@ -143,28 +160,34 @@ int main(int argc, char **argv)
             printf("# fast kernels: %s\n", sc_profile_lsq_uses_simd(p) ? "AVX2/FMA" : "portable");
         sc_profile_lsq_destroy(p);
     }
-    printf("%-8s %-8s %-22s %12s %12s\n", "d1/d2", "N", "method", "time_s", "peak_MB");
+    printf("# fast = twisted factor (both halves from one, by persymmetry) + page-fault helper thread;"
+           " --serial adds the one-sided factor on one thread\n");
+    printf("%-8s %-8s %-24s %12s %12s %12s\n", "d1/d2", "N", "method", "cpu_s", "wall_s",
+           "peak_MB");
     for (int q = 0; q < 2; q++) {
         int d1 = ds[q][0], d2 = ds[q][1];
         for (size_t k = 0; k < sizeof ns / sizeof ns[0]; k++) {
             int n = ns[k];
             if (n == 1000000 && d2 > 11 && !full) continue;
-            double tb, mb_base;
-            if (measure(BASELINE, n, d1, d2, 1, &tb, &mb_base) != 0) return 1;
+            double tb, wb, mb_base;
+            if (measure(BASELINE, n, d1, d2, 1, &tb, &wb, &mb_base) != 0) return 1;
             static const char *names[] = {"dense LS", "dense LS + uncert.", "fast LS",
-                                          "fast LS + uncert."};
-            for (int m = DENSE_SOLVE; m <= FAST_UNC; m++) {
+                                          "fast LS + uncert.", "one-sided LS + uncert."};
+            for (int m = DENSE_SOLVE; m <= SERIAL_UNC; m++) {
                 if ((m == DENSE_SOLVE || m == DENSE_UNC) && n > 4000)
                     continue;
-                double t, mb;
+                if (m == SERIAL_UNC && !serial) continue;
+                double t, w, mb;
                 int r = (m <= DENSE_UNC && n >= 2000) ? 1 : reps;
-                if (measure((enum mode)m, n, d1, d2, r, &t, &mb) != 0) {
-                    printf("%3d/%-4d %-8d %-22s %12s %12s\n", d1, d2, n, names[m], "failed", "-");
+                if (measure((enum mode)m, n, d1, d2, r, &t, &w, &mb) != 0) {
+                    printf("%3d/%-4d %-8d %-24s %12s %12s %12s\n", d1, d2, n, names[m], "failed",
+                           "-", "-");
                     continue;
                 }
                 char dd[16];
                 snprintf(dd, sizeof dd, "%d/%d", d1, d2);
-                printf("%-8s %-8d %-22s %12.4f %12.1f\n", dd, n, names[m], t, mb - mb_base);
+                printf("%-8s %-8d %-24s %12.4f %12.4f %12.1f\n", dd, n, names[m], t, w,
+                       mb - mb_base);
                 fflush(stdout);
             }
         }

@@ -22,6 +22,7 @@
 #endif
 #if defined(__linux__) && defined(MADV_POPULATE_WRITE)
 #include <pthread.h>
+#include <stdatomic.h>
 #define SC_LSQ_PREFAULT 1
 #else
 #define SC_LSQ_PREFAULT 0
@@ -248,19 +249,21 @@ static double *alloc_doubles(size_t count)
 /* The factor's pages are faulted in (kernel zeroing, huge-page compaction: as much time as the
  * factorization itself at N·d = 10⁸) by a second thread while the first factors: it populates
  * the block from its end backwards, the factorization runs forwards and faults what the helper
- * has not reached yet. MADV_POPULATE_WRITE never changes the content of a page (pages already
- * present are left alone), so the two threads share no data. */
+ * has not reached yet; it stops (after at most one 2 MB chunk) when the factorization is done.
+ * MADV_POPULATE_WRITE never changes the content of a page (pages already present are left alone),
+ * so the two threads share no data but the stop flag. */
 typedef struct {
     char *base;
     size_t len;
+    atomic_int stop; /* set by the factorizing thread when it is done: no use going on */
 } prefault_job;
 
 static void *prefault_run(void *arg)
 {
-    const prefault_job *job = arg;
-    const size_t chunk = (size_t)8 << 20;
+    prefault_job *job = arg;
+    const size_t chunk = (size_t)2 << 20;
     size_t end = job->len;
-    while (end > 0) {
+    while (end > 0 && !atomic_load_explicit(&job->stop, memory_order_relaxed)) {
         size_t beg = end > chunk ? end - chunk : 0;
         if (madvise(job->base + beg, end - beg, MADV_POPULATE_WRITE) != 0) break;
         end = beg;
@@ -335,7 +338,10 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     }
 #if SC_LSQ_PREFAULT
     /* only where the faults cost more than a thread: factors of 16 MB and more, page-aligned */
-    prefault_job job = {(char *)bd->a, (size_t)bd->nrow * bd->ld * sizeof(double) & ~(size_t)4095};
+    prefault_job job;
+    job.base = (char *)bd->a;
+    job.len = (size_t)bd->nrow * bd->ld * sizeof(double) & ~(size_t)4095;
+    atomic_init(&job.stop, 0);
     pthread_t helper;
     int helping = !(flags & (SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD)) && job.len >= ((size_t)16 << 20) &&
                   ((uintptr_t)bd->a & 4095) == 0 &&
@@ -343,7 +349,10 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
 #endif
     int bad = sc_lsq_band_factor(bd, col);
 #if SC_LSQ_PREFAULT
-    if (helping) pthread_join(helper, NULL);
+    if (helping) {
+        atomic_store_explicit(&job.stop, 1, memory_order_relaxed);
+        pthread_join(helper, NULL);
+    }
 #endif
     free(col);
     if (bad >= 0) {
