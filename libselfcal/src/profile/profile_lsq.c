@@ -227,21 +227,29 @@ static void band_solve(const sc_profile_lsq *p, double *x)
     solve_many(p, xs, 1);
 }
 
-/* Allocate a large array: 2 MB-aligned and marked for transparent huge pages where the system
- * has them (fewer page faults on first touch); plain malloc otherwise. Free with free(). */
-static double *alloc_doubles(size_t count)
+/* Allocate a large array, page-aligned (the page-fault helper below works in whole pages);
+ * huge: 2 MB-aligned and marked for transparent huge pages. Not by default: on the 2-vCPU VM of
+ * the benchmarks, huge pages made the first touch of memory the host had taken back cost ~1 s for
+ * 440 MB (against 0.05 s when it had not, and ~0.2 s with small pages either way) —
+ * docs/profile-lsq.md §5. Free with free(). */
+static double *alloc_doubles(size_t count, int huge)
 {
     size_t bytes = count * sizeof(double);
+    if (bytes >= ((size_t)1 << 20)) {
+        size_t align = 4096;
 #if defined(__linux__) && defined(MADV_HUGEPAGE)
-    const size_t huge = (size_t)2 << 20;
-    if (bytes >= 2 * huge) {
+        if (huge) align = (size_t)2 << 20;
+#else
+        (void)huge;
+#endif
+        size_t len = (bytes + align - 1) & ~(align - 1);
         void *q = NULL;
-        size_t len = (bytes + huge - 1) & ~(huge - 1);
-        if (posix_memalign(&q, huge, len) != 0) return NULL;
-        (void)madvise(q, len, MADV_HUGEPAGE);
+        if (posix_memalign(&q, align, len) != 0) return NULL;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+        if (huge) (void)madvise(q, len, MADV_HUGEPAGE);
+#endif
         return q;
     }
-#endif
     return malloc(bytes ? bytes : 1);
 }
 
@@ -322,7 +330,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "N = %d with d = %d needs too much memory",
                             n, bw);
     }
-    bd->a = alloc_doubles((size_t)bd->nrow * bd->ld);
+    bd->a = alloc_doubles((size_t)bd->nrow * bd->ld, (flags & SC_PROFILE_LSQ_HUGE_PAGES) != 0);
     if (p->twisted) p->ls = malloc((size_t)p->s * (size_t)p->s * sizeof(double));
     p->z = malloc((size_t)2 * n * sizeof(double));
     p->e = malloc((size_t)2 * n * sizeof(double));
