@@ -23,7 +23,7 @@
 #include "selfcal/profile_lsq.h"
 #include "selfcal/rng.h"
 
-enum mode { DENSE_SOLVE, DENSE_UNC, FAST_SOLVE, FAST_UNC, HUGE_UNC, SERIAL_UNC, BASELINE };
+enum mode { DENSE_SOLVE, DENSE_UNC, FAST_SOLVE, FAST_UNC, EARLY_UNC, HUGE_UNC, SERIAL_UNC, BASELINE };
 
 static double now_s(void)
 {
@@ -77,7 +77,8 @@ static double run(enum mode m, int n, int d1, int d2, double *wall)
         sc_error err;
         unsigned flags = m == SERIAL_UNC ? SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD
                          : m == HUGE_UNC ? SC_PROFILE_LSQ_HUGE_PAGES
-                                         : 0u;
+                         : m == EARLY_UNC ? SC_PROFILE_LSQ_EARLY_UNCERTAINTY
+                                          : 0u;
         if (sc_profile_lsq_create_ex(n, d1, d2, w1, w2, flags, &p, &err) != SC_OK) exit(5);
         if (sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err) != SC_OK) exit(6);
         if (m != FAST_SOLVE && sc_profile_lsq_uncertainty(p, uf, &err) != SC_OK) exit(7);
@@ -163,8 +164,9 @@ int main(int argc, char **argv)
         sc_profile_lsq_destroy(p);
     }
     printf("# fast = twisted factor (both halves from one, by persymmetry) + page-fault helper thread;"
-           " '... huge pages' = the same with SC_PROFILE_LSQ_HUGE_PAGES; --serial adds the one-sided"
-           " factor on one thread\n");
+           " '... early uncert. thread' = with SC_PROFILE_LSQ_EARLY_UNCERTAINTY (the selected"
+           " inversion on a second thread from the end of the factorization on); '... huge pages' ="
+           " with SC_PROFILE_LSQ_HUGE_PAGES; --serial adds the one-sided factor on one thread\n");
     printf("%-8s %-8s %-24s %12s %12s %12s\n", "d1/d2", "N", "method", "cpu_s", "wall_s",
            "peak_MB");
     for (int q = 0; q < 2; q++) {
@@ -175,12 +177,13 @@ int main(int argc, char **argv)
             double tb, wb, mb_base;
             if (measure(BASELINE, n, d1, d2, 1, &tb, &wb, &mb_base) != 0) return 1;
             static const char *names[] = {"dense LS", "dense LS + uncert.", "fast LS",
-                                          "fast LS + uncert.", "... huge pages", "one-sided LS + uncert."};
+                                          "fast LS + uncert.", "... early uncert. thread",
+                                          "... huge pages", "one-sided LS + uncert."};
             for (int m = DENSE_SOLVE; m <= SERIAL_UNC; m++) {
                 if ((m == DENSE_SOLVE || m == DENSE_UNC) && n > 4000)
                     continue;
                 if (m == SERIAL_UNC && !serial) continue;
-                if (m == HUGE_UNC && n < 100000) continue;
+                if ((m == HUGE_UNC || m == EARLY_UNC) && n < 100000) continue;
                 double t, w, mb;
                 int r = (m <= DENSE_UNC && n >= 2000) ? 1 : reps;
                 if (measure((enum mode)m, n, d1, d2, r, &t, &w, &mb) != 0) {

@@ -445,8 +445,9 @@ static void test_twisted_matches_serial(void **state)
 }
 
 
-/* The helper thread that faults the factor's pages in (factors of 16 MB and more) and the huge
- * pages option change nothing: bit-identical f, c, wrss and u(f) with and without them. */
+/* The helper thread that faults the factor's pages in (factors of 16 MB and more), the early
+ * selected inversion on a second thread and the huge pages option change nothing: bit-identical
+ * f, c, wrss and u(f) with and without them. */
 static void test_helper_thread_changes_nothing(void **state)
 {
     (void)state;
@@ -472,6 +473,22 @@ static void test_helper_thread_changes_nothing(void **state)
     assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
     assert_memory_equal(ca, cb, sizeof ca);
     assert_true(wa == wb);
+    sc_profile_lsq_destroy(pb);
+    /* the selected inversion started early on a second thread: the same; and a plan with that
+     * thread destroyed without asking for the uncertainty (the thread is joined, nothing leaks) */
+    assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3,
+                                              SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &pb, &err),
+                     SC_OK);
+    assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+    assert_memory_equal(fa, fb, (size_t)n * sizeof(double));
+    assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
+    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK); /* again: no second join */
+    assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
+    sc_profile_lsq_destroy(pb);
+    assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3,
+                                              SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &pb, &err),
+                     SC_OK);
     sc_profile_lsq_destroy(pb);
     /* the factor in transparent huge pages: the same */
     assert_int_equal(

@@ -37,6 +37,10 @@ sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_
 #define SC_PROFILE_LSQ_HUGE_PAGES 8u /* factor in transparent huge pages: faster where recently
                                         freed memory is reused (~0.2 s at N = 10⁶, d = 101), much
                                         slower where a VM host must back fresh memory first */
+#define SC_PROFILE_LSQ_EARLY_UNCERTAINTY 16u /* start the selected inversion (the O(N·d²) part of
+                                        sc_profile_lsq_uncertainty) on a second thread as soon as
+                                        the factor exists; uncertainty then only waits for it and
+                                        finishes in O(N). +8·N bytes. Identical results. */
 
 /* sc_profile_lsq_create with flags (0 or an OR of the SC_PROFILE_LSQ_* flags above). */
 sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,

@@ -45,8 +45,20 @@ struct sc_profile_lsq {
      * separator's Schur complement is factored densely: ls = L_S (s×s row-major, lower). */
     int twisted, m, s;
     double *ls;
+#if SC_LSQ_PREFAULT
+    /* SC_PROFILE_LSQ_EARLY_UNCERTAINTY: diag(B⁻¹) computed on a second thread from create on */
+    int bg, bg_joined;
+    pthread_t bg_thread;
+    pthread_mutex_t bg_lock; /* guards the one join (uncertainty may run concurrently) */
+    double *bg_diag, *bg_win;
+#endif
     double sinv[4];   /* S⁻¹, S = G - Eᵀ Z (row-major 2×2) */
 };
+
+static size_t inverse_scratch(const sc_profile_lsq *p);
+#if SC_LSQ_PREFAULT
+static void *early_inverse_run(void *arg);
+#endif
 
 static int gcd_int(int a, int b)
 {
@@ -373,6 +385,24 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
                             "the separator block of the twisted factor is not positive definite");
     }
+#if SC_LSQ_PREFAULT
+    /* the selected inversion needs only the factor: on a second thread from here on, while this
+     * one does the border solves and the caller its solves */
+    if (flags & SC_PROFILE_LSQ_EARLY_UNCERTAINTY) {
+        p->bg_diag = malloc((size_t)n * sizeof(double));
+        p->bg_win = malloc(inverse_scratch(p) * sizeof(double));
+        if (!p->bg_diag || !p->bg_win) {
+            sc_profile_lsq_destroy(p);
+            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (early uncertainty)");
+        }
+        if (pthread_mutex_init(&p->bg_lock, NULL) == 0) {
+            if (pthread_create(&p->bg_thread, NULL, early_inverse_run, p) == 0)
+                p->bg = 1;
+            else
+                pthread_mutex_destroy(&p->bg_lock);
+        }
+    }
+#endif
     /* border: E column k = d(normal eq. of f)/d c_k; G = diag(w_k (n - d_k)) */
     const int dk[2] = {d1, d2};
     const double wk[2] = {w1, w2};
@@ -506,20 +536,23 @@ sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, con
     return SC_OK;
 }
 
-static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc_error *err)
+static size_t inverse_scratch(const sc_profile_lsq *p)
 {
-    size_t nwin = sc_lsq_band_inverse_scratch(p->bw);
     size_t nz = p->twisted ? (size_t)p->s * (size_t)p->s : 0;
-    double *win = malloc((nwin + 2 * nz + 1) * sizeof(double));
-    if (!win) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
+    return sc_lsq_band_inverse_scratch(p->bw) + 2 * nz + 1;
+}
+
+/* diag[0..n-1] = diag(B⁻¹); win: inverse_scratch(p) doubles. */
+static void inverse_diag_into(const sc_profile_lsq *p, double *win, double *diag)
+{
     if (!p->twisted) {
         sc_lsq_band_inverse_diag(&p->band, win, diag);
-        free(win);
-        return SC_OK;
+        return;
     }
     /* twisted: Z_SS = S_c⁻¹ = L_S⁻ᵀ L_S⁻¹, then the recurrences from m-1 down to 0 (the bottom
      * half's rows of L have no entries in T's columns); B⁻¹ is persymmetric like B, so the
      * bottom half's diagonal is the mirror of the top's */
+    size_t nwin = sc_lsq_band_inverse_scratch(p->bw), nz = (size_t)p->s * (size_t)p->s;
     int s = p->s, m = p->m, n = p->n;
     const double *l = p->ls;
     double *li = win + nwin, *zss = li + nz; /* li = L_S⁻¹ (lower) */
@@ -541,6 +574,42 @@ static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc
     sc_lsq_band_inverse_diag_from(&p->band, win, diag, m - 1, zss, s);
     for (int q = 0; q < s; q++) diag[m + q] = zss[(size_t)q * s + q];
     for (int i = 0; i < m; i++) diag[n - 1 - i] = diag[i];
+}
+
+#if SC_LSQ_PREFAULT
+static void *early_inverse_run(void *arg)
+{
+    sc_profile_lsq *p = arg;
+    inverse_diag_into(p, p->bg_win, p->bg_diag);
+    return NULL;
+}
+
+/* Wait for the early selected inversion (once; the plan's only mutable state, under its lock). */
+static void early_inverse_join(sc_profile_lsq *p)
+{
+    pthread_mutex_lock(&p->bg_lock);
+    if (!p->bg_joined) {
+        pthread_join(p->bg_thread, NULL);
+        p->bg_joined = 1;
+        free(p->bg_win);
+        p->bg_win = NULL;
+    }
+    pthread_mutex_unlock(&p->bg_lock);
+}
+#endif
+
+static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc_error *err)
+{
+#if SC_LSQ_PREFAULT
+    if (p->bg) {
+        early_inverse_join((sc_profile_lsq *)p); /* the join is the one write: under the lock */
+        memcpy(diag, p->bg_diag, (size_t)p->n * sizeof(double));
+        return SC_OK;
+    }
+#endif
+    double *win = malloc(inverse_scratch(p) * sizeof(double));
+    if (!win) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
+    inverse_diag_into(p, win, diag);
     free(win);
     return SC_OK;
 }
@@ -609,6 +678,14 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
 void sc_profile_lsq_destroy(sc_profile_lsq *p)
 {
     if (!p) return;
+#if SC_LSQ_PREFAULT
+    if (p->bg) {
+        early_inverse_join(p);
+        pthread_mutex_destroy(&p->bg_lock);
+    }
+    free(p->bg_diag);
+    free(p->bg_win);
+#endif
     free(p->band.a);
     free(p->z);
     free(p->e);
