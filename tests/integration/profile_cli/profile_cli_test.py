@@ -24,8 +24,12 @@ def run(*args, expect=0):
     return p
 
 
+# Tests run in parallel: every invocation (case + arguments) gets file names of its own.
+TAG = re.sub(r"[^A-Za-z0-9.-]+", "_", "_".join([CASE, *ARGS]))
+
+
 def path(name):
-    return os.path.join(TMP, f"profile_cli_{CASE}_{name}")
+    return os.path.join(TMP, f"profile_cli_{TAG}_{name}")
 
 
 def read_csv(p):
