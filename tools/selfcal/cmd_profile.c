@@ -160,7 +160,10 @@ int cmd_profile(int argc, char **argv)
     if (method == SC_PROFILE_DFT)
         st = sc_profile_dft_create(n, d1, d2, 1.0 / var1, 1.0 / var2, &ctx.dft, &err);
     else
-        st = sc_profile_lsq_create(n, d1, d2, 1.0 / var1, 1.0 / var2, &ctx.lsq, &err);
+        /* the command reports every point's uncertainty: start the selected inversion on the
+         * second core while the solve runs */
+        st = sc_profile_lsq_create_ex(n, d1, d2, 1.0 / var1, 1.0 / var2,
+                                      SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &ctx.lsq, &err);
     if (st != SC_OK || (st = solve_cb(&ctx, y1, y2, f, &err)) != SC_OK)
         goto done;
     /* residual noise (weighted by the plan's weights), always from the least-squares fit: the
