@@ -24,6 +24,8 @@ const char sc_config_usage[] =
     "  --byte-timeout-ms N           a started TCP request must complete within N ms (500)\n"
     "  --idle-timeout-ms N           close TCP connections silent N ms; 0 = never (60000)\n"
     "  --rtu-byte-timeout-ms N       RTU silence that ends a partial frame (50)\n"
+    "  --busy-poll-us N              after a request, poll without sleeping for N us: lower\n"
+    "                                latency for a core given to selfcald (0 = off, default)\n"
     "  --can-in-id ID --can-out-id ID --can-status-id ID --can-status-period-ms N\n"
     "  --syslog                      log to syslog instead of stderr\n"
     "  --syslog-socket PATH          the syslog datagram socket (/dev/log)\n"
@@ -211,6 +213,10 @@ int sc_config_set(sc_config *c, const char *key, const char *value, char *why, i
         if (parse_ulong(value, 86400000, &n) != 0)
             BAD("--idle-timeout-ms: expected 0..86400000, got '%s'", value);
         c->tcp.idle_timeout_ms = (uint32_t)n;
+    } else if (strcmp(key, "busy-poll-us") == 0) {
+        if (parse_ulong(value, 1000000, &n) != 0)
+            BAD("--busy-poll-us: expected 0..1000000, got '%s'", value);
+        c->busy_poll_us = (uint32_t)n;
     } else if (strcmp(key, "rtu-byte-timeout-ms") == 0) {
         if (parse_ulong(value, 60000, &n) != 0 || n < 1)
             BAD("--rtu-byte-timeout-ms: expected 1..60000, got '%s'", value);

@@ -19,6 +19,7 @@ typedef struct sc_config {
     int use_syslog;
     char syslog_socket[108]; /* default /dev/log */
     int log_level; /* SC_LOG_* */
+    uint32_t busy_poll_us; /* after activity, poll without sleeping this long (0 = off) */
 } sc_config;
 
 void sc_config_defaults(sc_config *c);

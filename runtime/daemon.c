@@ -24,6 +24,13 @@ uint64_t sc_now_ms(void)
     return (uint64_t)ts.tv_sec * 1000u + (uint64_t)ts.tv_nsec / 1000000u;
 }
 
+uint64_t sc_now_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000u + (uint64_t)ts.tv_nsec / 1000u;
+}
+
 void sc_daemon_init(sc_daemon *d, const char *table_path, sc_corr_mode mode)
 {
     memset(d, 0, sizeof *d);
@@ -143,7 +150,13 @@ int sc_daemon_step(sc_daemon *d, int max_wait_ms)
         wait = 0;
     if (max_wait_ms >= 0 && wait > max_wait_ms)
         wait = max_wait_ms;
+    /* Busy polling: right after activity, keep the core awake (zero timeout) so that the next
+     * request does not pay the wake-up of an idle CPU; after busy_poll_us of quiet, sleep. */
+    if (d->busy_poll_us > 0 && wait > 0 && sc_now_us() - d->last_activity_us < d->busy_poll_us)
+        wait = 0;
     int rc = poll(g_fds, (nfds_t)n, (int)wait);
+    if (rc > 0 && d->busy_poll_us > 0)
+        d->last_activity_us = sc_now_us();
     if (rc < 0 && errno != EINTR)
         sc_log(SC_LOG_ERR, "poll: %s", strerror(errno));
     now = sc_now_ms();

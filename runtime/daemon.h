@@ -23,6 +23,8 @@ typedef struct sc_daemon {
     int reload;               /* set by SIGHUP or sc_daemon_request_reload */
     uint64_t watchdog_period_ms; /* 0 = no watchdog */
     uint64_t next_watchdog_ms, next_tick_ms;
+    uint32_t busy_poll_us;    /* after activity, poll with a zero timeout this long (0 = off) */
+    uint64_t last_activity_us;
 } sc_daemon;
 
 /* Prepare d for table_path and mode (no transports yet). */
@@ -53,5 +55,8 @@ void sc_daemon_close(sc_daemon *d);
 
 /* Monotonic milliseconds. */
 uint64_t sc_now_ms(void);
+
+/* Monotonic clock in microseconds. */
+uint64_t sc_now_us(void);
 
 #endif

@@ -38,6 +38,7 @@ int main(int argc, char **argv)
         sc_log(SC_LOG_WARNING, "NOTIFY_SOCKET is set but unusable; not notifying systemd");
 
     sc_daemon_init(&g_daemon, g_cfg.table, g_cfg.mode);
+    g_daemon.busy_poll_us = g_cfg.busy_poll_us;
     sc_modbus_map_shared()->order = g_cfg.word_order;
     sc_transport t;
     if (g_cfg.use_modbus_tcp) {

@@ -304,6 +304,19 @@ static void test_config(void **state)
     sc_config_defaults(&c);
     assert_int_equal(sc_config_parse_args(&c, 3, argv5, &help, &version, why, sizeof why), -1);
     assert_non_null(strstr(why, "--table"));
+    /* Busy polling: off by default, a bounded number of microseconds, garbage refused. */
+    sc_config_defaults(&c);
+    assert_int_equal(c.busy_poll_us, 0);
+    char *argv6[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "500", NULL};
+    assert_int_equal(sc_config_parse_args(&c, 5, argv6, &help, &version, why, sizeof why), 0);
+    assert_int_equal(c.busy_poll_us, 500);
+    char *argv7[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "-5", NULL};
+    sc_config_defaults(&c);
+    assert_int_equal(sc_config_parse_args(&c, 5, argv7, &help, &version, why, sizeof why), -1);
+    assert_non_null(strstr(why, "--busy-poll-us"));
+    char *argv8[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "2000000", NULL};
+    sc_config_defaults(&c);
+    assert_int_equal(sc_config_parse_args(&c, 5, argv8, &help, &version, why, sizeof why), -1);
 }
 
 static sc_daemon g_d;

@@ -39,4 +39,16 @@ try:
 finally:
     rc = d.stop()
 check(rc == 0, f"selfcald exit status {rc}")
+# The same traffic through a daemon that busy-polls after each request: same answers.
+d = Daemon(selfcald, table, extra=("--busy-poll-us", "2000"))
+try:
+    gen = [sys.executable, os.path.join(here, "traffic.py"), "--port", str(d.port), "--dump", dump]
+    p = subprocess.run(gen + ["--pattern", "raster", "--points", "2000", "--rate", "4000",
+                              "--window", "1"], capture_output=True, text=True, timeout=60)
+    print("busy-poll:", p.stdout, end="")
+    check(p.returncode == 0 and " lost 0 out-of-order 0 wrong 0" in p.stdout,
+          f"traffic with --busy-poll-us: {p.stdout} {p.stderr}")
+finally:
+    rc = d.stop()
+check(rc == 0, f"selfcald (busy-poll) exit status {rc}")
 print("traffic: ok")
