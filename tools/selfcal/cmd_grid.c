@@ -10,10 +10,8 @@
 #include "selfcal/grid_exact.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
+#include "plots.h"
 
-/* From cmd_plot_map.c: draw a map (and optionally the estimation error against a truth). */
-void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
-                  double scale_um_per_pitch, const char *name);
 
 static const char *USAGE =
     "usage: selfcal grid --method {ye,double-shift,lsq} IN.csv --map G.csv\n"

@@ -8,10 +8,8 @@
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_io.h"
+#include "plots.h"
 #include "svg.h"
-
-void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
-                  double scale_um_per_pitch, const char *name);
 
 static const char *USAGE =
     "usage: selfcal plot map G.csv -o map.svg [--truth G_true.csv] [--scale-um-per-pitch X]\n"

@@ -8,16 +8,9 @@
 #include "cli.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/profile.h"
+#include "plots.h"
 #include "svg.h"
 
-typedef struct profile_plot_opts {
-    const char *title, *label_a, *label_b;
-    int uncertainty_only;
-} profile_plot_opts;
-
-sc_status profile_plot_write(const char *path, const sc_profile_result *a,
-                             const sc_profile_result *truth, const sc_profile_result *cmp,
-                             const profile_plot_opts *o, sc_error *err);
 
 static const char *COL_A = "#1f5fbf", *COL_B = "#d9731a", *COL_T = "#222222", *COL_U = "#999999";
 

@@ -11,6 +11,7 @@
 #include "selfcal/profile.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
+#include "plots.h"
 
 static const char *USAGE =
     "usage: selfcal profile --method {dft,lsq} IN.csv --out P.csv [--sigma-disp-um X]\n"
@@ -21,14 +22,6 @@ static const char *USAGE =
     "  neither, it is estimated from the least-squares residuals (equal scan weights).\n"
     "  --mc K: uncertainty by K seeded Monte Carlo trials instead of the analytic formula.\n";
 
-/* Defined in cmd_plot_profile.c: the profile chart (f, uf, error against truth, e_y). */
-typedef struct profile_plot_opts {
-    const char *title, *label_a, *label_b;
-    int uncertainty_only;
-} profile_plot_opts;
-sc_status profile_plot_write(const char *path, const sc_profile_result *a,
-                             const sc_profile_result *truth, const sc_profile_result *cmp,
-                             const profile_plot_opts *o, sc_error *err);
 
 typedef struct solver_ctx {
     sc_profile_method method;

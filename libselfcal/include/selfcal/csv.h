@@ -54,6 +54,9 @@ sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, s
 /* Parse field k as a whole number (decimal, optional sign). */
 sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out, sc_error *err);
 
+/* Trim white space at both ends of s in place; returns the first non-blank character. */
+char *sc_str_trim(char *s);
+
 /* Parse s strictly as a finite double / a long; 0 on success, -1 otherwise. */
 int sc_parse_double(const char *s, double *out);
 int sc_parse_long(const char *s, long *out);

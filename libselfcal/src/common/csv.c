@@ -111,7 +111,7 @@ int sc_csv_is_blank(const sc_csv *r)
     return 1;
 }
 
-static char *trim(char *s)
+char *sc_str_trim(char *s)
 {
     while (*s && isspace((unsigned char)*s))
         ++s;
@@ -134,7 +134,7 @@ int sc_csv_split(sc_csv *r, sc_error *err)
         char *comma = strchr(p, ',');
         if (comma)
             *comma = '\0';
-        r->field[n++] = trim(p);
+        r->field[n++] = sc_str_trim(p);
         if (!comma)
             break;
         p = comma + 1;
@@ -199,8 +199,8 @@ int sc_header_kv(char *line, char *key, size_t keylen, char **value)
     if (!eq)
         return 0;
     *eq = '\0';
-    char *k = trim(p);
-    char *v = trim(eq + 1);
+    char *k = sc_str_trim(p);
+    char *v = sc_str_trim(eq + 1);
     if (!*k || strlen(k) >= keylen) {
         *eq = '=';
         return 0;

@@ -44,16 +44,6 @@ void sc_grid_data_free(sc_grid_data *d)
  * Reader
  * ------------------------------------------------------------------------------------------- */
 
-static char *trim(char *s)
-{
-    while (*s && isspace((unsigned char)*s))
-        ++s;
-    char *e = s + strlen(s);
-    while (e > s && isspace((unsigned char)e[-1]))
-        *--e = '\0';
-    return s;
-}
-
 /* Parse "a,b" into two longs. */
 static int parse_long_pair(char *s, long *a, long *b)
 {
@@ -61,7 +51,7 @@ static int parse_long_pair(char *s, long *a, long *b)
     if (!comma)
         return -1;
     *comma = '\0';
-    int ok = sc_parse_long(trim(s), a) == 0 && sc_parse_long(trim(comma + 1), b) == 0;
+    int ok = sc_parse_long(sc_str_trim(s), a) == 0 && sc_parse_long(sc_str_trim(comma + 1), b) == 0;
     *comma = ',';
     return ok ? 0 : -1;
 }
@@ -72,7 +62,7 @@ static int parse_double_pair(char *s, double *a, double *b)
     if (!comma)
         return -1;
     *comma = '\0';
-    int ok = sc_parse_double(trim(s), a) == 0 && sc_parse_double(trim(comma + 1), b) == 0;
+    int ok = sc_parse_double(sc_str_trim(s), a) == 0 && sc_parse_double(sc_str_trim(comma + 1), b) == 0;
     *comma = ',';
     return ok ? 0 : -1;
 }
@@ -95,7 +85,7 @@ static int parse_index_list(char *s, long *out, int *count)
         char *comma = strchr(p, ',');
         if (comma)
             *comma = '\0';
-        if (n == SC_GRID_MAX_N || sc_parse_long(trim(p), &out[n]) != 0)
+        if (n == SC_GRID_MAX_N || sc_parse_long(sc_str_trim(p), &out[n]) != 0)
             return -1;
         ++n;
         if (!comma)
@@ -119,7 +109,7 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
                             "view line must read '# view K: rot=R shift=SX,SY [rows=..] [cols=..]'");
     *colon = '\0';
     long id;
-    if (sc_parse_long(trim(p), &id) != 0 || id < 0 || id > 1000000)
+    if (sc_parse_long(sc_str_trim(p), &id) != 0 || id < 0 || id > 1000000)
         return sc_error_set(err, SC_E_INPUT, path, line, "view number is not a whole number >= 0");
     vd->id = (int)id;
     int have_rot = 0, have_shift = 0, have_rows = 0, have_cols = 0;
@@ -222,7 +212,7 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
         char *t = got ? s.csv.text : (char *)"";
         int ok = 0;
         if (t[0] == '#') {
-            char *rest = trim(t + 1);
+            char *rest = sc_str_trim(t + 1);
             char a[32], b[32], extra[8];
             ok = sscanf(rest, "%31s %31s %7s", a, b, extra) == 2 && !strcmp(a, "selfcal-grid") &&
                  !strcmp(b, "v1");
@@ -242,7 +232,7 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
         if (sc_csv_is_blank(&s.csv))
             continue;
         if (s.csv.text[0] == '#') {
-            char *body = trim(s.csv.text + 1);
+            char *body = sc_str_trim(s.csv.text + 1);
             if (!strncmp(body, "view", 4) && (isspace((unsigned char)body[4]) || isdigit((unsigned char)body[4]))) {
                 if (n_decl == SC_GRID_MAX_VIEWS) {
                     st = sc_error_set(err, SC_E_INPUT, path, ln, "more than %d views",
