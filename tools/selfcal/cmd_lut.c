@@ -168,9 +168,11 @@ static int load_table(const char *cmd, int argc, char **argv, sc_lut **out)
 }
 
 /* v for printing with 6 decimals: values that would print as "-0.000000" print as 0. */
-static double print6(double v)
+/* v for printing with 9 decimals, without a "-0.000000000" (1e-9 µm = 1 fm, well below the
+ * table's finest quantization, 0.5 pm: the dump adds no rounding of its own). */
+static double print9(double v)
 {
-    return (v < 5e-7 && v > -5e-7) ? 0.0 : v;
+    return (v < 5e-10 && v > -5e-10) ? 0.0 : v;
 }
 
 static int lut_dump(int argc, char **argv)
@@ -184,9 +186,9 @@ static int lut_dump(int argc, char **argv)
     for (int i = 0; i < lut->ny; ++i)
         for (int j = 0; j < lut->nx; ++j) {
             size_t k = (size_t)i * lut->nx + j;
-            printf("%d,%d,%.6f,%.6f,%.6f,%.6f\n", i, j, print6(lut->x0_mm + j * lut->px_mm),
-                   print6(lut->y0_mm + i * lut->py_mm), print6(lut->gx_um[k]),
-                   print6(lut->gy_um[k]));
+            printf("%d,%d,%.9f,%.9f,%.9f,%.9f\n", i, j, print9(lut->x0_mm + j * lut->px_mm),
+                   print9(lut->y0_mm + i * lut->py_mm), print9(lut->gx_um[k]),
+                   print9(lut->gy_um[k]));
         }
     for (int k = 0; k < lut->n_profiles; ++k) {
         const sc_lut_profile *p = &lut->profile[k];
@@ -194,7 +196,7 @@ static int lut_dump(int argc, char **argv)
                sc_lut_axis_name(p->dir));
         printf("n,pos_mm,err_um\n");
         for (int n = 0; n < p->n; ++n)
-            printf("%d,%.6f,%.6f\n", n, print6(p->start_mm + n * p->step_mm), print6(p->err_um[n]));
+            printf("%d,%.9f,%.9f\n", n, print9(p->start_mm + n * p->step_mm), print9(p->err_um[n]));
     }
     free(lut);
     if (fflush(stdout) != 0 || ferror(stdout)) {
