@@ -5,9 +5,9 @@ usage: spec_grid.py SELFCAL TMPDIR {simulate|recover|plan}
 The oracle is /work/shared/SPEC.md: an independent parser, an independent forward model and an
 independent gauge projection; nothing is compared with stored outputs of selfcal.
 """
-import json
 import math
 import os
+import random
 import re
 import sys
 
@@ -200,6 +200,138 @@ def test_recover():
                  extra_views=[View(180)])
 
 
+# ------------------------------------------------------------------ independent least squares (small N)
+def design(n, views, data=None):
+    """Rows of the SPEC model's Jacobian (unknowns Gx,Gy per node, Ax,Ay per mark, tx,ty,theta per
+    view; pitch-1 units for theta) and, with data {(k,i,j): (dx_um, dy_um)}, the right-hand side."""
+    c = (n - 1) // 2
+    nn = n * n
+    rows, rhs = [], []
+    for k, v in enumerate(views):
+        cx, sx = {0: (1, 0), 90: (0, 1), 180: (-1, 0), 270: (0, -1)}[v.rot]
+        for (i, j, ni, nj) in v.measured_marks(n):
+            if data is not None and (k, i, j) not in data:
+                continue
+            node, mark = ni * n + nj, i * n + j
+            xc, yc = nj - c, ni - c
+            ex = {node: 1.0, 4 * nn + 3 * k: 1.0, 4 * nn + 3 * k + 2: -yc}
+            ey = {nn + node: 1.0, 4 * nn + 3 * k + 1: 1.0, 4 * nn + 3 * k + 2: xc}
+            for dct, a, b in ((ex, cx, -sx), (ey, sx, cx)):
+                if a:
+                    dct[2 * nn + mark] = dct.get(2 * nn + mark, 0) + a
+                if b:
+                    dct[3 * nn + mark] = dct.get(3 * nn + mark, 0) + b
+            rows += [ex, ey]
+            if data is not None:
+                rhs += list(data[(k, i, j)])
+    return rows, rhs
+
+
+def gauge_rows(n, m):
+    c = (n - 1) // 2
+    nn = n * n
+    X = [(q % n) - c for q in range(nn)]
+    Y = [(q // n) - c for q in range(nn)]
+    C = [{q: 1.0 for q in range(nn)}, {nn + q: 1.0 for q in range(nn)}]
+    d = {q: -Y[q] for q in range(nn)}
+    d.update({nn + q: X[q] for q in range(nn)})
+    C.append(d)
+    d = {q: X[q] for q in range(nn)}
+    d.update({nn + q: Y[q] for q in range(nn)})
+    C.append(d)
+    C += [{2 * nn + q: 1.0 for q in range(nn)}, {3 * nn + q: 1.0 for q in range(nn)}]
+    d = {2 * nn + q: -Y[q] for q in range(nn)}
+    d.update({3 * nn + q: X[q] for q in range(nn)})
+    C.append(d)
+    return [[r.get(a, 0.0) for a in range(m)] for r in C]
+
+
+def constrained_ls(n, views, data=None):
+    """KKT inverse of [J'J C'; C 0] (SPEC gauge as hard constraints); solution if data given."""
+    nn = n * n
+    m = 4 * nn + 3 * len(views)
+    rows, rhs = design(n, views, data)
+    JTJ = [[0.0] * m for _ in range(m)]
+    JTb = [0.0] * m
+    for r, idx in zip(rows, range(len(rows))):
+        for a, va in r.items():
+            if data is not None:
+                JTb[a] += va * rhs[idx]
+            for b, vb in r.items():
+                JTJ[a][b] += va * vb
+    C = gauge_rows(n, m)
+    K = [JTJ[a] + [C[r][a] for r in range(7)] for a in range(m)] + [C[r] + [0.0] * 7 for r in range(7)]
+    inv = invert_dense(K)
+    sol = None
+    rss = None
+    if data is not None:
+        sol = [sum(inv[a][b] * JTb[b] for b in range(m)) for a in range(m)]
+        rss = 0.0
+        for r, b in zip(rows, rhs):
+            rss += (sum(v * sol[a] for a, v in r.items()) - b) ** 2
+    return inv, sol, rss, len(rows) - m + 7
+
+
+def plan_sigma_ref(n, views):
+    inv, _, _, _ = constrained_ls(n, views)
+    nn = n * n
+    comp = [math.sqrt(inv[q][q]) for q in range(2 * nn)]
+    rms = math.sqrt(sum(v * v for v in comp) / len(comp))
+    per_node = [math.sqrt((inv[q][q] + inv[nn + q][nn + q]) / 2) for q in range(nn)]
+    return rms, max(comp), max(per_node)
+
+
+def test_lsq_noise():
+    """lsq on noisy data against an independent constrained least-squares solution: G, A, the
+    per-node uncertainty with --sigma-r-um, and with the noise estimated from the residuals."""
+    custom = [View(0), View(90), View(180), View(0, 1, 0), View(270, 0, -1, rows=[0, 1])]
+    for label, n, views in (("Ye N=5", 5, YE(5)), ("custom N=5", 5, custom)):
+        d = tmpdir(BASE, "lsqn")
+        t = synthesize_grid(n, 1.0, (0.0, 0.0), views, 31)
+        rng = random.Random(32)
+        lines = [(k, i, j, x + rng.gauss(0, 2e-5), y + rng.gauss(0, 2e-5)) for (k, i, j, x, y) in t["lines"]]
+        inp = os.path.join(d, "in.csv")
+        write_grid_file(inp, n, 1.0, (0.0, 0.0), views, lines, shuffle_seed=3)
+        # the data as written (15 decimals), relative to nominal, in um
+        _, _, _, _, parsed = parse_grid_file(inp)
+        c = (n - 1) // 2
+        data = {}
+        for (k, i, j), (x, y) in parsed.items():
+            v = views[k]
+            xr, yr = rot_vec(v.rot, j - c, i - c)
+            data[(k, i, j)] = ((x - (xr + v.sx)) * 1000.0, (y - (yr + v.sy)) * 1000.0)
+        inv, sol, rss, dof = constrained_ls(n, views, data)
+        sig_est = math.sqrt(rss / dof)
+        nn = n * n
+        for sigma_arg in (None, 0.05):
+            mp, ap = os.path.join(d, "G.csv"), os.path.join(d, "A.csv")
+            argv = [SELFCAL, "grid", "--method", "lsq", inp, "--map", mp, "--artifact", ap]
+            if sigma_arg is not None:
+                argv += ["--sigma-r-um", repr(sigma_arg)]
+            rc, out, err = run(argv)
+            if not check(rc == 0, "lsq noise %s: exit %d %s" % (label, rc, err.strip())):
+                continue
+            _, header, rows = read_csv(mp)
+            ax, ay = read_artifact(ap, n, label)
+            sig = sigma_arg if sigma_arg is not None else sig_est
+            eg = eu = ea = 0.0
+            for r in rows:
+                q = int(r["i"]) * n + int(r["j"])
+                eg = max(eg, abs(float(r["gx_um"]) - sol[q]), abs(float(r["gy_um"]) - sol[nn + q]))
+                if r["ugx_um"] == "" or r["ugy_um"] == "":
+                    check(False, "lsq noise %s: empty uncertainty" % label)
+                    break
+                eu = max(eu, abs(float(r["ugx_um"]) / (sig * math.sqrt(inv[q][q])) - 1),
+                         abs(float(r["ugy_um"]) / (sig * math.sqrt(inv[nn + q][nn + q])) - 1))
+            for (i, j) in ax:
+                q = i * n + j
+                ea = max(ea, abs(ax[(i, j)] - sol[2 * nn + q]), abs(ay[(i, j)] - sol[3 * nn + q]))
+            what = "sigma %s" % ("estimated %.4g um" % sig_est if sigma_arg is None else "given")
+            check(eg < 1e-8 and ea < 1e-8, "lsq noise %s: G/A differ from independent LS by %g/%g um" % (label, eg, ea))
+            check(eu < 1e-6, "lsq noise %s (%s): ug differs from sigma*sqrt(diag cov) by rel %g" % (label, what, eu))
+            print("lsq noise %-12s %-26s G %.1e A %.1e um, u rel %.1e" % (label, what, eg, ea, eu))
+
+
 # ------------------------------------------------------------------ plan
 def plan_free_independent(n, views):
     """K = nullity(design matrix) - 7 gauge directions, by exact rank (mod p) of the SPEC model's
@@ -250,6 +382,8 @@ def test_plan():
     cases = [
         ("Ye N=7", 7, YE(7)),
         ("Petro N=9", 9, PETRO(9)),
+        ("Ye N=5", 5, YE(5)),
+        ("{0,90,+2} N=7", 7, [View(0), View(90), View(0, 2, 0)]),
         ("{0,90} N=7", 7, [View(0), View(90)]),
         ("{0,180,+1} N=7", 7, [View(0), View(180), View(0, 1, 0)]),
         ("{0,90,+2} N=9", 9, [View(0), View(90), View(0, 2, 0)]),
@@ -271,11 +405,18 @@ def test_plan():
             try:
                 rms, mx = float(got["sigma_c_ratio_rms"]), float(got["sigma_c_ratio_max"])
                 check(0 < rms <= mx < 10, "plan %s: sigma ratios %r %r" % (label, rms, mx))
+                if n <= 7:
+                    r_rms, r_max_comp, r_max_node = plan_sigma_ref(n, views)
+                    check(abs(rms / r_rms - 1) < 2e-5, "plan %s: sigma_c_ratio_rms %r, independent covariance %.6f"
+                          % (label, rms, r_rms))
+                    check(abs(mx / r_max_comp - 1) < 2e-5 or abs(mx / r_max_node - 1) < 2e-5,
+                          "plan %s: sigma_c_ratio_max %r, independent %.6f (per component) / %.6f (per node)"
+                          % (label, mx, r_max_comp, r_max_node))
             except ValueError:
                 check(False, "plan %s: sigma_c_ratio not numbers: %r" % (label, got))
         print("plan %-36s identifiable %s free %s (ref %d) rms %s max %s" % (
             label, got.get("identifiable"), got.get("free"), k_ref, got.get("sigma_c_ratio_rms"), got.get("sigma_c_ratio_max")))
 
 
-{"simulate": test_simulate, "recover": test_recover, "plan": test_plan}[MODE]()
+{"simulate": test_simulate, "recover": test_recover, "plan": test_plan, "lsqnoise": test_lsq_noise}[MODE]()
 finish("spec_grid " + MODE)

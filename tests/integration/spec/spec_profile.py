@@ -64,6 +64,8 @@ def test_recover():
     recover("lsq", 110, 1.0, 10, 11, 2, shuffle=True)
     recover("dft", 66, 0.5, 2, 3, 3, shuffle=True)
     recover("lsq", 97, 2.0, 3, 7, 4)  # N not a multiple of d1*d2: least squares only
+    recover("dft", 110, 1.0, 11, 10, 5)  # scan 1 has the larger spacing: ey empty from N - 11
+    recover("lsq", 110, 1.0, 11, 10, 6)
 
 
 def ls_uncertainty(n, s_mm, d1, d2, sd, sa):

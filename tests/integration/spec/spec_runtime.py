@@ -374,6 +374,8 @@ def run_modbus(mode):
             b = c2.read(4, 0, 6)
             check(a == b, "two clients see different input registers: %r %r" % (a, b))
             c2.s.close()
+            concurrency(dm.port, model)
+            partial_writes(cl)
         cl.s.close()
     finally:
         rc = dm.stop()
@@ -405,6 +407,42 @@ def exceptions(cl, model):
             check(e.code == 2, "%s: exception code %d, SPEC: 2 (illegal data address)" % (label, e.code))
     after = cl.read(4, 0, 6)
     check(after == before, "rejected requests changed the registers: %r -> %r" % (before, after))
+
+
+def concurrency(port, model):
+    """SPEC §4: a function 23 request is atomic, its read returns the result of its own write."""
+    import threading
+    bad = []
+
+    def worker(seed):
+        c = Client(port)
+        rng = random.Random(seed)
+        for _ in range(250):
+            x, y = rng.randint(6000000, 14000000), rng.randint(2000000, 10000000)
+            r = c.rw(4, 6, 0, i32_regs(x) + i32_regs(y))
+            ex, ey, _ = model.correct(x, y, "measure")
+            if abs(regs_i32(r[0], r[1]) - ex) > 1 or abs(regs_i32(r[2], r[3]) - ey) > 1:
+                bad.append((x, y, r))
+        c.s.close()
+
+    ts = [threading.Thread(target=worker, args=(s,)) for s in range(4)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    print("concurrent fn23: %d clients x 250 requests, %d wrong" % (len(ts), len(bad)))
+    check(not bad, "concurrent fn23 (4 clients x 250): %d answers were not the result of their own write, e.g. %r"
+          % (len(bad), bad[:1]))
+
+
+def partial_writes(cl):
+    """SPEC §4: 'A write of registers 0-3 in one request ... computes the correction' - a write of
+    only part of 0-3 stores the registers but computes nothing."""
+    r0 = cl.read(4, 0, 6)
+    cl.write_multiple(0, i32_regs(8000000))
+    cl.write_multiple(2, i32_regs(5000000))
+    r1 = cl.read(4, 0, 6)
+    check(r1 == r0, "partial writes of 0-1 and 2-3 changed the outputs/count: %r -> %r" % (r0, r1))
 
 
 def test_count():
