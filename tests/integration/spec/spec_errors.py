@@ -115,6 +115,23 @@ def grid_cases():
     p = os.path.join(d, "unident.csv")
     write_lines(p, t)
     expect_bad("grid lsq unidentifiable plan", base_argv("lsq", p), p, None, outdir)
+    # 10b. headers that contradict the data
+    t = list(txt) + ["0,7,0,0.0,0.0"]
+    p = os.path.join(d, "i7.csv")
+    write_lines(p, t)
+    expect_bad("grid mark index beyond N", base_argv("lsq", p), p, len(t), outdir)
+    t = [l.replace("# pitch_mm = 1.0", "# pitch_mm = 2.0") for l in txt]
+    p = os.path.join(d, "pitch.csv")
+    write_lines(p, t)
+    expect_bad("grid header pitch contradicts data", base_argv("ye", p), p, None, outdir)
+    full = [View(0), View(90), View(0, 2, 0), View(0, -3, 0)]
+    t9 = synthesize_grid(9, 1.0, (0.0, 0.0), full, 2)["lines"]
+    sel = [l for l in t9 if l[0] != 3 or l[1] == 4 or l[2] in (4, 5)]
+    extra = [l for l in t9 if l[:3] == (3, 0, 6)]
+    t = grid_text(9, PETRO(9), sel + extra)
+    p = os.path.join(d, "rowscols.csv")
+    write_lines(p, t)
+    expect_bad("grid mark outside view 3's rows=/cols=", base_argv("lsq", p), p, len(t), outdir)
     # 11. plan: non-numeric N
     p = os.path.join(d, "plan_bad.csv")
     write_lines(p, ["# selfcal-grid v1", "# N = five", "# pitch_mm = 1.0", "# view 0: rot=0 shift=0,0"])
@@ -182,6 +199,12 @@ def profile_cases():
     rc, out, err = run([SELFCAL, "profile", "--method", "lsq", p.replace("ok97", "N_not_multiple_of_d1_d2"), "--out", P])
     check(rc == 0, "profile lsq N=97 d=3/7: exit %d %s" % (rc, err.strip()))
     os.path.exists(P) and os.unlink(P)
+    # N too small for least squares, n beyond N - d, header N contradicting the data
+    case("N too small", simulate_profile_lines(15, 1.0, 10, 11, 3), None)
+    t = list(txt) + ["1,100,0.1,0.1,0.1"]
+    case("n beyond N-d1-1", t, len(t))
+    t = [l.replace("# N = 110", "# N = 111") for l in txt]
+    case("header N contradicts data", t, None)
     # wrong sigma header value
     t = list(txt)
     t.insert(hdr_len - 1, "# sigma_disp_um = abc")

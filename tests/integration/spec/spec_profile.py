@@ -6,6 +6,7 @@ usage: spec_profile.py SELFCAL TMPDIR {recover|sigma}
 """
 import math
 import os
+import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -66,6 +67,39 @@ def test_recover():
     recover("lsq", 97, 2.0, 3, 7, 4)  # N not a multiple of d1*d2: least squares only
     recover("dft", 110, 1.0, 11, 10, 5)  # scan 1 has the larger spacing: ey empty from N - 11
     recover("lsq", 110, 1.0, 11, 10, 6)
+
+
+def test_simulate():
+    """selfcal simulate profile writes a valid selfcal-profile v1 file (independent parser)."""
+    d = tmpdir(BASE, "simprof")
+    inp, tr = os.path.join(d, "in.csv"), os.path.join(d, "truth.csv")
+    rc, o, e = run([SELFCAL, "simulate", "profile", "--n", "120", "--s-mm", "0.5", "--d1", "7", "--d2", "9",
+                    "--out", inp, "--truth", tr])
+    if not check(rc == 0, "simulate profile: exit %d %s" % (rc, e.strip())):
+        return
+    with open(inp) as fh:
+        lines = [l.rstrip("\n") for l in fh]
+    check(lines[0] == "# selfcal-profile v1", "simulate profile: first line %r" % lines[0])
+    k = 1
+    hdr = {}
+    while lines[k].startswith("#"):
+        m = re.match(r"^# (N|s_mm|sigma_disp_um|sigma_angle_urad) = (\S+)$", lines[k]) or re.match(r"^# scan ([12]): d=(\d+)$", lines[k])
+        if check(m is not None, "simulate profile: header line %r not in SPEC form" % lines[k]):
+            hdr[m.group(1)] = m.group(2)
+        k += 1
+    check(hdr.get("N") == "120" and float(hdr.get("s_mm", "nan")) == 0.5 and hdr.get("1") == "7" and hdr.get("2") == "9",
+          "simulate profile: header %r" % hdr)
+    check(lines[k] == "scan,n,m1_um,m2_um,m3_urad", "simulate profile: column header %r" % lines[k])
+    seen = {1: set(), 2: set()}
+    for l in lines[k + 1:]:
+        f = l.split(",")
+        check(len(f) == 5 and all(math.isfinite(float(v)) for v in f[2:]), "simulate profile: row %r" % l)
+        seen[int(f[0])].add(int(f[1]))
+    check(seen[1] == set(range(120 - 7)) and seen[2] == set(range(120 - 9)), "simulate profile: samples n = 0..N-d_k-1")
+    _, header, rows = read_csv(tr)
+    check(header == OUT_COLS, "simulate profile truth: header %r" % header)
+    rc, o, e = run([SELFCAL, "profile", "--method", "lsq", inp, "--out", os.path.join(d, "P.csv")])
+    check(rc == 0, "profile on simulated input: exit %d %s" % (rc, e.strip()))
 
 
 def ls_uncertainty(n, s_mm, d1, d2, sd, sa):
@@ -133,5 +167,5 @@ def test_sigma():
         check(all(x != "" and float(x) > 0 for x in u4), "profile: uf from estimated noise not all positive")
 
 
-{"recover": test_recover, "sigma": test_sigma}[MODE]()
+{"recover": test_recover, "sigma": test_sigma, "simulate": test_simulate}[MODE]()
 finish("spec_profile " + MODE)

@@ -364,6 +364,10 @@ def run_modbus(mode):
             # holding 0-3 hold the input position
             h03 = cl.read(3, 0, 4)
             check(h03 == regs, "%s: holding 0-3 %r, written %r" % (mode, h03, regs))
+        # back inside after an outside position: the outside bit clears
+        r = cl.rw(4, 6, 0, i32_regs(int(model.xs[1] * 1e6)) + i32_regs(int(model.ys[1] * 1e6)))
+        check((r[4] >> 1) & 1 == 0, "%s: outside-grid bit still set for an inside position after an outside one" % mode)
+        count = (count + 1) & 0xFFFF
         print("%s: %d points, max |got - expected| = %.3f nm (vs nearest integer %.0f nm)"
               % (mode, len(test_points(model)), worst, worst_round))
         if mode == "measure":
