@@ -157,14 +157,32 @@ def test_sigma():
         u3 = [float(r["uf_um"]) for r in read_out(out3, "sigma angle override")]
         err = max(abs(a - b) / b for a, b in zip(u3, ref3))
         check(err < 1e-6, "profile lsq uf with header sd + CLI angle sigma: rel err %g" % err)
-    # no sigma anywhere: estimated from residuals, uf present and positive
+    # no sigma anywhere: estimated from the residuals (one sigma for y_1 and y_2, equal weights):
+    # sigma^2 = RSS / (number of y - (N + 2) + 2); uf = sigma * sqrt(diag of the unit-weight covariance)
     inp4 = os.path.join(d, "in4.csv")
     write_profile(inp4, n, s_mm, d1, d2, scans)
     out4 = os.path.join(d, "P4.csv")
     rc, o, e = run([SELFCAL, "profile", "--method", "lsq", inp4, "--out", out4])
     if check(rc == 0, "profile no sigma: exit %d %s" % (rc, e.strip())):
-        u4 = [r["uf_um"] for r in read_out(out4, "sigma estimated")]
-        check(all(x != "" and float(x) > 0 for x in u4), "profile: uf from estimated noise not all positive")
+        rows4 = read_out(out4, "sigma estimated")
+        u4 = [r["uf_um"] for r in rows4]
+        if check(all(x != "" and float(x) > 0 for x in u4), "profile: uf from estimated noise not all positive"):
+            yk = {}
+            for k, dk in ((1, d1), (2, d2)):
+                yk[k] = [m2 - m1 - dk * s_mm * m3 / 1000.0 for (_, m1, m2, m3) in scans[k]]
+            fhat = [float(r["f_um"]) for r in rows4]
+            rss = 0.0
+            for k, dk in ((1, d1), (2, d2)):
+                diffs = [yk[k][i] - (fhat[i + dk] - fhat[i]) for i in range(n - dk)]
+                ck = sum(diffs) / len(diffs)  # the LS zero-point c_k given f
+                rss += sum((v - ck) ** 2 for v in diffs)
+            dof = (n - d1) + (n - d2) - n
+            sig = math.sqrt(rss / dof)
+            # unit weights: ls_uncertainty with 2 sd^2 + (D sa)^2 = 1 for both scans
+            ref4 = ls_uncertainty(n, s_mm, d1, d2, math.sqrt(0.5), 0.0)
+            err = max(abs(float(a) / (sig * b) - 1) for a, b in zip(u4, ref4))
+            check(err < 1e-6, "profile lsq uf with the noise estimated from residuals: rel err %g (sigma_y %.4g um)" % (err, sig))
+            print("uf (estimated sigma_y = %.5f um) vs independent: max rel err %.2e" % (sig, err))
 
 
 {"recover": test_recover, "sigma": test_sigma, "simulate": test_simulate}[MODE]()
