@@ -12,6 +12,7 @@ import sys
 import tempfile
 
 FAILURES = []
+CREATED = []
 
 
 def check(cond, what):
@@ -26,6 +27,9 @@ def finish(name):
         print("%s: %d failure(s)" % (name, len(FAILURES)))
         sys.exit(1)
     print("%s: ok" % name)
+    import shutil
+    for d in CREATED:  # keep the evidence of a failing run, clean up after a passing one
+        shutil.rmtree(d, ignore_errors=True)
     sys.exit(0)
 
 
@@ -36,7 +40,9 @@ def run(args, cwd=None, timeout=60):
 
 def tmpdir(base, name):
     os.makedirs(base, exist_ok=True)
-    return tempfile.mkdtemp(prefix="spec_" + name + "_", dir=base)
+    d = tempfile.mkdtemp(prefix="spec_" + name + "_", dir=base)
+    CREATED.append(d)
+    return d
 
 
 # ---------------------------------------------------------------- CSV / headers
