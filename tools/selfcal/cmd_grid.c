@@ -85,7 +85,7 @@ int cmd_grid(int argc, char **argv)
             continue;
         }
         if (a + 1 >= argc)
-            return cli_usage_error("grid", "'%s' needs a value\n%s", o, USAGE);
+            return cli_usage_error("grid", "'%s' needs a value (see --help)", o);
         const char *v = argv[++a];
         if (!strcmp(o, "--method")) method = v;
         else if (!strcmp(o, "--map")) map = v;
@@ -96,10 +96,10 @@ int cmd_grid(int argc, char **argv)
             if (sc_parse_double(v, &sigma_r) || !(sigma_r > 0))
                 return cli_usage_error("grid", "--sigma-r-um needs a positive number, got '%s'", v);
         } else
-            return cli_usage_error("grid", "unknown option '%s'\n%s", o, USAGE);
+            return cli_usage_error("grid", "unknown option '%s' (see --help)", o);
     }
     if (!method || !in || !map)
-        return cli_usage_error("grid", "--method, IN.csv and --map are required\n%s", USAGE);
+        return cli_usage_error("grid", "--method, IN.csv and --map are required (see --help)");
     int m_ye = !strcmp(method, "ye"), m_ds = !strcmp(method, "double-shift"),
         m_lsq = !strcmp(method, "lsq");
     if (!m_ye && !m_ds && !m_lsq)

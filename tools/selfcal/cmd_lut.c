@@ -262,9 +262,11 @@ static int lut_info(int argc, char **argv)
 
 int cmd_lut(int argc, char **argv)
 {
-    if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
-        lut_usage(argc < 2 ? stderr : stdout);
-        return argc < 2 ? CLI_BAD_INPUT : CLI_OK;
+    if (argc < 2)
+        return cli_usage_error("lut", "expected a subcommand: build, dump or info (see --help)");
+    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+        lut_usage(stdout);
+        return CLI_OK;
     }
     if (!strcmp(argv[1], "build"))
         return lut_build(argc - 1, argv + 1);

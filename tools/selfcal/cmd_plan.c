@@ -58,13 +58,13 @@ int cmd_plan(int argc, char **argv)
             return CLI_OK;
         }
         if (argv[a][0] == '-' && strcmp(argv[a], "-") != 0)
-            return cli_usage_error("plan", "unknown option '%s'\n%s", argv[a], USAGE);
+            return cli_usage_error("plan", "unknown option '%s' (see --help)", argv[a]);
         if (in)
-            return cli_usage_error("plan", "one plan file only\n%s", USAGE);
+            return cli_usage_error("plan", "one plan file only (see --help)");
         in = argv[a];
     }
     if (!in)
-        return cli_usage_error("plan", "a plan file is required\n%s", USAGE);
+        return cli_usage_error("plan", "a plan file is required (see --help)");
     sc_error err;
     sc_error_clear(&err);
     sc_grid_data d;

@@ -165,7 +165,7 @@ int cmd_plot_map(int argc, char **argv)
             continue;
         }
         if (a + 1 >= argc)
-            return cli_usage_error("plot map", "'%s' needs a value\n%s", o, USAGE);
+            return cli_usage_error("plot map", "'%s' needs a value (see --help)", o);
         const char *v = argv[++a];
         if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
         else if (!strcmp(o, "--truth")) truth_path = v;
@@ -173,10 +173,10 @@ int cmd_plot_map(int argc, char **argv)
             if (sc_parse_double(v, &scale) || !(scale > 0))
                 return cli_usage_error("plot map", "--scale-um-per-pitch needs a positive number");
         } else
-            return cli_usage_error("plot map", "unknown option '%s'\n%s", o, USAGE);
+            return cli_usage_error("plot map", "unknown option '%s' (see --help)", o);
     }
     if (!in || !out)
-        return cli_usage_error("plot map", "G.csv and -o map.svg are required\n%s", USAGE);
+        return cli_usage_error("plot map", "G.csv and -o map.svg are required (see --help)");
     sc_error err;
     sc_error_clear(&err);
     sc_grid_map m, t;

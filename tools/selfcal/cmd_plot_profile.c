@@ -232,8 +232,7 @@ int cmd_plot_profile(int argc, char **argv)
             return cli_usage_error(cmd, "more than one input file (%s, %s)", in, a);
     }
     if (!in || !out) {
-        fputs(USAGE, stderr);
-        return CLI_BAD_INPUT;
+        return cli_usage_error(cmd, "IN.csv and -o OUT.svg are required (see --help)");
     }
     sc_error err;
     sc_error_clear(&err);

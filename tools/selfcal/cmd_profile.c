@@ -100,8 +100,7 @@ int cmd_profile(int argc, char **argv)
             return cli_usage_error(cmd, "more than one input file (%s, %s)", in, a);
     }
     if (!method_s || !in || !out) {
-        fputs(USAGE, stderr);
-        return CLI_BAD_INPUT;
+        return cli_usage_error(cmd, "--method, IN.csv and --out are required (see --help)");
     }
     if (!strcmp(out, "-"))
         quiet = 1; /* the result goes to stdout: no summary there */

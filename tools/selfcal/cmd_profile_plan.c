@@ -105,8 +105,7 @@ int cmd_profile_plan(int argc, char **argv)
             return cli_usage_error(cmd, "%s: '%s' must be a non-negative number", a, v);
     }
     if (n <= 0 || isnan(s) || isnan(sd) || isnan(sa)) {
-        fputs(USAGE, stderr);
-        return CLI_BAD_INPUT;
+        return cli_usage_error(cmd, "--n, --s-mm, --sigma-disp-um and --sigma-angle-urad are required (see --help)");
     }
     if (!(s > 0))
         return cli_usage_error(cmd, "--s-mm must be positive");

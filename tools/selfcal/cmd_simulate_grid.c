@@ -76,8 +76,8 @@ int cmd_simulate_grid(int argc, char **argv)
             return CLI_OK;
         }
         if (a + 1 >= argc)
-            return cli_usage_error("simulate grid", "unknown option or missing value: '%s'\n%s",
-                                   o, USAGE);
+            return cli_usage_error("simulate grid", "unknown option or missing value: '%s' (see --help)",
+                                   o);
         const char *v = argv[++a];
         double x;
         if (!strcmp(o, "--plan")) plan_arg = v;
@@ -114,12 +114,11 @@ int cmd_simulate_grid(int argc, char **argv)
             else if (!strcmp(o, "--R")) sp.R = x;
             else if (!strcmp(o, "--rho")) sp.rho = x;
             else
-                return cli_usage_error("simulate grid", "unknown option '%s'\n%s", o, USAGE);
+                return cli_usage_error("simulate grid", "unknown option '%s' (see --help)", o);
         }
     }
     if (!plan_arg || !out || !truth_map)
-        return cli_usage_error("simulate grid", "--plan, --out and --truth-map are required\n%s",
-                               USAGE);
+        return cli_usage_error("simulate grid", "--plan, --out and --truth-map are required (see --help)");
     if (n_d != floor(n_d) || n_d < 3 || n_d > SC_GRID_MAX_N || fmod(n_d, 2) == 0)
         return cli_usage_error("simulate grid", "--n must be odd and in 3..%d", SC_GRID_MAX_N);
     if (!(pitch > 0))

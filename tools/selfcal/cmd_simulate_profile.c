@@ -102,8 +102,7 @@ int cmd_simulate_profile(int argc, char **argv)
             return CLI_BAD_INPUT;
     }
     if (!out || !truth) {
-        fputs(USAGE, stderr);
-        return CLI_BAD_INPUT;
+        return cli_usage_error("simulate profile", "--out and --truth are required (see --help)");
     }
     if (!(p.s_mm > 0))
         return cli_usage_error("simulate profile", "--s-mm must be positive");

@@ -88,7 +88,6 @@ int main(int argc, char **argv)
         fputc('\n', stderr);
         return CLI_BAD_INPUT;
     }
-    fprintf(stderr, "selfcal: unknown command '%s'\n", argv[1]);
-    usage(stderr);
+    fprintf(stderr, "selfcal: unknown command '%s' (selfcal --help lists them)\n", argv[1]);
     return CLI_BAD_INPUT;
 }
