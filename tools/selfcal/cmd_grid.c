@@ -68,6 +68,26 @@ static sc_status check_views(const char *path, const sc_grid_data *d, const sc_g
     return SC_OK;
 }
 
+/* The measurement noise behind data solved by a closed form: the closed forms are not
+ * least-squares fits, so their residuals do not estimate σ_r without bias; the least-squares
+ * residuals of the same data and model do (sqrt(RSS/dof)). NaN if the data leave no
+ * redundancy or do not identify the model. */
+static double exact_noise_estimate(const sc_grid_plan *p, const sc_grid_data *d)
+{
+    sc_grid_lsq *q = NULL;
+    sc_grid_result r;
+    memset(&r, 0, sizeof r); /* no arrays: only the scalars are wanted */
+    r.sigma_r_est_um = NAN;
+    sc_grid_lsq_info qi;
+    if (sc_grid_lsq_create(p, d, &q, NULL) == SC_OK) {
+        sc_grid_lsq_get_info(q, &qi);
+        if (!qi.identifiable || sc_grid_lsq_solve(q, d, 0.0, &r, NULL) != SC_OK)
+            r.sigma_r_est_um = NAN;
+    }
+    sc_grid_lsq_destroy(q);
+    return r.sigma_r_est_um;
+}
+
 int cmd_grid(int argc, char **argv)
 {
     const char *method = NULL, *in = NULL, *map = NULL, *art = NULL, *sum = NULL, *plot = NULL;
@@ -183,6 +203,7 @@ int cmd_grid(int argc, char **argv)
             for (size_t k = 0; k < nn; ++k)
                 res.ugx_um[k] = res.ugy_um[k] = NAN;
             res.sigma_r_used_um = NAN;
+            res.sigma_r_est_um = exact_noise_estimate(p, &d);
         }
     }
     if (st != SC_OK)

@@ -166,6 +166,16 @@ def case_lsq_noise():
             fail("sigma_r estimate %g vs %g" % (e, sr))
     if not 0.8 < zrms < 1.2:
         fail("RMS of normalised errors %g not near 1" % zrms)
+    # The closed forms report the noise too (SPEC §1 summary), estimated from the same data.
+    for method, plan in (("ye", "ye"), ("double-shift", "double-shift")):
+        sim = simulate(d, "x_" + method, plan, n, "--sigma-r-um", sr, "--seed", 11)
+        sp = os.path.join(d, "S_%s.json" % method)
+        run("grid", "--method", method, sim["inp"], "--map", os.path.join(d, "G_x.csv"),
+            "--summary", sp)
+        e = json.load(open(sp))["sigma_r_est_um"]
+        print("%s: sigma_r estimate %s (true %g)" % (method, e, sr))
+        if e is None or abs(e / sr - 1) > 0.15:
+            fail("%s: sigma_r estimate %s vs %g" % (method, e, sr))
 
 
 def first_lines(out, k=4):
