@@ -42,6 +42,19 @@ static void test_parse_numbers(void **state)
     assert_int_equal(sc_parse_long("99999999999999999999999", &l), -1);
 }
 
+static void test_error_messages_stay_one_printable_line(void **state)
+{
+    (void)state;
+    sc_error err;
+    /* quoted user bytes: CR, LF, vertical tab, form feed, ESC, DEL, C1 NEL (U+0085), a broken
+     * UTF-8 sequence, a line separator (U+2028) -> '?'; valid UTF-8 such as µ stays */
+    sc_error_set(&err, SC_E_INPUT, "f.csv", 3, "bad '%s'",
+                 "a\rb\nc\vd\fe\x1b[31mf\x7fg\xc2\x85h\xff\xfei\xe2\x80\xa8j 5 \xc2\xb5m");
+    /* every offending byte becomes one '?' */
+    assert_string_equal(err.msg, "bad 'a?b?c?d?e?[31mf?g??h??i???j 5 \xc2\xb5m'");
+    assert_int_equal(err.line, 3);
+}
+
 static void test_csv_lines_and_errors(void **state)
 {
     (void)state;
@@ -191,6 +204,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_parse_numbers),
+        cmocka_unit_test(test_error_messages_stay_one_printable_line),
         cmocka_unit_test(test_csv_lines_and_errors),
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
