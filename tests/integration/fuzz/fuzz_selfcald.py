@@ -314,6 +314,45 @@ def t_modbus():
     good.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     tid, bad = 0, 0
     try:
+        # Slow loris: 10 connections each trickling a request one byte every 100 ms. Each must
+        # be closed by the byte timeout (300 ms; allow 2 s), and the good client meanwhile gets
+        # prompt, right answers.
+        loris = [socket.create_connection(("127.0.0.1", d.port), timeout=3) for _ in range(10)]
+        frame = mbap(9, struct.pack(">BHH", 4, 0, 6))
+        t0, closed, worst = time.time(), {}, 0.0
+        for step in range(len(frame)):
+            for k, s in enumerate(loris):
+                if k in closed:
+                    continue
+                try:
+                    s.send(frame[step:step + 1])
+                    s.setblocking(False)
+                    try:
+                        if s.recv(64) == b"":
+                            closed[k] = time.time() - t0
+                    except BlockingIOError:
+                        pass
+                    s.setblocking(True)
+                except (BrokenPipeError, ConnectionResetError):
+                    closed[k] = time.time() - t0
+            tid += 1
+            t1 = time.time()
+            why = good_roundtrip(d.port, good, tid, 5_000_000 - tid, tid * 1000)
+            worst = max(worst, time.time() - t1)
+            if why:
+                F.fail("exit", "modbus slow-loris: good client: " + why, ["slow loris"], d.text(), [])
+            time.sleep(0.1)
+            if len(closed) == len(loris):
+                break
+        if len(closed) != len(loris) or max(closed.values()) > 2.0:
+            F.fail("hang", "modbus slow-loris: %d of %d trickling connections closed (%s)" % (
+                len(closed), len(loris), sorted(closed.values())), ["slow loris"], d.text(), [])
+        if worst > 0.25:
+            F.fail("hang", "modbus slow-loris: good client waited %.3f s" % worst, ["slow loris"],
+                   d.text(), [])
+        for s in loris:
+            s.close()
+        F.stats["slow-loris: all closed by (ms)"] = int(1000 * max(closed.values() or [0]))
         for t in range(A.iterations):
             mode = rnd.randrange(5)
             s = socket.create_connection(("127.0.0.1", d.port), timeout=1)
