@@ -456,6 +456,16 @@ static void test_reader_good_and_bad(void **state)
     text_set(&t, 6, "scan,n,m1,m2,m3");
     expect_bad(&t, 6, "column header", -1);
     text_free(&t);
+    /* impossible magnitudes, caught where read (fuzzing found inf results from them) */
+    text_good(&t, n, d1, d2);
+    text_set(&t, s1 + 2, "1,2,1e300,0.2,0");
+    expect_bad(&t, s1 + 2, "not a sensor reading", -1);
+    text_set(&t, s1 + 2, "1,2,0.1,0.2,-3e6");
+    expect_bad(&t, s1 + 2, "not a sensor reading", -1);
+    text_set(&t, s1 + 2, "1,2,0.1,0.2,0");
+    text_set(&t, 3, "# s_mm = 1e9");
+    expect_bad(&t, 3, "beyond any real set-up", -1);
+    text_free(&t);
 }
 
 static void test_write_read_roundtrip(void **state)

@@ -54,6 +54,14 @@ static const double *scaled(const double *v, int n, double s, double *buf)
     return buf;
 }
 
+/* A second profile whose length differs from the first: bad input, naming both files. */
+static int report_length_mismatch(sc_error *err, const char *path, int n, int n_main, const char *main_path)
+{
+    sc_error_set(err, SC_E_INPUT, path, 0, "%d points, but %s has %d: not the same profile", n,
+                 main_path, n_main);
+    return cli_report(err);
+}
+
 sc_status profile_plot_write(const char *path, const sc_profile_result *a,
                              const sc_profile_result *truth, const sc_profile_result *cmp,
                              const profile_plot_opts *o, sc_error *err)
@@ -243,8 +251,13 @@ int cmd_plot_profile(int argc, char **argv)
         return cli_report(&err);
     int rc = CLI_OK;
     if ((tpath && sc_profile_read_result(tpath, &t, &err) != SC_OK) ||
-        (cpath && sc_profile_read_result(cpath, &c, &err) != SC_OK) ||
-        profile_plot_write(out, &a, tpath ? &t : NULL, cpath ? &c : NULL, &o, &err) != SC_OK)
+        (cpath && sc_profile_read_result(cpath, &c, &err) != SC_OK))
+        rc = cli_report(&err);
+    else if (tpath && t.n != a.n)
+        rc = report_length_mismatch(&err, tpath, t.n, a.n, in);
+    else if (cpath && c.n != a.n)
+        rc = report_length_mismatch(&err, cpath, c.n, a.n, in);
+    else if (profile_plot_write(out, &a, tpath ? &t : NULL, cpath ? &c : NULL, &o, &err) != SC_OK)
         rc = cli_report(&err);
     sc_profile_result_free(&a);
     sc_profile_result_free(&t);

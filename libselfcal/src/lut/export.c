@@ -11,6 +11,7 @@
  * Each exporter computes its table values, quantizes them to the format's unit, clips them to the
  * limit, then evaluates the controller's interpolation of exactly those values on a fine sampling
  * of the map (nodes and 4 x 4 sub-points per cell) against our bilinear map. */
+#include <limits.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -162,9 +163,12 @@ static void residual(const sc_lut *lut, const int *comps, int ncomp, double sign
 }
 
 /* Number of points and end of a 1-D table covering [lo, hi] with spacing step. */
+/* Points of a table from lo to at least hi at this step; saturates at INT_MAX (every caller
+ * then refuses it against its controller's limit) instead of overflowing. */
 static int cover_points(double lo, double hi, double step)
 {
-    return 1 + (int)ceil((hi - lo) / step - 1e-9);
+    double q = ceil((hi - lo) / step - 1e-9);
+    return q < (double)INT_MAX - 1.0 ? 1 + (int)q : INT_MAX;
 }
 
 static const char *axis_upper(int axis)
@@ -215,7 +219,8 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
     if (o->interval_mm > 0) {
         c.interval = llround(o->interval_mm * 1e4);
         if (c.interval < 1)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0, "beckhoff: interval below 0.1 um");
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "beckhoff: --interval %g mm is below 0.1 um", o->interval_mm);
     } else {
         c.interval = llround(fmin(lut->px_mm, lut->py_mm) * 1e4);
         if (c.interval < 1)
@@ -230,7 +235,7 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
     }
     for (int a = 0; a < 2; ++a) {
         double span = (a == 0 ? x1 : y1) * 1e4 - (double)c.start[a];
-        c.n[a] = 1 + (int)ceil(span / (double)c.interval - 1e-9);
+        c.n[a] = cover_points(0.0, span, (double)c.interval);
         if (c.n[a] < 2)
             c.n[a] = 2;
         if (c.n[a] > SC_EXPORT_BECKHOFF_MAX_POINTS)
@@ -523,9 +528,12 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the map needs at least 2 x 2 nodes");
     if (!(o->interval_mm >= 0) || !isfinite(o->interval_mm) || !(o->limit_um >= 0) ||
         !isfinite(o->limit_um))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval and limit must be >= 0");
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "--interval and --limit-um must be finite and >= 0");
     if (o->interval_mm > 0 && o->interval_mm < 1e-4)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval below 0.1 um");
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "--interval %g mm is below the 0.1 um resolution of the tables",
+                            o->interval_mm);
     textbuf t = {0};
     sc_status st;
     switch (o->format) {

@@ -6,6 +6,7 @@
 
 #include "selfcal/correct.h"
 #include "selfcal/csv.h"
+#include "../core/lut_format.h"
 #include "selfcal/lut.h"
 
 /* Regularity tolerance: a node may sit this fraction of a pitch off the fitted regular grid
@@ -37,6 +38,29 @@ static int find_column(const sc_csv *r, const char *name)
  * Regularity is judged against the line through the points with the smallest and largest k
  * (first of each), so that one bad point shows up alone; *bad = index of the deviating point with
  * the smallest line number (or -1). The returned a, b are the least-squares line over all points. */
+/* Physical ranges, checked where the file is read so that the message names the line: a
+ * position within 1 km (the table's own limit), an error within 1 m (far beyond any stage; it
+ * keeps every encoding and exporter away from integer overflow). */
+#define LUT_CSV_MAX_POS_MM 1.0e6
+#define LUT_CSV_MAX_ERR_UM 1.0e6
+
+static sc_status check_position(const char *path, long line, const char *name, double v,
+                                sc_error *err)
+{
+    if (v >= -LUT_CSV_MAX_POS_MM && v <= LUT_CSV_MAX_POS_MM)
+        return SC_OK;
+    return sc_error_set(err, SC_E_INPUT, path, line, "%s = %g mm is outside +-1 km", name, v);
+}
+
+static sc_status check_error(const char *path, long line, const char *name, double v,
+                             sc_error *err)
+{
+    if (v >= -LUT_CSV_MAX_ERR_UM && v <= LUT_CSV_MAX_ERR_UM)
+        return SC_OK;
+    return sc_error_set(err, SC_E_INPUT, path, line,
+                        "%s = %g um is not a plausible stage error (|value| <= 1 m)", name, v);
+}
+
 static void fit_line(const double *k, const double *v, const long *lines, size_t n, double tol_frac,
                      double *a, double *b, double *dev, long *bad)
 {
@@ -127,6 +151,11 @@ sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err)
             (st = sc_csv_double(&r, 4, "gx_um", &gx, err)) != SC_OK ||
             (st = sc_csv_double(&r, 5, "gy_um", &gy, err)) != SC_OK)
             goto done;
+        if ((st = check_position(path, r.line, "x_mm", x, err)) != SC_OK ||
+            (st = check_position(path, r.line, "y_mm", y, err)) != SC_OK ||
+            (st = check_error(path, r.line, "gx_um", gx, err)) != SC_OK ||
+            (st = check_error(path, r.line, "gy_um", gy, err)) != SC_OK)
+            goto done;
         if (i < 0 || j < 0 || i >= SC_LUT_MAX_NY || j >= SC_LUT_MAX_NX) {
             st = sc_error_set(err, SC_E_INPUT, path, r.line,
                               "node (%ld,%ld) outside the supported grid (i < %d, j < %d)", i, j,
@@ -185,6 +214,10 @@ sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err)
         st = sc_error_set(err, SC_E_INPUT, path, 0, "x_mm does not increase with j (pitch %g mm)", px);
         goto done;
     }
+    if (!(px >= SC_LUTF_MIN_PITCH_MM)) {
+        st = sc_error_set(err, SC_E_INPUT, path, 0, "x pitch %g mm is below the table's 1 nm", px);
+        goto done;
+    }
     if (worst >= 0) {
         st = sc_error_set(err, SC_E_INPUT, path, lines[worst],
                           "irregular grid: x_mm is %.3g mm off the regular grid (pitch %.6f mm)",
@@ -201,6 +234,10 @@ sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err)
     fit_line(kk, vv, lines, n, SC_LUT_REGULAR_TOL, &y0, &py, &dev, &worst);
     if (!(py > 0)) {
         st = sc_error_set(err, SC_E_INPUT, path, 0, "y_mm does not increase with i (pitch %g mm)", py);
+        goto done;
+    }
+    if (!(py >= SC_LUTF_MIN_PITCH_MM)) {
+        st = sc_error_set(err, SC_E_INPUT, path, 0, "y pitch %g mm is below the table's 1 nm", py);
         goto done;
     }
     if (worst >= 0) {
@@ -292,7 +329,9 @@ sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profil
                               "empty ey_um cell before further values (only trailing cells may be empty)");
             goto done;
         }
-        if ((st = sc_csv_double(&r, ce, "ey_um", &e, err)) != SC_OK)
+        if ((st = sc_csv_double(&r, ce, "ey_um", &e, err)) != SC_OK ||
+            (st = check_position(path, r.line, "x_mm", x, err)) != SC_OK ||
+            (st = check_error(path, r.line, "ey_um", e, err)) != SC_OK)
             goto done;
         if (count >= SC_LUT_MAX_PROFILE_POINTS) {
             st = sc_error_set(err, SC_E_INPUT, path, r.line, "more than %d profile points",

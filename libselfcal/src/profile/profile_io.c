@@ -12,6 +12,10 @@
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 
+/* Plausibility bound of every number read (µm, µrad, mm): 1e6 is 1 m of displacement, 1 rad of
+ * angle, 1 km of length. Beyond it nothing is a measurement, and the arithmetic could overflow. */
+#define PROFILE_IO_MAX_ABS 1.0e6
+
 /* Upper bound on N, so that a typo cannot ask for terabytes. */
 #define SC_PROFILE_MAX_N 100000000
 
@@ -236,6 +240,11 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
                               dst == &s_val ? "positive" : "non-negative");
             goto fail;
         }
+        if (*dst > PROFILE_IO_MAX_ABS) {
+            st = sc_error_set(err, SC_E_INPUT, P, r.line, "%s = %s is beyond any real set-up", key,
+                              val);
+            goto fail;
+        }
     }
     if (rc < 0) {
         st = err ? err->code : SC_E_INPUT;
@@ -321,6 +330,13 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
             (st = sc_csv_double(&r, 3, "m2_um", &v2, err)) != SC_OK ||
             (st = sc_csv_double(&r, 4, "m3_urad", &v3, err)) != SC_OK)
             goto fail;
+        if (!(fabs(v1) <= PROFILE_IO_MAX_ABS && fabs(v2) <= PROFILE_IO_MAX_ABS &&
+              fabs(v3) <= PROFILE_IO_MAX_ABS)) {
+            st = sc_error_set(err, SC_E_INPUT, P, r.line,
+                              "a reading beyond 1 m (m1_um, m2_um) or 1 rad (m3_urad) is not a "
+                              "sensor reading");
+            goto fail;
+        }
         if (k != 1 && k != 2) {
             st = sc_error_set(err, SC_E_INPUT, P, r.line, "scan %ld: only scans 1 and 2 exist", k);
             goto fail;
@@ -541,6 +557,11 @@ sc_status sc_profile_read_result(const char *path, sc_profile_result *out, sc_er
             if (col[j] >= 0 && !is_blank_str(r.field[col[j]]))
                 if ((st = sc_csv_double(&r, col[j], names[j], &v, err)) != SC_OK)
                     goto fail;
+            if (!(fabs(v) <= PROFILE_IO_MAX_ABS) && !isnan(v)) {
+                st = sc_error_set(err, SC_E_INPUT, r.path, r.line,
+                                  "%s = %g is beyond 1 m (or 1 km for x_mm)", names[j], v);
+                goto fail;
+            }
             dst[j - 1][count] = v;
         }
         ++count;
