@@ -22,7 +22,7 @@ int main(int argc, char **argv)
     int help, version;
     sc_config_defaults(&g_cfg);
     if (sc_config_parse_args(&g_cfg, argc, argv, &help, &version, why, sizeof why) != 0) {
-        fprintf(stderr, "selfcald: %s\n%s", why, sc_config_usage);
+        fprintf(stderr, "selfcald: %s (selfcald --help)\n", why);
         return 2;
     }
     if (help) {
