@@ -131,23 +131,15 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
     double *fx = truth->gx_um, *fy = truth->gy_um;
     sc_grid_gauge_stage(plan, fx, fy);
     /* Remove O and R components of F: the patterns (y, x) and (x, −y), orthogonal to the gauge. */
-    double so = 0, sr = 0, r2 = 0, first2 = 0, f2 = 0;
+    double O_f, R_f, first2 = 0, f2 = 0;
+    sc_grid_first_order(plan, fx, fy, &O_f, &R_f); /* dimensionless; x, y in mm -> ×1e3 µm */
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             double x, y;
             sc_grid_node_xy_mm(plan, i, j, &x, &y);
             int k = i * n + j;
-            so += y * fx[k] + x * fy[k];
-            sr += x * fx[k] - y * fy[k];
-            r2 += x * x + y * y;
-        }
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            double x, y;
-            sc_grid_node_xy_mm(plan, i, j, &x, &y);
-            int k = i * n + j;
-            fx[k] -= (so * y + sr * x) / r2;
-            fy[k] -= (so * x - sr * y) / r2;
+            fx[k] -= (O_f * y + R_f * x) * 1e3;
+            fy[k] -= (O_f * x - R_f * y) * 1e3;
             f2 += fx[k] * fx[k] + fy[k] * fy[k];
             double gx1 = (sp->O * y + sp->R * x) * 1e3, gy1 = (sp->O * x - sp->R * y) * 1e3;
             first2 += gx1 * gx1 + gy1 * gy1;
