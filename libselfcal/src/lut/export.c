@@ -530,6 +530,9 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
         !isfinite(o->limit_um))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "--interval and --limit-um must be finite and >= 0");
+    if (o->interval_mm > 1e6)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "--interval %g mm is beyond 1 km",
+                            o->interval_mm);
     if (o->interval_mm > 0 && o->interval_mm < 1e-4)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "--interval %g mm is below the 0.1 um resolution of the tables",
