@@ -16,6 +16,12 @@ extern "C" {
 #endif
 
 #define SC_CSV_MAX_FIELDS 64
+
+/* Plausibility bound of any number read from an input file, in the file's own unit: 1e6 µm is
+ * 1 m of error, 1e6 mm is 1 km of travel, 1e6 µrad is 1 rad. Beyond it nothing is a measurement
+ * of a stage, and encodings, exporters and solvers could overflow: readers refuse such values
+ * as bad input at their line. */
+#define SC_INPUT_MAX_ABS 1.0e6
 #define SC_CSV_MAX_LINE 65536
 
 typedef struct sc_csv {

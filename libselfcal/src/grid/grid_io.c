@@ -775,9 +775,8 @@ sc_status sc_grid_read_map(const char *path, sc_grid_map *m, sc_error *err)
                 continue;
             if ((st = sc_csv_double(&r, k, names[k], &row->v[k - 2], err)) != SC_OK)
                 goto fail;
-            /* positions within 1 km, errors and uncertainties within 1 m: beyond that nothing is
-             * a stage, and plots or tables would overflow */
-            if (!(fabs(row->v[k - 2]) <= 1e6)) {
+            /* positions within 1 km, errors and uncertainties within 1 m */
+            if (!(fabs(row->v[k - 2]) <= SC_INPUT_MAX_ABS)) {
                 st = sc_error_set(err, SC_E_INPUT, path, r.line,
                                   "%s = %g is beyond %s", names[k], row->v[k - 2],
                                   k < 4 ? "1 km" : "1 m: not a plausible stage error");

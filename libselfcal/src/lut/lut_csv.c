@@ -38,16 +38,13 @@ static int find_column(const sc_csv *r, const char *name)
  * Regularity is judged against the line through the points with the smallest and largest k
  * (first of each), so that one bad point shows up alone; *bad = index of the deviating point with
  * the smallest line number (or -1). The returned a, b are the least-squares line over all points. */
-/* Physical ranges, checked where the file is read so that the message names the line: a
- * position within 1 km (the table's own limit), an error within 1 m (far beyond any stage; it
- * keeps every encoding and exporter away from integer overflow). */
-#define LUT_CSV_MAX_POS_MM 1.0e6
-#define LUT_CSV_MAX_ERR_UM 1.0e6
+/* Physical ranges (SC_INPUT_MAX_ABS), checked where the file is read so that the message names
+ * the line: a position within 1 km (the table's own limit), an error within 1 m. */
 
 static sc_status check_position(const char *path, long line, const char *name, double v,
                                 sc_error *err)
 {
-    if (v >= -LUT_CSV_MAX_POS_MM && v <= LUT_CSV_MAX_POS_MM)
+    if (v >= -SC_INPUT_MAX_ABS && v <= SC_INPUT_MAX_ABS)
         return SC_OK;
     return sc_error_set(err, SC_E_INPUT, path, line, "%s = %g mm is outside +-1 km", name, v);
 }
@@ -55,7 +52,7 @@ static sc_status check_position(const char *path, long line, const char *name, d
 static sc_status check_error(const char *path, long line, const char *name, double v,
                              sc_error *err)
 {
-    if (v >= -LUT_CSV_MAX_ERR_UM && v <= LUT_CSV_MAX_ERR_UM)
+    if (v >= -SC_INPUT_MAX_ABS && v <= SC_INPUT_MAX_ABS)
         return SC_OK;
     return sc_error_set(err, SC_E_INPUT, path, line,
                         "%s = %g um is not a plausible stage error (|value| <= 1 m)", name, v);

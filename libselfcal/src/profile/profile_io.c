@@ -12,10 +12,6 @@
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 
-/* Plausibility bound of every number read (µm, µrad, mm): 1e6 is 1 m of displacement, 1 rad of
- * angle, 1 km of length. Beyond it nothing is a measurement, and the arithmetic could overflow. */
-#define PROFILE_IO_MAX_ABS 1.0e6
-
 /* Upper bound on N, so that a typo cannot ask for terabytes. */
 #define SC_PROFILE_MAX_N 100000000
 
@@ -240,7 +236,7 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
                               dst == &s_val ? "positive" : "non-negative");
             goto fail;
         }
-        if (*dst > PROFILE_IO_MAX_ABS) {
+        if (*dst > SC_INPUT_MAX_ABS) {
             st = sc_error_set(err, SC_E_INPUT, P, r.line, "%s = %s is beyond any real set-up", key,
                               val);
             goto fail;
@@ -330,8 +326,8 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
             (st = sc_csv_double(&r, 3, "m2_um", &v2, err)) != SC_OK ||
             (st = sc_csv_double(&r, 4, "m3_urad", &v3, err)) != SC_OK)
             goto fail;
-        if (!(fabs(v1) <= PROFILE_IO_MAX_ABS && fabs(v2) <= PROFILE_IO_MAX_ABS &&
-              fabs(v3) <= PROFILE_IO_MAX_ABS)) {
+        if (!(fabs(v1) <= SC_INPUT_MAX_ABS && fabs(v2) <= SC_INPUT_MAX_ABS &&
+              fabs(v3) <= SC_INPUT_MAX_ABS)) {
             st = sc_error_set(err, SC_E_INPUT, P, r.line,
                               "a reading beyond 1 m (m1_um, m2_um) or 1 rad (m3_urad) is not a "
                               "sensor reading");
@@ -557,7 +553,7 @@ sc_status sc_profile_read_result(const char *path, sc_profile_result *out, sc_er
             if (col[j] >= 0 && !is_blank_str(r.field[col[j]]))
                 if ((st = sc_csv_double(&r, col[j], names[j], &v, err)) != SC_OK)
                     goto fail;
-            if (!(fabs(v) <= PROFILE_IO_MAX_ABS) && !isnan(v)) {
+            if (!(fabs(v) <= SC_INPUT_MAX_ABS) && !isnan(v)) {
                 st = sc_error_set(err, SC_E_INPUT, r.path, r.line,
                                   "%s = %g is beyond 1 m (or 1 km for x_mm)", names[j], v);
                 goto fail;
