@@ -1,5 +1,3 @@
 # Least-squares grid estimator: create/solve time and peak memory for N = 25, 51, 101.
-if(TARGET selfcal_grid)
-  add_executable(bench_grid_lsq ${CMAKE_CURRENT_SOURCE_DIR}/bench_grid_lsq.c)
-  target_link_libraries(bench_grid_lsq PRIVATE selfcal_grid m)
-endif()
+add_executable(bench_grid_lsq ${CMAKE_CURRENT_SOURCE_DIR}/bench_grid_lsq.c)
+target_link_libraries(bench_grid_lsq PRIVATE selfcal_static m)

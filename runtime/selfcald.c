@@ -8,6 +8,7 @@
 #include "log.h"
 #include "modbus_map.h"
 #include "sd_notify.h"
+#include "selfcal/version.h"
 #include "transport_modbus.h"
 #ifdef SELFCALD_HAVE_CAN
 #include "transport_can.h"
@@ -30,7 +31,7 @@ int main(int argc, char **argv)
         return 0;
     }
     if (version) {
-        puts("selfcald 0.1.0");
+        printf("selfcald %s\n", sc_version());
         return 0;
     }
     sc_log_open_at(g_cfg.use_syslog, g_cfg.log_level, g_cfg.syslog_socket);

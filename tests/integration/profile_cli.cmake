@@ -5,7 +5,7 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   set(_profile_cli_py ${CMAKE_CURRENT_SOURCE_DIR}/integration/profile_cli/profile_cli_test.py)
   function(profile_cli_test name)
     add_test(NAME ${name} COMMAND ${SELFCAL_PYTHON3} ${_profile_cli_py} $<TARGET_FILE:selfcal_cli>
-             ${CMAKE_CURRENT_BINARY_DIR}/tmp ${SELFCAL_SHARED_DIR} ${ARGN})
+             ${CMAKE_CURRENT_BINARY_DIR}/tmp ${SELFCAL_TEST_DATA_DIR} ${ARGN})
     set_tests_properties(${name} PROPERTIES TIMEOUT 120 LABELS "integration;profile")
   endfunction()
   profile_cli_test(profile_cli_bad_input bad_input)

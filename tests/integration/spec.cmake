@@ -1,5 +1,5 @@
 # SPEC conformance suite (black box): uses only the commands, file formats and wire maps of
-# /work/shared/SPEC.md, with independent Python (stdlib) parsers, forward models and a raw-socket
+# the interface contract (docs/formats.md is the project's own reference of it), with independent Python (stdlib) parsers, forward models and a raw-socket
 # Modbus TCP client. Label: spec.
 find_program(SELFCAL_SPEC_PYTHON3 python3)
 if(SELFCAL_SPEC_PYTHON3 AND TARGET selfcal_cli)

@@ -1,6 +1,6 @@
 # The correction core (selfcal/correct.h): host unit tests. The same test file also runs on an
 # emulated Cortex-M4, see tests/cortex-m/cortex-m.cmake.
-selfcal_unit_test(NAME test_core SOURCES unit/test_core.c LIBS selfcal_core LABELS core TIMEOUT 60)
+selfcal_unit_test(NAME test_core SOURCES unit/test_core.c LIBS selfcal_static LABELS core TIMEOUT 60)
 
 # Cortex-M4F cross build of the core (prints its code and data size) and the same unit tests on
 # QEMU mps2-an386 with semihosting. scripts/build-cortex-m.sh does the work.

@@ -1,8 +1,6 @@
 # Fast profile least squares (selfcal/profile_lsq.h) against truth, the dense LAPACK reference,
 # Monte Carlo and a long-double computation at N = 10⁶.
-if(TARGET selfcal_profile AND TARGET PkgConfig::LAPACKE)
-  selfcal_unit_test(NAME test_profile_lsq
-    SOURCES unit/test_profile_lsq.c unit/profile_lsq_dense.c
-    LIBS selfcal_profile PkgConfig::LAPACKE
-    LABELS profile TIMEOUT 120)
-endif()
+selfcal_unit_test(NAME test_profile_lsq
+  SOURCES unit/test_profile_lsq.c unit/profile_lsq_dense.c
+  LIBS selfcal_static PkgConfig::LAPACKE
+  LABELS profile TIMEOUT 120)

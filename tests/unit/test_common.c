@@ -14,6 +14,7 @@
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/rng.h"
+#include "selfcal/version.h"
 
 static void write_text(const char *path, const char *text, size_t len)
 {
@@ -200,6 +201,16 @@ static void test_rng(void **state)
     assert_true(fabs(var - 1.0) < 0.01);
 }
 
+/* sc_version() is the number of the generated header, which is project(VERSION)'s. */
+static void test_version(void **state)
+{
+    (void)state;
+    char want[64];
+    snprintf(want, sizeof want, "%d.%d.%d", SC_VERSION_MAJOR, SC_VERSION_MINOR, SC_VERSION_PATCH);
+    assert_string_equal(sc_version(), want);
+    assert_string_equal(SC_VERSION_STRING, want);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -209,6 +220,7 @@ int main(void)
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
         cmocka_unit_test(test_rng),
+        cmocka_unit_test(test_version),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -18,7 +18,7 @@
 #include "selfcal/profile_sim.h"
 
 #define TMP SELFCAL_TEST_TMP
-#define DABAM SELFCAL_SHARED_DIR "/data/dabam/"
+#define DABAM SELFCAL_TEST_DATA_DIR "/dabam/"
 
 /* Simulate a noise-free measurement of f with stage and zero-point errors; reconstruct it with
  * method; return the worst |f - f_true| and |e_y - e_y true| (µm). */

@@ -189,7 +189,7 @@ static void test_noise_free_simulated(void **state)
 static int read_dabam(const char *id, double **h_out)
 {
     char path[512], buf[4096];
-    snprintf(path, sizeof path, "%s/data/dabam/dabam-%s.txt", SELFCAL_SHARED_DIR, id);
+    snprintf(path, sizeof path, "%s/dabam/dabam-%s.txt", SELFCAL_TEST_DATA_DIR, id);
     FILE *fp = fopen(path, "r");
     assert_non_null(fp);
     size_t len = fread(buf, 1, sizeof buf - 1, fp);
@@ -207,7 +207,7 @@ static int read_dabam(const char *id, double **h_out)
     }
     int header = (int)v[0], slopes = (int)v[3] == 1 || (int)v[3] == 3;
     assert_true((int)v[3] >= 1 && (int)v[3] <= 4);
-    snprintf(path, sizeof path, "%s/data/dabam/dabam-%s.dat", SELFCAL_SHARED_DIR, id);
+    snprintf(path, sizeof path, "%s/dabam/dabam-%s.dat", SELFCAL_TEST_DATA_DIR, id);
     fp = fopen(path, "r");
     assert_non_null(fp);
     int cap = 4096, n = 0, line = 0;

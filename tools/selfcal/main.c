@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "selfcal/version.h"
 
 int cli_report(const sc_error *err)
 {
@@ -61,7 +62,7 @@ int main(int argc, char **argv)
         return CLI_OK;
     }
     if (!strcmp(argv[1], "--version")) {
-        printf("selfcal 0.1.0\n");
+        printf("selfcal %s\n", sc_version());
         return CLI_OK;
     }
     for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k) {

@@ -6,6 +6,8 @@
 #ifndef SELFCAL_ATOMIC_FILE_H
 #define SELFCAL_ATOMIC_FILE_H
 
+#include "selfcal/api.h"
+
 #include <stdio.h>
 
 #include "selfcal/error.h"
@@ -21,25 +23,26 @@ typedef struct sc_afile {
 } sc_afile;
 
 /* Create the temporary file for path ("-" writes straight to stdout). */
-sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err);
+SC_API sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err);
 
 /* Flush, fsync, rename to the final name; on failure the temporary file is removed. */
-sc_status sc_afile_commit(sc_afile *f, sc_error *err);
+SC_API sc_status sc_afile_commit(sc_afile *f, sc_error *err);
 
 /* Discard everything written; the final name is untouched. Safe after commit (does nothing). */
-void sc_afile_abort(sc_afile *f);
+SC_API void sc_afile_abort(sc_afile *f);
 
 /* Commit n files as one group: flush and fsync every temporary file first and rename them into
  * place only if all were written completely; a write failure removes every temporary file and
  * touches no final name (a rename refused by the OS midway leaves the files renamed before it,
  * each complete). Entries that are not open (fp == NULL) are skipped. */
-sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err);
+SC_API sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err);
 
 /* Abort every open entry of f[0..n-1]. */
-void sc_afile_abort_all(sc_afile *f, int n);
+SC_API void sc_afile_abort_all(sc_afile *f, int n);
 
 /* Write len bytes to path atomically in one call. */
-sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, sc_error *err);
+SC_API sc_status sc_write_file_atomic(const char *path, const void *data, size_t len,
+                                      sc_error *err);
 
 #ifdef __cplusplus
 }

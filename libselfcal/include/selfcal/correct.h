@@ -13,6 +13,8 @@
 #ifndef SELFCAL_CORRECT_H
 #define SELFCAL_CORRECT_H
 
+#include "selfcal/api.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -131,28 +133,28 @@ enum {
 
 /* CRC-32 (IEEE 802.3 polynomial, reflected, initial and final XOR 0xFFFFFFFF: the zlib/PNG
  * CRC) of len bytes; the table file's checksum. crc32("123456789") = 0xCBF43926. */
-uint32_t sc_corr_crc32(const void *buf, size_t len);
+SC_API uint32_t sc_corr_crc32(const void *buf, size_t len);
 
 /* Validate a table image (the LUT file's bytes) and decode it into *t. On failure *t is marked
  * not loaded and the code says why. All the expensive work happens here, once. */
-int sc_corr_load(sc_corr_table *t, const void *buf, size_t len);
+SC_API int sc_corr_load(sc_corr_table *t, const void *buf, size_t len);
 
 /* Every format check of sc_corr_load (size, magic, version, CRC, ranges, layout) without decoding
  * and without this build's capacity limits: SC_CORR_OK or the first problem found. */
-int sc_corr_validate(const void *buf, size_t len);
+SC_API int sc_corr_validate(const void *buf, size_t len);
 
 /* A constant, one-line description of a load error code. */
-const char *sc_corr_strerror(int code);
+SC_API const char *sc_corr_strerror(int code);
 
 /* Correct one position (mm; z passes through unless a profile has DIR z). Returns status bits.
  * NaN or infinite input: out = in, SC_CORR_ST_INVALID set. Constant time, no allocation. */
-unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
-                       double out_mm[3]);
+SC_API unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
+                              double out_mm[3]);
 
 /* measure mode solved exactly: find p_true with p_true + G(p_true) + offsets = p by fixed-point
  * iteration (iterations: fixed count, e.g. 3). Returns status bits like sc_corr_apply. */
-unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3], double out_mm[3],
-                               int iterations);
+SC_API unsigned sc_corr_apply_inverse(const sc_corr_table *t, const double in_mm[3],
+                                      double out_mm[3], int iterations);
 
 #ifdef __cplusplus
 }

@@ -7,6 +7,8 @@
 #ifndef SELFCAL_CSV_H
 #define SELFCAL_CSV_H
 
+#include "selfcal/api.h"
+
 #include <stdio.h>
 
 #include "selfcal/error.h"
@@ -37,39 +39,40 @@ typedef struct sc_csv {
 
 /* Open an input file for reading (binary). A missing or unreadable file, or a directory, is bad
  * input (SC_E_INPUT: the user named the wrong thing); NULL with err set on failure. */
-FILE *sc_open_input(const char *path, sc_error *err);
+SC_API FILE *sc_open_input(const char *path, sc_error *err);
 
 /* Open path for reading ("-" reads stdin). */
-sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err);
+SC_API sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err);
 
 /* Close the file and free the line buffer; safe to call twice. */
-void sc_csv_close(sc_csv *r);
+SC_API void sc_csv_close(sc_csv *r);
 
 /* Read the next line into r->text: 1 = a line, 0 = end of file, -1 = error (err says which). */
-int sc_csv_next_line(sc_csv *r, sc_error *err);
+SC_API int sc_csv_next_line(sc_csv *r, sc_error *err);
 
 /* 1 if the current line is empty or only white space. */
-int sc_csv_is_blank(const sc_csv *r);
+SC_API int sc_csv_is_blank(const sc_csv *r);
 
 /* Split the current line at commas, trimming blanks around fields; returns the field count or -1. */
-int sc_csv_split(sc_csv *r, sc_error *err);
+SC_API int sc_csv_split(sc_csv *r, sc_error *err);
 
 /* Parse field k as a finite double; name is used in the error message. */
-sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, sc_error *err);
+SC_API sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out,
+                               sc_error *err);
 
 /* Parse field k as a whole number (decimal, optional sign). */
-sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out, sc_error *err);
+SC_API sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out, sc_error *err);
 
 /* Trim white space at both ends of s in place; returns the first non-blank character. */
-char *sc_str_trim(char *s);
+SC_API char *sc_str_trim(char *s);
 
 /* Parse s strictly as a finite double / a long; 0 on success, -1 otherwise. */
-int sc_parse_double(const char *s, double *out);
-int sc_parse_long(const char *s, long *out);
+SC_API int sc_parse_double(const char *s, double *out);
+SC_API int sc_parse_long(const char *s, long *out);
 
 /* For a header line "# key = value", copy the trimmed key and point *value at the trimmed value
  * (the value is the rest of the line with trailing blanks removed in place). 1 if it has that form. */
-int sc_header_kv(char *line, char *key, size_t keylen, char **value);
+SC_API int sc_header_kv(char *line, char *key, size_t keylen, char **value);
 
 #ifdef __cplusplus
 }

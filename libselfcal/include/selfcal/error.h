@@ -6,6 +6,8 @@
 #ifndef SELFCAL_ERROR_H
 #define SELFCAL_ERROR_H
 
+#include "selfcal/api.h"
+
 #include <stddef.h>
 
 #ifdef __cplusplus
@@ -29,21 +31,21 @@ typedef struct sc_error {
 } sc_error;
 
 /* Reset err to "no error"; err may be NULL. */
-void sc_error_clear(sc_error *err);
+SC_API void sc_error_clear(sc_error *err);
 
 /* Record an error (printf-style message) and return code; err may be NULL, file may be NULL. */
-sc_status sc_error_set(sc_error *err, sc_status code, const char *file, long line,
-                       const char *fmt, ...)
+SC_API sc_status sc_error_set(sc_error *err, sc_status code, const char *file, long line,
+                              const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 5, 6)))
 #endif
     ;
 
 /* Format err as "file:line: message" (or "file: message", or "message") into buf of size n. */
-void sc_error_format(const sc_error *err, char *buf, size_t n);
+SC_API void sc_error_format(const sc_error *err, char *buf, size_t n);
 
 /* A short constant name for a status ("bad input", "unsolvable", ...). */
-const char *sc_status_name(sc_status code);
+SC_API const char *sc_status_name(sc_status code);
 
 #ifdef __cplusplus
 }

@@ -9,6 +9,8 @@
 #ifndef SELFCAL_EXPORT_H
 #define SELFCAL_EXPORT_H
 
+#include "selfcal/api.h"
+
 #include "selfcal/error.h"
 #include "selfcal/lut.h"
 
@@ -56,15 +58,15 @@ typedef struct sc_export_report {
 } sc_export_report;
 
 /* Defaults: axis x, interval from the map, no line, format limits, AX1/AX2, axis numbers 1/2. */
-void sc_export_options_init(sc_export_options *o, sc_export_format format);
+SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format);
 
 /* "beckhoff", "siemens-cec", "linuxcnc" -> format; -1 if unknown. */
-int sc_export_format_from_name(const char *name);
+SC_API int sc_export_format_from_name(const char *name);
 
 /* Resample lut's grid (profiles are ignored) for the controller, write it atomically to path,
  * fill *rep. SC_E_INPUT for options the format cannot honour (e.g. more entries than it holds). */
-sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,
-                          sc_export_report *rep, sc_error *err);
+SC_API sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,
+                                 sc_export_report *rep, sc_error *err);
 
 #ifdef __cplusplus
 }

@@ -16,6 +16,8 @@
 #ifndef SELFCAL_GRID_H
 #define SELFCAL_GRID_H
 
+#include "selfcal/api.h"
+
 #include "selfcal/error.h"
 
 #ifdef __cplusplus
@@ -68,39 +70,39 @@ typedef struct sc_grid_result {
 /* ---- geometry (grid_geometry.c) ---- */
 
 /* Stage node where mark (i, j) lands in view v: 1 and (*ni, *nj) if on the grid, else 0. */
-int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj);
+SC_API int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj);
 
 /* 1 if view v measures mark (i, j): it lands on the grid and, if restricted, its row or column is selected. */
-int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
+SC_API int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
 
 /* Nominal node position relative to the grid centre, in mm: x = (j-c)P, y = (i-c)P. */
-void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
+SC_API void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
 
 /* Rotate a plate-frame vector (ax, ay) by rot_deg CCW into the stage frame. */
-void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy);
+SC_API void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy);
 
 /* Index of the first view with this rot and shift, or -1. */
-int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift_y);
+SC_API int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift_y);
 
 /* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, pitch > 0, rotations, shifts). */
-sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);
+SC_API sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);
 
 /* Forward model without noise: fill d->dx_um/dy_um (arrays provided by the caller) from a stage
  * error G (nodes), plate error A (marks, plate frame) and per-view misalignment. NaN where a view
  * does not measure a mark. */
-void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
-                        const double *ax_um, const double *ay_um, const double *tx_um,
-                        const double *ty_um, const double *theta_urad, sc_grid_data *d);
+SC_API void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                               const double *ax_um, const double *ay_um, const double *tx_um,
+                               const double *ty_um, const double *theta_urad, sc_grid_data *d);
 
 /* Remove translation, rotation and magnification from a stage map in place (the SPEC gauge). */
-void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx_um, double *gy_um);
+SC_API void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx_um, double *gy_um);
 
 /* Remove translation and rotation from a plate error map in place. */
-void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax_um, double *ay_um);
+SC_API void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax_um, double *ay_um);
 
 /* O and R of a stage map (Petrò eqs. 4-5). */
-void sc_grid_first_order(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
-                         double *O, double *R);
+SC_API void sc_grid_first_order(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                                double *O, double *R);
 
 #ifdef __cplusplus
 }

@@ -9,6 +9,8 @@
 #ifndef SELFCAL_GRID_EXACT_H
 #define SELFCAL_GRID_EXACT_H
 
+#include "selfcal/api.h"
+
 #include "selfcal/grid.h"
 
 #ifdef __cplusplus
@@ -23,16 +25,16 @@ typedef enum sc_grid_exact_method {
 typedef struct sc_grid_exact_plan sc_grid_exact_plan;
 
 /* Make a plan for method m and plate size n (Ye: n odd >= 3; double shift: n odd >= 9). */
-sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact_plan **out,
-                                    sc_error *err);
+SC_API sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact_plan **out,
+                                           sc_error *err);
 
 /* Separate G and A from d (its views are found by rot/shift; a missing or incomplete needed view
  * is SC_E_INPUT). Fills res (G, A, O, R, misalignments, residual RMS; uncertainties NaN). */
-sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d, sc_grid_result *res,
-                                sc_error *err);
+SC_API sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d,
+                                       sc_grid_result *res, sc_error *err);
 
 /* Free the plan (NULL is fine). */
-void sc_grid_exact_plan_destroy(sc_grid_exact_plan *p);
+SC_API void sc_grid_exact_plan_destroy(sc_grid_exact_plan *p);
 
 #ifdef __cplusplus
 }

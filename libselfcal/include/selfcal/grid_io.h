@@ -8,6 +8,8 @@
 #ifndef SELFCAL_GRID_IO_H
 #define SELFCAL_GRID_IO_H
 
+#include "selfcal/api.h"
+
 #include <stdio.h>
 
 #include "selfcal/grid.h"
@@ -28,47 +30,48 @@ typedef struct sc_grid_file_info {
 } sc_grid_file_info;
 
 /* Allocate d->dx_um/dy_um (n*n each, NaN-filled) for every view of d->plan. */
-sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err);
+SC_API sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err);
 
 /* Free the arrays of d (safe on a zeroed or already freed d). */
-void sc_grid_data_free(sc_grid_data *d);
+SC_API void sc_grid_data_free(sc_grid_data *d);
 
 /* Read a selfcal-grid v1 file (plan header, then optional column header and data rows).
  * Fills d->plan and allocates d's arrays: dev = (measured - nominal) in µm, NaN where a mark has no
  * row. info (may be NULL) says where things were. On failure d holds no memory. */
-sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *info, sc_error *err);
+SC_API sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *info,
+                              sc_error *err);
 
 /* Write the header of a selfcal-grid v1 file for plan p (version, N, pitch, origin, views with
  * rows=/cols= when restricted) to fp. */
-void sc_grid_write_header(FILE *fp, const sc_grid_plan *p);
+SC_API void sc_grid_write_header(FILE *fp, const sc_grid_plan *p);
 
 /* Write a selfcal-grid v1 input file: the header, the column header and one row per finite
  * measurement in d (measured position in mm = origin + node + dev/1000, 15 decimals). */
-sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err);
-void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d);
+SC_API sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err);
+SC_API void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d);
 
 /* Write a stage error map `i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um` (x, y: stage node positions
  * including the origin). ugx/ugy may be NULL; NaN uncertainties are written as empty fields. */
-sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, const double *gx_um,
-                            const double *gy_um, const double *ugx_um, const double *ugy_um,
-                            sc_error *err);
+SC_API sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, const double *gx_um,
+                                   const double *gy_um, const double *ugx_um, const double *ugy_um,
+                                   sc_error *err);
 
 /* The same to an open stream (the caller handles atomicity). */
-void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um, const double *gy_um,
-                        const double *ugx_um, const double *ugy_um);
+SC_API void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um,
+                               const double *gy_um, const double *ugx_um, const double *ugy_um);
 
 /* Write a plate error map `i,j,ax_um,ay_um` (plate frame). */
-sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p, const double *ax_um,
-                                 const double *ay_um, sc_error *err);
-void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_um,
-                             const double *ay_um);
+SC_API sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p,
+                                        const double *ax_um, const double *ay_um, sc_error *err);
+SC_API void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_um,
+                                    const double *ay_um);
 
 /* Write a JSON summary of a result: method, N, pitch, origin, O, R, each view's tx, ty (µm) and
  * θ (µrad), residual RMS, σ_r estimated and used, n_measurements, dof. NaN is written as null. */
-sc_status sc_grid_write_summary(const char *path, const char *method, const sc_grid_plan *p,
-                                const sc_grid_result *res, sc_error *err);
-void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
-                            const sc_grid_result *res);
+SC_API sc_status sc_grid_write_summary(const char *path, const char *method, const sc_grid_plan *p,
+                                       const sc_grid_result *res, sc_error *err);
+SC_API void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
+                                   const sc_grid_result *res);
 
 /* A stage error map as read back from a map file. Arrays n*n, row-major, owned by the struct. */
 typedef struct sc_grid_map {
@@ -83,10 +86,10 @@ typedef struct sc_grid_map {
 
 /* Read a map file written by sc_grid_write_map (or any file in that format: header line, one row
  * per node of an N x N grid, N odd). On failure m holds no memory. */
-sc_status sc_grid_read_map(const char *path, sc_grid_map *m, sc_error *err);
+SC_API sc_status sc_grid_read_map(const char *path, sc_grid_map *m, sc_error *err);
 
 /* Free a map read by sc_grid_read_map. */
-void sc_grid_map_free(sc_grid_map *m);
+SC_API void sc_grid_map_free(sc_grid_map *m);
 
 #ifdef __cplusplus
 }

@@ -9,6 +9,8 @@
 #ifndef SELFCAL_GRID_LSQ_H
 #define SELFCAL_GRID_LSQ_H
 
+#include "selfcal/api.h"
+
 #include "selfcal/grid.h"
 
 #ifdef __cplusplus
@@ -32,20 +34,21 @@ typedef struct sc_grid_lsq_info {
  * together, on marks that land on the grid: SC_E_INPUT otherwise). A plan that does not
  * identify G is not an error here: *out is made and its info says so. Cost ~N³ time, ~N² log N
  * memory (N = 101: ~0.6 s CPU, ~40 MiB); see docs/grid-lsq.md. */
-sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
-                             sc_error *err);
+SC_API sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask,
+                                    sc_grid_lsq **out, sc_error *err);
 
 /* The plan's analysis. */
-void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info);
+SC_API void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info);
 
 /* Per-node std(Gx)/σ_r and std(Gy)/σ_r (arrays n*n, caller-owned). SC_E_UNSOLVABLE if G is not identified. */
-sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy, sc_error *err);
+SC_API sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy,
+                                         sc_error *err);
 
 /* Estimate from data measured as the estimator was made for. sigma_r_um > 0: use it for the
  * uncertainties; otherwise the noise estimated from the residuals. SC_E_UNSOLVABLE if G is not
  * identified; SC_E_INPUT if d's measured marks differ from the estimator's. */
-sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
-                            sc_grid_result *res, sc_error *err);
+SC_API sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
+                                   sc_grid_result *res, sc_error *err);
 
 /* Internals of the sparse factorization, for benchmarks and diagnostics. */
 typedef struct sc_grid_lsq_stats {
@@ -64,10 +67,10 @@ typedef struct sc_grid_lsq_stats {
 } sc_grid_lsq_stats;
 
 /* Fill st with the estimator's internals. */
-void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st);
+SC_API void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st);
 
 /* Free the estimator (NULL is fine). */
-void sc_grid_lsq_destroy(sc_grid_lsq *q);
+SC_API void sc_grid_lsq_destroy(sc_grid_lsq *q);
 
 #ifdef __cplusplus
 }

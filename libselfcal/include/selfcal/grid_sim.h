@@ -19,6 +19,8 @@
 #ifndef SELFCAL_GRID_SIM_H
 #define SELFCAL_GRID_SIM_H
 
+#include "selfcal/api.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -52,24 +54,25 @@ typedef struct sc_grid_sim_truth {
 
 /* Petrò's values: σ_G 1 µm, ρ 0.9, O = R = 1e-5, σ_A 1 µm, σ_t 0.1 µm, σ_θ 100 µrad,
  * σ_r 0.01 µm, seed 1. */
-void sc_grid_sim_defaults(sc_grid_sim_params *sp);
+SC_API void sc_grid_sim_defaults(sc_grid_sim_params *sp);
 
 /* Workspace needed by sc_grid_sim_run for plate size n, in doubles. */
-size_t sc_grid_sim_work_doubles(int n);
+SC_API size_t sc_grid_sim_work_doubles(int n);
 
 /* The standard plans: Ye {rot 0}, {rot 90}, {shift +1,0}; double shift {rot 0}, {rot 90},
  * {shift +2,0}, {shift -3,0 rows=c cols=c,c+1}. SC_E_INPUT if n is not valid for the plan. */
-sc_status sc_grid_plan_ye(int n, double pitch_mm, double origin_x_mm, double origin_y_mm,
-                          sc_grid_plan *p, sc_error *err);
-sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double origin_x_mm,
-                                    double origin_y_mm, sc_grid_plan *p, sc_error *err);
+SC_API sc_status sc_grid_plan_ye(int n, double pitch_mm, double origin_x_mm, double origin_y_mm,
+                                 sc_grid_plan *p, sc_error *err);
+SC_API sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double origin_x_mm,
+                                           double origin_y_mm, sc_grid_plan *p, sc_error *err);
 
 /* Simulate: fill truth and d (d->plan must equal *plan's content and d's arrays be allocated,
  * e.g. with sc_grid_data_alloc). work: sc_grid_sim_work_doubles(plan->n) doubles.
  * SC_E_INPUT for invalid parameters (|ρ| >= 1, negative σ, or σ_G too small to hold the
  * requested O and R). */
-sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
-                          sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err);
+SC_API sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                                 sc_grid_sim_truth *truth, sc_grid_data *d, double *work,
+                                 sc_error *err);
 
 #ifdef __cplusplus
 }

@@ -7,6 +7,8 @@
 #ifndef SELFCAL_LUT_H
 #define SELFCAL_LUT_H
 
+#include "selfcal/api.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -66,51 +68,53 @@ typedef struct sc_lut {
 } sc_lut;
 
 /* Reset to an empty table: no grid, no profiles, no provenance (sigma unknown). */
-void sc_lut_init(sc_lut *lut);
+SC_API void sc_lut_init(sc_lut *lut);
 
 /* Read a SPEC §1 stage error map (`i,j,x_mm,y_mm,gx_um,gy_um[,...]`) into the grid of lut:
  * nx, ny, origin and pitch are derived from x_mm/y_mm; the grid must be complete and regular.
  * SC_E_INPUT with file and line on any problem. */
-sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err);
+SC_API sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err);
 
 /* Read the ey_um column of a SPEC §2 profile output file (`n,x_mm,f_um,uf_um,ey_um`) as the
  * error of coordinate dir along axis; trailing empty ey cells are dropped, an empty cell between
  * values is an error. Positions come from x_mm (must be regular). */
-sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profile *p,
-                              sc_error *err);
+SC_API sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profile *p,
+                                     sc_error *err);
 
 /* Parse "x", "y" or "z" (either case) to SC_CORR_AXIS_*; -1 otherwise. */
-int sc_lut_axis_from_name(const char *s);
+SC_API int sc_lut_axis_from_name(const char *s);
 
 /* "x", "y" or "z". */
-const char *sc_lut_axis_name(int axis);
+SC_API const char *sc_lut_axis_name(int axis);
 
 /* The exact size in bytes of lut encoded with the given encoding. */
-size_t sc_lut_encoded_size(const sc_lut *lut, sc_lut_encoding enc);
+SC_API size_t sc_lut_encoded_size(const sc_lut *lut, sc_lut_encoding enc);
 
 /* Encode lut into buf (capacity cap bytes) as a version-1 table; *len = bytes written. Chooses
  * each block's scale (smallest of 1-2-5 x 10^k pm that holds the block's largest value) and
  * stores it, with the encoding, back into lut. The result is checked with sc_corr_validate. */
-sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t cap, size_t *len,
-                        sc_error *err);
+SC_API sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t cap,
+                               size_t *len, sc_error *err);
 
 /* Decode a table image (validated with sc_corr_validate; SC_E_INPUT and the reason if invalid,
  * `name` used as the file name in the message). Values are code * scale, exactly. */
-sc_status sc_lut_decode(const uint8_t *buf, size_t len, sc_lut *lut, const char *name,
-                        sc_error *err);
+SC_API sc_status sc_lut_decode(const uint8_t *buf, size_t len, sc_lut *lut, const char *name,
+                               sc_error *err);
 
 /* Encode and write atomically to path (temporary file, fsync, rename). */
-sc_status sc_lut_write_file(const char *path, sc_lut *lut, sc_lut_encoding enc, sc_error *err);
+SC_API sc_status sc_lut_write_file(const char *path, sc_lut *lut, sc_lut_encoding enc,
+                                   sc_error *err);
 
 /* Read and decode a table file. */
-sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err);
+SC_API sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err);
 
 /* The quantization bound of a block: half its scale, in micrometres. */
-double sc_lut_quantization_um(uint32_t scale_pm);
+SC_API double sc_lut_quantization_um(uint32_t scale_pm);
 
 /* Bilinear G of the grid at (x, y) mm, in double precision (um); outside the grid the value at
  * the nearest edge point. Returns 1 if (x, y) was outside. The reference for the exporters. */
-int sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um, double *gy_um);
+SC_API int sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um,
+                            double *gy_um);
 
 #ifdef __cplusplus
 }

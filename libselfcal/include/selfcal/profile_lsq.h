@@ -9,6 +9,8 @@
 #ifndef SELFCAL_PROFILE_LSQ_H
 #define SELFCAL_PROFILE_LSQ_H
 
+#include "selfcal/api.h"
+
 #include "selfcal/error.h"
 
 #ifdef __cplusplus
@@ -20,12 +22,12 @@ typedef struct sc_profile_lsq sc_profile_lsq;
 /* 1 if (n, d1, d2) can be solved by least squares, else 0 and a reason in err (SC_E_INPUT).
  * Exact condition (docs/profile-lsq.md): d1, d2 >= 1, gcd(d1, d2) = 1 and N >= d1 + d2 (at
  * N = d1 + d2 the fit is exactly determined: no redundancy, wrss = 0). d = 1 is allowed. */
-int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err);
+SC_API int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err);
 
 /* Factor the problem in O(N·d²) time, O(N·d) memory (d = max(d1, d2); 8·N·(d+1) bytes for the
  * factor). w1, w2 > 0: weights of scans 1 and 2 (1/µm²); only their ratio changes f. */
-sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
-                                sc_error *err);
+SC_API sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2,
+                                       sc_profile_lsq **out, sc_error *err);
 
 /* Flags of sc_profile_lsq_create_ex. */
 #define SC_PROFILE_LSQ_PORTABLE 1u /* portable kernels even where AVX2/FMA ones exist (testing) */
@@ -43,31 +45,32 @@ sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_
                                         finishes in O(N). +8·N bytes. Identical results. */
 
 /* sc_profile_lsq_create with flags (0 or an OR of the SC_PROFILE_LSQ_* flags above). */
-sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,
-                                   sc_profile_lsq **out, sc_error *err);
+SC_API sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2,
+                                          unsigned flags, sc_profile_lsq **out, sc_error *err);
 
 /* Degrees of freedom of the fit, N - d1 - d2 (observations minus determined unknowns): divide the
  * weighted residual sum of squares by it to estimate the noise scale (0: no estimate possible). */
-int sc_profile_lsq_dof(const sc_profile_lsq *p);
+SC_API int sc_profile_lsq_dof(const sc_profile_lsq *p);
 
 /* 1 if the plan runs the AVX2/FMA kernels, 0 if the portable ones. */
-int sc_profile_lsq_uses_simd(const sc_profile_lsq *p);
+SC_API int sc_profile_lsq_uses_simd(const sc_profile_lsq *p);
 
 /* Solve: y1 (n-d1 values), y2 (n-d2 values) in µm -> f (n values, µm, relative to its LS line),
  * c (2 values, µm, the offsets c1, c2 that go with that f; may be NULL), weighted residual sum of
  * squares Σ w_k·r² (may be NULL). O(N·d); the plan is not modified (concurrent calls are fine).
  * A non-finite y -> SC_E_INPUT. */
-sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, const double *y2_um,
-                               double *f_um, double *c_um, double *wrss, sc_error *err);
+SC_API sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um,
+                                      const double *y2_um, double *f_um, double *c_um, double *wrss,
+                                      sc_error *err);
 
 /* Standard uncertainty of every f(n) (n values, µm) given the weights the plan was made with
  * (weights = 1/σ² of y_k in 1/µm²), i.e. sqrt of the diagonal of the estimator covariance in the
  * least-squares-line gauge; O(N·d²) time (selected inversion), O(d²) temporary memory.
  * Multiply by sqrt(wrss/dof) for the noise estimated from the residuals. */
-sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_error *err);
+SC_API sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_error *err);
 
 /* Free the plan (NULL is fine). */
-void sc_profile_lsq_destroy(sc_profile_lsq *p);
+SC_API void sc_profile_lsq_destroy(sc_profile_lsq *p);
 
 #ifdef __cplusplus
 }

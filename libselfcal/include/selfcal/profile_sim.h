@@ -3,6 +3,8 @@
 #ifndef SELFCAL_PROFILE_SIM_H
 #define SELFCAL_PROFILE_SIM_H
 
+#include "selfcal/api.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -32,24 +34,25 @@ typedef struct sc_profile_sim {
 
 /* Defaults: N = 330, s = 1 mm, d = 10/11, 10 nm / 1 µrad noise, 0.5 µm e_y, 2 µrad e_p,
  * zero points 1.5/-0.7 µm, 3 µrad, b0 = 20 µm, sigma lines written, seed 1. */
-void sc_profile_sim_defaults(sc_profile_sim *p);
+SC_API void sc_profile_sim_defaults(sc_profile_sim *p);
 
 /* A random smooth profile of n points with RMS amp_um about its least-squares line: a sum of
  * `harmonics` sine waves with random phases and amplitudes falling as 1/j^1.5. */
-void sc_profile_random_smooth(int n, double amp_um, int harmonics, sc_rng *rng, double *f_um);
+SC_API void sc_profile_random_smooth(int n, double amp_um, int harmonics, sc_rng *rng,
+                                     double *f_um);
 
 /* A DABAM mirror profile (dat_path; its metadata is the .txt next to it): heights (a slope
  * profile is integrated by the cumulative trapezoid rule) in µm, resampled linearly onto n points
  * at s_mm — at true scale centred on the mirror if (n-1)·s fits in its length, else stretched over
  * it — relative to the least-squares line. info (may be NULL) gets a one-line description. */
-sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double *f_um,
-                                char *info, size_t infolen, sc_error *err);
+SC_API sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double *f_um,
+                                       char *info, size_t infolen, sc_error *err);
 
 /* Simulate the measurement of f (n values, µm) by the instrument p: fills out (freed by the
  * caller with sc_profile_data_free) and ey_um (n values: the stage's e_y at every stage
  * position, µm, as simulated, before any line removal). */
-sc_status sc_profile_simulate(const sc_profile_sim *p, const double *f_um, sc_profile_data *out,
-                              double *ey_um, sc_error *err);
+SC_API sc_status sc_profile_simulate(const sc_profile_sim *p, const double *f_um,
+                                     sc_profile_data *out, double *ey_um, sc_error *err);
 
 #ifdef __cplusplus
 }

@@ -3,6 +3,8 @@
 #ifndef SELFCAL_RNG_H
 #define SELFCAL_RNG_H
 
+#include "selfcal/api.h"
+
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -16,16 +18,16 @@ typedef struct sc_rng {
 } sc_rng;
 
 /* Seed the generator (any 64-bit value, 0 included). */
-void sc_rng_seed(sc_rng *r, uint64_t seed);
+SC_API void sc_rng_seed(sc_rng *r, uint64_t seed);
 
 /* Next raw 64-bit value. */
-uint64_t sc_rng_u64(sc_rng *r);
+SC_API uint64_t sc_rng_u64(sc_rng *r);
 
 /* Uniform on [0, 1). */
-double sc_rng_uniform(sc_rng *r);
+SC_API double sc_rng_uniform(sc_rng *r);
 
 /* Standard normal N(0, 1) (Marsaglia polar method). */
-double sc_rng_normal(sc_rng *r);
+SC_API double sc_rng_normal(sc_rng *r);
 
 #ifdef __cplusplus
 }

@@ -3,6 +3,8 @@
 #ifndef SELFCAL_SHA256_H
 #define SELFCAL_SHA256_H
 
+#include "selfcal/api.h"
+
 #include <stddef.h>
 #include <stdint.h>
 
@@ -22,19 +24,19 @@ typedef struct sc_sha256 {
 } sc_sha256;
 
 /* Start a new hash. */
-void sc_sha256_init(sc_sha256 *s);
+SC_API void sc_sha256_init(sc_sha256 *s);
 
 /* Add len bytes. */
-void sc_sha256_update(sc_sha256 *s, const void *data, size_t len);
+SC_API void sc_sha256_update(sc_sha256 *s, const void *data, size_t len);
 
 /* Finish and write the 32-byte digest; s must be initialised again before reuse. */
-void sc_sha256_final(sc_sha256 *s, uint8_t digest[SC_SHA256_BYTES]);
+SC_API void sc_sha256_final(sc_sha256 *s, uint8_t digest[SC_SHA256_BYTES]);
 
 /* The digest of a whole file (SC_E_IO if it cannot be read). */
-sc_status sc_sha256_file(const char *path, uint8_t digest[SC_SHA256_BYTES], sc_error *err);
+SC_API sc_status sc_sha256_file(const char *path, uint8_t digest[SC_SHA256_BYTES], sc_error *err);
 
 /* Lower-case hex of a digest into hex (65 bytes with the NUL). */
-void sc_sha256_hex(const uint8_t digest[SC_SHA256_BYTES], char hex[2 * SC_SHA256_BYTES + 1]);
+SC_API void sc_sha256_hex(const uint8_t digest[SC_SHA256_BYTES], char hex[2 * SC_SHA256_BYTES + 1]);
 
 #ifdef __cplusplus
 }

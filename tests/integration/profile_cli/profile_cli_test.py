@@ -3,7 +3,7 @@
 truth, DABAM mirror profiles, bad input (exit 2, file:line, no output file), predicted against
 Monte Carlo uncertainty, profile-plan and plot. Standard library only.
 
-usage: profile_cli_test.py SELFCAL TMPDIR SHARED_DIR CASE [args...]
+usage: profile_cli_test.py SELFCAL TMPDIR DATA_DIR CASE [args...]
 """
 import math
 import os
@@ -11,7 +11,7 @@ import re
 import subprocess
 import sys
 
-CLI, TMP, SHARED = sys.argv[1], sys.argv[2], sys.argv[3]
+CLI, TMP, DATA = sys.argv[1], sys.argv[2], sys.argv[3]
 CASE, ARGS = sys.argv[4], sys.argv[5:]
 os.makedirs(TMP, exist_ok=True)
 
@@ -65,7 +65,7 @@ def case_end_to_end():
     profile = ARGS[2] if len(ARGS) > 2 else "random"
     for cfg in configs.split("|"):
         n, d1, d2 = map(int, cfg.split(","))
-        src = "random" if profile == "random" else os.path.join(SHARED, "data", "dabam", profile)
+        src = "random" if profile == "random" else os.path.join(DATA, "dabam", profile)
         inp, truth, out = path(f"{cfg}_in.csv"), path(f"{cfg}_truth.csv"), path(f"{cfg}_out.csv")
         run("simulate", "profile", "--n", n, "--s-mm", 1.0, "--d1", d1, "--d2", d2, "--profile", src,
             "--sigma-disp-um", 0, "--sigma-angle-urad", 0, "--seed", n + d1, "--out", inp, "--truth", truth)

@@ -1,6 +1,6 @@
 """Black-box helpers for the SPEC conformance suite (Python 3 stdlib only).
 
-Everything here is derived from /work/shared/SPEC.md alone: parsers for the SPEC's file formats,
+Everything here is derived from the interface contract alone (the formats and commands of docs/formats.md): parsers for the SPEC's file formats,
 an independent forward model of the grid (SPEC §1) and of the profile scans (SPEC §2), small dense
 linear algebra, and process helpers.  No product source is consulted.
 """

@@ -2,7 +2,7 @@
 """SPEC §1/§3 conformance (black box): selfcal simulate grid, selfcal grid, selfcal plan.
 
 usage: spec_grid.py SELFCAL TMPDIR {simulate|recover|plan}
-The oracle is /work/shared/SPEC.md: an independent parser, an independent forward model and an
+The oracle is the interface contract (docs/formats.md): an independent parser, an independent forward model and an
 independent gauge projection; nothing is compared with stored outputs of selfcal.
 """
 import math
