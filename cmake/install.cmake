@@ -1,0 +1,61 @@
+# Installation (GNUInstallDirs layout): `cmake --install BUILD --prefix P` gives
+#   P/bin/selfcal, P/bin/selfcald           programs; RPATH $ORIGIN/../<libdir>: they run from any
+#                                           prefix (even a moved one) without LD_LIBRARY_PATH
+#   P/<libdir>/libselfcal.so{,.0,.0.x.y}    shared library (SONAME libselfcal.so.<major>)
+#   P/<libdir>/libselfcal.a                 static library
+#   P/include/selfcal/*.h                   public headers (+ the generated version.h)
+#   P/<libdir>/pkgconfig/selfcal.pc         pkg-config
+#   P/<libdir>/cmake/selfcal/               CMake package: find_package(selfcal) -> selfcal::selfcal,
+#                                           selfcal::selfcal_static
+#   P/share/man/man1/selfcal.1, man8/selfcald.8
+#   P/lib/systemd/system/selfcald.service   with the installed paths filled in at configure time
+#   P/share/doc/selfcal/                    README, docs, selfcald.conf.example, examples/
+# Adding something: an install() rule next to the target that makes it (programs: call
+# selfcal_install_program(TARGET) from the folder that defines TARGET).
+include(CMakePackageConfigHelpers)
+
+set(SELFCAL_CMAKE_PACKAGE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/selfcal)
+
+# ---- the library: both builds, headers, CMake package, pkg-config ----
+install(TARGETS selfcal selfcal_static EXPORT selfcalTargets
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(DIRECTORY ${SELFCAL_INCLUDE_DIR}/selfcal DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+  FILES_MATCHING PATTERN "*.h")
+install(FILES ${SELFCAL_GENERATED_INCLUDE_DIR}/selfcal/version.h
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/selfcal)
+
+install(EXPORT selfcalTargets NAMESPACE selfcal:: DESTINATION ${SELFCAL_CMAKE_PACKAGE_DIR})
+configure_package_config_file(${CMAKE_CURRENT_LIST_DIR}/selfcalConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/cmake/selfcalConfig.cmake
+  INSTALL_DESTINATION ${SELFCAL_CMAKE_PACKAGE_DIR})
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/cmake/selfcalConfigVersion.cmake
+  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMajorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/cmake/selfcalConfig.cmake
+              ${PROJECT_BINARY_DIR}/cmake/selfcalConfigVersion.cmake
+  DESTINATION ${SELFCAL_CMAKE_PACKAGE_DIR})
+
+# selfcal.pc finds its prefix from its own folder: as many ".." as <libdir>/pkgconfig has parts.
+if(IS_ABSOLUTE "${CMAKE_INSTALL_LIBDIR}")
+  message(FATAL_ERROR "CMAKE_INSTALL_LIBDIR must be relative to the prefix (is ${CMAKE_INSTALL_LIBDIR})")
+endif()
+string(REGEX REPLACE "[^/]+" ".." SELFCAL_PC_UP "${CMAKE_INSTALL_LIBDIR}/pkgconfig")
+configure_file(${CMAKE_CURRENT_LIST_DIR}/selfcal.pc.in ${PROJECT_BINARY_DIR}/selfcal.pc @ONLY)
+install(FILES ${PROJECT_BINARY_DIR}/selfcal.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
+
+# ---- man pages (roff sources in docs/man/, the version filled in) ----
+foreach(page selfcal.1 selfcald.8)
+  string(REGEX REPLACE ".*\\.([0-9])$" "\\1" section ${page})
+  configure_file(${PROJECT_SOURCE_DIR}/docs/man/${page}.in ${PROJECT_BINARY_DIR}/man/${page} @ONLY)
+  install(FILES ${PROJECT_BINARY_DIR}/man/${page} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
+endforeach()
+
+# ---- documentation and the example program ----
+install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}
+  FILES_MATCHING PATTERN "*.md")
+install(FILES ${PROJECT_SOURCE_DIR}/examples/grid_node.c ${PROJECT_SOURCE_DIR}/examples/Makefile
+              ${PROJECT_SOURCE_DIR}/examples/CMakeLists.txt
+  DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples)

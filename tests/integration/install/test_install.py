@@ -1,0 +1,223 @@
+#!/usr/bin/env python3
+"""The installed product, as a user gets it (Python 3 standard library only).
+
+usage: test_install.py CASE BUILD_DIR SOURCE_DIR WORK_DIR VERSION [CFLAGS...]
+  install  `cmake --install` into a temporary prefix, then move the prefix (the programs must still
+           run without LD_LIBRARY_PATH: RPATH $ORIGIN); check the layout (SPEC §6: programs, shared
+           + static library, headers, selfcal.pc, CMake package, man pages, systemd unit with the
+           installed paths, example configuration); check that libselfcal.so exports exactly the
+           SC_API functions of the installed headers; build examples/ with its Makefile
+           (pkg-config) and with its CMakeLists (find_package(selfcal)), shared and static, and run
+           them on a measurement made by the installed CLI: the node and its uncertainty must be
+           those of the CLI's map.
+  deb      `cpack -G DEB;TGZ` from the build, unpack the .deb with dpkg-deb -x into a temporary
+           folder and run the CLI and the daemon from it; the .tar.gz holds the same programs.
+CFLAGS: extra compiler/linker flags for the examples (the sanitizers of a sanitized build).
+"""
+import glob
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tarfile
+
+CASE, BUILD, SRC, WORK, VERSION = sys.argv[1:6]
+XFLAGS = " ".join(sys.argv[6:])
+FAILS = []
+
+
+def check(cond, what):
+    if not cond:
+        FAILS.append(what)
+        print("FAIL:", what, file=sys.stderr)
+    return cond
+
+
+def run(cmd, cwd=None, env=None, ok=True):
+    p = subprocess.run(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                       text=True, timeout=600)
+    if ok and p.returncode != 0:
+        print("command failed (%d): %s\n%s\n%s" % (p.returncode, " ".join(cmd), p.stdout, p.stderr),
+              file=sys.stderr)
+        sys.exit(1)
+    return p
+
+
+def clean_env(**extra):
+    """The user's environment without anything that would find the build tree's libraries."""
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_LIBRARY_PATH", "PKG_CONFIG_PATH",
+                                                             "CMAKE_PREFIX_PATH")}
+    env.update(extra)
+    return env
+
+
+def fresh(path):
+    shutil.rmtree(path, ignore_errors=True)
+    os.makedirs(path)
+    return path
+
+
+def check_programs(bindir, label):
+    """selfcal and selfcald start from bindir with no LD_LIBRARY_PATH and print the version."""
+    version = VERSION
+    for prog in ("selfcal", "selfcald"):
+        p = run([os.path.join(bindir, prog), "--version"], env=clean_env(), ok=False)
+        check(p.returncode == 0 and p.stdout.strip() == "%s %s" % (prog, version),
+              "%s: %s --version: rc %d, %r %r (want '%s %s')" % (label, prog, p.returncode, p.stdout,
+                                                                p.stderr, prog, version))
+    return version
+
+
+def make_measurement(bindir, work):
+    inp, gmap = os.path.join(work, "in.csv"), os.path.join(work, "G.csv")
+    run([os.path.join(bindir, "selfcal"), "simulate", "grid", "--plan", "double-shift", "--n", "9",
+         "--seed", "5", "--out", inp, "--truth-map", os.path.join(work, "G_true.csv")], env=clean_env())
+    run([os.path.join(bindir, "selfcal"), "grid", "--method", "lsq", inp, "--map", gmap],
+        env=clean_env())
+    rows = {}
+    with open(gmap) as f:
+        header = f.readline().strip().split(",")
+        for line in f:
+            r = dict(zip(header, line.strip().split(",")))
+            rows[(int(r["i"]), int(r["j"]))] = r
+    return inp, rows
+
+
+def check_example_output(exe, inp, rows, label):
+    for node in ((4, 4), (2, 7)):
+        p = run([exe, inp, str(node[0]), str(node[1])], env=clean_env(), ok=False)
+        if not check(p.returncode == 0, "%s: rc %d (%s)" % (label, p.returncode, p.stderr.strip())):
+            return
+        m = re.search(r"node (\d+),(\d+) at .*: gx = (\S+) \+- (\S+) um, gy = (\S+) \+- (\S+) um", p.stdout)
+        if not check(m is not None, "%s: unexpected output %r" % (label, p.stdout)):
+            return
+        r = rows[node]
+        got = [float(m.group(k)) for k in range(3, 7)]
+        want = [float(r[c]) for c in ("gx_um", "ugx_um", "gy_um", "ugy_um")]
+        check(all(abs(g - w) <= 2e-6 for g, w in zip(got, want)),
+              "%s: node %s = %s, the CLI's map says %s" % (label, node, got, want))
+    # bad input keeps the library's contract: exit 2, one line naming file and line
+    bad = os.path.join(os.path.dirname(inp), "bad.csv")
+    with open(inp) as f, open(bad, "w") as g:
+        lines = f.read().splitlines()
+        lines[-1] = lines[-1].rsplit(",", 1)[0] + ",not-a-number"
+        g.write("\n".join(lines) + "\n")
+    p = run([exe, bad], env=clean_env(), ok=False)
+    check(p.returncode == 2 and len(p.stderr.splitlines()) == 1 and
+          re.search(r"bad\.csv:%d: " % len(lines), p.stderr),
+          "%s on bad input: rc %d, stderr %r" % (label, p.returncode, p.stderr))
+
+
+def sc_api_names(incdir):
+    names = set()
+    for h in glob.glob(os.path.join(incdir, "selfcal", "*.h")):
+        text = open(h).read()
+        names.update(re.findall(r"^SC_API\b[^;(]*?\b(sc_\w+)\s*\(", text, re.M))
+    return names
+
+
+def case_install():
+    stage = fresh(os.path.join(WORK, "stage"))
+    run(["cmake", "--install", BUILD, "--prefix", stage])
+    prefix = os.path.join(WORK, "moved-prefix")  # a prefix that is not where it was installed
+    shutil.rmtree(prefix, ignore_errors=True)
+    os.rename(stage, prefix)
+    bindir = os.path.join(prefix, "bin")
+    libdirs = [d for d in ("lib", "lib64") + tuple(glob.glob(os.path.join(prefix, "lib", "*-linux-gnu")))
+               if os.path.exists(os.path.join(prefix, d, "libselfcal.a"))]
+    if not check(len(libdirs) == 1, "libselfcal.a in one library folder (found %r)" % libdirs):
+        return
+    libdir = os.path.join(prefix, libdirs[0])
+    for rel in ("bin/selfcal", "bin/selfcald", "include/selfcal/version.h", "include/selfcal/grid_lsq.h",
+                "include/selfcal/api.h", "share/man/man1/selfcal.1", "share/man/man8/selfcald.8",
+                "lib/systemd/system/selfcald.service", "share/doc/selfcal/selfcald.conf.example",
+                "share/doc/selfcal/examples/grid_node.c"):
+        check(os.path.isfile(os.path.join(prefix, rel)), "installed %s" % rel)
+    for rel in ("libselfcal.so", "libselfcal.a", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
+                "cmake/selfcal/selfcalConfigVersion.cmake"):
+        check(os.path.exists(os.path.join(libdir, rel)), "installed <libdir>/%s" % rel)
+    version = check_programs(bindir, "moved prefix")
+
+    # the shared library: versioned SONAME, exports exactly the SC_API functions
+    soname = run(["readelf", "-d", os.path.join(libdir, "libselfcal.so")]).stdout
+    major = version.split(".")[0]
+    check("Library soname: [libselfcal.so.%s]" % major in soname, "SONAME libselfcal.so.%s" % major)
+    check(os.path.realpath(os.path.join(libdir, "libselfcal.so")).endswith("libselfcal.so." + version),
+          "libselfcal.so -> libselfcal.so.%s" % version)
+    exported = set(run(["nm", "-D", "--defined-only", os.path.join(libdir, "libselfcal.so")]).stdout.split())
+    exported = {s for s in exported if s.startswith("sc_")}
+    declared = sc_api_names(os.path.join(prefix, "include"))
+    check(declared and not (declared - exported), "SC_API functions not exported: %s" % sorted(declared - exported))
+    check(not (exported - declared), "exported but not SC_API in a header: %s" % sorted(exported - exported.intersection(declared)))
+
+    # the man pages carry the version; the unit and the man page name real installed paths
+    check(("selfcal %s" % version) in open(os.path.join(prefix, "share/man/man1/selfcal.1")).read(),
+          "selfcal.1 carries the version")
+    man1 = open(os.path.join(prefix, "share/man/man1/selfcal.1")).read()
+    usage = run([os.path.join(bindir, "selfcal"), "--help"], env=clean_env()).stdout
+    for cmd in sorted(set(re.findall(r"^  selfcal ((?:[a-z-]+)(?: (?:build|dump|info|grid|profile|map))?)", usage, re.M))):
+        check(cmd.replace("-", "\\-") in man1, "selfcal.1 documents 'selfcal %s'" % cmd)
+    unit = open(os.path.join(prefix, "lib/systemd/system/selfcald.service")).read()
+    check(re.search(r"^ExecStart=/\S*/bin/selfcald --config /\S+/selfcal/selfcald.conf$", unit, re.M) and "@" not in
+          unit.replace("@system-service", ""), "selfcald.service has its paths filled in: %r" %
+          re.findall(r"^ExecStart=.*$", unit, re.M))
+
+    # examples, built as an outside project against the moved prefix
+    work = fresh(os.path.join(WORK, "examples"))
+    inp, rows = make_measurement(bindir, work)
+    src = os.path.join(work, "src")
+    shutil.copytree(os.path.join(prefix, "share/doc/selfcal/examples"), src)
+    cflags = "-O2 -Wall -Wextra -Werror " + XFLAGS
+    run(["make", "-C", src, "grid_node", "grid_node_static", "CFLAGS=" + cflags, "LDFLAGS=" + XFLAGS],
+        env=clean_env(PKG_CONFIG_PATH=os.path.join(libdir, "pkgconfig")))
+    check_example_output(os.path.join(src, "grid_node"), inp, rows, "example via pkg-config (shared)")
+    check_example_output(os.path.join(src, "grid_node_static"), inp, rows, "example via pkg-config (static)")
+    ldd = run(["ldd", os.path.join(src, "grid_node_static")]).stdout
+    check("libselfcal" not in ldd, "grid_node_static does not need libselfcal.so")
+    build = os.path.join(work, "cmake-build")
+    run(["cmake", "-S", src, "-B", build, "-DCMAKE_PREFIX_PATH=" + prefix, "-DCMAKE_C_FLAGS=" + cflags,
+         "-DCMAKE_EXE_LINKER_FLAGS=" + XFLAGS], env=clean_env())
+    run(["cmake", "--build", build], env=clean_env())
+    check_example_output(os.path.join(build, "grid_node"), inp, rows, "example via find_package (shared)")
+    check_example_output(os.path.join(build, "grid_node_static"), inp, rows, "example via find_package (static)")
+    ldd = run(["ldd", os.path.join(build, "grid_node")]).stdout
+    check(os.path.join(libdir, "libselfcal.so") in ldd.replace("//", "/") or prefix in ldd,
+          "the CMake example uses the installed libselfcal.so: %s" % ldd)
+
+
+def case_deb():
+    out = fresh(os.path.join(WORK, "packages"))
+    run(["cpack", "--config", os.path.join(BUILD, "CPackConfig.cmake"), "-G", "DEB;TGZ", "-B", out])
+    debs = glob.glob(os.path.join(out, "*.deb"))
+    tgzs = glob.glob(os.path.join(out, "*.tar.gz"))
+    if not check(len(debs) == 1 and len(tgzs) == 1, "one .deb and one .tar.gz (%r %r)" % (debs, tgzs)):
+        return
+    info = run(["dpkg-deb", "-f", debs[0]]).stdout
+    check(re.search(r"^Package: selfcal$", info, re.M), "deb Package: selfcal")
+    check(re.search(r"^Depends: .*libfftw3", info, re.M), "deb depends on FFTW")
+    root = fresh(os.path.join(WORK, "deb-root"))
+    run(["dpkg-deb", "-x", debs[0], root])
+    bindir = os.path.join(root, "usr", "bin")
+    check_programs(bindir, ".deb unpacked")
+    contents = run(["dpkg-deb", "-c", debs[0]]).stdout
+    for name in ("usr/include/selfcal/grid_lsq.h", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
+                 "libselfcal.so.", "libselfcal.a", "man1/selfcal.1", "man8/selfcald.8",
+                 "systemd/system/selfcald.service"):
+        check(name in contents, ".deb contains %s" % name)
+    # the CLI from the unpacked package does real work
+    work = fresh(os.path.join(WORK, "deb-run"))
+    make_measurement(bindir, work)
+    p = run([os.path.join(bindir, "selfcal"), "plan", os.path.join(work, "in.csv")], env=clean_env())
+    check(p.stdout.startswith("identifiable: yes"), "plan from the .deb: %r" % p.stdout[:80])
+    with tarfile.open(tgzs[0]) as t:
+        names = t.getnames()
+    check(any(n.endswith("/bin/selfcal") for n in names) and any(n.endswith("/bin/selfcald") for n in names),
+          ".tar.gz holds bin/selfcal and bin/selfcald")
+
+
+{"install": case_install, "deb": case_deb}[CASE]()
+if FAILS:
+    print("%d check(s) failed" % len(FAILS), file=sys.stderr)
+    sys.exit(1)
+print("ok:", CASE)
