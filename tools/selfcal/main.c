@@ -38,8 +38,11 @@ static const command commands[] = {
     {"profile-plan", NULL, cmd_profile_plan, "profile-plan ...          rank sensor spacings (d1, d2)"},
     {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv ...] -o TABLE | lut dump TABLE"},
     {"export", NULL, cmd_export, "export --format ...       resample the map for a machine controller"},
+    {"import", "grid", cmd_import_grid, "import grid --n N --pitch-mm P --view \"rot=R shift=SX,SY\" FILE ... -o IN.csv"},
+    {"import", "profile", cmd_import_profile, "import profile --spacing-mm D1 LOG1 --spacing-mm D2 LOG2 -o IN.csv"},
     {"simulate", "grid", cmd_simulate_grid, "simulate grid ...         simulated plate measurements + truth"},
     {"simulate", "profile", cmd_simulate_profile, "simulate profile ...      simulated two-scan data + truth"},
+    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR  a measuring machine's files"},
     {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg     arrow plot of an error map"},
     {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg   profile and uncertainty curves"},
 };

@@ -1,0 +1,101 @@
+/* selfcal/import.h — reading what measuring machines write (SPEC §10): delimited tables with a
+ * header line naming the columns (delimiter ',', ';' or tab, decimal mark '.' or ',', detected),
+ * and numbering a view's measured points: each point is assigned to the plate mark nearest to it
+ * once the view's placement (translation and rotation) has been fitted robustly from the points.
+ *
+ * The assignment (sc_grid_import_assign), documented in docs/import.md:
+ *   1. Every point is matched to the mark whose nominal position (SPEC §1: rot, shift, origin) is
+ *      nearest, gate half a pitch; the translation is the component-wise MEDIAN of the
+ *      point − mark offsets, so a few wrong points (dust, a damaged mark) cannot move it.
+ *   2. The placement (translation + rotation about the grid centre) is refitted by least squares
+ *      (2-D Procrustes) on the pairs within the gate, points are matched again under it, and this
+ *      repeats with the gate at the tolerance T until the matching no longer changes.
+ *   3. A point farther than T from every mark the view measures is left out (reported by the
+ *      caller); a mark without a point is absent. Two points within T of one mark, or a view where
+ *      fewer than min_share of its marks got a point, are bad input.
+ * Since T < P/2, the mark nearest a point is found in O(1) by rounding its plate coordinates.
+ */
+#ifndef SELFCAL_IMPORT_H
+#define SELFCAL_IMPORT_H
+
+#include "selfcal/grid.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Selected columns of a delimited table, as numbers. Owned by the struct (sc_table_free). */
+typedef struct sc_table {
+    char path[256];
+    long header_line;  /* the line naming the columns */
+    int n_cols;        /* columns selected */
+    long n_rows;       /* data lines read */
+    double *value;     /* n_rows * n_cols, row-major, each multiplied by its column's scale */
+    long *line;        /* the file line of each row */
+    char delimiter;    /* ',', ';' or '\t' */
+    char decimal;      /* '.' or ','; '.' when no number had a fractional part */
+} sc_table;
+
+/* Read the columns names[0..n_cols-1] (matched case-insensitively, blanks and double quotes
+ * around names ignored) of a table: lines starting with '#' and blank lines are skipped, the first
+ * other line names the columns, every further line is one row with as many fields as the header.
+ * The delimiter is a tab if the header has one, else ';' if it has one, else ','. The decimal mark
+ * is ',' or '.' as the selected fields show; both in one file, a field with both, a missing column,
+ * an empty or non-numeric field, or |value| > SC_INPUT_MAX_ABS (in the file's unit) -> SC_E_INPUT
+ * with file:line. scale (may be NULL: 1) multiplies column k's values (unit conversion). */
+sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
+                        const double *scale, sc_table *t, sc_error *err);
+
+/* Free t's arrays; safe on a zeroed or freed table. */
+void sc_table_free(sc_table *t);
+
+/* The stage and plate a view's points are assigned on. */
+typedef struct sc_grid_import_params {
+    int n;                 /* marks per side, odd */
+    double pitch_mm;       /* P */
+    double origin_mm[2];   /* stage position of the stage grid's centre */
+    int stage_nx, stage_ny; /* stage nodes along x and y (SPEC §5); 0, 0: N x N */
+    double tolerance_mm;   /* T, 0 < T < P/2; points farther from every mark are left out */
+    double min_share;      /* a view must give a point to at least this share of its marks */
+} sc_grid_import_params;
+
+/* The fitted placement of one view and what was matched. */
+typedef struct sc_grid_import_fit {
+    double tx_um, ty_um;   /* translation of the plate from its nominal placement */
+    double theta_urad;     /* rotation about the stage grid's centre, CCW */
+    long n_marks;          /* marks the view measures (on the stage, rows=/cols= applied) */
+    long n_assigned;       /* marks that got a point */
+    long n_left_out;       /* points farther than T from every mark */
+    double max_dist_um;    /* largest distance of an assigned point to its fitted mark position */
+    int iterations;        /* refits until the matching stopped changing */
+} sc_grid_import_fit;
+
+/* Defaults: T = P/4, min_share 0.5, stage N x N, origin 0. */
+void sc_grid_import_defaults(sc_grid_import_params *p, int n, double pitch_mm);
+
+/* Check p (n odd in 3..SC_GRID_MAX_N, P > 0, stage odd >= 3 or 0, 0 < T < P/2, 0 <= share <= 1). */
+sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err);
+
+/* Doubles of workspace sc_grid_import_assign needs for n_points points. */
+size_t sc_grid_import_work_doubles(long n_points);
+
+/* 1 and the stage node (*ni, *nj) if view v of the import puts mark (i, j) on a stage node that it
+ * measures (rows=/cols= of v applied), else 0. */
+int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
+                             int *ni, int *nj);
+
+/* Assign the points (x_mm, y_mm: stage frame) of one view v. Fills point_mark[k] (the mark
+ * i*n + j of point k, or -1 if left out; n_points values) and mark_point[m] (the point of mark m
+ * or -1; n*n values) and fit. lines[k] is point k's file line and path/header_line the file, for
+ * errors (SC_E_INPUT: two points for one mark, too few marks matched). work:
+ * sc_grid_import_work_doubles(n_points) doubles. */
+sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
+                                long n_points, const double *x_mm, const double *y_mm,
+                                const long *lines, const char *path, long header_line,
+                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
+                                double *work, sc_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

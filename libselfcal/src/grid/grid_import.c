@@ -1,0 +1,281 @@
+/* grid_import.c — owns the numbering of a view's measured points (SPEC §10): the robust fit of
+ * the view's placement and the assignment of each point to its plate mark (algorithm in
+ * selfcal/import.h and docs/import.md). */
+#include "selfcal/import.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/csv.h"
+
+#define MAX_ITERATIONS 50
+
+void sc_grid_import_defaults(sc_grid_import_params *p, int n, double pitch_mm)
+{
+    memset(p, 0, sizeof *p);
+    p->n = n;
+    p->pitch_mm = pitch_mm;
+    p->tolerance_mm = pitch_mm / 4;
+    p->min_share = 0.5;
+}
+
+sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err)
+{
+    if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "N must be odd and in 3..%d, got %d",
+                            SC_GRID_MAX_N, p->n);
+    if (!(p->pitch_mm > 0) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the pitch must be positive");
+    if (!(fabs(p->origin_mm[0]) <= SC_INPUT_MAX_ABS && fabs(p->origin_mm[1]) <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin is beyond any stage");
+    int nx = p->stage_nx, ny = p->stage_ny;
+    if ((nx || ny) && (nx < 3 || ny < 3 || nx % 2 == 0 || ny % 2 == 0 || nx > SC_GRID_MAX_N * 4 ||
+                       ny > SC_GRID_MAX_N * 4))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the stage must be odd and >= 3 nodes each way, got %d,%d", nx, ny);
+    if (!(p->tolerance_mm > 0 && p->tolerance_mm < p->pitch_mm / 2))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the tolerance must be positive and below half a pitch (%g mm), got %g mm",
+                            p->pitch_mm / 2, p->tolerance_mm);
+    if (!(p->min_share >= 0 && p->min_share <= 1))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the share of marks must be in 0..1");
+    return SC_OK;
+}
+
+size_t sc_grid_import_work_doubles(long n_points)
+{
+    return (size_t)(n_points > 0 ? n_points : 1);
+}
+
+int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
+                             int *ni, int *nj)
+{
+    int c = (p->n - 1) / 2;
+    int nx = p->stage_nx ? p->stage_nx : p->n, ny = p->stage_ny ? p->stage_ny : p->n;
+    int px = j - c, py = i - c, sx, sy;
+    switch (v->rot_deg) {
+    case 90: sx = -py, sy = px; break;
+    case 180: sx = -px, sy = -py; break;
+    case 270: sx = py, sy = -px; break;
+    default: sx = px, sy = py; break;
+    }
+    long jj = (long)sx + v->shift_x + (nx - 1) / 2, ii = (long)sy + v->shift_y + (ny - 1) / 2;
+    if (ii < 0 || ii >= ny || jj < 0 || jj >= nx)
+        return 0;
+    if (v->restricted && !v->row_sel[i] && !v->col_sel[j])
+        return 0;
+    *ni = (int)ii;
+    *nj = (int)jj;
+    return 1;
+}
+
+/* The placement: measured = origin + t + Rot(theta)·(nominal − origin). */
+typedef struct placement {
+    double tx, ty, c, s; /* mm; cos and sin of theta */
+} placement;
+
+/* Nominal position (relative to the origin, mm) of mark (i, j) in view v. */
+static void mark_nominal(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
+                         double *x, double *y)
+{
+    double c = (p->n - 1) / 2.0, P = p->pitch_mm;
+    sc_grid_rotate(v->rot_deg, (j - c) * P, (i - c) * P, x, y);
+    *x += v->shift_x * P;
+    *y += v->shift_y * P;
+}
+
+/* The mark nearest to point (x, y) (absolute, mm) under placement a, its distance (mm), or -1 if
+ * the nearest lattice position is not a mark the view measures. */
+static long nearest_mark(const sc_grid_import_params *p, const sc_grid_view *v,
+                         const placement *a, double x, double y, double *dist)
+{
+    double rx = x - p->origin_mm[0] - a->tx, ry = y - p->origin_mm[1] - a->ty;
+    double sx = a->c * rx + a->s * ry, sy = -a->s * rx + a->c * ry; /* undo theta */
+    sx -= v->shift_x * p->pitch_mm;
+    sy -= v->shift_y * p->pitch_mm;
+    double px, py;
+    sc_grid_rotate((360 - v->rot_deg) % 360, sx, sy, &px, &py); /* undo rot */
+    double c = (p->n - 1) / 2.0;
+    double fj = px / p->pitch_mm + c, fi = py / p->pitch_mm + c;
+    if (!(fabs(fj) < 1e9 && fabs(fi) < 1e9))
+        return -1;
+    long j = lround(fj), i = lround(fi);
+    int ni, nj;
+    if (i < 0 || j < 0 || i >= p->n || j >= p->n ||
+        !sc_grid_import_mark_node(p, v, (int)i, (int)j, &ni, &nj))
+        return -1;
+    *dist = hypot(fj - j, fi - i) * p->pitch_mm;
+    return i * p->n + j;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(double *v, long n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* Match every point under a (gate in mm); fills point_mark, mark_point (closer point wins);
+ * returns how many point assignments changed. */
+static long match(const sc_grid_import_params *p, const sc_grid_view *v, const placement *a,
+                  double gate, long n_points, const double *x, const double *y, long *point_mark,
+                  long *mark_point, double *dist)
+{
+    long nn = (long)p->n * p->n, changed = 0;
+    for (long m = 0; m < nn; ++m)
+        mark_point[m] = -1;
+    for (long k = 0; k < n_points; ++k) {
+        double d = 0;
+        long m = nearest_mark(p, v, a, x[k], y[k], &d);
+        if (m >= 0 && d > gate)
+            m = -1;
+        if (m != point_mark[k])
+            ++changed;
+        point_mark[k] = m;
+        dist[k] = d;
+        if (m < 0)
+            continue;
+        long other = mark_point[m];
+        if (other < 0 || d < dist[other])
+            mark_point[m] = k;
+    }
+    return changed;
+}
+
+/* Least-squares rigid placement from the pairs point k <-> mark_point (one point per mark). */
+static void fit_rigid(const sc_grid_import_params *p, const sc_grid_view *v, long n_points,
+                      const double *x, const double *y, const long *mark_point, placement *a)
+{
+    long nn = (long)p->n * p->n, cnt = 0;
+    double mx = 0, my = 0, qx = 0, qy = 0;
+    for (long m = 0; m < nn; ++m) {
+        long k = mark_point[m];
+        if (k < 0 || k >= n_points)
+            continue;
+        double nx, ny;
+        mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+        mx += nx, my += ny;
+        qx += x[k] - p->origin_mm[0], qy += y[k] - p->origin_mm[1];
+        ++cnt;
+    }
+    if (cnt == 0)
+        return;
+    mx /= cnt, my /= cnt, qx /= cnt, qy /= cnt;
+    double sdot = 0, scross = 0;
+    for (long m = 0; m < nn; ++m) {
+        long k = mark_point[m];
+        if (k < 0)
+            continue;
+        double nx, ny;
+        mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+        double ax = nx - mx, ay = ny - my;
+        double bx = x[k] - p->origin_mm[0] - qx, by = y[k] - p->origin_mm[1] - qy;
+        sdot += ax * bx + ay * by;
+        scross += ax * by - ay * bx;
+    }
+    double th = cnt >= 2 && (sdot != 0 || scross != 0) ? atan2(scross, sdot) : 0;
+    a->c = cos(th);
+    a->s = sin(th);
+    a->tx = qx - (a->c * mx - a->s * my);
+    a->ty = qy - (a->s * mx + a->c * my);
+}
+
+sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
+                                long n_points, const double *x_mm, const double *y_mm,
+                                const long *lines, const char *path, long header_line,
+                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
+                                double *work, sc_error *err)
+{
+    sc_status st = sc_grid_import_check(p, err);
+    if (st != SC_OK)
+        return st;
+    memset(fit, 0, sizeof *fit);
+    long nn = (long)p->n * p->n;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int ni, nj;
+            fit->n_marks += sc_grid_import_mark_node(p, v, i, j, &ni, &nj);
+        }
+    if (fit->n_marks == 0)
+        return sc_error_set(err, SC_E_INPUT, path, 0,
+                            "the view (rot=%d shift=%d,%d) puts no mark on the stage",
+                            v->rot_deg, v->shift_x, v->shift_y);
+    for (long k = 0; k < n_points; ++k)
+        point_mark[k] = -2;
+    placement a = {0, 0, 1, 0};
+    double *dist = work, gate = p->pitch_mm / 2;
+
+    /* 1. nominal placement, gate P/2: translation = median offset (robust to wrong points) */
+    match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    long cnt = 0;
+    for (long m = 0; m < nn; ++m)
+        if (mark_point[m] >= 0)
+            ++cnt;
+    if (cnt > 0) {
+        /* the offsets are written into dist's slots of the points not used below: build them in
+         * place, first x then y (dist is recomputed by the next match) */
+        for (int axis = 0; axis < 2; ++axis) {
+            long c2 = 0;
+            for (long m = 0; m < nn; ++m) {
+                long k = mark_point[m];
+                if (k < 0)
+                    continue;
+                double nx, ny;
+                mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+                work[c2++] = axis == 0 ? x_mm[k] - p->origin_mm[0] - nx
+                                       : y_mm[k] - p->origin_mm[1] - ny;
+            }
+            double med = median(work, c2);
+            if (axis == 0)
+                a.tx = med;
+            else
+                a.ty = med;
+        }
+    }
+    /* 2. refit rigid placement on the matched pairs, re-match; gate P/2 once, then T */
+    int it = 0;
+    for (; it < MAX_ITERATIONS; ++it) {
+        long changed = match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+        if (it >= 2 && changed == 0)
+            break;
+        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, &a);
+        gate = p->tolerance_mm;
+    }
+    fit->iterations = it;
+    /* 3. final matching at T: duplicates are bad input, the rest reported */
+    match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    for (long k = 0; k < n_points; ++k) {
+        long m = point_mark[k];
+        if (m < 0) {
+            ++fit->n_left_out;
+            continue;
+        }
+        long other = mark_point[m];
+        if (other != k) {
+            long first = lines[k] < lines[other] ? k : other, second = first == k ? other : k;
+            return sc_error_set(err, SC_E_INPUT, path, lines[second],
+                                "this point and the point on line %ld both fall on mark (%ld,%ld) "
+                                "(within %g mm): a stray point or a mark measured twice",
+                                lines[first], m / p->n, m % p->n, p->tolerance_mm);
+        }
+        ++fit->n_assigned;
+        if (dist[k] * 1e3 > fit->max_dist_um)
+            fit->max_dist_um = dist[k] * 1e3;
+    }
+    fit->tx_um = a.tx * 1e3;
+    fit->ty_um = a.ty * 1e3;
+    fit->theta_urad = atan2(a.s, a.c) * 1e6;
+    if ((double)fit->n_assigned < p->min_share * (double)fit->n_marks)
+        return sc_error_set(err, SC_E_INPUT, path, header_line,
+                            "only %ld of the %ld marks of view rot=%d shift=%d,%d have a point "
+                            "within %g mm (at least %.0f %% needed): wrong --view, --units or columns?",
+                            fit->n_assigned, fit->n_marks, v->rot_deg, v->shift_x, v->shift_y,
+                            p->tolerance_mm, p->min_share * 100);
+    return SC_OK;
+}

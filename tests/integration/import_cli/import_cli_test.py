@@ -1,0 +1,437 @@
+#!/usr/bin/env python3
+"""CLI tests of `selfcal import grid|profile` and `selfcal simulate exports` (SPEC §10).
+
+Usage: import_cli_test.py CLI TMPDIR CASE
+The exports are written here, in Python, from the selfcal-grid / selfcal-profile files of
+`selfcal simulate` (the truth), so the importer is checked against an independent writer; every
+assertion compares with that truth, never with stored outputs of selfcal.
+"""
+import csv
+import math
+import os
+import random
+import shlex
+import shutil
+import subprocess
+import sys
+
+CLI, TMP, CASE = sys.argv[1], sys.argv[2], sys.argv[3]
+
+
+def fail(msg):
+    print("FAIL: " + msg)
+    sys.exit(1)
+
+
+def run(*args, expect=0):
+    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=300)
+    if p.returncode != expect:
+        fail("selfcal %s: exit %d (want %d)\nstdout: %s\nstderr: %s"
+             % (" ".join(map(str, args)), p.returncode, expect, p.stdout, p.stderr))
+    return p
+
+
+def fresh_dir(name):
+    d = os.path.join(TMP, "import_cli_" + name)
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    return d
+
+
+def read_grid(path):
+    """A selfcal-grid v1 file: (header lines, {(view, i, j): (x_mm, y_mm)})."""
+    head, rows = [], {}
+    with open(path) as f:
+        for line in f:
+            line = line.rstrip("\n")
+            if line.startswith("#"):
+                head.append(line)
+            elif line and line != "view,i,j,x_mm,y_mm":
+                v, i, j, x, y = line.split(",")[:5]
+                rows[(int(v), int(i), int(j))] = (float(x), float(y))
+    return head, rows
+
+
+def read_map(path):
+    with open(path, newline="") as f:
+        return {(int(r["i"]), int(r["j"])): (float(r["gx_um"]), float(r["gy_um"]))
+                for r in csv.DictReader(f)}
+
+
+def views_of(head):
+    """[(view index, 'rot=.. shift=.. [rows= cols=]')] from the header lines."""
+    out = []
+    for h in head:
+        if h.startswith("# view "):
+            k, rest = h[len("# view "):].split(":", 1)
+            out.append((int(k), rest.strip()))
+    return out
+
+
+def fmt(v, dec):
+    s = "%.12f" % v
+    return s.replace(".", ",") if dec == "," else s
+
+
+def write_export(path, pts, delim=";", dec=",", scale=1000.0, names=("Nr", "X", "Y", "Z"),
+                 rng=None):
+    """One view's export: a header line, then the points (x_mm, y_mm) in random order."""
+    pts = list(pts)
+    if rng:
+        rng.shuffle(pts)
+    with open(path, "w") as f:
+        f.write(delim.join(names) + "\n")
+        for n, (x, y) in enumerate(pts):
+            f.write(delim.join([str(n + 1), fmt(x * scale, dec), fmt(y * scale, dec),
+                                fmt(0.0, dec)]) + "\n")
+
+
+def simulate(d, plan="double-shift", n=25, extra=()):
+    run("simulate", "grid", "--plan", plan, "--n", n, "--pitch-mm", 1, "--sigma-r-um", 0,
+        "--seed", 7, "--out", os.path.join(d, "truth_in.csv"),
+        "--truth-map", os.path.join(d, "G_true.csv"), *extra)
+    return read_grid(os.path.join(d, "truth_in.csv"))
+
+
+def import_args(views, files, n=25, units="um"):
+    a = ["import", "grid", "--n", n, "--pitch-mm", 1, "--units", units, "--x-col", "X",
+         "--y-col", "Y"]
+    for (k, spec), f in zip(views, files):
+        a += ["--view", spec, f]
+    return a
+
+
+def check_bad(args, d, out, want):
+    """Exit 2, one stderr line naming FILE:LINE (want: substring), no output file."""
+    p = run(*args, "-o", out, expect=2)
+    lines = p.stderr.strip().splitlines()
+    if len(lines) != 1 or want not in lines[0] or not lines[0].startswith("selfcal: "):
+        fail("want one stderr line with %r, got %r" % (want, p.stderr))
+    if os.path.exists(out) or [f for f in os.listdir(d) if f.startswith(".")]:
+        fail("bad input left an output file: %s" % os.listdir(d))
+
+
+# ------------------------------------------------------------------------------------------
+def case_recover():
+    """The acceptance test: exports (shuffled, µm, ';' and decimal commas, one mark missing,
+    one stray point) from a noise-free simulated truth -> import -> lsq -> G to <= 1e-9 µm."""
+    d = fresh_dir("recover")
+    head, rows = simulate(d)
+    views = views_of(head)
+    missing = (3, 4)
+    missing_views = [int(v) for v in os.environ.get("IMPORT_MISSING_VIEWS", "1").split(",")]
+    rng = random.Random(11)
+    files = []
+    for k, _ in views:
+        pts = [xy for (v, i, j), xy in sorted(rows.items())
+               if v == k and not ((i, j) == missing and v in missing_views)]
+        if k == 2:  # a speck of dust: half a pitch off a mark diagonally
+            x, y = pts[len(pts) // 3]
+            pts.append((x + 0.5, y - 0.5))
+        files.append(os.path.join(d, "view%d.csv" % k))
+        write_export(files[-1], pts, rng=rng)
+    out = os.path.join(d, "imported.csv")
+    p = run(*import_args(views, files), "-o", out)
+    if "view2.csv:" not in p.stderr or "left out" not in p.stderr:
+        fail("the stray point is not reported: %s" % p.stderr)
+    if "no point for mark (3,4)" not in p.stderr:
+        fail("the missing mark is not reported: %s" % p.stderr)
+    ihead, irows = read_grid(out)
+    want = {k: v for k, v in rows.items() if not (k[1:] == missing and k[0] in missing_views)}
+    if set(irows) != set(want):
+        fail("imported marks differ: extra %s, missing %s"
+             % (sorted(set(irows) - set(want))[:5], sorted(set(want) - set(irows))[:5]))
+    worst = max(max(abs(irows[k][0] - want[k][0]), abs(irows[k][1] - want[k][1])) for k in want)
+    if worst > 1e-12:
+        fail("imported positions differ from the export's by %g mm" % worst)
+    if [h for h in ihead if h.startswith("# view")] != [h for h in head if h.startswith("# view")]:
+        fail("view lines differ: %s vs %s" % (ihead, head))
+    run("grid", "--method", "lsq", out, "--map", os.path.join(d, "G.csv"))
+    t, e = read_map(os.path.join(d, "G_true.csv")), read_map(os.path.join(d, "G.csv"))
+    err = max(max(abs(e[k][0] - t[k][0]), abs(e[k][1] - t[k][1])) for k in t)
+    print("G recovered from imported exports: max |error| = %.3g um (missing mark in views %s)"
+          % (err, missing_views))
+    if not err <= 1e-9:
+        fail("G error %g um > 1e-9 um" % err)
+
+
+def case_formats():
+    """Tab + decimal point in mm, ',' + '.', quoted names in another case, extra columns, CRLF."""
+    d = fresh_dir("formats")
+    head, rows = simulate(d, plan="ye", n=9)
+    views = views_of(head)
+    rng = random.Random(3)
+    styles = [("\t", ".", 1.0, "mm"), (",", ".", 1000.0, "um"), (";", ",", 1.0, "mm")]
+    for delim, dec, scale, units in styles:
+        files = []
+        for k, _ in views:
+            pts = [xy for (v, i, j), xy in rows.items() if v == k]
+            files.append(os.path.join(d, "v%d_%d.csv" % (k, styles.index((delim, dec, scale, units)))))
+            write_export(files[-1], pts, delim, dec, scale, ('"Point"', '"x"', "Y", "Z [mm]"), rng)
+            if delim == ",":  # Windows line ends
+                data = open(files[-1]).read().replace("\n", "\r\n")
+                open(files[-1], "w", newline="").write(data)
+        out = os.path.join(d, "out.csv")
+        a = import_args(views, files, n=9, units=units)
+        a[a.index("X")] = "x"
+        run(*a, "-o", out)
+        _, irows = read_grid(out)
+        if set(irows) != set(rows):
+            fail("style %r: marks differ" % delim)
+        worst = max(max(abs(irows[k][0] - rows[k][0]), abs(irows[k][1] - rows[k][1])) for k in rows)
+        if worst > 1e-9:
+            fail("style %r: positions differ by %g mm" % (delim, worst))
+
+
+def case_placement():
+    """A plate placed 0.15 mm off and turned 5 mrad, with four stray points: every point still
+    goes to its own mark, strays are left out."""
+    d = fresh_dir("placement")
+    head, rows = simulate(d, plan="ye", n=25)
+    views = views_of(head)
+    rng = random.Random(5)
+    th, tx, ty = 5e-3, 0.15, -0.12
+    files = []
+    for k, _ in views:
+        pts = []
+        for (v, i, j), (x, y) in rows.items():
+            if v == k:
+                pts.append((tx + math.cos(th) * x - math.sin(th) * y,
+                            ty + math.sin(th) * x + math.cos(th) * y))
+        for s in range(4):
+            x, y = pts[s * 37]
+            pts.append((x + 0.5, y + 0.45))
+        files.append(os.path.join(d, "v%d.csv" % k))
+        write_export(files[-1], pts, rng=rng)
+    out = os.path.join(d, "out.csv")
+    p = run(*import_args(views, files), "-o", out)
+    if p.stderr.count("; left out\n") != 12:
+        fail("want 12 stray points left out: %s" % p.stderr)
+    _, irows = read_grid(out)
+    if set(irows) != set(rows):
+        fail("marks differ after a misplaced plate")
+    for key, (x, y) in rows.items():
+        ex = tx + math.cos(th) * x - math.sin(th) * y
+        if abs(irows[key][0] - ex) > 1e-9:
+            fail("mark %s got another point" % (key,))
+    # the fitted rotation: 5 mrad plus the simulation's own misalignment (sigma 100 urad)
+    import re
+    th_fit = [float(t) for t in re.findall(r"theta (-?[0-9.]+) urad", p.stderr)]
+    if len(th_fit) != 3 or any(abs(t - 5000) > 500 for t in th_fit):
+        fail("fitted rotations %s, want 5000 +- 500 urad" % th_fit)
+
+
+def case_stage():
+    """--stage larger than the plate: marks land on stage nodes, off-stage marks are absent, the
+    header carries the stage line."""
+    d = fresh_dir("stage")
+    n, nx, ny, P = 9, 13, 9, 1.0
+    views = [(0, "rot=0 shift=0,0"), (1, "rot=90 shift=0,0"), (2, "rot=0 shift=4,0"),
+             (3, "rot=0 shift=-5,1")]
+    c, cx, cy = (n - 1) // 2, (nx - 1) // 2, (ny - 1) // 2
+    rng = random.Random(9)
+    files, want = [], {}
+    for k, spec in views:
+        rot = int(spec.split()[0][4:])
+        sx, sy = map(int, spec.split()[1][6:].split(","))
+        pts = []
+        for i in range(n):
+            for j in range(n):
+                px, py = j - c, i - c
+                qx, qy = {0: (px, py), 90: (-py, px)}[rot]
+                jj, ii = qx + sx + cx, qy + sy + cy
+                if 0 <= jj < nx and 0 <= ii < ny:
+                    x, y = (jj - cx) * P + 1e-3 * rng.uniform(-3, 3), (ii - cy) * P
+                    pts.append((x, y))
+                    want[(k, i, j)] = (x, y)
+        files.append(os.path.join(d, "v%d.csv" % k))
+        write_export(files[-1], pts, rng=rng)
+    out = os.path.join(d, "out.csv")
+    run(*import_args(views, files, n=n), "--stage", "%d,%d" % (nx, ny), "-o", out)
+    head, irows = read_grid(out)
+    if "# stage = 13,9" not in head:
+        fail("no stage line: %s" % head)
+    if set(irows) != set(want):
+        fail("stage: marks differ: %s" % sorted(set(irows) ^ set(want))[:6])
+    if sum(1 for k in want if k[0] == 3) != 8 * 6:
+        fail("stage: view 3 should keep 6 columns of 8 rows")
+
+
+def case_bad_input():
+    d = fresh_dir("bad")
+    head, rows = simulate(d, plan="ye", n=9)
+    views = views_of(head)
+    files = []
+    for k, _ in views:
+        files.append(os.path.join(d, "v%d.csv" % k))
+        write_export(files[-1], [xy for (v, i, j), xy in sorted(rows.items()) if v == k])
+    out = os.path.join(d, "out.csv")
+    good = import_args(views, files, n=9)
+    # no such column (the header line is line 1)
+    a = list(good)
+    a[a.index("Y")] = "Ypos"
+    check_bad(a, d, out, "v0.csv:1: no column named 'Ypos'")
+    # wrong units: every point is 1000x too far: the share test refuses the view
+    a = list(good)
+    a[a.index("um")] = "mm"
+    check_bad(a, d, out, "v0.csv:1: only 1 of the 81 marks of view rot=0 shift=0,0")
+    # two points on one mark: a line repeated 3 µm off
+    lines = open(files[1]).read().splitlines()
+    f, x, y, z = lines[5].split(";")
+    lines.append(";".join([f, x.replace(",", ",000003")[:len(x) + 6], y, z]))
+    bad = os.path.join(d, "dup.csv")
+    open(bad, "w").write("\n".join(lines) + "\n")
+    a = import_args(views, [files[0], bad, files[2]], n=9)
+    check_bad(a, d, out, "dup.csv:%d: this point and the point on line 6 both fall on mark"
+              % len(lines))
+    # mixed decimal marks
+    lines = open(files[2]).read().splitlines()
+    lines[7] = lines[7].replace(",", ".")
+    bad = os.path.join(d, "mixed.csv")
+    open(bad, "w").write("\n".join(lines) + "\n")
+    a = import_args(views, [files[0], files[1], bad], n=9)
+    check_bad(a, d, out, "mixed.csv:8: column 'X': decimal '.' here but ',' on line 2 (mixed decimal marks)")
+    # decimal commas in a comma-separated file: the field count tells
+    lines = [l.replace(";", ",") for l in open(files[0]).read().splitlines()]
+    bad = os.path.join(d, "commas.csv")
+    open(bad, "w").write("\n".join(lines) + "\n")
+    a = import_args(views, [bad, files[1], files[2]], n=9)
+    check_bad(a, d, out, "commas.csv:2: 7 fields, the header line (line 1) has 4")
+    # not a number, both marks in one number, empty file, missing file
+    for name, text, want in [("nan.csv", "X;Y\n1;nan\n", "nan.csv:2: column 'Y': 'nan' is not a number"),
+                             ("thou.csv", "X;Y\n1.000,5;2\n", "thou.csv:2: column 'X': '1.000,5' has both"),
+                             ("empty.csv", "# nothing\n", "empty.csv:1: no header line"),
+                             ("nodata.csv", "X;Y\n", "nodata.csv:1: no data lines")]:
+        bad = os.path.join(d, name)
+        open(bad, "w").write(text)
+        a = import_args(views, [bad, files[1], files[2]], n=9)
+        check_bad(a, d, out, want)
+    check_bad(import_args(views, [os.path.join(d, "nope.csv"), files[1], files[2]], n=9), d, out,
+              "nope.csv: cannot open")
+    # usage errors: exit 2, one line
+    for a in [["import", "grid", "--n", 8, "--pitch-mm", 1, "--view", "rot=0 shift=0,0", files[0]],
+              ["import", "grid", "--n", 9, "--pitch-mm", 1, "--view", "rot=45 shift=0,0", files[0]],
+              ["import", "grid", "--n", 9, "--pitch-mm", 1, "--tolerance-mm", 0.6, "--view",
+               "rot=0 shift=0,0", files[0]],
+              ["import", "grid", "--n", 9, "--pitch-mm", 1, "--view", "rot=0", files[0]],
+              ["import", "grid", "--n", 9, "--pitch-mm", 1, "--view", "rot=0 shift=0,0"],
+              ["import", "grid", "--n", 9, "--pitch-mm", 1, "--view", "rot=0 shift=0,0 rows=9", files[0]],
+              ["import", "grid", "--n", 9, "--pitch-mm", 1, "--view", "rot=0 shift=30,0", files[0]]]:
+        p = run(*a, "-o", out, expect=2)
+        if len(p.stderr.strip().splitlines()) != 1 or os.path.exists(out):
+            fail("usage error %s: %r" % (a, p.stderr))
+    run(*good, "-o", out)  # and the good files do import
+
+
+def case_simulate_exports():
+    """selfcal simulate exports writes what import reads back to the same measurements."""
+    d = fresh_dir("simexports")
+    head, rows = simulate(d)
+    ex = os.path.join(d, "ex")
+    p = run("simulate", "exports", os.path.join(d, "truth_in.csv"), "--dir", ex, "--missing",
+            "3,4@1", "--missing", "0,0", "--stray", "2", "--seed", 3)
+    cmd = p.stdout.replace("\\\n", " ").split()
+    if cmd[:3] != ["selfcal", "import", "grid"]:
+        fail("simulate exports should print the import command: %r" % p.stdout)
+    first = open(os.path.join(ex, "view0.csv")).readline().strip()
+    if first != "Nr;X;Y;Z":
+        fail("export header %r" % first)
+    out = os.path.join(d, "imported.csv")
+    args = shlex.split(p.stdout.replace("\\\n", " "))[1:]
+    args[args.index("-o") + 1] = out
+    p = run(*args)
+    if "view2.csv:" not in p.stderr or "no point for mark (3,4)" not in p.stderr:
+        fail("stray/missing not reported: %s" % p.stderr)
+    _, irows = read_grid(out)
+    want = {k: v for k, v in rows.items() if k[1:] != (0, 0) and k != (1, 3, 4)}
+    if set(irows) != set(want):
+        fail("simulate exports + import: marks differ %s" % sorted(set(irows) ^ set(want))[:5])
+    worst = max(max(abs(irows[k][0] - want[k][0]), abs(irows[k][1] - want[k][1])) for k in want)
+    if worst > 1e-12:
+        fail("simulate exports + import: positions differ by %g mm" % worst)
+
+
+def write_scan(path, rows, delim=";", dec=","):
+    with open(path, "w") as f:
+        f.write(delim.join(["pos [mm]", "A", "B", "phi"]) + "\n")
+        for r in rows:
+            f.write(delim.join(("%.17g" % v).replace(".", dec) for v in r) + "\n")
+
+
+def read_profile(path):
+    data = {}
+    head = []
+    for line in open(path):
+        if line.startswith("#"):
+            head.append(line.strip())
+        elif line[0].isdigit():
+            k, n, a, b, c = line.split(",")
+            data[(int(k), int(n))] = (float(a), float(b), float(c))
+    return head, data
+
+
+def case_profile():
+    """Sensor logs (reversed order, nm and mrad, ';' and decimal commas, an offset start) ->
+    selfcal-profile v1 equal to the simulated file; then the checks: gaps, repeats, step,
+    spacings, start, coverage."""
+    d = fresh_dir("profile")
+    src = os.path.join(d, "sim.csv")
+    run("simulate", "profile", "--out", src, "--truth", os.path.join(d, "T.csv"), "--n", 120,
+        "--s-mm", 0.5, "--d1", 6, "--d2", 7, "--noise-free")
+    head, data = read_profile(src)
+    s, start = 0.5, 100.25
+    scans = {}
+    for k, dk in ((1, 6), (2, 7)):
+        rows = [(start + n * s, data[(k, n)][0] * 1e3, data[(k, n)][1] * 1e3, data[(k, n)][2] * 1e-3)
+                for n in range(120 - dk)]
+        scans[k] = rows
+        write_scan(os.path.join(d, "s%d.csv" % k), rows[::-1])
+    out = os.path.join(d, "out.csv")
+    base = ["import", "profile", "--pos-col", "pos [mm]", "--m1-col", "a", "--m2-col", "b",
+            "--m3-col", "PHI", "--disp-units", "nm", "--angle-units", "mrad"]
+    files = [os.path.join(d, "s1.csv"), os.path.join(d, "s2.csv")]
+    args = base + ["--spacing-mm", 3, files[0], "--spacing-mm", 3.5, files[1]]
+    run(*args, "-o", out)
+    ohead, odata = read_profile(out)
+    for h in ("# N = 120", "# s_mm = 0.5", "# scan 1: d=6", "# scan 2: d=7"):
+        if h not in ohead:
+            fail("profile header lacks %r: %s" % (h, ohead))
+    if set(odata) != set(data):
+        fail("profile samples differ")
+    worst = max(abs(a - b) for k in data for a, b in zip(odata[k], data[k]))
+    if worst > 1e-12:
+        fail("profile values differ by %g" % worst)
+    run("profile", "--method", "lsq", out, "--out", os.path.join(d, "P.csv"))
+
+    def bad(rows_by_scan, want, extra=(), spacings=(3, 3.5)):
+        for k in (1, 2):
+            write_scan(os.path.join(d, "b%d.csv" % k), rows_by_scan[k])
+        a = base + list(extra) + ["--spacing-mm", spacings[0], os.path.join(d, "b1.csv"),
+                                  "--spacing-mm", spacings[1], os.path.join(d, "b2.csv")]
+        check_bad(a, d, os.path.join(d, "bad_out.csv"), want)
+
+    gap = dict(scans)
+    gap[2] = scans[2][:40] + scans[2][41:]
+    bad(gap, "b2.csv:42: gap: 1 sample missing between 119.750000 mm (line 41)")
+    rep = dict(scans)
+    rep[1] = scans[1][:10] + [scans[1][9]] + scans[1][10:]
+    bad(rep, "b1.csv:12: position 104.750000 mm is sampled twice (also line 11)")
+    step = dict(scans)
+    r = list(scans[1][30])
+    r[0] += 0.2
+    step[1] = scans[1][:30] + [tuple(r)] + scans[1][31:]
+    bad(step, "b1.csv:32: position 115.450000 mm is 0.400 steps off the sampling grid")
+    bad(scans, "the sensor spacing 3.2 mm is not a whole number of steps", spacings=(3, 3.2))
+    late = dict(scans)
+    late[2] = scans[2][1:] + [(scans[2][-1][0] + s,) + scans[2][-1][1:]]
+    bad(late, "b2.csv:2: scan 2 starts at 100.750000 mm, scan 1 at 100.250000 mm")
+    short = dict(scans)
+    short[2] = scans[2][:-1]
+    bad(short, "b2.csv:113: scan 2 covers 119 points")
+
+
+CASES = {"recover": case_recover, "formats": case_formats, "placement": case_placement,
+         "stage": case_stage, "bad_input": case_bad_input,
+         "simulate_exports": case_simulate_exports, "profile": case_profile}
+CASES[CASE]()
+print("ok")

@@ -1,0 +1,581 @@
+/* selfcal import grid|profile — measuring machines' exports into selfcal's input files (SPEC §10):
+ * per-view lists of mark centres numbered by fitting each view's placement (libselfcal's
+ * selfcal/import.h), and the two scans' sensor logs of a straightness measurement checked for
+ * constant step, gaps and spacings. Options and checks: docs/import.md. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "selfcal/import.h"
+#include "selfcal/profile.h"
+
+static const char *GRID_USAGE =
+    "usage: selfcal import grid --n N --pitch-mm P [--origin-mm X,Y] [--stage NX,NY]\n"
+    "                           --view \"rot=R shift=SX,SY [rows=..] [cols=..]\" FILE\n"
+    "                           [--view \"...\" FILE ...] -o OUT.csv\n"
+    "                           [--x-col x] [--y-col y] [--units mm|um] [--tolerance-mm P/4]\n"
+    "                           [--min-share 0.5]\n"
+    "\n"
+    "Numbers the measured mark centres of each view (one FILE per view, points in any order) and\n"
+    "writes a selfcal-grid v1 file with the views in the order given. FILE: a header line naming\n"
+    "the columns, then one point per line; delimiter ',', ';' or tab and decimal mark '.' or ','\n"
+    "are detected; other columns are ignored; positions in --units in the stage frame.\n"
+    "Each view's placement (translation + rotation) is fitted robustly from its points, then every\n"
+    "point goes to the nearest mark the view measures. Points farther than --tolerance-mm from\n"
+    "every mark are reported and left out; marks without a point are reported and absent.\n"
+    "Bad input (exit 2, no output): a missing column, two points on one mark, a view where fewer\n"
+    "than --min-share of its marks got a point, mixed decimal marks.\n";
+
+static const char *PROFILE_USAGE =
+    "usage: selfcal import profile --spacing-mm D1 FILE1 --spacing-mm D2 FILE2 -o OUT.csv\n"
+    "                              [--step-mm S] [--pos-col position] [--m1-col m1]\n"
+    "                              [--m2-col m2] [--m3-col m3] [--pos-units mm|um]\n"
+    "                              [--disp-units um|nm|mm] [--angle-units urad|mrad|arcsec]\n"
+    "                              [--step-tolerance 0.1] [--sigma-disp-um S]\n"
+    "                              [--sigma-angle-urad S]\n"
+    "\n"
+    "Turns the sensor logs of the two scans of a straightness measurement (SPEC §2) into a\n"
+    "selfcal-profile v1 file. FILEk: the log of scan k with sensor spacing Dk: a header line naming\n"
+    "the columns, then one sample per line (any order): the stage position (sensor 1's place),\n"
+    "displacement sensors 1 and 2 (sensor 2 is Dk ahead of sensor 1 in +position) and the angle\n"
+    "sensor. Delimiter and decimal mark are detected as for import grid.\n"
+    "Checked: the step S (default: the median step of scan 1) is constant (every position within\n"
+    "--step-tolerance steps of the grid), no gaps or repeated positions, both scans start at the\n"
+    "same position, each Dk is a whole number of steps, and both scans cover the same profile\n"
+    "(samples_k + dk equal). Any failure is bad input (exit 2, FILE:LINE, no output).\n";
+
+static int parse_pair_long(const char *s, long *a, long *b)
+{
+    char buf[128];
+    snprintf(buf, sizeof buf, "%s", s);
+    char *comma = strchr(buf, ',');
+    if (!comma)
+        return -1;
+    *comma = '\0';
+    return sc_parse_long(sc_str_trim(buf), a) || sc_parse_long(sc_str_trim(comma + 1), b) ? -1 : 0;
+}
+
+static int parse_pair_double(const char *s, double *a, double *b)
+{
+    char buf[128];
+    snprintf(buf, sizeof buf, "%s", s);
+    char *comma = strchr(buf, ',');
+    if (!comma)
+        return -1;
+    *comma = '\0';
+    return sc_parse_double(sc_str_trim(buf), a) || sc_parse_double(sc_str_trim(comma + 1), b) ? -1
+                                                                                                : 0;
+}
+
+/* Parse a comma list of plate indices into sel (n entries). */
+static int parse_selection(const char *s, int n, unsigned char *sel)
+{
+    char buf[4096];
+    snprintf(buf, sizeof buf, "%s", s);
+    for (char *tok = buf; tok;) {
+        char *comma = strchr(tok, ',');
+        if (comma)
+            *comma = '\0';
+        long k;
+        if (sc_parse_long(sc_str_trim(tok), &k) || k < 0 || k >= n)
+            return -1;
+        sel[k] = 1;
+        tok = comma ? comma + 1 : NULL;
+    }
+    return 0;
+}
+
+/* "rot=R shift=SX,SY [rows=..] [cols=..]" -> v (n: plate size, for rows/cols). */
+static int parse_view(const char *spec, int n, sc_grid_view *v)
+{
+    char buf[4096];
+    if (strlen(spec) >= sizeof buf)
+        return cli_usage_error("import grid", "--view: too long");
+    snprintf(buf, sizeof buf, "%s", spec);
+    memset(v, 0, sizeof *v);
+    int have_rot = 0, have_shift = 0;
+    for (char *tok = strtok(buf, " \t"); tok; tok = strtok(NULL, " \t")) {
+        char *eq = strchr(tok, '=');
+        if (!eq)
+            return cli_usage_error("import grid", "--view \"%s\": '%s' is not key=value", spec, tok);
+        *eq = '\0';
+        const char *val = eq + 1;
+        long a, b;
+        if (!strcmp(tok, "rot")) {
+            if (sc_parse_long(val, &a) || (a != 0 && a != 90 && a != 180 && a != 270))
+                return cli_usage_error("import grid", "--view \"%s\": rot must be 0, 90, 180 or 270",
+                                       spec);
+            v->rot_deg = (int)a;
+            have_rot = 1;
+        } else if (!strcmp(tok, "shift")) {
+            if (parse_pair_long(val, &a, &b) || labs(a) > 4 * SC_GRID_MAX_N ||
+                labs(b) > 4 * SC_GRID_MAX_N)
+                return cli_usage_error("import grid",
+                                       "--view \"%s\": shift must be SX,SY (whole pitches)", spec);
+            v->shift_x = (int)a;
+            v->shift_y = (int)b;
+            have_shift = 1;
+        } else if (!strcmp(tok, "rows") || !strcmp(tok, "cols")) {
+            v->restricted = 1;
+            if (parse_selection(val, n, tok[0] == 'r' ? v->row_sel : v->col_sel))
+                return cli_usage_error("import grid",
+                                       "--view \"%s\": %s must list plate indices in 0..%d", spec,
+                                       tok, n - 1);
+        } else {
+            return cli_usage_error("import grid", "--view \"%s\": unknown attribute '%s'", spec, tok);
+        }
+    }
+    if (!have_rot || !have_shift)
+        return cli_usage_error("import grid", "--view \"%s\": needs rot=R and shift=SX,SY", spec);
+    return 0;
+}
+
+static int parse_units(const char *cmd, const char *opt, const char *v, const char *const *names,
+                       const double *factors, int count, double *out)
+{
+    for (int k = 0; k < count; ++k)
+        if (!strcmp(v, names[k])) {
+            *out = factors[k];
+            return 0;
+        }
+    return cli_usage_error(cmd, "%s: unknown unit '%s'", opt, v);
+}
+
+/* One view of an import: its placement, its file and the result of numbering its points. */
+typedef struct import_view {
+    sc_grid_view v;
+    const char *file;
+    sc_table t;
+    long *mark_point;        /* per mark: its point, or -1 */
+    long *point_mark;        /* per point: its mark, or -1 */
+    sc_grid_import_fit fit;
+} import_view;
+
+static void fprint_view_line(FILE *fp, int k, const sc_grid_view *v, int n)
+{
+    fprintf(fp, "# view %d: rot=%d shift=%d,%d", k, v->rot_deg, v->shift_x, v->shift_y);
+    if (v->restricted) {
+        for (int pass = 0; pass < 2; ++pass) {
+            const unsigned char *sel = pass ? v->col_sel : v->row_sel;
+            int first = 1;
+            for (int q = 0; q < n; ++q)
+                if (sel[q]) {
+                    fprintf(fp, "%s%d", first ? (pass ? " cols=" : " rows=") : ",", q);
+                    first = 0;
+                }
+        }
+    }
+    fputc('\n', fp);
+}
+
+static void report_view(const sc_grid_import_params *p, int k, const import_view *iv)
+{
+    const long *point_mark = iv->point_mark;
+    const sc_grid_import_fit *fit = &iv->fit;
+    for (long q = 0; q < iv->t.n_rows; ++q)
+        if (point_mark[q] < 0)
+            fprintf(stderr,
+                    "selfcal import grid: %s:%ld: point (%.6f, %.6f) mm is farther than %g mm from "
+                    "every mark of view %d; left out\n",
+                    iv->file, iv->t.line[q], iv->t.value[2 * q], iv->t.value[2 * q + 1],
+                    p->tolerance_mm, k);
+    long missing = 0;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int ni, nj;
+            if (!sc_grid_import_mark_node(p, &iv->v, i, j, &ni, &nj) ||
+                iv->mark_point[(long)i * p->n + j] >= 0)
+                continue;
+            if (++missing <= 20)
+                fprintf(stderr, "selfcal import grid: %s: view %d: no point for mark (%d,%d); absent\n",
+                        iv->file, k, i, j);
+        }
+    if (missing > 20)
+        fprintf(stderr, "selfcal import grid: %s: view %d: ... and %ld more marks without a point\n",
+                iv->file, k, missing - 20);
+    fprintf(stderr,
+            "selfcal import grid: %s: view %d (rot=%d shift=%d,%d): %ld of %ld marks, %ld point%s "
+            "left out; placement tx %.3f um, ty %.3f um, theta %.1f urad; farthest point %.3f um "
+            "from its mark\n",
+            iv->file, k, iv->v.rot_deg, iv->v.shift_x, iv->v.shift_y, fit->n_assigned,
+            fit->n_marks, fit->n_left_out, fit->n_left_out == 1 ? "" : "s", fit->tx_um, fit->ty_um,
+            fit->theta_urad, fit->max_dist_um);
+}
+
+static int import_grid(int argc, char **argv)
+{
+    const char *cmd = "import grid", *out = NULL, *xcol = "x", *ycol = "y";
+    double n_d = 0, pitch = 0, unit_mm = 1, tol = 0, share = 0.5, ox = 0, oy = 0;
+    long snx = 0, sny = 0;
+    import_view views[SC_GRID_MAX_VIEWS];
+    const char *view_spec[SC_GRID_MAX_VIEWS];
+    int n_views = 0;
+    memset(views, 0, sizeof views);
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(GRID_USAGE, stdout);
+            return CLI_OK;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
+        const char *v = argv[++a];
+        if (!strcmp(o, "--view")) {
+            if (a + 1 >= argc)
+                return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
+            if (n_views == SC_GRID_MAX_VIEWS)
+                return cli_usage_error(cmd, "at most %d views", SC_GRID_MAX_VIEWS);
+            view_spec[n_views] = v;
+            views[n_views++].file = argv[++a];
+        } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
+            out = v;
+        } else if (!strcmp(o, "--x-col")) {
+            xcol = v;
+        } else if (!strcmp(o, "--y-col")) {
+            ycol = v;
+        } else if (!strcmp(o, "--units")) {
+            static const char *const names[] = {"mm", "um", "µm"};
+            static const double f[] = {1, 1e-3, 1e-3};
+            if (parse_units(cmd, o, v, names, f, 3, &unit_mm))
+                return CLI_BAD_INPUT;
+        } else if (!strcmp(o, "--origin-mm")) {
+            if (parse_pair_double(v, &ox, &oy))
+                return cli_usage_error(cmd, "--origin-mm needs X,Y, got '%s'", v);
+        } else if (!strcmp(o, "--stage")) {
+            if (parse_pair_long(v, &snx, &sny) || snx < 3 || sny < 3 || snx % 2 == 0 ||
+                sny % 2 == 0 || snx > 4 * SC_GRID_MAX_N || sny > 4 * SC_GRID_MAX_N)
+                return cli_usage_error(cmd, "--stage needs NX,NY (odd, >= 3), got '%s'", v);
+        } else {
+            double x;
+            if (sc_parse_double(v, &x))
+                return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
+            if (!strcmp(o, "--n")) n_d = x;
+            else if (!strcmp(o, "--pitch-mm")) pitch = x;
+            else if (!strcmp(o, "--tolerance-mm")) tol = x;
+            else if (!strcmp(o, "--min-share")) share = x;
+            else
+                return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+        }
+    }
+    if (!out || n_views == 0 || n_d == 0 || pitch == 0)
+        return cli_usage_error(cmd, "--n, --pitch-mm, at least one --view \"...\" FILE and -o are required (see --help)");
+    if (n_d != floor(n_d) || n_d < 3 || n_d > SC_GRID_MAX_N || fmod(n_d, 2) == 0)
+        return cli_usage_error(cmd, "--n must be odd and in 3..%d", SC_GRID_MAX_N);
+    sc_grid_import_params p;
+    sc_grid_import_defaults(&p, (int)n_d, pitch);
+    p.origin_mm[0] = ox;
+    p.origin_mm[1] = oy;
+    p.stage_nx = (int)snx;
+    p.stage_ny = (int)sny;
+    if (tol != 0)
+        p.tolerance_mm = tol;
+    p.min_share = share;
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_grid_import_check(&p, &err) != SC_OK)
+        return cli_usage_error(cmd, "%s", err.msg);
+    for (int k = 0; k < n_views; ++k)
+        if (parse_view(view_spec[k], p.n, &views[k].v))
+            return CLI_BAD_INPUT;
+
+    sc_status st = SC_OK;
+    long nn = (long)p.n * p.n;
+    const char *names[2] = {xcol, ycol};
+    const double scale[2] = {unit_mm, unit_mm};
+    for (int k = 0; k < n_views && st == SC_OK; ++k) {
+        import_view *iv = &views[k];
+        st = sc_table_read(iv->file, 2, names, scale, &iv->t, &err);
+        if (st != SC_OK)
+            break;
+        long np = iv->t.n_rows;
+        double *xy = malloc((size_t)np * 2 * sizeof(double));
+        double *work = malloc(sc_grid_import_work_doubles(np) * sizeof(double));
+        iv->point_mark = malloc((size_t)np * sizeof(long));
+        iv->mark_point = malloc((size_t)nn * sizeof(long));
+        if (!xy || !work || !iv->point_mark || !iv->mark_point) {
+            st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory (%ld points)", np);
+        } else {
+            for (long q = 0; q < np; ++q) {
+                xy[q] = iv->t.value[2 * q];
+                xy[np + q] = iv->t.value[2 * q + 1];
+            }
+            st = sc_grid_import_assign(&p, &iv->v, np, xy, xy + np, iv->t.line, iv->file,
+                                       iv->t.header_line, iv->point_mark, iv->mark_point,
+                                       &iv->fit, work, &err);
+        }
+        free(xy);
+        free(work);
+    }
+    if (st == SC_OK) { /* all views numbered: report, then write */
+        for (int k = 0; k < n_views; ++k)
+            report_view(&p, k, &views[k]);
+        sc_afile f;
+        st = sc_afile_open(&f, out, &err);
+        if (st == SC_OK) {
+            fprintf(f.fp, "# selfcal-grid v1\n# N = %d\n# pitch_mm = %.17g\n", p.n, p.pitch_mm);
+            if (ox != 0 || oy != 0)
+                fprintf(f.fp, "# origin_mm = %.17g,%.17g\n", ox, oy);
+            if (snx && (snx != p.n || sny != p.n))
+                fprintf(f.fp, "# stage = %ld,%ld\n", snx, sny);
+            for (int k = 0; k < n_views; ++k)
+                fprint_view_line(f.fp, k, &views[k].v, p.n);
+            fprintf(f.fp, "view,i,j,x_mm,y_mm\n");
+            for (int k = 0; k < n_views; ++k)
+                for (long m = 0; m < nn; ++m) {
+                    long q = views[k].mark_point[m];
+                    if (q >= 0)
+                        fprintf(f.fp, "%d,%ld,%ld,%.17g,%.17g\n", k, m / p.n, m % p.n,
+                                views[k].t.value[2 * q], views[k].t.value[2 * q + 1]);
+                }
+            st = sc_afile_commit(&f, &err);
+        }
+    }
+    for (int k = 0; k < n_views; ++k) {
+        sc_table_free(&views[k].t);
+        free(views[k].mark_point);
+        free(views[k].point_mark);
+    }
+    return st == SC_OK ? CLI_OK : cli_report(&err);
+}
+
+/* ---- import profile ---- */
+
+typedef struct scan_log {
+    const char *file;
+    double spacing_mm;
+    sc_table t;
+    long *order; /* rows sorted by position */
+} scan_log;
+
+static const sc_table *sort_table;
+static int cmp_row(const void *a, const void *b)
+{
+    double x = sort_table->value[*(const long *)a * 4], y = sort_table->value[*(const long *)b * 4];
+    return (x > y) - (x < y);
+}
+
+static int cmp_dbl(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Check that scan s sits on the grid p0 + n·step, n = 0, 1, 2, ... without gaps or repeats. */
+static sc_status check_steps(const scan_log *s, int k, double p0, double step, double tol,
+                             sc_error *err)
+{
+    const sc_table *t = &s->t;
+    long prev = -1, prev_row = -1;
+    for (long q = 0; q < t->n_rows; ++q) {
+        long r = s->order[q];
+        double pos = t->value[r * 4], fn = (pos - p0) / step;
+        long n = lround(fn);
+        if (fabs(fn - n) > tol)
+            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
+                                "position %.6f mm is %.3f steps off the sampling grid (%.6f mm + "
+                                "n x %.6f mm; tolerance %g steps): the step is not constant",
+                                pos, fabs(fn - n), p0, step, tol);
+        if (q == 0 && n != 0)
+            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
+                                "scan %d starts at %.6f mm, scan 1 at %.6f mm: both scans must "
+                                "start at the same position",
+                                k + 1, pos, p0);
+        if (q > 0 && n == prev)
+            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
+                                "position %.6f mm is sampled twice (also line %ld)", pos,
+                                t->line[prev_row]);
+        if (q > 0 && n != prev + 1)
+            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
+                                "gap: %ld sample%s missing between %.6f mm (line %ld) and %.6f mm",
+                                n - prev - 1, n - prev - 1 == 1 ? "" : "s",
+                                t->value[prev_row * 4], t->line[prev_row], pos);
+        prev = n;
+        prev_row = r;
+    }
+    return SC_OK;
+}
+
+static int import_profile(int argc, char **argv)
+{
+    const char *cmd = "import profile", *out = NULL;
+    const char *col[4] = {"position", "m1", "m2", "m3"};
+    double pos_unit = 1, disp_unit = 1, angle_unit = 1, step = 0, step_tol = 0.1;
+    double sigma_disp = NAN, sigma_angle = NAN;
+    scan_log scans[2];
+    int n_scans = 0;
+    memset(scans, 0, sizeof scans);
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(PROFILE_USAGE, stdout);
+            return CLI_OK;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
+        const char *v = argv[++a];
+        double x;
+        if (!strcmp(o, "--spacing-mm")) {
+            if (a + 1 >= argc)
+                return cli_usage_error(cmd, "--spacing-mm D must be followed by FILE");
+            if (n_scans == 2)
+                return cli_usage_error(cmd, "two scans: --spacing-mm D1 FILE1 --spacing-mm D2 FILE2");
+            if (sc_parse_double(v, &x) || !(x > 0) || x > SC_INPUT_MAX_ABS)
+                return cli_usage_error(cmd, "--spacing-mm needs a positive number, got '%s'", v);
+            scans[n_scans].spacing_mm = x;
+            scans[n_scans++].file = argv[++a];
+        } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
+            out = v;
+        } else if (!strcmp(o, "--pos-col")) {
+            col[0] = v;
+        } else if (!strcmp(o, "--m1-col")) {
+            col[1] = v;
+        } else if (!strcmp(o, "--m2-col")) {
+            col[2] = v;
+        } else if (!strcmp(o, "--m3-col")) {
+            col[3] = v;
+        } else if (!strcmp(o, "--pos-units")) {
+            static const char *const names[] = {"mm", "um", "µm"};
+            static const double f[] = {1, 1e-3, 1e-3};
+            if (parse_units(cmd, o, v, names, f, 3, &pos_unit))
+                return CLI_BAD_INPUT;
+        } else if (!strcmp(o, "--disp-units")) {
+            static const char *const names[] = {"um", "µm", "nm", "mm"};
+            static const double f[] = {1, 1, 1e-3, 1e3};
+            if (parse_units(cmd, o, v, names, f, 4, &disp_unit))
+                return CLI_BAD_INPUT;
+        } else if (!strcmp(o, "--angle-units")) {
+            static const char *const names[] = {"urad", "µrad", "mrad", "arcsec"};
+            static const double f[] = {1, 1, 1e3, 4.84813681109535994e0};
+            if (parse_units(cmd, o, v, names, f, 4, &angle_unit))
+                return CLI_BAD_INPUT;
+        } else {
+            if (sc_parse_double(v, &x))
+                return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
+            if (!strcmp(o, "--step-mm") && x > 0) step = x;
+            else if (!strcmp(o, "--step-tolerance") && x > 0 && x < 0.5) step_tol = x;
+            else if (!strcmp(o, "--sigma-disp-um") && x > 0) sigma_disp = x;
+            else if (!strcmp(o, "--sigma-angle-urad") && x > 0) sigma_angle = x;
+            else
+                return cli_usage_error(cmd, "unknown option '%s' or value '%s' out of range (see --help)",
+                                       o, v);
+        }
+    }
+    if (!out || n_scans != 2)
+        return cli_usage_error(cmd, "--spacing-mm D1 FILE1 --spacing-mm D2 FILE2 and -o are required (see --help)");
+
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st = SC_OK;
+    const double scale[4] = {pos_unit, disp_unit, disp_unit, angle_unit};
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        st = sc_table_read(scans[k].file, 4, col, scale, &scans[k].t, &err);
+        if (st != SC_OK)
+            break;
+        scans[k].order = malloc((size_t)scans[k].t.n_rows * sizeof(long));
+        if (!scans[k].order) {
+            st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
+            break;
+        }
+        for (long q = 0; q < scans[k].t.n_rows; ++q)
+            scans[k].order[q] = q;
+        sort_table = &scans[k].t;
+        qsort(scans[k].order, (size_t)scans[k].t.n_rows, sizeof(long), cmp_row);
+    }
+    sc_profile_data d;
+    memset(&d, 0, sizeof d);
+    int dk[2] = {0, 0};
+    double p0 = 0;
+    if (st == SC_OK) {
+        const sc_table *t = &scans[0].t;
+        p0 = t->value[scans[0].order[0] * 4];
+        if (step == 0) { /* the median step of scan 1 */
+            if (t->n_rows < 2) {
+                st = sc_error_set(&err, SC_E_INPUT, scans[0].file, t->line[0],
+                                  "one sample: cannot tell the step (give --step-mm)");
+            } else {
+                double *diff = malloc((size_t)(t->n_rows - 1) * sizeof(double));
+                if (!diff) {
+                    st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
+                } else {
+                    for (long q = 1; q < t->n_rows; ++q)
+                        diff[q - 1] = t->value[scans[0].order[q] * 4] -
+                                      t->value[scans[0].order[q - 1] * 4];
+                    qsort(diff, (size_t)(t->n_rows - 1), sizeof(double), cmp_dbl);
+                    step = diff[(t->n_rows - 1) / 2];
+                    free(diff);
+                    if (!(step > 0))
+                        st = sc_error_set(&err, SC_E_INPUT, scans[0].file, t->header_line,
+                                          "the median step between positions is 0: repeated positions?");
+                }
+            }
+        }
+    }
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        double fd = scans[k].spacing_mm / step;
+        dk[k] = (int)lround(fd);
+        if (fabs(fd - dk[k]) > 1e-6 * fd || dk[k] < 1) {
+            st = sc_error_set(&err, SC_E_INPUT, scans[k].file, 0,
+                              "the sensor spacing %g mm is not a whole number of steps (step %.9g mm: "
+                              "%.6f steps)",
+                              scans[k].spacing_mm, step, fd);
+            break;
+        }
+        st = check_steps(&scans[k], k, p0, step, step_tol, &err);
+    }
+    if (st == SC_OK) {
+        long n1 = scans[0].t.n_rows + dk[0], n2 = scans[1].t.n_rows + dk[1];
+        if (n1 != n2)
+            st = sc_error_set(&err, SC_E_INPUT, scans[1].file,
+                              scans[1].t.line[scans[1].order[scans[1].t.n_rows - 1]],
+                              "scan 2 covers %ld points (%ld samples + d2 = %d), scan 1 covers %ld "
+                              "(%ld samples + d1 = %d): both scans must cover the same profile",
+                              n2, scans[1].t.n_rows, dk[1], n1, scans[0].t.n_rows, dk[0]);
+        else if (n1 > 100000000L)
+            st = sc_error_set(&err, SC_E_INPUT, scans[0].file, 0, "more than 1e8 points");
+        else
+            st = sc_profile_data_init(&d, (int)n1, step, dk[0], dk[1], &err);
+    }
+    if (st == SC_OK) {
+        for (int k = 0; k < 2; ++k)
+            for (long q = 0; q < scans[k].t.n_rows; ++q) {
+                const double *row = &scans[k].t.value[scans[k].order[q] * 4];
+                d.m1_um[k][q] = row[1];
+                d.m2_um[k][q] = row[2];
+                d.m3_urad[k][q] = row[3];
+            }
+        if (!isnan(sigma_disp)) {
+            d.has_sigma_disp = 1;
+            d.sigma_disp_um = sigma_disp;
+        }
+        if (!isnan(sigma_angle)) {
+            d.has_sigma_angle = 1;
+            d.sigma_angle_urad = sigma_angle;
+        }
+        st = sc_profile_write(out, &d, &err);
+        if (st == SC_OK)
+            fprintf(stderr,
+                    "selfcal import profile: N = %d points, step %.9g mm from %.6f mm, d1 = %d, "
+                    "d2 = %d (%ld and %ld samples)\n",
+                    d.n, step, p0, dk[0], dk[1], scans[0].t.n_rows, scans[1].t.n_rows);
+    }
+    sc_profile_data_free(&d);
+    for (int k = 0; k < 2; ++k) {
+        sc_table_free(&scans[k].t);
+        free(scans[k].order);
+    }
+    return st == SC_OK ? CLI_OK : cli_report(&err);
+}
+
+int cmd_import_grid(int argc, char **argv)
+{
+    return import_grid(argc, argv);
+}
+
+int cmd_import_profile(int argc, char **argv)
+{
+    return import_profile(argc, argv);
+}

@@ -1,0 +1,303 @@
+/* selfcal simulate exports — turn a selfcal-grid v1 or selfcal-profile v1 file into what a
+ * measuring machine would have written: one file per view (grid) or per scan (profile), with the
+ * machine's own column names, µm, ';' and decimal commas, points shuffled, marks missing and
+ * stray points, so that `selfcal import` (and the guide, the demo and the tests) start where a
+ * user starts. */
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "selfcal/grid_io.h"
+#include "selfcal/profile.h"
+#include "selfcal/rng.h"
+
+static const char *USAGE =
+    "usage: selfcal simulate exports IN.csv --dir DIR [--units um|mm] [--style semicolon|comma|tab]\n"
+    "                                [--missing I,J[@V] ...] [--stray V ...] [--seed 1]\n"
+    "\n"
+    "IN.csv: a selfcal-grid v1 file (e.g. from selfcal simulate grid) or a selfcal-profile v1 file.\n"
+    "Grid: writes DIR/viewK.csv per view K with columns Nr, X, Y, Z (X, Y the measured mark centre\n"
+    "in --units, default um; Z = 0), the points in random order (--seed), without plate mark (I,J)\n"
+    "for each --missing I,J (every view; I,J@V: view V only) and with one stray point (half a pitch\n"
+    "off a mark diagonally, i.e. farther than a quarter pitch from every mark) for each --stray V.\n"
+    "Prints the matching `selfcal import grid` command on stdout.\n"
+    "Profile: writes DIR/scan1.csv and DIR/scan2.csv with columns Position (mm), SensorA, SensorB\n"
+    "(um) and Angle (urad), and prints the matching `selfcal import profile` command.\n"
+    "--style semicolon (default): ';' and decimal commas; comma: ',' and '.'; tab: tabs and '.'.\n";
+
+typedef struct style {
+    char delim, decimal;
+} style;
+
+static void put_num(FILE *fp, double v, const char *fmt, const style *s)
+{
+    char buf[64];
+    snprintf(buf, sizeof buf, fmt, v);
+    if (s->decimal == ',')
+        for (char *c = buf; *c; ++c)
+            if (*c == '.')
+                *c = ',';
+    fputs(buf, fp);
+}
+
+static int make_dir(const char *dir, sc_error *err)
+{
+    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+        sc_error_set(err, SC_E_IO, dir, 0, "cannot create the directory: %s", strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
+typedef struct missing_mark {
+    long i, j, view; /* view -1: every view */
+} missing_mark;
+
+static int grid_exports(const char *in, const char *dir, double unit_per_mm, const style *sty,
+                        const missing_mark *miss, int n_miss, const int *stray, int n_stray,
+                        uint64_t seed)
+{
+    sc_error err;
+    sc_error_clear(&err);
+    sc_grid_data d;
+    memset(&d, 0, sizeof d);
+    sc_status st = sc_grid_read(in, &d, NULL, &err);
+    if (st != SC_OK)
+        return cli_report(&err);
+    const sc_grid_plan *p = &d.plan;
+    long nn = (long)p->n * p->n;
+    for (int k = 0; k < n_miss; ++k)
+        if (miss[k].i >= p->n || miss[k].j >= p->n || miss[k].view >= p->n_views) {
+            sc_grid_data_free(&d);
+            return cli_usage_error("simulate exports", "--missing %ld,%ld: no such mark or view",
+                                   miss[k].i, miss[k].j);
+        }
+    for (int k = 0; k < n_stray; ++k)
+        if (stray[k] >= p->n_views) {
+            sc_grid_data_free(&d);
+            return cli_usage_error("simulate exports", "--stray %d: no such view", stray[k]);
+        }
+    if (make_dir(dir, &err)) {
+        sc_grid_data_free(&d);
+        return cli_report(&err);
+    }
+    sc_rng rng;
+    sc_rng_seed(&rng, seed);
+    double *pts = malloc((size_t)(nn + n_stray) * 2 * sizeof(double));
+    sc_afile f[SC_GRID_MAX_VIEWS];
+    memset(f, 0, sizeof f);
+    int opened = 0;
+    if (!pts)
+        st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
+    const char *fmt = unit_per_mm == 1 ? "%.15f" : "%.12f";
+    for (int v = 0; v < p->n_views && st == SC_OK; ++v) {
+        long np = 0;
+        for (int i = 0; i < p->n; ++i)
+            for (int j = 0; j < p->n; ++j) {
+                double dx = d.dx_um[v][(long)i * p->n + j], dy = d.dy_um[v][(long)i * p->n + j];
+                int ni, nj, drop = 0;
+                if (isnan(dx) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                for (int k = 0; k < n_miss; ++k)
+                    drop |= miss[k].i == i && miss[k].j == j && (miss[k].view < 0 || miss[k].view == v);
+                if (drop)
+                    continue;
+                double x, y;
+                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+                pts[2 * np] = p->origin_mm[0] + x + dx * 1e-3;
+                pts[2 * np + 1] = p->origin_mm[1] + y + dy * 1e-3;
+                ++np;
+            }
+        for (int k = 0; k < n_stray; ++k)
+            if (stray[k] == v && np > 0) {
+                long q = (long)(sc_rng_uniform(&rng) * np) % np;
+                pts[2 * np] = pts[2 * q] + 0.5 * p->pitch_mm;
+                pts[2 * np + 1] = pts[2 * q + 1] + 0.5 * p->pitch_mm;
+                ++np;
+            }
+        for (long q = np - 1; q > 0; --q) { /* Fisher-Yates */
+            long r = (long)(sc_rng_uniform(&rng) * (q + 1)) % (q + 1);
+            double tx = pts[2 * q], ty = pts[2 * q + 1];
+            pts[2 * q] = pts[2 * r], pts[2 * q + 1] = pts[2 * r + 1];
+            pts[2 * r] = tx, pts[2 * r + 1] = ty;
+        }
+        char path[1024];
+        snprintf(path, sizeof path, "%s/view%d.csv", dir, v);
+        st = sc_afile_open(&f[v], path, &err);
+        if (st != SC_OK)
+            break;
+        opened = v + 1;
+        fprintf(f[v].fp, "Nr%cX%cY%cZ\n", sty->delim, sty->delim, sty->delim);
+        for (long q = 0; q < np; ++q) {
+            fprintf(f[v].fp, "%ld%c", q + 1, sty->delim);
+            put_num(f[v].fp, pts[2 * q] * unit_per_mm, fmt, sty);
+            fputc(sty->delim, f[v].fp);
+            put_num(f[v].fp, pts[2 * q + 1] * unit_per_mm, fmt, sty);
+            fputc(sty->delim, f[v].fp);
+            put_num(f[v].fp, 0.0, "%.3f", sty);
+            fputc('\n', f[v].fp);
+        }
+    }
+    if (st == SC_OK)
+        st = sc_afile_commit_all(f, opened, &err);
+    else
+        sc_afile_abort_all(f, opened);
+    if (st == SC_OK) {
+        printf("selfcal import grid --n %d --pitch-mm %.17g", p->n, p->pitch_mm);
+        if (p->origin_mm[0] != 0 || p->origin_mm[1] != 0)
+            printf(" --origin-mm %.17g,%.17g", p->origin_mm[0], p->origin_mm[1]);
+        printf(" --units %s --x-col X --y-col Y", unit_per_mm == 1 ? "mm" : "um");
+        for (int v = 0; v < p->n_views; ++v) {
+            const sc_grid_view *w = &p->view[v];
+            printf(" \\\n  --view \"rot=%d shift=%d,%d", w->rot_deg, w->shift_x, w->shift_y);
+            for (int pass = 0; w->restricted && pass < 2; ++pass) {
+                const unsigned char *sel = pass ? w->col_sel : w->row_sel;
+                int first = 1;
+                for (int q = 0; q < p->n; ++q)
+                    if (sel[q]) {
+                        printf("%s%d", first ? (pass ? " cols=" : " rows=") : ",", q);
+                        first = 0;
+                    }
+            }
+            printf("\" %s/view%d.csv", dir, v);
+        }
+        printf(" \\\n  -o IN.csv\n");
+    }
+    free(pts);
+    sc_grid_data_free(&d);
+    return st == SC_OK ? CLI_OK : cli_report(&err);
+}
+
+static int profile_exports(const char *in, const char *dir, const style *sty)
+{
+    sc_error err;
+    sc_error_clear(&err);
+    sc_profile_data d;
+    memset(&d, 0, sizeof d);
+    sc_status st = sc_profile_read(in, &d, &err);
+    if (st != SC_OK)
+        return cli_report(&err);
+    if (make_dir(dir, &err)) {
+        sc_profile_data_free(&d);
+        return cli_report(&err);
+    }
+    sc_afile f[2];
+    memset(f, 0, sizeof f);
+    int opened = 0;
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        char path[1024];
+        snprintf(path, sizeof path, "%s/scan%d.csv", dir, k + 1);
+        st = sc_afile_open(&f[k], path, &err);
+        if (st != SC_OK)
+            break;
+        opened = k + 1;
+        char dl = sty->delim;
+        fprintf(f[k].fp, "Position%cSensorA%cSensorB%cAngle\n", dl, dl, dl);
+        for (int q = 0; q < d.n - d.d[k]; ++q) {
+            put_num(f[k].fp, q * d.s_mm, "%.6f", sty);
+            fputc(dl, f[k].fp);
+            put_num(f[k].fp, d.m1_um[k][q], "%.17g", sty);
+            fputc(dl, f[k].fp);
+            put_num(f[k].fp, d.m2_um[k][q], "%.17g", sty);
+            fputc(dl, f[k].fp);
+            put_num(f[k].fp, d.m3_urad[k][q], "%.17g", sty);
+            fputc('\n', f[k].fp);
+        }
+    }
+    if (st == SC_OK)
+        st = sc_afile_commit_all(f, opened, &err);
+    else
+        sc_afile_abort_all(f, opened);
+    if (st == SC_OK)
+        printf("selfcal import profile --spacing-mm %.17g %s/scan1.csv --spacing-mm %.17g %s/scan2.csv \\\n"
+               "  --pos-col Position --m1-col SensorA --m2-col SensorB --m3-col Angle -o IN.csv\n",
+               d.d[0] * d.s_mm, dir, d.d[1] * d.s_mm, dir);
+    sc_profile_data_free(&d);
+    return st == SC_OK ? CLI_OK : cli_report(&err);
+}
+
+int cmd_simulate_exports(int argc, char **argv)
+{
+    const char *cmd = "simulate exports", *in = NULL, *dir = NULL;
+    double unit_per_mm = 1000;
+    style sty = {';', ','};
+    missing_mark miss[64];
+    int stray[64], n_miss = 0, n_stray = 0;
+    long seed = 1;
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        }
+        if (o[0] != '-' || !o[1]) {
+            if (in)
+                return cli_usage_error(cmd, "one input file, got '%s' and '%s'", in, o);
+            in = o;
+            continue;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
+        const char *v = argv[++a];
+        if (!strcmp(o, "--dir")) {
+            dir = v;
+        } else if (!strcmp(o, "--units")) {
+            if (!strcmp(v, "mm")) unit_per_mm = 1;
+            else if (!strcmp(v, "um")) unit_per_mm = 1000;
+            else return cli_usage_error(cmd, "--units mm or um, got '%s'", v);
+        } else if (!strcmp(o, "--style")) {
+            if (!strcmp(v, "semicolon")) sty = (style){';', ','};
+            else if (!strcmp(v, "comma")) sty = (style){',', '.'};
+            else if (!strcmp(v, "tab")) sty = (style){'\t', '.'};
+            else return cli_usage_error(cmd, "--style semicolon, comma or tab, got '%s'", v);
+        } else if (!strcmp(o, "--missing")) {
+            char buf[128];
+            snprintf(buf, sizeof buf, "%s", v);
+            char *at = strchr(buf, '@'), *comma = strchr(buf, ',');
+            long view = -1;
+            if (at) {
+                *at = '\0';
+                if (sc_parse_long(at + 1, &view) || view < 0)
+                    return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
+            }
+            if (!comma || n_miss == 64)
+                return cli_usage_error(cmd, "--missing I,J[@V] (at most 64), got '%s'", v);
+            *comma = '\0';
+            missing_mark m = {0, 0, view};
+            if (sc_parse_long(buf, &m.i) || sc_parse_long(comma + 1, &m.j) || m.i < 0 || m.j < 0)
+                return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
+            miss[n_miss++] = m;
+        } else if (!strcmp(o, "--stray")) {
+            long s;
+            if (sc_parse_long(v, &s) || s < 0 || n_stray == 64)
+                return cli_usage_error(cmd, "--stray V (a view index, at most 64 times), got '%s'", v);
+            stray[n_stray++] = (int)s;
+        } else if (!strcmp(o, "--seed")) {
+            if (sc_parse_long(v, &seed) || seed < 0)
+                return cli_usage_error(cmd, "--seed needs a whole number >= 0");
+        } else {
+            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+        }
+    }
+    if (!in || !dir)
+        return cli_usage_error(cmd, "IN.csv and --dir DIR are required (see --help)");
+    /* which format: the first line says */
+    sc_error err;
+    sc_error_clear(&err);
+    FILE *fp = sc_open_input(in, &err);
+    if (!fp)
+        return cli_report(&err);
+    char first[64] = "";
+    if (!fgets(first, sizeof first, fp))
+        first[0] = '\0';
+    fclose(fp);
+    if (!strncmp(first, "# selfcal-profile v1", 20))
+        return profile_exports(in, dir, &sty);
+    return grid_exports(in, dir, unit_per_mm, &sty, miss, n_miss, stray, n_stray, (uint64_t)seed);
+}
