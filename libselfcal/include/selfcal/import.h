@@ -18,6 +18,7 @@
 #ifndef SELFCAL_IMPORT_H
 #define SELFCAL_IMPORT_H
 
+#include "selfcal/api.h"
 #include "selfcal/grid.h"
 
 #ifdef __cplusplus
@@ -43,11 +44,11 @@ typedef struct sc_table {
  * is ',' or '.' as the selected fields show; both in one file, a field with both, a missing column,
  * an empty or non-numeric field, or |value| > SC_INPUT_MAX_ABS (in the file's unit) -> SC_E_INPUT
  * with file:line. scale (may be NULL: 1) multiplies column k's values (unit conversion). */
-sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
-                        const double *scale, sc_table *t, sc_error *err);
+SC_API sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
+                               const double *scale, sc_table *t, sc_error *err);
 
 /* Free t's arrays; safe on a zeroed or freed table. */
-void sc_table_free(sc_table *t);
+SC_API void sc_table_free(sc_table *t);
 
 /* The stage and plate a view's points are assigned on. */
 typedef struct sc_grid_import_params {
@@ -71,29 +72,29 @@ typedef struct sc_grid_import_fit {
 } sc_grid_import_fit;
 
 /* Defaults: T = P/4, min_share 0.5, stage N x N, origin 0. */
-void sc_grid_import_defaults(sc_grid_import_params *p, int n, double pitch_mm);
+SC_API void sc_grid_import_defaults(sc_grid_import_params *p, int n, double pitch_mm);
 
 /* Check p (n odd in 3..SC_GRID_MAX_N, P > 0, stage odd >= 3 or 0, 0 < T < P/2, 0 <= share <= 1). */
-sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err);
+SC_API sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err);
 
 /* Doubles of workspace sc_grid_import_assign needs for n_points points. */
-size_t sc_grid_import_work_doubles(long n_points);
+SC_API size_t sc_grid_import_work_doubles(long n_points);
 
 /* 1 and the stage node (*ni, *nj) if view v of the import puts mark (i, j) on a stage node that it
  * measures (rows=/cols= of v applied), else 0. */
-int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
-                             int *ni, int *nj);
+SC_API int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
+                                    int *ni, int *nj);
 
 /* Assign the points (x_mm, y_mm: stage frame) of one view v. Fills point_mark[k] (the mark
  * i*n + j of point k, or -1 if left out; n_points values) and mark_point[m] (the point of mark m
  * or -1; n*n values) and fit. lines[k] is point k's file line and path/header_line the file, for
  * errors (SC_E_INPUT: two points for one mark, too few marks matched). work:
  * sc_grid_import_work_doubles(n_points) doubles. */
-sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
-                                long n_points, const double *x_mm, const double *y_mm,
-                                const long *lines, const char *path, long header_line,
-                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
-                                double *work, sc_error *err);
+SC_API sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
+                                       long n_points, const double *x_mm, const double *y_mm,
+                                       const long *lines, const char *path, long header_line,
+                                       long *point_mark, long *mark_point, sc_grid_import_fit *fit,
+                                       double *work, sc_error *err);
 
 #ifdef __cplusplus
 }
