@@ -82,19 +82,22 @@ static void test_input_round_trip(void **state)
     assert_int_equal(info.view_rows[3], 6 + 9 + 9 - 2);
     sc_grid_data_free(&r);
 
-    /* Map round trip through sc_grid_read_map. */
+    /* Map round trip through the one stage-map reader (io/). */
     double u[2 * 81];
     for (int k = 0; k < 2 * nn; ++k)
         u[k] = 0.001 * (k + 1);
     u[5] = NAN;
     tmp_path(path, sizeof path, "map.csv");
     assert_int_equal(sc_grid_write_map(path, &d.plan, t.gx_um, t.gy_um, u, u + nn, &err), SC_OK);
-    sc_grid_map m;
-    assert_int_equal(sc_grid_read_map(path, &m, &err), SC_OK);
-    assert_int_equal(m.n, n);
-    assert_true(fabs(m.pitch_mm - 1.5) < 1e-12);
-    assert_true(fabs(m.origin_mm[0] - 120.25) < 1e-12 && fabs(m.origin_mm[1] + 37.5) < 1e-12);
-    assert_true(m.has_u);
+    sc_stage_map m;
+    assert_int_equal(sc_stage_map_read(path, &m, &err), SC_OK);
+    assert_int_equal(m.nx, n);
+    assert_int_equal(m.ny, n);
+    assert_true(fabs(m.px_mm - 1.5) < 1e-12 && fabs(m.py_mm - 1.5) < 1e-12);
+    int c = (n - 1) / 2;
+    assert_true(fabs(sc_stage_map_x_mm(&m, c) - 120.25) < 1e-12);
+    assert_true(fabs(sc_stage_map_y_mm(&m, c) + 37.5) < 1e-12);
+    assert_true(sc_stage_map_has_u(&m));
     for (int k = 0; k < nn; ++k) {
         assert_true(fabs(m.gx_um[k] - t.gx_um[k]) < 1e-12);
         assert_true(fabs(m.gy_um[k] - t.gy_um[k]) < 1e-12);
@@ -104,10 +107,10 @@ static void test_input_round_trip(void **state)
             assert_true(fabs(m.ugx_um[k] - u[k]) < 1e-15);
         double x, y;
         sc_grid_node_xy_mm(&d.plan, k / n, k % n, &x, &y);
-        assert_true(fabs(m.x_mm[k] - (x + 120.25)) < 1e-12);
-        assert_true(fabs(m.y_mm[k] - (y - 37.5)) < 1e-12);
+        assert_true(fabs(sc_stage_map_x_mm(&m, k % n) - (x + 120.25)) < 1e-12);
+        assert_true(fabs(sc_stage_map_y_mm(&m, k / n) - (y - 37.5)) < 1e-12);
     }
-    sc_grid_map_free(&m);
+    sc_stage_map_free(&m);
     sc_grid_data_free(&d);
 }
 
@@ -224,50 +227,6 @@ static void test_parser_errors(void **state)
     assert_int_equal(sc_grid_read(SELFCAL_TEST_TMP "/no/such/file.csv", &d, NULL, &err), SC_E_INPUT);
 }
 
-/* Map files that are not N x N maps are refused with the line. */
-static void test_map_errors(void **state)
-{
-    (void)state;
-    static const struct {
-        const char *text;
-        long line;
-        const char *needle;
-    } cases[] = {
-        {"i,j,x,y,gx_um,gy_um\n", 1, "map header"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um,ugx_um\n", 1, "map header"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1\n", 2, "expected 6 fields"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,q\n", 2, "not a finite number"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,1,0,1,1\n", 3, "N x N"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um\n", 1, "no map rows"},
-    };
-    char path[512];
-    tmp_path(path, sizeof path, "badmap.csv");
-    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
-        write_text(path, cases[k].text);
-        sc_grid_map m;
-        sc_error err;
-        sc_error_clear(&err);
-        sc_status st = sc_grid_read_map(path, &m, &err);
-        if (st != SC_E_INPUT || err.line != cases[k].line || !strstr(err.msg, cases[k].needle))
-            fail_msg("map case %zu: status %d line %ld msg '%s'", k, st, err.line, err.msg);
-        assert_null(m.gx_um);
-    }
-    /* 3 x 3 with a repeated node. */
-    char text[1024] = "i,j,x_mm,y_mm,gx_um,gy_um\n";
-    for (int k = 0; k < 9; ++k) {
-        char row[64];
-        int i = k == 8 ? 0 : k / 3, j = k == 8 ? 0 : k % 3;
-        snprintf(row, sizeof row, "%d,%d,%d,%d,0,0\n", i, j, j - 1, i - 1);
-        strcat(text, row);
-    }
-    write_text(path, text);
-    sc_grid_map m;
-    sc_error err;
-    assert_int_equal(sc_grid_read_map(path, &m, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "repeated"));
-    assert_int_equal(err.line, 10);
-}
-
 /* The summary is valid enough JSON for a quick look: the keys and null for NaN. */
 static void test_summary(void **state)
 {
@@ -309,7 +268,6 @@ int main(void)
         cmocka_unit_test(test_input_round_trip),
         cmocka_unit_test(test_hand_written_values),
         cmocka_unit_test(test_parser_errors),
-        cmocka_unit_test(test_map_errors),
         cmocka_unit_test(test_summary),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

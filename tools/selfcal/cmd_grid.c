@@ -222,33 +222,7 @@ int cmd_grid(int argc, char **argv)
         sc_afile f[4];
         memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
         int opened = 0;
-        sc_grid_map gm;
-        memset(&gm, 0, sizeof gm);
-        double *xy = NULL;
-        if (plot) {
-            xy = malloc(2 * nn * sizeof(double));
-            if (!xy) {
-                st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-                goto done;
-            }
-            gm.n = n;
-            gm.pitch_mm = p->pitch_mm;
-            gm.origin_mm[0] = p->origin_mm[0];
-            gm.origin_mm[1] = p->origin_mm[1];
-            gm.x_mm = xy;
-            gm.y_mm = xy + nn;
-            for (int i = 0; i < n; ++i)
-                for (int j = 0; j < n; ++j) {
-                    sc_grid_node_xy_mm(p, i, j, &gm.x_mm[i * n + j], &gm.y_mm[i * n + j]);
-                    gm.x_mm[i * n + j] += p->origin_mm[0];
-                    gm.y_mm[i * n + j] += p->origin_mm[1];
-                }
-            gm.gx_um = res.gx_um;
-            gm.gy_um = res.gy_um;
-            gm.ugx_um = res.ugx_um;
-            gm.ugy_um = res.ugy_um;
-            gm.has_u = isfinite(res.ugx_um[0]);
-        }
+        sc_stage_map gm = sc_grid_stage_map(p, res.gx_um, res.gy_um, res.ugx_um, res.ugy_um);
         for (; opened < 4; ++opened) {
             if (!paths[opened])
                 continue;
@@ -267,7 +241,6 @@ int cmd_grid(int argc, char **argv)
             st = sc_afile_commit_all(f, opened, &err);
         else
             sc_afile_abort_all(f, opened);
-        free(xy);
     }
 
 done:

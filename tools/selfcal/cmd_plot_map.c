@@ -7,7 +7,7 @@
 #include "cli.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
-#include "selfcal/grid_io.h"
+#include "selfcal/stage_map.h"
 #include "plots.h"
 #include "svg.h"
 
@@ -35,41 +35,37 @@ typedef struct stats {
     int imax, jmax;
 } stats;
 
-static stats map_stats(int n, const double *gx, const double *gy)
+static stats map_stats(int nx, int ny, const double *gx, const double *gy)
 {
     stats s = {0, 0, 0, 0, 0, 0};
-    for (int k = 0; k < n * n; ++k) {
+    int nn = nx * ny;
+    for (int k = 0; k < nn; ++k) {
         double a = gx[k] * gx[k] + gy[k] * gy[k];
         s.rms += a;
         s.rms_x += gx[k] * gx[k];
         s.rms_y += gy[k] * gy[k];
         if (sqrt(a) > s.max) {
             s.max = sqrt(a);
-            s.imax = k / n;
-            s.jmax = k % n;
+            s.imax = k / nx;
+            s.jmax = k % nx;
         }
     }
-    s.rms = sqrt(s.rms / (n * n));
-    s.rms_x = sqrt(s.rms_x / (n * n));
-    s.rms_y = sqrt(s.rms_y / (n * n));
+    s.rms = sqrt(s.rms / nn);
+    s.rms_x = sqrt(s.rms_x / nn);
+    s.rms_y = sqrt(s.rms_y / nn);
     return s;
 }
 
 /* One panel: arrows at nodes; returns nothing, draws into fp at (x0, y0) with plot size sz px. */
-static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *m,
+static void panel(FILE *fp, double x0, double y0, double sz, const sc_stage_map *m,
                   const double *gx, const double *gy, const double *ugx, const double *ugy,
                   double scale_um_per_pitch, const char *title, const char *what,
                   int ellipse_at_node, const char *color)
 {
-    int n = m->n;
-    double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
-    for (int k = 0; k < n * n; ++k) {
-        xmin = fmin(xmin, m->x_mm[k]);
-        xmax = fmax(xmax, m->x_mm[k]);
-        ymin = fmin(ymin, m->y_mm[k]);
-        ymax = fmax(ymax, m->y_mm[k]);
-    }
-    double pad = m->pitch_mm;
+    int n = m->nx > m->ny ? m->nx : m->ny, nn = m->nx * m->ny;
+    double xmin = sc_stage_map_x_mm(m, 0), xmax = sc_stage_map_x_mm(m, m->nx - 1);
+    double ymin = sc_stage_map_y_mm(m, 0), ymax = sc_stage_map_y_mm(m, m->ny - 1);
+    double pad = m->px_mm;
     xmin -= pad, xmax += pad, ymin -= pad, ymax += pad;
     /* Square data range, so that x and y have the same scale and arrows keep their direction. */
     double span = fmax(xmax - xmin, ymax - ymin), cx = (xmin + xmax) / 2, cy = (ymin + ymax) / 2;
@@ -77,21 +73,22 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
     svg_chart_init(&c, fp, x0, y0, sz, sz, cx - span / 2, cx + span / 2, cy - span / 2,
                    cy + span / 2);
     svg_axes(&c, "x (mm, stage)", "y (mm, stage)", NULL);
-    stats s = map_stats(n, gx, gy);
+    stats s = map_stats(m->nx, m->ny, gx, gy);
     /* Default: a round number at or above half the largest arrow (longest arrow <= 2 pitches). */
     double scale = scale_um_per_pitch > 0 ? scale_um_per_pitch : round_up(0.5 * s.max);
-    double mm_per_um = m->pitch_mm / scale;
+    double mm_per_um = m->px_mm / scale;
     svg_text(fp, x0 + sz / 2, y0 - 30, 15, "middle", "#000", "%s", title);
     svg_text(fp, x0 + sz / 2, y0 - 12, 12, "middle", "#333",
              "RMS |%s| = %.3g µm (x %.3g, y %.3g)   max |%s| = %.3g µm at node (%d,%d)", what,
              s.rms, s.rms_x, s.rms_y, what, s.max, s.imax, s.jmax);
     double dot = fmax(1.0, fmin(2.5, sz / n / 10));
     double width = fmax(0.7, fmin(1.6, sz / n / 18));
-    for (int k = 0; k < n * n; ++k) {
-        double px = svg_px(&c, m->x_mm[k]), py = svg_py(&c, m->y_mm[k]);
+    for (int k = 0; k < nn; ++k) {
+        double xk = sc_stage_map_x_mm(m, k % m->nx), yk = sc_stage_map_y_mm(m, k / m->nx);
+        double px = svg_px(&c, xk), py = svg_py(&c, yk);
         svg_dot(fp, px, py, dot, "#9a9a9a");
-        double tx = svg_px(&c, m->x_mm[k] + gx[k] * mm_per_um);
-        double ty = svg_py(&c, m->y_mm[k] + gy[k] * mm_per_um);
+        double tx = svg_px(&c, xk + gx[k] * mm_per_um);
+        double ty = svg_py(&c, yk + gy[k] * mm_per_um);
         if (ugx && ugy && isfinite(ugx[k]) && isfinite(ugy[k])) {
             double rx = fabs(svg_px(&c, ugx[k] * mm_per_um) - svg_px(&c, 0));
             double ry = fabs(svg_py(&c, ugy[k] * mm_per_um) - svg_py(&c, 0));
@@ -104,10 +101,10 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
     }
     /* Scale bar: one pitch = scale µm, below the plot area. */
     double bx = x0 + 10, by = y0 + sz + 52;
-    double blen = svg_px(&c, m->pitch_mm) - svg_px(&c, 0);
+    double blen = svg_px(&c, m->px_mm) - svg_px(&c, 0);
     svg_arrow(fp, bx, by, bx + blen, by, color, width + 0.4);
     svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
-             "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, m->pitch_mm,
+             "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, m->px_mm,
              scale);
     if (ugx && ugy && isfinite(ugx[0]))
         svg_text(fp, bx, by + 22, 12, "start", "#c47f00",
@@ -115,24 +112,29 @@ static void panel(FILE *fp, double x0, double y0, double sz, const sc_grid_map *
                  ellipse_at_node ? "centred on the node" : "at the arrow tip");
 }
 
-void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
+void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
                   double scale_um_per_pitch, const char *name)
 {
-    int n = m->n;
+    int has_u = sc_stage_map_has_u(m);
     double sz = 560, margin_l = 80, margin_t = 100, gap = 110, bottom = 100;
     int panels = truth ? 2 : 1;
     int w = (int)(margin_l + panels * sz + (panels - 1) * gap + 30);
     int h = (int)(margin_t + sz + bottom);
     svg_begin(fp, w, h);
-    svg_text(fp, w / 2.0, 24, 17, "middle", "#000", "Stage error map — %s (N = %d, pitch %g mm)",
-             name, n, m->pitch_mm);
+    if (m->nx == m->ny && m->px_mm == m->py_mm)
+        svg_text(fp, w / 2.0, 24, 17, "middle", "#000",
+                 "Stage error map — %s (N = %d, pitch %g mm)", name, m->nx, m->px_mm);
+    else
+        svg_text(fp, w / 2.0, 24, 17, "middle", "#000",
+                 "Stage error map — %s (%d x %d nodes, pitch %g x %g mm)", name, m->nx, m->ny,
+                 m->px_mm, m->py_mm);
     svg_text(fp, w / 2.0, 42, 11, "middle", "#555",
              "stage error G = indicated − true position; SPEC gauge: no translation, rotation or "
              "magnification");
-    panel(fp, margin_l, margin_t, sz, m, m->gx_um, m->gy_um, m->has_u ? m->ugx_um : NULL,
-          m->has_u ? m->ugy_um : NULL, scale_um_per_pitch, "stage error G", "G", 0, "#1f4e9c");
+    panel(fp, margin_l, margin_t, sz, m, m->gx_um, m->gy_um, has_u ? m->ugx_um : NULL,
+          has_u ? m->ugy_um : NULL, scale_um_per_pitch, "stage error G", "G", 0, "#1f4e9c");
     if (truth) {
-        size_t nn = (size_t)n * n;
+        size_t nn = (size_t)m->nx * m->ny;
         double *ex = malloc(2 * nn * sizeof(double));
         if (ex) {
             for (size_t k = 0; k < nn; ++k) {
@@ -140,7 +142,7 @@ void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
                 ex[nn + k] = m->gy_um[k] - truth->gy_um[k];
             }
             panel(fp, margin_l + sz + gap, margin_t, sz, m, ex, ex + nn,
-                  m->has_u ? m->ugx_um : NULL, m->has_u ? m->ugy_um : NULL, 0,
+                  has_u ? m->ugx_um : NULL, has_u ? m->ugy_um : NULL, 0,
                   "estimation error G − G_true", "error", 1, "#b3261e");
             free(ex);
         }
@@ -179,18 +181,20 @@ int cmd_plot_map(int argc, char **argv)
         return cli_usage_error("plot map", "G.csv and -o map.svg are required (see --help)");
     sc_error err;
     sc_error_clear(&err);
-    sc_grid_map m, t;
+    sc_stage_map m, t;
     memset(&t, 0, sizeof t);
-    sc_status st = sc_grid_read_map(in, &m, &err);
+    sc_status st = sc_stage_map_read(in, &m, &err);
     if (st != SC_OK)
         return cli_report(&err);
     if (truth_path) {
-        st = sc_grid_read_map(truth_path, &t, &err);
-        if (st == SC_OK && (t.n != m.n || fabs(t.pitch_mm - m.pitch_mm) > 1e-9 * m.pitch_mm ||
-                            fabs(t.origin_mm[0] - m.origin_mm[0]) > 1e-6 ||
-                            fabs(t.origin_mm[1] - m.origin_mm[1]) > 1e-6))
+        st = sc_stage_map_read(truth_path, &t, &err);
+        if (st == SC_OK && (t.nx != m.nx || t.ny != m.ny ||
+                            fabs(t.px_mm - m.px_mm) > 1e-9 * m.px_mm ||
+                            fabs(t.py_mm - m.py_mm) > 1e-9 * m.py_mm ||
+                            fabs(t.x0_mm - m.x0_mm) > 1e-6 || fabs(t.y0_mm - m.y0_mm) > 1e-6))
             st = sc_error_set(&err, SC_E_INPUT, truth_path, 0,
-                              "the truth map is not on the grid of %s (N %d vs %d)", in, t.n, m.n);
+                              "the truth map is not on the grid of %s (%d x %d vs %d x %d nodes)",
+                              in, t.nx, t.ny, m.nx, m.ny);
     }
     if (st == SC_OK) {
         sc_afile f;
@@ -201,7 +205,7 @@ int cmd_plot_map(int argc, char **argv)
             st = sc_afile_commit(&f, &err);
         }
     }
-    sc_grid_map_free(&m);
-    sc_grid_map_free(&t);
+    sc_stage_map_free(&m);
+    sc_stage_map_free(&t);
     return st == SC_OK ? CLI_OK : cli_report(&err);
 }

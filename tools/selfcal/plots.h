@@ -6,12 +6,12 @@
 #include <stdio.h>
 
 #include "selfcal/error.h"
-#include "selfcal/grid_io.h"
+#include "selfcal/stage_map.h"
 #include "selfcal/profile.h"
 
 /* Arrow plot of a stage error map (arrows scaled scale_um_per_pitch µm per pitch; 0 = automatic);
  * with truth, a second panel shows the estimation error. name goes into the title. */
-void plot_map_svg(FILE *fp, const sc_grid_map *m, const sc_grid_map *truth,
+void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
                   double scale_um_per_pitch, const char *name);
 
 typedef struct profile_plot_opts {

@@ -1,5 +1,5 @@
 /* selfcal/grid_io.h — the grid files of SPEC §1: read `selfcal-grid v1` data and plan files,
- * write stage error maps, plate error maps and run summaries, read maps back.
+ * write stage error maps (through io/, selfcal/stage_map.h), plate error maps and run summaries.
  *
  * Reading is strict: every problem is SC_E_INPUT with the file and line. All writers go through
  * sc_afile (a file is complete or absent). Numbers are written with %.15g (and positions in mm with
@@ -13,6 +13,7 @@
 #include <stdio.h>
 
 #include "selfcal/grid.h"
+#include "selfcal/stage_map.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -50,8 +51,14 @@ SC_API void sc_grid_write_header(FILE *fp, const sc_grid_plan *p);
 SC_API sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err);
 SC_API void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d);
 
-/* Write a stage error map `i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um` (x, y: stage node positions
- * including the origin). ugx/ugy may be NULL; NaN uncertainties are written as empty fields. */
+/* The stage map of a result on plan p as a view on the caller's arrays (nothing allocated, never
+ * freed, only read): nx = ny = n, node (0, 0) at origin - c·P, both pitches P. */
+SC_API sc_stage_map sc_grid_stage_map(const sc_grid_plan *p, const double *gx_um,
+                                      const double *gy_um, const double *ugx_um,
+                                      const double *ugy_um);
+
+/* Write a stage error map (selfcal/stage_map.h, through sc_stage_map_write). ugx/ugy may be NULL;
+ * NaN uncertainties are written as empty fields. */
 SC_API sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, const double *gx_um,
                                    const double *gy_um, const double *ugx_um, const double *ugy_um,
                                    sc_error *err);
@@ -72,24 +79,6 @@ SC_API sc_status sc_grid_write_summary(const char *path, const char *method, con
                                        const sc_grid_result *res, sc_error *err);
 SC_API void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
                                    const sc_grid_result *res);
-
-/* A stage error map as read back from a map file. Arrays n*n, row-major, owned by the struct. */
-typedef struct sc_grid_map {
-    int n;
-    double pitch_mm;        /* node spacing found in the file */
-    double origin_mm[2];    /* position of the centre node */
-    double *x_mm, *y_mm;    /* node positions as written */
-    double *gx_um, *gy_um;
-    double *ugx_um, *ugy_um; /* NaN where empty */
-    int has_u;               /* 1 if any uncertainty is present */
-} sc_grid_map;
-
-/* Read a map file written by sc_grid_write_map (or any file in that format: header line, one row
- * per node of an N x N grid, N odd). On failure m holds no memory. */
-SC_API sc_status sc_grid_read_map(const char *path, sc_grid_map *m, sc_error *err);
-
-/* Free a map read by sc_grid_read_map. */
-SC_API void sc_grid_map_free(sc_grid_map *m);
 
 #ifdef __cplusplus
 }

@@ -14,6 +14,7 @@
 
 #include "selfcal/error.h"
 #include "selfcal/sha256.h"
+#include "selfcal/stage_map.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -70,9 +71,12 @@ typedef struct sc_lut {
 /* Reset to an empty table: no grid, no profiles, no provenance (sigma unknown). */
 SC_API void sc_lut_init(sc_lut *lut);
 
-/* Read a SPEC §1 stage error map (`i,j,x_mm,y_mm,gx_um,gy_um[,...]`) into the grid of lut:
- * nx, ny, origin and pitch are derived from x_mm/y_mm; the grid must be complete and regular.
- * SC_E_INPUT with file and line on any problem. */
+/* Copy a stage map into the grid of lut; SC_E_INPUT (naming `name`) if it does not fit a table
+ * (more than SC_LUT_MAX_NX x SC_LUT_MAX_NY nodes, pitch below 1 nm). */
+SC_API sc_status sc_lut_set_grid(sc_lut *lut, const sc_stage_map *m, const char *name,
+                                 sc_error *err);
+
+/* Read a stage map file (sc_stage_map_read: the one reader and its rules) into the grid of lut. */
 SC_API sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err);
 
 /* Read the ey_um column of a SPEC §2 profile output file (`n,x_mm,f_um,uf_um,ey_um`) as the

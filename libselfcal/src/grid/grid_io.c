@@ -5,6 +5,7 @@
 #include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
+#include <stdint.h>
 #include <string.h>
 
 #include "selfcal/atomic_file.h"
@@ -591,29 +592,28 @@ sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error 
     return finish(&f, err);
 }
 
-static void put_num(FILE *fp, const double *a, int k)
+sc_stage_map sc_grid_stage_map(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                               const double *ugx_um, const double *ugy_um)
 {
-    if (a && isfinite(a[k]))
-        fprintf(fp, "%.15g", a[k]);
+    sc_stage_map m;
+    m.nx = m.ny = p->n;
+    sc_grid_node_xy_mm(p, 0, 0, &m.x0_mm, &m.y0_mm);
+    m.x0_mm += p->origin_mm[0];
+    m.y0_mm += p->origin_mm[1];
+    m.px_mm = m.py_mm = p->pitch_mm;
+    /* a view: the arrays stay the caller's and are only read */
+    m.gx_um = (double *)(uintptr_t)gx_um;
+    m.gy_um = (double *)(uintptr_t)gy_um;
+    m.ugx_um = (double *)(uintptr_t)ugx_um;
+    m.ugy_um = (double *)(uintptr_t)ugy_um;
+    return m;
 }
 
 void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um, const double *gy_um,
                         const double *ugx_um, const double *ugy_um)
 {
-    int n = p->n;
-    fprintf(fp, "i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n");
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            int k = i * n + j;
-            double x, y;
-            sc_grid_node_xy_mm(p, i, j, &x, &y);
-            fprintf(fp, "%d,%d,%.15g,%.15g,%.15g,%.15g,", i, j, x + p->origin_mm[0],
-                    y + p->origin_mm[1], gx_um[k], gy_um[k]);
-            put_num(fp, ugx_um, k);
-            fputc(',', fp);
-            put_num(fp, ugy_um, k);
-            fputc('\n', fp);
-        }
+    sc_stage_map m = sc_grid_stage_map(p, gx_um, gy_um, ugx_um, ugy_um);
+    sc_stage_map_fprint(fp, &m);
 }
 
 sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, const double *gx_um,
@@ -698,163 +698,4 @@ sc_status sc_grid_write_summary(const char *path, const char *method, const sc_g
         return st;
     sc_grid_fprint_summary(f.fp, method, p, res);
     return finish(&f, err);
-}
-
-/* ---------------------------------------------------------------------------------------------
- * Map reader
- * ------------------------------------------------------------------------------------------- */
-
-void sc_grid_map_free(sc_grid_map *m)
-{
-    free(m->x_mm);
-    free(m->y_mm);
-    free(m->gx_um);
-    free(m->gy_um);
-    free(m->ugx_um);
-    free(m->ugy_um);
-    memset(m, 0, sizeof *m);
-}
-
-typedef struct map_row {
-    long i, j, line;
-    double v[6];
-} map_row;
-
-sc_status sc_grid_read_map(const char *path, sc_grid_map *m, sc_error *err)
-{
-    static const char *names[8] = {"i", "j", "x_mm", "y_mm", "gx_um", "gy_um", "ugx_um", "ugy_um"};
-    memset(m, 0, sizeof *m);
-    sc_csv r;
-    sc_status st = sc_csv_open(&r, path, err);
-    if (st != SC_OK)
-        return st;
-    map_row *rows = NULL;
-    size_t nrows = 0, cap = 0;
-    int ncols = 0, got;
-    while ((got = sc_csv_next_line(&r, err)) > 0) {
-        if (sc_csv_is_blank(&r) || r.text[0] == '#')
-            continue;
-        if (sc_csv_split(&r, err) < 0) {
-            got = -1;
-            break;
-        }
-        if (!ncols) {
-            int k = 0;
-            while (k < r.nfields && k < 8 && !strcmp(r.field[k], names[k]))
-                ++k;
-            if (k < 6 || k == 7) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                  "expected the map header 'i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um'");
-                goto fail;
-            }
-            ncols = k;
-            continue;
-        }
-        if (r.nfields < ncols) {
-            st = sc_error_set(err, SC_E_INPUT, path, r.line, "expected %d fields, got %d", ncols,
-                              r.nfields);
-            goto fail;
-        }
-        if (nrows == cap) {
-            cap = cap ? 2 * cap : 256;
-            map_row *nr = realloc(rows, cap * sizeof *rows);
-            if (!nr) {
-                st = sc_error_set(err, SC_E_NOMEM, path, r.line, "out of memory");
-                goto fail;
-            }
-            rows = nr;
-        }
-        map_row *row = &rows[nrows];
-        row->line = r.line;
-        if ((st = sc_csv_long(&r, 0, "i", &row->i, err)) != SC_OK ||
-            (st = sc_csv_long(&r, 1, "j", &row->j, err)) != SC_OK)
-            goto fail;
-        for (int k = 2; k < 8; ++k) {
-            row->v[k - 2] = NAN;
-            if (k >= ncols || (k >= 6 && r.field[k][0] == '\0'))
-                continue;
-            if ((st = sc_csv_double(&r, k, names[k], &row->v[k - 2], err)) != SC_OK)
-                goto fail;
-            /* positions within 1 km, errors and uncertainties within 1 m */
-            if (!(fabs(row->v[k - 2]) <= SC_INPUT_MAX_ABS)) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                  "%s = %g is beyond %s", names[k], row->v[k - 2],
-                                  k < 4 ? "1 km" : "1 m: not a plausible stage error");
-                goto fail;
-            }
-        }
-        ++nrows;
-    }
-    if (got < 0) {
-        st = err ? err->code : SC_E_INPUT;
-        goto fail;
-    }
-    if (!ncols || nrows == 0) {
-        st = sc_error_set(err, SC_E_INPUT, path, r.line, "no map rows");
-        goto fail;
-    }
-    int n = (int)lround(sqrt((double)nrows));
-    if ((size_t)n * (size_t)n != nrows || n % 2 == 0 || n < 3 || n > SC_GRID_MAX_N) {
-        st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                          "%zu rows do not make an N x N map with N odd in 3..%d", nrows,
-                          SC_GRID_MAX_N);
-        goto fail;
-    }
-    size_t nn = nrows;
-    m->n = n;
-    double **arr[6] = {&m->x_mm, &m->y_mm, &m->gx_um, &m->gy_um, &m->ugx_um, &m->ugy_um};
-    for (int a = 0; a < 6; ++a) {
-        *arr[a] = malloc(nn * sizeof(double));
-        if (!*arr[a]) {
-            st = sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
-            goto fail;
-        }
-        for (size_t k = 0; k < nn; ++k)
-            (*arr[a])[k] = NAN;
-    }
-    unsigned char *seen = calloc(nn, 1);
-    if (!seen) {
-        st = sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
-        goto fail;
-    }
-    for (size_t q = 0; q < nrows; ++q) {
-        map_row *row = &rows[q];
-        if (row->i < 0 || row->i >= n || row->j < 0 || row->j >= n || seen[row->i * n + row->j]) {
-            st = sc_error_set(err, SC_E_INPUT, path, row->line,
-                              "node (%ld,%ld) is off the %dx%d map or repeated", row->i, row->j,
-                              n, n);
-            free(seen);
-            goto fail;
-        }
-        size_t k = (size_t)row->i * n + (size_t)row->j;
-        seen[k] = 1;
-        for (int a = 0; a < 6; ++a)
-            (*arr[a])[k] = row->v[a];
-        if (isfinite(row->v[4]) || isfinite(row->v[5]))
-            m->has_u = 1;
-        if (!isfinite(row->v[0]) || !isfinite(row->v[1]) || !isfinite(row->v[2]) ||
-            !isfinite(row->v[3])) {
-            st = sc_error_set(err, SC_E_INPUT, path, row->line, "empty position or error field");
-            free(seen);
-            goto fail;
-        }
-    }
-    free(seen);
-    int c = (n - 1) / 2;
-    m->origin_mm[0] = m->x_mm[c * n + c];
-    m->origin_mm[1] = m->y_mm[c * n + c];
-    m->pitch_mm = (m->x_mm[c * n + c + 1] - m->x_mm[c * n + c - 1]) / 2.0;
-    if (!(m->pitch_mm > 0)) {
-        st = sc_error_set(err, SC_E_INPUT, path, 0,
-                          "node positions do not increase with j (pitch <= 0)");
-        goto fail;
-    }
-    free(rows);
-    sc_csv_close(&r);
-    return SC_OK;
-fail:
-    free(rows);
-    sc_csv_close(&r);
-    sc_grid_map_free(m);
-    return st == SC_OK ? SC_E_INTERNAL : st;
 }

@@ -1,0 +1,63 @@
+/* io_common.c — owns what every reader and writer of io/ shares: the record loop, the atomic
+ * commit with its write-error check, and the regular-spacing fit of positions in a file. */
+#include <math.h>
+
+#include "io_internal.h"
+
+int sc_io_next_record(sc_csv *r, sc_error *err)
+{
+    for (;;) {
+        int rc = sc_csv_next_line(r, err);
+        if (rc <= 0)
+            return rc;
+        if (r->text[0] == '#' || sc_csv_is_blank(r))
+            continue;
+        return sc_csv_split(r, err) < 0 ? -1 : 1;
+    }
+}
+
+sc_status sc_io_finish(sc_afile *f, sc_error *err)
+{
+    if (ferror(f->fp)) {
+        sc_afile_abort(f);
+        return sc_error_set(err, SC_E_IO, f->path, 0, "write error");
+    }
+    return sc_afile_commit(f, err);
+}
+
+void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
+                    double tol_frac, double *a, double *b, double *dev, long *bad)
+{
+    size_t lo = 0, hi = 0;
+    for (size_t m = 1; m < n; ++m) {
+        if (k[m] < k[lo])
+            lo = m;
+        if (k[m] > k[hi])
+            hi = m;
+    }
+    double b0 = k[hi] > k[lo] ? (v[hi] - v[lo]) / (k[hi] - k[lo]) : 0.0;
+    double tol = tol_frac * fabs(b0);
+    *bad = -1;
+    *dev = 0;
+    for (size_t m = 0; m < n; ++m) {
+        double d = fabs(v[m] - (v[lo] + b0 * (k[m] - k[lo])));
+        if (d > tol && (*bad < 0 || lines[m] < lines[*bad])) {
+            *bad = (long)m;
+            *dev = d;
+        }
+    }
+    double km = 0, vm = 0;
+    for (size_t m = 0; m < n; ++m) {
+        km += k[m];
+        vm += v[m];
+    }
+    km /= (double)n;
+    vm /= (double)n;
+    double skk = 0, skv = 0;
+    for (size_t m = 0; m < n; ++m) {
+        skk += (k[m] - km) * (k[m] - km);
+        skv += (k[m] - km) * (v[m] - vm);
+    }
+    *b = skk > 0 ? skv / skk : 0.0;
+    *a = vm - *b * km;
+}

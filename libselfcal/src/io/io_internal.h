@@ -1,0 +1,23 @@
+/* io_internal.h — helpers shared by the readers and writers of io/ (not installed). */
+#ifndef SELFCAL_IO_INTERNAL_H
+#define SELFCAL_IO_INTERNAL_H
+
+#include <stddef.h>
+
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+
+/* Next non-blank, non-comment ('#') line, split into fields: 1, 0 at end of file, -1 on error. */
+int sc_io_next_record(sc_csv *r, sc_error *err);
+
+/* Commit an atomic file, or abort it (SC_E_IO) if a write failed. */
+sc_status sc_io_finish(sc_afile *f, sc_error *err);
+
+/* Fit v = a + b·k to points (k, v) in any order, lines[m] the file line of point m. Regularity is
+ * judged against the line through the points of smallest and largest k, so that one bad point
+ * shows alone: *bad = the deviating point (beyond tol_frac of the slope) with the smallest line
+ * number, or -1, *dev its deviation. a, b: the least-squares line over all points. */
+void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
+                    double tol_frac, double *a, double *b, double *dev, long *bad);
+
+#endif

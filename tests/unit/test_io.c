@@ -1,0 +1,271 @@
+/* Unit tests of io/ and of the declarative header parser (common/header.c): the stage map's one
+ * reader and writer (round trips, rectangles, every rule of selfcal/stage_map.h with its line),
+ * and the header table (types, ranges, duplicates, missing keys, FILE:LINE). */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include <cmocka.h>
+
+#include "selfcal/header.h"
+#include "selfcal/stage_map.h"
+
+static void tmp_path(char *buf, size_t n, const char *name)
+{
+    mkdir(SELFCAL_TEST_TMP, 0777);
+    snprintf(buf, n, "%s/io_%s", SELFCAL_TEST_TMP, name);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *fp = fopen(path, "wb");
+    assert_non_null(fp);
+    fputs(text, fp);
+    fclose(fp);
+}
+
+/* ---- header parser ---- */
+
+typedef struct hdr {
+    long n;
+    double s_mm, sigma;
+    double origin[2];
+    long stage[2];
+} hdr;
+
+static const sc_header_key keys[] = {
+    {"N", SC_HEADER_LONG, offsetof(hdr, n), 1, 3, 1000, 0},
+    {"s_mm", SC_HEADER_DOUBLE, offsetof(hdr, s_mm), 1, 0, 1e6, SC_HEADER_MIN_EXCLUSIVE},
+    {"sigma_um", SC_HEADER_DOUBLE, offsetof(hdr, sigma), 0, 0, 1e6, 0},
+    {"origin_mm", SC_HEADER_DOUBLE_PAIR, offsetof(hdr, origin), 0, -1e6, 1e6, 0},
+    {"stage", SC_HEADER_LONG_PAIR, offsetof(hdr, stage), 0, 3, 99, 0},
+};
+
+static void test_header_good(void **state)
+{
+    (void)state;
+    hdr h = {0, 0, -1, {7, 8}, {0, 0}};
+    sc_header p;
+    sc_header_init(&p, keys, 5, &h);
+    sc_error err;
+    sc_error_clear(&err);
+    const char *lines[] = {"# selfcal-x v1", "#  N = 25 ", "# s_mm=0.5", "# a free comment",
+                           "# unknown = 3", "# stage = 5, 7", "# view 0: rot=0 shift=0,0"};
+    int expect_used[] = {0, 1, 1, 0, 0, 1, 0};
+    for (int k = 0; k < 7; ++k) {
+        int used = -1;
+        assert_int_equal(sc_header_line(&p, "f.csv", k + 1, lines[k], &used, &err), SC_OK);
+        assert_int_equal(used, expect_used[k]);
+    }
+    assert_int_equal(sc_header_finish(&p, "f.csv", 8, &err), SC_OK);
+    assert_int_equal(h.n, 25);
+    assert_true(h.s_mm == 0.5);
+    assert_true(h.sigma == -1); /* optional, absent: default kept */
+    assert_true(h.origin[0] == 7 && h.origin[1] == 8);
+    assert_true(h.stage[0] == 5 && h.stage[1] == 7);
+    assert_int_equal(sc_header_line_of(&p, "N"), 2);
+    assert_int_equal(sc_header_line_of(&p, "s_mm"), 3);
+    assert_int_equal(sc_header_line_of(&p, "sigma_um"), 0);
+    assert_int_equal(sc_header_line_of(&p, "nope"), 0);
+    assert_int_equal(sc_header_line(&p, "f.csv", 9, "# origin_mm = -1.5,2", NULL, &err), SC_OK);
+    assert_true(h.origin[0] == -1.5 && h.origin[1] == 2);
+}
+
+static void test_header_errors(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *line;
+        const char *needle;
+    } cases[] = {
+        {"# N = 2", "N = 2 is out of range (3..1000)"},
+        {"# N = 2.5", "N: '2.5' is not a whole number"},
+        {"# s_mm = 0", "s_mm = 0 must be positive"},
+        {"# s_mm = x", "s_mm: 'x' is not a number"},
+        {"# s_mm = 2e6", "beyond any real set-up"},
+        {"# sigma_um = -1", "sigma_um = -1 must be non-negative"},
+        {"# origin_mm = 1", "not two numbers"},
+        {"# origin_mm = 1,y", "not two numbers"},
+        {"# origin_mm = 1,-2e6", "must be >= -1e+06"},
+        {"# stage = 5,4.5", "not two whole numbers"},
+        {"# stage = 5,101", "out of range (3..99)"},
+        {"# s_mm = nan", "not a number"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        hdr h;
+        memset(&h, 0, sizeof h);
+        sc_header p;
+        sc_header_init(&p, keys, 5, &h);
+        sc_error err;
+        sc_error_clear(&err);
+        int used = -1;
+        sc_status st = sc_header_line(&p, "f.csv", 4, cases[k].line, &used, &err);
+        if (st != SC_E_INPUT || !strstr(err.msg, cases[k].needle))
+            fail_msg("case %zu: status %d msg '%s'", k, st, err.msg);
+        assert_int_equal(used, 0);
+        assert_int_equal(err.line, 4);
+        assert_string_equal(err.file, "f.csv");
+    }
+    /* a repeated key names the first line; a missing required key is named at the given line */
+    hdr h;
+    sc_header p;
+    sc_header_init(&p, keys, 5, &h);
+    sc_error err;
+    assert_int_equal(sc_header_line(&p, "f.csv", 2, "# N = 5", NULL, &err), SC_OK);
+    assert_int_equal(sc_header_line(&p, "f.csv", 6, "# N = 5", NULL, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "N given twice (first at line 2)"));
+    assert_int_equal(err.line, 6);
+    assert_int_equal(sc_header_finish(&p, "f.csv", 9, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "'# s_mm = ...' missing"));
+    assert_int_equal(err.line, 9);
+    /* an over-long line is not a key line */
+    char longline[2048];
+    memset(longline, 'a', sizeof longline - 1);
+    longline[0] = '#';
+    longline[sizeof longline - 1] = '\0';
+    int used = 1;
+    assert_int_equal(sc_header_line(&p, "f.csv", 7, longline, &used, &err), SC_OK);
+    assert_int_equal(used, 0);
+}
+
+/* ---- stage map ---- */
+
+/* A rectangular map with uncertainties, written, read back and written again identically. */
+static void test_stage_map_round_trip(void **state)
+{
+    (void)state;
+    enum { NX = 5, NY = 3 };
+    double gx[NX * NY], gy[NX * NY], ux[NX * NY], uy[NX * NY];
+    for (int k = 0; k < NX * NY; ++k) {
+        gx[k] = 0.125 * k - 1;
+        gy[k] = -0.0625 * k;
+        ux[k] = k / 1024.0; /* exact in %.15g, so the round trip is exact */
+        uy[k] = k == 4 ? NAN : k / 512.0;
+    }
+    sc_stage_map m = {NX, NY, -10.0, 20.5, 2.5, 1.25, gx, gy, ux, uy};
+    char path[512], path2[512];
+    tmp_path(path, sizeof path, "map_rt.csv");
+    tmp_path(path2, sizeof path2, "map_rt2.csv");
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_equal(sc_stage_map_write(path, &m, &err), SC_OK);
+    sc_stage_map r;
+    assert_int_equal(sc_stage_map_read(path, &r, &err), SC_OK);
+    assert_int_equal(r.nx, NX);
+    assert_int_equal(r.ny, NY);
+    assert_true(fabs(r.x0_mm + 10) < 1e-12 && fabs(r.y0_mm - 20.5) < 1e-12);
+    assert_true(fabs(r.px_mm - 2.5) < 1e-12 && fabs(r.py_mm - 1.25) < 1e-12);
+    assert_true(sc_stage_map_has_u(&r));
+    for (int k = 0; k < NX * NY; ++k) {
+        assert_true(r.gx_um[k] == gx[k] && r.gy_um[k] == gy[k] && r.ugx_um[k] == ux[k]);
+        assert_true(k == 4 ? isnan(r.ugy_um[k]) : r.ugy_um[k] == uy[k]);
+    }
+    assert_int_equal(sc_stage_map_write(path2, &r, &err), SC_OK);
+    sc_stage_map_free(&r);
+    assert_null(r.gx_um);
+    /* the two files are byte-identical */
+    FILE *a = fopen(path, "rb"), *b = fopen(path2, "rb");
+    assert_non_null(a);
+    assert_non_null(b);
+    int ca, cb;
+    do {
+        ca = fgetc(a);
+        cb = fgetc(b);
+        assert_int_equal(ca, cb);
+    } while (ca != EOF);
+    fclose(a);
+    fclose(b);
+    /* without the uncertainty columns, and with an extension column; rows in any order */
+    write_text(path, "# comment\n\ni,j,x_mm,y_mm,gx_um,gy_um,extra\n1,1,1,1,4,8,z\n0,0,0,0,1,5,z\n"
+                     "0,1,1,0,2,6,z\n1,0,0,1,3,7,z\n");
+    assert_int_equal(sc_stage_map_read(path, &r, &err), SC_OK);
+    assert_int_equal(r.nx, 2);
+    assert_false(sc_stage_map_has_u(&r));
+    assert_true(r.gx_um[0] == 1 && r.gx_um[1] == 2 && r.gx_um[2] == 3 && r.gy_um[3] == 8);
+    assert_true(isnan(r.ugx_um[0]) && isnan(r.ugy_um[3]));
+    sc_stage_map_free(&r);
+    /* a view without uncertainty arrays writes empty fields */
+    sc_stage_map v = {2, 2, 0, 0, 1, 1, gx, gy, NULL, NULL};
+    assert_int_equal(sc_stage_map_write(path, &v, &err), SC_OK);
+    assert_int_equal(sc_stage_map_read(path, &r, &err), SC_OK);
+    assert_false(sc_stage_map_has_u(&r));
+    sc_stage_map_free(&r);
+}
+
+/* Every rule, with the line of the problem (0 for whole-file properties). */
+static void test_stage_map_errors(void **state)
+{
+    (void)state;
+#define H "i,j,x_mm,y_mm,gx_um,gy_um\n"
+#define HU "i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n"
+    static const struct {
+        const char *text;
+        long line;
+        const char *word;
+    } bad[] = {
+        {"", 0, "empty"},
+        {"# only a comment\n", 1, "empty map file"},
+        {"i,j,x,y,gx,gy\n0,0,0,0,1,1\n", 1, "map header"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um,ugx_um\n", 1, "pair"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um,foo,ugy_um\n", 1, "pair"},
+        {H, 1, "2 x 2"},
+        {H "0,0,0,0,1,1\n", 2, "2 x 2"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n", 3, "2 x 2"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n", 4, "missing"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n0,1,1,0,1,1\n", 5, "repeats line 3"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n1,1,1.2,1,1,1\n", 5, "irregular grid: x_mm"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n1,1,1,1.1,1,1\n", 5, "irregular grid: y_mm"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,abc,1\n1,1,1,1,1,1\n", 4, "gx_um"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1\n", 3, "expected 6 fields"},
+        {H "0,0,0,0,1,1,7\n", 2, "expected 6 fields"},
+        {H "0,0,0,0,1,1\n0,-1,1,0,1,1\n", 3, "outside"},
+        {H "0,0,0,0,1,1\n0,5000,1,0,1,1\n", 3, "outside"},
+        {H "0.5,0,0,0,1,1\n", 2, "i"},
+        {H "0,0,0,0,1,1\n0,1,-1,0,1,1\n1,0,0,1,1,1\n1,1,-1,1,1,1\n", 0, "increase"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,-1,1,1\n1,1,1,-1,1,1\n", 0, "y_mm does not increase"},
+        {H "0,0,0,0,nan,1\n", 2, "finite"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1e300,1\n", 3, "plausible"},
+        {H "0,0,0,0,1,1\n0,1,1,0,1,-2e6\n", 3, "plausible"},
+        {H "0,0,-3e12,0,1,1\n", 2, "1 km"},
+        {H "0,0,0,0,1,1\n0,1,1e-8,0,1,1\n1,0,0,1,1,1\n1,1,1e-8,1,1,1\n", 0, "1 nm"},
+        {HU "0,0,0,0,1,1,-0.1,0\n", 2, "not negative"},
+        {HU "0,0,0,0,,1,0,0\n", 2, "gx_um"},
+        {HU "0,0,0,0,1,1,2e6,\n", 2, "plausible"},
+    };
+#undef H
+#undef HU
+    char path[512];
+    tmp_path(path, sizeof path, "badmap.csv");
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        write_text(path, bad[k].text);
+        sc_error err;
+        sc_error_clear(&err);
+        sc_stage_map m;
+        sc_status st = sc_stage_map_read(path, &m, &err);
+        if (st != SC_E_INPUT || err.line != bad[k].line || !strstr(err.msg, bad[k].word))
+            fail_msg("case %zu: status %d line %ld msg '%s'", k, st, err.line, err.msg);
+        assert_string_equal(err.file, path);
+        assert_null(m.gx_um);
+        assert_null(m.ugy_um);
+    }
+    sc_error err;
+    sc_stage_map m;
+    assert_int_equal(sc_stage_map_read(SELFCAL_TEST_TMP "/no/such/map.csv", &m, &err), SC_E_INPUT);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_header_good),
+        cmocka_unit_test(test_header_errors),
+        cmocka_unit_test(test_stage_map_round_trip),
+        cmocka_unit_test(test_stage_map_errors),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
