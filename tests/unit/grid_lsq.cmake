@@ -1,9 +1,9 @@
-# Least-squares grid estimator (grid_lsq.c, sparse_ldl.c).
+# Least-squares grid estimator (grid_lsq.c, sparse_sym.c).
 selfcal_unit_test(NAME test_grid_lsq SOURCES unit/test_grid_lsq.c LIBS selfcal_static
                   LABELS grid TIMEOUT 120)
 # dense LAPACK reference for small N
 selfcal_unit_test(NAME test_grid_lsq_dense SOURCES unit/test_grid_lsq_dense.c
                   LIBS selfcal_static PkgConfig::LAPACKE LABELS grid TIMEOUT 120)
-# the sparse LDLᵀ module itself (private header of the grid area)
-selfcal_unit_test(NAME test_grid_lsq_ldl SOURCES unit/test_grid_lsq_ldl.c LIBS selfcal_static
-                  LABELS grid TIMEOUT 60)
+# the symmetric sparse solver itself (private header of the grid area)
+selfcal_unit_test(NAME test_grid_sparse_sym SOURCES unit/test_grid_sparse_sym.c
+                  LIBS selfcal_static LABELS grid TIMEOUT 60)

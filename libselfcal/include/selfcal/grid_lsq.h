@@ -57,8 +57,7 @@ typedef struct sc_grid_lsq_stats {
     long nnz_factor;             /* entries of L (strictly lower) */
     double factor_flops;         /* multiply-adds of the LDLᵀ factorization */
     double selinv_work;          /* entries visited by the selected inverse */
-    int ordering;                /* order used: 0 nested dissection, 1 minimum degree, 2 ND + MD */
-    double flops_nd, flops_amd, flops_nd_amd; /* G-block factorization flops under each order */
+    const char *ordering;        /* fill-reducing order used (a static name) */
     int n_null_pivots;           /* pivots judged null in the pinned reduced matrix */
     int nullity_misalignment;    /* null space of the misalignment block with G held (3 = plate motion) */
     double min_kept_pivot_ratio; /* smallest pivot/diagonal kept: the margin to the tolerance */

@@ -25,7 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sparse_ldl.h"
+#include "sparse_sym.h"
 
 #define LSQ_PIVOT_TOL 1e-9 /* pivot / original diagonal below this: null */
 #define LSQ_SMALL_TOL 1e-11 /* relative tolerance of the small dense rank decision */
@@ -45,16 +45,13 @@ struct sc_grid_lsq {
     long *grp_ptr;          /* equations of each A component (2*nn groups) */
     long *grp_eq;
     int ng, nm, nx;
-    int *perm, *iperm;
-    long *Ap;
+    long *Ap;               /* the pinned reduced matrix: upper CSC, original index space */
     int *Ai;
     double *Ax;
-    sc_ldl f;
+    sc_spsym *f;            /* its factorization (sparse_sym.h) */
     unsigned char *pinned;  /* per unknown (original index) */
     int pin_node[2], pin_view;
     int nullity_pin, nullity_T;
-    double order_flops[3];  /* flops of the G block: nested dissection, minimum degree, both */
-    int order_used;         /* 0: nested dissection, 1: minimum degree, 2: ND + MD on parts */
     sc_grid_lsq_info info;
     long rank;
     double *sgx, *sgy;      /* std/σ_r per node (NaN if not identified) */
@@ -80,9 +77,9 @@ void sc_grid_lsq_destroy(sc_grid_lsq *q)
         return;
     free(q->meas), free(q->mark_views), free(q->eq_g), free(q->eq_v), free(q->eq_k);
     free(q->eq_a), free(q->eq_c), free(q->eq_s), free(q->eq_pos), free(q->grp_ptr);
-    free(q->grp_eq), free(q->perm), free(q->iperm), free(q->Ap), free(q->Ai), free(q->Ax);
+    free(q->grp_eq), free(q->Ap), free(q->Ai), free(q->Ax);
     free(q->pinned), free(q->sgx), free(q->sgy), free(q->work), free(q->work2);
-    sc_ldl_free(&q->f);
+    sc_spsym_destroy(q->f);
     free(q);
 }
 
@@ -279,8 +276,8 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
     sc_status st = SC_E_NOMEM;
     triplet *tr = NULL;
     double *gm = NULL, *mm = NULL, *mmT = NULL;
-    long *rp = NULL, *gptr = NULL;
-    int *ri = NULL, *gidx = NULL, *last = NULL;
+    long *rp = NULL;
+    int *ri = NULL, *last = NULL;
     double *rv = NULL;
     long ntr = 0, cap = 0;
     for (int a = 0; a < 2 * q->nn; ++a) {
@@ -386,73 +383,14 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
         }
     }
     rp[ng] = w;
-    /* the symmetric graph of G for the ordering */
-    gptr = calloc((size_t)ng + 1, sizeof(long));
-    if (!gptr)
-        goto out;
-    for (int i = 0; i < ng; ++i)
-        for (long p = rp[i]; p < rp[i + 1]; ++p)
-            if (ri[p] != i)
-                gptr[i + 1]++, gptr[ri[p] + 1]++;
-    for (int i = 0; i < ng; ++i)
-        gptr[i + 1] += gptr[i];
-    gidx = malloc(sizeof(int) * (size_t)(gptr[ng] + 1));
-    fill = malloc(sizeof(long) * (size_t)(ng + 1));
-    if (!gidx || !fill) {
-        free(fill);
-        goto out;
-    }
-    memcpy(fill, gptr, sizeof(long) * (size_t)ng);
-    for (int i = 0; i < ng; ++i)
-        for (long p = rp[i]; p < rp[i + 1]; ++p)
-            if (ri[p] != i) {
-                gidx[fill[i]++] = ri[p];
-                gidx[fill[ri[p]]++] = i;
-            }
-    free(fill);
-    q->perm = malloc(sizeof(int) * (size_t)nx);
-    q->iperm = malloc(sizeof(int) * (size_t)nx);
-    if (!q->perm || !q->iperm)
-        goto out;
-    {
-        /* three fill-reducing orders; keep the one with the fewest factorization flops */
-        int *alt = malloc(sizeof(int) * (size_t)(ng + 1));
-        if (!alt)
-            goto out;
-        double best = -1;
-        for (int o = 0; o < 3; ++o) {
-            int rc = o == 0   ? sc_nd_order(ng, gptr, gidx, alt, 48, 0)
-                     : o == 1 ? sc_amd_order(ng, gptr, gidx, alt)
-                              : sc_nd_order(ng, gptr, gidx, alt, 2000, 1);
-            if (rc != 0) {
-                free(alt);
-                goto out;
-            }
-            double f = sc_order_flops(ng, gptr, gidx, alt);
-            q->order_flops[o] = f;
-            if (f >= 0 && (best < 0 || f < best)) {
-                best = f;
-                q->order_used = o;
-                memcpy(q->perm, alt, sizeof(int) * (size_t)ng);
-            }
-        }
-        free(alt);
-    }
-    for (int t = 0; t < nm; ++t)
-        q->perm[ng + t] = ng + t;
-    for (int k = 0; k < nx; ++k)
-        q->iperm[q->perm[k]] = k;
-    free(gptr), free(gidx);
-    gptr = NULL, gidx = NULL;
-    /* permuted upper CSC: entry (i, j) goes to column max(iperm) */
+    /* upper CSC in the original index space: entry (i, j), i <= j, in column j */
     q->Ap = calloc((size_t)nx + 1, sizeof(long));
     if (!q->Ap)
         goto out;
     long nnz = 0;
 #define COUNT(i, j)                                                                               \
     do {                                                                                          \
-        int pi_ = q->iperm[i], pj_ = q->iperm[j];                                                 \
-        q->Ap[(pi_ > pj_ ? pi_ : pj_) + 1]++;                                                     \
+        q->Ap[((i) > (j) ? (i) : (j)) + 1]++;                                                     \
         nnz++;                                                                                    \
     } while (0)
     for (int i = 0; i < ng; ++i)
@@ -482,8 +420,7 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
     memcpy(fill, q->Ap, sizeof(long) * (size_t)nx);
 #define PUT(i, j, v)                                                                              \
     do {                                                                                          \
-        int pi_ = q->iperm[i], pj_ = q->iperm[j];                                                 \
-        int col_ = pi_ > pj_ ? pi_ : pj_, row_ = pi_ > pj_ ? pj_ : pi_;                           \
+        int col_ = (i) > (j) ? (i) : (j), row_ = (i) > (j) ? (j) : (i);                           \
         long at_ = fill[col_]++;                                                                  \
         q->Ai[at_] = row_;                                                                        \
         q->Ax[at_] = (v);                                                                         \
@@ -505,15 +442,18 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
 #undef PUT
     free(fill);
     q->bytes += (size_t)nnz * (sizeof(int) + sizeof(double)) + (size_t)(nx + 1) * sizeof(long);
-    if (sc_ldl_factor(&q->f, nx, q->Ap, q->Ai, q->Ax, LSQ_PIVOT_TOL) != 0)
+    /* the free rows of G and rp/ri/rv are no longer needed */
+    free(rp), free(ri), free(rv), free(last);
+    rp = NULL, ri = NULL, rv = NULL, last = NULL;
+    if (sc_spsym_analyze(nx, q->Ap, q->Ai, &q->f) != 0 ||
+        sc_spsym_factor(q->f, q->Ax, LSQ_PIVOT_TOL) != 0)
         goto out;
-    q->nullity_pin = q->f.n_null;
+    q->nullity_pin = sc_spsym_nullity(q->f);
     st = SC_OK;
 out:
     if (st != SC_OK)
         sc_error_set(err, st, NULL, 0, "out of memory building the least-squares system");
     free(tr), free(gm), free(mm), free(mmT), free(rp), free(ri), free(rv), free(last);
-    free(gptr), free(gidx);
     return st;
 }
 
@@ -524,34 +464,26 @@ static void pinned_solve(sc_grid_lsq *q, double *x, int refine)
     int nx = q->nx;
     double *b = q->work, *r = q->work2;
     for (int i = 0; i < nx; ++i)
-        b[q->iperm[i]] = q->pinned[i] ? 0.0 : x[i];
-    double *y = malloc(sizeof(double) * (size_t)nx);
-    if (!y) { /* refinement is optional */
-        sc_ldl_solve(&q->f, b);
-        for (int i = 0; i < nx; ++i)
-            x[i] = q->pinned[i] ? 0.0 : b[q->iperm[i]];
-        return;
-    }
-    memcpy(y, b, sizeof(double) * (size_t)nx);
-    sc_ldl_solve(&q->f, y);
+        b[i] = x[i] = q->pinned[i] ? 0.0 : x[i];
+    sc_spsym_solve(q->f, x);
     for (int it = 0; it < refine; ++it) {
-        sc_ldl_matvec(&q->f, y, r);
+        sc_spsym_matvec(q->f, x, r);
         for (int i = 0; i < nx; ++i)
             r[i] = b[i] - r[i];
-        sc_ldl_solve(&q->f, r);
+        sc_spsym_solve(q->f, r);
         for (int i = 0; i < nx; ++i)
-            y[i] += r[i];
+            x[i] += r[i];
     }
     for (int i = 0; i < nx; ++i)
-        x[i] = q->pinned[i] ? 0.0 : y[q->iperm[i]];
-    free(y);
+        if (q->pinned[i])
+            x[i] = 0.0;
 }
 
 /* Per-node std/σ_r: diag(P⊥ Σ P⊥), Σ = pinned inverse (0 on pins), U = orthonormal gauge basis. */
 static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
 {
     int ng = q->ng, nx = q->nx, n = q->n, nn = q->nn;
-    if (sc_ldl_selinv(&q->f) != 0)
+    if (sc_spsym_selinv(q->f) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
     double *U = malloc(sizeof(double) * (size_t)4 * ng);
     double *W = malloc(sizeof(double) * (size_t)4 * nx);
@@ -590,7 +522,7 @@ static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
         }
     double sum2 = 0, mx = 0;
     for (int i = 0; i < ng; ++i) {
-        double zii = q->pinned[i] ? 0.0 : q->f.Zd[q->iperm[i]];
+        double zii = q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i);
         double var = zii;
         for (int c = 0; c < 4; ++c) {
             double uc = U[(size_t)c * ng + i];
@@ -667,7 +599,9 @@ sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask,
         if (st != SC_OK)
             goto fail;
     }
-    q->bytes += q->f.bytes + (size_t)q->neq * (5 * sizeof(int) + 2 + sizeof(double) + sizeof(long));
+    sc_spsym_stats fst;
+    sc_spsym_get_stats(q->f, &fst);
+    q->bytes += fst.bytes + (size_t)q->neq * (5 * sizeof(int) + 2 + sizeof(double) + sizeof(long));
     *out = q;
     return SC_OK;
 fail:
@@ -682,20 +616,19 @@ void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info)
 
 void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st)
 {
+    sc_spsym_stats f;
+    sc_spsym_get_stats(q->f, &f);
     memset(st, 0, sizeof *st);
     st->n_reduced = q->nx;
     st->nnz_matrix = q->Ap ? q->Ap[q->nx] : 0;
-    st->nnz_factor = q->f.Lp ? q->f.Lp[q->nx] : 0;
-    st->factor_flops = q->f.flops;
-    st->ordering = q->order_used;
-    st->flops_nd = q->order_flops[0];
-    st->flops_amd = q->order_flops[1];
-    st->flops_nd_amd = q->order_flops[2];
-    st->selinv_work = q->f.selinv_work;
+    st->nnz_factor = f.nnz_factor;
+    st->factor_flops = f.factor_flops;
+    st->ordering = sc_spsym_ordering_name(f.ordering);
+    st->selinv_work = f.selinv_work;
     st->n_null_pivots = q->nullity_pin;
     st->nullity_misalignment = q->nullity_T;
-    st->min_kept_pivot_ratio = q->f.min_kept_ratio;
-    st->max_null_pivot_ratio = q->f.max_null_ratio;
+    st->min_kept_pivot_ratio = f.min_kept_ratio;
+    st->max_null_pivot_ratio = f.max_null_ratio;
     st->bytes = q->bytes;
 }
 

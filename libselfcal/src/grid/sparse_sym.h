@@ -1,0 +1,67 @@
+/* sparse_sym.h — private to the grid area: the symmetric sparse solver behind the grid least
+ * squares (grid_lsq.c calls only this). One object per plan:
+ *
+ *   analyze(pattern)  once: fill-reducing order and symbolic factorization, chosen once;
+ *   factor(values)    numeric factorization with rank decisions (pivot tolerance);
+ *   solve / matvec    in the ORIGINAL index space (the order is internal);
+ *   selinv            selected inverse: the entries of A⁻¹ on the factor's pattern, which holds
+ *                     every diagonal entry and every entry of A's own pattern;
+ *   inv(i, j)         one such entry.
+ *
+ * The matrix is symmetric positive semidefinite, given by its upper triangle in compressed
+ * columns (column j holds rows i <= j; no duplicates). Pivots judged null (d_k <= tol·A_kk) are
+ * counted (nullity) and give zero components in solves and zero rows/columns in the inverse;
+ * the count is exact for matrices whose numerical rank is clear (a wide gap around tol), which
+ * the stats' min_kept_ratio / max_null_ratio show.
+ */
+#ifndef SELFCAL_SPARSE_SYM_H
+#define SELFCAL_SPARSE_SYM_H
+
+#include <stddef.h>
+
+typedef struct sc_spsym sc_spsym;
+
+typedef struct sc_spsym_stats {
+    long nnz_factor;        /* entries of L below the diagonal */
+    double factor_flops;    /* multiply-adds of the factorization */
+    double selinv_work;     /* multiply-adds of the selected inverse (0 before it) */
+    int ordering;           /* backend-specific code of the order used (sc_spsym_ordering_name) */
+    int n_null;             /* pivots judged null */
+    double min_kept_ratio;  /* smallest pivot/diagonal among kept pivots */
+    double max_null_ratio;  /* largest pivot/diagonal among null pivots (0 if none) */
+    size_t bytes;           /* memory the object holds */
+} sc_spsym_stats;
+
+/* Analyze the n x n pattern (upper CSC Ap[n+1], Ai[Ap[n]]; copied): one fill-reducing order.
+ * Returns 0, or -1 if memory ran out (*out = NULL). */
+int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out);
+
+/* Numeric factorization of the values Ax (same layout as the analyzed pattern; copied).
+ * Pivots with d_k <= tol·A_kk are null. Returns 0, or -1 if memory ran out. */
+int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol);
+
+/* Number of null pivots of the last factorization. */
+int sc_spsym_nullity(const sc_spsym *s);
+
+/* x := A⁻¹ b in place (b given in x; null pivots give 0 components). Returns 0, -1 no memory. */
+int sc_spsym_solve(const sc_spsym *s, double *x);
+
+/* y = A x (the factored values). */
+void sc_spsym_matvec(const sc_spsym *s, const double *x, double *y);
+
+/* Selected inverse on the factor's pattern. Returns 0, or -1 if memory ran out. */
+int sc_spsym_selinv(sc_spsym *s);
+
+/* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in A's pattern (any entry of the factor's
+ * pattern); NaN if (i, j) is not on the pattern or the selected inverse was not computed. */
+double sc_spsym_inv(const sc_spsym *s, int i, int j);
+
+/* Name of an ordering code of the stats. */
+const char *sc_spsym_ordering_name(int ordering);
+
+void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st);
+
+/* Free everything (NULL is fine). */
+void sc_spsym_destroy(sc_spsym *s);
+
+#endif
