@@ -12,7 +12,8 @@
 const char sc_config_usage[] =
     "usage: selfcald --table TABLE [transports] [options]\n"
     "transports (any combination; default --modbus-tcp 127.0.0.1:1502):\n"
-    "  --modbus-tcp HOST:PORT        Modbus TCP server (PORT 0: any free port, logged)\n"
+    "  --modbus-tcp HOST:PORT        Modbus TCP server: HOST an IPv4 address, [IPv6] or a name\n"
+    "                                (PORT 0: any free port; the bound address is logged)\n"
     "  --modbus-rtu DEV[:BAUD[:PARITY[:DATABITS[:STOPBITS]]]]  Modbus RTU server (19200:E:8:1)\n"
     "  --can IFACE                   SocketCAN raw (ids 0x100 in, 0x101 out, 0x102 status)\n"
     "options:\n"
@@ -20,7 +21,9 @@ const char sc_config_usage[] =
     "  --mode measure|position       measure: p - G(p) (default); position: t + G(t)\n"
     "  --unit-id N                   Modbus unit id (default 1)\n"
     "  --word-order high-first|low-first   32-bit word order (default high-first)\n"
-    "  --max-connections N           Modbus TCP connection cap (default 64)\n"
+    "  --max-connections N           Modbus TCP connection cap (default 64); at the cap a new\n"
+    "                                client closes the longest-idle connection\n"
+    "  --max-per-peer N              connections one client address may hold (0 = any, default)\n"
     "  --byte-timeout-ms N           a started TCP request must complete within N ms (500)\n"
     "  --idle-timeout-ms N           close TCP connections silent N ms; 0 = never (60000)\n"
     "  --rtu-byte-timeout-ms N       RTU silence that ends a partial frame (50)\n"
@@ -85,6 +88,12 @@ static int parse_host_port(sc_config *c, const char *v, char *why, int whylen)
     if (colon == NULL || parse_ulong(colon + 1, 65535, &port) != 0)
         BAD("--modbus-tcp: expected HOST:PORT, got '%s'", v);
     size_t hl = (size_t)(colon - v);
+    if (hl >= 2 && v[0] == '[' && v[hl - 1] == ']') { /* [IPv6]:PORT */
+        v++;
+        hl -= 2;
+    } else if (memchr(v, ':', hl) != NULL) {
+        BAD("--modbus-tcp: write an IPv6 address in brackets, [::1]:PORT; got '%s'", v);
+    }
     if (hl == 0) {
         strcpy(c->tcp.host, "127.0.0.1");
     } else {
@@ -93,6 +102,10 @@ static int parse_host_port(sc_config *c, const char *v, char *why, int whylen)
         memcpy(c->tcp.host, v, hl);
         c->tcp.host[hl] = '\0';
     }
+    struct sockaddr_storage a;
+    socklen_t alen;
+    if (sc_mbtcp_resolve(c->tcp.host, (uint16_t)port, &a, &alen, why, whylen) != 0)
+        return -1;
     c->tcp.port = (uint16_t)port;
     c->use_modbus_tcp = 1;
     return 0;
@@ -205,6 +218,11 @@ int sc_config_set(sc_config *c, const char *key, const char *value, char *why, i
         if (parse_ulong(value, SC_MBTCP_MAX_CONN, &n) != 0 || n < 1)
             BAD("--max-connections: expected 1..%d, got '%s'", SC_MBTCP_MAX_CONN, value);
         c->tcp.max_connections = (int)n;
+    } else if (strcmp(key, "max-per-peer") == 0) {
+        if (parse_ulong(value, SC_MBTCP_MAX_CONN, &n) != 0)
+            BAD("--max-per-peer: expected 0..%d (0 = no limit), got '%s'", SC_MBTCP_MAX_CONN,
+                value);
+        c->tcp.max_per_peer = (int)n;
     } else if (strcmp(key, "byte-timeout-ms") == 0) {
         if (parse_ulong(value, 600000, &n) != 0 || n < 1)
             BAD("--byte-timeout-ms: expected 1..600000, got '%s'", value);

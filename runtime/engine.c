@@ -1,4 +1,7 @@
-/* runtime/engine.c — the table slots, reload and the nm <-> mm correction of selfcald. */
+/* runtime/engine.c — the table slots, reload and the nm <-> mm correction of selfcald.
+ * A reload runs inside the loop, so it must not wait: only a regular file of at most
+ * SC_ENGINE_MAX_TABLE_BYTES is read (a FIFO, socket or device at the path is refused at once).
+ * A file system that hangs a read of a regular file would still stall it. */
 #include "engine.h"
 
 #include <errno.h>
@@ -6,6 +9,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 /* Two slots: the one in use and the spare that a reload fills. */
@@ -20,9 +24,24 @@ void sc_engine_init(sc_engine *e, sc_corr_mode mode)
 
 static int read_file(const char *path, size_t *len, char *why, int whylen)
 {
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: opening a FIFO (or a device) at the table path must not wait for a writer;
+     * anything but a regular file is then refused before a byte is read, and the read is
+     * bounded by the buffer. */
+    int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
     if (fd < 0) {
         snprintf(why, (size_t)whylen, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    struct stat st;
+    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+        snprintf(why, (size_t)whylen, "%s: not a regular file", path);
+        close(fd);
+        return -1;
+    }
+    if (st.st_size > (off_t)SC_ENGINE_MAX_TABLE_BYTES) {
+        snprintf(why, (size_t)whylen, "%s: larger than %u bytes, not a selfcal table", path,
+                 (unsigned)SC_ENGINE_MAX_TABLE_BYTES);
+        close(fd);
         return -1;
     }
     size_t n = 0;

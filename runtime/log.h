@@ -1,8 +1,19 @@
-/* runtime/log.h — selfcald's log: stderr (default) or syslog, without allocating.
+/* runtime/log.h — selfcald's log: stderr (default) or syslog, without allocating and without
+ * ever blocking (lines the sink cannot take, or beyond the rate, are dropped and counted).
  * syslog is spoken directly (a datagram to /dev/log in the RFC 3164 form journald and rsyslog
  * accept) because glibc's syslog() allocates a buffer per message. */
 #ifndef SELFCALD_LOG_H
 #define SELFCALD_LOG_H
+
+#include <stdint.h>
+
+/* Rate limit: a burst of SC_LOG_BURST lines, then SC_LOG_PER_SEC lines per second. */
+#ifndef SC_LOG_BURST
+#define SC_LOG_BURST 200.0
+#endif
+#ifndef SC_LOG_PER_SEC
+#define SC_LOG_PER_SEC 50.0
+#endif
 
 enum { SC_LOG_ERR = 3, SC_LOG_WARNING = 4, SC_LOG_NOTICE = 5, SC_LOG_INFO = 6, SC_LOG_DEBUG = 7 };
 
@@ -19,5 +30,8 @@ void sc_log(int level, const char *fmt, ...)
     ;
 
 void sc_log_close(void);
+
+/* Lines dropped since start (rate limit, or a sink that would have blocked). */
+uint64_t sc_log_dropped(void);
 
 #endif

@@ -4,6 +4,7 @@
 #define SELFCALD_TRANSPORT_MODBUS_H
 
 #include <stdint.h>
+#include <sys/socket.h>
 
 #include "transport.h"
 
@@ -11,12 +12,14 @@
 #define SC_MBTCP_MAX_CONN (SC_TRANSPORT_MAX_FDS - 1)
 
 typedef struct sc_mbtcp_config {
-    char host[64];             /* listen address, default "127.0.0.1" ("0.0.0.0": all) */
+    char host[64];             /* listen address: IPv4, IPv6 or a name; default "127.0.0.1"
+                                * ("0.0.0.0": all IPv4, "::": all) */
     uint16_t port;             /* default 1502; 0 = any free port (logged) */
     uint8_t unit_id;           /* default 1; 0 and 255 (this device) are always accepted */
     int max_connections;       /* default 64, at most SC_MBTCP_MAX_CONN */
     uint32_t byte_timeout_ms;  /* a started request must complete within this; default 500 */
     uint32_t idle_timeout_ms;  /* close a connection silent this long; 0 = never; default 60000 */
+    int max_per_peer;          /* connections one peer address may hold; 0 = no limit (default) */
 } sc_mbtcp_config;
 
 typedef struct sc_mbrtu_config {
@@ -39,6 +42,16 @@ uint16_t sc_modbus_tcp_bound_port(void);
 /* Connections open now / refused because of the cap since start. */
 int sc_modbus_tcp_connections(void);
 uint32_t sc_modbus_tcp_refused(void);
+/* Connections closed to make room for a new one at the cap (the longest idle first). */
+uint32_t sc_modbus_tcp_evicted(void);
+
+/* Resolve a listen address: an IPv4 literal (dotted decimal, as inet_pton reads it), an IPv6
+ * literal, or a name (getaddrinfo; its IPv4 address first). The legacy forms inet_aton accepts
+ * (0127.0.0.1 is octal, 127.1, 0x7f.1) are refused. 0, or -1 with a one-line reason. */
+int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *out,
+                     socklen_t *outlen, char *why, int whylen);
+/* "a.b.c.d:port" or "[v6]:port". */
+void sc_mbtcp_format_addr(const struct sockaddr_storage *a, char *buf, int len);
 
 /* Make t the Modbus RTU server for cfg (static state, one instance). */
 void sc_modbus_rtu_transport(sc_transport *t, const sc_mbrtu_config *cfg);

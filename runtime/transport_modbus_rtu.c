@@ -1,7 +1,7 @@
 /* runtime/transport_modbus_rtu.c — Modbus RTU server on a serial device inside the poll loop.
  *
- * libmodbus opens and configures the line (modbus_new_rtu + modbus_connect: termios, non-blocking)
- * and sends the replies (through the shared map); the framing is done here without blocking: the
+ * libmodbus opens and configures the line (modbus_new_rtu + modbus_connect: termios, non-blocking);
+ * the shared map builds and sends the replies; the framing is done here without blocking: the
  * length of a request follows from its function code (and byte count), the CRC is checked, and a
  * partial frame followed by byte_timeout_ms of silence is discarded (resynchronisation).
  * Requests for other unit ids are ignored, as on a multi-drop line; broadcasts (unit 0) are
@@ -47,16 +47,6 @@ uint32_t sc_modbus_rtu_bad_frames(void)
     return g_rtu.bad_frames;
 }
 
-static uint16_t crc16(const uint8_t *p, int n)
-{
-    uint16_t crc = 0xffff;
-    for (int i = 0; i < n; i++) {
-        crc ^= p[i];
-        for (int b = 0; b < 8; b++)
-            crc = (crc & 1) ? (uint16_t)((crc >> 1) ^ 0xa001) : (uint16_t)(crc >> 1);
-    }
-    return crc;
-}
 
 /* Expected length of the request starting at buf (with CRC), 0 if not known yet, -1 if the
  * function code gives no length (unknown function: ends at a silence). */
@@ -127,15 +117,15 @@ static int rtu_fill(void *state, struct pollfd *fds, int max)
 static void rtu_frame(mbrtu_state *s, int flen, sc_engine *e)
 {
     const uint8_t *b = s->buf;
-    uint16_t crc = crc16(b, flen - 2);
+    uint16_t crc = sc_modbus_crc16(b, flen - 2);
     if (b[flen - 2] != (crc & 0xff) || b[flen - 1] != (crc >> 8)) {
         s->bad_frames++;
         return;
     }
     if (b[0] != s->cfg.unit_id)
         return; /* another device's request, or a broadcast */
-    if (sc_modbus_map_reply(sc_modbus_map_shared(), s->ctx, b, flen, 1, 2, e) < 0)
-        sc_log(SC_LOG_WARNING, "modbus-rtu: reply not sent: %s", modbus_strerror(errno));
+    if (sc_modbus_map_reply(sc_modbus_map_shared(), s->fd, b, flen, 1, 2, e) < 0)
+        sc_log(SC_LOG_WARNING, "modbus-rtu: reply not sent: %s", strerror(errno));
     s->served++;
 }
 

@@ -1,13 +1,19 @@
 /* runtime/transport_modbus_tcp.c — Modbus TCP server inside the daemon's poll loop.
  *
- * libmodbus gives the listening socket (modbus_tcp_listen) and the replies (modbus_reply via the
- * shared map); the MBAP framing is done here on non-blocking sockets with a per-connection
- * buffer, so a client that sends half a request, or nothing, never blocks the others: a partial
- * request older than byte_timeout_ms, or a connection silent for idle_timeout_ms, is closed.
+ * The listen address is parsed here (inet_pton for IPv4/IPv6 literals, getaddrinfo for names; the
+ * legacy numeric forms inet_aton accepts, such as 0127.0.0.1 = 87.0.0.1, are refused) and the
+ * address really bound is logged. The MBAP framing is done here on non-blocking sockets with a
+ * per-connection buffer, so a client that sends half a request, or nothing, never blocks the
+ * others: a partial request older than byte_timeout_ms, or a connection silent for
+ * idle_timeout_ms, is closed. When the connection cap is reached, a new client evicts the
+ * longest-idle connection (so idle connections cannot lock clients out), and one peer address
+ * may hold at most max_per_peer connections (0 = no limit). The shared map builds the replies.
  * All state is static; nothing allocates after open(). */
 #define _GNU_SOURCE /* accept4 */
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <netdb.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 #include <stdio.h>
@@ -15,30 +21,29 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <modbus/modbus.h>
-
 #include "log.h"
 #include "modbus_map.h"
 #include "transport_modbus.h"
 
 #define MBAP_LEN 7
-#define ADU_MAX MODBUS_TCP_MAX_ADU_LENGTH /* 260 */
+#define ADU_MAX SC_MB_ADU_MAX /* 260 */
 
 typedef struct conn {
     int fd;                 /* -1 = free slot */
     int len;                /* bytes buffered */
     uint64_t last_rx_ms;    /* last byte received */
     uint64_t partial_since_ms;
+    struct sockaddr_storage peer;
     uint8_t buf[2 * ADU_MAX];
 } conn;
 
 typedef struct mbtcp_state {
     sc_mbtcp_config cfg;
-    modbus_t *ctx;
     int listen_fd;
     uint16_t bound_port;
+    char bound[INET6_ADDRSTRLEN + 8]; /* the address really bound, as logged */
     int nconn;
-    uint32_t refused, timeouts;
+    uint32_t refused, timeouts, evicted;
     conn c[SC_MBTCP_MAX_CONN];
     int polled[SC_TRANSPORT_MAX_FDS]; /* what each pollfd slot of the last fill was: -1 listen */
     int npolled;
@@ -55,6 +60,7 @@ void sc_mbtcp_config_defaults(sc_mbtcp_config *c)
     c->max_connections = 64;
     c->byte_timeout_ms = 500;
     c->idle_timeout_ms = 60000;
+    c->max_per_peer = 0;
 }
 
 uint16_t sc_modbus_tcp_bound_port(void)
@@ -70,6 +76,110 @@ int sc_modbus_tcp_connections(void)
 uint32_t sc_modbus_tcp_refused(void)
 {
     return g_tcp.refused;
+}
+
+uint32_t sc_modbus_tcp_evicted(void)
+{
+    return g_tcp.evicted;
+}
+
+/* Only digits and dots, or a colon: meant as a numeric address. */
+static int looks_numeric(const char *h)
+{
+    if (strchr(h, ':') != NULL)
+        return 1;
+    for (; *h; h++)
+        if (!(*h >= '0' && *h <= '9') && *h != '.')
+            return 0;
+    return 1;
+}
+
+int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *out,
+                     socklen_t *outlen, char *why, int whylen)
+{
+    memset(out, 0, sizeof *out);
+    struct sockaddr_in *a4 = (struct sockaddr_in *)out;
+    struct sockaddr_in6 *a6 = (struct sockaddr_in6 *)out;
+    if (inet_pton(AF_INET, host, &a4->sin_addr) == 1) {
+        a4->sin_family = AF_INET;
+        a4->sin_port = htons(port);
+        *outlen = sizeof *a4;
+        return 0;
+    }
+    if (inet_pton(AF_INET6, host, &a6->sin6_addr) == 1) {
+        a6->sin6_family = AF_INET6;
+        a6->sin6_port = htons(port);
+        *outlen = sizeof *a6;
+        return 0;
+    }
+    struct in_addr legacy;
+    if (looks_numeric(host) || inet_aton(host, &legacy) != 0) {
+        snprintf(why, (size_t)whylen,
+                 "--modbus-tcp: '%.64s' is not an IPv4 address (a.b.c.d, decimal, no leading "
+                 "zeros) nor an IPv6 address ([::1]:PORT)", host);
+        return -1;
+    }
+    struct addrinfo hints, *res = NULL;
+    memset(&hints, 0, sizeof hints);
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = AI_PASSIVE;
+    int rc = getaddrinfo(host, NULL, &hints, &res);
+    if (rc != 0 || res == NULL) {
+        snprintf(why, (size_t)whylen, "--modbus-tcp: cannot resolve '%.64s': %s", host,
+                 rc == EAI_SYSTEM ? strerror(errno) : gai_strerror(rc));
+        return -1;
+    }
+    const struct addrinfo *pick = NULL; /* IPv4 first: what most Modbus clients dial */
+    for (const struct addrinfo *r = res; r != NULL && pick == NULL; r = r->ai_next)
+        if (r->ai_family == AF_INET)
+            pick = r;
+    for (const struct addrinfo *r = res; r != NULL && pick == NULL; r = r->ai_next)
+        if (r->ai_family == AF_INET6)
+            pick = r;
+    if (pick == NULL || pick->ai_addrlen > sizeof *out) {
+        freeaddrinfo(res);
+        snprintf(why, (size_t)whylen, "--modbus-tcp: '%.64s' has no IPv4 or IPv6 address", host);
+        return -1;
+    }
+    memcpy(out, pick->ai_addr, pick->ai_addrlen);
+    *outlen = pick->ai_addrlen;
+    freeaddrinfo(res);
+    if (out->ss_family == AF_INET)
+        a4->sin_port = htons(port);
+    else
+        a6->sin6_port = htons(port);
+    return 0;
+}
+
+void sc_mbtcp_format_addr(const struct sockaddr_storage *a, char *buf, int len)
+{
+    char ip[INET6_ADDRSTRLEN] = "?";
+    if (a->ss_family == AF_INET) {
+        const struct sockaddr_in *a4 = (const struct sockaddr_in *)a;
+        inet_ntop(AF_INET, &a4->sin_addr, ip, sizeof ip);
+        snprintf(buf, (size_t)len, "%s:%u", ip, (unsigned)ntohs(a4->sin_port));
+    } else if (a->ss_family == AF_INET6) {
+        const struct sockaddr_in6 *a6 = (const struct sockaddr_in6 *)a;
+        inet_ntop(AF_INET6, &a6->sin6_addr, ip, sizeof ip);
+        snprintf(buf, (size_t)len, "[%s]:%u", ip, (unsigned)ntohs(a6->sin6_port));
+    } else {
+        snprintf(buf, (size_t)len, "?");
+    }
+}
+
+/* Same peer address (port ignored). */
+static int same_peer(const struct sockaddr_storage *a, const struct sockaddr_storage *b)
+{
+    if (a->ss_family != b->ss_family)
+        return 0;
+    if (a->ss_family == AF_INET)
+        return ((const struct sockaddr_in *)a)->sin_addr.s_addr ==
+               ((const struct sockaddr_in *)b)->sin_addr.s_addr;
+    if (a->ss_family == AF_INET6)
+        return memcmp(&((const struct sockaddr_in6 *)a)->sin6_addr,
+                      &((const struct sockaddr_in6 *)b)->sin6_addr, sizeof(struct in6_addr)) == 0;
+    return 0;
 }
 
 static void conn_close(mbtcp_state *s, conn *c, const char *why)
@@ -99,28 +209,38 @@ static int tcp_open(void *state, char *why, int whylen)
         snprintf(why, (size_t)whylen, "modbus: cannot allocate the register map");
         return -1;
     }
-    s->ctx = modbus_new_tcp(s->cfg.host, s->cfg.port);
-    if (s->ctx == NULL) {
-        snprintf(why, (size_t)whylen, "modbus-tcp: %s", modbus_strerror(errno));
+    struct sockaddr_storage addr;
+    socklen_t alen;
+    if (sc_mbtcp_resolve(s->cfg.host, s->cfg.port, &addr, &alen, why, whylen) != 0)
         return -1;
-    }
-    s->listen_fd = modbus_tcp_listen(s->ctx, 64);
+    s->listen_fd = socket(addr.ss_family, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (s->listen_fd < 0) {
-        snprintf(why, (size_t)whylen, "modbus-tcp: cannot listen on %s:%u: %s", s->cfg.host,
-                 (unsigned)s->cfg.port, modbus_strerror(errno));
-        modbus_free(s->ctx);
-        s->ctx = NULL;
+        snprintf(why, (size_t)whylen, "modbus-tcp: socket: %s", strerror(errno));
         return -1;
     }
-    fcntl(s->listen_fd, F_SETFL, fcntl(s->listen_fd, F_GETFL) | O_NONBLOCK);
-    fcntl(s->listen_fd, F_SETFD, FD_CLOEXEC);
-    struct sockaddr_in a;
-    socklen_t alen = sizeof a;
-    if (getsockname(s->listen_fd, (struct sockaddr *)&a, &alen) == 0)
-        s->bound_port = ntohs(a.sin_port);
-    sc_log(SC_LOG_NOTICE, "modbus-tcp: listening on %s:%u (unit id %u, max %d connections)",
-           s->cfg.host, (unsigned)s->bound_port, (unsigned)s->cfg.unit_id,
-           s->cfg.max_connections);
+    int one = 1;
+    setsockopt(s->listen_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    if (bind(s->listen_fd, (struct sockaddr *)&addr, alen) != 0 ||
+        listen(s->listen_fd, 128) != 0) {
+        char a[sizeof s->bound];
+        sc_mbtcp_format_addr(&addr, a, sizeof a);
+        snprintf(why, (size_t)whylen, "modbus-tcp: cannot listen on %s (%s): %s", a,
+                 s->cfg.host, strerror(errno));
+        close(s->listen_fd);
+        s->listen_fd = -1;
+        return -1;
+    }
+    struct sockaddr_storage got;
+    socklen_t glen = sizeof got;
+    if (getsockname(s->listen_fd, (struct sockaddr *)&got, &glen) == 0) {
+        s->bound_port = ntohs(got.ss_family == AF_INET6
+                                  ? ((struct sockaddr_in6 *)&got)->sin6_port
+                                  : ((struct sockaddr_in *)&got)->sin_port);
+        sc_mbtcp_format_addr(&got, s->bound, sizeof s->bound);
+    }
+    sc_log(SC_LOG_NOTICE, "modbus-tcp: listening on %s (unit id %u, max %d connections%s)",
+           s->bound, (unsigned)s->cfg.unit_id, s->cfg.max_connections,
+           s->cfg.max_per_peer > 0 ? ", a per-peer limit" : "");
     return 0;
 }
 
@@ -146,10 +266,33 @@ static int tcp_fill(void *state, struct pollfd *fds, int max)
     return n;
 }
 
+/* The longest-idle open connection (oldest last byte), or NULL. */
+static conn *longest_idle(mbtcp_state *s)
+{
+    conn *best = NULL;
+    for (int i = 0; i < SC_MBTCP_MAX_CONN; i++)
+        if (s->c[i].fd >= 0 && (best == NULL || s->c[i].last_rx_ms < best->last_rx_ms))
+            best = &s->c[i];
+    return best;
+}
+
+static int peer_count(const mbtcp_state *s, const struct sockaddr_storage *peer)
+{
+    int n = 0;
+    for (int i = 0; i < SC_MBTCP_MAX_CONN; i++)
+        if (s->c[i].fd >= 0 && same_peer(&s->c[i].peer, peer))
+            n++;
+    return n;
+}
+
 static void tcp_accept(mbtcp_state *s, uint64_t now_ms)
 {
     for (;;) {
-        int fd = accept4(s->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        struct sockaddr_storage peer;
+        socklen_t plen = sizeof peer;
+        memset(&peer, 0, sizeof peer);
+        int fd = accept4(s->listen_fd, (struct sockaddr *)&peer, &plen,
+                         SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0) {
             if (errno == EINTR || errno == ECONNABORTED)
                 continue;
@@ -157,13 +300,22 @@ static void tcp_accept(mbtcp_state *s, uint64_t now_ms)
                 sc_log(SC_LOG_WARNING, "modbus-tcp: accept: %s", strerror(errno));
             return;
         }
-        if (s->nconn >= s->cfg.max_connections) {
+        if (s->cfg.max_per_peer > 0 && peer_count(s, &peer) >= s->cfg.max_per_peer) {
             s->refused++;
-            if (s->refused < 10 || s->refused % 1000 == 0)
-                sc_log(SC_LOG_WARNING, "modbus-tcp: connection refused: %d open (the cap); %u "
-                       "refused so far", s->nconn, (unsigned)s->refused);
+            sc_log(SC_LOG_WARNING, "modbus-tcp: connection refused: this peer has %d open (the "
+                   "per-peer limit); %u refused so far", s->cfg.max_per_peer,
+                   (unsigned)s->refused);
             close(fd);
             continue;
+        }
+        if (s->nconn >= s->cfg.max_connections) {
+            conn *victim = longest_idle(s);
+            s->evicted++;
+            sc_log(SC_LOG_WARNING, "modbus-tcp: %d connections open (the cap): closing the "
+                   "longest idle (%u ms); %u evicted so far", s->nconn,
+                   victim ? (unsigned)(now_ms - victim->last_rx_ms) : 0u, (unsigned)s->evicted);
+            if (victim != NULL)
+                conn_close(s, victim, NULL);
         }
         int one = 1;
         setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
@@ -173,6 +325,7 @@ static void tcp_accept(mbtcp_state *s, uint64_t now_ms)
             s->c[i].fd = fd;
             s->c[i].len = 0;
             s->c[i].last_rx_ms = now_ms;
+            s->c[i].peer = peer;
             s->nconn++;
             sc_log(SC_LOG_DEBUG, "modbus-tcp: connection %d accepted (%d open)", fd, s->nconn);
             break;
@@ -196,13 +349,11 @@ static int tcp_process(mbtcp_state *s, conn *c, sc_engine *e, uint64_t now_ms)
         if (c->len - off < total)
             break;
         unsigned unit = p[6];
-        modbus_set_socket(s->ctx, c->fd);
         int rc;
         if (unit == s->cfg.unit_id || unit == 0xff || unit == 0) /* 0, 255: "this device" */
-            rc = sc_modbus_map_reply(sc_modbus_map_shared(), s->ctx, p, total, MBAP_LEN, 0, e);
+            rc = sc_modbus_map_reply(sc_modbus_map_shared(), c->fd, p, total, MBAP_LEN, 0, e);
         else /* not us: what a gateway answers for an absent device */
-            rc = modbus_reply_exception(s->ctx, p,
-                                        MODBUS_EXCEPTION_GATEWAY_TARGET);
+            rc = sc_modbus_reply_exception(c->fd, p, MBAP_LEN, SC_MB_EX_GATEWAY_TARGET);
         if (rc < 0) {
             conn_close(s, c, "send failed (client not reading?)");
             return -1;
@@ -276,11 +427,6 @@ static void tcp_close(void *state)
     if (s->listen_fd >= 0)
         close(s->listen_fd);
     s->listen_fd = -1;
-    if (s->ctx != NULL) {
-        modbus_set_socket(s->ctx, -1);
-        modbus_free(s->ctx);
-    }
-    s->ctx = NULL;
 }
 
 void sc_modbus_tcp_transport(sc_transport *t, const sc_mbtcp_config *cfg)

@@ -166,15 +166,29 @@ try:
     stall.close()
     count = None
 
-    # 8. Connection cap (12): the 13th is closed at once; the first 12 work.
-    socks = [ModbusTcpClient("127.0.0.1", port=d.port, timeout=2, retries=0) for _ in range(11)]
+    # 8. Connection cap (12): a 13th client is served, and the longest-idle connection (the
+    # first of the 12, silent since its request) is closed to make room; the rest stay served.
+    oldest = socket.create_connection(("127.0.0.1", d.port))
+    oldest.sendall(struct.pack(">HHHBBHH", 1, 0, 6, 1, 4, 0, 1))
+    oldest.settimeout(3)
+    check(len(oldest.recv(64)) == 11, "cap: first connection not served")
+    time.sleep(0.05)
+    roundtrip(c, 5, 5)
+    socks = [ModbusTcpClient("127.0.0.1", port=d.port, timeout=2, retries=0) for _ in range(10)]
     for s in socks:
         check(s.connect(), "cap: connect")
         roundtrip(s, 5, 5)
     extra = socket.create_connection(("127.0.0.1", d.port))
     extra.settimeout(3)
-    check(extra.recv(1) == b"", "13th connection not refused")
+    extra.sendall(struct.pack(">HHHBBHH", 2, 0, 6, 1, 4, 0, 1))
+    check(len(extra.recv(64)) == 11, "13th connection not served at the cap")
+    check(oldest.recv(1) == b"", "the longest-idle connection was not the one closed")
+    for s in socks:
+        roundtrip(s, 5, 5)
+    roundtrip(c, 5, 5)
+    check("evicted" in d.text(), "eviction not logged")
     extra.close()
+    oldest.close()
     for s in socks:
         s.close()
     time.sleep(0.1)
