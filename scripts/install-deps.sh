@@ -10,6 +10,7 @@ DEB_PACKAGES=(
   gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
   qemu-system-x86 busybox-static can-utils iproute2 cpio gzip
   mbpoll socat python3 python3-pip python3-venv
+  clang libclang-rt-14-dev
 )
 
 SUDO=""

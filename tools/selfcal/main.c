@@ -1,9 +1,11 @@
 /* selfcal — the command line: simulate, calibrate, build and inspect tables, draw. */
+#include <errno.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "cli.h"
+#include "selfcal/atomic_file.h"
 #include "selfcal/version.h"
 
 int cli_report(const sc_error *err)
@@ -54,28 +56,44 @@ static void usage(FILE *to)
         fprintf(to, "  selfcal %s\n", commands[k].help);
 }
 
+/* Whatever a command printed must have reached stdout: a full disk, /dev/full or a closed pipe
+ * makes the command fail (exit 1, one line) instead of reporting success with nothing written. */
+static int finish(int rc)
+{
+    errno = 0;
+    if (fflush(stdout) != 0 || ferror(stdout)) {
+        if (rc != CLI_OK) /* the command failed and said so already: one line */
+            return rc;
+        fprintf(stderr, "selfcal: cannot write to standard output: %s\n",
+                errno ? strerror(errno) : "write error");
+        return CLI_FAIL;
+    }
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
+    sc_afile_cleanup_on_signals(); /* no *.tmpXXXXXX left by Ctrl-C or a service stop */
     if (argc < 2) {
         usage(stderr);
         return CLI_BAD_INPUT;
     }
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
         usage(stdout);
-        return CLI_OK;
+        return finish(CLI_OK);
     }
     if (!strcmp(argv[1], "--version")) {
         printf("selfcal %s\n", sc_version());
-        return CLI_OK;
+        return finish(CLI_OK);
     }
     for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k) {
         const command *c = &commands[k];
         if (strcmp(argv[1], c->name) != 0)
             continue;
         if (!c->sub)
-            return c->run(argc - 1, argv + 1);
+            return finish(c->run(argc - 1, argv + 1));
         if (argc >= 3 && !strcmp(argv[2], c->sub))
-            return c->run(argc - 2, argv + 2);
+            return finish(c->run(argc - 2, argv + 2));
     }
     /* a known first word whose second word is missing or unknown: list the choices */
     int known = 0;

@@ -40,6 +40,13 @@ SC_API sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err);
 /* Abort every open entry of f[0..n-1]. */
 SC_API void sc_afile_abort_all(sc_afile *f, int n);
 
+/* For programs (the CLI calls it first thing): on SIGINT, SIGTERM, SIGHUP and SIGQUIT remove
+ * every temporary file still open, then die of the signal as before. A group committed with
+ * sc_afile_commit_all is renamed with those signals blocked, so a signal leaves either the old
+ * set or the new set, never a mix. Signals the process ignores stay ignored. Process-wide (a
+ * signal handler is); without this call nothing is installed. */
+SC_API void sc_afile_cleanup_on_signals(void);
+
 /* Write len bytes to path atomically in one call. */
 SC_API sc_status sc_write_file_atomic(const char *path, const void *data, size_t len,
                                       sc_error *err);

@@ -2,10 +2,92 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+/* Temporary files a signal must not leave behind. Only used once a program asked for it with
+ * sc_afile_cleanup_on_signals (process-wide by nature: a signal is); the paths are copied, so the
+ * handler never follows a pointer into a caller's frame. */
+#define SC_AFILE_TRACKED 64
+static char g_tracked_path[SC_AFILE_TRACKED][4096];
+static volatile sig_atomic_t g_tracked_used[SC_AFILE_TRACKED];
+static volatile sig_atomic_t g_tracking;
+
+static void block_signals(sigset_t *old)
+{
+    sigset_t set;
+    sigemptyset(&set);
+    sigaddset(&set, SIGINT);
+    sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGHUP);
+    sigaddset(&set, SIGQUIT);
+    sigprocmask(SIG_BLOCK, &set, old);
+}
+
+static void restore_signals(const sigset_t *old)
+{
+    sigprocmask(SIG_SETMASK, old, NULL);
+}
+
+static void track(const sc_afile *f)
+{
+    if (!g_tracking)
+        return;
+    for (int k = 0; k < SC_AFILE_TRACKED; ++k)
+        if (!g_tracked_used[k]) {
+            memcpy(g_tracked_path[k], f->tmp_path, sizeof g_tracked_path[k]);
+            g_tracked_used[k] = 1;
+            return;
+        }
+}
+
+static void untrack(const sc_afile *f)
+{
+    for (int k = 0; k < SC_AFILE_TRACKED; ++k)
+        if (g_tracked_used[k] && strcmp(g_tracked_path[k], f->tmp_path) == 0)
+            g_tracked_used[k] = 0;
+}
+
+static void on_fatal_signal(int sig)
+{
+    for (int k = 0; k < SC_AFILE_TRACKED; ++k)
+        if (g_tracked_used[k])
+            unlink(g_tracked_path[k]); /* async-signal-safe */
+    signal(sig, SIG_DFL);
+    raise(sig);
+}
+
+void sc_afile_cleanup_on_signals(void)
+{
+    static const int sigs[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT};
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_fatal_signal;
+    sigemptyset(&sa.sa_mask);
+    for (size_t k = 0; k < sizeof sigs / sizeof sigs[0]; ++k)
+        sigaddset(&sa.sa_mask, sigs[k]);
+    g_tracking = 1;
+    for (size_t k = 0; k < sizeof sigs / sizeof sigs[0]; ++k) {
+        struct sigaction old;
+        /* leave a signal the caller's parent ignores ignored (nohup) */
+        if (sigaction(sigs[k], NULL, &old) == 0 && old.sa_handler == SIG_IGN)
+            continue;
+        sigaction(sigs[k], &sa, NULL);
+    }
+}
+
+/* unlink the temporary file and forget it */
+static void remove_tmp(sc_afile *f)
+{
+    sigset_t old;
+    block_signals(&old);
+    unlink(f->tmp_path);
+    untrack(f);
+    restore_signals(&old);
+}
 
 sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
 {
@@ -19,15 +101,21 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
     snprintf(f->path, sizeof f->path, "%s", path);
     snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmpXXXXXX", path);
+    sigset_t old;
+    block_signals(&old); /* created and tracked as one step */
     int fd = mkstemp(f->tmp_path);
+    int e = errno;
+    if (fd >= 0)
+        track(f);
+    restore_signals(&old);
     if (fd < 0)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(errno));
+        return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
     fchmod(fd, 0644);
     f->fp = fdopen(fd, "wb");
     if (!f->fp) {
-        int e = errno;
+        e = errno;
         close(fd);
-        unlink(f->tmp_path);
+        remove_tmp(f);
         return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
     }
     return SC_OK;
@@ -62,7 +150,7 @@ static sc_status afile_sync(sc_afile *f, sc_error *err)
     }
     f->fp = NULL;
     if (bad) {
-        unlink(f->tmp_path);
+        remove_tmp(f);
         return sc_error_set(err, SC_E_IO, f->path, 0, "write error: %s", strerror(e));
     }
     return SC_OK;
@@ -73,10 +161,11 @@ static sc_status afile_rename(sc_afile *f, sc_error *err)
 {
     if (rename(f->tmp_path, f->path) != 0) {
         int e = errno;
-        unlink(f->tmp_path);
+        remove_tmp(f);
         return sc_error_set(err, SC_E_IO, f->path, 0, "cannot rename into place: %s",
                             strerror(e));
     }
+    untrack(f);
     fsync_parent_dir(f->path);
     return SC_OK;
 }
@@ -115,18 +204,23 @@ sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err)
     if (st != SC_OK) {
         for (int k = 0; k < n; ++k)
             if (synced[k])
-                unlink(f[k].tmp_path);
+                remove_tmp(&f[k]);
         sc_afile_abort_all(f, n);
         return st;
     }
+    /* The renames as one step for signals: a SIGINT/SIGTERM arriving now is handled after the
+     * whole set is in place, never between two files of it. */
+    sigset_t old;
+    block_signals(&old);
     for (int k = 0; k < n; ++k) {
         if (!synced[k])
             continue;
         if (st == SC_OK)
             st = afile_rename(&f[k], err);
         else
-            unlink(f[k].tmp_path);
+            remove_tmp(&f[k]);
     }
+    restore_signals(&old);
     return st;
 }
 
@@ -147,7 +241,7 @@ void sc_afile_abort(sc_afile *f)
     }
     fclose(f->fp);
     f->fp = NULL;
-    unlink(f->tmp_path);
+    remove_tmp(f);
 }
 
 sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, sc_error *err)

@@ -48,9 +48,11 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
          * row by row — a row's panel entries are contiguous in the band storage */
         for (size_t q = 0; q < 8 * (size_t)(h + 8); q++) col[q] = 0.0;
         for (int q = 0; q <= last - j; q++) {
-            const double *src = b->a + (size_t)(j + q) * ld + (size_t)(bw - q);
+            /* row j+q's slot of column j+c is bw - q + c >= 0 (c >= q - bw); indexing from the
+             * row start keeps the pointer inside the array when q > bw */
+            const double *src = b->a + (size_t)(j + q) * ld;
             int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
-            for (int c = c0; c <= c1; c++) pc[c][q] = src[c];
+            for (int c = c0; c <= c1; c++) pc[c][q] = src[bw - q + c];
         }
         /* factor the panel in the scratch */
         for (int c = 0; c < nb; c++) {
@@ -69,9 +71,9 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
         }
         /* write the panel back, row by row */
         for (int q = 0; q <= last - j; q++) {
-            double *dst = b->a + (size_t)(j + q) * ld + (size_t)(bw - q);
+            double *dst = b->a + (size_t)(j + q) * ld;
             int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
-            for (int c = c0; c <= c1; c++) dst[c] = pc[c][q];
+            for (int c = c0; c <= c1; c++) dst[bw - q + c] = pc[c][q];
         }
         if (nb < 8) continue; /* the last columns (ncol = nrow, or ncol % 8 = 0): nothing trails */
         /* trailing rows k = j+8 .. last, columns l0 = j+8 .. k: row -= Σ_c L[k][j+c]·L[l][j+c];

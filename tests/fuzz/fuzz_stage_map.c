@@ -1,0 +1,32 @@
+/* tests/fuzz/fuzz_stage_map.c — libFuzzer target: the stage error map readers (SPEC §1 map:
+ * sc_grid_read_map for plots/verify, sc_lut_read_map for `lut build`). */
+#include <math.h>
+
+#include "fuzz_reader_check.h"
+#include "selfcal/grid_io.h"
+#include "selfcal/lut.h"
+
+static sc_lut g_lut;
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    const char *path = fuzz_path(data, size);
+    sc_grid_map m;
+    sc_error err;
+    memset(&m, 0, sizeof m);
+    memset(&err, 0, sizeof err);
+    sc_status st = sc_grid_read_map(path, &m, &err);
+    fuzz_check_error(st, &err);
+    if (st == SC_OK)
+        sc_grid_map_free(&m);
+    memset(&err, 0, sizeof err);
+    sc_lut_init(&g_lut);
+    st = sc_lut_read_map(path, &g_lut, &err);
+    fuzz_check_error(st, &err);
+    if (st == SC_OK) {
+        FUZZ_CHECK(g_lut.nx >= 2 && g_lut.ny >= 2 && g_lut.nx <= SC_LUT_MAX_NX &&
+                   g_lut.ny <= SC_LUT_MAX_NY);
+        FUZZ_CHECK(g_lut.px_mm > 0 && g_lut.py_mm > 0);
+    }
+    return 0;
+}
