@@ -9,8 +9,7 @@
 #include "cli.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
-#include "selfcal/profile_dft.h"
-#include "selfcal/profile_lsq.h"
+#include "selfcal/profile_calibrate.h"
 #include "plots.h"
 
 static const char *USAGE =
@@ -22,20 +21,6 @@ static const char *USAGE =
     "  neither, it is estimated from the least-squares residuals (equal scan weights).\n"
     "  --mc K: uncertainty by K seeded Monte Carlo trials instead of the analytic formula.\n";
 
-
-typedef struct solver_ctx {
-    sc_profile_method method;
-    sc_profile_dft *dft;
-    sc_profile_lsq *lsq;
-} solver_ctx;
-
-static sc_status solve_cb(void *vctx, const double *y1, const double *y2, double *f, sc_error *err)
-{
-    solver_ctx *c = vctx;
-    if (c->method == SC_PROFILE_DFT)
-        return sc_profile_dft_solve(c->dft, y1, y2, f, err);
-    return sc_profile_lsq_solve(c->lsq, y1, y2, f, NULL, NULL, err);
-}
 
 static void progress_cb(void *ctx, long done, long total)
 {
@@ -117,88 +102,30 @@ int cmd_profile(int argc, char **argv)
     sc_profile_data d;
     if (sc_profile_read(in, &d, &err) != SC_OK)
         return cli_report(&err);
-    if (sc_profile_check_method(&d, method, &err) != SC_OK) {
-        sc_profile_data_free(&d);
-        return cli_report(&err);
-    }
     const int n = d.n, d1 = d.d[0], d2 = d.d[1];
-    /* noise: command line > header > residuals */
-    int have_sd = !isnan(sd) || d.has_sigma_disp, have_sa = !isnan(sa) || d.has_sigma_angle;
-    if (isnan(sd))
-        sd = d.has_sigma_disp ? d.sigma_disp_um : 0.0;
-    if (isnan(sa))
-        sa = d.has_sigma_angle ? d.sigma_angle_urad : 0.0;
-    int noise_known = have_sd || have_sa;
-    double var1 = 1, var2 = 1;
-    if (noise_known) {
-        var1 = sc_profile_y_variance(d1, d.s_mm, sd, sa);
-        var2 = sc_profile_y_variance(d2, d.s_mm, sd, sa);
-    }
-    int zero_noise = noise_known && !(var1 > 0 && var2 > 0);
-    if (zero_noise)
-        var1 = var2 = 1; /* weights are then arbitrary; uncertainties 0 */
+    sc_profile_options opt;
+    sc_profile_options_default(&opt);
+    opt.method = method;
+    opt.sigma_disp_um = sd;
+    opt.sigma_angle_urad = sa;
+    opt.mc_trials = mc;
+    opt.mc_seed = (uint64_t)seed;
+    opt.progress = mc > 0 && isatty(STDERR_FILENO) && !quiet ? progress_cb : NULL;
     int rc = CLI_FAIL;
-    double *blk = malloc((size_t)(2 * n + 4 * n) * sizeof(double));
-    solver_ctx ctx = {method, NULL, NULL};
-    sc_profile_lsq *lres = NULL;
+    sc_status st;
+    double *blk = malloc((size_t)3 * n * sizeof(double));
     if (!blk) {
         sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
         goto done;
     }
-    double *y1 = blk, *y2 = y1 + n, *f = y2 + n, *uf = f + n, *ey = uf + n, *tmp = ey + n;
-    sc_profile_combine(&d, 0, y1);
-    sc_profile_combine(&d, 1, y2);
-    sc_status st;
-    if (method == SC_PROFILE_DFT)
-        st = sc_profile_dft_create(n, d1, d2, 1.0 / var1, 1.0 / var2, &ctx.dft, &err);
-    else
-        /* the command reports every point's uncertainty: start the selected inversion on the
-         * second core while the solve runs */
-        st = sc_profile_lsq_create_ex(n, d1, d2, 1.0 / var1, 1.0 / var2,
-                                      SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &ctx.lsq, &err);
-    if (st != SC_OK || (st = solve_cb(&ctx, y1, y2, f, &err)) != SC_OK)
+    double *f = blk, *uf = f + n, *ey = uf + n;
+    sc_profile_solution sol = {.f_um = f, .uf_um = uf, .ey_um = ey};
+    if ((st = sc_profile_calibrate(&d, &opt, &sol, &err)) != SC_OK)
         goto done;
-    /* residual noise (weighted by the plan's weights), always from the least-squares fit: the
-     * DFT estimate is not the least-squares one, and its residuals overstate the noise */
-    const double *fres = f;
-    if (method == SC_PROFILE_DFT) {
-        if ((st = sc_profile_lsq_create(n, d1, d2, 1.0 / var1, 1.0 / var2, &lres, &err)) != SC_OK ||
-            (st = sc_profile_lsq_solve(lres, y1, y2, tmp, NULL, NULL, &err)) != SC_OK)
-            goto done;
-        fres = tmp;
-    }
-    int dof;
-    double wrss = sc_profile_residual_ss(n, d1, d2, y1, y2, fres, 1.0 / var1, 1.0 / var2, &dof);
-    double scale = 1.0; /* multiplies the plan's unit uncertainties */
-    int have_uf = 1;
-    if (zero_noise) {
-        scale = 0.0;
-    } else if (!noise_known) {
-        if (dof <= 0) {
-            have_uf = 0;
-            if (!quiet)
-                fprintf(stderr, "selfcal profile: no redundancy (N - d1 - d2 = %d): noise not estimable, "
-                                "uf_um left empty\n", dof);
-        } else {
-            scale = sqrt(wrss / dof);
-        }
-    }
-    if (have_uf) {
-        if (mc > 0) {
-            int tty = isatty(STDERR_FILENO) && !quiet;
-            st = sc_profile_mc_uncertainty(n, d1, d2, sqrt(var1), sqrt(var2), solve_cb, &ctx, mc,
-                                           (uint64_t)seed, tty ? progress_cb : NULL, NULL, uf, &err);
-        } else if (method == SC_PROFILE_DFT) {
-            st = sc_profile_dft_uncertainty(ctx.dft, uf, &err);
-        } else {
-            st = sc_profile_lsq_uncertainty(ctx.lsq, uf, &err);
-        }
-        if (st != SC_OK)
-            goto done;
-        for (int i = 0; i < n; ++i)
-            uf[i] *= scale;
-    }
-    sc_profile_stage_error(&d, f, ey);
+    int have_uf = sol.have_uf;
+    if (!have_uf && !quiet)
+        fprintf(stderr, "selfcal profile: no redundancy (N - d1 - d2 = %d): noise not estimable, "
+                        "uf_um left empty\n", sol.dof);
     if ((st = sc_profile_write_result(out, n, d.s_mm, f, have_uf ? uf : NULL, ey, n - d1, &err)) != SC_OK)
         goto done;
     if (plot) {
@@ -209,11 +136,6 @@ int cmd_profile(int argc, char **argv)
         }
         for (int i = 0; i < n; ++i)
             x[i] = i * d.s_mm;
-        for (int i = n - d1; i < n; ++i)
-            ey[i] = NAN;
-        if (!have_uf)
-            for (int i = 0; i < n; ++i)
-                uf[i] = NAN;
         sc_profile_result r = {n, x, f, uf, ey};
         char title[128];
         snprintf(title, sizeof title, "%s method, N = %d, d = %d/%d", method_s, n, d1, d2);
@@ -231,13 +153,16 @@ int cmd_profile(int argc, char **argv)
                 mx = uf[i];
         }
         printf("method: %s\nN: %d\ns_mm: %g\nd1: %d\nd2: %d\n", method_s, n, d.s_mm, d1, d2);
-        if (noise_known)
-            printf("noise: given (sigma_disp_um = %g, sigma_angle_urad = %g)\n", sd, sa);
+        if (sol.noise_known)
+            printf("noise: given (sigma_disp_um = %g, sigma_angle_urad = %g)\n", sol.sigma_disp_um,
+                   sol.sigma_angle_urad);
         else
             printf("noise: estimated from residuals\n");
-        printf("sigma_y1_um: %.6g\nsigma_y2_um: %.6g\n", sqrt(var1) * scale, sqrt(var2) * scale);
-        if (dof > 0 && noise_known && !zero_noise)
-            printf("residual_ratio: %.4g (RMS of residual/given sigma; dof %d)\n", sqrt(wrss / dof), dof);
+        if (have_uf)
+            printf("sigma_y1_um: %.6g\nsigma_y2_um: %.6g\n", sol.sigma_y_um[0], sol.sigma_y_um[1]);
+        if (!isnan(sol.residual_ratio))
+            printf("residual_ratio: %.4g (RMS of residual/given sigma; dof %d)\n", sol.residual_ratio,
+                   sol.dof);
         if (have_uf)
             printf("uncertainty: %s\nuf_rms_um: %.6g\nuf_max_um: %.6g\n",
                    mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / n), mx);
@@ -246,9 +171,6 @@ int cmd_profile(int argc, char **argv)
 done:
     if (rc != CLI_OK && err.code != SC_OK)
         rc = cli_report(&err);
-    sc_profile_dft_destroy(ctx.dft);
-    sc_profile_lsq_destroy(ctx.lsq);
-    sc_profile_lsq_destroy(lres);
     free(blk);
     sc_profile_data_free(&d);
     return rc;

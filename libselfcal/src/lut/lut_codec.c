@@ -353,29 +353,64 @@ sc_status sc_lut_write_file(const char *path, sc_lut *lut, sc_lut_encoding enc, 
  * 2048-point int32 profiles take about 150 KB). */
 #define SC_LUT_MAX_FILE_BYTES (1u << 20)
 
-sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err)
+/* Read a whole table file into a new buffer (*buf, *len; the caller frees *buf). */
+static sc_status read_table_bytes(const char *path, uint8_t **buf, size_t *len, sc_error *err)
 {
+    *buf = NULL;
+    *len = 0;
     FILE *f = sc_open_input(path, err);
     if (!f)
         return err ? err->code : SC_E_INPUT;
-    uint8_t *buf = malloc(SC_LUT_MAX_FILE_BYTES + 1);
-    if (!buf) {
+    uint8_t *b = malloc(SC_LUT_MAX_FILE_BYTES + 1);
+    if (!b) {
         fclose(f);
         return sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
     }
-    size_t len = fread(buf, 1, SC_LUT_MAX_FILE_BYTES + 1, f);
+    size_t n = fread(b, 1, SC_LUT_MAX_FILE_BYTES + 1, f);
     int bad = ferror(f);
     fclose(f);
-    sc_status st;
+    sc_status st = SC_OK;
     if (bad)
         st = sc_error_set(err, SC_E_IO, path, 0, "read error");
-    else if (len > SC_LUT_MAX_FILE_BYTES)
+    else if (n > SC_LUT_MAX_FILE_BYTES)
         st = sc_error_set(err, SC_E_INPUT, path, 0, "not a valid table: larger than %u bytes",
                           SC_LUT_MAX_FILE_BYTES);
-    else
+    if (st != SC_OK) {
+        free(b);
+        return st;
+    }
+    *buf = b;
+    *len = n;
+    return SC_OK;
+}
+
+sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err)
+{
+    uint8_t *buf;
+    size_t len;
+    sc_status st = read_table_bytes(path, &buf, &len, err);
+    if (st == SC_OK)
         st = sc_lut_decode(buf, len, lut, path, err);
     free(buf);
     return st;
+}
+
+sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_error *err)
+{
+    uint8_t *buf;
+    size_t len;
+    t->loaded = 0;
+    sc_status st = read_table_bytes(path, &buf, &len, err);
+    if (st != SC_OK)
+        return st;
+    int rc = sc_corr_load(t, buf, len);
+    free(buf);
+    if (rc == SC_CORR_E_CAPACITY)
+        return sc_error_set(err, SC_E_INPUT, path, 0, "table larger than this build reads: %s",
+                            sc_corr_strerror(rc));
+    if (rc != SC_CORR_OK)
+        return sc_error_set(err, SC_E_INPUT, path, 0, "not a valid table: %s", sc_corr_strerror(rc));
+    return SC_OK;
 }
 
 /* Cell index and fraction along one axis for coordinate u in node units. */

@@ -1,0 +1,60 @@
+/* selfcal/profile_calibrate.h — a straightness measurement to a profile, end to end: the noise
+ * (given, from the data's header, or estimated from the residuals), the scan weights, the method,
+ * every point's uncertainty and the stage's e_y. What `selfcal profile` and the Python package's
+ * calibrate_profile both call, so that they agree to the last bit.
+ */
+#ifndef SELFCAL_PROFILE_CALIBRATE_H
+#define SELFCAL_PROFILE_CALIBRATE_H
+
+#include <stdint.h>
+
+#include "selfcal/error.h"
+#include "selfcal/profile.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* How to calibrate. Initialise with sc_profile_options_default. */
+typedef struct sc_profile_options {
+    sc_profile_method method;
+    double sigma_disp_um;    /* each displacement sensor's noise (µm); NaN: the data's header line,
+                                else unknown */
+    double sigma_angle_urad; /* the angle sensor's noise (µrad); NaN: likewise */
+    long mc_trials;          /* 0: analytic uncertainties; >= 2: that many Monte Carlo trials */
+    uint64_t mc_seed;        /* seed of the Monte Carlo noise */
+    sc_progress_fn progress; /* Monte Carlo progress (may be NULL) */
+    void *progress_ctx;
+} sc_profile_options;
+
+/* What came out. The arrays are the caller's, each of the data's N values (NULL: not wanted). */
+typedef struct sc_profile_solution {
+    double *f_um;            /* the profile relative to its least-squares line */
+    double *uf_um;           /* its standard uncertainty (k = 1); NaN when no noise is known or
+                                estimable (have_uf = 0) */
+    double *ey_um;           /* the stage's straightness motion error from scan 1; NaN for
+                                n >= N - d1 */
+    int have_uf;             /* 1 if uf is given */
+    int noise_known;         /* 1 if the noise was given (options or header), 0 if estimated */
+    double sigma_disp_um;    /* the noise used when known (0 for a sensor not given), else NaN */
+    double sigma_angle_urad;
+    double sigma_y_um[2];    /* standard deviation of y1, y2 used for the uncertainties (NaN if none) */
+    double wrss;             /* weighted residual sum of squares of the least-squares fit */
+    int dof;                 /* its degrees of freedom, N - d1 - d2 */
+    double residual_ratio;   /* sqrt(wrss/dof) when the noise is given (1 expected), else NaN */
+} sc_profile_solution;
+
+/* Least squares, analytic uncertainties, noise from the header or the residuals. */
+void sc_profile_options_default(sc_profile_options *o);
+
+/* Calibrate d by o into s (its arrays provided by the caller). The noise given in o wins over the
+ * data's header lines; with neither, the noise is estimated from the least-squares residuals
+ * (equal scan weights) and uf is left NaN when there is no redundancy (dof = 0). SC_E_INPUT
+ * (file and line of d) when the method cannot solve (N, d1, d2). */
+sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
+                                      sc_profile_solution *s, sc_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

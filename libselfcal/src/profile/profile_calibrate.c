@@ -1,0 +1,166 @@
+/* profile_calibrate.c — owns the end-to-end straightness calibration (selfcal/profile_calibrate.h):
+ * noise precedence, scan weights, the method's plan, the residual noise estimate, uncertainties
+ * (analytic or Monte Carlo) and e_y. The command line and the Python package call only this.
+ */
+#include <math.h>
+#include <stdlib.h>
+
+#include "selfcal/profile_calibrate.h"
+#include "selfcal/profile_dft.h"
+#include "selfcal/profile_lsq.h"
+
+void sc_profile_options_default(sc_profile_options *o)
+{
+    o->method = SC_PROFILE_LSQ;
+    o->sigma_disp_um = NAN;
+    o->sigma_angle_urad = NAN;
+    o->mc_trials = 0;
+    o->mc_seed = 1;
+    o->progress = NULL;
+    o->progress_ctx = NULL;
+}
+
+typedef struct solver_ctx {
+    sc_profile_method method;
+    sc_profile_dft *dft;
+    sc_profile_lsq *lsq;
+} solver_ctx;
+
+static sc_status solve_cb(void *vctx, const double *y1, const double *y2, double *f, sc_error *err)
+{
+    solver_ctx *c = vctx;
+    if (c->method == SC_PROFILE_DFT)
+        return sc_profile_dft_solve(c->dft, y1, y2, f, err);
+    return sc_profile_lsq_solve(c->lsq, y1, y2, f, NULL, NULL, err);
+}
+
+/* The noise of the scans: options > header > unknown. Sets s's noise fields and the variances
+ * of y1, y2 (1, 1 when unknown: only the ratio of the weights matters then). */
+static void choose_noise(const sc_profile_data *d, const sc_profile_options *o,
+                         sc_profile_solution *s, double var[2])
+{
+    double sd = o->sigma_disp_um, sa = o->sigma_angle_urad;
+    int have_sd = !isnan(sd) || d->has_sigma_disp, have_sa = !isnan(sa) || d->has_sigma_angle;
+    if (isnan(sd))
+        sd = d->has_sigma_disp ? d->sigma_disp_um : 0.0;
+    if (isnan(sa))
+        sa = d->has_sigma_angle ? d->sigma_angle_urad : 0.0;
+    s->noise_known = have_sd || have_sa;
+    s->sigma_disp_um = s->noise_known ? sd : NAN;
+    s->sigma_angle_urad = s->noise_known ? sa : NAN;
+    var[0] = var[1] = 1.0;
+    if (s->noise_known) {
+        var[0] = sc_profile_y_variance(d->d[0], d->s_mm, sd, sa);
+        var[1] = sc_profile_y_variance(d->d[1], d->s_mm, sd, sa);
+    }
+}
+
+/* Uncertainties of every point into uf (scaled by `scale`): Monte Carlo or the method's formula. */
+static sc_status uncertainty(const sc_profile_data *d, const sc_profile_options *o, solver_ctx *ctx,
+                             const double var[2], double scale, double *uf, sc_error *err)
+{
+    sc_status st;
+    if (o->mc_trials > 0)
+        st = sc_profile_mc_uncertainty(d->n, d->d[0], d->d[1], sqrt(var[0]), sqrt(var[1]), solve_cb,
+                                       ctx, o->mc_trials, o->mc_seed, o->progress, o->progress_ctx,
+                                       uf, err);
+    else if (o->method == SC_PROFILE_DFT)
+        st = sc_profile_dft_uncertainty(ctx->dft, uf, err);
+    else
+        st = sc_profile_lsq_uncertainty(ctx->lsq, uf, err);
+    if (st == SC_OK)
+        for (int i = 0; i < d->n; ++i)
+            uf[i] *= scale;
+    return st;
+}
+
+/* The residual noise always comes from the least-squares fit: the DFT estimate is not the
+ * least-squares one, and its residuals overstate the noise. */
+static sc_status residuals(const sc_profile_data *d, solver_ctx *ctx, const double *y1,
+                           const double *y2, const double *f, const double w[2], double *tmp,
+                           sc_profile_solution *s, sc_error *err)
+{
+    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
+    const double *fres = f;
+    sc_profile_lsq *lres = NULL;
+    if (ctx->method == SC_PROFILE_DFT) {
+        sc_status st = sc_profile_lsq_create(n, d1, d2, w[0], w[1], &lres, err);
+        if (st == SC_OK)
+            st = sc_profile_lsq_solve(lres, y1, y2, tmp, NULL, NULL, err);
+        sc_profile_lsq_destroy(lres);
+        if (st != SC_OK)
+            return st;
+        fres = tmp;
+    }
+    s->wrss = sc_profile_residual_ss(n, d1, d2, y1, y2, fres, w[0], w[1], &s->dof);
+    return SC_OK;
+}
+
+sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
+                               sc_profile_solution *s, sc_error *err)
+{
+    sc_status st = sc_profile_check_method(d, o->method, err);
+    if (st != SC_OK)
+        return st;
+    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
+    double var[2];
+    choose_noise(d, o, s, var);
+    int zero_noise = s->noise_known && !(var[0] > 0 && var[1] > 0);
+    if (zero_noise)
+        var[0] = var[1] = 1; /* the weights are then arbitrary; uncertainties 0 */
+    const double w[2] = {1.0 / var[0], 1.0 / var[1]};
+    double *blk = malloc((size_t)5 * n * sizeof(double));
+    if (!blk)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    double *y1 = blk, *y2 = y1 + n, *f = y2 + n, *uf = f + n, *tmp = uf + n;
+    sc_profile_combine(d, 0, y1);
+    sc_profile_combine(d, 1, y2);
+    solver_ctx ctx = {o->method, NULL, NULL};
+    if (o->method == SC_PROFILE_DFT)
+        st = sc_profile_dft_create(n, d1, d2, w[0], w[1], &ctx.dft, err);
+    else /* every point's uncertainty follows: start the selected inversion on a second core */
+        st = sc_profile_lsq_create_ex(n, d1, d2, w[0], w[1], SC_PROFILE_LSQ_EARLY_UNCERTAINTY,
+                                      &ctx.lsq, err);
+    if (st == SC_OK)
+        st = solve_cb(&ctx, y1, y2, f, err);
+    if (st == SC_OK)
+        st = residuals(d, &ctx, y1, y2, f, w, tmp, s, err);
+    if (st != SC_OK)
+        goto done;
+    double scale = 1.0; /* multiplies the plan's unit uncertainties */
+    s->have_uf = 1;
+    s->residual_ratio = NAN;
+    if (zero_noise)
+        scale = 0.0;
+    else if (!s->noise_known && s->dof <= 0)
+        s->have_uf = 0; /* no redundancy: the noise is not estimable */
+    else if (!s->noise_known)
+        scale = sqrt(s->wrss / s->dof);
+    else if (s->dof > 0)
+        s->residual_ratio = sqrt(s->wrss / s->dof);
+    s->sigma_y_um[0] = s->have_uf ? sqrt(var[0]) * scale : NAN;
+    s->sigma_y_um[1] = s->have_uf ? sqrt(var[1]) * scale : NAN;
+    if (s->have_uf)
+        st = uncertainty(d, o, &ctx, var, scale, uf, err);
+    else
+        for (int i = 0; i < n; ++i)
+            uf[i] = NAN;
+    if (st != SC_OK)
+        goto done;
+    if (s->ey_um) {
+        sc_profile_stage_error(d, f, s->ey_um);
+        for (int i = n - d1; i < n; ++i)
+            s->ey_um[i] = NAN;
+    }
+    for (int i = 0; i < n; ++i) {
+        if (s->f_um)
+            s->f_um[i] = f[i];
+        if (s->uf_um)
+            s->uf_um[i] = uf[i];
+    }
+done:
+    sc_profile_dft_destroy(ctx.dft);
+    sc_profile_lsq_destroy(ctx.lsq);
+    free(blk);
+    return st;
+}
