@@ -124,9 +124,7 @@ int cmd_simulate_profile(int argc, char **argv)
     }
     char info[512] = "random smooth profile";
     if (!strcmp(prof, "random")) {
-        sc_rng rng;
-        sc_rng_seed(&rng, p.seed ^ 0x5eed5eedULL);
-        sc_profile_random_smooth(n, amp, (int)harmonics, &rng, f);
+        sc_profile_sim_random_truth(&p, amp, (int)harmonics, f);
     } else if (sc_profile_load_dabam(prof, n, p.s_mm, f, info, sizeof info, &err) != SC_OK) {
         goto done;
     }

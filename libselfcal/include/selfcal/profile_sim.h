@@ -41,6 +41,11 @@ SC_API void sc_profile_sim_defaults(sc_profile_sim *p);
 SC_API void sc_profile_random_smooth(int n, double amp_um, int harmonics, sc_rng *rng,
                                      double *f_um);
 
+/* The random smooth profile `selfcal simulate profile` measures for instrument p: seeded from
+ * p->seed (mixed, so that f and the instrument's own noise are independent), RMS amp_um. */
+void sc_profile_sim_random_truth(const sc_profile_sim *p, double amp_um, int harmonics,
+                                 double *f_um);
+
 /* A DABAM mirror profile (dat_path; its metadata is the .txt next to it): heights (a slope
  * profile is integrated by the cumulative trapezoid rule) in µm, resampled linearly onto n points
  * at s_mm — at true scale centred on the mirror if (n-1)·s fits in its length, else stretched over

@@ -50,6 +50,14 @@ void sc_profile_random_smooth(int n, double amp_um, int harmonics, sc_rng *rng, 
             f_um[i] *= amp_um / rms;
 }
 
+void sc_profile_sim_random_truth(const sc_profile_sim *p, double amp_um, int harmonics,
+                                 double *f_um)
+{
+    sc_rng rng;
+    sc_rng_seed(&rng, p->seed ^ 0x5eed5eedULL);
+    sc_profile_random_smooth(p->n, amp_um, harmonics, &rng, f_um);
+}
+
 /* ---- DABAM ---------------------------------------------------------------------------------- */
 
 /* The value text of "key" in a flat JSON object (NULL if absent); copies at most len-1 chars. */

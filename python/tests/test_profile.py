@@ -1,0 +1,107 @@
+"""Straightness profiles from Python: recovery against simulated truth, equality with the command
+line on the same files, errors."""
+import numpy as np
+import pytest
+
+import selfcal
+from conftest import read_csv
+
+
+def line_removed(v):
+    x = np.arange(len(v), dtype=float)
+    a, b = np.polyfit(x, v, 1)
+    return v - (a * x + b)
+
+
+@pytest.mark.parametrize("method", ["lsq", "dft"])
+def test_noise_free_recovery(method):
+    m, truth = selfcal.simulate_profile(n=330, d1=10, d2=11, sigma_disp_um=0, sigma_angle_urad=0,
+                                        seed=7)
+    r = selfcal.calibrate_profile(m, method=method, sigma_disp_um=0.01, sigma_angle_urad=1.0)
+    assert r.f_um.shape == (330,)
+    assert np.max(np.abs(r.f_um - line_removed(truth["f_um"]))) < 1e-9
+    valid = ~np.isnan(truth["ey_um"])
+    assert valid.sum() == 320
+    assert np.array_equal(valid, ~np.isnan(r.ey_um))
+    assert np.max(np.abs(r.ey_um[valid] - truth["ey_um"][valid])) < 1e-9
+    # given noise: uncertainties follow it (Ding's set-up, ~12.7 nm in the middle)
+    assert r.noise_known and r.have_uf
+    assert 0.010 < r.uf_um[165] < 0.016
+    assert np.allclose(r.expanded_uf_um(), 2 * r.uf_um)
+
+
+def test_arbitrary_profile_in_memory():
+    f = np.sin(np.linspace(0, 7, 200)) * 0.3
+    m, truth = selfcal.simulate_profile(n=200, d1=3, d2=7, f_um=f, sigma_disp_um=0,
+                                        sigma_angle_urad=0)
+    assert np.array_equal(truth["f_um"], f)
+    r = selfcal.calibrate_profile(m, method="lsq")
+    assert np.max(np.abs(r.f_um - line_removed(f))) < 1e-9
+    # noise-free data: the noise estimated from the residuals is (nearly) zero
+    assert not r.noise_known and np.max(r.uf_um) < 1e-9
+
+
+@pytest.mark.parametrize("method", ["lsq", "dft"])
+def test_equals_cli(cli, tmp_path, method):
+    m, _ = selfcal.simulate_profile(n=330, d1=10, d2=11, seed=3)
+    data = tmp_path / "scans.csv"
+    m.write(data)
+    back = selfcal.read_profile(data)
+    for k in range(2):
+        assert np.array_equal(back.m1_um[k], m.m1_um[k])
+        assert np.array_equal(back.m3_urad[k], m.m3_urad[k])
+    out = tmp_path / "P.csv"
+    cli("profile", "--method", method, data, "--out", out, "--quiet")
+    c = read_csv(out)
+    r = selfcal.calibrate_profile(str(data), method=method)
+    for col in ("f_um", "uf_um", "ey_um"):
+        a, b = c[col], getattr(r, col)
+        assert np.array_equal(np.isnan(a), np.isnan(b)), col
+        ok = ~np.isnan(a)
+        assert np.allclose(a[ok], b[ok], rtol=1e-12, atol=1e-13), col
+    assert np.allclose(c["x_mm"], r.x_mm)
+
+
+def test_simulation_equals_cli(cli, tmp_path):
+    data, truth = tmp_path / "s.csv", tmp_path / "t.csv"
+    cli("simulate", "profile", "--n", 110, "--d1", 10, "--d2", 11, "--seed", 5, "--out", data,
+        "--truth", truth)
+    m, t = selfcal.simulate_profile(n=110, d1=10, d2=11, seed=5)
+    c = selfcal.read_profile(data)
+    for k in range(2):
+        assert np.allclose(c.m1_um[k], m.m1_um[k], rtol=1e-15, atol=1e-15)
+        assert np.allclose(c.m3_urad[k], m.m3_urad[k], rtol=1e-15, atol=1e-15)
+    tt = read_csv(truth)
+    assert np.allclose(tt["f_um"], t["f_um"], rtol=1e-14, atol=1e-15)
+
+
+def test_bad_file_message_equals_cli(cli, tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("# selfcal-profile v1\n# N = 30\n# s_mm = 1.0\n# scan 1: d=3\n# scan 2: d=7\n"
+                   "scan,n,m1_um,m2_um,m3_urad\n1,0,0.1,0.2,zz\n")
+    with pytest.raises(selfcal.Error) as e:
+        selfcal.calibrate_profile(str(bad))
+    assert isinstance(e.value, ValueError)
+    p = cli("profile", "--method", "lsq", bad, "--out", tmp_path / "P.csv", check=False)
+    assert p.returncode == 2
+    assert p.stderr.strip() == "selfcal: " + str(e.value)
+    assert str(e.value).startswith(f"{bad}:7: ")
+    assert not (tmp_path / "P.csv").exists()
+
+
+def test_errors():
+    with pytest.raises(selfcal.Error, match="missing"):
+        selfcal.read_profile("/nonexistent/missing.csv")
+    m, _ = selfcal.simulate_profile(n=120, d1=4, d2=6)  # gcd 2: not solvable
+    with pytest.raises(selfcal.Error, match="d1"):
+        selfcal.calibrate_profile(m)
+    with pytest.raises(selfcal.Error):
+        selfcal.calibrate_profile(m, method="fourier")
+    with pytest.raises(selfcal.Error):
+        selfcal.simulate_profile(n=20, d1=30, d2=31)
+    with pytest.raises(TypeError):
+        selfcal.simulate_profile(wobble_um=3)
+    m, _ = selfcal.simulate_profile(n=50, d1=3, d2=7)
+    m.m1_um = (m.m1_um[0][:-1], m.m1_um[1])
+    with pytest.raises(selfcal.Error, match="m1_um of scan 1 has 46 values, expected 47"):
+        selfcal.calibrate_profile(m)
