@@ -33,7 +33,8 @@ def test_noise_free_recovery(method):
 def test_arbitrary_profile_in_memory():
     f = np.sin(np.linspace(0, 7, 200)) * 0.3
     m, truth = selfcal.simulate_profile(n=200, d1=3, d2=7, f_um=f, sigma_disp_um=0,
-                                        sigma_angle_urad=0)
+                                        sigma_angle_urad=0, write_sigma=False)
+    assert m.sigma_disp_um is None
     assert np.array_equal(truth["f_um"], f)
     r = selfcal.calibrate_profile(m, method="lsq")
     assert np.max(np.abs(r.f_um - line_removed(f))) < 1e-9

@@ -95,8 +95,11 @@ def test_position_then_measure_is_near_identity(table):
     x = np.linspace(-9, 9, 101)
     xp, yp, _ = t.apply(x, x[::-1], mode="position")
     xm, ym, _ = t.apply(xp, yp, mode="measure")
-    # G varies little over a micrometre: the round trip is exact to second order
-    assert np.max(np.abs(xm - x)) < 1e-6 and np.max(np.abs(ym - x[::-1])) < 1e-6
+    # the round trip leaves only the change of the correction over the correction itself
+    # (second order): a small fraction of the correction
+    corr = max(np.max(np.abs(xp - x)), np.max(np.abs(yp - x[::-1])))
+    assert corr > 1e-4
+    assert np.max(np.abs(xm - x)) < 0.01 * corr and np.max(np.abs(ym - x[::-1])) < 0.01 * corr
 
 
 def test_errors(tmp_path):

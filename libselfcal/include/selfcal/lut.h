@@ -115,7 +115,7 @@ SC_API sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err);
 
 /* Read a table file and load it into the correction core's table *t (selfcal/correct.h), ready
  * for sc_corr_apply. SC_E_INPUT with the file and the reason if the file is not a valid table. */
-sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_error *err);
+SC_API sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_error *err);
 
 /* The quantization bound of a block: half its scale, in micrometres. */
 SC_API double sc_lut_quantization_um(uint32_t scale_pm);

@@ -8,6 +8,7 @@
 
 #include <stdint.h>
 
+#include "selfcal/api.h"
 #include "selfcal/error.h"
 #include "selfcal/profile.h"
 
@@ -45,13 +46,13 @@ typedef struct sc_profile_solution {
 } sc_profile_solution;
 
 /* Least squares, analytic uncertainties, noise from the header or the residuals. */
-void sc_profile_options_default(sc_profile_options *o);
+SC_API void sc_profile_options_default(sc_profile_options *o);
 
 /* Calibrate d by o into s (its arrays provided by the caller). The noise given in o wins over the
  * data's header lines; with neither, the noise is estimated from the least-squares residuals
  * (equal scan weights) and uf is left NaN when there is no redundancy (dof = 0). SC_E_INPUT
  * (file and line of d) when the method cannot solve (N, d1, d2). */
-sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
+SC_API sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
                                       sc_profile_solution *s, sc_error *err);
 
 #ifdef __cplusplus

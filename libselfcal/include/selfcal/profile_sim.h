@@ -43,7 +43,7 @@ SC_API void sc_profile_random_smooth(int n, double amp_um, int harmonics, sc_rng
 
 /* The random smooth profile `selfcal simulate profile` measures for instrument p: seeded from
  * p->seed (mixed, so that f and the instrument's own noise are independent), RMS amp_um. */
-void sc_profile_sim_random_truth(const sc_profile_sim *p, double amp_um, int harmonics,
+SC_API void sc_profile_sim_random_truth(const sc_profile_sim *p, double amp_um, int harmonics,
                                  double *f_um);
 
 /* A DABAM mirror profile (dat_path; its metadata is the .txt next to it): heights (a slope
