@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # The main job, end to end on a fresh Debian machine:
 #   simulate an XY stage with a known error map and an uncalibrated grid plate, "measure" the
-#   plate in the four views of Petrò's double shift, calibrate (separate the stage error from the
-#   plate error), build the lookup table, start selfcald on Modbus TCP (loopback), stream a
-#   trajectory through it, and compare the positions before and after correction with the truth.
+#   plate in the four views of Petrò's double shift as a measuring machine would export them
+#   (one file per view, points shuffled, in µm, ';' and decimal commas, a damaged mark missing
+#   and a speck of dust measured as a stray point), number the points with `selfcal import grid`,
+#   calibrate (separate the stage error from the plate error), build the lookup table, start
+#   selfcald on Modbus TCP (loopback), stream a trajectory through it, and compare the positions
+#   before and after correction with the truth.
 # Outputs go to out/ (CSV, SVG plots, the table); the summary is printed at the end.
 # Options (environment): DEMO_N (plate marks per side, default 25), DEMO_SEED (default 1),
-#   DEMO_METHOD (double-shift | ye | lsq; default double-shift), DEMO_POINTS (default 2000),
+#   DEMO_METHOD (lsq | double-shift | ye; default lsq; the closed forms need every mark, so with
+#   them no mark is left out of the exports), DEMO_POINTS (default 2000),
 #   DEMO_SKIP_DEPS=1 (do not run install-deps.sh), DEMO_BUILD_DIR (default build).
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -14,7 +18,7 @@ cd "$here"
 
 N=${DEMO_N:-25}
 SEED=${DEMO_SEED:-1}
-METHOD=${DEMO_METHOD:-double-shift}
+METHOD=${DEMO_METHOD:-lsq}
 POINTS=${DEMO_POINTS:-2000}
 BUILD=${DEMO_BUILD_DIR:-build}
 OUT="$here/out"
@@ -34,15 +38,37 @@ SELFCALD="$BUILD/bin/selfcald"
 PY="$here/.venv/bin/python"
 
 mkdir -p "$OUT"
-rm -f "$OUT"/demo_*
+rm -rf "$OUT"/demo_*
 
-step "simulating a stage (known error map G) and a plate (N = $N, plan $METHOD), 4 views measured"
 plan=$METHOD
 [ "$METHOD" = lsq ] && plan=double-shift
+step "simulating a stage (known error map G) and a plate (N = $N, plan $plan), measured in each view"
 "$SELFCAL" simulate grid --plan "$plan" --n "$N" --pitch-mm 1 --seed "$SEED" \
   --sigma-g-um 1 --sigma-a-um 1 --sigma-r-um 0.01 \
-  --out "$OUT/demo_measured.csv" --truth-map "$OUT/demo_G_true.csv" \
+  --out "$OUT/demo_simulated.csv" --truth-map "$OUT/demo_G_true.csv" \
   --truth-artifact "$OUT/demo_A_true.csv" --truth-summary "$OUT/demo_truth.json"
+
+step "the measuring machine's exports: one file per view, shuffled, um, ';' and decimal commas"
+missing=()
+if [ "$METHOD" = lsq ]; then missing=(--missing 3,4@1); fi  # a damaged mark, unseen in view 1
+"$SELFCAL" simulate exports "$OUT/demo_simulated.csv" --dir "$OUT/demo_exports" --units um \
+  "${missing[@]}" --stray 2 --seed "$SEED" >/dev/null
+for f in "$OUT"/demo_exports/view*.csv; do
+  echo "  $(basename "$f"): $(($(wc -l <"$f") - 1)) points, e.g. '$(sed -n 2p "$f")'"
+done
+
+step "numbering the points: selfcal import grid"
+c=$(( (N - 1) / 2 ))
+views=(--view "rot=0 shift=0,0" "$OUT/demo_exports/view0.csv"
+       --view "rot=90 shift=0,0" "$OUT/demo_exports/view1.csv")
+if [ "$plan" = ye ]; then
+  views+=(--view "rot=0 shift=1,0" "$OUT/demo_exports/view2.csv")
+else
+  views+=(--view "rot=0 shift=2,0" "$OUT/demo_exports/view2.csv"
+          --view "rot=0 shift=-3,0 rows=$c cols=$c,$((c + 1))" "$OUT/demo_exports/view3.csv")
+fi
+"$SELFCAL" import grid --n "$N" --pitch-mm 1 --units um --x-col X --y-col Y "${views[@]}" \
+  -o "$OUT/demo_measured.csv" 2>&1 | sed -e "s|$OUT/||g" -e 's/^selfcal import grid: /  /'
 grep '^# view' "$OUT/demo_measured.csv" | sed 's/^/  /'
 
 step "calibrating: selfcal grid --method $METHOD"

@@ -1,0 +1,174 @@
+/* Unit tests of selfcal/import.h: delimiter and decimal-mark detection of sc_table_read, and the
+ * placement fit and numbering of sc_grid_import_assign against positions built here. */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include <cmocka.h>
+
+#include "selfcal/import.h"
+
+static void tmp_path(char *buf, size_t n, const char *name)
+{
+    mkdir(SELFCAL_TEST_TMP, 0777);
+    snprintf(buf, n, "%s/import_%s", SELFCAL_TEST_TMP, name);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *fp = fopen(path, "wb");
+    assert_non_null(fp);
+    fputs(text, fp);
+    fclose(fp);
+}
+
+static const char *const XY[2] = {"x", "y"};
+
+/* The same numbers in three dialects read back equal, with the delimiter and mark found. */
+static void test_table_dialects(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        char delim, dec;
+    } cases[] = {
+        {"# comment\nNr;X;Y\n1;1,5;-2,25\n2;3;4,125\n", ';', ','},
+        {"Nr\t\"X\"\tY\r\n1\t1.5\t-2.25\r\n\r\n2\t3\t4.125\r\n", '\t', '.'},
+        {"nr, x , y\n1,1.5,-2.25\n2,3,4.125\n", ',', '.'},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        char path[512];
+        tmp_path(path, sizeof path, "dialect.csv");
+        write_text(path, cases[k].text);
+        sc_table t;
+        sc_error err;
+        const double scale[2] = {1e-3, 1e-3};
+        assert_int_equal(sc_table_read(path, 2, XY, scale, &t, &err), SC_OK);
+        assert_int_equal(t.n_rows, 2);
+        assert_int_equal(t.delimiter, cases[k].delim);
+        assert_int_equal(t.decimal, cases[k].dec);
+        assert_true(fabs(t.value[0] - 1.5e-3) < 1e-18 && fabs(t.value[1] + 2.25e-3) < 1e-18);
+        assert_true(fabs(t.value[2] - 3e-3) < 1e-18 && fabs(t.value[3] - 4.125e-3) < 1e-18);
+        sc_table_free(&t);
+    }
+}
+
+/* Each bad table names its line. */
+static void test_table_errors(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *text;
+        long line;
+        const char *msg;
+    } cases[] = {
+        {"a;b\n1;2\n", 1, "no column named 'x'"},
+        {"x;y\n1,5;2\n1.5;2\n", 3, "mixed decimal marks"},
+        {"x;y\n1,5;2.5\n", 2, "mixed decimal marks"},
+        {"x,y\n1,5,2\n", 2, "3 fields"},
+        {"x;y;x\n1;2;3\n", 1, "two columns are named 'x'"},
+        {"x;y\n1;\n", 2, "'' is not a number"},
+        {"x;y\n1;2e7\n", 2, "beyond any plausible"},
+        {"x;y\n", 1, "no data lines"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        char path[512];
+        tmp_path(path, sizeof path, "bad.csv");
+        write_text(path, cases[k].text);
+        sc_table t;
+        sc_error err;
+        assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT);
+        assert_int_equal(err.line, cases[k].line);
+        if (!strstr(err.msg, cases[k].msg))
+            fail_msg("case %zu: '%s' lacks '%s'", k, err.msg, cases[k].msg);
+        assert_null(t.value);
+    }
+}
+
+/* A rot=90, shift=1,-1 view on a 9x11 stage, placed off by (0.1, -0.05) mm and 3 mrad, shuffled,
+ * with a missing mark and a stray point: every point gets its mark, the placement is found. */
+static void test_assign(void **state)
+{
+    (void)state;
+    sc_grid_import_params p;
+    sc_grid_import_defaults(&p, 7, 2.0);
+    p.origin_mm[0] = 50;
+    p.origin_mm[1] = -20;
+    p.stage_nx = 9;
+    p.stage_ny = 11;
+    sc_grid_view v;
+    memset(&v, 0, sizeof v);
+    v.rot_deg = 90;
+    v.shift_x = 1;
+    v.shift_y = -1;
+    const double th = 3e-3, tx = 0.1, ty = -0.05;
+    double x[64], y[64];
+    long lines[64], truth[64], n = 0;
+    for (int i = 0; i < 7; ++i)
+        for (int j = 0; j < 7; ++j) {
+            if (i == 2 && j == 5)
+                continue; /* missing */
+            int ni, nj;
+            assert_true(sc_grid_import_mark_node(&p, &v, i, j, &ni, &nj));
+            double nx = (nj - 4) * 2.0, ny = (ni - 5) * 2.0; /* from the stage centre */
+            long slot = (n * 17) % 48; /* a fixed shuffle of the 48 points */
+            x[slot] = 50 + tx + cos(th) * nx - sin(th) * ny + 1e-4 * sin(i + 2.0 * j);
+            y[slot] = -20 + ty + sin(th) * nx + cos(th) * ny + 1e-4 * cos(3.0 * i - j);
+            truth[slot] = i * 7 + j;
+            ++n;
+        }
+    assert_int_equal(n, 48);
+    x[48] = x[5] + 1.0, y[48] = y[5] - 1.0, truth[48] = -1; /* stray */
+    n = 49;
+    for (long k = 0; k < n; ++k)
+        lines[k] = k + 2;
+    long point_mark[64], mark_point[49];
+    double work[64];
+    assert_true(sc_grid_import_work_doubles(n) <= 64);
+    sc_grid_import_fit fit;
+    sc_error err;
+    assert_int_equal(sc_grid_import_assign(&p, &v, n, x, y, lines, "t.csv", 1, point_mark,
+                                           mark_point, &fit, work, &err),
+                     SC_OK);
+    for (long k = 0; k < n; ++k)
+        assert_int_equal(point_mark[k], truth[k]);
+    assert_int_equal(mark_point[2 * 7 + 5], -1);
+    assert_int_equal(fit.n_marks, 49);
+    assert_int_equal(fit.n_assigned, 48);
+    assert_int_equal(fit.n_left_out, 1);
+    assert_true(fabs(fit.theta_urad - 3000) < 20);
+    assert_true(fabs(fit.tx_um - 100) < 1 && fabs(fit.ty_um + 50) < 1);
+
+    /* a second point on a mark: bad input at the later line */
+    x[48] = x[7] + 0.01, y[48] = y[7];
+    assert_int_equal(sc_grid_import_assign(&p, &v, n, x, y, lines, "t.csv", 1, point_mark,
+                                           mark_point, &fit, work, &err),
+                     SC_E_INPUT);
+    assert_int_equal(err.line, 50);
+    assert_non_null(strstr(err.msg, "point on line 9 both fall on mark"));
+
+    /* too few marks: every point half a pitch off diagonally (a wrong origin, say) */
+    for (long k = 0; k < n; ++k)
+        x[k] += 1.0, y[k] += 1.0;
+    assert_int_equal(sc_grid_import_assign(&p, &v, n, x, y, lines, "t.csv", 1, point_mark,
+                                           mark_point, &fit, work, &err),
+                     SC_E_INPUT);
+    assert_int_equal(err.line, 1);
+    assert_non_null(strstr(err.msg, "only"));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_table_dialects),
+        cmocka_unit_test(test_table_errors),
+        cmocka_unit_test(test_assign),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
