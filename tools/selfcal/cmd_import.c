@@ -348,56 +348,7 @@ typedef struct scan_log {
     const char *file;
     double spacing_mm;
     sc_table t;
-    long *order; /* rows sorted by position */
 } scan_log;
-
-static const sc_table *sort_table;
-static int cmp_row(const void *a, const void *b)
-{
-    double x = sort_table->value[*(const long *)a * 4], y = sort_table->value[*(const long *)b * 4];
-    return (x > y) - (x < y);
-}
-
-static int cmp_dbl(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-/* Check that scan s sits on the grid p0 + n·step, n = 0, 1, 2, ... without gaps or repeats. */
-static sc_status check_steps(const scan_log *s, int k, double p0, double step, double tol,
-                             sc_error *err)
-{
-    const sc_table *t = &s->t;
-    long prev = -1, prev_row = -1;
-    for (long q = 0; q < t->n_rows; ++q) {
-        long r = s->order[q];
-        double pos = t->value[r * 4], fn = (pos - p0) / step;
-        long n = lround(fn);
-        if (fabs(fn - n) > tol)
-            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
-                                "position %.6f mm is %.3f steps off the sampling grid (%.6f mm + "
-                                "n x %.6f mm; tolerance %g steps): the step is not constant",
-                                pos, fabs(fn - n), p0, step, tol);
-        if (q == 0 && n != 0)
-            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
-                                "scan %d starts at %.6f mm, scan 1 at %.6f mm: both scans must "
-                                "start at the same position",
-                                k + 1, pos, p0);
-        if (q > 0 && n == prev)
-            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
-                                "position %.6f mm is sampled twice (also line %ld)", pos,
-                                t->line[prev_row]);
-        if (q > 0 && n != prev + 1)
-            return sc_error_set(err, SC_E_INPUT, s->file, t->line[r],
-                                "gap: %ld sample%s missing between %.6f mm (line %ld) and %.6f mm",
-                                n - prev - 1, n - prev - 1 == 1 ? "" : "s",
-                                t->value[prev_row * 4], t->line[prev_row], pos);
-        prev = n;
-        prev_row = r;
-    }
-    return SC_OK;
-}
 
 static int import_profile(int argc, char **argv)
 {
@@ -471,82 +422,22 @@ static int import_profile(int argc, char **argv)
     sc_error_clear(&err);
     sc_status st = SC_OK;
     const double scale[4] = {pos_unit, disp_unit, disp_unit, angle_unit};
-    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+    for (int k = 0; k < 2 && st == SC_OK; ++k)
         st = sc_table_read(scans[k].file, 4, col, scale, &scans[k].t, &err);
-        if (st != SC_OK)
-            break;
-        scans[k].order = malloc((size_t)scans[k].t.n_rows * sizeof(long));
-        if (!scans[k].order) {
-            st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-            break;
-        }
-        for (long q = 0; q < scans[k].t.n_rows; ++q)
-            scans[k].order[q] = q;
-        sort_table = &scans[k].t;
-        qsort(scans[k].order, (size_t)scans[k].t.n_rows, sizeof(long), cmp_row);
-    }
     sc_profile_data d;
     memset(&d, 0, sizeof d);
-    int dk[2] = {0, 0};
     double p0 = 0;
     if (st == SC_OK) {
-        const sc_table *t = &scans[0].t;
-        p0 = t->value[scans[0].order[0] * 4];
-        if (step == 0) { /* the median step of scan 1 */
-            if (t->n_rows < 2) {
-                st = sc_error_set(&err, SC_E_INPUT, scans[0].file, t->line[0],
-                                  "one sample: cannot tell the step (give --step-mm)");
-            } else {
-                double *diff = malloc((size_t)(t->n_rows - 1) * sizeof(double));
-                if (!diff) {
-                    st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-                } else {
-                    for (long q = 1; q < t->n_rows; ++q)
-                        diff[q - 1] = t->value[scans[0].order[q] * 4] -
-                                      t->value[scans[0].order[q - 1] * 4];
-                    qsort(diff, (size_t)(t->n_rows - 1), sizeof(double), cmp_dbl);
-                    step = diff[(t->n_rows - 1) / 2];
-                    free(diff);
-                    if (!(step > 0))
-                        st = sc_error_set(&err, SC_E_INPUT, scans[0].file, t->header_line,
-                                          "the median step between positions is 0: repeated positions?");
-                }
-            }
-        }
-    }
-    for (int k = 0; k < 2 && st == SC_OK; ++k) {
-        double fd = scans[k].spacing_mm / step;
-        dk[k] = (int)lround(fd);
-        if (fabs(fd - dk[k]) > 1e-6 * fd || dk[k] < 1) {
-            st = sc_error_set(&err, SC_E_INPUT, scans[k].file, 0,
-                              "the sensor spacing %g mm is not a whole number of steps (step %.9g mm: "
-                              "%.6f steps)",
-                              scans[k].spacing_mm, step, fd);
-            break;
-        }
-        st = check_steps(&scans[k], k, p0, step, step_tol, &err);
+        sc_profile_import_params ip;
+        sc_profile_import_defaults(&ip);
+        ip.spacing_mm[0] = scans[0].spacing_mm;
+        ip.spacing_mm[1] = scans[1].spacing_mm;
+        ip.step_mm = step;
+        ip.step_tolerance = step_tol;
+        const sc_table *const logs[2] = {&scans[0].t, &scans[1].t};
+        st = sc_profile_import(&ip, logs, &d, &p0, &err);
     }
     if (st == SC_OK) {
-        long n1 = scans[0].t.n_rows + dk[0], n2 = scans[1].t.n_rows + dk[1];
-        if (n1 != n2)
-            st = sc_error_set(&err, SC_E_INPUT, scans[1].file,
-                              scans[1].t.line[scans[1].order[scans[1].t.n_rows - 1]],
-                              "scan 2 covers %ld points (%ld samples + d2 = %d), scan 1 covers %ld "
-                              "(%ld samples + d1 = %d): both scans must cover the same profile",
-                              n2, scans[1].t.n_rows, dk[1], n1, scans[0].t.n_rows, dk[0]);
-        else if (n1 > 100000000L)
-            st = sc_error_set(&err, SC_E_INPUT, scans[0].file, 0, "more than 1e8 points");
-        else
-            st = sc_profile_data_init(&d, (int)n1, step, dk[0], dk[1], &err);
-    }
-    if (st == SC_OK) {
-        for (int k = 0; k < 2; ++k)
-            for (long q = 0; q < scans[k].t.n_rows; ++q) {
-                const double *row = &scans[k].t.value[scans[k].order[q] * 4];
-                d.m1_um[k][q] = row[1];
-                d.m2_um[k][q] = row[2];
-                d.m3_urad[k][q] = row[3];
-            }
         if (!isnan(sigma_disp)) {
             d.has_sigma_disp = 1;
             d.sigma_disp_um = sigma_disp;
@@ -560,12 +451,11 @@ static int import_profile(int argc, char **argv)
             fprintf(stderr,
                     "selfcal import profile: N = %d points, step %.9g mm from %.6f mm, d1 = %d, "
                     "d2 = %d (%ld and %ld samples)\n",
-                    d.n, step, p0, dk[0], dk[1], scans[0].t.n_rows, scans[1].t.n_rows);
+                    d.n, d.s_mm, p0, d.d[0], d.d[1], scans[0].t.n_rows, scans[1].t.n_rows);
     }
     sc_profile_data_free(&d);
     for (int k = 0; k < 2; ++k) {
         sc_table_free(&scans[k].t);
-        free(scans[k].order);
     }
     return st == SC_OK ? CLI_OK : cli_report(&err);
 }

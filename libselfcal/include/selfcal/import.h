@@ -14,12 +14,16 @@
  *      caller); a mark without a point is absent. Two points within T of one mark, or a view where
  *      fewer than min_share of its marks got a point, are bad input.
  * Since T < P/2, the mark nearest a point is found in O(1) by rounding its plate coordinates.
+ *
+ * Straightness logs (sc_profile_import): the two scans' tables (position mm, m1 µm, m2 µm,
+ * m3 µrad) become a selfcal-profile v1 data set after the sampling checks of docs/import.md.
  */
 #ifndef SELFCAL_IMPORT_H
 #define SELFCAL_IMPORT_H
 
 #include "selfcal/api.h"
 #include "selfcal/grid.h"
+#include "selfcal/profile.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -95,6 +99,25 @@ SC_API sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_
                                        const long *lines, const char *path, long header_line,
                                        long *point_mark, long *mark_point, sc_grid_import_fit *fit,
                                        double *work, sc_error *err);
+
+/* What sc_profile_import needs besides the two logs. */
+typedef struct sc_profile_import_params {
+    double spacing_mm[2];  /* D1, D2: the displacement sensors' spacing in scan 1 and 2 */
+    double step_mm;        /* s; 0: the median step between scan 1's sorted positions */
+    double step_tolerance; /* a position may be this many steps off p0 + n·s (0 < tol < 0.5) */
+} sc_profile_import_params;
+
+/* Defaults: step from the data, tolerance 0.1 step (spacings must be set). */
+SC_API void sc_profile_import_defaults(sc_profile_import_params *p);
+
+/* Sort each scan's rows (tables of 4 columns: position mm, m1 µm, m2 µm, m3 µrad, e.g. from
+ * sc_table_read with scales) by position, check the sampling (constant step s within the
+ * tolerance from scan 1's first position p0, no gaps or repeats, both scans starting at p0, each
+ * D a whole number of steps, samples + d equal for both scans: SC_E_INPUT at the file and line
+ * otherwise) and fill out (allocated here, free with sc_profile_data_free; no sigma lines).
+ * *p0_mm (may be NULL) gets p0. */
+SC_API sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
+                                   sc_profile_data *out, double *p0_mm, sc_error *err);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,158 @@
+/* profile_import.c — owns sc_profile_import: the two scans' sensor logs of a straightness
+ * measurement (read with sc_table_read) checked for a constant step, gaps, repeats, a common
+ * start, whole-step spacings and equal coverage, and turned into a selfcal-profile v1 data set. */
+#include "selfcal/import.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/profile.h"
+
+void sc_profile_import_defaults(sc_profile_import_params *p)
+{
+    memset(p, 0, sizeof *p);
+    p->step_tolerance = 0.1;
+}
+
+typedef struct pos_row {
+    double pos;
+    long row;
+} pos_row;
+
+static int cmp_pos(const void *a, const void *b)
+{
+    const pos_row *x = a, *y = b;
+    if (x->pos != y->pos)
+        return (x->pos > y->pos) - (x->pos < y->pos);
+    return (x->row > y->row) - (x->row < y->row);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Scan k (rows sorted in o) on the grid p0 + n·step, n = 0, 1, ... without gaps or repeats. */
+static sc_status check_steps(const sc_table *t, const pos_row *o, int k, double p0, double step,
+                             double tol, sc_error *err)
+{
+    long prev = -1, prev_row = -1;
+    for (long q = 0; q < t->n_rows; ++q) {
+        long r = o[q].row;
+        double pos = o[q].pos, fn = (pos - p0) / step;
+        long n = lround(fn);
+        if (fabs(fn - n) > tol)
+            return sc_error_set(err, SC_E_INPUT, t->path, t->line[r],
+                                "position %.6f mm is %.3f steps off the sampling grid (%.6f mm + "
+                                "n x %.6f mm; tolerance %g steps): the step is not constant",
+                                pos, fabs(fn - n), p0, step, tol);
+        if (q == 0 && n != 0)
+            return sc_error_set(err, SC_E_INPUT, t->path, t->line[r],
+                                "scan %d starts at %.6f mm, scan 1 at %.6f mm: both scans must "
+                                "start at the same position",
+                                k + 1, pos, p0);
+        if (q > 0 && n == prev)
+            return sc_error_set(err, SC_E_INPUT, t->path, t->line[r],
+                                "position %.6f mm is sampled twice (also line %ld)", pos,
+                                t->line[prev_row]);
+        if (q > 0 && n != prev + 1)
+            return sc_error_set(err, SC_E_INPUT, t->path, t->line[r],
+                                "gap: %ld sample%s missing between %.6f mm (line %ld) and %.6f mm",
+                                n - prev - 1, n - prev - 1 == 1 ? "" : "s", o[q - 1].pos,
+                                t->line[prev_row], pos);
+        prev = n;
+        prev_row = r;
+    }
+    return SC_OK;
+}
+
+/* The median step between consecutive sorted positions. */
+static sc_status median_step(const sc_table *t, const pos_row *o, double *step, sc_error *err)
+{
+    if (t->n_rows < 2)
+        return sc_error_set(err, SC_E_INPUT, t->path, t->line[0],
+                            "one sample: cannot tell the step (give the step)");
+    double *diff = malloc((size_t)(t->n_rows - 1) * sizeof(double));
+    if (!diff)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (long q = 1; q < t->n_rows; ++q)
+        diff[q - 1] = o[q].pos - o[q - 1].pos;
+    qsort(diff, (size_t)(t->n_rows - 1), sizeof(double), cmp_double);
+    *step = diff[(t->n_rows - 1) / 2];
+    free(diff);
+    if (!(*step > 0))
+        return sc_error_set(err, SC_E_INPUT, t->path, t->header_line,
+                            "the median step between positions is 0: repeated positions?");
+    return SC_OK;
+}
+
+sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
+                            sc_profile_data *out, double *p0_mm, sc_error *err)
+{
+    memset(out, 0, sizeof *out);
+    for (int k = 0; k < 2; ++k)
+        if (scan[k]->n_cols != 4 || scan[k]->n_rows < 1)
+            return sc_error_set(err, SC_E_INPUT, scan[k]->path, 0,
+                                "a scan log needs 4 columns and at least one sample");
+    if (!(p->step_tolerance > 0 && p->step_tolerance < 0.5) || !(p->step_mm >= 0) ||
+        !(p->spacing_mm[0] > 0) || !(p->spacing_mm[1] > 0))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "spacings and step must be positive, the step tolerance in (0, 0.5)");
+    pos_row *o[2] = {NULL, NULL};
+    sc_status st = SC_OK;
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        const sc_table *t = scan[k];
+        o[k] = malloc((size_t)t->n_rows * sizeof(pos_row));
+        if (!o[k]) {
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+            break;
+        }
+        for (long q = 0; q < t->n_rows; ++q)
+            o[k][q] = (pos_row){t->value[q * 4], q};
+        qsort(o[k], (size_t)t->n_rows, sizeof(pos_row), cmp_pos);
+    }
+    double step = p->step_mm, p0 = st == SC_OK ? o[0][0].pos : 0;
+    if (st == SC_OK && step == 0)
+        st = median_step(scan[0], o[0], &step, err);
+    int dk[2] = {0, 0};
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        double fd = p->spacing_mm[k] / step;
+        dk[k] = fd < 1e8 ? (int)lround(fd) : 0;
+        if (dk[k] < 1 || fabs(fd - dk[k]) > 1e-6 * fd) {
+            st = sc_error_set(err, SC_E_INPUT, scan[k]->path, 0,
+                              "the sensor spacing %g mm is not a whole number of steps (step "
+                              "%.9g mm: %.6f steps)",
+                              p->spacing_mm[k], step, fd);
+            break;
+        }
+        st = check_steps(scan[k], o[k], k, p0, step, p->step_tolerance, err);
+    }
+    if (st == SC_OK) {
+        long n1 = scan[0]->n_rows + dk[0], n2 = scan[1]->n_rows + dk[1];
+        if (n1 != n2)
+            st = sc_error_set(err, SC_E_INPUT, scan[1]->path,
+                              scan[1]->line[o[1][scan[1]->n_rows - 1].row],
+                              "scan 2 covers %ld points (%ld samples + d2 = %d), scan 1 covers %ld "
+                              "(%ld samples + d1 = %d): both scans must cover the same profile",
+                              n2, scan[1]->n_rows, dk[1], n1, scan[0]->n_rows, dk[0]);
+        else if (n1 > 100000000L)
+            st = sc_error_set(err, SC_E_INPUT, scan[0]->path, 0, "more than 1e8 points");
+        else
+            st = sc_profile_data_init(out, (int)n1, step, dk[0], dk[1], err);
+    }
+    if (st == SC_OK)
+        for (int k = 0; k < 2; ++k)
+            for (long q = 0; q < scan[k]->n_rows; ++q) {
+                const double *row = &scan[k]->value[o[k][q].row * 4];
+                out->m1_um[k][q] = row[1];
+                out->m2_um[k][q] = row[2];
+                out->m3_urad[k][q] = row[3];
+            }
+    free(o[0]);
+    free(o[1]);
+    if (p0_mm)
+        *p0_mm = p0;
+    return st;
+}
