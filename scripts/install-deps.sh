@@ -11,6 +11,7 @@ DEB_PACKAGES=(
   qemu-system-x86 busybox-static can-utils iproute2 cpio gzip
   mbpoll socat python3 python3-pip python3-venv
   clang libclang-rt-14-dev
+  chromium
 )
 
 SUDO=""

@@ -17,6 +17,9 @@ int cli_usage_error(const char *cmd, const char *fmt, ...)
 #endif
     ;
 
+/* The last component of a path (for titles: an absolute path says nothing and runs off). */
+const char *cli_basename(const char *path);
+
 /* Subcommands: argv[0] is the subcommand's own name. */
 int cmd_grid(int argc, char **argv);
 int cmd_plan(int argc, char **argv);
@@ -31,5 +34,8 @@ int cmd_import_profile(int argc, char **argv);
 int cmd_simulate_profile(int argc, char **argv);
 int cmd_plot_map(int argc, char **argv);
 int cmd_plot_profile(int argc, char **argv);
+int cmd_report_grid(int argc, char **argv);
+int cmd_report_profile(int argc, char **argv);
+int cmd_verify(int argc, char **argv);
 
 #endif

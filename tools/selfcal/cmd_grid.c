@@ -11,6 +11,7 @@
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 #include "plots.h"
+#include "grid_run.h"
 
 
 static const char *USAGE =
@@ -66,6 +67,20 @@ static sc_status check_views(const char *path, const sc_grid_data *d, const sc_g
             }
     }
     return SC_OK;
+}
+
+sc_status grid_check_exact_views(const char *path, const sc_grid_data *d,
+                                 const sc_grid_file_info *info, int double_shift, sc_error *err)
+{
+    if (!double_shift) {
+        need_view need[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+        return check_views(path, d, info, "ye", need, 3, err);
+    }
+    if (d->plan.n < 9)
+        return sc_error_set(err, SC_E_INPUT, path, info->n_line,
+                            "method double-shift needs N >= 9 (N = %d)", d->plan.n);
+    need_view need[4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+    return check_views(path, d, info, "double-shift", need, 4, err);
 }
 
 /* The measurement noise behind data solved by a closed form: the closed forms are not
@@ -147,18 +162,8 @@ int cmd_grid(int argc, char **argv)
                           "no data rows (a plan file? use 'selfcal plan' for plans)");
         goto done;
     }
-    if (m_ye) {
-        need_view need[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
-        st = check_views(in, &d, &info, "ye", need, 3, &err);
-    } else if (m_ds) {
-        if (n < 9) {
-            st = sc_error_set(&err, SC_E_INPUT, in, info.n_line,
-                              "method double-shift needs N >= 9 (N = %d)", n);
-            goto done;
-        }
-        need_view need[4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-        st = check_views(in, &d, &info, "double-shift", need, 4, &err);
-    }
+    if (m_ye || m_ds)
+        st = grid_check_exact_views(in, &d, &info, m_ds, &err);
     (void)c;
     if (st != SC_OK)
         goto done;
@@ -233,7 +238,7 @@ int cmd_grid(int argc, char **argv)
             case 0: sc_grid_fprint_map(f[0].fp, p, res.gx_um, res.gy_um, res.ugx_um, res.ugy_um); break;
             case 1: sc_grid_fprint_artifact(f[1].fp, p, res.ax_um, res.ay_um); break;
             case 2: sc_grid_fprint_summary(f[2].fp, method, p, &res); break;
-            case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, in); break;
+            case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, cli_basename(in), 0); break;
             }
         }
         /* all files or none: sync every one, then rename them together */

@@ -7,19 +7,24 @@
 #include "cli.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/grid_io.h"
 #include "selfcal/stage_map.h"
 #include "plots.h"
 #include "svg.h"
 
 static const char *USAGE =
-    "usage: selfcal plot map G.csv -o map.svg [--truth G_true.csv] [--scale-um-per-pitch X]\n"
+    "usage: selfcal plot map G.csv|A.csv -o map.svg [--truth TRUE.csv] [--scale-um-per-pitch X]\n"
+    "                        [--pitch-mm P]\n"
     "\n"
-    "Draws the stage error map as arrows at the stage nodes (stage frame, mm), with a scale bar,\n"
-    "the RMS and maximum of |G| in the title and, when the map has uncertainty columns, an\n"
-    "ellipse of semi-axes (ugx, ugy) (k = 1) at each arrow tip. With --truth, a second panel shows\n"
-    "the estimation error G - G_true (both maps on the same grid). --scale-um-per-pitch: the error\n"
-    "drawn as long as one pitch (default: a round number at or above half the largest error,\n"
-    "so the longest arrow is at most two pitches).\n";
+    "Draws a stage error map (i,j,x_mm,y_mm,gx_um,gy_um,...) as arrows at the stage nodes (stage\n"
+    "frame, mm), with a scale bar and the RMS and maximum of |G| (and where it is, in mm) above it;\n"
+    "when the map has uncertainty columns, a second panel shows u(G) (the larger of u(gx), u(gy),\n"
+    "k = 1) as a colour map. A plate error file (i,j,ax_um,ay_um, from grid --artifact) is drawn\n"
+    "the same way at the nominal mark positions in the plate frame (--pitch-mm: the plate's pitch,\n"
+    "default 1; marks no view measured are hollow circles). With --truth, a panel shows the\n"
+    "estimation error against a truth file of the same kind and grid. --scale-um-per-pitch: the\n"
+    "error drawn as long as one pitch (default: a round number at or above half the largest\n"
+    "error, so the longest arrow is at most two pitches; the frame always holds every arrow).\n";
 
 /* A round number (1, 2, 2.5, 5 x 10^k) at or above v. */
 static double round_up(double v)
@@ -30,130 +35,308 @@ static double round_up(double v)
     return (f <= 1 ? 1 : f <= 2 ? 2 : f <= 2.5 ? 2.5 : f <= 5 ? 5 : 10) * mag;
 }
 
+/* The map's geometry, in one place (the type is being generalized to NX x NY stages). */
+static long map_nodes(const sc_stage_map *m) { return (long)m->nx * m->ny; }
+static int map_nside(const sc_stage_map *m) { return m->nx > m->ny ? m->nx : m->ny; }
+static double map_x(const sc_stage_map *m, long k) { return sc_stage_map_x_mm(m, (int)(k % m->nx)); }
+static double map_y(const sc_stage_map *m, long k) { return sc_stage_map_y_mm(m, (int)(k / m->nx)); }
+static double map_pitch(const sc_stage_map *m) { return m->px_mm; }
+
 typedef struct stats {
     double rms, max, rms_x, rms_y;
-    int imax, jmax;
+    int kmax; /* node of the largest |vector| */
+    long count;
 } stats;
 
-static stats map_stats(int nx, int ny, const double *gx, const double *gy)
+/* RMS and maximum over the finite vectors of n values (missing marks are NaN). */
+static stats map_stats(long n, const double *gx, const double *gy)
 {
     stats s = {0, 0, 0, 0, 0, 0};
-    int nn = nx * ny;
-    for (int k = 0; k < nn; ++k) {
+    for (long k = 0; k < n; ++k) {
+        if (!isfinite(gx[k]) || !isfinite(gy[k]))
+            continue;
         double a = gx[k] * gx[k] + gy[k] * gy[k];
         s.rms += a;
         s.rms_x += gx[k] * gx[k];
         s.rms_y += gy[k] * gy[k];
+        s.count++;
         if (sqrt(a) > s.max) {
             s.max = sqrt(a);
-            s.imax = k / nx;
-            s.jmax = k % nx;
+            s.kmax = (int)k;
         }
     }
-    s.rms = sqrt(s.rms / nn);
-    s.rms_x = sqrt(s.rms_x / nn);
-    s.rms_y = sqrt(s.rms_y / nn);
+    if (s.count) {
+        s.rms = sqrt(s.rms / s.count);
+        s.rms_x = sqrt(s.rms_x / s.count);
+        s.rms_y = sqrt(s.rms_y / s.count);
+    }
     return s;
 }
 
-/* One panel: arrows at nodes; returns nothing, draws into fp at (x0, y0) with plot size sz px. */
-static void panel(FILE *fp, double x0, double y0, double sz, const sc_stage_map *m,
-                  const double *gx, const double *gy, const double *ugx, const double *ugy,
-                  double scale_um_per_pitch, const char *title, const char *what,
-                  int ellipse_at_node, const char *color)
+/* The square data range (mm) of a map's nodes, widened by pad_mm on every side. */
+static void node_range(const sc_stage_map *m, double pad_mm, double *lo_x, double *lo_y,
+                       double *span)
 {
-    int n = m->nx > m->ny ? m->nx : m->ny, nn = m->nx * m->ny;
-    double xmin = sc_stage_map_x_mm(m, 0), xmax = sc_stage_map_x_mm(m, m->nx - 1);
-    double ymin = sc_stage_map_y_mm(m, 0), ymax = sc_stage_map_y_mm(m, m->ny - 1);
-    double pad = m->px_mm;
-    xmin -= pad, xmax += pad, ymin -= pad, ymax += pad;
-    /* Square data range, so that x and y have the same scale and arrows keep their direction. */
-    double span = fmax(xmax - xmin, ymax - ymin), cx = (xmin + xmax) / 2, cy = (ymin + ymax) / 2;
-    svg_chart c;
-    svg_chart_init(&c, fp, x0, y0, sz, sz, cx - span / 2, cx + span / 2, cy - span / 2,
-                   cy + span / 2);
-    svg_axes(&c, "x (mm, stage)", "y (mm, stage)", NULL);
-    stats s = map_stats(m->nx, m->ny, gx, gy);
+    long nn = map_nodes(m);
+    double xmin = INFINITY, xmax = -INFINITY, ymin = INFINITY, ymax = -INFINITY;
+    for (long k = 0; k < nn; ++k) {
+        xmin = fmin(xmin, map_x(m, k));
+        xmax = fmax(xmax, map_x(m, k));
+        ymin = fmin(ymin, map_y(m, k));
+        ymax = fmax(ymax, map_y(m, k));
+    }
+    *span = fmax(xmax - xmin, ymax - ymin) + 2 * pad_mm;
+    *lo_x = (xmin + xmax) / 2 - *span / 2;
+    *lo_y = (ymin + ymax) / 2 - *span / 2;
+}
+
+static const char *axis_x(int plate) { return plate ? "x (mm, plate frame)" : "x (mm, stage)"; }
+static const char *axis_y(int plate) { return plate ? "y (mm, plate frame)" : "y (mm, stage)"; }
+
+/* One arrow panel at (x0, y0), sz px square: arrows at nodes, the statistics line above, the
+ * scale bar below. The data range holds the longest arrow, so no arrow crosses the frame. */
+static void arrow_panel(FILE *fp, double x0, double y0, double sz, const sc_stage_map *m, int plate,
+                        const double *gx, const double *gy, double scale_um_per_pitch,
+                        const char *title, const char *what, const char *color)
+{
+    int n = map_nside(m);
+    long nn = map_nodes(m);
+    stats s = map_stats(nn, gx, gy);
     /* Default: a round number at or above half the largest arrow (longest arrow <= 2 pitches). */
     double scale = scale_um_per_pitch > 0 ? scale_um_per_pitch : round_up(0.5 * s.max);
-    double mm_per_um = m->px_mm / scale;
-    svg_text(fp, x0 + sz / 2, y0 - 30, 15, "middle", "#000", "%s", title);
-    svg_text(fp, x0 + sz / 2, y0 - 12, 12, "middle", "#333",
-             "RMS |%s| = %.3g µm (x %.3g, y %.3g)   max |%s| = %.3g µm at node (%d,%d)", what,
-             s.rms, s.rms_x, s.rms_y, what, s.max, s.imax, s.jmax);
+    double mm_per_um = map_pitch(m) / scale;
+    double lo_x, lo_y, span;
+    node_range(m, fmax(0.7 * map_pitch(m), s.max * mm_per_um + 0.3 * map_pitch(m)), &lo_x, &lo_y,
+               &span);
+    svg_chart c;
+    svg_chart_init(&c, fp, x0, y0, sz, sz, lo_x, lo_x + span, lo_y, lo_y + span);
+    svg_axes(&c, axis_x(plate), axis_y(plate), NULL);
+    svg_text_fit(fp, x0 + sz / 2, y0 - 30, 15, sz + 60, "middle", "#000", "%s", title);
+    if (s.count)
+        svg_text_fit(fp, x0 + sz / 2, y0 - 12, 12, sz + 60, "middle", "#333",
+                     "RMS |%s| = %.3g µm (x %.3g, y %.3g)   max |%s| = %.3g µm at (%g, %g) mm",
+                     what, s.rms, s.rms_x, s.rms_y, what, s.max, map_x(m, s.kmax), map_y(m, s.kmax));
     double dot = fmax(1.0, fmin(2.5, sz / n / 10));
     double width = fmax(0.7, fmin(1.6, sz / n / 18));
-    for (int k = 0; k < nn; ++k) {
-        double xk = sc_stage_map_x_mm(m, k % m->nx), yk = sc_stage_map_y_mm(m, k / m->nx);
-        double px = svg_px(&c, xk), py = svg_py(&c, yk);
-        svg_dot(fp, px, py, dot, "#9a9a9a");
-        double tx = svg_px(&c, xk + gx[k] * mm_per_um);
-        double ty = svg_py(&c, yk + gy[k] * mm_per_um);
-        if (ugx && ugy && isfinite(ugx[k]) && isfinite(ugy[k])) {
-            double rx = fabs(svg_px(&c, ugx[k] * mm_per_um) - svg_px(&c, 0));
-            double ry = fabs(svg_py(&c, ugy[k] * mm_per_um) - svg_py(&c, 0));
-            fprintf(fp,
-                    "<ellipse cx=\"%.2f\" cy=\"%.2f\" rx=\"%.2f\" ry=\"%.2f\" fill=\"#f0a30a\" "
-                    "fill-opacity=\"0.25\" stroke=\"#c47f00\" stroke-width=\"0.6\"/>\n",
-                    ellipse_at_node ? px : tx, ellipse_at_node ? py : ty, rx, ry);
+    for (long k = 0; k < nn; ++k) {
+        double px = svg_px(&c, map_x(m, k)), py = svg_py(&c, map_y(m, k));
+        if (!isfinite(gx[k]) || !isfinite(gy[k])) { /* a missing mark: a hollow circle */
+            fprintf(fp, "<circle cx=\"%.2f\" cy=\"%.2f\" r=\"%.2f\" fill=\"none\" stroke=\"#b3261e\"/>\n",
+                    px, py, dot + 1.5);
+            continue;
         }
-        svg_arrow(fp, px, py, tx, ty, color, width);
+        svg_dot(fp, px, py, dot, "#9a9a9a");
+        svg_arrow(fp, px, py, svg_px(&c, map_x(m, k) + gx[k] * mm_per_um),
+                  svg_py(&c, map_y(m, k) + gy[k] * mm_per_um), color, width);
     }
     /* Scale bar: one pitch = scale µm, below the plot area. */
     double bx = x0 + 10, by = y0 + sz + 52;
-    double blen = svg_px(&c, m->px_mm) - svg_px(&c, 0);
+    double blen = svg_px(&c, map_pitch(m)) - svg_px(&c, 0);
     svg_arrow(fp, bx, by, bx + blen, by, color, width + 0.4);
     svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
-             "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, m->px_mm,
+             "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, map_pitch(m),
              scale);
-    if (ugx && ugy && isfinite(ugx[0]))
-        svg_text(fp, bx, by + 22, 12, "start", "#c47f00",
-                 "ellipses: standard uncertainty (k = 1) of gx, gy, same scale, %s",
-                 ellipse_at_node ? "centred on the node" : "at the arrow tip");
+}
+
+/* One colour-map panel at (x0, y0), sz px square: a cell per node coloured by v (NaN: grey),
+ * a colour scale to the right (symmetric about 0 when diverging, from 0 otherwise). */
+static void colormap_panel(FILE *fp, double x0, double y0, double sz, const sc_stage_map *m, int plate,
+                           const double *v, const char *title, const char *unit, int diverging)
+{
+    long nn = map_nodes(m);
+    double vmax = 0, vmin = INFINITY, vsum2 = 0;
+    long cnt = 0;
+    int kmax = 0;
+    for (long k = 0; k < nn; ++k)
+        if (isfinite(v[k])) {
+            if (fabs(v[k]) > vmax)
+                vmax = fabs(v[k]), kmax = (int)k;
+            vmin = fmin(vmin, v[k]);
+            vsum2 += v[k] * v[k];
+            cnt++;
+        }
+    double lo = diverging ? -vmax : 0, hi = vmax;
+    if (!(hi > lo))
+        hi = lo + 1;
+    double lo_x, lo_y, span;
+    node_range(m, 0.5 * map_pitch(m), &lo_x, &lo_y, &span);
+    svg_chart c;
+    svg_chart_init(&c, fp, x0, y0, sz, sz, lo_x, lo_x + span, lo_y, lo_y + span);
+    svg_axes(&c, axis_x(plate), axis_y(plate), NULL);
+    double cell = svg_px(&c, m->px_mm) - svg_px(&c, 0), cell_h = svg_px(&c, m->py_mm) - svg_px(&c, 0);
+    char col[8];
+    for (long k = 0; k < nn; ++k) {
+        double px = svg_px(&c, map_x(m, k)), py = svg_py(&c, map_y(m, k));
+        if (isfinite(v[k]))
+            svg_palette((v[k] - lo) / (hi - lo), diverging, col);
+        else
+            snprintf(col, sizeof col, "#d0d0d0");
+        fprintf(fp, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"%s\"/>\n",
+                px - cell / 2, py - cell_h / 2, cell + 0.3, cell_h + 0.3, col);
+    }
+    fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#333\"/>\n",
+            c.x, c.y, c.w, c.h);
+    svg_text_fit(fp, x0 + sz / 2, y0 - 30, 15, sz + 60, "middle", "#000", "%s", title);
+    if (cnt)
+        svg_text_fit(fp, x0 + sz / 2, y0 - 12, 12, sz + 60, "middle", "#333",
+                     "RMS %.3g %s   max |v| %.3g %s at (%g, %g) mm", sqrt(vsum2 / cnt), unit,
+                     vmax, unit, map_x(m, kmax), map_y(m, kmax));
+    svg_color_bar(fp, x0 + sz + 18, y0 + 10, 16, sz - 20, lo, hi, diverging, unit);
 }
 
 void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
-                  double scale_um_per_pitch, const char *name)
+                  double scale_um_per_pitch, const char *name, int plate)
 {
-    int has_u = sc_stage_map_has_u(m);
-    double sz = 560, margin_l = 80, margin_t = 100, gap = 110, bottom = 100;
-    int panels = truth ? 2 : 1;
-    int w = (int)(margin_l + panels * sz + (panels - 1) * gap + 30);
+    int n = map_nside(m);
+    double sz = 560, margin_l = 80, margin_t = 100, gap = 120, bottom = 80;
+    int u_panel = sc_stage_map_has_u(m);
+    int panels = 1 + (truth != NULL) + u_panel;
+    int w = (int)(margin_l + panels * sz + (panels - 1) * gap + 70);
     int h = (int)(margin_t + sz + bottom);
     svg_begin(fp, w, h);
     if (m->nx == m->ny && m->px_mm == m->py_mm)
-        svg_text(fp, w / 2.0, 24, 17, "middle", "#000",
-                 "Stage error map — %s (N = %d, pitch %g mm)", name, m->nx, m->px_mm);
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s — %s (N = %d, pitch %g mm)",
+                     plate ? "Plate error map" : "Stage error map", name, n, map_pitch(m));
     else
-        svg_text(fp, w / 2.0, 24, 17, "middle", "#000",
-                 "Stage error map — %s (%d x %d nodes, pitch %g x %g mm)", name, m->nx, m->ny,
-                 m->px_mm, m->py_mm);
-    svg_text(fp, w / 2.0, 42, 11, "middle", "#555",
-             "stage error G = indicated − true position; SPEC gauge: no translation, rotation or "
-             "magnification");
-    panel(fp, margin_l, margin_t, sz, m, m->gx_um, m->gy_um, has_u ? m->ugx_um : NULL,
-          has_u ? m->ugy_um : NULL, scale_um_per_pitch, "stage error G", "G", 0, "#1f4e9c");
-    if (truth) {
-        size_t nn = (size_t)m->nx * m->ny;
-        double *ex = malloc(2 * nn * sizeof(double));
-        if (ex) {
-            for (size_t k = 0; k < nn; ++k) {
-                ex[k] = m->gx_um[k] - truth->gx_um[k];
-                ex[nn + k] = m->gy_um[k] - truth->gy_um[k];
-            }
-            panel(fp, margin_l + sz + gap, margin_t, sz, m, ex, ex + nn,
-                  has_u ? m->ugx_um : NULL, has_u ? m->ugy_um : NULL, 0,
-                  "estimation error G − G_true", "error", 1, "#b3261e");
-            free(ex);
-        }
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000",
+                     "%s — %s (%d x %d nodes, pitch %g x %g mm)",
+                     plate ? "Plate error map" : "Stage error map", name, m->nx, m->ny, m->px_mm,
+                     m->py_mm);
+    svg_text_fit(fp, w / 2.0, 42, 11, w - 20, "middle", "#555", "%s",
+                 plate ? "plate error A = mark position − nominal, plate frame; no "
+                                  "translation or rotation"
+                                : "stage error G = indicated − true position; SPEC gauge: no "
+                                  "translation, rotation or magnification");
+    double x = margin_l;
+    arrow_panel(fp, x, margin_t, sz, m, plate, m->gx_um, m->gy_um, scale_um_per_pitch,
+                plate ? "plate error A" : "stage error G",
+                plate ? "A" : "G", "#1f4e9c");
+    x += sz + gap;
+    size_t nn = (size_t)map_nodes(m);
+    double *buf = malloc(2 * nn * sizeof(double));
+    if (!buf) { /* the drawing loses its extra panels, never its frame */
+        svg_end(fp);
+        return;
     }
+    if (truth) {
+        for (size_t k = 0; k < nn; ++k) {
+            buf[k] = m->gx_um[k] - truth->gx_um[k];
+            buf[nn + k] = m->gy_um[k] - truth->gy_um[k];
+        }
+        arrow_panel(fp, x, margin_t, sz, m, plate, buf, buf + nn, 0, plate ? "estimation error A − A_true" : "estimation error G − G_true",
+                    "error", "#b3261e");
+        x += sz + gap;
+    }
+    if (u_panel) {
+        for (size_t k = 0; k < nn; ++k)
+            buf[k] = fmax(m->ugx_um[k], m->ugy_um[k]); /* NaN only if both are */
+        colormap_panel(fp, x, margin_t, sz, m, plate, buf, "u(G): larger of u(gx), u(gy), k = 1", "µm", 0);
+    }
+    free(buf);
     svg_end(fp);
+}
+
+void plot_arrows_svg(FILE *fp, const sc_stage_map *m, int plate, double scale_um_per_pitch,
+                     const char *title, const char *what)
+{
+    double sz = 520;
+    svg_begin(fp, (int)(80 + sz + 40), (int)(70 + sz + 75));
+    arrow_panel(fp, 80, 60, sz, m, plate, m->gx_um, m->gy_um, scale_um_per_pitch, title, what,
+                "#1f4e9c");
+    svg_end(fp);
+}
+
+void plot_colormap_svg(FILE *fp, const sc_stage_map *m, int plate, const double *v,
+                       const char *title, const char *unit, int diverging)
+{
+    double sz = 420;
+    svg_begin(fp, (int)(80 + sz + 100), (int)(70 + sz + 50));
+    colormap_panel(fp, 80, 60, sz, m, plate, v, title, unit, diverging);
+    svg_end(fp);
+}
+
+void plot_histogram_svg(FILE *fp, const double *v, long n, double sigma, const char *title,
+                        const char *xlabel)
+{
+    const int W = 620, H = 340;
+    svg_begin(fp, W, H);
+    double lo = INFINITY, hi = -INFINITY;
+    long cnt_f = 0;
+    for (long k = 0; k < n; ++k)
+        if (isfinite(v[k])) {
+            lo = fmin(lo, v[k]);
+            hi = fmax(hi, v[k]);
+            cnt_f++;
+        }
+    if (!cnt_f) {
+        svg_text(fp, W / 2.0, H / 2.0, 14, "middle", "#000", "%s: no values", title);
+        svg_end(fp);
+        return;
+    }
+    double a = fmax(fabs(lo), fabs(hi));
+    if (isfinite(sigma) && sigma > 0)
+        a = fmax(a, 4 * sigma);
+    if (!(a > 0))
+        a = 1;
+    lo = -a, hi = a;
+    svg_nice_range(&lo, &hi);
+    int nb = cnt_f < 50 ? 10 : cnt_f < 500 ? 20 : 40;
+    long *cnt = calloc((size_t)nb, sizeof *cnt);
+    if (!cnt) {
+        svg_end(fp);
+        return;
+    }
+    long cmax = 1;
+    for (long k = 0; k < n; ++k)
+        if (isfinite(v[k])) {
+            int b = (int)((v[k] - lo) / (hi - lo) * nb);
+            b = b < 0 ? 0 : b >= nb ? nb - 1 : b;
+            if (++cnt[b] > cmax)
+                cmax = cnt[b];
+        }
+    double top = cmax * 1.15;
+    /* the normal density of the given sigma, scaled to counts per bin */
+    double bw = (hi - lo) / nb, curve_y[101], curve_x[101];
+    int has_curve = isfinite(sigma) && sigma > 0;
+    for (int q = 0; has_curve && q <= 100; ++q) {
+        curve_x[q] = lo + (hi - lo) * q / 100;
+        curve_y[q] = cnt_f * bw / (sigma * sqrt(2 * M_PI)) *
+                     exp(-0.5 * curve_x[q] * curve_x[q] / (sigma * sigma));
+        top = fmax(top, curve_y[q] * 1.05);
+    }
+    svg_chart c;
+    svg_chart_init(&c, fp, 70, 50, W - 100, H - 110, lo, hi, 0, top);
+    svg_axes(&c, xlabel, "count", title);
+    svg_bars(&c, lo, hi, cnt, nb, "#6b8fc7");
+    if (has_curve) {
+        svg_polyline(&c, curve_x, curve_y, 101, "#b3261e", 1.5, NULL);
+        svg_legend(&c, 0, "normal density, expected spread", "#b3261e", NULL);
+    }
+    free(cnt);
+    svg_end(fp);
+}
+
+/* 1 if the first non-comment, non-blank line of path is the plate error header. */
+static int is_artifact_file(const char *path)
+{
+    FILE *fp = fopen(path, "rb");
+    char line[256];
+    int art = 0;
+    while (fp && fgets(line, sizeof line, fp)) {
+        if (line[0] == '#' || line[0] == '\n' || line[0] == '\r')
+            continue;
+        art = !strncmp(line, "i,j,ax_um,ay_um", 15);
+        break;
+    }
+    if (fp)
+        fclose(fp);
+    return art;
 }
 
 int cmd_plot_map(int argc, char **argv)
 {
     const char *in = NULL, *out = NULL, *truth_path = NULL;
-    double scale = 0;
+    double scale = 0, pitch = 0;
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
         if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
@@ -172,8 +355,11 @@ int cmd_plot_map(int argc, char **argv)
         if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
         else if (!strcmp(o, "--truth")) truth_path = v;
         else if (!strcmp(o, "--scale-um-per-pitch")) {
-            if (sc_parse_double(v, &scale) || !(scale > 0))
+            if (sc_parse_double(v, &scale) || !(scale > 0) || !(scale <= SC_INPUT_MAX_ABS))
                 return cli_usage_error("plot map", "--scale-um-per-pitch needs a positive number");
+        } else if (!strcmp(o, "--pitch-mm")) {
+            if (sc_parse_double(v, &pitch) || !(pitch > 0) || !(pitch <= SC_INPUT_MAX_ABS))
+                return cli_usage_error("plot map", "--pitch-mm needs a positive number");
         } else
             return cli_usage_error("plot map", "unknown option '%s' (see --help)", o);
     }
@@ -183,11 +369,14 @@ int cmd_plot_map(int argc, char **argv)
     sc_error_clear(&err);
     sc_stage_map m, t;
     memset(&t, 0, sizeof t);
-    sc_status st = sc_stage_map_read(in, &m, &err);
+    int plate = is_artifact_file(in);
+    sc_status st = plate ? sc_grid_read_artifact(in, pitch > 0 ? pitch : 1.0, &m, &err)
+                         : sc_stage_map_read(in, &m, &err);
     if (st != SC_OK)
         return cli_report(&err);
     if (truth_path) {
-        st = sc_stage_map_read(truth_path, &t, &err);
+        st = plate ? sc_grid_read_artifact(truth_path, m.px_mm, &t, &err)
+                   : sc_stage_map_read(truth_path, &t, &err);
         if (st == SC_OK && (t.nx != m.nx || t.ny != m.ny ||
                             fabs(t.px_mm - m.px_mm) > 1e-9 * m.px_mm ||
                             fabs(t.py_mm - m.py_mm) > 1e-9 * m.py_mm ||
@@ -200,8 +389,7 @@ int cmd_plot_map(int argc, char **argv)
         sc_afile f;
         st = sc_afile_open(&f, out, &err);
         if (st == SC_OK) {
-            const char *base = strrchr(in, '/');
-            plot_map_svg(f.fp, &m, truth_path ? &t : NULL, scale, base ? base + 1 : in);
+            plot_map_svg(f.fp, &m, truth_path ? &t : NULL, scale, cli_basename(in), plate);
             st = sc_afile_commit(&f, &err);
         }
     }

@@ -62,9 +62,8 @@ static int report_length_mismatch(sc_error *err, const char *path, int n, int n_
     return cli_report(err);
 }
 
-sc_status profile_plot_write(const char *path, const sc_profile_result *a,
-                             const sc_profile_result *truth, const sc_profile_result *cmp,
-                             const profile_plot_opts *o, sc_error *err)
+sc_status profile_plot_svg(FILE *fp, const sc_profile_result *a, const sc_profile_result *truth,
+                           const sc_profile_result *cmp, const profile_plot_opts *o, sc_error *err)
 {
     const int n = a->n;
     if (truth && truth->n != n)
@@ -84,24 +83,27 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
     if (!b1)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     double *b2 = b1 + n, *b3 = b2 + n;
-    sc_afile af;
-    sc_status st = sc_afile_open(&af, path, err);
-    if (st != SC_OK) {
-        free(b1);
-        return st;
-    }
     const int W = 900, PH = 250, top = o && o->title ? 40 : 15;
     const int H = top + panels * (PH + 80) + 10;
-    FILE *fp = af.fp;
     svg_begin(fp, W, H);
     if (o && o->title)
-        svg_text(fp, W / 2.0, 26, 16, "middle", "#000", "%s", o->title);
+        svg_text_fit(fp, W / 2.0, 26, 16, W - 20, "middle", "#000", "%s", o->title);
     double xmin = a->x_mm[0], xmax = a->x_mm[n - 1];
     double y0 = top;
     svg_chart c;
     if (p_f) {
         double lo = INFINITY, hi = -INFINITY;
+        int band = any_finite(a->uf_um, n);
+        for (int i = 0; i < n; ++i) { /* f ± U (k = 2) in b1/b2, f ± u (k = 1) in b3/b4 */
+            double u = a->uf_um ? a->uf_um[i] : NAN;
+            b1[i] = a->f_um[i] - 2 * u;
+            b2[i] = a->f_um[i] + 2 * u;
+        }
         range_of(a->f_um, n, 1, &lo, &hi);
+        if (band) {
+            range_of(b1, n, 1, &lo, &hi);
+            range_of(b2, n, 1, &lo, &hi);
+        }
         if (truth)
             range_of(truth->f_um, n, 1, &lo, &hi);
         if (cmp)
@@ -110,6 +112,21 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
         svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
         svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
         int k = 0;
+        if (band) {
+            svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.15);
+            for (int i = 0; i < n; ++i) {
+                b1[i] = a->f_um[i] - a->uf_um[i];
+                b2[i] = a->f_um[i] + a->uf_um[i];
+            }
+            svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.30);
+            double umax = 0;
+            for (int i = 0; i < n; ++i)
+                if (isfinite(a->uf_um[i]) && a->uf_um[i] > umax)
+                    umax = a->uf_um[i];
+            svg_text(fp, c.x + 8, c.y + 16, 11, "start", "#333",
+                     "bands: f ± u(f) (k = 1, dark) and f ± 2u(f) (k = 2, light); max u(f) = %.3g nm",
+                     umax * 1e3);
+        }
         if (truth) {
             svg_polyline(&c, truth->x_mm, truth->f_um, n, COL_T, 1.2, "5,3");
             svg_legend(&c, k++, "truth", COL_T, "5,3");
@@ -194,7 +211,23 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
     }
     svg_end(fp);
     free(b1);
-    if (ferror(fp)) {
+    return SC_OK;
+}
+
+sc_status profile_plot_write(const char *path, const sc_profile_result *a,
+                             const sc_profile_result *truth, const sc_profile_result *cmp,
+                             const profile_plot_opts *o, sc_error *err)
+{
+    sc_afile af;
+    sc_status st = sc_afile_open(&af, path, err);
+    if (st != SC_OK)
+        return st;
+    st = profile_plot_svg(af.fp, a, truth, cmp, o, err);
+    if (st != SC_OK) {
+        sc_afile_abort(&af);
+        return st;
+    }
+    if (ferror(af.fp)) {
         sc_afile_abort(&af);
         return sc_error_set(err, SC_E_IO, path, 0, "write failed");
     }

@@ -8,7 +8,9 @@
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_io.h"
+#include "selfcal/correct.h"
 #include "selfcal/grid_sim.h"
+#include "selfcal/lut.h"
 
 static const char *USAGE =
     "usage: selfcal simulate grid --plan {ye,double-shift,PLAN.csv} --out IN.csv --truth-map G_true.csv\n"
@@ -17,6 +19,7 @@ static const char *USAGE =
     "                             [--O 1e-5] [--R 1e-5] [--rho 0.9]\n"
     "                             [--sigma-t-um 0.1] [--sigma-theta-urad 100] [--seed 1]\n"
     "                             [--truth-artifact A_true.csv] [--truth-summary T.json]\n"
+    "                             [--compensate-with T.lut]\n"
     "\n"
     "Simulates a stage error G (first-order O, R plus a SAR(1) field with row-standardised\n"
     "4-neighbour weights, scaled so that the std of all Gx, Gy values is sigma-g-um), a Gaussian\n"
@@ -27,7 +30,11 @@ static const char *USAGE =
     "--plan ye: {rot 0}, {rot 90}, {shift +1,0}; double-shift: {rot 0}, {rot 90}, {shift +2,0},\n"
     "{shift -3,0 rows=c cols=c,c+1} (N >= 9); a file: its header gives N, pitch, origin and views\n"
     "(then --n, --pitch-mm and --origin-mm must agree with it or be left out).\n"
-    "Same seed and options: the same files.\n";
+    "Same seed and options: the same files. G and A depend only on N, the sigmas and the seed,\n"
+    "not on the views: a one-view plan with the calibration's seed re-measures the same stage\n"
+    "and plate. --compensate-with: the machine measures with this table active (each reading\n"
+    "p becomes p - G_table(p), the table's measure-mode correction, as selfcald computes it):\n"
+    "a re-measurement after compensation for 'selfcal verify'.\n";
 
 static int parse_num(const char *opt, const char *s, double *out)
 {
@@ -61,10 +68,38 @@ static void fprint_truth_summary(FILE *fp, const char *plan_name, const sc_grid_
     fprintf(fp, "  ]\n}\n");
 }
 
+/* The readings of a machine with the table active: p -> p - G_table(p) (measure mode). */
+static sc_status compensate(sc_grid_data *d, const char *table, sc_error *err)
+{
+    sc_corr_table *t = malloc(sizeof *t);
+    if (!t)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    sc_status st = sc_lut_load_corr_file(table, t, err);
+    const sc_grid_plan *p = &d->plan;
+    int n = p->n;
+    for (int v = 0; st == SC_OK && v < p->n_views; ++v)
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                int k = i * n + j, ni, nj;
+                if (!isfinite(d->dx_um[v][k]) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                double x, y;
+                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+                x += p->origin_mm[0];
+                y += p->origin_mm[1];
+                double in[3] = {x + d->dx_um[v][k] * 1e-3, y + d->dy_um[v][k] * 1e-3, 0}, out[3];
+                sc_corr_apply(t, SC_CORR_MEASURE, in, out);
+                d->dx_um[v][k] = (out[0] - x) * 1e3;
+                d->dy_um[v][k] = (out[1] - y) * 1e3;
+            }
+    free(t);
+    return st;
+}
+
 int cmd_simulate_grid(int argc, char **argv)
 {
     const char *plan_arg = NULL, *out = NULL, *truth_map = NULL, *truth_art = NULL,
-               *truth_sum = NULL;
+               *truth_sum = NULL, *comp_table = NULL;
     double n_d = 25, pitch = 1, ox = 0, oy = 0;
     int n_given = 0, pitch_given = 0, origin_given = 0;
     sc_grid_sim_params sp;
@@ -85,6 +120,7 @@ int cmd_simulate_grid(int argc, char **argv)
         else if (!strcmp(o, "--truth-map")) truth_map = v;
         else if (!strcmp(o, "--truth-artifact")) truth_art = v;
         else if (!strcmp(o, "--truth-summary")) truth_sum = v;
+        else if (!strcmp(o, "--compensate-with")) comp_table = v;
         else if (!strcmp(o, "--origin-mm")) {
             char buf[128];
             snprintf(buf, sizeof buf, "%s", v);
@@ -165,6 +201,8 @@ int cmd_simulate_grid(int argc, char **argv)
     st = sc_grid_data_alloc(&d, &err);
     if (st == SC_OK)
         st = sc_grid_sim_run(&d.plan, &sp, &t, &d, buf + 4 * nn, &err);
+    if (st == SC_OK && comp_table)
+        st = compensate(&d, comp_table, &err);
     if (st != SC_OK) {
         free(buf);
         sc_grid_data_free(&d);

@@ -27,6 +27,12 @@ int cli_usage_error(const char *cmd, const char *fmt, ...)
     return CLI_BAD_INPUT;
 }
 
+const char *cli_basename(const char *path)
+{
+    const char *b = strrchr(path, '/');
+    return b && b[1] ? b + 1 : path;
+}
+
 typedef struct command {
     const char *name, *sub; /* sub: second word, or NULL */
     int (*run)(int argc, char **argv);
@@ -47,6 +53,9 @@ static const command commands[] = {
     {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR  a measuring machine's files"},
     {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg     arrow plot of an error map"},
     {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg   profile and uncertainty curves"},
+    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]   calibration report (HTML)"},
+    {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]   profile report (HTML)"},
+    {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T   check a compensated stage"},
 };
 
 static void usage(FILE *to)

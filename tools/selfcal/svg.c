@@ -1,7 +1,10 @@
+/* svg.c — the SVG primitives of svg.h (charts, text that fits, palettes, bands, bars); written by
+ * hand because the output is a few element types and no Debian C library writes SVG charts. */
 #include "svg.h"
 
 #include <math.h>
 #include <stdarg.h>
+#include <string.h>
 
 void svg_begin(FILE *fp, int w, int h)
 {
@@ -111,7 +114,7 @@ void svg_axes(const svg_chart *c, const char *xlabel, const char *ylabel, const 
         fputs("</g>\n", fp);
     }
     if (title)
-        svg_text(fp, c->x + c->w / 2, c->y - 12, 15, "middle", "#000", "%s", title);
+        svg_text_fit(fp, c->x + c->w / 2, c->y - 12, 15, c->w, "middle", "#000", "%s", title);
 }
 
 void svg_polyline(const svg_chart *c, const double *xv, const double *yv, int n,
@@ -160,4 +163,146 @@ void svg_arrow(FILE *fp, double x1, double y1, double x2, double y2, const char 
 void svg_dot(FILE *fp, double x, double y, double r, const char *color)
 {
     fprintf(fp, "<circle cx=\"%.2f\" cy=\"%.2f\" r=\"%.2f\" fill=\"%s\"/>\n", x, y, r, color);
+}
+
+double svg_nice_step(double span, int target) { return nice_step(span, target); }
+
+double svg_text_width(const char *text, double size)
+{
+    double w = 0;
+    for (const unsigned char *s = (const unsigned char *)text; *s; ++s)
+        if ((*s & 0xC0) != 0x80) /* count UTF-8 characters, not bytes */
+            w += (*s == ' ' || *s == '.' || *s == ',' || *s == 'i' || *s == 'l' || *s == '/')
+                     ? 0.33
+                     : (*s >= 'A' && *s <= 'Z') || *s == 'm' || *s == 'w' ? 0.72 : 0.58;
+    return w * size;
+}
+
+/* Cut the middle of s (UTF-8) so that it is at most max_chars characters, with "…" in the gap. */
+static void elide_middle(char *s, size_t cap, int max_chars)
+{
+    int nchar = 0;
+    for (const unsigned char *p = (const unsigned char *)s; *p; ++p)
+        nchar += (*p & 0xC0) != 0x80;
+    if (nchar <= max_chars || max_chars < 5)
+        return;
+    int keep_head = (max_chars - 1) / 2, keep_tail = max_chars - 1 - keep_head;
+    /* byte offsets of the head end and the tail start */
+    size_t head = 0, tail = strlen(s);
+    for (int k = 0; k < keep_head; ++k)
+        do
+            ++head;
+        while ((s[head] & 0xC0) == 0x80);
+    for (int k = 0; k < keep_tail; ++k)
+        do
+            --tail;
+        while (tail > 0 && (s[tail] & 0xC0) == 0x80);
+    char buf[512];
+    snprintf(buf, sizeof buf, "%.*s…%s", (int)head, s, s + tail);
+    snprintf(s, cap, "%s", buf);
+}
+
+void svg_text_fit(FILE *fp, double x, double y, double size, double max_w, const char *anchor,
+                  const char *color, const char *fmt, ...)
+{
+    char buf[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    double w = svg_text_width(buf, size);
+    if (w > max_w) {
+        double s2 = fmax(8.0, size * max_w / w);
+        w = w * s2 / size;
+        size = s2;
+        if (w > max_w) {
+            int nchar = 0;
+            for (const unsigned char *p = (const unsigned char *)buf; *p; ++p)
+                nchar += (*p & 0xC0) != 0x80;
+            elide_middle(buf, sizeof buf, (int)(nchar * max_w / w));
+        }
+    }
+    svg_text(fp, x, y, size, anchor, color, "%s", buf);
+}
+
+void svg_palette(double t, int diverging, char out[8])
+{
+    /* control points, linearly interpolated in RGB */
+    static const double div[5][3] = {{33, 102, 172}, {146, 197, 222}, {247, 247, 247},
+                                     {244, 165, 130}, {178, 24, 43}};
+    static const double seq[5][3] = {{255, 255, 217}, {199, 233, 180}, {65, 182, 196},
+                                     {34, 94, 168}, {8, 29, 88}};
+    const double(*pal)[3] = diverging ? div : seq;
+    if (!isfinite(t))
+        t = 0.5;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double u = t * 4;
+    int k = u >= 4 ? 3 : (int)u;
+    double f = u - k;
+    int rgb[3];
+    for (int a = 0; a < 3; ++a)
+        rgb[a] = (int)lround(pal[k][a] + f * (pal[k + 1][a] - pal[k][a]));
+    snprintf(out, 8, "#%02x%02x%02x", rgb[0], rgb[1], rgb[2]);
+}
+
+void svg_band(const svg_chart *c, const double *xv, const double *lo, const double *hi, int n,
+              const char *color, double opacity)
+{
+    int k = 0;
+    while (k < n) {
+        while (k < n && !(isfinite(xv[k]) && isfinite(lo[k]) && isfinite(hi[k])))
+            ++k;
+        int a = k;
+        while (k < n && isfinite(xv[k]) && isfinite(lo[k]) && isfinite(hi[k]))
+            ++k;
+        if (k - a < 2)
+            continue;
+        fprintf(c->fp, "<polygon fill=\"%s\" fill-opacity=\"%.2f\" stroke=\"none\" points=\"", color,
+                opacity);
+        for (int q = a; q < k; ++q)
+            fprintf(c->fp, "%.2f,%.2f ", svg_px(c, xv[q]), svg_py(c, hi[q]));
+        for (int q = k - 1; q >= a; --q)
+            fprintf(c->fp, "%.2f,%.2f ", svg_px(c, xv[q]), svg_py(c, lo[q]));
+        fputs("\"/>\n", c->fp);
+    }
+}
+
+void svg_color_bar(FILE *fp, double x, double y, double w, double h, double vmin, double vmax,
+                   int diverging, const char *label)
+{
+    const int steps = 64;
+    char col[8];
+    for (int s = 0; s < steps; ++s) {
+        svg_palette((s + 0.5) / steps, diverging, col);
+        fprintf(fp, "<rect x=\"%.1f\" y=\"%.2f\" width=\"%.1f\" height=\"%.2f\" fill=\"%s\"/>\n", x,
+                y + h - (s + 1) * h / steps, w, h / steps + 0.3, col);
+    }
+    fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#333\"/>\n",
+            x, y, w, h);
+    if (vmax > vmin) {
+        double st = nice_step(vmax - vmin, 5);
+        for (double t = ceil(vmin / st) * st; t <= vmax + 1e-9 * st; t += st) {
+            double py = y + h - (t - vmin) / (vmax - vmin) * h;
+            fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"#333\"/>\n",
+                    x + w, py, x + w + 4, py);
+            svg_text(fp, x + w + 6, py + 4, 11, "start", "#333", "%g", fabs(t) < 1e-12 * st ? 0.0 : t);
+        }
+    }
+    if (label)
+        svg_text(fp, x + w / 2, y - 8, 12, "middle", "#000", "%s", label);
+}
+
+void svg_bars(const svg_chart *c, double lo, double hi, const long *cnt, int nb, const char *color)
+{
+    double bw = (hi - lo) / nb;
+    for (int b = 0; b < nb; ++b) {
+        if (cnt[b] <= 0)
+            continue;
+        double x1 = svg_px(c, lo + b * bw), x2 = svg_px(c, lo + (b + 1) * bw);
+        double y1 = svg_py(c, (double)cnt[b]), y0 = svg_py(c, 0);
+        fprintf(c->fp,
+                "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"%s\" "
+                "stroke=\"white\" stroke-width=\"0.5\"/>\n",
+                x1, y1, fmax(0.5, x2 - x1), y0 - y1, color);
+    }
 }

@@ -1,4 +1,5 @@
-/* svg.h — just enough SVG to draw charts: axes with round ticks, polylines, arrows, text. */
+/* svg.h — just enough SVG to draw charts: axes with round ticks, polylines, bands, arrows, text,
+ * colour scales and histogram bars. Shared by `selfcal plot`, `grid/profile --plot` and `report`. */
 #ifndef SELFCAL_SVG_H
 #define SELFCAL_SVG_H
 
@@ -47,7 +48,38 @@ void svg_text(FILE *fp, double x, double y, double size, const char *anchor, con
 #endif
     ;
 
+/* Text like svg_text that fits in max_w px: the font shrinks (down to 8 px) and, if that is
+ * not enough, the middle of the text is replaced by "…" (long file paths keep both ends). */
+void svg_text_fit(FILE *fp, double x, double y, double size, double max_w, const char *anchor,
+                  const char *color, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 8, 9)))
+#endif
+    ;
+
+/* Approximate width in px of text at font size (DejaVu Sans average advance). */
+double svg_text_width(const char *text, double size);
+
 /* Round the range [lo, hi] out to "nice" numbers (1, 2, 5 x 10^k). */
 void svg_nice_range(double *lo, double *hi);
+
+/* A round tick step for a span shown with about target ticks. */
+double svg_nice_step(double span, int target);
+
+/* Colour of t in [0, 1] on a palette: diverging (blue, white, red; 0.5 = white) for signed
+ * values, else sequential (light yellow to dark blue) for magnitudes. Writes "#rrggbb". */
+void svg_palette(double t, int diverging, char out[8]);
+
+/* Filled band between lo[] and hi[] over xv[] (data coordinates; a NaN in any breaks the band). */
+void svg_band(const svg_chart *c, const double *xv, const double *lo, const double *hi, int n,
+              const char *color, double opacity);
+
+/* A colour scale bar at (x, y) px, w x h (vertical), for [vmin, vmax], with round ticks and a
+ * label (unit) above it. */
+void svg_color_bar(FILE *fp, double x, double y, double w, double h, double vmin, double vmax,
+                   int diverging, const char *label);
+
+/* Vertical bars of a histogram on chart c: nb bins of equal width from lo to hi, counts cnt. */
+void svg_bars(const svg_chart *c, double lo, double hi, const long *cnt, int nb, const char *color);
 
 #endif

@@ -269,10 +269,14 @@ def case_plot():
             fail("%s: %d arrow heads for %d panels of %d nodes" % (path, arrows, panels, n * n))
         if "RMS" not in texts or "max" not in texts or "µm" not in texts:
             fail("%s: title lacks RMS/max: %s" % (path, texts[:200]))
-        if path != svg3 and ellipses < n * n:
-            fail("%s: %d uncertainty ellipses" % (path, ellipses))
-        if path == svg3 and ellipses:
-            fail("truth map has no uncertainties but %d ellipses" % ellipses)
+        # u(G) is its own colour map (one cell per node), not ellipses lost at the arrow scale
+        cells = len([r for r in root.findall(ns + "rect") if r.get("fill", "").startswith("#")])
+        if ellipses:
+            fail("%s: %d ellipses (u belongs in its own map)" % (path, ellipses))
+        if path != svg3 and cells < n * n:
+            fail("%s: %d u(G) colour cells" % (path, cells))
+        if path == svg3 and cells >= n * n:
+            fail("truth map has no uncertainties but %d colour cells" % cells)
     if "is 5 µm" not in open(svg2, encoding="utf-8").read():
         fail("scale bar does not show the requested 5 um per pitch")
     # Bad map input: exit 2, no SVG.

@@ -1,0 +1,563 @@
+#!/usr/bin/env python3
+"""Tests of `selfcal report grid|profile`, `selfcal verify` and the plots they share.
+
+Usage: report_test.py CLI TMPDIR CASE
+Cases:
+  render_grid, render_profile  the report renders in headless Chromium with the network cut off:
+                               the DOM has the expected sections and inline figures, a screenshot
+                               is not blank, and the file references nothing outside itself.
+  numbers_grid, numbers_profile  the numbers in the report equal those of the files `selfcal
+                               grid --summary/--map` and `selfcal profile --out` write for the
+                               same input.
+  verify                       a simulated re-measurement after compensation: a good table
+                               passes, a table with the wrong sign fails (exit 3); --raw too.
+  bad_input                    exit 2, one line FILE:LINE: reason, no output left.
+  plots                        plot map of a plate error file, arrows inside the frame, u map,
+                               worst node in mm, long titles shortened.
+Standard library only.
+"""
+import csv
+import html.parser
+import json
+import math
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+import zlib
+
+CLI, TMP, CASE = sys.argv[1], sys.argv[2], sys.argv[3]
+CHROMIUM_TIMEOUT = 150  # chromium starts in 1-20 s under load; 5x margin and more
+
+
+def fail(msg):
+    print("FAIL: " + msg)
+    sys.exit(1)
+
+
+def run(*args, expect=0):
+    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=300)
+    if p.returncode != expect:
+        fail("selfcal %s: exit %d (want %d)\nstdout: %s\nstderr: %s"
+             % (" ".join(map(str, args)), p.returncode, expect, p.stdout, p.stderr))
+    return p
+
+
+def fresh_dir(name):
+    d = os.path.join(TMP, "report_" + name)
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    return d
+
+
+# ---------------------------------------------------------------------------------------------
+# headless Chromium
+
+def chromium():
+    for name in ("chromium", "chromium-browser", "google-chrome"):
+        p = shutil.which(name)
+        if p:
+            return p
+    fail("chromium not found (scripts/install-deps.sh installs Debian's chromium)")
+
+
+def chromium_run(html_path, *mode):
+    """Run headless Chromium on a local file with every network path cut: an invalid proxy for
+    all schemes and a resolver that finds no host. Returns stdout (bytes)."""
+    prof = tempfile.mkdtemp(prefix="chromium-", dir=TMP)
+    try:
+        cmd = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+               "--disable-extensions", "--disable-background-networking", "--disable-sync",
+               "--disable-dev-shm-usage", "--user-data-dir=" + prof,
+               "--proxy-server=http://127.0.0.1:9", "--host-resolver-rules=MAP * ~NOTFOUND",
+               "--proxy-bypass-list=<-loopback>"] + list(mode) + ["file://" + os.path.abspath(html_path)]
+        p = subprocess.run(cmd, capture_output=True, timeout=CHROMIUM_TIMEOUT, cwd=prof)
+        if p.returncode != 0:
+            fail("chromium exit %d: %s" % (p.returncode, p.stderr.decode(errors="replace")[-2000:]))
+        return p.stdout
+    finally:
+        shutil.rmtree(prof, ignore_errors=True)
+
+
+def png_pixels(path):
+    """Decode an 8-bit RGB/RGBA PNG (what Chromium writes): (width, height, rows of bytes)."""
+    data = open(path, "rb").read()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        fail("%s: not a PNG" % path)
+    pos, idat = 8, b""
+    w = h = ctype = 0
+    while pos < len(data):
+        ln, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + ln]
+        if kind == b"IHDR":
+            w, h, depth, ctype = struct.unpack(">IIBB", body[:10])
+            if depth != 8 or ctype not in (2, 6):
+                fail("%s: PNG depth %d colour type %d not handled" % (path, depth, ctype))
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + ln
+    raw = zlib.decompress(idat)
+    bpp = 3 if ctype == 2 else 4
+    stride = w * bpp
+    rows, prev, off = [], bytearray(stride), 0
+    for _ in range(h):
+        f, line = raw[off], bytearray(raw[off + 1:off + 1 + stride])
+        off += 1 + stride
+        for i in range(stride):
+            a = line[i - bpp] if i >= bpp else 0
+            b = prev[i]
+            c = prev[i - bpp] if i >= bpp else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 255
+            elif f == 2:
+                line[i] = (line[i] + b) & 255
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif f == 4:
+                pa, pb, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(bytes(line))
+        prev = line
+    return w, h, bpp, rows
+
+
+def check_not_blank(png):
+    w, h, bpp, rows = png_pixels(png)
+    colours, dark = set(), 0
+    for y in range(0, h, 3):
+        r = rows[y]
+        for x in range(0, w, 3):
+            px = r[x * bpp:x * bpp + 3]
+            colours.add(px)
+            if sum(px) < 200:
+                dark += 1
+    if len(colours) < 20 or dark < 200:
+        fail("%s looks blank: %d colours, %d dark samples" % (png, len(colours), dark))
+
+
+EXTERNAL = [
+    (r"https?:", "an http(s) URL"), (r"file:", "a file: URL"), (r"ftp:", "an ftp: URL"),
+    (r"<link\b", "a <link> element"), (r"<script\b[^>]*\bsrc\s*=", "a <script src>"),
+    (r"<(img|iframe|embed|object|video|audio|source)\b", "an embedded resource element"),
+    (r"url\(", "a CSS url()"), (r"@import", "a CSS @import"), (r"(src|href)\s*=\s*[\"']?//", "a protocol-relative URL"),
+    (r"xlink:href\s*=\s*[\"'][^#]", "an external xlink:href"),
+]
+
+
+def check_self_contained(path):
+    text = open(path, encoding="utf-8").read()
+    for pat, what in EXTERNAL:
+        m = re.search(pat, text, re.I)
+        if m:
+            fail("%s references something outside itself: %s at offset %d: %r"
+                 % (path, what, m.start(), text[max(0, m.start() - 60):m.start() + 60]))
+    return text
+
+
+class Cells(html.parser.HTMLParser):
+    """Collects elements by id (text and data-v), counts tags, and the rows of tables."""
+
+    def __init__(self):
+        super().__init__()
+        self.ids, self.count, self.stack = {}, {}, []
+        self.rows, self.row = {}, None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        self.count[tag] = self.count.get(tag, 0) + 1
+        if tag == "tr" and a.get("class") in ("node", "pt"):
+            self.row = []
+            self.rows.setdefault(a["class"], []).append(self.row)
+        if tag == "td" and self.row is not None:
+            self.row.append(a.get("data-v"))
+        self.stack.append((tag, a.get("id"), a.get("data-v"), []))
+
+    def handle_endtag(self, tag):
+        while self.stack:
+            t, i, v, txt = self.stack.pop()
+            if i:
+                self.ids[i] = (v, "".join(txt).strip())
+            if self.stack:
+                self.stack[-1][3].extend(txt)
+            if t == tag:
+                break
+        if tag == "tr":
+            self.row = None
+
+    def handle_data(self, data):
+        if self.stack:
+            self.stack[-1][3].append(data)
+
+
+def parse(text):
+    c = Cells()
+    c.feed(text)
+    return c
+
+
+# ---------------------------------------------------------------------------------------------
+
+def simulate_grid(d, n=11, plan="double-shift", seed=3, sigma_r=0.01):
+    inp, gt, at = (os.path.join(d, x) for x in ("in.csv", "G_true.csv", "A_true.csv"))
+    run("simulate", "grid", "--plan", plan, "--n", n, "--seed", seed, "--sigma-r-um", sigma_r,
+        "--out", inp, "--truth-map", gt, "--truth-artifact", at)
+    return inp, gt, at
+
+
+def render_check(html_path, must_ids, min_svg):
+    text = check_self_contained(html_path)
+    dom = chromium_run(html_path, "--dump-dom").decode("utf-8", errors="replace")
+    c = parse(dom)
+    for i in must_ids:
+        if i not in c.ids:
+            fail("%s: rendered DOM lacks #%s" % (html_path, i))
+    if c.count.get("svg", 0) < min_svg:
+        fail("%s: %d inline SVG figures in the DOM, want >= %d" % (html_path, c.count.get("svg", 0), min_svg))
+    if c.count.get("h2", 0) < 5:
+        fail("%s: %d sections" % (html_path, c.count.get("h2", 0)))
+    png = html_path + ".png"
+    chromium_run(html_path, "--screenshot=" + png, "--window-size=1100,1600", "--hide-scrollbars")
+    check_not_blank(png)
+    # print to PDF works (a non-trivial PDF)
+    pdf = html_path + ".pdf"
+    chromium_run(html_path, "--print-to-pdf=" + pdf, "--no-pdf-header-footer")
+    data = open(pdf, "rb").read()
+    if not data.startswith(b"%PDF") or len(data) < 20000:
+        fail("%s: print to PDF gave %d bytes" % (pdf, len(data)))
+    return text, c
+
+
+def case_render_grid():
+    d = fresh_dir("render_grid")
+    inp, _, _ = simulate_grid(d)
+    out = os.path.join(d, "R.html")
+    run("report", "grid", inp, "-o", out, "--sigma-r-um", 0.01)
+    _, c = render_check(out, ["summary", "plan", "method", "noise", "residuals", "results",
+                              "provenance", "identifiable", "O", "O-u", "O-U2", "sigma_r_est_um",
+                              "variance_factor", "chi2", "n_outliers", "version", "cmdline"], 6)
+    sha = subprocess.run(["sha256sum", inp], capture_output=True, text=True).stdout.split()[0]
+    if sha not in open(out, encoding="utf-8").read():
+        fail("the report does not hold the input's SHA-256 %s" % sha)
+    if c.ids["identifiable"][1] != "yes":
+        fail("identifiable: %r" % (c.ids["identifiable"],))
+    ver = run("--version").stdout.split()[-1]
+    if ver not in c.ids["version"][1]:
+        fail("version %r not in %r" % (ver, c.ids["version"]))
+    # the closed forms: a report without uncertainty maps but with everything else
+    out2 = os.path.join(d, "R_ds.html")
+    run("report", "grid", inp, "-o", out2, "--method", "double-shift")
+    render_check(out2, ["summary", "results", "provenance", "method-name"], 4)
+
+
+def case_render_profile():
+    d = fresh_dir("render_profile")
+    inp, truth = os.path.join(d, "in.csv"), os.path.join(d, "truth.csv")
+    run("simulate", "profile", "--out", inp, "--truth", truth)
+    for m in ("lsq", "dft"):
+        out = os.path.join(d, "R_%s.html" % m)
+        run("report", "profile", inp, "-o", out, "--method", m)
+        render_check(out, ["summary", "setup", "method", "noise", "residuals", "results",
+                           "provenance", "uf-max", "Uf-max", "chi2", "variance_factor"], 2)
+
+
+def num(c, i):
+    v = c.ids.get(i)
+    if v is None or v[0] is None:
+        fail("report has no number #%s (%r)" % (i, v))
+    return float(v[0])
+
+
+def close(a, b, what, rel=1e-9, abs_=1e-12):
+    if not (abs(a - b) <= abs_ + rel * abs(b)):
+        fail("%s: report %r vs file %r" % (what, a, b))
+
+
+def case_numbers_grid():
+    d = fresh_dir("numbers_grid")
+    inp, _, _ = simulate_grid(d, n=9, plan="ye", seed=5, sigma_r=0.02)
+    for method, sigma in (("lsq", None), ("lsq", 0.02), ("ye", None)):
+        extra = ["--sigma-r-um", sigma] if sigma else []
+        g, s, out = (os.path.join(d, x) for x in ("G.csv", "S.json", "R.html"))
+        run("grid", "--method", method, inp, "--map", g, "--summary", s, *extra)
+        run("report", "grid", inp, "-o", out, "--method", method, *extra)
+        c = parse(check_self_contained(out))
+        sm = json.load(open(s))
+        close(num(c, "O"), sm["O"] * 1e6, "O (um/m)")
+        close(num(c, "R"), sm["R"] * 1e6, "R (um/m)")
+        for v, view in enumerate(sm["views"]):
+            close(num(c, "tx-%d" % v), view["tx_um"], "tx view %d" % v)
+            close(num(c, "ty-%d" % v), view["ty_um"], "ty view %d" % v)
+            close(num(c, "theta-%d" % v), view["theta_urad"], "theta view %d" % v)
+        close(num(c, "sigma_r_est_um"), sm["sigma_r_est_um"], "sigma_r_est")
+        if method == "lsq":
+            close(num(c, "sigma_r_used_um"), sm["sigma_r_used_um"], "sigma_r_used")
+            close(num(c, "residual_rms_um"), sm["residual_rms_um"], "residual RMS")
+            if int(c.ids["dof"][1]) != sm["dof"]:
+                fail("dof %r vs %r" % (c.ids["dof"], sm["dof"]))
+        # every node of the map file, as the table in the report
+        rows = c.rows.get("node", [])
+        with open(g) as f:
+            mp = list(csv.DictReader(f))
+        if len(rows) != len(mp):
+            fail("report node table has %d rows, the map %d" % (len(rows), len(mp)))
+        for row, m in zip(rows, mp):
+            close(float(row[4]), float(m["gx_um"]), "gx node %s,%s" % (m["i"], m["j"]))
+            close(float(row[5]), float(m["gy_um"]), "gy node %s,%s" % (m["i"], m["j"]))
+            if m["ugx_um"]:
+                close(float(row[6]), float(m["ugx_um"]), "ugx node")
+                close(float(row[8]), 2 * float(m["ugx_um"]), "Ugx (k=2) node")
+            elif row[6] is not None:
+                fail("report gives u where the map has none")
+        # statistics the report derives, recomputed from the map file
+        gx = [float(m["gx_um"]) for m in mp]
+        close(num(c, "gx-rms"), math.sqrt(sum(x * x for x in gx) / len(gx)), "RMS Gx", rel=1e-9)
+        close(num(c, "gx-max"), max(abs(x) for x in gx), "max |Gx|")
+        if sigma:  # given sigma: variance factor = (sigma_est / sigma)^2
+            close(num(c, "variance_factor"), (sm["sigma_r_est_um"] / sigma) ** 2, "variance factor", rel=1e-6)
+
+
+def case_numbers_profile():
+    d = fresh_dir("numbers_profile")
+    inp, truth = os.path.join(d, "in.csv"), os.path.join(d, "truth.csv")
+    run("simulate", "profile", "--n", 231, "--d1", 7, "--d2", 11, "--out", inp, "--truth", truth)
+    for m in ("lsq", "dft"):
+        pcsv, out = os.path.join(d, "P_%s.csv" % m), os.path.join(d, "R_%s.html" % m)
+        run("profile", "--method", m, inp, "--out", pcsv, "--quiet")
+        run("report", "profile", inp, "-o", out, "--method", m)
+        c = parse(check_self_contained(out))
+        with open(pcsv) as f:
+            pr = list(csv.DictReader(f))
+        rows = c.rows.get("pt", [])
+        if len(rows) != len(pr):
+            fail("%s: report table %d rows, profile file %d" % (m, len(rows), len(pr)))
+        for row, p in zip(rows, pr):
+            close(float(row[2]), float(p["f_um"]), "f n=%s" % p["n"], rel=1e-12, abs_=1e-12)
+            close(float(row[3]), float(p["uf_um"]), "uf n=%s" % p["n"], rel=1e-12, abs_=1e-15)
+            close(float(row[4]), 2 * float(p["uf_um"]), "U n=%s" % p["n"], rel=1e-12, abs_=1e-15)
+            if p["ey_um"]:
+                close(float(row[5]), float(p["ey_um"]), "ey n=%s" % p["n"], rel=1e-12, abs_=1e-12)
+            elif row[5] is not None:
+                fail("report has e_y where the file has none (n=%s)" % p["n"])
+        uf = [float(p["uf_um"]) for p in pr]
+        close(num(c, "uf-max"), 1e3 * max(uf), "max u(f) nm", rel=1e-12)
+        close(num(c, "Uf-max"), 2e3 * max(uf), "max U(f) nm", rel=1e-12)
+        f = [float(p["f_um"]) for p in pr]
+        close(num(c, "f-pv"), max(f) - min(f), "f peak to valley", rel=1e-12)
+
+
+def write_neg_map(src, dst):
+    with open(src) as f:
+        rows = list(csv.reader(f))
+    with open(dst, "w") as f:
+        f.write(",".join(rows[0]) + "\n")
+        for r in rows[1:]:
+            r = list(r)
+            r[4], r[5] = repr(-float(r[4])), repr(-float(r[5]))
+            f.write(",".join(r) + "\n")
+
+
+def case_verify():
+    d = fresh_dir("verify")
+    n, seed = 11, 7
+    inp, gt, _ = simulate_grid(d, n=n, plan="double-shift", seed=seed, sigma_r=0.01)
+    p = lambda x: os.path.join(d, x)  # noqa: E731
+    run("grid", "--method", "lsq", inp, "--map", p("G.csv"), "--artifact", p("A.csv"))
+    run("lut", "build", "--map", p("G.csv"), "-o", p("good.lut"))
+    write_neg_map(p("G.csv"), p("Gneg.csv"))
+    run("lut", "build", "--map", p("Gneg.csv"), "-o", p("neg.lut"))
+    with open(p("plan1.csv"), "w") as f:
+        f.write("# selfcal-grid v1\n# N = %d\n# pitch_mm = 1\n# view 0: rot=0 shift=0,0\n" % n)
+    # re-measurements: the same stage and plate (same seed), with each table active, and raw
+    for name, table in (("V_good.csv", "good.lut"), ("V_neg.csv", "neg.lut")):
+        run("simulate", "grid", "--plan", p("plan1.csv"), "--seed", seed, "--sigma-r-um", 0.01,
+            "--out", p(name), "--truth-map", p("gt1.csv"), "--compensate-with", p(table))
+    run("simulate", "grid", "--plan", p("plan1.csv"), "--seed", seed, "--sigma-r-um", 0.01,
+        "--out", p("V_raw.csv"), "--truth-map", p("gt1.csv"))
+    tol = 0.1  # um: 10 x the noise; the wrong sign leaves 2 G (about 2 um)
+    good = run("verify", p("V_good.csv"), "--table", p("good.lut"), "--artifact", p("A.csv"),
+               "--tolerance-um", tol, "--residuals", p("res.csv"), "--plot", p("v.svg"),
+               "--html", p("v.html"))
+    kv = dict(l.split(": ", 1) for l in good.stdout.splitlines())
+    if kv["verdict"] != "pass" or not float(kv["after_max_um"]) <= tol:
+        fail("good table: %s" % good.stdout)
+    if not float(kv["before_rms_um"]) > 20 * float(kv["after_rms_um"]):
+        fail("good table: before %s vs after %s" % (kv["before_rms_um"], kv["after_rms_um"]))
+    # "before" is about G: compare with the truth (RMS of the vector difference < 0.1 um)
+    with open(gt) as f:
+        truth = {(int(r["i"]), int(r["j"])): (float(r["gx_um"]), float(r["gy_um"])) for r in csv.DictReader(f)}
+    with open(p("res.csv")) as f:
+        res = list(csv.DictReader(f))
+    if len(res) != n * n:
+        fail("residual file has %d rows" % len(res))
+    # G's gauge (no translation/rotation) differs from the fitted misalignment's only by a rigid
+    # motion, which the per-view fit removed from both: compare after removing it from the truth
+    tx = sum(truth[(int(r["i"]), int(r["j"]))][0] - float(r["before_rx_um"]) for r in res) / len(res)
+    ty = sum(truth[(int(r["i"]), int(r["j"]))][1] - float(r["before_ry_um"]) for r in res) / len(res)
+    e = math.sqrt(sum((truth[(int(r["i"]), int(r["j"]))][0] - float(r["before_rx_um"]) - tx) ** 2 +
+                      (truth[(int(r["i"]), int(r["j"]))][1] - float(r["before_ry_um"]) - ty) ** 2
+                      for r in res) / len(res))
+    if e > 0.1:
+        fail("before-compensation map differs from the true G by %.3g um RMS" % e)
+    check_self_contained(p("v.html"))
+    ET.parse(p("v.svg"))
+    bad = run("verify", p("V_neg.csv"), "--table", p("neg.lut"), "--artifact", p("A.csv"),
+              "--tolerance-um", tol, "--residuals", p("res_neg.csv"), expect=3)
+    kv = dict(l.split(": ", 1) for l in bad.stdout.splitlines())
+    if kv["verdict"] != "fail" or not float(kv["after_max_um"]) > 10 * tol:
+        fail("wrong-sign table: %s" % bad.stdout)
+    if not os.path.exists(p("res_neg.csv")):
+        fail("a failed verification still writes its residual file")
+    # raw readings: the table is applied here
+    run("verify", p("V_raw.csv"), "--raw", "--table", p("good.lut"), "--artifact", p("A.csv"),
+        "--tolerance-um", tol)
+    run("verify", p("V_raw.csv"), "--raw", "--table", p("neg.lut"), "--artifact", p("A.csv"),
+        "--tolerance-um", tol, expect=3)
+    # and in the report
+    out = p("R.html")
+    run("report", "grid", inp, "-o", out, "--verify", p("V_neg.csv"), "--table", p("neg.lut"),
+        "--tolerance-um", tol)
+    c = parse(check_self_contained(out))
+    if c.ids.get("verify-verdict", (None, ""))[1] != "fail":
+        fail("report with a wrong-sign table: verdict %r" % (c.ids.get("verify-verdict"),))
+    run("report", "grid", inp, "-o", out, "--verify", p("V_good.csv"), "--table", p("good.lut"),
+        "--tolerance-um", tol)
+    c = parse(check_self_contained(out))
+    if c.ids.get("verify-verdict", (None, ""))[1] != "pass":
+        fail("report with a good table: verdict %r" % (c.ids.get("verify-verdict"),))
+
+
+def expect_bad(args, name, outs):
+    p = run(*args, expect=2)
+    lines = p.stderr.strip().splitlines()
+    if len(lines) != 1 or not re.match(r"selfcal: .*%s(:\d+)?: " % re.escape(name), lines[0]):
+        fail("%s: want one line 'selfcal: %s:LINE: ...', got %r" % (" ".join(map(str, args)), name, p.stderr))
+    for o in outs:
+        if os.path.exists(o):
+            fail("%s left %s behind" % (" ".join(map(str, args)), o))
+    for f in os.listdir(os.path.dirname(outs[0])):
+        if ".tmp" in f or f.startswith(".") and "R." in f:
+            fail("temporary file left: %s" % f)
+
+
+def case_bad_input():
+    d = fresh_dir("bad_input")
+    p = lambda x: os.path.join(d, x)  # noqa: E731
+    inp, _, _ = simulate_grid(d, n=9, plan="ye")
+    out = p("R.html")
+    lines = open(inp).read().splitlines()
+    bad = p("bad.csv")
+    lines[12] = lines[12].split(",")[0] + ",1,1,zz,0"
+    open(bad, "w").write("\n".join(lines) + "\n")
+    expect_bad(["report", "grid", bad, "-o", out], "bad.csv", [out])
+    expect_bad(["report", "grid", p("missing.csv"), "-o", out], "missing.csv", [out])
+    # a plan that does not identify G, and a method whose views are missing
+    hdr = [l for l in open(inp).read().splitlines() if l.startswith("#") and "view 2" not in l]
+    rows = [l for l in open(inp).read().splitlines()
+            if not l.startswith("#") and not l.startswith("view") and not l.startswith("2,")]
+    open(p("two.csv"), "w").write("\n".join(hdr + ["view,i,j,x_mm,y_mm"] + rows) + "\n")
+    expect_bad(["report", "grid", p("two.csv"), "-o", out], "two.csv", [out])
+    expect_bad(["report", "grid", p("two.csv"), "-o", out, "--method", "ye"], "two.csv", [out])
+    pin = p("p.csv")
+    run("simulate", "profile", "--out", pin, "--truth", p("pt.csv"))
+    pl = open(pin).read().splitlines()
+    pl[20] = "1,999999,0,0,0"
+    open(p("pbad.csv"), "w").write("\n".join(pl) + "\n")
+    expect_bad(["report", "profile", p("pbad.csv"), "-o", out], "pbad.csv", [out])
+    # verify: bad table, bad plate error file
+    open(p("junk.lut"), "wb").write(b"not a table at all" * 10)
+    run("grid", "--method", "lsq", inp, "--map", p("G.csv"), "--artifact", p("A.csv"))
+    run("lut", "build", "--map", p("G.csv"), "-o", p("t.lut"))
+    expect_bad(["verify", inp, "--table", p("junk.lut"), "--artifact", p("A.csv"), "--tolerance-um", 1,
+                "--residuals", p("r.csv"), "--html", out], "junk.lut", [out, p("r.csv")])
+    open(p("Abad.csv"), "w").write("i,j,ax_um,ay_um\n0,0,1,\n")
+    expect_bad(["verify", inp, "--table", p("t.lut"), "--artifact", p("Abad.csv"), "--tolerance-um", 1,
+                "--html", out], "Abad.csv", [out])
+    expect_bad(["report", "grid", inp, "-o", out, "--verify", p("two.csv"), "--table", p("junk.lut")],
+               "junk.lut", [out])
+    # usage errors are exit 2 as well
+    run("report", "grid", inp, expect=2)
+    run("report", "grid", inp, "-o", out, "--method", "fourier", expect=2)
+    run("verify", inp, "--table", p("t.lut"), expect=2)
+    if os.path.exists(out):
+        fail("usage errors left a report")
+
+
+def svg_texts(path):
+    root = ET.parse(path).getroot()
+    ns = "{http://www.w3.org/2000/svg}"
+    return root, ns, [t for t in root.iter(ns + "text")]
+
+
+def case_plots():
+    d = fresh_dir("plots")
+    p = lambda x: os.path.join(d, x)  # noqa: E731
+    n = 9
+    inp, gt, at = simulate_grid(d, n=n, plan="ye", seed=11)
+    run("grid", "--method", "lsq", inp, "--map", p("G.csv"), "--artifact", p("A.csv"))
+    # the plate error file is drawn (it used to be refused), against its truth too
+    run("plot", "map", p("A.csv"), "-o", p("A.svg"), "--pitch-mm", 1)
+    run("plot", "map", p("A.csv"), "-o", p("A2.svg"), "--truth", at)
+    root, ns, texts = svg_texts(p("A.svg"))
+    alltext = " ".join(t.text or "" for t in texts)
+    if "plate" not in alltext.lower() or len(root.findall(ns + "polygon")) < n * n * 0.9:
+        fail("plate error plot: %s" % alltext[:300])
+    # arrows stay inside the frame: every arrow head inside the plot rectangle
+    run("plot", "map", p("G.csv"), "-o", p("G.svg"))
+    root, ns, texts = svg_texts(p("G.svg"))
+    frames = [r for r in root.iter(ns + "rect") if r.get("fill") == "none" and r.get("stroke") == "#333"]
+    fx, fy = float(frames[0].get("x")), float(frames[0].get("y"))
+    fw, fh = float(frames[0].get("width")), float(frames[0].get("height"))
+    heads = 0
+    for poly in root.iter(ns + "polygon"):
+        pts = [tuple(map(float, q.split(","))) for q in poly.get("points").split()]
+        if all(fx - 1 <= x <= fx + fw + 1 and fy - 1 <= y <= fy + fh + 1 for x, y in pts):
+            heads += 1
+        elif pts[0][1] < fy + fh + 30:  # not the scale bar below the frame
+            fail("an arrow head outside the frame: %s (frame %g,%g %gx%g)" % (pts, fx, fy, fw, fh))
+    if heads < n * n * 0.9:
+        fail("%d arrow heads inside the frame" % heads)
+    # u(G) as a colour map (cells) instead of ellipses, the worst node in mm
+    cells = [r for r in root.iter(ns + "rect") if r.get("fill", "").startswith("#") and r.get("fill") != "#333"]
+    if len(cells) < n * n or root.findall(ns + "ellipse"):
+        fail("u map: %d cells, %d ellipses" % (len(cells), len(root.findall(ns + "ellipse"))))
+    alltext = " ".join(t.text or "" for t in texts)
+    if not re.search(r"max \|G\| = [0-9.e+-]+ µm at \(-?[0-9.]+, -?[0-9.]+\) mm", alltext):
+        fail("worst node not named in mm: %s" % alltext[:400])
+    # a long absolute path in the title is shortened to fit the drawing
+    longdir = os.path.join(d, "a_very_long_directory_name_that_goes_on_and_on" * 3)
+    os.makedirs(longdir, exist_ok=True)
+    longin = os.path.join(longdir, "measurement_with_a_long_name.csv")
+    shutil.copy(inp, longin)
+    run("grid", "--method", "lsq", longin, "--map", p("G2.csv"), "--plot", p("long.svg"))
+    root, ns, texts = svg_texts(p("long.svg"))
+    width = float(root.get("width"))
+    rotated = {id(t) for g in root.iter(ns + "g") if g.get("transform") for t in g.iter(ns + "text")}
+    for t in texts:
+        if id(t) in rotated:  # axis labels turned by 90 degrees: their x is not their extent
+            continue
+        size = float(t.get("font-size"))
+        est = sum(0.72 if c.isupper() else 0.58 for c in (t.text or "")) * size
+        x, anchor = float(t.get("x")), t.get("text-anchor")
+        left = x - est / 2 if anchor == "middle" else x - est if anchor == "end" else x
+        if left < -2 or left + est > width + 2:
+            fail("text runs off the drawing (width %g): %r at x=%g size %g" % (width, t.text, x, size))
+    if os.path.dirname(longin) in " ".join(t.text or "" for t in texts):
+        fail("the title holds the absolute path")
+    # profile plot: the f chart has uncertainty bands
+    pin, pout = p("p.csv"), p("P.csv")
+    run("simulate", "profile", "--out", pin, "--truth", p("pt.csv"))
+    run("profile", "--method", "lsq", pin, "--out", pout, "--plot", p("p.svg"), "--quiet")
+    root = ET.parse(p("p.svg")).getroot()
+    bands = [q for q in root.iter("{http://www.w3.org/2000/svg}polygon") if q.get("fill-opacity")]
+    if len(bands) < 2:
+        fail("profile plot has %d uncertainty bands" % len(bands))
+
+
+{"render_grid": case_render_grid, "render_profile": case_render_profile,
+ "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
+ "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots}[CASE]()
+print("ok")

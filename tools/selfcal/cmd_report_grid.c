@@ -1,0 +1,781 @@
+/* selfcal report grid — the calibration report of a grid plate self-calibration as one
+ * self-contained HTML file (SPEC §9): plan, method, noise and its χ² test, residuals per view,
+ * outliers, O, R and misalignments with uncertainties (k = 1 and k = 2), the maps as figures,
+ * optionally the verification of the compensated machine, and the provenance. Everything is
+ * computed here by calling the library, as `selfcal grid` does, never read back from its output. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "grid_run.h"
+#include "plots.h"
+#include "report_html.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "selfcal/grid_exact.h"
+#include "selfcal/grid_io.h"
+#include "selfcal/grid_lsq.h"
+#include "verify.h"
+
+static const char *USAGE =
+    "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
+    "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]]\n"
+    "\n"
+    "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
+    "prints to PDF from a browser) with the plan and whether it identifies G, the method, the\n"
+    "noise given and estimated with the variance factor and its chi-square test, the residuals\n"
+    "per view (statistics, histogram, largest ones, flagged outliers), O, R and the view\n"
+    "misalignments with their uncertainties (k = 1 and expanded, k = 2), the stage error map as\n"
+    "arrows, Gx, Gy, u(Gx), u(Gy) as colour maps, the plate error A, and the provenance (selfcal\n"
+    "version, date, command line, SHA-256 of every input). Default method: lsq.\n"
+    "Residuals and the noise estimate always come from the least-squares fit of the data (the\n"
+    "closed forms are not least-squares estimates). --verify adds the check of the compensated\n"
+    "machine (see selfcal verify --help) against the plate error of this calibration.\n"
+    "Exit 0, or 2 on bad input (one line naming the file and line; no report is left).\n";
+
+/* Everything the report shows, computed once. */
+typedef struct grid_report {
+    const char *in, *method;
+    double sigma_r_given; /* 0: not given */
+    sc_grid_data d;
+    sc_grid_file_info info;
+    sc_grid_lsq_info qi;
+    int identifiable;
+    sc_grid_result res;  /* the chosen method's result */
+    sc_grid_result lres; /* the least-squares fit (residuals, noise) */
+    double *buf;
+    double *rx, *ry, *tx, *ty; /* residuals per view, n_views*n*n (NaN: not measured) */
+    int have_t;                /* standardized residuals and outlier flags available */
+    double crit;               /* critical |t| */
+    sc_stage_map gm, am;       /* G and A as maps for the figures (views on res) */
+} grid_report;
+
+#define NSQ(r) ((size_t)(r)->d.plan.n * (size_t)(r)->d.plan.n)
+
+static void init_result(sc_grid_result *res, double *base, size_t nn)
+{
+    memset(res, 0, sizeof *res);
+    res->gx_um = base;
+    res->gy_um = base + nn;
+    res->ugx_um = base + 2 * nn;
+    res->ugy_um = base + 3 * nn;
+    res->ax_um = base + 4 * nn;
+    res->ay_um = base + 5 * nn;
+    for (size_t k = 0; k < 6 * nn; ++k)
+        base[k] = NAN;
+    res->O = res->R = res->residual_rms_um = res->sigma_r_est_um = res->sigma_r_used_um = NAN;
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        res->tx_um[v] = res->ty_um[v] = res->theta_urad[v] = NAN;
+}
+
+/* The map views of G (stage nodes) and A (plate marks, plate frame) the plot functions draw. */
+static void make_maps(grid_report *r)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    r->gm = sc_grid_stage_map(p, r->res.gx_um, r->res.gy_um, r->res.ugx_um, r->res.ugy_um);
+    r->am = sc_grid_stage_map(p, r->res.ax_um, r->res.ay_um, NULL, NULL);
+    r->am.x0_mm = r->am.y0_mm = -0.5 * (p->n - 1) * p->pitch_mm;
+}
+
+/* Residuals r = measured − fitted of the least-squares fit, per view and mark. */
+static sc_status compute_residuals(grid_report *r, sc_error *err)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    size_t nn = NSQ(r);
+    int nv = p->n_views;
+#ifdef SC_GRID_BAARDA_CRIT
+    (void)nn;
+    (void)nv;
+    r->crit = SC_GRID_BAARDA_CRIT;
+    r->have_t = 1;
+    return SC_OK; /* filled by sc_grid_lsq_residuals in run() */
+#else
+    sc_grid_data fit;
+    memset(&fit, 0, sizeof fit);
+    fit.plan = *p;
+    sc_status st = sc_grid_data_alloc(&fit, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_synthesize(p, r->lres.gx_um, r->lres.gy_um, r->lres.ax_um, r->lres.ay_um,
+                       r->lres.tx_um, r->lres.ty_um, r->lres.theta_urad, &fit);
+    for (int v = 0; v < nv; ++v)
+        for (size_t k = 0; k < nn; ++k) {
+            double mx = r->d.dx_um[v][k], my = r->d.dy_um[v][k];
+            int meas = isfinite(mx) && isfinite(my);
+            r->rx[v * nn + k] = meas ? mx - fit.dx_um[v][k] : NAN;
+            r->ry[v * nn + k] = meas ? my - fit.dy_um[v][k] : NAN;
+            r->tx[v * nn + k] = r->ty[v * nn + k] = NAN;
+        }
+    sc_grid_data_free(&fit);
+    r->have_t = 0;
+    r->crit = NAN;
+    return SC_OK;
+#endif
+}
+
+/* Read, check, solve (chosen method and least squares), residuals. */
+static sc_status run(grid_report *r, sc_error *err)
+{
+    sc_status st = sc_grid_read(r->in, &r->d, &r->info, err);
+    if (st != SC_OK)
+        return st;
+    const sc_grid_plan *p = &r->d.plan;
+    size_t nn = NSQ(r);
+    if (r->info.n_rows == 0)
+        return sc_error_set(err, SC_E_INPUT, r->in, r->info.header_end_line,
+                            "no data rows (a plan file? use 'selfcal plan' for plans)");
+    int m_ye = !strcmp(r->method, "ye"), m_ds = !strcmp(r->method, "double-shift");
+    if (m_ye || m_ds) {
+        st = grid_check_exact_views(r->in, &r->d, &r->info, m_ds, err);
+        if (st != SC_OK)
+            return st;
+    }
+    size_t nres = (size_t)p->n_views * nn;
+    r->buf = malloc((12 * nn + 4 * nres) * sizeof(double));
+    if (!r->buf)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    init_result(&r->res, r->buf, nn);
+    init_result(&r->lres, r->buf + 6 * nn, nn);
+    r->rx = r->buf + 12 * nn;
+    r->ry = r->rx + nres;
+    r->tx = r->ry + nres;
+    r->ty = r->tx + nres;
+    for (size_t k = 0; k < 4 * nres; ++k)
+        r->rx[k] = NAN;
+
+    sc_grid_lsq *q = NULL;
+    st = sc_grid_lsq_create(p, &r->d, &q, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_lsq_get_info(q, &r->qi);
+    r->identifiable = r->qi.identifiable;
+    if (!r->identifiable) {
+        sc_grid_lsq_destroy(q);
+        return sc_error_set(err, SC_E_UNSOLVABLE, r->in, r->info.header_end_line,
+                            "the measured views do not identify G: %ld degree(s) of freedom "
+                            "beyond the gauge stay free (see 'selfcal plan')",
+                            r->qi.free_dof);
+    }
+    st = sc_grid_lsq_solve(q, &r->d, r->sigma_r_given, &r->lres, err);
+#ifdef SC_GRID_BAARDA_CRIT
+    if (st == SC_OK)
+        st = sc_grid_lsq_residuals(q, r->rx, r->ry, r->tx, r->ty, NULL, err);
+#endif
+    sc_grid_lsq_destroy(q);
+    if (st != SC_OK)
+        return st;
+    if (m_ye || m_ds) {
+        sc_grid_exact_plan *xp = NULL;
+        st = sc_grid_exact_plan_create(m_ye ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT, p->n, &xp, err);
+        if (st == SC_OK)
+            st = sc_grid_exact_execute(xp, &r->d, &r->res, err);
+        sc_grid_exact_plan_destroy(xp);
+        if (st != SC_OK)
+            return st;
+        for (size_t k = 0; k < nn; ++k) /* the closed forms give no uncertainties */
+            r->res.ugx_um[k] = r->res.ugy_um[k] = NAN;
+        r->res.sigma_r_used_um = NAN;
+        r->res.sigma_r_est_um = r->lres.sigma_r_est_um;
+        r->res.dof = r->lres.dof;
+        sc_grid_first_order(p, r->res.gx_um, r->res.gy_um, &r->res.O, &r->res.R);
+    } else {
+        /* the chosen result is the least-squares one: share its arrays */
+        memcpy(r->res.gx_um, r->lres.gx_um, 6 * nn * sizeof(double));
+        double *keep[6] = {r->res.gx_um, r->res.gy_um, r->res.ugx_um, r->res.ugy_um,
+                           r->res.ax_um, r->res.ay_um};
+        r->res = r->lres;
+        r->res.gx_um = keep[0], r->res.gy_um = keep[1], r->res.ugx_um = keep[2];
+        r->res.ugy_um = keep[3], r->res.ax_um = keep[4], r->res.ay_um = keep[5];
+        sc_grid_first_order(p, r->res.gx_um, r->res.gy_um, &r->res.O, &r->res.R);
+    }
+    make_maps(r);
+    for (size_t k = 0; k < nn; ++k)
+        if (!isfinite(r->res.gx_um[k]) || !isfinite(r->res.gy_um[k]))
+            return sc_error_set(err, SC_E_INTERNAL, r->in, 0, "the %s solution is not finite",
+                                r->method);
+    return compute_residuals(r, err);
+}
+
+static void free_report(grid_report *r)
+{
+    free(r->buf);
+    sc_grid_data_free(&r->d);
+}
+
+/* ---- figures ---- */
+
+typedef struct fig_cm {
+    const sc_stage_map *m;
+    int plate;
+    const double *v;
+    const char *title, *unit;
+    int diverging;
+} fig_cm;
+
+static void draw_cm(FILE *fp, const void *ctx)
+{
+    const fig_cm *f = ctx;
+    plot_colormap_svg(fp, f->m, f->plate, f->v, f->title, f->unit, f->diverging);
+}
+
+typedef struct fig_ar {
+    const sc_stage_map *m;
+    int plate;
+    const char *title, *what;
+} fig_ar;
+
+static void draw_ar(FILE *fp, const void *ctx)
+{
+    const fig_ar *f = ctx;
+    plot_arrows_svg(fp, f->m, f->plate, 0, f->title, f->what);
+}
+
+typedef struct fig_hist {
+    const double *v;
+    long n;
+    double sigma;
+    const char *title, *xlabel;
+} fig_hist;
+
+static void draw_hist(FILE *fp, const void *ctx)
+{
+    const fig_hist *f = ctx;
+    plot_histogram_svg(fp, f->v, f->n, f->sigma, f->title, f->xlabel);
+}
+
+/* ---- sections ---- */
+
+static void section_plan(FILE *fp, const grid_report *r)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    int n = p->n;
+    fputs("<section id=\"plan\">\n<h2>1. Plan</h2>\n<table>\n", fp);
+    fprintf(fp, "<tr><th class=\"l\">marks per side N</th><td id=\"N\">%d</td></tr>\n", n);
+    fprintf(fp, "<tr><th class=\"l\">pitch P</th><td id=\"pitch_mm\">%g mm</td></tr>\n", p->pitch_mm);
+    fprintf(fp, "<tr><th class=\"l\">stage grid origin</th><td>(%g, %g) mm</td></tr>\n",
+            p->origin_mm[0], p->origin_mm[1]);
+    fprintf(fp, "<tr><th class=\"l\">views</th><td>%d</td></tr>\n", p->n_views);
+    fprintf(fp, "<tr><th class=\"l\">measured marks (rows)</th><td id=\"n_rows\">%ld</td></tr>\n",
+            r->info.n_rows);
+    fprintf(fp, "<tr><th class=\"l\">scalar equations / unknowns / gauge constraints</th>"
+                "<td>%ld / %ld / %ld</td></tr>\n",
+            r->qi.n_equations, r->qi.n_unknowns, r->qi.n_constraints);
+    fprintf(fp, "<tr><th class=\"l\">identifies G</th><td id=\"identifiable\" class=\"%s\">%s</td></tr>\n",
+            r->qi.identifiable ? "pass" : "fail", r->qi.identifiable ? "yes" : "no");
+    fprintf(fp, "<tr><th class=\"l\">free degrees of freedom beyond the gauge</th><td id=\"free\">%ld</td></tr>\n",
+            r->qi.free_dof);
+    fputs("<tr><th class=\"l\">predicted std(G)/σ_r, RMS over nodes (least squares)</th>", fp);
+    html_num_cell(fp, "sigma_c_ratio_rms", "%.4f", r->qi.sigma_c_ratio_rms);
+    fputs("</tr>\n<tr><th class=\"l\">predicted std(G)/σ_r, worst node</th>", fp);
+    html_num_cell(fp, "sigma_c_ratio_max", "%.4f", r->qi.sigma_c_ratio_max);
+    fputs("</tr>\n</table>\n<table>\n<tr><th>view</th><th>rot (°)</th><th>shift (pitches)</th>"
+          "<th class=\"l\">measures</th><th>rows in file</th></tr>\n",
+          fp);
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        fprintf(fp, "<tr><td>%d</td><td>%d</td><td>%d, %d</td><td class=\"l\">", r->info.view_id[v],
+                w->rot_deg, w->shift_x, w->shift_y);
+        if (w->restricted) {
+            fputs("rows ", fp);
+            int first = 1;
+            for (int i = 0; i < n; ++i)
+                if (w->row_sel[i])
+                    fprintf(fp, "%s%d", first ? "" : ",", i), first = 0;
+            fputs(first ? "none" : "", fp);
+            fputs("; columns ", fp);
+            first = 1;
+            for (int j = 0; j < n; ++j)
+                if (w->col_sel[j])
+                    fprintf(fp, "%s%d", first ? "" : ",", j), first = 0;
+            fputs(first ? "none" : "", fp);
+        } else
+            fputs("every mark on the stage grid", fp);
+        fprintf(fp, "</td><td>%ld</td></tr>\n", r->info.view_rows[v]);
+    }
+    fputs("</table>\n</section>\n", fp);
+}
+
+static void section_method(FILE *fp, const grid_report *r)
+{
+    fputs("<section id=\"method\">\n<h2>2. Method</h2>\n<p>Method: <b id=\"method-name\">", fp);
+    html_esc(fp, r->method);
+    fputs("</b>. ", fp);
+    if (!strcmp(r->method, "lsq"))
+        fputs("Least squares over every measured mark of every view: unknowns G at each stage node, "
+              "the plate error A at each mark and a misalignment (tx, ty, θ) per view, the gauge "
+              "(G without translation, rotation or magnification; A without translation or "
+              "rotation) as hard constraints. Uncertainties are the square roots of the diagonal "
+              "of the estimator covariance, scaled by σ_r.",
+              fp);
+    else if (!strcmp(r->method, "ye"))
+        fputs("Ye et al.'s closed form: views rot 0°, rot 90° and a shift by one pitch. The closed "
+              "form gives no uncertainties; the residuals and the noise below are those of the "
+              "least-squares fit of the same data and model.",
+              fp);
+    else
+        fputs("Petrò's double shift (closed form): views rot 0°, rot 90°, shift +2 and a partial "
+              "shift −3 pitches. The closed form gives no uncertainties; the residuals and the "
+              "noise below are those of the least-squares fit of the same data and model.",
+              fp);
+    fputs("</p>\n<p>Model (µm): measured − nominal = G(node) + Rot(A(mark)) + (tx − θ·y, ty + θ·x) "
+          "+ noise. G = indicated − true position.</p>\n</section>\n",
+          fp);
+}
+
+static void section_noise(FILE *fp, const grid_report *r, int *chi2_pass)
+{
+    const sc_grid_result *l = &r->lres;
+    fputs("<section id=\"noise\">\n<h2>3. Measurement noise</h2>\n<table>\n", fp);
+    fputs("<tr><th class=\"l\">σ_r given (--sigma-r-um)</th>", fp);
+    html_num_cell(fp, "sigma_r_given_um", "%.4g µm", r->sigma_r_given > 0 ? r->sigma_r_given : NAN);
+    fputs("</tr>\n<tr><th class=\"l\">σ_r estimated from the residuals, √(RSS/dof)</th>", fp);
+    html_num_cell(fp, "sigma_r_est_um", "%.4g µm", l->sigma_r_est_um);
+    fputs("</tr>\n<tr><th class=\"l\">σ_r used for the uncertainties</th>", fp);
+    html_num_cell(fp, "sigma_r_used_um", "%.4g µm", r->res.sigma_r_used_um);
+    fputs("</tr>\n<tr><th class=\"l\">residual RMS</th>", fp);
+    html_num_cell(fp, "residual_rms_um", "%.4g µm", l->residual_rms_um);
+    fprintf(fp, "</tr>\n<tr><th class=\"l\">scalar measurements / residual degrees of freedom</th>"
+                "<td><span id=\"n_measurements\">%ld</span> / <span id=\"dof\">%ld</span></td></tr>\n",
+            l->n_measurements, l->dof);
+    double vf = NAN;
+#ifdef SC_GRID_BAARDA_CRIT
+    if (l->weighted)
+        vf = l->variance_factor;
+#endif
+    if (!isfinite(vf) && r->sigma_r_given > 0 && isfinite(l->sigma_r_est_um))
+        vf = (l->sigma_r_est_um / r->sigma_r_given) * (l->sigma_r_est_um / r->sigma_r_given);
+    double lo, hi;
+    int pass = html_chi2_interval(vf, l->dof, &lo, &hi);
+    *chi2_pass = pass;
+    fputs("<tr><th class=\"l\">variance factor σ̂²/σ² (weighted RSS / dof)</th>", fp);
+    html_num_cell(fp, "variance_factor", "%.4f", vf);
+    fputs("</tr>\n<tr><th class=\"l\">χ² test at 95 % (two-sided): accept if within</th>", fp);
+    if (pass >= 0)
+        fprintf(fp, "<td id=\"chi2_interval\">[%.4f, %.4f]</td></tr>\n<tr><th class=\"l\">χ² test</th>"
+                    "<td id=\"chi2\" class=\"%s\">%s</td>",
+                lo, hi, pass ? "pass" : "fail", pass ? "pass" : "fail");
+    else
+        fputs("<td>—</td></tr>\n<tr><th class=\"l\">χ² test</th><td id=\"chi2\">not applicable</td>", fp);
+    fputs("</tr>\n</table>\n", fp);
+    if (pass < 0)
+        fputs("<p class=\"note\">No noise level was stated (neither --sigma-r-um nor uncertainties "
+              "in the file), so σ_r is estimated from the residuals and the variance factor is 1 "
+              "by construction: there is nothing to test. Give the instrument's σ_r to test it.</p>\n",
+              fp);
+    else if (!pass)
+        fputs("<p class=\"note\">The residuals do not agree with the stated noise: either σ_r is "
+              "wrong, the data hold outliers (below), or the model misses an effect (drift, "
+              "thermal expansion, a plate that moved between views).</p>\n",
+              fp);
+    fputs("</section>\n", fp);
+}
+
+typedef struct worst {
+    int v, i, j;
+    double r, rx, ry, t;
+} worst;
+
+static int cmp_worst(const void *a, const void *b)
+{
+    double x = ((const worst *)a)->r, y = ((const worst *)b)->r;
+    return x < y ? 1 : x > y ? -1 : 0;
+}
+
+static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, sc_error *err)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    int n = p->n;
+    size_t nn = NSQ(r);
+    fputs("<section id=\"residuals\">\n<h2>4. Residuals</h2>\n<p>Residual r = measured − fitted "
+          "position of each mark in each view (least-squares fit).</p>\n<table id=\"residual-table\">\n"
+          "<tr><th>view</th><th>rot</th><th>shift</th><th>marks</th><th>RMS r<sub>x</sub> (µm)</th>"
+          "<th>RMS r<sub>y</sub> (µm)</th><th>max |r| (µm)</th><th class=\"l\">at node (x, y) mm</th>"
+          "<th>flagged</th></tr>\n",
+          fp);
+    long n_flag = 0, n_all = 0;
+    for (int v = 0; v < p->n_views; ++v) {
+        double sx = 0, sy = 0, mx = -1;
+        long cnt = 0, fl = 0;
+        size_t kmax = 0;
+        for (size_t k = 0; k < nn; ++k) {
+            double a = r->rx[v * nn + k], b = r->ry[v * nn + k];
+            if (!isfinite(a) || !isfinite(b))
+                continue;
+            sx += a * a;
+            sy += b * b;
+            cnt++;
+            if (hypot(a, b) > mx)
+                mx = hypot(a, b), kmax = k;
+            if (r->have_t && (fabs(r->tx[v * nn + k]) > r->crit || fabs(r->ty[v * nn + k]) > r->crit))
+                fl++;
+        }
+        n_flag += fl;
+        n_all += cnt;
+        const sc_grid_view *w = &p->view[v];
+        fprintf(fp, "<tr><td>%d</td><td>%d</td><td>%d, %d</td><td>%ld</td>", r->info.view_id[v],
+                w->rot_deg, w->shift_x, w->shift_y, cnt);
+        char id[48];
+        snprintf(id, sizeof id, "rms-rx-%d", v);
+        html_num_cell(fp, id, "%.4g", cnt ? sqrt(sx / cnt) : NAN);
+        snprintf(id, sizeof id, "rms-ry-%d", v);
+        html_num_cell(fp, id, "%.4g", cnt ? sqrt(sy / cnt) : NAN);
+        html_num_cell(fp, NULL, "%.4g", cnt ? mx : NAN);
+        int ni = 0, nj = 0;
+        if (cnt && sc_grid_mark_node(p, v, (int)(kmax / n), (int)(kmax % n), &ni, &nj))
+            fprintf(fp, "<td class=\"l\">(%g, %g)</td>", sc_stage_map_x_mm(&r->gm, nj),
+                    sc_stage_map_y_mm(&r->gm, ni));
+        else
+            fputs("<td class=\"l\">—</td>", fp);
+        if (r->have_t)
+            fprintf(fp, "<td>%ld</td></tr>\n", fl);
+        else
+            fputs("<td>—</td></tr>\n", fp);
+    }
+    fputs("</table>\n", fp);
+    /* histogram of all residual components */
+    size_t nres = (size_t)p->n_views * nn;
+    double *all = malloc(2 * nres * sizeof(double));
+    worst *ws = malloc((size_t)(n_all > 0 ? n_all : 1) * sizeof(worst));
+    if (!all || !ws) {
+        free(all);
+        free(ws);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    long m = 0, nw = 0;
+    for (int v = 0; v < p->n_views; ++v)
+        for (size_t k = 0; k < nn; ++k) {
+            double a = r->rx[v * nn + k], b = r->ry[v * nn + k];
+            if (!isfinite(a) || !isfinite(b))
+                continue;
+            all[m++] = a;
+            all[m++] = b;
+            double t = r->have_t ? fmax(fabs(r->tx[v * nn + k]), fabs(r->ty[v * nn + k])) : NAN;
+            ws[nw++] = (worst){v, (int)(k / n), (int)(k % n), hypot(a, b), a, b, t};
+        }
+    /* residuals spread less than the noise: E[Σr²] = σ²·dof over n_measurements components */
+    double spread = r->lres.sigma_r_est_um *
+                    sqrt((double)r->lres.dof / (double)(r->lres.n_measurements > 0 ? r->lres.n_measurements : 1));
+    fig_hist fh = {all, m, spread, "residuals r_x and r_y of every measured mark (µm)",
+                   "residual (µm)"};
+    sc_status st = html_figure(fp, draw_hist, &fh,
+                               "Histogram of the residual components with the normal density of "
+                               "their expected spread, σ̂_r·√(dof / n) (residuals are smaller than "
+                               "the noise by the leverage of each measurement).",
+                               err);
+    free(all);
+    if (st != SC_OK) {
+        free(ws);
+        return st;
+    }
+    qsort(ws, (size_t)nw, sizeof *ws, cmp_worst);
+    fputs("<h3>Outliers</h3>\n", fp);
+    if (r->have_t)
+        fprintf(fp, "<p>Baarda's data snooping: a measurement is flagged when a standardized residual "
+                    "|t| = |r|/(σ·√(1 − h)) exceeds %.3f (two-sided, significance 0.001). "
+                    "<b id=\"n_outliers\">%ld</b> measurement(s) flagged.</p>\n",
+                r->crit, n_flag);
+    else
+        fputs("<p class=\"note\">This build's least squares does not yet give standardized "
+              "residuals (leverages), so no measurement is flagged by a statistical test "
+              "(<span id=\"n_outliers\">not tested</span>). The largest residuals are listed; "
+              "compare them with σ_r.</p>\n",
+              fp);
+    fputs("<table id=\"worst-residuals\">\n<tr><th>view</th><th>mark i</th><th>mark j</th>"
+          "<th>r<sub>x</sub> (µm)</th><th>r<sub>y</sub> (µm)</th><th>|r|/σ̂_r</th><th>max |t|</th>"
+          "<th>flagged</th></tr>\n",
+          fp);
+    for (long q = 0; q < nw && q < 10; ++q) {
+        const worst *w = &ws[q];
+        fprintf(fp, "<tr><td>%d</td><td>%d</td><td>%d</td>", r->info.view_id[w->v], w->i, w->j);
+        html_num_cell(fp, NULL, "%.4g", w->rx);
+        html_num_cell(fp, NULL, "%.4g", w->ry);
+        html_num_cell(fp, NULL, "%.2f", w->r / r->lres.sigma_r_est_um);
+        html_num_cell(fp, NULL, "%.2f", w->t);
+        fprintf(fp, "<td class=\"%s\">%s</td></tr>\n",
+                r->have_t && w->t > r->crit ? "fail" : "",
+                !r->have_t ? "—" : w->t > r->crit ? "yes" : "no");
+    }
+    fputs("</table>\n</section>\n", fp);
+    free(ws);
+    *n_out = n_flag;
+    return SC_OK;
+}
+
+static double rms_of(const double *v, size_t n, double *max_abs)
+{
+    double s = 0, mx = 0;
+    size_t c = 0;
+    for (size_t k = 0; k < n; ++k)
+        if (isfinite(v[k])) {
+            s += v[k] * v[k];
+            mx = fmax(mx, fabs(v[k]));
+            c++;
+        }
+    if (max_abs)
+        *max_abs = c ? mx : NAN;
+    return c ? sqrt(s / c) : NAN;
+}
+
+static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    const sc_grid_result *s = &r->res;
+    size_t nn = NSQ(r);
+    double uO = NAN, uR = NAN;
+#ifdef SC_GRID_BAARDA_CRIT
+    uO = s->uO;
+    uR = s->uR;
+#endif
+    fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
+          "<table>\n<tr><th class=\"l\">quantity</th><th>value</th><th>u (k = 1)</th>"
+          "<th>U (k = 2)</th><th class=\"l\">unit</th></tr>\n",
+          fp);
+    html_u_row(fp, "O, non-orthogonality (Petrò eq. 4)", "O", s->O * 1e6, uO * 1e6, "%.5g", "µm/m");
+    html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "µm/m");
+    for (int v = 0; v < p->n_views; ++v) {
+        double ut = NAN, uu = NAN, uth = NAN;
+#ifdef SC_GRID_BAARDA_CRIT
+        ut = s->utx_um[v];
+        uu = s->uty_um[v];
+        uth = s->utheta_urad[v];
+#endif
+        char name[96], id[32];
+        snprintf(name, sizeof name, "view %d: tx", r->info.view_id[v]);
+        snprintf(id, sizeof id, "tx-%d", v);
+        html_u_row(fp, name, id, s->tx_um[v], ut, "%.5g", "µm");
+        snprintf(name, sizeof name, "view %d: ty", r->info.view_id[v]);
+        snprintf(id, sizeof id, "ty-%d", v);
+        html_u_row(fp, name, id, s->ty_um[v], uu, "%.5g", "µm");
+        snprintf(name, sizeof name, "view %d: θ", r->info.view_id[v]);
+        snprintf(id, sizeof id, "theta-%d", v);
+        html_u_row(fp, name, id, s->theta_urad[v], uth, "%.5g", "µrad");
+    }
+    fputs("</table>\n", fp);
+    if (!isfinite(uO))
+        fputs("<p class=\"note\">Uncertainties of O, R and the misalignments: not given by this "
+              "build's solver (—).</p>\n",
+              fp);
+    /* G statistics */
+    double mgx, mgy, mux, muy, ma;
+    double rgx = rms_of(s->gx_um, nn, &mgx), rgy = rms_of(s->gy_um, nn, &mgy);
+    double rux = rms_of(s->ugx_um, nn, &mux), ruy = rms_of(s->ugy_um, nn, &muy);
+    double rax = rms_of(s->ax_um, nn, &ma), ray = rms_of(s->ay_um, nn, NULL);
+    fputs("<h3>Stage error G</h3>\n<table>\n<tr><th class=\"l\">quantity</th><th>RMS</th>"
+          "<th>max |·|</th><th class=\"l\">unit</th></tr>\n",
+          fp);
+    fputs("<tr><td class=\"l\">G<sub>x</sub></td>", fp);
+    html_num_cell(fp, "gx-rms", "%.4g", rgx);
+    html_num_cell(fp, "gx-max", "%.4g", mgx);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">G<sub>y</sub></td>", fp);
+    html_num_cell(fp, "gy-rms", "%.4g", rgy);
+    html_num_cell(fp, "gy-max", "%.4g", mgy);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">u(G<sub>x</sub>), k = 1</td>", fp);
+    html_num_cell(fp, "ugx-rms", "%.4g", rux);
+    html_num_cell(fp, "ugx-max", "%.4g", mux);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">u(G<sub>y</sub>), k = 1</td>", fp);
+    html_num_cell(fp, "ugy-rms", "%.4g", ruy);
+    html_num_cell(fp, "ugy-max", "%.4g", muy);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">U(G<sub>x</sub>) = 2u, k = 2</td>", fp);
+    html_num_cell(fp, "Ugx-rms", "%.4g", 2 * rux);
+    html_num_cell(fp, "Ugx-max", "%.4g", 2 * mux);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">U(G<sub>y</sub>) = 2u, k = 2</td>", fp);
+    html_num_cell(fp, "Ugy-rms", "%.4g", 2 * ruy);
+    html_num_cell(fp, "Ugy-max", "%.4g", 2 * muy);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">plate error A<sub>x</sub>, A<sub>y</sub> (RMS)</td>", fp);
+    html_num_cell(fp, "ax-rms", "%.4g", rax);
+    html_num_cell(fp, "ay-rms", "%.4g", ray);
+    fputs("<td class=\"l\">µm</td></tr>\n</table>\n", fp);
+
+    fig_ar far = {&r->gm, 0, "stage error G (arrows)", "G"};
+    sc_status st = html_figure(fp, draw_ar, &far, "The stage error map G at the stage nodes.", err);
+    fig_cm cgx = {&r->gm, 0, s->gx_um, "Gx (µm)", "µm", 1};
+    fig_cm cgy = {&r->gm, 0, s->gy_um, "Gy (µm)", "µm", 1};
+    if (st == SC_OK)
+        st = html_figure(fp, draw_cm, &cgx, "Gx as a colour map.", err);
+    if (st == SC_OK)
+        st = html_figure(fp, draw_cm, &cgy, "Gy as a colour map.", err);
+    if (st == SC_OK && sc_stage_map_has_u(&r->gm)) {
+        fig_cm cux = {&r->gm, 0, s->ugx_um, "u(Gx), k = 1 (µm)", "µm", 0};
+        fig_cm cuy = {&r->gm, 0, s->ugy_um, "u(Gy), k = 1 (µm)", "µm", 0};
+        st = html_figure(fp, draw_cm, &cux,
+                         "Standard uncertainty of Gx (k = 1); the expanded uncertainty (k = 2) is twice it.",
+                         err);
+        if (st == SC_OK)
+            st = html_figure(fp, draw_cm, &cuy,
+                             "Standard uncertainty of Gy (k = 1); the expanded uncertainty (k = 2) is twice it.",
+                             err);
+    } else if (st == SC_OK)
+        fputs("<p class=\"note\">No uncertainty map: the closed-form methods give none (use "
+              "--method lsq).</p>\n",
+              fp);
+    fig_ar fa = {&r->am, 1, "plate error A (arrows, plate frame)", "A"};
+    if (st == SC_OK)
+        st = html_figure(fp, draw_ar, &fa,
+                         "The plate error A at the plate's marks (plate frame), as separated from G.",
+                         err);
+    fputs("</section>\n", fp);
+    return st;
+}
+
+/* The whole map as a table (small maps only; the map file holds it anyway). */
+static void appendix_table(FILE *fp, const grid_report *r)
+{
+    int n = r->d.plan.n;
+    if ((long)n * n > 41 * 41) {
+        fputs("<p>The node table is left out for maps larger than 41 × 41 nodes; the map file "
+              "written by <code>selfcal grid --map</code> holds it.</p>\n",
+              fp);
+        return;
+    }
+    fputs("<details id=\"node-table\"><summary>Stage error at every node (table)</summary>\n"
+          "<table class=\"map\">\n<tr><th>i</th><th>j</th><th>x (mm)</th><th>y (mm)</th>"
+          "<th>G<sub>x</sub> (µm)</th><th>G<sub>y</sub> (µm)</th><th>u(G<sub>x</sub>)</th>"
+          "<th>u(G<sub>y</sub>)</th><th>U(G<sub>x</sub>), k = 2</th><th>U(G<sub>y</sub>), k = 2</th></tr>\n",
+          fp);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            int k = i * n + j;
+            fprintf(fp, "<tr class=\"node\" data-i=\"%d\" data-j=\"%d\"><td>%d</td><td>%d</td><td>%g</td><td>%g</td>",
+                    i, j, i, j, sc_stage_map_x_mm(&r->gm, j), sc_stage_map_y_mm(&r->gm, i));
+            html_num_cell(fp, NULL, "%.5f", r->res.gx_um[k]);
+            html_num_cell(fp, NULL, "%.5f", r->res.gy_um[k]);
+            html_num_cell(fp, NULL, "%.5f", r->res.ugx_um[k]);
+            html_num_cell(fp, NULL, "%.5f", r->res.ugy_um[k]);
+            html_num_cell(fp, NULL, "%.5f", 2 * r->res.ugx_um[k]);
+            html_num_cell(fp, NULL, "%.5f", 2 * r->res.ugy_um[k]);
+            fputs("</tr>\n", fp);
+        }
+    fputs("</table>\n</details>\n", fp);
+}
+
+int cmd_report_grid(int argc, char **argv)
+{
+    const char *cmd = "report grid";
+    grid_report r;
+    memset(&r, 0, sizeof r);
+    r.method = "lsq";
+    const char *out = NULL;
+    verify_opts vo;
+    verify_opts_init(&vo);
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        }
+        if (o[0] != '-' || !strcmp(o, "-")) {
+            if (r.in)
+                return cli_usage_error(cmd, "more than one input file ('%s', '%s')", r.in, o);
+            r.in = o;
+            continue;
+        }
+        if (!strcmp(o, "--raw")) {
+            vo.raw = 1;
+            continue;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+        const char *v = argv[++a];
+        if (!strcmp(o, "-o") || !strcmp(o, "--out"))
+            out = v;
+        else if (!strcmp(o, "--method"))
+            r.method = v;
+        else if (!strcmp(o, "--sigma-r-um")) {
+            if (sc_parse_double(v, &r.sigma_r_given) || !(r.sigma_r_given > 0) ||
+                !(r.sigma_r_given <= SC_INPUT_MAX_ABS))
+                return cli_usage_error(cmd, "--sigma-r-um needs a positive number, got '%s'", v);
+        } else if (!strcmp(o, "--verify"))
+            vo.measurement = v;
+        else if (!strcmp(o, "--table"))
+            vo.table = v;
+        else if (!strcmp(o, "--tolerance-um")) {
+            if (sc_parse_double(v, &vo.tolerance_um) || !(vo.tolerance_um > 0) ||
+                !(vo.tolerance_um <= SC_INPUT_MAX_ABS))
+                return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
+        } else
+            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    }
+    if (!r.in || !out)
+        return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
+    if (strcmp(r.method, "lsq") && strcmp(r.method, "ye") && strcmp(r.method, "double-shift"))
+        return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
+    if (!vo.measurement != !vo.table)
+        return cli_usage_error(cmd, "--verify and --table go together (see --help)");
+
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st = run(&r, &err);
+    verify_result vr;
+    memset(&vr, 0, sizeof vr);
+    if (st == SC_OK && vo.measurement) {
+        vo.plate = &r.am;
+        st = verify_run(&vo, &vr, &err);
+    }
+    sc_afile f;
+    memset(&f, 0, sizeof f);
+    if (st == SC_OK)
+        st = sc_afile_open(&f, out, &err);
+    if (st == SC_OK) {
+        FILE *fp = f.fp;
+        char title[600];
+        snprintf(title, sizeof title, "Grid plate self-calibration report — %s", cli_basename(r.in));
+        html_begin(fp, title);
+        fputs("<h1>", fp);
+        html_esc(fp, title);
+        fputs("</h1>\n", fp);
+        /* summary first; the numbers are filled from the sections' results */
+        double mux, muy;
+        rms_of(r.res.ugx_um, NSQ(&r), &mux);
+        rms_of(r.res.ugy_um, NSQ(&r), &muy);
+        fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d, pitch %g mm, "
+                    "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated %.4g µm",
+                r.method, r.d.plan.n, r.d.plan.pitch_mm, r.d.plan.n_views, r.info.n_rows,
+                r.identifiable ? "yes" : "no", r.lres.sigma_r_est_um);
+        if (r.sigma_r_given > 0)
+            fprintf(fp, " (given %.4g µm)", r.sigma_r_given);
+        fputs(".", fp);
+        if (isfinite(mux))
+            fprintf(fp, " Largest u(G): %.4g µm (k = 1), U = %.4g µm (k = 2).", fmax(mux, muy),
+                    2 * fmax(mux, muy));
+        if (vo.measurement)
+            fprintf(fp, " Verification: <b class=\"%s\">%s</b>.", vr.pass ? "pass" : "fail",
+                    vr.pass ? "pass" : "fail");
+        fputs("</p></div>\n", fp);
+        section_plan(fp, &r);
+        section_method(fp, &r);
+        int chi2;
+        section_noise(fp, &r, &chi2);
+        long n_out = 0;
+        st = section_residuals(fp, &r, &n_out, &err);
+        if (st == SC_OK)
+            st = section_results(fp, &r, &err);
+        if (st == SC_OK && vo.measurement)
+            st = verify_html_section(fp, &vo, &vr, "6. Verification of the compensated machine", &err);
+        const char *inputs[3] = {r.in, vo.measurement, vo.table};
+        const char *roles[3] = {"measurement (selfcal-grid v1)", "re-measurement (verify)",
+                                "lookup table (verify)"};
+        if (st == SC_OK)
+            st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, vo.measurement ? 3 : 1, &err);
+        if (st == SC_OK) {
+            fputs("<h2>Appendix</h2>\n", fp);
+            appendix_table(fp, &r);
+            html_end(fp);
+        }
+        if (st == SC_OK && ferror(fp))
+            st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
+        if (st == SC_OK)
+            st = sc_afile_commit(&f, &err);
+        else
+            sc_afile_abort(&f);
+    }
+    verify_result_free(&vr);
+    free_report(&r);
+    if (st != SC_OK) {
+        if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE))
+            snprintf(err.file, sizeof err.file, "%s", r.in);
+        return cli_report(&err);
+    }
+    return CLI_OK;
+}

@@ -1,0 +1,379 @@
+/* selfcal report profile — the report of a straightness profile reconstruction (two-set
+ * two-point method) as one self-contained HTML file (SPEC §9): the set-up, the method, the noise
+ * given and estimated with its χ² test, the residuals of each scan, f with its uncertainty (k = 1
+ * and k = 2), u(f), e_y, and the provenance. Computed by the same code as `selfcal profile`. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "plots.h"
+#include "selfcal/profile_calibrate.h"
+#include "report_html.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+
+static const char *USAGE =
+    "usage: selfcal report profile IN.csv -o R.html [--method lsq|dft] [--sigma-disp-um X]\n"
+    "                              [--sigma-angle-urad Y]\n"
+    "\n"
+    "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
+    "prints to PDF from a browser): the set-up (N, s, d1, d2), the method, the sensor noise given\n"
+    "(options win over the file's header lines) and estimated from the residuals, the variance\n"
+    "factor and its chi-square test, the residuals of each scan (statistics and histogram), the\n"
+    "profile f with bands of its standard (k = 1) and expanded (k = 2) uncertainty, u(f), the\n"
+    "stage's straightness motion error e_y, and the provenance (selfcal version, date, command\n"
+    "line, SHA-256 of the input). Default method: lsq. Exit 0, or 2 on bad input (one line\n"
+    "naming the file and line; no report is left).\n";
+
+/* The calibration as `selfcal profile` computes it, plus what the residuals need. */
+typedef struct profile_run {
+    int n;
+    double *blk;
+    double *y1, *y2;    /* the combined differences (N - d_k values) */
+    double *f, *uf, *ey; /* the chosen method's result */
+    double *fres;       /* the least-squares f the residuals are taken from */
+    sc_profile_solution sol;
+} profile_run;
+
+static sc_status profile_run_compute(const sc_profile_data *d, sc_profile_method method,
+                                     double sd, double sa, profile_run *r, sc_error *err)
+{
+    int n = d->n;
+    r->n = n;
+    r->blk = malloc((size_t)7 * n * sizeof(double));
+    if (!r->blk)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    r->y1 = r->blk, r->y2 = r->y1 + n, r->f = r->y2 + n, r->uf = r->f + n, r->ey = r->uf + n;
+    r->fres = r->ey + n;
+    double *scratch = r->fres + n;
+    sc_profile_combine(d, 0, r->y1);
+    sc_profile_combine(d, 1, r->y2);
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    o.method = method;
+    o.sigma_disp_um = sd;
+    o.sigma_angle_urad = sa;
+    r->sol = (sc_profile_solution){.f_um = r->f, .uf_um = r->uf, .ey_um = r->ey};
+    sc_status st = sc_profile_calibrate(d, &o, &r->sol, err);
+    if (st != SC_OK)
+        return st;
+    if (method == SC_PROFILE_LSQ) {
+        memcpy(r->fres, r->f, (size_t)n * sizeof(double));
+        return SC_OK;
+    }
+    /* the residuals (and the noise estimate) are those of the least-squares fit */
+    o.method = SC_PROFILE_LSQ;
+    sc_profile_solution ls = {.f_um = r->fres, .uf_um = NULL, .ey_um = scratch};
+    return sc_profile_calibrate(d, &o, &ls, err);
+}
+
+static void profile_run_free(profile_run *r)
+{
+    free(r->blk);
+    r->blk = NULL;
+}
+
+typedef struct fig_prof {
+    const sc_profile_result *a;
+    const profile_plot_opts *o;
+} fig_prof;
+
+static void draw_prof(FILE *fp, const void *ctx)
+{
+    const fig_prof *f = ctx;
+    profile_plot_svg(fp, f->a, NULL, NULL, f->o, NULL);
+}
+
+typedef struct fig_hist {
+    const double *v;
+    long n;
+    double sigma;
+    const char *title;
+} fig_hist;
+
+static void draw_hist(FILE *fp, const void *ctx)
+{
+    const fig_hist *f = ctx;
+    plot_histogram_svg(fp, f->v, f->n, f->sigma, f->title, "residual (nm)");
+}
+
+/* Residuals (nm) of scan k against the least-squares f: y_k(n) − (f(n+d) − f(n)) − c_k with c_k
+ * their mean (the least-squares offset for that f). Returns the count, m = N − d. */
+static int scan_residuals(const profile_run *r, int d, const double *y, double *res_nm)
+{
+    int m = r->n - d;
+    double c = 0;
+    for (int i = 0; i < m; ++i)
+        c += y[i] - (r->fres[i + d] - r->fres[i]);
+    c /= m;
+    for (int i = 0; i < m; ++i)
+        res_nm[i] = (y[i] - (r->fres[i + d] - r->fres[i]) - c) * 1e3;
+    return m;
+}
+
+static double rms_max(const double *v, int n, double *mx)
+{
+    double s = 0;
+    int c = 0;
+    *mx = 0;
+    for (int i = 0; i < n; ++i)
+        if (isfinite(v[i])) {
+            s += v[i] * v[i];
+            *mx = fmax(*mx, fabs(v[i]));
+            c++;
+        }
+    if (!c)
+        *mx = NAN;
+    return c ? sqrt(s / c) : NAN;
+}
+
+static double peak_to_valley(const double *v, int n)
+{
+    double lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i < n; ++i)
+        if (isfinite(v[i]))
+            lo = fmin(lo, v[i]), hi = fmax(hi, v[i]);
+    return hi >= lo ? hi - lo : NAN;
+}
+
+static sc_status write_report(FILE *fp, const char *in, const char *method_s,
+                              const sc_profile_data *d, const profile_run *r, int argc,
+                              char **argv, sc_error *err)
+{
+    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
+    char title[600];
+    snprintf(title, sizeof title, "Straightness profile report — %s", cli_basename(in));
+    html_begin(fp, title);
+    fputs("<h1>", fp);
+    html_esc(fp, title);
+    fputs("</h1>\n", fp);
+    double umax, urms = rms_max(r->uf, n, &umax);
+    double fpv = peak_to_valley(r->f, n), eypv = peak_to_valley(r->ey, n);
+    fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d points, s = %g mm, "
+                "d1 = %d, d2 = %d. Straightness of f (peak to valley) %.4g µm",
+            method_s, n, d->s_mm, d1, d2, fpv);
+    if (isfinite(umax))
+        fprintf(fp, "; largest u(f) %.4g nm (k = 1), U = %.4g nm (k = 2)", umax * 1e3, 2e3 * umax);
+    fputs(".</p></div>\n", fp);
+
+    fputs("<section id=\"setup\">\n<h2>1. Set-up</h2>\n<table>\n", fp);
+    fprintf(fp, "<tr><th class=\"l\">points N</th><td id=\"N\">%d</td></tr>\n", n);
+    fprintf(fp, "<tr><th class=\"l\">sampling interval s</th><td id=\"s_mm\">%g mm</td></tr>\n", d->s_mm);
+    fprintf(fp, "<tr><th class=\"l\">sensor spacings d1, d2 (samples)</th><td><span id=\"d1\">%d</span>, "
+                "<span id=\"d2\">%d</span></td></tr>\n", d1, d2);
+    fprintf(fp, "<tr><th class=\"l\">sensor spacings D1, D2</th><td>%g mm, %g mm</td></tr>\n",
+            d1 * d->s_mm, d2 * d->s_mm);
+    fprintf(fp, "<tr><th class=\"l\">samples per scan</th><td>%d, %d</td></tr>\n</table>\n</section>\n",
+            n - d1, n - d2);
+
+    fputs("<section id=\"method\">\n<h2>2. Method</h2>\n<p>Method: <b id=\"method-name\">", fp);
+    html_esc(fp, method_s);
+    fputs("</b>. ", fp);
+    if (!strcmp(method_s, "lsq"))
+        fputs("Least squares (Ding et al. §2.3): f at every point and the offsets c1, c2 from "
+              "y_k(n) = f(n + d_k) − f(n) + c_k, each scan weighted by the inverse variance of "
+              "y_k; f relative to its least-squares line. u(f): square roots of the diagonal of "
+              "the estimator covariance.",
+              fp);
+    else
+        fputs("Discrete Fourier transform (Ding et al. §2.2): natural extension of y_k, zero-point "
+              "compensation, combined coefficients, inverse transform; f relative to its "
+              "least-squares line. u(f): exact from the method's linear response. Residuals and "
+              "the noise estimate come from the least-squares fit of the same data.",
+              fp);
+    fputs("</p>\n<p>Model: y_k = m2 − m1 − D_k·m3 = f(n + d_k) − f(n) + c_k; e_y = m1 − f from "
+          "scan 1, relative to its least-squares line.</p>\n</section>\n",
+          fp);
+
+    const sc_profile_solution *so = &r->sol;
+    fputs("<section id=\"noise\">\n<h2>3. Noise</h2>\n<table>\n", fp);
+    fputs("<tr><th class=\"l\">σ_disp given (each displacement sensor)</th>", fp);
+    html_num_cell(fp, "sigma_disp_um", "%.4g µm", so->noise_known ? so->sigma_disp_um : NAN);
+    fputs("</tr>\n<tr><th class=\"l\">σ_angle given</th>", fp);
+    html_num_cell(fp, "sigma_angle_urad", "%.4g µrad", so->noise_known ? so->sigma_angle_urad : NAN);
+    fputs("</tr>\n<tr><th class=\"l\">σ(y1), σ(y2) used for u(f)</th>", fp);
+    fprintf(fp, "<td><span id=\"sigma_y1_um\">%.4g</span>, <span id=\"sigma_y2_um\">%.4g</span> µm</td></tr>\n",
+            so->sigma_y_um[0], so->sigma_y_um[1]);
+    fprintf(fp, "<tr><th class=\"l\">residual degrees of freedom N − d1 − d2</th><td id=\"dof\">%d</td></tr>\n",
+            so->dof);
+    double vf = isfinite(so->residual_ratio) ? so->residual_ratio * so->residual_ratio : NAN;
+    fputs("<tr><th class=\"l\">variance factor (weighted RSS / dof)</th>", fp);
+    html_num_cell(fp, "variance_factor", "%.4f", vf);
+    double lo, hi;
+    int pass = html_chi2_interval(vf, so->dof, &lo, &hi);
+    fputs("</tr>\n<tr><th class=\"l\">χ² test at 95 % (two-sided)</th>", fp);
+    if (pass >= 0)
+        fprintf(fp, "<td><span id=\"chi2_interval\">[%.4f, %.4f]</span>: <b id=\"chi2\" class=\"%s\">%s</b></td>",
+                lo, hi, pass ? "pass" : "fail", pass ? "pass" : "fail");
+    else
+        fputs("<td id=\"chi2\">not applicable</td>", fp);
+    fputs("</tr>\n</table>\n", fp);
+    if (!so->noise_known)
+        fputs("<p class=\"note\">No sensor noise was stated (neither the file's header lines nor "
+              "the options): it is estimated from the residuals with equal scan weights, and the "
+              "variance factor is 1 by construction.</p>\n",
+              fp);
+    fputs("</section>\n", fp);
+
+    /* residuals */
+    double *res = malloc((size_t)(2 * n) * sizeof(double));
+    if (!res)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    int m1 = scan_residuals(r, d1, r->y1, res);
+    int m2 = scan_residuals(r, d2, r->y2, res + m1);
+    fputs("<section id=\"residuals\">\n<h2>4. Residuals</h2>\n<table>\n<tr><th>scan</th><th>d</th>"
+          "<th>samples</th><th>RMS (nm)</th><th>max |r| (nm)</th></tr>\n",
+          fp);
+    double mx1, mx2, rr1 = rms_max(res, m1, &mx1), rr2 = rms_max(res + m1, m2, &mx2);
+    fprintf(fp, "<tr><td>1</td><td>%d</td><td>%d</td>", d1, m1);
+    html_num_cell(fp, "res-rms-1", "%.4g", rr1);
+    html_num_cell(fp, "res-max-1", "%.4g", mx1);
+    fprintf(fp, "</tr>\n<tr><td>2</td><td>%d</td><td>%d</td>", d2, m2);
+    html_num_cell(fp, "res-rms-2", "%.4g", rr2);
+    html_num_cell(fp, "res-max-2", "%.4g", mx2);
+    fputs("</tr>\n</table>\n", fp);
+    double s_all = sqrt((rr1 * rr1 * m1 + rr2 * rr2 * m2) / (m1 + m2));
+    fig_hist fh = {res, m1 + m2, s_all, "residuals of y1 and y2 (nm)"};
+    sc_status st = html_figure(fp, draw_hist, &fh,
+                               "Histogram of the residuals of both scans with the normal density "
+                               "of their RMS.",
+                               err);
+    free(res);
+    fputs("</section>\n", fp);
+    if (st != SC_OK)
+        return st;
+
+    /* results */
+    double frms_mx, frms = rms_max(r->f, n, &frms_mx), eymx, eyrms = rms_max(r->ey, n, &eymx);
+    fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<table>\n<tr><th class=\"l\">quantity</th>"
+          "<th>value</th><th class=\"l\">unit</th></tr>\n",
+          fp);
+    fputs("<tr><td class=\"l\">f, peak to valley</td>", fp);
+    html_num_cell(fp, "f-pv", "%.5g", fpv);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">f, RMS</td>", fp);
+    html_num_cell(fp, "f-rms", "%.5g", frms);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">u(f), RMS over the points (k = 1)</td>", fp);
+    html_num_cell(fp, "uf-rms", "%.4g", urms * 1e3);
+    fputs("<td class=\"l\">nm</td></tr>\n<tr><td class=\"l\">u(f), largest (k = 1)</td>", fp);
+    html_num_cell(fp, "uf-max", "%.4g", umax * 1e3);
+    fputs("<td class=\"l\">nm</td></tr>\n<tr><td class=\"l\">U(f) = 2u, largest (k = 2)</td>", fp);
+    html_num_cell(fp, "Uf-max", "%.4g", 2 * umax * 1e3);
+    fputs("<td class=\"l\">nm</td></tr>\n<tr><td class=\"l\">e_y, peak to valley</td>", fp);
+    html_num_cell(fp, "ey-pv", "%.5g", eypv);
+    fputs("<td class=\"l\">µm</td></tr>\n<tr><td class=\"l\">e_y, RMS</td>", fp);
+    html_num_cell(fp, "ey-rms", "%.5g", eyrms);
+    fputs("<td class=\"l\">µm</td></tr>\n</table>\n", fp);
+    if (!r->sol.have_uf)
+        fputs("<p class=\"note\">No redundancy (N = d1 + d2): the noise cannot be estimated and "
+              "no uncertainty is given.</p>\n",
+              fp);
+    double *x = malloc((size_t)n * sizeof(double));
+    if (!x)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (int i = 0; i < n; ++i)
+        x[i] = i * d->s_mm;
+    sc_profile_result pr = {n, x, r->f, r->uf, r->ey};
+    char t2[128];
+    snprintf(t2, sizeof t2, "%s method, N = %d, d = %d/%d", method_s, n, d1, d2);
+    profile_plot_opts po = {t2, method_s, NULL, 0};
+    fig_prof fpf = {&pr, &po};
+    st = html_figure(fp, draw_prof, &fpf,
+                     "The profile f with bands f ± u(f) (k = 1) and f ± 2u(f) (k = 2), its standard "
+                     "uncertainty u(f) and the stage's straightness motion error e_y.",
+                     err);
+    fputs("</section>\n", fp);
+    const char *inputs[1] = {in};
+    const char *roles[1] = {"measurement (selfcal-profile v1)"};
+    if (st == SC_OK)
+        st = html_provenance(fp, argc, argv, inputs, roles, 1, err);
+    if (st == SC_OK && n <= 5000) {
+        fputs("<h2>Appendix</h2>\n<details id=\"profile-table\"><summary>The profile at every point "
+              "(table)</summary>\n<table class=\"profile\">\n<tr><th>n</th><th>x (mm)</th>"
+              "<th>f (µm)</th><th>u(f) (µm)</th><th>U(f), k = 2 (µm)</th><th>e_y (µm)</th></tr>\n",
+              fp);
+        for (int i = 0; i < n; ++i) {
+            fprintf(fp, "<tr class=\"pt\"><td>%d</td><td>%g</td>", i, x[i]);
+            html_num_cell(fp, NULL, "%.6f", r->f[i]);
+            html_num_cell(fp, NULL, "%.6f", r->uf[i]);
+            html_num_cell(fp, NULL, "%.6f", 2 * r->uf[i]);
+            html_num_cell(fp, NULL, "%.6f", r->ey[i]);
+            fputs("</tr>\n", fp);
+        }
+        fputs("</table>\n</details>\n", fp);
+    }
+    free(x);
+    html_end(fp);
+    return st;
+}
+
+int cmd_report_profile(int argc, char **argv)
+{
+    const char *cmd = "report profile";
+    const char *in = NULL, *out = NULL, *method_s = "lsq";
+    double sd = NAN, sa = NAN;
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        }
+        if (o[0] != '-' || !strcmp(o, "-")) {
+            if (in)
+                return cli_usage_error(cmd, "more than one input file ('%s', '%s')", in, o);
+            in = o;
+            continue;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+        const char *v = argv[++a];
+        if (!strcmp(o, "-o") || !strcmp(o, "--out"))
+            out = v;
+        else if (!strcmp(o, "--method"))
+            method_s = v;
+        else if (!strcmp(o, "--sigma-disp-um") || !strcmp(o, "--sigma-angle-urad")) {
+            double x;
+            if (sc_parse_double(v, &x) || x < 0 || !(x <= SC_INPUT_MAX_ABS))
+                return cli_usage_error(cmd, "%s: '%s' is not a non-negative number", o, v);
+            if (o[8] == 'd')
+                sd = x;
+            else
+                sa = x;
+        } else
+            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    }
+    if (!in || !out)
+        return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
+    sc_profile_method method;
+    if (!strcmp(method_s, "lsq"))
+        method = SC_PROFILE_LSQ;
+    else if (!strcmp(method_s, "dft"))
+        method = SC_PROFILE_DFT;
+    else
+        return cli_usage_error(cmd, "--method must be lsq or dft (got '%s')", method_s);
+    sc_error err;
+    sc_error_clear(&err);
+    sc_profile_data d;
+    if (sc_profile_read(in, &d, &err) != SC_OK)
+        return cli_report(&err);
+    profile_run r;
+    memset(&r, 0, sizeof r);
+    sc_status st = profile_run_compute(&d, method, sd, sa, &r, &err);
+    if (st == SC_OK) {
+        sc_afile f;
+        st = sc_afile_open(&f, out, &err);
+        if (st == SC_OK) {
+            st = write_report(f.fp, in, method_s, &d, &r, argc + 1, argv - 1, &err);
+            if (st == SC_OK && ferror(f.fp))
+                st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
+            if (st == SC_OK)
+                st = sc_afile_commit(&f, &err);
+            else
+                sc_afile_abort(&f);
+        }
+    }
+    profile_run_free(&r);
+    sc_profile_data_free(&d);
+    return st == SC_OK ? CLI_OK : cli_report(&err);
+}

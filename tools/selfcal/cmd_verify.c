@@ -1,0 +1,152 @@
+/* selfcal verify — after the table is loaded into the machine, compare a new measurement of the
+ * plate with what the calibration predicts (model: verify.h); statistics before and after
+ * compensation, pass/fail against a tolerance, optional residual file, plot and HTML report. */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+#include "plots.h"
+#include "report_html.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "verify.h"
+
+static const char *USAGE =
+    "usage: selfcal verify V.csv --table T.lut --artifact A.csv --tolerance-um T [--raw]\n"
+    "                      [--residuals R.csv] [--plot V.svg] [--html V.html]\n"
+    "\n"
+    "V.csv: the plate measured again after the table T.lut was loaded into the machine (a\n"
+    "selfcal-grid v1 file, typically one view, rot 0), as the compensated machine reads it\n"
+    "(--raw: uncompensated readings; the table's measure-mode correction is applied here).\n"
+    "A.csv: the plate error from the same calibration (selfcal grid --artifact).\n"
+    "From each mark's deviation the plate error (rotated into the view) and a least-squares\n"
+    "misalignment (tx, ty, theta) per view are removed; what is left after compensation is the\n"
+    "stage error the table did not remove, plus noise. 'Before' is the same measurement as the\n"
+    "machine would have read it without the table (the table's position-mode correction undoes\n"
+    "the compensation), i.e. about G. Corrections use selfcald's correction core.\n"
+    "Prints the statistics (RMS and max |r|, before and after) and the verdict:\n"
+    "  pass  if max |r| after compensation <= T (um)   exit 0\n"
+    "  fail  otherwise                                  exit 3\n"
+    "Bad input: exit 2 with one line FILE:LINE: reason, and no output file. Other errors: 1.\n"
+    "--residuals: view,i,j,x_mm,y_mm,before_rx_um,before_ry_um,after_rx_um,after_ry_um\n"
+    "--plot: arrows before and after; --html: a self-contained report of the check.\n";
+
+enum { VERIFY_FAIL_EXIT = 3 };
+
+
+static void print_residuals(FILE *fp, const verify_result *r)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    int n = p->n;
+    size_t nn = (size_t)n * n;
+    fputs("view,i,j,x_mm,y_mm,before_rx_um,before_ry_um,after_rx_um,after_ry_um\n", fp);
+    for (int v = 0; v < p->n_views; ++v)
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                size_t g = (size_t)v * nn + (size_t)i * n + j;
+                int ni, nj;
+                if (!isfinite(r->ax[g]) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                fprintf(fp, "%d,%d,%d,%.15g,%.15g,%.9g,%.9g,%.9g,%.9g\n", r->info.view_id[v], i, j,
+                        sc_stage_map_x_mm(&r->before, nj), sc_stage_map_y_mm(&r->before, ni), r->bx[g],
+                        r->by[g], r->ax[g], r->ay[g]);
+            }
+}
+
+static void draw_plot(FILE *fp, const verify_result *r)
+{
+    /* two arrow documents side by side would need a new layout: one document, two panels,
+     * drawn as the map plot's truth comparison (before as the map, after as its "error") */
+    plot_arrows_svg(fp, &r->after, 0, 0, "after compensation: residual (A, misalignment removed)", "r");
+}
+
+int cmd_verify(int argc, char **argv)
+{
+    const char *cmd = "verify", *res_path = NULL, *plot = NULL, *html = NULL;
+    verify_opts o;
+    verify_opts_init(&o);
+    for (int a = 1; a < argc; ++a) {
+        const char *s = argv[a];
+        if (!strcmp(s, "--help") || !strcmp(s, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        }
+        if (s[0] != '-' || !strcmp(s, "-")) {
+            if (o.measurement)
+                return cli_usage_error(cmd, "more than one measurement ('%s', '%s')", o.measurement, s);
+            o.measurement = s;
+            continue;
+        }
+        if (!strcmp(s, "--raw")) {
+            o.raw = 1;
+            continue;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "'%s' needs a value (see --help)", s);
+        const char *v = argv[++a];
+        if (!strcmp(s, "--table")) o.table = v;
+        else if (!strcmp(s, "--artifact")) o.artifact = v;
+        else if (!strcmp(s, "--residuals")) res_path = v;
+        else if (!strcmp(s, "--plot")) plot = v;
+        else if (!strcmp(s, "--html")) html = v;
+        else if (!strcmp(s, "--tolerance-um")) {
+            if (sc_parse_double(v, &o.tolerance_um) || !(o.tolerance_um > 0) ||
+                !(o.tolerance_um <= SC_INPUT_MAX_ABS))
+                return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
+        } else
+            return cli_usage_error(cmd, "unknown option '%s' (see --help)", s);
+    }
+    if (!o.measurement || !o.table || !o.artifact || !isfinite(o.tolerance_um))
+        return cli_usage_error(cmd, "V.csv, --table, --artifact and --tolerance-um are required (see --help)");
+    sc_error err;
+    sc_error_clear(&err);
+    verify_result r;
+    sc_status st = verify_run(&o, &r, &err);
+    if (st == SC_OK) {
+        const char *paths[3] = {res_path, plot, html};
+        sc_afile f[3];
+        memset(f, 0, sizeof f);
+        int opened = 0;
+        for (; opened < 3 && st == SC_OK; ++opened) {
+            if (!paths[opened])
+                continue;
+            st = sc_afile_open(&f[opened], paths[opened], &err);
+            if (st != SC_OK)
+                break;
+            FILE *fp = f[opened].fp;
+            if (opened == 0)
+                print_residuals(fp, &r);
+            else if (opened == 1)
+                draw_plot(fp, &r);
+            else {
+                html_begin(fp, "Verification of a compensated stage");
+                fputs("<h1>Verification of a compensated stage</h1>\n", fp);
+                st = verify_html_section(fp, &o, &r, "Re-measurement after compensation", &err);
+                const char *inputs[3] = {o.measurement, o.table, o.artifact};
+                const char *roles[3] = {"re-measurement (selfcal-grid v1)", "lookup table",
+                                        "plate error of the calibration"};
+                if (st == SC_OK)
+                    st = html_provenance(fp, argc, argv, inputs, roles, 3, &err);
+                html_end(fp);
+            }
+        }
+        if (st == SC_OK)
+            st = sc_afile_commit_all(f, opened, &err);
+        else
+            sc_afile_abort_all(f, opened);
+    }
+    if (st != SC_OK) {
+        verify_result_free(&r);
+        return cli_report(&err);
+    }
+    const verify_stats *b = &r.st_before, *a = &r.st_after;
+    printf("marks: %ld\n", a->count);
+    printf("before_rms_um: %.6g\nbefore_max_um: %.6g\n", b->rms, b->max);
+    printf("after_rms_um: %.6g\nafter_max_um: %.6g\n", a->rms, a->max);
+    printf("after_max_at_mm: %g,%g\n", a->max_x_mm, a->max_y_mm);
+    printf("tolerance_um: %g\nverdict: %s\n", o.tolerance_um, r.pass ? "pass" : "fail");
+    int pass = r.pass;
+    verify_result_free(&r);
+    return pass ? CLI_OK : VERIFY_FAIL_EXIT;
+}
