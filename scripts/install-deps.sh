@@ -12,6 +12,9 @@ DEB_PACKAGES=(
   mbpoll socat python3 python3-pip python3-venv
   clang libclang-rt-14-dev
   chromium
+  # LinuxCNC (uspace): halcompile builds the HAL component selfcal_xy, halrun tests it
+  # (util-linux: unshare and setpriv, which that test uses)
+  linuxcnc-uspace linuxcnc-uspace-dev util-linux
 )
 
 SUDO=""
