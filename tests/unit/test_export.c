@@ -226,11 +226,12 @@ static void test_beckhoff(void **state)
         for (int i = 0; i < 25; ++i)
             for (int j = 0; j < 25; ++j) {
                 double x = -12.0 + j, y = -12.0 + i;
-                assert_true(fabs(0.1 * b.tab[i * 101 + j] - map_ref(m, axis, x, y)) <= 0.05 + 1e-9);
+                /* ISG's sign: actual - setpoint = -G (docs/exporters.md) */
+                assert_true(fabs(0.1 * b.tab[i * 101 + j] + map_ref(m, axis, x, y)) <= 0.05 + 1e-9);
             }
         assert_true(rep.max_um <= 0.05 + 1e-9);
         int comps[1] = {axis};
-        check_residual(m, &rep, bk_ctrl, &b, comps, 1, 1.0);
+        check_residual(m, &rep, bk_ctrl, &b, comps, 1, -1.0);
         assert_int_equal(rep.clipped, 0);
         free(b.tab);
     }
@@ -248,7 +249,7 @@ static void test_beckhoff(void **state)
     assert_true(b.start1 + b.last1 * b.interval >= 3.3e4 + 8 * 2e4);
     assert_true(b.start2 + b.last2 * b.interval >= -200500 + 6 * 3e4);
     int comps[1] = {1};
-    check_residual(m, &rep, bk_ctrl, &b, comps, 1, -1.0);
+    check_residual(m, &rep, bk_ctrl, &b, comps, 1, 1.0); /* negated: +G */
     assert_true(rep.max_um < 0.2); /* resampled along y: smooth map, small loss */
     free(b.tab);
     free(m);
@@ -461,14 +462,24 @@ static void parse_linuxcnc(const char *path, lc *l)
 {
     memset(l, 0, sizeof *l);
     char *text = slurp(path), *save = NULL;
+    int comment = 0;
     for (char *line = strtok_r(text, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
         char extra;
+        /* LinuxCNC's loader stops at the first line that is not a triplet: only the last line
+         * may be a comment, and it says that the file needs COMP_FILE_TYPE = 1. */
+        assert_false(comment);
+        if (line[0] == '#') {
+            assert_non_null(strstr(line, "COMP_FILE_TYPE = 1"));
+            comment = 1;
+            continue;
+        }
         assert_true(l->n < 300);
         assert_int_equal(sscanf(line, "%lf %lf %lf %c", &l->nom[l->n], &l->fwd[l->n], &l->rev[l->n], &extra), 3);
         if (l->n > 0)
             assert_true(l->nom[l->n] > l->nom[l->n - 1]); /* ascending nominals */
         l->n++;
     }
+    assert_true(comment);
     assert_true(l->n >= 2 && l->n <= 256);
 }
 

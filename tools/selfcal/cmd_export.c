@@ -1,6 +1,8 @@
-/* cmd_export.c — `selfcal export --format {beckhoff,siemens-cec,linuxcnc} --map G.csv -o OUT`:
- * the stage error map resampled onto a machine controller's compensation table, with the residual
- * (controller interpolation of the written table minus our bilinear map) and clipped points. */
+/* cmd_export.c — `selfcal export --format FORMAT --map G.csv -o OUT`: the stage error map
+ * resampled onto a machine controller's compensation table (beckhoff, siemens-cec, linuxcnc), or
+ * its first order as firmware skew/scale settings (klipper, marlin, reprap), with the residual
+ * (what the controller applies minus our bilinear map) and clipped points. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,23 +15,88 @@
 static void export_usage(FILE *to)
 {
     fprintf(to,
-            "usage: selfcal export --format {beckhoff,siemens-cec,linuxcnc} --map G.csv -o OUT\n"
+            "usage: selfcal export --format FORMAT --map G.csv -o OUT\n"
             "                      [--axis x|y|both] [--interval MM] [--at MM] [--limit-um UM]\n"
-            "                      [--negate] [--axis-numbers NX,NY] [--axis-names NAMEX,NAMEY]\n"
-            "                      [--first-table T]\n"
-            "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y),\n"
-            "               0.1 um units, one interval for both masters, up to 101 x 101 points\n"
-            "  siemens-cec  SINUMERIK 840D $AN_CEC part program: tables X->X, Y->X (Gx) and X->Y,\n"
-            "               Y->Y (Gy) (--axis both, the default here), values in mm, <= 2000 points\n"
-            "  linuxcnc     joint compensation file (COMP_FILE_TYPE = 1) of one axis (--axis x|y):\n"
-            "               'nominal forward-trim reverse-trim' in mm, <= 256 entries\n"
+            "                      [--negate] [--offset DX,DY] [--axis-numbers NX,NY]\n"
+            "                      [--axis-names NAMEX,NAMEY] [--first-table T] [--target 840d|828d]\n"
+            "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
+            "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y;\n"
+            "               both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual - setpoint (-G)\n"
+            "  siemens-cec  SINUMERIK $AN_CEC part program: tables X->X, Y->X (Gx) and X->Y, Y->Y (Gy)\n"
+            "               (--axis both, the default here), values in mm, <= 2000 points (828D: 200)\n"
+            "  linuxcnc     joint compensation file of one axis (--axis x|y; both: OUT-x and OUT-y):\n"
+            "               'nominal trim trim' in mm, <= 256 entries; needs COMP_FILE_TYPE = 1\n"
+            "  klipper      SET_SKEW XY=AC,BD,AD (skew_correction) from the map's O and R\n"
+            "  marlin       M852 I (skew factor) and M92 scale from the map's O and R\n"
+            "  reprap       RepRapFirmware M556 S X and M92 scale from the map's O and R\n"
             "  --interval   table spacing in mm (default: the map's pitch)\n"
             "  --at MM      linuxcnc: G along the line y = MM (x axis) or x = MM (y axis) instead of\n"
             "               the mean over that coordinate\n"
             "  --limit-um   clip values above this magnitude (and count them)\n"
-            "  --negate     write -G instead of +G (the value added to the commanded position)\n"
+            "  --negate     write the opposite of the format's default sign\n"
+            "  --offset DX,DY  the machine (homed) coordinates of the map's x = 0, y = 0, added to\n"
+            "               every table position\n"
             "  --axis-numbers  beckhoff logical axis numbers of x and y (default 1,2)\n"
-            "  --axis-names    siemens axis names of x and y (default AX1,AX2)\n");
+            "  --axis-names    siemens axis names of x and y (default AX1,AX2)\n"
+            "  --target 828d   siemens: the 828D's fixed 8 tables x 200 points\n"
+            "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale\n"
+            "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n");
+}
+
+/* OUT with "-x" or "-y" before its extension (--axis both for one-axis formats). */
+static void axis_path(const char *out, int axis, char *buf, size_t cap)
+{
+    const char *slash = strrchr(out, '/'), *dot = strrchr(out, '.');
+    if (!dot || (slash && dot < slash) || dot == out || (slash && dot == slash + 1))
+        snprintf(buf, cap, "%s-%c", out, axis == 0 ? 'x' : 'y');
+    else
+        snprintf(buf, cap, "%.*s-%c%s", (int)(dot - out), out, axis == 0 ? 'x' : 'y', dot);
+}
+
+static int two_doubles(const char *v, double d[2])
+{
+    char a[64], b[64];
+    const char *comma = strchr(v, ',');
+    if (!comma || (size_t)(comma - v) >= sizeof a || strlen(comma + 1) >= sizeof b)
+        return -1;
+    memcpy(a, v, (size_t)(comma - v));
+    a[comma - v] = '\0';
+    snprintf(b, sizeof b, "%s", comma + 1);
+    return sc_parse_double(a, &d[0]) == 0 && sc_parse_double(b, &d[1]) == 0 ? 0 : -1;
+}
+
+static void print_report(const char *fmt, int f, const char *out, const sc_export_options *o,
+                         const sc_export_report *rep)
+{
+    printf("export %s: %s", fmt, out);
+    if (f == SC_EXPORT_BECKHOFF)
+        printf(", slave axis %s, %d x %d points, interval %.4f mm, unit 0.1 um, %s\n",
+               o->axis == 0 ? "x" : "y", rep->points[0], rep->points[1], rep->interval_mm,
+               o->negate ? "+G (negated)" : "-G (ISG: actual - setpoint)");
+    else if (f == SC_EXPORT_SIEMENS_CEC)
+        printf(", %d table(s) of %d/%d points, values in mm (1 nm)\n", rep->tables,
+               rep->points[0], rep->points[1]);
+    else if (f == SC_EXPORT_LINUXCNC)
+        printf(", axis %s, %d entries, step %.6f mm, trims in mm (1 nm)\n",
+               o->axis == 0 ? "x" : "y", rep->points[0], rep->interval_mm);
+    else
+        printf(", O = %.6g, R = %.6g, XY skew %.9g, scale x %.9f y %.9f\n", rep->O, rep->R,
+               rep->skew, rep->scale[0], rep->scale[1]);
+    printf("residual (controller %s - map) over %ld samples: rms %.4f um, max %.4f um at "
+           "(%.3f, %.3f) mm\n",
+           f >= SC_EXPORT_KLIPPER ? "correction, up to translation/rotation/magnification"
+                                  : "table",
+           rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
+    if (f >= SC_EXPORT_KLIPPER)
+        return;
+    if (rep->limit_um > 0)
+        printf("clipped points: %ld (limit %.4g um)\n", rep->clipped, rep->limit_um);
+    else
+        printf("clipped points: 0 (no limit)\n");
+    if (f == SC_EXPORT_LINUXCNC)
+        printf("IMPORTANT: set COMP_FILE_TYPE = 1 in [JOINT_%d] of the .ini: LinuxCNC's default 0 "
+               "reads these trims as positions (errors as large as the positions)\n",
+               o->axis);
 }
 
 int cmd_export(int argc, char **argv)
@@ -40,6 +107,8 @@ int cmd_export(int argc, char **argv)
     double interval = 0, limit = 0, at = 0;
     int use_at = 0, negate = 0, ax_nr[2] = {1, 2}, first_table = 0;
     static char names[2][32] = {"AX1", "AX2"};
+    double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0};
+    int target_828d = 0;
     for (int k = 1; k < argc; ++k) {
         const char *a = argv[k];
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -84,6 +153,18 @@ int cmd_export(int argc, char **argv)
             memcpy(names[0], v, l0);
             names[0][l0] = '\0';
             snprintf(names[1], sizeof names[1], "%s", comma + 1);
+        } else if (!strcmp(a, "--offset")) {
+            if (two_doubles(v, offset) != 0 || fabs(offset[0]) > 1e6 || fabs(offset[1]) > 1e6)
+                return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
+        } else if (!strcmp(a, "--steps-per-mm") || !strcmp(a, "--rotation-distance")) {
+            double *d = a[2] == 's' ? steps : rdist;
+            if (two_doubles(v, d) != 0 || !(d[0] > 0) || !(d[1] > 0) || d[0] > 1e9 || d[1] > 1e9)
+                return cli_usage_error("export", "%s: X,Y (positive), not '%s'", a, v);
+        } else if (!strcmp(a, "--target")) {
+            if (!strcmp(v, "828d") || !strcmp(v, "828D"))
+                target_828d = 1;
+            else if (strcmp(v, "840d") != 0 && strcmp(v, "840D") != 0)
+                return cli_usage_error("export", "--target: 840d or 828d, not '%s'", v);
         } else if (!strcmp(a, "--first-table")) {
             long t;
             if (sc_parse_long(v, &t) != 0 || t < 0 || t > 1000)
@@ -96,22 +177,40 @@ int cmd_export(int argc, char **argv)
         return cli_usage_error("export", "--format, --map and -o are required (see --help)");
     int f = sc_export_format_from_name(fmt);
     if (f < 0)
-        return cli_usage_error("export", "--format: beckhoff, siemens-cec or linuxcnc, not '%s'", fmt);
+        return cli_usage_error("export",
+                               "--format: beckhoff, siemens-cec, linuxcnc, klipper, marlin or "
+                               "reprap, not '%s'",
+                               fmt);
+    const int firmware = f >= SC_EXPORT_KLIPPER;
     sc_export_options_init(&o, (sc_export_format)f);
     o.axis = f == SC_EXPORT_SIEMENS_CEC ? -1 : 0;
+    int both_files = 0;
     if (axis) {
+        if (firmware)
+            return cli_usage_error("export", "--axis does not apply to --format %s (XY skew)", fmt);
         if (!strcmp(axis, "x") || !strcmp(axis, "X"))
             o.axis = 0;
         else if (!strcmp(axis, "y") || !strcmp(axis, "Y"))
             o.axis = 1;
         else if (!strcmp(axis, "both") && f == SC_EXPORT_SIEMENS_CEC)
             o.axis = -1;
+        else if (!strcmp(axis, "both"))
+            both_files = 1; /* one file per axis: OUT-x, OUT-y */
         else
-            return cli_usage_error("export", "--axis: x or y%s, not '%s'",
-                                   f == SC_EXPORT_SIEMENS_CEC ? " or both" : "", axis);
+            return cli_usage_error("export", "--axis: x, y or both, not '%s'", axis);
     }
     if (use_at && f != SC_EXPORT_LINUXCNC)
         return cli_usage_error("export", "--at applies to --format linuxcnc only");
+    if (target_828d && f != SC_EXPORT_SIEMENS_CEC)
+        return cli_usage_error("export", "--target applies to --format siemens-cec only");
+    if (steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP)
+        return cli_usage_error("export", "--steps-per-mm applies to --format marlin or reprap only");
+    if (rdist[0] > 0 && f != SC_EXPORT_KLIPPER)
+        return cli_usage_error("export", "--rotation-distance applies to --format klipper only");
+    if (firmware && (negate || interval > 0 || limit > 0))
+        return cli_usage_error("export", "--negate, --interval and --limit-um do not apply to "
+                                         "--format %s (the firmware's own skew and sign)",
+                               fmt);
     o.interval_mm = interval;
     o.limit_um = limit;
     o.use_line = use_at;
@@ -122,6 +221,11 @@ int cmd_export(int argc, char **argv)
     o.siemens_x_name = names[0];
     o.siemens_y_name = names[1];
     o.siemens_first_table = first_table;
+    o.siemens_828d = target_828d;
+    o.steps_per_mm[0] = steps[0];
+    o.steps_per_mm[1] = steps[1];
+    o.rotation_distance_mm[0] = rdist[0];
+    o.rotation_distance_mm[1] = rdist[1];
 
     sc_lut *lut = malloc(sizeof *lut);
     if (!lut) {
@@ -131,31 +235,30 @@ int cmd_export(int argc, char **argv)
     sc_lut_init(lut);
     sc_error err;
     sc_error_clear(&err);
-    sc_export_report rep;
     sc_status st = sc_lut_read_map(map, lut, &err);
-    if (st == SC_OK)
-        st = sc_export_write(lut, &o, out, &rep, &err);
-    if (st != SC_OK) {
-        free(lut);
-        return cli_report(&err);
+    /* Table positions in the machine's homed coordinates. */
+    lut->x0_mm += offset[0];
+    lut->y0_mm += offset[1];
+    static char paths[2][4096];
+    sc_export_report reps[2];
+    sc_export_options opts[2];
+    const int nfiles = both_files ? 2 : 1;
+    for (int k = 0; k < nfiles && st == SC_OK; ++k) {
+        opts[k] = o;
+        if (both_files) {
+            opts[k].axis = k;
+            axis_path(out, k, paths[k], sizeof paths[k]);
+        } else {
+            snprintf(paths[k], sizeof paths[k], "%s", out);
+        }
+        st = sc_export_write(lut, &opts[k], paths[k], &reps[k], &err);
+        if (st != SC_OK && k == 1)
+            remove(paths[0]); /* both files or none */
     }
-    printf("export %s: %s", fmt, out);
-    if (f == SC_EXPORT_BECKHOFF)
-        printf(", slave axis %s, %d x %d points, interval %.4f mm, unit 0.1 um\n",
-               o.axis == 0 ? "x" : "y", rep.points[0], rep.points[1], rep.interval_mm);
-    else if (f == SC_EXPORT_SIEMENS_CEC)
-        printf(", %d table(s) of %d/%d points, values in mm (1 nm)\n", rep.tables, rep.points[0],
-               rep.points[1]);
-    else
-        printf(", axis %s, %d entries, step %.6f mm, trims in mm (1 nm)\n", o.axis == 0 ? "x" : "y",
-               rep.points[0], rep.interval_mm);
-    printf("residual (controller table - map) over %ld samples: rms %.4f um, max %.4f um at "
-           "(%.3f, %.3f) mm\n",
-           rep.samples, rep.rms_um, rep.max_um, rep.max_at_mm[0], rep.max_at_mm[1]);
-    if (rep.limit_um > 0)
-        printf("clipped points: %ld (limit %.4g um)\n", rep.clipped, rep.limit_um);
-    else
-        printf("clipped points: 0 (no limit)\n");
     free(lut);
+    if (st != SC_OK)
+        return cli_report(&err);
+    for (int k = 0; k < nfiles; ++k)
+        print_report(fmt, f, paths[k], &opts[k], &reps[k]);
     return CLI_OK;
 }

@@ -3,8 +3,13 @@
  * (controller's interpolation of the written, quantized table minus our bilinear map) and the
  * points clipped to a limit. Formats and their limits: docs/exporters.md.
  *
- * All formats write +G (the position-mode sign of SPEC §4: the controller adds the value to the
- * commanded position, so the true position lands on the target); `negate` writes -G.
+ * Signs follow each vendor's own definition of its value (docs/exporters.md quotes them): Siemens
+ * and LinuxCNC take the value added to the commanded position (+G, the position-mode sign of
+ * SPEC §4); Beckhoff/ISG takes the measured error, actual - setpoint (-G). `negate` flips the
+ * default. The firmware formats (Klipper, Marlin, RepRapFirmware) carry only the first-order part
+ * of the map, non-orthogonality O and scale R (Petro eqs. 4-5), converted to each firmware's own
+ * skew parameter and transform; their residual is what remains after the firmware's transform,
+ * up to the translation, rotation and magnification that a self-calibrated map does not define.
  */
 #ifndef SELFCAL_EXPORT_H
 #define SELFCAL_EXPORT_H
@@ -21,13 +26,19 @@ extern "C" {
 typedef enum sc_export_format {
     SC_EXPORT_BECKHOFF = 0,    /* TwinCAT CNC / ISG plane compensation list (kw.crosscomp2.*) */
     SC_EXPORT_SIEMENS_CEC = 1, /* SINUMERIK 840D cross error compensation ($AN_CEC tables) */
-    SC_EXPORT_LINUXCNC = 2     /* LinuxCNC joint compensation file (COMP_FILE_TYPE = 1) */
+    SC_EXPORT_LINUXCNC = 2,    /* LinuxCNC joint compensation file (COMP_FILE_TYPE = 1) */
+    SC_EXPORT_KLIPPER = 3,     /* Klipper skew_correction: SET_SKEW XY=AC,BD,AD */
+    SC_EXPORT_MARLIN = 4,      /* Marlin M852 I (XY skew factor) */
+    SC_EXPORT_REPRAP = 5       /* RepRapFirmware M556 S X (XY axis compensation) */
 } sc_export_format;
 
 /* Controller limits (see docs/exporters.md). */
 #define SC_EXPORT_BECKHOFF_MAX_POINTS 101 /* per master axis: 101 x 101 = default max_points 10201 */
 #define SC_EXPORT_SIEMENS_MAX_POINTS 2000 /* per table (MD18342 upper limit) */
 #define SC_EXPORT_LINUXCNC_MAX_POINTS 256 /* triplets per joint */
+#define SC_EXPORT_SIEMENS_828D_TABLES 8   /* SINUMERIK 828D: 8 tables ... */
+#define SC_EXPORT_SIEMENS_828D_POINTS 200 /* ... of 200 points, fixed */
+#define SC_EXPORT_MARLIN_MAX_SKEW 1.0     /* Marlin SKEW_FACTOR_MIN/MAX: |I| <= 1 */
 
 typedef struct sc_export_options {
     sc_export_format format;
@@ -42,6 +53,12 @@ typedef struct sc_export_options {
     int beckhoff_x_axis_nr, beckhoff_y_axis_nr;
     const char *siemens_x_name, *siemens_y_name;
     int siemens_first_table;
+    int siemens_828d;   /* Siemens: the 828D's fixed 8 tables x 200 points instead of 840D limits */
+    /* Firmware formats: the machine's present steps/mm (Marlin, RepRapFirmware) or
+     * rotation_distance (Klipper) of x and y, to write the scale-corrected values; 0 = unknown
+     * (the file then gives the factors to multiply them by). */
+    double steps_per_mm[2];
+    double rotation_distance_mm[2];
 } sc_export_options;
 
 typedef struct sc_export_report {
@@ -55,16 +72,23 @@ typedef struct sc_export_report {
     double max_at_mm[2]; /* where */
     long clipped;        /* table entries clipped to the limit */
     double limit_um;     /* the limit used */
+    /* Firmware formats: the map's first order and what was written. */
+    double O, R;         /* non-orthogonality and scale of the map (dimensionless) */
+    double skew;         /* the firmware's XY skew value as written (Klipper xy_factor from the
+                            written lengths, Marlin I, RepRapFirmware tanXY = X/S) */
+    double scale[2];     /* factors the x and y steps/mm (Klipper: rotation_distance) take */
 } sc_export_report;
 
 /* Defaults: axis x, interval from the map, no line, format limits, AX1/AX2, axis numbers 1/2. */
 SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format);
 
-/* "beckhoff", "siemens-cec", "linuxcnc" -> format; -1 if unknown. */
+/* "beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin", "reprap" -> format; -1 if
+ * unknown. */
 SC_API int sc_export_format_from_name(const char *name);
 
 /* Resample lut's grid (profiles are ignored) for the controller, write it atomically to path,
- * fill *rep. SC_E_INPUT for options the format cannot honour (e.g. more entries than it holds). */
+ * fill *rep. SC_E_INPUT for options the format cannot honour (e.g. more entries than it holds)
+ * and for maps beyond the firmware's limits. */
 SC_API sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,
                                  sc_export_report *rep, sc_error *err);
 

@@ -18,6 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "export_internal.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/export.h"
 
@@ -87,6 +88,12 @@ int sc_export_format_from_name(const char *name)
         return SC_EXPORT_SIEMENS_CEC;
     if (!strcmp(name, "linuxcnc"))
         return SC_EXPORT_LINUXCNC;
+    if (!strcmp(name, "klipper"))
+        return SC_EXPORT_KLIPPER;
+    if (!strcmp(name, "marlin"))
+        return SC_EXPORT_MARLIN;
+    if (!strcmp(name, "reprap"))
+        return SC_EXPORT_REPRAP;
     return -1;
 }
 
@@ -220,7 +227,7 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
         c.interval = llround(o->interval_mm * 1e4);
         if (c.interval < 1)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "beckhoff: --interval %g mm is below 0.1 um", o->interval_mm);
+                                "beckhoff: interval %g mm is below 0.1 um", o->interval_mm);
     } else {
         c.interval = llround(fmin(lut->px_mm, lut->py_mm) * 1e4);
         if (c.interval < 1)
@@ -248,7 +255,10 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
     c.code = malloc(sizeof *c.code * (size_t)c.n[0] * (size_t)c.n[1]);
     if (!c.code)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    const double sign = o->negate ? -1.0 : 1.0;
+    /* ISG's compensation values are measured errors, actual - setpoint (their leadscrew example:
+     * setpoint 19866.7 um, actual 19856.5 um, value -102 x 0.1 um), which the CNC takes off the
+     * setpoint: -G by default (docs/exporters.md). */
+    const double sign = o->negate ? 1.0 : -1.0;
     rep->limit_um = o->limit_um > 0 ? o->limit_um : 214748364.7; /* SGN32 in 0.1 um */
     for (int j = 0; j < c.n[1]; ++j)
         for (int i = 0; i < c.n[0]; ++i) {
@@ -268,8 +278,11 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
     const int slave_nr = o->axis == 0 ? o->beckhoff_x_axis_nr : o->beckhoff_y_axis_nr;
     tb_printf(t, "# ****************************************\n");
     tb_printf(t, "# Plane compensation of the %s axis, written by selfcal export\n", axis_upper(o->axis));
-    tb_printf(t, "# %s = %sG%s(X, Y) of the stage error map, in 0.1 um\n", axis_upper(o->axis),
-              o->negate ? "-" : "+", o->axis == 0 ? "x" : "y");
+    tb_printf(t, "# %s = %sG%s(X, Y) of the stage error map, in 0.1 um (G = indicated - true)\n",
+              axis_upper(o->axis), sign < 0 ? "-" : "+", o->axis == 0 ? "x" : "y");
+    tb_printf(t, "# %s\n", sign < 0 ? "ISG's sign: the value is the error actual - setpoint, which the CNC "
+                                     "takes off the setpoint"
+                                   : "NEGATED: +G, the opposite of ISG's actual - setpoint");
     tb_printf(t, "# residual (table - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
               rep->rms_um, rep->max_um, rep->clipped);
     tb_printf(t, "# ****************************************\n");
@@ -364,6 +377,11 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "siemens-cec: axis must be x, y or both");
     if (o->siemens_first_table < 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "siemens-cec: table index must be >= 0");
+    if (o->siemens_828d && o->siemens_first_table + 2 * ncomp > SC_EXPORT_SIEMENS_828D_TABLES)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "siemens-cec: tables %d..%d do not exist on an 828D (8 tables, "
+                            "0..7)",
+                            o->siemens_first_table, o->siemens_first_table + 2 * ncomp - 1);
     const double sign = o->negate ? -1.0 : 1.0;
     rep->limit_um = o->limit_um > 0 ? o->limit_um : 1000.0; /* MD32720 CEC_MAX_SUM default 1 mm */
     cec_ctx c;
@@ -381,6 +399,13 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
             tb->step_mm = o->interval_mm > 0 ? o->interval_mm : (in == 0 ? lut->px_mm : lut->py_mm);
             tb->n = cover_points(lo, hi, tb->step_mm);
             tb->min_mm = lo;
+            if (o->siemens_828d && tb->n > SC_EXPORT_SIEMENS_828D_POINTS) {
+                st = sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                  "siemens-cec: step %.6f mm needs %d points; an 828D table "
+                                  "holds %d (fixed): choose a larger interval",
+                                  tb->step_mm, tb->n, SC_EXPORT_SIEMENS_828D_POINTS);
+                break;
+            }
             if (tb->n > SC_EXPORT_SIEMENS_MAX_POINTS) {
                 st = sc_error_set(err, SC_E_INPUT, NULL, 0,
                                   "siemens-cec: step %.6f mm needs %d points; a table holds %d "
@@ -425,7 +450,10 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
               o->negate ? "-" : "+", o->negate ? "-" : "+", ncomp == 2 ? "Gx and Gy" : (comps[0] == 0 ? "Gx" : "Gy"));
     tb_printf(t, "; residual (tables - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
               rep->rms_um, rep->max_um, rep->clipped);
-    tb_printf(t, "; needs MD18342 $MN_MM_CEC_MAX_POINTS[t] >= points, MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
+    if (o->siemens_828d)
+        tb_printf(t, "; SINUMERIK 828D: 8 tables x 200 points, fixed; MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
+    else
+        tb_printf(t, "; needs MD18342 $MN_MM_CEC_MAX_POINTS[t] >= points, MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
     tb_printf(t, "; SD41300 $SN_CEC_TABLE_ENABLE[t] = 1 for each table t below\n");
     for (int k = 0; k < c.ntab; ++k) {
         const cec_table *tb = &c.tab[k];
@@ -507,7 +535,9 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
     rep->points[0] = c.n;
     rep->interval_mm = c.step_mm;
     rep->unit_um = 1e-3;
-    /* No comments: the file is nothing but "nominal forward-trim reverse-trim" lines, ascending. */
+    /* "nominal forward-trim reverse-trim" lines, ascending, then ONE comment line: LinuxCNC's
+     * loader reads triplets until the first line that is not one, so a trailing comment is
+     * ignored while a leading one would make it load nothing, silently. */
     for (int k = 0; k < c.n; ++k) {
         long long v = code[k];
         char trim[48];
@@ -515,6 +545,9 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
                  llabs(v) % 1000000);
         tb_printf(t, "%.6f %s %s\n", lo + k * c.step_mm, trim, trim);
     }
+    tb_printf(t, "# selfcal export: %s trims (%sG%s, mm) - needs COMP_FILE_TYPE = 1 in [JOINT_n]: "
+                 "LinuxCNC's default 0 reads them as positions\n",
+              axis_upper(o->axis), sign < 0 ? "-" : "+", o->axis == 0 ? "x" : "y");
     free(code);
     free(c.value_um);
     return SC_OK;
@@ -529,13 +562,13 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
     if (!(o->interval_mm >= 0) || !isfinite(o->interval_mm) || !(o->limit_um >= 0) ||
         !isfinite(o->limit_um))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "--interval and --limit-um must be finite and >= 0");
+                            "the interval and the value limit must be finite and >= 0");
     if (o->interval_mm > 1e6)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "--interval %g mm is beyond 1 km",
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval %g mm is beyond 1 km",
                             o->interval_mm);
     if (o->interval_mm > 0 && o->interval_mm < 1e-4)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "--interval %g mm is below the 0.1 um resolution of the tables",
+                            "interval %g mm is below the 0.1 um resolution of the tables",
                             o->interval_mm);
     textbuf t = {0};
     sc_status st;
@@ -548,6 +581,14 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
         break;
     case SC_EXPORT_LINUXCNC:
         st = export_linuxcnc(lut, o, &t, rep, err);
+        break;
+    case SC_EXPORT_KLIPPER:
+    case SC_EXPORT_MARLIN:
+    case SC_EXPORT_REPRAP:
+        t.cap = 8192;
+        t.s = malloc(t.cap);
+        st = t.s ? sc_export_firmware(lut, o, t.s, t.cap, &t.len, rep, err)
+                 : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         break;
     default:
         st = sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown export format %d", (int)o->format);

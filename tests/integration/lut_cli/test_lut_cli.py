@@ -240,7 +240,7 @@ worst = 0.0
 for (i, j), v in truth.items():
     x, y = v[0], v[1]
     a, b = round((x * 1e4 - s1) / iv), round((y * 1e4 - s2) / iv)
-    worst = max(worst, abs(0.1 * tab[(b, a)] - v[3]))
+    worst = max(worst, abs(0.1 * tab[(b, a)] + v[3]))  # ISG's sign: actual - setpoint = -G
 check(worst <= 0.05 + 1e-9, f"beckhoff nodes within 0.05 um ({worst})")
 
 rc, out, err = run("export", "--format", "siemens-cec", "--map", path("E.csv"), "-o", path("E.mpf"))
@@ -261,7 +261,10 @@ check(worst <= float(rep.group(1)) + 1e-3, f"siemens residual at nodes {worst} v
 
 rc, out, err = run("export", "--format", "linuxcnc", "--map", path("E.csv"), "--axis", "x", "-o", path("E.comp"))
 check(rc == 0, f"export linuxcnc: {err}")
-rows = [list(map(float, l.split())) for l in open(path("E.comp"))]
+lines = open(path("E.comp")).read().splitlines()
+check(lines[-1].startswith("#") and "COMP_FILE_TYPE = 1" in lines[-1]
+      and not any(l.startswith("#") for l in lines[:-1]), "linuxcnc: one trailing comment line")
+rows = [list(map(float, l.split())) for l in lines[:-1]]
 check(len(rows) == 11 and all(len(r) == 3 and r[1] == r[2] for r in rows), "linuxcnc triplets")
 for j, r in enumerate(rows):
     mean = sum(truth[(i, j)][2] for i in range(9)) / 9

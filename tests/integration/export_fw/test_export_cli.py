@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""`selfcal export` options for machine controllers (issue 12's paper cuts), through the command
+line: `--axis both` writes one file per axis (both or none), `--offset` moves the nominal positions
+into the machine's homed coordinates, the LinuxCNC file ends with ONE comment line (LinuxCNC's
+loader reads triplets up to the first line that is not one) and the command says loudly that it
+needs COMP_FILE_TYPE = 1, Beckhoff's default sign is ISG's (actual - setpoint = -G),
+`--target 828d` holds the SINUMERIK 828D's 8 tables x 200 points.
+
+usage: test_export_cli.py SELFCAL_CLI WORKDIR"""
+import os
+import re
+import subprocess
+import sys
+
+cli, work = sys.argv[1], sys.argv[2]
+os.makedirs(work, exist_ok=True)
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print("FAIL:", what, file=sys.stderr)
+
+
+def run(*args):
+    p = subprocess.run([cli, "export", *args], capture_output=True, text=True, timeout=60)
+    return p.returncode, p.stdout, p.stderr
+
+
+def path(name):
+    return os.path.join(work, name)
+
+
+def write_map(name, nx, ny, x0, y0, px, py):
+    truth = {}
+    with open(path(name), "w") as f:
+        f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
+        for i in range(ny):
+            for j in range(nx):
+                x, y = x0 + j * px, y0 + i * py
+                gx = 1.5 + 0.02 * x - 0.01 * y + 0.3 * ((i * 7 + j * 3) % 5 - 2)
+                gy = -0.7 + 0.01 * x + 0.015 * y + 0.2 * ((i * 5 + j * 11) % 7 - 3)
+                f.write(f"{i},{j},{x:.6f},{y:.6f},{gx:.6f},{gy:.6f},,\n")
+                truth[(i, j)] = (x, y, round(gx, 6), round(gy, 6))
+    return truth
+
+
+truth = write_map("M.csv", 11, 9, -25.0, 40.0, 5.0, 5.0)
+
+# LinuxCNC, both axes, machine offset.
+for f in ("J-x.comp", "J-y.comp"):
+    if os.path.exists(path(f)):
+        os.remove(path(f))
+rc, out, err = run("--format", "linuxcnc", "--map", path("M.csv"), "--axis", "both",
+                   "--offset", "100,-50", "-o", path("J.comp"))
+check(rc == 0, f"linuxcnc both: {err}")
+check(out.count("COMP_FILE_TYPE = 1") == 2 and "IMPORTANT" in out, f"loud COMP_FILE_TYPE: {out}")
+for axis, name, n_other in ((0, "J-x.comp", 9), (1, "J-y.comp", 11)):
+    check(os.path.exists(path(name)), f"{name} written")
+    if not os.path.exists(path(name)):
+        continue
+    lines = open(path(name)).read().splitlines()
+    check(lines[-1].startswith("#") and "COMP_FILE_TYPE = 1" in lines[-1]
+          and not any(ln.startswith("#") for ln in lines[:-1]), f"{name}: one trailing comment")
+    rows = [list(map(float, ln.split())) for ln in lines[:-1]]
+    # Nominals in machine coordinates: the map's plus the offset; trims unchanged.
+    for k, r in enumerate(rows):
+        if axis == 0:
+            mean = sum(truth[(i, k)][2] for i in range(9)) / 9
+            nominal = -25.0 + 5.0 * k + 100.0
+        else:
+            mean = sum(truth[(k, j)][3] for j in range(11)) / 11
+            nominal = 40.0 + 5.0 * k - 50.0
+        check(abs(r[0] - nominal) < 1e-9 and abs(1e3 * r[1] - mean) <= 0.5e-3 + 1e-9,
+              f"{name} row {k}: {r} (nominal {nominal}, trim {mean} um)")
+
+# Both or none: x fits 256 entries, y does not -> no file at all.
+write_map("L.csv", 11, 101, 0.0, 0.0, 1.0, 5.0)
+for f in ("L-x.comp", "L-y.comp"):
+    if os.path.exists(path(f)):
+        os.remove(path(f))
+rc, out, err = run("--format", "linuxcnc", "--map", path("L.csv"), "--axis", "both",
+                   "--interval", "1.5", "-o", path("L.comp"))
+check(rc == 2 and "256" in err and len(err.strip().splitlines()) == 1, f"both-or-none: {rc} {err}")
+check(not os.path.exists(path("L-x.comp")) and not os.path.exists(path("L-y.comp")),
+      "both-or-none: no file left")
+
+# Beckhoff: ISG's sign by default (value = actual - setpoint = -G), +G with --negate; both axes.
+for negate in (False, True):
+    args = ["--format", "beckhoff", "--map", path("M.csv"), "--axis", "both", "-o",
+            path("B.lis")] + (["--negate"] if negate else [])
+    rc, out, err = run(*args)
+    check(rc == 0, f"beckhoff both: {err}")
+    for axis, name in ((0, "B-x.lis"), (1, "B-y.lis")):
+        tab, hdr = {}, {}
+        for line in open(path(name)):
+            m = re.match(r"kw\.crosscomp2\.table\[\s*(\d+)\]\[\s*(\d+)\]\.correction\s+(-?\d+)",
+                         line)
+            if m:
+                tab[(int(m.group(1)), int(m.group(2)))] = int(m.group(3))
+                continue
+            m = re.match(r"(kw\.crosscomp2\.\w+|kopf\.\w+)\s+(\S+)", line)
+            if m:
+                hdr[m.group(1)] = m.group(2)
+        check(hdr.get("kopf.log_achs_name") == ("X", "Y")[axis], f"{name}: slave axis")
+        iv = int(hdr["kw.crosscomp2.interval"])
+        s1 = int(hdr["kw.crosscomp2.start_position_master1"])
+        s2 = int(hdr["kw.crosscomp2.start_position_master2"])
+        sign = 1.0 if negate else -1.0
+        worst = 0.0
+        for (i, j), v in truth.items():
+            a, b = round((v[0] * 1e4 - s1) / iv), round((v[1] * 1e4 - s2) / iv)
+            worst = max(worst, abs(0.1 * tab[(b, a)] - sign * v[2 + axis]))
+        check(worst <= 0.05 + 1e-9, f"{name} negate={negate}: nodes within 0.05 um ({worst})")
+    check(("+G" if negate else "-G (ISG") in out, f"beckhoff sign reported: {out}")
+
+# Siemens 828D: 8 tables x 200 points.
+rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), "--target", "828d",
+                   "-o", path("S.mpf"))
+check(rc == 0 and "828D" in open(path("S.mpf")).read(), f"828d: {err}")
+for args, want in ((["--interval", "0.2"], "200"), (["--first-table", "5"], "828D")):
+    if os.path.exists(path("S2.mpf")):
+        os.remove(path("S2.mpf"))
+    rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), "--target", "828d",
+                       *args, "-o", path("S2.mpf"))
+    check(rc == 2 and want in err and not os.path.exists(path("S2.mpf")),
+          f"828d {args}: {rc} {err}")
+rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), "--interval", "0.2",
+                   "-o", path("S3.mpf"))
+check(rc == 0, f"840d takes 250 points: {err}")
+rc, out, err = run("--format", "linuxcnc", "--map", path("M.csv"), "--target", "828d",
+                   "-o", path("S4.mpf"))
+check(rc == 2 and len(err.strip().splitlines()) == 1, f"--target for linuxcnc: {rc} {err}")
+
+if failures:
+    print(f"{len(failures)} failure(s)")
+    sys.exit(1)
+print("export CLI options: all checks passed")
