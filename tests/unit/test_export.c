@@ -415,7 +415,7 @@ static void test_siemens(void **state)
     assert_true(fabs(c->step[3] - 2.5) < 1e-9 && fabs(c->min[3] - 10.0) < 1e-9);
     cec_eval_ctx e = {c, "X1", "Y1"};
     int both[2] = {0, 1};
-    check_residual(m, &rep, cec_ctrl, &e, both, 2, 1.0);
+    check_residual(m, &rep, cec_ctrl, &e, both, 2, -1.0); /* Siemens' sign: -G */
     assert_true(rep.max_um <= 1.0e-3 + 1e-9); /* two 0.5 nm roundings */
     free(m);
 
@@ -431,7 +431,7 @@ static void test_siemens(void **state)
     e.xname = "AX1";
     e.yname = "AX2";
     int ycomp[1] = {1};
-    check_residual(m, &rep, cec_ctrl, &e, ycomp, 1, -1.0);
+    check_residual(m, &rep, cec_ctrl, &e, ycomp, 1, 1.0); /* negated: +G */
     assert_true(rep.max_um > 0.01);
     /* ... and it is the least-squares additive fit: at the nodes the residual sums to ~0 along
      * every row and column. */
@@ -439,7 +439,7 @@ static void test_siemens(void **state)
         double s = 0;
         for (int j = 0; j < m->nx; ++j) {
             double x = m->x0_mm + j * m->px_mm, y = m->y0_mm + i * m->py_mm;
-            s += cec_ctrl(&e, 1, x, y) + m->gy_um[i * m->nx + j];
+            s += cec_ctrl(&e, 1, x, y) - m->gy_um[i * m->nx + j];
         }
         assert_true(fabs(s / m->nx) < 2e-3);
     }

@@ -20,6 +20,9 @@ int cli_usage_error(const char *cmd, const char *fmt, ...)
 /* The last component of a path (for titles: an absolute path says nothing and runs off). */
 const char *cli_basename(const char *path);
 
+/* "AXIS:DIR:path" (AXIS, DIR one of x, y, z; the path may itself contain ':') -> 0, or -1. */
+int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path);
+
 /* Subcommands: argv[0] is the subcommand's own name. */
 int cmd_grid(int argc, char **argv);
 int cmd_plan(int argc, char **argv);

@@ -20,6 +20,7 @@ static void export_usage(FILE *to)
             "                      [--negate] [--offset DX,DY] [--axis-numbers NX,NY]\n"
             "                      [--axis-names NAMEX,NAMEY] [--first-table T] [--target 840d|828d]\n"
             "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
+            "                      [--profile AXIS:DIR:P.csv ...]\n"
             "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y;\n"
             "               both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual - setpoint (-G)\n"
             "  siemens-cec  SINUMERIK $AN_CEC part program: tables X->X, Y->X (Gx) and X->Y, Y->Y (Gy)\n"
@@ -39,6 +40,8 @@ static void export_usage(FILE *to)
             "  --axis-numbers  beckhoff logical axis numbers of x and y (default 1,2)\n"
             "  --axis-names    siemens axis names of x and y (default AX1,AX2)\n"
             "  --target 828d   siemens: the 828D's fixed 8 tables x 200 points\n"
+            "  --profile AXIS:DIR:P.csv  siemens: a straightness profile (the ey_um column of a\n"
+            "               profile output) as one more table, input AXIS, output DIR (z: AX3)\n"
             "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale\n"
             "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n");
 }
@@ -74,8 +77,9 @@ static void print_report(const char *fmt, int f, const char *out, const sc_expor
                o->axis == 0 ? "x" : "y", rep->points[0], rep->points[1], rep->interval_mm,
                o->negate ? "+G (negated)" : "-G (ISG: actual - setpoint)");
     else if (f == SC_EXPORT_SIEMENS_CEC)
-        printf(", %d table(s) of %d/%d points, values in mm (1 nm)\n", rep->tables,
-               rep->points[0], rep->points[1]);
+        printf(", %d table(s) of %d/%d points, values in mm (1 nm), %s\n", rep->tables,
+               rep->points[0], rep->points[1],
+               o->negate ? "+G (negated)" : "-G (Siemens: the measured deviation)");
     else if (f == SC_EXPORT_LINUXCNC)
         printf(", axis %s, %d entries, step %.6f mm, trims in mm (1 nm)\n",
                o->axis == 0 ? "x" : "y", rep->points[0], rep->interval_mm);
@@ -89,6 +93,8 @@ static void print_report(const char *fmt, int f, const char *out, const sc_expor
            rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
     if (f >= SC_EXPORT_KLIPPER)
         return;
+    if (f == SC_EXPORT_SIEMENS_CEC && rep->tables > (o->axis < 0 ? 4 : 2))
+        printf("profile tables: max |table - profile| %.4f um\n", rep->profile_max_um);
     if (rep->limit_um > 0)
         printf("clipped points: %ld (limit %.4g um)\n", rep->clipped, rep->limit_um);
     else
@@ -108,6 +114,8 @@ int cmd_export(int argc, char **argv)
     int use_at = 0, negate = 0, ax_nr[2] = {1, 2}, first_table = 0;
     static char names[2][32] = {"AX1", "AX2"};
     double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0};
+    int np = 0, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
+    const char *prof_path[SC_LUT_MAX_PROFILES];
     int target_828d = 0;
     for (int k = 1; k < argc; ++k) {
         const char *a = argv[k];
@@ -153,6 +161,14 @@ int cmd_export(int argc, char **argv)
             memcpy(names[0], v, l0);
             names[0][l0] = '\0';
             snprintf(names[1], sizeof names[1], "%s", comma + 1);
+        } else if (!strcmp(a, "--profile")) {
+            if (np == SC_LUT_MAX_PROFILES)
+                return cli_usage_error("export", "at most %d profiles", SC_LUT_MAX_PROFILES);
+            if (cli_parse_profile_arg(v, &prof_axis[np], &prof_dir[np], &prof_path[np]) != 0)
+                return cli_usage_error("export", "--profile: AXIS:DIR:FILE with AXIS, DIR in x, y, z; not '%s'", v);
+            if (prof_axis[np] == prof_dir[np])
+                return cli_usage_error("export", "--profile: a straightness profile has DIR != AXIS, not '%s'", v);
+            ++np;
         } else if (!strcmp(a, "--offset")) {
             if (two_doubles(v, offset) != 0 || fabs(offset[0]) > 1e6 || fabs(offset[1]) > 1e6)
                 return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
@@ -201,6 +217,9 @@ int cmd_export(int argc, char **argv)
     }
     if (use_at && f != SC_EXPORT_LINUXCNC)
         return cli_usage_error("export", "--at applies to --format linuxcnc only");
+    if (np > 0 && f != SC_EXPORT_SIEMENS_CEC)
+        return cli_usage_error("export", "--profile applies to --format siemens-cec only (LinuxCNC: "
+                                         "the HAL component applies profiles)");
     if (target_828d && f != SC_EXPORT_SIEMENS_CEC)
         return cli_usage_error("export", "--target applies to --format siemens-cec only");
     if (steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP)
@@ -236,9 +255,15 @@ int cmd_export(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     sc_status st = sc_lut_read_map(map, lut, &err);
+    for (int k = 0; k < np && st == SC_OK; ++k) {
+        st = sc_lut_read_profile(prof_path[k], prof_axis[k], prof_dir[k], &lut->profile[k], &err);
+        lut->n_profiles = k + 1;
+    }
     /* Table positions in the machine's homed coordinates. */
     lut->x0_mm += offset[0];
     lut->y0_mm += offset[1];
+    for (int k = 0; k < lut->n_profiles; ++k)
+        lut->profile[k].start_mm += lut->profile[k].axis < 2 ? offset[lut->profile[k].axis] : 0.0;
     static char paths[2][4096];
     sc_export_report reps[2];
     sc_export_options opts[2];

@@ -34,13 +34,7 @@ typedef struct profile_arg {
 /* "AXIS:DIR:path" (the path may itself contain ':'). */
 static int parse_profile_arg(const char *s, profile_arg *pa)
 {
-    if (strlen(s) < 5 || s[1] != ':' || s[3] != ':')
-        return -1;
-    char a[2] = {s[0], 0}, d[2] = {s[2], 0};
-    pa->axis = sc_lut_axis_from_name(a);
-    pa->dir = sc_lut_axis_from_name(d);
-    pa->path = s + 4;
-    return (pa->axis < 0 || pa->dir < 0) ? -1 : 0;
+    return cli_parse_profile_arg(s, &pa->axis, &pa->dir, &pa->path);
 }
 
 static int lut_build(int argc, char **argv)

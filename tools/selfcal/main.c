@@ -6,6 +6,7 @@
 
 #include "cli.h"
 #include "selfcal/atomic_file.h"
+#include "selfcal/lut.h"
 #include "selfcal/version.h"
 
 int cli_report(const sc_error *err)
@@ -14,6 +15,17 @@ int cli_report(const sc_error *err)
     sc_error_format(err, buf, sizeof buf);
     fprintf(stderr, "selfcal: %s\n", buf);
     return (err->code == SC_E_INPUT || err->code == SC_E_UNSOLVABLE) ? CLI_BAD_INPUT : CLI_FAIL;
+}
+
+int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path)
+{
+    if (strlen(s) < 5 || s[1] != ':' || s[3] != ':')
+        return -1;
+    char a[2] = {s[0], 0}, d[2] = {s[2], 0};
+    *axis = sc_lut_axis_from_name(a);
+    *dir = sc_lut_axis_from_name(d);
+    *path = s + 4;
+    return (*axis < 0 || *dir < 0) ? -1 : 0;
 }
 
 int cli_usage_error(const char *cmd, const char *fmt, ...)

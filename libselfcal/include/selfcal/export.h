@@ -52,6 +52,7 @@ typedef struct sc_export_options {
      * one). Siemens: machine axis names of x and y ("AX1", "AX2") and the first table index. */
     int beckhoff_x_axis_nr, beckhoff_y_axis_nr;
     const char *siemens_x_name, *siemens_y_name;
+    const char *siemens_z_name; /* Siemens: z's axis name, for profiles with z (NULL: "AX3") */
     int siemens_first_table;
     int siemens_828d;   /* Siemens: the 828D's fixed 8 tables x 200 points instead of 840D limits */
     /* Firmware formats: the machine's present steps/mm (Marlin, RepRapFirmware) or
@@ -62,7 +63,7 @@ typedef struct sc_export_options {
 } sc_export_options;
 
 typedef struct sc_export_report {
-    int tables;          /* tables written (Siemens: up to 4; others 1) */
+    int tables;          /* tables written (Siemens: up to 4, plus one per profile; others 1) */
     int points[4];       /* entries per table (Beckhoff: points along x in [0], along y in [1]) */
     double interval_mm;  /* spacing used */
     double unit_um;      /* the format's value unit as written (Beckhoff 0.1 um; others 1 nm) */
@@ -72,6 +73,7 @@ typedef struct sc_export_report {
     double max_at_mm[2]; /* where */
     long clipped;        /* table entries clipped to the limit */
     double limit_um;     /* the limit used */
+    double profile_max_um; /* Siemens: largest |table - profile| of the profiles' tables */
     /* Firmware formats: the map's first order and what was written. */
     double O, R;         /* non-orthogonality and scale of the map (dimensionless) */
     double skew;         /* the firmware's XY skew value as written (Klipper xy_factor from the
@@ -86,7 +88,8 @@ SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format
  * unknown. */
 SC_API int sc_export_format_from_name(const char *name);
 
-/* Resample lut's grid (profiles are ignored) for the controller, write it atomically to path,
+/* Resample lut's grid for the controller (and, for Siemens CEC, each of lut's straightness
+ * profiles as one more table AXIS -> DIR; the other formats ignore profiles), write it atomically to path,
  * fill *rep. SC_E_INPUT for options the format cannot honour (e.g. more entries than it holds)
  * and for maps beyond the firmware's limits. */
 SC_API sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,

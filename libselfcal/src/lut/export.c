@@ -312,7 +312,8 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
 /* ---- Siemens 840D CEC ---- */
 
 typedef struct cec_table {
-    int input, output;   /* 0 = x, 1 = y */
+    int input, output;   /* 0 = x, 1 = y, 2 = z */
+    int profile;         /* 1: a straightness profile's table (not part of the map's split) */
     int n;
     double min_mm, step_mm;
     long long *code_nm;  /* values in nm */
@@ -321,7 +322,7 @@ typedef struct cec_table {
 
 typedef struct cec_ctx {
     int ntab;
-    cec_table tab[4];
+    cec_table tab[4 + SC_LUT_MAX_PROFILES];
 } cec_ctx;
 
 static double cec_eval(const void *vctx, int comp, double x, double y)
@@ -330,7 +331,7 @@ static double cec_eval(const void *vctx, int comp, double x, double y)
     double sum = 0;
     for (int k = 0; k < c->ntab; ++k) {
         const cec_table *tb = &c->tab[k];
-        if (tb->output != comp)
+        if (tb->output != comp || tb->profile)
             continue;
         sum += interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, tb->input == 0 ? x : y);
     }
@@ -382,7 +383,10 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
                             "siemens-cec: tables %d..%d do not exist on an 828D (8 tables, "
                             "0..7)",
                             o->siemens_first_table, o->siemens_first_table + 2 * ncomp - 1);
-    const double sign = o->negate ? -1.0 : 1.0;
+    /* Siemens applies interpolatory compensation to the actual value: "a positive compensation
+     * value causes the corresponding machine axis to move in the negative direction" (K3). So
+     * the value is the measured deviation, true - indicated: -G by default (docs/exporters.md). */
+    const double sign = o->negate ? 1.0 : -1.0;
     rep->limit_um = o->limit_um > 0 ? o->limit_um : 1000.0; /* MD32720 CEC_MAX_SUM default 1 mm */
     cec_ctx c;
     memset(&c, 0, sizeof c);
@@ -430,24 +434,75 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
             }
         }
     }
+    /* Straightness profiles: one table each, input AXIS -> output DIR, the profile's own points
+     * (or the interval), values of its linear interpolation clamped to its range. */
+    for (int pk = 0; pk < lut->n_profiles && st == SC_OK; ++pk) {
+        const sc_lut_profile *pr = &lut->profile[pk];
+        cec_table *tb = &c.tab[c.ntab];
+        tb->input = pr->axis;
+        tb->output = pr->dir;
+        tb->profile = 1;
+        const double lo = pr->start_mm, hi = pr->start_mm + pr->step_mm * (pr->n - 1);
+        tb->step_mm = o->interval_mm > 0 ? o->interval_mm : pr->step_mm;
+        tb->n = cover_points(lo, hi, tb->step_mm);
+        tb->min_mm = lo;
+        const int maxp = o->siemens_828d ? SC_EXPORT_SIEMENS_828D_POINTS : SC_EXPORT_SIEMENS_MAX_POINTS;
+        if (tb->n > maxp) {
+            st = sc_error_set(err, SC_E_INPUT, NULL, 0,
+                              "siemens-cec: profile %d (%s -> %s) needs %d points at %.6f mm; a "
+                              "table holds %d: choose a larger interval",
+                              pk, sc_lut_axis_name(pr->axis), sc_lut_axis_name(pr->dir), tb->n,
+                              tb->step_mm, maxp);
+            break;
+        }
+        tb->code_nm = malloc(sizeof *tb->code_nm * (size_t)tb->n);
+        tb->value_um = malloc(sizeof *tb->value_um * (size_t)tb->n);
+        ++c.ntab;
+        if (!tb->code_nm || !tb->value_um) {
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+            break;
+        }
+        for (int k = 0; k < tb->n; ++k) {
+            double v = interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, lo + k * tb->step_mm);
+            tb->code_nm[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
+            tb->value_um[k] = 1e-3 * (double)tb->code_nm[k];
+        }
+        /* Its residual: the table's interpolation against the profile's, dense along the axis
+         * and beyond both ends (both clamp). */
+        const int ns = 16 * (pr->n - 1);
+        for (int q = -8; q <= ns + 8; ++q) {
+            double s_mm = lo + (hi - lo) * q / ns;
+            double r = interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, s_mm) -
+                       sign * interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, s_mm);
+            if (fabs(r) > rep->profile_max_um)
+                rep->profile_max_um = fabs(r);
+        }
+    }
+    if (o->siemens_828d && o->siemens_first_table + c.ntab > SC_EXPORT_SIEMENS_828D_TABLES && st == SC_OK)
+        st = sc_error_set(err, SC_E_INPUT, NULL, 0,
+                          "siemens-cec: %d tables from table %d do not fit an 828D (8 tables, 0..7)",
+                          c.ntab, o->siemens_first_table);
     if (st != SC_OK) {
         free_cec(&c);
         return st;
     }
     residual(lut, comps, ncomp, sign, cec_eval, &c, rep);
     rep->tables = c.ntab;
-    for (int k = 0; k < c.ntab; ++k)
+    for (int k = 0; k < c.ntab && k < 4; ++k)
         rep->points[k] = c.tab[k].n;
     rep->interval_mm = c.tab[0].step_mm;
     rep->unit_um = 1e-3;
 
-    const char *name[2] = {o->siemens_x_name, o->siemens_y_name};
+    const char *name[3] = {o->siemens_x_name, o->siemens_y_name,
+                           o->siemens_z_name ? o->siemens_z_name : "AX3"};
     tb_printf(t, "%%_N_NC_CEC_INI\n");
     tb_printf(t, "CHANDATA(1)\n");
     tb_printf(t, "; cross error compensation written by selfcal export: %d table(s), values in mm\n",
               c.ntab);
-    tb_printf(t, "; map = A(x) + B(y) + residual; tables hold %sA and %sB of %s\n",
-              o->negate ? "-" : "+", o->negate ? "-" : "+", ncomp == 2 ? "Gx and Gy" : (comps[0] == 0 ? "Gx" : "Gy"));
+    tb_printf(t, "; map = A(x) + B(y) + residual; tables hold %sA and %sB of %s (G = indicated - true)\n",
+              sign < 0 ? "-" : "+", sign < 0 ? "-" : "+", ncomp == 2 ? "Gx and Gy" : (comps[0] == 0 ? "Gx" : "Gy"));
+    tb_printf(t, "; %s\n", sign < 0 ? "Siemens' sign: the measured deviation (a positive value moves the axis negative)"
+                                   : "NEGATED: +G, the opposite of Siemens' sign");
     tb_printf(t, "; residual (tables - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
               rep->rms_um, rep->max_um, rep->clipped);
     if (o->siemens_828d)
@@ -458,8 +513,9 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
     for (int k = 0; k < c.ntab; ++k) {
         const cec_table *tb = &c.tab[k];
         const int ti = o->siemens_first_table + k;
-        tb_printf(t, "; table %d: %s of %s as a function of %s, %d points\n", ti,
-                  tb->output == 0 ? "X error" : "Y error", name[tb->output], name[tb->input], tb->n);
+        tb_printf(t, "; table %d: %s%s error of %s as a function of %s, %d points\n", ti,
+                  tb->profile ? "straightness profile: " : "", tb->output == 0 ? "X" : tb->output == 1 ? "Y" : "Z",
+                  name[tb->output], name[tb->input], tb->n);
         for (int p = 0; p < tb->n; ++p) {
             long long v = tb->code_nm[p];
             tb_printf(t, "$AN_CEC[%d,%d]=%s%lld.%06lld\n", ti, p, v < 0 ? "-" : "", llabs(v) / 1000000,

@@ -133,6 +133,44 @@ rc, out, err = run("--format", "linuxcnc", "--map", path("M.csv"), "--target", "
                    "-o", path("S4.mpf"))
 check(rc == 2 and len(err.strip().splitlines()) == 1, f"--target for linuxcnc: {rc} {err}")
 
+# Straightness profiles as Siemens CEC tables (input AXIS -> output DIR), Siemens' sign (-ey).
+with open(path("P.csv"), "w") as f:
+    f.write("n,x_mm,f_um,uf_um,ey_um\n")
+    ey = []
+    for k in range(41):
+        x = -30.0 + 1.5 * k
+        e = round(0.8 * ((k * 7) % 11 - 5) / 5 + 0.01 * x, 6)
+        ey.append((x, e))
+        f.write(f"{k},{x:.6f},0,0,{e:.6f}\n")
+rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), "--profile",
+                   "x:y:" + path("P.csv"), "--axis-names", "X1,Y1", "-o", path("SP.mpf"))
+check(rc == 0, f"siemens profile: {err}")
+if rc == 0:
+    text = open(path("SP.mpf")).read()
+    tabs = {}
+    for m in re.finditer(r"^\$AN_CEC\[(\d+),(\d+)\]=(-?[0-9.]+)$", text, re.M):
+        tabs.setdefault(int(m.group(1)), {})[int(m.group(2))] = float(m.group(3))
+    check(sorted(tabs) == [0, 1, 2, 3, 4], f"siemens profile: 5 tables, got {sorted(tabs)}")
+    kv = dict(re.findall(r"^\$(AN_CEC_\w+\[4\])=(\S+)$", text, re.M))
+    check(kv.get("AN_CEC_INPUT_AXIS[4]") == "(X1)" and kv.get("AN_CEC_OUTPUT_AXIS[4]") == "(Y1)",
+          f"profile table axes: {kv}")
+    check(abs(float(kv["AN_CEC_MIN[4]"]) + 30.0) < 1e-9
+          and abs(float(kv["AN_CEC_STEP[4]"]) - 1.5) < 1e-9, f"profile table range: {kv}")
+    worst = max(abs(1e3 * tabs[4][k] + e) for k, (x, e) in enumerate(ey))
+    check(len(tabs[4]) == 41 and worst <= 0.5e-3 + 1e-9, f"profile values = -ey ({worst})")
+    check("straightness profile" in text and "profile tables: max" in out, f"profile reported: {out}")
+for args, want in ((["--profile", "x:x:" + path("P.csv")], "DIR != AXIS"),
+                   (["--profile", "x:y:" + path("P.csv"), "--target", "828d", "--first-table",
+                     "4"], "828D")):
+    if os.path.exists(path("SP2.mpf")):
+        os.remove(path("SP2.mpf"))
+    rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), *args,
+                       "-o", path("SP2.mpf"))
+    check(rc == 2 and want in err and not os.path.exists(path("SP2.mpf")), f"{args}: {rc} {err}")
+rc, out, err = run("--format", "linuxcnc", "--map", path("M.csv"), "--profile",
+                   "x:y:" + path("P.csv"), "-o", path("SP3.comp"))
+check(rc == 2 and "HAL component" in err, f"profile for linuxcnc: {rc} {err}")
+
 if failures:
     print(f"{len(failures)} failure(s)")
     sys.exit(1)
