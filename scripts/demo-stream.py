@@ -85,7 +85,7 @@ def stats(e):
 def svg(path, before, after, box_stats):
     """Two stacked charts (each with its own scale): |error| along the trajectory, before and
     after correction, plus the x and y components."""
-    W, H, L, T, PH, GAP = 900, 560, 70, 40, 200, 70
+    W, H, L, T, PH, GAP = 900, 580, 70, 40, 200, 80
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" '
            f'font-family="sans-serif" font-size="12">',
            f'<rect width="{W}" height="{H}" fill="white"/>',
@@ -102,11 +102,27 @@ def svg(path, before, after, box_stats):
         out.append(f'<rect x="{L}" y="{top}" width="{W - L - 30}" height="{PH}" fill="none" '
                    f'stroke="#888"/>')
         out.append(f'<line x1="{L}" y1="{mid}" x2="{W - 30}" y2="{mid}" stroke="#ccc"/>')
-        for frac in (-1, -0.5, 0.5, 1):
-            y = mid - frac * vmax / 1.1 * sy
-            out.append(f'<text x="{L - 6}" y="{y + 4:.1f}" text-anchor="end">'
-                       f'{frac * vmax / 1.1:.1f}</text>')
+        # y ticks at round values (1, 2, 5 x 10^k nm)
+        raw = vmax / 2.5
+        mag = 10 ** math.floor(math.log10(raw))
+        ystep = next(m * mag for m in (1, 2, 5, 10) if m * mag >= raw)
+        t = -math.floor(vmax / ystep) * ystep
+        while t <= vmax:
+            y = mid - t * sy
+            out.append(f'<text x="{L - 6}" y="{y + 4:.1f}" text-anchor="end">{t:g}</text>')
             out.append(f'<line x1="{L}" y1="{y:.1f}" x2="{L + 5}" y2="{y:.1f}" stroke="#888"/>')
+            t += ystep
+        # x ticks: round point indices along the trajectory
+        raw = max(1, n - 1) / 8
+        mag = 10 ** math.floor(math.log10(raw))
+        xstep = next(m * mag for m in (1, 2, 5, 10) if m * mag >= raw)
+        k = 0
+        while k <= n - 1:
+            x = L + k * sx
+            out.append(f'<line x1="{x:.1f}" y1="{top + PH}" x2="{x:.1f}" y2="{top + PH + 5}" '
+                       f'stroke="#888"/>')
+            out.append(f'<text x="{x:.1f}" y="{top + PH + 17}" text-anchor="middle">{k}</text>')
+            k += xstep
         for comp, color, f in (("ex", "#1f77b4", lambda p: p[0]), ("ey", "#2ca02c", lambda p: p[1]),
                                ("|e|", "#d62728", lambda p: math.hypot(*p))):
             step = max(1, n // 1500)

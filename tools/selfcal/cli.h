@@ -37,6 +37,7 @@ int cmd_import_profile(int argc, char **argv);
 int cmd_simulate_profile(int argc, char **argv);
 int cmd_plot_map(int argc, char **argv);
 int cmd_plot_profile(int argc, char **argv);
+int cmd_plot_xy(int argc, char **argv);
 int cmd_report_grid(int argc, char **argv);
 int cmd_report_profile(int argc, char **argv);
 int cmd_verify(int argc, char **argv);

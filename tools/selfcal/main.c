@@ -65,6 +65,7 @@ static const command commands[] = {
     {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR  a measuring machine's files"},
     {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg     arrow plot of an error map"},
     {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg   profile and uncertainty curves"},
+    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]   line chart of CSV columns"},
     {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]   calibration report (HTML)"},
     {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]   profile report (HTML)"},
     {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T   check a compensated stage"},

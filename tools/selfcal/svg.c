@@ -34,6 +34,7 @@ void svg_chart_init(svg_chart *c, FILE *fp, double x, double y, double w, double
         ymin -= 0.5;
         ymax = ymin + 1.0;
     }
+    c->logx = c->logy = 0;
     c->xmin = xmin;
     c->xmax = xmax;
     c->ymin = ymin;
@@ -92,17 +93,23 @@ void svg_axes(const svg_chart *c, const char *xlabel, const char *ylabel, const 
 {
     FILE *fp = c->fp;
     double sx = nice_step(c->xmax - c->xmin, 8), sy = nice_step(c->ymax - c->ymin, 6);
+    if (c->logx)
+        sx = fmax(1.0, ceil(sx)); /* decades */
+    if (c->logy)
+        sy = fmax(1.0, ceil(sy));
     for (double t = ceil(c->xmin / sx) * sx; t <= c->xmax + 1e-9 * sx; t += sx) {
         double px = svg_px(c, t);
         fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"#e4e4e4\"/>\n",
                 px, c->y, px, c->y + c->h);
-        svg_text(fp, px, c->y + c->h + 16, 11, "middle", "#333", "%g", fabs(t) < 1e-12 * sx ? 0.0 : t);
+        svg_text(fp, px, c->y + c->h + 16, 11, "middle", "#333", "%g",
+                 c->logx ? pow(10.0, round(t)) : fabs(t) < 1e-12 * sx ? 0.0 : t);
     }
     for (double t = ceil(c->ymin / sy) * sy; t <= c->ymax + 1e-9 * sy; t += sy) {
         double py = svg_py(c, t);
         fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"#e4e4e4\"/>\n",
                 c->x, py, c->x + c->w, py);
-        svg_text(fp, c->x - 6, py + 4, 11, "end", "#333", "%g", fabs(t) < 1e-12 * sy ? 0.0 : t);
+        svg_text(fp, c->x - 6, py + 4, 11, "end", "#333", "%g",
+                 c->logy ? pow(10.0, round(t)) : fabs(t) < 1e-12 * sy ? 0.0 : t);
     }
     fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#333\"/>\n",
             c->x, c->y, c->w, c->h);

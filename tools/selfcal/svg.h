@@ -9,6 +9,7 @@ typedef struct svg_chart {
     FILE *fp;
     double x, y, w, h;             /* plot area in px */
     double xmin, xmax, ymin, ymax; /* data range */
+    int logx, logy;                /* 1: the data are log10 of the values; ticks read 10^k */
 } svg_chart;
 
 /* Start a document of w x h px (white background) / close it. */

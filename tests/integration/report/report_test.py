@@ -547,6 +547,18 @@ def case_plots():
             fail("text runs off the drawing (width %g): %r at x=%g size %g" % (width, t.text, x, size))
     if os.path.dirname(longin) in " ".join(t.text or "" for t in texts):
         fail("the title holds the absolute path")
+    # plot xy (scripts/figs-grid.sh): a logarithmic x axis labelled in decades, one line per column
+    with open(p("xy.csv"), "w") as f:
+        f.write("sigma_r_um,ye,lsq\n0.001,1.2,0.9\n0.01,1.25,0.92\n0.1,1.22,\n1,1.3,0.95\n")
+    run("plot", "xy", p("xy.csv"), "-o", p("xy.svg"), "--logx", "--title", "t")
+    root, ns, texts = svg_texts(p("xy.svg"))
+    labels = [t.text for t in texts]
+    if not all(x in labels for x in ("0.001", "0.01", "0.1", "1", "ye", "lsq")):
+        fail("plot xy labels: %s" % labels)
+    lines = root.findall(ns + "polyline")
+    if len(lines) != 3:  # ye, and lsq broken at its gap
+        fail("plot xy: %d polylines" % len(lines))
+    run("plot", "xy", p("xy.csv"), "-o", p("xy2.svg"), "--y", "nope", expect=2)
     # profile plot: the f chart has uncertainty bands
     pin, pout = p("p.csv"), p("P.csv")
     run("simulate", "profile", "--out", pin, "--truth", p("pt.csv"))

@@ -1,0 +1,253 @@
+/* selfcal plot xy — a line chart of the columns of a CSV file (one x column, one or more y
+ * columns, linear or logarithmic axes): the figures of scripts/figs-grid.sh, and any table a
+ * benchmark writes. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "plots.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "svg.h"
+
+static const char *USAGE =
+    "usage: selfcal plot xy DATA.csv -o chart.svg [--x COL] [--y COL ...] [--logx] [--logy]\n"
+    "                       [--title T] [--xlabel L] [--ylabel L]\n"
+    "  A line chart of a CSV file with a header line: x from column COL (default the first), one\n"
+    "  line with markers per --y column (default every other column); empty fields are gaps.\n"
+    "  --logx/--logy: logarithmic axes (values <= 0 are left out).\n";
+
+#define XY_MAX_SERIES 16
+
+typedef struct xy_data {
+    int ncol;
+    char names[SC_CSV_MAX_FIELDS][64];
+    long nrows, cap;
+    double *v; /* nrows x ncol */
+} xy_data;
+
+static sc_status read_xy(const char *path, xy_data *t,
+                         sc_error *err)
+{
+    memset(t, 0, sizeof *t);
+    sc_csv r;
+    sc_status st = sc_csv_open(&r, path, err);
+    if (st != SC_OK)
+        return st;
+    int got;
+    while ((got = sc_csv_next_line(&r, err)) > 0) {
+        if (sc_csv_is_blank(&r) || r.text[0] == '#')
+            continue;
+        if (sc_csv_split(&r, err) < 0) {
+            got = -1;
+            break;
+        }
+        if (!t->ncol) {
+            t->ncol = r.nfields;
+            if (t->ncol < 2) {
+                st = sc_error_set(err, SC_E_INPUT, path, r.line, "need a header with at least two columns");
+                goto fail;
+            }
+            for (int k = 0; k < t->ncol; ++k)
+                snprintf(t->names[k], sizeof t->names[k], "%s", r.field[k]);
+            continue;
+        }
+        if (r.nfields != t->ncol) {
+            st = sc_error_set(err, SC_E_INPUT, path, r.line, "expected %d fields, got %d", t->ncol,
+                              r.nfields);
+            goto fail;
+        }
+        if (t->nrows == t->cap) {
+            t->cap = t->cap ? 2 * t->cap : 64;
+            double *nv = realloc(t->v, (size_t)t->cap * t->ncol * sizeof(double));
+            if (!nv) {
+                st = sc_error_set(err, SC_E_NOMEM, path, r.line, "out of memory");
+                goto fail;
+            }
+            t->v = nv;
+        }
+        double *row = t->v + t->nrows * t->ncol;
+        for (int k = 0; k < t->ncol; ++k) {
+            row[k] = NAN;
+            if (!r.field[k][0])
+                continue;
+            if ((st = sc_csv_double(&r, k, t->names[k], &row[k], err)) != SC_OK)
+                goto fail;
+            if (!(fabs(row[k]) <= 1e300)) {
+                st = sc_error_set(err, SC_E_INPUT, path, r.line, "%s is not a finite number", t->names[k]);
+                goto fail;
+            }
+        }
+        t->nrows++;
+    }
+    if (got < 0) {
+        st = err ? err->code : SC_E_INPUT;
+        goto fail;
+    }
+    if (t->nrows == 0) {
+        st = sc_error_set(err, SC_E_INPUT, path, r.line, "no data rows");
+        goto fail;
+    }
+    sc_csv_close(&r);
+    return SC_OK;
+fail:
+    sc_csv_close(&r);
+    free(t->v);
+    t->v = NULL;
+    return st;
+}
+
+static const char *COLORS[8] = {"#1f5fbf", "#d9731a", "#2a9d3a", "#b3261e",
+                                "#7b4bb7", "#8c564b", "#e377c2", "#555555"};
+static const char *DASHES[4] = {NULL, "6,3", "2,2", "8,3,2,3"};
+
+int cmd_plot_xy(int argc, char **argv)
+{
+    const char *cmd = "plot xy";
+    const char *in = NULL, *out = NULL, *xname = NULL, *title = NULL, *xlabel = NULL, *ylabel = NULL;
+    const char *ynames[XY_MAX_SERIES];
+    int ny = 0, logx = 0, logy = 0;
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            fputs(USAGE, stdout);
+            return CLI_OK;
+        }
+        if (o[0] != '-' || !strcmp(o, "-")) {
+            if (in)
+                return cli_usage_error(cmd, "more than one input file ('%s', '%s')", in, o);
+            in = o;
+            continue;
+        }
+        if (!strcmp(o, "--logx")) {
+            logx = 1;
+            continue;
+        }
+        if (!strcmp(o, "--logy")) {
+            logy = 1;
+            continue;
+        }
+        if (a + 1 >= argc)
+            return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+        const char *v = argv[++a];
+        if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
+        else if (!strcmp(o, "--x")) xname = v;
+        else if (!strcmp(o, "--y")) {
+            if (ny == XY_MAX_SERIES)
+                return cli_usage_error(cmd, "at most %d --y columns", XY_MAX_SERIES);
+            ynames[ny++] = v;
+        } else if (!strcmp(o, "--title")) title = v;
+        else if (!strcmp(o, "--xlabel")) xlabel = v;
+        else if (!strcmp(o, "--ylabel")) ylabel = v;
+        else
+            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    }
+    if (!in || !out)
+        return cli_usage_error(cmd, "DATA.csv and -o chart.svg are required (see --help)");
+    sc_error err;
+    sc_error_clear(&err);
+    xy_data t;
+    sc_status st = read_xy(in, &t, &err);
+    if (st != SC_OK)
+        return cli_report(&err);
+    int xc = 0, yc[XY_MAX_SERIES], nser = 0;
+    if (xname) {
+        xc = -1;
+        for (int k = 0; k < t.ncol; ++k)
+            if (!strcmp(t.names[k], xname))
+                xc = k;
+    }
+    if (xc < 0)
+        st = sc_error_set(&err, SC_E_INPUT, in, 1, "no column '%s'", xname);
+    for (int q = 0; st == SC_OK && q < ny; ++q) {
+        yc[nser] = -1;
+        for (int k = 0; k < t.ncol; ++k)
+            if (!strcmp(t.names[k], ynames[q]))
+                yc[nser] = k;
+        if (yc[nser] < 0)
+            st = sc_error_set(&err, SC_E_INPUT, in, 1, "no column '%s'", ynames[q]);
+        nser++;
+    }
+    for (int k = 0; st == SC_OK && !ny && k < t.ncol && nser < XY_MAX_SERIES; ++k)
+        if (k != xc)
+            yc[nser++] = k;
+    double *xs = NULL, *ys = NULL;
+    if (st == SC_OK) {
+        xs = malloc((size_t)t.nrows * sizeof(double));
+        ys = malloc((size_t)t.nrows * sizeof(double));
+        if (!xs || !ys)
+            st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    sc_afile f;
+    if (st == SC_OK)
+        st = sc_afile_open(&f, out, &err);
+    if (st == SC_OK) {
+        double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
+        for (long r = 0; r < t.nrows; ++r) {
+            double x = t.v[r * t.ncol + xc];
+            x = logx ? log10(x) : x; /* a value <= 0 on a log axis is a gap */
+            if (!isfinite(x))
+                continue;
+            xlo = fmin(xlo, x), xhi = fmax(xhi, x);
+            for (int q = 0; q < nser; ++q) {
+                double y = t.v[r * t.ncol + yc[q]];
+                y = logy ? log10(y) : y;
+                if (isfinite(y)) {
+                    ylo = fmin(ylo, y), yhi = fmax(yhi, y);
+                }
+            }
+        }
+        if (!(ylo <= yhi))
+            ylo = 0, yhi = 1;
+        if (!(xlo <= xhi))
+            xlo = 0, xhi = 1;
+        if (logx) {
+            xlo = floor(xlo), xhi = ceil(xhi);
+            if (xhi <= xlo)
+                xhi = xlo + 1;
+        } else
+            svg_nice_range(&xlo, &xhi);
+        if (logy) {
+            ylo = floor(ylo), yhi = ceil(yhi);
+            if (yhi <= ylo)
+                yhi = ylo + 1;
+        } else {
+            double span = yhi - ylo;
+            ylo -= 0.05 * span, yhi += 0.05 * span;
+            svg_nice_range(&ylo, &yhi);
+        }
+        const int W = 760, H = 460;
+        FILE *fp = f.fp;
+        svg_begin(fp, W, H);
+        svg_chart c;
+        svg_chart_init(&c, fp, 85, 50, W - 115, H - 120, xlo, xhi, ylo, yhi);
+        c.logx = logx;
+        c.logy = logy;
+        svg_axes(&c, xlabel ? xlabel : t.names[xc], ylabel, title);
+        for (int q = 0; q < nser; ++q) {
+            const char *col = COLORS[q % 8], *dash = DASHES[(q / 8 + q) % 4];
+            for (long r = 0; r < t.nrows; ++r) {
+                double x = t.v[r * t.ncol + xc], y = t.v[r * t.ncol + yc[q]];
+                xs[r] = logx ? log10(x) : x;
+                ys[r] = logy ? log10(y) : y;
+            }
+            svg_polyline(&c, xs, ys, (int)t.nrows, col, 1.6, dash);
+            for (long r = 0; r < t.nrows; ++r)
+                if (isfinite(xs[r]) && isfinite(ys[r]))
+                    svg_dot(fp, svg_px(&c, xs[r]), svg_py(&c, ys[r]), 2.8, col);
+            svg_legend(&c, q, t.names[yc[q]], col, dash);
+        }
+        svg_end(fp);
+        st = ferror(fp) ? sc_error_set(&err, SC_E_IO, out, 0, "write failed") : SC_OK;
+        if (st == SC_OK)
+            st = sc_afile_commit(&f, &err);
+        else
+            sc_afile_abort(&f);
+    }
+    free(xs);
+    free(ys);
+    free(t.v);
+    return st == SC_OK ? CLI_OK : cli_report(&err);
+}
