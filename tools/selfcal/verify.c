@@ -142,7 +142,7 @@ sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
     }
     double *absy = absx + nn;
     /* all views pooled for the statistics */
-    double *pbx = malloc(8 * nres * sizeof(double) + 1);
+    double *pbx = calloc(8 * nres + 1, sizeof(double)); /* zeroed: stats_of reads only the pm filled, but GCC -O2 cannot see it */
     if (!pbx) {
         free(idx);
         free(absx);

@@ -51,6 +51,13 @@ copy_with_libs() { # $1 = binary, $2 = path in the guest
   chmod 755 "$stage$dst"
   # "libX => /path (addr)" and "/lib64/ld-linux-x86-64.so.2 (addr)"
   ldd "$src" 2>/dev/null | awk '/=> \//{print $3} /^[ \t]*\//{print $1}' | while read -r lib; do
+    case "$lib" in
+      /lib/*|/lib64/*|/usr/lib/*|/usr/lib64/*) ;;
+      # the project's own libraries (libselfcal.so.N from the build tree): the binaries find
+      # them through RUNPATH $ORIGIN/../lib, which is /lib for /bin/<name> in the guest
+      *) [ -e "$stage/lib/$(basename "$lib")" ] || cp -L "$lib" "$stage/lib/$(basename "$lib")"
+         continue ;;
+    esac
     [ -e "$stage$lib" ] && continue
     mkdir -p "$stage$(dirname "$lib")"
     cp -L "$lib" "$stage$lib"
