@@ -7,3 +7,7 @@ selfcal_unit_test(NAME test_grid_lsq_dense SOURCES unit/test_grid_lsq_dense.c
 # the symmetric sparse solver itself (private header of the grid area)
 selfcal_unit_test(NAME test_grid_sparse_sym SOURCES unit/test_grid_sparse_sym.c
                   LIBS selfcal_static LABELS grid TIMEOUT 60)
+# real measurements (SPEC §5): stitched/rectangular stages, damaged marks, weights, leverage,
+# uncertainties, covariance, drift; dense LAPACK references
+selfcal_unit_test(NAME test_grid_real SOURCES unit/test_grid_real.c
+                  LIBS selfcal_static PkgConfig::LAPACKE LABELS grid TIMEOUT 120)

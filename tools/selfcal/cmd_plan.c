@@ -5,10 +5,14 @@
 
 #include "cli.h"
 #include "selfcal/grid_io.h"
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
 #include "selfcal/grid_lsq.h"
+#include "selfcal/grid_sim.h"
 
 static const char *USAGE =
-    "usage: selfcal plan PLAN.csv\n"
+    "usage: selfcal plan PLAN.csv [--drift linear]\n"
+    "       selfcal plan --design --stage NX,NY --n N [--pitch-mm P] [--origin-mm X,Y] [-o PLAN.csv]\n"
     "\n"
     "Reads a selfcal-grid v1 header (a plan file: header lines only) or a data file (then the\n"
     "marks actually measured count) and prints, first:\n"
@@ -18,7 +22,14 @@ static const char *USAGE =
     "  sigma_c_ratio_max: Y      the worst node component\n"
     "For a plan that does not identify G both ratios are printed as 'inf'.\n"
     "Then: N, pitch, the views with the marks each measures, equations, unknowns, constraints\n"
-    "and which closed-form methods (ye, double-shift) the plan supports.\n";
+    "and which closed-form methods (ye, double-shift) the plan supports.\n"
+    "A stage node no view measures leaves G free there (identifiable: no, counted in free).\n"
+    "--drift linear: analyse with per-view drift rates as unknowns (times from the data's t_s,\n"
+    "or for a plan file one raster position per second in serpentine plate order).\n"
+    "--design: propose a plan for an NX x NY stage and an N x N plate: rot-0 placements on a\n"
+    "raster covering the stage plus a rot-90 and a shift +1,0 placement at the centre, with the\n"
+    "largest raster step (fewest placements) that identifies G; prints the analysis above for\n"
+    "it and writes its header to -o (a plan file for 'selfcal simulate grid --plan').\n";
 
 /* 1 if every mark the view would measure (all on the grid, or row c / cols c, c+1) is measured. */
 static int view_complete(const sc_grid_data *d, int has_data, int v, int partial)
@@ -49,13 +60,108 @@ static int supports(const sc_grid_data *d, int has_data, const int (*need)[4], i
     return 1;
 }
 
+static int parse_pair(const char *v, double *a, double *b)
+{
+    char buf[128];
+    snprintf(buf, sizeof buf, "%s", v);
+    char *comma = strchr(buf, ',');
+    if (!comma)
+        return -1;
+    *comma = '\0';
+    return sc_parse_double(buf, a) || sc_parse_double(comma + 1, b) ? -1 : 0;
+}
+
+/* The designer: the largest raster step that identifies G. */
+static int design(int argc, char **argv)
+{
+    double sx = 0, sy = 0, n_d = 0, pitch = 1, ox = 0, oy = 0;
+    const char *out = NULL;
+    for (int a = 1; a < argc; ++a) {
+        const char *o = argv[a];
+        if (!strcmp(o, "--design"))
+            continue;
+        if (a + 1 >= argc)
+            return cli_usage_error("plan", "'%s' needs a value (see --help)", o);
+        const char *v = argv[++a];
+        if (!strcmp(o, "--stage")) {
+            if (parse_pair(v, &sx, &sy))
+                return cli_usage_error("plan", "--stage needs NX,NY, got '%s'", v);
+        } else if (!strcmp(o, "--n")) {
+            if (sc_parse_double(v, &n_d))
+                return cli_usage_error("plan", "--n needs a number, got '%s'", v);
+        } else if (!strcmp(o, "--pitch-mm")) {
+            if (sc_parse_double(v, &pitch) || !(pitch > 0))
+                return cli_usage_error("plan", "--pitch-mm needs a positive number");
+        } else if (!strcmp(o, "--origin-mm")) {
+            if (parse_pair(v, &ox, &oy))
+                return cli_usage_error("plan", "--origin-mm needs X,Y, got '%s'", v);
+        } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
+            out = v;
+        } else
+            return cli_usage_error("plan", "unknown option '%s' (see --help)", o);
+    }
+    if (n_d != floor(n_d) || n_d < 3 || n_d > SC_GRID_MAX_N || fmod(n_d, 2) == 0 ||
+        sx != floor(sx) || sy != floor(sy) || sx < 3 || sy < 3 || fmod(sx, 2) == 0 ||
+        fmod(sy, 2) == 0 || sx > SC_GRID_MAX_STAGE || sy > SC_GRID_MAX_STAGE)
+        return cli_usage_error("plan", "--design needs --n N and --stage NX,NY, all odd and >= 3");
+    int n = (int)n_d;
+    sc_error err;
+    sc_error_clear(&err);
+    sc_grid_plan best;
+    sc_grid_lsq_info bi;
+    int found = 0;
+    for (int step = n - 1; step >= 1 && !found; step = step > 1 ? step * 2 / 3 : 0) {
+        sc_grid_plan p;
+        if (sc_grid_plan_stitch_step(n, (int)sx, (int)sy, step, pitch, ox, oy, &p, &err) != SC_OK)
+            break;
+        sc_grid_lsq *q = NULL;
+        if (sc_grid_lsq_create(&p, NULL, &q, &err) != SC_OK)
+            return cli_report(&err);
+        sc_grid_lsq_get_info(q, &bi);
+        sc_grid_lsq_destroy(q);
+        if (bi.identifiable)
+            best = p, found = 1;
+    }
+    if (!found) {
+        fprintf(stderr, "selfcal: plan --design: no raster of at most %d placements identifies G "
+                        "on a %dx%d stage with an N = %d plate\n",
+                SC_GRID_MAX_VIEWS, (int)sx, (int)sy, n);
+        return CLI_FAIL;
+    }
+    printf("identifiable: yes\nfree: 0\nsigma_c_ratio_rms: %.6g\nsigma_c_ratio_max: %.6g\n",
+           bi.sigma_c_ratio_rms, bi.sigma_c_ratio_max);
+    printf("N: %d\nstage: %d,%d\npitch_mm: %g\nviews: %d\n", n, (int)sx, (int)sy, pitch,
+           best.n_views);
+    for (int v = 0; v < best.n_views; ++v)
+        printf("view %d: rot=%d shift=%d,%d\n", v, best.view[v].rot_deg, best.view[v].shift_x,
+               best.view[v].shift_y);
+    if (out) {
+        sc_afile f;
+        if (sc_afile_open(&f, out, &err) != SC_OK)
+            return cli_report(&err);
+        sc_grid_write_header(f.fp, &best);
+        if (sc_afile_commit(&f, &err) != SC_OK)
+            return cli_report(&err);
+    }
+    return CLI_OK;
+}
+
 int cmd_plan(int argc, char **argv)
 {
     const char *in = NULL;
+    sc_grid_lsq_opts opts = {0};
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
+        }
+        if (!strcmp(argv[a], "--design"))
+            return design(argc, argv);
+        if (!strcmp(argv[a], "--drift")) {
+            if (a + 1 >= argc || (strcmp(argv[a + 1], "linear") && strcmp(argv[a + 1], "none")))
+                return cli_usage_error("plan", "--drift needs linear or none (see --help)");
+            opts.drift = !strcmp(argv[++a], "linear");
+            continue;
         }
         if (argv[a][0] == '-' && strcmp(argv[a], "-") != 0)
             return cli_usage_error("plan", "unknown option '%s' (see --help)", argv[a]);
@@ -74,7 +180,13 @@ int cmd_plan(int argc, char **argv)
         return cli_report(&err);
     int has_data = fi.n_rows > 0;
     sc_grid_lsq *q = NULL;
-    st = sc_grid_lsq_create(&d.plan, has_data ? &d : NULL, &q, &err);
+    if (opts.drift && has_data && !fi.has_t) {
+        sc_grid_data_free(&d);
+        sc_error_set(&err, SC_E_INPUT, in, fi.header_end_line,
+                     "--drift linear needs the time of each measurement (column t_s)");
+        return cli_report(&err);
+    }
+    st = sc_grid_lsq_create_ex(&d.plan, has_data ? &d : NULL, &opts, &q, &err);
     if (st != SC_OK) {
         sc_grid_data_free(&d);
         if (!err.file[0]) {
@@ -95,8 +207,10 @@ int cmd_plan(int argc, char **argv)
     } else {
         printf("sigma_c_ratio_rms: inf\nsigma_c_ratio_max: inf\n");
     }
-    printf("N: %d\npitch_mm: %g\norigin_mm: %g,%g\n", n, p->pitch_mm, p->origin_mm[0],
-           p->origin_mm[1]);
+    printf("N: %d\nstage: %d,%d\npitch_mm: %g\norigin_mm: %g,%g\n", n, sc_grid_stage_nx(p),
+           sc_grid_stage_ny(p), p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
+    if (qi.n_stage_unmeasured)
+        printf("unmeasured_stage_nodes: %ld\n", qi.n_stage_unmeasured);
     printf("source: %s\n", has_data ? "data file (the marks measured)" : "plan (the marks the views select)");
     printf("views: %d\n", p->n_views);
     long empty_views = 0, unseen_marks = 0;
@@ -123,15 +237,17 @@ int cmd_plan(int argc, char **argv)
      * view measures (its plate error) leave unknowns undetermined without costing equations. */
     if (qi.identifiable)
         printf("residual_dof: %ld\n", qi.n_equations + qi.n_constraints - qi.n_unknowns +
-                                           3 * empty_views + 2 * unseen_marks);
+                                           3 * empty_views);
     if (empty_views || unseen_marks)
         printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
                "misalignment / plate error stay unknown)\n",
                empty_views, unseen_marks);
     static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
     static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-    printf("method ye: %s\n", supports(&d, has_data, ye, 3) ? "yes" : "no");
-    printf("method double-shift: %s\n", n >= 9 && supports(&d, has_data, ds, 4) ? "yes" : "no");
+    int plate_stage = sc_grid_stage_is_plate(p);
+    printf("method ye: %s\n", plate_stage && supports(&d, has_data, ye, 3) ? "yes" : "no");
+    printf("method double-shift: %s\n",
+           plate_stage && n >= 9 && supports(&d, has_data, ds, 4) ? "yes" : "no");
     printf("method lsq: %s\n", qi.identifiable ? "yes" : "no");
     sc_grid_lsq_destroy(q);
     sc_grid_data_free(&d);

@@ -20,6 +20,8 @@ static const char *USAGE =
     "                             [--sigma-t-um 0.1] [--sigma-theta-urad 100] [--seed 1]\n"
     "                             [--truth-artifact A_true.csv] [--truth-summary T.json]\n"
     "                             [--compensate-with T.lut]\n"
+    "                             [--stage NX,NY] [--view-sigma-r-um S0,S1,...]\n"
+    "                             [--dt-s DT] [--drift-um-s VX,VY]\n"
     "\n"
     "Simulates a stage error G (first-order O, R plus a SAR(1) field with row-standardised\n"
     "4-neighbour weights, scaled so that the std of all Gx, Gy values is sigma-g-um), a Gaussian\n"
@@ -30,6 +32,12 @@ static const char *USAGE =
     "--plan ye: {rot 0}, {rot 90}, {shift +1,0}; double-shift: {rot 0}, {rot 90}, {shift +2,0},\n"
     "{shift -3,0 rows=c cols=c,c+1} (N >= 9); a file: its header gives N, pitch, origin and views\n"
     "(then --n, --pitch-mm and --origin-mm must agree with it or be left out).\n"
+    "--stage NX,NY: a stage grid larger than the plate (both odd); with --plan stitch the plate is\n"
+    "placed at rot 0 on a raster covering the stage (steps of about N/2 pitches), plus a rot 90\n"
+    "and a shift +1,0 placement at the centre (the plan 'selfcal plan --design' proposes).\n"
+    "--view-sigma-r-um: each view its own noise (written as sigma_um= on the view lines).\n"
+    "--dt-s: each measurement gets a time (column t_s, serpentine order, views in sequence);\n"
+    "--drift-um-s adds a translation drift (vx, vy)·(t - start of its view).\n"
     "Same seed and options: the same files. G and A depend only on N, the sigmas and the seed,\n"
     "not on the views: a one-view plan with the calibration's seed re-measures the same stage\n"
     "and plate. --compensate-with: the machine measures with this table active (each reading\n"
@@ -51,7 +59,10 @@ static void fprint_truth_summary(FILE *fp, const char *plan_name, const sc_grid_
         fprintf(fp, (*c == '"' || *c == '\\') ? "\\%c" : "%c", *c);
     fprintf(fp, "\",\n  \"N\": %d,\n  \"pitch_mm\": %.15g,\n  \"origin_mm\": [%.15g, %.15g],\n",
             p->n, p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
+    fprintf(fp, "  \"stage\": [%d, %d],\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
     fprintf(fp, "  \"O\": %.15g,\n  \"R\": %.15g,\n", t->O, t->R);
+    fprintf(fp, "  \"dt_s\": %.15g,\n  \"drift_um_s\": [%.15g, %.15g],\n", sp->dt_s,
+            sp->drift_vx_um_s, sp->drift_vy_um_s);
     fprintf(fp, "  \"sigma_g_um\": %.15g,\n  \"rho\": %.15g,\n  \"sar_weights\": \"row-standardised 4-neighbour\",\n",
             sp->sigma_g_um, sp->rho);
     fprintf(fp, "  \"sigma_a_um\": %.15g,\n  \"sigma_t_um\": %.15g,\n  \"sigma_theta_urad\": %.15g,\n",
@@ -101,7 +112,9 @@ int cmd_simulate_grid(int argc, char **argv)
     const char *plan_arg = NULL, *out = NULL, *truth_map = NULL, *truth_art = NULL,
                *truth_sum = NULL, *comp_table = NULL;
     double n_d = 25, pitch = 1, ox = 0, oy = 0;
-    int n_given = 0, pitch_given = 0, origin_given = 0;
+    int n_given = 0, pitch_given = 0, origin_given = 0, n_vs = 0;
+    long stage_x = 0, stage_y = 0;
+    double view_sigma[SC_GRID_MAX_VIEWS];
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     for (int a = 1; a < argc; ++a) {
@@ -131,6 +144,35 @@ int cmd_simulate_grid(int argc, char **argv)
             if (sc_parse_double(buf, &ox) || sc_parse_double(comma + 1, &oy))
                 return cli_usage_error("simulate grid", "--origin-mm needs X,Y, got '%s'", v);
             origin_given = 1;
+        } else if (!strcmp(o, "--stage")) {
+            char buf[64];
+            snprintf(buf, sizeof buf, "%s", v);
+            char *comma = strchr(buf, ',');
+            if (comma)
+                *comma = '\0';
+            if (!comma || sc_parse_long(buf, &stage_x) || sc_parse_long(comma + 1, &stage_y) ||
+                stage_x < 3 || stage_y < 3 || stage_x % 2 == 0 || stage_y % 2 == 0 ||
+                stage_x > SC_GRID_MAX_STAGE || stage_y > SC_GRID_MAX_STAGE)
+                return cli_usage_error("simulate grid", "--stage needs NX,NY, both odd and >= 3, got '%s'", v);
+        } else if (!strcmp(o, "--view-sigma-r-um")) {
+            char buf[1024];
+            snprintf(buf, sizeof buf, "%s", v);
+            n_vs = 0;
+            for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
+                if (n_vs == SC_GRID_MAX_VIEWS || sc_parse_double(t, &view_sigma[n_vs]) ||
+                    !(view_sigma[n_vs] > 0) || view_sigma[n_vs] > 1e6)
+                    return cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
+                ++n_vs;
+            }
+        } else if (!strcmp(o, "--drift-um-s")) {
+            char buf[128];
+            snprintf(buf, sizeof buf, "%s", v);
+            char *comma = strchr(buf, ',');
+            if (comma)
+                *comma = '\0';
+            if (!comma || sc_parse_double(buf, &sp.drift_vx_um_s) ||
+                sc_parse_double(comma + 1, &sp.drift_vy_um_s))
+                return cli_usage_error("simulate grid", "--drift-um-s needs VX,VY, got '%s'", v);
         } else if (!strcmp(o, "--seed")) {
             long s;
             if (sc_parse_long(v, &s) || s < 0)
@@ -149,6 +191,11 @@ int cmd_simulate_grid(int argc, char **argv)
             else if (!strcmp(o, "--O")) sp.O = x;
             else if (!strcmp(o, "--R")) sp.R = x;
             else if (!strcmp(o, "--rho")) sp.rho = x;
+            else if (!strcmp(o, "--dt-s")) {
+                if (!(x > 0) || x > 1e6)
+                    return cli_usage_error("simulate grid", "--dt-s needs a positive number");
+                sp.dt_s = x;
+            }
             else
                 return cli_usage_error("simulate grid", "unknown option '%s' (see --help)", o);
         }
@@ -166,7 +213,13 @@ int cmd_simulate_grid(int argc, char **argv)
     memset(&d, 0, sizeof d);
     sc_status st;
     int n = (int)n_d;
-    if (!strcmp(plan_arg, "ye")) {
+    if ((sp.drift_vx_um_s != 0 || sp.drift_vy_um_s != 0) && !(sp.dt_s > 0))
+        return cli_usage_error("simulate grid", "--drift-um-s needs --dt-s");
+    if (!strcmp(plan_arg, "stitch")) {
+        if (!stage_x)
+            return cli_usage_error("simulate grid", "--plan stitch needs --stage NX,NY");
+        st = sc_grid_plan_stitch(n, (int)stage_x, (int)stage_y, pitch, ox, oy, &d.plan, &err);
+    } else if (!strcmp(plan_arg, "ye")) {
         st = sc_grid_plan_ye(n, pitch, ox, oy, &d.plan, &err);
     } else if (!strcmp(plan_arg, "double-shift")) {
         st = sc_grid_plan_double_shift(n, pitch, ox, oy, &d.plan, &err);
@@ -184,23 +237,37 @@ int cmd_simulate_grid(int argc, char **argv)
                                        plan_arg);
         }
     }
+    if (st == SC_OK && stage_x && strcmp(plan_arg, "stitch") != 0) {
+        d.plan.stage_nx = (int)stage_x;
+        d.plan.stage_ny = (int)stage_y;
+        st = sc_grid_plan_check(&d.plan, &err);
+    }
+    if (st == SC_OK && n_vs) {
+        if (n_vs != d.plan.n_views)
+            return cli_usage_error("simulate grid", "--view-sigma-r-um gives %d values for %d views",
+                                   n_vs, d.plan.n_views);
+        for (int v = 0; v < n_vs; ++v)
+            d.plan.view[v].sigma_um = view_sigma[v];
+    }
     if (st != SC_OK)
         return cli_report(&err);
-    int nn = d.plan.n * d.plan.n;
+    size_t nn = (size_t)d.plan.n * d.plan.n, ns = (size_t)sc_grid_stage_nodes(&d.plan);
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
-    double *buf = malloc(((size_t)4 * nn + sc_grid_sim_work_doubles(d.plan.n)) * sizeof(double));
+    double *buf = malloc((4 * ns + 2 * nn + sc_grid_sim_work_doubles_plan(&d.plan)) * sizeof(double));
     if (!buf) {
         sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
         return cli_report(&err);
     }
     t.gx_um = buf;
-    t.gy_um = buf + nn;
-    t.ax_um = buf + 2 * nn;
-    t.ay_um = buf + 3 * nn;
+    t.gy_um = buf + ns;
+    t.ax_um = buf + 2 * ns;
+    t.ay_um = buf + 2 * ns + nn;
     st = sc_grid_data_alloc(&d, &err);
     if (st == SC_OK)
-        st = sc_grid_sim_run(&d.plan, &sp, &t, &d, buf + 4 * nn, &err);
+        st = sc_grid_data_alloc_extra(&d, 0, sp.dt_s > 0, &err);
+    if (st == SC_OK)
+        st = sc_grid_sim_run(&d.plan, &sp, &t, &d, buf + 2 * ns + 2 * nn, &err);
     if (st == SC_OK && comp_table)
         st = compensate(&d, comp_table, &err);
     if (st != SC_OK) {

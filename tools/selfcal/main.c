@@ -53,7 +53,7 @@ typedef struct command {
 
 static const command commands[] = {
     {"grid", NULL, cmd_grid, "grid --method {ye,double-shift,lsq} IN.csv --map G.csv [--artifact A.csv] [--summary S]"},
-    {"plan", NULL, cmd_plan, "plan PLAN.csv            does a view plan identify G? predicted uncertainty"},
+    {"plan", NULL, cmd_plan, "plan PLAN.csv | --design  does a view plan identify G? its uncertainty; design one"},
     {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv"},
     {"profile-plan", NULL, cmd_profile_plan, "profile-plan ...          rank sensor spacings (d1, d2)"},
     {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv ...] -o TABLE | lut dump TABLE"},

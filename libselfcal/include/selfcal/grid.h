@@ -17,15 +17,15 @@
 #define SELFCAL_GRID_H
 
 #include "selfcal/api.h"
-
 #include "selfcal/error.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define SC_GRID_MAX_VIEWS 16
+#define SC_GRID_MAX_VIEWS 32
 #define SC_GRID_MAX_N 513
+#define SC_GRID_MAX_STAGE 4097 /* largest NX or NY */
 
 typedef struct sc_grid_view {
     int rot_deg;                        /* 0, 90, 180 or 270, counter-clockwise */
@@ -33,6 +33,8 @@ typedef struct sc_grid_view {
     int restricted;                     /* 1: only the rows/cols selected below are measured */
     unsigned char row_sel[SC_GRID_MAX_N]; /* plate rows measured (when restricted) */
     unsigned char col_sel[SC_GRID_MAX_N]; /* plate columns measured (when restricted) */
+    double sigma_um;                    /* `sigma_um=` of the view line: standard uncertainty of
+                                           each coordinate of its rows, µm; 0 = not stated */
 } sc_grid_view;
 
 typedef struct sc_grid_plan {
@@ -41,22 +43,30 @@ typedef struct sc_grid_plan {
     double origin_mm[2];  /* stage position of the grid centre */
     int n_views;
     sc_grid_view view[SC_GRID_MAX_VIEWS];
+    int stage_nx, stage_ny; /* stage grid (SPEC §5 `# stage = NX,NY`, odd >= 3); 0: N x N */
 } sc_grid_plan;
 
 /* Measurements: dev = measured - nominal stage position in µm for mark (i, j) of each view;
- * NaN where the mark was not measured. Arrays are n*n, owned by whoever filled them. */
+ * NaN where the mark was not measured. Arrays are n*n (plate marks), owned by whoever filled them.
+ * ux/uy (SPEC §5 columns ux_um, uy_um): NULL when the file has no such columns, else the stated
+ * standard uncertainty of each row's x and y (µm; NaN: the view's sigma_um applies).
+ * t_s: NULL without the column t_s, else the time of each measurement (s). */
 typedef struct sc_grid_data {
     sc_grid_plan plan;
     double *dx_um[SC_GRID_MAX_VIEWS];
     double *dy_um[SC_GRID_MAX_VIEWS];
+    double *ux_um[SC_GRID_MAX_VIEWS];
+    double *uy_um[SC_GRID_MAX_VIEWS];
+    double *t_s[SC_GRID_MAX_VIEWS];
 } sc_grid_data;
 
-/* What a method reports. The caller allocates every array (n*n doubles) it wants filled and sets
- * the pointer; a NULL array is skipped. Uncertainties are NaN where the method gives none. */
+/* What a method reports. The caller allocates every array it wants filled and sets the pointer
+ * (G arrays: one per stage node, NX*NY = sc_grid_stage_nodes; A arrays: n*n); a NULL array is
+ * skipped. Uncertainties are NaN where the method gives none. */
 typedef struct sc_grid_result {
-    double *gx_um, *gy_um;    /* stage error at node (i, j) */
+    double *gx_um, *gy_um;    /* stage error at node (i, j), index i*NX + j */
     double *ugx_um, *ugy_um;  /* standard uncertainty (k = 1) of gx, gy */
-    double *ax_um, *ay_um;    /* plate error of mark (i, j), plate frame */
+    double *ax_um, *ay_um;    /* plate error of mark (i, j), plate frame; NaN where unmeasured */
     double O, R;              /* non-orthogonality and scale, dimensionless */
     double tx_um[SC_GRID_MAX_VIEWS], ty_um[SC_GRID_MAX_VIEWS]; /* per view misalignment */
     double theta_urad[SC_GRID_MAX_VIEWS];
@@ -65,17 +75,47 @@ typedef struct sc_grid_result {
     double sigma_r_used_um;   /* the σ_r the uncertainties were computed with */
     long n_measurements;      /* scalar equations used (2 per measured mark) */
     long dof;                 /* residual degrees of freedom */
+    /* least squares only (NaN otherwise): */
+    double uO, uR;            /* standard uncertainties of O and R */
+    double utx_um[SC_GRID_MAX_VIEWS], uty_um[SC_GRID_MAX_VIEWS], utheta_urad[SC_GRID_MAX_VIEWS];
+    int drift;                /* 1: per-view translation drift rates were estimated */
+    int misalignment_unique;  /* 0: misalignments/drift rates are not determined by the data
+                                 (e.g. a drift common to all views in the plate frame equals a
+                                 plate error): values by convention, uncertainties NaN */
+    double vx_um_s[SC_GRID_MAX_VIEWS], vy_um_s[SC_GRID_MAX_VIEWS];   /* drift rates, µm/s */
+    double uvx_um_s[SC_GRID_MAX_VIEWS], uvy_um_s[SC_GRID_MAX_VIEWS]; /* their uncertainties */
+    int weighted;             /* 1: the data stated uncertainties (or σ_r was given) */
+    double variance_factor;   /* weighted RSS / dof (σ̂²/σ² of the stated noise); NaN if not weighted */
+    double chi2_lo, chi2_hi;  /* the 95 % acceptance interval of variance_factor (two-sided) */
+    int chi2_pass;            /* 1 if variance_factor lies in it (or the test does not apply) */
 } sc_grid_result;
 
 /* ---- geometry (grid_geometry.c) ---- */
 
-/* Stage node where mark (i, j) lands in view v: 1 and (*ni, *nj) if on the grid, else 0. */
+/* Stage grid size along x (NX) and y (NY): the plan's stage_nx/ny, or N when they are 0. */
+SC_API int sc_grid_stage_nx(const sc_grid_plan *p);
+SC_API int sc_grid_stage_ny(const sc_grid_plan *p);
+
+/* Number of stage nodes NX·NY. */
+SC_API long sc_grid_stage_nodes(const sc_grid_plan *p);
+
+/* 1 if the stage grid is the plate's N x N (what the closed-form methods need). */
+SC_API int sc_grid_stage_is_plate(const sc_grid_plan *p);
+
+/* Plate-centred nominal position of mark (i, j) in mm: ((j-c)P, (i-c)P). */
+SC_API void sc_grid_mark_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
+
+/* The stated standard uncertainty (µm) of coordinate c (0: x, 1: y) of mark k in view v: the
+ * row's own ux/uy if finite, else the view's sigma_um if stated, else NaN (not stated). */
+SC_API double sc_grid_data_u_um(const sc_grid_data *d, int v, long k, int c);
+
+/* Stage node where mark (i, j) lands in view v: 1 and (*ni, *nj) if on the stage grid, else 0. */
 SC_API int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj);
 
 /* 1 if view v measures mark (i, j): it lands on the grid and, if restricted, its row or column is selected. */
 SC_API int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
 
-/* Nominal node position relative to the grid centre, in mm: x = (j-c)P, y = (i-c)P. */
+/* Nominal stage node position relative to the stage grid centre, in mm: x = (j-cx)P, y = (i-cy)P. */
 SC_API void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
 
 /* Rotate a plate-frame vector (ax, ay) by rot_deg CCW into the stage frame. */
@@ -84,17 +124,18 @@ SC_API void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double
 /* Index of the first view with this rot and shift, or -1. */
 SC_API int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift_y);
 
-/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, pitch > 0, rotations, shifts). */
+/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, stage odd >= 3, pitch > 0,
+ * rotations, shifts, every view landing at least one mark on the stage). */
 SC_API sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);
 
 /* Forward model without noise: fill d->dx_um/dy_um (arrays provided by the caller) from a stage
- * error G (nodes), plate error A (marks, plate frame) and per-view misalignment. NaN where a view
- * does not measure a mark. */
+ * error G (NX*NY nodes), plate error A (n*n marks, plate frame) and per-view misalignment. NaN
+ * where a view does not measure a mark. */
 SC_API void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double *gy_um,
                                const double *ax_um, const double *ay_um, const double *tx_um,
                                const double *ty_um, const double *theta_urad, sc_grid_data *d);
 
-/* Remove translation, rotation and magnification from a stage map in place (the SPEC gauge). */
+/* Remove translation, rotation and magnification from a stage map (NX*NY) in place (the SPEC gauge). */
 SC_API void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx_um, double *gy_um);
 
 /* Remove translation and rotation from a plate error map in place. */

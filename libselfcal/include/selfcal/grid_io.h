@@ -8,10 +8,9 @@
 #ifndef SELFCAL_GRID_IO_H
 #define SELFCAL_GRID_IO_H
 
-#include "selfcal/api.h"
-
 #include <stdio.h>
 
+#include "selfcal/api.h"
 #include "selfcal/grid.h"
 #include "selfcal/stage_map.h"
 
@@ -28,10 +27,15 @@ typedef struct sc_grid_file_info {
     int view_id[SC_GRID_MAX_VIEWS];      /* K as written in the file for each view */
     long n_rows;                         /* data rows read (0 for a plan file) */
     long view_rows[SC_GRID_MAX_VIEWS];   /* data rows per view */
+    int has_u;                           /* the columns ux_um,uy_um are present */
+    int has_t;                           /* the column t_s is present and filled */
 } sc_grid_file_info;
 
 /* Allocate d->dx_um/dy_um (n*n each, NaN-filled) for every view of d->plan. */
 SC_API sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err);
+
+/* Allocate (NaN-filled, n*n) d->ux_um/uy_um when weights, d->t_s when times, for every view. */
+SC_API sc_status sc_grid_data_alloc_extra(sc_grid_data *d, int weights, int times, sc_error *err);
 
 /* Free the arrays of d (safe on a zeroed or already freed d). */
 SC_API void sc_grid_data_free(sc_grid_data *d);
@@ -39,8 +43,7 @@ SC_API void sc_grid_data_free(sc_grid_data *d);
 /* Read a selfcal-grid v1 file (plan header, then optional column header and data rows).
  * Fills d->plan and allocates d's arrays: dev = (measured - nominal) in µm, NaN where a mark has no
  * row. info (may be NULL) says where things were. On failure d holds no memory. */
-SC_API sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *info,
-                              sc_error *err);
+SC_API sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *info, sc_error *err);
 
 /* Write the header of a selfcal-grid v1 file for plan p (version, N, pitch, origin, views with
  * rows=/cols= when restricted) to fp. */
@@ -52,7 +55,8 @@ SC_API sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc
 SC_API void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d);
 
 /* The stage map of a result on plan p as a view on the caller's arrays (nothing allocated, never
- * freed, only read): nx = ny = n, node (0, 0) at origin - c·P, both pitches P. */
+ * freed, only read): nx = NX, ny = NY (the stage grid), node (0, 0) at origin - (cx, cy)·P,
+ * both pitches P. */
 SC_API sc_stage_map sc_grid_stage_map(const sc_grid_plan *p, const double *gx_um,
                                       const double *gy_um, const double *ugx_um,
                                       const double *ugy_um);
@@ -64,12 +68,12 @@ SC_API sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, cons
                                    sc_error *err);
 
 /* The same to an open stream (the caller handles atomicity). */
-SC_API void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um,
-                               const double *gy_um, const double *ugx_um, const double *ugy_um);
+SC_API void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um, const double *gy_um,
+                               const double *ugx_um, const double *ugy_um);
 
-/* Write a plate error map `i,j,ax_um,ay_um` (plate frame). */
-SC_API sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p,
-                                        const double *ax_um, const double *ay_um, sc_error *err);
+/* Write a plate error map `i,j,ax_um,ay_um` (plate frame; NaN, an unmeasured mark, is empty). */
+SC_API sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p, const double *ax_um,
+                                        const double *ay_um, sc_error *err);
 SC_API void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_um,
                                     const double *ay_um);
 
@@ -85,6 +89,16 @@ SC_API void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_p
  * (-cP, -cP), pitch P mm as given); uncertainties NaN. On failure m holds no memory. */
 SC_API sc_status sc_grid_read_artifact(const char *path, double pitch_mm, sc_stage_map *m,
                                        sc_error *err);
+
+/* Write `view,i,j,rx_um,ry_um,tx,ty,outlier` (SPEC §5): one row per finite rx (arrays
+ * n_views*n*n, index v*n*n + i*n + j); view_id: the view numbers as in the input (NULL: index);
+ * NaN t is written empty. */
+SC_API void sc_grid_fprint_residuals(FILE *fp, const sc_grid_plan *p, const int *view_id,
+                                     const double *rx_um, const double *ry_um, const double *tx,
+                                     const double *ty, const unsigned char *outlier);
+
+/* Write a rows x cols row-major matrix as a numpy .npy file (format 1.0, '<f8', C order). */
+SC_API void sc_fprint_npy(FILE *fp, const double *a, long rows, long cols);
 
 #ifdef __cplusplus
 }

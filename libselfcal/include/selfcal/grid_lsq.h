@@ -10,7 +10,6 @@
 #define SELFCAL_GRID_LSQ_H
 
 #include "selfcal/api.h"
-
 #include "selfcal/grid.h"
 
 #ifdef __cplusplus
@@ -27,28 +26,74 @@ typedef struct sc_grid_lsq_info {
     long n_constraints;       /* gauge constraints */
     double sigma_c_ratio_rms; /* predicted RMS over nodes and both components of std(G)/σ_r */
     double sigma_c_ratio_max; /* the worst node component */
+    long n_stage_unmeasured;  /* stage nodes no measurement touches (each leaves G free there) */
 } sc_grid_lsq_info;
+
+/* Model options. */
+typedef struct sc_grid_lsq_opts {
+    int drift;                /* 1: per-view translation drift rates (vx, vy)·(t − mean t) as
+                                 unknowns; times from the data's t_s, or for a plan without data
+                                 the serpentine order of measurement, one per second */
+} sc_grid_lsq_opts;
+
+/* Baarda's data snooping: each standardized residual is N(0, 1) without outliers; a coordinate
+ * is flagged when |t| exceeds the two-sided critical value at significance α = 0.001. */
+#define SC_GRID_BAARDA_ALPHA 0.001
+#define SC_GRID_BAARDA_CRIT 3.2905267314919255
+
+/* The largest stage (nodes) whose full covariance sc_grid_lsq_covariance writes (41 x 41). */
+#define SC_GRID_LSQ_COV_MAX_NODES 1681
 
 /* Analyse and factor a plan. mask: NULL to measure what the plan says (sc_grid_view_measures),
  * else the marks with finite values in mask->dx_um are the measured ones (dx and dy finite
  * together, on marks that land on the grid: SC_E_INPUT otherwise). A plan that does not
  * identify G is not an error here: *out is made and its info says so. Cost ~N³ time, ~N² log N
  * memory (N = 101: ~0.6 s CPU, ~40 MiB); see docs/grid-lsq.md. */
-SC_API sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask,
-                                    sc_grid_lsq **out, sc_error *err);
+SC_API sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
+                                    sc_error *err);
+
+/* The same with model options (NULL: none). With weights stated in mask (ux_um/uy_um, a view's
+ * sigma_um) or, for a plan without data, in the views' sigma_um, each coordinate weighs 1/u². */
+SC_API sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *mask,
+                                       const sc_grid_lsq_opts *opts, sc_grid_lsq **out, sc_error *err);
+
+/* The p-quantile of the χ² distribution with dof degrees of freedom (NaN for bad arguments). */
+SC_API double sc_chi2_quantile(double p, double dof);
 
 /* The plan's analysis. */
 SC_API void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info);
 
 /* Per-node std(Gx)/σ_r and std(Gy)/σ_r (arrays n*n, caller-owned). SC_E_UNSOLVABLE if G is not identified. */
-SC_API sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy,
-                                         sc_error *err);
+SC_API sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy, sc_error *err);
 
-/* Estimate from data measured as the estimator was made for. sigma_r_um > 0: use it for the
- * uncertainties; otherwise the noise estimated from the residuals. SC_E_UNSOLVABLE if G is not
- * identified; SC_E_INPUT if d's measured marks differ from the estimator's. */
+/* Estimate from data measured as the estimator was made for (same marks; the weights are the
+ * estimator's, from its mask). Weighted data: the uncertainties use the stated u as they are and
+ * res->variance_factor tests them. Unweighted: sigma_r_um > 0 is used for the uncertainties (and
+ * tested), otherwise the noise estimated from the residuals. Also fills O, R, misalignment and
+ * drift uncertainties. SC_E_UNSOLVABLE if G is not identified; SC_E_INPUT if d's measured marks
+ * differ from the estimator's. */
 SC_API sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
                                    sc_grid_result *res, sc_error *err);
+
+/* After a solve: residuals r = measured − fitted (µm) and standardized residuals
+ * t = r / (σ·√(1−h)) with h the exact leverage of that coordinate's equation, σ its stated or
+ * estimated standard deviation (scaled by √(variance factor) when the stated noise fails the χ²
+ * test on the high side); h_out: the larger leverage of the two coordinates. Arrays
+ * n_views*n*n (index v*n*n + i*n + j), caller-owned, NULL to skip; NaN where a mark is not
+ * measured (and t NaN where h = 1: a mark seen in one view only is not tested). */
+SC_API sc_status sc_grid_lsq_residuals(sc_grid_lsq *q, double *rx_um, double *ry_um, double *tx,
+                                       double *ty, double *h_out, sc_error *err);
+
+/* The fitted dev (µm) of mark (i, j) in view v from a result of this estimator (NaN where the
+ * plate error is unknown); t_s: its time, used with drift. For measurements left out of the
+ * estimator (rejected outliers). */
+SC_API void sc_grid_lsq_predict(const sc_grid_lsq *q, const sc_grid_result *res, int v, int i, int j,
+                                double t_s, double *dx_um, double *dy_um);
+
+/* After a solve: the full covariance of G in the SPEC gauge, µm², (2·NX·NY)² doubles row-major,
+ * unknowns ordered node by node (i*NX + j), Gx before Gy. SC_E_INPUT beyond
+ * SC_GRID_LSQ_COV_MAX_NODES nodes. */
+SC_API sc_status sc_grid_lsq_covariance(sc_grid_lsq *q, double *cov, sc_error *err);
 
 /* Internals of the sparse factorization, for benchmarks and diagnostics. */
 typedef struct sc_grid_lsq_stats {

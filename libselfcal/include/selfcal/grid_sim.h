@@ -15,15 +15,18 @@
  * Random draws, from one sc_rng seeded with `seed`, in this order: ε_x (N² values, row-major),
  * ε_y, A_x, A_y, then per view (tx, ty, θ), then per view, per measured mark in row-major order,
  * (noise x, noise y). Same seed, plan and parameters: the same numbers on every platform.
+ * Stage grids larger than the plate (SPEC §5): G lives on the NX x NY stage nodes. With dt_s > 0
+ * every measurement gets a time (serpentine plate order within a view, one raster position per
+ * dt_s, views in sequence) and a
+ * translation drift (vx, vy)·(t − start of its view) is added.
  */
 #ifndef SELFCAL_GRID_SIM_H
 #define SELFCAL_GRID_SIM_H
 
-#include "selfcal/api.h"
-
 #include <stddef.h>
 #include <stdint.h>
 
+#include "selfcal/api.h"
 #include "selfcal/grid.h"
 
 #ifdef __cplusplus
@@ -37,11 +40,14 @@ typedef struct sc_grid_sim_params {
     double sigma_a_um;       /* plate error std per component, µm */
     double sigma_t_um;       /* misalignment translation std, µm (Petrò: 0.1) */
     double sigma_theta_urad; /* misalignment rotation std, µrad (Petrò: 100) */
-    double sigma_r_um;       /* measurement noise std per coordinate, µm */
+    double sigma_r_um;       /* measurement noise std per coordinate, µm (a view whose plan
+                                states sigma_um gets that instead: each view its own noise) */
     uint64_t seed;
+    double dt_s;             /* > 0: time between measurements (s); d->t_s must be allocated */
+    double drift_vx_um_s, drift_vy_um_s; /* translation drift during each view, µm/s (dt_s > 0) */
 } sc_grid_sim_params;
 
-/* The truth of a simulation. Arrays (n*n) are the caller's; a NULL array is not filled except
+/* The truth of a simulation. Arrays (G: NX*NY stage nodes, A: n*n marks) are the caller's; a NULL array is not filled except
  * gx_um/gy_um/ax_um/ay_um, which are required. */
 typedef struct sc_grid_sim_truth {
     double *gx_um, *gy_um;  /* stage error at each node, SPEC gauge */
@@ -56,8 +62,15 @@ typedef struct sc_grid_sim_truth {
  * σ_r 0.01 µm, seed 1. */
 SC_API void sc_grid_sim_defaults(sc_grid_sim_params *sp);
 
-/* Workspace needed by sc_grid_sim_run for plate size n, in doubles. */
+/* Position of mark k (i*n + j) in serpentine measuring order: row i left to right when i is even,
+ * right to left when odd (the order the simulator and the drift plan analysis assume). */
+SC_API long sc_grid_serpentine_index(int n, int k);
+
+/* Workspace needed by sc_grid_sim_run for plate size n on an N x N stage, in doubles. */
 SC_API size_t sc_grid_sim_work_doubles(int n);
+
+/* Workspace needed by sc_grid_sim_run for a plan (any stage), in doubles. */
+SC_API size_t sc_grid_sim_work_doubles_plan(const sc_grid_plan *p);
 
 /* The standard plans: Ye {rot 0}, {rot 90}, {shift +1,0}; double shift {rot 0}, {rot 90},
  * {shift +2,0}, {shift -3,0 rows=c cols=c,c+1}. SC_E_INPUT if n is not valid for the plan. */
@@ -66,13 +79,21 @@ SC_API sc_status sc_grid_plan_ye(int n, double pitch_mm, double origin_x_mm, dou
 SC_API sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double origin_x_mm,
                                            double origin_y_mm, sc_grid_plan *p, sc_error *err);
 
+/* Stitching plan for an NX x NY stage and an N x N plate: rot-0 placements on a raster covering
+ * the stage (plate centres at most `step` pitches apart, evenly spread), then a rot-90 and a
+ * shift +1,0 placement at the centre. sc_grid_plan_stitch uses step (N-1)/2. SC_E_INPUT if
+ * more than SC_GRID_MAX_VIEWS views would be needed. */
+SC_API sc_status sc_grid_plan_stitch_step(int n, int nx, int ny, int step, double pitch_mm, double ox,
+                                          double oy, sc_grid_plan *p, sc_error *err);
+SC_API sc_status sc_grid_plan_stitch(int n, int nx, int ny, double pitch_mm, double ox, double oy,
+                                     sc_grid_plan *p, sc_error *err);
+
 /* Simulate: fill truth and d (d->plan must equal *plan's content and d's arrays be allocated,
  * e.g. with sc_grid_data_alloc). work: sc_grid_sim_work_doubles(plan->n) doubles.
  * SC_E_INPUT for invalid parameters (|ρ| >= 1, negative σ, or σ_G too small to hold the
  * requested O and R). */
 SC_API sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
-                                 sc_grid_sim_truth *truth, sc_grid_data *d, double *work,
-                                 sc_error *err);
+                                 sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err);
 
 #ifdef __cplusplus
 }

@@ -3,10 +3,40 @@
 
 #include <math.h>
 
+int sc_grid_stage_nx(const sc_grid_plan *p) { return p->stage_nx > 0 ? p->stage_nx : p->n; }
+
+int sc_grid_stage_ny(const sc_grid_plan *p) { return p->stage_ny > 0 ? p->stage_ny : p->n; }
+
+long sc_grid_stage_nodes(const sc_grid_plan *p)
+{
+    return (long)sc_grid_stage_nx(p) * sc_grid_stage_ny(p);
+}
+
+int sc_grid_stage_is_plate(const sc_grid_plan *p)
+{
+    return sc_grid_stage_nx(p) == p->n && sc_grid_stage_ny(p) == p->n;
+}
+
+void sc_grid_mark_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm)
+{
+    double c = (p->n - 1) / 2.0;
+    *x_mm = (j - c) * p->pitch_mm;
+    *y_mm = (i - c) * p->pitch_mm;
+}
+
+double sc_grid_data_u_um(const sc_grid_data *d, int v, long k, int c)
+{
+    const double *u = c ? d->uy_um[v] : d->ux_um[v];
+    if (u && isfinite(u[k]))
+        return u[k];
+    return d->plan.view[v].sigma_um > 0 ? d->plan.view[v].sigma_um : NAN;
+}
+
 int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj)
 {
     const sc_grid_view *w = &p->view[v];
     int c = (p->n - 1) / 2;
+    int nx = sc_grid_stage_nx(p), ny = sc_grid_stage_ny(p);
     int u = j - c, q = i - c; /* plate-centred, in pitches: x = u, y = q */
     int ru, rq;
     switch (w->rot_deg) {
@@ -16,8 +46,8 @@ int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *
     case 270: ru = q; rq = -u; break;
     default: return 0;
     }
-    int jn = c + ru + w->shift_x, in = c + rq + w->shift_y;
-    if (jn < 0 || jn >= p->n || in < 0 || in >= p->n)
+    int jn = (nx - 1) / 2 + ru + w->shift_x, in = (ny - 1) / 2 + rq + w->shift_y;
+    if (jn < 0 || jn >= nx || in < 0 || in >= ny)
         return 0;
     *ni = in;
     *nj = jn;
@@ -37,9 +67,8 @@ int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j)
 
 void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm)
 {
-    double c = (p->n - 1) / 2.0;
-    *x_mm = (j - c) * p->pitch_mm;
-    *y_mm = (i - c) * p->pitch_mm;
+    *x_mm = (j - (sc_grid_stage_nx(p) - 1) / 2.0) * p->pitch_mm;
+    *y_mm = (i - (sc_grid_stage_ny(p) - 1) / 2.0) * p->pitch_mm;
 }
 
 void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy)
@@ -66,6 +95,12 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
     if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "N must be odd and in 3..%d (got %d)",
                             SC_GRID_MAX_N, p->n);
+    if (p->stage_nx < 0 || p->stage_ny < 0 || (p->stage_nx > 0 && (p->stage_nx < 3 ||
+        p->stage_nx % 2 == 0 || p->stage_nx > SC_GRID_MAX_STAGE)) || (p->stage_ny > 0 &&
+        (p->stage_ny < 3 || p->stage_ny % 2 == 0 || p->stage_ny > SC_GRID_MAX_STAGE)))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "stage NX, NY must be odd and in 3..%d (got %d,%d)", SC_GRID_MAX_STAGE,
+                            p->stage_nx, p->stage_ny);
     if (!(p->pitch_mm > 0) || !isfinite(p->pitch_mm))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "pitch must be positive");
     if (p->n_views < 1 || p->n_views > SC_GRID_MAX_VIEWS)
@@ -76,11 +111,15 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
         if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);
-        if (w->shift_x <= -p->n || w->shift_x >= p->n || w->shift_y <= -p->n ||
-            w->shift_y >= p->n)
+        int any = 0;
+        for (int i = 0; i < p->n && !any; ++i)
+            for (int j = 0; j < p->n && !any; ++j)
+                any = sc_grid_view_measures(p, v, i, j);
+        if (!any)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d: shift (%d,%d) moves the plate off the grid", v,
-                                w->shift_x, w->shift_y);
+                                "view %d (rot %d, shift %d,%d) lands no measured mark on the "
+                                "stage grid",
+                                v, w->rot_deg, w->shift_x, w->shift_y);
     }
     return SC_OK;
 }
@@ -89,7 +128,7 @@ void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double
                         const double *ax_um, const double *ay_um, const double *tx_um,
                         const double *ty_um, const double *theta_urad, sc_grid_data *d)
 {
-    int n = p->n;
+    int n = p->n, snx = sc_grid_stage_nx(p);
     for (int v = 0; v < p->n_views; ++v) {
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
@@ -100,7 +139,7 @@ void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double
                     continue;
                 }
                 sc_grid_mark_node(p, v, i, j, &ni, &nj);
-                int q = ni * n + nj;
+                int q = ni * snx + nj;
                 double x, y, rax, ray;
                 sc_grid_node_xy_mm(p, ni, nj, &x, &y);
                 sc_grid_rotate(p->view[v].rot_deg, ax_um[k], ay_um[k], &rax, &ray);
@@ -114,13 +153,13 @@ void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double
  * centred square grid, so the projection is four independent dot products. */
 void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx, double *gy)
 {
-    int n = p->n, nn = n * n;
+    int nxs = sc_grid_stage_nx(p), nys = sc_grid_stage_ny(p), nn = nxs * nys;
     double sx = 0, sy = 0, srot = 0, smag = 0, r2 = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < nys; ++i)
+        for (int j = 0; j < nxs; ++j) {
             double x, y;
             sc_grid_node_xy_mm(p, i, j, &x, &y);
-            int k = i * n + j;
+            int k = i * nxs + j;
             sx += gx[k];
             sy += gy[k];
             srot += x * gy[k] - y * gx[k];
@@ -128,11 +167,11 @@ void sc_grid_gauge_stage(const sc_grid_plan *p, double *gx, double *gy)
             r2 += x * x + y * y;
         }
     double tx = sx / nn, ty = sy / nn, rot = srot / r2, mag = smag / r2;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < nys; ++i)
+        for (int j = 0; j < nxs; ++j) {
             double x, y;
             sc_grid_node_xy_mm(p, i, j, &x, &y);
-            int k = i * n + j;
+            int k = i * nxs + j;
             gx[k] -= tx - rot * y + mag * x;
             gy[k] -= ty + rot * x + mag * y;
         }
@@ -145,7 +184,7 @@ void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax, double *ay)
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             double x, y;
-            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            sc_grid_mark_xy_mm(p, i, j, &x, &y);
             int k = i * n + j;
             sx += ax[k];
             sy += ay[k];
@@ -156,7 +195,7 @@ void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax, double *ay)
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             double x, y;
-            sc_grid_node_xy_mm(p, i, j, &x, &y);
+            sc_grid_mark_xy_mm(p, i, j, &x, &y);
             int k = i * n + j;
             ax[k] -= tx - rot * y;
             ay[k] -= ty + rot * x;
@@ -166,13 +205,13 @@ void sc_grid_gauge_plate(const sc_grid_plan *p, double *ax, double *ay)
 void sc_grid_first_order(const sc_grid_plan *p, const double *gx, const double *gy, double *O,
                          double *R)
 {
-    int n = p->n;
+    int nxs = sc_grid_stage_nx(p), nys = sc_grid_stage_ny(p);
     double so = 0, sr = 0, r2 = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < nys; ++i)
+        for (int j = 0; j < nxs; ++j) {
             double x, y;
             sc_grid_node_xy_mm(p, i, j, &x, &y);
-            int k = i * n + j;
+            int k = i * nxs + j;
             so += x * gy[k] + y * gx[k];
             sr += x * gx[k] - y * gy[k];
             r2 += x * x + y * y;

@@ -17,7 +17,7 @@ sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err)
 {
     size_t nn = (size_t)d->plan.n * (size_t)d->plan.n;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        d->dx_um[v] = d->dy_um[v] = NULL;
+        d->dx_um[v] = d->dy_um[v] = d->ux_um[v] = d->uy_um[v] = d->t_s[v] = NULL;
     for (int v = 0; v < d->plan.n_views; ++v) {
         d->dx_um[v] = malloc(nn * sizeof(double));
         d->dy_um[v] = malloc(nn * sizeof(double));
@@ -32,12 +32,33 @@ sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err)
     return SC_OK;
 }
 
+sc_status sc_grid_data_alloc_extra(sc_grid_data *d, int weights, int times, sc_error *err)
+{
+    size_t nn = (size_t)d->plan.n * (size_t)d->plan.n;
+    for (int v = 0; v < d->plan.n_views; ++v) {
+        double **a[3] = {&d->ux_um[v], &d->uy_um[v], &d->t_s[v]};
+        for (int t = 0; t < 3; ++t) {
+            if ((t < 2 && !weights) || (t == 2 && !times) || *a[t])
+                continue;
+            *a[t] = malloc(nn * sizeof(double));
+            if (!*a[t])
+                return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (grid data)");
+            for (size_t k = 0; k < nn; ++k)
+                (*a[t])[k] = NAN;
+        }
+    }
+    return SC_OK;
+}
+
 void sc_grid_data_free(sc_grid_data *d)
 {
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
         free(d->dx_um[v]);
         free(d->dy_um[v]);
-        d->dx_um[v] = d->dy_um[v] = NULL;
+        free(d->ux_um[v]);
+        free(d->uy_um[v]);
+        free(d->t_s[v]);
+        d->dx_um[v] = d->dy_um[v] = d->ux_um[v] = d->uy_um[v] = d->t_s[v] = NULL;
     }
 }
 
@@ -73,6 +94,7 @@ typedef struct view_decl {
     int id;
     long line;
     long rot, sx, sy;
+    double sigma_um;
     int n_rows_sel, n_cols_sel;
     long rows[SC_GRID_MAX_N], cols[SC_GRID_MAX_N];
 } view_decl;
@@ -113,7 +135,7 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
     if (sc_parse_long(sc_str_trim(p), &id) != 0 || id < 0 || id > 1000000)
         return sc_error_set(err, SC_E_INPUT, path, line, "view number is not a whole number >= 0");
     vd->id = (int)id;
-    int have_rot = 0, have_shift = 0, have_rows = 0, have_cols = 0;
+    int have_rot = 0, have_shift = 0, have_rows = 0, have_cols = 0, have_sigma = 0;
     char *save = NULL;
     for (char *tok = strtok_r(colon + 1, " \t", &save); tok; tok = strtok_r(NULL, " \t", &save)) {
         char *eq = strchr(tok, '=');
@@ -134,6 +156,11 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
             if (have_shift++ || parse_long_pair(val, &vd->sx, &vd->sy) != 0)
                 return sc_error_set(err, SC_E_INPUT, path, line,
                                     "view %ld: shift must be two whole numbers SX,SY", id);
+        } else if (!strcmp(tok, "sigma_um")) {
+            if (have_sigma++ || sc_parse_double(val, &vd->sigma_um) != 0 ||
+                !(vd->sigma_um > 0) || !(vd->sigma_um <= SC_INPUT_MAX_ABS))
+                return sc_error_set(err, SC_E_INPUT, path, line,
+                                    "view %ld: sigma_um must be a positive number", id);
         } else if (!strcmp(tok, "rows")) {
             if (have_rows++ || parse_index_list(val, vd->rows, &vd->n_rows_sel) != 0)
                 return sc_error_set(err, SC_E_INPUT, path, line,
@@ -154,15 +181,29 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
     return SC_OK;
 }
 
-static int is_column_header(sc_csv *r)
+/* The column header: view,i,j,x_mm,y_mm, optionally ux_um,uy_um, optionally t_s (in this order).
+ * Returns the number of fields (5..8) with *has_u, *has_t set, or 0 if it is not a header. */
+static int is_column_header(sc_csv *r, int *has_u, int *has_t)
 {
     static const char *names[5] = {"view", "i", "j", "x_mm", "y_mm"};
-    if (r->nfields != 5)
+    if (r->nfields < 5 || r->nfields > 8)
         return 0;
     for (int k = 0; k < 5; ++k)
         if (strcmp(r->field[k], names[k]) != 0)
             return 0;
-    return 1;
+    int k = 5;
+    *has_u = *has_t = 0;
+    if (k < r->nfields && !strcmp(r->field[k], "ux_um")) {
+        if (k + 1 >= r->nfields || strcmp(r->field[k + 1], "uy_um") != 0)
+            return 0;
+        *has_u = 1;
+        k += 2;
+    }
+    if (k < r->nfields && !strcmp(r->field[k], "t_s")) {
+        *has_t = 1;
+        ++k;
+    }
+    return k == r->nfields ? k : 0;
 }
 
 typedef struct read_state {
@@ -199,8 +240,8 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
     sc_grid_plan *p = &d->plan;
     long n_val = 0;
     double pitch = 0, ox = 0, oy = 0;
-    long pitch_line = 0, origin_line = 0;
-    int n_decl = 0, have_columns = 0;
+    long pitch_line = 0, origin_line = 0, stage_line = 0, stage_x = 0, stage_y = 0;
+    int n_decl = 0, have_columns = 0, has_u = 0, has_t = 0, n_fields = 5;
     int got;
 
     /* First line: the format tag. */
@@ -310,9 +351,24 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
                     goto fail;
                 }
                 origin_line = ln;
+            } else if (!strcmp(key, "stage")) {
+                if (stage_line) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln, "stage is given twice");
+                    goto fail;
+                }
+                if (parse_long_pair(val, &stage_x, &stage_y) != 0 || stage_x < 3 ||
+                    stage_y < 3 || stage_x % 2 == 0 || stage_y % 2 == 0 ||
+                    stage_x > SC_GRID_MAX_STAGE || stage_y > SC_GRID_MAX_STAGE) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                      "stage must be NX,NY, both odd and in 3..%d: '%.40s'",
+                                      SC_GRID_MAX_STAGE, val);
+                    goto fail;
+                }
+                stage_line = ln;
             } else {
                 st = sc_error_set(err, SC_E_INPUT, path, ln,
-                                  "unknown header '%.40s' (expected N, pitch_mm, origin_mm or view)",
+                                  "unknown header '%.40s' (expected N, pitch_mm, origin_mm, stage "
+                                  "or view)",
                                   key);
                 goto fail;
             }
@@ -324,7 +380,7 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
             st = err ? err->code : SC_E_INPUT;
             goto fail;
         }
-        if (is_column_header(&s.csv)) {
+        if ((n_fields = is_column_header(&s.csv, &has_u, &has_t)) > 0) {
             have_columns = 1;
             info->header_end_line = ln;
             break;
@@ -358,17 +414,20 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
     p->origin_mm[0] = ox;
     p->origin_mm[1] = oy;
     p->n_views = n_decl;
+    p->stage_nx = (int)stage_x;
+    p->stage_ny = (int)stage_y;
     int n = p->n;
     for (int v = 0; v < n_decl; ++v) {
         view_decl *vd = &s.decl[v];
         sc_grid_view *w = &p->view[v];
         memset(w, 0, sizeof *w);
-        if (vd->sx <= -n || vd->sx >= n || vd->sy <= -n || vd->sy >= n) {
+        if (labs(vd->sx) > 2L * SC_GRID_MAX_STAGE || labs(vd->sy) > 2L * SC_GRID_MAX_STAGE) {
             st = sc_error_set(err, SC_E_INPUT, path, vd->line,
-                              "view %d: shift %ld,%ld moves the plate off the %dx%d grid", vd->id,
-                              vd->sx, vd->sy, n, n);
+                              "view %d: shift %ld,%ld moves the plate off the stage grid", vd->id,
+                              vd->sx, vd->sy);
             goto fail;
         }
+        w->sigma_um = vd->sigma_um;
         w->rot_deg = (int)vd->rot;
         w->shift_x = (int)vd->sx;
         w->shift_y = (int)vd->sy;
@@ -396,8 +455,11 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
             for (int j = 0; j < n && !any; ++j)
                 any = sc_grid_view_measures(p, v, i, j);
         if (!any) {
-            st = sc_error_set(err, SC_E_INPUT, path, vd->line, "view %d measures no mark",
-                              vd->id);
+            st = sc_error_set(err, SC_E_INPUT, path, vd->line,
+                              "view %d (rot=%d shift=%d,%d) is off the %dx%d stage grid: it "
+                              "lands no mark it measures there",
+                              vd->id, w->rot_deg, w->shift_x, w->shift_y, sc_grid_stage_nx(p),
+                              sc_grid_stage_ny(p));
             goto fail;
         }
         info->view_line[v] = vd->line;
@@ -412,10 +474,13 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
         goto fail;
     }
     st = sc_grid_data_alloc(d, err);
+    if (st == SC_OK)
+        st = sc_grid_data_alloc_extra(d, has_u, has_t, err);
     if (st != SC_OK)
         goto fail;
 
     /* Data rows. */
+    int t_state = 0; /* t_s column: 0 no row yet, 1 rows carry times, -1 rows leave it empty */
     size_t nn = (size_t)n * (size_t)n;
     while (have_columns && (got = sc_csv_next_line(&s.csv, err)) > 0) {
         long ln = s.csv.line;
@@ -433,9 +498,10 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
             st = err ? err->code : SC_E_INPUT;
             goto fail;
         }
-        if (s.csv.nfields != 5) {
+        if (s.csv.nfields != n_fields) {
             st = sc_error_set(err, SC_E_INPUT, path, ln,
-                              "expected 5 fields (" COLUMN_HEADER "), got %d", s.csv.nfields);
+                              "expected %d fields (as the column header), got %d", n_fields,
+                              s.csv.nfields);
             goto fail;
         }
         long vid, i, j;
@@ -506,6 +572,44 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
         }
         d->dx_um[v][k] = ex * 1000.0;
         d->dy_um[v][k] = ey * 1000.0;
+        for (int c = 0; has_u && c < 2; ++c) {
+            const char *name = c ? "uy_um" : "ux_um";
+            double u = NAN;
+            if (s.csv.field[5 + c][0] == '\0') {
+                if (!(p->view[v].sigma_um > 0)) {
+                    st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                      "%s is empty and view %ld states no sigma_um", name, vid);
+                    goto fail;
+                }
+            } else if (sc_parse_double(s.csv.field[5 + c], &u) != 0 || !(u > 0) ||
+                       !(u <= SC_INPUT_MAX_ABS)) {
+                st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                  "%s must be a positive number (a standard uncertainty in um), "
+                                  "got '%.40s'",
+                                  name, s.csv.field[5 + c]);
+                goto fail;
+            }
+            (c ? d->uy_um : d->ux_um)[v][k] = u;
+        }
+        if (has_t) {
+            const char *f = s.csv.field[n_fields - 1];
+            int here = f[0] != '\0' ? 1 : -1;
+            if (t_state && here != t_state) {
+                st = sc_error_set(err, SC_E_INPUT, path, ln,
+                                  "t_s is %s here but %s on earlier rows (give it on every row or "
+                                  "on none)",
+                                  here > 0 ? "given" : "empty", here > 0 ? "empty" : "given");
+                goto fail;
+            }
+            t_state = here;
+            double t = NAN;
+            if (here > 0 && (sc_parse_double(f, &t) != 0 || !(fabs(t) <= 1e12))) {
+                st = sc_error_set(err, SC_E_INPUT, path, ln, "t_s must be a number of seconds, "
+                                  "got '%.40s'", f);
+                goto fail;
+            }
+            d->t_s[v][k] = t;
+        }
         info->n_rows++;
         info->view_rows[v]++;
     }
@@ -513,6 +617,13 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
         st = err ? err->code : SC_E_INPUT;
         goto fail;
     }
+    if (t_state < 0)
+        for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+            free(d->t_s[v]);
+            d->t_s[v] = NULL;
+        }
+    info->has_u = has_u;
+    info->has_t = t_state > 0;
     read_state_free(&s);
     return SC_OK;
 
@@ -530,9 +641,13 @@ void sc_grid_write_header(FILE *fp, const sc_grid_plan *p)
 {
     fprintf(fp, "# selfcal-grid v1\n# N = %d\n# pitch_mm = %.15g\n", p->n, p->pitch_mm);
     fprintf(fp, "# origin_mm = %.15g,%.15g\n", p->origin_mm[0], p->origin_mm[1]);
+    if (p->stage_nx > 0 || p->stage_ny > 0)
+        fprintf(fp, "# stage = %d,%d\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
         fprintf(fp, "# view %d: rot=%d shift=%d,%d", v, w->rot_deg, w->shift_x, w->shift_y);
+        if (w->sigma_um > 0)
+            fprintf(fp, " sigma_um=%.15g", w->sigma_um);
         if (w->restricted) {
             const char *sep = " rows=";
             for (int k = 0; k < p->n; ++k)
@@ -560,11 +675,20 @@ static sc_status finish(sc_afile *f, sc_error *err)
     return sc_afile_commit(f, err);
 }
 
+static void put_num(FILE *fp, const double *a, int k)
+{
+    if (a && isfinite(a[k]))
+        fprintf(fp, "%.15g", a[k]);
+}
+
 void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)
 {
     const sc_grid_plan *p = &d->plan;
     sc_grid_write_header(fp, p);
-    fprintf(fp, COLUMN_HEADER "\n");
+    int has_u = 0, has_t = 0;
+    for (int v = 0; v < p->n_views; ++v)
+        has_u |= d->ux_um[v] != NULL, has_t |= d->t_s[v] != NULL;
+    fprintf(fp, COLUMN_HEADER "%s%s\n", has_u ? ",ux_um,uy_um" : "", has_t ? ",t_s" : "");
     int n = p->n;
     for (int v = 0; v < p->n_views; ++v)
         for (int i = 0; i < n; ++i)
@@ -578,7 +702,18 @@ void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)
                 sc_grid_node_xy_mm(p, ni, nj, &x, &y);
                 x += p->origin_mm[0] + d->dx_um[v][k] * 1e-3;
                 y += p->origin_mm[1] + d->dy_um[v][k] * 1e-3;
-                fprintf(fp, "%d,%d,%d,%.15f,%.15f\n", v, i, j, x, y);
+                fprintf(fp, "%d,%d,%d,%.15f,%.15f", v, i, j, x, y);
+                if (has_u) {
+                    fputc(',', fp);
+                    put_num(fp, d->ux_um[v], k);
+                    fputc(',', fp);
+                    put_num(fp, d->uy_um[v], k);
+                }
+                if (has_t) {
+                    fputc(',', fp);
+                    put_num(fp, d->t_s[v], k);
+                }
+                fputc('\n', fp);
             }
 }
 
@@ -596,7 +731,8 @@ sc_stage_map sc_grid_stage_map(const sc_grid_plan *p, const double *gx_um, const
                                const double *ugx_um, const double *ugy_um)
 {
     sc_stage_map m;
-    m.nx = m.ny = p->n;
+    m.nx = sc_grid_stage_nx(p);
+    m.ny = sc_grid_stage_ny(p);
     sc_grid_node_xy_mm(p, 0, 0, &m.x0_mm, &m.y0_mm);
     m.x0_mm += p->origin_mm[0];
     m.y0_mm += p->origin_mm[1];
@@ -634,8 +770,13 @@ void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_u
     int n = p->n;
     fprintf(fp, "i,j,ax_um,ay_um\n");
     for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j)
-            fprintf(fp, "%d,%d,%.15g,%.15g\n", i, j, ax_um[i * n + j], ay_um[i * n + j]);
+        for (int j = 0; j < n; ++j) {
+            fprintf(fp, "%d,%d,", i, j);
+            put_num(fp, ax_um, i * n + j); /* an unmeasured (damaged) mark: empty */
+            fputc(',', fp);
+            put_num(fp, ay_um, i * n + j);
+            fputc('\n', fp);
+        }
 }
 
 sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p, const double *ax_um,
@@ -657,26 +798,44 @@ static void json_num(FILE *fp, double v)
         fputs("null", fp);
 }
 
+static void json_kv(FILE *fp, const char *key, double v)
+{
+    fprintf(fp, ", \"%s\": ", key);
+    json_num(fp, v);
+}
+
 void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
                             const sc_grid_result *res)
 {
     fprintf(fp, "{\n  \"format\": \"selfcal-grid-summary v1\",\n  \"method\": \"%s\",\n", method);
     fprintf(fp, "  \"N\": %d,\n  \"pitch_mm\": %.15g,\n  \"origin_mm\": [%.15g, %.15g],\n", p->n,
             p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
+    fprintf(fp, "  \"stage\": [%d, %d],\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
     fputs("  \"O\": ", fp);
     json_num(fp, res->O);
+    fputs(",\n  \"uO\": ", fp);
+    json_num(fp, res->uO);
     fputs(",\n  \"R\": ", fp);
     json_num(fp, res->R);
+    fputs(",\n  \"uR\": ", fp);
+    json_num(fp, res->uR);
     fputs(",\n  \"views\": [\n", fp);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
-        fprintf(fp, "    {\"view\": %d, \"rot\": %d, \"shift\": [%d, %d], \"tx_um\": ", v,
-                w->rot_deg, w->shift_x, w->shift_y);
-        json_num(fp, res->tx_um[v]);
-        fputs(", \"ty_um\": ", fp);
-        json_num(fp, res->ty_um[v]);
-        fputs(", \"theta_urad\": ", fp);
-        json_num(fp, res->theta_urad[v]);
+        fprintf(fp, "    {\"view\": %d, \"rot\": %d, \"shift\": [%d, %d]", v, w->rot_deg,
+                w->shift_x, w->shift_y);
+        json_kv(fp, "tx_um", res->tx_um[v]);
+        json_kv(fp, "ty_um", res->ty_um[v]);
+        json_kv(fp, "theta_urad", res->theta_urad[v]);
+        json_kv(fp, "utx_um", res->utx_um[v]);
+        json_kv(fp, "uty_um", res->uty_um[v]);
+        json_kv(fp, "utheta_urad", res->utheta_urad[v]);
+        if (res->drift) {
+            json_kv(fp, "vx_um_s", res->vx_um_s[v]);
+            json_kv(fp, "vy_um_s", res->vy_um_s[v]);
+            json_kv(fp, "uvx_um_s", res->uvx_um_s[v]);
+            json_kv(fp, "uvy_um_s", res->uvy_um_s[v]);
+        }
         fprintf(fp, "}%s\n", v + 1 < p->n_views ? "," : "");
     }
     fputs("  ],\n  \"residual_rms_um\": ", fp);
@@ -685,6 +844,16 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
     json_num(fp, res->sigma_r_est_um);
     fputs(",\n  \"sigma_r_used_um\": ", fp);
     json_num(fp, res->sigma_r_used_um);
+    fprintf(fp, ",\n  \"weighted\": %s,\n  \"variance_factor\": ", res->weighted ? "true" : "false");
+    json_num(fp, res->variance_factor);
+    fputs(",\n  \"chi2_95_interval\": [", fp);
+    json_num(fp, res->chi2_lo);
+    fputs(", ", fp);
+    json_num(fp, res->chi2_hi);
+    fprintf(fp, "],\n  \"chi2_test\": \"%s\",\n  \"drift\": \"%s\"",
+            !isfinite(res->variance_factor) ? "n/a" : res->chi2_pass ? "pass" : "fail",
+            res->drift ? "linear" : "none");
+    fprintf(fp, ",\n  \"misalignment_unique\": %s", res->misalignment_unique ? "true" : "false");
     fprintf(fp, ",\n  \"n_measurements\": %ld,\n  \"dof\": %ld\n}\n", res->n_measurements,
             res->dof);
 }
@@ -698,4 +867,59 @@ sc_status sc_grid_write_summary(const char *path, const char *method, const sc_g
         return st;
     sc_grid_fprint_summary(f.fp, method, p, res);
     return finish(&f, err);
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Residuals (SPEC §5) and numpy .npy matrices
+ * ------------------------------------------------------------------------------------------- */
+
+void sc_grid_fprint_residuals(FILE *fp, const sc_grid_plan *p, const int *view_id,
+                              const double *rx_um, const double *ry_um, const double *tx,
+                              const double *ty, const unsigned char *outlier)
+{
+    int n = p->n;
+    size_t nn = (size_t)n * n;
+    fputs("view,i,j,rx_um,ry_um,tx,ty,outlier\n", fp);
+    for (int v = 0; v < p->n_views; ++v)
+        for (size_t k = 0; k < nn; ++k) {
+            size_t at = (size_t)v * nn + k;
+            if (!isfinite(rx_um[at]))
+                continue;
+            fprintf(fp, "%d,%d,%d,%.15g,%.15g,", view_id ? view_id[v] : v, (int)(k / n),
+                    (int)(k % n), rx_um[at], ry_um[at]);
+            put_num(fp, tx, (int)at);
+            fputc(',', fp);
+            put_num(fp, ty, (int)at);
+            fprintf(fp, ",%d\n", outlier && outlier[at] ? 1 : 0);
+        }
+}
+
+void sc_fprint_npy(FILE *fp, const double *a, long rows, long cols)
+{
+    char head[128];
+    int len = snprintf(head, sizeof head,
+                       "{'descr': '<f8', 'fortran_order': False, 'shape': (%ld, %ld), }", rows,
+                       cols);
+    int total = 10 + len + 1, pad = (64 - total % 64) % 64;
+    unsigned hl = (unsigned)(len + pad + 1);
+    fwrite("\x93NUMPY\x01\x00", 1, 8, fp);
+    fputc((int)(hl & 0xff), fp);
+    fputc((int)(hl >> 8), fp);
+    fwrite(head, 1, (size_t)len, fp);
+    for (int k = 0; k < pad; ++k)
+        fputc(' ', fp);
+    fputc('\n', fp);
+    const unsigned one = 1;
+    int little = *(const unsigned char *)&one == 1;
+    for (long k = 0; k < rows * cols; ++k) {
+        unsigned char b[8];
+        memcpy(b, &a[k], 8);
+        if (!little)
+            for (int t = 0; t < 4; ++t) {
+                unsigned char c = b[t];
+                b[t] = b[7 - t];
+                b[7 - t] = c;
+            }
+        fwrite(b, 1, 8, fp);
+    }
 }

@@ -25,6 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "selfcal/grid_sim.h"
 #include "sparse_sym.h"
 
 #define LSQ_PIVOT_TOL 1e-9 /* pivot / original diagonal below this: null */
@@ -33,6 +34,18 @@
 struct sc_grid_lsq {
     sc_grid_plan plan;
     int n, nn, nv;
+    int snx, sny, ns;       /* stage grid NX, NY and its node count */
+    int nb;                 /* unknowns per view: tx, ty, φ (+ vx, vy with drift) */
+    int drift;
+    int weighted;           /* weights were stated (1/u²); else all 1 */
+    double *eq_w;           /* weight of each scalar equation */
+    double *eq_dt;          /* drift column: (t - mean t of the view) / T_v */
+    double drift_T[SC_GRID_MAX_VIEWS]; /* T_v: the scale of each view's drift column, s */
+    double drift_t0[SC_GRID_MAX_VIEWS]; /* mean time of each view's measurements, s */
+    double *eq_r;           /* residual of each equation after the last solve, µm */
+    double sigma0;          /* σ scale of the last solve (1 when weighted) */
+    double tscale;          /* σ scale of the standardized residuals (sigma0, or a posteriori) */
+    double *sig_m;          /* nx * nm: columns of the pinned inverse for the misalignments */
     double L_mm;            /* rotation scale c·P */
     unsigned char *meas;    /* nv*nn: view v measures mark k */
     int *mark_views;        /* per mark: number of views measuring it */
@@ -79,6 +92,7 @@ void sc_grid_lsq_destroy(sc_grid_lsq *q)
     free(q->eq_a), free(q->eq_c), free(q->eq_s), free(q->eq_pos), free(q->grp_ptr);
     free(q->grp_eq), free(q->Ap), free(q->Ai), free(q->Ax);
     free(q->pinned), free(q->sgx), free(q->sgy), free(q->work), free(q->work2);
+    free(q->eq_w), free(q->eq_dt), free(q->eq_r), free(q->sig_m);
     sc_spsym_destroy(q->f);
     free(q);
 }
@@ -129,23 +143,84 @@ typedef struct triplet {
     double v;
 } triplet;
 
-/* Coefficients of w_e = s_e·J_e over x = (g, m): up to 3 (index, value) pairs. */
+#define ROW_MAX 4 /* entries of one equation's row */
+
+/* Coefficients of w_e = s_e·J_e over x = (g, m): 3 (index, value) pairs, 4 with drift. */
 static int eq_row(const sc_grid_lsq *q, long e, int *idx, double *val)
 {
     double s = q->eq_s[e];
+    int base = q->ng + q->nb * q->eq_v[e];
     idx[0] = q->eq_g[e];
     val[0] = s;
-    idx[1] = q->ng + 3 * q->eq_v[e] + q->eq_c[e];
+    idx[1] = base + q->eq_c[e];
     val[1] = s;
-    idx[2] = q->ng + 3 * q->eq_v[e] + 2;
+    idx[2] = base + 2;
     val[2] = s * q->eq_pos[e];
-    return 3;
+    if (!q->drift)
+        return 3;
+    idx[3] = base + 3 + q->eq_c[e];
+    val[3] = s * q->eq_dt[e];
+    return 4;
+}
+
+/* Weight of equation e's coordinate from the mask's stated uncertainties (1 when none). */
+static double mask_weight(const sc_grid_lsq *q, const sc_grid_data *mask, int v, int k, int c)
+{
+    double u = mask ? sc_grid_data_u_um(mask, v, k, c) : q->plan.view[v].sigma_um;
+    return u > 0 ? 1.0 / (u * u) : 1.0;
+}
+
+/* Per view: the drift column (t - mean)/T from the mask's times, or (plan without data) from
+ * the order of measurement (serpentine plate order, one per second, as the simulator). */
+static sc_status build_drift(sc_grid_lsq *q, const sc_grid_data *mask, sc_error *err)
+{
+    for (int v = 0; v < q->nv; ++v) {
+        double sum = 0, cnt = 0;
+        if (mask && !mask->t_s[v])
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "drift needs the time of each measurement (column t_s)");
+        for (long e = 0; e < q->neq; ++e) {
+            if (q->eq_v[e] != v)
+                continue;
+            double t = mask ? mask->t_s[v][q->eq_k[e]]
+                            : (double)sc_grid_serpentine_index(q->n, q->eq_k[e]);
+            if (!isfinite(t))
+                return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                    "view %d mark (%d,%d): no time (t_s) for the drift model", v,
+                                    q->eq_k[e] / q->n, q->eq_k[e] % q->n);
+            q->eq_dt[e] = t;
+            sum += t, cnt += 1;
+        }
+        double mean = cnt > 0 ? sum / cnt : 0, T = 0;
+        q->drift_t0[v] = mean;
+        for (long e = 0; e < q->neq; ++e)
+            if (q->eq_v[e] == v) {
+                q->eq_dt[e] -= mean;
+                T = fmax(T, fabs(q->eq_dt[e]));
+            }
+        if (!(T > 0))
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "view %d: all its measurements have the same time, its drift "
+                                "cannot be estimated",
+                                v);
+        q->drift_T[v] = T;
+        for (long e = 0; e < q->neq; ++e)
+            if (q->eq_v[e] == v)
+                q->eq_dt[e] /= T;
+    }
+    return SC_OK;
 }
 
 static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_error *err)
 {
     const sc_grid_plan *p = &q->plan;
     int n = q->n, nn = q->nn, nv = q->nv;
+    for (int v = 0; v < nv && mask; ++v)
+        if (mask->ux_um[v] || mask->uy_um[v] || mask->plan.view[v].sigma_um > 0)
+            q->weighted = 1;
+    for (int v = 0; v < nv && !mask; ++v)
+        if (p->view[v].sigma_um > 0)
+            q->weighted = 1;
     q->meas = calloc((size_t)nv * nn, 1);
     q->mark_views = calloc((size_t)nn, sizeof(int));
     if (!q->meas || !q->mark_views)
@@ -188,8 +263,11 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
     q->eq_pos = malloc(sizeof(double) * ne);
     q->grp_ptr = calloc((size_t)2 * nn + 1, sizeof(long));
     q->grp_eq = malloc(sizeof(long) * ne);
+    q->eq_w = malloc(sizeof(double) * ne);
+    q->eq_dt = calloc((size_t)ne, sizeof(double));
+    q->eq_r = calloc((size_t)ne, sizeof(double));
     if (!q->eq_g || !q->eq_v || !q->eq_k || !q->eq_a || !q->eq_c || !q->eq_s || !q->eq_pos ||
-        !q->grp_ptr || !q->grp_eq)
+        !q->grp_ptr || !q->grp_eq || !q->eq_w || !q->eq_dt || !q->eq_r)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     long e = 0;
     for (int v = 0; v < nv; ++v)
@@ -198,10 +276,11 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
                 continue;
             int ni, nj;
             sc_grid_mark_node(p, v, k / n, k % n, &ni, &nj);
-            int node = ni * n + nj;
+            int node = ni * q->snx + nj;
             double x, y;
             sc_grid_node_xy_mm(p, ni, nj, &x, &y);
             for (int c = 0; c < 2; ++c, ++e) {
+                q->eq_w[e] = mask_weight(q, mask, v, k, c);
                 int ac, s;
                 rot_component(p->view[v].rot_deg, c, &ac, &s);
                 q->eq_g[e] = 2 * node + c;
@@ -223,23 +302,23 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
     for (e = 0; e < q->neq; ++e)
         q->grp_eq[fill[q->eq_a[e]]++] = e;
     free(fill);
-    return SC_OK;
+    return q->drift ? build_drift(q, mask, err) : SC_OK;
 }
 
 /* Pins: both G components of two far-apart nodes that equations touch, and one view's
  * misalignment (the view with the most measurements). */
 static void choose_pins(sc_grid_lsq *q)
 {
-    int n = q->n;
-    int *seen = calloc((size_t)q->nn, sizeof(int));
+    int snx = q->snx;
+    int *seen = calloc((size_t)q->ns, sizeof(int));
     int best_lo = -1, best_hi = -1, lo = 1 << 30, hi = -1;
     if (seen) {
         for (long e = 0; e < q->neq; ++e)
             seen[q->eq_g[e] / 2] = 1;
-        for (int k = 0; k < q->nn; ++k) {
+        for (int k = 0; k < q->ns; ++k) {
             if (!seen[k])
                 continue;
-            int s = k / n + k % n;
+            int s = k / snx + k % snx;
             if (s < lo)
                 lo = s, best_lo = k;
             if (s > hi)
@@ -248,7 +327,7 @@ static void choose_pins(sc_grid_lsq *q)
         free(seen);
     }
     if (best_lo < 0 || best_hi == best_lo) /* at most one node measured: no useful pin */
-        best_lo = 0, best_hi = q->nn - 1;
+        best_lo = 0, best_hi = q->ns - 1;
     q->pin_node[0] = best_lo;
     q->pin_node[1] = best_hi;
     int bestv = 0;
@@ -266,7 +345,7 @@ static void choose_pins(sc_grid_lsq *q)
         q->pinned[2 * q->pin_node[t] + 1] = 1;
     }
     for (int t = 0; t < 3; ++t)
-        q->pinned[q->ng + 3 * bestv + t] = 1;
+        q->pinned[q->ng + q->nb * bestv + t] = 1;
 }
 
 /* Assemble the reduced (A-eliminated) matrix, order, pin and factor. */
@@ -298,10 +377,12 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
         if (c > maxg)
             maxg = (int)c;
     }
-    int *li = malloc(sizeof(int) * (size_t)(3 * maxg + 1));
-    double *lv = malloc(sizeof(double) * (size_t)(3 * maxg + 1));
-    if (!li || !lv) {
-        free(li), free(lv);
+    int *li = malloc(sizeof(int) * (size_t)(ROW_MAX * maxg + 1));
+    double *lv = malloc(sizeof(double) * (size_t)(ROW_MAX * maxg + 1));
+    double *lw = malloc(sizeof(double) * (size_t)(ROW_MAX * maxg + 1));
+    int *lo = malloc(sizeof(int) * (size_t)(ROW_MAX * maxg + 1));
+    if (!li || !lv || !lw || !lo) {
+        free(li), free(lv), free(lw), free(lo);
         goto out;
     }
     for (int a = 0; a < 2 * q->nn; ++a) {
@@ -309,15 +390,22 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
         if (cnt < 2)
             continue; /* a mark seen once: its A absorbs the equation */
         int len = 0;
-        for (long t = 0; t < cnt; ++t)
-            len += eq_row(q, q->grp_eq[g0 + t], li + len, lv + len);
-        /* Σ w_e w_eᵀ (each w_e: 3 consecutive entries) - (Σ w_e)(Σ w_e)ᵀ / cnt */
+        double W = 0;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            int l = eq_row(q, e, li + len, lv + len);
+            for (int r = 0; r < l; ++r)
+                lw[len + r] = q->eq_w[e], lo[len + r] = (int)t;
+            len += l;
+            W += q->eq_w[e];
+        }
+        /* Σ w_e r_e r_eᵀ - (Σ w_e r_e)(Σ w_e r_e)ᵀ / Σ w_e: A of the group eliminated */
         for (int pass = 0; pass < 2; ++pass) {
-            double coef = pass == 0 ? 1.0 : -1.0 / (double)cnt;
             for (int x = 0; x < len; ++x)
                 for (int y = 0; y < len; ++y) {
-                    if (pass == 0 && x / 3 != y / 3)
+                    if (pass == 0 && lo[x] != lo[y])
                         continue;
+                    double coef = pass == 0 ? lw[x] : -lw[x] * lw[y] / W;
                     int i = li[x], j = li[y];
                     double v = coef * lv[x] * lv[y];
                     if (i < ng && j < ng) {
@@ -331,7 +419,7 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
                 }
         }
     }
-    free(li), free(lv);
+    free(li), free(lv), free(lw), free(lo);
     /* rank deficiency of the misalignment block alone (G held at 0) */
     memcpy(mmT, mm, sizeof(double) * (size_t)nm * nm);
     q->nullity_T = small_nullity(mmT, nm, LSQ_SMALL_TOL);
@@ -482,7 +570,7 @@ static void pinned_solve(sc_grid_lsq *q, double *x, int refine)
 /* Per-node std/σ_r: diag(P⊥ Σ P⊥), Σ = pinned inverse (0 on pins), U = orthonormal gauge basis. */
 static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
 {
-    int ng = q->ng, nx = q->nx, n = q->n, nn = q->nn;
+    int ng = q->ng, nx = q->nx, snx = q->snx, ns = q->ns;
     if (sc_spsym_selinv(q->f) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
     double *U = malloc(sizeof(double) * (size_t)4 * ng);
@@ -492,15 +580,15 @@ static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     }
     double r2 = 0;
-    for (int k = 0; k < nn; ++k) {
+    for (int k = 0; k < ns; ++k) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / n, k % n, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, k / snx, k % snx, &x, &y);
         r2 += x * x + y * y;
     }
-    double s0 = 1.0 / sqrt((double)nn), s1 = 1.0 / sqrt(r2);
-    for (int k = 0; k < nn; ++k) {
+    double s0 = 1.0 / sqrt((double)ns), s1 = 1.0 / sqrt(r2);
+    for (int k = 0; k < ns; ++k) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / n, k % n, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, k / snx, k % snx, &x, &y);
         U[0 * ng + 2 * k] = s0, U[0 * ng + 2 * k + 1] = 0;
         U[1 * ng + 2 * k] = 0, U[1 * ng + 2 * k + 1] = s0;
         U[2 * ng + 2 * k] = -y * s1, U[2 * ng + 2 * k + 1] = x * s1;
@@ -548,6 +636,12 @@ static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
 sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
                              sc_error *err)
 {
+    return sc_grid_lsq_create_ex(plan, mask, NULL, out, err);
+}
+
+sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *mask,
+                                const sc_grid_lsq_opts *opts, sc_grid_lsq **out, sc_error *err)
+{
     *out = NULL;
     sc_status st = sc_grid_plan_check(plan, err);
     if (st != SC_OK)
@@ -562,16 +656,22 @@ sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask,
     q->n = plan->n;
     q->nn = plan->n * plan->n;
     q->nv = plan->n_views;
+    q->snx = sc_grid_stage_nx(plan);
+    q->sny = sc_grid_stage_ny(plan);
+    q->ns = q->snx * q->sny;
+    q->drift = opts && opts->drift;
+    q->nb = q->drift ? 5 : 3;
+    q->sigma0 = NAN;
     q->L_mm = (plan->n - 1) / 2 * plan->pitch_mm;
-    q->ng = 2 * q->nn;
-    q->nm = 3 * q->nv;
+    q->ng = 2 * q->ns;
+    q->nm = q->nb * q->nv;
     q->nx = q->ng + q->nm;
     st = build_equations(q, mask, err);
     if (st != SC_OK)
         goto fail;
     q->pinned = calloc((size_t)q->nx, 1);
-    q->sgx = malloc(sizeof(double) * (size_t)q->nn);
-    q->sgy = malloc(sizeof(double) * (size_t)q->nn);
+    q->sgx = malloc(sizeof(double) * (size_t)q->ns);
+    q->sgy = malloc(sizeof(double) * (size_t)q->ns);
     q->work = malloc(sizeof(double) * (size_t)q->nx);
     q->work2 = malloc(sizeof(double) * (size_t)q->nx);
     if (!q->pinned || !q->sgx || !q->sgy || !q->work || !q->work2) {
@@ -590,8 +690,19 @@ sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask,
     q->info.n_unknowns = q->ng + 2 * q->n_meas_marks + q->nm;
     q->info.n_equations = q->neq;
     q->info.n_constraints = 7;
+    q->info.n_stage_unmeasured = 0;
+    {
+        unsigned char *seen = calloc((size_t)q->ns, 1);
+        if (seen) {
+            for (long e = 0; e < q->neq; ++e)
+                seen[q->eq_g[e] / 2] = 1;
+            for (int k = 0; k < q->ns; ++k)
+                q->info.n_stage_unmeasured += !seen[k];
+            free(seen);
+        }
+    }
     q->rank = q->info.n_unknowns - (4 + K + q->nullity_T);
-    for (int k = 0; k < q->nn; ++k)
+    for (int k = 0; k < q->ns; ++k)
         q->sgx[k] = q->sgy[k] = NAN;
     q->info.sigma_c_ratio_rms = q->info.sigma_c_ratio_max = NAN;
     if (K == 0) {
@@ -639,9 +750,9 @@ sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy
                             "the plan does not identify G (%ld free degrees of freedom)",
                             q->info.free_dof);
     if (sgx)
-        memcpy(sgx, q->sgx, sizeof(double) * (size_t)q->nn);
+        memcpy(sgx, q->sgx, sizeof(double) * (size_t)q->ns);
     if (sgy)
-        memcpy(sgy, q->sgy, sizeof(double) * (size_t)q->nn);
+        memcpy(sgy, q->sgy, sizeof(double) * (size_t)q->ns);
     return SC_OK;
 }
 
@@ -651,32 +762,42 @@ static double eq_data(const sc_grid_lsq *q, const sc_grid_data *d, long e)
     return q->eq_c[e] ? d->dy_um[v][k] : d->dx_um[v][k];
 }
 
+/* s_e·d_e − w_e·x for equation e (the part of the equation the group's A must absorb). */
+static double eq_misfit(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, long e)
+{
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
+    int len = eq_row(q, e, idx, val);
+    double z = q->eq_s[e] * eq_data(q, d, e);
+    for (int r = 0; r < len; ++r)
+        z -= val[r] * x[idx[r]];
+    return z;
+}
+
 /* r = b - S x evaluated from the equations themselves (not the assembled matrix, whose rounding
- * slightly moves the gauge null space): r = Σ_e w_e (z_e - mean_group z), z_e = s_e d_e - w_e·x.
- * Zero on pins. */
+ * slightly moves the gauge null space): r = Σ_e w_e r_e (z_e - weighted group mean of z),
+ * z_e = s_e d_e - r_e·x. Zero on pins. */
 static void data_residual(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, double *r)
 {
-    int idx[3];
-    double val[3];
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
     memset(r, 0, sizeof(double) * (size_t)q->nx);
     for (int c = 0; c < 2 * q->nn; ++c) {
         long g0 = q->grp_ptr[c], cnt = q->grp_ptr[c + 1] - g0;
         if (cnt < 2)
             continue;
-        double mean = 0;
+        double mean = 0, W = 0;
         for (long t = 0; t < cnt; ++t) {
             long e = q->grp_eq[g0 + t];
-            eq_row(q, e, idx, val);
-            mean += q->eq_s[e] * eq_data(q, d, e) - val[0] * x[idx[0]] - val[1] * x[idx[1]] -
-                    val[2] * x[idx[2]];
+            mean += q->eq_w[e] * eq_misfit(q, d, x, e);
+            W += q->eq_w[e];
         }
-        mean /= (double)cnt;
+        mean /= W;
         for (long t = 0; t < cnt; ++t) {
             long e = q->grp_eq[g0 + t];
-            eq_row(q, e, idx, val);
-            double z = q->eq_s[e] * eq_data(q, d, e) - val[0] * x[idx[0]] -
-                       val[1] * x[idx[1]] - val[2] * x[idx[2]] - mean;
-            for (int k = 0; k < 3; ++k)
+            double z = q->eq_w[e] * (eq_misfit(q, d, x, e) - mean);
+            int len = eq_row(q, e, idx, val);
+            for (int k = 0; k < len; ++k)
                 r[idx[k]] += val[k] * z;
         }
     }
@@ -685,13 +806,14 @@ static void data_residual(const sc_grid_lsq *q, const sc_grid_data *d, const dou
             r[i] = 0;
 }
 
-sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
-                            sc_grid_result *res, sc_error *err)
+static sc_status check_data(const sc_grid_lsq *q, const sc_grid_data *d, sc_error *err)
 {
-    int n = q->n, nn = q->nn, nv = q->nv, ng = q->ng, nx = q->nx;
-    if (d->plan.n != n || d->plan.n_views != nv)
+    int n = q->n, nn = q->nn, nv = q->nv;
+    if (d->plan.n != n || d->plan.n_views != nv ||
+        sc_grid_stage_nx(&d->plan) != q->snx || sc_grid_stage_ny(&d->plan) != q->sny)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "data has N = %d and %d views, the estimator N = %d and %d views",
+                            "data has N = %d and %d views, the estimator N = %d and %d views "
+                            "(or the stages differ)",
                             d->plan.n, d->plan.n_views, n, nv);
     for (int v = 0; v < nv; ++v) {
         const sc_grid_view *a = &d->plan.view[v], *b = &q->plan.view[v];
@@ -716,182 +838,288 @@ sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_
         return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0,
                             "the plan does not identify G (%ld free degrees of freedom)",
                             q->info.free_dof);
-    double *x = calloc((size_t)nx, sizeof(double));
-    double *g = malloc(sizeof(double) * (size_t)ng);
-    double *a = malloc(sizeof(double) * (size_t)2 * nn);
-    if (!x || !g || !a) {
-        free(x), free(g), free(a);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
-    int idx[3];
-    double val[3];
-    /* reduced right-hand side: b = Σ_e w_e (s_e d_e - mean over the group) */
-    for (int c = 0; c < 2 * nn; ++c) {
-        long g0 = q->grp_ptr[c], cnt = q->grp_ptr[c + 1] - g0;
-        if (cnt < 2)
-            continue;
-        double mean = 0;
-        for (long t = 0; t < cnt; ++t) {
-            long e = q->grp_eq[g0 + t];
-            mean += q->eq_s[e] * eq_data(q, d, e);
+    return SC_OK;
+}
+
+/* Solve a small dense symmetric system m x m (row-major, destroyed) in place of rhs by Gaussian
+ * elimination with partial pivoting; a null pivot gives a NaN solution. */
+static void small_solve(double *a, double *rhs, int m)
+{
+    for (int c = 0; c < m; ++c) {
+        int best = c;
+        for (int r = c + 1; r < m; ++r)
+            if (fabs(a[r * m + c]) > fabs(a[best * m + c]))
+                best = r;
+        if (best != c) {
+            for (int k = 0; k < m; ++k) {
+                double t = a[c * m + k];
+                a[c * m + k] = a[best * m + k];
+                a[best * m + k] = t;
+            }
+            double t = rhs[c];
+            rhs[c] = rhs[best];
+            rhs[best] = t;
         }
-        mean /= (double)cnt;
-        for (long t = 0; t < cnt; ++t) {
-            long e = q->grp_eq[g0 + t];
-            double z = q->eq_s[e] * eq_data(q, d, e) - mean;
-            eq_row(q, e, idx, val);
-            for (int r = 0; r < 3; ++r)
-                x[idx[r]] += val[r] * z;
+        double piv = a[c * m + c], scale = 0;
+        for (int k = 0; k < m; ++k)
+            scale = fmax(scale, fabs(a[k * m + k]));
+        if (!(fabs(piv) > 1e-13 * scale)) {
+            for (int k = 0; k < m; ++k)
+                rhs[k] = NAN;
+            return;
+        }
+        for (int r = c + 1; r < m; ++r) {
+            double l = a[r * m + c] / piv;
+            for (int k = c; k < m; ++k)
+                a[r * m + k] -= l * a[c * m + k];
+            rhs[r] -= l * rhs[c];
         }
     }
-    pinned_solve(q, x, 0);
-    {
-        double *r = malloc(sizeof(double) * (size_t)nx);
-        for (int it = 0; r && it < 3; ++it) {
-            data_residual(q, d, x, r);
-            pinned_solve(q, r, 0);
-            for (int i = 0; i < nx; ++i)
-                x[i] += r[i];
-        }
-        free(r);
+    for (int c = m - 1; c >= 0; --c) {
+        double t = rhs[c];
+        for (int k = c + 1; k < m; ++k)
+            t -= a[c * m + k] * rhs[k];
+        rhs[c] = t / a[c * m + c];
     }
-    /* G in the gauge; the magnification moved to A (the unobservable G+A pattern) */
-    double *gx = g, *gy = g + nn;
-    for (int k = 0; k < nn; ++k) {
+}
+
+/* G (x's first ng entries, interleaved) in the gauge, A as weighted group means moved with G's
+ * magnification and gauged over the measured marks (translation, rotation). */
+static void gauge_solution(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, double *gx,
+                           double *gy, double *a)
+{
+    int n = q->n, nn = q->nn, ns = q->ns, snx = q->snx;
+    for (int k = 0; k < ns; ++k) {
         gx[k] = x[2 * k];
         gy[k] = x[2 * k + 1];
     }
     double smag = 0, r2 = 0;
-    for (int k = 0; k < nn; ++k) {
+    for (int k = 0; k < ns; ++k) {
         double px, py;
-        sc_grid_node_xy_mm(&q->plan, k / n, k % n, &px, &py);
+        sc_grid_node_xy_mm(&q->plan, k / snx, k % snx, &px, &py);
         smag += px * gx[k] + py * gy[k];
         r2 += px * px + py * py;
     }
     double mu = smag / r2;
-    /* A of the pinned solution: group means */
     for (int c = 0; c < 2 * nn; ++c) {
         long g0 = q->grp_ptr[c], cnt = q->grp_ptr[c + 1] - g0;
-        if (cnt < 1) {
-            a[c] = NAN;
-            continue;
-        }
-        double s = 0;
+        double s = 0, W = 0;
         for (long t = 0; t < cnt; ++t) {
             long e = q->grp_eq[g0 + t];
-            double pred = 0;
-            int len = eq_row(q, e, idx, val);
-            for (int r = 0; r < len; ++r)
-                pred += val[r] * x[idx[r]]; /* = s_e·(J x)_e */
-            s += q->eq_s[e] * eq_data(q, d, e) - pred;
+            s += q->eq_w[e] * eq_misfit(q, d, x, e);
+            W += q->eq_w[e];
         }
-        a[c] = s / (double)cnt;
+        a[c] = cnt > 0 ? s / W : NAN;
     }
     sc_grid_gauge_stage(&q->plan, gx, gy);
-    /* A: add μ·(x, y), then remove its translation and rotation over the measured marks */
-    double N0 = 0, Sx = 0, Sy = 0, Sr = 0, bx = 0, by = 0, br = 0;
+    double m3[9] = {0}, rhs[3] = {0};
     for (int k = 0; k < nn; ++k) {
         if (!q->mark_views[k])
             continue;
         double px, py;
-        sc_grid_node_xy_mm(&q->plan, k / n, k % n, &px, &py);
+        sc_grid_mark_xy_mm(&q->plan, k / n, k % n, &px, &py);
         a[2 * k] += mu * px;
         a[2 * k + 1] += mu * py;
-        N0 += 1, Sx += px, Sy += py, Sr += px * px + py * py;
-        bx += a[2 * k], by += a[2 * k + 1], br += px * a[2 * k + 1] - py * a[2 * k];
+        m3[0] += 1, m3[4] += 1, m3[2] -= py, m3[5] += px, m3[8] += px * px + py * py;
+        rhs[0] += a[2 * k], rhs[1] += a[2 * k + 1], rhs[2] += px * a[2 * k + 1] - py * a[2 * k];
     }
-    /* normal equations of (t_x, t_y, ω) for the pattern (t_x - ω y, t_y + ω x) */
-    {
-        double m3[3][3] = {{N0, 0, -Sy}, {0, N0, Sx}, {-Sy, Sx, Sr}}, rhs[3] = {bx, by, br};
-        double sol[3] = {0, 0, 0};
-        /* Gaussian elimination with partial pivoting on 3x3 */
-        int pv[3] = {0, 1, 2};
-        for (int c = 0; c < 3; ++c) {
-            int best = c;
-            for (int r = c + 1; r < 3; ++r)
-                if (fabs(m3[pv[r]][c]) > fabs(m3[pv[best]][c]))
-                    best = r;
-            int t = pv[c];
-            pv[c] = pv[best];
-            pv[best] = t;
-            double piv = m3[pv[c]][c];
-            if (piv == 0)
-                continue;
-            for (int r = c + 1; r < 3; ++r) {
-                double l = m3[pv[r]][c] / piv;
-                for (int cc = c; cc < 3; ++cc)
-                    m3[pv[r]][cc] -= l * m3[pv[c]][cc];
-                rhs[pv[r]] -= l * rhs[pv[c]];
-            }
-        }
-        for (int c = 2; c >= 0; --c) {
-            double s = rhs[pv[c]];
-            for (int cc = c + 1; cc < 3; ++cc)
-                s -= m3[pv[c]][cc] * sol[cc];
-            sol[c] = m3[pv[c]][c] != 0 ? s / m3[pv[c]][c] : 0.0;
-        }
-        for (int k = 0; k < nn; ++k) {
-            if (!q->mark_views[k])
-                continue;
-            double px, py;
-            sc_grid_node_xy_mm(&q->plan, k / n, k % n, &px, &py);
-            a[2 * k] -= sol[0] - sol[2] * py;
-            a[2 * k + 1] -= sol[1] + sol[2] * px;
-        }
+    m3[6] = m3[2], m3[7] = m3[5];
+    small_solve(m3, rhs, 3);
+    for (int k = 0; k < nn; ++k) {
+        if (!q->mark_views[k] || !isfinite(rhs[0]))
+            continue;
+        double px, py;
+        sc_grid_mark_xy_mm(&q->plan, k / n, k % n, &px, &py);
+        a[2 * k] -= rhs[0] - rhs[2] * py;
+        a[2 * k + 1] -= rhs[1] + rhs[2] * px;
     }
-    /* misalignments: per view, least squares of d - G - Rot A on (tx, ty, φ) */
-    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], phi[SC_GRID_MAX_VIEWS];
-    {
-        double nrm[SC_GRID_MAX_VIEWS][3][3], rh[SC_GRID_MAX_VIEWS][3];
-        memset(nrm, 0, sizeof nrm);
-        memset(rh, 0, sizeof rh);
-        for (long e = 0; e < q->neq; ++e) {
-            int v = q->eq_v[e], c = q->eq_c[e];
-            double r = eq_data(q, d, e) - g[(q->eq_g[e] % 2) * nn + q->eq_g[e] / 2] -
-                       q->eq_s[e] * a[q->eq_a[e]];
-            double p = q->eq_pos[e];
-            nrm[v][c][c] += 1, nrm[v][c][2] += p, nrm[v][2][c] += p, nrm[v][2][2] += p * p;
-            rh[v][c] += r, rh[v][2] += p * r;
-        }
-        for (int v = 0; v < nv; ++v) {
-            double (*m3)[3] = nrm[v];
-            /* [n0 0 b; 0 n1 c; b c e] by elimination of the first two */
-            double n0 = m3[0][0], n1 = m3[1][1], bb = m3[0][2], cc = m3[1][2], ee = m3[2][2];
-            double det = n0 > 0 && n1 > 0 ? ee - bb * bb / n0 - cc * cc / n1 : 0.0;
-            if (!(n0 > 0 && n1 > 0) || !(det > 1e-12 * (ee > 0 ? ee : 1))) {
-                tx[v] = ty[v] = phi[v] = NAN;
-                continue;
-            }
-            phi[v] = (rh[v][2] - bb * rh[v][0] / n0 - cc * rh[v][1] / n1) / det;
-            tx[v] = (rh[v][0] - bb * phi[v]) / n0;
-            ty[v] = (rh[v][1] - cc * phi[v]) / n1;
-        }
+}
+
+/* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns. */
+static void fit_misalignments(const sc_grid_lsq *q, const sc_grid_data *d, const double *g,
+                              const double *a, double *m)
+{
+    int nb = q->nb, ns = q->ns;
+    double *nrm = calloc((size_t)q->nv * nb * nb, sizeof(double));
+    double *rh = calloc((size_t)q->nv * nb, sizeof(double));
+    if (!nrm || !rh) {
+        for (int t = 0; t < q->nm; ++t)
+            m[t] = NAN;
+        free(nrm), free(rh);
+        return;
     }
-    /* residuals of the final (G, A, misalignment) */
-    double rss = 0;
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
     for (long e = 0; e < q->neq; ++e) {
-        int v = q->eq_v[e];
-        double m = (q->eq_c[e] ? ty[v] : tx[v]) + q->eq_pos[e] * phi[v];
-        if (!isfinite(m))
-            m = 0;
-        double r = eq_data(q, d, e) - g[(q->eq_g[e] % 2) * nn + q->eq_g[e] / 2] -
-                   q->eq_s[e] * a[q->eq_a[e]] - m;
-        rss += r * r;
+        int v = q->eq_v[e], len = eq_row(q, e, idx, val);
+        double w = q->eq_w[e], s = q->eq_s[e];
+        double r = eq_data(q, d, e) - g[(q->eq_g[e] % 2) * ns + q->eq_g[e] / 2] -
+                   s * a[q->eq_a[e]];
+        for (int i = 1; i < len; ++i) {
+            int bi = idx[i] - q->ng - nb * v;
+            rh[v * nb + bi] += w * s * val[i] * r;
+            for (int j = 1; j < len; ++j)
+                nrm[(v * nb + bi) * nb + idx[j] - q->ng - nb * v] += w * val[i] * val[j];
+        }
     }
+    for (int v = 0; v < q->nv; ++v) {
+        small_solve(nrm + (size_t)v * nb * nb, rh + (size_t)v * nb, nb);
+        for (int t = 0; t < nb; ++t)
+            m[v * nb + t] = rh[v * nb + t];
+    }
+    free(nrm), free(rh);
+}
+
+/* Upper quantile helpers: the regularized lower incomplete gamma P(a, x). */
+static double gamma_p(double a, double x)
+{
+    if (!(x > 0))
+        return 0.0;
+    double lg = lgamma(a);
+    if (x < a + 1) {
+        double sum = 1.0 / a, term = sum;
+        for (int k = 1; k < 100000; ++k) {
+            term *= x / (a + k);
+            sum += term;
+            if (fabs(term) < fabs(sum) * 1e-16)
+                break;
+        }
+        return sum * exp(-x + a * log(x) - lg);
+    }
+    /* continued fraction for Q (Lentz) */
+    double b = x + 1 - a, c = 1e300, dd = 1 / b, h = dd;
+    for (int i = 1; i < 100000; ++i) {
+        double an = -i * (i - a);
+        b += 2;
+        dd = an * dd + b;
+        if (fabs(dd) < 1e-300)
+            dd = 1e-300;
+        c = b + an / c;
+        if (fabs(c) < 1e-300)
+            c = 1e-300;
+        dd = 1 / dd;
+        double del = dd * c;
+        h *= del;
+        if (fabs(del - 1) < 1e-16)
+            break;
+    }
+    return 1.0 - exp(-x + a * log(x) - lg) * h;
+}
+
+double sc_chi2_quantile(double p, double dof)
+{
+    if (!(dof > 0) || !(p > 0) || !(p < 1))
+        return NAN;
+    double lo = 0, hi = dof + 10 * sqrt(2 * dof) + 100;
+    while (gamma_p(dof / 2, hi / 2) < p)
+        hi *= 2;
+    for (int it = 0; it < 200 && hi - lo > 1e-12 * hi; ++it) {
+        double mid = 0.5 * (lo + hi);
+        if (gamma_p(dof / 2, mid / 2) < p)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+static void fill_result_noise(sc_grid_lsq *q, double wrss, double rss, double sigma_r_um,
+                              sc_grid_result *res)
+{
     long dof = q->neq - q->rank;
     res->n_measurements = q->neq;
     res->dof = dof;
     res->residual_rms_um = q->neq > 0 ? sqrt(rss / (double)q->neq) : NAN;
-    res->sigma_r_est_um = dof > 0 ? sqrt(rss / (double)dof) : NAN;
-    res->sigma_r_used_um = sigma_r_um > 0 ? sigma_r_um : res->sigma_r_est_um;
+    res->weighted = q->weighted || sigma_r_um > 0;
+    res->variance_factor = res->chi2_lo = res->chi2_hi = NAN;
+    res->chi2_pass = 1;
+    if (q->weighted) {
+        /* stated uncertainties: σ̂ is the factor on them; the uncertainties use them as stated */
+        res->sigma_r_est_um = dof > 0 ? sqrt(wrss / (double)dof) : NAN;
+        res->sigma_r_used_um = 1.0;
+        q->sigma0 = 1.0;
+        if (dof > 0)
+            res->variance_factor = wrss / (double)dof;
+    } else {
+        res->sigma_r_est_um = dof > 0 ? sqrt(rss / (double)dof) : NAN;
+        res->sigma_r_used_um = sigma_r_um > 0 ? sigma_r_um : res->sigma_r_est_um;
+        q->sigma0 = res->sigma_r_used_um;
+        if (sigma_r_um > 0 && dof > 0)
+            res->variance_factor = rss / (double)dof / (sigma_r_um * sigma_r_um);
+    }
+    q->tscale = q->sigma0;
+    if (isfinite(res->variance_factor)) {
+        res->chi2_lo = sc_chi2_quantile(0.025, (double)dof) / (double)dof;
+        res->chi2_hi = sc_chi2_quantile(0.975, (double)dof) / (double)dof;
+        res->chi2_pass = res->variance_factor >= res->chi2_lo && res->variance_factor <= res->chi2_hi;
+        /* the stated noise is too small for these residuals: data snooping with it would flag
+         * nearly everything, so the residuals are standardized a posteriori (Pope's τ) */
+        if (res->variance_factor > res->chi2_hi)
+            q->tscale = q->sigma0 * sqrt(res->variance_factor);
+    }
+}
+
+static sc_status functional_uncertainties(sc_grid_lsq *q, sc_grid_result *res, sc_error *err);
+
+sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
+                            sc_grid_result *res, sc_error *err)
+{
+    int nn = q->nn, nv = q->nv, ng = q->ng, nx = q->nx, ns = q->ns, nb = q->nb;
+    sc_status st = check_data(q, d, err);
+    if (st != SC_OK)
+        return st;
+    double *x = calloc((size_t)nx, sizeof(double));
+    double *g = malloc(sizeof(double) * (size_t)ng);
+    double *a = malloc(sizeof(double) * (size_t)2 * nn);
+    double *r = malloc(sizeof(double) * (size_t)nx);
+    double *m = malloc(sizeof(double) * (size_t)q->nm);
+    if (!x || !g || !a || !r || !m) {
+        free(x), free(g), free(a), free(r), free(m);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    /* b - S·0 from the equations, then refinement steps against the equations */
+    data_residual(q, d, x, r);
+    memcpy(x, r, sizeof(double) * (size_t)nx);
+    pinned_solve(q, x, 0);
+    for (int it = 0; it < 3; ++it) {
+        data_residual(q, d, x, r);
+        pinned_solve(q, r, 0);
+        for (int i = 0; i < nx; ++i)
+            x[i] += r[i];
+    }
+    double *gx = g, *gy = g + ns;
+    gauge_solution(q, d, x, gx, gy, a);
+    fit_misalignments(q, d, g, a, m);
+    /* residuals of the final (G, A, misalignment, drift) */
+    double rss = 0, wrss = 0;
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
+    for (long e = 0; e < q->neq; ++e) {
+        int len = eq_row(q, e, idx, val);
+        double mis = 0;
+        for (int t = 1; t < len; ++t)
+            mis += q->eq_s[e] * val[t] * m[idx[t] - ng];
+        if (!isfinite(mis))
+            mis = 0;
+        double re = eq_data(q, d, e) - g[(q->eq_g[e] % 2) * ns + q->eq_g[e] / 2] -
+                    q->eq_s[e] * a[q->eq_a[e]] - mis;
+        q->eq_r[e] = re;
+        rss += re * re;
+        wrss += q->eq_w[e] * re * re;
+    }
+    fill_result_noise(q, wrss, rss, sigma_r_um, res);
+    res->drift = q->drift;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
-        res->tx_um[v] = v < nv ? tx[v] : NAN;
-        res->ty_um[v] = v < nv ? ty[v] : NAN;
-        res->theta_urad[v] = v < nv ? phi[v] / (q->L_mm * 1e-3) : NAN;
+        int in = v < nv;
+        res->tx_um[v] = in ? m[v * nb] : NAN;
+        res->ty_um[v] = in ? m[v * nb + 1] : NAN;
+        res->theta_urad[v] = in ? m[v * nb + 2] / (q->L_mm * 1e-3) : NAN;
+        res->vx_um_s[v] = in && q->drift ? m[v * nb + 3] / q->drift_T[v] : NAN;
+        res->vy_um_s[v] = in && q->drift ? m[v * nb + 4] / q->drift_T[v] : NAN;
     }
     sc_grid_first_order(&q->plan, gx, gy, &res->O, &res->R);
-    double su = res->sigma_r_used_um;
-    for (int k = 0; k < nn; ++k) {
+    double su = q->sigma0;
+    for (int k = 0; k < ns; ++k) {
         if (res->gx_um)
             res->gx_um[k] = gx[k];
         if (res->gy_um)
@@ -900,11 +1128,487 @@ sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_
             res->ugx_um[k] = su * q->sgx[k];
         if (res->ugy_um)
             res->ugy_um[k] = su * q->sgy[k];
+    }
+    for (int k = 0; k < nn; ++k) {
         if (res->ax_um)
             res->ax_um[k] = q->mark_views[k] ? a[2 * k] : NAN;
         if (res->ay_um)
             res->ay_um[k] = q->mark_views[k] ? a[2 * k + 1] : NAN;
     }
-    free(x), free(g), free(a);
+    free(x), free(g), free(a), free(r), free(m);
+    return functional_uncertainties(q, res, err);
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Uncertainties of linear functionals of the gauged solution (O, R, misalignments, drift).
+ *
+ * Full unknowns z = (G, A, m). The gauged estimate is z_g = Q z_pin with Q = I - N (CᵀN)⁻¹ Cᵀ,
+ * N the 7 null vectors of the model (G translation ×2, rotation, G+A magnification, A
+ * translation ×2, A rotation, each with the misalignment change that keeps every equation) and
+ * C the 7 gauge sums. Cov(z_pin) = Σ (the pinned inverse of the full normal matrix, a reflexive
+ * generalized inverse), so Var(fᵀ z_g) = σ0² uᵀ Σ u with u = Qᵀ f. uᵀ Σ u needs one pinned solve
+ * of the reduced matrix (A eliminated by its diagonal block).
+ * ------------------------------------------------------------------------------------------- */
+
+/* Apply the 7 null vectors: nullv(k) restricted to entry class. Values for G node k (stage, both
+ * components), A mark (both), and misalignment (view v, component t). */
+static void null_g(const sc_grid_lsq *q, int node, double out[7][2])
+{
+    double x, y;
+    sc_grid_node_xy_mm(&q->plan, node / q->snx, node % q->snx, &x, &y);
+    double L = q->L_mm;
+    memset(out, 0, sizeof(double) * 14);
+    out[0][0] = 1, out[1][1] = 1;
+    out[2][0] = -y / L, out[2][1] = x / L;
+    out[3][0] = x / L, out[3][1] = y / L;
+}
+
+static void null_a(const sc_grid_lsq *q, int mark, double out[7][2])
+{
+    double x, y;
+    sc_grid_mark_xy_mm(&q->plan, mark / q->n, mark % q->n, &x, &y);
+    double L = q->L_mm;
+    memset(out, 0, sizeof(double) * 14);
+    out[3][0] = -x / L, out[3][1] = -y / L;
+    out[4][0] = 1, out[5][1] = 1;
+    out[6][0] = -y / L, out[6][1] = x / L;
+}
+
+static void null_m(const sc_grid_lsq *q, int v, double out[7][5])
+{
+    const sc_grid_view *w = &q->plan.view[v];
+    double P = q->plan.pitch_mm, L = q->L_mm, sx = w->shift_x * P / L, sy = w->shift_y * P / L;
+    double r10x, r10y, r01x, r01y;
+    sc_grid_rotate(w->rot_deg, 1, 0, &r10x, &r10y);
+    sc_grid_rotate(w->rot_deg, 0, 1, &r01x, &r01y);
+    memset(out, 0, sizeof(double) * 35);
+    out[0][0] = -1;
+    out[1][1] = -1;
+    out[2][2] = -1;
+    out[3][0] = -sx, out[3][1] = -sy;
+    out[4][0] = -r10x, out[4][1] = -r10y;
+    out[5][0] = -r01x, out[5][1] = -r01y;
+    out[6][0] = -sy, out[6][1] = sx, out[6][2] = -1;
+}
+
+/* The 7 gauge functionals C_k as vectors: on G node (both comps) and on A mark (both). */
+static void gauge_g(const sc_grid_lsq *q, int node, double out[7][2])
+{
+    double x, y;
+    sc_grid_node_xy_mm(&q->plan, node / q->snx, node % q->snx, &x, &y);
+    memset(out, 0, sizeof(double) * 14);
+    out[0][0] = 1, out[1][1] = 1;
+    out[2][0] = -y, out[2][1] = x;
+    out[3][0] = x, out[3][1] = y;
+}
+
+static void gauge_a(const sc_grid_lsq *q, int mark, double out[7][2])
+{
+    double x, y;
+    memset(out, 0, sizeof(double) * 14);
+    if (!q->mark_views[mark])
+        return;
+    sc_grid_mark_xy_mm(&q->plan, mark / q->n, mark % q->n, &x, &y);
+    out[4][0] = 1, out[5][1] = 1;
+    out[6][0] = -y, out[6][1] = x;
+}
+
+/* Var(fᵀ z_g)/σ0² for f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL). */
+static double functional_var(const sc_grid_lsq *q, const double *Minv_T, const double *fg,
+                             const double *fm, double *ux, double *uA, double *z)
+{
+    int ng = q->ng, nx = q->nx, nn = q->nn, nb = q->nb;
+    double Nf[7] = {0}, gam[7] = {0};
+    double ng7[7][2], nm7[7][5];
+    for (int k = 0; fg && k < q->ns; ++k) {
+        null_g(q, k, ng7);
+        for (int t = 0; t < 7; ++t)
+            Nf[t] += ng7[t][0] * fg[2 * k] + ng7[t][1] * fg[2 * k + 1];
+    }
+    for (int v = 0; fm && v < q->nv; ++v) {
+        null_m(q, v, nm7);
+        for (int t = 0; t < 7; ++t)
+            for (int c = 0; c < nb && c < 5; ++c)
+                Nf[t] += (c < 3 ? nm7[t][c] : 0.0) * fm[v * nb + c];
+    }
+    for (int i = 0; i < 7; ++i)
+        for (int j = 0; j < 7; ++j)
+            gam[i] += Minv_T[i * 7 + j] * Nf[j];
+    /* u = f - Σ_k γ_k C_k */
+    memset(ux, 0, sizeof(double) * (size_t)nx);
+    for (int k = 0; k < q->ns; ++k) {
+        double cg[7][2];
+        gauge_g(q, k, cg);
+        for (int c = 0; c < 2; ++c) {
+            double v = fg ? fg[2 * k + c] : 0;
+            for (int t = 0; t < 7; ++t)
+                v -= gam[t] * cg[t][c];
+            ux[2 * k + c] = v;
+        }
+    }
+    for (int t = 0; fm && t < q->nm; ++t)
+        ux[ng + t] = fm[t];
+    for (int k = 0; k < nn; ++k) {
+        double ca[7][2];
+        gauge_a(q, k, ca);
+        for (int c = 0; c < 2; ++c) {
+            double v = 0;
+            for (int t = 0; t < 7; ++t)
+                v -= gam[t] * ca[t][c];
+            uA[2 * k + c] = v;
+        }
+    }
+    /* uᵀ Σ u: z_x = S⁻¹(u_x - Σ_a (u_A[a]/W_a) Σ_e w_e ρ_e), z_A[a] = (u_A[a] - Σ_e w_e ρ_e·z_x)/W_a */
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
+    memcpy(z, ux, sizeof(double) * (size_t)nx);
+    for (int a = 0; a < 2 * nn; ++a) {
+        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+        double W = 0;
+        for (long t = 0; t < cnt; ++t)
+            W += q->eq_w[q->grp_eq[g0 + t]];
+        if (cnt == 0 || uA[a] == 0)
+            continue;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            int len = eq_row(q, e, idx, val);
+            for (int r = 0; r < len; ++r)
+                z[idx[r]] -= uA[a] / W * q->eq_w[e] * val[r];
+        }
+    }
+    pinned_solve((sc_grid_lsq *)q, z, 1);
+    double var = 0;
+    for (int i = 0; i < nx; ++i)
+        var += ux[i] * z[i];
+    for (int a = 0; a < 2 * nn; ++a) {
+        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+        if (cnt == 0 || uA[a] == 0)
+            continue;
+        double W = 0, proj = 0;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            int len = eq_row(q, e, idx, val);
+            W += q->eq_w[e];
+            for (int r = 0; r < len; ++r)
+                proj += q->eq_w[e] * val[r] * z[idx[r]];
+        }
+        var += uA[a] * (uA[a] - proj) / W;
+    }
+    return var > 0 ? var : 0.0;
+}
+
+/* (CᵀN)⁻ᵀ, 7 x 7 row-major; 0 if singular. */
+static int gauge_matrix(const sc_grid_lsq *q, double *Minv_T)
+{
+    double M[49] = {0};
+    for (int k = 0; k < q->ns; ++k) {
+        double cg[7][2], n7[7][2];
+        gauge_g(q, k, cg);
+        null_g(q, k, n7);
+        for (int i = 0; i < 7; ++i)
+            for (int j = 0; j < 7; ++j)
+                M[i * 7 + j] += cg[i][0] * n7[j][0] + cg[i][1] * n7[j][1];
+    }
+    for (int k = 0; k < q->nn; ++k) {
+        double ca[7][2], n7[7][2];
+        gauge_a(q, k, ca);
+        null_a(q, k, n7);
+        for (int i = 0; i < 7; ++i)
+            for (int j = 0; j < 7; ++j)
+                M[i * 7 + j] += ca[i][0] * n7[j][0] + ca[i][1] * n7[j][1];
+    }
+    /* Minv_T = (Mᵀ)⁻¹: solve Mᵀ X = I column by column */
+    for (int c = 0; c < 7; ++c) {
+        double A[49], rhs[7] = {0};
+        for (int i = 0; i < 7; ++i)
+            for (int j = 0; j < 7; ++j)
+                A[i * 7 + j] = M[j * 7 + i];
+        rhs[c] = 1;
+        small_solve(A, rhs, 7);
+        for (int i = 0; i < 7; ++i) {
+            if (!isfinite(rhs[i]))
+                return -1;
+            Minv_T[i * 7 + c] = rhs[i];
+        }
+    }
+    return 0;
+}
+
+static sc_status functional_uncertainties(sc_grid_lsq *q, sc_grid_result *res, sc_error *err)
+{
+    int nv = q->nv, nb = q->nb, ng = q->ng, nx = q->nx;
+    res->uO = res->uR = NAN;
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        res->utx_um[v] = res->uty_um[v] = res->utheta_urad[v] = res->uvx_um_s[v] =
+            res->uvy_um_s[v] = NAN;
+    double Minv_T[49];
+    /* nullity_T > 3: combinations of misalignments (and drift) with A beyond the gauge stay free
+     * (with drift: a drift common to all views in the plate frame is a plate error); their
+     * values follow a convention and have no uncertainty. O and R depend on G only. */
+    res->misalignment_unique = q->nullity_T <= 3;
+    if (gauge_matrix(q, Minv_T) != 0)
+        return SC_OK;
+    double *fg = calloc((size_t)ng, sizeof(double));
+    double *fm = calloc((size_t)q->nm, sizeof(double));
+    double *ux = malloc(sizeof(double) * (size_t)nx);
+    double *uA = malloc(sizeof(double) * (size_t)2 * q->nn);
+    double *z = malloc(sizeof(double) * (size_t)nx);
+    if (!fg || !fm || !ux || !uA || !z) {
+        free(fg), free(fm), free(ux), free(uA), free(z);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    double s0 = q->sigma0, r2 = 0;
+    for (int k = 0; k < q->ns; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
+        r2 += x * x + y * y;
+    }
+    for (int which = 0; which < 2; ++which) { /* O, R as sc_grid_first_order */
+        for (int k = 0; k < q->ns; ++k) {
+            double x, y;
+            sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
+            fg[2 * k] = (which == 0 ? y : x) / r2 * 1e-3;
+            fg[2 * k + 1] = (which == 0 ? x : -y) / r2 * 1e-3;
+        }
+        double var = functional_var(q, Minv_T, fg, NULL, ux, uA, z);
+        *(which == 0 ? &res->uO : &res->uR) = s0 * sqrt(var);
+    }
+    for (int v = 0; v < nv && res->misalignment_unique; ++v)
+        for (int t = 0; t < nb; ++t) {
+            memset(fm, 0, sizeof(double) * (size_t)q->nm);
+            fm[v * nb + t] = 1;
+            double u = s0 * sqrt(functional_var(q, Minv_T, NULL, fm, ux, uA, z));
+            switch (t) {
+            case 0: res->utx_um[v] = u; break;
+            case 1: res->uty_um[v] = u; break;
+            case 2: res->utheta_urad[v] = u / (q->L_mm * 1e-3); break;
+            case 3: res->uvx_um_s[v] = u / q->drift_T[v]; break;
+            default: res->uvy_um_s[v] = u / q->drift_T[v]; break;
+            }
+        }
+    free(fg), free(fm), free(ux), free(uA), free(z);
     return SC_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Residuals, leverage, standardized residuals (after a solve).
+ *
+ * With A eliminated in closed form, the hat matrix of the full model is H = P_B + (I-P_B)J S⁺
+ * Jᵀ(I-P_B) (whitened), so for equation e of the A group a (total weight W_a):
+ *   h_e = w_e/W_a + w_e ãᵀ Σ ã,  ã = ρ_e - Σ_{e'∈a} w_e' ρ_e' / W_a,
+ * Σ the pinned inverse of the reduced matrix (a generalized inverse: ã lies in S's row space).
+ * The pairs of unknowns ã touches are the group's G nodes and misalignments: the G pairs are
+ * entries of S (the group's elimination couples them), so they lie on the factor's pattern and
+ * the selected inverse holds them; the misalignment columns of Σ come from nm extra solves.
+ * ------------------------------------------------------------------------------------------- */
+
+static sc_status ensure_sigma_m(sc_grid_lsq *q, sc_error *err)
+{
+    if (q->sig_m)
+        return SC_OK;
+    q->sig_m = malloc(sizeof(double) * (size_t)q->nx * q->nm);
+    if (!q->sig_m)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
+    for (int t = 0; t < q->nm; ++t) {
+        double *col = q->sig_m + (size_t)t * q->nx;
+        memset(col, 0, sizeof(double) * (size_t)q->nx);
+        col[q->ng + t] = 1;
+        pinned_solve(q, col, 1);
+    }
+    return SC_OK;
+}
+
+/* Σ(i, j) of the pinned reduced inverse (original indices). */
+static double sigma_entry(const sc_grid_lsq *q, int i, int j)
+{
+    if (q->pinned[i] || q->pinned[j])
+        return 0.0;
+    if (i >= q->ng)
+        return q->sig_m[(size_t)(i - q->ng) * q->nx + j];
+    if (j >= q->ng)
+        return q->sig_m[(size_t)(j - q->ng) * q->nx + i];
+    return sc_spsym_inv(q->f, i, j);
+}
+
+/* Leverage of every equation of group a into h (by equation index). */
+static void group_leverage(const sc_grid_lsq *q, int a, int *u, double *abar, double *sub, double *h)
+{
+    long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+    int idx[ROW_MAX], nu = 0;
+    double val[ROW_MAX], W = 0;
+    for (long t = 0; t < cnt; ++t) {
+        long e = q->grp_eq[g0 + t];
+        int len = eq_row(q, e, idx, val);
+        W += q->eq_w[e];
+        for (int r = 0; r < len; ++r) {
+            int f = 0;
+            while (f < nu && u[f] != idx[r])
+                ++f;
+            if (f == nu)
+                u[nu++] = idx[r];
+        }
+    }
+    double *mean = abar + nu;
+    memset(mean, 0, sizeof(double) * (size_t)nu);
+    for (long t = 0; t < cnt; ++t) {
+        long e = q->grp_eq[g0 + t];
+        int len = eq_row(q, e, idx, val);
+        for (int r = 0; r < len; ++r)
+            for (int f = 0; f < nu; ++f)
+                if (u[f] == idx[r])
+                    mean[f] += q->eq_w[e] * val[r] / W;
+    }
+    for (int i = 0; i < nu; ++i)
+        for (int j = 0; j < nu; ++j)
+            sub[i * nu + j] = sigma_entry(q, u[i], u[j]);
+    for (long t = 0; t < cnt; ++t) {
+        long e = q->grp_eq[g0 + t];
+        int len = eq_row(q, e, idx, val);
+        for (int f = 0; f < nu; ++f) {
+            abar[f] = -mean[f];
+            for (int r = 0; r < len; ++r)
+                if (u[f] == idx[r])
+                    abar[f] += val[r];
+        }
+        double quad = 0;
+        for (int i = 0; i < nu; ++i)
+            for (int j = 0; j < nu; ++j)
+                quad += abar[i] * sub[i * nu + j] * abar[j];
+        h[e] = q->eq_w[e] / W + q->eq_w[e] * quad;
+    }
+}
+
+sc_status sc_grid_lsq_residuals(sc_grid_lsq *q, double *rx_um, double *ry_um, double *tx,
+                                double *ty, double *h_out, sc_error *err)
+{
+    if (!isfinite(q->sigma0) && !(q->sigma0 > 0))
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
+    sc_status st = ensure_sigma_m(q, err);
+    if (st != SC_OK)
+        return st;
+    int maxg = 0;
+    for (int a = 0; a < 2 * q->nn; ++a)
+        if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
+            maxg = (int)(q->grp_ptr[a + 1] - q->grp_ptr[a]);
+    int mu = ROW_MAX * maxg + 1;
+    int *u = malloc(sizeof(int) * (size_t)mu);
+    double *abar = malloc(sizeof(double) * 2 * (size_t)mu);
+    double *sub = malloc(sizeof(double) * (size_t)mu * mu);
+    double *h = malloc(sizeof(double) * (size_t)(q->neq + 1));
+    if (!u || !abar || !sub || !h) {
+        free(u), free(abar), free(sub), free(h);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
+    }
+    for (int a = 0; a < 2 * q->nn; ++a)
+        if (q->grp_ptr[a + 1] > q->grp_ptr[a])
+            group_leverage(q, a, u, abar, sub, h);
+    size_t tot = (size_t)q->nv * q->nn;
+    double *outs[5] = {rx_um, ry_um, tx, ty, h_out};
+    for (int o = 0; o < 5; ++o)
+        for (size_t k = 0; outs[o] && k < tot; ++k)
+            outs[o][k] = NAN;
+    for (long e = 0; e < q->neq; ++e) {
+        size_t at = (size_t)q->eq_v[e] * q->nn + (size_t)q->eq_k[e];
+        int c = q->eq_c[e];
+        double sd = q->tscale / sqrt(q->eq_w[e]) * sqrt(fmax(0.0, 1.0 - h[e]));
+        double t = 1.0 - h[e] > 1e-9 && sd > 0 ? q->eq_r[e] / sd : NAN;
+        if (c == 0) {
+            if (rx_um) rx_um[at] = q->eq_r[e];
+            if (tx) tx[at] = t;
+        } else {
+            if (ry_um) ry_um[at] = q->eq_r[e];
+            if (ty) ty[at] = t;
+        }
+        if (h_out && (c == 0 || !(h_out[at] >= h[e])))
+            h_out[at] = h[e];
+    }
+    free(u), free(abar), free(sub), free(h);
+    return SC_OK;
+}
+
+sc_status sc_grid_lsq_covariance(sc_grid_lsq *q, double *cov, sc_error *err)
+{
+    int ng = q->ng, nx = q->nx;
+    if (!q->info.identifiable || !(q->sigma0 > 0))
+        return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no solution to take a covariance of");
+    if (q->ns > SC_GRID_LSQ_COV_MAX_NODES)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the covariance of %d stage nodes is too large (limit %d nodes)",
+                            q->ns, SC_GRID_LSQ_COV_MAX_NODES);
+    double *col = malloc(sizeof(double) * (size_t)nx);
+    double *U = malloc(sizeof(double) * (size_t)4 * ng);
+    double *SU = calloc((size_t)4 * ng, sizeof(double));
+    if (!col || !U || !SU) {
+        free(col), free(U), free(SU);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
+    }
+    for (int j = 0; j < ng; ++j) {
+        memset(col, 0, sizeof(double) * (size_t)nx);
+        col[j] = 1;
+        pinned_solve(q, col, 1);
+        memcpy(cov + (size_t)j * ng, col, sizeof(double) * (size_t)ng);
+    }
+    double r2 = 0;
+    for (int k = 0; k < q->ns; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
+        r2 += x * x + y * y;
+    }
+    double s0 = 1.0 / sqrt((double)q->ns), s1 = 1.0 / sqrt(r2);
+    for (int k = 0; k < q->ns; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
+        double b[4][2] = {{s0, 0}, {0, s0}, {-y * s1, x * s1}, {x * s1, y * s1}};
+        for (int c = 0; c < 4; ++c)
+            U[(size_t)c * ng + 2 * k] = b[c][0], U[(size_t)c * ng + 2 * k + 1] = b[c][1];
+    }
+    /* P⊥ Σ P⊥ = Σ - U(ΣU)ᵀ - (ΣU)Uᵀ + U(UᵀΣU)Uᵀ */
+    for (int c = 0; c < 4; ++c)
+        for (int i = 0; i < ng; ++i) {
+            double s = 0;
+            for (int j = 0; j < ng; ++j)
+                s += cov[(size_t)i * ng + j] * U[(size_t)c * ng + j];
+            SU[(size_t)c * ng + i] = s;
+        }
+    double M[4][4];
+    for (int c = 0; c < 4; ++c)
+        for (int d = 0; d < 4; ++d) {
+            double s = 0;
+            for (int i = 0; i < ng; ++i)
+                s += U[(size_t)c * ng + i] * SU[(size_t)d * ng + i];
+            M[c][d] = s;
+        }
+    double v2 = q->sigma0 * q->sigma0;
+    for (int i = 0; i < ng; ++i)
+        for (int j = 0; j < ng; ++j) {
+            double s = cov[(size_t)i * ng + j];
+            for (int c = 0; c < 4; ++c) {
+                s -= U[(size_t)c * ng + i] * SU[(size_t)c * ng + j] +
+                     SU[(size_t)c * ng + i] * U[(size_t)c * ng + j];
+                for (int d = 0; d < 4; ++d)
+                    s += U[(size_t)c * ng + i] * M[c][d] * U[(size_t)d * ng + j];
+            }
+            cov[(size_t)i * ng + j] = s * v2;
+        }
+    free(col), free(U), free(SU);
+    return SC_OK;
+}
+
+void sc_grid_lsq_predict(const sc_grid_lsq *q, const sc_grid_result *res, int v, int i, int j,
+                         double t_s, double *dx_um, double *dy_um)
+{
+    int ni, nj;
+    *dx_um = *dy_um = NAN;
+    if (!res->gx_um || !res->ax_um || !sc_grid_mark_node(&q->plan, v, i, j, &ni, &nj))
+        return;
+    int node = ni * q->snx + nj, k = i * q->n + j;
+    double x, y, rax, ray;
+    sc_grid_node_xy_mm(&q->plan, ni, nj, &x, &y);
+    sc_grid_rotate(q->plan.view[v].rot_deg, res->ax_um[k], res->ay_um[k], &rax, &ray);
+    *dx_um = res->gx_um[node] + rax + res->tx_um[v] - res->theta_urad[v] * y * 1e-3;
+    *dy_um = res->gy_um[node] + ray + res->ty_um[v] + res->theta_urad[v] * x * 1e-3;
+    if (q->drift) {
+        *dx_um += res->vx_um_s[v] * (t_s - q->drift_t0[v]);
+        *dy_um += res->vy_um_s[v] * (t_s - q->drift_t0[v]);
+    }
 }

@@ -17,9 +17,23 @@ void sc_grid_sim_defaults(sc_grid_sim_params *sp)
     sp->sigma_theta_urad = 100.0;
     sp->sigma_r_um = 0.01;
     sp->seed = 1;
+    sp->drift_vx_um_s = sp->drift_vy_um_s = 0;
+    sp->dt_s = 0;
+}
+
+long sc_grid_serpentine_index(int n, int k)
+{
+    int i = k / n, j = k % n;
+    return (long)i * n + (i % 2 ? n - 1 - j : j);
 }
 
 size_t sc_grid_sim_work_doubles(int n) { return 2 * (size_t)n * (size_t)n; }
+
+size_t sc_grid_sim_work_doubles_plan(const sc_grid_plan *p)
+{
+    size_t a = 2 * (size_t)p->n * (size_t)p->n, b = 2 * (size_t)sc_grid_stage_nodes(p);
+    return a > b ? a : b;
+}
 
 static sc_status plan_base(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
                            sc_error *err)
@@ -67,23 +81,77 @@ sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double ox, double oy
     return sc_grid_plan_check(p, err);
 }
 
+/* Placement offsets along one axis: the plate centre's offset from the stage centre, in pitches,
+ * evenly spaced at most `step` apart from -(cs - c) to cs - c (just 0 when the plate covers it). */
+static int stitch_offsets(int ns, int n, int step, int *off)
+{
+    int reach = (ns - 1) / 2 - (n - 1) / 2;
+    if (reach <= 0) {
+        off[0] = 0;
+        return 1;
+    }
+    int k = (2 * reach + step - 1) / step + 1;
+    if (k > SC_GRID_MAX_VIEWS)
+        return -1;
+    for (int t = 0; t < k; ++t)
+        off[t] = -reach + (int)lround((double)t * 2 * reach / (k - 1));
+    return k;
+}
+
+sc_status sc_grid_plan_stitch_step(int n, int nx, int ny, int step, double pitch_mm, double ox,
+                                   double oy, sc_grid_plan *p, sc_error *err)
+{
+    sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
+    if (st != SC_OK)
+        return st;
+    p->stage_nx = nx;
+    p->stage_ny = ny;
+    if (n < 3 || n % 2 == 0 || nx < 3 || ny < 3 || nx % 2 == 0 || ny % 2 == 0 || step < 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "stitching needs N, NX, NY odd and >= 3 and a step >= 1");
+    int offx[SC_GRID_MAX_VIEWS], offy[SC_GRID_MAX_VIEWS];
+    int kx = stitch_offsets(nx, n, step, offx), ky = stitch_offsets(ny, n, step, offy);
+    if (kx < 0 || ky < 0 || kx * ky + 2 > SC_GRID_MAX_VIEWS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "a %dx%d stage needs more than %d placements of an N = %d plate at "
+                            "step %d",
+                            nx, ny, SC_GRID_MAX_VIEWS, n, step);
+    p->n_views = 0;
+    for (int a = 0; a < ky; ++a)
+        for (int b = 0; b < kx; ++b) {
+            sc_grid_view *w = &p->view[p->n_views++];
+            w->shift_x = offx[b];
+            w->shift_y = offy[a];
+        }
+    p->view[p->n_views++].rot_deg = 90;
+    p->view[p->n_views++].shift_x = 1;
+    return sc_grid_plan_check(p, err);
+}
+
+sc_status sc_grid_plan_stitch(int n, int nx, int ny, double pitch_mm, double ox, double oy,
+                              sc_grid_plan *p, sc_error *err)
+{
+    int step = (n - 1) / 2 > 0 ? (n - 1) / 2 : 1;
+    return sc_grid_plan_stitch_step(n, nx, ny, step, pitch_mm, ox, oy, p, err);
+}
+
 /* Solve (I − ρW) f = e in place (f holds e on entry) by Gauss-Seidel, W row-standardised
  * 4-neighbour adjacency. Returns the sweeps used, or -1 if it did not converge. */
-static int sar_solve(int n, double rho, const double *e, double *f)
+static int sar_solve(int nx, int ny, double rho, const double *e, double *f)
 {
-    size_t nn = (size_t)n * n;
+    size_t nn = (size_t)nx * ny;
     memcpy(f, e, nn * sizeof *f);
     for (int sweep = 1; sweep <= 100000; ++sweep) {
         double change = 0, size = 0;
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < ny; ++i)
+            for (int j = 0; j < nx; ++j) {
                 double s = 0;
                 int deg = 0;
-                if (i > 0) s += f[(i - 1) * n + j], ++deg;
-                if (i < n - 1) s += f[(i + 1) * n + j], ++deg;
-                if (j > 0) s += f[i * n + j - 1], ++deg;
-                if (j < n - 1) s += f[i * n + j + 1], ++deg;
-                int k = i * n + j;
+                if (i > 0) s += f[(i - 1) * nx + j], ++deg;
+                if (i < ny - 1) s += f[(i + 1) * nx + j], ++deg;
+                if (j > 0) s += f[i * nx + j - 1], ++deg;
+                if (j < nx - 1) s += f[i * nx + j + 1], ++deg;
+                int k = i * nx + j;
                 double nv = e[k] + rho * s / deg;
                 change = fmax(change, fabs(nv - f[k]));
                 size = fmax(size, fabs(nv));
@@ -112,19 +180,22 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
                             "standard deviations must be finite and >= 0");
     if (!isfinite(sp->O) || !isfinite(sp->R))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "O and R must be finite");
-    int n = plan->n;
-    size_t nn = (size_t)n * n;
-    double *ex = work, *ey = work + nn;
+    if (!isfinite(sp->drift_vx_um_s) || !isfinite(sp->drift_vy_um_s) || !(sp->dt_s >= 0) ||
+        !isfinite(sp->dt_s))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "drift rates and dt must be finite");
+    int n = plan->n, snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
+    size_t nn = (size_t)n * n, ns = (size_t)snx * sny;
+    double *ex = work, *ey = work + ns;
     sc_rng rng;
     sc_rng_seed(&rng, sp->seed);
 
-    /* Second-order part: SAR(1) fields, unit white noise. */
-    for (size_t k = 0; k < nn; ++k)
+    /* Second-order part: SAR(1) fields over the stage nodes, unit white noise. */
+    for (size_t k = 0; k < ns; ++k)
         ex[k] = sc_rng_normal(&rng);
-    for (size_t k = 0; k < nn; ++k)
+    for (size_t k = 0; k < ns; ++k)
         ey[k] = sc_rng_normal(&rng);
-    int it1 = sar_solve(n, sp->rho, ex, truth->gx_um);
-    int it2 = sar_solve(n, sp->rho, ey, truth->gy_um);
+    int it1 = sar_solve(snx, sny, sp->rho, ex, truth->gx_um);
+    int it2 = sar_solve(snx, sny, sp->rho, ey, truth->gy_um);
     if (it1 < 0 || it2 < 0)
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "SAR(1) solve did not converge");
     truth->sar_iterations = it1 > it2 ? it1 : it2;
@@ -133,11 +204,11 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
     /* Remove O and R components of F: the patterns (y, x) and (x, −y), orthogonal to the gauge. */
     double O_f, R_f, first2 = 0, f2 = 0;
     sc_grid_first_order(plan, fx, fy, &O_f, &R_f); /* dimensionless; x, y in mm -> ×1e3 µm */
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < sny; ++i)
+        for (int j = 0; j < snx; ++j) {
             double x, y;
             sc_grid_node_xy_mm(plan, i, j, &x, &y);
-            int k = i * n + j;
+            int k = i * snx + j;
             fx[k] -= (O_f * y + R_f * x) * 1e3;
             fy[k] -= (O_f * x - R_f * y) * 1e3;
             f2 += fx[k] * fx[k] + fy[k] * fy[k];
@@ -145,24 +216,26 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
             first2 += gx1 * gx1 + gy1 * gy1;
         }
     /* All parts have zero mean, so the sample variance of the 2N² values is sum of squares / (2N²−1). */
-    double target2 = sp->sigma_g_um * sp->sigma_g_um * (double)(2 * nn - 1);
+    double target2 = sp->sigma_g_um * sp->sigma_g_um * (double)(2 * ns - 1);
     if (first2 > target2 * (1 + 1e-12))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "sigma_G = %g um is smaller than the dispersion of the first-order "
                             "terms alone (%g um for O = %g, R = %g): raise sigma_G or lower O, R",
-                            sp->sigma_g_um, sqrt(first2 / (double)(2 * nn - 1)), sp->O, sp->R);
+                            sp->sigma_g_um, sqrt(first2 / (double)(2 * ns - 1)), sp->O, sp->R);
     double s = f2 > 0 ? sqrt(fmax(0.0, target2 - first2) / f2) : 0.0;
     truth->sar_scale = s;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+    for (int i = 0; i < sny; ++i)
+        for (int j = 0; j < snx; ++j) {
             double x, y;
             sc_grid_node_xy_mm(plan, i, j, &x, &y);
-            int k = i * n + j;
+            int k = i * snx + j;
             fx[k] = s * fx[k] + (sp->O * y + sp->R * x) * 1e3;
             fy[k] = s * fy[k] + (sp->O * x - sp->R * y) * 1e3;
         }
-    truth->O = sp->O;
-    truth->R = sp->R;
+    /* On a rectangular stage the O and R patterns are not orthogonal to rotation and
+     * magnification: gauge again and report O and R of the gauged truth (a no-op when square). */
+    sc_grid_gauge_stage(plan, fx, fy);
+    sc_grid_first_order(plan, fx, fy, &truth->O, &truth->R);
 
     /* Plate error. */
     for (size_t k = 0; k < nn; ++k)
@@ -185,12 +258,36 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
         d->plan = *plan;
     sc_grid_synthesize(plan, truth->gx_um, truth->gy_um, truth->ax_um, truth->ay_um, truth->tx_um,
                        truth->ty_um, truth->theta_urad, d);
-    for (int v = 0; v < plan->n_views; ++v)
+    for (int v = 0; v < plan->n_views; ++v) {
+        double sr = plan->view[v].sigma_um > 0 ? plan->view[v].sigma_um : sp->sigma_r_um;
         for (size_t k = 0; k < nn; ++k) {
             if (!isfinite(d->dx_um[v][k]))
                 continue;
-            d->dx_um[v][k] += sp->sigma_r_um * sc_rng_normal(&rng);
-            d->dy_um[v][k] += sp->sigma_r_um * sc_rng_normal(&rng);
+            d->dx_um[v][k] += sr * sc_rng_normal(&rng);
+            d->dy_um[v][k] += sr * sc_rng_normal(&rng);
         }
+    }
+    /* Times and drift: each view measured mark by mark in serpentine plate order (row 0 left to
+     * right, row 1 right to left, ...), one raster position every dt seconds, the views one after
+     * another; translation drift (vx, vy)·t with t from the view's start. */
+    if (sp->dt_s > 0) {
+        double t0 = 0;
+        for (int v = 0; v < plan->n_views; ++v) {
+            if (!d->t_s[v])
+                return sc_error_set(err, SC_E_INPUT, NULL, 0, "t_s arrays are needed for dt > 0");
+            long seq = (long)nn;
+            for (size_t k = 0; k < nn; ++k) {
+                d->t_s[v][k] = NAN;
+                if (!isfinite(d->dx_um[v][k]))
+                    continue;
+                double tv = (double)sc_grid_serpentine_index(n, (int)k) * sp->dt_s;
+                d->t_s[v][k] = t0 + tv;
+                d->dx_um[v][k] += sp->drift_vx_um_s * tv;
+                d->dy_um[v][k] += sp->drift_vy_um_s * tv;
+                (void)seq;
+            }
+            t0 += (double)seq * sp->dt_s;
+        }
+    }
     return SC_OK;
 }

@@ -1,0 +1,344 @@
+#!/usr/bin/env python3
+"""CLI tests of grid least squares on real measurements (SPEC §5, issue 10): damaged marks,
+stages larger than the plate, weights, residuals and outliers, covariance, drift, the plan
+designer, and the bad inputs of the new columns and headers.
+
+Usage: grid_real_test.py CLI TMPDIR CASE
+Assertions compare against the simulated truth or what the input says, never against stored
+outputs of selfcal itself.
+"""
+import csv
+import json
+import math
+import os
+import shutil
+import struct
+import subprocess
+import sys
+
+CLI, TMP, CASE = sys.argv[1], sys.argv[2], sys.argv[3]
+
+
+def fail(msg):
+    print("FAIL: " + msg)
+    sys.exit(1)
+
+
+def run(*args, expect=0):
+    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=600)
+    if p.returncode != expect:
+        fail("selfcal %s: exit %d (want %d)\nstdout: %s\nstderr: %s"
+             % (" ".join(map(str, args)), p.returncode, expect, p.stdout, p.stderr))
+    return p
+
+
+def fresh_dir(name):
+    d = os.path.join(TMP, "grid_real_" + name)
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    return d
+
+
+def rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def simulate(d, name, *args):
+    f = dict(inp=os.path.join(d, name + ".csv"), g=os.path.join(d, name + "_G.csv"),
+             a=os.path.join(d, name + "_A.csv"), t=os.path.join(d, name + "_T.json"))
+    run("simulate", "grid", "--out", f["inp"], "--truth-map", f["g"], "--truth-artifact", f["a"],
+        "--truth-summary", f["t"], *args)
+    return f
+
+
+def map_error(got, truth):
+    t = {(r["i"], r["j"]): r for r in rows(truth)}
+    g = rows(got)
+    if len(g) != len(t):
+        fail("%s: %d rows, truth %d" % (got, len(g), len(t)))
+    return max(max(abs(float(r["gx_um"]) - float(t[(r["i"], r["j"])]["gx_um"])),
+                   abs(float(r["gy_um"]) - float(t[(r["i"], r["j"])]["gy_um"]))) for r in g)
+
+
+def data_lines(path):
+    lines = open(path).read().splitlines(True)
+    h = next(k for k, l in enumerate(lines) if l.startswith("view,"))
+    return lines, h
+
+
+def case_damaged():
+    """The issue's reproduction: Ye N = 9, the rows of mark (0,0) deleted; and a stitched,
+    rectangular, weighted plan with the centre mark deleted. Noise-free: truth to 1e-9 um."""
+    d = fresh_dir("damaged")
+    s = simulate(d, "ye9", "--plan", "ye", "--n", 9, "--sigma-r-um", 0)
+    lines, h = data_lines(s["inp"])
+    cut = [l for k, l in enumerate(lines) if k <= h or l.split(",")[1:3] != ["0", "0"]]
+    path = os.path.join(d, "ye9_dmg.csv")
+    open(path, "w").write("".join(cut))
+    g, a = os.path.join(d, "g.csv"), os.path.join(d, "a.csv")
+    run("grid", "--method", "lsq", path, "--map", g, "--artifact", a)
+    e = map_error(g, s["g"])
+    if e > 1e-9:
+        fail("damaged Ye: G error %g" % e)
+    art = {(r["i"], r["j"]): r for r in rows(a)}
+    if art[("0", "0")]["ax_um"] != "" or art[("0", "0")]["ay_um"] != "":
+        fail("the unmeasured mark's plate error is not empty: %r" % art[("0", "0")])
+    if art[("0", "1")]["ax_um"] == "":
+        fail("a measured mark's plate error is empty")
+    # the exact methods refuse it (they need every mark)
+    run("grid", "--method", "ye", path, "--map", g, expect=2)
+    # stitched rectangular stage, centre mark damaged, each row its own stated uncertainty
+    s = simulate(d, "st", "--plan", "stitch", "--n", 7, "--stage", "15,9", "--sigma-r-um", 0)
+    lines, h = data_lines(s["inp"])
+    if "# stage = 15,9" not in "".join(lines[:h]):
+        fail("simulate did not write the stage")
+    out = lines[:h] + [lines[h].rstrip("\n") + ",ux_um,uy_um\n"]
+    for k, l in enumerate(lines[h + 1:]):
+        if l.split(",")[1:3] != ["3", "3"]:
+            out.append(l.rstrip("\n") + ",%g,%g\n" % (0.01 + 0.001 * (k % 7), 0.02 - 0.001 * (k % 5)))
+    path = os.path.join(d, "st_dmg.csv")
+    open(path, "w").write("".join(out))
+    sm = os.path.join(d, "st_S.json")
+    run("grid", "--method", "lsq", path, "--map", g, "--artifact", a, "--summary", sm)
+    e = map_error(g, s["g"])
+    if e > 1e-9 or len(rows(g)) != 15 * 9:
+        fail("stitched: G error %g, %d rows" % (e, len(rows(g))))
+    S = json.load(open(sm))
+    if S["stage"] != [15, 9] or not S["weighted"]:
+        fail("summary: %r" % S)
+    art = {(r["i"], r["j"]): r for r in rows(a)}
+    if art[("3", "3")]["ax_um"] != "":
+        fail("damaged centre mark not empty")
+    # per-view noise in the simulator: written as sigma_um= on the view lines
+    s = simulate(d, "vs", "--plan", "ye", "--n", 7, "--view-sigma-r-um", "0.01,0.02,0.03")
+    if "sigma_um=0.02" not in open(s["inp"]).read():
+        fail("simulate did not write sigma_um")
+    print("damaged: ok")
+
+
+def case_weights():
+    """Weighted data with the stated noise: the variance factor passes; a wrong --sigma-r-um on
+    unweighted data gives a warning and exit 0."""
+    d = fresh_dir("weights")
+    s = simulate(d, "w", "--plan", "ye", "--n", 15, "--view-sigma-r-um", "0.01,0.03,0.02", "--seed", 3)
+    g, sm = os.path.join(d, "g.csv"), os.path.join(d, "s.json")
+    p = run("grid", "--method", "lsq", s["inp"], "--map", g, "--summary", sm)
+    S = json.load(open(sm))
+    vf = S["variance_factor"]
+    lo, hi = S["chi2_95_interval"]
+    if not (lo < 1 < hi) or not (lo <= vf <= hi) or S["chi2_test"] != "pass":
+        fail("variance factor %r interval %r" % (vf, (lo, hi)))
+    if p.stderr:
+        fail("warnings on clean weighted data: %s" % p.stderr)
+    # uncertainties follow the stated weights: a map's u is that of sigma 1 times the weights
+    m = rows(g)
+    if not all(r["ugx_um"] != "" for r in m):
+        fail("uncertainties missing")
+    # the same data with the columns ux_um,uy_um (values from sigma_um) read the same
+    lines, h = data_lines(s["inp"])
+    sig = {}
+    for l in lines[:h]:
+        if l.startswith("# view"):
+            sig[l.split()[2].rstrip(":")] = l.split("sigma_um=")[1].split()[0]
+    out = [l.replace(" sigma_um=" + sig[l.split()[2].rstrip(":")], "") if l.startswith("# view") else l
+           for l in lines[:h]]
+    out.append(lines[h].rstrip("\n") + ",ux_um,uy_um\n")
+    for l in lines[h + 1:]:
+        v = l.split(",")[0]
+        out.append(l.rstrip("\n") + ",%s,%s\n" % (sig[v], sig[v]))
+    p2 = os.path.join(d, "cols.csv")
+    open(p2, "w").write("".join(out))
+    g2, sm2 = os.path.join(d, "g2.csv"), os.path.join(d, "s2.json")
+    run("grid", "--method", "lsq", p2, "--map", g2, "--summary", sm2)
+    if abs(json.load(open(sm2))["variance_factor"] - vf) > 1e-9 * vf:
+        fail("columns and sigma_um= disagree")
+    # --sigma-r-um 10x too small on unweighted data: a warning, exit 0
+    s = simulate(d, "u", "--plan", "ye", "--n", 15, "--sigma-r-um", 0.01)
+    p = run("grid", "--method", "lsq", s["inp"], "--map", g, "--summary", sm, "--sigma-r-um", 0.001)
+    if "disagree" not in p.stderr or len(p.stderr.strip().splitlines()) > 3:
+        fail("no sigma warning: %r" % p.stderr)
+    S = json.load(open(sm))
+    if S["chi2_test"] != "fail" or not S["variance_factor"] > 50:
+        fail("summary chi2: %r" % S)
+    # --sigma-r-um on a file that states its noise is bad input
+    run("grid", "--method", "lsq", p2, "--map", g, "--sigma-r-um", 0.01, expect=2)
+    print("weights: ok")
+
+
+def case_outliers():
+    """One mark 5 um off (sigma_r 10 nm): flagged with a warning (exit 0); --reject-outliers
+    removes it, names it on stderr, and the map is close to the truth again."""
+    d = fresh_dir("outliers")
+    s = simulate(d, "o", "--plan", "ye", "--n", 15, "--sigma-r-um", 0.01, "--seed", 5)
+    lines, h = data_lines(s["inp"])
+    k = next(k for k, l in enumerate(lines) if k > h and l.startswith("1,6,8,"))
+    f = lines[k].rstrip("\n").split(",")
+    f[3] = "%.15f" % (float(f[3]) + 0.005)
+    lines[k] = ",".join(f) + "\n"
+    path = os.path.join(d, "bad.csv")
+    open(path, "w").write("".join(lines))
+    g, r, sm = os.path.join(d, "g.csv"), os.path.join(d, "r.csv"), os.path.join(d, "s.json")
+    p = run("grid", "--method", "lsq", path, "--map", g, "--residuals", r, "--summary", sm)
+    warn = [l for l in p.stderr.splitlines() if "outlier" in l]
+    if not any("view 1 mark (6,8)" in l for l in warn):
+        fail("no warning for the outlier: %r" % p.stderr)
+    R = rows(r)
+    if list(R[0].keys()) != ["view", "i", "j", "rx_um", "ry_um", "tx", "ty", "outlier"]:
+        fail("residual columns %r" % list(R[0].keys()))
+    flagged = [(x["view"], x["i"], x["j"]) for x in R if x["outlier"] == "1"]
+    if ("1", "6", "8") not in flagged:
+        fail("outlier not flagged: %r" % flagged)
+    err_before = map_error(g, s["g"])
+    p = run("grid", "--method", "lsq", path, "--map", g, "--residuals", r, "--reject-outliers")
+    if "removed outlier view 1 mark (6,8)" not in p.stderr:
+        fail("reject did not name the row: %r" % p.stderr)
+    R = {(x["view"], x["i"], x["j"]): x for x in rows(r)}
+    x = R[("1", "6", "8")]
+    if x["outlier"] != "1" or abs(float(x["rx_um"]) - 5.0) > 0.1:
+        fail("removed row in R.csv: %r" % x)
+    m = rows(g)
+    err_after = map_error(g, s["g"])
+    umax = max(float(q["ugx_um"]) for q in m)
+    if not (err_after < 6 * umax < err_before):
+        fail("map error %g before, %g after rejection (u max %g)" % (err_before, err_after, umax))
+    nflag = sum(1 for q in R.values() if q["outlier"] == "1")
+    if nflag > 3:
+        fail("%d rows flagged after rejection" % nflag)
+    print("outliers: ok (error %.3g -> %.3g um)" % (err_before, err_after))
+
+
+def case_covariance():
+    d = fresh_dir("cov")
+    s = simulate(d, "c", "--plan", "stitch", "--n", 5, "--stage", "9,7", "--sigma-r-um", 0.01)
+    g, c = os.path.join(d, "g.csv"), os.path.join(d, "c.npy")
+    run("grid", "--method", "lsq", s["inp"], "--map", g, "--covariance", c)
+    b = open(c, "rb").read()
+    if b[:8] != b"\x93NUMPY\x01\x00":
+        fail("npy magic")
+    hl = struct.unpack("<H", b[8:10])[0]
+    head = b[10:10 + hl].decode()
+    if (10 + hl) % 64 or "'descr': '<f8'" not in head or "'fortran_order': False" not in head \
+            or "(126, 126)" not in head:
+        fail("npy header %r" % head)
+    vals = struct.unpack("<%dd" % (126 * 126), b[10 + hl:])
+    m = rows(g)
+    for k, r in enumerate(m):  # map rows are node order i*NX + j
+        for comp, col in ((0, "ugx_um"), (1, "ugy_um")):
+            v = vals[(2 * k + comp) * 126 + 2 * k + comp]
+            if abs(math.sqrt(v) - float(r[col])) > 1e-9 * float(r[col]):
+                fail("covariance diagonal %g vs u %s" % (math.sqrt(v), r[col]))
+    print("covariance: ok")
+
+
+def case_drift():
+    """A drift during the views biases G; --drift linear removes it (noise-free: to 1e-9 um)."""
+    d = fresh_dir("drift")
+    s = simulate(d, "dr", "--plan", "ye", "--n", 11, "--sigma-r-um", 0, "--dt-s", 3,
+                 "--drift-um-s", "1e-4,-2e-4")
+    g, sm = os.path.join(d, "g.csv"), os.path.join(d, "s.json")
+    run("grid", "--method", "lsq", s["inp"], "--map", g)
+    e0 = map_error(g, s["g"])
+    run("grid", "--method", "lsq", s["inp"], "--map", g, "--summary", sm, "--drift", "linear")
+    e1 = map_error(g, s["g"])
+    if not (e0 > 1e-3 and e1 < 1e-9):
+        fail("drift: error %g without, %g with the model" % (e0, e1))
+    if json.load(open(sm))["drift"] != "linear":
+        fail("summary drift")
+    p = run("plan", s["inp"], "--drift", "linear")
+    if not p.stdout.startswith("identifiable: yes"):
+        fail("plan --drift: %s" % p.stdout)
+    print("drift: ok (%.3g -> %.3g um)" % (e0, e1))
+
+
+def case_plan_stitched():
+    d = fresh_dir("plan")
+    pl = os.path.join(d, "design.csv")
+    p = run("plan", "--design", "--stage", "19,13", "--n", 7, "-o", pl)
+    if not p.stdout.startswith("identifiable: yes\nfree: 0\nsigma_c_ratio_rms: "):
+        fail("design: %s" % p.stdout)
+    p2 = run("plan", pl)
+    if p2.stdout.splitlines()[:4] != p.stdout.splitlines()[:4]:
+        fail("plan of the designed plan differs:\n%s\n%s" % (p.stdout, p2.stdout))
+    s = simulate(d, "des", "--plan", pl, "--sigma-r-um", 0)
+    g = os.path.join(d, "g.csv")
+    run("grid", "--method", "lsq", s["inp"], "--map", g)
+    if map_error(g, s["g"]) > 1e-9:
+        fail("designed plan: truth not recovered")
+    # the designed plan without its first (corner) placement leaves stage nodes unmeasured
+    lines = open(pl).read().splitlines(True)
+    cut = [l for l in lines if not l.startswith("# view 0:")]
+    pc = os.path.join(d, "cut.csv")
+    open(pc, "w").write("".join(cut))
+    p = run("plan", pc)
+    out = p.stdout.splitlines()
+    if out[0] != "identifiable: no" or int(out[1].split()[1]) < 2 or "unmeasured_stage_nodes" not in p.stdout:
+        fail("plan without a corner placement: %s" % p.stdout)
+    print("plan: ok")
+
+
+def case_bad_input():
+    """exit 2, one line 'selfcal: FILE:LINE: reason', no output file."""
+    d = fresh_dir("bad")
+    s = simulate(d, "b", "--plan", "ye", "--n", 7, "--sigma-r-um", 0.001, "--dt-s", 1)
+    lines, h = data_lines(s["inp"])
+    hdr = lines[h].rstrip("\n")
+    if hdr != "view,i,j,x_mm,y_mm,t_s":
+        fail("simulate header %r" % hdr)
+    cases = []
+
+    def with_u(ux, uy, at):
+        out = lines[:h] + ["view,i,j,x_mm,y_mm,ux_um,uy_um\n"]
+        for k, l in enumerate(lines[h + 1:]):
+            f = l.rstrip("\n").split(",")[:5]
+            out.append(",".join(f + ([ux, uy] if k == at else ["0.01", "0.01"])) + "\n")
+        return out
+    cases.append(("u_zero", with_u("0", "0.01", 4), h + 6, "ux_um must be a positive number"))
+    cases.append(("u_negative", with_u("0.01", "-1", 4), h + 6, "uy_um must be a positive"))
+    cases.append(("u_nan", with_u("nan", "0.01", 7), h + 9, "ux_um must be a positive"))
+    cases.append(("u_text", with_u("abc", "0.01", 2), h + 4, "ux_um must be a positive"))
+    cases.append(("u_empty", with_u("", "0.01", 2), h + 4, "states no sigma_um"))
+    ins = lambda extra: lines[:4] + [extra] + lines[4:]
+    cases.append(("stage_even", ins("# stage = 8,7\n"), 5, "odd"))
+    cases.append(("stage_small", ins("# stage = 1,7\n"), 5, "odd and in 3"))
+    cases.append(("stage_text", ins("# stage = 9\n"), 5, "NX,NY"))
+    # a view that lands no mark on the stage
+    far = [l.replace("# view 2: rot=0 shift=1,0", "# view 2: rot=0 shift=40,0") for l in lines]
+    vline = next(k for k, l in enumerate(far) if "shift=40,0" in l) + 1
+    cases.append(("view_off_stage", far, vline, "off the"))
+    # t_s on some rows only
+    out = list(lines)
+    k = h + 5
+    f = out[k].rstrip("\n").split(",")
+    f[5] = ""
+    out[k] = ",".join(f) + "\n"
+    cases.append(("t_some_rows", out, k + 1, "t_s"))
+    # sigma_um not positive on a view line
+    out = [l.replace("# view 1: rot=90 shift=0,0", "# view 1: rot=90 shift=0,0 sigma_um=0") for l in lines]
+    cases.append(("sigma_zero", out, 6, "sigma_um"))
+    for name, body, line, needle in cases:
+        path = os.path.join(d, name + ".csv")
+        open(path, "w").write("".join(body))
+        outs = [os.path.join(d, name + x) for x in ("_G.csv", "_A.csv", "_S.json", "_R.csv", "_C.npy")]
+        p = run("grid", "--method", "lsq", path, "--map", outs[0], "--artifact", outs[1],
+                "--summary", outs[2], "--residuals", outs[3], "--covariance", outs[4], expect=2)
+        err = p.stderr.strip().splitlines()
+        want = "selfcal: %s:%d: " % (path, line)
+        if len(err) != 1 or not err[0].startswith(want) or needle not in err[0]:
+            fail("%s: stderr %r, want one line starting %r containing %r" % (name, p.stderr, want, needle))
+        if [o for o in outs if os.path.exists(o)]:
+            fail("%s: output files left" % name)
+        run("plan", path, expect=2)
+        print("ok %-16s %s" % (name, err[0]))
+    # --drift without times
+    s2 = simulate(d, "nt", "--plan", "ye", "--n", 7)
+    run("grid", "--method", "lsq", s2["inp"], "--map", os.path.join(d, "x.csv"), "--drift", "linear", expect=2)
+    if os.path.exists(os.path.join(d, "x.csv")):
+        fail("--drift without t_s left a map")
+
+
+CASES = {"damaged": case_damaged, "weights": case_weights, "outliers": case_outliers,
+         "covariance": case_covariance, "drift": case_drift, "plan": case_plan_stitched,
+         "bad_input": case_bad_input}
+CASES[CASE]()
+print("PASS " + CASE)

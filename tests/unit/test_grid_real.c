@@ -1,0 +1,540 @@
+/* Grid least squares on real measurements (issue 10, SPEC §5): stages larger than the plate and
+ * rectangular, damaged and missing marks, weights, leverage and standardized residuals,
+ * uncertainties of O, R and misalignments, the covariance of G, drift, the χ² quantile.
+ * Independent references: a dense design matrix (LAPACK SVD) for ranks and leverages, and the
+ * linearity of the estimator (its response to unit data) for uncertainties. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/grid_io.h"
+#include "selfcal/grid_lsq.h"
+#include "selfcal/grid_sim.h"
+#include "selfcal/rng.h"
+
+typedef struct truth {
+    double *gx, *gy, *ax, *ay;
+    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], th[SC_GRID_MAX_VIEWS];
+} truth;
+
+static void truth_make(truth *t, const sc_grid_plan *p, sc_rng *r)
+{
+    long ns = sc_grid_stage_nodes(p), nn = (long)p->n * p->n;
+    t->gx = malloc(sizeof(double) * ns), t->gy = malloc(sizeof(double) * ns);
+    t->ax = malloc(sizeof(double) * nn), t->ay = malloc(sizeof(double) * nn);
+    for (long k = 0; k < ns; ++k)
+        t->gx[k] = sc_rng_normal(r), t->gy[k] = sc_rng_normal(r);
+    for (long k = 0; k < nn; ++k)
+        t->ax[k] = sc_rng_normal(r), t->ay[k] = sc_rng_normal(r);
+    sc_grid_gauge_stage(p, t->gx, t->gy);
+    sc_grid_gauge_plate(p, t->ax, t->ay);
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        t->tx[v] = 2 * sc_rng_normal(r), t->ty[v] = 2 * sc_rng_normal(r),
+        t->th[v] = 30 * sc_rng_normal(r);
+}
+
+static void truth_free(truth *t) { free(t->gx), free(t->gy), free(t->ax), free(t->ay); }
+
+/* Data of the truth, with marks removed: mark `dead` in every view (-1: none) and each other
+ * (view, mark) with probability p_miss; weights u in [0.5, 2] µm per coordinate if weighted. */
+static void make_data(sc_grid_data *d, const sc_grid_plan *p, const truth *t, int dead,
+                      double p_miss, int weighted, sc_rng *r)
+{
+    memset(d, 0, sizeof *d);
+    d->plan = *p;
+    assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
+    assert_int_equal(sc_grid_data_alloc_extra(d, weighted, 0, NULL), SC_OK);
+    sc_grid_synthesize(p, t->gx, t->gy, t->ax, t->ay, t->tx, t->ty, t->th, d);
+    int nn = p->n * p->n, ns = (int)sc_grid_stage_nodes(p), snx = sc_grid_stage_nx(p);
+    int *cover = calloc(ns, sizeof(int)); /* measurements per stage node */
+    for (int v = 0; v < p->n_views; ++v)
+        for (int k = 0; k < nn; ++k) {
+            int ni, nj;
+            if (isfinite(d->dx_um[v][k]) && sc_grid_mark_node(p, v, k / p->n, k % p->n, &ni, &nj))
+                cover[ni * snx + nj]++;
+        }
+    for (int v = 0; v < p->n_views; ++v)
+        for (int k = 0; k < nn; ++k) {
+            if (!isfinite(d->dx_um[v][k]))
+                continue;
+            int ni, nj;
+            sc_grid_mark_node(p, v, k / p->n, k % p->n, &ni, &nj);
+            if (k == dead || (cover[ni * snx + nj] > 1 && sc_rng_uniform(r) < p_miss))
+                d->dx_um[v][k] = d->dy_um[v][k] = NAN, cover[ni * snx + nj]--;
+            else if (weighted)
+                d->ux_um[v][k] = 0.5 + 1.5 * sc_rng_uniform(r),
+                d->uy_um[v][k] = 0.5 + 1.5 * sc_rng_uniform(r);
+        }
+    free(cover);
+}
+
+typedef struct out {
+    sc_grid_result r;
+    double *buf;
+} out;
+
+static void out_alloc(out *o, const sc_grid_plan *p)
+{
+    long ns = sc_grid_stage_nodes(p), nn = (long)p->n * p->n;
+    memset(o, 0, sizeof *o);
+    o->buf = malloc(sizeof(double) * (4 * ns + 2 * nn));
+    o->r.gx_um = o->buf, o->r.gy_um = o->buf + ns, o->r.ugx_um = o->buf + 2 * ns;
+    o->r.ugy_um = o->buf + 3 * ns, o->r.ax_um = o->buf + 4 * ns, o->r.ay_um = o->buf + 4 * ns + nn;
+}
+
+/* Solve noise-free data and compare everything with the truth. */
+static void check_recovery(const sc_grid_plan *p, int dead, double p_miss, int weighted,
+                           uint64_t seed)
+{
+    sc_rng r;
+    sc_rng_seed(&r, seed);
+    truth t;
+    truth_make(&t, p, &r);
+    sc_grid_data d;
+    make_data(&d, p, &t, dead, p_miss, weighted, &r);
+    sc_grid_lsq *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_create(p, &d, &q, &err), SC_OK);
+    sc_grid_lsq_info qi;
+    sc_grid_lsq_get_info(q, &qi);
+    assert_true(qi.identifiable);
+    out o;
+    out_alloc(&o, p);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, &err), SC_OK);
+    double e = 0;
+    long ns = sc_grid_stage_nodes(p);
+    for (long k = 0; k < ns; ++k)
+        e = fmax(e, fmax(fabs(o.r.gx_um[k] - t.gx[k]), fabs(o.r.gy_um[k] - t.gy[k])));
+    assert_true(e <= 1e-9);
+    /* the plate error of the measured marks, in their own gauge */
+    int nn = p->n * p->n;
+    double *ax = malloc(sizeof(double) * nn), *ay = malloc(sizeof(double) * nn);
+    memcpy(ax, t.ax, sizeof(double) * nn), memcpy(ay, t.ay, sizeof(double) * nn);
+    int any_dead = 0;
+    for (int k = 0; k < nn; ++k)
+        if (!isfinite(o.r.ax_um[k]))
+            any_dead = 1, assert_true(!isfinite(o.r.ay_um[k]));
+    if (!any_dead) {
+        for (int k = 0; k < nn; ++k)
+            e = fmax(e, fmax(fabs(o.r.ax_um[k] - ax[k]), fabs(o.r.ay_um[k] - ay[k])));
+        assert_true(e <= 1e-9);
+        for (int v = 0; v < p->n_views; ++v) {
+            assert_true(fabs(o.r.tx_um[v] - t.tx[v]) <= 1e-9);
+            assert_true(fabs(o.r.theta_urad[v] - t.th[v]) <= 1e-6);
+        }
+    }
+    if (dead >= 0)
+        assert_true(!isfinite(o.r.ax_um[dead]));
+    assert_true(o.r.weighted == weighted);
+    free(ax), free(ay), free(o.buf), truth_free(&t);
+    sc_grid_lsq_destroy(q);
+    sc_grid_data_free(&d);
+}
+
+static void test_recovery_stitched(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_stitch(7, 13, 13, 1.5, 3, -2, &p, NULL), SC_OK);
+    check_recovery(&p, -1, 0, 0, 1);
+    check_recovery(&p, 24, 0, 0, 2);     /* the centre mark damaged in every view */
+    check_recovery(&p, 24, 0.05, 1, 3);  /* + 5 % missing, weights */
+}
+
+static void test_recovery_rectangular(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_stitch(7, 17, 9, 1.0, 0, 0, &p, NULL), SC_OK);
+    check_recovery(&p, -1, 0, 0, 4);
+    check_recovery(&p, 24, 0.03, 1, 5);
+    /* a stage narrower than the plate in y: shifted views leave rows off the stage */
+    assert_int_equal(sc_grid_plan_stitch(7, 15, 5, 1.0, 0, 0, &p, NULL), SC_OK);
+    check_recovery(&p, -1, 0, 1, 6);
+    /* Ye's plan on the plate-sized stage with mark (0,0) deleted (the issue's reproduction) */
+    assert_int_equal(sc_grid_plan_ye(9, 1.0, 0, 0, &p, NULL), SC_OK);
+    check_recovery(&p, 0, 0, 0, 7);
+}
+
+/* ---- dense reference ---- */
+
+typedef struct dense {
+    int nu, neq, ns, nam, nm;
+    double *J; /* whitened rows */
+    int *eq_v, *eq_k;
+} dense;
+
+static int rot_comp(int rot, int c, int *sign)
+{
+    switch (rot) {
+    case 90: *sign = c ? 1 : -1; return c ? 0 : 1;
+    case 180: *sign = -1; return c;
+    case 270: *sign = c ? -1 : 1; return c ? 0 : 1;
+    default: *sign = 1; return c;
+    }
+}
+
+static int measured(const sc_grid_plan *p, const sc_grid_data *d, int v, int k)
+{
+    return d ? isfinite(d->dx_um[v][k]) : sc_grid_view_measures(p, v, k / p->n, k % p->n);
+}
+
+static void dense_build(dense *D, const sc_grid_plan *p, const sc_grid_data *d)
+{
+    int n = p->n, nn = n * n, nv = p->n_views, snx = sc_grid_stage_nx(p);
+    memset(D, 0, sizeof *D);
+    D->ns = (int)sc_grid_stage_nodes(p);
+    int *amap = malloc(sizeof(int) * nn);
+    for (int k = 0; k < nn; ++k) {
+        int any = 0;
+        for (int v = 0; v < nv; ++v)
+            if (measured(p, d, v, k))
+                any = 1, D->neq += 2;
+        amap[k] = any ? D->nam++ : -1;
+    }
+    D->nm = 3 * nv;
+    D->nu = 2 * D->ns + 2 * D->nam + D->nm;
+    D->J = calloc((size_t)D->neq * D->nu, sizeof(double));
+    D->eq_v = malloc(sizeof(int) * D->neq), D->eq_k = malloc(sizeof(int) * D->neq);
+    int e = 0;
+    for (int v = 0; v < nv; ++v)
+        for (int k = 0; k < nn; ++k) {
+            if (!measured(p, d, v, k))
+                continue;
+            int ni, nj;
+            assert_true(sc_grid_mark_node(p, v, k / n, k % n, &ni, &nj));
+            double x, y;
+            sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+            for (int c = 0; c < 2; ++c, ++e) {
+                double *row = D->J + (size_t)e * D->nu;
+                double u = d ? sc_grid_data_u_um(d, v, k, c) : NAN, w = isfinite(u) ? 1 / u : 1;
+                int sg, ac = rot_comp(p->view[v].rot_deg, c, &sg);
+                row[2 * (ni * snx + nj) + c] = w;
+                row[2 * D->ns + 2 * amap[k] + ac] = sg * w;
+                row[2 * D->ns + 2 * D->nam + 3 * v + c] = w;
+                row[2 * D->ns + 2 * D->nam + 3 * v + 2] = (c == 0 ? -y : x) * 1e-3 * w;
+                D->eq_v[e] = v, D->eq_k[e] = k;
+            }
+        }
+    free(amap);
+}
+
+static void dense_free(dense *D) { free(D->J), free(D->eq_v), free(D->eq_k); }
+
+/* Rank of columns [c0, c1); with U (neq x rank) of the whole matrix if u != NULL. */
+static int dense_rank(const dense *D, int c0, int c1, double **u)
+{
+    int m = D->neq, nc = c1 - c0;
+    double *a = malloc(sizeof(double) * (size_t)m * nc); /* row-major m x nc */
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < nc; ++j)
+            a[(size_t)i * nc + j] = D->J[(size_t)i * D->nu + c0 + j];
+    int ms = m < nc ? m : nc;
+    double *sv = malloc(sizeof(double) * ms), *U = malloc(sizeof(double) * (size_t)m * ms);
+    double *sup = malloc(sizeof(double) * ms);
+    assert_int_equal(LAPACKE_dgesvd(LAPACK_ROW_MAJOR, u ? 'S' : 'N', 'N', m, nc, a, nc, sv, U, ms,
+                                    NULL, 1, sup),
+                     0);
+    int rank = 0;
+    for (int i = 0; i < ms; ++i)
+        rank += sv[i] > 1e-9 * sv[0];
+    if (u)
+        *u = U;
+    else
+        free(U);
+    free(a), free(sv), free(sup);
+    return rank;
+}
+
+static long dense_free_dof(const dense *D)
+{
+    int null_all = D->nu - dense_rank(D, 0, D->nu, NULL);
+    int null_ng = (D->nu - 2 * D->ns) - dense_rank(D, 2 * D->ns, D->nu, NULL);
+    return null_all - null_ng - 4;
+}
+
+static long plan_free(const sc_grid_plan *p, const sc_grid_data *d, int *ident)
+{
+    sc_grid_lsq *q = NULL;
+    assert_int_equal(sc_grid_lsq_create(p, d, &q, NULL), SC_OK);
+    sc_grid_lsq_info qi;
+    sc_grid_lsq_get_info(q, &qi);
+    sc_grid_lsq_destroy(q);
+    *ident = qi.identifiable;
+    return qi.free_dof;
+}
+
+static void test_free_vs_svd(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    int ident;
+    /* identifying stitched plan */
+    assert_int_equal(sc_grid_plan_stitch(5, 9, 7, 1.0, 0, 0, &p, NULL), SC_OK);
+    dense D;
+    dense_build(&D, &p, NULL);
+    long K = plan_free(&p, NULL, &ident);
+    assert_int_equal(K, dense_free_dof(&D));
+    assert_int_equal(K, 0);
+    assert_true(ident);
+    dense_free(&D);
+    /* without the rot-90 and +1 views: rot-0 placements alone leave G free */
+    p.n_views -= 2;
+    dense_build(&D, &p, NULL);
+    K = plan_free(&p, NULL, &ident);
+    assert_int_equal(K, dense_free_dof(&D));
+    assert_true(K > 0 && !ident);
+    dense_free(&D);
+    /* a corner placement removed: unmeasured stage nodes (2 free per node, and more) */
+    assert_int_equal(sc_grid_plan_stitch(5, 9, 7, 1.0, 0, 0, &p, NULL), SC_OK);
+    p.view[0] = p.view[p.n_views - 1];
+    p.n_views--;
+    dense_build(&D, &p, NULL);
+    K = plan_free(&p, NULL, &ident);
+    assert_int_equal(K, dense_free_dof(&D));
+    assert_true(K >= 2 && !ident);
+    dense_free(&D);
+    /* two placements overlapping by one column only, and a rot-90 one */
+    memset(&p, 0, sizeof p);
+    p.n = 5, p.pitch_mm = 1, p.stage_nx = 9, p.stage_ny = 5, p.n_views = 3;
+    p.view[0].shift_x = -2, p.view[1].shift_x = 2, p.view[2].rot_deg = 90;
+    dense_build(&D, &p, NULL);
+    K = plan_free(&p, NULL, &ident);
+    assert_int_equal(K, dense_free_dof(&D));
+    dense_free(&D);
+}
+
+/* Leverage of every measurement against the dense hat matrix (whitened J: H = U Uᵀ). */
+static void test_leverage_vs_dense(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_stitch(5, 9, 7, 1.0, 0, 0, &p, NULL), SC_OK);
+    sc_rng r;
+    sc_rng_seed(&r, 11);
+    truth t;
+    truth_make(&t, &p, &r);
+    sc_grid_data d;
+    make_data(&d, &p, &t, 12, 0.05, 1, &r);
+    int nn = p.n * p.n, nv = p.n_views;
+    for (int v = 0; v < nv; ++v) /* noise so that residuals are not zero */
+        for (int k = 0; k < nn; ++k)
+            if (isfinite(d.dx_um[v][k]))
+                d.dx_um[v][k] += 0.01 * sc_rng_normal(&r), d.dy_um[v][k] += 0.01 * sc_rng_normal(&r);
+    sc_grid_lsq *q = NULL;
+    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, NULL), SC_OK);
+    out o;
+    out_alloc(&o, &p);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+    double *h = malloc(sizeof(double) * nv * nn), *tx = malloc(sizeof(double) * nv * nn);
+    double *rx = malloc(sizeof(double) * nv * nn);
+    assert_int_equal(sc_grid_lsq_residuals(q, rx, NULL, tx, NULL, h, NULL), SC_OK);
+    dense D;
+    dense_build(&D, &p, &d);
+    double *U = NULL;
+    int rank = dense_rank(&D, 0, D.nu, &U);
+    int ms = D.neq < D.nu ? D.neq : D.nu;
+    double sum1h = 0, worst = 0;
+    for (int e = 0; e < D.neq; e += 2) {
+        double he[2] = {0, 0};
+        for (int c = 0; c < 2; ++c)
+            for (int j = 0; j < rank; ++j)
+                he[c] += U[(size_t)(e + c) * ms + j] * U[(size_t)(e + c) * ms + j];
+        sum1h += 2 - he[0] - he[1];
+        size_t at = (size_t)D.eq_v[e] * nn + D.eq_k[e];
+        worst = fmax(worst, fabs(fmax(he[0], he[1]) - h[at]));
+    }
+    assert_true(worst < 1e-9);
+    assert_true(fabs(sum1h - (double)o.r.dof) < 1e-6);
+    free(U), free(h), free(tx), free(rx), free(o.buf), truth_free(&t);
+    dense_free(&D);
+    sc_grid_lsq_destroy(q);
+    sc_grid_data_free(&d);
+}
+
+/* Uncertainties of O, R, misalignments: the estimator is linear in the data, so its response to
+ * each unit datum gives the exact variance Σ_e (∂q/∂d_e)² u_e². */
+static void test_uncertainties_by_linearity(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_stitch(5, 7, 7, 1.0, 0, 0, &p, NULL), SC_OK);
+    sc_rng r;
+    sc_rng_seed(&r, 21);
+    truth t;
+    truth_make(&t, &p, &r);
+    sc_grid_data d;
+    make_data(&d, &p, &t, 12, 0.03, 1, &r);
+    int nn = p.n * p.n, nv = p.n_views;
+    sc_grid_lsq *q = NULL;
+    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, NULL), SC_OK);
+    out o, o1;
+    out_alloc(&o, &p), out_alloc(&o1, &p);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+    /* zero data */
+    sc_grid_data z;
+    memset(&z, 0, sizeof z);
+    z.plan = p;
+    assert_int_equal(sc_grid_data_alloc(&z, NULL), SC_OK);
+    int nq = 2 + 3 * nv;
+    double *var = calloc(nq, sizeof(double));
+    for (int v = 0; v < nv; ++v)
+        for (int k = 0; k < nn; ++k)
+            if (isfinite(d.dx_um[v][k]))
+                z.dx_um[v][k] = z.dy_um[v][k] = 0;
+    for (int v = 0; v < nv; ++v)
+        for (int k = 0; k < nn; ++k)
+            for (int c = 0; c < 2 && isfinite(d.dx_um[v][k]); ++c) {
+                double *a = c ? z.dy_um[v] : z.dx_um[v];
+                a[k] = 1;
+                assert_int_equal(sc_grid_lsq_solve(q, &z, 0, &o1.r, NULL), SC_OK);
+                a[k] = 0;
+                double u = sc_grid_data_u_um(&d, v, k, c), g[2 + 3 * SC_GRID_MAX_VIEWS];
+                g[0] = o1.r.O, g[1] = o1.r.R;
+                for (int w = 0; w < nv; ++w)
+                    g[2 + 3 * w] = o1.r.tx_um[w], g[3 + 3 * w] = o1.r.ty_um[w],
+                              g[4 + 3 * w] = o1.r.theta_urad[w];
+                for (int i = 0; i < nq; ++i)
+                    var[i] += g[i] * g[i] * u * u;
+            }
+    double want[2 + 3 * SC_GRID_MAX_VIEWS];
+    want[0] = o.r.uO, want[1] = o.r.uR;
+    for (int w = 0; w < nv; ++w)
+        want[2 + 3 * w] = o.r.utx_um[w], want[3 + 3 * w] = o.r.uty_um[w],
+                     want[4 + 3 * w] = o.r.utheta_urad[w];
+    for (int i = 0; i < nq; ++i)
+        assert_true(fabs(want[i] - sqrt(var[i])) <= 1e-7 * sqrt(var[i]) + 1e-15);
+    free(var), free(o.buf), free(o1.buf), truth_free(&t);
+    sc_grid_data_free(&z), sc_grid_data_free(&d);
+    sc_grid_lsq_destroy(q);
+}
+
+/* The covariance of G: symmetric, its diagonal equals the per-node uncertainties computed by
+ * the selected inverse. */
+static void test_covariance(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_stitch(5, 9, 7, 1.0, 0, 0, &p, NULL), SC_OK);
+    sc_rng r;
+    sc_rng_seed(&r, 31);
+    truth t;
+    truth_make(&t, &p, &r);
+    sc_grid_data d;
+    make_data(&d, &p, &t, -1, 0.02, 1, &r);
+    sc_grid_lsq *q = NULL;
+    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, NULL), SC_OK);
+    out o;
+    out_alloc(&o, &p);
+    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+    int ng = 2 * (int)sc_grid_stage_nodes(&p);
+    double *C = malloc(sizeof(double) * ng * ng);
+    assert_int_equal(sc_grid_lsq_covariance(q, C, NULL), SC_OK);
+    for (int i = 0; i < ng; ++i) {
+        double u = i % 2 ? o.r.ugy_um[i / 2] : o.r.ugx_um[i / 2];
+        assert_true(fabs(sqrt(C[i * ng + i]) - u) < 1e-9 * u);
+        for (int j = 0; j < i; ++j)
+            assert_true(fabs(C[i * ng + j] - C[j * ng + i]) < 1e-12);
+    }
+    /* gauge: each row of C sums to zero over the Gx entries (no translation) */
+    double sx = 0;
+    for (int j = 0; j < ng; j += 2)
+        sx += C[j];
+    assert_true(fabs(sx) < 1e-10);
+    free(C), free(o.buf), truth_free(&t);
+    sc_grid_lsq_destroy(q);
+    sc_grid_data_free(&d);
+}
+
+/* Drift: a linear drift during each view biases the estimate without the model and is removed
+ * with it (noise-free: exact). */
+static void test_drift(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_ye(9, 1.0, 0, 0, &p, NULL), SC_OK);
+    sc_grid_sim_params sp;
+    sc_grid_sim_defaults(&sp);
+    sp.sigma_r_um = 0;
+    sp.dt_s = 2;
+    sp.drift_vx_um_s = 2e-4, sp.drift_vy_um_s = -1e-4;
+    sc_grid_data d;
+    memset(&d, 0, sizeof d);
+    d.plan = p;
+    assert_int_equal(sc_grid_data_alloc(&d, NULL), SC_OK);
+    assert_int_equal(sc_grid_data_alloc_extra(&d, 0, 1, NULL), SC_OK);
+    int ns = 81;
+    double *buf = malloc(sizeof(double) * (4 * ns + sc_grid_sim_work_doubles_plan(&p)));
+    sc_grid_sim_truth t;
+    memset(&t, 0, sizeof t);
+    t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 3 * ns;
+    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 4 * ns, NULL), SC_OK);
+    for (int drift = 0; drift < 2; ++drift) {
+        sc_grid_lsq_opts opts = {drift};
+        sc_grid_lsq *q = NULL;
+        assert_int_equal(sc_grid_lsq_create_ex(&p, &d, &opts, &q, NULL), SC_OK);
+        sc_grid_lsq_info qi;
+        sc_grid_lsq_get_info(q, &qi);
+        assert_true(qi.identifiable);
+        out o;
+        out_alloc(&o, &p);
+        assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+        double e = 0;
+        for (int k = 0; k < ns; ++k)
+            e = fmax(e, fmax(fabs(o.r.gx_um[k] - t.gx_um[k]), fabs(o.r.gy_um[k] - t.gy_um[k])));
+        if (drift) {
+            assert_true(e <= 1e-9);
+            /* every view measured in the same order: a drift common to all views in the plate
+             * frame equals a plate error, so the rates are known up to it (G is not affected):
+             * the plate-frame differences between views are exact */
+            assert_false(o.r.misalignment_unique);
+            double b0x, b0y, bvx, bvy;
+            sc_grid_rotate((360 - p.view[0].rot_deg) % 360, o.r.vx_um_s[0] - sp.drift_vx_um_s,
+                           o.r.vy_um_s[0] - sp.drift_vy_um_s, &b0x, &b0y);
+            for (int v = 1; v < p.n_views; ++v) {
+                sc_grid_rotate((360 - p.view[v].rot_deg) % 360, o.r.vx_um_s[v] - sp.drift_vx_um_s,
+                               o.r.vy_um_s[v] - sp.drift_vy_um_s, &bvx, &bvy);
+                assert_true(fabs(bvx - b0x) < 1e-12 && fabs(bvy - b0y) < 1e-12);
+            }
+        } else {
+            assert_true(e > 1e-3); /* biased by the drift */
+        }
+        free(o.buf);
+        sc_grid_lsq_destroy(q);
+    }
+    free(buf);
+    sc_grid_data_free(&d);
+}
+
+static void test_chi2_quantile(void **s)
+{
+    (void)s;
+    assert_true(fabs(sc_chi2_quantile(0.95, 1) - 3.841458820694124) < 1e-9);
+    assert_true(fabs(sc_chi2_quantile(0.975, 10) - 20.48317735080739) < 1e-8);
+    assert_true(fabs(sc_chi2_quantile(0.025, 10) - 3.246972780236841) < 1e-8);
+    assert_true(fabs(sc_chi2_quantile(0.5, 1000) - 999.3333594) < 1e-4);
+    assert_true(isnan(sc_chi2_quantile(1.5, 3)));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_recovery_stitched),
+        cmocka_unit_test(test_recovery_rectangular),
+        cmocka_unit_test(test_free_vs_svd),
+        cmocka_unit_test(test_leverage_vs_dense),
+        cmocka_unit_test(test_uncertainties_by_linearity),
+        cmocka_unit_test(test_covariance),
+        cmocka_unit_test(test_drift),
+        cmocka_unit_test(test_chi2_quantile),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
