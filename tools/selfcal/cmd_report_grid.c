@@ -88,6 +88,7 @@ static sc_status compute_residuals(grid_report *r, sc_error *err)
 #ifdef SC_GRID_BAARDA_CRIT
     (void)nn;
     (void)nv;
+    (void)err;
     r->crit = SC_GRID_BAARDA_CRIT;
     r->have_t = 1;
     return SC_OK; /* filled by sc_grid_lsq_residuals in run() */
