@@ -24,7 +24,11 @@ typedef struct sc_daemon {
     uint64_t watchdog_period_ms; /* 0 = no watchdog */
     uint64_t next_watchdog_ms, next_tick_ms;
     uint32_t busy_poll_us;    /* after activity, poll with a zero timeout this long (0 = off) */
-    uint64_t last_activity_us;
+    int busy_poll_force;      /* 1: spin whenever within busy_poll_us (the old rule; benchmarks) */
+    uint64_t last_activity_us, last_gap_us;
+    uint32_t spin_rounds, spin_hits; /* this window's zero-timeout polls, and those that found work */
+    uint64_t spin_off_until_us;      /* adaptive back-off: no spinning before this */
+    uint32_t spin_backoff_ms;
 } sc_daemon;
 
 /* Prepare d for table_path and mode (no transports yet). */

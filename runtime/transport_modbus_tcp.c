@@ -6,7 +6,8 @@
  * per-connection buffer, so a client that sends half a request, or nothing, never blocks the
  * others: a partial request older than byte_timeout_ms, or a connection silent for
  * idle_timeout_ms, is closed. When the connection cap is reached, a new client evicts the
- * longest-idle connection (so idle connections cannot lock clients out), and one peer address
+ * longest-idle connection, preferring those never served (so idle connections cannot lock clients
+ * out, and a flood of them cannot push out a client being served), and one peer address
  * may hold at most max_per_peer connections (0 = no limit). The shared map builds the replies.
  * All state is static; nothing allocates after open(). */
 #define _GNU_SOURCE /* accept4 */
@@ -33,6 +34,7 @@ typedef struct conn {
     int len;                /* bytes buffered */
     uint64_t last_rx_ms;    /* last byte received */
     uint64_t partial_since_ms;
+    uint32_t served;        /* requests answered on this connection */
     struct sockaddr_storage peer;
     uint8_t buf[2 * ADU_MAX];
 } conn;
@@ -266,13 +268,20 @@ static int tcp_fill(void *state, struct pollfd *fds, int max)
     return n;
 }
 
-/* The longest-idle open connection (oldest last byte), or NULL. */
+/* The connection to close for a newcomer at the cap: the longest idle among those that never
+ * had a request answered (a flood of idle or half-open connections cannot push out a client
+ * being served), else the longest idle of all; NULL if none is open. */
 static conn *longest_idle(mbtcp_state *s)
 {
     conn *best = NULL;
-    for (int i = 0; i < SC_MBTCP_MAX_CONN; i++)
-        if (s->c[i].fd >= 0 && (best == NULL || s->c[i].last_rx_ms < best->last_rx_ms))
-            best = &s->c[i];
+    for (int pass = 0; pass < 2 && best == NULL; pass++)
+        for (int i = 0; i < SC_MBTCP_MAX_CONN; i++) {
+            conn *c = &s->c[i];
+            if (c->fd < 0 || (pass == 0 && c->served > 0))
+                continue;
+            if (best == NULL || c->last_rx_ms < best->last_rx_ms)
+                best = c;
+        }
     return best;
 }
 
@@ -325,6 +334,7 @@ static void tcp_accept(mbtcp_state *s, uint64_t now_ms)
             s->c[i].fd = fd;
             s->c[i].len = 0;
             s->c[i].last_rx_ms = now_ms;
+            s->c[i].served = 0;
             s->c[i].peer = peer;
             s->nconn++;
             sc_log(SC_LOG_DEBUG, "modbus-tcp: connection %d accepted (%d open)", fd, s->nconn);
@@ -358,6 +368,7 @@ static int tcp_process(mbtcp_state *s, conn *c, sc_engine *e, uint64_t now_ms)
             conn_close(s, c, "send failed (client not reading?)");
             return -1;
         }
+        c->served++;
         off += total;
     }
     if (off > 0) {

@@ -112,6 +112,15 @@ static sc_status read_rows(map_reader *r, sc_error *err)
         r->maxi = row->i > r->maxi ? row->i : r->maxi;
         r->maxj = row->j > r->maxj ? row->j : r->maxj;
         ++r->nrows;
+        /* Memory bounded by what is valid: distinct nodes within 0..maxi x 0..maxj number at
+         * most (maxi+1)(maxj+1), so more rows than that means a repeated node; stop here
+         * instead of keeping every row of an arbitrarily long file. */
+        if ((unsigned long long)r->nrows >
+            (unsigned long long)(r->maxi + 1) * (unsigned long long)(r->maxj + 1))
+            return sc_error_set(err, SC_E_INPUT, r->csv.path, r->csv.line,
+                                "a node repeats: more rows than the %ld x %ld nodes they span "
+                                "(node (%ld,%ld) or an earlier one)", r->maxj + 1, r->maxi + 1,
+                                row->i, row->j);
     }
     return rc < 0 ? (err ? err->code : SC_E_INPUT) : SC_OK;
 }

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -14,6 +15,8 @@
 
 /* Upper bound on N, so that a typo cannot ask for terabytes. */
 #define SC_PROFILE_MAX_N 100000000
+/* The shortest data row a valid file can have: "1,0,0,0,0\n". */
+#define SC_PROFILE_MIN_ROW_BYTES 10
 
 sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, int d1, int d2,
                                sc_error *err)
@@ -269,6 +272,21 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
             st = sc_error_set(err, SC_E_INPUT, P, line_n,
                               "N too small: scan %d spacing d = %ld leaves no sample (N = %ld)", k + 1,
                               d_val[k], n_val);
+            goto fail;
+        }
+    }
+    /* Memory follows what the file can hold, not what its header claims: a valid file has a row
+     * of at least SC_PROFILE_MIN_ROW_BYTES ("1,0,0,0,0\n") for each of the 2N - d1 - d2 samples,
+     * so a regular file of S bytes cannot need N beyond about S / 20 (a pipe is read up to
+     * SC_PROFILE_MAX_N). */
+    {
+        struct stat sb;
+        long long rows = 2 * (long long)n_val - d_val[0] - d_val[1];
+        if (fstat(fileno(r.fp), &sb) == 0 && S_ISREG(sb.st_mode) &&
+            rows * SC_PROFILE_MIN_ROW_BYTES > (long long)sb.st_size) {
+            st = sc_error_set(err, SC_E_INPUT, P, line_n,
+                              "N = %ld needs %lld data rows, more than this %lld-byte file can hold",
+                              n_val, rows, (long long)sb.st_size);
             goto fail;
         }
     }

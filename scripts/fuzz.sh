@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Long libFuzzer campaigns over every fuzz target (issue 15): builds build-fuzz with clang,
+# ASan+UBSan and -DSELFCAL_FUZZ=ON, then runs each target for SECONDS (default 600) from its seed
+# corpus, its regressions and what earlier campaigns found (kept in build-fuzz/corpus/<target>,
+# never in the repository). Prints one line per target: executions, exec/s, coverage (edges),
+# features, corpus size, and the crash files if any (build-fuzz/crashes/<target>/).
+# usage: scripts/fuzz.sh [SECONDS] [TARGET...]     (-j: JOBS=2 runs two targets at once)
+set -euo pipefail
+here=$(cd "$(dirname "$0")/.." && pwd)
+cd "$here"
+secs=${1:-600}
+shift || true
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(grid_read profile_read stage_map profile_result table
+                                     selfcald_config modbus_adu can_frame)
+build=${SELFCAL_FUZZ_BUILD_DIR:-build-fuzz}
+CC=clang cmake -S . -B "$build" -G Ninja -DSELFCAL_FUZZ=ON -DSELFCAL_BUILD_BENCH=OFF \
+  -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake --build "$build" -j"$(nproc)" --target $(printf 'fuzz_%s ' "${targets[@]}") >/dev/null
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1}
+run_one() {
+  local t=$1 work="$build/corpus/$t" crashes="$build/crashes/$t" log="$build/fuzz-$t.log"
+  mkdir -p "$work" "$crashes"
+  local dirs=("$work" "tests/fuzz/$t/corpus")
+  [ -d "tests/fuzz/$t/regressions" ] && dirs+=("tests/fuzz/$t/regressions")
+  local dict=()
+  [ -f "tests/fuzz/$t/dict" ] && dict=(-dict="tests/fuzz/$t/dict")
+  "$build/fuzz/fuzz_$t" -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
+    -print_final_stats=1 -artifact_prefix="$crashes/" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1 || true
+  local execs rate cov ft corp
+  execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo 0)
+  rate=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo 0)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo 0)
+  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || echo 0)
+  corp=$(ls "$work" | wc -l)
+  printf '| fuzz_%-16s | %6s s | %12s | %8s | %6s | %6s | %6s | %s |\n' "$t" "$secs" "$execs" "$rate" \
+    "$cov" "$ft" "$corp" "$(ls "$crashes" | tr '\n' ' ')"
+}
+echo "| target                | time     | executions   | exec/s   | edges  | features | corpus | findings |"
+echo "|---|---|---|---|---|---|---|---|"
+jobs=${JOBS:-1}
+for t in "${targets[@]}"; do
+  run_one "$t" &
+  while [ "$(jobs -r | wc -l)" -ge "$jobs" ]; do wait -n; done
+done
+wait

@@ -1,0 +1,286 @@
+#!/usr/bin/env python3
+"""Fault injection on the CLI (issue 15 items 2, 3 and 6): what a crash, a signal, a full disk, a
+failing disk, a read-only folder, an unwritable stdout and oversized inputs leave behind.
+
+1. kill -9 at random moments of `lut build`, `grid` and `profile` writing large outputs (KILLS in
+   all): the output path is always the old file or a complete valid output;
+2. SIGINT/SIGTERM during `grid --map --artifact --summary`: no *.tmp* file is left, and the three
+   outputs are either all old or all new (never a mix);
+3. a full file system (a small tmpfs in a private mount namespace), a read-only folder (the same
+   tmpfs remounted read-only) and fsync failing with EIO or ENOSPC (an LD_PRELOAD shim): exit 1,
+   one stderr line, no temporary file, the old file untouched;
+4. stdout that cannot be written (`lut info`, `lut dump`, `plan` > /dev/full): exit 1, one line;
+5. limits: a profile whose header declares N = 20 000 000 in a few hundred bytes, a map repeating
+   its nodes over 20 MB, a 10 MB line, a 100 MB table: exit 2 with one line naming the file (and
+   the line), peak memory far below what the claim would need.
+usage: test_cli_faults.py SELFCAL_CLI FAULT_SHIM_SO WORKDIR [KILLS]"""
+import glob
+import os
+import random
+import resource
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zlib
+
+cli, shim, work = sys.argv[1], sys.argv[2], sys.argv[3]
+kills_total = int(sys.argv[4]) if len(sys.argv) > 4 else 100
+os.makedirs(work, exist_ok=True)
+rng = random.Random(15)
+failures = []
+
+
+def check(cond, msg):
+    if not cond:
+        failures.append(msg)
+        print("FAIL:", msg, file=sys.stderr)
+
+
+def run(args, **kw):
+    return subprocess.run([cli] + args, capture_output=True, text=True, timeout=300, **kw)
+
+
+def must(args):
+    r = run(args)
+    if r.returncode != 0:
+        sys.exit(f"setup failed: selfcal {' '.join(args)}: {r.stderr}")
+    return r
+
+
+def one_line_error(r, code, what, needle=None):
+    lines = r.stderr.strip().splitlines()
+    check(r.returncode == code, f"{what}: exit {r.returncode}, expected {code}: {r.stderr!r}")
+    check(len(lines) == 1 and lines[0].startswith("selfcal"), f"{what}: stderr {r.stderr!r}")
+    if needle:
+        check(needle in r.stderr, f"{what}: '{needle}' not in {r.stderr!r}")
+
+
+def tmp_files(d):
+    return [f for f in os.listdir(d) if ".tmp" in f]
+
+
+def p(name):
+    return os.path.join(work, name)
+
+
+def table_valid(blob):
+    """A complete selfcal table: magic, file size field = length, CRC-32 of all but the last 4."""
+    if len(blob) < 24 or blob[:5] != b"SCLUT":
+        return False
+    size = struct.unpack_from("<I", blob, 12)[0]
+    crc = struct.unpack_from("<I", blob, len(blob) - 4)[0]
+    return size == len(blob) and crc == (zlib.crc32(blob[:-4]) & 0xFFFFFFFF)
+
+
+# ---- inputs -------------------------------------------------------------------------------
+must(["simulate", "profile", "--n", "30000", "--d1", "10", "--d2", "11", "--out", p("prof.csv"),
+      "--truth", p("prof_truth.csv"), "--seed", "5"])
+must(["simulate", "grid", "--plan", "ye", "--n", "31", "--pitch-mm", "1", "--out", p("grid.csv"),
+      "--truth-map", p("grid_truth.csv")])
+must(["grid", "--method", "ye", p("grid.csv"), "--map", p("map_ref.csv")])
+
+
+def timed(args):
+    t0 = time.time()
+    must(args)
+    return time.time() - t0
+
+
+# ---- 1. kill -9 at random moments ----------------------------------------------------------
+cases = [
+    ("lut build", ["lut", "build", "--map", p("map_ref.csv"), "-o"], "out.lut", "table"),
+    ("grid", ["grid", "--method", "ye", p("grid.csv"), "--map"], "out_map.csv", p("map_ref.csv")),
+    ("profile", ["profile", "--method", "lsq", p("prof.csv"), "--out"], "out_prof.csv", None),
+]
+kdir = p("kill")
+os.makedirs(kdir, exist_ok=True)
+summary = []
+for k, (name, args, out, ref) in enumerate(cases):
+    target = os.path.join(kdir, out)
+    if ref is None:  # the reference: a clean run
+        must(args + [os.path.join(kdir, "ref_" + out)])
+        ref = os.path.join(kdir, "ref_" + out)
+    dur = timed(args + [target])
+    refblob = open(ref, "rb").read() if ref != "table" else None
+    old = b"OLD CONTENT\n"
+    n = kills_total // len(cases) + (1 if k < kills_total % len(cases) else 0)
+    seen = {"old": 0, "new": 0}
+    for _ in range(n):
+        for f in tmp_files(kdir):  # SIGKILL cannot be handled: its temporaries stay; clear them
+            os.unlink(os.path.join(kdir, f))
+        with open(target, "wb") as f:
+            f.write(old)
+        proc = subprocess.Popen([cli] + args + [target], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        time.sleep(rng.uniform(0, dur * 1.2))
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        got = open(target, "rb").read() if os.path.exists(target) else None
+        if got == old:
+            seen["old"] += 1
+        elif got is not None and (table_valid(got) if refblob is None else got == refblob):
+            seen["new"] += 1
+        else:
+            check(False, f"kill -9 during {name}: the output is neither the old file nor a "
+                         f"complete one ({None if got is None else len(got)} bytes)")
+    summary.append(f"{name}: {n} kills (run {dur:.2f} s): old file {seen['old']}, "
+                   f"complete new file {seen['new']}")
+print("kill -9:", "; ".join(summary))
+
+# ---- 2. SIGINT / SIGTERM during a multi-output command -------------------------------------
+sdir = p("sig")
+os.makedirs(sdir, exist_ok=True)
+outs = [os.path.join(sdir, n) for n in ("map.csv", "artifact.csv", "summary.json")]
+gargs = ["grid", "--method", "ye", p("grid.csv"), "--map", outs[0], "--artifact", outs[1],
+         "--summary", outs[2]]
+dur = timed(gargs)
+new = [open(o, "rb").read() for o in outs]
+mix = {"old": 0, "new": 0}
+for trial in range(20):
+    for o in outs:
+        with open(o, "wb") as f:
+            f.write(b"OLD " + o.encode() + b"\n")
+    proc = subprocess.Popen([cli] + gargs, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(rng.uniform(0, dur * 1.2))
+    proc.send_signal(signal.SIGINT if trial % 2 else signal.SIGTERM)
+    proc.wait()
+    check(not tmp_files(sdir), f"signal: temporaries left: {tmp_files(sdir)}")
+    state = ["old" if open(o, "rb").read().startswith(b"OLD ") else "new" for o in outs]
+    check(len(set(state)) == 1, f"signal: a mixed set of outputs: {state}")
+    if state[0] == "new":
+        got = [open(o, "rb").read() for o in outs[:2]]
+        check(got == new[:2], "signal: the new outputs differ from a clean run's")
+    mix[state[0]] += 1
+    for f in tmp_files(sdir):
+        os.unlink(os.path.join(sdir, f))
+print(f"SIGINT/SIGTERM during grid (3 outputs): all old {mix['old']}, all new {mix['new']}, "
+      "never mixed, no temporaries")
+
+# ---- 3. full disk, read-only folder, failing fsync ------------------------------------------
+old = b"n,x_mm,f_um,uf_um,ey_um\nOLD\n"
+unshare = shutil.which("unshare")
+ns = None
+for cand in (["unshare", "-m"], ["unshare", "-rm"]):
+    if unshare and subprocess.run(cand + ["true"], capture_output=True).returncode == 0:
+        ns = cand
+        break
+check(ns is not None, "no private mount namespace (unshare -m / -rm) on this host")
+if ns is not None:
+    mnt = p("mnt")
+    os.makedirs(mnt, exist_ok=True)
+    for what, mount_cmds in (
+            ("full file system", f"mount -t tmpfs -o size=512k tmpfs {mnt}"),
+            ("read-only folder", f"mount -t tmpfs -o size=512k tmpfs {mnt} && "
+                                 f"printf '%s' '{old.decode()}' > {mnt}/out.csv && "
+                                 f"mount -o remount,ro {mnt}")):
+        script = (f"set -e; {mount_cmds}; "
+                  f"[ -f {mnt}/out.csv ] || printf '%s' '{old.decode()}' > {mnt}/out.csv; "
+                  f"set +e; {cli} profile --method lsq {p('prof.csv')} --out {mnt}/out.csv "
+                  f"2> {p('ns_err.txt')}; echo $? > {p('ns_rc.txt')}; "
+                  f"cat {mnt}/out.csv > {p('ns_after.txt')}; ls -a {mnt} > {p('ns_ls.txt')}")
+        r = subprocess.run(ns + ["sh", "-c", script], capture_output=True, text=True, timeout=300)
+        check(r.returncode == 0, f"{what}: namespace script: {r.stderr}")
+        rc = int(open(p("ns_rc.txt")).read())
+        err = open(p("ns_err.txt")).read()
+
+        class R:
+            pass
+        res = R()
+        res.returncode, res.stderr = rc, err
+        one_line_error(res, 1, what)
+        check(open(p("ns_after.txt"), "rb").read() == old, f"{what}: the old file was changed")
+        left = [f for f in open(p("ns_ls.txt")).read().split() if ".tmp" in f]
+        check(not left, f"{what}: temporaries left: {left}")
+        print(f"{what}: exit {rc}: {err.strip()}")
+
+env_base = dict(os.environ)
+env_base["ASAN_OPTIONS"] = env_base.get("ASAN_OPTIONS", "") + ":verify_asan_link_order=0"
+fdir = p("fsync")
+os.makedirs(fdir, exist_ok=True)
+for errno_name, errno_val in (("EIO", 5), ("ENOSPC", 28)):
+    target = os.path.join(fdir, "out.csv")
+    with open(target, "wb") as f:
+        f.write(old)
+    env = dict(env_base, LD_PRELOAD=shim, SELFCAL_FAULT_FSYNC_ERRNO=str(errno_val))
+    r = run(["profile", "--method", "lsq", p("prof.csv"), "--out", target], env=env)
+    one_line_error(r, 1, f"fsync {errno_name}")
+    check(open(target, "rb").read() == old, f"fsync {errno_name}: the old file was changed")
+    check(not tmp_files(fdir), f"fsync {errno_name}: temporaries left: {tmp_files(fdir)}")
+    print(f"fsync {errno_name}: exit {r.returncode}: {r.stderr.strip()}")
+
+# ---- 4. stdout cannot be written ------------------------------------------------------------
+must(["lut", "build", "--map", p("map_ref.csv"), "-o", p("t.lut")])
+with open(p("plan.csv"), "w") as f:
+    f.write("# selfcal-grid v1\n# N = 5\n# pitch_mm = 1\n# origin_mm = 0,0\n"
+            "# view 0: rot=0 shift=0,0\n# view 1: rot=90 shift=0,0\n# view 2: rot=0 shift=1,0\n")
+for args in (["lut", "info", p("t.lut")], ["lut", "dump", p("t.lut")], ["plan", p("plan.csv")]):
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([cli] + args, stdout=full, stderr=subprocess.PIPE, text=True,
+                           timeout=120)
+    one_line_error(r, 1, f"{' '.join(args[:2])} > /dev/full")
+
+# ---- 5. limits ----------------------------------------------------------------------------
+
+
+def peak_rss_mb(args):
+    """Run selfcal in a child that reports its own peak RSS (MiB) and result."""
+    code = ("import resource, subprocess, sys\n"
+            "r = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
+            "print(r.returncode)\n"
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024)\n"
+            "sys.stdout.write(r.stderr)\n")
+    out = subprocess.run([sys.executable, "-c", code, cli] + args, capture_output=True, text=True,
+                         timeout=300).stdout.split("\n", 2)
+
+    class R:
+        pass
+    res = R()
+    res.returncode, rss, res.stderr = int(out[0]), int(out[1]), out[2]
+    return res, rss
+
+
+with open(p("huge_n.csv"), "w") as f:
+    f.write("# selfcal-profile v1\n# N = 20000000\n# s_mm = 1\n# scan 1: d=3\n# scan 2: d=4\n"
+            "scan,n,m1_um,m2_um,m3_urad\n1,0,0,0,0\n")
+r, rss = peak_rss_mb(["profile", "--method", "lsq", p("huge_n.csv"), "--out", p("o.csv")])
+one_line_error(r, 2, "profile declaring N = 2e7", "huge_n.csv:2:")
+check(rss < 300, f"profile declaring N = 2e7: peak RSS {rss} MiB")
+print(f"limit: a {os.path.getsize(p('huge_n.csv'))}-byte profile declaring N = 2e7: exit 2, "
+      f"peak RSS {rss} MiB: {r.stderr.strip()}")
+
+rows = open(p("map_ref.csv")).read().splitlines()
+with open(p("repeated_map.csv"), "w") as f:
+    f.write(rows[0] + "\n")
+    body = "\n".join(rows[1:]) + "\n"
+    while f.tell() < 20_000_000:
+        f.write(body)
+r, rss = peak_rss_mb(["lut", "build", "--map", p("repeated_map.csv"), "-o", p("o.lut")])
+one_line_error(r, 2, "20 MB map repeating its nodes", "repeated_map.csv:")
+check(rss < 300, f"20 MB repeated map: peak RSS {rss} MiB")
+print(f"limit: a 20 MB map repeating a 31 x 31 grid: exit 2, peak RSS {rss} MiB: "
+      f"{r.stderr.strip()}")
+
+with open(p("long_line.csv"), "w") as f:
+    f.write("i,j,x_mm,y_mm,gx_um,gy_um\n0,0," + "1" * 10_000_000 + ",0,0,0\n")
+r, rss = peak_rss_mb(["lut", "build", "--map", p("long_line.csv"), "-o", p("o.lut")])
+one_line_error(r, 2, "10 MB line", "long_line.csv:2")
+check(rss < 300, f"10 MB line: peak RSS {rss} MiB")
+print(f"limit: a 10 MB line: exit 2, peak RSS {rss} MiB: {r.stderr.strip()}")
+
+with open(p("big.lut"), "wb") as f:
+    f.write(open(p("t.lut"), "rb").read())
+    f.truncate(100_000_000)
+r, rss = peak_rss_mb(["lut", "info", p("big.lut")])
+one_line_error(r, 2, "100 MB table")
+check(rss < 300, f"100 MB table: peak RSS {rss} MiB")
+print(f"limit: a 100 MB table: exit 2, peak RSS {rss} MiB: {r.stderr.strip()}")
+for f in ("repeated_map.csv", "long_line.csv", "big.lut"):
+    os.unlink(p(f))
+
+if failures:
+    print(f"{len(failures)} failure(s)", file=sys.stderr)
+    sys.exit(1)
+print("PASS cli faults")
