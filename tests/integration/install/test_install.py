@@ -160,7 +160,7 @@ def case_install():
         check(cmd.replace("-", "\\-") in man1, "selfcal.1 documents 'selfcal %s'" % cmd)
     unit = open(os.path.join(prefix, "lib/systemd/system/selfcald.service")).read()
     check(re.search(r"^ExecStart=/\S*/bin/selfcald --config /\S+/selfcal/selfcald.conf$", unit, re.M) and "@" not in
-          unit.replace("@system-service", ""), "selfcald.service has its paths filled in: %r" %
+          re.sub(r"^SystemCallFilter=.*$", "", unit, flags=re.M), "selfcald.service has its paths filled in: %r" %
           re.findall(r"^ExecStart=.*$", unit, re.M))
 
     # examples, built as an outside project against the moved prefix
