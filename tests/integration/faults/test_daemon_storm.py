@@ -8,7 +8,7 @@
    force;
 2. 1000 connections opened at once (cap 64) while a client is being served: the cap holds (the
    daemon never holds more than 64 client sockets), the served client is never evicted and keeps
-   its latency (every request within 1 s);
+   its latency (every request within 2 s: typically 30 ms, the margin is for a loaded CI machine);
 3. 50 half-open connections (half a request, then silence) and a client sending one byte a second:
    each is closed by the byte timeout while a good client is served;
 4. SIGTERM under load (8 streaming clients): exit 0 within 5 s.
@@ -162,7 +162,7 @@ try:
     base_fds = daemon_fds(pid)
     stop = threading.Event()
     good = new_stats()
-    gt = threading.Thread(target=streamer, args=(d.port, 99, stop, good, (ref_a,), 1.0))
+    gt = threading.Thread(target=streamer, args=(d.port, 99, stop, good, (ref_a,), 2.0))
     gt.start()
     time.sleep(0.2)
     flood, peak = [], 0
