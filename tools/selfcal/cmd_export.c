@@ -1,5 +1,6 @@
 /* cmd_export.c — `selfcal export --format FORMAT --map G.csv -o OUT`: the stage error map
- * resampled onto a machine controller's compensation table (beckhoff, siemens-cec, linuxcnc), or
+ * resampled onto a machine controller's compensation table (beckhoff, siemens-cec, linuxcnc,
+ * kmotion), or
  * its first order as firmware skew/scale settings (klipper, marlin, reprap), with the residual
  * (what the controller applies minus our bilinear map) and clipped points. */
 #include <math.h>
@@ -30,6 +31,8 @@ static void export_usage(FILE *to)
             "  klipper      SET_SKEW XY=AC,BD,AD (skew_correction) from the map's O and R\n"
             "  marlin       M852 I (skew factor) and M92 scale from the map's O and R\n"
             "  reprap       RepRapFirmware M556 S X and M92 scale from the map's O and R\n"
+            "  kmotion      Dynomotion KMotionCNC geometric correction table: the whole 2-D map\n"
+            "               (X and Y at once, inches, ideal + G)\n"
             "  --interval   table spacing in mm (default: the map's pitch)\n"
             "  --at MM      linuxcnc: G along the line y = MM (x axis) or x = MM (y axis) instead of\n"
             "               the mean over that coordinate\n"
@@ -68,6 +71,12 @@ static int two_doubles(const char *v, double d[2])
     return sc_parse_double(a, &d[0]) == 0 && sc_parse_double(b, &d[1]) == 0 ? 0 : -1;
 }
 
+/* Klipper, Marlin, RepRapFirmware: the map's first order only. */
+static int is_firmware(int f)
+{
+    return f == SC_EXPORT_KLIPPER || f == SC_EXPORT_MARLIN || f == SC_EXPORT_REPRAP;
+}
+
 static void print_report(const char *fmt, int f, const char *out, const sc_export_options *o,
                          const sc_export_report *rep)
 {
@@ -83,15 +92,18 @@ static void print_report(const char *fmt, int f, const char *out, const sc_expor
     else if (f == SC_EXPORT_LINUXCNC)
         printf(", axis %s, %d entries, step %.6f mm, trims in mm (1 nm)\n",
                o->axis == 0 ? "x" : "y", rep->points[0], rep->interval_mm);
+    else if (f == SC_EXPORT_KMOTION)
+        printf(", %d x %d points (the map plus a ring of edge values), inches, %s\n",
+               rep->points[0], rep->points[1], o->negate ? "ideal - G (negated)" : "ideal + G");
     else
         printf(", O = %.6g, R = %.6g, XY skew %.9g, scale x %.9f y %.9f\n", rep->O, rep->R,
                rep->skew, rep->scale[0], rep->scale[1]);
     printf("residual (controller %s - map) over %ld samples: rms %.4f um, max %.4f um at "
            "(%.3f, %.3f) mm\n",
-           f >= SC_EXPORT_KLIPPER ? "correction, up to translation/rotation/magnification"
+           is_firmware(f) ? "correction, up to translation/rotation/magnification"
                                   : "table",
            rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
-    if (f >= SC_EXPORT_KLIPPER)
+    if (is_firmware(f))
         return;
     if (f == SC_EXPORT_SIEMENS_CEC && rep->tables > (o->axis < 0 ? 4 : 2))
         printf("profile tables: max |table - profile| %.4f um\n", rep->profile_max_um);
@@ -194,16 +206,17 @@ int cmd_export(int argc, char **argv)
     int f = sc_export_format_from_name(fmt);
     if (f < 0)
         return cli_usage_error("export",
-                               "--format: beckhoff, siemens-cec, linuxcnc, klipper, marlin or "
-                               "reprap, not '%s'",
+                               "--format: beckhoff, siemens-cec, linuxcnc, kmotion, klipper, "
+                               "marlin or reprap, not '%s'",
                                fmt);
-    const int firmware = f >= SC_EXPORT_KLIPPER;
+    const int firmware = is_firmware(f);
     sc_export_options_init(&o, (sc_export_format)f);
     o.axis = f == SC_EXPORT_SIEMENS_CEC ? -1 : 0;
     int both_files = 0;
     if (axis) {
-        if (firmware)
-            return cli_usage_error("export", "--axis does not apply to --format %s (XY skew)", fmt);
+        if (firmware || f == SC_EXPORT_KMOTION)
+            return cli_usage_error("export", "--axis does not apply to --format %s (X and Y at once)",
+                                   fmt);
         if (!strcmp(axis, "x") || !strcmp(axis, "X"))
             o.axis = 0;
         else if (!strcmp(axis, "y") || !strcmp(axis, "Y"))

@@ -29,7 +29,8 @@ typedef enum sc_export_format {
     SC_EXPORT_LINUXCNC = 2,    /* LinuxCNC joint compensation file (COMP_FILE_TYPE = 1) */
     SC_EXPORT_KLIPPER = 3,     /* Klipper skew_correction: SET_SKEW XY=AC,BD,AD */
     SC_EXPORT_MARLIN = 4,      /* Marlin M852 I (XY skew factor) */
-    SC_EXPORT_REPRAP = 5       /* RepRapFirmware M556 S X (XY axis compensation) */
+    SC_EXPORT_REPRAP = 5,      /* RepRapFirmware M556 S X (XY axis compensation) */
+    SC_EXPORT_KMOTION = 6      /* Dynomotion KMotionCNC geometric correction table (2-D) */
 } sc_export_format;
 
 /* Controller limits (see docs/exporters.md). */
@@ -84,8 +85,8 @@ typedef struct sc_export_report {
 /* Defaults: axis x, interval from the map, no line, format limits, AX1/AX2, axis numbers 1/2. */
 SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format);
 
-/* "beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin", "reprap" -> format; -1 if
- * unknown. */
+/* "beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin", "reprap", "kmotion" -> format;
+ * -1 if unknown. */
 SC_API int sc_export_format_from_name(const char *name);
 
 /* Resample lut's grid for the controller (and, for Siemens CEC, each of lut's straightness

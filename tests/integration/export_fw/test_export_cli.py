@@ -7,6 +7,7 @@ needs COMP_FILE_TYPE = 1, Beckhoff's default sign is ISG's (actual - setpoint = 
 `--target 828d` holds the SINUMERIK 828D's 8 tables x 200 points.
 
 usage: test_export_cli.py SELFCAL_CLI WORKDIR"""
+import math
 import os
 import re
 import subprocess
@@ -170,6 +171,66 @@ for args, want in ((["--profile", "x:x:" + path("P.csv")], "DIR != AXIS"),
 rc, out, err = run("--format", "linuxcnc", "--map", path("M.csv"), "--profile",
                    "x:y:" + path("P.csv"), "-o", path("SP3.comp"))
 check(rc == 2 and "HAL component" in err, f"profile for linuxcnc: {rc} {err}")
+
+# Dynomotion KMotionCNC: the whole 2-D map. KMotion's own GeoCorrect (KMotionX
+# GCodeInterpreter/Kinematics.cpp) applied to the file: cell by floor(), clamped to the table,
+# fractions not clamped (extrapolation), bilinear over the tabulated actuator positions (inches).
+rc, out, err = run("--format", "kmotion", "--map", path("M.csv"), "--offset", "100,-50", "-o",
+                   path("K.geo"))
+check(rc == 0, f"kmotion: {err}")
+if rc == 0:
+    ln = open(path("K.geo")).read().split("\n")
+    nrows, ncols = map(int, ln[0].split(","))
+    sx, sy = map(float, ln[1].split(","))
+    ox, oy = map(float, ln[2].split(","))
+    tab = {}
+    for line in ln[3:]:
+        if line.strip():
+            r, c, X, Y, Z = line.split(",")
+            tab[(int(r), int(c))] = (float(X), float(Y), float(Z))
+    check(len(tab) == nrows * ncols and 2 <= nrows <= 4000 and 2 <= ncols <= 4000,
+          f"kmotion: {nrows} x {ncols} entries")
+
+    def geocorrect(x, y):
+        col, row = math.floor((x - ox) / sx), math.floor((y - oy) / sy)
+        col, row = min(max(col, 0), ncols - 2), min(max(row, 0), nrows - 2)
+        fx, fy = (x - (col * sx + ox)) / sx, (y - (row * sy + oy)) / sy
+        bl, br, tl, tr = (tab[(row, col)], tab[(row, col + 1)], tab[(row + 1, col)],
+                          tab[(row + 1, col + 1)])
+        out = []
+        for q in (0, 1):
+            b = bl[q] + (br[q] - bl[q]) * fx
+            t = tl[q] + (tr[q] - tl[q]) * fx
+            out.append(b + (t - b) * fy)
+        return out
+
+    def g_map(x, y):
+        """Bilinear G of M.csv at map coordinates, clamped outside (um)."""
+        u = min(max((x + 25.0) / 5.0, 0.0), 10.0)
+        v = min(max((y - 40.0) / 5.0, 0.0), 8.0)
+        j, i = min(int(u), 9), min(int(v), 7)
+        fu, fv = u - j, v - i
+        res = []
+        for q in (2, 3):
+            res.append((1 - fv) * ((1 - fu) * truth[(i, j)][q] + fu * truth[(i, j + 1)][q])
+                       + fv * ((1 - fu) * truth[(i + 1, j)][q] + fu * truth[(i + 1, j + 1)][q]))
+        return res
+
+    worst = 0.0
+    for a in range(-6, 8 * 4 + 7):          # beyond the map on every side too
+        for b in range(-6, 10 * 4 + 7):
+            xm, ym = -25.0 + 1.25 * b, 40.0 + 1.25 * a      # map coordinates
+            xs, ys = xm + 100.0, ym - 50.0                   # machine coordinates (--offset)
+            cx, cy = geocorrect(xs / 25.4, ys / 25.4)
+            gx, gy = g_map(xm, ym)
+            worst = max(worst, abs((cx * 25.4 - xs) * 1e3 - gx), abs((cy * 25.4 - ys) * 1e3 - gy))
+    check(worst <= 1e-3, f"kmotion: KMotion's correction = +G within 1 nm ({worst} um), "
+                         "clamped outside the map")
+    check(all(v[2] == 0 for v in tab.values()), "kmotion: Z offsets 0")
+rc, out, err = run("--format", "kmotion", "--map", path("M.csv"), "--axis", "x", "-o",
+                   path("K2.geo"))
+check(rc == 2 and len(err.strip().splitlines()) == 1 and not os.path.exists(path("K2.geo")),
+      f"kmotion --axis: {rc} {err}")
 
 if failures:
     print(f"{len(failures)} failure(s)")
