@@ -367,6 +367,30 @@ static void free_cec(cec_ctx *c)
     }
 }
 
+/* Sizes table c->tab[c->ntab] for [lo, hi] at step (the 840D's or the 828D's point limit; `what`
+ * names it in the message), allocates its values and counts it in c->ntab (freed by free_cec). */
+static sc_status cec_new_table(cec_ctx *c, const sc_export_options *o, double lo, double hi,
+                               double step, const char *what, sc_error *err)
+{
+    cec_table *tb = &c->tab[c->ntab];
+    tb->step_mm = step;
+    tb->n = cover_points(lo, hi, step);
+    tb->min_mm = lo;
+    const int maxp = o->siemens_828d ? SC_EXPORT_SIEMENS_828D_POINTS : SC_EXPORT_SIEMENS_MAX_POINTS;
+    if (tb->n > maxp)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "siemens-cec: %s needs %d points at step %.6f mm; a%s table holds %d: "
+                            "choose a larger interval",
+                            what, tb->n, step, o->siemens_828d ? "n 828D" : "",
+                            maxp);
+    tb->code_nm = malloc(sizeof *tb->code_nm * (size_t)tb->n);
+    tb->value_um = malloc(sizeof *tb->value_um * (size_t)tb->n);
+    ++c->ntab;
+    if (!tb->code_nm || !tb->value_um)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    return SC_OK;
+}
+
 static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, textbuf *t,
                                 sc_export_report *rep, sc_error *err)
 {
@@ -402,30 +426,11 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
             tb->output = comp;
             const double lo = in == 0 ? lut->x0_mm : lut->y0_mm;
             const double hi = in == 0 ? map_x(lut, lut->nx - 1) : map_y(lut, lut->ny - 1);
-            tb->step_mm = o->interval_mm > 0 ? o->interval_mm : (in == 0 ? lut->px_mm : lut->py_mm);
-            tb->n = cover_points(lo, hi, tb->step_mm);
-            tb->min_mm = lo;
-            if (o->siemens_828d && tb->n > SC_EXPORT_SIEMENS_828D_POINTS) {
-                st = sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                  "siemens-cec: step %.6f mm needs %d points; an 828D table "
-                                  "holds %d (fixed): choose a larger interval",
-                                  tb->step_mm, tb->n, SC_EXPORT_SIEMENS_828D_POINTS);
+            st = cec_new_table(&c, o, lo, hi,
+                               o->interval_mm > 0 ? o->interval_mm : (in == 0 ? lut->px_mm : lut->py_mm),
+                               in == 0 ? "the x table" : "the y table", err);
+            if (st != SC_OK)
                 break;
-            }
-            if (tb->n > SC_EXPORT_SIEMENS_MAX_POINTS) {
-                st = sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                  "siemens-cec: step %.6f mm needs %d points; a table holds %d "
-                                  "(MD18342)",
-                                  tb->step_mm, tb->n, SC_EXPORT_SIEMENS_MAX_POINTS);
-                break;
-            }
-            tb->code_nm = malloc(sizeof *tb->code_nm * (size_t)tb->n);
-            tb->value_um = malloc(sizeof *tb->value_um * (size_t)tb->n);
-            ++c.ntab;
-            if (!tb->code_nm || !tb->value_um) {
-                st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-                break;
-            }
             /* Additive split: A(x) = mean over y (the comp's x table), B(y) = mean over x minus
              * the grand mean (the y table); A(x_j) + B(y_i) is the least-squares additive fit. */
             for (int k = 0; k < tb->n; ++k) {
@@ -445,25 +450,13 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
         tb->output = pr->dir;
         tb->profile = 1;
         const double lo = pr->start_mm, hi = pr->start_mm + pr->step_mm * (pr->n - 1);
-        tb->step_mm = o->interval_mm > 0 ? o->interval_mm : pr->step_mm;
-        tb->n = cover_points(lo, hi, tb->step_mm);
-        tb->min_mm = lo;
-        const int maxp = o->siemens_828d ? SC_EXPORT_SIEMENS_828D_POINTS : SC_EXPORT_SIEMENS_MAX_POINTS;
-        if (tb->n > maxp) {
-            st = sc_error_set(err, SC_E_INPUT, NULL, 0,
-                              "siemens-cec: profile %d (%s -> %s) needs %d points at %.6f mm; a "
-                              "table holds %d: choose a larger interval",
-                              pk, sc_lut_axis_name(pr->axis), sc_lut_axis_name(pr->dir), tb->n,
-                              tb->step_mm, maxp);
+        char what[64];
+        snprintf(what, sizeof what, "profile %d (%s -> %s)", pk, sc_lut_axis_name(pr->axis),
+                 sc_lut_axis_name(pr->dir));
+        st = cec_new_table(&c, o, lo, hi, o->interval_mm > 0 ? o->interval_mm : pr->step_mm, what,
+                           err);
+        if (st != SC_OK)
             break;
-        }
-        tb->code_nm = malloc(sizeof *tb->code_nm * (size_t)tb->n);
-        tb->value_um = malloc(sizeof *tb->value_um * (size_t)tb->n);
-        ++c.ntab;
-        if (!tb->code_nm || !tb->value_um) {
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-            break;
-        }
         for (int k = 0; k < tb->n; ++k) {
             double v = interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, lo + k * tb->step_mm);
             tb->code_nm[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);

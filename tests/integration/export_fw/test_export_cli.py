@@ -10,23 +10,14 @@ usage: test_export_cli.py SELFCAL_CLI WORKDIR"""
 import math
 import os
 import re
-import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from exportlib import Export  # noqa: E402
+
 cli, work = sys.argv[1], sys.argv[2]
-os.makedirs(work, exist_ok=True)
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what, file=sys.stderr)
-
-
-def run(*args):
-    p = subprocess.run([cli, "export", *args], capture_output=True, text=True, timeout=60)
-    return p.returncode, p.stdout, p.stderr
+E = Export(cli, work)
+check, run = E.check, E.run
 
 
 def path(name):
@@ -232,7 +223,4 @@ rc, out, err = run("--format", "kmotion", "--map", path("M.csv"), "--axis", "x",
 check(rc == 2 and len(err.strip().splitlines()) == 1 and not os.path.exists(path("K2.geo")),
       f"kmotion --axis: {rc} {err}")
 
-if failures:
-    print(f"{len(failures)} failure(s)")
-    sys.exit(1)
-print("export CLI options: all checks passed")
+E.finish("export CLI options")

@@ -20,23 +20,14 @@ usage: test_firmware.py SELFCAL_CLI WORKDIR"""
 import math
 import os
 import re
-import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from exportlib import Export  # noqa: E402
+
 cli, work = sys.argv[1], sys.argv[2]
-os.makedirs(work, exist_ok=True)
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what, file=sys.stderr)
-
-
-def run(*args):
-    p = subprocess.run([cli, "export", *args], capture_output=True, text=True, timeout=60)
-    return p.returncode, p.stdout, p.stderr
+E = Export(cli, work)
+check, run = E.check, E.run
 
 
 def write_map(name, n, pitch, O, R, F_um=0.0, gauge=(0.3, -0.2, 1e-5, 2e-5)):
@@ -253,7 +244,4 @@ rc, so, se = run("--format", "klipper", "--map", os.path.join(work, "missing.csv
                  os.path.join(work, "never.txt"))
 check(rc == 2 and "missing.csv" in se, f"missing map: {rc} {se!r}")
 
-if failures:
-    print(f"{len(failures)} failure(s)")
-    sys.exit(1)
-print("firmware exports: all checks passed")
+E.finish("firmware exports")
