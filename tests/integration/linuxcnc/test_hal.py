@@ -21,6 +21,7 @@ overlay of our build's module over the system's (nothing outside the namespace c
 Without root, it runs only if the installed module is this build's (else exit 77: skipped).
 
 usage: test_hal.py SELFCAL_CLI SELFCAL_XY_SO WORKDIR [SELFCALD]"""
+import fcntl
 import filecmp
 import math
 import os
@@ -39,6 +40,10 @@ from sclib import Daemon, check, i32_to_regs, make_table, regs_to_i32  # noqa: E
 MODULE_DIR = "/usr/lib/linuxcnc/modules"  # rtapi_app's fixed folder (Debian linuxcnc-uspace)
 
 cli, module, work = sys.argv[1], sys.argv[2], sys.argv[3]
+# One HAL session per machine (one shared memory, one rtapi_app): other builds' runs of this test
+# on the same machine wait here (CTest's RESOURCE_LOCK only covers one ctest process).
+machine_lock = open("/tmp/selfcal-linuxcnc-hal.lock", "a")
+fcntl.flock(machine_lock, fcntl.LOCK_EX)
 selfcald = sys.argv[4] if len(sys.argv) > 4 else None
 os.makedirs(work, exist_ok=True)
 
