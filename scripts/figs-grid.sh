@@ -12,10 +12,11 @@
 #
 # usage: scripts/figs-grid.sh      FULL=1 for the complete run (200 trials per entry, minutes);
 #                                  TRIALS=T to set the trials; SELFCAL=path/to/selfcal and
-#                                  BENCH=path/to/bench_grid_mc to use built binaries
+#                                  BENCH=path/to/bench_grid_mc to use built binaries;
+#                                  OUT=DIR to write elsewhere
 set -eu
 root=$(cd "$(dirname "$0")/.." && pwd)
-out=$root/out/grid-figs
+out=${OUT:-$root/out/grid-figs}
 mkdir -p "$out"
 if [ -z "${SELFCAL:-}" ] || [ -z "${BENCH:-}" ]; then
     cmake -S "$root" -B "$root/build-figs" -G Ninja -DCMAKE_BUILD_TYPE=Release \

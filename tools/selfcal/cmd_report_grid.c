@@ -52,18 +52,21 @@ typedef struct grid_report {
     sc_stage_map gm, am;       /* G and A as maps for the figures (views on res) */
 } grid_report;
 
-#define NSQ(r) ((size_t)(r)->d.plan.n * (size_t)(r)->d.plan.n)
+#define NSQ(r) ((size_t)(r)->d.plan.n * (size_t)(r)->d.plan.n) /* plate marks */
+#define NG(r) ((size_t)GRID_STAGE_NX(&(r)->d.plan) * (size_t)GRID_STAGE_NY(&(r)->d.plan)) /* stage nodes */
+#define PER_RESULT(ng, nn) (4 * (ng) + 2 * (nn))
 
-static void init_result(sc_grid_result *res, double *base, size_t nn)
+/* A result's arrays in one block: G, u(G) over ng stage nodes, A over nn marks; NaN-filled. */
+static void init_result(sc_grid_result *res, double *base, size_t ng, size_t nn)
 {
     memset(res, 0, sizeof *res);
     res->gx_um = base;
-    res->gy_um = base + nn;
-    res->ugx_um = base + 2 * nn;
-    res->ugy_um = base + 3 * nn;
-    res->ax_um = base + 4 * nn;
-    res->ay_um = base + 5 * nn;
-    for (size_t k = 0; k < 6 * nn; ++k)
+    res->gy_um = base + ng;
+    res->ugx_um = base + 2 * ng;
+    res->ugy_um = base + 3 * ng;
+    res->ax_um = base + 4 * ng;
+    res->ay_um = base + 4 * ng + nn;
+    for (size_t k = 0; k < PER_RESULT(ng, nn); ++k)
         base[k] = NAN;
     res->O = res->R = res->residual_rms_um = res->sigma_r_est_um = res->sigma_r_used_um = NAN;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
@@ -75,8 +78,13 @@ static void make_maps(grid_report *r)
 {
     const sc_grid_plan *p = &r->d.plan;
     r->gm = sc_grid_stage_map(p, r->res.gx_um, r->res.gy_um, r->res.ugx_um, r->res.ugy_um);
-    r->am = sc_grid_stage_map(p, r->res.ax_um, r->res.ay_um, NULL, NULL);
-    r->am.x0_mm = r->am.y0_mm = -0.5 * (p->n - 1) * p->pitch_mm;
+    sc_stage_map *a = &r->am; /* the plate: N x N marks, plate-centred */
+    memset(a, 0, sizeof *a);
+    a->nx = a->ny = p->n;
+    a->px_mm = a->py_mm = p->pitch_mm;
+    a->x0_mm = a->y0_mm = -0.5 * (p->n - 1) * p->pitch_mm;
+    a->gx_um = r->res.ax_um;
+    a->gy_um = r->res.ay_um;
 }
 
 /* Residuals r = measured − fitted of the least-squares fit, per view and mark. */
@@ -129,17 +137,24 @@ static sc_status run(grid_report *r, sc_error *err)
                             "no data rows (a plan file? use 'selfcal plan' for plans)");
     int m_ye = !strcmp(r->method, "ye"), m_ds = !strcmp(r->method, "double-shift");
     if (m_ye || m_ds) {
+#ifdef SC_GRID_BAARDA_CRIT
+        if (!sc_grid_stage_is_plate(p))
+            return sc_error_set(err, SC_E_INPUT, r->in, r->info.header_end_line,
+                                "method %s needs the stage grid to be the plate's N x N (use lsq)",
+                                r->method);
+#endif
         st = grid_check_exact_views(r->in, &r->d, &r->info, m_ds, err);
         if (st != SC_OK)
             return st;
     }
+    size_t ng = NG(r), per = PER_RESULT(ng, nn);
     size_t nres = (size_t)p->n_views * nn;
-    r->buf = malloc((12 * nn + 4 * nres) * sizeof(double));
+    r->buf = malloc((2 * per + 4 * nres) * sizeof(double));
     if (!r->buf)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    init_result(&r->res, r->buf, nn);
-    init_result(&r->lres, r->buf + 6 * nn, nn);
-    r->rx = r->buf + 12 * nn;
+    init_result(&r->res, r->buf, ng, nn);
+    init_result(&r->lres, r->buf + per, ng, nn);
+    r->rx = r->buf + 2 * per;
     r->ry = r->rx + nres;
     r->tx = r->ry + nres;
     r->ty = r->tx + nres;
@@ -175,7 +190,7 @@ static sc_status run(grid_report *r, sc_error *err)
         sc_grid_exact_plan_destroy(xp);
         if (st != SC_OK)
             return st;
-        for (size_t k = 0; k < nn; ++k) /* the closed forms give no uncertainties */
+        for (size_t k = 0; k < ng; ++k) /* the closed forms give no uncertainties */
             r->res.ugx_um[k] = r->res.ugy_um[k] = NAN;
         r->res.sigma_r_used_um = NAN;
         r->res.sigma_r_est_um = r->lres.sigma_r_est_um;
@@ -183,7 +198,7 @@ static sc_status run(grid_report *r, sc_error *err)
         sc_grid_first_order(p, r->res.gx_um, r->res.gy_um, &r->res.O, &r->res.R);
     } else {
         /* the chosen result is the least-squares one: share its arrays */
-        memcpy(r->res.gx_um, r->lres.gx_um, 6 * nn * sizeof(double));
+        memcpy(r->res.gx_um, r->lres.gx_um, per * sizeof(double));
         double *keep[6] = {r->res.gx_um, r->res.gy_um, r->res.ugx_um, r->res.ugy_um,
                            r->res.ax_um, r->res.ay_um};
         r->res = r->lres;
@@ -192,7 +207,7 @@ static sc_status run(grid_report *r, sc_error *err)
         sc_grid_first_order(p, r->res.gx_um, r->res.gy_um, &r->res.O, &r->res.R);
     }
     make_maps(r);
-    for (size_t k = 0; k < nn; ++k)
+    for (size_t k = 0; k < ng; ++k)
         if (!isfinite(r->res.gx_um[k]) || !isfinite(r->res.gy_um[k]))
             return sc_error_set(err, SC_E_INTERNAL, r->in, 0, "the %s solution is not finite",
                                 r->method);
@@ -254,6 +269,8 @@ static void section_plan(FILE *fp, const grid_report *r)
     int n = p->n;
     fputs("<section id=\"plan\">\n<h2>1. Plan</h2>\n<table>\n", fp);
     fprintf(fp, "<tr><th class=\"l\">marks per side N</th><td id=\"N\">%d</td></tr>\n", n);
+    fprintf(fp, "<tr><th class=\"l\">stage grid (nodes along x × y)</th><td id=\"stage\">%d × %d</td></tr>\n",
+            GRID_STAGE_NX(p), GRID_STAGE_NY(p));
     fprintf(fp, "<tr><th class=\"l\">pitch P</th><td id=\"pitch_mm\">%g mm</td></tr>\n", p->pitch_mm);
     fprintf(fp, "<tr><th class=\"l\">stage grid origin</th><td>(%g, %g) mm</td></tr>\n",
             p->origin_mm[0], p->origin_mm[1]);
@@ -560,8 +577,9 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
               fp);
     /* G statistics */
     double mgx, mgy, mux, muy, ma;
-    double rgx = rms_of(s->gx_um, nn, &mgx), rgy = rms_of(s->gy_um, nn, &mgy);
-    double rux = rms_of(s->ugx_um, nn, &mux), ruy = rms_of(s->ugy_um, nn, &muy);
+    size_t ng = NG(r);
+    double rgx = rms_of(s->gx_um, ng, &mgx), rgy = rms_of(s->gy_um, ng, &mgy);
+    double rux = rms_of(s->ugx_um, ng, &mux), ruy = rms_of(s->ugy_um, ng, &muy);
     double rax = rms_of(s->ax_um, nn, &ma), ray = rms_of(s->ay_um, nn, NULL);
     fputs("<h3>Stage error G</h3>\n<table>\n<tr><th class=\"l\">quantity</th><th>RMS</th>"
           "<th>max |·|</th><th class=\"l\">unit</th></tr>\n",
@@ -623,8 +641,8 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
 /* The whole map as a table (small maps only; the map file holds it anyway). */
 static void appendix_table(FILE *fp, const grid_report *r)
 {
-    int n = r->d.plan.n;
-    if ((long)n * n > 41 * 41) {
+    int nx = GRID_STAGE_NX(&r->d.plan), ny = GRID_STAGE_NY(&r->d.plan);
+    if ((long)nx * ny > 41 * 41) {
         fputs("<p>The node table is left out for maps larger than 41 × 41 nodes; the map file "
               "written by <code>selfcal grid --map</code> holds it.</p>\n",
               fp);
@@ -635,9 +653,9 @@ static void appendix_table(FILE *fp, const grid_report *r)
           "<th>G<sub>x</sub> (µm)</th><th>G<sub>y</sub> (µm)</th><th>u(G<sub>x</sub>)</th>"
           "<th>u(G<sub>y</sub>)</th><th>U(G<sub>x</sub>), k = 2</th><th>U(G<sub>y</sub>), k = 2</th></tr>\n",
           fp);
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            int k = i * n + j;
+    for (int i = 0; i < ny; ++i)
+        for (int j = 0; j < nx; ++j) {
+            int k = i * nx + j;
             fprintf(fp, "<tr class=\"node\" data-i=\"%d\" data-j=\"%d\"><td>%d</td><td>%d</td><td>%g</td><td>%g</td>",
                     i, j, i, j, sc_stage_map_x_mm(&r->gm, j), sc_stage_map_y_mm(&r->gm, i));
             html_num_cell(fp, NULL, "%.5f", r->res.gx_um[k]);
@@ -728,8 +746,8 @@ int cmd_report_grid(int argc, char **argv)
         fputs("</h1>\n", fp);
         /* summary first; the numbers are filled from the sections' results */
         double mux, muy;
-        rms_of(r.res.ugx_um, NSQ(&r), &mux);
-        rms_of(r.res.ugy_um, NSQ(&r), &muy);
+        rms_of(r.res.ugx_um, NG(&r), &mux);
+        rms_of(r.res.ugy_um, NG(&r), &muy);
         fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d, pitch %g mm, "
                     "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated %.4g µm",
                 r.method, r.d.plan.n, r.d.plan.pitch_mm, r.d.plan.n_views, r.info.n_rows,

@@ -13,6 +13,7 @@
 #include "cli.h"
 #include "selfcal/sha256.h"
 #include "selfcal/version.h"
+#include "svg.h"
 
 static const char *CSS =
     "body{font-family:'DejaVu Sans',Arial,sans-serif;max-width:1100px;margin:1.5em auto;"
@@ -33,18 +34,7 @@ static const char *CSS =
     "page-break-inside:avoid}details>summary{display:none}details{display:block}"
     "a{color:inherit;text-decoration:none}@page{size:A4;margin:15mm}}\n";
 
-void html_esc(FILE *fp, const char *s)
-{
-    for (; *s; ++s) {
-        switch (*s) {
-        case '<': fputs("&lt;", fp); break;
-        case '>': fputs("&gt;", fp); break;
-        case '&': fputs("&amp;", fp); break;
-        case '"': fputs("&quot;", fp); break;
-        default: fputc(*s, fp);
-        }
-    }
-}
+void html_esc(FILE *fp, const char *s) { svg_escape(fp, s); }
 
 void html_textf(FILE *fp, const char *fmt, ...)
 {

@@ -62,7 +62,7 @@ void svg_nice_range(double *lo, double *hi)
     *hi = ceil(*hi / st) * st;
 }
 
-static void text_escaped(FILE *fp, const char *s)
+void svg_escape(FILE *fp, const char *s)
 {
     for (; *s; ++s) {
         switch (*s) {
@@ -85,7 +85,7 @@ void svg_text(FILE *fp, double x, double y, double size, const char *anchor, con
     va_end(ap);
     fprintf(fp, "<text x=\"%.1f\" y=\"%.1f\" font-size=\"%.1f\" text-anchor=\"%s\" fill=\"%s\">", x,
             y, size, anchor, color);
-    text_escaped(fp, buf);
+    svg_escape(fp, buf);
     fputs("</text>\n", fp);
 }
 

@@ -49,6 +49,9 @@ void svg_text(FILE *fp, double x, double y, double size, const char *anchor, con
 #endif
     ;
 
+/* Write s with the XML special characters & < > " escaped (also what the HTML report uses). */
+void svg_escape(FILE *fp, const char *s);
+
 /* Text like svg_text that fits in max_w px: the font shrinks (down to 8 px) and, if that is
  * not enough, the middle of the text is replaced by "…" (long file paths keep both ends). */
 void svg_text_fit(FILE *fp, double x, double y, double size, double max_w, const char *anchor,

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "grid_run.h"
 #include "plots.h"
 #include "report_html.h"
 #include "selfcal/correct.h"
@@ -117,7 +118,9 @@ sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
         goto done;
 
     size_t nres = (size_t)nv * nn;
-    r->buf = malloc((4 * nres + 5 * nn) * sizeof(double));
+    int snx = GRID_STAGE_NX(p), sny = GRID_STAGE_NY(p);
+    size_t ng = (size_t)snx * sny;
+    r->buf = malloc((4 * nres + 5 * ng) * sizeof(double));
     work = malloc(6 * nn * sizeof(double));
     if (!r->buf || !work) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
@@ -211,12 +214,12 @@ sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
     if (isfinite(o->tolerance_um))
         r->pass = r->st_after.max <= o->tolerance_um;
     /* maps per stage node: the mean over the views that measure it */
-    double *mp = r->buf + 4 * nres, *cnt = mp + 4 * nn;
-    for (size_t k = 0; k < 5 * nn; ++k)
+    double *mp = r->buf + 4 * nres, *cnt = mp + 4 * ng;
+    for (size_t k = 0; k < 5 * ng; ++k)
         mp[k] = 0;
-    r->before = sc_grid_stage_map(p, mp, mp + nn, NULL, NULL);
-    r->after = sc_grid_stage_map(p, mp + 2 * nn, mp + 3 * nn, NULL, NULL);
-    double *bgx = mp, *bgy = mp + nn, *agx = mp + 2 * nn, *agy = mp + 3 * nn;
+    r->before = sc_grid_stage_map(p, mp, mp + ng, NULL, NULL);
+    r->after = sc_grid_stage_map(p, mp + 2 * ng, mp + 3 * ng, NULL, NULL);
+    double *bgx = mp, *bgy = mp + ng, *agx = mp + 2 * ng, *agy = mp + 3 * ng;
     for (int v = 0; v < nv; ++v)
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
@@ -224,12 +227,12 @@ sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
                 int ni, nj;
                 if (!isfinite(r->bx[g]) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
                     continue;
-                size_t q = (size_t)ni * n + nj;
+                size_t q = (size_t)ni * snx + nj;
                 bgx[q] += r->bx[g], bgy[q] += r->by[g];
                 agx[q] += r->ax[g], agy[q] += r->ay[g];
                 cnt[q] += 1;
             }
-    for (size_t q = 0; q < nn; ++q) {
+    for (size_t q = 0; q < ng; ++q) {
         double c = cnt[q];
         bgx[q] = c > 0 ? bgx[q] / c : NAN;
         bgy[q] = c > 0 ? bgy[q] / c : NAN;

@@ -569,7 +569,34 @@ def case_plots():
         fail("profile plot has %d uncertainty bands" % len(bands))
 
 
-{"render_grid": case_render_grid, "render_profile": case_render_profile,
+def case_figs_grid():
+    """scripts/figs-grid.sh with 1 trial: the figure CSVs hold every method and the charts parse."""
+    script, bench = sys.argv[4], sys.argv[5]
+    d = fresh_dir("figs_grid")
+    env = dict(os.environ, SELFCAL=CLI, BENCH=bench, OUT=d, TRIALS="1")
+    p = subprocess.run(["sh", script], capture_output=True, text=True, timeout=280, env=env)
+    if p.returncode != 0:
+        fail("figs-grid.sh: exit %d\n%s\n%s" % (p.returncode, p.stdout[-2000:], p.stderr[-2000:]))
+    methods = ["ye", "double-shift", "lsq (Ye views)", "lsq (Petro views)"]
+    for name, nrows in (("fig4_sr_N25", 4), ("fig4_sg", 3), ("fig5", 4)):
+        with open(os.path.join(d, name + ".csv")) as f:
+            rows = list(csv.reader(f))
+        if rows[0][1:5] != methods or len(rows) != nrows + 1:
+            fail("%s.csv: %s" % (name, rows[:2]))
+        for r in rows[1:]:
+            vals = [float(x) for x in r[1:] if x]
+            if len(vals) < 4 or not all(0.3 < v < 3 for v in vals):
+                fail("%s.csv: implausible sigma_C/sigma_r row %s" % (name, r))
+        root = ET.parse(os.path.join(d, name + ".svg")).getroot()
+        if len(root.findall("{http://www.w3.org/2000/svg}polyline")) < 4:
+            fail("%s.svg: fewer than 4 lines" % name)
+    with open(os.path.join(d, "fig5.csv")) as f:
+        head = next(csv.reader(f))
+    if "lsq (Petro views) predicted" not in head:
+        fail("fig5.csv lacks the prediction: %s" % head)
+
+
+{"figs_grid": case_figs_grid, "render_grid": case_render_grid, "render_profile": case_render_profile,
  "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
  "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots}[CASE]()
 print("ok")
