@@ -17,8 +17,10 @@ picometres.
 halrun refuses to run as root and rtapi_app loads modules only from its fixed module folder
 (`loadrt` takes no paths). As root, the test runs halrun as the unprivileged user `nobody`
 (created with useradd if missing) in a private mount namespace where the module folder is an
-overlay of our build's module over the system's (nothing outside the namespace changes).
-Without root, it runs only if the installed module is this build's (else exit 77: skipped).
+overlay of our build's module over the system's (nothing outside the namespace changes). An
+unprivileged user with password-less sudo (a CI runner) gets the same namespace through sudo and
+runs halrun as itself. Otherwise it runs only if the installed module is this build's (else
+exit 77: skipped).
 
 usage: test_hal.py SELFCAL_CLI SELFCAL_XY_SO WORKDIR [SELFCALD]"""
 import fcntl
@@ -42,8 +44,8 @@ MODULE_DIR = "/usr/lib/linuxcnc/modules"  # rtapi_app's fixed folder (Debian lin
 cli, module, work = sys.argv[1], sys.argv[2], sys.argv[3]
 # One HAL session per machine (one shared memory, one rtapi_app): other builds' runs of this test
 # on the same machine wait here (CTest's RESOURCE_LOCK only covers one ctest process).
-machine_lock = open("/tmp/selfcal-linuxcnc-hal.lock", "a")
-fcntl.flock(machine_lock, fcntl.LOCK_EX)
+machine_lock = os.open("/tmp/selfcal-linuxcnc-hal.lock", os.O_RDONLY | os.O_CREAT, 0o644)
+fcntl.flock(machine_lock, fcntl.LOCK_EX)  # read-only is enough for flock, whoever made the file
 selfcald = sys.argv[4] if len(sys.argv) > 4 else None
 os.makedirs(work, exist_ok=True)
 
@@ -68,25 +70,40 @@ def hal_user():
         return pwd.getpwnam("nobody")
 
 
-if os.geteuid() == 0:
-    user = hal_user()
-    os.chown(home, user.pw_uid, user.pw_gid)
+def can_sudo():
+    try:
+        return subprocess.run(["sudo", "-n", "true"], capture_output=True, timeout=20).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
 
-    def halrun_argv(hal_file):
+
+def namespaced(prefix, user):
+    """halrun as `user` in a private mount namespace where the module folder is an overlay of
+    this build's module over the system's; prefix: [] as root, ["sudo", "-n"] otherwise."""
+    def argv(hal_file):
         inner = (f"mount -t overlay overlay -o lowerdir={mods}:{MODULE_DIR} {MODULE_DIR} && "
                  f"exec setpriv --reuid={user.pw_uid} --regid={user.pw_gid} --clear-groups "
                  f"env HOME={home} halrun -f {hal_file}")
-        return ["unshare", "--mount", "--propagation", "private", "sh", "-c", inner]
-else:
-    installed = os.path.join(MODULE_DIR, "selfcal_xy.so")
-    if not (os.path.exists(installed) and filecmp.cmp(installed, module, shallow=False)):
-        print(f"SKIP: not root, and {installed} is not this build's module "
-              "(rtapi_app loads modules from that folder only)")
-        shutil.rmtree(scratch)
-        sys.exit(77)
+        return prefix + ["unshare", "--mount", "--propagation", "private", "sh", "-c", inner]
+    return argv
 
+
+installed = os.path.join(MODULE_DIR, "selfcal_xy.so")
+if os.geteuid() == 0:
+    user = hal_user()
+    os.chown(home, user.pw_uid, user.pw_gid)
+    halrun_argv = namespaced([], user)
+elif can_sudo():
+    # An unprivileged user with sudo (a CI runner): the namespace needs root, halrun runs as us.
+    halrun_argv = namespaced(["sudo", "-n"], pwd.getpwuid(os.getuid()))
+elif os.path.exists(installed) and filecmp.cmp(installed, module, shallow=False):
     def halrun_argv(hal_file):
         return ["env", f"HOME={home}", "halrun", "-f", hal_file]
+else:
+    print(f"SKIP: not root, no sudo, and {installed} is not this build's module "
+          "(rtapi_app loads modules from that folder only)")
+    shutil.rmtree(scratch)
+    sys.exit(77)
 
 
 def halrun(lines, name):
