@@ -300,8 +300,8 @@ def case_bad_input():
     cases.append(("u_empty", with_u("", "0.01", 2), h + 4, "states no sigma_um"))
     ins = lambda extra: lines[:4] + [extra] + lines[4:]
     cases.append(("stage_even", ins("# stage = 8,7\n"), 5, "odd"))
-    cases.append(("stage_small", ins("# stage = 1,7\n"), 5, "odd and in 3"))
-    cases.append(("stage_text", ins("# stage = 9\n"), 5, "NX,NY"))
+    cases.append(("stage_small", ins("# stage = 1,7\n"), 5, "3.."))
+    cases.append(("stage_text", ins("# stage = 9\n"), 5, "stage"))
     # a view that lands no mark on the stage
     far = [l.replace("# view 2: rot=0 shift=1,0", "# view 2: rot=0 shift=40,0") for l in lines]
     vline = next(k for k, l in enumerate(far) if "shift=40,0" in l) + 1
