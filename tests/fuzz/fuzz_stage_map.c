@@ -1,9 +1,9 @@
 /* tests/fuzz/fuzz_stage_map.c — libFuzzer target: the stage error map readers (SPEC §1 map:
- * sc_grid_read_map for plots/verify, sc_lut_read_map for `lut build`). */
+ * sc_stage_map_read, the io/ reader, and sc_lut_read_map for `lut build`). */
 #include <math.h>
 
 #include "fuzz_reader_check.h"
-#include "selfcal/grid_io.h"
+#include "selfcal/stage_map.h"
 #include "selfcal/lut.h"
 
 static sc_lut g_lut;
@@ -11,14 +11,16 @@ static sc_lut g_lut;
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const char *path = fuzz_path(data, size);
-    sc_grid_map m;
+    sc_stage_map m;
     sc_error err;
     memset(&m, 0, sizeof m);
     memset(&err, 0, sizeof err);
-    sc_status st = sc_grid_read_map(path, &m, &err);
+    sc_status st = sc_stage_map_read(path, &m, &err);
     fuzz_check_error(st, &err);
-    if (st == SC_OK)
-        sc_grid_map_free(&m);
+    if (st == SC_OK) {
+        FUZZ_CHECK(m.nx >= 2 && m.ny >= 2);
+        sc_stage_map_free(&m);
+    }
     memset(&err, 0, sizeof err);
     sc_lut_init(&g_lut);
     st = sc_lut_read_map(path, &g_lut, &err);
