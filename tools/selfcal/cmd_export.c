@@ -105,6 +105,15 @@ static void print_report(const char *fmt, int f, const char *out, const sc_expor
            rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
     if (is_firmware(f))
         return;
+    if (f == SC_EXPORT_SIEMENS_CEC && !o->siemens_828d) {
+        int most = 0;
+        for (int k = 0; k < rep->tables && k < 4; ++k)
+            most = rep->points[k] > most ? rep->points[k] : most;
+        if (most > SC_EXPORT_SIEMENS_828D_POINTS)
+            printf("note: %d points per table; a SINUMERIK 828D holds %d (use --target 828d and a "
+                   "larger --interval for one)\n",
+                   most, SC_EXPORT_SIEMENS_828D_POINTS);
+    }
     if (f == SC_EXPORT_SIEMENS_CEC && rep->tables > (o->axis < 0 ? 4 : 2))
         printf("profile tables: max |table - profile| %.4f um\n", rep->profile_max_um);
     if (rep->limit_um > 0)

@@ -315,10 +315,11 @@ def t_export():
     for t in range(A.iterations):
         m = p("map_in_%d.csv" % t)
         write(m, fuzzlib.mutate_text(rnd, rnd.choice(maps), mops))
-        fmt = rnd.choice(("beckhoff", "siemens-cec", "linuxcnc"))
+        fmt = rnd.choice(("beckhoff", "siemens-cec", "linuxcnc", "kmotion", "klipper", "marlin",
+                          "reprap"))
         out = p("exp_%d.txt" % t)
         cmd = [CLI, "export", "--format", fmt, "--map", m, "-o", out]
-        if fmt != "siemens-cec" or rnd.random() < 0.3:
+        if fmt in ("beckhoff", "linuxcnc") or (fmt == "siemens-cec" and rnd.random() < 0.3):
             cmd += ["--axis", rnd.choice(("x", "y")) if fmt != "siemens-cec" else "both"]
         if rnd.random() < 0.3:
             cmd += [rnd.choice(("--interval", "--at", "--limit-um")),
