@@ -143,6 +143,41 @@ static long worst_outlier(const lsq_extra *x, size_t tot)
     return best;
 }
 
+/* After the last solve: residuals of the removed rows against the final solution (and their
+ * values back into d), the flags and warnings of the rows still in, the chi-square warning. */
+static void finish_outliers(const char *in, sc_grid_data *d, const sc_grid_file_info *info,
+                            const sc_grid_result *res, lsq_extra *x, const sc_grid_lsq *q,
+                            const double *keep, double sigma_r)
+{
+    const sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
+    for (size_t k = 0; k < tot; ++k) {
+        int v = (int)(k / nn), m = (int)(k % nn);
+        if (x->outlier[k]) { /* removed: residual against the final solution */
+            double px, py, t = d->t_s[v] ? d->t_s[v][m] : NAN;
+            sc_grid_lsq_predict(q, res, v, m / p->n, m % p->n, t, &px, &py);
+            x->rx[k] = keep[k] - px, x->ry[k] = keep[tot + k] - py;
+            x->tx[k] = x->ty[k] = NAN;
+            d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
+        } else if (fabs(x->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(x->ty[k]) > SC_GRID_BAARDA_CRIT) {
+            x->outlier[k] = 1;
+            fprintf(stderr,
+                    "selfcal: warning: %s: view %d mark (%d,%d) is an outlier (standardized "
+                    "residuals tx %.3g, ty %.3g beyond %.3f: Baarda, alpha = %g)\n",
+                    in, info->view_id[v], m / p->n, m % p->n, x->tx[k], x->ty[k],
+                    SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA);
+        }
+    }
+    if (!res->chi2_pass)
+        fprintf(stderr,
+                "selfcal: warning: %s: the residuals disagree with the %s noise: variance "
+                "factor %.4g outside the chi^2 95 %% interval [%.4g, %.4g]%s\n",
+                in, sigma_r > 0 ? "given" : "stated", res->variance_factor, res->chi2_lo,
+                res->chi2_hi,
+                sigma_r > 0 ? " (compare sigma_r_est_um in the summary with --sigma-r-um)"
+                            : "");
+}
+
 /* Least squares with residuals, outlier handling and covariance. d is modified (rejected rows
  * become NaN); orig keeps the measured values for their residuals. */
 static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_info *info,
@@ -195,33 +230,8 @@ static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_inf
         x->outlier[w] = 1;
         d->dx_um[v][k] = d->dy_um[v][k] = NAN;
     }
-    if (st == SC_OK) {
-        for (size_t k = 0; k < tot; ++k) {
-            int v = (int)(k / nn), m = (int)(k % nn);
-            if (x->outlier[k]) { /* removed: residual against the final solution */
-                double px, py, t = d->t_s[v] ? d->t_s[v][m] : NAN;
-                sc_grid_lsq_predict(*qp, res, v, m / p->n, m % p->n, t, &px, &py);
-                x->rx[k] = keep[k] - px, x->ry[k] = keep[tot + k] - py;
-                x->tx[k] = x->ty[k] = NAN;
-                d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
-            } else if (fabs(x->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(x->ty[k]) > SC_GRID_BAARDA_CRIT) {
-                x->outlier[k] = 1;
-                fprintf(stderr,
-                        "selfcal: warning: %s: view %d mark (%d,%d) is an outlier (standardized "
-                        "residuals tx %.3g, ty %.3g beyond %.3f: Baarda, alpha = %g)\n",
-                        in, info->view_id[v], m / p->n, m % p->n, x->tx[k], x->ty[k],
-                        SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA);
-            }
-        }
-        if (!res->chi2_pass)
-            fprintf(stderr,
-                    "selfcal: warning: %s: the residuals disagree with the %s noise: variance "
-                    "factor %.4g outside the chi^2 95 %% interval [%.4g, %.4g]%s\n",
-                    in, sigma_r > 0 ? "given" : "stated", res->variance_factor, res->chi2_lo,
-                    res->chi2_hi,
-                    sigma_r > 0 ? " (compare sigma_r_est_um in the summary with --sigma-r-um)"
-                                : "");
-    }
+    if (st == SC_OK)
+        finish_outliers(in, d, info, res, x, *qp, keep, sigma_r);
     if (st == SC_OK && x->covariance) {
         long m = 2 * sc_grid_stage_nodes(p);
         x->cov = m <= 2L * SC_GRID_LSQ_COV_MAX_NODES ? malloc((size_t)m * m * sizeof(double)) : NULL;

@@ -146,6 +146,64 @@ static int design(int argc, char **argv)
     return CLI_OK;
 }
 
+/* The analysis lines of a plan or data file (see the usage text). */
+static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, int has_data,
+                           const sc_grid_lsq_info *qi)
+{
+    const sc_grid_plan *p = &d->plan;
+    int n = p->n;
+    printf("identifiable: %s\n", qi->identifiable ? "yes" : "no");
+    printf("free: %ld\n", qi->identifiable ? 0L : qi->free_dof);
+    if (qi->identifiable) {
+        printf("sigma_c_ratio_rms: %.6g\n", qi->sigma_c_ratio_rms);
+        printf("sigma_c_ratio_max: %.6g\n", qi->sigma_c_ratio_max);
+    } else {
+        printf("sigma_c_ratio_rms: inf\nsigma_c_ratio_max: inf\n");
+    }
+    printf("N: %d\nstage: %d,%d\npitch_mm: %g\norigin_mm: %g,%g\n", n, sc_grid_stage_nx(p),
+           sc_grid_stage_ny(p), p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
+    if (qi->n_stage_unmeasured)
+        printf("unmeasured_stage_nodes: %ld\n", qi->n_stage_unmeasured);
+    printf("source: %s\n", has_data ? "data file (the marks measured)" : "plan (the marks the views select)");
+    printf("views: %d\n", p->n_views);
+    long empty_views = 0, unseen_marks = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            int seen = 0;
+            for (int v = 0; v < p->n_views && !seen; ++v)
+                seen = has_data ? isfinite(d->dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
+            unseen_marks += !seen;
+        }
+    for (int v = 0; v < p->n_views; ++v) {
+        long marks = 0;
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j)
+                marks += has_data ? isfinite(d->dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
+        empty_views += marks == 0;
+        printf("view %d: rot=%d shift=%d,%d%s marks=%ld\n", fi->view_id[v], p->view[v].rot_deg,
+               p->view[v].shift_x, p->view[v].shift_y, p->view[v].restricted ? " (rows/cols)" : "",
+               marks);
+    }
+    printf("equations: %ld\nunknowns: %ld\nconstraints: %ld\n", qi->n_equations, qi->n_unknowns,
+           qi->n_constraints);
+    /* Equations minus the rank: the gauge, a view without marks (its misalignment) and a mark no
+     * view measures (its plate error) leave unknowns undetermined without costing equations. */
+    if (qi->identifiable)
+        printf("residual_dof: %ld\n", qi->n_equations + qi->n_constraints - qi->n_unknowns +
+                                           3 * empty_views);
+    if (empty_views || unseen_marks)
+        printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
+               "misalignment / plate error stay unknown)\n",
+               empty_views, unseen_marks);
+    static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+    static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+    int plate_stage = sc_grid_stage_is_plate(p);
+    printf("method ye: %s\n", plate_stage && supports(d, has_data, ye, 3) ? "yes" : "no");
+    printf("method double-shift: %s\n",
+           plate_stage && n >= 9 && supports(d, has_data, ds, 4) ? "yes" : "no");
+    printf("method lsq: %s\n", qi->identifiable ? "yes" : "no");
+}
+
 int cmd_plan(int argc, char **argv)
 {
     const char *in = NULL;
@@ -197,58 +255,7 @@ int cmd_plan(int argc, char **argv)
     }
     sc_grid_lsq_info qi;
     sc_grid_lsq_get_info(q, &qi);
-    const sc_grid_plan *p = &d.plan;
-    int n = p->n;
-    printf("identifiable: %s\n", qi.identifiable ? "yes" : "no");
-    printf("free: %ld\n", qi.identifiable ? 0L : qi.free_dof);
-    if (qi.identifiable) {
-        printf("sigma_c_ratio_rms: %.6g\n", qi.sigma_c_ratio_rms);
-        printf("sigma_c_ratio_max: %.6g\n", qi.sigma_c_ratio_max);
-    } else {
-        printf("sigma_c_ratio_rms: inf\nsigma_c_ratio_max: inf\n");
-    }
-    printf("N: %d\nstage: %d,%d\npitch_mm: %g\norigin_mm: %g,%g\n", n, sc_grid_stage_nx(p),
-           sc_grid_stage_ny(p), p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
-    if (qi.n_stage_unmeasured)
-        printf("unmeasured_stage_nodes: %ld\n", qi.n_stage_unmeasured);
-    printf("source: %s\n", has_data ? "data file (the marks measured)" : "plan (the marks the views select)");
-    printf("views: %d\n", p->n_views);
-    long empty_views = 0, unseen_marks = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            int seen = 0;
-            for (int v = 0; v < p->n_views && !seen; ++v)
-                seen = has_data ? isfinite(d.dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
-            unseen_marks += !seen;
-        }
-    for (int v = 0; v < p->n_views; ++v) {
-        long marks = 0;
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j)
-                marks += has_data ? isfinite(d.dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
-        empty_views += marks == 0;
-        printf("view %d: rot=%d shift=%d,%d%s marks=%ld\n", fi.view_id[v], p->view[v].rot_deg,
-               p->view[v].shift_x, p->view[v].shift_y, p->view[v].restricted ? " (rows/cols)" : "",
-               marks);
-    }
-    printf("equations: %ld\nunknowns: %ld\nconstraints: %ld\n", qi.n_equations, qi.n_unknowns,
-           qi.n_constraints);
-    /* Equations minus the rank: the gauge, a view without marks (its misalignment) and a mark no
-     * view measures (its plate error) leave unknowns undetermined without costing equations. */
-    if (qi.identifiable)
-        printf("residual_dof: %ld\n", qi.n_equations + qi.n_constraints - qi.n_unknowns +
-                                           3 * empty_views);
-    if (empty_views || unseen_marks)
-        printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
-               "misalignment / plate error stay unknown)\n",
-               empty_views, unseen_marks);
-    static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
-    static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-    int plate_stage = sc_grid_stage_is_plate(p);
-    printf("method ye: %s\n", plate_stage && supports(&d, has_data, ye, 3) ? "yes" : "no");
-    printf("method double-shift: %s\n",
-           plate_stage && n >= 9 && supports(&d, has_data, ds, 4) ? "yes" : "no");
-    printf("method lsq: %s\n", qi.identifiable ? "yes" : "no");
+    print_analysis(&d, &fi, has_data, &qi);
     sc_grid_lsq_destroy(q);
     sc_grid_data_free(&d);
     return CLI_OK;

@@ -211,16 +211,23 @@ static sc_status build_drift(sc_grid_lsq *q, const sc_grid_data *mask, sc_error 
     return SC_OK;
 }
 
+/* 1 if the data (or, without data, the plan's views) state uncertainties. */
+static int stated_weights(const sc_grid_lsq *q, const sc_grid_data *mask)
+{
+    for (int v = 0; v < q->nv; ++v) {
+        if (mask && (mask->ux_um[v] || mask->uy_um[v] || mask->plan.view[v].sigma_um > 0))
+            return 1;
+        if (!mask && q->plan.view[v].sigma_um > 0)
+            return 1;
+    }
+    return 0;
+}
+
 static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_error *err)
 {
     const sc_grid_plan *p = &q->plan;
     int n = q->n, nn = q->nn, nv = q->nv;
-    for (int v = 0; v < nv && mask; ++v)
-        if (mask->ux_um[v] || mask->uy_um[v] || mask->plan.view[v].sigma_um > 0)
-            q->weighted = 1;
-    for (int v = 0; v < nv && !mask; ++v)
-        if (p->view[v].sigma_um > 0)
-            q->weighted = 1;
+    q->weighted = stated_weights(q, mask);
     q->meas = calloc((size_t)nv * nn, 1);
     q->mark_views = calloc((size_t)nn, sizeof(int));
     if (!q->meas || !q->mark_views)

@@ -163,6 +163,32 @@ static int sar_solve(int nx, int ny, double rho, const double *e, double *f)
     return -1;
 }
 
+/* Times and drift: each view measured mark by mark in serpentine plate order (row 0 left to
+ * right, row 1 right to left, ...), one raster position every dt seconds, the views one after
+ * another; translation drift (vx, vy)·t with t from the view's start. */
+static sc_status add_times_and_drift(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                                     sc_grid_data *d, sc_error *err)
+{
+    int n = plan->n;
+    size_t nn = (size_t)n * n;
+    double t0 = 0;
+    for (int v = 0; v < plan->n_views; ++v) {
+        if (!d->t_s[v])
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "t_s arrays are needed for dt > 0");
+        for (size_t k = 0; k < nn; ++k) {
+            d->t_s[v][k] = NAN;
+            if (!isfinite(d->dx_um[v][k]))
+                continue;
+            double tv = (double)sc_grid_serpentine_index(n, (int)k) * sp->dt_s;
+            d->t_s[v][k] = t0 + tv;
+            d->dx_um[v][k] += sp->drift_vx_um_s * tv;
+            d->dy_um[v][k] += sp->drift_vy_um_s * tv;
+        }
+        t0 += (double)nn * sp->dt_s; /* the next view starts after this one's raster */
+    }
+    return SC_OK;
+}
+
 sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
                           sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err)
 {
@@ -267,27 +293,5 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
             d->dy_um[v][k] += sr * sc_rng_normal(&rng);
         }
     }
-    /* Times and drift: each view measured mark by mark in serpentine plate order (row 0 left to
-     * right, row 1 right to left, ...), one raster position every dt seconds, the views one after
-     * another; translation drift (vx, vy)·t with t from the view's start. */
-    if (sp->dt_s > 0) {
-        double t0 = 0;
-        for (int v = 0; v < plan->n_views; ++v) {
-            if (!d->t_s[v])
-                return sc_error_set(err, SC_E_INPUT, NULL, 0, "t_s arrays are needed for dt > 0");
-            long seq = (long)nn;
-            for (size_t k = 0; k < nn; ++k) {
-                d->t_s[v][k] = NAN;
-                if (!isfinite(d->dx_um[v][k]))
-                    continue;
-                double tv = (double)sc_grid_serpentine_index(n, (int)k) * sp->dt_s;
-                d->t_s[v][k] = t0 + tv;
-                d->dx_um[v][k] += sp->drift_vx_um_s * tv;
-                d->dy_um[v][k] += sp->drift_vy_um_s * tv;
-                (void)seq;
-            }
-            t0 += (double)seq * sp->dt_s;
-        }
-    }
-    return SC_OK;
+    return sp->dt_s > 0 ? add_times_and_drift(plan, sp, d, err) : SC_OK;
 }
