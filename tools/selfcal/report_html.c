@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "cli.h"
+#include "selfcal/grid_lsq.h"
 #include "selfcal/sha256.h"
 #include "selfcal/version.h"
 #include "svg.h"
@@ -123,63 +124,13 @@ void html_u_row(FILE *fp, const char *name, const char *id, double v, double u, 
     fputs("</td></tr>\n", fp);
 }
 
-/* Regularized lower incomplete gamma P(a, x) (series / continued fraction, Numerical Recipes). */
-static double gamma_p(double a, double x)
-{
-    if (x <= 0)
-        return 0;
-    double gln = lgamma(a);
-    if (x < a + 1) {
-        double ap = a, sum = 1.0 / a, del = sum;
-        for (int k = 0; k < 100000; ++k) {
-            ap += 1;
-            del *= x / ap;
-            sum += del;
-            if (fabs(del) < fabs(sum) * 1e-15)
-                break;
-        }
-        return sum * exp(-x + a * log(x) - gln);
-    }
-    double b = x + 1 - a, c = 1e300, d = 1 / b, h = d;
-    for (int i = 1; i < 100000; ++i) {
-        double an = -i * (i - a);
-        b += 2;
-        d = an * d + b;
-        if (fabs(d) < 1e-300)
-            d = 1e-300;
-        c = b + an / c;
-        if (fabs(c) < 1e-300)
-            c = 1e-300;
-        d = 1 / d;
-        double del = d * c;
-        h *= del;
-        if (fabs(del - 1) < 1e-15)
-            break;
-    }
-    return 1 - exp(-x + a * log(x) - gln) * h;
-}
-
-/* The p-quantile of χ²(dof), by bisection on the CDF. */
-static double chi2_quantile(double p, double dof)
-{
-    double lo = 0, hi = dof + 20 * sqrt(2 * dof) + 50;
-    for (int it = 0; it < 200; ++it) {
-        double mid = 0.5 * (lo + hi);
-        if (gamma_p(dof / 2, mid / 2) < p)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    return 0.5 * (lo + hi);
-}
-
 int html_chi2_interval(double vf, long dof, double *lo, double *hi)
 {
     *lo = *hi = NAN;
     if (dof <= 0 || !isfinite(vf))
         return -1;
-    *lo = chi2_quantile(0.025, (double)dof) / dof;
-    *hi = chi2_quantile(0.975, (double)dof) / dof;
+    *lo = sc_chi2_quantile(0.025, (double)dof) / dof; /* the test of the grid summary */
+    *hi = sc_chi2_quantile(0.975, (double)dof) / dof;
     return vf >= *lo && vf <= *hi;
 }
 
