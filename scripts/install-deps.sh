@@ -15,6 +15,7 @@ DEB_PACKAGES=(
   # LinuxCNC (uspace): halcompile builds the HAL component selfcal_xy, halrun tests it
   # (util-linux: unshare and setpriv, which that test uses)
   linuxcnc-uspace linuxcnc-uspace-dev util-linux
+  groff-base
 )
 
 SUDO=""

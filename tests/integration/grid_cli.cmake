@@ -5,7 +5,7 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   set(_grid_cli_tmp ${CMAKE_CURRENT_BINARY_DIR}/tmp)
   function(grid_cli_test name)
     add_test(NAME ${name} COMMAND ${SELFCAL_PYTHON3} ${_grid_cli_py} $<TARGET_FILE:selfcal_cli> ${_grid_cli_tmp} ${ARGN})
-    set_tests_properties(${name} PROPERTIES TIMEOUT 120 LABELS "integration;grid")
+    set_tests_properties(${name} PROPERTIES TIMEOUT 300 LABELS "integration;grid")  # grid_cli_fuzz: 29 s under load
   endfunction()
   grid_cli_test(grid_cli_bad_input bad_input)
   grid_cli_test(grid_cli_simulate simulate)

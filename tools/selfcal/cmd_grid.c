@@ -18,7 +18,7 @@ static const char *USAGE =
     "usage: selfcal grid --method {ye,double-shift,lsq} IN.csv --map G.csv\n"
     "                    [--artifact A.csv] [--summary S.json] [--sigma-r-um X] [--plot map.svg]\n"
     "                    [--residuals R.csv] [--reject-outliers] [--covariance C.npy]\n"
-    "                    [--drift linear]\n"
+    "                    [--drift linear] [--quiet]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -39,7 +39,8 @@ static const char *USAGE =
     "                --covariance C.npy  the covariance of G (um^2, numpy .npy, 2*NX*NY square,\n"
     "                node by node, gx then gy; stages up to 1681 nodes).\n"
     "                --drift linear  per-view drift rates from the t_s column as unknowns.\n"
-    "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n";
+    "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
+    "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
 
 typedef struct need_view {
     int rot, sx, sy;
@@ -249,12 +250,45 @@ static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_inf
     return st;
 }
 
+/* The short summary on stdout (as `selfcal profile` prints one): key: value lines. */
+static void print_grid_summary(const char *method, const sc_grid_plan *p, const sc_grid_result *r)
+{
+    int nx = sc_grid_stage_nx(p);
+    long ns = sc_grid_stage_nodes(p), worst = 0;
+    double worst_um = -1;
+    for (long k = 0; k < ns; ++k) {
+        double g = hypot(r->gx_um[k], r->gy_um[k]);
+        if (g > worst_um) {
+            worst_um = g;
+            worst = k;
+        }
+    }
+    int i = (int)(worst / nx), j = (int)(worst % nx);
+    double x_mm, y_mm;
+    sc_grid_node_xy_mm(p, i, j, &x_mm, &y_mm);
+    printf("method: %s\nN: %d\n", method, p->n);
+    if (!sc_grid_stage_is_plate(p))
+        printf("stage: %d x %d nodes\n", nx, sc_grid_stage_ny(p));
+    printf("views: %d\n", p->n_views);
+    printf("sigma_r_est_um: %.6g (from the least-squares residuals, dof %ld)\n", r->sigma_r_est_um,
+           r->dof);
+    if (isfinite(r->sigma_r_used_um))
+        printf("sigma_r_used_um: %.6g (for the uncertainties)\n", r->sigma_r_used_um);
+    printf("residual_rms_um: %.6g\nO: %.6g\nR: %.6g\n", r->residual_rms_um, r->O, r->R);
+    printf("worst_node: %d,%d at (%g, %g) mm: |G| = %.6g um (gx %.6g, gy %.6g)", i, j,
+           x_mm + p->origin_mm[0], y_mm + p->origin_mm[1], worst_um, r->gx_um[worst], r->gy_um[worst]);
+    if (isfinite(r->ugx_um[worst]))
+        printf(", u = %.3g, %.3g um", r->ugx_um[worst], r->ugy_um[worst]);
+    putchar('\n');
+}
+
 int cmd_grid(int argc, char **argv)
 {
     const char *method = NULL, *in = NULL, *map = NULL, *art = NULL, *sum = NULL, *plot = NULL;
     double sigma_r = 0;
     lsq_extra lx;
     memset(&lx, 0, sizeof lx);
+    int quiet = 0;
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
         if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
@@ -263,6 +297,10 @@ int cmd_grid(int argc, char **argv)
         }
         if (!strcmp(o, "--reject-outliers")) {
             lx.reject = 1;
+            continue;
+        }
+        if (!strcmp(o, "--quiet")) {
+            quiet = 1;
             continue;
         }
         if (o[0] != '-' || !strcmp(o, "-")) {
@@ -434,6 +472,8 @@ int cmd_grid(int argc, char **argv)
         else
             sc_afile_abort_all(f, opened);
     }
+    if (st == SC_OK && !quiet)
+        print_grid_summary(method, p, &res);
 
 done:
     lsq_extra_free(&lx);

@@ -14,13 +14,16 @@
 static void lut_usage(FILE *to)
 {
     fprintf(to,
-            "usage: selfcal lut build --map G.csv [--profile AXIS:DIR:P.csv ...] -o TABLE\n"
+            "usage: selfcal lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] -o TABLE\n"
             "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
             "                         [--created UNIX_SECONDS]\n"
             "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
             "       selfcal lut info TABLE     print size, encoding, quantization and provenance\n"
             "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
-            "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to %d\n"
+            "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to %d.\n"
+            "                            The profile's x_mm is placed at machine position\n"
+            "                            x_mm + OFFSET_MM along AXIS (default offset 0); a profile\n"
+            "                            that does not overlap the map gets a warning on stderr\n"
             "  --sigma UM                estimated sigma of the map (provenance)\n"
             "  --created                 creation time to record (default: SOURCE_DATE_EPOCH or now)\n",
             SC_LUT_MAX_PROFILES);
@@ -28,13 +31,50 @@ static void lut_usage(FILE *to)
 
 typedef struct profile_arg {
     int axis, dir;
-    const char *path;
+    char path[4096];
+    double offset_mm; /* machine position of the profile's x_mm = 0 along axis */
 } profile_arg;
 
-/* "AXIS:DIR:path" (the path may itself contain ':'). */
+/* "AXIS:DIR:path[@OFFSET_MM]" (the path may itself contain ':'; a trailing "@number" is the
+ * offset, so a path that ends in "@number" needs an explicit "@0"). 0, or -1 on a bad form. */
 static int parse_profile_arg(const char *s, profile_arg *pa)
 {
-    return cli_parse_profile_arg(s, &pa->axis, &pa->dir, &pa->path);
+    const char *path;
+    if (cli_parse_profile_arg(s, &pa->axis, &pa->dir, &path) != 0 || strlen(path) >= sizeof pa->path)
+        return -1;
+    snprintf(pa->path, sizeof pa->path, "%s", path);
+    pa->offset_mm = 0;
+    char *at = strrchr(pa->path, '@');
+    double off;
+    if (at && at != pa->path && sc_parse_double(at + 1, &off) == 0) {
+        if (!(off >= -SC_INPUT_MAX_ABS && off <= SC_INPUT_MAX_ABS))
+            return -1;
+        pa->offset_mm = off;
+        *at = '\0';
+    }
+    return 0;
+}
+
+/* Warn (stderr; the build still succeeds) when profile k lies beside the map along its axis. */
+static void warn_if_apart(const sc_lut *lut, const sc_lut_profile *p, const char *path)
+{
+    double lo, hi;
+    if (p->axis == SC_CORR_AXIS_X) {
+        lo = lut->x0_mm;
+        hi = lut->x0_mm + (lut->nx - 1) * lut->px_mm;
+    } else if (p->axis == SC_CORR_AXIS_Y) {
+        lo = lut->y0_mm;
+        hi = lut->y0_mm + (lut->ny - 1) * lut->py_mm;
+    } else {
+        return; /* the map has no extent along z */
+    }
+    double a = p->start_mm, b = p->start_mm + (p->n - 1) * p->step_mm;
+    if (b < lo || a > hi)
+        fprintf(stderr,
+                "selfcal lut build: warning: profile %s covers %s = %g..%g mm, the map %g..%g mm: "
+                "they do not overlap (place it with --profile %s:%s:%s@OFFSET_MM)\n",
+                path, sc_lut_axis_name(p->axis), a, b, lo, hi, sc_lut_axis_name(p->axis),
+                sc_lut_axis_name(p->dir), path);
 }
 
 static int lut_build(int argc, char **argv)
@@ -85,7 +125,7 @@ static int lut_build(int argc, char **argv)
             if (np == SC_LUT_MAX_PROFILES)
                 return cli_usage_error("lut build", "at most %d profiles", SC_LUT_MAX_PROFILES);
             if (parse_profile_arg(v, &pa[np]) != 0)
-                return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE with AXIS, DIR in x, y, z; not '%s'", v);
+                return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
             ++np;
         } else
             return cli_usage_error("lut build", "unknown option '%s' (see --help)", a);
@@ -109,6 +149,7 @@ static int lut_build(int argc, char **argv)
     sc_status st = sc_lut_read_map(map, lut, &err);
     for (int k = 0; st == SC_OK && k < np; ++k) {
         st = sc_lut_read_profile(pa[k].path, pa[k].axis, pa[k].dir, &lut->profile[k], &err);
+        lut->profile[k].start_mm += pa[k].offset_mm;
         lut->n_profiles = k + 1;
     }
     /* Provenance: the hash of each source file, as `sha256sum` prints it. */
@@ -128,6 +169,8 @@ static int lut_build(int argc, char **argv)
         free(lut);
         return cli_report(&err);
     }
+    for (int k = 0; k < np; ++k)
+        warn_if_apart(lut, &lut->profile[k], pa[k].path);
     size_t bytes = sc_lut_encoded_size(lut, enc); /* what was just written */
     printf("table %s: %d x %d nodes, pitch %.6f x %.6f mm, %d profile(s), %zu bytes, "
            "map quantization <= %.4f nm (%s)\n",

@@ -45,37 +45,77 @@ const char *cli_basename(const char *path)
     return b && b[1] ? b + 1 : path;
 }
 
+/* One row per command line that `selfcal --help` lists. run == NULL: a line of the help only
+ * (more forms of a command dispatched by an earlier row, e.g. lut dump). what may be NULL. */
 typedef struct command {
     const char *name, *sub; /* sub: second word, or NULL */
     int (*run)(int argc, char **argv);
-    const char *help;
+    const char *synopsis, *what;
 } command;
 
 static const command commands[] = {
-    {"grid", NULL, cmd_grid, "grid --method {ye,double-shift,lsq} IN.csv --map G.csv [--artifact A.csv] [--summary S]"},
-    {"plan", NULL, cmd_plan, "plan PLAN.csv | --design  does a view plan identify G? its uncertainty; design one"},
-    {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv"},
-    {"profile-plan", NULL, cmd_profile_plan, "profile-plan ...          rank sensor spacings (d1, d2)"},
-    {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv ...] -o TABLE | lut dump TABLE"},
-    {"export", NULL, cmd_export, "export --format ...       resample the map for a machine controller"},
-    {"import", "grid", cmd_import_grid, "import grid --n N --pitch-mm P --view \"rot=R shift=SX,SY\" FILE ... -o IN.csv"},
-    {"import", "profile", cmd_import_profile, "import profile --spacing-mm D1 LOG1 --spacing-mm D2 LOG2 -o IN.csv"},
-    {"simulate", "grid", cmd_simulate_grid, "simulate grid ...         simulated plate measurements + truth"},
-    {"simulate", "profile", cmd_simulate_profile, "simulate profile ...      simulated two-scan data + truth"},
-    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR  a measuring machine's files"},
-    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg     arrow plot of an error map"},
-    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg   profile and uncertainty curves"},
-    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]   line chart of CSV columns"},
-    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]   calibration report (HTML)"},
-    {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]   profile report (HTML)"},
-    {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T   check a compensated stage"},
+    {"grid", NULL, cmd_grid, "grid --method {ye,double-shift,lsq} IN.csv --map G.csv [...]",
+     "separate stage error G from plate error A"},
+    {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one"},
+    {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv",
+     "straightness profile + stage motion error"},
+    {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)"},
+    {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM]] -o TABLE",
+     "build a correction table"},
+    {"lut", NULL, NULL, "lut dump TABLE", "print a table as CSV"},
+    {"lut", NULL, NULL, "lut info TABLE", "size, encoding, quantization, provenance"},
+    {"export", NULL, cmd_export, "export --format F --map G.csv -o OUT", "resample the map for a machine controller"},
+    {"import", "grid", cmd_import_grid, "import grid --n N --pitch-mm P --view \"rot=R shift=SX,SY\" FILE ... -o IN.csv",
+     "a measuring machine's export -> selfcal-grid v1"},
+    {"import", "profile", cmd_import_profile, "import profile --spacing-mm D1 LOG1 --spacing-mm D2 LOG2 -o IN.csv",
+     "two scans' logs -> selfcal-profile v1"},
+    {"simulate", "grid", cmd_simulate_grid, "simulate grid --plan P --out IN.csv --truth-map T.csv",
+     "simulated plate measurements + truth"},
+    {"simulate", "profile", cmd_simulate_profile, "simulate profile --out IN.csv --truth T.csv",
+     "simulated two-scan data + truth"},
+    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR", "a measuring machine's files"},
+    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg", "arrow plot of an error map"},
+    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves"},
+    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns"},
+    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML)"},
+    {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]",
+     "profile report (HTML)"},
+    {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T",
+     "check a compensated stage"},
 };
+#define N_COMMANDS (sizeof commands / sizeof commands[0])
 
-static void usage(FILE *to)
+static int is_help(const char *a)
 {
-    fprintf(to, "usage: selfcal COMMAND [options]   (selfcal COMMAND --help for details)\n\n");
-    for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k)
-        fprintf(to, "  selfcal %s\n", commands[k].help);
+    return !strcmp(a, "--help") || !strcmp(a, "-h") || !strcmp(a, "help");
+}
+
+/* The command lines whose first word is name (all of them if name is NULL). */
+static void usage(FILE *to, const char *name)
+{
+    if (name)
+        fprintf(to, "usage: selfcal %s SUBCOMMAND [options]   (selfcal %s SUBCOMMAND --help for details)\n\n",
+                name, name);
+    else
+        fprintf(to, "usage: selfcal COMMAND [options]   (selfcal COMMAND --help for details)\n"
+                    "       selfcal --help | --version\n\n");
+    for (size_t k = 0; k < N_COMMANDS; ++k) {
+        const command *c = &commands[k];
+        if (name && strcmp(c->name, name) != 0)
+            continue;
+        if (!c->what)
+            fprintf(to, "  selfcal %s\n", c->synopsis);
+        else if (strlen(c->synopsis) <= 40)
+            fprintf(to, "  selfcal %-40s %s\n", c->synopsis, c->what);
+        else
+            fprintf(to, "  selfcal %s\n  %-48s %s\n", c->synopsis, "", c->what);
+    }
+    if (!name)
+        fprintf(to, "\n  selfcal --help, -h    this list\n"
+                    "  selfcal --version     the version (%s)\n\n"
+                    "Exit status: 0 success, 2 bad input (one stderr line: selfcal: FILE:LINE: reason),\n"
+                    "1 other failures; verify: 3 when the machine fails. Manual: man selfcal.\n",
+                sc_version());
 }
 
 /* Whatever a command printed must have reached stdout: a full disk, /dev/full or a closed pipe
@@ -97,20 +137,20 @@ int main(int argc, char **argv)
 {
     sc_afile_cleanup_on_signals(); /* no *.tmpXXXXXX left by Ctrl-C or a service stop */
     if (argc < 2) {
-        usage(stderr);
+        fprintf(stderr, "selfcal: a COMMAND is needed (selfcal --help lists them)\n");
         return CLI_BAD_INPUT;
     }
-    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
-        usage(stdout);
+    if (is_help(argv[1])) {
+        usage(stdout, NULL);
         return finish(CLI_OK);
     }
     if (!strcmp(argv[1], "--version")) {
         printf("selfcal %s\n", sc_version());
         return finish(CLI_OK);
     }
-    for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k) {
+    for (size_t k = 0; k < N_COMMANDS; ++k) {
         const command *c = &commands[k];
-        if (strcmp(argv[1], c->name) != 0)
+        if (!c->run || strcmp(argv[1], c->name) != 0)
             continue;
         if (!c->sub)
             return finish(c->run(argc - 1, argv + 1));
@@ -119,7 +159,14 @@ int main(int argc, char **argv)
     }
     /* a known first word whose second word is missing or unknown: list the choices */
     int known = 0;
-    for (size_t k = 0; k < sizeof commands / sizeof commands[0]; ++k)
+    for (size_t k = 0; k < N_COMMANDS; ++k)
+        known |= commands[k].sub && !strcmp(argv[1], commands[k].name);
+    if (known && argc >= 3 && is_help(argv[2])) {
+        usage(stdout, argv[1]);
+        return finish(CLI_OK);
+    }
+    known = 0;
+    for (size_t k = 0; k < N_COMMANDS; ++k)
         if (commands[k].sub && !strcmp(argv[1], commands[k].name)) {
             if (!known)
                 fprintf(stderr, "selfcal %s: %s%s%sexpected one of:", argv[1],

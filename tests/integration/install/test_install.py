@@ -154,9 +154,12 @@ def case_install():
     # the man pages carry the version; the unit and the man page name real installed paths
     check(("selfcal %s" % version) in open(os.path.join(prefix, "share/man/man1/selfcal.1")).read(),
           "selfcal.1 carries the version")
+    for page in ("man1/selfcal.1", "man8/selfcald.8"):  # well-formed roff: groff has nothing to say
+        p = run(["groff", "-man", "-ww", "-z", os.path.join(prefix, "share/man", page)], ok=False)
+        check(p.returncode == 0 and p.stderr == "", "groff -man -ww %s: %r" % (page, p.stderr))
     man1 = open(os.path.join(prefix, "share/man/man1/selfcal.1")).read()
     usage = run([os.path.join(bindir, "selfcal"), "--help"], env=clean_env()).stdout
-    for cmd in sorted(set(re.findall(r"^  selfcal ((?:[a-z-]+)(?: (?:build|dump|info|grid|profile|map))?)", usage, re.M))):
+    for cmd in sorted(set(re.findall(r"^  selfcal ([a-z][a-z-]*(?: [a-z]+)?)", usage, re.M))):
         check(cmd.replace("-", "\\-") in man1, "selfcal.1 documents 'selfcal %s'" % cmd)
     unit = open(os.path.join(prefix, "lib/systemd/system/selfcald.service")).read()
     check(re.search(r"^ExecStart=/\S*/bin/selfcald --config /\S+/selfcal/selfcald.conf$", unit, re.M) and "@" not in
@@ -181,6 +184,23 @@ def case_install():
     run(["cmake", "--build", build], env=clean_env())
     check_example_output(os.path.join(build, "grid_node"), inp, rows, "example via find_package (shared)")
     check_example_output(os.path.join(build, "grid_node_static"), inp, rows, "example via find_package (static)")
+    # the complete example of README.md ("Using the library"), as printed there
+    readme = open(os.path.join(SRC, "README.md")).read()
+    m = re.search(r"^## Using the library$.*?^```c\n(.*?)^```$", readme, re.M | re.S)
+    if check(m is not None, "README.md has a C example under 'Using the library'"):
+        with open(os.path.join(work, "readme.c"), "w") as f:
+            f.write(m.group(1))
+        pc = clean_env(PKG_CONFIG_PATH=os.path.join(libdir, "pkgconfig"))
+        flags = run(["pkg-config", "--cflags", "--libs", "selfcal"], env=pc).stdout.split()
+        exe = os.path.join(work, "readme")
+        run(["cc", "-std=c11"] + cflags.split() + [os.path.join(work, "readme.c"), "-o", exe] + flags +
+            XFLAGS.split() + ["-Wl,-rpath," + libdir])
+        p = run([exe, inp], env=clean_env(), ok=False)
+        c = (9 - 1) // 2
+        r = rows[(c, c)]
+        want = "centre node: gx = %.4f +- %.4f um, gy = %.4f +- %.4f um" % tuple(
+            float(r[k]) for k in ("gx_um", "ugx_um", "gy_um", "ugy_um"))
+        check(p.returncode == 0 and p.stdout.startswith(want), "README example: %r, want %r" % (p.stdout, want))
     ldd = run(["ldd", os.path.join(build, "grid_node")]).stdout
     check(os.path.join(libdir, "libselfcal.so") in ldd.replace("//", "/") or prefix in ldd,
           "the CMake example uses the installed libselfcal.so: %s" % ldd)
