@@ -4,5 +4,5 @@ if(SELFCAL_PYTHON3)
   add_test(NAME lut_cli
     COMMAND ${SELFCAL_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/integration/lut_cli/test_lut_cli.py
             $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/lut_cli)
-  set_tests_properties(lut_cli PROPERTIES TIMEOUT 120 LABELS "integration;lut")
+  set_tests_properties(lut_cli PROPERTIES TIMEOUT 240 LABELS "integration;lut")
 endif()

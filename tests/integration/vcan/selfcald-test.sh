@@ -73,12 +73,17 @@ done
 # ---------------------------------------------------------------- bus-off, link down, interface gone
 read -r probe answer < "$P/probe.txt"
 probe_answered() { # $1: what happened before
-  listen 101:7FF 3000 $T/ans
-  l=$!
-  sleep 0.1
-  cansend "$IFACE" "$probe" || fail "cansend probe ($1)"
-  wait "$l"
-  got=$(sed -n 's/.* //p' $T/ans)
+  # candump may not listen yet when the answer comes back (a loaded host, an emulated CPU): no
+  # answer at all is retried with a longer head start; a wrong answer fails at once.
+  for wait_s in 0.1 0.5 1 2; do
+    listen 101:7FF 3000 $T/ans
+    l=$!
+    sleep $wait_s
+    cansend "$IFACE" "$probe" || fail "cansend probe ($1)"
+    wait "$l"
+    got=$(sed -n 's/.* //p' $T/ans)
+    [ -n "$got" ] && break
+  done
   [ "$got" = "$answer" ] || fail "after $1: answer '$got', expected '$answer'"
 }
 status_byte() { # wait for the next status frame; print its byte 0 in hex
@@ -108,12 +113,15 @@ probe_answered "interface down and up"
 step "interface down/up survived"
 
 fd_probe="100##1${probe#100#}"      # CAN FD, bit-rate switch, length 8
-listen 101:7FF 3000 $T/ans
-l=$!
-sleep 0.1
-cansend "$IFACE" "$fd_probe" || fail "cansend $fd_probe"
-wait "$l"
-got=$(sed -n 's/.* //p' $T/ans)
+for wait_s in 0.1 0.5 1 2; do      # as in probe_answered: retry only when nothing came back
+  listen 101:7FF 3000 $T/ans
+  l=$!
+  sleep $wait_s
+  cansend "$IFACE" "$fd_probe" || fail "cansend $fd_probe"
+  wait "$l"
+  got=$(sed -n 's/.* //p' $T/ans)
+  [ -n "$got" ] && break
+done
 case $got in
   "101##"?"${answer#101#}") ;;
   *) fail "CAN FD probe: answer '$got', expected an FD frame 101##?${answer#101#}" ;;
