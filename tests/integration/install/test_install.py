@@ -110,11 +110,15 @@ def check_example_output(exe, inp, rows, label):
 
 
 def sc_api_names(incdir):
-    names = set()
+    """The functions the installed headers mark SC_API; and those declared without it."""
+    names, unmarked = set(), []
     for h in glob.glob(os.path.join(incdir, "selfcal", "*.h")):
         text = open(h).read()
         names.update(re.findall(r"^SC_API\b[^;(]*?\b(sc_\w+)\s*\(", text, re.M))
-    return names
+        unmarked += ["%s: %s" % (os.path.basename(h), n) for n in re.findall(
+            r"^(?!SC_API\b|static\b|typedef\b|extern\b|return\b)(?:const\s+)?(?:unsigned\s+)?[A-Za-z_]\w*[\s*]+(sc_\w+)\s*\(",
+            text, re.M)]
+    return names, unmarked
 
 
 def case_install():
@@ -147,7 +151,8 @@ def case_install():
           "libselfcal.so -> libselfcal.so.%s" % version)
     exported = set(run(["nm", "-D", "--defined-only", os.path.join(libdir, "libselfcal.so")]).stdout.split())
     exported = {s for s in exported if s.startswith("sc_")}
-    declared = sc_api_names(os.path.join(prefix, "include"))
+    declared, unmarked = sc_api_names(os.path.join(prefix, "include"))
+    check(not unmarked, "public functions declared without SC_API (not exported): %s" % unmarked)
     check(declared and not (declared - exported), "SC_API functions not exported: %s" % sorted(declared - exported))
     check(not (exported - declared), "exported but not SC_API in a header: %s" % sorted(exported - exported.intersection(declared)))
 
