@@ -2,7 +2,7 @@
  * measurement file (selfcal-grid v1), solve by least squares, print one stage node's error with
  * its standard uncertainty.
  *
- *   usage: grid_node MEASUREMENT.csv [I J]     (default node: the grid centre)
+ *   usage: grid_node MEASUREMENT.csv [I J]     (stage node row I, column J; default: the centre)
  *   build: make                (Makefile, pkg-config selfcal)
  *          cmake -S . -B build && cmake --build build   (CMakeLists.txt, find_package(selfcal))
  */
@@ -31,17 +31,18 @@ int main(int argc, char **argv)
     sc_grid_data data;
     if (sc_grid_read(argv[1], &data, NULL, &err) != SC_OK) /* fills data.plan, allocates data */
         return fail(&err);
-    const int n = data.plan.n;
-    const int i = argc == 4 ? atoi(argv[2]) : (n - 1) / 2;
-    const int j = argc == 4 ? atoi(argv[3]) : (n - 1) / 2;
-    if (i < 0 || i >= n || j < 0 || j >= n) {
-        fprintf(stderr, "grid_node: node %d,%d is outside the %d x %d grid\n", i, j, n, n);
+    /* The stage grid: NX x NY nodes (the plate's N x N unless the file says `# stage = NX,NY`). */
+    const int nx = sc_grid_stage_nx(&data.plan), ny = sc_grid_stage_ny(&data.plan);
+    const int i = argc == 4 ? atoi(argv[2]) : (ny - 1) / 2;
+    const int j = argc == 4 ? atoi(argv[3]) : (nx - 1) / 2;
+    if (i < 0 || i >= ny || j < 0 || j >= nx) {
+        fprintf(stderr, "grid_node: node %d,%d is outside the %d x %d stage grid\n", i, j, nx, ny);
         sc_grid_data_free(&data);
         return 2;
     }
 
-    /* The result arrays are the caller's: n*n doubles each, row-major (index i*n + j). */
-    size_t nn = (size_t)n * n;
+    /* The result arrays are the caller's: one double per stage node, row-major (i*NX + j). */
+    size_t nn = (size_t)sc_grid_stage_nodes(&data.plan);
     double *gx = malloc(nn * sizeof *gx), *gy = malloc(nn * sizeof *gy);
     double *ugx = malloc(nn * sizeof *ugx), *ugy = malloc(nn * sizeof *ugy);
     sc_grid_result res = {0};
@@ -61,10 +62,11 @@ int main(int argc, char **argv)
     } else {
         double x_mm, y_mm;
         sc_grid_node_xy_mm(&data.plan, i, j, &x_mm, &y_mm);
-        printf("libselfcal %s, %s: N = %d, %d views, sigma_r = %.6f um\n", sc_version(), argv[1], n,
-               data.plan.n_views, res.sigma_r_used_um);
+        size_t k = (size_t)i * nx + j;
+        printf("libselfcal %s, %s: N = %d, %d views, sigma_r = %.6f um\n", sc_version(), argv[1],
+               data.plan.n, data.plan.n_views, res.sigma_r_used_um);
         printf("node %d,%d at (%.3f, %.3f) mm: gx = %.6f +- %.6f um, gy = %.6f +- %.6f um\n", i, j,
-               x_mm, y_mm, gx[i * n + j], ugx[i * n + j], gy[i * n + j], ugy[i * n + j]);
+               x_mm, y_mm, gx[k], ugx[k], gy[k], ugy[k]);
     }
     sc_grid_lsq_destroy(lsq);
     sc_grid_data_free(&data);
