@@ -17,6 +17,8 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   report_test(report_verify verify 120)
   report_test(report_bad_input bad_input 120)
   report_test(report_plots plots 120)
+  report_test(report_outliers outliers 120)
+  report_test(report_stage stage 120)
   # scripts/figs-grid.sh end to end on a 1-trial Monte Carlo: every CSV and chart is made
   if(SELFCAL_BUILD_BENCH)  # bench/ is added after tests/: the generator expression resolves later
     add_test(NAME report_figs_grid COMMAND ${SELFCAL_PYTHON3} ${_report_py} $<TARGET_FILE:selfcal_cli>

@@ -47,8 +47,6 @@ typedef struct grid_report {
     sc_grid_result lres; /* the least-squares fit (residuals, noise) */
     double *buf;
     double *rx, *ry, *tx, *ty; /* residuals per view, n_views*n*n (NaN: not measured) */
-    int have_t;                /* standardized residuals and outlier flags available */
-    double crit;               /* critical |t| */
     sc_stage_map gm, am;       /* G and A as maps for the figures (views on res) */
 } grid_report;
 
@@ -87,43 +85,6 @@ static void make_maps(grid_report *r)
     a->gy_um = r->res.ay_um;
 }
 
-/* Residuals r = measured − fitted of the least-squares fit, per view and mark. */
-static sc_status compute_residuals(grid_report *r, sc_error *err)
-{
-    const sc_grid_plan *p = &r->d.plan;
-    size_t nn = NSQ(r);
-    int nv = p->n_views;
-#ifdef SC_GRID_BAARDA_CRIT
-    (void)nn;
-    (void)nv;
-    (void)err;
-    r->crit = SC_GRID_BAARDA_CRIT;
-    r->have_t = 1;
-    return SC_OK; /* filled by sc_grid_lsq_residuals in run() */
-#else
-    sc_grid_data fit;
-    memset(&fit, 0, sizeof fit);
-    fit.plan = *p;
-    sc_status st = sc_grid_data_alloc(&fit, err);
-    if (st != SC_OK)
-        return st;
-    sc_grid_synthesize(p, r->lres.gx_um, r->lres.gy_um, r->lres.ax_um, r->lres.ay_um,
-                       r->lres.tx_um, r->lres.ty_um, r->lres.theta_urad, &fit);
-    for (int v = 0; v < nv; ++v)
-        for (size_t k = 0; k < nn; ++k) {
-            double mx = r->d.dx_um[v][k], my = r->d.dy_um[v][k];
-            int meas = isfinite(mx) && isfinite(my);
-            r->rx[v * nn + k] = meas ? mx - fit.dx_um[v][k] : NAN;
-            r->ry[v * nn + k] = meas ? my - fit.dy_um[v][k] : NAN;
-            r->tx[v * nn + k] = r->ty[v * nn + k] = NAN;
-        }
-    sc_grid_data_free(&fit);
-    r->have_t = 0;
-    r->crit = NAN;
-    return SC_OK;
-#endif
-}
-
 /* Read, check, solve (chosen method and least squares), residuals. */
 static sc_status run(grid_report *r, sc_error *err)
 {
@@ -137,12 +98,10 @@ static sc_status run(grid_report *r, sc_error *err)
                             "no data rows (a plan file? use 'selfcal plan' for plans)");
     int m_ye = !strcmp(r->method, "ye"), m_ds = !strcmp(r->method, "double-shift");
     if (m_ye || m_ds) {
-#ifdef SC_GRID_BAARDA_CRIT
         if (!sc_grid_stage_is_plate(p))
             return sc_error_set(err, SC_E_INPUT, r->in, r->info.header_end_line,
                                 "method %s needs the stage grid to be the plate's N x N (use lsq)",
                                 r->method);
-#endif
         st = grid_check_exact_views(r->in, &r->d, &r->info, m_ds, err);
         if (st != SC_OK)
             return st;
@@ -175,10 +134,8 @@ static sc_status run(grid_report *r, sc_error *err)
                             r->qi.free_dof);
     }
     st = sc_grid_lsq_solve(q, &r->d, r->sigma_r_given, &r->lres, err);
-#ifdef SC_GRID_BAARDA_CRIT
-    if (st == SC_OK)
+    if (st == SC_OK) /* residuals, standardized residuals (exact leverage), Baarda's test */
         st = sc_grid_lsq_residuals(q, r->rx, r->ry, r->tx, r->ty, NULL, err);
-#endif
     sc_grid_lsq_destroy(q);
     if (st != SC_OK)
         return st;
@@ -211,7 +168,7 @@ static sc_status run(grid_report *r, sc_error *err)
         if (!isfinite(r->res.gx_um[k]) || !isfinite(r->res.gy_um[k]))
             return sc_error_set(err, SC_E_INTERNAL, r->in, 0, "the %s solution is not finite",
                                 r->method);
-    return compute_residuals(r, err);
+    return SC_OK;
 }
 
 static void free_report(grid_report *r)
@@ -357,15 +314,9 @@ static void section_noise(FILE *fp, const grid_report *r, int *chi2_pass)
     fprintf(fp, "</tr>\n<tr><th class=\"l\">scalar measurements / residual degrees of freedom</th>"
                 "<td><span id=\"n_measurements\">%ld</span> / <span id=\"dof\">%ld</span></td></tr>\n",
             l->n_measurements, l->dof);
-    double vf = NAN;
-#ifdef SC_GRID_BAARDA_CRIT
-    if (l->weighted)
-        vf = l->variance_factor;
-#endif
-    if (!isfinite(vf) && r->sigma_r_given > 0 && isfinite(l->sigma_r_est_um))
-        vf = (l->sigma_r_est_um / r->sigma_r_given) * (l->sigma_r_est_um / r->sigma_r_given);
-    double lo, hi;
-    int pass = html_chi2_interval(vf, l->dof, &lo, &hi);
+    /* the library's test of the stated noise (--sigma-r-um or the file's uncertainties) */
+    double vf = l->weighted ? l->variance_factor : NAN, lo = l->chi2_lo, hi = l->chi2_hi;
+    int pass = l->weighted && isfinite(vf) && l->dof > 0 ? l->chi2_pass : -1;
     *chi2_pass = pass;
     fputs("<tr><th class=\"l\">variance factor σ̂²/σ² (weighted RSS / dof)</th>", fp);
     html_num_cell(fp, "variance_factor", "%.4f", vf);
@@ -426,7 +377,7 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
             cnt++;
             if (hypot(a, b) > mx)
                 mx = hypot(a, b), kmax = k;
-            if (r->have_t && (fabs(r->tx[v * nn + k]) > r->crit || fabs(r->ty[v * nn + k]) > r->crit))
+            if ((fabs(r->tx[v * nn + k]) > SC_GRID_BAARDA_CRIT || fabs(r->ty[v * nn + k]) > SC_GRID_BAARDA_CRIT))
                 fl++;
         }
         n_flag += fl;
@@ -446,10 +397,7 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
                     sc_stage_map_y_mm(&r->gm, ni));
         else
             fputs("<td class=\"l\">—</td>", fp);
-        if (r->have_t)
-            fprintf(fp, "<td>%ld</td></tr>\n", fl);
-        else
-            fputs("<td>—</td></tr>\n", fp);
+        fprintf(fp, "<td>%ld</td></tr>\n", fl);
     }
     fputs("</table>\n", fp);
     /* histogram of all residual components */
@@ -469,7 +417,7 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
                 continue;
             all[m++] = a;
             all[m++] = b;
-            double t = r->have_t ? fmax(fabs(r->tx[v * nn + k]), fabs(r->ty[v * nn + k])) : NAN;
+            double t = fmax(fabs(r->tx[v * nn + k]), fabs(r->ty[v * nn + k]));
             ws[nw++] = (worst){v, (int)(k / n), (int)(k % n), hypot(a, b), a, b, t};
         }
     /* residuals spread less than the noise: E[Σr²] = σ²·dof over n_measurements components */
@@ -482,6 +430,21 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
                                "their expected spread, σ̂_r·√(dof / n) (residuals are smaller than "
                                "the noise by the leverage of each measurement).",
                                err);
+    /* the standardized residuals: N(0, 1) when the model and the stated or estimated noise hold */
+    long mt = 0;
+    for (int v = 0; v < p->n_views; ++v)
+        for (size_t k = 0; k < nn; ++k) {
+            if (isfinite(r->tx[v * nn + k]) && isfinite(r->ty[v * nn + k])) {
+                all[mt++] = r->tx[v * nn + k];
+                all[mt++] = r->ty[v * nn + k];
+            }
+        }
+    fig_hist ft = {all, mt, 1.0, "standardized residuals t_x and t_y", "t = r / (σ·√(1 − h))"};
+    if (st == SC_OK && mt > 0)
+        st = html_figure(fp, draw_hist, &ft,
+                         "Histogram of the standardized residuals with the standard normal density; "
+                         "beyond ±3.29 a measurement is flagged.",
+                         err);
     free(all);
     if (st != SC_OK) {
         free(ws);
@@ -489,17 +452,12 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
     }
     qsort(ws, (size_t)nw, sizeof *ws, cmp_worst);
     fputs("<h3>Outliers</h3>\n", fp);
-    if (r->have_t)
-        fprintf(fp, "<p>Baarda's data snooping: a measurement is flagged when a standardized residual "
-                    "|t| = |r|/(σ·√(1 − h)) exceeds %.3f (two-sided, significance 0.001). "
-                    "<b id=\"n_outliers\">%ld</b> measurement(s) flagged.</p>\n",
-                r->crit, n_flag);
-    else
-        fputs("<p class=\"note\">This build's least squares does not yet give standardized "
-              "residuals (leverages), so no measurement is flagged by a statistical test "
-              "(<span id=\"n_outliers\">not tested</span>). The largest residuals are listed; "
-              "compare them with σ_r.</p>\n",
-              fp);
+    fprintf(fp, "<p>Baarda's data snooping: a measurement is flagged when a standardized residual "
+                "|t| = |r|/(σ·√(1 − h)), h its leverage, exceeds %.3f (two-sided, significance %g "
+                "per coordinate; a mark seen in one view only has h = 1 and is not tested). "
+                "<b id=\"n_outliers\">%ld</b> measurement(s) flagged. <code>selfcal grid --method lsq "
+                "--reject-outliers</code> removes them one by one and solves again.</p>\n",
+                SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA, n_flag);
     fputs("<table id=\"worst-residuals\">\n<tr><th>view</th><th>mark i</th><th>mark j</th>"
           "<th>r<sub>x</sub> (µm)</th><th>r<sub>y</sub> (µm)</th><th>|r|/σ̂_r</th><th>max |t|</th>"
           "<th>flagged</th></tr>\n",
@@ -512,8 +470,8 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
         html_num_cell(fp, NULL, "%.2f", w->r / r->lres.sigma_r_est_um);
         html_num_cell(fp, NULL, "%.2f", w->t);
         fprintf(fp, "<td class=\"%s\">%s</td></tr>\n",
-                r->have_t && w->t > r->crit ? "fail" : "",
-                !r->have_t ? "—" : w->t > r->crit ? "yes" : "no");
+                w->t > SC_GRID_BAARDA_CRIT ? "fail" : "",
+                !isfinite(w->t) ? "not tested" : w->t > SC_GRID_BAARDA_CRIT ? "yes" : "no");
     }
     fputs("</table>\n</section>\n", fp);
     free(ws);
@@ -542,10 +500,8 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
     const sc_grid_result *s = &r->res;
     size_t nn = NSQ(r);
     double uO = NAN, uR = NAN;
-#ifdef SC_GRID_BAARDA_CRIT
     uO = s->uO;
     uR = s->uR;
-#endif
     fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
           "<table>\n<tr><th class=\"l\">quantity</th><th>value</th><th>u (k = 1)</th>"
           "<th>U (k = 2)</th><th class=\"l\">unit</th></tr>\n",
@@ -554,11 +510,9 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
     html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "µm/m");
     for (int v = 0; v < p->n_views; ++v) {
         double ut = NAN, uu = NAN, uth = NAN;
-#ifdef SC_GRID_BAARDA_CRIT
         ut = s->utx_um[v];
         uu = s->uty_um[v];
         uth = s->utheta_urad[v];
-#endif
         char name[96], id[32];
         snprintf(name, sizeof name, "view %d: tx", r->info.view_id[v]);
         snprintf(id, sizeof id, "tx-%d", v);
@@ -572,8 +526,8 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
     }
     fputs("</table>\n", fp);
     if (!isfinite(uO))
-        fputs("<p class=\"note\">Uncertainties of O, R and the misalignments: not given by this "
-              "build's solver (—).</p>\n",
+        fputs("<p class=\"note\">The closed forms give no uncertainties of O, R and the "
+              "misalignments (—); use --method lsq.</p>\n",
               fp);
     /* G statistics */
     double mgx, mgy, mux, muy, ma;

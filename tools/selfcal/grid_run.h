@@ -6,15 +6,9 @@
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 
-/* The stage grid: NX x NY nodes (SPEC §5) where the library knows stages larger than the plate,
- * else the plate's N x N. */
-#ifdef SC_GRID_BAARDA_CRIT
+/* The stage grid: NX x NY nodes (SPEC §5). */
 #define GRID_STAGE_NX(p) sc_grid_stage_nx(p)
 #define GRID_STAGE_NY(p) sc_grid_stage_ny(p)
-#else
-#define GRID_STAGE_NX(p) ((p)->n)
-#define GRID_STAGE_NY(p) ((p)->n)
-#endif
 
 /* Check that the views Ye's method (double_shift = 0) or the double shift (1) needs are declared
  * and completely measured in d (SC_E_INPUT naming the file and line otherwise). */

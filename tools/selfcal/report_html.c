@@ -11,7 +11,7 @@
 #include <time.h>
 
 #include "cli.h"
-#include "selfcal/grid_lsq.h"
+#include "selfcal/grid_lsq.h" /* sc_chi2_quantile */
 #include "selfcal/sha256.h"
 #include "selfcal/version.h"
 #include "svg.h"
@@ -129,7 +129,7 @@ int html_chi2_interval(double vf, long dof, double *lo, double *hi)
     *lo = *hi = NAN;
     if (dof <= 0 || !isfinite(vf))
         return -1;
-    *lo = sc_chi2_quantile(0.025, (double)dof) / dof; /* the test of the grid summary */
+    *lo = sc_chi2_quantile(0.025, (double)dof) / dof;
     *hi = sc_chi2_quantile(0.975, (double)dof) / dof;
     return vf >= *lo && vf <= *hi;
 }

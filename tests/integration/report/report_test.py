@@ -312,12 +312,57 @@ def case_numbers_grid():
                 close(float(row[8]), 2 * float(m["ugx_um"]), "Ugx (k=2) node")
             elif row[6] is not None:
                 fail("report gives u where the map has none")
+        # residuals and outlier flags against `grid --residuals` (the same least-squares fit)
+        if method == "lsq":
+            rc = os.path.join(d, "R.csv")
+            run("grid", "--method", method, inp, "--map", g, "--residuals", rc, *extra)
+            with open(rc) as f:
+                res = list(csv.DictReader(f))
+            flagged = sum(int(x["outlier"]) for x in res)
+            if int(c.ids["n_outliers"][1]) != flagged:
+                fail("report flags %s, grid --residuals %d" % (c.ids["n_outliers"], flagged))
+            views = sorted({int(x["view"]) for x in res})
+            for v in views:
+                rx = [float(x["rx_um"]) for x in res if int(x["view"]) == v]
+                close(num(c, "rms-rx-%d" % v), math.sqrt(sum(a * a for a in rx) / len(rx)),
+                      "RMS rx view %d" % v, rel=1e-9)
         # statistics the report derives, recomputed from the map file
         gx = [float(m["gx_um"]) for m in mp]
         close(num(c, "gx-rms"), math.sqrt(sum(x * x for x in gx) / len(gx)), "RMS Gx", rel=1e-9)
         close(num(c, "gx-max"), max(abs(x) for x in gx), "max |Gx|")
         if sigma:  # given sigma: variance factor = (sigma_est / sigma)^2
             close(num(c, "variance_factor"), (sm["sigma_r_est_um"] / sigma) ** 2, "variance factor", rel=1e-6)
+
+
+def case_stage():
+    """A stage larger than the plate (SPEC §5, 9 x 7 nodes, N = 7): the report's maps and node
+    table cover every stage node, and verify works on it."""
+    d = fresh_dir("stage")
+    p = lambda x: os.path.join(d, x)  # noqa: E731
+    views = "".join("# view %d: rot=%d shift=%d,0\n" % (k, r, s) for k, (r, s) in
+                    enumerate([(0, 0), (90, 0), (0, 1), (0, -1), (0, 2), (0, -2)]))
+    open(p("plan.csv"), "w").write("# selfcal-grid v1\n# N = 7\n# pitch_mm = 1\n# stage = 9,7\n" + views)
+    run("simulate", "grid", "--plan", p("plan.csv"), "--seed", 4, "--out", p("in.csv"), "--truth-map", p("gt.csv"))
+    run("grid", "--method", "lsq", p("in.csv"), "--map", p("G.csv"), "--artifact", p("A.csv"))
+    run("report", "grid", p("in.csv"), "-o", p("R.html"))
+    c = parse(check_self_contained(p("R.html")))
+    if c.ids["stage"][1] != "9 × 7":
+        fail("stage grid shown as %r" % (c.ids["stage"],))
+    rows = c.rows.get("node", [])
+    with open(p("G.csv")) as f:
+        mp = list(csv.DictReader(f))
+    if len(rows) != 63 or len(mp) != 63:
+        fail("node table %d rows, map %d" % (len(rows), len(mp)))
+    for row, m in zip(rows, mp):
+        close(float(row[4]), float(m["gx_um"]), "gx node %s,%s" % (m["i"], m["j"]))
+        close(float(row[6]), float(m["ugx_um"]), "ugx node %s,%s" % (m["i"], m["j"]))
+    run("plot", "map", p("A.csv"), "-o", p("A.svg"))
+    run("lut", "build", "--map", p("G.csv"), "-o", p("t.lut"))
+    open(p("plan1.csv"), "w").write("# selfcal-grid v1\n# N = 7\n# pitch_mm = 1\n# stage = 9,7\n"
+                                    "# view 0: rot=0 shift=1,0\n")
+    run("simulate", "grid", "--plan", p("plan1.csv"), "--seed", 4, "--out", p("V.csv"),
+        "--truth-map", p("gt1.csv"), "--compensate-with", p("t.lut"))
+    run("verify", p("V.csv"), "--table", p("t.lut"), "--artifact", p("A.csv"), "--tolerance-um", 0.1)
 
 
 def case_numbers_profile():
@@ -347,6 +392,35 @@ def case_numbers_profile():
         close(num(c, "Uf-max"), 2e3 * max(uf), "max U(f) nm", rel=1e-12)
         f = [float(p["f_um"]) for p in pr]
         close(num(c, "f-pv"), max(f) - min(f), "f peak to valley", rel=1e-12)
+
+
+def case_outliers():
+    """A gross error in one measurement: the report flags it and names it first."""
+    d = fresh_dir("outliers")
+    inp, _, _ = simulate_grid(d, n=9, plan="ye", seed=3, sigma_r=0.01)  # clean: variance factor 1.05
+    lines = open(inp).read().splitlines()
+    k = next(i for i, l in enumerate(lines) if l.startswith("1,4,5,"))
+    f = lines[k].split(",")
+    f[3] = "%.15f" % (float(f[3]) + 0.2e-3)  # 0.2 um = 20 sigma on x
+    lines[k] = ",".join(f)
+    bad = os.path.join(d, "in_outlier.csv")
+    open(bad, "w").write("\n".join(lines) + "\n")
+    out = os.path.join(d, "R.html")
+    run("report", "grid", bad, "-o", out, "--sigma-r-um", 0.01)
+    c = parse(check_self_contained(out))
+    if int(c.ids["n_outliers"][1]) < 1:
+        fail("a 20-sigma error is not flagged: %r" % (c.ids["n_outliers"],))
+    text = open(out, encoding="utf-8").read()
+    m = re.search(r'<table id="worst-residuals">.*?</tr>\n<tr><td>(\d+)</td><td>(\d+)</td><td>(\d+)</td>', text, re.S)
+    if not m or m.groups() != ("1", "4", "5"):
+        fail("the largest residual is not the corrupted mark (view 1, 4, 5): %s" % (m.groups() if m else None))
+    if c.ids["chi2"][1] != "fail":
+        fail("chi-square test passes with a 20-sigma error in the data: %r" % (c.ids["chi2"],))
+    # without it the same data pass the test and flag nothing at this seed
+    run("report", "grid", inp, "-o", out, "--sigma-r-um", 0.01)
+    c = parse(check_self_contained(out))
+    if c.ids["chi2"][1] != "pass":
+        fail("clean data fail the chi-square test: %r" % (c.ids["chi2"],))
 
 
 def write_neg_map(src, dst):
@@ -596,7 +670,7 @@ def case_figs_grid():
         fail("fig5.csv lacks the prediction: %s" % head)
 
 
-{"figs_grid": case_figs_grid, "render_grid": case_render_grid, "render_profile": case_render_profile,
+{"figs_grid": case_figs_grid, "outliers": case_outliers, "stage": case_stage, "render_grid": case_render_grid, "render_profile": case_render_profile,
  "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
  "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots}[CASE]()
 print("ok")
