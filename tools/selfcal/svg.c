@@ -204,9 +204,13 @@ static void elide_middle(char *s, size_t cap, int max_chars)
         do
             --tail;
         while (tail > 0 && (s[tail] & 0xC0) == 0x80);
-    char buf[512];
-    snprintf(buf, sizeof buf, "%.*s…%s", (int)head, s, s + tail);
-    snprintf(s, cap, "%s", buf);
+    /* head bytes, "…" (3 bytes), the tail: never longer than s itself plus 3, cut to cap */
+    static const char ell[] = "…";
+    size_t tail_len = strlen(s + tail), ell_len = sizeof ell - 1;
+    if (head + ell_len + tail_len + 1 > cap)
+        return;
+    memmove(s + head + ell_len, s + tail, tail_len + 1);
+    memcpy(s + head, ell, ell_len);
 }
 
 void svg_text_fit(FILE *fp, double x, double y, double size, double max_w, const char *anchor,

@@ -453,8 +453,8 @@ static sc_status read_row(read_state *s, sc_grid_data *d, long ln, sc_error *err
         (st = sc_csv_double(&s->csv, 3, "x_mm", &x, err)) != SC_OK ||
         (st = sc_csv_double(&s->csv, 4, "y_mm", &y, err)) != SC_OK)
         return st;
-    int v, ni, nj;
-    size_t k;
+    int v = 0, ni = 0, nj = 0; /* set by row_locate; initialised for GCC -O3 (maybe-uninitialized) */
+    size_t k = 0;
     if ((st = row_locate(s, p, vid, i, j, ln, &v, &k, &ni, &nj, err)) != SC_OK)
         return st;
     double nx, ny;
