@@ -15,7 +15,7 @@ set(CPACK_SOURCE_GENERATOR "")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 # The shared libraries the programs and libselfcal.so need (Debian 12 names).
-set(CPACK_DEBIAN_PACKAGE_DEPENDS "libc6, libfftw3-double3, libmodbus5")
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "libc6, libfftw3-double3, libmodbus5, libcholmod3")
 # linuxcnc-uspace: the HAL component selfcal_xy (in /usr/lib/linuxcnc/modules, when built) runs
 # only inside LinuxCNC, built against the LinuxCNC version of the build machine.
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "libfftw3-dev, pkg-config, linuxcnc-uspace")

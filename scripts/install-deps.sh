@@ -6,7 +6,8 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 
 DEB_PACKAGES=(
   build-essential cmake ninja-build pkg-config
-  libfftw3-dev libmodbus-dev libcmocka-dev liblapacke-dev liblapack-dev libopenblas-dev
+  libfftw3-dev libmodbus-dev libcmocka-dev liblapacke-dev liblapack-dev libopenblas-dev libsuitesparse-dev
+  libfast-float-dev libdragonbox-dev
   gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm
   qemu-system-x86 busybox-static can-utils iproute2 cpio gzip
   mbpoll socat python3 python3-pip python3-venv

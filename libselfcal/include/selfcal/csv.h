@@ -35,6 +35,9 @@ typedef struct sc_csv {
     size_t cap;
     int nfields;                     /* after sc_csv_split */
     char *field[SC_CSV_MAX_FIELDS];  /* point into text (split modifies it) */
+    char *buf;                       /* read-ahead block of the file (the reader's own) */
+    size_t buf_len, buf_pos;
+    int eof;
 } sc_csv;
 
 /* Open an input file for reading (binary). A missing or unreadable file, or a directory, is bad

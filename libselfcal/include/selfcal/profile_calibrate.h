@@ -26,6 +26,9 @@ typedef struct sc_profile_options {
     uint64_t mc_seed;        /* seed of the Monte Carlo noise */
     sc_progress_fn progress; /* Monte Carlo progress (may be NULL) */
     void *progress_ctx;
+    int residual_check;      /* 1 (default): with the noise given, also the residual ratio, which
+                                for the DFT method costs an extra least-squares solve; 0: skip
+                                that solve (wrss and residual_ratio NaN for DFT with given noise) */
 } sc_profile_options;
 
 /* What came out. The arrays are the caller's, each of the data's N values (NULL: not wanted). */
@@ -40,9 +43,11 @@ typedef struct sc_profile_solution {
     double sigma_disp_um;    /* the noise used when known (0 for a sensor not given), else NaN */
     double sigma_angle_urad;
     double sigma_y_um[2];    /* standard deviation of y1, y2 used for the uncertainties (NaN if none) */
-    double wrss;             /* weighted residual sum of squares of the least-squares fit */
+    double wrss;             /* weighted residual sum of squares of the least-squares fit (NaN
+                                for DFT with the noise given and residual_check 0) */
     int dof;                 /* its degrees of freedom, N - d1 - d2 */
-    double residual_ratio;   /* sqrt(wrss/dof) when the noise is given (1 expected), else NaN */
+    double residual_ratio;   /* sqrt(wrss/dof) when the noise is given and wrss known (1
+                                expected), else NaN */
 } sc_profile_solution;
 
 /* Least squares, analytic uncertainties, noise from the header or the residuals. */

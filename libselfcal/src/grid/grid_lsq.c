@@ -25,6 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "grid_lsq_internal.h"
 #include "selfcal/grid_sim.h"
 #include "sparse_sym.h"
 
@@ -540,13 +541,19 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
     /* the free rows of G and rp/ri/rv are no longer needed */
     free(rp), free(ri), free(rv), free(last);
     rp = NULL, ri = NULL, rv = NULL, last = NULL;
-    if (sc_spsym_analyze(nx, q->Ap, q->Ai, &q->f) != 0 ||
-        sc_spsym_factor(q->f, q->Ax, LSQ_PIVOT_TOL) != 0)
+    int arc = sc_spsym_analyze(nx, q->Ap, q->Ai, &q->f);
+    if (arc == -2) {
+        st = sc_error_set(err, SC_E_IO, NULL, 0,
+                          "the sparse solver library libcholmod.so.3 (SuiteSparse CHOLMOD) cannot "
+                          "be loaded");
+        goto out;
+    }
+    if (arc != 0 || sc_spsym_factor(q->f, q->Ax, LSQ_PIVOT_TOL) != 0)
         goto out;
     q->nullity_pin = sc_spsym_nullity(q->f);
     st = SC_OK;
 out:
-    if (st != SC_OK)
+    if (st == SC_E_NOMEM)
         sc_error_set(err, st, NULL, 0, "out of memory building the least-squares system");
     free(tr), free(gm), free(mm), free(mmT), free(rp), free(ri), free(rv), free(last);
     return st;
@@ -730,6 +737,15 @@ fail:
 void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info)
 {
     *info = q->info;
+}
+
+void sc_grid_lsq_matrix(const sc_grid_lsq *q, int *n, const long **Ap, const int **Ai,
+                        const double **Ax)
+{
+    *n = q->nx;
+    *Ap = q->Ap;
+    *Ai = q->Ai;
+    *Ax = q->Ax;
 }
 
 void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st)

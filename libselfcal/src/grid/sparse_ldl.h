@@ -1,29 +1,17 @@
-/* sparse_ldl.h — private to the grid area: a sparse LDLᵀ factorization of a symmetric positive
- * (semi)definite matrix, with a nested-dissection ordering, rank decisions by a relative pivot
- * tolerance, solves, and the Takahashi selected inverse on the factor's pattern.
+/* sparse_ldl.h — private to the grid area: a scalar sparse LDLᵀ factorization of a symmetric
+ * positive semidefinite matrix with rank decisions by a relative pivot tolerance, solves, and the
+ * Takahashi selected inverse on the factor's pattern. Only sparse_sym.c uses it, as the
+ * rank-revealing path for matrices CHOLMOD's Cholesky cannot factor (numerically singular).
  *
  * Everything here works in the PERMUTED index space: the caller builds the upper triangle of
- * P·A·Pᵀ in compressed columns (column k holds rows i <= k) with the ordering it got from
- * sc_nd_order. The up-looking algorithm is T. A. Davis' LDL (ACM TOMS 2005): row k of L is a
+ * P·A·Pᵀ in compressed columns (column k holds rows i <= k) with a fill-reducing order (CHOLMOD's).
+ * The up-looking algorithm is T. A. Davis' LDL (ACM TOMS 2005): row k of L is a
  * sparse triangular solve whose pattern is the reach of the elimination tree.
  */
 #ifndef SELFCAL_SPARSE_LDL_H
 #define SELFCAL_SPARSE_LDL_H
 
 #include <stddef.h>
-
-/* A fill-reducing order of the graph (CSR adjacency ptr/idx, symmetric, no self loops, n nodes) by
- * nested dissection with breadth-first level-set separators: perm[k] = old index of pivot k.
- * Parts of at most `leaf` nodes are not split further; amd_leaves: order them by minimum degree.
- * Returns 0, or -1 if memory ran out. */
-int sc_nd_order(int n, const long *ptr, const int *idx, int *perm, int leaf, int amd_leaves);
-
-/* The same by approximate minimum degree (quotient graph, approximate external degree, aggressive
- * absorption). Returns 0, or -1 if memory ran out. */
-int sc_amd_order(int n, const long *ptr, const int *idx, int *perm);
-
-/* Multiply-adds of factoring the graph's matrix in the order perm (-1 if memory ran out). */
-double sc_order_flops(int n, const long *ptr, const int *idx, const int *perm);
 
 typedef struct sc_ldl {
     int n;

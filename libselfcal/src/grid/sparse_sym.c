@@ -1,25 +1,122 @@
-/* The symmetric sparse solver of the grid area (sparse_sym.h), on the scalar LDLᵀ of
- * sparse_ldl.c: dense columns (the misalignments) are ordered last, the rest by the best of the
- * hand-written orderings, chosen once at analysis. */
+/* The symmetric sparse solver of the grid area (sparse_sym.h).
+ *
+ * Ordering and factorization are SuiteSparse CHOLMOD's (Debian libsuitesparse-dev): one analysis
+ * per pattern (CHOLMOD's own choice between AMD and METIS, made once), supernodal LLᵀ with BLAS-3
+ * kernels. CHOLMOD has no selected inverse, so that part is ours: the blocked Takahashi
+ * recurrences on CHOLMOD's supernodes (dense kernels: the BLAS/LAPACK CHOLMOD uses, OpenBLAS):
+ * for a supernode J with diagonal block L_JJ and rows R below it, L̂ = L_RJ L_JJ⁻¹ and
+ *     Z_RJ = -Z_RR L̂,   Z_JJ = (L_JJ L_JJᵀ)⁻¹ + L̂ᵀ Z_RR L̂,
+ * from the last supernode to the first; R is a clique of the filled graph, so Z_RR lies on the
+ * factor's pattern in the supernodes already done (gathered through a relative row map).
+ *
+ * Rank decisions: a Cholesky pivot d_k = L_kk² with d_k <= tol·A_kk (or a failed factorization)
+ * means the matrix is numerically singular at that tolerance. CHOLMOD then gives no usable
+ * factor, so that case (plans that do not identify G, plans with idle misalignments) is factored
+ * again, in CHOLMOD's order, by the rank-revealing scalar LDLᵀ of sparse_ldl.c, which zeroes
+ * null pivots and counts them exactly as before. Identifiable plans never take that path.
+ */
 #include "sparse_sym.h"
 
+#include <dlfcn.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <suitesparse/cholmod.h>
 
 #include "sparse_ldl.h"
 
+/* CHOLMOD and the BLAS/LAPACK it uses are loaded at the first analysis (dlopen), not linked:
+ * loading OpenBLAS starts its thread pool, and processes that never solve a grid (selfcald, the
+ * LinuxCNC component, every other command) must not carry threads that take their signals. The
+ * table is filled once per process (pthread_once) and never changes after: a cache of the
+ * dynamic linker's answers, not state. The dense kernels are the Fortran BLAS/LAPACK entry points
+ * CHOLMOD itself calls (gfortran ABI: hidden character lengths passed explicitly). */
+typedef struct cholmod_api {
+    int (*start)(cholmod_common *);
+    int (*finish)(cholmod_common *);
+    cholmod_factor *(*analyze)(cholmod_sparse *, cholmod_common *);
+    int (*factorize)(cholmod_sparse *, cholmod_factor *, cholmod_common *);
+    cholmod_dense *(*solve)(int, cholmod_factor *, cholmod_dense *, cholmod_common *);
+    int (*free_factor)(cholmod_factor **, cholmod_common *);
+    int (*free_dense)(cholmod_dense **, cholmod_common *);
+    void (*dtrsm)(const char *, const char *, const char *, const char *, const int *, const int *,
+                  const double *, const double *, const int *, double *, const int *, size_t,
+                  size_t, size_t, size_t);
+    void (*dsymm)(const char *, const char *, const int *, const int *, const double *,
+                  const double *, const int *, const double *, const int *, const double *,
+                  double *, const int *, size_t, size_t);
+    void (*dgemm)(const char *, const char *, const int *, const int *, const int *,
+                  const double *, const double *, const int *, const double *, const int *,
+                  const double *, double *, const int *, size_t, size_t);
+    void (*dpotri)(const char *, const int *, double *, const int *, int *, size_t);
+    int ok;
+} cholmod_api;
+
+static cholmod_api g_api;
+static pthread_once_t g_api_once = PTHREAD_ONCE_INIT;
+
+static void load_api(void)
+{
+    void *h = dlopen("libcholmod.so.3", RTLD_NOW | RTLD_LOCAL);
+    if (!h)
+        return;
+    void *sym[11];
+    static const char *names[11] = {"cholmod_start",       "cholmod_finish",
+                                    "cholmod_analyze",     "cholmod_factorize",
+                                    "cholmod_solve",       "cholmod_free_factor",
+                                    "cholmod_free_dense",  "dtrsm_",
+                                    "dsymm_",              "dgemm_",
+                                    "dpotri_"};
+    for (int k = 0; k < 11; ++k)
+        if (!(sym[k] = dlsym(h, names[k])))
+            return;
+    /* object pointer to function pointer: POSIX guarantees dlsym's results convert */
+    memcpy(&g_api.start, &sym[0], sizeof sym[0]);
+    memcpy(&g_api.finish, &sym[1], sizeof sym[1]);
+    memcpy(&g_api.analyze, &sym[2], sizeof sym[2]);
+    memcpy(&g_api.factorize, &sym[3], sizeof sym[3]);
+    memcpy(&g_api.solve, &sym[4], sizeof sym[4]);
+    memcpy(&g_api.free_factor, &sym[5], sizeof sym[5]);
+    memcpy(&g_api.free_dense, &sym[6], sizeof sym[6]);
+    memcpy(&g_api.dtrsm, &sym[7], sizeof sym[7]);
+    memcpy(&g_api.dsymm, &sym[8], sizeof sym[8]);
+    memcpy(&g_api.dgemm, &sym[9], sizeof sym[9]);
+    memcpy(&g_api.dpotri, &sym[10], sizeof sym[10]);
+    g_api.ok = 1;
+}
+
+static const cholmod_api *api(void)
+{
+    pthread_once(&g_api_once, load_api);
+    return g_api.ok ? &g_api : NULL;
+}
+
 struct sc_spsym {
     int n;
-    int *perm, *iperm;  /* perm[k] = original index of pivot k */
-    long *Pp;           /* permuted upper CSC */
+    const long *Ap;       /* borrowed pattern (upper CSC, original index space) */
+    const int *Ai;
+    const double *Ax;     /* borrowed values of the last factorization */
+    const cholmod_api *api;
+    cholmod_common *cm;
+    cholmod_sparse A;     /* CHOLMOD's view of the matrix (p copied to int, i/x borrowed) */
+    int *Ap_int;
+    cholmod_factor *L;    /* symbolic after analyze, supernodal LLᵀ after a good factor */
+    int *iperm;           /* iperm[original] = pivot position */
+    int ordering;         /* CHOLMOD's ordering code */
+    int use_ldl;          /* the last factorization is the rank-revealing LDLᵀ */
+    /* supernodal selected inverse */
+    int *col2super;
+    double *Zx;           /* same layout as L->x */
+    /* rank-revealing fallback: the permuted matrix and its scalar LDLᵀ */
+    long *Pp;
     int *Pi;
     double *Px;
-    long *map;          /* original entry p -> permuted entry */
-    int ordering;
-    int factored;
     sc_ldl f;
-    double *work;
+    /* stats of the last factorization */
+    long nnz_factor;
+    double flops, selinv_work, min_kept, max_null;
+    int n_null;
     size_t bytes;
 };
 
@@ -27,92 +124,28 @@ void sc_spsym_destroy(sc_spsym *s)
 {
     if (!s)
         return;
-    free(s->perm), free(s->iperm), free(s->Pp), free(s->Pi), free(s->Px), free(s->map);
-    free(s->work);
+    if (s->cm) {
+        if (s->L)
+            s->api->free_factor(&s->L, s->cm);
+        s->api->finish(s->cm);
+        free(s->cm);
+    }
+    free(s->Ap_int), free(s->iperm), free(s->col2super), free(s->Zx);
+    free(s->Pp), free(s->Pi), free(s->Px);
     sc_ldl_free(&s->f);
     free(s);
 }
 
 const char *sc_spsym_ordering_name(int ordering)
 {
-    static const char *names[] = {"nested dissection", "minimum degree", "ND + MD"};
-    return ordering >= 0 && ordering < 3 ? names[ordering] : "?";
-}
-
-/* The order: columns of degree above a dense threshold last (in their index order), the others
- * by the cheapest of three hand-written orderings. */
-static int order(sc_spsym *s, const long *Ap, const int *Ai)
-{
-    int n = s->n, rc = -1;
-    long *deg = calloc((size_t)n + 1, sizeof(long));
-    int *sub = malloc(sizeof(int) * ((size_t)n + 1)), *loc = malloc(sizeof(int) * ((size_t)n + 1));
-    long *gp = NULL;
-    int *gi = NULL, *alt = NULL, *best = NULL;
-    if (!deg || !sub || !loc)
-        goto out;
-    for (int j = 0; j < n; ++j)
-        for (long p = Ap[j]; p < Ap[j + 1]; ++p)
-            if (Ai[p] != j)
-                deg[j]++, deg[Ai[p]]++;
-    double dense = 10 * sqrt((double)n);
-    if (dense < 16)
-        dense = 16;
-    int m = 0, k = 0;
-    for (int j = 0; j < n; ++j)
-        loc[j] = deg[j] > dense ? -1 : m++;
-    for (int j = 0; j < n; ++j)
-        if (loc[j] >= 0)
-            sub[loc[j]] = j;
-    gp = calloc((size_t)m + 1, sizeof(long));
-    if (!gp)
-        goto out;
-    for (int j = 0; j < n; ++j)
-        for (long p = Ap[j]; p < Ap[j + 1]; ++p) {
-            int i = Ai[p];
-            if (i != j && loc[i] >= 0 && loc[j] >= 0)
-                gp[loc[i] + 1]++, gp[loc[j] + 1]++;
-        }
-    for (int t = 0; t < m; ++t)
-        gp[t + 1] += gp[t];
-    gi = malloc(sizeof(int) * ((size_t)gp[m] + 1));
-    alt = malloc(sizeof(int) * ((size_t)m + 1));
-    best = malloc(sizeof(int) * ((size_t)m + 1));
-    if (!gi || !alt || !best)
-        goto out;
-    memcpy(deg, gp, sizeof(long) * (size_t)m);
-    for (int j = 0; j < n; ++j)
-        for (long p = Ap[j]; p < Ap[j + 1]; ++p) {
-            int i = Ai[p];
-            if (i != j && loc[i] >= 0 && loc[j] >= 0) {
-                gi[deg[loc[i]]++] = loc[j];
-                gi[deg[loc[j]]++] = loc[i];
-            }
-        }
-    double fbest = -1;
-    for (int o = 0; o < 3; ++o) {
-        int r = o == 0   ? sc_nd_order(m, gp, gi, alt, 48, 0)
-                : o == 1 ? sc_amd_order(m, gp, gi, alt)
-                         : sc_nd_order(m, gp, gi, alt, 2000, 1);
-        if (r != 0)
-            goto out;
-        double f = sc_order_flops(m, gp, gi, alt);
-        if (f >= 0 && (fbest < 0 || f < fbest)) {
-            fbest = f;
-            s->ordering = o;
-            memcpy(best, alt, sizeof(int) * (size_t)m);
-        }
+    switch (ordering) {
+    case CHOLMOD_NATURAL: return "natural";
+    case CHOLMOD_AMD: return "AMD (CHOLMOD)";
+    case CHOLMOD_METIS: return "METIS (CHOLMOD)";
+    case CHOLMOD_NESDIS: return "NESDIS (CHOLMOD)";
+    case CHOLMOD_COLAMD: return "COLAMD (CHOLMOD)";
+    default: return "?";
     }
-    for (int t = 0; t < m; ++t)
-        s->perm[k++] = sub[best[t]];
-    for (int j = 0; j < n; ++j)
-        if (loc[j] < 0)
-            s->perm[k++] = j;
-    for (int t = 0; t < n; ++t)
-        s->iperm[s->perm[t]] = t;
-    rc = 0;
-out:
-    free(deg), free(sub), free(loc), free(gp), free(gi), free(alt), free(best);
-    return rc;
 }
 
 int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out)
@@ -122,73 +155,194 @@ int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out)
     if (!s)
         return -1;
     s->n = n;
-    long nnz = Ap[n];
-    s->perm = malloc(sizeof(int) * ((size_t)n + 1));
+    s->Ap = Ap;
+    s->Ai = Ai;
+    s->api = api();
+    if (!s->api) {
+        free(s);
+        return -2;
+    }
+    s->cm = malloc(sizeof *s->cm);
+    s->Ap_int = malloc(sizeof(int) * ((size_t)n + 1));
     s->iperm = malloc(sizeof(int) * ((size_t)n + 1));
-    s->Pp = calloc((size_t)n + 1, sizeof(long));
-    s->Pi = malloc(sizeof(int) * ((size_t)nnz + 1));
-    s->Px = malloc(sizeof(double) * ((size_t)nnz + 1));
-    s->map = malloc(sizeof(long) * ((size_t)nnz + 1));
-    s->work = malloc(sizeof(double) * ((size_t)n + 1));
-    if (!s->perm || !s->iperm || !s->Pp || !s->Pi || !s->Px || !s->map || !s->work ||
-        order(s, Ap, Ai) != 0) {
+    if (!s->cm || !s->Ap_int || !s->iperm || Ap[n] > 2147483647L) {
+        free(s->cm);
+        s->cm = NULL;
         sc_spsym_destroy(s);
         return -1;
     }
+    s->api->start(s->cm);
+    s->cm->print = 0;
+    s->cm->error_handler = NULL;
+    s->cm->supernodal = CHOLMOD_SUPERNODAL;
+    s->cm->quick_return_if_not_posdef = 1;
+    for (int k = 0; k <= n; ++k)
+        s->Ap_int[k] = (int)Ap[k];
+    cholmod_sparse *A = &s->A;
+    A->nrow = A->ncol = (size_t)n;
+    A->nzmax = (size_t)Ap[n];
+    A->p = s->Ap_int;
+    A->i = (void *)Ai;
+    A->x = NULL;
+    A->stype = 1;
+    A->itype = CHOLMOD_INT;
+    A->xtype = CHOLMOD_PATTERN;
+    A->dtype = CHOLMOD_DOUBLE;
+    A->sorted = 0;
+    A->packed = 1;
+    s->L = s->api->analyze(A, s->cm);
+    if (!s->L || s->cm->status < CHOLMOD_OK) {
+        sc_spsym_destroy(s);
+        return -1;
+    }
+    s->ordering = s->cm->method[s->cm->selected].ordering;
+    const int *perm = s->L->Perm;
+    for (int k = 0; k < n; ++k)
+        s->iperm[perm[k]] = k;
+    s->bytes = sizeof *s + sizeof *s->cm + (size_t)(n + 1) * 2 * sizeof(int);
+    *out = s;
+    return 0;
+}
+
+/* The fallback: P A Pᵀ (upper CSC) and its rank-revealing scalar LDLᵀ. */
+static int factor_ldl(sc_spsym *s, double tol)
+{
+    int n = s->n;
+    long nnz = s->Ap[n];
+    if (!s->Pp) {
+        s->Pp = calloc((size_t)n + 1, sizeof(long));
+        s->Pi = malloc(sizeof(int) * ((size_t)nnz + 1));
+        s->Px = malloc(sizeof(double) * ((size_t)nnz + 1));
+        if (!s->Pp || !s->Pi || !s->Px)
+            return -1;
+    }
+    memset(s->Pp, 0, sizeof(long) * ((size_t)n + 1));
     for (int j = 0; j < n; ++j)
-        for (long p = Ap[j]; p < Ap[j + 1]; ++p) {
-            int pi = s->iperm[Ai[p]], pj = s->iperm[j];
+        for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
+            int pi = s->iperm[s->Ai[p]], pj = s->iperm[j];
             s->Pp[(pi > pj ? pi : pj) + 1]++;
         }
     for (int k = 0; k < n; ++k)
         s->Pp[k + 1] += s->Pp[k];
     long *fill = malloc(sizeof(long) * ((size_t)n + 1));
-    if (!fill) {
-        sc_spsym_destroy(s);
+    if (!fill)
         return -1;
-    }
     memcpy(fill, s->Pp, sizeof(long) * (size_t)n);
     for (int j = 0; j < n; ++j)
-        for (long p = Ap[j]; p < Ap[j + 1]; ++p) {
-            int pi = s->iperm[Ai[p]], pj = s->iperm[j];
+        for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
+            int pi = s->iperm[s->Ai[p]], pj = s->iperm[j];
             long at = fill[pi > pj ? pi : pj]++;
             s->Pi[at] = pi > pj ? pj : pi;
-            s->map[p] = at;
+            s->Px[at] = s->Ax[p];
         }
     free(fill);
-    s->bytes = sizeof *s + (size_t)nnz * (sizeof(int) + sizeof(double) + sizeof(long)) +
-               (size_t)(n + 1) * (2 * sizeof(int) + sizeof(long) + sizeof(double));
-    *out = s;
+    if (sc_ldl_factor(&s->f, n, s->Pp, s->Pi, s->Px, tol) != 0)
+        return -1;
+    s->use_ldl = 1;
+    s->nnz_factor = s->f.Lp[n];
+    s->flops = s->f.flops;
+    s->n_null = s->f.n_null;
+    s->min_kept = s->f.min_kept_ratio;
+    s->max_null = s->f.max_null_ratio;
     return 0;
 }
 
 int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol)
 {
-    long nnz = s->Pp[s->n];
-    for (long p = 0; p < nnz; ++p)
-        s->Px[s->map[p]] = Ax[p];
+    int n = s->n;
+    s->Ax = Ax;
+    free(s->Zx);
+    s->Zx = NULL;
     sc_ldl_free(&s->f);
-    s->factored = 0;
-    if (sc_ldl_factor(&s->f, s->n, s->Pp, s->Pi, s->Px, tol) != 0)
+    s->use_ldl = 0;
+    s->selinv_work = 0;
+    s->n_null = 0;
+    s->A.x = (void *)Ax;
+    s->A.xtype = CHOLMOD_REAL;
+    int ok = s->api->factorize(&s->A, s->L, s->cm);
+    s->A.xtype = CHOLMOD_PATTERN;
+    s->A.x = NULL;
+    if (!ok && s->cm->status == CHOLMOD_OUT_OF_MEMORY)
         return -1;
-    s->factored = 1;
-    return 0;
+    int good = s->cm->status == CHOLMOD_OK && s->L->is_super && s->L->minor == (size_t)n;
+    /* pivot ratios d_k / A_kk against the tolerance */
+    double *diag = calloc((size_t)n + 1, sizeof(double));
+    if (!diag)
+        return -1;
+    for (int j = 0; j < n; ++j)
+        for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p)
+            if (s->Ai[p] == j)
+                diag[j] += Ax[p];
+    s->min_kept = INFINITY;
+    s->max_null = 0;
+    s->nnz_factor = 0;
+    s->flops = 0;
+    if (good) {
+        const int *Super = s->L->super, *Lpi = s->L->pi, *Lpx = s->L->px, *perm = s->L->Perm;
+        const double *Lx = s->L->x;
+        for (size_t J = 0; J < s->L->nsuper && good; ++J) {
+            int k1 = Super[J], nc = Super[J + 1] - k1, nr = Lpi[J + 1] - Lpi[J];
+            for (int t = 0; t < nc; ++t) {
+                double l = Lx[Lpx[J] + (long)t * nr + t], akk = diag[perm[k1 + t]];
+                double ratio = akk > 0 ? l * l / akk : 0.0;
+                if (!(ratio > tol)) {
+                    good = 0;
+                    break;
+                }
+                if (ratio < s->min_kept)
+                    s->min_kept = ratio;
+                double below = nr - t - 1;
+                s->nnz_factor += (long)below;
+                s->flops += below * below;
+            }
+        }
+    }
+    free(diag);
+    if (good) {
+        s->bytes = sizeof *s + sizeof *s->cm + (size_t)(n + 1) * 2 * sizeof(int) +
+                   s->L->xsize * sizeof(double) + s->L->ssize * sizeof(int) +
+                   (s->L->nsuper + 1) * 3 * sizeof(int);
+        return 0;
+    }
+    /* numerically singular at this tolerance: the rank-revealing LDLᵀ decides */
+    int rc = factor_ldl(s, tol);
+    s->bytes = sizeof *s + sizeof *s->cm + (size_t)(n + 1) * 2 * sizeof(int) + s->f.bytes +
+               (size_t)s->Ap[n] * (sizeof(int) + sizeof(double));
+    return rc;
 }
 
 int sc_spsym_nullity(const sc_spsym *s)
 {
-    return s->f.n_null;
+    return s->n_null;
 }
 
 int sc_spsym_solve(const sc_spsym *s, double *x)
 {
     int n = s->n;
-    double *b = s->work;
-    for (int i = 0; i < n; ++i)
-        b[s->iperm[i]] = x[i];
-    sc_ldl_solve(&s->f, b);
-    for (int i = 0; i < n; ++i)
-        x[i] = b[s->iperm[i]];
+    if (s->use_ldl) {
+        double *b = malloc(sizeof(double) * ((size_t)n + 1));
+        if (!b)
+            return -1;
+        for (int i = 0; i < n; ++i)
+            b[s->iperm[i]] = x[i];
+        sc_ldl_solve(&s->f, b);
+        for (int i = 0; i < n; ++i)
+            x[i] = b[s->iperm[i]];
+        free(b);
+        return 0;
+    }
+    cholmod_dense B = {0};
+    B.nrow = B.d = (size_t)n;
+    B.ncol = 1;
+    B.nzmax = (size_t)n;
+    B.x = x;
+    B.xtype = CHOLMOD_REAL;
+    B.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense *X = s->api->solve(CHOLMOD_A, s->L, &B, s->cm);
+    if (!X)
+        return -1;
+    memcpy(x, X->x, sizeof(double) * (size_t)n);
+    s->api->free_dense(&X, s->cm);
     return 0;
 }
 
@@ -197,50 +351,168 @@ void sc_spsym_matvec(const sc_spsym *s, const double *x, double *y)
     int n = s->n;
     for (int i = 0; i < n; ++i)
         y[i] = 0;
-    for (int j = 0; j < n; ++j)
-        for (long p = s->Pp[j]; p < s->Pp[j + 1]; ++p) {
-            int i = s->Pi[p];
-            double a = s->Px[p];
-            int oi = s->perm[i], oj = s->perm[j];
-            y[oi] += a * x[oj];
+    for (int j = 0; j < n; ++j) {
+        double xj = x[j], yj = 0;
+        for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
+            int i = s->Ai[p];
+            double a = s->Ax[p];
+            y[i] += a * xj;
             if (i != j)
-                y[oj] += a * x[oi];
+                yj += a * x[i];
         }
+        y[j] += yj;
+    }
+}
+
+/* Blocked Takahashi on the supernodal factor (see the first comment). */
+static int super_selinv(sc_spsym *s)
+{
+    const cholmod_factor *L = s->L;
+    const cholmod_api *A = s->api;
+    const double one = 1.0, zero = 0.0;
+    int n = s->n, nsuper = (int)L->nsuper;
+    const int *Super = L->super, *Lpi = L->pi, *Lpx = L->px, *Ls = L->s;
+    const double *Lx = L->x;
+    int maxm = 0, maxc = 0;
+    for (int J = 0; J < nsuper; ++J) {
+        int nc = Super[J + 1] - Super[J], m = Lpi[J + 1] - Lpi[J] - nc;
+        if (m > maxm)
+            maxm = m;
+        if (nc > maxc)
+            maxc = nc;
+    }
+    free(s->col2super);
+    s->Zx = malloc(sizeof(double) * (L->xsize + 1));
+    s->col2super = malloc(sizeof(int) * ((size_t)n + 1));
+    int *map = malloc(sizeof(int) * ((size_t)n + 1));
+    double *Zrr = malloc(sizeof(double) * ((size_t)maxm * maxm + 1));
+    double *W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
+    double *Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
+    if (!s->Zx || !s->col2super || !map || !Zrr || !W || !Y) {
+        free(map), free(Zrr), free(W), free(Y);
+        free(s->Zx);
+        s->Zx = NULL;
+        return -1;
+    }
+    for (int J = 0; J < nsuper; ++J)
+        for (int k = Super[J]; k < Super[J + 1]; ++k)
+            s->col2super[k] = J;
+    double work = 0;
+    int rc = 0;
+    for (int J = nsuper - 1; J >= 0; --J) {
+        int nc = Super[J + 1] - Super[J], nr = Lpi[J + 1] - Lpi[J], m = nr - nc;
+        const int *R = Ls + Lpi[J] + nc;
+        const double *Ljj = Lx + Lpx[J];
+        double *Zj = s->Zx + Lpx[J];
+        /* Z_JJ := (L_JJ L_JJᵀ)⁻¹, in place in the top block (lower triangle) */
+        for (int c = 0; c < nc; ++c)
+            memcpy(Zj + (size_t)c * nr + c, Ljj + (size_t)c * nr + c, sizeof(double) * (nc - c));
+        int info = 0;
+        A->dpotri("L", &nc, Zj, &nr, &info, 1);
+        if (info != 0) {
+            rc = -1;
+            break;
+        }
+        work += (double)nc * nc * nc / 3;
+        if (m == 0)
+            continue;
+        /* gather Z_RR (lower triangle, m x m) from the supernodes of R's columns */
+        for (int b = 0; b < m;) {
+            int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0;
+            for (int t = 0; t < nrS; ++t)
+                map[Ls[p0 + t]] = t;
+            for (; b < m && s->col2super[R[b]] == S; ++b) {
+                const double *zc = s->Zx + Lpx[S] + (size_t)(R[b] - Super[S]) * nrS;
+                double *dst = Zrr + (size_t)b * m;
+                for (int a = b; a < m; ++a)
+                    dst[a] = zc[map[R[a]]];
+            }
+        }
+        /* L̂ = L_RJ L_JJ⁻¹ */
+        for (int c = 0; c < nc; ++c)
+            memcpy(W + (size_t)c * m, Ljj + (size_t)c * nr + nc, sizeof(double) * m);
+        A->dtrsm("R", "L", "N", "N", &m, &nc, &one, Ljj, &nr, W, &m, 1, 1, 1, 1);
+        /* Y = Z_RR L̂; Z_RJ = -Y; Z_JJ += L̂ᵀ Y */
+        A->dsymm("L", "L", &m, &nc, &one, Zrr, &m, W, &m, &zero, Y, &m, 1, 1);
+        for (int c = 0; c < nc; ++c) {
+            double *zc = Zj + (size_t)c * nr + nc;
+            const double *yc = Y + (size_t)c * m;
+            for (int a = 0; a < m; ++a)
+                zc[a] = -yc[a];
+        }
+        A->dgemm("T", "N", &nc, &nc, &m, &one, W, &m, Y, &m, &one, Zj, &nr, 1, 1);
+        work += (double)m * nc * nc + 2.0 * m * m * nc + (double)nc * nc * m;
+    }
+    free(map), free(Zrr), free(W), free(Y);
+    if (rc != 0) {
+        free(s->Zx);
+        s->Zx = NULL;
+        return -1;
+    }
+    s->selinv_work = work;
+    s->bytes += L->xsize * sizeof(double) + (size_t)(n + 1) * sizeof(int);
+    return 0;
 }
 
 int sc_spsym_selinv(sc_spsym *s)
 {
-    return sc_ldl_selinv(&s->f);
+    if (s->use_ldl) {
+        if (sc_ldl_selinv(&s->f) != 0)
+            return -1;
+        s->selinv_work = s->f.selinv_work;
+        return 0;
+    }
+    if (s->Zx)
+        return 0;
+    return super_selinv(s);
 }
 
 double sc_spsym_inv(const sc_spsym *s, int i, int j)
 {
-    if (!s->f.Zd)
-        return NAN;
     int pi = s->iperm[i], pj = s->iperm[j];
-    if (pi == pj)
-        return s->f.Zd[pi];
     int col = pi < pj ? pi : pj, row = pi < pj ? pj : pi;
-    long lo = s->f.Lp[col], hi = s->f.Lp[col + 1];
-    while (lo < hi) { /* rows ascending within a column */
-        long mid = lo + (hi - lo) / 2;
-        if (s->f.Li[mid] < row)
+    if (s->use_ldl) {
+        if (!s->f.Zd)
+            return NAN;
+        if (row == col)
+            return s->f.Zd[col];
+        long lo = s->f.Lp[col], hi = s->f.Lp[col + 1];
+        while (lo < hi) { /* rows ascending within a column */
+            long mid = lo + (hi - lo) / 2;
+            if (s->f.Li[mid] < row)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        return lo < s->f.Lp[col + 1] && s->f.Li[lo] == row ? s->f.Zx[lo] : NAN;
+    }
+    if (!s->Zx)
+        return NAN;
+    const cholmod_factor *L = s->L;
+    const int *Super = L->super, *Lpi = L->pi, *Lpx = L->px, *Ls = L->s;
+    int S = s->col2super[col], nr = Lpi[S + 1] - Lpi[S], c = col - Super[S];
+    int lo = c, hi = nr; /* rows of the supernode ascending; column c starts at its diagonal */
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (Ls[Lpi[S] + mid] < row)
             lo = mid + 1;
         else
             hi = mid;
     }
-    return lo < s->f.Lp[col + 1] && s->f.Li[lo] == row ? s->f.Zx[lo] : NAN;
+    if (lo >= nr || Ls[Lpi[S] + lo] != row)
+        return NAN;
+    return s->Zx[Lpx[S] + (size_t)c * nr + lo];
 }
 
 void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st)
 {
     memset(st, 0, sizeof *st);
-    st->nnz_factor = s->f.Lp ? s->f.Lp[s->n] : 0;
-    st->factor_flops = s->f.flops;
-    st->selinv_work = s->f.selinv_work;
+    st->nnz_factor = s->nnz_factor;
+    st->factor_flops = s->flops;
+    st->selinv_work = s->selinv_work;
     st->ordering = s->ordering;
-    st->n_null = s->f.n_null;
-    st->min_kept_ratio = s->f.min_kept_ratio;
-    st->max_null_ratio = s->f.max_null_ratio;
-    st->bytes = s->bytes + s->f.bytes;
+    st->n_null = s->n_null;
+    st->min_kept_ratio = s->min_kept;
+    st->max_null_ratio = s->max_null;
+    st->bytes = s->bytes;
 }

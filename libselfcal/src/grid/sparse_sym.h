@@ -32,11 +32,13 @@ typedef struct sc_spsym_stats {
     size_t bytes;           /* memory the object holds */
 } sc_spsym_stats;
 
-/* Analyze the n x n pattern (upper CSC Ap[n+1], Ai[Ap[n]]; copied): one fill-reducing order.
- * Returns 0, or -1 if memory ran out (*out = NULL). */
+/* Analyze the n x n pattern (upper CSC Ap[n+1], Ai[Ap[n]]; borrowed: it must stay unchanged
+ * until sc_spsym_destroy): one fill-reducing order, chosen here once.
+ * Returns 0, -1 if memory ran out, -2 if the solver library (CHOLMOD) cannot be loaded. */
 int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out);
 
-/* Numeric factorization of the values Ax (same layout as the analyzed pattern; copied).
+/* Numeric factorization of the values Ax (same layout as the analyzed pattern; borrowed until
+ * the next factorization or destroy; matvec uses them).
  * Pivots with d_k <= tol·A_kk are null. Returns 0, or -1 if memory ran out. */
 int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol);
 

@@ -18,6 +18,7 @@ void sc_profile_options_default(sc_profile_options *o)
     o->mc_seed = 1;
     o->progress = NULL;
     o->progress_ctx = NULL;
+    o->residual_check = 1;
 }
 
 typedef struct solver_ctx {
@@ -75,14 +76,21 @@ static sc_status uncertainty(const sc_profile_data *d, const sc_profile_options 
 }
 
 /* The residual noise always comes from the least-squares fit: the DFT estimate is not the
- * least-squares one, and its residuals overstate the noise. */
+ * least-squares one, and its residuals overstate the noise. The DFT method pays for that extra
+ * least-squares solve only when the noise must be estimated, or when the caller wants the
+ * residual ratio of given noise (residual_check). */
 static sc_status residuals(const sc_profile_data *d, solver_ctx *ctx, const double *y1,
                            const double *y2, const double *f, const double w[2], double *tmp,
-                           sc_profile_solution *s, sc_error *err)
+                           int residual_check, sc_profile_solution *s, sc_error *err)
 {
     const int n = d->n, d1 = d->d[0], d2 = d->d[1];
     const double *fres = f;
     sc_profile_lsq *lres = NULL;
+    if (ctx->method == SC_PROFILE_DFT && s->noise_known && !residual_check) {
+        s->wrss = NAN;
+        s->dof = n - d1 - d2;
+        return SC_OK;
+    }
     if (ctx->method == SC_PROFILE_DFT) {
         sc_status st = sc_profile_lsq_create(n, d1, d2, w[0], w[1], &lres, err);
         if (st == SC_OK)
@@ -124,7 +132,7 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
     if (st == SC_OK)
         st = solve_cb(&ctx, y1, y2, f, err);
     if (st == SC_OK)
-        st = residuals(d, &ctx, y1, y2, f, w, tmp, s, err);
+        st = residuals(d, &ctx, y1, y2, f, w, tmp, o->residual_check, s, err);
     if (st != SC_OK)
         goto done;
     double scale = 1.0; /* multiplies the plan's unit uncertainties */
@@ -136,7 +144,7 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
         s->have_uf = 0; /* no redundancy: the noise is not estimable */
     else if (!s->noise_known)
         scale = sqrt(s->wrss / s->dof);
-    else if (s->dof > 0)
+    else if (s->dof > 0 && !isnan(s->wrss))
         s->residual_ratio = sqrt(s->wrss / s->dof);
     s->sigma_y_um[0] = s->have_uf ? sqrt(var[0]) * scale : NAN;
     s->sigma_y_um[1] = s->have_uf ? sqrt(var[1]) * scale : NAN;

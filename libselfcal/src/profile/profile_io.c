@@ -9,6 +9,7 @@
 
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/number.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
@@ -447,6 +448,32 @@ sc_status sc_profile_check_method(const sc_profile_data *d, sc_profile_method me
                         line, "%s method: %s", method == SC_PROFILE_DFT ? "dft" : "lsq", e.msg);
 }
 
+/* Append v's shortest round-trip text (selfcal/number.h), then sep unless it is 0. */
+static char *put_number(char *p, double v, char sep)
+{
+    p += sc_number_format(v, p);
+    if (sep)
+        *p++ = sep;
+    return p;
+}
+
+/* Append a whole number in decimal, then sep. */
+static char *put_long(char *p, long v, char sep)
+{
+    char tmp[24];
+    int k = 0;
+    unsigned long u = v < 0 ? 0UL - (unsigned long)v : (unsigned long)v;
+    do
+        tmp[k++] = (char)('0' + u % 10);
+    while ((u /= 10) > 0);
+    if (v < 0)
+        *p++ = '-';
+    while (k > 0)
+        *p++ = tmp[--k];
+    *p++ = sep;
+    return p;
+}
+
 sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
 {
     sc_afile f;
@@ -461,9 +488,15 @@ sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error 
         fprintf(f.fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
     fprintf(f.fp, "scan,n,m1_um,m2_um,m3_urad\n");
     for (int k = 0; k < 2; ++k)
-        for (int i = 0; i < d->n - d->d[k]; ++i)
-            fprintf(f.fp, "%d,%d,%.17g,%.17g,%.17g\n", k + 1, i, d->m1_um[k][i], d->m2_um[k][i],
-                    d->m3_urad[k][i]);
+        for (int i = 0; i < d->n - d->d[k]; ++i) {
+            char line[8 + 3 * SC_NUMBER_BUF + 16], *p = line;
+            p = put_long(p, k + 1, ',');
+            p = put_long(p, i, ',');
+            p = put_number(p, d->m1_um[k][i], ',');
+            p = put_number(p, d->m2_um[k][i], ',');
+            p = put_number(p, d->m3_urad[k][i], '\n');
+            fwrite(line, 1, (size_t)(p - line), f.fp);
+        }
     if (ferror(f.fp)) {
         sc_afile_abort(&f);
         return sc_error_set(err, SC_E_IO, path, 0, "write failed");
@@ -481,13 +514,17 @@ sc_status sc_profile_write_result(const char *path, int n, double s_mm, const do
         return st;
     fprintf(f.fp, "n,x_mm,f_um,uf_um,ey_um\n");
     for (int i = 0; i < n; ++i) {
-        fprintf(f.fp, "%d,%.17g,%.17g,", i, i * s_mm, f_um[i]);
+        char line[24 + 4 * SC_NUMBER_BUF], *p = line;
+        p = put_long(p, i, ',');
+        p = put_number(p, i * s_mm, ',');
+        p = put_number(p, f_um[i], ',');
         if (uf_um)
-            fprintf(f.fp, "%.17g", uf_um[i]);
-        fputc(',', f.fp);
+            p = put_number(p, uf_um[i], 0);
+        *p++ = ',';
         if (ey_um && i < n_ey)
-            fprintf(f.fp, "%.17g", ey_um[i]);
-        fputc('\n', f.fp);
+            p = put_number(p, ey_um[i], 0);
+        *p++ = '\n';
+        fwrite(line, 1, (size_t)(p - line), f.fp);
     }
     if (ferror(f.fp)) {
         sc_afile_abort(&f);

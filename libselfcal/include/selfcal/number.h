@@ -1,0 +1,36 @@
+/* selfcal/number.h — decimal numbers in text files: a strict, exact, locale-free parser and a
+ * shortest round-trip formatter. Every reader of numbers (sc_parse_double, sc_csv_double) and the
+ * result writers go through these.
+ *
+ * Parse: [+|-] digits [. digits] [(e|E) [+|-] digits] (at least one mantissa digit; "1." and
+ * ".5" are fine), nothing else: no blanks, no hex, no inf/nan, no locale decimal comma. The value
+ * is the correctly rounded double (as glibc's strtod in the C locale). Magnitudes that overflow,
+ * or that underflow to zero or to a subnormal from nonzero digits, are refused.
+ *
+ * Format: the fewest significant digits that read back to exactly the same double, laid out as
+ * printf's "%.17g" lays them out (fixed for decimal exponents -4..16, else d.ddde±XX). */
+#ifndef SELFCAL_NUMBER_H
+#define SELFCAL_NUMBER_H
+
+#include <stddef.h>
+
+#include "selfcal/api.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Buffer size that holds any formatted double with its terminating NUL. */
+#define SC_NUMBER_BUF 32
+
+/* Parse the len bytes at s as a whole number (format above). 0 and *out set, or -1. */
+SC_API int sc_number_parse(const char *s, size_t len, double *out);
+
+/* Write v's shortest round-trip text and a NUL into buf (SC_NUMBER_BUF bytes); returns the
+ * length. NaN and infinities are written as printf writes them ("nan", "-inf", ...). */
+SC_API int sc_number_format(double v, char *buf);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,187 @@
+/* Unit tests of the number module (selfcal/number.h): the parser agrees bit for bit with glibc's
+ * strtod (C locale) on many random decimal strings, including near-halfway and 17-25 digit
+ * ones; the formatter's text reads back to the same double, has the fewest digits that do, and is
+ * laid out as printf("%.17g") lays out its digits; the grammar is strict. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <float.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/number.h"
+#include "selfcal/rng.h"
+
+static uint64_t next_bits(sc_rng *r)
+{
+    uint64_t a = (uint64_t)(sc_rng_uniform(r) * 4294967296.0);
+    uint64_t b = (uint64_t)(sc_rng_uniform(r) * 4294967296.0);
+    return a << 32 | b;
+}
+
+static double random_double(sc_rng *r)
+{
+    for (;;) {
+        uint64_t u = next_bits(r);
+        double v;
+        memcpy(&v, &u, sizeof v);
+        if (isfinite(v) && (v == 0 || fabs(v) >= DBL_MIN))
+            return v;
+    }
+}
+
+static int parse_str(const char *s, double *v)
+{
+    return sc_number_parse(s, strlen(s), v);
+}
+
+static void same_bits(double a, double b)
+{
+    assert_memory_equal(&a, &b, sizeof a);
+}
+
+static void test_format_round_trip(void **st)
+{
+    (void)st;
+    sc_rng r;
+    sc_rng_seed(&r, 2026);
+    char buf[SC_NUMBER_BUF], ref[64];
+    for (int t = 0; t < 300000; ++t) {
+        double v;
+        if (t % 3 == 0)
+            v = random_double(&r);
+        else if (t % 3 == 1) /* values with few digits, as measurements have */
+            v = round(sc_rng_normal(&r) * 1e6) / pow(10, (int)(sc_rng_uniform(&r) * 12));
+        else /* results of arithmetic, of every magnitude */
+            v = sc_rng_normal(&r) * pow(10, (int)(sc_rng_uniform(&r) * 40) - 20);
+        int len = sc_number_format(v, buf);
+        assert_int_equal(len, (int)strlen(buf));
+        assert_true(len < SC_NUMBER_BUF);
+        /* exact round trip, by glibc's strtod and by our parser */
+        same_bits(strtod(buf, NULL), v);
+        double back;
+        assert_int_equal(parse_str(buf, &back), 0);
+        same_bits(back, v);
+        /* the fewest digits: one digit less does not round-trip */
+        int k = 0;
+        for (const char *p = buf; *p && *p != 'e'; ++p)
+            k += *p >= '0' && *p <= '9';
+        const char *q = buf + (buf[0] == '-');
+        while (*q == '0' || *q == '.') /* leading zeros of 0.000ddd do not count */
+            k -= *q == '0', ++q;
+        if (strchr(buf, 'e') == NULL && strchr(buf, '.') == NULL) /* trailing zeros of integers */
+            for (const char *p = buf + strlen(buf) - 1; p > q && *p == '0'; --p)
+                k--;
+        assert_true(k >= 1 && k <= 17);
+        if (k > 1) {
+            snprintf(ref, sizeof ref, "%.*e", k - 2, v);
+            assert_true(strtod(ref, NULL) != v);
+        }
+        /* printf's layout of the same digits */
+        snprintf(ref, sizeof ref, "%.*g", 17, v);
+        double pv = strtod(ref, NULL);
+        same_bits(pv, v);
+        int exp_ref = strchr(ref, 'e') != NULL, exp_ours = strchr(buf, 'e') != NULL;
+        assert_int_equal(exp_ours, exp_ref);
+    }
+}
+
+static void test_format_special(void **st)
+{
+    (void)st;
+    char buf[SC_NUMBER_BUF];
+    const struct {
+        double v;
+        const char *s;
+    } cases[] = {{0.0, "0"},          {-0.0, "-0"},       {1.0, "1"},
+                 {0.1, "0.1"},        {-2.5, "-2.5"},     {100000, "100000"},
+                 {1e16, "10000000000000000"}, {1e17, "1e+17"}, {1.5e-7, "1.5e-07"},
+                 {0.0001, "0.0001"},  {0.00001, "1e-05"}, {1e300, "1e+300"},
+                 {DBL_MAX, "1.7976931348623157e+308"}, {5e-324, "5e-324"},
+                 {1.0 / 3, "0.3333333333333333"}, {123.456, "123.456"}};
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; ++i) {
+        sc_number_format(cases[i].v, buf);
+        assert_string_equal(buf, cases[i].s);
+    }
+    sc_number_format(NAN, buf);
+    assert_string_equal(buf + (buf[0] == '-'), "nan");
+    sc_number_format(-INFINITY, buf);
+    assert_string_equal(buf, "-inf");
+}
+
+static void test_parse_vs_strtod(void **st)
+{
+    (void)st;
+    sc_rng r;
+    sc_rng_seed(&r, 11);
+    char s[96];
+    for (int t = 0; t < 300000; ++t) {
+        int len = 0;
+        if (sc_rng_uniform(&r) < 0.3)
+            s[len++] = sc_rng_uniform(&r) < 0.5 ? '-' : '+';
+        int nd = 1 + (int)(sc_rng_uniform(&r) * 25), dot = (int)(sc_rng_uniform(&r) * (nd + 1));
+        for (int i = 0; i < nd; ++i) {
+            if (i == dot)
+                s[len++] = '.';
+            s[len++] = (char)('0' + (int)(sc_rng_uniform(&r) * 10));
+        }
+        if (sc_rng_uniform(&r) < 0.5)
+            len += snprintf(s + len, sizeof s - len, "e%d", (int)(sc_rng_uniform(&r) * 600) - 300);
+        s[len] = '\0';
+        if (t % 4 == 0) /* the texts printf writes: halfway and near-halfway cases */
+            snprintf(s, sizeof s, "%.*e", (int)(sc_rng_uniform(&r) * 20), random_double(&r));
+        double ours, ref = strtod(s, NULL);
+        int rc = parse_str(s, &ours);
+        if (isfinite(ref) && (ref == 0 || fabs(ref) >= DBL_MIN)) {
+            if (rc != 0 && ref == 0) /* "0e-400"-like zeros parse; nonzero underflow is refused */
+                fail_msg("refused %s", s);
+            if (rc == 0)
+                same_bits(ours, ref);
+            else
+                fail_msg("refused %s", s);
+        } else {
+            /* overflow, or underflow of nonzero digits: refused */
+            int nonzero = 0;
+            for (const char *p = s; *p && *p != 'e'; ++p)
+                nonzero |= *p >= '1' && *p <= '9';
+            if (nonzero)
+                assert_int_equal(rc, -1);
+        }
+    }
+}
+
+static void test_parse_grammar(void **st)
+{
+    (void)st;
+    double v;
+    const char *good[] = {"0", "-0", "+1", "1.", ".5", "-.5e3", "1E5", "1e+05", "00012.500", "0e-999"};
+    const double val[] = {0, -0.0, 1, 1, 0.5, -500, 1e5, 1e5, 12.5, 0};
+    for (size_t i = 0; i < sizeof good / sizeof *good; ++i) {
+        assert_int_equal(parse_str(good[i], &v), 0);
+        same_bits(v, val[i]);
+    }
+    const char *bad[] = {"",    "-",    "+",   ".",    "e5",  "1e",   "1e+",  "1.5.2", " 1",
+                         "1 ",  "1,5",  "0x10", "inf", "nan", "-inf", "1e999", "1e-999", "1d5",
+                         "--1", "+-1",  "1e5.5", "١"};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i)
+        assert_int_equal(parse_str(bad[i], &v), -1);
+    /* only the given bytes count (no NUL needed) */
+    assert_int_equal(sc_number_parse("12345", 3, &v), 0);
+    assert_true(v == 123);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_format_round_trip),
+        cmocka_unit_test(test_format_special),
+        cmocka_unit_test(test_parse_vs_strtod),
+        cmocka_unit_test(test_parse_grammar),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
