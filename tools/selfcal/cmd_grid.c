@@ -200,6 +200,8 @@ static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_inf
         for (size_t k = 0; k < nn; ++k)
             keep[v * nn + k] = d->dx_um[v][k], keep[tot + v * nn + k] = d->dy_um[v][k];
     sc_status st;
+    long pending = -1; /* the row just removed, confirmed once G stays identified without it */
+    int stop = 0;
     for (;;) {
         sc_grid_lsq_destroy(*qp);
         *qp = NULL;
@@ -208,6 +210,25 @@ static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_inf
             break;
         sc_grid_lsq_info qi;
         sc_grid_lsq_get_info(*qp, &qi);
+        if (pending >= 0) {
+            int v = (int)(pending / (long)nn), k = (int)(pending % (long)nn);
+            if (!qi.identifiable) { /* the outlier is the only link: keep it, stop rejecting */
+                d->dx_um[v][k] = keep[pending], d->dy_um[v][k] = keep[tot + pending];
+                x->outlier[pending] = 0;
+                fprintf(stderr,
+                        "selfcal: warning: %s: outlier view %d mark (%d,%d) kept: without it "
+                        "the views would not identify G\n",
+                        in, info->view_id[v], k / p->n, k % p->n);
+                pending = -1, stop = 1;
+                continue;
+            }
+            fprintf(stderr,
+                    "selfcal: warning: %s: removed outlier view %d mark (%d,%d) (tx %.3g, ty "
+                    "%.3g; critical value %.3f) and solved again\n",
+                    in, info->view_id[v], k / p->n, k % p->n, x->tx[pending], x->ty[pending],
+                    SC_GRID_BAARDA_CRIT);
+            pending = -1;
+        }
         if (!qi.identifiable) {
             st = sc_error_set(err, SC_E_UNSOLVABLE, in, info->header_end_line,
                               "the measured views do not identify G: %ld degree(s) of freedom "
@@ -218,18 +239,14 @@ static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_inf
         st = sc_grid_lsq_solve(*qp, d, sigma_r, res, err);
         if (st == SC_OK)
             st = sc_grid_lsq_residuals(*qp, x->rx, x->ry, x->tx, x->ty, NULL, err);
-        if (st != SC_OK || !x->reject)
+        if (st != SC_OK || !x->reject || stop)
             break;
         long w = worst_outlier(x, tot);
         if (w < 0)
             break;
-        int v = (int)(w / (long)nn), k = (int)(w % (long)nn);
-        fprintf(stderr,
-                "selfcal: warning: %s: removed outlier view %d mark (%d,%d) (tx %.3g, ty %.3g; "
-                "critical value %.3f) and solved again\n",
-                in, info->view_id[v], k / p->n, k % p->n, x->tx[w], x->ty[w], SC_GRID_BAARDA_CRIT);
         x->outlier[w] = 1;
-        d->dx_um[v][k] = d->dy_um[v][k] = NAN;
+        d->dx_um[w / (long)nn][w % (long)nn] = d->dy_um[w / (long)nn][w % (long)nn] = NAN;
+        pending = w;
     }
     if (st == SC_OK)
         finish_outliers(in, d, info, res, x, *qp, keep, sigma_r);
