@@ -18,12 +18,14 @@ static const char *GRID_USAGE =
     "                           --view \"rot=R shift=SX,SY [rows=..] [cols=..]\" FILE\n"
     "                           [--view \"...\" FILE ...] -o OUT.csv\n"
     "                           [--x-col x] [--y-col y] [--units mm|um] [--tolerance-mm P/4]\n"
-    "                           [--min-share 0.5]\n"
+    "                           [--min-share 0.5] [--ux-col NAME --uy-col NAME]\n"
     "\n"
     "Numbers the measured mark centres of each view (one FILE per view, points in any order) and\n"
     "writes a selfcal-grid v1 file with the views in the order given. FILE: a header line naming\n"
     "the columns, then one point per line; delimiter ',', ';' or tab and decimal mark '.' or ','\n"
     "are detected; other columns are ignored; positions in --units in the stage frame.\n"
+    "--ux-col/--uy-col: columns of each point's standard uncertainty (k = 1, in --units), written\n"
+    "as ux_um,uy_um (SPEC §5); a view's sigma_um=S (µm) is passed on to its view line.\n"
     "Each view's placement (translation + rotation) is fitted robustly from its points, then every\n"
     "point goes to the nearest mark the view measures. Points farther than --tolerance-mm from\n"
     "every mark are reported and left out; marks without a point are reported and absent.\n"
@@ -90,8 +92,9 @@ static int parse_selection(const char *s, int n, unsigned char *sel)
 }
 
 /* "rot=R shift=SX,SY [rows=..] [cols=..]" -> v (n: plate size, for rows/cols). */
-static int parse_view(const char *spec, int n, sc_grid_view *v)
+static int parse_view(const char *spec, int n, sc_grid_view *v, char *sigma, size_t sigma_len)
 {
+    sigma[0] = '\0';
     char buf[4096];
     if (strlen(spec) >= sizeof buf)
         return cli_usage_error("import grid", "--view: too long");
@@ -119,6 +122,13 @@ static int parse_view(const char *spec, int n, sc_grid_view *v)
             v->shift_x = (int)a;
             v->shift_y = (int)b;
             have_shift = 1;
+        } else if (!strcmp(tok, "sigma_um")) {
+            double sg;
+            if (sc_parse_double(val, &sg) || !(sg > 0) || sg > SC_INPUT_MAX_ABS ||
+                strlen(val) >= sigma_len)
+                return cli_usage_error("import grid", "--view \"%s\": sigma_um must be a positive number",
+                                       spec);
+            snprintf(sigma, sigma_len, "%s", val);
         } else if (!strcmp(tok, "rows") || !strcmp(tok, "cols")) {
             v->restricted = 1;
             if (parse_selection(val, n, tok[0] == 'r' ? v->row_sel : v->col_sel))
@@ -148,6 +158,7 @@ static int parse_units(const char *cmd, const char *opt, const char *v, const ch
 /* One view of an import: its placement, its file and the result of numbering its points. */
 typedef struct import_view {
     sc_grid_view v;
+    char sigma[64];          /* the view's sigma_um= value as given ("" if none) */
     const char *file;
     sc_table t;
     long *mark_point;        /* per mark: its point, or -1 */
@@ -155,7 +166,7 @@ typedef struct import_view {
     sc_grid_import_fit fit;
 } import_view;
 
-static void fprint_view_line(FILE *fp, int k, const sc_grid_view *v, int n)
+static void fprint_view_line(FILE *fp, int k, const sc_grid_view *v, const char *sigma, int n)
 {
     fprintf(fp, "# view %d: rot=%d shift=%d,%d", k, v->rot_deg, v->shift_x, v->shift_y);
     if (v->restricted) {
@@ -169,6 +180,8 @@ static void fprint_view_line(FILE *fp, int k, const sc_grid_view *v, int n)
                 }
         }
     }
+    if (sigma[0])
+        fprintf(fp, " sigma_um=%s", sigma);
     fputc('\n', fp);
 }
 
@@ -181,7 +194,8 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
             fprintf(stderr,
                     "selfcal import grid: %s:%ld: point (%.6f, %.6f) mm is farther than %g mm from "
                     "every mark of view %d; left out\n",
-                    iv->file, iv->t.line[q], iv->t.value[2 * q], iv->t.value[2 * q + 1],
+                    iv->file, iv->t.line[q], iv->t.value[iv->t.n_cols * q],
+                    iv->t.value[iv->t.n_cols * q + 1],
                     p->tolerance_mm, k);
     long missing = 0;
     for (int i = 0; i < p->n; ++i)
@@ -208,7 +222,8 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
 
 static int import_grid(int argc, char **argv)
 {
-    const char *cmd = "import grid", *out = NULL, *xcol = "x", *ycol = "y";
+    const char *cmd = "import grid", *out = NULL, *xcol = "x", *ycol = "y", *uxcol = NULL,
+               *uycol = NULL;
     double n_d = 0, pitch = 0, unit_mm = 1, tol = 0, share = 0.5, ox = 0, oy = 0;
     long snx = 0, sny = 0;
     import_view views[SC_GRID_MAX_VIEWS];
@@ -237,6 +252,10 @@ static int import_grid(int argc, char **argv)
             xcol = v;
         } else if (!strcmp(o, "--y-col")) {
             ycol = v;
+        } else if (!strcmp(o, "--ux-col")) {
+            uxcol = v;
+        } else if (!strcmp(o, "--uy-col")) {
+            uycol = v;
         } else if (!strcmp(o, "--units")) {
             static const char *const names[] = {"mm", "um", "µm"};
             static const double f[] = {1, 1e-3, 1e-3};
@@ -279,16 +298,24 @@ static int import_grid(int argc, char **argv)
     if (sc_grid_import_check(&p, &err) != SC_OK)
         return cli_usage_error(cmd, "%s", err.msg);
     for (int k = 0; k < n_views; ++k)
-        if (parse_view(view_spec[k], p.n, &views[k].v))
+        if (parse_view(view_spec[k], p.n, &views[k].v, views[k].sigma, sizeof views[k].sigma))
             return CLI_BAD_INPUT;
 
     sc_status st = SC_OK;
     long nn = (long)p.n * p.n;
-    const char *names[2] = {xcol, ycol};
-    const double scale[2] = {unit_mm, unit_mm};
+    if (!uxcol != !uycol)
+        return cli_usage_error(cmd, "--ux-col and --uy-col go together");
+    const int nc = uxcol ? 4 : 2; /* columns per row: x, y [, ux, uy] */
+    const char *names[4] = {xcol, ycol, uxcol, uycol};
+    const double scale[4] = {unit_mm, unit_mm, unit_mm * 1e3, unit_mm * 1e3};
     for (int k = 0; k < n_views && st == SC_OK; ++k) {
         import_view *iv = &views[k];
-        st = sc_table_read(iv->file, 2, names, scale, &iv->t, &err);
+        st = sc_table_read(iv->file, nc, names, scale, &iv->t, &err);
+        for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
+            if (!(iv->t.value[q * 4 + 2] > 0 && iv->t.value[q * 4 + 3] > 0))
+                st = sc_error_set(&err, SC_E_INPUT, iv->file, iv->t.line[q],
+                                  "the uncertainties in '%s' and '%s' must be positive", uxcol,
+                                  uycol);
         if (st != SC_OK)
             break;
         long np = iv->t.n_rows;
@@ -300,8 +327,8 @@ static int import_grid(int argc, char **argv)
             st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory (%ld points)", np);
         } else {
             for (long q = 0; q < np; ++q) {
-                xy[q] = iv->t.value[2 * q];
-                xy[np + q] = iv->t.value[2 * q + 1];
+                xy[q] = iv->t.value[nc * q];
+                xy[np + q] = iv->t.value[nc * q + 1];
             }
             st = sc_grid_import_assign(&p, &iv->v, np, xy, xy + np, iv->t.line, iv->file,
                                        iv->t.header_line, iv->point_mark, iv->mark_point,
@@ -322,14 +349,18 @@ static int import_grid(int argc, char **argv)
             if (snx && (snx != p.n || sny != p.n))
                 fprintf(f.fp, "# stage = %ld,%ld\n", snx, sny);
             for (int k = 0; k < n_views; ++k)
-                fprint_view_line(f.fp, k, &views[k].v, p.n);
-            fprintf(f.fp, "view,i,j,x_mm,y_mm\n");
+                fprint_view_line(f.fp, k, &views[k].v, views[k].sigma, p.n);
+            fprintf(f.fp, nc == 4 ? "view,i,j,x_mm,y_mm,ux_um,uy_um\n" : "view,i,j,x_mm,y_mm\n");
             for (int k = 0; k < n_views; ++k)
                 for (long m = 0; m < nn; ++m) {
                     long q = views[k].mark_point[m];
-                    if (q >= 0)
-                        fprintf(f.fp, "%d,%ld,%ld,%.17g,%.17g\n", k, m / p.n, m % p.n,
-                                views[k].t.value[2 * q], views[k].t.value[2 * q + 1]);
+                    if (q < 0)
+                        continue;
+                    const double *row = &views[k].t.value[nc * q];
+                    fprintf(f.fp, "%d,%ld,%ld,%.17g,%.17g", k, m / p.n, m % p.n, row[0], row[1]);
+                    if (nc == 4)
+                        fprintf(f.fp, ",%.17g,%.17g", row[2], row[3]);
+                    fputc('\n', f.fp);
                 }
             st = sc_afile_commit(&f, &err);
         }

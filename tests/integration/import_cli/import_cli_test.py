@@ -430,8 +430,45 @@ def case_profile():
     bad(short, "b2.csv:113: scan 2 covers 119 points")
 
 
+def case_weights():
+    """--ux-col/--uy-col become ux_um,uy_um (converted to µm); sigma_um= passes to the view line;
+    the least squares reads the result (SPEC §5)."""
+    d = fresh_dir("weights")
+    head, rows = simulate(d, plan="ye", n=9)
+    views = views_of(head)
+    files = []
+    for k, _ in views:
+        path = os.path.join(d, "v%d.csv" % k)
+        with open(path, "w") as f:
+            f.write("X;Y;uX;uY\n")
+            for (v, i, j), (x, y) in sorted(rows.items()):
+                if v == k:
+                    f.write(";".join(fmt(t, ",") for t in (x, y, 0.001 * (1 + i), 0.002)) + "\n")
+        files.append(path)
+    out = os.path.join(d, "out.csv")
+    views = [(0, views[0][1] + " sigma_um=0.05")] + views[1:]
+    run(*import_args(views, files, n=9, units="mm"), "--ux-col", "ux", "--uy-col", "UY", "-o", out)
+    lines = open(out).read().splitlines()
+    if "# view 0: rot=0 shift=0,0 sigma_um=0.05" not in lines:
+        fail("sigma_um not passed on: %s" % lines[:8])
+    if "view,i,j,x_mm,y_mm,ux_um,uy_um" not in lines:
+        fail("no uncertainty columns: %s" % lines[:9])
+    for l in lines:
+        if l[:1].isdigit():
+            v, i, j, x, y, ux, uy = l.split(",")
+            if abs(float(ux) - 1.0 * (1 + int(i))) > 1e-9 or abs(float(uy) - 2.0) > 1e-9:
+                fail("uncertainties not in um: %s" % l)
+    a = import_args(views, files, n=9, units="mm")
+    p = run(*a, "--ux-col", "ux", "-o", out + "2", expect=2)
+    if "--ux-col and --uy-col go together" not in p.stderr:
+        fail(p.stderr)
+    if os.environ.get("IMPORT_GRID_WEIGHTS", "1") == "1":
+        run("grid", "--method", "lsq", out, "--map", os.path.join(d, "G.csv"))
+
+
 CASES = {"recover": case_recover, "formats": case_formats, "placement": case_placement,
          "stage": case_stage, "bad_input": case_bad_input,
-         "simulate_exports": case_simulate_exports, "profile": case_profile}
+         "simulate_exports": case_simulate_exports, "profile": case_profile,
+         "weights": case_weights}
 CASES[CASE]()
 print("ok")
