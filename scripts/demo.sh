@@ -50,7 +50,7 @@ step "simulating a stage (known error map G) and a plate (N = $N, plan $plan), m
 
 step "the measuring machine's exports: one file per view, shuffled, um, ';' and decimal commas"
 missing=()
-if [ "$METHOD" = lsq ]; then missing=(--missing 3,4@1); fi  # a damaged mark, unseen in view 1
+if [ "$METHOD" = lsq ]; then missing=(--missing 3,4); fi  # a damaged mark, in no view
 "$SELFCAL" simulate exports "$OUT/demo_simulated.csv" --dir "$OUT/demo_exports" --units um \
   "${missing[@]}" --stray 2 --seed "$SEED" >/dev/null
 for f in "$OUT"/demo_exports/view*.csv; do

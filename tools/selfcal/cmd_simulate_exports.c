@@ -20,12 +20,14 @@
 static const char *USAGE =
     "usage: selfcal simulate exports IN.csv --dir DIR [--units um|mm] [--style semicolon|comma|tab]\n"
     "                                [--missing I,J[@V] ...] [--stray V ...] [--seed 1]\n"
+    "                                [--displace I,J@V:DX,DY ...]\n"
     "\n"
     "IN.csv: a selfcal-grid v1 file (e.g. from selfcal simulate grid) or a selfcal-profile v1 file.\n"
     "Grid: writes DIR/viewK.csv per view K with columns Nr, X, Y, Z (X, Y the measured mark centre\n"
     "in --units, default um; Z = 0), the points in random order (--seed), without plate mark (I,J)\n"
     "for each --missing I,J (every view; I,J@V: view V only) and with one stray point (half a pitch\n"
-    "off a mark diagonally, i.e. farther than a quarter pitch from every mark) for each --stray V.\n"
+    "off a mark diagonally, i.e. farther than a quarter pitch from every mark) for each --stray V,\n"
+    "and mark (I,J) of view V measured DX,DY um off (a smudge: an outlier) for each --displace.\n"
     "Prints the matching `selfcal import grid` command on stdout.\n"
     "Profile: writes DIR/scan1.csv and DIR/scan2.csv with columns Position (mm), SensorA, SensorB\n"
     "(um) and Angle (urad), and prints the matching `selfcal import profile` command.\n"
@@ -57,11 +59,12 @@ static int make_dir(const char *dir, sc_error *err)
 
 typedef struct missing_mark {
     long i, j, view; /* view -1: every view */
+    double dx_um, dy_um; /* --displace: the offset of this mark in this view */
 } missing_mark;
 
 static int grid_exports(const char *in, const char *dir, double unit_per_mm, const style *sty,
-                        const missing_mark *miss, int n_miss, const int *stray, int n_stray,
-                        uint64_t seed)
+                        const missing_mark *miss, int n_miss, const missing_mark *disp,
+                        int n_disp, const int *stray, int n_stray, uint64_t seed)
 {
     sc_error err;
     sc_error_clear(&err);
@@ -77,6 +80,12 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
             sc_grid_data_free(&d);
             return cli_usage_error("simulate exports", "--missing %ld,%ld: no such mark or view",
                                    miss[k].i, miss[k].j);
+        }
+    for (int k = 0; k < n_disp; ++k)
+        if (disp[k].i >= p->n || disp[k].j >= p->n || disp[k].view >= p->n_views) {
+            sc_grid_data_free(&d);
+            return cli_usage_error("simulate exports", "--displace %ld,%ld@%ld: no such mark or view",
+                                   disp[k].i, disp[k].j, disp[k].view);
         }
     for (int k = 0; k < n_stray; ++k)
         if (stray[k] >= p->n_views) {
@@ -110,6 +119,9 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
                     continue;
                 double x, y;
                 sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+                for (int k = 0; k < n_disp; ++k)
+                    if (disp[k].i == i && disp[k].j == j && disp[k].view == v)
+                        dx += disp[k].dx_um, dy += disp[k].dy_um;
                 pts[2 * np] = p->origin_mm[0] + x + dx * 1e-3;
                 pts[2 * np + 1] = p->origin_mm[1] + y + dy * 1e-3;
                 ++np;
@@ -152,6 +164,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
         printf("selfcal import grid --n %d --pitch-mm %.17g", p->n, p->pitch_mm);
         if (p->origin_mm[0] != 0 || p->origin_mm[1] != 0)
             printf(" --origin-mm %.17g,%.17g", p->origin_mm[0], p->origin_mm[1]);
+        if (p->stage_nx || p->stage_ny)
+            printf(" --stage %d,%d", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
         printf(" --units %s --x-col X --y-col Y", unit_per_mm == 1 ? "mm" : "um");
         for (int v = 0; v < p->n_views; ++v) {
             const sc_grid_view *w = &p->view[v];
@@ -165,6 +179,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
                         first = 0;
                     }
             }
+            if (w->sigma_um > 0)
+                printf(" sigma_um=%.17g", w->sigma_um);
             printf("\" %s/view%d.csv", dir, v);
         }
         printf(" \\\n  -o IN.csv\n");
@@ -227,8 +243,8 @@ int cmd_simulate_exports(int argc, char **argv)
     const char *cmd = "simulate exports", *in = NULL, *dir = NULL;
     double unit_per_mm = 1000;
     style sty = {';', ','};
-    missing_mark miss[64];
-    int stray[64], n_miss = 0, n_stray = 0;
+    missing_mark miss[64], disp[64];
+    int stray[64], n_miss = 0, n_disp = 0, n_stray = 0;
     long seed = 1;
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
@@ -269,10 +285,28 @@ int cmd_simulate_exports(int argc, char **argv)
             if (!comma || n_miss == 64)
                 return cli_usage_error(cmd, "--missing I,J[@V] (at most 64), got '%s'", v);
             *comma = '\0';
-            missing_mark m = {0, 0, view};
+            missing_mark m = {0, 0, view, 0, 0};
             if (sc_parse_long(buf, &m.i) || sc_parse_long(comma + 1, &m.j) || m.i < 0 || m.j < 0)
                 return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
             miss[n_miss++] = m;
+        } else if (!strcmp(o, "--displace")) {
+            char buf[128];
+            missing_mark m = {0, 0, 0, 0, 0};
+            char *at, *colon, *c1, *c2;
+            snprintf(buf, sizeof buf, "%s", v);
+            at = strchr(buf, '@');
+            colon = at ? strchr(at, ':') : NULL;
+            c1 = strchr(buf, ',');
+            c2 = colon ? strchr(colon, ',') : NULL;
+            if (!at || !colon || !c1 || c1 > at || !c2 || n_disp == 64)
+                return cli_usage_error(cmd, "--displace I,J@V:DX,DY (um; at most 64), got '%s'", v);
+            *c1 = *at = *colon = *c2 = '\0';
+            if (sc_parse_long(buf, &m.i) || sc_parse_long(c1 + 1, &m.j) ||
+                sc_parse_long(at + 1, &m.view) || sc_parse_double(colon + 1, &m.dx_um) ||
+                sc_parse_double(c2 + 1, &m.dy_um) || m.i < 0 || m.j < 0 || m.view < 0 ||
+                fabs(m.dx_um) > 1e5 || fabs(m.dy_um) > 1e5)
+                return cli_usage_error(cmd, "--displace I,J@V:DX,DY (um), got '%s'", v);
+            disp[n_disp++] = m;
         } else if (!strcmp(o, "--stray")) {
             long s;
             if (sc_parse_long(v, &s) || s < 0 || n_stray == 64)
@@ -299,5 +333,6 @@ int cmd_simulate_exports(int argc, char **argv)
     fclose(fp);
     if (!strncmp(first, "# selfcal-profile v1", 20))
         return profile_exports(in, dir, &sty);
-    return grid_exports(in, dir, unit_per_mm, &sty, miss, n_miss, stray, n_stray, (uint64_t)seed);
+    return grid_exports(in, dir, unit_per_mm, &sty, miss, n_miss, disp, n_disp, stray, n_stray,
+                        (uint64_t)seed);
 }
