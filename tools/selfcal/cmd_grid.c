@@ -7,11 +7,9 @@
 #include "cli.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
-#include "selfcal/grid_exact.h"
+#include "selfcal/grid_calibrate.h"
 #include "selfcal/grid_io.h"
-#include "selfcal/grid_lsq.h"
 #include "plots.h"
-#include "grid_run.h"
 
 
 static const char *USAGE =
@@ -42,229 +40,11 @@ static const char *USAGE =
     "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
     "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
 
-typedef struct need_view {
-    int rot, sx, sy;
-    int partial; /* 1: only plate row c and columns c, c+1 are needed (double shift view 3) */
-} need_view;
-
-/* Check that the views a closed-form method needs are declared and completely measured. */
-static sc_status check_views(const char *path, const sc_grid_data *d, const sc_grid_file_info *info,
-                             const char *method, const need_view *need, int n_need, sc_error *err)
+/* Warnings of the calibration (outliers, the χ² test) go to stderr, one line each. */
+static void warn_stderr(void *ctx, const char *msg)
 {
-    const sc_grid_plan *p = &d->plan;
-    int n = p->n, c = (n - 1) / 2;
-    for (int k = 0; k < n_need; ++k) {
-        int v = sc_grid_find_view(p, need[k].rot, need[k].sx, need[k].sy);
-        if (v < 0)
-            return sc_error_set(err, SC_E_INPUT, path, info->header_end_line,
-                                "method %s needs a view rot=%d shift=%d,%d, which the header does "
-                                "not declare",
-                                method, need[k].rot, need[k].sx, need[k].sy);
-        if (info->view_rows[v] == 0)
-            return sc_error_set(err, SC_E_INPUT, path, info->view_line[v],
-                                "view %d (rot=%d shift=%d,%d), needed by method %s, has no data rows",
-                                info->view_id[v], need[k].rot, need[k].sx, need[k].sy, method);
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) {
-                int ni, nj;
-                if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
-                    continue;
-                if (need[k].partial && i != c && j != c && j != c + 1)
-                    continue;
-                if (!isfinite(d->dx_um[v][i * n + j]))
-                    return sc_error_set(err, SC_E_INPUT, path, info->view_line[v],
-                                        "view %d (rot=%d shift=%d,%d) lacks mark (%d,%d), which "
-                                        "method %s needs",
-                                        info->view_id[v], need[k].rot, need[k].sx, need[k].sy, i,
-                                        j, method);
-            }
-    }
-    return SC_OK;
-}
-
-sc_status grid_check_exact_views(const char *path, const sc_grid_data *d,
-                                 const sc_grid_file_info *info, int double_shift, sc_error *err)
-{
-    if (!double_shift) {
-        need_view need[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
-        return check_views(path, d, info, "ye", need, 3, err);
-    }
-    if (d->plan.n < 9)
-        return sc_error_set(err, SC_E_INPUT, path, info->n_line,
-                            "method double-shift needs N >= 9 (N = %d)", d->plan.n);
-    need_view need[4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-    return check_views(path, d, info, "double-shift", need, 4, err);
-}
-
-/* The measurement noise behind data solved by a closed form: the closed forms are not
- * least-squares fits, so their residuals do not estimate σ_r without bias; the least-squares
- * residuals of the same data and model do (sqrt(RSS/dof)). NaN if the data leave no
- * redundancy or do not identify the model. */
-static double exact_noise_estimate(const sc_grid_plan *p, const sc_grid_data *d)
-{
-    sc_grid_lsq *q = NULL;
-    sc_grid_result r;
-    memset(&r, 0, sizeof r); /* no arrays: only the scalars are wanted */
-    r.sigma_r_est_um = NAN;
-    sc_grid_lsq_info qi;
-    if (sc_grid_lsq_create(p, d, &q, NULL) == SC_OK) {
-        sc_grid_lsq_get_info(q, &qi);
-        if (!qi.identifiable || sc_grid_lsq_solve(q, d, 0.0, &r, NULL) != SC_OK)
-            r.sigma_r_est_um = NAN;
-    }
-    sc_grid_lsq_destroy(q);
-    return r.sigma_r_est_um;
-}
-
-/* What the least-squares run adds to the outputs. */
-typedef struct lsq_extra {
-    const char *residuals, *covariance;
-    int reject, drift;
-    double *rx, *ry, *tx, *ty; /* n_views*n*n */
-    unsigned char *outlier;
-    double *cov;
-    long n_cov;
-} lsq_extra;
-
-static void lsq_extra_free(lsq_extra *x)
-{
-    free(x->rx), free(x->ry), free(x->tx), free(x->ty), free(x->outlier), free(x->cov);
-}
-
-/* The worst flagged measurement not yet removed: index v*n*n + k, or -1. */
-static long worst_outlier(const lsq_extra *x, size_t tot)
-{
-    long best = -1;
-    double bt = SC_GRID_BAARDA_CRIT;
-    for (size_t k = 0; k < tot; ++k) {
-        double t = fmax(isfinite(x->tx[k]) ? fabs(x->tx[k]) : 0, isfinite(x->ty[k]) ? fabs(x->ty[k]) : 0);
-        if (!x->outlier[k] && t > bt)
-            bt = t, best = (long)k;
-    }
-    return best;
-}
-
-/* After the last solve: residuals of the removed rows against the final solution (and their
- * values back into d), the flags and warnings of the rows still in, the chi-square warning. */
-static void finish_outliers(const char *in, sc_grid_data *d, const sc_grid_file_info *info,
-                            const sc_grid_result *res, lsq_extra *x, const sc_grid_lsq *q,
-                            const double *keep, double sigma_r)
-{
-    const sc_grid_plan *p = &d->plan;
-    size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
-    for (size_t k = 0; k < tot; ++k) {
-        int v = (int)(k / nn), m = (int)(k % nn);
-        if (x->outlier[k]) { /* removed: residual against the final solution */
-            double px, py, t = d->t_s[v] ? d->t_s[v][m] : NAN;
-            sc_grid_lsq_predict(q, res, v, m / p->n, m % p->n, t, &px, &py);
-            x->rx[k] = keep[k] - px, x->ry[k] = keep[tot + k] - py;
-            x->tx[k] = x->ty[k] = NAN;
-            d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
-        } else if (fabs(x->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(x->ty[k]) > SC_GRID_BAARDA_CRIT) {
-            x->outlier[k] = 1;
-            fprintf(stderr,
-                    "selfcal: warning: %s: view %d mark (%d,%d) is an outlier (standardized "
-                    "residuals tx %.3g, ty %.3g beyond %.3f: Baarda, alpha = %g)\n",
-                    in, info->view_id[v], m / p->n, m % p->n, x->tx[k], x->ty[k],
-                    SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA);
-        }
-    }
-    if (!res->chi2_pass)
-        fprintf(stderr,
-                "selfcal: warning: %s: the residuals disagree with the %s noise: variance "
-                "factor %.4g outside the chi^2 95 %% interval [%.4g, %.4g]%s\n",
-                in, sigma_r > 0 ? "given" : "stated", res->variance_factor, res->chi2_lo,
-                res->chi2_hi,
-                sigma_r > 0 ? " (compare sigma_r_est_um in the summary with --sigma-r-um)"
-                            : "");
-}
-
-/* Least squares with residuals, outlier handling and covariance. d is modified (rejected rows
- * become NaN); orig keeps the measured values for their residuals. */
-static sc_status run_lsq(const char *in, sc_grid_data *d, const sc_grid_file_info *info,
-                         double sigma_r, sc_grid_result *res, lsq_extra *x, sc_grid_lsq **qp,
-                         sc_error *err)
-{
-    const sc_grid_plan *p = &d->plan;
-    size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
-    sc_grid_lsq_opts opts = {x->drift};
-    x->rx = malloc(tot * sizeof(double)), x->ry = malloc(tot * sizeof(double));
-    x->tx = malloc(tot * sizeof(double)), x->ty = malloc(tot * sizeof(double));
-    x->outlier = calloc(tot, 1);
-    double *keep = malloc(2 * tot * sizeof(double));
-    if (!x->rx || !x->ry || !x->tx || !x->ty || !x->outlier || !keep) {
-        free(keep);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
-    for (int v = 0; v < p->n_views; ++v)
-        for (size_t k = 0; k < nn; ++k)
-            keep[v * nn + k] = d->dx_um[v][k], keep[tot + v * nn + k] = d->dy_um[v][k];
-    sc_status st;
-    long pending = -1; /* the row just removed, confirmed once G stays identified without it */
-    int stop = 0;
-    for (;;) {
-        sc_grid_lsq_destroy(*qp);
-        *qp = NULL;
-        st = sc_grid_lsq_create_ex(p, d, &opts, qp, err);
-        if (st != SC_OK)
-            break;
-        sc_grid_lsq_info qi;
-        sc_grid_lsq_get_info(*qp, &qi);
-        if (pending >= 0) {
-            int v = (int)(pending / (long)nn), k = (int)(pending % (long)nn);
-            if (!qi.identifiable) { /* the outlier is the only link: keep it, stop rejecting */
-                d->dx_um[v][k] = keep[pending], d->dy_um[v][k] = keep[tot + pending];
-                x->outlier[pending] = 0;
-                fprintf(stderr,
-                        "selfcal: warning: %s: outlier view %d mark (%d,%d) kept: without it "
-                        "the views would not identify G\n",
-                        in, info->view_id[v], k / p->n, k % p->n);
-                pending = -1, stop = 1;
-                continue;
-            }
-            fprintf(stderr,
-                    "selfcal: warning: %s: removed outlier view %d mark (%d,%d) (tx %.3g, ty "
-                    "%.3g; critical value %.3f) and solved again\n",
-                    in, info->view_id[v], k / p->n, k % p->n, x->tx[pending], x->ty[pending],
-                    SC_GRID_BAARDA_CRIT);
-            pending = -1;
-        }
-        if (!qi.identifiable) {
-            st = sc_error_set(err, SC_E_UNSOLVABLE, in, info->header_end_line,
-                              "the measured views do not identify G: %ld degree(s) of freedom "
-                              "beyond the gauge stay free (see 'selfcal plan')",
-                              qi.free_dof);
-            break;
-        }
-        st = sc_grid_lsq_solve(*qp, d, sigma_r, res, err);
-        if (st == SC_OK)
-            st = sc_grid_lsq_residuals(*qp, x->rx, x->ry, x->tx, x->ty, NULL, err);
-        if (st != SC_OK || !x->reject || stop)
-            break;
-        long w = worst_outlier(x, tot);
-        if (w < 0)
-            break;
-        x->outlier[w] = 1;
-        d->dx_um[w / (long)nn][w % (long)nn] = d->dy_um[w / (long)nn][w % (long)nn] = NAN;
-        pending = w;
-    }
-    if (st == SC_OK)
-        finish_outliers(in, d, info, res, x, *qp, keep, sigma_r);
-    if (st == SC_OK && x->covariance) {
-        long m = 2 * sc_grid_stage_nodes(p);
-        x->cov = m <= 2L * SC_GRID_LSQ_COV_MAX_NODES ? malloc((size_t)m * m * sizeof(double)) : NULL;
-        if (m > 2L * SC_GRID_LSQ_COV_MAX_NODES)
-            st = sc_error_set(err, SC_E_INPUT, in, info->header_end_line,
-                              "--covariance: %ld stage nodes exceed the limit of %d",
-                              m / 2, SC_GRID_LSQ_COV_MAX_NODES);
-        else if (!x->cov)
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
-        else
-            st = sc_grid_lsq_covariance(*qp, x->cov, err);
-        x->n_cov = m;
-    }
-    free(keep);
-    return st;
+    (void)ctx;
+    fprintf(stderr, "selfcal: warning: %s\n", msg);
 }
 
 /* The short summary on stdout (as `selfcal profile` prints one): key: value lines. */
@@ -302,9 +82,10 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p, const 
 int cmd_grid(int argc, char **argv)
 {
     const char *method = NULL, *in = NULL, *map = NULL, *art = NULL, *sum = NULL, *plot = NULL;
-    double sigma_r = 0;
-    lsq_extra lx;
-    memset(&lx, 0, sizeof lx);
+    const char *residuals = NULL, *covariance = NULL;
+    sc_grid_options opt;
+    sc_grid_options_default(&opt);
+    opt.warn = warn_stderr;
     int quiet = 0;
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
@@ -313,7 +94,7 @@ int cmd_grid(int argc, char **argv)
             return CLI_OK;
         }
         if (!strcmp(o, "--reject-outliers")) {
-            lx.reject = 1;
+            opt.reject_outliers = 1;
             continue;
         }
         if (!strcmp(o, "--quiet")) {
@@ -334,27 +115,28 @@ int cmd_grid(int argc, char **argv)
         else if (!strcmp(o, "--artifact")) art = v;
         else if (!strcmp(o, "--summary")) sum = v;
         else if (!strcmp(o, "--plot")) plot = v;
-        else if (!strcmp(o, "--residuals")) lx.residuals = v;
-        else if (!strcmp(o, "--covariance")) lx.covariance = v;
+        else if (!strcmp(o, "--residuals")) residuals = v;
+        else if (!strcmp(o, "--covariance")) covariance = v;
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
-            lx.drift = !strcmp(v, "linear");
+            opt.drift = !strcmp(v, "linear");
         }
         else if (!strcmp(o, "--sigma-r-um")) {
-            if (sc_parse_double(v, &sigma_r) || !(sigma_r > 0))
+            if (sc_parse_double(v, &opt.sigma_r_um) || !(opt.sigma_r_um > 0))
                 return cli_usage_error("grid", "--sigma-r-um needs a positive number, got '%s'", v);
         } else
             return cli_usage_error("grid", "unknown option '%s' (see --help)", o);
     }
     if (!method || !in || !map)
         return cli_usage_error("grid", "--method, IN.csv and --map are required (see --help)");
-    int m_ye = !strcmp(method, "ye"), m_ds = !strcmp(method, "double-shift"),
-        m_lsq = !strcmp(method, "lsq");
-    if (!m_ye && !m_ds && !m_lsq)
+    int m = sc_grid_method_from_name(method);
+    if (m < 0)
         return cli_usage_error("grid", "--method must be ye, double-shift or lsq (got '%s')",
                                method);
-    if (!m_lsq && (lx.residuals || lx.covariance || lx.reject || lx.drift))
+    opt.method = (sc_grid_method)m;
+    opt.covariance = covariance != NULL;
+    if (m != SC_GRID_METHOD_LSQ && (residuals || covariance || opt.reject_outliers || opt.drift))
         return cli_usage_error("grid", "--residuals, --reject-outliers, --covariance and --drift "
                                        "need --method lsq");
 
@@ -366,101 +148,15 @@ int cmd_grid(int argc, char **argv)
     if (st != SC_OK)
         return cli_report(&err);
     const sc_grid_plan *p = &d.plan;
-    int n = p->n, c = (n - 1) / 2;
-    size_t nn = (size_t)n * n, ns = (size_t)sc_grid_stage_nodes(p);
-    double *buf = NULL;
-    sc_grid_result res;
-    memset(&res, 0, sizeof res);
-    sc_grid_exact_plan *xp = NULL;
-    sc_grid_lsq *q = NULL;
-
-    if (info.n_rows == 0) {
-        st = sc_error_set(&err, SC_E_INPUT, in, info.header_end_line,
-                          "no data rows (a plan file? use 'selfcal plan' for plans)");
-        goto done;
-    }
-    if (!m_lsq && !sc_grid_stage_is_plate(p)) {
-        st = sc_error_set(&err, SC_E_INPUT, in, info.header_end_line,
-                          "method %s needs the stage grid to be the plate's N x N (this file has "
-                          "a %dx%d stage: use --method lsq)",
-                          method, sc_grid_stage_nx(p), sc_grid_stage_ny(p));
-        goto done;
-    }
-    if (m_lsq && sigma_r > 0 && info.has_u) {
-        st = sc_error_set(&err, SC_E_INPUT, in, info.header_end_line,
-                          "the file states uncertainties (ux_um,uy_um): --sigma-r-um applies to "
-                          "files without them");
-        goto done;
-    }
-    for (int v = 0; m_lsq && sigma_r > 0 && v < p->n_views; ++v)
-        if (p->view[v].sigma_um > 0) {
-            st = sc_error_set(&err, SC_E_INPUT, in, info.view_line[v],
-                              "view %d states sigma_um: --sigma-r-um applies to files without "
-                              "stated uncertainties",
-                              info.view_id[v]);
-            goto done;
-        }
-    if (lx.drift && !info.has_t) {
-        st = sc_error_set(&err, SC_E_INPUT, in, info.header_end_line,
-                          "--drift linear needs the time of each measurement (column t_s)");
-        goto done;
-    }
-    if (m_ye || m_ds)
-        st = grid_check_exact_views(in, &d, &info, m_ds, &err);
-    (void)c;
+    sc_grid_solution sol;
+    st = sc_grid_calibrate(&d, &info, in, &opt, &sol, &err);
+    const sc_grid_result res = sol.res;
     if (st != SC_OK)
         goto done;
-
-    buf = malloc((4 * ns + 2 * nn) * sizeof(double));
-    if (!buf) {
-        st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto done;
-    }
-    for (size_t k = 0; k < 4 * ns + 2 * nn; ++k)
-        buf[k] = NAN;
-    res.gx_um = buf;
-    res.gy_um = buf + ns;
-    res.ugx_um = buf + 2 * ns;
-    res.ugy_um = buf + 3 * ns;
-    res.ax_um = buf + 4 * ns;
-    res.ay_um = buf + 4 * ns + nn;
-    res.O = res.R = res.residual_rms_um = res.sigma_r_est_um = res.sigma_r_used_um = NAN;
-    res.uO = res.uR = res.variance_factor = res.chi2_lo = res.chi2_hi = NAN;
-    res.chi2_pass = 1;
-    res.misalignment_unique = 1;
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        res.tx_um[v] = res.ty_um[v] = res.theta_urad[v] = res.utx_um[v] = res.uty_um[v] =
-            res.utheta_urad[v] = NAN;
-
-    if (m_lsq) {
-        st = run_lsq(in, &d, &info, sigma_r, &res, &lx, &q, &err);
-    } else {
-        st = sc_grid_exact_plan_create(m_ye ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT, n, &xp, &err);
-        if (st == SC_OK)
-            st = sc_grid_exact_execute(xp, &d, &res, &err);
-        if (st == SC_OK) {
-            /* No uncertainties from the closed forms: --sigma-r-um has nothing to scale. */
-            for (size_t k = 0; k < nn; ++k)
-                res.ugx_um[k] = res.ugy_um[k] = NAN;
-            res.sigma_r_used_um = NAN;
-            res.sigma_r_est_um = exact_noise_estimate(p, &d);
-        }
-    }
-    if (st != SC_OK)
-        goto done;
-    sc_grid_first_order(p, res.gx_um, res.gy_um, &res.O, &res.R);
-    for (size_t k = 0; k < ns + nn; ++k) {
-        int bad = k < ns ? !isfinite(res.gx_um[k]) || !isfinite(res.gy_um[k])
-                         : isfinite(res.ax_um[k - ns]) != isfinite(res.ay_um[k - ns]);
-        if (bad) {
-            st = sc_error_set(&err, SC_E_INTERNAL, in, 0, "the %s solution is not finite", method);
-            goto done;
-        }
-    }
 
     /* Everything is computed: write all outputs, commit them together. */
     {
-        const char *paths[6] = {map, art, sum, plot, lx.residuals, lx.covariance};
+        const char *paths[6] = {map, art, sum, plot, residuals, covariance};
         sc_afile f[6];
         memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
         int opened = 0;
@@ -477,10 +173,10 @@ int cmd_grid(int argc, char **argv)
             case 2: sc_grid_fprint_summary(f[2].fp, method, p, &res); break;
             case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, cli_basename(in), 0); break;
             case 4:
-                sc_grid_fprint_residuals(f[4].fp, p, info.view_id, lx.rx, lx.ry, lx.tx, lx.ty,
-                                         lx.outlier);
+                sc_grid_fprint_residuals(f[4].fp, p, info.view_id, sol.rx_um, sol.ry_um, sol.tx,
+                                         sol.ty, sol.outlier);
                 break;
-            case 5: sc_fprint_npy(f[5].fp, lx.cov, lx.n_cov, lx.n_cov); break;
+            case 5: sc_fprint_npy(f[5].fp, sol.cov_um2, sol.n_cov, sol.n_cov); break;
             }
         }
         /* all files or none: sync every one, then rename them together */
@@ -493,10 +189,7 @@ int cmd_grid(int argc, char **argv)
         print_grid_summary(method, p, &res);
 
 done:
-    lsq_extra_free(&lx);
-    sc_grid_lsq_destroy(q);
-    sc_grid_exact_plan_destroy(xp);
-    free(buf);
+    sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {

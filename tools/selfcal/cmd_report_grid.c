@@ -9,12 +9,11 @@
 #include <string.h>
 
 #include "cli.h"
-#include "grid_run.h"
 #include "plots.h"
 #include "report_html.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
-#include "selfcal/grid_exact.h"
+#include "selfcal/grid_calibrate.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 #include "verify.h"
@@ -43,33 +42,16 @@ typedef struct grid_report {
     sc_grid_file_info info;
     sc_grid_lsq_info qi;
     int identifiable;
-    sc_grid_result res;  /* the chosen method's result */
+    sc_grid_solution sol;  /* the chosen method's calibration (closed forms only) */
+    sc_grid_solution lsol; /* the least-squares one (residuals, noise) */
+    sc_grid_result res;  /* the chosen method's result (arrays in sol or lsol) */
     sc_grid_result lres; /* the least-squares fit (residuals, noise) */
-    double *buf;
-    double *rx, *ry, *tx, *ty; /* residuals per view, n_views*n*n (NaN: not measured) */
+    const double *rx, *ry, *tx, *ty; /* residuals per view, n_views*n*n (NaN: not measured) */
     sc_stage_map gm, am;       /* G and A as maps for the figures (views on res) */
 } grid_report;
 
 #define NSQ(r) ((size_t)(r)->d.plan.n * (size_t)(r)->d.plan.n) /* plate marks */
-#define NG(r) ((size_t)GRID_STAGE_NX(&(r)->d.plan) * (size_t)GRID_STAGE_NY(&(r)->d.plan)) /* stage nodes */
-#define PER_RESULT(ng, nn) (4 * (ng) + 2 * (nn))
-
-/* A result's arrays in one block: G, u(G) over ng stage nodes, A over nn marks; NaN-filled. */
-static void init_result(sc_grid_result *res, double *base, size_t ng, size_t nn)
-{
-    memset(res, 0, sizeof *res);
-    res->gx_um = base;
-    res->gy_um = base + ng;
-    res->ugx_um = base + 2 * ng;
-    res->ugy_um = base + 3 * ng;
-    res->ax_um = base + 4 * ng;
-    res->ay_um = base + 4 * ng + nn;
-    for (size_t k = 0; k < PER_RESULT(ng, nn); ++k)
-        base[k] = NAN;
-    res->O = res->R = res->residual_rms_um = res->sigma_r_est_um = res->sigma_r_used_um = NAN;
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        res->tx_um[v] = res->ty_um[v] = res->theta_urad[v] = NAN;
-}
+#define NG(r) ((size_t)sc_grid_stage_nx(&(r)->d.plan) * (size_t)sc_grid_stage_ny(&(r)->d.plan)) /* stage nodes */
 
 /* The map views of G (stage nodes) and A (plate marks, plate frame) the plot functions draw. */
 static void make_maps(grid_report *r)
@@ -85,95 +67,43 @@ static void make_maps(grid_report *r)
     a->gy_um = r->res.ay_um;
 }
 
-/* Read, check, solve (chosen method and least squares), residuals. */
+/* Read, check and calibrate by the chosen method, and by least squares for the residuals and the
+ * noise (the same calibration as `selfcal grid`, sc_grid_calibrate). */
 static sc_status run(grid_report *r, sc_error *err)
 {
     sc_status st = sc_grid_read(r->in, &r->d, &r->info, err);
     if (st != SC_OK)
         return st;
-    const sc_grid_plan *p = &r->d.plan;
-    size_t nn = NSQ(r);
-    if (r->info.n_rows == 0)
-        return sc_error_set(err, SC_E_INPUT, r->in, r->info.header_end_line,
-                            "no data rows (a plan file? use 'selfcal plan' for plans)");
-    int m_ye = !strcmp(r->method, "ye"), m_ds = !strcmp(r->method, "double-shift");
-    if (m_ye || m_ds) {
-        if (!sc_grid_stage_is_plate(p))
-            return sc_error_set(err, SC_E_INPUT, r->in, r->info.header_end_line,
-                                "method %s needs the stage grid to be the plate's N x N (use lsq)",
-                                r->method);
-        st = grid_check_exact_views(r->in, &r->d, &r->info, m_ds, err);
-        if (st != SC_OK)
-            return st;
-    }
-    size_t ng = NG(r), per = PER_RESULT(ng, nn);
-    size_t nres = (size_t)p->n_views * nn;
-    r->buf = malloc((2 * per + 4 * nres) * sizeof(double));
-    if (!r->buf)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    init_result(&r->res, r->buf, ng, nn);
-    init_result(&r->lres, r->buf + per, ng, nn);
-    r->rx = r->buf + 2 * per;
-    r->ry = r->rx + nres;
-    r->tx = r->ry + nres;
-    r->ty = r->tx + nres;
-    for (size_t k = 0; k < 4 * nres; ++k)
-        r->rx[k] = NAN;
-
-    sc_grid_lsq *q = NULL;
-    st = sc_grid_lsq_create(p, &r->d, &q, err);
-    if (st != SC_OK)
-        return st;
-    sc_grid_lsq_get_info(q, &r->qi);
-    r->identifiable = r->qi.identifiable;
-    if (!r->identifiable) {
-        sc_grid_lsq_destroy(q);
-        return sc_error_set(err, SC_E_UNSOLVABLE, r->in, r->info.header_end_line,
-                            "the measured views do not identify G: %ld degree(s) of freedom "
-                            "beyond the gauge stay free (see 'selfcal plan')",
-                            r->qi.free_dof);
-    }
-    st = sc_grid_lsq_solve(q, &r->d, r->sigma_r_given, &r->lres, err);
+    sc_grid_options o;
+    sc_grid_options_default(&o);
+    int m = sc_grid_method_from_name(r->method);
+    o.method = m < 0 ? SC_GRID_METHOD_LSQ : (sc_grid_method)m;
+    o.sigma_r_um = r->sigma_r_given;
+    /* the chosen method's requirements first: its messages are the ones `selfcal grid` gives */
+    st = sc_grid_check_method(&r->d, &r->info, r->in, &o, err);
+    if (st == SC_OK && o.method != SC_GRID_METHOD_LSQ)
+        st = sc_grid_calibrate(&r->d, &r->info, r->in, &o, &r->sol, err);
+    sc_grid_options lo = o;
+    lo.method = SC_GRID_METHOD_LSQ;
     if (st == SC_OK) /* residuals, standardized residuals (exact leverage), Baarda's test */
-        st = sc_grid_lsq_residuals(q, r->rx, r->ry, r->tx, r->ty, NULL, err);
-    sc_grid_lsq_destroy(q);
+        st = sc_grid_calibrate(&r->d, &r->info, r->in, &lo, &r->lsol, err);
     if (st != SC_OK)
         return st;
-    if (m_ye || m_ds) {
-        sc_grid_exact_plan *xp = NULL;
-        st = sc_grid_exact_plan_create(m_ye ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT, p->n, &xp, err);
-        if (st == SC_OK)
-            st = sc_grid_exact_execute(xp, &r->d, &r->res, err);
-        sc_grid_exact_plan_destroy(xp);
-        if (st != SC_OK)
-            return st;
-        for (size_t k = 0; k < ng; ++k) /* the closed forms give no uncertainties */
-            r->res.ugx_um[k] = r->res.ugy_um[k] = NAN;
-        r->res.sigma_r_used_um = NAN;
-        r->res.sigma_r_est_um = r->lres.sigma_r_est_um;
+    r->qi = r->lsol.plan_info;
+    r->identifiable = r->qi.identifiable;
+    r->lres = r->lsol.res;
+    r->res = o.method == SC_GRID_METHOD_LSQ ? r->lsol.res : r->sol.res;
+    if (o.method != SC_GRID_METHOD_LSQ) /* the closed forms' noise and dof: least squares' */
         r->res.dof = r->lres.dof;
-        sc_grid_first_order(p, r->res.gx_um, r->res.gy_um, &r->res.O, &r->res.R);
-    } else {
-        /* the chosen result is the least-squares one: share its arrays */
-        memcpy(r->res.gx_um, r->lres.gx_um, per * sizeof(double));
-        double *keep[6] = {r->res.gx_um, r->res.gy_um, r->res.ugx_um, r->res.ugy_um,
-                           r->res.ax_um, r->res.ay_um};
-        r->res = r->lres;
-        r->res.gx_um = keep[0], r->res.gy_um = keep[1], r->res.ugx_um = keep[2];
-        r->res.ugy_um = keep[3], r->res.ax_um = keep[4], r->res.ay_um = keep[5];
-        sc_grid_first_order(p, r->res.gx_um, r->res.gy_um, &r->res.O, &r->res.R);
-    }
+    r->rx = r->lsol.rx_um, r->ry = r->lsol.ry_um, r->tx = r->lsol.tx, r->ty = r->lsol.ty;
     make_maps(r);
-    for (size_t k = 0; k < ng; ++k)
-        if (!isfinite(r->res.gx_um[k]) || !isfinite(r->res.gy_um[k]))
-            return sc_error_set(err, SC_E_INTERNAL, r->in, 0, "the %s solution is not finite",
-                                r->method);
     return SC_OK;
 }
 
 static void free_report(grid_report *r)
 {
-    free(r->buf);
+    sc_grid_solution_free(&r->sol);
+    sc_grid_solution_free(&r->lsol);
     sc_grid_data_free(&r->d);
 }
 
@@ -227,7 +157,7 @@ static void section_plan(FILE *fp, const grid_report *r)
     fputs("<section id=\"plan\">\n<h2>1. Plan</h2>\n<table>\n", fp);
     fprintf(fp, "<tr><th class=\"l\">marks per side N</th><td id=\"N\">%d</td></tr>\n", n);
     fprintf(fp, "<tr><th class=\"l\">stage grid (nodes along x × y)</th><td id=\"stage\">%d × %d</td></tr>\n",
-            GRID_STAGE_NX(p), GRID_STAGE_NY(p));
+            sc_grid_stage_nx(p), sc_grid_stage_ny(p));
     fprintf(fp, "<tr><th class=\"l\">pitch P</th><td id=\"pitch_mm\">%g mm</td></tr>\n", p->pitch_mm);
     fprintf(fp, "<tr><th class=\"l\">stage grid origin</th><td>(%g, %g) mm</td></tr>\n",
             p->origin_mm[0], p->origin_mm[1]);
@@ -595,7 +525,7 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
 /* The whole map as a table (small maps only; the map file holds it anyway). */
 static void appendix_table(FILE *fp, const grid_report *r)
 {
-    int nx = GRID_STAGE_NX(&r->d.plan), ny = GRID_STAGE_NY(&r->d.plan);
+    int nx = sc_grid_stage_nx(&r->d.plan), ny = sc_grid_stage_ny(&r->d.plan);
     if ((long)nx * ny > 41 * 41) {
         fputs("<p>The node table is left out for maps larger than 41 × 41 nodes; the map file "
               "written by <code>selfcal grid --map</code> holds it.</p>\n",

@@ -6,7 +6,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "grid_run.h"
 #include "plots.h"
 #include "report_html.h"
 #include "selfcal/correct.h"
@@ -118,7 +117,7 @@ sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
         goto done;
 
     size_t nres = (size_t)nv * nn;
-    int snx = GRID_STAGE_NX(p), sny = GRID_STAGE_NY(p);
+    int snx = sc_grid_stage_nx(p), sny = sc_grid_stage_ny(p);
     size_t ng = (size_t)snx * sny;
     r->buf = malloc((4 * nres + 5 * ng) * sizeof(double));
     work = malloc(6 * nn * sizeof(double));

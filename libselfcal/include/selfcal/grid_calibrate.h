@@ -1,0 +1,88 @@
+/* selfcal/grid_calibrate.h — a grid-plate measurement to a stage error map, end to end: the
+ * method's requirements on the views, the solve (Ye, double shift or least squares), O and R, the
+ * noise, and for least squares the residuals, Baarda's outlier test with optional rejection, and
+ * the covariance of G. What `selfcal grid` and the Python package's calibrate_grid both call.
+ */
+#ifndef SELFCAL_GRID_CALIBRATE_H
+#define SELFCAL_GRID_CALIBRATE_H
+
+#include "selfcal/api.h"
+#include "selfcal/grid.h"
+#include "selfcal/grid_io.h"
+#include "selfcal/grid_lsq.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum sc_grid_method {
+    SC_GRID_METHOD_YE = 0,           /* Ye et al.: rot 0, rot 90, shift +1,0 */
+    SC_GRID_METHOD_DOUBLE_SHIFT = 1, /* Petrò: rot 0, rot 90, shift +2,0, shift -3,0 (partial) */
+    SC_GRID_METHOD_LSQ = 2           /* least squares, any identifying plan */
+} sc_grid_method;
+
+/* "ye", "double-shift" or "lsq" to the method; -1 for any other name. */
+SC_API int sc_grid_method_from_name(const char *name);
+
+/* The method's name as the command line spells it. */
+SC_API const char *sc_grid_method_name(sc_grid_method m);
+
+/* A warning: one line, no newline (an outlier flagged or removed, a χ² test failed). */
+typedef void (*sc_grid_warn_fn)(void *ctx, const char *msg);
+
+typedef struct sc_grid_options {
+    sc_grid_method method;
+    double sigma_r_um;       /* > 0: the measurement noise, given (least squares on data that
+                                state no uncertainties); 0: estimated from the residuals */
+    int drift;               /* least squares: per-view linear drift rates (needs t_s) */
+    int reject_outliers;     /* least squares: remove the worst flagged measurement, solve again,
+                                repeat until none is flagged */
+    int covariance;          /* least squares: the full covariance of G (stages of at most
+                                SC_GRID_LSQ_COV_MAX_NODES nodes) */
+    sc_grid_warn_fn warn;    /* warnings (NULL: none) */
+    void *warn_ctx;
+} sc_grid_options;
+
+/* What came out. Allocated by sc_grid_calibrate, freed by sc_grid_solution_free. */
+typedef struct sc_grid_solution {
+    sc_grid_result res;      /* G (NX·NY nodes), A (N·N marks), O, R, misalignments, noise, ... */
+    long n_nodes;            /* NX·NY */
+    long n_marks;            /* N·N */
+    int n_views;
+    /* least squares only (NULL otherwise), n_views·N·N values, index v·N·N + i·N + j, NaN where
+     * a mark is not measured: residual r = measured − fitted (µm), standardized residual t,
+     * outlier flag (1: flagged or removed; a removed one keeps its residual against the final
+     * solution and t NaN) */
+    double *rx_um, *ry_um, *tx, *ty;
+    unsigned char *outlier;
+    long n_flagged;          /* measurements flagged (removed ones included) */
+    long n_removed;          /* measurements removed by reject_outliers */
+    double *cov_um2;         /* covariance of G, n_cov x n_cov, node by node, gx then gy */
+    long n_cov;
+    sc_grid_lsq_info plan_info; /* least squares: the plan's analysis */
+} sc_grid_solution;
+
+/* Initialise o: least squares, noise estimated, no drift, no rejection, no covariance. */
+SC_API void sc_grid_options_default(sc_grid_options *o);
+
+/* Check that d suits method m: the stage grid of a closed form is the plate's, the views it
+ * needs are declared and completely measured; for least squares, a given sigma_r_um only on data
+ * stating no uncertainties, drift only with times. info and path (may be NULL: data in memory)
+ * locate the problem in the file. SC_E_INPUT with the reason. */
+SC_API sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_info *info,
+                                      const char *path, const sc_grid_options *o, sc_error *err);
+
+/* Calibrate d by o into s (zeroed first; free it with sc_grid_solution_free even on failure).
+ * d is modified while outliers are rejected and restored before returning. SC_E_INPUT for data
+ * that do not suit the method, SC_E_UNSOLVABLE when the measured views do not identify G. */
+SC_API sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info,
+                                   const char *path, const sc_grid_options *o,
+                                   sc_grid_solution *s, sc_error *err);
+
+/* Free what a solution holds (safe on a zeroed or freed one). */
+SC_API void sc_grid_solution_free(sc_grid_solution *s);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

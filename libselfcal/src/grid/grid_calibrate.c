@@ -1,0 +1,438 @@
+/* grid_calibrate.c — owns the end-to-end grid calibration (selfcal/grid_calibrate.h): which views
+ * each closed-form method needs (stated once, here), the checks of the data against the method,
+ * the solve, the exact methods' noise estimate, and least squares' residuals, outlier test and
+ * rejection loop and covariance. The command line, the report and Python call only this.
+ */
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "selfcal/grid_calibrate.h"
+#include "selfcal/grid_exact.h"
+
+int sc_grid_method_from_name(const char *name)
+{
+    if (!name)
+        return -1;
+    if (!strcmp(name, "ye"))
+        return SC_GRID_METHOD_YE;
+    if (!strcmp(name, "double-shift"))
+        return SC_GRID_METHOD_DOUBLE_SHIFT;
+    if (!strcmp(name, "lsq"))
+        return SC_GRID_METHOD_LSQ;
+    return -1;
+}
+
+const char *sc_grid_method_name(sc_grid_method m)
+{
+    switch (m) {
+    case SC_GRID_METHOD_YE: return "ye";
+    case SC_GRID_METHOD_DOUBLE_SHIFT: return "double-shift";
+    default: return "lsq";
+    }
+}
+
+void sc_grid_options_default(sc_grid_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->method = SC_GRID_METHOD_LSQ;
+}
+
+/* ---- the closed forms' views ---- */
+
+typedef struct need_view {
+    int rot, sx, sy;
+    int partial; /* 1: only plate row c and columns c, c+1 are needed (double shift view 3) */
+} need_view;
+
+static const need_view YE_VIEWS[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+static const need_view DS_VIEWS[4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+
+static long line_of(const sc_grid_file_info *info, int which, int v)
+{
+    if (!info)
+        return 0;
+    return which == 0 ? info->header_end_line : which == 1 ? info->n_line : info->view_line[v];
+}
+
+static int view_id(const sc_grid_file_info *info, int v)
+{
+    return info ? info->view_id[v] : v;
+}
+
+/* One needed view: declared, with data, every needed mark measured. */
+static sc_status check_view(const sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                            const char *method, const need_view *w, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    int n = p->n, c = (n - 1) / 2;
+    int v = sc_grid_find_view(p, w->rot, w->sx, w->sy);
+    if (v < 0)
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
+                            "method %s needs a view rot=%d shift=%d,%d, which the header does not "
+                            "declare",
+                            method, w->rot, w->sx, w->sy);
+    int any = 0;
+    for (long k = 0; k < (long)n * n && !any; ++k)
+        any = isfinite(d->dx_um[v][k]);
+    if (!any)
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
+                            "view %d (rot=%d shift=%d,%d), needed by method %s, has no data rows",
+                            view_id(info, v), w->rot, w->sx, w->sy, method);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            int ni, nj;
+            if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                continue;
+            if (w->partial && i != c && j != c && j != c + 1)
+                continue;
+            if (!isfinite(d->dx_um[v][i * n + j]))
+                return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
+                                    "view %d (rot=%d shift=%d,%d) lacks mark (%d,%d), which method "
+                                    "%s needs",
+                                    view_id(info, v), w->rot, w->sx, w->sy, i, j, method);
+        }
+    return SC_OK;
+}
+
+static sc_status check_exact(const sc_grid_data *d, const sc_grid_file_info *info,
+                             const char *path, sc_grid_method m, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    const char *name = sc_grid_method_name(m);
+    if (!sc_grid_stage_is_plate(p))
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
+                            "method %s needs the stage grid to be the plate's N x N (this file has "
+                            "a %dx%d stage: use --method lsq)",
+                            name, sc_grid_stage_nx(p), sc_grid_stage_ny(p));
+    if (m == SC_GRID_METHOD_DOUBLE_SHIFT && p->n < 9)
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 1, 0),
+                            "method double-shift needs N >= 9 (N = %d)", p->n);
+    const need_view *need = m == SC_GRID_METHOD_YE ? YE_VIEWS : DS_VIEWS;
+    int n_need = m == SC_GRID_METHOD_YE ? 3 : 4;
+    for (int k = 0; k < n_need; ++k) {
+        sc_status st = check_view(d, info, path, name, &need[k], err);
+        if (st != SC_OK)
+            return st;
+    }
+    return SC_OK;
+}
+
+static int has_stated_u(const sc_grid_data *d)
+{
+    for (int v = 0; v < d->plan.n_views; ++v)
+        if (d->ux_um[v] || d->uy_um[v])
+            return 1;
+    return 0;
+}
+
+static int has_times(const sc_grid_data *d)
+{
+    for (int v = 0; v < d->plan.n_views; ++v)
+        if (d->t_s[v])
+            return 1;
+    return 0;
+}
+
+static sc_status check_lsq(const sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                           const sc_grid_options *o, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    if (o->sigma_r_um > 0 && (info ? info->has_u : has_stated_u(d)))
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
+                            "the file states uncertainties (ux_um,uy_um): --sigma-r-um applies to "
+                            "files without them");
+    for (int v = 0; o->sigma_r_um > 0 && v < p->n_views; ++v)
+        if (p->view[v].sigma_um > 0)
+            return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
+                                "view %d states sigma_um: --sigma-r-um applies to files without "
+                                "stated uncertainties",
+                                view_id(info, v));
+    if (o->drift && !(info ? info->has_t : has_times(d)))
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
+                            "--drift linear needs the time of each measurement (column t_s)");
+    return SC_OK;
+}
+
+sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_info *info,
+                               const char *path, const sc_grid_options *o, sc_error *err)
+{
+    if (info && info->n_rows == 0)
+        return sc_error_set(err, SC_E_INPUT, path, info->header_end_line,
+                            "no data rows (a plan file? use 'selfcal plan' for plans)");
+    if (o->method == SC_GRID_METHOD_LSQ)
+        return check_lsq(d, info, path, o, err);
+    if (o->drift || o->reject_outliers || o->covariance)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "residuals, outlier rejection, covariance and drift need least squares");
+    return check_exact(d, info, path, o->method, err);
+}
+
+/* ---- solving ---- */
+
+static void warnf(const sc_grid_options *o, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+static void warnf(const sc_grid_options *o, const char *fmt, ...)
+{
+    if (!o->warn)
+        return;
+    char buf[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    o->warn(o->warn_ctx, buf);
+}
+
+/* The arrays of s and the NaN/neutral defaults of its result. */
+static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
+                                sc_grid_solution *s, sc_error *err)
+{
+    memset(s, 0, sizeof *s);
+    s->n_nodes = sc_grid_stage_nodes(p);
+    s->n_marks = (long)p->n * p->n;
+    s->n_views = p->n_views;
+    size_t ns = (size_t)s->n_nodes, nm = (size_t)s->n_marks, tot = (size_t)p->n_views * nm;
+    size_t nbuf = 4 * ns + 2 * nm + (o->method == SC_GRID_METHOD_LSQ ? 4 * tot : 0);
+    double *buf = malloc(nbuf * sizeof(double));
+    if (!buf)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (size_t k = 0; k < nbuf; ++k)
+        buf[k] = NAN;
+    sc_grid_result *r = &s->res;
+    r->gx_um = buf, r->gy_um = buf + ns, r->ugx_um = buf + 2 * ns, r->ugy_um = buf + 3 * ns;
+    r->ax_um = buf + 4 * ns, r->ay_um = buf + 4 * ns + nm;
+    if (o->method == SC_GRID_METHOD_LSQ) {
+        double *rb = buf + 4 * ns + 2 * nm;
+        s->rx_um = rb, s->ry_um = rb + tot, s->tx = rb + 2 * tot, s->ty = rb + 3 * tot;
+        if (!(s->outlier = calloc(tot ? tot : 1, 1)))
+            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    r->O = r->R = r->residual_rms_um = r->sigma_r_est_um = r->sigma_r_used_um = NAN;
+    r->uO = r->uR = r->variance_factor = r->chi2_lo = r->chi2_hi = NAN;
+    r->chi2_pass = 1;
+    r->misalignment_unique = 1;
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        r->tx_um[v] = r->ty_um[v] = r->theta_urad[v] = r->utx_um[v] = r->uty_um[v] =
+            r->utheta_urad[v] = NAN;
+    return SC_OK;
+}
+
+void sc_grid_solution_free(sc_grid_solution *s)
+{
+    free(s->res.gx_um); /* the block of every double array but the covariance */
+    free(s->outlier);
+    free(s->cov_um2);
+    memset(s, 0, sizeof *s);
+}
+
+/* The measurement noise behind data solved by a closed form: the closed forms are not
+ * least-squares fits, so their residuals do not estimate σ_r without bias; the least-squares
+ * residuals of the same data and model do (sqrt(RSS/dof)). NaN if the data leave no
+ * redundancy or do not identify the model. */
+static double exact_noise_estimate(const sc_grid_plan *p, const sc_grid_data *d)
+{
+    sc_grid_lsq *q = NULL;
+    sc_grid_result r;
+    memset(&r, 0, sizeof r); /* no arrays: only the scalars are wanted */
+    r.sigma_r_est_um = NAN;
+    sc_grid_lsq_info qi;
+    if (sc_grid_lsq_create(p, d, &q, NULL) == SC_OK) {
+        sc_grid_lsq_get_info(q, &qi);
+        if (!qi.identifiable || sc_grid_lsq_solve(q, d, 0.0, &r, NULL) != SC_OK)
+            r.sigma_r_est_um = NAN;
+    }
+    sc_grid_lsq_destroy(q);
+    return r.sigma_r_est_um;
+}
+
+static sc_status run_exact(sc_grid_data *d, const sc_grid_options *o, sc_grid_solution *s,
+                           sc_error *err)
+{
+    sc_grid_exact_plan *xp = NULL;
+    sc_status st = sc_grid_exact_plan_create(
+        o->method == SC_GRID_METHOD_YE ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT, d->plan.n, &xp, err);
+    if (st == SC_OK)
+        st = sc_grid_exact_execute(xp, d, &s->res, err);
+    sc_grid_exact_plan_destroy(xp);
+    if (st != SC_OK)
+        return st;
+    /* no uncertainties from the closed forms: a given σ_r has nothing to scale */
+    for (long k = 0; k < s->n_nodes; ++k)
+        s->res.ugx_um[k] = s->res.ugy_um[k] = NAN;
+    s->res.sigma_r_used_um = NAN;
+    s->res.sigma_r_est_um = exact_noise_estimate(&d->plan, d);
+    return SC_OK;
+}
+
+/* The worst flagged measurement not yet removed: index v*n*n + k, or -1. */
+static long worst_outlier(const sc_grid_solution *s, size_t tot)
+{
+    long best = -1;
+    double bt = SC_GRID_BAARDA_CRIT;
+    for (size_t k = 0; k < tot; ++k) {
+        double t = fmax(isfinite(s->tx[k]) ? fabs(s->tx[k]) : 0,
+                        isfinite(s->ty[k]) ? fabs(s->ty[k]) : 0);
+        if (!s->outlier[k] && t > bt)
+            bt = t, best = (long)k;
+    }
+    return best;
+}
+
+/* Solve, then while asked remove the worst flagged measurement and solve again. A removal is
+ * confirmed (and warned about) once the views still identify G without it; an outlier that is
+ * the only link is kept, with a warning, and rejection stops. keep: the data as they came. */
+static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                          const sc_grid_options *o, const double *keep, sc_grid_solution *s,
+                          sc_grid_lsq **qp, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
+    sc_grid_lsq_opts opts = {o->drift};
+    const char *src = path ? path : "data";
+    long pending = -1; /* the row just removed, confirmed once G stays identified without it */
+    int stop = 0;
+    for (;;) {
+        sc_grid_lsq_destroy(*qp);
+        *qp = NULL;
+        sc_status st = sc_grid_lsq_create_ex(p, d, &opts, qp, err);
+        if (st != SC_OK)
+            return st;
+        sc_grid_lsq_get_info(*qp, &s->plan_info);
+        if (pending >= 0) {
+            int v = (int)(pending / (long)nn), k = (int)(pending % (long)nn);
+            if (!s->plan_info.identifiable) { /* the outlier is the only link: keep it, stop */
+                d->dx_um[v][k] = keep[pending], d->dy_um[v][k] = keep[tot + pending];
+                s->outlier[pending] = 0;
+                s->n_removed--;
+                warnf(o, "%s: outlier view %d mark (%d,%d) kept: without it the views would not "
+                         "identify G",
+                      src, view_id(info, v), k / p->n, k % p->n);
+                pending = -1, stop = 1;
+                continue;
+            }
+            warnf(o, "%s: removed outlier view %d mark (%d,%d) (tx %.3g, ty %.3g; critical value "
+                     "%.3f) and solved again",
+                  src, view_id(info, v), k / p->n, k % p->n, s->tx[pending], s->ty[pending],
+                  SC_GRID_BAARDA_CRIT);
+            pending = -1;
+        }
+        if (!s->plan_info.identifiable)
+            return sc_error_set(err, SC_E_UNSOLVABLE, path, line_of(info, 0, 0),
+                                "the measured views do not identify G: %ld degree(s) of freedom "
+                                "beyond the gauge stay free (see 'selfcal plan')",
+                                s->plan_info.free_dof);
+        st = sc_grid_lsq_solve(*qp, d, o->sigma_r_um, &s->res, err);
+        if (st == SC_OK)
+            st = sc_grid_lsq_residuals(*qp, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
+        if (st != SC_OK || !o->reject_outliers || stop)
+            return st;
+        long w = worst_outlier(s, tot);
+        if (w < 0)
+            return SC_OK;
+        s->outlier[w] = 1;
+        s->n_removed++;
+        d->dx_um[w / (long)nn][w % (long)nn] = d->dy_um[w / (long)nn][w % (long)nn] = NAN;
+        pending = w;
+    }
+}
+
+/* After the loop: the removed measurements get back their values and their residuals against the
+ * final solution; flagged ones are counted and warned about; the χ² test's verdict. */
+static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                       const sc_grid_options *o, const double *keep, sc_grid_solution *s,
+                       sc_grid_lsq *q)
+{
+    const sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
+    const char *src = path ? path : "data";
+    for (size_t k = 0; k < tot; ++k) {
+        int v = (int)(k / nn), m = (int)(k % nn);
+        if (s->outlier[k]) { /* removed: residual against the final solution */
+            double px, py, t = d->t_s[v] ? d->t_s[v][m] : NAN;
+            sc_grid_lsq_predict(q, &s->res, v, m / p->n, m % p->n, t, &px, &py);
+            s->rx_um[k] = keep[k] - px, s->ry_um[k] = keep[tot + k] - py;
+            s->tx[k] = s->ty[k] = NAN;
+            d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
+            s->n_flagged++;
+        } else if (fabs(s->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(s->ty[k]) > SC_GRID_BAARDA_CRIT) {
+            s->outlier[k] = 1;
+            s->n_flagged++;
+            warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, ty "
+                     "%.3g beyond %.3f: Baarda, alpha = %g)",
+                  src, view_id(info, v), m / p->n, m % p->n, s->tx[k], s->ty[k],
+                  SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA);
+        }
+    }
+    if (!s->res.chi2_pass)
+        warnf(o, "%s: the residuals disagree with the %s noise: variance factor %.4g outside the "
+                 "chi^2 95 %% interval [%.4g, %.4g]%s",
+              src, o->sigma_r_um > 0 ? "given" : "stated", s->res.variance_factor, s->res.chi2_lo,
+              s->res.chi2_hi,
+              o->sigma_r_um > 0 ? " (compare sigma_r_est_um in the summary with --sigma-r-um)" : "");
+}
+
+static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                         const sc_grid_options *o, sc_grid_solution *s, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
+    double *keep = malloc((2 * tot + 1) * sizeof(double));
+    if (!keep)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (int v = 0; v < p->n_views; ++v)
+        for (size_t k = 0; k < nn; ++k)
+            keep[v * nn + k] = d->dx_um[v][k], keep[tot + v * nn + k] = d->dy_um[v][k];
+    sc_grid_lsq *q = NULL;
+    sc_status st = lsq_loop(d, info, path, o, keep, s, &q, err);
+    if (st == SC_OK)
+        lsq_finish(d, info, path, o, keep, s, q);
+    else /* the data as they came, whatever was removed */
+        for (int v = 0; v < p->n_views; ++v)
+            for (size_t k = 0; k < nn; ++k)
+                d->dx_um[v][k] = keep[v * nn + k], d->dy_um[v][k] = keep[tot + v * nn + k];
+    if (st == SC_OK && o->covariance) {
+        long m = 2 * s->n_nodes;
+        if (s->n_nodes > SC_GRID_LSQ_COV_MAX_NODES)
+            st = sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
+                              "--covariance: %ld stage nodes exceed the limit of %d", s->n_nodes,
+                              SC_GRID_LSQ_COV_MAX_NODES);
+        else if (!(s->cov_um2 = malloc((size_t)m * m * sizeof(double))))
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
+        else
+            st = sc_grid_lsq_covariance(q, s->cov_um2, err);
+        s->n_cov = m;
+    }
+    sc_grid_lsq_destroy(q);
+    free(keep);
+    return st;
+}
+
+sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                            const sc_grid_options *o, sc_grid_solution *s, sc_error *err)
+{
+    memset(s, 0, sizeof *s);
+    sc_status st = sc_grid_check_method(d, info, path, o, err);
+    if (st == SC_OK)
+        st = solution_alloc(&d->plan, o, s, err);
+    if (st == SC_OK)
+        st = o->method == SC_GRID_METHOD_LSQ ? run_lsq(d, info, path, o, s, err)
+                                             : run_exact(d, o, s, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_first_order(&d->plan, s->res.gx_um, s->res.gy_um, &s->res.O, &s->res.R);
+    for (long k = 0; k < s->n_nodes; ++k)
+        if (!isfinite(s->res.gx_um[k]) || !isfinite(s->res.gy_um[k]))
+            return sc_error_set(err, SC_E_INTERNAL, path, 0, "the %s solution is not finite",
+                                sc_grid_method_name(o->method));
+    for (long k = 0; k < s->n_marks; ++k)
+        if (isfinite(s->res.ax_um[k]) != isfinite(s->res.ay_um[k]))
+            return sc_error_set(err, SC_E_INTERNAL, path, 0, "the %s solution is not finite",
+                                sc_grid_method_name(o->method));
+    return SC_OK;
+}
