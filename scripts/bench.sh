@@ -2,11 +2,15 @@
 # Build Release (no sanitizers) and print every benchmark table. Speed and memory targets are
 # checked here, not in timed tests. Pass --full for the long runs (paper-size Monte Carlo, N = 10⁶
 # at d = 97/101, ...). Figures on a shared or virtual machine move by tens of per cent: repeat.
+# --soak [SECONDS] runs only the selfcald soak (default 600 s: 64 clients + reload storms; 0 wrong,
+# 0 lost, RSS flat), bench/soak_selfcald.py.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
 full=""
+soak=""
 [ "${1:-}" = "--full" ] && full="--full"
+if [ "${1:-}" = "--soak" ]; then soak=${2:-600}; fi
 [ "${SELFCAL_SKIP_DEPS:-0}" = 1 ] || scripts/install-deps.sh
 build=${SELFCAL_BENCH_BUILD_DIR:-build-bench}
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSELFCAL_SANITIZE=OFF \
@@ -14,6 +18,10 @@ cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DSELFCAL_SANITIZE=OF
 cmake --build "$build" -j"$(nproc)"
 b="$build/bench"
 section() { printf '\n==================== %s ====================\n' "$*"; }
+if [ -n "$soak" ]; then
+  section "selfcald soak: ${soak} s, 64 clients, reload storms"
+  exec python3 bench/soak_selfcald.py "$build/bin/selfcal" "$build/bin/selfcald" "$soak" 64
+fi
 section "grid: least squares, solve time and memory (issue: N = 25, 51, 101)"
 "$b/bench_grid_lsq" ${full:+--big}
 section "grid: Monte Carlo sigma_C / sigma_r, three methods"
