@@ -160,7 +160,9 @@ sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profil
     long worst;
     sc_io_fit_line(kk, xs, lines, (size_t)count, SC_LUT_REGULAR_TOL, &x0, &step, &dev, &worst);
     if (!(step > 0)) {
-        st = sc_error_set(err, SC_E_INPUT, path, 0, "x_mm does not increase with n");
+        st = sc_error_set(err, SC_E_INPUT, path, lines[count - 1],
+                          "x_mm does not increase with n: %g here, %g at the first point (line %ld)",
+                          xs[count - 1], xs[0], lines[0]);
         goto done;
     }
     if (worst >= 0) {

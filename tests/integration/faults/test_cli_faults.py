@@ -277,6 +277,11 @@ r, rss = peak_rss_mb(["lut", "info", p("big.lut")])
 one_line_error(r, 2, "100 MB table")
 check(rss < 300, f"100 MB table: peak RSS {rss} MiB")
 print(f"limit: a 100 MB table: exit 2, peak RSS {rss} MiB: {r.stderr.strip()}")
+# whole-file errors name a line: a map whose x_mm decreases along j
+with open(p("decreasing.csv"), "w") as f:
+    f.write("i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,0,0\n0,1,-1,0,0,0\n1,0,0,1,0,0\n1,1,-1,1,0,0\n")
+r = run(["lut", "build", "--map", p("decreasing.csv"), "-o", p("o.lut")])
+one_line_error(r, 2, "x_mm decreasing along j", "decreasing.csv:3: x_mm does not increase")
 for f in ("repeated_map.csv", "long_line.csv", "big.lut"):
     os.unlink(p(f))
 
