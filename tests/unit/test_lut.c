@@ -339,13 +339,13 @@ static void test_read_map(void **state)
         {"i,j,x,y,gx,gy\n0,0,0,0,1,1\n", 1, "header"},
         {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n", 2, "2 x 2"},
         {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,-1,1,0,1,1\n", 3, "outside"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,-1,0,1,1\n1,0,0,1,1,1\n1,1,-1,1,1,1\n", 0, "increase"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,-1,0,1,1\n1,0,0,1,1,1\n1,1,-1,1,1,1\n", 3, "increase"},
         {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,nan,1\n", 2, "finite"},
         /* physically impossible values, caught where read (found by fuzzing the exporters) */
         {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,1,0,1e300,1\n", 3, "plausible"},
         {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,1,0,1,-2e6\n", 3, "plausible"},
         {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,-3e12,0,1,1\n", 2, "1 km"},
-        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,1e-8,0,1,1\n1,0,0,1,1,1\n1,1,1e-8,1,1,1\n", 0, "1 nm"},
+        {"i,j,x_mm,y_mm,gx_um,gy_um\n0,0,0,0,1,1\n0,1,1e-8,0,1,1\n1,0,0,1,1,1\n1,1,1e-8,1,1,1\n", 3, "1 nm"},
         {"", 0, "empty"},
     };
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
