@@ -246,6 +246,19 @@ void plot_arrows_svg(FILE *fp, const sc_stage_map *m, int plate, double scale_um
     svg_end(fp);
 }
 
+void plot_arrows_pair_svg(FILE *fp, const sc_stage_map *a, const char *title_a,
+                          const sc_stage_map *b, const char *title_b, const char *heading)
+{
+    double sz = 480, gap = 110;
+    int w = (int)(80 + 2 * sz + gap + 40);
+    svg_begin(fp, w, (int)(100 + sz + 75));
+    if (heading)
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s", heading);
+    arrow_panel(fp, 80, 90, sz, a, 0, a->gx_um, a->gy_um, 0, title_a, "r", "#1f4e9c");
+    arrow_panel(fp, 80 + sz + gap, 90, sz, b, 0, b->gx_um, b->gy_um, 0, title_b, "r", "#b3261e");
+    svg_end(fp);
+}
+
 void plot_colormap_svg(FILE *fp, const sc_stage_map *m, int plate, const double *v,
                        const char *title, const char *unit, int diverging)
 {

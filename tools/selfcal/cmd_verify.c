@@ -30,7 +30,7 @@ static const char *USAGE =
     "  fail  otherwise                                  exit 3\n"
     "Bad input: exit 2 with one line FILE:LINE: reason, and no output file. Other errors: 1.\n"
     "--residuals: view,i,j,x_mm,y_mm,before_rx_um,before_ry_um,after_rx_um,after_ry_um\n"
-    "--plot: arrows before and after; --html: a self-contained report of the check.\n";
+    "--plot: the residual maps before and after, side by side; --html: a self-contained report.\n";
 
 enum { VERIFY_FAIL_EXIT = 3 };
 
@@ -56,9 +56,9 @@ static void print_residuals(FILE *fp, const verify_result *r)
 
 static void draw_plot(FILE *fp, const verify_result *r)
 {
-    /* two arrow documents side by side would need a new layout: one document, two panels,
-     * drawn as the map plot's truth comparison (before as the map, after as its "error") */
-    plot_arrows_svg(fp, &r->after, 0, 0, "after compensation: residual (A, misalignment removed)", "r");
+    plot_arrows_pair_svg(fp, &r->before, "before compensation (A, placement removed)", &r->after,
+                         "after compensation (own arrow scale)",
+                         "Re-measurement of the plate: residual maps before and after compensation");
 }
 
 int cmd_verify(int argc, char **argv)

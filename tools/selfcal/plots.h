@@ -20,6 +20,11 @@ void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
 void plot_arrows_svg(FILE *fp, const sc_stage_map *m, int plate, double scale_um_per_pitch,
                      const char *title, const char *what);
 
+/* Two stage-frame arrow panels side by side, each with its own scale (e.g. before and after
+ * compensation), under an optional heading, as a whole SVG document. */
+void plot_arrows_pair_svg(FILE *fp, const sc_stage_map *a, const char *title_a,
+                          const sc_stage_map *b, const char *title_b, const char *heading);
+
 /* A colour map of v (one value per node of m, NaN = grey) with its colour scale, as a whole SVG
  * document; diverging: symmetric scale about 0 (signed values), else from 0 (magnitudes). */
 void plot_colormap_svg(FILE *fp, const sc_stage_map *m, int plate, const double *v,

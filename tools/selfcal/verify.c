@@ -245,15 +245,11 @@ done:
     return st;
 }
 
-typedef struct fig_v {
-    const sc_stage_map *m;
-    const char *title, *what;
-} fig_v;
-
 static void draw_v(FILE *fp, const void *ctx)
 {
-    const fig_v *f = ctx;
-    plot_arrows_svg(fp, f->m, 0, 0, f->title, f->what);
+    const verify_result *r = ctx;
+    plot_arrows_pair_svg(fp, &r->before, "before compensation (A, placement removed)", &r->after,
+                         "after compensation (A, placement removed)", NULL);
 }
 
 static void stats_row(FILE *fp, const char *name, const char *id, const verify_stats *s)
@@ -299,11 +295,8 @@ sc_status verify_html_section(FILE *fp, const verify_opts *o, const verify_resul
     else
         fputs("No tolerance given (--tolerance-um): no verdict.", fp);
     fprintf(fp, " Improvement of the RMS: ×%.3g.</p>\n", r->st_before.rms / r->st_after.rms);
-    fig_v fb = {&r->before, "before compensation (A and misalignment removed)", "r"};
-    fig_v fa = {&r->after, "after compensation (A and misalignment removed)", "r"};
-    sc_status st = html_figure(fp, draw_v, &fb, "Residual map before compensation.", err);
-    if (st == SC_OK)
-        st = html_figure(fp, draw_v, &fa, "Residual map after compensation (own arrow scale).", err);
+    sc_status st = html_figure(fp, draw_v, r, "Residual maps before and after compensation (each "
+                               "with its own arrow scale).", err);
     fputs("</section>\n", fp);
     return st;
 }

@@ -477,7 +477,10 @@ def case_verify():
     if e > 0.1:
         fail("before-compensation map differs from the true G by %.3g um RMS" % e)
     check_self_contained(p("v.html"))
-    ET.parse(p("v.svg"))
+    vroot = ET.parse(p("v.svg")).getroot()
+    heads = len(vroot.findall("{http://www.w3.org/2000/svg}polygon"))
+    if heads < 2 * n * n * 0.9:  # before and after, an arrow per node each
+        fail("verify --plot: %d arrow heads for two panels of %d nodes" % (heads, n * n))
     bad = run("verify", p("V_neg.csv"), "--table", p("neg.lut"), "--artifact", p("A.csv"),
               "--tolerance-um", tol, "--residuals", p("res_neg.csv"), expect=3)
     kv = dict(l.split(": ", 1) for l in bad.stdout.splitlines())
