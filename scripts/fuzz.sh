@@ -14,7 +14,7 @@ targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(grid_read profile_read stage_map profile_result table
                                      selfcald_config modbus_adu can_frame)
 build=${SELFCAL_FUZZ_BUILD_DIR:-build-fuzz}
-CC=clang cmake -S . -B "$build" -G Ninja -DSELFCAL_FUZZ=ON -DSELFCAL_BUILD_BENCH=OFF \
+CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DSELFCAL_FUZZ=ON -DSELFCAL_BUILD_BENCH=OFF \
   -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$build" -j"$(nproc)" --target $(printf 'fuzz_%s ' "${targets[@]}") >/dev/null
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1}

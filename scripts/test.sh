@@ -18,7 +18,7 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 
 if [ "${SELFCAL_SKIP_CLANG:-0}" != 1 ] && command -v clang >/dev/null; then
   clang_build=${SELFCAL_CLANG_BUILD_DIR:-build-clang}
-  CC=clang cmake -S . -B "$clang_build" -G Ninja -DSELFCAL_SANITIZE=ON -DSELFCAL_FUZZ=ON \
+  CC=clang CXX=clang++ cmake -S . -B "$clang_build" -G Ninja -DSELFCAL_SANITIZE=ON -DSELFCAL_FUZZ=ON \
     -DSELFCAL_BUILD_BENCH=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
   cmake --build "$clang_build" -j"$(nproc)"
   (cd "$clang_build" && ctest --output-on-failure -j"$(nproc)" -L "unit|fuzz-short" -E "test_grid_lsq_dense")
