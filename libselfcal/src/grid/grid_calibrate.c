@@ -136,20 +136,20 @@ static int has_times(const sc_grid_data *d)
     return 0;
 }
 
+/* The σ_r given on the command line, or 0 when the data state their uncertainties (ux_um,uy_um
+ * or sigma_um=): the stated uncertainties are the noise model and win over --sigma-r-um. */
+static double given_sigma_r(const sc_grid_data *d, const sc_grid_file_info *info,
+                            const sc_grid_options *o)
+{
+    int stated = info ? info->has_u : has_stated_u(d);
+    for (int v = 0; v < d->plan.n_views; ++v)
+        stated |= d->plan.view[v].sigma_um > 0;
+    return stated ? 0.0 : o->sigma_r_um;
+}
+
 static sc_status check_lsq(const sc_grid_data *d, const sc_grid_file_info *info, const char *path,
                            const sc_grid_options *o, sc_error *err)
 {
-    const sc_grid_plan *p = &d->plan;
-    if (o->sigma_r_um > 0 && (info ? info->has_u : has_stated_u(d)))
-        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
-                            "the file states uncertainties (ux_um,uy_um): --sigma-r-um applies to "
-                            "files without them");
-    for (int v = 0; o->sigma_r_um > 0 && v < p->n_views; ++v)
-        if (p->view[v].sigma_um > 0)
-            return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
-                                "view %d states sigma_um: --sigma-r-um applies to files without "
-                                "stated uncertainties",
-                                view_id(info, v));
     if (o->drift && !(info ? info->has_t : has_times(d)))
         return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
                             "--drift linear needs the time of each measurement (column t_s)");
@@ -297,6 +297,11 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
     const char *src = path ? path : "data";
     long pending = -1; /* the row just removed, confirmed once G stays identified without it */
     int stop = 0;
+    double sigma_r = given_sigma_r(d, info, o);
+    if (o->sigma_r_um > 0 && !(sigma_r > 0))
+        warnf(o, "%s: the file states its uncertainties (ux_um,uy_um or sigma_um=): --sigma-r-um "
+                 "%g is ignored",
+              src, o->sigma_r_um);
     for (;;) {
         sc_grid_lsq_destroy(*qp);
         *qp = NULL;
@@ -327,7 +332,7 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
                                 "the measured views do not identify G: %ld degree(s) of freedom "
                                 "beyond the gauge stay free (see 'selfcal plan')",
                                 s->plan_info.free_dof);
-        st = sc_grid_lsq_solve(*qp, d, o->sigma_r_um, &s->res, err);
+        st = sc_grid_lsq_solve(*qp, d, sigma_r, &s->res, err);
         if (st == SC_OK)
             st = sc_grid_lsq_residuals(*qp, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
         if (st != SC_OK || !o->reject_outliers || stop)
@@ -372,9 +377,11 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
     if (!s->res.chi2_pass)
         warnf(o, "%s: the residuals disagree with the %s noise: variance factor %.4g outside the "
                  "chi^2 95 %% interval [%.4g, %.4g]%s",
-              src, o->sigma_r_um > 0 ? "given" : "stated", s->res.variance_factor, s->res.chi2_lo,
-              s->res.chi2_hi,
-              o->sigma_r_um > 0 ? " (compare sigma_r_est_um in the summary with --sigma-r-um)" : "");
+              src, given_sigma_r(d, info, o) > 0 ? "given" : "stated", s->res.variance_factor,
+              s->res.chi2_lo, s->res.chi2_hi,
+              given_sigma_r(d, info, o) > 0
+                  ? " (compare sigma_r_est_um in the summary with --sigma-r-um)"
+                  : "");
 }
 
 static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const char *path,

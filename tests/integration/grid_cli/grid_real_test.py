@@ -161,8 +161,10 @@ def case_weights():
     S = json.load(open(sm))
     if S["chi2_test"] != "fail" or not S["variance_factor"] > 50:
         fail("summary chi2: %r" % S)
-    # --sigma-r-um on a file that states its noise is bad input
-    run("grid", "--method", "lsq", p2, "--map", g, "--sigma-r-um", 0.01, expect=2)
+    # --sigma-r-um on a file that states its noise: ignored with a warning, same result
+    p = run("grid", "--method", "lsq", p2, "--map", g, "--summary", sm2, "--sigma-r-um", 0.5)
+    if "is ignored" not in p.stderr or abs(json.load(open(sm2))["variance_factor"] - vf) > 1e-9 * vf:
+        fail("--sigma-r-um on weighted data: %r" % p.stderr)
     print("weights: ok")
 
 
