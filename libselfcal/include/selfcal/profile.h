@@ -55,8 +55,8 @@ SC_API sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_erro
 SC_API sc_status sc_profile_check_method(const sc_profile_data *d, sc_profile_method method,
                                          sc_error *err);
 
-/* Write d as a `selfcal-profile v1` file atomically (17 significant digits; the sigma lines only
- * when known). */
+/* Write d as a `selfcal-profile v1` file atomically (each number with the fewest digits that read
+ * back exactly, selfcal/number.h; the sigma lines only when known). */
 SC_API sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err);
 
 /* The combined difference y_k = m2 - m1 - D_k·m3·1e-3 of scan k (k = 0 or 1), N-d[k] values (µm). */

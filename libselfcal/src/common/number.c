@@ -12,42 +12,26 @@
 int sc_number_kernel_parse(const char *first, const char *last, double *out);
 void sc_number_kernel_shortest(double v, uint64_t *digits, int *exp10);
 
-static int is_digit(char c)
-{
-    return c >= '0' && c <= '9';
-}
-
+/* fast_float's from_chars takes exactly this grammar except a leading '+' (skipped here) and the
+ * words inf/nan (refused as non-finite), and stops at the first byte outside it (refused: it must
+ * consume every byte), so no second scan is needed; only a zero or subnormal result looks at the
+ * digits again, to refuse an underflow of nonzero digits. */
 int sc_number_parse(const char *s, size_t len, double *out)
 {
     const char *p = s, *end = s + len;
-    if (p < end && (*p == '+' || *p == '-'))
+    if (p < end && *p == '+') {
         ++p;
-    const char *mant = p;
-    int nonzero = 0, ndig = 0;
-    for (; p < end && is_digit(*p); ++p)
-        ndig++, nonzero |= *p != '0';
-    if (p < end && *p == '.')
-        for (++p; p < end && is_digit(*p); ++p)
-            ndig++, nonzero |= *p != '0';
-    if (ndig == 0)
-        return -1;
-    if (p < end && (*p == 'e' || *p == 'E')) {
-        ++p;
-        if (p < end && (*p == '+' || *p == '-'))
-            ++p;
-        if (p == end || !is_digit(*p))
+        if (p < end && *p == '-')
             return -1;
-        while (p < end && is_digit(*p))
-            ++p;
     }
-    if (p != end)
-        return -1;
     double v;
-    if (sc_number_kernel_parse(mant, end, &v) != 0 || !isfinite(v))
+    if (p == end || sc_number_kernel_parse(p, end, &v) != 0 || !isfinite(v))
         return -1;
-    if (nonzero && !(v >= DBL_MIN)) /* underflow to zero or to a subnormal */
-        return -1;
-    *out = s[0] == '-' ? -v : v;
+    if (!(fabs(v) >= DBL_MIN)) /* zero or subnormal: refuse unless every digit is 0 */
+        for (const char *q = p; q < end && *q != 'e' && *q != 'E'; ++q)
+            if (*q >= '1' && *q <= '9')
+                return -1;
+    *out = v;
     return 0;
 }
 
@@ -72,12 +56,26 @@ int sc_number_format(double v, char *buf)
     uint64_t m;
     int e;
     sc_number_kernel_shortest(fabs(v), &m, &e);
-    char dig[24];
-    int k = 0;
-    for (uint64_t t = m; t > 0; t /= 10)
-        k++;
-    for (int i = k - 1; i >= 0; --i, m /= 10)
-        dig[i] = (char)('0' + m % 10);
+    /* the digits, most significant first, two at a time */
+    static const char pairs[201] = "00010203040506070809101112131415161718192021222324252627282930"
+                                   "31323334353637383940414243444546474849505152535455565758596061"
+                                   "62636465666768697071727374757677787980818283848586878889909192"
+                                   "93949596979899";
+    char tmp[24], *t = tmp + sizeof tmp;
+    while (m >= 100) {
+        unsigned r = (unsigned)(m % 100);
+        m /= 100;
+        *--t = pairs[2 * r + 1];
+        *--t = pairs[2 * r];
+    }
+    if (m >= 10) {
+        *--t = pairs[2 * m + 1];
+        *--t = pairs[2 * m];
+    } else {
+        *--t = (char)('0' + m);
+    }
+    const char *dig = t;
+    int k = (int)(tmp + sizeof tmp - t);
     int x = k - 1 + e; /* decimal exponent of the first digit */
     if (x >= -4 && x < 17) {
         if (e >= 0) { /* integer: the digits, then e zeros */

@@ -1,0 +1,134 @@
+/* bench_profile_command — the whole `selfcal profile` pipeline at large N, split into reading the
+ * CSV, solving (sc_profile_calibrate: solve and every point's uncertainty) and writing the result,
+ * for both methods; and the number conversions alone against glibc in the same run: our parser
+ * (selfcal/number.h: fast_float) vs strtod, our shortest formatter (Dragonbox) vs
+ * printf("%.17g"), on the file's own numbers. Issue 11's targets: numbers read and written >= 5x
+ * faster; the whole command at N = 10⁶ (d = 10/11) within 2x its solve.
+ * Wall-clock seconds, best of three (the machine is shared).
+ * usage: bench_profile_command [N]   (default 1000010) */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "selfcal/number.h"
+#include "selfcal/profile.h"
+#include "selfcal/profile_calibrate.h"
+#include "selfcal/rng.h"
+
+static double now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+static volatile double sink;
+
+int main(int argc, char **argv)
+{
+    int n = argc > 1 ? atoi(argv[1]) : 1000010, d1 = 10, d2 = 11; /* DFT: N multiple of d1·d2 */
+    char in[64], out[64];
+    snprintf(in, sizeof in, "/tmp/bench_profile_command.%d.in.csv", (int)getpid());
+    snprintf(out, sizeof out, "/tmp/bench_profile_command.%d.out.csv", (int)getpid());
+    sc_error err;
+    sc_profile_data d;
+    if (sc_profile_data_init(&d, n, 0.5, d1, d2, &err) != SC_OK)
+        return 1;
+    sc_rng r;
+    sc_rng_seed(&r, 5);
+    for (int k = 0; k < 2; ++k)
+        for (int i = 0; i < n - d.d[k]; ++i) {
+            double x = i * 0.5e-3;
+            d.m1_um[k][i] = sin(x) * 3 + 0.01 * sc_rng_normal(&r);
+            d.m2_um[k][i] = cos(x) * 2 + 0.01 * sc_rng_normal(&r);
+            d.m3_urad[k][i] = 0.1 * sc_rng_normal(&r);
+        }
+    d.has_sigma_disp = 1, d.sigma_disp_um = 0.01;
+    double t0 = now();
+    if (sc_profile_write(in, &d, &err) != SC_OK)
+        return 1;
+    double t_write_in = now() - t0;
+    sc_profile_data_free(&d);
+    printf("selfcal profile at N = %d, d = %d/%d (wall s, best of 3)\n", n, d1, d2);
+    printf("%-6s %8s %8s %8s %8s %12s\n", "method", "read", "solve", "write", "total",
+           "total/solve");
+    double *f = malloc(sizeof(double) * n), *uf = malloc(sizeof(double) * n);
+    double *ey = malloc(sizeof(double) * n);
+    for (int m = 0; m < 2; ++m) {
+        double best[3] = {1e30, 1e30, 1e30};
+        for (int rep = 0; rep < 3; ++rep) {
+            double a = now();
+            if (sc_profile_read(in, &d, &err) != SC_OK) {
+                printf("read failed: %s\n", err.msg);
+                return 1;
+            }
+            double b = now();
+            sc_profile_options o;
+            sc_profile_options_default(&o);
+            o.method = m == 0 ? SC_PROFILE_LSQ : SC_PROFILE_DFT;
+            o.residual_check = m == 0; /* as `selfcal profile` sets it */
+            sc_profile_solution s = {.f_um = f, .uf_um = uf, .ey_um = ey};
+            if (sc_profile_calibrate(&d, &o, &s, &err) != SC_OK) {
+                printf("solve failed: %s\n", err.msg);
+                return 1;
+            }
+            double c = now();
+            if (sc_profile_write_result(out, n, d.s_mm, f, uf, ey, n - d1, &err) != SC_OK)
+                return 1;
+            double e = now();
+            sc_profile_data_free(&d);
+            best[0] = fmin(best[0], b - a), best[1] = fmin(best[1], c - b), best[2] = fmin(best[2], e - c);
+        }
+        double tot = best[0] + best[1] + best[2];
+        printf("%-6s %8.3f %8.3f %8.3f %8.3f %12.2f\n", m == 0 ? "lsq" : "dft", best[0], best[1],
+               best[2], tot, tot / best[1]);
+    }
+    /* the number conversions alone, on the input file's numbers */
+    long cnt = 0, cap = 6L * n;
+    double *v = malloc(sizeof(double) * cap);
+    char *txt = malloc((size_t)cap * SC_NUMBER_BUF);
+    {
+        sc_profile_data dd;
+        if (sc_profile_read(in, &dd, &err) != SC_OK)
+            return 1;
+        for (int k = 0; k < 2; ++k)
+            for (int i = 0; i < n - dd.d[k]; ++i)
+                v[cnt++] = dd.m1_um[k][i], v[cnt++] = dd.m2_um[k][i], v[cnt++] = dd.m3_urad[k][i];
+        sc_profile_data_free(&dd);
+    }
+    double tf[2] = {1e30, 1e30}, tp[2] = {1e30, 1e30};
+    for (int rep = 0; rep < 3; ++rep) {
+        double a = now();
+        for (long i = 0; i < cnt; ++i)
+            snprintf(txt + i * SC_NUMBER_BUF, SC_NUMBER_BUF, "%.17g", v[i]);
+        double b = now();
+        for (long i = 0; i < cnt; ++i)
+            sink = strtod(txt + i * SC_NUMBER_BUF, NULL);
+        double c = now();
+        for (long i = 0; i < cnt; ++i)
+            sc_number_format(v[i], txt + i * SC_NUMBER_BUF);
+        double e = now();
+        for (long i = 0; i < cnt; ++i) {
+            double x;
+            const char *s = txt + i * SC_NUMBER_BUF;
+            sc_number_parse(s, strlen(s), &x);
+            sink = x;
+        }
+        double g = now();
+        tf[0] = fmin(tf[0], b - a), tp[0] = fmin(tp[0], c - b);
+        tf[1] = fmin(tf[1], e - c), tp[1] = fmin(tp[1], g - e);
+    }
+    printf("\nnumber conversions, %ld numbers (ns each):\n", cnt);
+    printf("  format: printf(\"%%.17g\") %6.1f   selfcal (Dragonbox) %6.1f   speed-up %5.1fx\n",
+           1e9 * tf[0] / cnt, 1e9 * tf[1] / cnt, tf[0] / tf[1]);
+    printf("  parse:  strtod           %6.1f   selfcal (fast_float) %5.1f   speed-up %5.1fx\n",
+           1e9 * tp[0] / cnt, 1e9 * tp[1] / cnt, tp[0] / tp[1]);
+    printf("(writing the %d-point input file took %.3f s)\n", n, t_write_in);
+    remove(in);
+    remove(out);
+    free(v), free(txt), free(f), free(uf), free(ey);
+    return 0;
+}
