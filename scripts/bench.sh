@@ -24,8 +24,12 @@ if [ -n "$soak" ]; then
 fi
 section "grid: least squares, solve time and memory (issue: N = 25, 51, 101)"
 "$b/bench_grid_lsq" ${full:+--big}
+section "grid: least squares vs SuiteSparse CHOLMOD on the same matrix (issue 11: N = 101, 201, 301)"
+"$b/bench_grid_cholmod" 101 201 301 ${full:+401}
 section "grid: Monte Carlo sigma_C / sigma_r, three methods"
 "$b/bench_grid_mc" $full
+section "profile: the whole command at N = 10⁶ (read, solve, write) and number conversions vs glibc"
+"$b/bench_profile_command"
 section "profile: least squares, dense vs fast"
 "$b/bench_profile_lsq" $full
 section "profile: dense LS, fast LS, DFT"

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "selfcal/csv.h"
 #include "selfcal/number.h"
 #include "selfcal/rng.h"
 
@@ -175,6 +176,33 @@ static void test_parse_grammar(void **st)
     assert_true(v == 123);
 }
 
+/* sc_parse_long (csv.h) agrees with strtol(s, 10) on whole numbers, and refuses what it refuses. */
+static void test_parse_long(void **st)
+{
+    (void)st;
+    char s[64];
+    long v;
+    const char *edge[] = {"9223372036854775807", "-9223372036854775808", "0", "-0", "+12", " 7"};
+    for (size_t i = 0; i < sizeof edge / sizeof *edge; ++i) {
+        assert_int_equal(sc_parse_long(edge[i], &v), 0);
+        assert_true(v == strtol(edge[i], NULL, 10));
+    }
+    const char *bad[] = {"9223372036854775808", "-9223372036854775809", "", "-", "1.0", "1e3",
+                         "12 ", "0x10", "+-1"};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i)
+        assert_int_equal(sc_parse_long(bad[i], &v), -1);
+    sc_rng r;
+    sc_rng_seed(&r, 3);
+    for (int t = 0; t < 100000; ++t) {
+        long x = (long)(next_bits(&r) >> (int)(sc_rng_uniform(&r) * 63));
+        if (sc_rng_uniform(&r) < 0.5)
+            x = -x;
+        snprintf(s, sizeof s, "%ld", x);
+        assert_int_equal(sc_parse_long(s, &v), 0);
+        assert_true(v == x);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -182,6 +210,7 @@ int main(void)
         cmocka_unit_test(test_format_special),
         cmocka_unit_test(test_parse_vs_strtod),
         cmocka_unit_test(test_parse_grammar),
+        cmocka_unit_test(test_parse_long),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

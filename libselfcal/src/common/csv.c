@@ -4,6 +4,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -184,16 +185,29 @@ int sc_parse_double(const char *s, double *out)
     return sc_number_parse(s, strlen(s), out);
 }
 
+/* Decimal whole numbers as strtol(s, 10) takes them (optional blanks and sign first), without the
+ * locale machinery: the readers parse two of them per line. */
 int sc_parse_long(const char *s, long *out)
 {
     if (!s || !*s)
         return -1;
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (end == s || *end != '\0' || errno == ERANGE)
+    while (isspace((unsigned char)*s))
+        ++s;
+    int neg = *s == '-';
+    if (*s == '-' || *s == '+')
+        ++s;
+    if (!(*s >= '0' && *s <= '9'))
         return -1;
-    *out = v;
+    unsigned long v = 0, lim = neg ? (unsigned long)LONG_MAX + 1 : (unsigned long)LONG_MAX;
+    for (; *s >= '0' && *s <= '9'; ++s) {
+        unsigned d = (unsigned)(*s - '0');
+        if (v > (lim - d) / 10)
+            return -1;
+        v = v * 10 + d;
+    }
+    if (*s != '\0')
+        return -1;
+    *out = neg ? (long)(0UL - v) : (long)v;
     return 0;
 }
 
