@@ -77,16 +77,20 @@ def test_simulation_equals_cli(cli, tmp_path):
 
 
 def test_bad_file_message_equals_cli(cli, tmp_path):
+    m, _ = selfcal.simulate_profile(n=60, d1=3, d2=7)
     bad = tmp_path / "bad.csv"
-    bad.write_text("# selfcal-profile v1\n# N = 30\n# s_mm = 1.0\n# scan 1: d=3\n# scan 2: d=7\n"
-                   "scan,n,m1_um,m2_um,m3_urad\n1,0,0.1,0.2,zz\n")
+    m.write(bad)
+    lines = bad.read_text().splitlines()
+    k = next(i for i, l in enumerate(lines) if l.startswith("scan,")) + 5
+    lines[k] = ",".join(lines[k].split(",")[:-1] + ["zz"])
+    bad.write_text("\n".join(lines) + "\n")
     with pytest.raises(selfcal.Error) as e:
         selfcal.calibrate_profile(str(bad))
     assert isinstance(e.value, ValueError)
     p = cli("profile", "--method", "lsq", bad, "--out", tmp_path / "P.csv", check=False)
     assert p.returncode == 2
     assert p.stderr.strip() == "selfcal: " + str(e.value)
-    assert str(e.value).startswith(f"{bad}:7: ")
+    assert str(e.value).startswith(f"{bad}:{k + 1}: ")
     assert not (tmp_path / "P.csv").exists()
 
 
