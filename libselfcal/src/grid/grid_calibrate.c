@@ -270,10 +270,21 @@ static sc_status run_exact(sc_grid_data *d, const sc_grid_options *o, sc_grid_so
     return SC_OK;
 }
 
+/* Below this noise (µm) the residuals are floating-point rounding, not measurement noise: they
+ * are not normal, and Baarda's test is not applied (noise-free simulations, 1e-13 µm). */
+#define NOISE_FLOOR_UM 1e-9
+
+static int outlier_test_applies(const sc_grid_result *r)
+{
+    return !(r->sigma_r_est_um < NOISE_FLOOR_UM) || (r->weighted && !(r->sigma_r_used_um < NOISE_FLOOR_UM));
+}
+
 /* The worst flagged measurement not yet removed: index v*n*n + k, or -1. */
 static long worst_outlier(const sc_grid_solution *s, size_t tot)
 {
     long best = -1;
+    if (!outlier_test_applies(&s->res))
+        return -1;
     double bt = SC_GRID_BAARDA_CRIT;
     for (size_t k = 0; k < tot; ++k) {
         double t = fmax(isfinite(s->tx[k]) ? fabs(s->tx[k]) : 0,
@@ -365,7 +376,8 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
             s->tx[k] = s->ty[k] = NAN;
             d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
             s->n_flagged++;
-        } else if (fabs(s->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(s->ty[k]) > SC_GRID_BAARDA_CRIT) {
+        } else if (outlier_test_applies(&s->res) &&
+                   (fabs(s->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(s->ty[k]) > SC_GRID_BAARDA_CRIT)) {
             s->outlier[k] = 1;
             s->n_flagged++;
             warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, ty "

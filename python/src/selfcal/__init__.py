@@ -17,6 +17,8 @@ from ._native import Error
 
 __all__ = [
     "Error", "version",
+    "GridPlan", "GridMeasurement", "GridResult", "PlanAnalysis", "read_grid", "plan",
+    "calibrate_grid", "simulate_grid",
     "ProfileMeasurement", "ProfileResult", "read_profile", "calibrate_profile", "simulate_profile",
     "Table",
 ]
@@ -86,6 +88,208 @@ class Table:
     def __repr__(self) -> str:
         return (f"selfcal.Table({self.path!r}: {self.nx} x {self.ny} nodes, pitch "
                 f"{self.px_mm:g} x {self.py_mm:g} mm, {len(self.profiles)} profile(s))")
+
+
+# ---- grid plates (SPEC §1, §5) ----
+
+_GRID_METHODS = {"ye": 0, "double-shift": 1, "lsq": 2}
+
+
+class GridPlan:
+    """A view plan: N x N plate marks at ``pitch_mm``, the stage grid (``stage = (NX, NY)``,
+    default the plate's N x N) centred at ``origin_mm``, and the views: dicts with ``rot``
+    (0, 90, 180, 270, counter-clockwise), ``shift`` (sx, sy) in pitches, optional ``rows`` and
+    ``cols`` (the plate rows/columns a partial view measures) and ``sigma_um`` (the stated
+    standard uncertainty of each coordinate of the view's measurements)."""
+
+    def __init__(self, n, pitch_mm, views, origin_mm=(0.0, 0.0), stage=None):
+        self.n, self.pitch_mm = int(n), float(pitch_mm)
+        self.origin_mm = (float(origin_mm[0]), float(origin_mm[1]))
+        self.stage = (int(stage[0]), int(stage[1])) if stage is not None else (self.n, self.n)
+        self.views = [dict(rot=int(v["rot"]), shift=tuple(int(a) for a in v.get("shift", (0, 0))),
+                           rows=v.get("rows"), cols=v.get("cols"), sigma_um=v.get("sigma_um"))
+                      for v in views]
+        _native.grid_plan(self._as_dict())  # checked by the library now, not at first use
+
+    @classmethod
+    def _from_dict(cls, d):
+        return cls(d["n"], d["pitch_mm"], d["views"], d["origin_mm"], d["stage"])
+
+    def _as_dict(self):
+        return dict(n=self.n, pitch_mm=self.pitch_mm, origin_mm=self.origin_mm, stage=self.stage,
+                    views=self.views)
+
+    @classmethod
+    def standard(cls, name: str, n: int, pitch_mm: float = 1.0, origin_mm=(0.0, 0.0),
+                 stage=None):
+        """A standard plan: ``"ye"`` ({rot 0}, {rot 90}, {shift +1,0}), ``"double-shift"``
+        (Petrò: {rot 0}, {rot 90}, {shift +2,0}, {shift -3,0: row c, columns c, c+1}) or
+        ``"stitch"`` (a stage ``stage = (NX, NY)`` larger than the plate, covered by shifted
+        placements plus a rotated and a +1 view)."""
+        nx, ny = stage if stage is not None else (n, n)
+        return cls._from_dict(_native.grid_standard_plan(name, int(n), float(pitch_mm),
+                                                         float(origin_mm[0]), float(origin_mm[1]),
+                                                         int(nx), int(ny)))
+
+    @property
+    def n_views(self) -> int:
+        return len(self.views)
+
+    def __repr__(self):
+        return (f"selfcal.GridPlan(N={self.n}, pitch_mm={self.pitch_mm:g}, stage={self.stage}, "
+                f"{self.n_views} views)")
+
+
+class GridMeasurement:
+    """Measured mark positions of a plan, in memory (a ``selfcal-grid v1`` file's content).
+
+    ``x_mm``, ``y_mm``: arrays of shape (views, N, N), the measured stage position of mark (i, j)
+    (i = plate row, j = plate column) in each view, NaN where not measured. Optional arrays of
+    the same shape: ``ux_um``, ``uy_um`` (standard uncertainty of each coordinate) and ``t_s``
+    (time of each measurement, for drift)."""
+
+    def __init__(self, plan: GridPlan, x_mm, y_mm, ux_um=None, uy_um=None, t_s=None):
+        self.plan = plan
+        self.x_mm = _np.asarray(x_mm, dtype=_np.float64)
+        self.y_mm = _np.asarray(y_mm, dtype=_np.float64)
+        self.ux_um = None if ux_um is None else _np.asarray(ux_um, dtype=_np.float64)
+        self.uy_um = None if uy_um is None else _np.asarray(uy_um, dtype=_np.float64)
+        self.t_s = None if t_s is None else _np.asarray(t_s, dtype=_np.float64)
+
+    @classmethod
+    def _from_dict(cls, d):
+        return cls(GridPlan._from_dict(d["plan"]), d["x_mm"], d["y_mm"], d["ux_um"], d["uy_um"],
+                   d["t_s"])
+
+    def _as_dict(self):
+        if (self.ux_um is None) != (self.uy_um is None):
+            raise Error("give both ux_um and uy_um, or neither")
+        return dict(plan=self.plan._as_dict(), x_mm=self.x_mm, y_mm=self.y_mm, ux_um=self.ux_um,
+                    uy_um=self.uy_um, t_s=self.t_s)
+
+    def write(self, path):
+        """Write as a ``selfcal-grid v1`` file (atomically: complete or absent)."""
+        _native.grid_write(path, self._as_dict())
+
+    def __repr__(self):
+        return f"selfcal.GridMeasurement({self.plan!r}, {int(_np.isfinite(self.x_mm).sum())} marks measured)"
+
+
+def read_grid(path) -> GridMeasurement:
+    """Read a ``selfcal-grid v1`` data file strictly (bad input raises :class:`Error`)."""
+    return GridMeasurement._from_dict(_native.grid_read(path))
+
+
+def _grid_source(source):
+    if isinstance(source, GridMeasurement):
+        return source._as_dict()
+    if isinstance(source, GridPlan):
+        return source._as_dict()
+    return source
+
+
+class PlanAnalysis:
+    """What ``selfcal plan`` says of a plan: ``identifiable`` (does it determine G?), ``free``
+    (degrees of freedom beyond the gauge left free), ``sigma_c_ratio_rms`` and
+    ``sigma_c_ratio_max`` (predicted std(G)/σ_r, RMS over nodes and worst node; inf when not
+    identifiable), ``sigma_ratio_gx``/``sigma_ratio_gy`` (per node, shape (NY, NX)), counts."""
+
+    def __init__(self, d):
+        for k, v in d.items():
+            setattr(self, k, v)
+        self.identifiable = bool(self.identifiable)
+        self.plan = GridPlan._from_dict(d["plan"])
+
+    def __repr__(self):
+        return (f"selfcal.PlanAnalysis(identifiable={self.identifiable}, free={self.free}, "
+                f"sigma_c_ratio_rms={self.sigma_c_ratio_rms:.4g}, "
+                f"sigma_c_ratio_max={self.sigma_c_ratio_max:.4g})")
+
+
+def plan(source) -> PlanAnalysis:
+    """Analyse a plan before measuring, as ``selfcal plan``: ``source`` is a plan or data file
+    path, a :class:`GridPlan` (what its views would measure) or a :class:`GridMeasurement` (what
+    was measured)."""
+    return PlanAnalysis(_native.grid_plan(_grid_source(source)))
+
+
+class GridResult:
+    """A grid calibration. Arrays indexed [i, j] as the map file: ``gx_um``, ``gy_um`` (stage
+    error G, shape (NY, NX)), ``ugx_um``, ``ugy_um`` (standard uncertainties, k = 1; NaN for the
+    closed forms), ``x_mm``, ``y_mm`` (node positions), ``ax_um``, ``ay_um`` (plate error, (N, N),
+    NaN for an unmeasured mark). Scalars: ``O``, ``R`` (with ``uO``, ``uR``), per-view
+    misalignments ``tx_um``, ``ty_um``, ``theta_urad`` (with ``utx_um`` ...),
+    ``residual_rms_um``, ``sigma_r_est_um``, ``sigma_r_used_um``, ``dof``, ``variance_factor``,
+    ``chi2_pass``. Least squares also gives the residuals ``rx_um``, ``ry_um``, the standardized
+    residuals ``tx``, ``ty`` and ``outlier`` flags, shape (views, N, N), and on request
+    ``covariance_um2``. ``warnings``: the lines ``selfcal grid`` prints as warnings."""
+
+    def __init__(self, d, method):
+        self.method = method
+        for k, v in d.items():
+            setattr(self, k, v)
+        self.chi2_pass = bool(self.chi2_pass)
+        self.weighted = bool(self.weighted)
+
+    def expanded(self, k: float = 2.0):
+        """The expanded uncertainties (k·u(Gx), k·u(Gy)), GUM coverage factor k (default 2)."""
+        return k * self.ugx_um, k * self.ugy_um
+
+    def __repr__(self):
+        ny, nx = self.gx_um.shape
+        return f"selfcal.GridResult({self.method}, stage {nx} x {ny}, sigma_r_est_um={self.sigma_r_est_um:.4g})"
+
+
+def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = False,
+                   reject_outliers: bool = False, covariance: bool = False) -> GridResult:
+    """Separate the stage error G from the plate error A, as ``selfcal grid``.
+
+    ``source``: a ``selfcal-grid v1`` file path or a :class:`GridMeasurement`. ``method``:
+    ``"lsq"`` (any identifying plan, weights, uncertainties, residuals and Baarda's outlier
+    test), ``"ye"`` or ``"double-shift"`` (the closed forms). ``sigma_r_um``: the measurement
+    noise if known (µm, data without stated uncertainties), else estimated from the residuals.
+    ``drift``: per-view linear drift (needs ``t_s``). ``reject_outliers``: remove the worst
+    flagged measurement and solve again until none is flagged. ``covariance``: the full
+    covariance of G (small stages). Warnings (outliers, the χ² test) are in ``result.warnings``
+    and issued with :mod:`warnings` too.
+    """
+    if method not in _GRID_METHODS:
+        raise Error(f"method must be 'ye', 'double-shift' or 'lsq', not {method!r}")
+    if sigma_r_um is not None and not sigma_r_um > 0:
+        raise Error("sigma_r_um must be positive")
+    d = _native.grid_calibrate(_grid_source(source), _GRID_METHODS[method],
+                               float(sigma_r_um or 0.0), bool(drift), bool(reject_outliers),
+                               bool(covariance))
+    r = GridResult(d, method)
+    if r.warnings:
+        import warnings as _w
+        for msg in r.warnings:
+            _w.warn(msg, stacklevel=2)
+    return r
+
+
+def simulate_grid(plan="double-shift", n: int = 25, pitch_mm: float = 1.0, stage=None,
+                  sigma_r_um: float = 0.01, sigma_g_um: float = 1.0, seed: int = 1, **params):
+    """Simulate a plate measured in a plan, as ``selfcal simulate grid`` (Petrò §5).
+
+    ``plan``: a :class:`GridPlan` or a standard plan's name (``"ye"``, ``"double-shift"``,
+    ``"stitch"`` with ``stage=(NX, NY)``). Other parameters by name: ``rho``, ``O``, ``R``,
+    ``sigma_a_um``, ``sigma_t_um``, ``sigma_theta_urad``, ``dt_s``, ``drift_vx_um_s``,
+    ``drift_vy_um_s``. Returns ``(measurement, truth)``: a :class:`GridMeasurement` and a dict
+    with ``gx_um``, ``gy_um`` (NY, NX), ``ax_um``, ``ay_um`` (N, N), ``O``, ``R`` and the views'
+    misalignments, all in the SPEC gauge.
+    """
+    allowed = {"rho", "O", "R", "sigma_a_um", "sigma_t_um", "sigma_theta_urad", "dt_s",
+               "drift_vx_um_s", "drift_vy_um_s"}
+    bad = set(params) - allowed
+    if bad:
+        raise TypeError(f"unknown simulation parameter(s): {', '.join(sorted(bad))}")
+    if isinstance(plan, str):
+        plan = GridPlan.standard(plan, n, pitch_mm, stage=stage)
+    p = dict(sigma_r_um=float(sigma_r_um), sigma_g_um=float(sigma_g_um), seed=int(seed),
+             **{k: float(v) for k, v in params.items()})
+    meas, truth = _native.grid_simulate(plan._as_dict(), p)
+    return GridMeasurement._from_dict(meas), truth
 
 
 # ---- straightness profiles (SPEC §2) ----

@@ -19,6 +19,11 @@
 
 #include "selfcal/correct.h"
 #include "selfcal/error.h"
+#include "selfcal/grid.h"
+#include "selfcal/grid_calibrate.h"
+#include "selfcal/grid_io.h"
+#include "selfcal/grid_lsq.h"
+#include "selfcal/grid_sim.h"
 #include "selfcal/lut.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
@@ -386,6 +391,657 @@ done:
     return ret;
 }
 
+/* ---- grid plates ---- */
+
+/* An n-dimensional float64 array of the given shape, copied from v (or NaN-filled if v is NULL). */
+static PyObject *arr_from(const double *v, int nd, const npy_intp *shape)
+{
+    PyArrayObject *a = (PyArrayObject *)PyArray_SimpleNew(nd, (npy_intp *)shape, NPY_DOUBLE);
+    if (!a)
+        return NULL;
+    npy_intp n = PyArray_SIZE(a);
+    double *dst = PyArray_DATA(a);
+    for (npy_intp k = 0; k < n; ++k)
+        dst[k] = v ? v[k] : NAN;
+    return (PyObject *)a;
+}
+
+/* The plan as a dict: n, pitch_mm, origin_mm, stage (nx, ny), views (rot, shift, rows, cols,
+ * sigma_um; rows/cols None when the view measures every mark on the stage). */
+static PyObject *plan_to_dict(const sc_grid_plan *p)
+{
+    PyObject *views = PyList_New(p->n_views);
+    if (!views)
+        return NULL;
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        PyObject *rows = Py_None, *cols = Py_None;
+        Py_INCREF(Py_None);
+        Py_INCREF(Py_None);
+        if (w->restricted) {
+            Py_DECREF(rows);
+            Py_DECREF(cols);
+            rows = PyList_New(0);
+            cols = PyList_New(0);
+            for (int k = 0; rows && cols && k < p->n; ++k) {
+                if (w->row_sel[k])
+                    PyList_Append(rows, PyLong_FromLong(k)); /* small ints are cached */
+                if (w->col_sel[k])
+                    PyList_Append(cols, PyLong_FromLong(k));
+            }
+        }
+        PyObject *sig = w->sigma_um > 0 ? PyFloat_FromDouble(w->sigma_um) : Py_NewRef(Py_None);
+        PyObject *d = (rows && cols && sig)
+                          ? Py_BuildValue("{s:i,s:(ii),s:N,s:N,s:N}", "rot", w->rot_deg, "shift",
+                                          w->shift_x, w->shift_y, "rows", rows, "cols", cols,
+                                          "sigma_um", sig)
+                          : NULL;
+        if (!d) {
+            Py_DECREF(views);
+            return NULL;
+        }
+        PyList_SET_ITEM(views, v, d);
+    }
+    return Py_BuildValue("{s:i,s:d,s:(dd),s:(ii),s:N}", "n", p->n, "pitch_mm", p->pitch_mm,
+                         "origin_mm", p->origin_mm[0], p->origin_mm[1], "stage",
+                         sc_grid_stage_nx(p), sc_grid_stage_ny(p), "views", views);
+}
+
+/* An index list (rows= or cols=) into sel[n]; -1 with an exception. */
+static int index_list(PyObject *o, unsigned char *sel, int n, const char *what)
+{
+    PyObject *seq = PySequence_Fast(o, what);
+    if (!seq)
+        return -1;
+    for (Py_ssize_t k = 0; k < PySequence_Fast_GET_SIZE(seq); ++k) {
+        long i = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, k));
+        if (PyErr_Occurred() || i < 0 || i >= n) {
+            Py_DECREF(seq);
+            if (!PyErr_Occurred())
+                PyErr_Format(sc_py_error, "%s index %ld outside the plate (0..%d)", what, i, n - 1);
+            return -1;
+        }
+        sel[i] = 1;
+    }
+    Py_DECREF(seq);
+    return 0;
+}
+
+/* A plan from a dict as plan_to_dict makes (stage and views' rows/cols/sigma_um optional);
+ * checked by the library. -1 with an exception. */
+static int plan_from_dict(PyObject *dict, sc_grid_plan *p)
+{
+    memset(p, 0, sizeof *p);
+    if (!PyDict_Check(dict)) {
+        PyErr_SetString(PyExc_TypeError, "a grid plan is a dict (use selfcal.GridPlan)");
+        return -1;
+    }
+    PyObject *on = PyDict_GetItemString(dict, "n"), *op = PyDict_GetItemString(dict, "pitch_mm"),
+             *oo = PyDict_GetItemString(dict, "origin_mm"), *os = PyDict_GetItemString(dict, "stage"),
+             *ov = PyDict_GetItemString(dict, "views");
+    if (!on || !op || !ov) {
+        PyErr_SetString(PyExc_KeyError, "a grid plan needs n, pitch_mm and views");
+        return -1;
+    }
+    p->n = (int)PyLong_AsLong(on);
+    p->pitch_mm = PyFloat_AsDouble(op);
+    if (oo && oo != Py_None && !PyArg_ParseTuple(oo, "dd", &p->origin_mm[0], &p->origin_mm[1]))
+        return -1;
+    if (os && os != Py_None && !PyArg_ParseTuple(os, "ii", &p->stage_nx, &p->stage_ny))
+        return -1;
+    if (PyErr_Occurred())
+        return -1;
+    if (p->stage_nx == p->n && p->stage_ny == p->n)
+        p->stage_nx = p->stage_ny = 0; /* the plate's own grid */
+    if (p->n < 3 || p->n > SC_GRID_MAX_N) {
+        PyErr_Format(sc_py_error, "N = %d is out of range (3..%d)", p->n, SC_GRID_MAX_N);
+        return -1;
+    }
+    PyObject *views = PySequence_Fast(ov, "views must be a sequence");
+    if (!views)
+        return -1;
+    Py_ssize_t nv = PySequence_Fast_GET_SIZE(views);
+    if (nv < 1 || nv > SC_GRID_MAX_VIEWS) {
+        Py_DECREF(views);
+        PyErr_Format(sc_py_error, "a plan has 1 to %d views, not %zd", SC_GRID_MAX_VIEWS, nv);
+        return -1;
+    }
+    p->n_views = (int)nv;
+    for (int v = 0; v < p->n_views; ++v) {
+        PyObject *w = PySequence_Fast_GET_ITEM(views, v);
+        sc_grid_view *g = &p->view[v];
+        PyObject *r = PyDict_Check(w) ? PyDict_GetItemString(w, "rot") : NULL,
+                 *sh = PyDict_Check(w) ? PyDict_GetItemString(w, "shift") : NULL;
+        if (!r || !sh) {
+            Py_DECREF(views);
+            PyErr_SetString(PyExc_KeyError, "a view is a dict with rot and shift");
+            return -1;
+        }
+        g->rot_deg = (int)PyLong_AsLong(r);
+        if (PyErr_Occurred() || !PyArg_ParseTuple(sh, "ii", &g->shift_x, &g->shift_y)) {
+            Py_DECREF(views);
+            return -1;
+        }
+        PyObject *rows = PyDict_GetItemString(w, "rows"), *cols = PyDict_GetItemString(w, "cols"),
+                 *sig = PyDict_GetItemString(w, "sigma_um");
+        if ((rows && rows != Py_None) || (cols && cols != Py_None)) {
+            g->restricted = 1;
+            if ((rows && rows != Py_None && index_list(rows, g->row_sel, p->n, "rows")) ||
+                (cols && cols != Py_None && index_list(cols, g->col_sel, p->n, "cols"))) {
+                Py_DECREF(views);
+                return -1;
+            }
+        }
+        if (sig && sig != Py_None) {
+            g->sigma_um = PyFloat_AsDouble(sig);
+            if (PyErr_Occurred() || !(g->sigma_um > 0)) {
+                Py_DECREF(views);
+                if (!PyErr_Occurred())
+                    PyErr_Format(sc_py_error, "view %d: sigma_um must be positive", v);
+                return -1;
+            }
+        }
+    }
+    Py_DECREF(views);
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_grid_plan_check(p, &err) != SC_OK) {
+        raise_sc(&err);
+        return -1;
+    }
+    return 0;
+}
+
+/* Nominal stage position (mm) of mark (i, j) in view v; 0 if the mark is off the stage. */
+static int nominal_mm(const sc_grid_plan *p, int v, int i, int j, double *x, double *y)
+{
+    int ni, nj;
+    if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
+        return 0;
+    sc_grid_node_xy_mm(p, ni, nj, x, y);
+    *x += p->origin_mm[0];
+    *y += p->origin_mm[1];
+    return 1;
+}
+
+/* The measurement as a dict: plan, x_mm, y_mm (views x N x N, NaN where not measured), and
+ * ux_um, uy_um, t_s when the data have them (else None). */
+static PyObject *data_to_dict(const sc_grid_data *d)
+{
+    const sc_grid_plan *p = &d->plan;
+    int n = p->n, nv = p->n_views;
+    npy_intp shape[3] = {nv, n, n};
+    PyObject *x = arr_from(NULL, 3, shape), *y = arr_from(NULL, 3, shape);
+    PyObject *opt[3] = {Py_NewRef(Py_None), Py_NewRef(Py_None), Py_NewRef(Py_None)};
+    double *const *src[3] = {d->ux_um, d->uy_um, d->t_s};
+    for (int q = 0; q < 3; ++q) {
+        int any = 0;
+        for (int v = 0; v < nv; ++v)
+            any |= src[q][v] != NULL;
+        if (!any)
+            continue;
+        Py_DECREF(opt[q]);
+        opt[q] = arr_from(NULL, 3, shape);
+        if (!opt[q])
+            break;
+        double *o = PyArray_DATA((PyArrayObject *)opt[q]);
+        for (int v = 0; v < nv; ++v)
+            for (long k = 0; src[q][v] && k < (long)n * n; ++k)
+                o[(long)v * n * n + k] = src[q][v][k];
+    }
+    PyObject *plan = plan_to_dict(p);
+    if (!x || !y || !opt[0] || !opt[1] || !opt[2] || !plan) {
+        Py_XDECREF(x), Py_XDECREF(y), Py_XDECREF(plan);
+        for (int q = 0; q < 3; ++q)
+            Py_XDECREF(opt[q]);
+        return NULL;
+    }
+    double *xv = PyArray_DATA((PyArrayObject *)x), *yv = PyArray_DATA((PyArrayObject *)y);
+    for (int v = 0; v < nv; ++v)
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                long k = (long)i * n + j, o = (long)v * n * n + k;
+                double nx, ny;
+                if (!isfinite(d->dx_um[v][k]) || !nominal_mm(p, v, i, j, &nx, &ny))
+                    continue;
+                xv[o] = nx + d->dx_um[v][k] / 1000.0;
+                yv[o] = ny + d->dy_um[v][k] / 1000.0;
+            }
+    return Py_BuildValue("{s:N,s:N,s:N,s:N,s:N,s:N}", "plan", plan, "x_mm", x, "y_mm", y, "ux_um",
+                         opt[0], "uy_um", opt[1], "t_s", opt[2]);
+}
+
+/* A (views, N, N) float64 array from a dict entry into per-view arrays of d (allocated). */
+static int fill_views(PyObject *dict, const char *key, const sc_grid_plan *p, double **dst,
+                      const double *sub, double scale)
+{
+    PyObject *o = PyDict_GetItemString(dict, key);
+    PyArrayObject *a = o ? (PyArrayObject *)PyArray_FROMANY(o, NPY_DOUBLE, 3, 3, NPY_ARRAY_IN_ARRAY) : NULL;
+    if (!a)
+        return -1;
+    int n = p->n;
+    if (PyArray_DIM(a, 0) != p->n_views || PyArray_DIM(a, 1) != n || PyArray_DIM(a, 2) != n) {
+        PyErr_Format(sc_py_error, "%s must have the shape (views, N, N) = (%d, %d, %d)", key,
+                     p->n_views, n, n);
+        Py_DECREF(a);
+        return -1;
+    }
+    const double *src = PyArray_DATA(a);
+    for (int v = 0; v < p->n_views; ++v)
+        for (long k = 0; k < (long)n * n; ++k) {
+            double val = src[(long)v * n * n + k];
+            dst[v][k] = sub ? (val - sub[(long)v * n * n + k]) * scale : val;
+        }
+    Py_DECREF(a);
+    return 0;
+}
+
+/* d (allocated here) from a measurement dict; -1 with an exception. */
+static int data_from_dict(PyObject *dict, sc_grid_data *d)
+{
+    memset(d, 0, sizeof *d);
+    PyObject *plan = PyDict_Check(dict) ? PyDict_GetItemString(dict, "plan") : NULL;
+    if (!plan) {
+        PyErr_SetString(PyExc_TypeError, "a grid measurement needs a plan (use selfcal.GridMeasurement)");
+        return -1;
+    }
+    if (plan_from_dict(plan, &d->plan))
+        return -1;
+    const sc_grid_plan *p = &d->plan;
+    PyObject *ux = PyDict_GetItemString(dict, "ux_um"), *ts = PyDict_GetItemString(dict, "t_s");
+    int weights = ux && ux != Py_None, times = ts && ts != Py_None;
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_grid_data_alloc(d, &err) != SC_OK ||
+        ((weights || times) && sc_grid_data_alloc_extra(d, weights, times, &err) != SC_OK)) {
+        sc_grid_data_free(d);
+        raise_sc(&err);
+        return -1;
+    }
+    int n = p->n;
+    size_t tot = (size_t)p->n_views * n * n;
+    double *nom = malloc(2 * tot * sizeof(double) + 1);
+    if (!nom) {
+        sc_grid_data_free(d);
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (int v = 0; v < p->n_views; ++v)
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                size_t o = ((size_t)v * n + i) * n + j;
+                if (!nominal_mm(p, v, i, j, &nom[o], &nom[tot + o]))
+                    nom[o] = nom[tot + o] = NAN;
+            }
+    int rc = fill_views(dict, "x_mm", p, d->dx_um, nom, 1000.0) ||
+             fill_views(dict, "y_mm", p, d->dy_um, nom + tot, 1000.0) ||
+             (weights && (fill_views(dict, "ux_um", p, d->ux_um, NULL, 1) ||
+                          fill_views(dict, "uy_um", p, d->uy_um, NULL, 1))) ||
+             (times && fill_views(dict, "t_s", p, d->t_s, NULL, 1));
+    free(nom);
+    for (int v = 0; !rc && v < p->n_views; ++v)
+        for (int i = 0; i < n && !rc; ++i)
+            for (int j = 0; j < n && !rc; ++j) {
+                long k = (long)i * n + j;
+                int fx = isfinite(d->dx_um[v][k]), fy = isfinite(d->dy_um[v][k]);
+                if (fx != fy) {
+                    PyErr_Format(sc_py_error, "view %d mark (%d,%d): x_mm and y_mm must both be "
+                                 "measured or both NaN", v, i, j);
+                    rc = -1;
+                } else if (fx && !sc_grid_view_measures(p, v, i, j)) {
+                    PyErr_Format(sc_py_error, "view %d mark (%d,%d) is measured but the view does "
+                                 "not place it on a stage node it measures", v, i, j);
+                    rc = -1;
+                } else if (fx && fmax(fabs(d->dx_um[v][k]), fabs(d->dy_um[v][k])) >
+                                     500.0 * p->pitch_mm) {
+                    PyErr_Format(sc_py_error, "view %d mark (%d,%d) is more than half a pitch from "
+                                 "its nominal position", v, i, j);
+                    rc = -1;
+                }
+            }
+    if (rc)
+        sc_grid_data_free(d);
+    return rc;
+}
+
+/* A grid measurement from a path (read strictly, as the command line) or a dict; info is
+ * filled for a file (else zeroed), *path_out gets the path bytes (or NULL). */
+static int grid_source(PyObject *src, sc_grid_data *d, sc_grid_file_info *info, PyObject **path_out)
+{
+    memset(info, 0, sizeof *info);
+    *path_out = NULL;
+    PyObject *path = as_path(src);
+    if (PyErr_Occurred())
+        return -1;
+    if (!path)
+        return data_from_dict(src, d);
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_grid_read(PyBytes_AS_STRING(path), d, info, &err) != SC_OK) {
+        Py_DECREF(path);
+        raise_sc(&err);
+        return -1;
+    }
+    *path_out = path;
+    return 0;
+}
+
+static PyObject *py_grid_read(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *src, *path;
+    if (!PyArg_ParseTuple(args, "O", &src))
+        return NULL;
+    sc_grid_data d;
+    sc_grid_file_info info;
+    if (grid_source(src, &d, &info, &path))
+        return NULL;
+    Py_XDECREF(path);
+    PyObject *r = data_to_dict(&d);
+    sc_grid_data_free(&d);
+    return r;
+}
+
+static PyObject *py_grid_write(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *pathobj, *dict;
+    if (!PyArg_ParseTuple(args, "O&O", PyUnicode_FSConverter, &pathobj, &dict))
+        return NULL;
+    sc_grid_data d;
+    PyObject *ret = NULL;
+    if (data_from_dict(dict, &d) == 0) {
+        sc_error err;
+        sc_error_clear(&err);
+        if (sc_grid_write_input(PyBytes_AS_STRING(pathobj), &d, &err) != SC_OK)
+            raise_sc(&err);
+        else
+            ret = Py_NewRef(Py_None);
+        sc_grid_data_free(&d);
+    }
+    Py_DECREF(pathobj);
+    return ret;
+}
+
+/* grid_plan(src): src a path (plan or data file), a plan dict or a measurement dict. */
+static PyObject *py_grid_plan(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *src, *path = NULL;
+    if (!PyArg_ParseTuple(args, "O", &src))
+        return NULL;
+    sc_grid_data d;
+    sc_grid_file_info info;
+    int has_data;
+    memset(&d, 0, sizeof d);
+    if (PyDict_Check(src) && !PyDict_GetItemString(src, "plan")) { /* a bare plan */
+        if (plan_from_dict(src, &d.plan))
+            return NULL;
+        has_data = 0;
+    } else {
+        if (grid_source(src, &d, &info, &path))
+            return NULL;
+        has_data = path ? info.n_rows > 0 : 1;
+    }
+    sc_error err;
+    sc_error_clear(&err);
+    sc_grid_lsq *q = NULL;
+    PyObject *ret = NULL, *sgx = NULL, *sgy = NULL;
+    sc_status st;
+    Py_BEGIN_ALLOW_THREADS
+    st = sc_grid_lsq_create(&d.plan, has_data ? &d : NULL, &q, &err);
+    Py_END_ALLOW_THREADS
+    if (st != SC_OK) {
+        if (!err.file[0] && path) {
+            snprintf(err.file, sizeof err.file, "%s", PyBytes_AS_STRING(path));
+            err.line = info.header_end_line;
+        }
+        raise_sc(&err);
+        goto done;
+    }
+    sc_grid_lsq_info qi;
+    sc_grid_lsq_get_info(q, &qi);
+    npy_intp shape[2] = {sc_grid_stage_ny(&d.plan), sc_grid_stage_nx(&d.plan)};
+    sgx = arr_from(NULL, 2, shape);
+    sgy = arr_from(NULL, 2, shape);
+    if (!sgx || !sgy)
+        goto done;
+    if (qi.identifiable &&
+        sc_grid_lsq_sigma_ratio(q, PyArray_DATA((PyArrayObject *)sgx),
+                                PyArray_DATA((PyArrayObject *)sgy), &err) != SC_OK) {
+        raise_sc(&err);
+        goto done;
+    }
+    ret = Py_BuildValue("{s:O,s:l,s:d,s:d,s:l,s:l,s:l,s:l,s:O,s:O,s:N}", "identifiable",
+                        qi.identifiable ? Py_True : Py_False, "free", qi.identifiable ? 0L : qi.free_dof,
+                        "sigma_c_ratio_rms", qi.identifiable ? qi.sigma_c_ratio_rms : INFINITY,
+                        "sigma_c_ratio_max", qi.identifiable ? qi.sigma_c_ratio_max : INFINITY,
+                        "n_unknowns", qi.n_unknowns, "n_equations", qi.n_equations,
+                        "n_constraints", qi.n_constraints, "n_stage_unmeasured",
+                        qi.n_stage_unmeasured, "sigma_ratio_gx", sgx, "sigma_ratio_gy", sgy,
+                        "plan", plan_to_dict(&d.plan));
+done:
+    Py_XDECREF(sgx);
+    Py_XDECREF(sgy);
+    Py_XDECREF(path);
+    sc_grid_lsq_destroy(q);
+    sc_grid_data_free(&d);
+    return ret;
+}
+
+/* Warnings of the calibration collected into a Python list. */
+static void warn_collect(void *ctx, const char *msg)
+{
+    PyObject *s = PyUnicode_DecodeUTF8(msg, (Py_ssize_t)strlen(msg), "replace");
+    if (s) {
+        PyList_Append((PyObject *)ctx, s);
+        Py_DECREF(s);
+    } else {
+        PyErr_Clear();
+    }
+}
+
+/* The per-view scalars of a result as a (views,) array. */
+static PyObject *per_view(const double *v, int nv)
+{
+    npy_intp s[1] = {nv};
+    return arr_from(v, 1, s);
+}
+
+static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution *s, PyObject *warnings)
+{
+    const sc_grid_plan *p = &d->plan;
+    const sc_grid_result *r = &s->res;
+    int n = p->n, nv = p->n_views, nx = sc_grid_stage_nx(p), ny = sc_grid_stage_ny(p);
+    npy_intp sg[2] = {ny, nx}, sa[2] = {n, n}, sr[3] = {nv, n, n}, sc[2] = {s->n_cov, s->n_cov};
+    double *xy = malloc(2 * (size_t)nx * ny * sizeof(double));
+    if (!xy)
+        return PyErr_NoMemory();
+    for (int i = 0; i < ny; ++i)
+        for (int j = 0; j < nx; ++j) {
+            sc_grid_node_xy_mm(p, i, j, &xy[i * nx + j], &xy[(size_t)nx * ny + i * nx + j]);
+            xy[i * nx + j] += p->origin_mm[0];
+            xy[(size_t)nx * ny + i * nx + j] += p->origin_mm[1];
+        }
+    PyObject *outlier = Py_None;
+    Py_INCREF(Py_None);
+    if (s->outlier) {
+        Py_DECREF(outlier);
+        outlier = PyArray_SimpleNew(3, sr, NPY_BOOL);
+        if (outlier)
+            for (size_t k = 0; k < (size_t)nv * n * n; ++k)
+                ((npy_bool *)PyArray_DATA((PyArrayObject *)outlier))[k] = s->outlier[k] != 0;
+    }
+#define OPT(ptr, nd, shp) ((ptr) ? arr_from((ptr), (nd), (shp)) : Py_NewRef(Py_None))
+    PyObject *ret = outlier ? Py_BuildValue(
+        "{s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,s:d,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,"
+        "s:l,s:l,s:O,s:d,s:d,s:d,s:O,s:N,s:N,s:N,s:N,s:N,s:l,s:l,s:N,s:O}",
+        "gx_um", arr_from(r->gx_um, 2, sg), "gy_um", arr_from(r->gy_um, 2, sg),
+        "ugx_um", arr_from(r->ugx_um, 2, sg), "ugy_um", arr_from(r->ugy_um, 2, sg),
+        "x_mm", arr_from(xy, 2, sg), "y_mm", arr_from(xy + (size_t)nx * ny, 2, sg),
+        "ax_um", arr_from(r->ax_um, 2, sa), "ay_um", arr_from(r->ay_um, 2, sa),
+        "O", r->O, "R", r->R, "uO", r->uO, "uR", r->uR,
+        "tx_um", per_view(r->tx_um, nv), "ty_um", per_view(r->ty_um, nv),
+        "theta_urad", per_view(r->theta_urad, nv), "utx_um", per_view(r->utx_um, nv),
+        "uty_um", per_view(r->uty_um, nv), "utheta_urad", per_view(r->utheta_urad, nv),
+        "residual_rms_um", r->residual_rms_um, "sigma_r_est_um", r->sigma_r_est_um,
+        "sigma_r_used_um", r->sigma_r_used_um, "n_measurements", r->n_measurements, "dof", r->dof,
+        "weighted", r->weighted ? Py_True : Py_False, "variance_factor", r->variance_factor,
+        "chi2_lo", r->chi2_lo, "chi2_hi", r->chi2_hi, "chi2_pass", r->chi2_pass ? Py_True : Py_False,
+        "rx_um", OPT(s->rx_um, 3, sr), "ry_um", OPT(s->ry_um, 3, sr), "tx", OPT(s->tx, 3, sr),
+        "ty", OPT(s->ty, 3, sr), "outlier", outlier, "n_flagged", s->n_flagged, "n_removed",
+        s->n_removed, "covariance_um2", OPT(s->cov_um2, 2, sc), "warnings", warnings) : NULL;
+#undef OPT
+    free(xy);
+    return ret;
+}
+
+/* grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance) -> dict */
+static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *src, *path;
+    sc_grid_options o;
+    sc_grid_options_default(&o);
+    int method;
+    if (!PyArg_ParseTuple(args, "Oidppp", &src, &method, &o.sigma_r_um, &o.drift,
+                          &o.reject_outliers, &o.covariance))
+        return NULL;
+    o.method = (sc_grid_method)method;
+    sc_grid_data d;
+    sc_grid_file_info info;
+    if (grid_source(src, &d, &info, &path))
+        return NULL;
+    PyObject *warnings = PyList_New(0), *ret = NULL;
+    sc_grid_solution s;
+    memset(&s, 0, sizeof s);
+    if (!warnings)
+        goto done;
+    o.warn = warn_collect; /* called with the GIL held: the solve below keeps it */
+    o.warn_ctx = warnings;
+    sc_error err;
+    sc_error_clear(&err);
+    const char *pth = path ? PyBytes_AS_STRING(path) : NULL;
+    if (sc_grid_calibrate(&d, path ? &info : NULL, pth, &o, &s, &err) != SC_OK) {
+        if (!err.file[0] && pth && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
+            snprintf(err.file, sizeof err.file, "%s", pth);
+            if (!err.line)
+                err.line = info.header_end_line;
+        }
+        raise_sc(&err);
+        goto done;
+    }
+    ret = solution_to_dict(&d, &s, warnings);
+done:
+    sc_grid_solution_free(&s);
+    sc_grid_data_free(&d);
+    Py_XDECREF(path);
+    Py_XDECREF(warnings);
+    return ret;
+}
+
+/* grid_standard_plan(name, n, pitch_mm, ox, oy, nx, ny) -> plan dict */
+static PyObject *py_grid_standard_plan(PyObject *self, PyObject *args)
+{
+    (void)self;
+    const char *name;
+    int n, nx, ny;
+    double pitch, ox, oy;
+    if (!PyArg_ParseTuple(args, "sidddii", &name, &n, &pitch, &ox, &oy, &nx, &ny))
+        return NULL;
+    sc_grid_plan p;
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st;
+    if (!strcmp(name, "ye"))
+        st = sc_grid_plan_ye(n, pitch, ox, oy, &p, &err);
+    else if (!strcmp(name, "double-shift"))
+        st = sc_grid_plan_double_shift(n, pitch, ox, oy, &p, &err);
+    else if (!strcmp(name, "stitch"))
+        st = sc_grid_plan_stitch(n, nx, ny, pitch, ox, oy, &p, &err);
+    else
+        return PyErr_Format(sc_py_error, "plan must be 'ye', 'double-shift' or 'stitch', not '%s'", name);
+    if (st != SC_OK)
+        return raise_sc(&err);
+    return plan_to_dict(&p);
+}
+
+/* grid_simulate(plan dict, params dict) -> (measurement dict, truth dict) */
+static PyObject *py_grid_simulate(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *pd, *params;
+    if (!PyArg_ParseTuple(args, "OO!", &pd, &PyDict_Type, &params))
+        return NULL;
+    sc_grid_data d;
+    memset(&d, 0, sizeof d);
+    if (plan_from_dict(pd, &d.plan))
+        return NULL;
+    sc_grid_sim_params sp;
+    sc_grid_sim_defaults(&sp);
+    struct { const char *key; double *dst; } keys[] = {
+        {"sigma_g_um", &sp.sigma_g_um}, {"rho", &sp.rho}, {"O", &sp.O}, {"R", &sp.R},
+        {"sigma_a_um", &sp.sigma_a_um}, {"sigma_t_um", &sp.sigma_t_um},
+        {"sigma_theta_urad", &sp.sigma_theta_urad}, {"sigma_r_um", &sp.sigma_r_um},
+        {"dt_s", &sp.dt_s}, {"drift_vx_um_s", &sp.drift_vx_um_s},
+        {"drift_vy_um_s", &sp.drift_vy_um_s}};
+    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k) {
+        PyObject *v = PyDict_GetItemString(params, keys[k].key);
+        if (v && opt_double(v, keys[k].dst))
+            return NULL;
+    }
+    PyObject *vs = PyDict_GetItemString(params, "seed");
+    if (vs && ((sp.seed = PyLong_AsUnsignedLongLong(vs)), PyErr_Occurred()))
+        return NULL;
+    const sc_grid_plan *p = &d.plan;
+    long ns = sc_grid_stage_nodes(p), nm = (long)p->n * p->n;
+    sc_error err;
+    sc_error_clear(&err);
+    PyObject *ret = NULL;
+    double *buf = NULL, *work = NULL;
+    if (sc_grid_data_alloc(&d, &err) != SC_OK ||
+        (sp.dt_s > 0 && sc_grid_data_alloc_extra(&d, 0, 1, &err) != SC_OK)) {
+        raise_sc(&err);
+        goto done;
+    }
+    buf = malloc((2 * (size_t)ns + 2 * (size_t)nm) * sizeof(double));
+    work = malloc(sc_grid_sim_work_doubles_plan(p) * sizeof(double) + 1);
+    if (!buf || !work) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    sc_grid_sim_truth t;
+    memset(&t, 0, sizeof t);
+    t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 2 * ns + nm;
+    sc_status st;
+    Py_BEGIN_ALLOW_THREADS
+    st = sc_grid_sim_run(p, &sp, &t, &d, work, &err);
+    Py_END_ALLOW_THREADS
+    if (st != SC_OK) {
+        raise_sc(&err);
+        goto done;
+    }
+    npy_intp sg[2] = {sc_grid_stage_ny(p), sc_grid_stage_nx(p)}, sa[2] = {p->n, p->n};
+    PyObject *meas = data_to_dict(&d);
+    PyObject *truth = meas ? Py_BuildValue(
+        "{s:N,s:N,s:N,s:N,s:d,s:d,s:N,s:N,s:N}", "gx_um", arr_from(t.gx_um, 2, sg), "gy_um",
+        arr_from(t.gy_um, 2, sg), "ax_um", arr_from(t.ax_um, 2, sa), "ay_um",
+        arr_from(t.ay_um, 2, sa), "O", t.O, "R", t.R, "tx_um", per_view(t.tx_um, p->n_views),
+        "ty_um", per_view(t.ty_um, p->n_views), "theta_urad", per_view(t.theta_urad, p->n_views))
+                            : NULL;
+    if (meas && truth)
+        ret = Py_BuildValue("(NN)", meas, truth);
+    else {
+        Py_XDECREF(meas);
+        Py_XDECREF(truth);
+    }
+done:
+    free(buf);
+    free(work);
+    sc_grid_data_free(&d);
+    return ret;
+}
+
 /* ---- Table: a loaded correction table ---- */
 
 typedef struct {
@@ -541,6 +1197,14 @@ static PyObject *py_version(PyObject *self, PyObject *unused)
 
 static PyMethodDef module_methods[] = {
     {"version", py_version, METH_NOARGS, "version() -> the libselfcal version string."},
+    {"grid_read", py_grid_read, METH_VARARGS, "grid_read(path) -> measurement dict."},
+    {"grid_write", py_grid_write, METH_VARARGS, "grid_write(path, measurement dict)."},
+    {"grid_plan", py_grid_plan, METH_VARARGS, "grid_plan(path, plan or measurement) -> analysis dict."},
+    {"grid_calibrate", py_grid_calibrate, METH_VARARGS,
+     "grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance) -> dict."},
+    {"grid_standard_plan", py_grid_standard_plan, METH_VARARGS,
+     "grid_standard_plan(name, n, pitch_mm, ox, oy, nx, ny) -> plan dict."},
+    {"grid_simulate", py_grid_simulate, METH_VARARGS, "grid_simulate(plan, params) -> (measurement, truth)."},
     {"profile_read", py_profile_read, METH_VARARGS, "profile_read(path) -> measurement dict."},
     {"profile_write", py_profile_write, METH_VARARGS, "profile_write(path, measurement dict)."},
     {"profile_calibrate", py_profile_calibrate, METH_VARARGS,

@@ -1,0 +1,143 @@
+"""Grid self-calibration from Python: recovery against simulated truth, equality with the
+command line on the same files, plans, errors."""
+import warnings
+
+import numpy as np
+import pytest
+
+import selfcal
+from conftest import read_csv
+
+
+@pytest.mark.parametrize("method", ["lsq", "double-shift", "ye"])
+def test_noise_free_recovery(method):
+    plan = "ye" if method == "ye" else "double-shift"
+    m, truth = selfcal.simulate_grid(plan, n=11, sigma_r_um=0.0, seed=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # noise-free data flag nothing
+        r = selfcal.calibrate_grid(m, method=method)
+    assert r.gx_um.shape == (11, 11) and r.ax_um.shape == (11, 11)
+    assert np.max(np.abs(r.gx_um - truth["gx_um"])) < 1e-9
+    assert np.max(np.abs(r.gy_um - truth["gy_um"])) < 1e-9
+    assert np.max(np.abs(r.ax_um - truth["ax_um"])) < 1e-9
+    assert abs(r.O - truth["O"]) < 1e-12 and abs(r.R - truth["R"]) < 1e-12
+    assert np.isnan(r.ugx_um).all() == (method != "lsq")
+
+
+def test_stitched_stage_and_missing_mark_in_memory():
+    m, truth = selfcal.simulate_grid("stitch", n=7, stage=(13, 11), sigma_r_um=0.0, seed=2)
+    assert m.plan.stage == (13, 11)
+    m.x_mm[:, 2, 3] = np.nan  # a damaged mark, in every view
+    m.y_mm[:, 2, 3] = np.nan
+    a = selfcal.plan(m)
+    assert a.identifiable and a.free == 0 and a.sigma_ratio_gx.shape == (11, 13)
+    r = selfcal.calibrate_grid(m)
+    assert r.gx_um.shape == (11, 13)
+    assert np.max(np.abs(r.gx_um - truth["gx_um"])) < 1e-9
+    assert np.isnan(r.ax_um[2, 3]) and np.isfinite(r.ax_um[0, 0])
+    # a damaged corner mark leaves the stage's corner node unmeasured: not identifiable
+    m.x_mm[:, 1, 1] = m.y_mm[:, 1, 1] = np.nan
+    b = selfcal.plan(m)
+    assert not b.identifiable and b.free > 0
+
+
+def test_plan_analysis_matches_cli(cli, tmp_path):
+    p = selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)])
+    a = selfcal.plan(p)
+    assert not a.identifiable and a.free == (81 - 5) // 2 and a.sigma_c_ratio_rms == np.inf
+    m, _ = selfcal.simulate_grid("double-shift", n=13)
+    f = tmp_path / "in.csv"
+    m.write(f)
+    out = cli("plan", f).stdout
+    lines = dict(l.split(": ", 1) for l in out.splitlines() if ": " in l)
+    b = selfcal.plan(str(f))
+    assert lines["identifiable"] == "yes" and b.identifiable
+    assert int(lines["free"]) == b.free == 0
+    assert float(lines["sigma_c_ratio_rms"]) == pytest.approx(b.sigma_c_ratio_rms, rel=1e-5)
+    assert float(lines["sigma_c_ratio_max"]) == pytest.approx(b.sigma_c_ratio_max, rel=1e-5)
+
+
+@pytest.mark.parametrize("method", ["lsq", "double-shift"])
+def test_equals_cli(cli, tmp_path, method):
+    m, _ = selfcal.simulate_grid("double-shift", n=13, sigma_r_um=0.02, seed=9)
+    f = tmp_path / "in.csv"
+    m.write(f)
+    back = selfcal.read_grid(f)
+    ok = np.isfinite(m.x_mm)
+    assert np.array_equal(ok, np.isfinite(back.x_mm))
+    assert np.max(np.abs(back.x_mm[ok] - m.x_mm[ok])) < 1e-12
+    cli("grid", "--method", method, f, "--map", tmp_path / "G.csv", "--artifact", tmp_path / "A.csv",
+        "--quiet")
+    g, a = read_csv(tmp_path / "G.csv"), read_csv(tmp_path / "A.csv")
+    r = selfcal.calibrate_grid(str(f), method=method)
+    i, j = g["i"].astype(int), g["j"].astype(int)
+    for col in ("gx_um", "gy_um", "ugx_um", "ugy_um"):
+        c, p = g[col], getattr(r, col)[i, j]
+        assert np.array_equal(np.isnan(c), np.isnan(p)), col
+        assert np.allclose(c[~np.isnan(c)], p[~np.isnan(p)], rtol=1e-9, atol=1e-12), col
+    assert np.allclose(g["x_mm"], r.x_mm[i, j]) and np.allclose(g["y_mm"], r.y_mm[i, j])
+    ia, ja = a["i"].astype(int), a["j"].astype(int)
+    assert np.allclose(a["ax_um"], r.ax_um[ia, ja], rtol=1e-9, atol=1e-12)
+    # the in-memory path gives the same numbers as the file path
+    r2 = selfcal.calibrate_grid(m, method=method)
+    assert np.allclose(r2.gx_um, r.gx_um, rtol=1e-9, atol=1e-11)
+
+
+def test_weights_outliers_and_residuals(cli, tmp_path):
+    m, truth = selfcal.simulate_grid("double-shift", n=11, sigma_r_um=0.01, seed=3)
+    m.x_mm[0, 3, 4] += 0.005  # a 5 µm blunder (500 sigma)
+    with pytest.warns(UserWarning, match=r"view 0 mark \(3,4\) is an outlier"):
+        r = selfcal.calibrate_grid(m)
+    assert r.outlier[0, 3, 4] and r.n_flagged >= 1
+    assert abs(r.tx[0, 3, 4]) > 3.29
+    with pytest.warns(UserWarning, match="removed outlier view 0 mark"):
+        rr = selfcal.calibrate_grid(m, reject_outliers=True)
+    assert rr.n_removed >= 1
+    assert np.max(np.abs(rr.gx_um - truth["gx_um"])) < 6 * np.max(rr.ugx_um)
+    # the same flags as the command line's residual file
+    f = tmp_path / "o.csv"
+    m.write(f)
+    cli("grid", "--method", "lsq", f, "--map", tmp_path / "G.csv", "--residuals",
+        tmp_path / "R.csv", "--quiet")
+    res = read_csv(tmp_path / "R.csv")
+    flagged = {(int(v), int(i), int(j)) for v, i, j, o in
+               zip(res["view"], res["i"], res["j"], res["outlier"]) if o == 1}
+    assert flagged == {tuple(int(x) for x in k) for k in zip(*np.nonzero(r.outlier))}
+    # stated weights: uncertainties follow them
+    m2, _ = selfcal.simulate_grid("double-shift", n=11, sigma_r_um=0.01, seed=5)
+    m2.ux_um = np.where(np.isfinite(m2.x_mm), 0.01, np.nan)
+    m2.uy_um = m2.ux_um.copy()
+    w = selfcal.calibrate_grid(m2)
+    assert w.weighted and w.chi2_pass and 0.5 < w.variance_factor < 1.5
+
+
+def test_covariance():
+    m, _ = selfcal.simulate_grid("ye", n=5, sigma_r_um=0.01)
+    r = selfcal.calibrate_grid(m, sigma_r_um=0.01, covariance=True)
+    c = r.covariance_um2
+    assert c.shape == (50, 50) and np.allclose(c, c.T)
+    assert np.allclose(np.sqrt(np.diag(c))[0::2], r.ugx_um.reshape(-1), rtol=1e-6)
+
+
+def test_errors(cli, tmp_path):
+    with pytest.raises(selfcal.Error, match="missing.csv"):
+        selfcal.read_grid(tmp_path / "missing.csv")
+    m, _ = selfcal.simulate_grid("ye", n=9)
+    with pytest.raises(selfcal.Error, match="double-shift needs"):
+        selfcal.calibrate_grid(m, method="double-shift")
+    with pytest.raises(selfcal.Error):
+        selfcal.GridPlan(8, 1.0, [dict(rot=0)])  # N even
+    with pytest.raises(selfcal.Error, match="shape"):
+        selfcal.calibrate_grid(selfcal.GridMeasurement(m.plan, m.x_mm[:2], m.y_mm[:2]))
+    bad = tmp_path / "bad.csv"
+    m.write(bad)
+    lines = bad.read_text().splitlines()
+    lines[-1] = lines[-1].rsplit(",", 1)[0] + ",abc"
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(selfcal.Error) as e:
+        selfcal.calibrate_grid(str(bad))
+    p = cli("grid", "--method", "lsq", bad, "--map", tmp_path / "G.csv", check=False)
+    assert p.returncode == 2 and p.stderr.strip() == "selfcal: " + str(e.value)
+    assert str(e.value).startswith(f"{bad}:{len(lines)}: ")
+    with pytest.raises(selfcal.Error, match="do not identify G"):
+        selfcal.calibrate_grid(selfcal.simulate_grid(selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)]))[0])
