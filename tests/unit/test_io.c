@@ -14,6 +14,8 @@
 #include <cmocka.h>
 
 #include "selfcal/header.h"
+#include "selfcal/plate_map.h"
+#include "selfcal/profile_file.h"
 #include "selfcal/stage_map.h"
 
 static void tmp_path(char *buf, size_t n, const char *name)
@@ -259,6 +261,128 @@ static void test_stage_map_errors(void **state)
     assert_int_equal(sc_stage_map_read(SELFCAL_TEST_TMP "/no/such/map.csv", &m, &err), SC_E_INPUT);
 }
 
+/* ---- profile result ---- */
+
+static void test_profile_result(void **state)
+{
+    (void)state;
+    char path[512];
+    tmp_path(path, sizeof path, "result.csv");
+    sc_error err;
+    sc_error_clear(&err);
+    double f[6] = {0.5, -0.25, 1, 2, 3, 4}, uf[6] = {0.125, 0.125, 0.25, 0.25, 0.5, 0.5},
+           ey[4] = {1, 2, 3, 4};
+    assert_int_equal(sc_profile_write_result(path, 6, 0.5, f, uf, ey, 4, &err), SC_OK);
+    sc_profile_result r;
+    assert_int_equal(sc_profile_read_result(path, &r, &err), SC_OK);
+    assert_int_equal(r.n, 6);
+    assert_int_equal(r.n_ey, 4);
+    assert_true(r.has_uf && r.has_ey);
+    assert_int_equal(r.header_line, 1);
+    assert_int_equal(r.last_line, 7);
+    for (int i = 0; i < 6; ++i) {
+        assert_true(r.x_mm[i] == 0.5 * i && r.f_um[i] == f[i] && r.uf_um[i] == uf[i]);
+        assert_true(i < 4 ? r.ey_um[i] == ey[i] : isnan(r.ey_um[i]));
+    }
+    sc_profile_result_free(&r);
+    assert_null(r.f_um);
+    /* columns in another order, no uf, the last (optional) field left out, comments */
+    write_text(path, "# truth\nx_mm,n,f_um,ey_um\n0,0,1,2\n\n1,1,2\n# end\n");
+    assert_int_equal(sc_profile_read_result(path, &r, &err), SC_OK);
+    assert_int_equal(r.n, 2);
+    assert_int_equal(r.n_ey, 1);
+    assert_false(r.has_uf);
+    assert_true(r.f_um[1] == 2 && isnan(r.uf_um[0]) && isnan(r.ey_um[1]));
+    sc_profile_result_free(&r);
+
+#define H "n,x_mm,f_um,uf_um,ey_um\n"
+    static const struct {
+        const char *text;
+        long line;
+        const char *word;
+    } bad[] = {
+        {"", 0, "header naming"},
+        {"n,x,f_um\n", 1, "header naming"},
+        {H, 1, "no data rows"},
+        {H "0,0,0,0,1\n1,1,0,0,\n2,2,0,0,3\n", 3, "empty ey_um"},
+        {H "0,0,0,0,1\n2,1,0,0,2\n", 3, "expected n = 1, got 2"},
+        {H "0,0,0,0,1\n1,1,0,0,2\n2,2.5,0,0,3\n3,3,0,0,3\n", 4, "irregular"},
+        {H "0,0,0,0,1\n1,-1,0,0,2\n", 3, "increase"},
+        {H "0,0,0,0,1\n1,1,0,0,x\n", 3, "ey_um"},
+        {H "0,0,0,0,1\n1,1,,0,1\n", 3, "f_um is empty"},
+        {H "0,0,0\n", 2, "expected 5 fields, got 3"},
+        {H "0,0,0,0,1,9\n", 2, "expected 5 fields, got 6"},
+        {H "0,0,0,0,2e6\n", 2, "beyond"},
+        {"n,f_um,x_mm\n0,0\n", 2, "expected 3 fields, got 2"},
+    };
+#undef H
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        write_text(path, bad[k].text);
+        sc_error_clear(&err);
+        sc_status st = sc_profile_read_result(path, &r, &err);
+        if (st != SC_E_INPUT || err.line != bad[k].line || !strstr(err.msg, bad[k].word))
+            fail_msg("case %zu: status %d line %ld msg '%s'", k, st, err.line, err.msg);
+        assert_null(r.x_mm);
+    }
+}
+
+/* ---- plate error ---- */
+
+static void test_plate_map(void **state)
+{
+    (void)state;
+    char path[512];
+    tmp_path(path, sizeof path, "plate.csv");
+    sc_error err;
+    sc_error_clear(&err);
+    double ax[9], ay[9];
+    for (int k = 0; k < 9; ++k) {
+        ax[k] = 0.25 * k;
+        ay[k] = -0.5 * k;
+    }
+    ax[4] = ay[4] = NAN; /* a mark no method determined: empty fields */
+    sc_plate_map m = {3, ax, ay}, r;
+    assert_int_equal(sc_plate_map_write(path, &m, &err), SC_OK);
+    assert_int_equal(sc_plate_map_read(path, &r, &err), SC_OK);
+    assert_int_equal(r.n, 3);
+    for (int k = 0; k < 9; ++k)
+        assert_true(k == 4 ? isnan(r.ax_um[k]) && isnan(r.ay_um[k])
+                           : r.ax_um[k] == ax[k] && r.ay_um[k] == ay[k]);
+    sc_plate_map_free(&r);
+    assert_null(r.ax_um);
+
+#define H "i,j,ax_um,ay_um\n"
+#define R8 "0,0,0,0\n0,1,0,0\n0,2,0,0\n1,0,0,0\n1,1,0,0\n1,2,0,0\n2,0,0,0\n2,1,0,0\n"
+    static const struct {
+        const char *text;
+        long line;
+        const char *word;
+    } bad[] = {
+        {"", 0, "header"},
+        {"i,j,ax,ay\n", 1, "header"},
+        {H, 1, "0 rows"},
+        {H R8, 9, "8 rows"},
+        {H "0,0,0,0\n0,1,0,0\n1,0,0,0\n1,1,0,0\n", 5, "n odd"},
+        {H R8 "2,1,0,0\n", 10, "repeats line 9"},
+        {H R8 "2,3,0,0\n", 10, "off the 3 x 3"},
+        {H R8 "2,-2,0,0\n", 10, "outside"},
+        {H "0,0,1,\n", 2, "both"},
+        {H "0,0,1\n", 2, "expected 4 fields"},
+        {H "0,0,1,q\n", 2, "ay_um"},
+        {H "0,0,1,3e6\n", 2, "plausible"},
+    };
+#undef H
+#undef R8
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        write_text(path, bad[k].text);
+        sc_error_clear(&err);
+        sc_status st = sc_plate_map_read(path, &r, &err);
+        if (st != SC_E_INPUT || err.line != bad[k].line || !strstr(err.msg, bad[k].word))
+            fail_msg("case %zu: status %d line %ld msg '%s'", k, st, err.line, err.msg);
+        assert_null(r.ax_um);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -266,6 +390,8 @@ int main(void)
         cmocka_unit_test(test_header_errors),
         cmocka_unit_test(test_stage_map_round_trip),
         cmocka_unit_test(test_stage_map_errors),
+        cmocka_unit_test(test_profile_result),
+        cmocka_unit_test(test_plate_map),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -71,9 +71,10 @@ SC_API sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, cons
 SC_API void sc_grid_fprint_map(FILE *fp, const sc_grid_plan *p, const double *gx_um, const double *gy_um,
                                const double *ugx_um, const double *ugy_um);
 
-/* Write a plate error map `i,j,ax_um,ay_um` (plate frame; NaN, an unmeasured mark, is empty). */
-SC_API sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p, const double *ax_um,
-                                        const double *ay_um, sc_error *err);
+/* Write a plate error map `i,j,ax_um,ay_um` (plate frame; through io/, selfcal/plate_map.h;
+ * NaN as empty fields). */
+SC_API sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p,
+                                        const double *ax_um, const double *ay_um, sc_error *err);
 SC_API void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_um,
                                     const double *ay_um);
 

@@ -11,6 +11,7 @@
 
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/plate_map.h"
 
 #define COLUMN_HEADER "view,i,j,x_mm,y_mm"
 
@@ -197,16 +198,9 @@ sc_status sc_grid_write_map(const char *path, const sc_grid_plan *p, const doubl
 void sc_grid_fprint_artifact(FILE *fp, const sc_grid_plan *p, const double *ax_um,
                              const double *ay_um)
 {
-    int n = p->n;
-    fprintf(fp, "i,j,ax_um,ay_um\n");
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            fprintf(fp, "%d,%d,", i, j);
-            put_num(fp, ax_um, i * n + j); /* an unmeasured (damaged) mark: empty */
-            fputc(',', fp);
-            put_num(fp, ay_um, i * n + j);
-            fputc('\n', fp);
-        }
+    /* a view: the arrays stay the caller's and are only read */
+    sc_plate_map m = {p->n, (double *)(uintptr_t)ax_um, (double *)(uintptr_t)ay_um};
+    sc_plate_map_fprint(fp, &m);
 }
 
 sc_status sc_grid_write_artifact(const char *path, const sc_grid_plan *p, const double *ax_um,

@@ -1,8 +1,10 @@
 /* io_common.c — owns what every reader and writer of io/ shares: the record loop, the atomic
- * commit with its write-error check, and the regular-spacing fit of positions in a file. */
+ * commit with its write-error check, the regular-spacing fit of positions in a file, and the fast
+ * number output of the writers (selfcal/number.h). */
 #include <math.h>
 
 #include "io_internal.h"
+#include "selfcal/number.h"
 
 int sc_io_next_record(sc_csv *r, sc_error *err)
 {
@@ -60,4 +62,28 @@ void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t 
     }
     *b = skk > 0 ? skv / skk : 0.0;
     *a = vm - *b * km;
+}
+
+char *sc_io_put_number(char *p, double v, char sep)
+{
+    p += sc_number_format(v, p);
+    if (sep)
+        *p++ = sep;
+    return p;
+}
+
+char *sc_io_put_long(char *p, long v, char sep)
+{
+    char tmp[24];
+    int k = 0;
+    unsigned long u = v < 0 ? 0UL - (unsigned long)v : (unsigned long)v;
+    do
+        tmp[k++] = (char)('0' + u % 10);
+    while ((u /= 10) > 0);
+    if (v < 0)
+        *p++ = '-';
+    while (k > 0)
+        *p++ = tmp[--k];
+    *p++ = sep;
+    return p;
 }

@@ -10,6 +10,13 @@
 /* Next non-blank, non-comment ('#') line, split into fields: 1, 0 at end of file, -1 on error. */
 int sc_io_next_record(sc_csv *r, sc_error *err);
 
+/* Append v's shortest round-trip text (selfcal/number.h), then sep unless it is 0; returns the
+ * end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
+char *sc_io_put_number(char *p, double v, char sep);
+
+/* Append a whole number in decimal, then sep; returns the end. */
+char *sc_io_put_long(char *p, long v, char sep);
+
 /* Commit an atomic file, or abort it (SC_E_IO) if a write failed. */
 sc_status sc_io_finish(sc_afile *f, sc_error *err);
 

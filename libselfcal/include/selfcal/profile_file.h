@@ -1,0 +1,81 @@
+/* selfcal/profile_file.h — the straightness files of SPEC §2 (owned by io/): the measurement
+ * `selfcal-profile v1` and the result `n,x_mm,f_um,uf_um,ey_um`, each with its data type, its one
+ * strict reader and its one writer. Every reading problem is SC_E_INPUT with FILE:LINE.
+ */
+#ifndef SELFCAL_PROFILE_FILE_H
+#define SELFCAL_PROFILE_FILE_H
+
+#include "selfcal/api.h"
+#include "selfcal/error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Upper bound on N, so that a typo cannot ask for terabytes. */
+#define SC_PROFILE_MAX_N 100000000
+
+/* One measurement: two scans of the same profile with sensor spacings d[0]·s and d[1]·s. */
+typedef struct sc_profile_data {
+    int n;                 /* N: points on the profile, n = 0..N-1 */
+    double s_mm;           /* sampling interval s (mm) */
+    int d[2];              /* d1, d2: sensor spacings in samples */
+    double *m1_um[2];      /* scan k: displacement sensor 1, N-d[k] values (µm) */
+    double *m2_um[2];      /* scan k: displacement sensor 2, N-d[k] values (µm) */
+    double *m3_urad[2];    /* scan k: angle sensor, N-d[k] values (µrad) */
+    int has_sigma_disp;    /* 1 if sigma_disp_um is known (header line) */
+    int has_sigma_angle;   /* 1 if sigma_angle_urad is known (header line) */
+    double sigma_disp_um;  /* standard deviation of each displacement sensor (µm) */
+    double sigma_angle_urad; /* standard deviation of the angle sensor (µrad) */
+    long line_n;           /* line numbers of the "# N =" and "# scan k:" header lines in the */
+    long line_scan[2];     /* file read (0 when not read from a file), for error messages */
+    char path[256];        /* the file it was read from ("" if none) */
+} sc_profile_data;
+
+/* Allocate the per-scan arrays of d for (n, s_mm, d1, d2) (zero-filled; no sigmas). */
+SC_API sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, int d1, int d2,
+                                      sc_error *err);
+
+/* Free the arrays of d (d itself is the caller's); safe on a zeroed or freed struct. */
+SC_API void sc_profile_data_free(sc_profile_data *d);
+
+/* Read a `selfcal-profile v1` file strictly (SPEC §2): missing scan, gaps or duplicates in n,
+ * n out of range, N too small for the spacings, non-numeric fields -> SC_E_INPUT with file:line.
+ * Method-specific conditions are checked by sc_profile_check_method. */
+SC_API sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err);
+
+/* Write d as a `selfcal-profile v1` file atomically (each number with the fewest digits that read
+ * back exactly, selfcal/number.h; the sigma lines only when known). */
+SC_API sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err);
+
+/* Write the output file `n,x_mm,f_um,uf_um,ey_um` atomically: f, uf (may be NULL: empty column)
+ * have n values, ey has n_ey values (empty where index >= n_ey). */
+SC_API sc_status sc_profile_write_result(const char *path, int n, double s_mm, const double *f_um,
+                                         const double *uf_um, const double *ey_um, int n_ey,
+                                         sc_error *err);
+
+/* A profile result (or truth) file read back. */
+typedef struct sc_profile_result {
+    int n;
+    double *x_mm, *f_um, *uf_um, *ey_um; /* n values each; uf, ey NaN where empty */
+    int n_ey;                            /* rows with an ey_um value (they come first) */
+    int has_uf, has_ey;                  /* the file has the column */
+    long header_line, last_line;         /* where the column header was; last line read */
+} sc_profile_result;
+
+/* Read a profile output file strictly. Rules (SC_E_INPUT with FILE:LINE):
+ * - blank and '#' lines skipped; the column header names n, x_mm and f_um, optionally uf_um and
+ *   ey_um, in any order, further columns ignored;
+ * - rows have the header's field count (the last field may be left out when it is uf_um or
+ *   ey_um: empty); n counts 0, 1, 2, ...; n, x_mm, f_um present; numbers finite, |v| <= 1e6;
+ * - x_mm regular: within 1e-3 step of the line through the first and last point, increasing;
+ * - ey_um empty only as a tail (e_y has N - d1 values); at least one row. */
+SC_API sc_status sc_profile_read_result(const char *path, sc_profile_result *out, sc_error *err);
+
+/* Free the arrays of r. */
+SC_API void sc_profile_result_free(sc_profile_result *r);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

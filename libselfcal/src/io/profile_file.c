@@ -1,0 +1,391 @@
+/* profile_file.c — owns the `selfcal-profile v1` measurement file (SPEC §2): the data type's
+ * allocation, the strict reader (header through the declarative parser of common/header.c) and
+ * the writer. */
+#include "selfcal/profile_file.h"
+
+#include <ctype.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
+#include "selfcal/header.h"
+#include "selfcal/number.h"
+#include "io_internal.h"
+
+/* The shortest data row a valid file can have: "1,0,0,0,0\n". */
+#define SC_PROFILE_MIN_ROW_BYTES 10
+
+sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, int d1, int d2,
+                               sc_error *err)
+{
+    memset(d, 0, sizeof *d);
+    if (n < 2 || n > SC_PROFILE_MAX_N)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "N = %d is out of range (2..%d)", n,
+                            SC_PROFILE_MAX_N);
+    if (!(s_mm > 0) || !isfinite(s_mm))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "s_mm must be positive");
+    if (d1 < 1 || d2 < 1 || d1 >= n || d2 >= n)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "sensor spacings d1 = %d, d2 = %d must be in 1..N-1 (N = %d)", d1, d2,
+                            n);
+    d->n = n;
+    d->s_mm = s_mm;
+    d->d[0] = d1;
+    d->d[1] = d2;
+    for (int k = 0; k < 2; ++k) {
+        size_t m = (size_t)(n - d->d[k]);
+        d->m1_um[k] = calloc(m, sizeof(double));
+        d->m2_um[k] = calloc(m, sizeof(double));
+        d->m3_urad[k] = calloc(m, sizeof(double));
+        if (!d->m1_um[k] || !d->m2_um[k] || !d->m3_urad[k]) {
+            sc_profile_data_free(d);
+            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+        }
+    }
+    return SC_OK;
+}
+
+void sc_profile_data_free(sc_profile_data *d)
+{
+    if (!d)
+        return;
+    for (int k = 0; k < 2; ++k) {
+        free(d->m1_um[k]);
+        free(d->m2_um[k]);
+        free(d->m3_urad[k]);
+        d->m1_um[k] = d->m2_um[k] = d->m3_urad[k] = NULL;
+    }
+}
+
+/* ---- reader ---- */
+
+/* The `# key = value` lines, declared once. */
+typedef struct profile_header {
+    long n;
+    double s_mm, sigma_disp_um, sigma_angle_urad;
+} profile_header;
+
+static const sc_header_key header_keys[] = {
+    {"N", SC_HEADER_LONG, offsetof(profile_header, n), 1, 3, SC_PROFILE_MAX_N, 0},
+    {"s_mm", SC_HEADER_DOUBLE, offsetof(profile_header, s_mm), 1, 0, SC_INPUT_MAX_ABS,
+     SC_HEADER_MIN_EXCLUSIVE},
+    {"sigma_disp_um", SC_HEADER_DOUBLE, offsetof(profile_header, sigma_disp_um), 0, 0,
+     SC_INPUT_MAX_ABS, 0},
+    {"sigma_angle_urad", SC_HEADER_DOUBLE, offsetof(profile_header, sigma_angle_urad), 0, 0,
+     SC_INPUT_MAX_ABS, 0},
+};
+
+typedef struct profile_reader {
+    sc_csv csv;
+    sc_header hdr;
+    profile_header v;
+    long d[2], line_scan[2];
+    long *row_line[2]; /* per scan and n: the line of the row (0 = not seen) */
+    sc_profile_data data;
+} profile_reader;
+
+/* "# scan K: d=V" -> 1 and K, V; 0 if the line is not a scan line; -1 if malformed. */
+static int parse_scan_line(const char *line, long *k, long *dv)
+{
+    const char *p = line + 1;
+    char *end;
+    p += strspn(p, " \t");
+    if (line[0] != '#' || strncmp(p, "scan", 4) != 0 || !(p[4] == ' ' || p[4] == '\t'))
+        return 0;
+    p += 4;
+    p += strspn(p, " \t");
+    if (!isdigit((unsigned char)*p))
+        return -1;
+    *k = strtol(p, &end, 10);
+    p = end + strspn(end, " \t");
+    if (*p++ != ':')
+        return -1;
+    p += strspn(p, " \t");
+    if (*p++ != 'd')
+        return -1;
+    p += strspn(p, " \t");
+    if (*p++ != '=')
+        return -1;
+    p += strspn(p, " \t");
+    if (!isdigit((unsigned char)*p) && *p != '-' && *p != '+')
+        return -1;
+    *dv = strtol(p, &end, 10);
+    p = end + strspn(end, " \t");
+    return *p ? -1 : 1;
+}
+
+static sc_status scan_line(profile_reader *pr, long k, long dv, sc_error *err)
+{
+    const char *P = pr->csv.path;
+    long line = pr->csv.line;
+    if (k != 1 && k != 2)
+        return sc_error_set(err, SC_E_INPUT, P, line, "scan %ld: only scans 1 and 2 exist", k);
+    if (pr->line_scan[k - 1])
+        return sc_error_set(err, SC_E_INPUT, P, line, "scan %ld declared twice (first at line %ld)",
+                            k, pr->line_scan[k - 1]);
+    if (dv < 1)
+        return sc_error_set(err, SC_E_INPUT, P, line, "scan %ld: spacing d = %ld must be >= 1", k,
+                            dv);
+    pr->d[k - 1] = dv;
+    pr->line_scan[k - 1] = line;
+    return SC_OK;
+}
+
+/* The first line names the format. */
+static sc_status read_magic(profile_reader *pr, sc_error *err)
+{
+    int rc = sc_csv_next_line(&pr->csv, err);
+    if (rc < 0)
+        return err ? err->code : SC_E_INPUT;
+    if (rc == 0)
+        return sc_error_set(err, SC_E_INPUT, pr->csv.path, 1,
+                            "empty file (expected '# selfcal-profile v1')");
+    char buf[64];
+    snprintf(buf, sizeof buf, "%s", pr->csv.text);
+    if (strcmp(sc_str_trim(buf), "# selfcal-profile v1") != 0)
+        return sc_error_set(err, SC_E_INPUT, pr->csv.path, pr->csv.line,
+                            "not a selfcal-profile v1 file (first line must be "
+                            "'# selfcal-profile v1')");
+    return SC_OK;
+}
+
+/* Memory follows what the file can hold, not what its header claims: a valid file has a row of
+ * at least SC_PROFILE_MIN_ROW_BYTES ("1,0,0,0,0\n") for each of the 2N - d1 - d2 samples, so a
+ * regular file of S bytes cannot need N beyond about S / 20 (a pipe is read up to
+ * SC_PROFILE_MAX_N). */
+static sc_status check_size(const profile_reader *pr, sc_error *err)
+{
+    struct stat sb;
+    long long rows = 2 * (long long)pr->v.n - pr->d[0] - pr->d[1];
+    if (fstat(fileno(pr->csv.fp), &sb) == 0 && S_ISREG(sb.st_mode) &&
+        rows * SC_PROFILE_MIN_ROW_BYTES > (long long)sb.st_size)
+        return sc_error_set(err, SC_E_INPUT, pr->csv.path, sc_header_line_of(&pr->hdr, "N"),
+                            "N = %ld needs %lld data rows, more than this %lld-byte file can hold",
+                            pr->v.n, rows, (long long)sb.st_size);
+    return SC_OK;
+}
+
+/* Header lines up to the column header (left as the current line), then the header's checks. */
+static sc_status read_header(profile_reader *pr, sc_error *err)
+{
+    sc_csv *r = &pr->csv;
+    sc_status st;
+    int rc;
+    while ((rc = sc_csv_next_line(r, err)) == 1) {
+        if (sc_csv_is_blank(r))
+            continue;
+        if (r->text[0] != '#')
+            break;
+        long k, dv;
+        int sl = parse_scan_line(r->text, &k, &dv);
+        if (sl < 0)
+            return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                                "malformed scan line (expected '# scan K: d=D')");
+        st = sl ? scan_line(pr, k, dv, err)
+                : sc_header_line(&pr->hdr, r->path, r->line, r->text, NULL, err);
+        if (st != SC_OK)
+            return st; /* other lines: free comments and extensions */
+    }
+    if (rc < 0)
+        return err ? err->code : SC_E_INPUT;
+    if (rc == 0)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                            "no column header 'scan,n,m1_um,m2_um,m3_urad'");
+    if ((st = sc_header_finish(&pr->hdr, r->path, r->line, err)) != SC_OK)
+        return st;
+    long line_n = sc_header_line_of(&pr->hdr, "N");
+    for (int k = 0; k < 2; ++k) {
+        if (!pr->line_scan[k])
+            return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                                "scan %d missing: header line '# scan %d: d=...' not found", k + 1,
+                                k + 1);
+        if (pr->d[k] >= pr->v.n)
+            return sc_error_set(err, SC_E_INPUT, r->path, line_n,
+                                "N too small: scan %d spacing d = %ld leaves no sample (N = %ld)",
+                                k + 1, pr->d[k], pr->v.n);
+    }
+    return check_size(pr, err);
+}
+
+/* The column header (current line), then the data set and the row bookkeeping. */
+static sc_status start_data(profile_reader *pr, sc_error *err)
+{
+    static const char *names[5] = {"scan", "n", "m1_um", "m2_um", "m3_urad"};
+    sc_csv *r = &pr->csv;
+    int nf = sc_csv_split(r, err);
+    if (nf < 0)
+        return err ? err->code : SC_E_INPUT;
+    int ok = nf >= 5;
+    for (int c = 0; ok && c < 5; ++c)
+        ok = !strcmp(r->field[c], names[c]);
+    if (!ok)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                            "expected the column header 'scan,n,m1_um,m2_um,m3_urad'");
+    sc_status st = sc_profile_data_init(&pr->data, (int)pr->v.n, pr->v.s_mm, (int)pr->d[0],
+                                        (int)pr->d[1], err);
+    if (st != SC_OK) {
+        if (err)
+            snprintf(err->file, sizeof err->file, "%s", r->path),
+                err->line = sc_header_line_of(&pr->hdr, "N");
+        return st;
+    }
+    for (int k = 0; k < 2; ++k) {
+        pr->row_line[k] = calloc((size_t)(pr->v.n - pr->d[k]), sizeof(long));
+        if (!pr->row_line[k])
+            return sc_error_set(err, SC_E_NOMEM, r->path, 0, "out of memory");
+    }
+    return SC_OK;
+}
+
+/* One data row (already split). */
+static sc_status data_row(profile_reader *pr, sc_error *err)
+{
+    sc_csv *r = &pr->csv;
+    const char *P = r->path;
+    if (r->nfields < 5)
+        return sc_error_set(err, SC_E_INPUT, P, r->line,
+                            "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got %d", r->nfields);
+    long k, idx;
+    double v1, v2, v3;
+    sc_status st;
+    if ((st = sc_csv_long(r, 0, "scan", &k, err)) != SC_OK ||
+        (st = sc_csv_long(r, 1, "n", &idx, err)) != SC_OK ||
+        (st = sc_csv_double(r, 2, "m1_um", &v1, err)) != SC_OK ||
+        (st = sc_csv_double(r, 3, "m2_um", &v2, err)) != SC_OK ||
+        (st = sc_csv_double(r, 4, "m3_urad", &v3, err)) != SC_OK)
+        return st;
+    if (!(fabs(v1) <= SC_INPUT_MAX_ABS && fabs(v2) <= SC_INPUT_MAX_ABS &&
+          fabs(v3) <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, P, r->line,
+                            "a reading beyond 1 m (m1_um, m2_um) or 1 rad (m3_urad) is not a "
+                            "sensor reading");
+    if (k != 1 && k != 2)
+        return sc_error_set(err, SC_E_INPUT, P, r->line, "scan %ld: only scans 1 and 2 exist", k);
+    long m = pr->v.n - pr->d[k - 1];
+    if (idx < 0 || idx >= m)
+        return sc_error_set(err, SC_E_INPUT, P, r->line,
+                            "n = %ld out of range for scan %ld (0..%ld: N - d = %ld samples)", idx,
+                            k, m - 1, m);
+    long *seen = &pr->row_line[k - 1][idx];
+    if (*seen)
+        return sc_error_set(err, SC_E_INPUT, P, r->line,
+                            "duplicate sample: scan %ld, n = %ld (first at line %ld)", k, idx,
+                            *seen);
+    *seen = r->line;
+    pr->data.m1_um[k - 1][idx] = v1;
+    pr->data.m2_um[k - 1][idx] = v2;
+    pr->data.m3_urad[k - 1][idx] = v3;
+    return SC_OK;
+}
+
+/* Every sample of both scans present: a gap is reported at the first row of its scan after it
+ * (or at the end of the file). */
+static sc_status check_complete(const profile_reader *pr, sc_error *err)
+{
+    const char *P = pr->csv.path;
+    for (int k = 0; k < 2; ++k) {
+        long m = pr->v.n - pr->d[k], present = 0;
+        const long *rl = pr->row_line[k];
+        for (long i = 0; i < m; ++i)
+            present += rl[i] != 0;
+        if (present == 0)
+            return sc_error_set(err, SC_E_INPUT, P, pr->line_scan[k],
+                                "scan %d missing: no data rows", k + 1);
+        for (long i = 0; i < m; ++i) {
+            if (rl[i])
+                continue;
+            long j = i;
+            while (j < m && !rl[j])
+                ++j;
+            long at = j < m ? rl[j] : pr->csv.line;
+            if (j - 1 > i)
+                return sc_error_set(err, SC_E_INPUT, P, at,
+                                    "gap in scan %d: no sample for n = %ld..%ld (scan %d needs "
+                                    "n = 0..%ld)",
+                                    k + 1, i, j - 1, k + 1, m - 1);
+            return sc_error_set(err, SC_E_INPUT, P, at,
+                                "gap in scan %d: no sample for n = %ld (scan %d needs n = 0..%ld)",
+                                k + 1, i, k + 1, m - 1);
+        }
+    }
+    return SC_OK;
+}
+
+static sc_status read_rows(profile_reader *pr, sc_error *err)
+{
+    int rc;
+    while ((rc = sc_io_next_record(&pr->csv, err)) == 1) {
+        sc_status st = data_row(pr, err);
+        if (st != SC_OK)
+            return st;
+    }
+    if (rc < 0)
+        return err ? err->code : SC_E_INPUT;
+    return check_complete(pr, err);
+}
+
+sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
+{
+    memset(out, 0, sizeof *out);
+    profile_reader pr;
+    memset(&pr, 0, sizeof pr);
+    sc_header_init(&pr.hdr, header_keys, (int)(sizeof header_keys / sizeof header_keys[0]), &pr.v);
+    sc_status st = sc_csv_open(&pr.csv, path, err);
+    if (st != SC_OK)
+        return st;
+    if ((st = read_magic(&pr, err)) == SC_OK && (st = read_header(&pr, err)) == SC_OK &&
+        (st = start_data(&pr, err)) == SC_OK)
+        st = read_rows(&pr, err);
+    free(pr.row_line[0]);
+    free(pr.row_line[1]);
+    if (st != SC_OK) {
+        sc_profile_data_free(&pr.data);
+        sc_csv_close(&pr.csv);
+        return st;
+    }
+    sc_profile_data *d = &pr.data;
+    d->has_sigma_disp = sc_header_line_of(&pr.hdr, "sigma_disp_um") != 0;
+    d->has_sigma_angle = sc_header_line_of(&pr.hdr, "sigma_angle_urad") != 0;
+    d->sigma_disp_um = pr.v.sigma_disp_um;
+    d->sigma_angle_urad = pr.v.sigma_angle_urad;
+    d->line_n = sc_header_line_of(&pr.hdr, "N");
+    d->line_scan[0] = pr.line_scan[0];
+    d->line_scan[1] = pr.line_scan[1];
+    snprintf(d->path, sizeof d->path, "%s", pr.csv.path);
+    sc_csv_close(&pr.csv);
+    *out = *d;
+    return SC_OK;
+}
+
+/* ---- writer ---- */
+
+sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    fprintf(f.fp, "# selfcal-profile v1\n# N = %d\n# s_mm = %.17g\n# scan 1: d=%d\n# scan 2: d=%d\n",
+            d->n, d->s_mm, d->d[0], d->d[1]);
+    if (d->has_sigma_disp)
+        fprintf(f.fp, "# sigma_disp_um = %.17g\n", d->sigma_disp_um);
+    if (d->has_sigma_angle)
+        fprintf(f.fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
+    fprintf(f.fp, "scan,n,m1_um,m2_um,m3_urad\n");
+    for (int k = 0; k < 2; ++k)
+        for (int i = 0; i < d->n - d->d[k]; ++i) {
+            char line[8 + 3 * SC_NUMBER_BUF + 16], *p = line;
+            p = sc_io_put_long(p, k + 1, ',');
+            p = sc_io_put_long(p, i, ',');
+            p = sc_io_put_number(p, d->m1_um[k][i], ',');
+            p = sc_io_put_number(p, d->m2_um[k][i], ',');
+            p = sc_io_put_number(p, d->m3_urad[k][i], '\n');
+            fwrite(line, 1, (size_t)(p - line), f.fp);
+        }
+    return sc_io_finish(&f, err);
+}
