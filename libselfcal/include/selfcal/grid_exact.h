@@ -24,6 +24,24 @@ typedef enum sc_grid_exact_method {
 
 typedef struct sc_grid_exact_plan sc_grid_exact_plan;
 
+/* A view a closed-form method needs, by its role (0: rot 0; 1: rot 90; 2: the +shift view;
+ * 3: double shift's -3 view). partial: only plate row c and columns c, c+1 are used. */
+typedef struct sc_grid_view_need {
+    int rot_deg, shift_x, shift_y;
+    int partial;
+} sc_grid_view_need;
+
+/* The method's knowledge of its plan, stated once: fills need[0..] with the views method m
+ * needs, in role order, and returns their count (3 for Ye, 4 for double shift). The plan
+ * builders (sc_grid_plan_ye, sc_grid_plan_double_shift), the solver and the CLI all ask here. */
+SC_API int sc_grid_exact_needs(sc_grid_exact_method m, sc_grid_view_need need[4]);
+
+/* The smallest plate size N the method works for (3 for Ye, 9 for double shift). */
+SC_API int sc_grid_exact_min_n(sc_grid_exact_method m);
+
+/* 1 if method m uses mark (i, j) of the view in role r, for an n x n plate. */
+SC_API int sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j);
+
 /* Make a plan for method m and plate size n (Ye: n odd >= 3; double shift: n odd >= 9). */
 SC_API sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact_plan **out,
                                            sc_error *err);

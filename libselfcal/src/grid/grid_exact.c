@@ -16,6 +16,35 @@ static const char *method_name(sc_grid_exact_method m)
     return m == SC_GRID_YE ? "Ye's method" : "the double-shift method";
 }
 
+/* The views of each method, by role: the one place they are written down. */
+static const sc_grid_view_need needs_ye[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+static const sc_grid_view_need needs_ds[4] = {
+    {0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+
+int sc_grid_exact_needs(sc_grid_exact_method m, sc_grid_view_need need[4])
+{
+    int k = m == SC_GRID_YE ? 3 : 4;
+    memcpy(need, m == SC_GRID_YE ? needs_ye : needs_ds, (size_t)k * sizeof *need);
+    return k;
+}
+
+int sc_grid_exact_min_n(sc_grid_exact_method m)
+{
+    return m == SC_GRID_YE ? 3 : 9;
+}
+
+int sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j)
+{
+    sc_grid_view_need need[4];
+    int k = sc_grid_exact_needs(m, need), c = (n - 1) / 2;
+    if (r < 0 || r >= k)
+        return 0;
+    int sx = need[r].shift_x;
+    if (j + sx < 0 || j + sx > n - 1) /* lands off the grid (rot 0 views shift along x) */
+        return 0;
+    return !need[r].partial || i == c || j == c || j == c + 1;
+}
+
 void sc_grid_exact_plan_destroy(sc_grid_exact_plan *p)
 {
     if (!p)
@@ -47,7 +76,7 @@ sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact
     *out = NULL;
     if (m != SC_GRID_YE && m != SC_GRID_DOUBLE_SHIFT)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown exact grid method %d", (int)m);
-    int nmin = m == SC_GRID_YE ? 3 : 9;
+    int nmin = sc_grid_exact_min_n(m);
     if (n % 2 == 0 || n < nmin || n > SC_GRID_MAX_N)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "%s needs an odd N with %d <= N <= %d (got N = %d)", method_name(m),
@@ -59,7 +88,7 @@ sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact
     p->method = m;
     p->n = n;
     p->c = (n - 1) / 2;
-    p->shift = m == SC_GRID_YE ? 1 : 2;
+    p->shift = (m == SC_GRID_YE ? needs_ye : needs_ds)[2].shift_x; /* the +shift view */
     size_t nn = (size_t)n * (size_t)n;
 
     int ok = 1;
@@ -148,41 +177,29 @@ static void idft_centred(sc_grid_exact_plan *p, const fftw_complex *phi, double 
 
 /* ---- input checks ---- */
 
-/* 1 if the method uses mark (i, j) of the view in role r (0, 1, 2 = +shift, 3 = -3 partial). */
 static int mark_used(const sc_grid_exact_plan *p, int r, int i, int j)
 {
-    switch (r) {
-    case 0:
-    case 1: return 1;
-    case 2: return j <= p->n - 1 - p->shift;
-    default: return j >= 3 && (i == p->c || j == p->c || j == p->c + 1);
-    }
-}
-
-static const int role_rot[4] = {0, 90, 0, 0};
-
-static int role_shift(const sc_grid_exact_plan *p, int r)
-{
-    return r == 2 ? p->shift : r == 3 ? -3 : 0;
+    return sc_grid_exact_uses_mark(p->method, p->n, r, i, j);
 }
 
 static sc_status find_views(const sc_grid_exact_plan *p, const sc_grid_data *d, int *views,
                             sc_error *err)
 {
     int n = p->n, c = p->c;
-    int nroles = p->method == SC_GRID_YE ? 3 : 4;
+    sc_grid_view_need need[4];
+    int nroles = sc_grid_exact_needs(p->method, need);
     for (int r = 0; r < nroles; ++r) {
-        int sx = role_shift(p, r);
-        int v = sc_grid_find_view(&d->plan, role_rot[r], sx, 0);
+        int sx = need[r].shift_x, rot = need[r].rot_deg;
+        int v = sc_grid_find_view(&d->plan, rot, sx, need[r].shift_y);
         if (v < 0) {
-            if (r == 3)
+            if (need[r].partial)
                 return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                    "%s needs view 3: rot=0 shift=-3,0 measuring plate row %d "
+                                    "%s needs view %d: rot=0 shift=%d,0 measuring plate row %d "
                                     "and columns %d,%d; the plan has no such view",
-                                    method_name(p->method), c, c, c + 1);
+                                    method_name(p->method), r, sx, c, c, c + 1);
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "%s needs view %d: rot=%d shift=%d,0; the plan has no such view",
-                                method_name(p->method), r, role_rot[r], sx);
+                                method_name(p->method), r, rot, sx);
         }
         views[r] = v;
         const double *dx = d->dx_um[v], *dy = d->dy_um[v];
@@ -201,14 +218,15 @@ static sc_status find_views(const sc_grid_exact_plan *p, const sc_grid_data *d, 
                 }
             }
         if (missing) {
-            const char *what = r == 3 ? "plate row %d and columns %d,%d (marks landing on the grid)"
-                                      : "every mark that lands on the stage grid";
+            const char *what = need[r].partial
+                                   ? "plate row %d and columns %d,%d (marks landing on the grid)"
+                                   : "every mark that lands on the stage grid";
             char need[160];
             snprintf(need, sizeof need, what, c, c, c + 1);
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "view %d (rot=%d shift=%d,0) lacks %ld of the %ld marks %s needs "
                                 "(first: mark i=%d j=%d); it must measure %s",
-                                v, role_rot[r], sx, missing, needed, method_name(p->method), fi,
+                                v, rot, sx, missing, needed, method_name(p->method), fi,
                                 fj, need);
         }
     }
@@ -520,7 +538,8 @@ sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d, sc
     else
         sc_grid_ds_complete_h(p);
     assemble_f(p);
-    finish(p, d, views, p->method == SC_GRID_YE ? 3 : 4, res);
+    sc_grid_view_need need[4];
+    finish(p, d, views, sc_grid_exact_needs(p->method, need), res);
     for (size_t k = 0; k < (size_t)p->n * p->n; ++k)
         if (!isfinite(p->gx[k]) || !isfinite(p->gy[k]))
             return sc_error_set(err, SC_E_INTERNAL, NULL, 0,

@@ -1,4 +1,5 @@
 /* Simulated grid-plate measurements after Petrò (2019) §5 (see selfcal/grid_sim.h). */
+#include "selfcal/grid_exact.h"
 #include "selfcal/grid_sim.h"
 
 #include <math.h>
@@ -48,37 +49,42 @@ static sc_status plan_base(int n, double pitch_mm, double ox, double oy, sc_grid
     return SC_OK;
 }
 
-sc_status sc_grid_plan_ye(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
-                          sc_error *err)
+/* The plan of an exact method, from the views the method states it needs (grid_exact.c). */
+static sc_status plan_exact(sc_grid_exact_method m, int n, double pitch_mm, double ox, double oy,
+                            sc_grid_plan *p, sc_error *err)
 {
     sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
     if (st != SC_OK)
         return st;
-    p->n_views = 3;
-    p->view[1].rot_deg = 90;
-    p->view[2].shift_x = 1;
+    if (n < sc_grid_exact_min_n(m) || n > SC_GRID_MAX_N || n % 2 == 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "%s needs N odd and >= %d (got %d)",
+                            m == SC_GRID_YE ? "Ye's method" : "double shift",
+                            sc_grid_exact_min_n(m), n);
+    sc_grid_view_need need[4];
+    int c = (n - 1) / 2;
+    p->n_views = sc_grid_exact_needs(m, need);
+    for (int v = 0; v < p->n_views; ++v) {
+        sc_grid_view *w = &p->view[v];
+        w->rot_deg = need[v].rot_deg;
+        w->shift_x = need[v].shift_x;
+        w->shift_y = need[v].shift_y;
+        w->restricted = need[v].partial;
+        if (need[v].partial)
+            w->row_sel[c] = w->col_sel[c] = w->col_sel[c + 1] = 1;
+    }
     return sc_grid_plan_check(p, err);
+}
+
+sc_status sc_grid_plan_ye(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
+                          sc_error *err)
+{
+    return plan_exact(SC_GRID_YE, n, pitch_mm, ox, oy, p, err);
 }
 
 sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double ox, double oy,
                                     sc_grid_plan *p, sc_error *err)
 {
-    sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
-    if (st != SC_OK)
-        return st;
-    if (n < 9 || n > SC_GRID_MAX_N || n % 2 == 0)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "double shift needs N odd and >= 9 (got %d)", n);
-    int c = (n - 1) / 2;
-    p->n_views = 4;
-    p->view[1].rot_deg = 90;
-    p->view[2].shift_x = 2;
-    p->view[3].shift_x = -3;
-    p->view[3].restricted = 1;
-    p->view[3].row_sel[c] = 1;
-    p->view[3].col_sel[c] = 1;
-    p->view[3].col_sel[c + 1] = 1;
-    return sc_grid_plan_check(p, err);
+    return plan_exact(SC_GRID_DOUBLE_SHIFT, n, pitch_mm, ox, oy, p, err);
 }
 
 /* Placement offsets along one axis: the plate centre's offset from the stage centre, in pitches,
