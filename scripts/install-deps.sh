@@ -17,6 +17,7 @@ DEB_PACKAGES=(
   # (util-linux: unshare and setpriv, which that test uses)
   linuxcnc-uspace linuxcnc-uspace-dev util-linux
   groff-base
+  gcovr
 )
 
 SUDO=""
