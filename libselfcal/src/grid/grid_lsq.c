@@ -315,25 +315,25 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
 
 /* Pins: both G components of two far-apart nodes that equations touch, and one view's
  * misalignment (the view with the most measurements). */
-static void choose_pins(sc_grid_lsq *q)
+static sc_status choose_pins(sc_grid_lsq *q, sc_error *err)
 {
     int snx = q->snx;
     int *seen = calloc((size_t)q->ns, sizeof(int));
     int best_lo = -1, best_hi = -1, lo = 1 << 30, hi = -1;
-    if (seen) {
-        for (long e = 0; e < q->neq; ++e)
-            seen[q->eq_g[e] / 2] = 1;
-        for (int k = 0; k < q->ns; ++k) {
-            if (!seen[k])
-                continue;
-            int s = k / snx + k % snx;
-            if (s < lo)
-                lo = s, best_lo = k;
-            if (s > hi)
-                hi = s, best_hi = k;
-        }
-        free(seen);
+    if (!seen) /* reported, not skipped: pins chosen blind would change the solution's gauge */
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (long e = 0; e < q->neq; ++e)
+        seen[q->eq_g[e] / 2] = 1;
+    for (int k = 0; k < q->ns; ++k) {
+        if (!seen[k])
+            continue;
+        int s = k / snx + k % snx;
+        if (s < lo)
+            lo = s, best_lo = k;
+        if (s > hi)
+            hi = s, best_hi = k;
     }
+    free(seen);
     if (best_lo < 0 || best_hi == best_lo) /* at most one node measured: no useful pin */
         best_lo = 0, best_hi = q->ns - 1;
     q->pin_node[0] = best_lo;
@@ -354,6 +354,7 @@ static void choose_pins(sc_grid_lsq *q)
     }
     for (int t = 0; t < 3; ++t)
         q->pinned[q->ng + q->nb * bestv + t] = 1;
+    return SC_OK;
 }
 
 /* Assemble the reduced (A-eliminated) matrix, order, pin and factor. */
@@ -692,8 +693,9 @@ sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *ma
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto fail;
     }
-    choose_pins(q);
-    st = build_and_factor(q, err);
+    st = choose_pins(q, err);
+    if (st == SC_OK)
+        st = build_and_factor(q, err);
     if (st != SC_OK)
         goto fail;
     long K = q->nullity_pin - (q->nullity_T - 3);
@@ -707,13 +709,15 @@ sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *ma
     q->info.n_stage_unmeasured = 0;
     {
         unsigned char *seen = calloc((size_t)q->ns, 1);
-        if (seen) {
-            for (long e = 0; e < q->neq; ++e)
-                seen[q->eq_g[e] / 2] = 1;
-            for (int k = 0; k < q->ns; ++k)
-                q->info.n_stage_unmeasured += !seen[k];
-            free(seen);
+        if (!seen) { /* reported, not a silently wrong count */
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+            goto fail;
         }
+        for (long e = 0; e < q->neq; ++e)
+            seen[q->eq_g[e] / 2] = 1;
+        for (int k = 0; k < q->ns; ++k)
+            q->info.n_stage_unmeasured += !seen[k];
+        free(seen);
     }
     q->rank = q->info.n_unknowns - (4 + K + q->nullity_T);
     for (int k = 0; k < q->ns; ++k)
