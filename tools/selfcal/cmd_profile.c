@@ -138,7 +138,7 @@ int cmd_profile(int argc, char **argv)
         }
         for (int i = 0; i < n; ++i)
             x[i] = i * d.s_mm;
-        sc_profile_result r = {n, x, f, uf, ey, n - d1, have_uf, 1, 0, 0};
+        sc_profile_result r = {.n = n, .x_mm = x, .f_um = f, .uf_um = uf, .ey_um = ey};
         char title[128];
         snprintf(title, sizeof title, "%s method, N = %d, d = %d/%d", method_s, n, d1, d2);
         profile_plot_opts o = {title, method_s, NULL, 0};

@@ -274,7 +274,7 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     for (int i = 0; i < n; ++i)
         x[i] = i * d->s_mm;
-    sc_profile_result pr = {n, x, r->f, r->uf, r->ey};
+    sc_profile_result pr = {.n = n, .x_mm = x, .f_um = r->f, .uf_um = r->uf, .ey_um = r->ey};
     char t2[128];
     snprintf(t2, sizeof t2, "%s method, N = %d, d = %d/%d", method_s, n, d1, d2);
     profile_plot_opts po = {t2, method_s, NULL, 0};
