@@ -83,9 +83,7 @@ typedef struct sc_corr_profile {
     double start_mm;   /* position of point 0 */
     double step_mm;    /* spacing (> 0) */
     double inv_step;   /* 1 / step_mm, computed at load */
-    double end_mm;     /* position of the last point, computed at load */
     double last;       /* n - 1 as a double, computed at load */
-    double dir_mask[3]; /* 1 for the coordinate dir, 0 for the others, computed at load */
     /* decoded values (float-rounded); err_um[n] = 0 pads the end (see g_um) */
     sc_corr_value err_um[SC_CORR_MAX_PROFILE_POINTS + 1];
 } sc_corr_profile;

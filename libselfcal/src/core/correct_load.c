@@ -74,19 +74,19 @@ static int scale_ok(uint32_t scale_pm)
 /* Checks a profile header; 0 or an error code. */
 static int check_profile_header(const uint8_t *h)
 {
-    unsigned axis = h[0], dir = h[1], enc = h[2];
-    uint16_t n = sc_lutf_get_u16(h + 4);
-    double start = sc_lutf_get_f64(h + 8), step = sc_lutf_get_f64(h + 16);
+    unsigned axis = h[SC_LUTF_POFF_AXIS], dir = h[SC_LUTF_POFF_DIR], enc = h[SC_LUTF_POFF_ENC];
+    uint16_t n = sc_lutf_get_u16(h + SC_LUTF_POFF_N);
+    double start = sc_lutf_get_f64(h + SC_LUTF_POFF_START), step = sc_lutf_get_f64(h + SC_LUTF_POFF_STEP);
     if (axis > SC_CORR_AXIS_Z || dir > SC_CORR_AXIS_Z)
         return SC_CORR_E_RANGE;
     if (enc != SC_LUTF_ENC_INT16 && enc != SC_LUTF_ENC_INT32)
         return SC_CORR_E_RANGE;
-    if (h[3] != 0 || sc_lutf_get_u16(h + 6) != 0 || n < 2)
+    if (h[SC_LUTF_POFF_RESERVED0] != 0 || sc_lutf_get_u16(h + SC_LUTF_POFF_RESERVED1) != 0 || n < 2)
         return SC_CORR_E_RANGE;
     if (!within(start, SC_LUTF_MAX_ABS_MM) || !(step >= SC_LUTF_MIN_PITCH_MM) ||
         !within(start + step * (double)(n - 1), SC_LUTF_MAX_ABS_MM))
         return SC_CORR_E_RANGE;
-    if (!scale_ok(sc_lutf_get_u32(h + 24)))
+    if (!scale_ok(sc_lutf_get_u32(h + SC_LUTF_POFF_SCALE)))
         return SC_CORR_E_RANGE;
     return SC_CORR_OK;
 }
@@ -112,20 +112,20 @@ static int check_image(const uint8_t *b, size_t len, layout *L)
     for (unsigned k = 0; k < SC_LUTF_MAGIC_LEN; ++k)
         if (b[k] != sc_lutf_magic[k])
             return SC_CORR_E_MAGIC;
-    if (sc_lutf_get_u16(b + 8) != SC_LUTF_VERSION)
+    if (sc_lutf_get_u16(b + SC_LUTF_OFF_VERSION) != SC_LUTF_VERSION)
         return SC_CORR_E_VERSION;
-    if ((uint64_t)sc_lutf_get_u32(b + 12) != (uint64_t)len)
+    if ((uint64_t)sc_lutf_get_u32(b + SC_LUTF_OFF_FILE_BYTES) != (uint64_t)len)
         return SC_CORR_E_SIZE;
     if (sc_corr_crc32(b, len - SC_LUTF_CRC_BYTES) != sc_lutf_get_u32(b + len - SC_LUTF_CRC_BYTES))
         return SC_CORR_E_CRC;
 
     /* Header fields. */
-    unsigned nx = sc_lutf_get_u16(b + 16), ny = sc_lutf_get_u16(b + 18);
-    unsigned np = b[20], genc = b[21];
-    double x0 = sc_lutf_get_f64(b + 24), y0 = sc_lutf_get_f64(b + 32);
-    double px = sc_lutf_get_f64(b + 40), py = sc_lutf_get_f64(b + 48);
-    uint32_t gscale = sc_lutf_get_u32(b + 56), prov = sc_lutf_get_u32(b + 60);
-    if (sc_lutf_get_u16(b + 10) != SC_LUTF_HEADER_BYTES || sc_lutf_get_u16(b + 22) != 0)
+    unsigned nx = sc_lutf_get_u16(b + SC_LUTF_OFF_NX), ny = sc_lutf_get_u16(b + SC_LUTF_OFF_NY);
+    unsigned np = b[SC_LUTF_OFF_NPROFILES], genc = b[SC_LUTF_OFF_GRID_ENC];
+    double x0 = sc_lutf_get_f64(b + SC_LUTF_OFF_X0), y0 = sc_lutf_get_f64(b + SC_LUTF_OFF_Y0);
+    double px = sc_lutf_get_f64(b + SC_LUTF_OFF_PX), py = sc_lutf_get_f64(b + SC_LUTF_OFF_PY);
+    uint32_t gscale = sc_lutf_get_u32(b + SC_LUTF_OFF_GRID_SCALE), prov = sc_lutf_get_u32(b + SC_LUTF_OFF_PROV_BYTES);
+    if (sc_lutf_get_u16(b + SC_LUTF_OFF_HEADER_BYTES) != SC_LUTF_HEADER_BYTES || sc_lutf_get_u16(b + SC_LUTF_OFF_RESERVED) != 0)
         return SC_CORR_E_RANGE;
     if (nx < 2 || ny < 2 || np > SC_LUTF_MAX_PROFILES)
         return SC_CORR_E_RANGE;
@@ -154,7 +154,7 @@ static int check_image(const uint8_t *b, size_t len, layout *L)
         if (rc != SC_CORR_OK)
             return rc;
         L->poff[k] = off;
-        off += SC_LUTF_PROFILE_HEADER_BYTES + (uint64_t)sc_lutf_get_u16(h + 4) * sc_lutf_code_bytes(h[2]);
+        off += SC_LUTF_PROFILE_HEADER_BYTES + (uint64_t)sc_lutf_get_u16(h + SC_LUTF_POFF_N) * sc_lutf_code_bytes(h[SC_LUTF_POFF_ENC]);
     }
     if (off + SC_LUTF_PROV_FIXED_BYTES > body_end || off + prov != body_end)
         return SC_CORR_E_SIZE;
@@ -163,10 +163,10 @@ static int check_image(const uint8_t *b, size_t len, layout *L)
     const uint8_t *pv = b + (size_t)off;
     if (pv[SC_LUTF_METHOD_BYTES - 1] != 0)
         return SC_CORR_E_RANGE;
-    if (!within(sc_lutf_get_f64(pv + 40), DBL_MAX))
+    if (!within(sc_lutf_get_f64(pv + SC_LUTF_VOFF_SIGMA), DBL_MAX))
         return SC_CORR_E_RANGE;
-    unsigned nsrc = pv[48];
-    if (nsrc > SC_LUTF_MAX_SOURCES || !all_zero(pv + 49, 7))
+    unsigned nsrc = pv[SC_LUTF_VOFF_COUNT];
+    if (nsrc > SC_LUTF_MAX_SOURCES || !all_zero(pv + SC_LUTF_VOFF_RESERVED, 7))
         return SC_CORR_E_RANGE;
     if (prov != SC_LUTF_PROV_FIXED_BYTES + nsrc * SC_LUTF_SHA256_BYTES)
         return SC_CORR_E_SIZE;
@@ -208,7 +208,7 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
     if (nx > SC_CORR_MAX_NX || ny > SC_CORR_MAX_NY || np > SC_CORR_MAX_PROFILES)
         return SC_CORR_E_CAPACITY;
     for (unsigned k = 0; k < np; ++k)
-        if (sc_lutf_get_u16(b + (size_t)poff[k] + 4) > SC_CORR_MAX_PROFILE_POINTS)
+        if (sc_lutf_get_u16(b + (size_t)poff[k] + SC_LUTF_POFF_N) > SC_CORR_MAX_PROFILE_POINTS)
             return SC_CORR_E_CAPACITY;
 
     /* Decode. */
@@ -237,18 +237,15 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
     for (unsigned k = 0; k < np; ++k) {
         const uint8_t *h = b + (size_t)poff[k];
         sc_corr_profile *p = &t->profile[k];
-        p->axis = h[0];
-        p->dir = h[1];
-        p->n = sc_lutf_get_u16(h + 4);
-        p->start_mm = sc_lutf_get_f64(h + 8);
-        p->step_mm = sc_lutf_get_f64(h + 16);
+        p->axis = h[SC_LUTF_POFF_AXIS];
+        p->dir = h[SC_LUTF_POFF_DIR];
+        p->n = sc_lutf_get_u16(h + SC_LUTF_POFF_N);
+        p->start_mm = sc_lutf_get_f64(h + SC_LUTF_POFF_START);
+        p->step_mm = sc_lutf_get_f64(h + SC_LUTF_POFF_STEP);
         p->inv_step = 1.0 / p->step_mm;
         p->last = (double)(p->n - 1);
-        p->end_mm = p->start_mm + p->step_mm * p->last;
-        for (unsigned d = 0; d < 3; ++d)
-            p->dir_mask[d] = d == p->dir ? 1.0 : 0.0;
-        const double pum = (double)sc_lutf_get_u32(h + 24) * 1e-6;
-        const unsigned enc = h[2], cb = sc_lutf_code_bytes(enc);
+        const double pum = (double)sc_lutf_get_u32(h + SC_LUTF_POFF_SCALE) * 1e-6;
+        const unsigned enc = h[SC_LUTF_POFF_ENC], cb = sc_lutf_code_bytes(enc);
         for (unsigned m = 0; m < p->n; ++m)
             p->err_um[m] = decode(h + SC_LUTF_PROFILE_HEADER_BYTES + m * cb, enc, pum);
         p->err_um[p->n] = 0; /* the padding */

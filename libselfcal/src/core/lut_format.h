@@ -54,6 +54,38 @@
 #define SC_LUTF_MIN_PITCH_MM 1.0e-6     /* 1 nm */
 #define SC_LUTF_MAX_SCALE_PM 1000000000u /* 1 mm per code */
 
+/* Byte offsets of the header fields (from the start of the file). */
+#define SC_LUTF_OFF_VERSION 8u
+#define SC_LUTF_OFF_HEADER_BYTES 10u
+#define SC_LUTF_OFF_FILE_BYTES 12u
+#define SC_LUTF_OFF_NX 16u
+#define SC_LUTF_OFF_NY 18u
+#define SC_LUTF_OFF_NPROFILES 20u
+#define SC_LUTF_OFF_GRID_ENC 21u
+#define SC_LUTF_OFF_RESERVED 22u
+#define SC_LUTF_OFF_X0 24u
+#define SC_LUTF_OFF_Y0 32u
+#define SC_LUTF_OFF_PX 40u
+#define SC_LUTF_OFF_PY 48u
+#define SC_LUTF_OFF_GRID_SCALE 56u
+#define SC_LUTF_OFF_PROV_BYTES 60u
+/* ... of a profile header (from its start). */
+#define SC_LUTF_POFF_AXIS 0u
+#define SC_LUTF_POFF_DIR 1u
+#define SC_LUTF_POFF_ENC 2u
+#define SC_LUTF_POFF_RESERVED0 3u
+#define SC_LUTF_POFF_N 4u
+#define SC_LUTF_POFF_RESERVED1 6u
+#define SC_LUTF_POFF_START 8u
+#define SC_LUTF_POFF_STEP 16u
+#define SC_LUTF_POFF_SCALE 24u
+/* ... of the provenance block (from its start). */
+#define SC_LUTF_VOFF_METHOD 0u
+#define SC_LUTF_VOFF_CREATED 32u
+#define SC_LUTF_VOFF_SIGMA 40u
+#define SC_LUTF_VOFF_COUNT 48u
+#define SC_LUTF_VOFF_RESERVED 49u
+
 static const uint8_t sc_lutf_magic[SC_LUTF_MAGIC_LEN] = {'S', 'C', 'L', 'U', 'T', 0x0D, 0x0A, 0x1A};
 
 static inline uint16_t sc_lutf_get_u16(const uint8_t *p)

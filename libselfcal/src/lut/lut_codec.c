@@ -222,38 +222,39 @@ sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t c
 
     memset(buf, 0, size);
     memcpy(buf, sc_lutf_magic, SC_LUTF_MAGIC_LEN);
-    sc_lutf_put_u16(buf + 8, SC_LUTF_VERSION);
-    sc_lutf_put_u16(buf + 10, SC_LUTF_HEADER_BYTES);
-    sc_lutf_put_u32(buf + 12, (uint32_t)size);
-    sc_lutf_put_u16(buf + 16, (uint16_t)lut->nx);
-    sc_lutf_put_u16(buf + 18, (uint16_t)lut->ny);
-    buf[20] = (uint8_t)lut->n_profiles;
-    buf[21] = (uint8_t)genc;
-    sc_lutf_put_f64(buf + 24, lut->x0_mm);
-    sc_lutf_put_f64(buf + 32, lut->y0_mm);
-    sc_lutf_put_f64(buf + 40, lut->px_mm);
-    sc_lutf_put_f64(buf + 48, lut->py_mm);
-    sc_lutf_put_u32(buf + 56, gscale);
-    sc_lutf_put_u32(buf + 60, (uint32_t)(SC_LUTF_PROV_FIXED_BYTES +
-                                         (size_t)lut->prov.n_sources * SC_LUTF_SHA256_BYTES));
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_VERSION, SC_LUTF_VERSION);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_HEADER_BYTES, SC_LUTF_HEADER_BYTES);
+    sc_lutf_put_u32(buf + SC_LUTF_OFF_FILE_BYTES, (uint32_t)size);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_NX, (uint16_t)lut->nx);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_NY, (uint16_t)lut->ny);
+    buf[SC_LUTF_OFF_NPROFILES] = (uint8_t)lut->n_profiles;
+    buf[SC_LUTF_OFF_GRID_ENC] = (uint8_t)genc;
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_X0, lut->x0_mm);
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_Y0, lut->y0_mm);
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_PX, lut->px_mm);
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_PY, lut->py_mm);
+    sc_lutf_put_u32(buf + SC_LUTF_OFF_GRID_SCALE, gscale);
+    sc_lutf_put_u32(buf + SC_LUTF_OFF_PROV_BYTES,
+                    (uint32_t)(SC_LUTF_PROV_FIXED_BYTES +
+                               (size_t)lut->prov.n_sources * SC_LUTF_SHA256_BYTES));
     uint8_t *w = buf + SC_LUTF_HEADER_BYTES;
     w = put_codes(w, lut->gx_um, cells, genc, gscale);
     w = put_codes(w, lut->gy_um, cells, genc, gscale);
     for (int k = 0; k < lut->n_profiles; ++k) {
         const sc_lut_profile *p = &lut->profile[k];
-        w[0] = (uint8_t)p->axis;
-        w[1] = (uint8_t)p->dir;
-        w[2] = (uint8_t)penc[k];
-        sc_lutf_put_u16(w + 4, (uint16_t)p->n);
-        sc_lutf_put_f64(w + 8, p->start_mm);
-        sc_lutf_put_f64(w + 16, p->step_mm);
-        sc_lutf_put_u32(w + 24, pscale[k]);
+        w[SC_LUTF_POFF_AXIS] = (uint8_t)p->axis;
+        w[SC_LUTF_POFF_DIR] = (uint8_t)p->dir;
+        w[SC_LUTF_POFF_ENC] = (uint8_t)penc[k];
+        sc_lutf_put_u16(w + SC_LUTF_POFF_N, (uint16_t)p->n);
+        sc_lutf_put_f64(w + SC_LUTF_POFF_START, p->start_mm);
+        sc_lutf_put_f64(w + SC_LUTF_POFF_STEP, p->step_mm);
+        sc_lutf_put_u32(w + SC_LUTF_POFF_SCALE, pscale[k]);
         w = put_codes(w + SC_LUTF_PROFILE_HEADER_BYTES, p->err_um, (size_t)p->n, penc[k], pscale[k]);
     }
     memcpy(w, lut->prov.method, SC_LUT_METHOD_LEN);
-    sc_lutf_put_u64(w + 32, (uint64_t)lut->prov.created_unix_s);
-    sc_lutf_put_f64(w + 40, lut->prov.sigma_um < 0.0 ? -1.0 : lut->prov.sigma_um);
-    w[48] = (uint8_t)lut->prov.n_sources;
+    sc_lutf_put_u64(w + SC_LUTF_VOFF_CREATED, (uint64_t)lut->prov.created_unix_s);
+    sc_lutf_put_f64(w + SC_LUTF_VOFF_SIGMA, lut->prov.sigma_um < 0.0 ? -1.0 : lut->prov.sigma_um);
+    w[SC_LUTF_VOFF_COUNT] = (uint8_t)lut->prov.n_sources;
     w += SC_LUTF_PROV_FIXED_BYTES;
     for (int k = 0; k < lut->prov.n_sources; ++k, w += SC_LUTF_SHA256_BYTES)
         memcpy(w, lut->prov.sha256[k], SC_LUTF_SHA256_BYTES);
@@ -288,19 +289,19 @@ sc_status sc_lut_decode(const uint8_t *buf, size_t len, sc_lut *lut, const char 
     if (rc != SC_CORR_OK)
         return sc_error_set(err, SC_E_INPUT, name, 0, "not a valid table: %s", sc_corr_strerror(rc));
     sc_lut_init(lut);
-    int nx = sc_lutf_get_u16(buf + 16), ny = sc_lutf_get_u16(buf + 18);
+    int nx = sc_lutf_get_u16(buf + SC_LUTF_OFF_NX), ny = sc_lutf_get_u16(buf + SC_LUTF_OFF_NY);
     if (nx > SC_LUT_MAX_NX || ny > SC_LUT_MAX_NY)
         return sc_error_set(err, SC_E_INPUT, name, 0, "grid of %d x %d nodes: this build reads up to %d x %d",
                             nx, ny, SC_LUT_MAX_NX, SC_LUT_MAX_NY);
     lut->nx = nx;
     lut->ny = ny;
-    lut->n_profiles = buf[20];
-    lut->grid_encoding = buf[21];
-    lut->x0_mm = sc_lutf_get_f64(buf + 24);
-    lut->y0_mm = sc_lutf_get_f64(buf + 32);
-    lut->px_mm = sc_lutf_get_f64(buf + 40);
-    lut->py_mm = sc_lutf_get_f64(buf + 48);
-    lut->grid_scale_pm = sc_lutf_get_u32(buf + 56);
+    lut->n_profiles = buf[SC_LUTF_OFF_NPROFILES];
+    lut->grid_encoding = buf[SC_LUTF_OFF_GRID_ENC];
+    lut->x0_mm = sc_lutf_get_f64(buf + SC_LUTF_OFF_X0);
+    lut->y0_mm = sc_lutf_get_f64(buf + SC_LUTF_OFF_Y0);
+    lut->px_mm = sc_lutf_get_f64(buf + SC_LUTF_OFF_PX);
+    lut->py_mm = sc_lutf_get_f64(buf + SC_LUTF_OFF_PY);
+    lut->grid_scale_pm = sc_lutf_get_u32(buf + SC_LUTF_OFF_GRID_SCALE);
     size_t cells = (size_t)nx * (size_t)ny, cb = code_bytes(lut->grid_encoding);
     const uint8_t *r = buf + SC_LUTF_HEADER_BYTES;
     get_codes(r, lut->gx_um, cells, (unsigned)lut->grid_encoding, lut->grid_scale_pm);
@@ -308,25 +309,25 @@ sc_status sc_lut_decode(const uint8_t *buf, size_t len, sc_lut *lut, const char 
     r += 2 * cells * cb;
     for (int k = 0; k < lut->n_profiles; ++k) {
         sc_lut_profile *p = &lut->profile[k];
-        p->axis = r[0];
-        p->dir = r[1];
-        p->encoding = r[2];
-        p->n = sc_lutf_get_u16(r + 4);
+        p->axis = r[SC_LUTF_POFF_AXIS];
+        p->dir = r[SC_LUTF_POFF_DIR];
+        p->encoding = r[SC_LUTF_POFF_ENC];
+        p->n = sc_lutf_get_u16(r + SC_LUTF_POFF_N);
         if (p->n > SC_LUT_MAX_PROFILE_POINTS)
             return sc_error_set(err, SC_E_INPUT, name, 0,
                                 "profile %d has %d points: this build reads up to %d", k, p->n,
                                 SC_LUT_MAX_PROFILE_POINTS);
-        p->start_mm = sc_lutf_get_f64(r + 8);
-        p->step_mm = sc_lutf_get_f64(r + 16);
-        p->scale_pm = sc_lutf_get_u32(r + 24);
+        p->start_mm = sc_lutf_get_f64(r + SC_LUTF_POFF_START);
+        p->step_mm = sc_lutf_get_f64(r + SC_LUTF_POFF_STEP);
+        p->scale_pm = sc_lutf_get_u32(r + SC_LUTF_POFF_SCALE);
         get_codes(r + SC_LUTF_PROFILE_HEADER_BYTES, p->err_um, (size_t)p->n, (unsigned)p->encoding,
                   p->scale_pm);
         r += SC_LUTF_PROFILE_HEADER_BYTES + (size_t)p->n * code_bytes(p->encoding);
     }
     memcpy(lut->prov.method, r, SC_LUT_METHOD_LEN);
-    lut->prov.created_unix_s = (int64_t)sc_lutf_get_u64(r + 32);
-    lut->prov.sigma_um = sc_lutf_get_f64(r + 40);
-    lut->prov.n_sources = r[48];
+    lut->prov.created_unix_s = (int64_t)sc_lutf_get_u64(r + SC_LUTF_VOFF_CREATED);
+    lut->prov.sigma_um = sc_lutf_get_f64(r + SC_LUTF_VOFF_SIGMA);
+    lut->prov.n_sources = r[SC_LUTF_VOFF_COUNT];
     r += SC_LUTF_PROV_FIXED_BYTES;
     for (int k = 0; k < lut->prov.n_sources; ++k, r += SC_LUTF_SHA256_BYTES)
         memcpy(lut->prov.sha256[k], r, SC_LUTF_SHA256_BYTES);
