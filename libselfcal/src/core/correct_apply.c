@@ -21,7 +21,10 @@
 
 #include "selfcal/correct.h"
 
-#if !SC_CORR_COMPACT && defined(__GNUC__) && !defined(__clang__) && defined(__SSE2__)
+/* SC_CORR_SCALAR=1 builds the scalar twin on the host too: test_core_scalar runs the core's unit
+ * tests on it (the twin is otherwise only built for microcontrollers). */
+#if !SC_CORR_COMPACT && !SC_CORR_SCALAR && defined(__GNUC__) && !defined(__clang__) &&           \
+    defined(__SSE2__)
 #define SC_CORR_PAIRS 1
 #else
 #define SC_CORR_PAIRS 0
