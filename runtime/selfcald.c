@@ -40,7 +40,7 @@ int main(int argc, char **argv)
 
     sc_daemon_init(&g_daemon, g_cfg.table, g_cfg.mode);
     g_daemon.busy_poll_us = g_cfg.busy_poll_us;
-    sc_modbus_map_shared()->order = g_cfg.word_order;
+    g_cfg.tcp.word_order = g_cfg.rtu.word_order = g_cfg.word_order; /* the map takes it at open */
     sc_transport t;
     if (g_cfg.use_modbus_tcp) {
         sc_modbus_tcp_transport(&t, &g_cfg.tcp);

@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <sys/socket.h>
 
+#include "modbus_map.h"
 #include "transport.h"
 
 /* Compile-time cap on TCP connections (one pollfd each, plus the listening socket). */
@@ -20,6 +21,7 @@ typedef struct sc_mbtcp_config {
     uint32_t byte_timeout_ms;  /* a started request must complete within this; default 500 */
     uint32_t idle_timeout_ms;  /* close a connection silent this long; 0 = never; default 60000 */
     int max_per_peer;          /* connections one peer address may hold; 0 = no limit (default) */
+    sc_word_order word_order;  /* of 32-bit values; default high word first (SPEC) */
 } sc_mbtcp_config;
 
 typedef struct sc_mbrtu_config {
@@ -30,6 +32,7 @@ typedef struct sc_mbrtu_config {
     int stop_bits;             /* 1 */
     uint8_t unit_id;           /* default 1 (1..247) */
     uint32_t byte_timeout_ms;  /* silence that ends/discards a partial frame; default 50 */
+    sc_word_order word_order;  /* of 32-bit values; default high word first (SPEC) */
 } sc_mbrtu_config;
 
 void sc_mbtcp_config_defaults(sc_mbtcp_config *c);

@@ -73,7 +73,7 @@ static int expected_len(const uint8_t *b, int have)
 static int rtu_open(void *state, char *why, int whylen)
 {
     mbrtu_state *s = state;
-    if (sc_modbus_map_open(sc_modbus_map_shared(), sc_modbus_map_shared()->order) != 0) {
+    if (sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order) != 0) {
         snprintf(why, (size_t)whylen, "modbus: cannot allocate the register map");
         return -1;
     }

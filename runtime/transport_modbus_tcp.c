@@ -207,7 +207,7 @@ static int tcp_open(void *state, char *why, int whylen)
                  SC_MBTCP_MAX_CONN);
         return -1;
     }
-    if (sc_modbus_map_open(sc_modbus_map_shared(), sc_modbus_map_shared()->order) != 0) {
+    if (sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order) != 0) {
         snprintf(why, (size_t)whylen, "modbus: cannot allocate the register map");
         return -1;
     }
