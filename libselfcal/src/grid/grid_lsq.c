@@ -963,17 +963,15 @@ static void gauge_solution(const sc_grid_lsq *q, const sc_grid_data *d, const do
 }
 
 /* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns. */
-static void fit_misalignments(const sc_grid_lsq *q, const sc_grid_data *d, const double *g,
-                              const double *a, double *m)
+static sc_status fit_misalignments(const sc_grid_lsq *q, const sc_grid_data *d, const double *g,
+                                   const double *a, double *m, sc_error *err)
 {
     int nb = q->nb, ns = q->ns;
     double *nrm = calloc((size_t)q->nv * nb * nb, sizeof(double));
     double *rh = calloc((size_t)q->nv * nb, sizeof(double));
-    if (!nrm || !rh) {
-        for (int t = 0; t < q->nm; ++t)
-            m[t] = NAN;
+    if (!nrm || !rh) { /* reported, never NaN misalignments in a result called OK */
         free(nrm), free(rh);
-        return;
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     }
     int idx[ROW_MAX];
     double val[ROW_MAX];
@@ -995,6 +993,7 @@ static void fit_misalignments(const sc_grid_lsq *q, const sc_grid_data *d, const
             m[v * nb + t] = rh[v * nb + t];
     }
     free(nrm), free(rh);
+    return SC_OK;
 }
 
 /* Upper quantile helpers: the regularized lower incomplete gamma P(a, x). */
@@ -1116,7 +1115,11 @@ sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_
     }
     double *gx = g, *gy = g + ns;
     gauge_solution(q, d, x, gx, gy, a);
-    fit_misalignments(q, d, g, a, m);
+    st = fit_misalignments(q, d, g, a, m, err);
+    if (st != SC_OK) {
+        free(x), free(g), free(a), free(r), free(m);
+        return st;
+    }
     /* residuals of the final (G, A, misalignment, drift) */
     double rss = 0, wrss = 0;
     int idx[ROW_MAX];
