@@ -28,11 +28,11 @@ gcov_args=(-r "$here" "$build" --gcov-ignore-parse-errors)
 echo "== libselfcal and runtime"
 mkdir -p "$build/coverage"
 gcovr "${gcov_args[@]}" --filter 'libselfcal/' --filter 'runtime/' --print-summary \
-      --html-details -o "$build/coverage/index.html" | tail -n 2
+      --html-details -o "$build/coverage/index.html" | grep -E '^(lines|branches):' 
 printf '%-24s %18s %18s\n' "area" "lines" "branches"
 for area in libselfcal/src/common libselfcal/src/io libselfcal/src/core libselfcal/src/grid \
             libselfcal/src/profile libselfcal/src/lut runtime; do
-  sum=$(gcovr "${gcov_args[@]}" --filter "$area/" --print-summary -o /dev/null | tail -n 2)
+  sum=$(gcovr "${gcov_args[@]}" --filter "$area/" --print-summary -o /dev/null)
   lines=$(echo "$sum" | awk '/^lines:/ {print $2, $3 "/" $6}' | tr -d '()')
   branches=$(echo "$sum" | awk '/^branches:/ {print $2, $3 "/" $6}' | tr -d '()')
   printf '%-24s %18s %18s\n' "${area#libselfcal/src/}" "$lines" "$branches"

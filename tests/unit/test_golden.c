@@ -79,6 +79,8 @@ static void same_bytes(const char *fresh, const char *golden)
         size_t k = 0;
         while (k < la && k < lb && a[k] == b[k])
             ++k;
+        free(a);
+        free(b);
         fail_msg("%s differs from the golden %s at byte %zu (sizes %zu, %zu): a format changed",
                  fresh, golden, k, la, lb);
     }
@@ -198,6 +200,17 @@ static void test_golden_summary(void **state)
     res.sigma_r_used_um = NAN;
     res.n_measurements = 566;
     res.dof = 237;
+    /* the least-squares fields (an exact method leaves them NaN) */
+    res.uO = 0.125e-6;
+    res.uR = NAN;
+    for (int v = 0; v < 4; ++v)
+        res.utx_um[v] = res.uty_um[v] = 0.0078125, res.utheta_urad[v] = 0.25;
+    res.misalignment_unique = 1;
+    res.weighted = 1;
+    res.variance_factor = 1.0625;
+    res.chi2_lo = 0.8125;
+    res.chi2_hi = 1.1875;
+    res.chi2_pass = 1;
     sc_error err;
     assert_int_equal(sc_grid_write_summary(TMP "summary.json", "double-shift", &p, &res, &err),
                      SC_OK);
