@@ -42,14 +42,6 @@ void sc_grid_options_default(sc_grid_options *o)
 
 /* ---- the closed forms' views ---- */
 
-typedef struct need_view {
-    int rot, sx, sy;
-    int partial; /* 1: only plate row c and columns c, c+1 are needed (double shift view 3) */
-} need_view;
-
-static const need_view YE_VIEWS[3] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
-static const need_view DS_VIEWS[4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-
 static long line_of(const sc_grid_file_info *info, int which, int v)
 {
     if (!info)
@@ -64,23 +56,23 @@ static int view_id(const sc_grid_file_info *info, int v)
 
 /* One needed view: declared, with data, every needed mark measured. */
 static sc_status check_view(const sc_grid_data *d, const sc_grid_file_info *info, const char *path,
-                            const char *method, const need_view *w, sc_error *err)
+                            const char *method, const sc_grid_view_need *w, sc_error *err)
 {
     const sc_grid_plan *p = &d->plan;
     int n = p->n, c = (n - 1) / 2;
-    int v = sc_grid_find_view(p, w->rot, w->sx, w->sy);
+    int v = sc_grid_find_view(p, w->rot_deg, w->shift_x, w->shift_y);
     if (v < 0)
         return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
                             "method %s needs a view rot=%d shift=%d,%d, which the header does not "
                             "declare",
-                            method, w->rot, w->sx, w->sy);
+                            method, w->rot_deg, w->shift_x, w->shift_y);
     int any = 0;
     for (long k = 0; k < (long)n * n && !any; ++k)
         any = isfinite(d->dx_um[v][k]);
     if (!any)
         return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
                             "view %d (rot=%d shift=%d,%d), needed by method %s, has no data rows",
-                            view_id(info, v), w->rot, w->sx, w->sy, method);
+                            view_id(info, v), w->rot_deg, w->shift_x, w->shift_y, method);
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             int ni, nj;
@@ -92,7 +84,7 @@ static sc_status check_view(const sc_grid_data *d, const sc_grid_file_info *info
                 return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
                                     "view %d (rot=%d shift=%d,%d) lacks mark (%d,%d), which method "
                                     "%s needs",
-                                    view_id(info, v), w->rot, w->sx, w->sy, i, j, method);
+                                    view_id(info, v), w->rot_deg, w->shift_x, w->shift_y, i, j, method);
         }
     return SC_OK;
 }
@@ -107,11 +99,14 @@ static sc_status check_exact(const sc_grid_data *d, const sc_grid_file_info *inf
                             "method %s needs the stage grid to be the plate's N x N (this file has "
                             "a %dx%d stage: use --method lsq)",
                             name, sc_grid_stage_nx(p), sc_grid_stage_ny(p));
-    if (m == SC_GRID_METHOD_DOUBLE_SHIFT && p->n < 9)
+    /* what the method needs is the method's to say (grid_exact.c), stated once */
+    sc_grid_exact_method em = m == SC_GRID_METHOD_YE ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT;
+    if (p->n < sc_grid_exact_min_n(em))
         return sc_error_set(err, SC_E_INPUT, path, line_of(info, 1, 0),
-                            "method double-shift needs N >= 9 (N = %d)", p->n);
-    const need_view *need = m == SC_GRID_METHOD_YE ? YE_VIEWS : DS_VIEWS;
-    int n_need = m == SC_GRID_METHOD_YE ? 3 : 4;
+                            "method %s needs N >= %d (N = %d)", name, sc_grid_exact_min_n(em),
+                            p->n);
+    sc_grid_view_need need[4];
+    int n_need = sc_grid_exact_needs(em, need);
     for (int k = 0; k < n_need; ++k) {
         sc_status st = check_view(d, info, path, name, &need[k], err);
         if (st != SC_OK)
@@ -444,7 +439,7 @@ sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, cons
                                              : run_exact(d, o, s, err);
     if (st != SC_OK)
         return st;
-    sc_grid_first_order(&d->plan, s->res.gx_um, s->res.gy_um, &s->res.O, &s->res.R);
+    /* O and R come with the result: every method computes them (sc_grid_first_order) */
     for (long k = 0; k < s->n_nodes; ++k)
         if (!isfinite(s->res.gx_um[k]) || !isfinite(s->res.gy_um[k]))
             return sc_error_set(err, SC_E_INTERNAL, path, 0, "the %s solution is not finite",
