@@ -202,6 +202,32 @@ static void test_rng(void **state)
 }
 
 /* sc_version() is the number of the generated header, which is project(VERSION)'s. */
+/* A device as the output (-o /dev/null) is written straight: renaming a temporary file over it
+ * would replace the device itself (as root, /dev/null became a regular file). A directory is
+ * refused. */
+static void test_atomic_file_device_target(void **state)
+{
+    (void)state;
+    struct stat before, after;
+    assert_int_equal(stat("/dev/null", &before), 0);
+    assert_true(S_ISCHR(before.st_mode));
+    sc_error err;
+    assert_int_equal(sc_write_file_atomic("/dev/null", "x\n", 2, &err), SC_OK);
+    sc_afile group[2];
+    assert_int_equal(sc_afile_open(&group[0], "/dev/null", &err), SC_OK);
+    assert_int_equal(sc_afile_open(&group[1], "/dev/null", &err), SC_OK);
+    fputs("y\n", group[0].fp);
+    assert_int_equal(sc_afile_commit_all(group, 2, &err), SC_OK);
+    assert_int_equal(sc_afile_open(&group[0], "/dev/null", &err), SC_OK);
+    sc_afile_abort(&group[0]);
+    assert_int_equal(stat("/dev/null", &after), 0);
+    assert_true(S_ISCHR(after.st_mode));
+    assert_int_equal(after.st_rdev, before.st_rdev);
+    assert_int_equal(access("/dev/null.tmp", F_OK), -1);
+    assert_int_equal(sc_write_file_atomic("/tmp", "x", 1, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "directory"));
+}
+
 static void test_version(void **state)
 {
     (void)state;
@@ -219,6 +245,7 @@ int main(void)
         cmocka_unit_test(test_csv_lines_and_errors),
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
+        cmocka_unit_test(test_atomic_file_device_target),
         cmocka_unit_test(test_rng),
         cmocka_unit_test(test_version),
     };

@@ -19,10 +19,14 @@ extern "C" {
 typedef struct sc_afile {
     FILE *fp;            /* write through this between open and commit/abort */
     char path[4096];     /* the final name */
-    char tmp_path[4096]; /* the temporary file */
+    char tmp_path[4096]; /* the temporary file ("" when written straight) */
+    int direct;          /* 1: stdout, or an existing device or FIFO (/dev/null): written
+                            straight, never replaced */
 } sc_afile;
 
-/* Create the temporary file for path ("-" writes straight to stdout). */
+/* Create the temporary file for path ("-" writes straight to stdout; so does an existing
+ * character device or FIFO such as /dev/null, which a rename would replace; a directory or other
+ * non-regular file is SC_E_INPUT). */
 SC_API sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err);
 
 /* Flush, fsync, rename to the final name; on failure the temporary file is removed. */

@@ -94,7 +94,24 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     memset(f, 0, sizeof *f);
     if (strcmp(path, "-") == 0) {
         f->fp = stdout;
+        f->direct = 1;
         snprintf(f->path, sizeof f->path, "-");
+        return SC_OK;
+    }
+    struct stat sb;
+    if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
+        if (!S_ISCHR(sb.st_mode) && !S_ISFIFO(sb.st_mode))
+            return sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
+                                S_ISDIR(sb.st_mode) ? "a directory" : "a special file");
+        /* a device or FIFO (/dev/null, /dev/stdout): a temporary file renamed over it would
+         * replace the device (as root, even /dev/null), so it is written straight */
+        if (strlen(path) >= sizeof f->path)
+            return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
+        f->fp = fopen(path, "wb");
+        if (!f->fp)
+            return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+        f->direct = 1;
+        snprintf(f->path, sizeof f->path, "%s", path);
         return SC_OK;
     }
     if (strlen(path) + 16 >= sizeof f->tmp_path)
@@ -172,19 +189,23 @@ static sc_status afile_rename(sc_afile *f, sc_error *err)
 
 static int is_stdout(const sc_afile *f) { return strcmp(f->path, "-") == 0; }
 
-static sc_status stdout_commit(sc_afile *f, sc_error *err)
+/* Commit of a file written straight (stdout, a device, a FIFO): flush (and close). */
+static sc_status direct_commit(sc_afile *f, sc_error *err)
 {
     int bad = fflush(f->fp) != 0 || ferror(f->fp);
+    if (!is_stdout(f) && fclose(f->fp) != 0)
+        bad = 1;
     f->fp = NULL;
-    return bad ? sc_error_set(err, SC_E_IO, "stdout", 0, "write error") : SC_OK;
+    return bad ? sc_error_set(err, SC_E_IO, is_stdout(f) ? "stdout" : f->path, 0, "write error")
+               : SC_OK;
 }
 
 sc_status sc_afile_commit(sc_afile *f, sc_error *err)
 {
     if (!f->fp)
         return sc_error_set(err, SC_E_INTERNAL, f->path, 0, "file not open");
-    if (is_stdout(f))
-        return stdout_commit(f, err);
+    if (f->direct)
+        return direct_commit(f, err);
     sc_status st = afile_sync(f, err);
     return st == SC_OK ? afile_rename(f, err) : st;
 }
@@ -198,7 +219,7 @@ sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err)
     for (int k = 0; k < n && st == SC_OK; ++k) {
         if (!f[k].fp)
             continue;
-        st = is_stdout(&f[k]) ? stdout_commit(&f[k], err) : afile_sync(&f[k], err);
+        st = f[k].direct ? direct_commit(&f[k], err) : afile_sync(&f[k], err);
         synced[k] = st == SC_OK && f[k].tmp_path[0];
     }
     if (st != SC_OK) {
@@ -234,8 +255,11 @@ void sc_afile_abort(sc_afile *f)
 {
     if (!f->fp)
         return;
-    if (strcmp(f->path, "-") == 0) {
-        fflush(f->fp);
+    if (f->direct) {
+        if (is_stdout(f))
+            fflush(f->fp);
+        else
+            fclose(f->fp);
         f->fp = NULL;
         return;
     }
