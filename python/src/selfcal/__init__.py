@@ -63,27 +63,42 @@ class Table:
         #: the straightness profiles: dicts with axis, dir, n, start_mm, step_mm
         self.profiles: list = info["profiles"]
 
-    def apply(self, x_mm, y_mm, mode: str = "measure", z_mm=None):
+    def apply(self, x_mm, y_mm, mode: str = "measure", z_mm=None, out=None):
         """Correct positions (mm) as selfcald does (SPEC §4), vectorised in C.
 
         ``mode="measure"``: the inputs are indicated positions p; returns p − G(p) − profile
         offsets. ``mode="position"``: the inputs are targets; returns target + G(target) +
         profile offsets (pre-compensation). G is bilinear on the table's grid, clamped at its
         edges. Inputs of any shape (broadcast together); returns ``(x_mm, y_mm, status)`` of that
-        shape (and ``z_mm`` as a fourth array when given). status: bit 0 table loaded, bit 1
-        outside the grid (clamped), bit 2 input not finite (returned unchanged).
+        shape (and ``z_mm`` as a third array, before status, when given). status: bit 0 table
+        loaded, bit 1 outside the grid (clamped), bit 2 input not finite (returned unchanged).
+
+        ``out``: optional arrays to fill instead of new ones (the same tuple layout; float64 and
+        uint32, C-contiguous, of the broadcast shape) — a caller correcting stream after stream
+        reuses them and pays no allocation.
         """
         code = _mode_code(mode)
         arrays = [x_mm, y_mm] + ([z_mm] if z_mm is not None else [])
         b = _np.broadcast_arrays(*[_np.asarray(a, dtype=_np.float64) for a in arrays])
         shape = b[0].shape
         flat = [_np.ascontiguousarray(a).reshape(-1) for a in b]
-        z = flat[2] if z_mm is not None else _np.zeros_like(flat[0])
-        xo, yo, zo, st = self._t.apply(flat[0], flat[1], z, code)
-        out = (xo.reshape(shape), yo.reshape(shape))
-        if z_mm is not None:
-            out += (zo.reshape(shape),)
-        return out + (st.reshape(shape),)
+        n_out = 4 if z_mm is not None else 3
+        if out is None:
+            out = tuple(_np.empty(shape, dtype=_np.float64) for _ in range(n_out - 1)) + (
+                _np.empty(shape, dtype=_np.uint32),)
+        elif len(out) != n_out:
+            raise ValueError(f"out must hold {n_out} arrays")
+        for o in out:
+            if not isinstance(o, _np.ndarray) or o.shape != shape:
+                raise ValueError(f"out arrays must be numpy arrays of shape {shape}")
+        flat_out = [o.reshape(-1) for o in out]
+        for o, f in zip(out, flat_out):
+            if not _np.shares_memory(o, f):
+                raise ValueError("out arrays must be C-contiguous")
+        z = flat[2] if z_mm is not None else None
+        zo = flat_out[2] if z_mm is not None else None
+        self._t.apply(flat[0], flat[1], z, code, flat_out[0], flat_out[1], zo, flat_out[-1])
+        return out
 
     def __repr__(self) -> str:
         return (f"selfcal.Table({self.path!r}: {self.nx} x {self.ny} nodes, pitch "

@@ -1077,13 +1077,28 @@ static int Table_init(TableObject *self, PyObject *args, PyObject *kw)
     return 0;
 }
 
-/* apply(x, y, z, mode) — x, y, z: C-contiguous float64 arrays of one length (mm); mode 0 measure,
- * 1 position. Returns (x_out, y_out, z_out, status) as new 1-D arrays. */
+/* A writable C-contiguous 1-D array of n elements of the given type, or NULL with an exception. */
+static PyArrayObject *out_vec(PyObject *o, npy_intp n, int typenum, const char *what)
+{
+    if (!PyArray_Check(o) || PyArray_TYPE((PyArrayObject *)o) != typenum ||
+        PyArray_NDIM((PyArrayObject *)o) != 1 || PyArray_DIM((PyArrayObject *)o, 0) != n ||
+        !PyArray_ISCARRAY((PyArrayObject *)o)) {
+        PyErr_Format(PyExc_ValueError, "%s must be a writable C-contiguous 1-D array of %zd %s", what,
+                     (Py_ssize_t)n, typenum == NPY_DOUBLE ? "float64" : "uint32");
+        return NULL;
+    }
+    return (PyArrayObject *)o;
+}
+
+/* apply(x, y, z, mode, x_out, y_out, z_out, status) — x, y: C-contiguous float64 arrays of one
+ * length (mm), z likewise or None (0); mode 0 measure, 1 position; the outputs are the caller's
+ * arrays of that length (float64; z_out may be None; status uint32), filled in place: no
+ * allocation, so a caller that reuses them pays no page faults. */
 static PyObject *Table_apply(TableObject *self, PyObject *args)
 {
-    PyObject *xo, *yo, *zo;
+    PyObject *xo, *yo, *zo, *oxo, *oyo, *ozo, *osto;
     int mode;
-    if (!PyArg_ParseTuple(args, "OOOi", &xo, &yo, &zo, &mode))
+    if (!PyArg_ParseTuple(args, "OOOiOOOO", &xo, &yo, &zo, &mode, &oxo, &oyo, &ozo, &osto))
         return NULL;
     if (!self->t || !self->t->loaded) {
         PyErr_SetString(sc_py_error, "table not loaded");
@@ -1096,46 +1111,42 @@ static PyObject *Table_apply(TableObject *self, PyObject *args)
     const int req = NPY_ARRAY_IN_ARRAY;
     PyArrayObject *x = (PyArrayObject *)PyArray_FROMANY(xo, NPY_DOUBLE, 1, 1, req);
     PyArrayObject *y = x ? (PyArrayObject *)PyArray_FROMANY(yo, NPY_DOUBLE, 1, 1, req) : NULL;
-    PyArrayObject *z = y ? (PyArrayObject *)PyArray_FROMANY(zo, NPY_DOUBLE, 1, 1, req) : NULL;
-    PyArrayObject *ox = NULL, *oy = NULL, *oz = NULL, *ost = NULL;
+    PyArrayObject *z = NULL;
     PyObject *ret = NULL;
-    if (!z)
+    if (!y)
+        goto done;
+    if (zo != Py_None && !(z = (PyArrayObject *)PyArray_FROMANY(zo, NPY_DOUBLE, 1, 1, req)))
         goto done;
     npy_intp n = PyArray_DIM(x, 0);
-    if (PyArray_DIM(y, 0) != n || PyArray_DIM(z, 0) != n) {
+    if (PyArray_DIM(y, 0) != n || (z && PyArray_DIM(z, 0) != n)) {
         PyErr_SetString(PyExc_ValueError, "x, y and z must have one length");
         goto done;
     }
-    ox = new_vec(n, NPY_DOUBLE);
-    oy = new_vec(n, NPY_DOUBLE);
-    oz = new_vec(n, NPY_DOUBLE);
-    ost = new_vec(n, NPY_UINT32);
-    if (!ox || !oy || !oz || !ost)
+    PyArrayObject *ox = out_vec(oxo, n, NPY_DOUBLE, "x_out"), *oy = ox ? out_vec(oyo, n, NPY_DOUBLE, "y_out") : NULL;
+    PyArrayObject *oz = NULL, *ost = oy ? out_vec(osto, n, NPY_UINT32, "status") : NULL;
+    if (!ost || (ozo != Py_None && !(oz = out_vec(ozo, n, NPY_DOUBLE, "z_out"))))
         goto done;
     {
-        const double *px = PyArray_DATA(x), *py = PyArray_DATA(y), *pz = PyArray_DATA(z);
-        double *qx = PyArray_DATA(ox), *qy = PyArray_DATA(oy), *qz = PyArray_DATA(oz);
+        const double *px = PyArray_DATA(x), *py = PyArray_DATA(y), *pz = z ? PyArray_DATA(z) : NULL;
+        double *qx = PyArray_DATA(ox), *qy = PyArray_DATA(oy), *qz = oz ? PyArray_DATA(oz) : NULL;
         npy_uint32 *qs = PyArray_DATA(ost);
         const sc_corr_table *t = self->t;
         Py_BEGIN_ALLOW_THREADS
         for (npy_intp k = 0; k < n; ++k) {
-            double in[3] = {px[k], py[k], pz[k]}, out[3];
+            double in[3] = {px[k], py[k], pz ? pz[k] : 0.0}, out[3];
             qs[k] = sc_corr_apply(t, (sc_corr_mode)mode, in, out);
             qx[k] = out[0];
             qy[k] = out[1];
-            qz[k] = out[2];
+            if (qz)
+                qz[k] = out[2];
         }
         Py_END_ALLOW_THREADS
     }
-    ret = Py_BuildValue("OOOO", ox, oy, oz, ost);
+    ret = Py_NewRef(Py_None);
 done:
     Py_XDECREF(x);
     Py_XDECREF(y);
     Py_XDECREF(z);
-    Py_XDECREF(ox);
-    Py_XDECREF(oy);
-    Py_XDECREF(oz);
-    Py_XDECREF(ost);
     return ret;
 }
 
@@ -1171,7 +1182,7 @@ static PyObject *Table_info(TableObject *self, PyObject *unused)
 
 static PyMethodDef Table_methods[] = {
     {"apply", (PyCFunction)Table_apply, METH_VARARGS,
-     "apply(x, y, z, mode) -> (x, y, z, status): 1-D float64 arrays in mm; mode 0 measure, 1 position."},
+     "apply(x, y, z, mode, x_out, y_out, z_out, status): 1-D arrays in mm, outputs filled in place."},
     {"info", (PyCFunction)Table_info, METH_NOARGS, "info() -> dict: grid size, node (0,0), pitches, profiles."},
     {NULL, NULL, 0, NULL}};
 
