@@ -15,6 +15,7 @@
 
 #include "profile_lsq_dense.h"
 #include "selfcal/profile_lsq.h"
+#include "../../libselfcal/src/profile/profile_lsq_tuning.h" /* the internal tuning flags */
 #include "selfcal/rng.h"
 
 /* ---------- helpers ---------- */

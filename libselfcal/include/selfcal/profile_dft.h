@@ -37,10 +37,6 @@ SC_API sc_status sc_profile_dft_solve(sc_profile_dft *p, const double *y1_um, co
  * computed exactly from the method's linear response in O(N log N) (docs/profile.md). */
 SC_API sc_status sc_profile_dft_uncertainty(sc_profile_dft *p, double *uf_um, sc_error *err);
 
-/* The zero-point compensation factor a12 = (c1/d1 - c2/d2)/s estimated by the last solve,
- * in µm per sample (s = 1). */
-SC_API double sc_profile_dft_last_a12(const sc_profile_dft *p);
-
 /* Free the plan (NULL is fine). */
 SC_API void sc_profile_dft_destroy(sc_profile_dft *p);
 

@@ -25,28 +25,12 @@ typedef struct sc_profile_lsq sc_profile_lsq;
 SC_API int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err);
 
 /* Factor the problem in O(N·d²) time, O(N·d) memory (d = max(d1, d2); 8·N·(d+1) bytes for the
- * factor). w1, w2 > 0: weights of scans 1 and 2 (1/µm²); only their ratio changes f. */
+ * factor). w1, w2 > 0: weights of scans 1 and 2 (1/µm²); only their ratio changes f.
+ * Tuning (threads, huge pages) is not part of the API: environment variables
+ * SELFCAL_PROFILE_LSQ_ONE_THREAD=1 (no helper thread) and SELFCAL_PROFILE_LSQ_HUGE_PAGES=1
+ * (factor in transparent huge pages), read at create; docs/profile-lsq.md. Results are identical. */
 SC_API sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2,
                                        sc_profile_lsq **out, sc_error *err);
-
-/* Flags of sc_profile_lsq_create_ex. */
-#define SC_PROFILE_LSQ_PORTABLE 1u /* portable kernels even where AVX2/FMA ones exist (testing) */
-#define SC_PROFILE_LSQ_SERIAL 2u   /* one-sided banded factor even where the twisted one applies
-                                      (testing; the twisted one halves time and memory) */
-#define SC_PROFILE_LSQ_ONE_THREAD 4u /* no helper thread (by default, plans with 16 MB of factor
-                                        or more have its pages faulted in by a second thread
-                                        while the first factors; results are identical) */
-#define SC_PROFILE_LSQ_HUGE_PAGES 8u /* factor in transparent huge pages: faster where recently
-                                        freed memory is reused (~0.2 s at N = 10⁶, d = 101), much
-                                        slower where a VM host must back fresh memory first */
-#define SC_PROFILE_LSQ_EARLY_UNCERTAINTY 16u /* start the selected inversion (the O(N·d²) part of
-                                        sc_profile_lsq_uncertainty) on a second thread as soon as
-                                        the factor exists; uncertainty then only waits for it and
-                                        finishes in O(N). +8·N bytes. Identical results. */
-
-/* sc_profile_lsq_create with flags (0 or an OR of the SC_PROFILE_LSQ_* flags above). */
-SC_API sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2,
-                                          unsigned flags, sc_profile_lsq **out, sc_error *err);
 
 /* Degrees of freedom of the fit, N - d1 - d2 (observations minus determined unknowns): divide the
  * weighted residual sum of squares by it to estimate the noise scale (0: no estimate possible). */

@@ -1,3 +1,5 @@
+/* atomic_file.c — owns writing files so that a crash never leaves half of one under its name
+ * (temporary file, fsync, rename, directory fsync; groups of files committed together). */
 #include "selfcal/atomic_file.h"
 
 #include <errno.h>

@@ -1,3 +1,5 @@
+/* csv.c — owns the strict line reader every text format is read with (line counting, NUL and
+ * over-long lines refused, comma splitting, strict finite numbers) and the `# key = value` split. */
 #include "selfcal/csv.h"
 
 #include "selfcal/number.h"

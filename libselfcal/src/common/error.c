@@ -1,3 +1,5 @@
+/* error.c — owns the library's one error convention: sc_status codes and the sc_error record
+ * (file, line, one-line message), and their formatting for the CLI. */
 #include "selfcal/error.h"
 
 #include <stdarg.h>

@@ -1,3 +1,5 @@
+/* rng.c — owns the seeded pseudo-random generator of the simulators (reproducible streams from a
+ * 64-bit seed; uniform and Gaussian draws). */
 #include "selfcal/rng.h"
 
 #include <math.h>

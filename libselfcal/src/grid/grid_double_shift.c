@@ -58,7 +58,7 @@ static void wrap_columns(int n, double *h, int i, double l1, double l2)
     h[IDX(i, n - 1)] = delta - chain(n, h, i, n - 1);    /* F(i,1) - F(i,N-1), N-1 even */
 }
 
-void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p)
+void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p, const sc_grid_exact_run *x)
 {
     int n = p->n, c = p->c;
     central_row(n, p->ex, p->hx, p->crow_x);
@@ -68,8 +68,8 @@ void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p)
     double sx = 0, s1 = 0, sj = 0, sjj = 0, sy = 0, sjy = 0;
     for (int j = 3; j < n; ++j) {
         int k = IDX(c, j);
-        double rx = p->v3x[k] - p->u0x[k] - (p->crow_x[j - 3] - p->crow_x[j]);
-        double ry = p->v3y[k] - p->u0y[k] - (p->crow_y[j - 3] - p->crow_y[j]);
+        double rx = x->v3x[k] - p->u0x[k] - (p->crow_x[j - 3] - p->crow_x[j]);
+        double ry = x->v3y[k] - p->u0y[k] - (p->crow_y[j - 3] - p->crow_y[j]);
         double x = j - c;
         sx += rx;
         s1 += 1;
@@ -84,10 +84,10 @@ void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p)
     /* links from columns c and c+1 of view 3, then the wrap columns of every row */
     for (int i = 0; i < n; ++i) {
         int ka = IDX(i, c), kb = IDX(i, c + 1);
-        double l1x = p->v3x[ka] - p->u0x[ka] - k3x + th3 * (i - c);
-        double l2x = p->v3x[kb] - p->u0x[kb] - k3x + th3 * (i - c);
-        double l1y = p->v3y[ka] - p->u0y[ka] - k3y;
-        double l2y = p->v3y[kb] - p->u0y[kb] - k3y - th3;
+        double l1x = x->v3x[ka] - p->u0x[ka] - k3x + th3 * (i - c);
+        double l2x = x->v3x[kb] - p->u0x[kb] - k3x + th3 * (i - c);
+        double l1y = x->v3y[ka] - p->u0y[ka] - k3y;
+        double l2y = x->v3y[kb] - p->u0y[kb] - k3y - th3;
         wrap_columns(n, p->hx, i, l1x, l2x);
         wrap_columns(n, p->hy, i, l1y, l2y);
     }

@@ -235,7 +235,7 @@ static sc_status find_views(const sc_grid_exact_plan *p, const sc_grid_data *d, 
 
 /* ---- step 1: views 0 and 1 (Petrò §4.1-4.2.2, eqs. 11-21, 33, 37) ---- */
 
-static void views_0_1(sc_grid_exact_plan *p)
+static void views_0_1(sc_grid_exact_plan *p, sc_grid_exact_run *x)
 {
     int n = p->n, c = p->c;
     double s0x = 0, s0y = 0, s1x = 0, s1y = 0, r0 = 0, r1 = 0, den = 0;
@@ -243,12 +243,12 @@ static void views_0_1(sc_grid_exact_plan *p)
         for (int j = 0; j < n; ++j) {
             int k = IDX(i, j);
             double X = j - c, Y = i - c;
-            s0x += p->v0x[k];
-            s0y += p->v0y[k];
-            s1x += p->v1x[k];
-            s1y += p->v1y[k];
-            r0 += X * p->v0y[k] - Y * p->v0x[k];
-            r1 += X * p->v1x[k] + Y * p->v1y[k];
+            s0x += x->v0x[k];
+            s0y += x->v0y[k];
+            s1x += x->v1x[k];
+            s1y += x->v1y[k];
+            r0 += X * x->v0y[k] - Y * x->v0x[k];
+            r1 += X * x->v1x[k] + Y * x->v1y[k];
             den += X * X + Y * Y;
         }
     double nn = (double)n * n;
@@ -259,22 +259,22 @@ static void views_0_1(sc_grid_exact_plan *p)
         for (int j = 0; j < n; ++j) {
             int k = IDX(i, j);
             double X = j - c, Y = i - c;
-            p->u0x[k] = p->v0x[k] - t0x + th0 * Y; /* eq. 16 */
-            p->u0y[k] = p->v0y[k] - t0y - th0 * X;
-            p->u1x[k] = p->v1x[k] - t1x + th1 * X; /* eq. 17 */
-            p->u1y[k] = p->v1y[k] - t1y + th1 * Y;
+            p->u0x[k] = x->v0x[k] - t0x + th0 * Y; /* eq. 16 */
+            p->u0y[k] = x->v0y[k] - t0y - th0 * X;
+            p->u1x[k] = x->v1x[k] - t1x + th1 * X; /* eq. 17 */
+            p->u1y[k] = x->v1y[k] - t1y + th1 * Y;
             double a = p->u0x[k] - p->u1y[k], b = p->u0y[k] + p->u1x[k]; /* eq. 18 */
             so += X * b + Y * a;
             sr += X * a - Y * b;
         }
-    p->O = so / (2 * den); /* eq. 19 */
-    p->R = sr / (2 * den); /* eq. 20 */
+    x->O = so / (2 * den); /* eq. 19 */
+    x->R = sr / (2 * den); /* eq. 20 */
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             int k = IDX(i, j);
             double X = j - c, Y = i - c;
-            p->P[k] = p->u0x[k] - p->u1y[k] - 2 * p->O * Y - 2 * p->R * X; /* eq. 21 */
-            p->Q[k] = p->u0y[k] + p->u1x[k] - 2 * p->O * X + 2 * p->R * Y;
+            p->P[k] = p->u0x[k] - p->u1y[k] - 2 * x->O * Y - 2 * x->R * X; /* eq. 21 */
+            p->Q[k] = p->u0y[k] + p->u1x[k] - 2 * x->O * X + 2 * x->R * Y;
         }
     /* even parts: Fx + S Fx S = P + S Q^T (33), Fy + S Fy S = Q - S P^T (37) */
     for (int i = 0; i < n; ++i)
@@ -287,15 +287,15 @@ static void views_0_1(sc_grid_exact_plan *p)
 
 /* ---- step 2: view 2, its misalignment and H (eqs. 30-40, re-derived: docs §4) ---- */
 
-static void view_2(sc_grid_exact_plan *p)
+static void view_2(sc_grid_exact_plan *p, const sc_grid_exact_run *x)
 {
     int n = p->n, c = p->c, s = p->shift, last = n - 1 - s;
     /* D2 = V2 - U0 on the measured columns; kept in hx, hy until H is formed */
     for (int i = 0; i < n; ++i)
         for (int j = 0; j <= last; ++j) {
             int k = IDX(i, j);
-            p->hx[k] = p->v2x[k] - p->u0x[k];
-            p->hy[k] = p->v2y[k] - p->u0y[k];
+            p->hx[k] = x->v2x[k] - p->u0x[k];
+            p->hy[k] = x->v2y[k] - p->u0y[k];
         }
     /* rotation (eqs. 36, 38): D(i,j) - D(N-1-i, N-1-s-j) involves only the even part of F */
     double sab = 0, saa = 0;
@@ -329,7 +329,7 @@ static void view_2(sc_grid_exact_plan *p)
 
 /* ---- step 3: the spectra of Fx, Fy (eqs. 27, 28, 54, 55) and F ---- */
 
-static void assemble_f(sc_grid_exact_plan *p)
+static void assemble_f(sc_grid_exact_plan *p, const sc_grid_exact_run *x)
 {
     int n = p->n;
     dft_centred(p, p->P, p->sp);
@@ -421,8 +421,8 @@ static long fit_view(const sc_grid_exact_plan *p, const sc_grid_plan *pl, const 
     return (long)m;
 }
 
-static void finish(sc_grid_exact_plan *p, const sc_grid_data *d, const int *views, int nroles,
-                   sc_grid_result *res)
+static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_grid_data *d,
+                   const int *views, int nroles, sc_grid_result *res)
 {
     int n = p->n, c = p->c;
     const sc_grid_plan *pl = &d->plan;
@@ -431,8 +431,8 @@ static void finish(sc_grid_exact_plan *p, const sc_grid_data *d, const int *view
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             int k = IDX(i, j);
-            p->gx[k] = p->O * (i - c) + p->R * (j - c) + p->fx[k];
-            p->gy[k] = p->O * (j - c) - p->R * (i - c) + p->fy[k];
+            p->gx[k] = x->O * (i - c) + x->R * (j - c) + p->fx[k];
+            p->gy[k] = x->O * (j - c) - x->R * (i - c) + p->fy[k];
         }
     sc_grid_gauge_stage(pl, p->gx, p->gy);
     /* A from view 0 and from view 1 (eqs. 10, 13), each without translation and rotation,
@@ -440,10 +440,10 @@ static void finish(sc_grid_exact_plan *p, const sc_grid_data *d, const int *view
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             int k = IDX(i, j), t = IDX(j, n - 1 - i);
-            p->ax[k] = p->v0x[k] - p->gx[k];
-            p->ay[k] = p->v0y[k] - p->gy[k];
-            p->bx[k] = p->v1y[k] - p->gy[t];
-            p->by[k] = -(p->v1x[k] - p->gx[t]);
+            p->ax[k] = x->v0x[k] - p->gx[k];
+            p->ay[k] = x->v0y[k] - p->gy[k];
+            p->bx[k] = x->v1y[k] - p->gy[t];
+            p->by[k] = -(x->v1x[k] - p->gx[t]);
         }
     sc_grid_gauge_plate(pl, p->ax, p->ay);
     sc_grid_gauge_plate(pl, p->bx, p->by);
@@ -520,26 +520,22 @@ sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d, sc
     st = find_views(p, d, views, err);
     if (st != SC_OK)
         return st;
-    p->v0x = d->dx_um[views[0]];
-    p->v0y = d->dy_um[views[0]];
-    p->v1x = d->dx_um[views[1]];
-    p->v1y = d->dy_um[views[1]];
-    p->v2x = d->dx_um[views[2]];
-    p->v2y = d->dy_um[views[2]];
-    p->v3x = p->v3y = NULL;
+    sc_grid_exact_run x = {d->dx_um[views[0]], d->dy_um[views[0]], d->dx_um[views[1]],
+                           d->dy_um[views[1]], d->dx_um[views[2]], d->dy_um[views[2]],
+                           NULL, NULL, 0, 0};
     if (p->method == SC_GRID_DOUBLE_SHIFT) {
-        p->v3x = d->dx_um[views[3]];
-        p->v3y = d->dy_um[views[3]];
+        x.v3x = d->dx_um[views[3]];
+        x.v3y = d->dy_um[views[3]];
     }
-    views_0_1(p);
-    view_2(p);
+    views_0_1(p, &x);
+    view_2(p, &x);
     if (p->method == SC_GRID_YE)
         sc_grid_ye_complete_h(p);
     else
-        sc_grid_ds_complete_h(p);
-    assemble_f(p);
+        sc_grid_ds_complete_h(p, &x);
+    assemble_f(p, &x);
     sc_grid_view_need need[4];
-    finish(p, d, views, sc_grid_exact_needs(p->method, need), res);
+    finish(p, &x, d, views, sc_grid_exact_needs(p->method, need), res);
     for (size_t k = 0; k < (size_t)p->n * p->n; ++k)
         if (!isfinite(p->gx[k]) || !isfinite(p->gy[k]))
             return sc_error_set(err, SC_E_INTERNAL, NULL, 0,

@@ -37,14 +37,19 @@ struct sc_grid_exact_plan {
     fftw_complex *sp, *sq, *shx, *shy, *phx, *phy;
     double *crow_x, *crow_y; /* central row of Fx, Fy (double shift) */
 
-    /* state of the current execution, shared between the steps */
+};
+
+/* One execution: the data of the views in their roles and the first-order terms found. It lives
+ * on the stack of sc_grid_exact_execute and is passed between the steps: a plan keeps nothing of
+ * an execution but the contents of its workspace arrays. */
+typedef struct sc_grid_exact_run {
     const double *v0x, *v0y, *v1x, *v1y, *v2x, *v2y, *v3x, *v3y;
     double O, R; /* first-order terms, µm per pitch */
-};
+} sc_grid_exact_run;
 
 /* Double shift: fill the last two (wrap-around) columns of hx, hy from view 3 (docs §6).
  * Needs ex, ey, the first N-2 columns of hx, hy, u0x, u0y and v3x, v3y. */
-void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p);
+void sc_grid_ds_complete_h(struct sc_grid_exact_plan *p, const sc_grid_exact_run *x);
 
 /* Ye: fill the last (wrap-around) column of hx, hy by telescoping (docs §5). */
 void sc_grid_ye_complete_h(struct sc_grid_exact_plan *p);

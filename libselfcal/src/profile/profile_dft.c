@@ -26,7 +26,6 @@ struct sc_profile_dft {
     double complex *zeta;
     double complex *beta[2];    /* a12 = Re sum_q beta1·X1 - Re sum_q beta2·X2 (half spectrum) */
     double complex *x1;         /* workspace: X1 */
-    double last_a12;
 };
 
 static long gcd_l(long a, long b)
@@ -196,7 +195,6 @@ static void solve_raw(sc_profile_dft *p, const double *y1, const double *y2, dou
     fftw_execute(p->c2r);
     for (int i = 0; i < n; ++i)
         f[i] = p->rbuf[i] / n;
-    p->last_a12 = a12;
 }
 
 sc_status sc_profile_dft_solve(sc_profile_dft *p, const double *y1_um, const double *y2_um,
@@ -207,8 +205,6 @@ sc_status sc_profile_dft_solve(sc_profile_dft *p, const double *y1_um, const dou
     sc_profile_remove_line(p->n, f_um);
     return SC_OK;
 }
-
-double sc_profile_dft_last_a12(const sc_profile_dft *p) { return p->last_a12; }
 
 /* out = IDFT(spec) (N reals) for a half spectrum spec (Hermitian). */
 static void inverse(sc_profile_dft *p, const double complex *spec, double *out)

@@ -29,6 +29,7 @@
 #endif
 
 #include "profile_lsq_band.h"
+#include "profile_lsq_tuning.h"
 #include "profile_lsq_kernels.h"
 
 struct sc_profile_lsq {
@@ -292,10 +293,19 @@ static void *prefault_run(void *arg)
 }
 #endif
 
+/* 1 if the environment variable is set to something other than "" or "0". */
+static int env_on(const char *name)
+{
+    const char *v = getenv(name);
+    return v && *v && strcmp(v, "0") != 0;
+}
+
 sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
                                 sc_error *err)
 {
-    return sc_profile_lsq_create_ex(n, d1, d2, w1, w2, 0u, out, err);
+    unsigned flags = (env_on("SELFCAL_PROFILE_LSQ_ONE_THREAD") ? SC_PROFILE_LSQ_ONE_THREAD : 0u) |
+                     (env_on("SELFCAL_PROFILE_LSQ_HUGE_PAGES") ? SC_PROFILE_LSQ_HUGE_PAGES : 0u);
+    return sc_profile_lsq_create_ex(n, d1, d2, w1, w2, flags, out, err);
 }
 
 sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,
