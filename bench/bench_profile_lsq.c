@@ -21,6 +21,7 @@
 
 #include "profile_lsq_dense.h"
 #include "selfcal/profile_lsq.h"
+#include "../libselfcal/src/profile/profile_lsq_tuning.h" /* internal tuning flags */
 #include "selfcal/rng.h"
 
 enum mode { DENSE_SOLVE, DENSE_UNC, FAST_SOLVE, FAST_UNC, EARLY_UNC, HUGE_UNC, SERIAL_UNC, BASELINE };

@@ -8,6 +8,7 @@
 #include "selfcal/profile_calibrate.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
+#include "profile_lsq_tuning.h"
 
 void sc_profile_options_default(sc_profile_options *o)
 {
