@@ -329,7 +329,7 @@ static void view_2(sc_grid_exact_plan *p, const sc_grid_exact_run *x)
 
 /* ---- step 3: the spectra of Fx, Fy (eqs. 27, 28, 54, 55) and F ---- */
 
-static void assemble_f(sc_grid_exact_plan *p, const sc_grid_exact_run *x)
+static void assemble_f(sc_grid_exact_plan *p)
 {
     int n = p->n;
     dft_centred(p, p->P, p->sp);
@@ -533,7 +533,7 @@ sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d, sc
         sc_grid_ye_complete_h(p);
     else
         sc_grid_ds_complete_h(p, &x);
-    assemble_f(p, &x);
+    assemble_f(p);
     sc_grid_view_need need[4];
     finish(p, &x, d, views, sc_grid_exact_needs(p->method, need), res);
     for (size_t k = 0; k < (size_t)p->n * p->n; ++k)
