@@ -40,3 +40,9 @@ section "selfcald: Modbus TCP round trip, 1 and 64 clients"
 "$b/bench_modbus"
 section "selfcald: CAN frames/s through the daemon (QEMU guest with vcan)"
 "$b/bench_can"
+section "python: Table.apply on 10⁶ points vs the C core (issue 14: >= 50 M points/s)"
+pyvenv="$build/pyvenv"
+[ -x "$pyvenv/bin/python" ] || python3 -m venv "$pyvenv"
+"$pyvenv/bin/python" -m pip install -q --disable-pip-version-check -r python/requirements-test.txt
+CMAKE_BUILD_PARALLEL_LEVEL=$(nproc) "$pyvenv/bin/python" -m pip install -q --disable-pip-version-check ./python
+"$pyvenv/bin/python" bench/bench_python_apply.py "$build/bin/selfcal" "$b/bench_core_apply"

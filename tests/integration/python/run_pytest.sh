@@ -11,5 +11,18 @@ export PIP_DISABLE_PIP_VERSION_CHECK=1 CMAKE_BUILD_PARALLEL_LEVEL=${CMAKE_BUILD_
 unset CFLAGS LDFLAGS
 "$venv/bin/python" -m pip install -q -r "$src/python/requirements-test.txt"
 "$venv/bin/python" -m pip install -q "$src/python"
+# `pip wheel ./python` makes a wheel holding the module and its library, not the C source
+"$venv/bin/python" -m pip wheel -q --no-deps -w "$venv/wheel" "$src/python"
+"$venv/bin/python" - "$venv/wheel" <<'PY'
+import glob, sys, zipfile
+w = glob.glob(sys.argv[1] + "/selfcal-*.whl")
+assert len(w) == 1, w
+names = zipfile.ZipFile(w[0]).namelist()
+for need in ("selfcal/__init__.py", "selfcal/libselfcal.so.0"):
+    assert need in names, (need, names)
+assert any(n.startswith("selfcal/_native.") and n.endswith(".so") for n in names), names
+assert not any(n.endswith(".c") for n in names), names
+print("wheel:", w[0].rsplit("/", 1)[1], len(names), "files")
+PY
 cd "$venv"   # import the installed package, not the source folder
 SELFCAL_CLI=$cli exec "$venv/bin/python" -m pytest -q -p no:cacheprovider "$src/python/tests"
