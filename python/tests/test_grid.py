@@ -141,3 +141,15 @@ def test_errors(cli, tmp_path):
     assert str(e.value).startswith(f"{bad}:{len(lines)}: ")
     with pytest.raises(selfcal.Error, match="do not identify G"):
         selfcal.calibrate_grid(selfcal.simulate_grid(selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)]))[0])
+
+
+def test_example_script_runs(tmp_path):
+    import os
+    import subprocess
+    import sys
+    script = os.path.join(os.path.dirname(__file__), "..", "..", "examples", "python",
+                          "calibrate_stage.py")
+    p = subprocess.run([sys.executable, "-W", "ignore", script, "--n", "11"], capture_output=True,
+                       text=True, timeout=300, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    assert "identifiable: True" in p.stdout and "corrected a 5 x 5 raster" in p.stdout

@@ -115,3 +115,35 @@ def test_mode_checked(table):
     t = selfcal.Table(table[0])
     with pytest.raises(selfcal.Error, match="mode"):
         t.apply(0, 0, mode="forward")
+
+
+def test_build_table_from_arrays_equals_cli(cli, tmp_path):
+    m, truth = selfcal.simulate_grid("double-shift", n=9, pitch_mm=2.0, sigma_r_um=0.01, seed=8)
+    r = selfcal.calibrate_grid(m)
+    prof = dict(axis="y", dir="x", start_mm=-8.0, step_mm=0.5, err_um=np.sin(np.arange(33) / 5.0))
+    t = selfcal.build_table(tmp_path / "py.lut", r.gx_um, r.gy_um, r.x_mm[0, 0], r.y_mm[0, 0], 2.0,
+                            profiles=[prof], method="lsq", created_unix_s=0)
+    assert (t.nx, t.ny) == (9, 9) and t.profiles[0]["axis"] == "y" and t.profiles[0]["n"] == 33
+    grid, profiles = parse_dump(cli("lut", "dump", tmp_path / "py.lut").stdout)
+    i, j = grid[:, 0].astype(int), grid[:, 1].astype(int)
+    assert np.max(np.abs(grid[:, 4] - r.gx_um[i, j])) < 1e-4  # int16 codes: <= 0.05 nm
+    assert np.max(np.abs(grid[:, 2] - r.x_mm[i, j])) < 1e-9
+    p = np.array(profiles[0]["rows"])
+    assert np.max(np.abs(p[:, 2] - prof["err_um"])) < 1e-4
+    with pytest.raises(selfcal.Error):
+        selfcal.build_table(tmp_path / "bad.lut", r.gx_um, r.gy_um[:3], 0, 0, 1)
+    assert not (tmp_path / "bad.lut").exists()
+
+
+def test_out_arrays_are_filled_in_place(table):
+    t = selfcal.Table(table[0])
+    x = np.linspace(-5, 5, 12).reshape(3, 4)
+    out = (np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 4), dtype=np.uint32))
+    r = t.apply(x, -x, out=out)
+    assert all(a is b for a, b in zip(r, out))
+    xo, yo, st = t.apply(x, -x)
+    assert np.array_equal(out[0], xo) and np.array_equal(out[1], yo) and np.array_equal(out[2], st)
+    with pytest.raises(ValueError):
+        t.apply(x, -x, out=(np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 4))))  # status dtype
+    with pytest.raises(ValueError):
+        t.apply(x, -x, out=(np.empty((4, 3)).T, np.empty((3, 4)), np.empty((3, 4), dtype=np.uint32)))

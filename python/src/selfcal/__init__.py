@@ -20,7 +20,7 @@ __all__ = [
     "GridPlan", "GridMeasurement", "GridResult", "PlanAnalysis", "read_grid", "plan",
     "calibrate_grid", "simulate_grid",
     "ProfileMeasurement", "ProfileResult", "read_profile", "calibrate_profile", "simulate_profile",
-    "Table",
+    "Table", "build_table",
 ]
 __version__ = _native.version()
 
@@ -430,3 +430,36 @@ def simulate_profile(n: int = 330, s_mm: float = 1.0, d1: int = 10, d2: int = 11
     meas, f, ey = _native.profile_simulate(params, f_um, float(amp_um), int(harmonics), dabam)
     m = ProfileMeasurement._from_dict(meas)
     return m, {"x_mm": _np.arange(m.n) * m.s_mm, "f_um": f, "ey_um": _nan_pad(ey, m.n)}
+
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def build_table(path, gx_um, gy_um, x0_mm: float, y0_mm: float, px_mm: float, py_mm: float = None,
+                profiles=(), method: str = "", sigma_um: float = -1.0, created_unix_s: int = None):
+    """Write a correction table from arrays, as ``selfcal lut build`` does from files.
+
+    ``gx_um``, ``gy_um``: the stage error at the nodes, shape (NY, NX), indexed [i, j] (i along
+    y); node (0, 0) at (``x0_mm``, ``y0_mm``), pitches ``px_mm`` and ``py_mm`` (default: px).
+    ``profiles``: straightness errors, each a dict with ``axis`` and ``dir`` (``"x"``, ``"y"`` or
+    ``"z"``: the error of coordinate dir as a function of axis), ``start_mm``, ``step_mm`` and
+    ``err_um`` (values at start + k·step). ``method`` and ``sigma_um`` go into the table's
+    provenance; ``created_unix_s`` defaults to SOURCE_DATE_EPOCH or now. Written atomically;
+    returns the :class:`Table` loaded from it. A GridResult's map goes in as
+    ``build_table(p, r.gx_um, r.gy_um, r.x_mm[0, 0], r.y_mm[0, 0], pitch)``.
+    """
+    import os
+    import time
+    if created_unix_s is None:
+        created_unix_s = int(os.environ.get("SOURCE_DATE_EPOCH", time.time()))
+    prof = []
+    for p in profiles:
+        try:
+            prof.append((_AXES[p["axis"].lower()], _AXES[p["dir"].lower()], float(p["start_mm"]),
+                         float(p["step_mm"]), _np.asarray(p["err_um"], dtype=_np.float64)))
+        except KeyError as e:
+            raise Error(f"profile needs axis and dir among x, y, z, start_mm, step_mm, err_um ({e})") from None
+    _native.lut_build(path, gx_um, gy_um, float(x0_mm), float(y0_mm), float(px_mm),
+                      float(py_mm if py_mm is not None else px_mm), prof, str(method),
+                      float(sigma_um), int(created_unix_s))
+    return Table(path)

@@ -1042,6 +1042,89 @@ done:
     return ret;
 }
 
+/* ---- tables ---- */
+
+/* lut_build(path, gx_um, gy_um, x0_mm, y0_mm, px_mm, py_mm, profiles, method, sigma_um, created)
+ * gx/gy: (NY, NX) float64; profiles: a sequence of (axis, dir, start_mm, step_mm, err_um array)
+ * with axis/dir 0 x, 1 y, 2 z. Encoded (automatic int16/int32) and written atomically. */
+static PyObject *py_lut_build(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *pathobj, *ogx, *ogy, *oprof;
+    double x0, y0, px, py, sigma;
+    const char *method;
+    long long created;
+    if (!PyArg_ParseTuple(args, "O&OOddddOsdL", PyUnicode_FSConverter, &pathobj, &ogx, &ogy, &x0, &y0,
+                          &px, &py, &oprof, &method, &sigma, &created))
+        return NULL;
+    sc_lut *lut = malloc(sizeof *lut);
+    PyArrayObject *gx = NULL, *gy = NULL;
+    PyObject *ret = NULL, *seq = NULL;
+    if (!lut) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    sc_lut_init(lut);
+    gx = (PyArrayObject *)PyArray_FROMANY(ogx, NPY_DOUBLE, 2, 2, NPY_ARRAY_IN_ARRAY);
+    gy = gx ? (PyArrayObject *)PyArray_FROMANY(ogy, NPY_DOUBLE, 2, 2, NPY_ARRAY_IN_ARRAY) : NULL;
+    if (!gy)
+        goto done;
+    npy_intp ny = PyArray_DIM(gx, 0), nx = PyArray_DIM(gx, 1);
+    if (PyArray_DIM(gy, 0) != ny || PyArray_DIM(gy, 1) != nx || nx < 2 || ny < 2 ||
+        nx > SC_LUT_MAX_NX || ny > SC_LUT_MAX_NY) {
+        PyErr_Format(sc_py_error, "gx_um and gy_um must have one shape (NY, NX), 2..%d x 2..%d nodes",
+                     SC_LUT_MAX_NY, SC_LUT_MAX_NX);
+        goto done;
+    }
+    lut->nx = (int)nx, lut->ny = (int)ny;
+    lut->x0_mm = x0, lut->y0_mm = y0, lut->px_mm = px, lut->py_mm = py;
+    memcpy(lut->gx_um, PyArray_DATA(gx), (size_t)(nx * ny) * sizeof(double));
+    memcpy(lut->gy_um, PyArray_DATA(gy), (size_t)(nx * ny) * sizeof(double));
+    if (!(seq = PySequence_Fast(oprof, "profiles must be a sequence")))
+        goto done;
+    if (PySequence_Fast_GET_SIZE(seq) > SC_LUT_MAX_PROFILES) {
+        PyErr_Format(sc_py_error, "at most %d profiles", SC_LUT_MAX_PROFILES);
+        goto done;
+    }
+    for (Py_ssize_t k = 0; k < PySequence_Fast_GET_SIZE(seq); ++k) {
+        sc_lut_profile *pr = &lut->profile[k];
+        PyObject *vals;
+        if (!PyArg_ParseTuple(PySequence_Fast_GET_ITEM(seq, k), "iiddO", &pr->axis, &pr->dir,
+                              &pr->start_mm, &pr->step_mm, &vals))
+            goto done;
+        PyArrayObject *a = (PyArrayObject *)PyArray_FROMANY(vals, NPY_DOUBLE, 1, 1, NPY_ARRAY_IN_ARRAY);
+        if (!a)
+            goto done;
+        npy_intp n = PyArray_DIM(a, 0);
+        if (n < 2 || n > SC_LUT_MAX_PROFILE_POINTS) {
+            Py_DECREF(a);
+            PyErr_Format(sc_py_error, "profile %zd: 2..%d points, not %zd", k + 1,
+                         SC_LUT_MAX_PROFILE_POINTS, (Py_ssize_t)n);
+            goto done;
+        }
+        pr->n = (int)n;
+        memcpy(pr->err_um, PyArray_DATA(a), (size_t)n * sizeof(double));
+        Py_DECREF(a);
+        lut->n_profiles = (int)k + 1;
+    }
+    snprintf(lut->prov.method, sizeof lut->prov.method, "%s", method);
+    lut->prov.sigma_um = sigma;
+    lut->prov.created_unix_s = created;
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_lut_write_file(PyBytes_AS_STRING(pathobj), lut, SC_LUT_ENC_AUTO, &err) != SC_OK)
+        raise_sc(&err);
+    else
+        ret = Py_NewRef(Py_None);
+done:
+    Py_XDECREF(seq);
+    Py_XDECREF(gx);
+    Py_XDECREF(gy);
+    Py_DECREF(pathobj);
+    free(lut);
+    return ret;
+}
+
 /* ---- Table: a loaded correction table ---- */
 
 typedef struct {
@@ -1208,6 +1291,8 @@ static PyObject *py_version(PyObject *self, PyObject *unused)
 
 static PyMethodDef module_methods[] = {
     {"version", py_version, METH_NOARGS, "version() -> the libselfcal version string."},
+    {"lut_build", py_lut_build, METH_VARARGS,
+     "lut_build(path, gx, gy, x0, y0, px, py, profiles, method, sigma_um, created): write a table."},
     {"grid_read", py_grid_read, METH_VARARGS, "grid_read(path) -> measurement dict."},
     {"grid_write", py_grid_write, METH_VARARGS, "grid_write(path, measurement dict)."},
     {"grid_plan", py_grid_plan, METH_VARARGS, "grid_plan(path, plan or measurement) -> analysis dict."},
