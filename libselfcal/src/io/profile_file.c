@@ -19,6 +19,9 @@
 
 /* The shortest data row a valid file can have: "1,0,0,0,0\n". */
 #define SC_PROFILE_MIN_ROW_BYTES 10
+/* Up to this N (about 3 MB of arrays) a short file is read to its first bad line instead, so
+ * its message points at the line that is missing or wrong. */
+#define SC_PROFILE_SMALL_N 65536
 
 sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, int d1, int d2,
                                sc_error *err)
@@ -157,13 +160,13 @@ static sc_status read_magic(profile_reader *pr, sc_error *err)
 /* Memory follows what the file can hold, not what its header claims: a valid file has a row of
  * at least SC_PROFILE_MIN_ROW_BYTES ("1,0,0,0,0\n") for each of the 2N - d1 - d2 samples, so a
  * regular file of S bytes cannot need N beyond about S / 20 (a pipe is read up to
- * SC_PROFILE_MAX_N). */
+ * SC_PROFILE_MAX_N). Memory: at most max(what the file can hold, SC_PROFILE_SMALL_N). */
 static sc_status check_size(const profile_reader *pr, sc_error *err)
 {
     struct stat sb;
     long long rows = 2 * (long long)pr->v.n - pr->d[0] - pr->d[1];
-    if (fstat(fileno(pr->csv.fp), &sb) == 0 && S_ISREG(sb.st_mode) &&
-        rows * SC_PROFILE_MIN_ROW_BYTES > (long long)sb.st_size)
+    if (pr->v.n > SC_PROFILE_SMALL_N && fstat(fileno(pr->csv.fp), &sb) == 0 &&
+        S_ISREG(sb.st_mode) && rows * SC_PROFILE_MIN_ROW_BYTES > (long long)sb.st_size)
         return sc_error_set(err, SC_E_INPUT, pr->csv.path, sc_header_line_of(&pr->hdr, "N"),
                             "N = %ld needs %lld data rows, more than this %lld-byte file can hold",
                             pr->v.n, rows, (long long)sb.st_size);
