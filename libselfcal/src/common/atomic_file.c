@@ -17,6 +17,9 @@
 static char g_tracked_path[SC_AFILE_TRACKED][4096];
 static volatile sig_atomic_t g_tracked_used[SC_AFILE_TRACKED];
 static volatile sig_atomic_t g_tracking;
+/* A group commit in progress (another thread may take the signal: OpenBLAS workers do not block
+ * it), and the signal that arrived meanwhile, acted on once the group is in place. */
+static volatile sig_atomic_t g_in_commit, g_pending_sig;
 
 static void block_signals(sigset_t *old)
 {
@@ -55,11 +58,32 @@ static void untrack(const sc_afile *f)
 
 static void on_fatal_signal(int sig)
 {
+    if (g_in_commit) {
+        g_pending_sig = sig;
+        return;
+    }
     for (int k = 0; k < SC_AFILE_TRACKED; ++k)
         if (g_tracked_used[k])
             unlink(g_tracked_path[k]); /* async-signal-safe */
     signal(sig, SIG_DFL);
     raise(sig);
+}
+
+/* Another thread may take the signal while this one creates or commits: it is then acted on
+ * here, once the temporary is tracked or the group is in place. */
+static void defer_signals_begin(void)
+{
+    g_in_commit = 1;
+}
+
+static void defer_signals_end(void)
+{
+    g_in_commit = 0;
+    if (g_pending_sig) {
+        int sig = g_pending_sig;
+        g_pending_sig = 0;
+        on_fatal_signal(sig);
+    }
 }
 
 void sc_afile_cleanup_on_signals(void)
@@ -121,12 +145,14 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     snprintf(f->path, sizeof f->path, "%s", path);
     snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmpXXXXXX", path);
     sigset_t old;
-    block_signals(&old); /* created and tracked as one step */
+    block_signals(&old); /* created and tracked as one step, in this thread and the others */
+    defer_signals_begin();
     int fd = mkstemp(f->tmp_path);
     int e = errno;
     if (fd >= 0)
         track(f);
     restore_signals(&old);
+    defer_signals_end();
     if (fd < 0)
         return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
     fchmod(fd, 0644);
@@ -212,12 +238,23 @@ sc_status sc_afile_commit(sc_afile *f, sc_error *err)
     return st == SC_OK ? afile_rename(f, err) : st;
 }
 
+static sc_status commit_group(sc_afile *f, int n, int *synced, sc_error *err);
+
 sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err)
 {
     sc_status st = SC_OK;
     int synced[64] = {0};
     if (n > 64)
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "too many files in one group");
+    defer_signals_begin();
+    st = commit_group(f, n, synced, err);
+    defer_signals_end(); /* a signal that came meanwhile: die of it now, the group whole */
+    return st;
+}
+
+static sc_status commit_group(sc_afile *f, int n, int *synced, sc_error *err)
+{
+    sc_status st = SC_OK;
     for (int k = 0; k < n && st == SC_OK; ++k) {
         if (!f[k].fp)
             continue;
