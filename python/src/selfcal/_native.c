@@ -1173,6 +1173,16 @@ static PyArrayObject *out_vec(PyObject *o, npy_intp n, int typenum, const char *
     return (PyArrayObject *)o;
 }
 
+/* The core reads x and y of its input as one 16-byte pair on x86-64: write them as one too, or
+ * every point pays a store-forwarding stall (two 8-byte stores, one 16-byte load: 24 instead of
+ * 11 ns per point, measured). */
+#if defined(__GNUC__) && defined(__SSE2__)
+typedef double xy_pair __attribute__((vector_size(16), may_alias));
+#define STORE_XY(in, x, y) (*(xy_pair *)(in) = (xy_pair){(x), (y)})
+#else
+#define STORE_XY(in, x, y) ((in)[0] = (x), (in)[1] = (y))
+#endif
+
 /* apply(x, y, z, mode, x_out, y_out, z_out, status) — x, y: C-contiguous float64 arrays of one
  * length (mm), z likewise or None (0); mode 0 measure, 1 position; the outputs are the caller's
  * arrays of that length (float64; z_out may be None; status uint32), filled in place: no
@@ -1215,8 +1225,11 @@ static PyObject *Table_apply(TableObject *self, PyObject *args)
         npy_uint32 *qs = PyArray_DATA(ost);
         const sc_corr_table *t = self->t;
         Py_BEGIN_ALLOW_THREADS
+        _Alignas(16) double in[3];
+        double out[3];
         for (npy_intp k = 0; k < n; ++k) {
-            double in[3] = {px[k], py[k], pz ? pz[k] : 0.0}, out[3];
+            STORE_XY(in, px[k], py[k]);
+            in[2] = pz ? pz[k] : 0.0;
             qs[k] = sc_corr_apply(t, (sc_corr_mode)mode, in, out);
             qx[k] = out[0];
             qy[k] = out[1];
