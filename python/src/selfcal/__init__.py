@@ -89,12 +89,9 @@ class Table:
         elif len(out) != n_out:
             raise ValueError(f"out must hold {n_out} arrays")
         for o in out:
-            if not isinstance(o, _np.ndarray) or o.shape != shape:
-                raise ValueError(f"out arrays must be numpy arrays of shape {shape}")
-        flat_out = [o.reshape(-1) for o in out]
-        for o, f in zip(out, flat_out):
-            if not _np.shares_memory(o, f):
-                raise ValueError("out arrays must be C-contiguous")
+            if not isinstance(o, _np.ndarray) or o.shape != shape or not o.flags.c_contiguous:
+                raise ValueError(f"out arrays must be C-contiguous numpy arrays of shape {shape}")
+        flat_out = [o.reshape(-1) for o in out]  # views: the arrays are C-contiguous
         z = flat[2] if z_mm is not None else None
         zo = flat_out[2] if z_mm is not None else None
         self._t.apply(flat[0], flat[1], z, code, flat_out[0], flat_out[1], zo, flat_out[-1])
