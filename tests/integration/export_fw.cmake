@@ -13,3 +13,13 @@ if(SELFCAL_PYTHON3)
             $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/export_cli)
   set_tests_properties(export_cli PROPERTIES TIMEOUT 120 LABELS "integration;lut;export")
 endif()
+# The vendors' sign rules applied to exported files: ISG cross compensation of a DABAM-derived
+# straightness profile (against selfcald's profile from lut dump), Siemens CEC's "a positive
+# value moves the axis negative".
+if(SELFCAL_PYTHON3)
+  add_test(NAME export_cross_signs
+    COMMAND ${SELFCAL_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/integration/export_fw/test_cross_signs.py
+            $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/export_cross_signs
+            ${CMAKE_CURRENT_SOURCE_DIR}/data/dabam/dabam-002.dat)
+  set_tests_properties(export_cross_signs PROPERTIES TIMEOUT 180 LABELS "integration;lut;export")
+endif()

@@ -563,12 +563,156 @@ static void test_linuxcnc(void **state)
     free(l);
 }
 
+/* ---- Beckhoff / ISG cross compensation of a straightness profile ---- */
+
+typedef struct isg_cross {
+    int achs_nr, master, last_index, n;
+    long long set[1100], corr[1100];
+} isg_cross;
+
+/* An independent reader of ISG's list: "name value" lines, '#' comment lines, "End". */
+static void parse_isg_cross(const char *path, isg_cross *c)
+{
+    memset(c, 0, sizeof *c);
+    c->last_index = -1;
+    char *text = slurp(path), *save = NULL;
+    for (char *ln = strtok_r(text, "\n", &save); ln; ln = strtok_r(NULL, "\n", &save)) {
+        int i;
+        long long v;
+        if (sscanf(ln, "kw.crosscomp.table[%d].setpoint %lld", &i, &v) == 2) {
+            assert_true(i >= 0 && i < 1100);
+            c->set[i] = v;
+            c->n = i + 1 > c->n ? i + 1 : c->n;
+        } else if (sscanf(ln, "kw.crosscomp.table[%d].correction %lld", &i, &v) == 2) {
+            assert_true(i >= 0 && i < 1100);
+            c->corr[i] = v;
+        } else {
+            sscanf(ln, "kopf.achs_nr %d", &c->achs_nr);
+            sscanf(ln, "kw.crosscomp.master_ax_nr %d", &c->master);
+            sscanf(ln, "kw.crosscomp.last_index %d", &c->last_index);
+        }
+    }
+}
+
+/* ISG's linear interpolation of the written integers, end values beyond them (um). */
+static double isg_cross_eval(const isg_cross *c, double x_mm)
+{
+    double q = x_mm * 1e4;
+    if (q <= (double)c->set[0])
+        return 0.1 * (double)c->corr[0];
+    for (int i = 1; i < c->n; ++i)
+        if (q <= (double)c->set[i]) {
+            double f = (q - (double)c->set[i - 1]) / (double)(c->set[i] - c->set[i - 1]);
+            return 0.1 * ((double)c->corr[i - 1] * (1 - f) + (double)c->corr[i] * f);
+        }
+    return 0.1 * (double)c->corr[c->n - 1];
+}
+
+/* The profile as selfcald applies it: linear, clamped (SPEC §4). */
+static double profile_ref(const sc_lut_profile *p, double x)
+{
+    double u = (x - p->start_mm) / p->step_mm;
+    if (u <= 0)
+        return p->err_um[0];
+    if (u >= p->n - 1)
+        return p->err_um[p->n - 1];
+    int k = (int)u;
+    return p->err_um[k] * (1 - (u - k)) + p->err_um[k + 1] * (u - k);
+}
+
+static void test_beckhoff_cross(void **state)
+{
+    (void)state;
+    sc_lut *m = make_map(9, 7, -20.0, -15.0, 5.0, 5.0, 0);
+    sc_lut_profile *p = &m->profile[0];
+    p->axis = 0; /* error of z along x: slave z, master x */
+    p->dir = 2;
+    p->n = 301;
+    p->start_mm = -23.33333; /* not a whole 0.1 um: setpoints are rounded */
+    p->step_mm = 0.17;
+    for (int k = 0; k < p->n; ++k)
+        p->err_um[k] = 1.7 * sin(0.05 * k) + 0.3 * cos(0.31 * k);
+    m->n_profiles = 1;
+    sc_export_options o;
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    o.cross_profile = 0;
+    o.beckhoff_z_axis_nr = 7;
+    sc_export_report rep;
+    sc_error err;
+    const char *path = TMP "cross.lis";
+    unlink(path);
+    /* A dry run writes nothing. */
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+    struct stat st;
+    assert_int_not_equal(stat(path, &st), 0);
+    assert_int_equal(rep.points[0], 301);
+    assert_int_equal(rep.travel_points, 0);
+    isg_cross *c = malloc(sizeof *c);
+    assert_non_null(c);
+    for (int negate = 0; negate < 2; ++negate) {
+        o.negate = negate;
+        assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+        parse_isg_cross(path, c);
+        assert_int_equal(c->n, 301);
+        assert_int_equal(c->last_index, c->n - 1);
+        assert_int_equal(c->achs_nr, 7);
+        assert_int_equal(c->master, 1);
+        for (int i = 1; i < c->n; ++i)
+            assert_true(c->set[i] > c->set[i - 1]);
+        assert_true(c->set[0] == llround(p->start_mm * 1e4));
+        /* ISG's value = actual - setpoint = -e; within 0.05 um on the profile, the reported
+         * maximum agrees with a dense independent sampling. */
+        const double sign = negate ? 1.0 : -1.0;
+        double mx = 0;
+        for (int q = 0; q <= 20 * (p->n - 1); ++q) {
+            double x = p->start_mm + p->step_mm * q / 20.0;
+            mx = fmax(mx, fabs(isg_cross_eval(c, x) - sign * profile_ref(p, x)));
+        }
+        assert_true(mx <= 0.05 + 1e-9);
+        assert_true(rep.max_um <= 0.05 + 1e-9 && rep.max_um >= mx - 2e-3);
+    }
+    o.negate = 0;
+    /* The travel: two points more, carrying the end values. */
+    o.use_travel = 1;
+    o.travel_mm[0] = -30.0;
+    o.travel_mm[1] = 40.0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_isg_cross(path, c);
+    assert_int_equal(c->n, 303);
+    assert_int_equal(rep.travel_points, 2);
+    assert_true(c->set[0] == -300000 && c->set[302] == 400000);
+    assert_true(c->corr[0] == c->corr[1] && c->corr[302] == c->corr[301]);
+    for (double x = -30.0; x <= 40.0; x += 0.013)
+        assert_true(fabs(isg_cross_eval(c, x) + profile_ref(p, x)) <= 0.05 + 1e-9);
+    /* Refusals, no file: a travel that does not contain the profile, too many points, a profile
+     * beside the map, no such profile. */
+    unlink(path);
+    o.travel_mm[0] = -20.0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "does not contain"));
+    o.use_travel = 0;
+    o.profile_interval_mm = 0.05;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "1000"));
+    o.profile_interval_mm = 0;
+    p->start_mm = 200.0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "do not overlap"));
+    p->start_mm = -23.33333;
+    o.cross_profile = 1;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_int_not_equal(stat(path, &st), 0);
+    free(c);
+    free(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_beckhoff),
         cmocka_unit_test(test_siemens),
         cmocka_unit_test(test_linuxcnc),
+        cmocka_unit_test(test_beckhoff_cross),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

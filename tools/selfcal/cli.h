@@ -2,6 +2,8 @@
 #ifndef SELFCAL_CLI_H
 #define SELFCAL_CLI_H
 
+#include <stddef.h>
+
 #include "selfcal/error.h"
 
 /* Exit statuses (SPEC §3): 0 success, 2 bad input, 1 anything else. */
@@ -22,6 +24,12 @@ const char *cli_basename(const char *path);
 
 /* "AXIS:DIR:path" (AXIS, DIR one of x, y, z; the path may itself contain ':') -> 0, or -1. */
 int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path);
+
+/* "AXIS:DIR:path[@OFFSET_MM]": as above, the path copied into path (cap bytes) and the
+ * profile's placement along AXIS in offset_mm (0 without "@"; a path that itself ends in
+ * "@number" needs an explicit "@0"; |OFFSET_MM| <= SC_INPUT_MAX_ABS) -> 0, or -1. */
+int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, size_t cap,
+                             double *offset_mm);
 
 /* Subcommands: argv[0] is the subcommand's own name. */
 int cmd_grid(int argc, char **argv);

@@ -1,8 +1,9 @@
 /* cmd_export.c — `selfcal export --format FORMAT --map G.csv -o OUT`: the stage error map
  * resampled onto a machine controller's compensation table (beckhoff, siemens-cec, linuxcnc,
- * kmotion), or
- * its first order as firmware skew/scale settings (klipper, marlin, reprap), with the residual
- * (what the controller applies minus our bilinear map) and clipped points. */
+ * kmotion), or its first order as firmware skew/scale settings (klipper, marlin, reprap), with
+ * the residual (what the controller applies minus our bilinear map) and clipped points;
+ * straightness profiles as Siemens CEC tables or Beckhoff/ISG cross compensation lists. Every
+ * file is computed (and checked) before the first is written: all files or none. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -18,10 +19,11 @@ static void export_usage(FILE *to)
     fprintf(to,
             "usage: selfcal export --format FORMAT --map G.csv -o OUT\n"
             "                      [--axis x|y|both] [--interval MM] [--at MM] [--limit-um UM]\n"
-            "                      [--negate] [--offset DX,DY] [--axis-numbers NX,NY]\n"
+            "                      [--negate] [--offset DX,DY] [--axis-numbers NX,NY[,NZ]]\n"
             "                      [--axis-names NAMEX,NAMEY] [--first-table T] [--target 840d|828d]\n"
             "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
-            "                      [--profile AXIS:DIR:P.csv ...]\n"
+            "                      [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] [--travel MIN,MAX]\n"
+            "                      [--profile-interval MM]\n"
             "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y;\n"
             "               both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual - setpoint (-G)\n"
             "  siemens-cec  SINUMERIK $AN_CEC part program: tables X->X, Y->X (Gx) and X->Y, Y->Y (Gy)\n"
@@ -40,23 +42,32 @@ static void export_usage(FILE *to)
             "  --negate     write the opposite of the format's default sign\n"
             "  --offset DX,DY  the machine (homed) coordinates of the map's x = 0, y = 0, added to\n"
             "               every table position\n"
-            "  --axis-numbers  beckhoff logical axis numbers of x and y (default 1,2)\n"
+            "  --axis-numbers  beckhoff logical axis numbers of x, y (and z) (default 1,2,3)\n"
             "  --axis-names    siemens axis names of x and y (default AX1,AX2)\n"
             "  --target 828d   siemens: the 828D's fixed 8 tables x 200 points\n"
-            "  --profile AXIS:DIR:P.csv  siemens: a straightness profile (the ey_um column of a\n"
-            "               profile output) as one more table, input AXIS, output DIR (z: AX3)\n"
+            "  --profile AXIS:DIR:P.csv[@OFFSET_MM]  a straightness profile (the ey_um column of a\n"
+            "               profile output: the error of DIR along AXIS, placed as in lut build)\n"
+            "               siemens: one more table, input AXIS, output DIR (z: AX3);\n"
+            "               beckhoff: a cross compensation list OUT-cross-DIR, slave DIR, master\n"
+            "               AXIS, ISG's sign (-e)\n"
+            "  --profile-interval MM  the profiles' table spacing (default: the profile's own\n"
+            "               points; siemens: --interval if given)\n"
+            "  --travel MIN,MAX  beckhoff profiles: the master axis' travel (mm, machine\n"
+            "               coordinates): the list gets its end values at MIN and MAX (without\n"
+            "               it the list spans the profile and ISG's behaviour beyond is unknown)\n"
             "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale\n"
             "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n");
 }
 
-/* OUT with "-x" or "-y" before its extension (--axis both for one-axis formats). */
-static void axis_path(const char *out, int axis, char *buf, size_t cap)
+/* OUT with "-" and tag before its extension: "x", "y" (--axis both for one-axis formats),
+ * "cross-y" (a Beckhoff cross compensation list of slave y). */
+static void tagged_path(const char *out, const char *tag, char *buf, size_t cap)
 {
     const char *slash = strrchr(out, '/'), *dot = strrchr(out, '.');
     if (!dot || (slash && dot < slash) || dot == out || (slash && dot == slash + 1))
-        snprintf(buf, cap, "%s-%c", out, axis == 0 ? 'x' : 'y');
+        snprintf(buf, cap, "%s-%s", out, tag);
     else
-        snprintf(buf, cap, "%.*s-%c%s", (int)(dot - out), out, axis == 0 ? 'x' : 'y', dot);
+        snprintf(buf, cap, "%.*s-%s%s", (int)(dot - out), out, tag, dot);
 }
 
 static int two_doubles(const char *v, double d[2])
@@ -77,10 +88,41 @@ static int is_firmware(int f)
     return f == SC_EXPORT_KLIPPER || f == SC_EXPORT_MARLIN || f == SC_EXPORT_REPRAP;
 }
 
-static void print_report(const char *fmt, int f, const char *out, const sc_export_options *o,
-                         const sc_export_report *rep)
+/* A Beckhoff cross compensation list: the list, its residual against the profile, and a warning
+ * (stderr) when no travel says what happens beyond the table. */
+static void print_cross_report(const sc_lut *lut, const char *out, const sc_export_options *o,
+                               const sc_export_report *rep)
+{
+    const sc_lut_profile *p = &lut->profile[o->cross_profile];
+    const int nr[3] = {o->beckhoff_x_axis_nr, o->beckhoff_y_axis_nr, o->beckhoff_z_axis_nr};
+    const char *an = sc_lut_axis_name(p->axis), *dn = sc_lut_axis_name(p->dir);
+    printf(", cross compensation of slave %s (axis %d) by master %s (axis %d), %d points, %s = "
+           "%.4f..%.4f mm",
+           dn, nr[p->dir], an, nr[p->axis], rep->points[0], an, rep->span_mm[0], rep->span_mm[1]);
+    if (o->use_travel)
+        printf(" (%d added at the travel ends)", rep->travel_points);
+    printf(", unit 0.1 um, %s\n", o->negate ? "+e (negated)" : "-e (ISG: actual - setpoint)");
+    printf("residual (controller table - profile) over %ld samples: rms %.4f um, max %.4f um at "
+           "%s = %.3f mm\n",
+           rep->samples, rep->rms_um, rep->max_um, an, rep->max_at_mm[0]);
+    if (rep->limit_um > 0)
+        printf("clipped points: %ld (limit %.4g um)\n", rep->clipped, rep->limit_um);
+    if (!o->use_travel)
+        fprintf(stderr,
+                "selfcal export: warning: %s: ISG does not document what cross compensation "
+                "applies beyond the table's first and last point (%s = %.4f..%.4f mm); give the "
+                "master axis' travel with --travel MIN,MAX to hold the end values up to it\n",
+                out, an, rep->span_mm[0], rep->span_mm[1]);
+}
+
+static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
+                         const sc_export_options *o, const sc_export_report *rep)
 {
     printf("export %s: %s", fmt, out);
+    if (f == SC_EXPORT_BECKHOFF && o->cross_profile >= 0) {
+        print_cross_report(lut, out, o, rep);
+        return;
+    }
     if (f == SC_EXPORT_BECKHOFF)
         printf(", slave axis %s, %d x %d points, interval %.4f mm, unit 0.1 um, %s\n",
                o->axis == 0 ? "x" : "y", rep->points[0], rep->points[1], rep->interval_mm,
@@ -88,7 +130,7 @@ static void print_report(const char *fmt, int f, const char *out, const sc_expor
     else if (f == SC_EXPORT_SIEMENS_CEC)
         printf(", %d table(s) of %d/%d points, values in mm (1 nm), %s\n", rep->tables,
                rep->points[0], rep->points[1],
-               o->negate ? "+G (negated)" : "-G (Siemens: the measured deviation)");
+               o->negate ? "+G (negated)" : "-G (Siemens: a positive value moves the axis negative)");
     else if (f == SC_EXPORT_LINUXCNC)
         printf(", axis %s, %d entries, step %.6f mm, trims in mm (1 nm)\n",
                o->axis == 0 ? "x" : "y", rep->points[0], rep->interval_mm);
@@ -131,12 +173,13 @@ int cmd_export(int argc, char **argv)
     const char *map = NULL, *out = NULL, *fmt = NULL, *axis = NULL;
     sc_export_options o;
     sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
-    double interval = 0, limit = 0, at = 0;
-    int use_at = 0, negate = 0, ax_nr[2] = {1, 2}, first_table = 0;
+    double interval = 0, limit = 0, at = 0, pinterval = 0;
+    int use_at = 0, negate = 0, ax_nr[3] = {1, 2, 3}, first_table = 0;
     static char names[2][32] = {"AX1", "AX2"};
-    double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0};
-    int np = 0, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
-    const char *prof_path[SC_LUT_MAX_PROFILES];
+    double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0}, travel[2] = {0, 0};
+    int np = 0, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES], use_travel = 0;
+    static char prof_path[SC_LUT_MAX_PROFILES][4096];
+    double prof_offset[SC_LUT_MAX_PROFILES];
     int target_828d = 0;
     for (int k = 1; k < argc; ++k) {
         const char *a = argv[k];
@@ -171,8 +214,11 @@ int cmd_export(int argc, char **argv)
                 return cli_usage_error("export", "--at: a position in mm, not '%s'", v);
             use_at = 1;
         } else if (!strcmp(a, "--axis-numbers")) {
-            if (sscanf(v, "%d,%d", &ax_nr[0], &ax_nr[1]) != 2 || ax_nr[0] < 1 || ax_nr[1] < 1)
-                return cli_usage_error("export", "--axis-numbers: NX,NY (positive), not '%s'", v);
+            char tail;
+            const int got = sscanf(v, "%d,%d,%d%c", &ax_nr[0], &ax_nr[1], &ax_nr[2], &tail);
+            if ((got != 2 && got != 3) || ax_nr[0] < 1 || ax_nr[1] < 1 || ax_nr[2] < 1 ||
+                ax_nr[0] > 65535 || ax_nr[1] > 65535 || ax_nr[2] > 65535)
+                return cli_usage_error("export", "--axis-numbers: NX,NY[,NZ] (1..65535), not '%s'", v);
         } else if (!strcmp(a, "--axis-names")) {
             const char *comma = strchr(v, ',');
             size_t l0 = comma ? (size_t)(comma - v) : 0, l1 = comma ? strlen(comma + 1) : 0;
@@ -185,11 +231,20 @@ int cmd_export(int argc, char **argv)
         } else if (!strcmp(a, "--profile")) {
             if (np == SC_LUT_MAX_PROFILES)
                 return cli_usage_error("export", "at most %d profiles", SC_LUT_MAX_PROFILES);
-            if (cli_parse_profile_arg(v, &prof_axis[np], &prof_dir[np], &prof_path[np]) != 0)
-                return cli_usage_error("export", "--profile: AXIS:DIR:FILE with AXIS, DIR in x, y, z; not '%s'", v);
+            if (cli_parse_profile_placed(v, &prof_axis[np], &prof_dir[np], prof_path[np],
+                                         sizeof prof_path[np], &prof_offset[np]) != 0)
+                return cli_usage_error("export", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
             if (prof_axis[np] == prof_dir[np])
                 return cli_usage_error("export", "--profile: a straightness profile has DIR != AXIS, not '%s'", v);
             ++np;
+        } else if (!strcmp(a, "--profile-interval")) {
+            if (sc_parse_double(v, &pinterval) != 0 || !(pinterval > 0))
+                return cli_usage_error("export", "--profile-interval: a positive number of mm, not '%s'", v);
+        } else if (!strcmp(a, "--travel")) {
+            if (two_doubles(v, travel) != 0 || !(travel[0] < travel[1]) || fabs(travel[0]) > 1e6 ||
+                fabs(travel[1]) > 1e6)
+                return cli_usage_error("export", "--travel: MIN,MAX in mm with MIN < MAX (within 1 km), not '%s'", v);
+            use_travel = 1;
         } else if (!strcmp(a, "--offset")) {
             if (two_doubles(v, offset) != 0 || fabs(offset[0]) > 1e6 || fabs(offset[1]) > 1e6)
                 return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
@@ -239,9 +294,20 @@ int cmd_export(int argc, char **argv)
     }
     if (use_at && f != SC_EXPORT_LINUXCNC)
         return cli_usage_error("export", "--at applies to --format linuxcnc only");
-    if (np > 0 && f != SC_EXPORT_SIEMENS_CEC)
-        return cli_usage_error("export", "--profile applies to --format siemens-cec only (LinuxCNC: "
-                                         "the HAL component applies profiles)");
+    if (np > 0 && f != SC_EXPORT_SIEMENS_CEC && f != SC_EXPORT_BECKHOFF)
+        return cli_usage_error("export", "--profile applies to --format siemens-cec and beckhoff only "
+                                         "(LinuxCNC: the HAL component applies profiles)");
+    if (pinterval > 0 && np == 0)
+        return cli_usage_error("export", "--profile-interval applies to --profile tables only");
+    if (use_travel && (f != SC_EXPORT_BECKHOFF || np == 0))
+        return cli_usage_error("export", "--travel applies to --format beckhoff with --profile only");
+    for (int a = 0; a < np && f == SC_EXPORT_BECKHOFF; ++a)
+        for (int b = 0; b < a; ++b)
+            if (prof_dir[a] == prof_dir[b])
+                return cli_usage_error("export", "beckhoff: two profiles correct %s; ISG corrects a "
+                                                 "slave axis by one master axis (one cross "
+                                                 "compensation list per slave)",
+                                       sc_lut_axis_name(prof_dir[a]));
     if (target_828d && f != SC_EXPORT_SIEMENS_CEC)
         return cli_usage_error("export", "--target applies to --format siemens-cec only");
     if (steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP)
@@ -253,12 +319,17 @@ int cmd_export(int argc, char **argv)
                                          "--format %s (the firmware's own skew and sign)",
                                fmt);
     o.interval_mm = interval;
+    o.profile_interval_mm = pinterval;
     o.limit_um = limit;
     o.use_line = use_at;
     o.line_mm = at;
     o.negate = negate;
     o.beckhoff_x_axis_nr = ax_nr[0];
     o.beckhoff_y_axis_nr = ax_nr[1];
+    o.beckhoff_z_axis_nr = ax_nr[2];
+    o.use_travel = use_travel;
+    o.travel_mm[0] = travel[0];
+    o.travel_mm[1] = travel[1];
     o.siemens_x_name = names[0];
     o.siemens_y_name = names[1];
     o.siemens_first_table = first_table;
@@ -279,6 +350,7 @@ int cmd_export(int argc, char **argv)
     sc_status st = sc_lut_read_map(map, lut, &err);
     for (int k = 0; k < np && st == SC_OK; ++k) {
         st = sc_lut_read_profile(prof_path[k], prof_axis[k], prof_dir[k], &lut->profile[k], &err);
+        lut->profile[k].start_mm += prof_offset[k];
         lut->n_profiles = k + 1;
     }
     /* Table positions in the machine's homed coordinates. */
@@ -286,26 +358,42 @@ int cmd_export(int argc, char **argv)
     lut->y0_mm += offset[1];
     for (int k = 0; k < lut->n_profiles; ++k)
         lut->profile[k].start_mm += lut->profile[k].axis < 2 ? offset[lut->profile[k].axis] : 0.0;
-    static char paths[2][4096];
-    sc_export_report reps[2];
-    sc_export_options opts[2];
-    const int nfiles = both_files ? 2 : 1;
-    for (int k = 0; k < nfiles && st == SC_OK; ++k) {
-        opts[k] = o;
+    /* The files: the map's (one, or OUT-x and OUT-y), then a Beckhoff list per profile. */
+    enum { MAX_FILES = 2 + SC_LUT_MAX_PROFILES };
+    static char paths[MAX_FILES][4096];
+    static sc_export_report reps[MAX_FILES];
+    static sc_export_options opts[MAX_FILES];
+    int nfiles = 0;
+    for (int k = 0; k < (both_files ? 2 : 1); ++k, ++nfiles) {
+        opts[nfiles] = o;
         if (both_files) {
-            opts[k].axis = k;
-            axis_path(out, k, paths[k], sizeof paths[k]);
+            opts[nfiles].axis = k;
+            tagged_path(out, k == 0 ? "x" : "y", paths[nfiles], sizeof paths[nfiles]);
         } else {
-            snprintf(paths[k], sizeof paths[k], "%s", out);
+            snprintf(paths[nfiles], sizeof paths[nfiles], "%s", out);
         }
-        st = sc_export_write(lut, &opts[k], paths[k], &reps[k], &err);
-        if (st != SC_OK && k == 1)
-            remove(paths[0]); /* both files or none */
     }
-    free(lut);
-    if (st != SC_OK)
+    for (int k = 0; k < np && f == SC_EXPORT_BECKHOFF; ++k, ++nfiles) {
+        char tag[16];
+        snprintf(tag, sizeof tag, "cross-%s", sc_lut_axis_name(prof_dir[k]));
+        opts[nfiles] = o;
+        opts[nfiles].cross_profile = k;
+        tagged_path(out, tag, paths[nfiles], sizeof paths[nfiles]);
+    }
+    /* Every file computed and checked first (nothing written), then written: all or none. */
+    for (int k = 0; k < nfiles && st == SC_OK; ++k)
+        st = sc_export_write(lut, &opts[k], NULL, &reps[k], &err);
+    int written = 0;
+    for (; written < nfiles && st == SC_OK; ++written)
+        st = sc_export_write(lut, &opts[written], paths[written], &reps[written], &err);
+    if (st != SC_OK) {
+        for (int k = 0; k + 1 < written; ++k)
+            remove(paths[k]); /* all files or none */
+        free(lut);
         return cli_report(&err);
+    }
     for (int k = 0; k < nfiles; ++k)
-        print_report(fmt, f, paths[k], &opts[k], &reps[k]);
+        print_report(lut, fmt, f, paths[k], &opts[k], &reps[k]);
+    free(lut);
     return CLI_OK;
 }

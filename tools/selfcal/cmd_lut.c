@@ -35,24 +35,10 @@ typedef struct profile_arg {
     double offset_mm; /* machine position of the profile's x_mm = 0 along axis */
 } profile_arg;
 
-/* "AXIS:DIR:path[@OFFSET_MM]" (the path may itself contain ':'; a trailing "@number" is the
- * offset, so a path that ends in "@number" needs an explicit "@0"). 0, or -1 on a bad form. */
 static int parse_profile_arg(const char *s, profile_arg *pa)
 {
-    const char *path;
-    if (cli_parse_profile_arg(s, &pa->axis, &pa->dir, &path) != 0 || strlen(path) >= sizeof pa->path)
-        return -1;
-    snprintf(pa->path, sizeof pa->path, "%s", path);
-    pa->offset_mm = 0;
-    char *at = strrchr(pa->path, '@');
-    double off;
-    if (at && at != pa->path && sc_parse_double(at + 1, &off) == 0) {
-        if (!(off >= -SC_INPUT_MAX_ABS && off <= SC_INPUT_MAX_ABS))
-            return -1;
-        pa->offset_mm = off;
-        *at = '\0';
-    }
-    return 0;
+    return cli_parse_profile_placed(s, &pa->axis, &pa->dir, pa->path, sizeof pa->path,
+                                    &pa->offset_mm);
 }
 
 /* Warn (stderr; the build still succeeds) when profile k lies beside the map along its axis. */

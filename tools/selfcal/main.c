@@ -6,6 +6,7 @@
 
 #include "cli.h"
 #include "selfcal/atomic_file.h"
+#include "selfcal/csv.h"
 #include "selfcal/lut.h"
 #include "selfcal/version.h"
 
@@ -26,6 +27,25 @@ int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path)
     *dir = sc_lut_axis_from_name(d);
     *path = s + 4;
     return (*axis < 0 || *dir < 0) ? -1 : 0;
+}
+
+int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, size_t cap,
+                             double *offset_mm)
+{
+    const char *p;
+    if (cli_parse_profile_arg(s, axis, dir, &p) != 0 || strlen(p) >= cap)
+        return -1;
+    snprintf(path, cap, "%s", p);
+    *offset_mm = 0;
+    char *at = strrchr(path, '@');
+    double off;
+    if (at && at != path && sc_parse_double(at + 1, &off) == 0) {
+        if (!(off >= -SC_INPUT_MAX_ABS && off <= SC_INPUT_MAX_ABS))
+            return -1;
+        *offset_mm = off;
+        *at = '\0';
+    }
+    return 0;
 }
 
 int cli_usage_error(const char *cmd, const char *fmt, ...)

@@ -3,9 +3,10 @@
  * (controller's interpolation of the written, quantized table minus our bilinear map) and the
  * points clipped to a limit. Formats and their limits: docs/exporters.md.
  *
- * Signs follow each vendor's own definition of its value (docs/exporters.md quotes them): Siemens
- * and LinuxCNC take the value added to the commanded position (+G, the position-mode sign of
- * SPEC §4); Beckhoff/ISG takes the measured error, actual - setpoint (-G). `negate` flips the
+ * Signs follow each vendor's own definition of its value (docs/exporters.md cites them): LinuxCNC
+ * and KMotion take what is added to the commanded position (+G, the position-mode sign of SPEC
+ * §4); Beckhoff/ISG takes the measured error, actual - setpoint, and Siemens a value of which a
+ * positive one moves the axis negative: both -G (a profile's tables: -e). `negate` flips the
  * default. The firmware formats (Klipper, Marlin, RepRapFirmware) carry only the first-order part
  * of the map, non-orthogonality O and scale R (Petro eqs. 4-5), converted to each firmware's own
  * skew parameter and transform; their residual is what remains after the firmware's transform,
@@ -35,6 +36,7 @@ typedef enum sc_export_format {
 
 /* Controller limits (see docs/exporters.md). */
 #define SC_EXPORT_BECKHOFF_MAX_POINTS 101 /* per master axis: 101 x 101 = default max_points 10201 */
+#define SC_EXPORT_BECKHOFF_CROSS_MAX_POINTS 1000 /* cross compensation: every ISG version's limit */
 #define SC_EXPORT_SIEMENS_MAX_POINTS 2000 /* per table (MD18342 upper limit) */
 #define SC_EXPORT_LINUXCNC_MAX_POINTS 256 /* triplets per joint */
 #define SC_EXPORT_SIEMENS_828D_TABLES 8   /* SINUMERIK 828D: 8 tables ... */
@@ -52,6 +54,19 @@ typedef struct sc_export_options {
     /* Beckhoff: logical axis numbers of the x and y axes (masters; the slave is the compensated
      * one). Siemens: machine axis names of x and y ("AX1", "AX2") and the first table index. */
     int beckhoff_x_axis_nr, beckhoff_y_axis_nr;
+    int beckhoff_z_axis_nr; /* z's logical axis number, for a profile with z (default 3) */
+    /* Beckhoff: -1 = the plane compensation list of `axis` (the map); k >= 0 = the cross
+     * compensation list of lut's straightness profile k (slave = its dir, master = its axis). */
+    int cross_profile;
+    /* Beckhoff cross compensation: the master axis' travel (mm, machine coordinates), which must
+     * contain the profile; the table then gets points at the travel ends carrying the profile's
+     * end values. use_travel = 0: the table spans the profile only (ISG does not document what
+     * happens beyond its first and last point: the report says so). */
+    int use_travel;
+    double travel_mm[2];
+    /* Profiles' tables (Beckhoff cross lists, Siemens profile tables): their spacing in mm; 0 =
+     * the profile's own points (Siemens: interval_mm if that is set). */
+    double profile_interval_mm;
     const char *siemens_x_name, *siemens_y_name;
     const char *siemens_z_name; /* Siemens: z's axis name, for profiles with z (NULL: "AX3") */
     int siemens_first_table;
@@ -75,6 +90,11 @@ typedef struct sc_export_report {
     long clipped;        /* table entries clipped to the limit */
     double limit_um;     /* the limit used */
     double profile_max_um; /* Siemens: largest |table - profile| of the profiles' tables */
+    /* Beckhoff cross compensation: the table's first and last setpoint (mm) and the points added
+     * at the travel ends (0..2; points[0] counts them too). rms_um, max_um and max_at_mm[0]
+     * (master position) are then the table against the profile. */
+    double span_mm[2];
+    int travel_points;
     /* Firmware formats: the map's first order and what was written. */
     double O, R;         /* non-orthogonality and scale of the map (dimensionless) */
     double skew;         /* the firmware's XY skew value as written (Klipper xy_factor from the
@@ -82,7 +102,8 @@ typedef struct sc_export_report {
     double scale[2];     /* factors the x and y steps/mm (Klipper: rotation_distance) take */
 } sc_export_report;
 
-/* Defaults: axis x, interval from the map, no line, format limits, AX1/AX2, axis numbers 1/2. */
+/* Defaults: axis x, interval from the map, no line, format limits, AX1/AX2, axis numbers 1/2/3,
+ * the plane list (no cross profile), no travel. */
 SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format);
 
 /* "beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin", "reprap", "kmotion" -> format;
@@ -90,9 +111,11 @@ SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format
 SC_API int sc_export_format_from_name(const char *name);
 
 /* Resample lut's grid for the controller (and, for Siemens CEC, each of lut's straightness
- * profiles as one more table AXIS -> DIR; the other formats ignore profiles), write it atomically to path,
- * fill *rep. SC_E_INPUT for options the format cannot honour (e.g. more entries than it holds)
- * and for maps beyond the firmware's limits. */
+ * profiles as one more table AXIS -> DIR; for Beckhoff with cross_profile = k, profile k alone as
+ * a cross compensation list; the other formats ignore profiles), write it atomically to path
+ * (NULL: check and report only, nothing written), fill *rep. SC_E_INPUT for options the format
+ * cannot honour (e.g. more entries than it holds), profiles that do not overlap the map, and maps
+ * beyond the firmware's limits. */
 SC_API sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const char *path,
                                  sc_export_report *rep, sc_error *err);
 

@@ -2,6 +2,7 @@
  * what the controller will apply (docs/exporters.md):
  *   beckhoff     TwinCAT CNC / ISG plane compensation list: one slave axis, a 2-D table over the
  *                two master axes with one interval, values and positions in 0.1 um integers.
+ *                (A straightness profile goes to a cross compensation list: export_cross.c.)
  *   siemens-cec  SINUMERIK 840D $AN_CEC tables: 1-D tables (input axis -> output axis) that add
  *                up; the map is split into its best additive form A(x) + B(y) (row and column
  *                means), the interaction part remains as residual. Values in mm.
@@ -24,19 +25,7 @@
 
 /* ---- a growing text buffer ---- */
 
-typedef struct textbuf {
-    char *s;
-    size_t len, cap;
-    int failed;
-} textbuf;
-
-static void tb_printf(textbuf *t, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 2, 3)))
-#endif
-    ;
-
-static void tb_printf(textbuf *t, const char *fmt, ...)
+void sc_tb_printf(sc_textbuf *t, const char *fmt, ...)
 {
     if (t->failed)
         return;
@@ -78,6 +67,8 @@ void sc_export_options_init(sc_export_options *o, sc_export_format format)
     o->siemens_x_name = "AX1";
     o->siemens_y_name = "AX2";
     o->siemens_first_table = 0;
+    o->beckhoff_z_axis_nr = 3;
+    o->cross_profile = -1;
 }
 
 int sc_export_format_from_name(const char *name)
@@ -117,8 +108,7 @@ static double map_y(const sc_lut *lut, int i)
     return lut->y0_mm + i * lut->py_mm;
 }
 
-/* Quantize v (um) to the format's unit and clip to +-limit; counts clips. */
-static long long quantize(double v_um, double unit_um, double limit_um, long *clipped)
+long long sc_export_quantize(double v_um, double unit_um, double limit_um, long *clipped)
 {
     if (limit_um > 0 && fabs(v_um) > limit_um) {
         v_um = v_um > 0 ? limit_um : -limit_um;
@@ -127,8 +117,7 @@ static long long quantize(double v_um, double unit_um, double limit_um, long *cl
     return llround(v_um / unit_um);
 }
 
-/* Linear interpolation in a 1-D table (start, step, n values), clamped at the ends. */
-static double interp1(const double *v, int n, double start, double step, double s)
+double sc_export_interp1(const double *v, int n, double start, double step, double s)
 {
     double u = (s - start) / step;
     if (u <= 0)
@@ -140,6 +129,23 @@ static double interp1(const double *v, int n, double start, double step, double 
         k = n - 2;
     double f = u - k;
     return v[k] * (1 - f) + v[k + 1] * f;
+}
+
+sc_status sc_export_profile_meets_map(const sc_lut *lut, int k, const char *fmt, sc_error *err)
+{
+    const sc_lut_profile *p = &lut->profile[k];
+    if (p->axis > 1)
+        return SC_OK; /* the map has no extent along z */
+    const double lo = p->axis == 0 ? lut->x0_mm : lut->y0_mm;
+    const double hi = lo + (p->axis == 0 ? (lut->nx - 1) * lut->px_mm : (lut->ny - 1) * lut->py_mm);
+    const double a = p->start_mm, b = p->start_mm + (p->n - 1) * p->step_mm;
+    if (b < lo || a > hi)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "%s: profile %d (%s -> %s) covers %s = %g..%g mm, the map %g..%g mm: "
+                            "they do not overlap (place it with AXIS:DIR:P.csv@OFFSET_MM)",
+                            fmt, k, sc_lut_axis_name(p->axis), sc_lut_axis_name(p->dir),
+                            sc_lut_axis_name(p->axis), a, b, lo, hi);
+    return SC_OK;
 }
 
 /* The controller's value of component comp at (x, y), um (sign included). */
@@ -213,7 +219,7 @@ static double beckhoff_eval(const void *vctx, int comp, double x, double y)
     return 0.1 * val;
 }
 
-static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                  sc_export_report *rep, sc_error *err)
 {
     if (o->axis != 0 && o->axis != 1)
@@ -267,7 +273,7 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
             double x = (double)(c.start[0] + i * c.interval) * 1e-4;
             double y = (double)(c.start[1] + j * c.interval) * 1e-4;
             c.code[(size_t)j * c.n[0] + i] =
-                quantize(sign * map_g(lut, o->axis, x, y), 0.1, rep->limit_um, &rep->clipped);
+                sc_export_quantize(sign * map_g(lut, o->axis, x, y), 0.1, rep->limit_um, &rep->clipped);
         }
     int comps[1] = {o->axis};
     residual(lut, comps, 1, sign, beckhoff_eval, &c, rep);
@@ -278,35 +284,35 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
     rep->unit_um = 0.1;
 
     const int slave_nr = o->axis == 0 ? o->beckhoff_x_axis_nr : o->beckhoff_y_axis_nr;
-    tb_printf(t, "# ****************************************\n");
-    tb_printf(t, "# Plane compensation of the %s axis, written by selfcal export\n", axis_upper(o->axis));
-    tb_printf(t, "# %s = %sG%s(X, Y) of the stage error map, in 0.1 um (G = indicated - true)\n",
+    sc_tb_printf(t, "# ****************************************\n");
+    sc_tb_printf(t, "# Plane compensation of the %s axis, written by selfcal export\n", axis_upper(o->axis));
+    sc_tb_printf(t, "# %s = %sG%s(X, Y) of the stage error map, in 0.1 um (G = indicated - true)\n",
               axis_upper(o->axis), sign < 0 ? "-" : "+", o->axis == 0 ? "x" : "y");
-    tb_printf(t, "# %s\n", sign < 0 ? "ISG's sign: the value is the error actual - setpoint, which the CNC "
+    sc_tb_printf(t, "# %s\n", sign < 0 ? "ISG's sign: the value is the error actual - setpoint, which the CNC "
                                      "takes off the setpoint"
                                    : "NEGATED: +G, the opposite of ISG's actual - setpoint");
-    tb_printf(t, "# residual (table - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
+    sc_tb_printf(t, "# residual (table - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
               rep->rms_um, rep->max_um, rep->clipped);
-    tb_printf(t, "# ****************************************\n");
-    tb_printf(t, "kopf.achs_nr                            %d\n", slave_nr);
-    tb_printf(t, "kopf.log_achs_name                      %s\n", axis_upper(o->axis));
-    tb_printf(t, "kw.crosscomp2.unit                      1   /* 0.1 um */\n");
-    tb_printf(t, "kw.crosscomp2.interval                  %lld   /* %.4f mm */\n", c.interval,
+    sc_tb_printf(t, "# ****************************************\n");
+    sc_tb_printf(t, "kopf.achs_nr                            %d\n", slave_nr);
+    sc_tb_printf(t, "kopf.log_achs_name                      %s\n", axis_upper(o->axis));
+    sc_tb_printf(t, "kw.crosscomp2.unit                      1   /* 0.1 um */\n");
+    sc_tb_printf(t, "kw.crosscomp2.interval                  %lld   /* %.4f mm */\n", c.interval,
               (double)c.interval * 1e-4);
-    tb_printf(t, "kw.crosscomp2.last_index_master1        %d\n", c.n[0] - 1);
-    tb_printf(t, "kw.crosscomp2.last_index_master2        %d\n", c.n[1] - 1);
-    tb_printf(t, "kw.crosscomp2.start_position_master1    %lld   /* %.4f mm */\n", c.start[0],
+    sc_tb_printf(t, "kw.crosscomp2.last_index_master1        %d\n", c.n[0] - 1);
+    sc_tb_printf(t, "kw.crosscomp2.last_index_master2        %d\n", c.n[1] - 1);
+    sc_tb_printf(t, "kw.crosscomp2.start_position_master1    %lld   /* %.4f mm */\n", c.start[0],
               (double)c.start[0] * 1e-4);
-    tb_printf(t, "kw.crosscomp2.start_position_master2    %lld   /* %.4f mm */\n", c.start[1],
+    sc_tb_printf(t, "kw.crosscomp2.start_position_master2    %lld   /* %.4f mm */\n", c.start[1],
               (double)c.start[1] * 1e-4);
-    tb_printf(t, "kw.crosscomp2.n_cycles                  10\n");
-    tb_printf(t, "kw.crosscomp2.master1_ax_nr             %d\n", o->beckhoff_x_axis_nr);
-    tb_printf(t, "kw.crosscomp2.master2_ax_nr             %d\n", o->beckhoff_y_axis_nr);
+    sc_tb_printf(t, "kw.crosscomp2.n_cycles                  10\n");
+    sc_tb_printf(t, "kw.crosscomp2.master1_ax_nr             %d\n", o->beckhoff_x_axis_nr);
+    sc_tb_printf(t, "kw.crosscomp2.master2_ax_nr             %d\n", o->beckhoff_y_axis_nr);
     for (int j = 0; j < c.n[1]; ++j)
         for (int i = 0; i < c.n[0]; ++i)
-            tb_printf(t, "kw.crosscomp2.table[%3d][%3d].correction %lld\n", j, i,
+            sc_tb_printf(t, "kw.crosscomp2.table[%3d][%3d].correction %lld\n", j, i,
                       c.code[(size_t)j * c.n[0] + i]);
-    tb_printf(t, "End\n");
+    sc_tb_printf(t, "End\n");
     free(c.code);
     return SC_OK;
 }
@@ -335,7 +341,7 @@ static double cec_eval(const void *vctx, int comp, double x, double y)
         const cec_table *tb = &c->tab[k];
         if (tb->output != comp || tb->profile)
             continue;
-        sum += interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, tb->input == 0 ? x : y);
+        sum += sc_export_interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, tb->input == 0 ? x : y);
     }
     return sum;
 }
@@ -391,7 +397,7 @@ static sc_status cec_new_table(cec_ctx *c, const sc_export_options *o, double lo
     return SC_OK;
 }
 
-static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                 sc_export_report *rep, sc_error *err)
 {
     int comps[2], ncomp = 0;
@@ -409,9 +415,11 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
                             "siemens-cec: tables %d..%d do not exist on an 828D (8 tables, "
                             "0..7)",
                             o->siemens_first_table, o->siemens_first_table + 2 * ncomp - 1);
-    /* Siemens applies interpolatory compensation to the actual value: "a positive compensation
-     * value causes the corresponding machine axis to move in the negative direction" (K3). So
-     * the value is the measured deviation, true - indicated: -G by default (docs/exporters.md). */
+    /* Siemens' own words for sag compensation (Function Manual Extended Functions, K3, "Sag
+     * compensation and angularity error compensation"): the table holds a compensation value per
+     * input position, sent to the position control loop as an additional setpoint, and a positive
+     * value moves the machine axis in the negative direction. The axis must move by +G (to
+     * t + G when asked for t), so the value is -G by default (docs/exporters.md). */
     const double sign = o->negate ? 1.0 : -1.0;
     rep->limit_um = o->limit_um > 0 ? o->limit_um : 1000.0; /* MD32720 CEC_MAX_SUM default 1 mm */
     cec_ctx c;
@@ -436,7 +444,7 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
             for (int k = 0; k < tb->n; ++k) {
                 double s = lo + k * tb->step_mm;
                 double v = mean_along(lut, comp, in, s) - (in == 1 ? gm : 0.0);
-                tb->code_nm[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
+                tb->code_nm[k] = sc_export_quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
                 tb->value_um[k] = 1e-3 * (double)tb->code_nm[k];
             }
         }
@@ -445,6 +453,9 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
      * (or the interval), values of its linear interpolation clamped to its range. */
     for (int pk = 0; pk < lut->n_profiles && st == SC_OK; ++pk) {
         const sc_lut_profile *pr = &lut->profile[pk];
+        st = sc_export_profile_meets_map(lut, pk, "siemens-cec", err);
+        if (st != SC_OK)
+            break;
         cec_table *tb = &c.tab[c.ntab];
         tb->input = pr->axis;
         tb->output = pr->dir;
@@ -453,13 +464,15 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
         char what[64];
         snprintf(what, sizeof what, "profile %d (%s -> %s)", pk, sc_lut_axis_name(pr->axis),
                  sc_lut_axis_name(pr->dir));
-        st = cec_new_table(&c, o, lo, hi, o->interval_mm > 0 ? o->interval_mm : pr->step_mm, what,
-                           err);
+        const double pstep = o->profile_interval_mm > 0 ? o->profile_interval_mm
+                             : o->interval_mm > 0       ? o->interval_mm
+                                                        : pr->step_mm;
+        st = cec_new_table(&c, o, lo, hi, pstep, what, err);
         if (st != SC_OK)
             break;
         for (int k = 0; k < tb->n; ++k) {
-            double v = interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, lo + k * tb->step_mm);
-            tb->code_nm[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
+            double v = sc_export_interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, lo + k * tb->step_mm);
+            tb->code_nm[k] = sc_export_quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
             tb->value_um[k] = 1e-3 * (double)tb->code_nm[k];
         }
         /* Its residual: the table's interpolation against the profile's, dense along the axis
@@ -467,8 +480,8 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
         const int ns = 16 * (pr->n - 1);
         for (int q = -8; q <= ns + 8; ++q) {
             double s_mm = lo + (hi - lo) * q / ns;
-            double r = interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, s_mm) -
-                       sign * interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, s_mm);
+            double r = sc_export_interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, s_mm) -
+                       sign * sc_export_interp1(pr->err_um, pr->n, pr->start_mm, pr->step_mm, s_mm);
             if (fabs(r) > rep->profile_max_um)
                 rep->profile_max_um = fabs(r);
         }
@@ -490,42 +503,42 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, t
 
     const char *name[3] = {o->siemens_x_name, o->siemens_y_name,
                            o->siemens_z_name ? o->siemens_z_name : "AX3"};
-    tb_printf(t, "%%_N_NC_CEC_INI\n");
-    tb_printf(t, "CHANDATA(1)\n");
-    tb_printf(t, "; cross error compensation written by selfcal export: %d table(s), values in mm\n",
+    sc_tb_printf(t, "%%_N_NC_CEC_INI\n");
+    sc_tb_printf(t, "CHANDATA(1)\n");
+    sc_tb_printf(t, "; cross error compensation written by selfcal export: %d table(s), values in mm\n",
               c.ntab);
-    tb_printf(t, "; map = A(x) + B(y) + residual; tables hold %sA and %sB of %s (G = indicated - true)\n",
+    sc_tb_printf(t, "; map = A(x) + B(y) + residual; tables hold %sA and %sB of %s (G = indicated - true)\n",
               sign < 0 ? "-" : "+", sign < 0 ? "-" : "+", ncomp == 2 ? "Gx and Gy" : (comps[0] == 0 ? "Gx" : "Gy"));
-    tb_printf(t, "; %s\n", sign < 0 ? "Siemens' sign: the measured deviation (a positive value moves the axis negative)"
+    sc_tb_printf(t, "; %s\n", sign < 0 ? "Siemens' sign (K3): a positive value moves the axis negative, so -G moves it by +G"
                                    : "NEGATED: +G, the opposite of Siemens' sign");
-    tb_printf(t, "; residual (tables - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
+    sc_tb_printf(t, "; residual (tables - map): rms %.4f um, max %.4f um; clipped points: %ld\n",
               rep->rms_um, rep->max_um, rep->clipped);
     if (o->siemens_828d)
-        tb_printf(t, "; SINUMERIK 828D: 8 tables x 200 points, fixed; MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
+        sc_tb_printf(t, "; SINUMERIK 828D: 8 tables x 200 points, fixed; MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
     else
-        tb_printf(t, "; needs MD18342 $MN_MM_CEC_MAX_POINTS[t] >= points, MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
-    tb_printf(t, "; SD41300 $SN_CEC_TABLE_ENABLE[t] = 1 for each table t below\n");
+        sc_tb_printf(t, "; needs MD18342 $MN_MM_CEC_MAX_POINTS[t] >= points, MD32710 $MA_CEC_ENABLE = 1 (output axes) and\n");
+    sc_tb_printf(t, "; SD41300 $SN_CEC_TABLE_ENABLE[t] = 1 for each table t below\n");
     for (int k = 0; k < c.ntab; ++k) {
         const cec_table *tb = &c.tab[k];
         const int ti = o->siemens_first_table + k;
-        tb_printf(t, "; table %d: %s%s error of %s as a function of %s, %d points\n", ti,
+        sc_tb_printf(t, "; table %d: %s%s error of %s as a function of %s, %d points\n", ti,
                   tb->profile ? "straightness profile: " : "", tb->output == 0 ? "X" : tb->output == 1 ? "Y" : "Z",
                   name[tb->output], name[tb->input], tb->n);
         for (int p = 0; p < tb->n; ++p) {
             long long v = tb->code_nm[p];
-            tb_printf(t, "$AN_CEC[%d,%d]=%s%lld.%06lld\n", ti, p, v < 0 ? "-" : "", llabs(v) / 1000000,
+            sc_tb_printf(t, "$AN_CEC[%d,%d]=%s%lld.%06lld\n", ti, p, v < 0 ? "-" : "", llabs(v) / 1000000,
                       llabs(v) % 1000000);
         }
-        tb_printf(t, "$AN_CEC_INPUT_AXIS[%d]=(%s)\n", ti, name[tb->input]);
-        tb_printf(t, "$AN_CEC_OUTPUT_AXIS[%d]=(%s)\n", ti, name[tb->output]);
-        tb_printf(t, "$AN_CEC_STEP[%d]=%.6f\n", ti, tb->step_mm);
-        tb_printf(t, "$AN_CEC_MIN[%d]=%.6f\n", ti, tb->min_mm);
-        tb_printf(t, "$AN_CEC_MAX[%d]=%.6f\n", ti, tb->min_mm + (tb->n - 1) * tb->step_mm);
-        tb_printf(t, "$AN_CEC_DIRECTION[%d]=0\n", ti);
-        tb_printf(t, "$AN_CEC_MULT_BY_TABLE[%d]=0\n", ti);
-        tb_printf(t, "$AN_CEC_IS_MODULO[%d]=0\n", ti);
+        sc_tb_printf(t, "$AN_CEC_INPUT_AXIS[%d]=(%s)\n", ti, name[tb->input]);
+        sc_tb_printf(t, "$AN_CEC_OUTPUT_AXIS[%d]=(%s)\n", ti, name[tb->output]);
+        sc_tb_printf(t, "$AN_CEC_STEP[%d]=%.6f\n", ti, tb->step_mm);
+        sc_tb_printf(t, "$AN_CEC_MIN[%d]=%.6f\n", ti, tb->min_mm);
+        sc_tb_printf(t, "$AN_CEC_MAX[%d]=%.6f\n", ti, tb->min_mm + (tb->n - 1) * tb->step_mm);
+        sc_tb_printf(t, "$AN_CEC_DIRECTION[%d]=0\n", ti);
+        sc_tb_printf(t, "$AN_CEC_MULT_BY_TABLE[%d]=0\n", ti);
+        sc_tb_printf(t, "$AN_CEC_IS_MODULO[%d]=0\n", ti);
     }
-    tb_printf(t, "M17\n");
+    sc_tb_printf(t, "M17\n");
     free_cec(&c);
     return SC_OK;
 }
@@ -571,7 +584,7 @@ static double kmo_eval(const void *vctx, int comp, double x, double y)
 
 #define KMO_DECIMALS 9 /* inches: 1e-9 in = 0.0254 nm */
 
-static sc_status export_kmotion(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+static sc_status export_kmotion(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                 sc_export_report *rep, sc_error *err)
 {
     if (o->interval_mm > 0 || o->use_line)
@@ -597,9 +610,9 @@ static sc_status export_kmotion(const sc_lut *lut, const sc_export_options *o, t
     const double sign = o->negate ? -1.0 : 1.0;
     rep->limit_um = o->limit_um;
     char line[160];
-    tb_printf(t, "%d,%d\n", k.nrows, k.ncols);
-    tb_printf(t, "%.*f,%.*f\n", KMO_DECIMALS, k.sx, KMO_DECIMALS, k.sy);
-    tb_printf(t, "%.*f,%.*f\n", KMO_DECIMALS, k.ox, KMO_DECIMALS, k.oy);
+    sc_tb_printf(t, "%d,%d\n", k.nrows, k.ncols);
+    sc_tb_printf(t, "%.*f,%.*f\n", KMO_DECIMALS, k.sx, KMO_DECIMALS, k.sy);
+    sc_tb_printf(t, "%.*f,%.*f\n", KMO_DECIMALS, k.ox, KMO_DECIMALS, k.oy);
     for (int row = 0; row < k.nrows; ++row)
         for (int col = 0; col < k.ncols; ++col) {
             const double x = lut->x0_mm + (col - 1) * lut->px_mm, y = lut->y0_mm + (row - 1) * lut->py_mm;
@@ -609,14 +622,14 @@ static sc_status export_kmotion(const sc_lut *lut, const sc_export_options *o, t
             gy *= sign;
             if (rep->limit_um > 0) {
                 long dummy = 0;
-                gx = (double)quantize(gx, 1e-6, rep->limit_um, &rep->clipped) * 1e-6;
-                gy = (double)quantize(gy, 1e-6, rep->limit_um, &dummy) * 1e-6;
+                gx = (double)sc_export_quantize(gx, 1e-6, rep->limit_um, &rep->clipped) * 1e-6;
+                gy = (double)sc_export_quantize(gy, 1e-6, rep->limit_um, &dummy) * 1e-6;
                 rep->clipped += dummy;
             }
             /* the ideal CAD point plus G: where KMotion must command to land on it; inches */
             snprintf(line, sizeof line, "%d,%d,%.*f,%.*f,0\n", row, col, KMO_DECIMALS,
                      (x + gx * 1e-3) / 25.4, KMO_DECIMALS, (y + gy * 1e-3) / 25.4);
-            tb_printf(t, "%s", line);
+            sc_tb_printf(t, "%s", line);
             /* what KMotion will read */
             const int kk = row * k.ncols + col;
             sscanf(strchr(strchr(line, ',') + 1, ',') + 1, "%lf,%lf", &k.ax[kk], &k.ay[kk]);
@@ -650,10 +663,10 @@ static double lcnc_eval(const void *vctx, int comp, double x, double y)
 {
     (void)comp;
     const lcnc_ctx *c = vctx;
-    return interp1(c->value_um, c->n, c->start_mm, c->step_mm, c->axis == 0 ? x : y);
+    return sc_export_interp1(c->value_um, c->n, c->start_mm, c->step_mm, c->axis == 0 ? x : y);
 }
 
-static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, textbuf *t,
+static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                  sc_export_report *rep, sc_error *err)
 {
     if (o->axis != 0 && o->axis != 1)
@@ -685,7 +698,7 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
             v = o->axis == 0 ? map_g(lut, 0, s, o->line_mm) : map_g(lut, 1, o->line_mm, s);
         else
             v = mean_along(lut, o->axis, o->axis, s);
-        code[k] = quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
+        code[k] = sc_export_quantize(sign * v, 1e-3, rep->limit_um, &rep->clipped);
         c.value_um[k] = 1e-3 * (double)code[k];
     }
     int comps[1] = {o->axis};
@@ -702,9 +715,9 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
         char trim[48];
         snprintf(trim, sizeof trim, "%s%lld.%06lld", v < 0 ? "-" : "", llabs(v) / 1000000,
                  llabs(v) % 1000000);
-        tb_printf(t, "%.6f %s %s\n", lo + k * c.step_mm, trim, trim);
+        sc_tb_printf(t, "%.6f %s %s\n", lo + k * c.step_mm, trim, trim);
     }
-    tb_printf(t, "# selfcal export: %s trims (%sG%s, mm) - needs COMP_FILE_TYPE = 1 in [JOINT_n]: "
+    sc_tb_printf(t, "# selfcal export: %s trims (%sG%s, mm) - needs COMP_FILE_TYPE = 1 in [JOINT_n]: "
                  "LinuxCNC's default 0 reads them as positions\n",
               axis_upper(o->axis), sign < 0 ? "-" : "+", o->axis == 0 ? "x" : "y");
     free(code);
@@ -725,15 +738,24 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
     if (o->interval_mm > 1e6)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval %g mm is beyond 1 km",
                             o->interval_mm);
+    if (o->cross_profile >= 0 && (o->format != SC_EXPORT_BECKHOFF || o->cross_profile >= lut->n_profiles))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "a cross compensation list needs --format beckhoff and profile %d of %d",
+                            o->cross_profile, lut->n_profiles);
+    if (!(o->profile_interval_mm >= 0) || !(o->profile_interval_mm <= 1e6) ||
+        (o->profile_interval_mm > 0 && o->profile_interval_mm < 1e-4))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "profile interval %g mm: 0.1 um .. 1 km, please", o->profile_interval_mm);
     if (o->interval_mm > 0 && o->interval_mm < 1e-4)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "interval %g mm is below the 0.1 um resolution of the tables",
                             o->interval_mm);
-    textbuf t = {0};
+    sc_textbuf t = {0};
     sc_status st;
     switch (o->format) {
     case SC_EXPORT_BECKHOFF:
-        st = export_beckhoff(lut, o, &t, rep, err);
+        st = o->cross_profile >= 0 ? sc_export_beckhoff_cross(lut, o, &t, rep, err)
+                                   : export_beckhoff(lut, o, &t, rep, err);
         break;
     case SC_EXPORT_SIEMENS_CEC:
         st = export_siemens(lut, o, &t, rep, err);
@@ -757,7 +779,7 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
     }
     if (st == SC_OK && t.failed)
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory while formatting");
-    if (st == SC_OK)
+    if (st == SC_OK && path)
         st = sc_write_file_atomic(path, t.s, t.len, err);
     free(t.s);
     return st;
