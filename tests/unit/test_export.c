@@ -1,7 +1,8 @@
 /* Unit tests of the controller exporters (selfcal/export.h): each exported file is read back here
  * by an independent parser of the controller's format, interpolated the way the controller does
- * (bilinear plane table, sums of linear 1-D tables, linear joint table), and compared with the
- * map within the format's units; the reported residual and clipped count are recomputed. */
+ * (bilinear plane table, sums of linear 1-D tables, linear joint table, ISG's cross compensation
+ * list), and compared with the map (or the profile) within the format's units; the reported
+ * residual and clipped count are recomputed. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

@@ -206,6 +206,19 @@ for args, want in bad:
           and not os.path.exists(path("BB.lis")) and not os.path.exists(path("BB-cross-y.lis")),
           f"bad {args}: {rc} {err}")
 
+# Siemens takes the same placement: @OFFSET_MM moves the profile's table, and a profile beside
+# the map is refused there too.
+rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), "--profile", PROF,
+                   "-o", path("SP.mpf"))
+minx = re.search(r"^\$AN_CEC_MIN\[4\]=(\S+)$", open(path("SP.mpf")).read(), re.M) if rc == 0 else None
+check(minx is not None and abs(float(minx.group(1)) - px[0]) < 1e-6, f"siemens @OFFSET_MM: {err}")
+if os.path.exists(path("SB.mpf")):
+    os.remove(path("SB.mpf"))
+rc, out, err = run("--format", "siemens-cec", "--map", path("M.csv"), "--profile",
+                   f"x:y:{path('P.csv')}@5000", "-o", path("SB.mpf"))
+check(rc == 2 and "do not overlap" in err and len(err.strip().splitlines()) == 1
+      and not os.path.exists(path("SB.mpf")), f"siemens profile beside the map: {rc} {err}")
+
 # Siemens CEC, by Siemens' own sentence: a positive value moves the axis negative, so the axis
 # moves by -(sum of the tables of its output axis). An additive map (A(x) + B(y) per component):
 # the CEC tables hold it exactly, up to their 1 nm unit.
