@@ -6,6 +6,7 @@
 #ifndef _GNU_SOURCE
 #define _GNU_SOURCE
 #endif
+#include <dirent.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -33,6 +34,56 @@ static inline const char *fuzz_path(const uint8_t *data, size_t size)
         off += (size_t)w;
     }
     return path;
+}
+
+/* A private directory for targets whose readers need real file names (a .dat beside its .txt) or
+ * whose writers rename into place: under /dev/shm (memory, fsync is free) if it exists, else
+ * TMPDIR or /tmp; made once per process, its files are the target's to overwrite. */
+static inline char *fuzz_dir_buf(void)
+{
+    static char dir[256];
+    return dir;
+}
+
+static inline void fuzz_dir_remove(void)
+{
+    const char *fuzz_dir_path = fuzz_dir_buf();
+    DIR *d = opendir(fuzz_dir_path);
+    struct dirent *e;
+    char p[600];
+    while (d && (e = readdir(d)) != NULL)
+        if (e->d_name[0] != '.') {
+            snprintf(p, sizeof p, "%s/%s", fuzz_dir_path, e->d_name);
+            unlink(p);
+        }
+    if (d)
+        closedir(d);
+    rmdir(fuzz_dir_path);
+}
+
+static inline const char *fuzz_dir(void)
+{
+    char *dir = fuzz_dir_buf();
+    if (!dir[0]) {
+        const char *base = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : getenv("TMPDIR");
+        snprintf(dir, 256, "%s/selfcal-fuzz-XXXXXX", base && base[0] ? base : "/tmp");
+        if (!mkdtemp(dir))
+            abort();
+        atexit(fuzz_dir_remove);
+    }
+    return dir;
+}
+
+/* Write data[0..size) to the file fuzz_dir()/name (replacing it); returns its path (static per
+ * name slot: slot 0..3). */
+static inline const char *fuzz_file(int slot, const char *name, const uint8_t *data, size_t size)
+{
+    static char path[4][320];
+    snprintf(path[slot], sizeof path[slot], "%s/%s", fuzz_dir(), name);
+    FILE *f = fopen(path[slot], "wb");
+    if (!f || (size && fwrite(data, 1, size, f) != size) || fclose(f) != 0)
+        abort();
+    return path[slot];
 }
 
 /* The contract of every reader: on failure an error message, one line, that names the file. */

@@ -13,6 +13,7 @@
 
 #include <cmocka.h>
 
+#include "selfcal/grid_io.h"
 #include "selfcal/header.h"
 #include "selfcal/plate_map.h"
 #include "selfcal/profile_file.h"
@@ -351,6 +352,8 @@ static void test_plate_map(void **state)
     sc_plate_map_free(&r);
     assert_null(r.ax_um);
 
+#define H3 "i,j,ax_um,ay_um\n0,0,0,0\n0,1,0,0\n0,2,0,0\n1,0,0,0\n"
+#define R3B "1,2,0,0\n2,0,0,0\n2,1,0,0\n2,2,0,0\n"
 #define H "i,j,ax_um,ay_um\n"
 #define R8 "0,0,0,0\n0,1,0,0\n0,2,0,0\n1,0,0,0\n1,1,0,0\n1,2,0,0\n2,0,0,0\n2,1,0,0\n"
     static const struct {
@@ -381,6 +384,19 @@ static void test_plate_map(void **state)
             fail_msg("case %zu: status %d line %ld msg '%s'", k, st, err.line, err.msg);
         assert_null(r.ax_um);
     }
+    /* the artifact reader (verify, plot map) reads by the same rules: a row of 6 fields under a
+     * 4-field header (a corrupted line) was once taken as its first four (fuzz_plate_map) */
+    sc_stage_map am;
+    write_text(path, H3 "1,1,0.12,-0.,,7221\n" R3B);
+    sc_error_clear(&err);
+    assert_int_equal(sc_grid_read_artifact(path, 2.0, &am, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 6);
+    assert_null(am.gx_um);
+    write_text(path, H3 "1,1,0.12,-0.5\n" R3B);
+    assert_int_equal(sc_grid_read_artifact(path, 2.0, &am, &err), SC_OK);
+    assert_int_equal(am.nx, 3);
+    assert_true(am.x0_mm == -2.0 && am.gx_um[4] == 0.12 && am.gy_um[4] == -0.5 && isnan(am.ugx_um[4]));
+    sc_stage_map_free(&am);
 }
 
 int main(void)

@@ -171,6 +171,47 @@ static void test_dabam_slope_integration(void **state)
         assert_true(fabs(f[i] - g[i]) < 1e-9);
 }
 
+/* Factors and values beyond any mirror are refused with the file (and line), never turned into
+ * NaN heights (fuzz_dabam: X1_FACTOR = 1e306 made every height NaN); so is an over-long line. */
+static void test_dabam_refusals(void **state)
+{
+    (void)state;
+    static const struct {
+        const char *xf, *yf, *row;
+        long line;
+    } bad[] = {
+        {"1e306", "1e-06", "1\t2\n", 0},  {"0", "1e-06", "1\t2\n", 0},
+        {"-0.001", "1e-06", "1\t2\n", 0}, {"0.001", "0", "1\t2\n", 0},
+        {"0.001", "1e300", "1\t2\n", 0},  {"0.001", "1e-06", "1e300\t2\n", 4},
+        {"0.001", "1e-06", "1\t2e300\n", 4},
+    };
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0] + 1; ++k) {
+        int last = k == sizeof bad / sizeof bad[0]; /* a line longer than the reader's buffer */
+        FILE *fp = fopen(TMP "/bad-dabam.txt", "w");
+        assert_non_null(fp);
+        fprintf(fp, "{\n \"FILE_HEADER_LINES\": 1,\n \"X1_FACTOR\": %s,\n \"Y1_FACTOR\": %s\n}\n",
+                last ? "0.001" : bad[k].xf, last ? "1e-06" : bad[k].yf);
+        fclose(fp);
+        fp = fopen(TMP "/bad-dabam.dat", "w");
+        assert_non_null(fp);
+        fprintf(fp, "x\ty\n0\t1\n0.5\t1\n");
+        if (last)
+            fprintf(fp, "%5000s1\t2\n", "");
+        else
+            fputs(bad[k].row, fp);
+        fprintf(fp, "2\t1\n3\t1\n");
+        fclose(fp);
+        double f[16];
+        sc_error err;
+        sc_error_clear(&err);
+        assert_int_equal(sc_profile_load_dabam(TMP "/bad-dabam.dat", 16, 0.1, f, NULL, 0, &err), SC_E_INPUT);
+        long want = last ? 4 : bad[k].line;
+        if (err.line != want)
+            fail_msg("case %zu: line %ld, want %ld (%s)", k, err.line, want, err.msg);
+        assert_non_null(strstr(err.file, want ? "bad-dabam.dat" : "bad-dabam.txt"));
+    }
+}
+
 /* The DFT method's analytic uncertainty equals the one from its brute-force linear response. */
 static void test_dft_uncertainty_exact(void **state)
 {
@@ -528,6 +569,7 @@ int main(void)
         cmocka_unit_test(test_lsq_noise_free_any_n),
         cmocka_unit_test(test_dabam_profiles),
         cmocka_unit_test(test_dabam_slope_integration),
+        cmocka_unit_test(test_dabam_refusals),
         cmocka_unit_test(test_dft_uncertainty_exact),
         cmocka_unit_test(test_paper_setup_mc),
         cmocka_unit_test(test_residual_noise_estimate),

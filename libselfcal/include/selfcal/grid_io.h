@@ -85,9 +85,10 @@ SC_API sc_status sc_grid_write_summary(const char *path, const char *method, con
 SC_API void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
                                    const sc_grid_result *res);
 
-/* Read a plate error file (`i,j,ax_um,ay_um`, N x N rows, N odd) into m: gx/gy hold ax/ay (plate
- * frame, NaN where empty) at the plate-centred nominal mark positions (node (0, 0) at
- * (-cP, -cP), pitch P mm as given); uncertainties NaN. On failure m holds no memory. */
+/* Read a plate error file (`i,j,ax_um,ay_um`, the rules of sc_plate_map_read in
+ * selfcal/plate_map.h, and N <= SC_GRID_MAX_N) into m: gx/gy hold ax/ay (plate frame, NaN where
+ * empty) at the plate-centred nominal mark positions (node (0, 0) at (-cP, -cP), pitch P mm as
+ * given); uncertainties NaN. On failure m holds no memory. */
 SC_API sc_status sc_grid_read_artifact(const char *path, double pitch_mm, sc_stage_map *m,
                                        sc_error *err);
 

@@ -146,6 +146,14 @@ sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double
         free(meta);
         return sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid X1_FACTOR / Y1_FACTOR");
     }
+    /* metres per abscissa unit, radians (or metres) per ordinate unit: DABAM uses 1e-3 and 1e-6;
+     * anything beyond 1 would make a mirror longer than a kilometre or slopes beyond 1 rad, and
+     * let the heights overflow (a fuzzed X1_FACTOR = 1e306 made them NaN) */
+    if (!(xf > 0 && xf <= 1) || !(yf != 0 && fabs(yf) <= 1)) {
+        free(meta);
+        return sc_error_set(err, SC_E_INPUT, meta_path, 0,
+                            "X1_FACTOR must be in (0, 1] and Y1_FACTOR nonzero within [-1, 1]");
+    }
     char title[128] = "";
     if (json_value(meta, "PLOT_TITLE_Y1", title, sizeof title)) {
         char low[128];
@@ -173,6 +181,11 @@ sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double
     sc_status st = SC_OK;
     while (xs && ys && fgets(line, sizeof line, fp)) {
         ++ln;
+        if (!strchr(line, '\n') && !feof(fp)) {
+            st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "line longer than %zu bytes",
+                              sizeof line - 2);
+            break;
+        }
         if (ln <= hdr)
             continue;
         char *p = line;
@@ -185,6 +198,11 @@ sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double
         double b = strtod(e1, &e2);
         if (e1 == p || e2 == e1 || !isfinite(a) || !isfinite(b)) {
             st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "expected two numbers (abscissa, ordinate)");
+            break;
+        }
+        if (!(fabs(a * xf) <= 1e3 && fabs(b * yf) <= 1)) {
+            st = sc_error_set(err, SC_E_INPUT, dat_path, ln,
+                              "beyond any mirror (|x| > 1 km, or a slope or height beyond 1 rad or 1 m)");
             break;
         }
         if (cnt == cap) {
