@@ -22,7 +22,7 @@ static void export_usage(FILE *to)
             "                      [--negate] [--offset DX,DY] [--axis-numbers NX,NY[,NZ]]\n"
             "                      [--axis-names NAMEX,NAMEY] [--first-table T] [--target 840d|828d]\n"
             "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
-            "                      [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] [--travel MIN,MAX]\n"
+            "                      [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] [--travel [AXIS:]MIN,MAX]\n"
             "                      [--profile-interval MM]\n"
             "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y;\n"
             "               both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual - setpoint (-G)\n"
@@ -52,9 +52,10 @@ static void export_usage(FILE *to)
             "               AXIS, ISG's sign (-e)\n"
             "  --profile-interval MM  the profiles' table spacing (default: the profile's own\n"
             "               points; siemens: --interval if given)\n"
-            "  --travel MIN,MAX  beckhoff profiles: the master axis' travel (mm, machine\n"
+            "  --travel [AXIS:]MIN,MAX  beckhoff profiles: the master axis' travel (mm, machine\n"
             "               coordinates): the list gets its end values at MIN and MAX (without\n"
-            "               it the list spans the profile and ISG's behaviour beyond is unknown)\n"
+            "               it the list spans the profile and ISG's behaviour beyond is unknown);\n"
+            "               AXIS: for the profiles with that master axis (repeatable), else all\n"
             "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale\n"
             "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n");
 }
@@ -111,8 +112,8 @@ static void print_cross_report(const sc_lut *lut, const char *out, const sc_expo
         fprintf(stderr,
                 "selfcal export: warning: %s: ISG does not document what cross compensation "
                 "applies beyond the table's first and last point (%s = %.4f..%.4f mm); give the "
-                "master axis' travel with --travel MIN,MAX to hold the end values up to it\n",
-                out, an, rep->span_mm[0], rep->span_mm[1]);
+                "master axis' travel with --travel %s:MIN,MAX to hold the end values up to it\n",
+                out, an, rep->span_mm[0], rep->span_mm[1], an);
 }
 
 static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
@@ -176,8 +177,11 @@ int cmd_export(int argc, char **argv)
     double interval = 0, limit = 0, at = 0, pinterval = 0;
     int use_at = 0, negate = 0, ax_nr[3] = {1, 2, 3}, first_table = 0;
     static char names[2][32] = {"AX1", "AX2"};
-    double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0}, travel[2] = {0, 0};
-    int np = 0, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES], use_travel = 0;
+    double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0};
+    int np = 0, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
+    /* --travel: [3] for every master axis, [0..2] for master x, y, z ("x:MIN,MAX"). */
+    double travel[4][2] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}};
+    int use_travel[4] = {0, 0, 0, 0};
     static char prof_path[SC_LUT_MAX_PROFILES][4096];
     double prof_offset[SC_LUT_MAX_PROFILES];
     int target_828d = 0;
@@ -241,10 +245,18 @@ int cmd_export(int argc, char **argv)
             if (sc_parse_double(v, &pinterval) != 0 || !(pinterval > 0))
                 return cli_usage_error("export", "--profile-interval: a positive number of mm, not '%s'", v);
         } else if (!strcmp(a, "--travel")) {
-            if (two_doubles(v, travel) != 0 || !(travel[0] < travel[1]) || fabs(travel[0]) > 1e6 ||
-                fabs(travel[1]) > 1e6)
-                return cli_usage_error("export", "--travel: MIN,MAX in mm with MIN < MAX (within 1 km), not '%s'", v);
-            use_travel = 1;
+            int t = 3;
+            const char *mm = v;
+            if (v[0] && v[1] == ':') {
+                const char ax[2] = {v[0], '\0'};
+                t = sc_lut_axis_from_name(ax);
+                mm = v + 2;
+            }
+            double *tr = t >= 0 ? travel[t] : travel[3];
+            if (t < 0 || two_doubles(mm, tr) != 0 || !(tr[0] < tr[1]) || fabs(tr[0]) > 1e6 ||
+                fabs(tr[1]) > 1e6)
+                return cli_usage_error("export", "--travel: [AXIS:]MIN,MAX in mm with MIN < MAX (within 1 km), not '%s'", v);
+            use_travel[t] = 1;
         } else if (!strcmp(a, "--offset")) {
             if (two_doubles(v, offset) != 0 || fabs(offset[0]) > 1e6 || fabs(offset[1]) > 1e6)
                 return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
@@ -299,8 +311,16 @@ int cmd_export(int argc, char **argv)
                                          "(LinuxCNC: the HAL component applies profiles)");
     if (pinterval > 0 && np == 0)
         return cli_usage_error("export", "--profile-interval applies to --profile tables only");
-    if (use_travel && (f != SC_EXPORT_BECKHOFF || np == 0))
-        return cli_usage_error("export", "--travel applies to --format beckhoff with --profile only");
+    for (int t = 0; t < 4; ++t) {
+        if (use_travel[t] && (f != SC_EXPORT_BECKHOFF || np == 0))
+            return cli_usage_error("export", "--travel applies to --format beckhoff with --profile only");
+        int used = t == 3;
+        for (int k = 0; k < np; ++k)
+            used |= prof_axis[k] == t;
+        if (use_travel[t] && !used)
+            return cli_usage_error("export", "--travel %s: no profile has master axis %s",
+                                   sc_lut_axis_name(t), sc_lut_axis_name(t));
+    }
     for (int a = 0; a < np && f == SC_EXPORT_BECKHOFF; ++a)
         for (int b = 0; b < a; ++b)
             if (prof_dir[a] == prof_dir[b])
@@ -327,9 +347,6 @@ int cmd_export(int argc, char **argv)
     o.beckhoff_x_axis_nr = ax_nr[0];
     o.beckhoff_y_axis_nr = ax_nr[1];
     o.beckhoff_z_axis_nr = ax_nr[2];
-    o.use_travel = use_travel;
-    o.travel_mm[0] = travel[0];
-    o.travel_mm[1] = travel[1];
     o.siemens_x_name = names[0];
     o.siemens_y_name = names[1];
     o.siemens_first_table = first_table;
@@ -378,6 +395,10 @@ int cmd_export(int argc, char **argv)
         snprintf(tag, sizeof tag, "cross-%s", sc_lut_axis_name(prof_dir[k]));
         opts[nfiles] = o;
         opts[nfiles].cross_profile = k;
+        const int t = use_travel[prof_axis[k]] ? prof_axis[k] : 3; /* its own, else the common one */
+        opts[nfiles].use_travel = use_travel[t];
+        opts[nfiles].travel_mm[0] = travel[t][0];
+        opts[nfiles].travel_mm[1] = travel[t][1];
         tagged_path(out, tag, paths[nfiles], sizeof paths[nfiles]);
     }
     /* Every file computed and checked first (nothing written), then written: all or none. */

@@ -168,6 +168,20 @@ check(maxt <= 0.05 + 1e-6, f"over the travel: the quantization ({maxt:.4f} um)")
 check(hdr.get("kopf.achs_nr") == "5" and hdr.get("kw.crosscomp.master_ax_nr") == "4",
       f"--axis-numbers: {hdr}")
 
+# Two profiles with different master axes, one travel each (--travel AXIS:MIN,MAX): y along x
+# and x along y, two lists.
+rc, out, err = run("--format", "beckhoff", "--map", path("M.csv"), "--profile", PROF,
+                   "--profile", f"y:x:{path('P.csv')}@-170", "--travel", "x:-200,250",
+                   "--travel", "y:-180,160", "-o", path("B2.lis"))
+check(rc == 0 and "warning" not in err, f"two travels: {rc} {err}")
+if rc == 0:
+    for name, ends, slave, master in (("B2-cross-y.lis", (-200, 250), "2", "1"),
+                                      ("B2-cross-x.lis", (-180, 160), "1", "2")):
+        hdr, sp, corr = read_isg(name)
+        check(sp[0] == ends[0] * 10000 and sp[len(sp) - 1] == ends[1] * 10000
+              and hdr["kopf.achs_nr"] == slave and hdr["kw.crosscomp.master_ax_nr"] == master,
+              f"{name}: its own travel and axes ({sp[0]}, {sp[len(sp) - 1]}, {hdr})")
+
 # ISG's 1000 points: a longer profile is refused (one line, no file), a coarser table fits.
 selfcal("simulate", "profile", "--n", "1100", "--out", path("LIN.csv"), "--truth",
         path("LT.csv"), "--seed", "2")
@@ -195,6 +209,7 @@ bad = [
     (["--profile", PROF, "--travel", "100,-100"], "--travel"),
     (["--profile", PROF, "--travel", "abc"], "--travel"),
     (["--travel", "-200,250"], "--travel"),
+    (["--profile", PROF, "--travel", "y:-200,250"], "no profile has master axis y"),
     (["--profile", PROF, "--profile", f"z:y:{path('P.csv')}"], "one master"),
 ]
 for args, want in bad:
