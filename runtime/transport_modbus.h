@@ -60,5 +60,8 @@ void sc_mbtcp_format_addr(const struct sockaddr_storage *a, char *buf, int len);
 void sc_modbus_rtu_transport(sc_transport *t, const sc_mbrtu_config *cfg);
 /* Frames dropped by the RTU server since start: bad CRC, or incomplete at a silence. */
 uint32_t sc_modbus_rtu_bad_frames(void);
+/* For tests: make open() serve fd (e.g. one end of a socketpair standing for the serial line)
+ * instead of opening cfg.device; close() then leaves fd open. fd < 0 restores normal behaviour. */
+void sc_modbus_rtu_use_fd(int fd);
 
 #endif

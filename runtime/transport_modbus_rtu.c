@@ -30,6 +30,12 @@ typedef struct mbrtu_state {
 } mbrtu_state;
 
 static mbrtu_state g_rtu;
+static int g_test_fd = -1; /* >= 0: serve this descriptor instead of a serial device (tests) */
+
+void sc_modbus_rtu_use_fd(int fd)
+{
+    g_test_fd = fd;
+}
 
 void sc_mbrtu_config_defaults(sc_mbrtu_config *c)
 {
@@ -80,6 +86,11 @@ static int rtu_open(void *state, char *why, int whylen)
     if (s->cfg.unit_id < 1 || s->cfg.unit_id > 247) {
         snprintf(why, (size_t)whylen, "modbus-rtu: unit id must be 1..247");
         return -1;
+    }
+    if (g_test_fd >= 0) {
+        s->fd = g_test_fd;
+        s->len = 0;
+        return 0;
     }
     s->ctx = modbus_new_rtu(s->cfg.device, s->cfg.baud, s->cfg.parity, s->cfg.data_bits,
                             s->cfg.stop_bits);

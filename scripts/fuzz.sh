@@ -17,7 +17,7 @@ elif [ -n "$runs" ]; then secs=0          # -max_total_time=0: no time limit, st
 else secs=600; fi
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(grid_read profile_read stage_map profile_result table
-                                     selfcald_config modbus_adu can_frame import plate_map dabam
+                                     selfcald_config modbus_adu modbus_rtu can_frame import plate_map dabam
                                      verify plot_xy)
 build=${SELFCAL_FUZZ_BUILD_DIR:-build-fuzz}
 CC=clang CXX=clang++ cmake -S . -B "$build" -G Ninja -DSELFCAL_FUZZ=ON -DSELFCAL_BUILD_BENCH=OFF \
