@@ -309,15 +309,44 @@ def t_lut_table():
         os.unlink(tab)
 
 
+def profile_option(rnd, results, rops, t):
+    """A --profile AXIS:DIR:RESULT[@OFFSET_MM] for the table formats that take straightness
+    (Beckhoff cross lists, Siemens CEC tables), sometimes with --travel / --profile-interval;
+    the result file is valid or mutated. Returns (options, the result file)."""
+    r = p("res_in_%d.csv" % t)
+    write(r, rnd.choice(results) if rnd.random() < 0.5 else
+          fuzzlib.mutate_text(rnd, rnd.choice(results), rops))
+    axis, d = rnd.choice((("x", "y"), ("y", "x"), ("x", "y"), ("y", "x"), ("x", "z"), ("y", "y"),
+                          ("z", "x")))
+    spec = "%s:%s:%s" % (axis, d, r) + rnd.choice(("", "", "", "@0", "@-3", "@-100", "@1e9", "@x",
+                                                   "@nan", "@"))
+    opts = ["--profile", spec]
+    if rnd.random() < 0.4:
+        opts += ["--travel", rnd.choice(("-200,400", axis + ":-200,400", "400,-200", "0,1",
+                                         "z:-1,1", "-1e9,1e9", "nan,1", ",", "-200"))]
+    if rnd.random() < 0.3:
+        opts += ["--profile-interval", rnd.choice(("0.5", "1", "0.00001", "1000", "0", "-1",
+                                                   "nan"))]
+    return opts, r
+
+
 def t_export():
     maps = [open(m, "rb").read() for m in make_maps()]
-    mops = map_ops()
+    results = [open(r, "rb").read() for r in make_results(make_profiles())]
+    mops, rops = map_ops(), result_ops()
     for t in range(A.iterations):
-        m = p("map_in_%d.csv" % t)
-        write(m, fuzzlib.mutate_text(rnd, rnd.choice(maps), mops))
         fmt = rnd.choice(("beckhoff", "siemens-cec", "linuxcnc", "kmotion", "klipper", "marlin",
                           "reprap"))
+        with_profile = fmt in ("beckhoff", "siemens-cec") and rnd.random() < 0.4
+        m = p("map_in_%d.csv" % t)
+        # with a profile, the map is often left valid so that the profile's own paths are reached
+        write(m, rnd.choice(maps) if with_profile and rnd.random() < 0.6 else
+              fuzzlib.mutate_text(rnd, rnd.choice(maps), mops))
         out = p("exp_%d.txt" % t)
+        # every file an export may write: OUT, OUT-x/-y (--axis both), OUT-cross-DIR (profiles)
+        outs = [out] + [p("exp_%d-%s.txt" % (t, s))
+                        for s in ("x", "y", "cross-x", "cross-y", "cross-z")]
+        ins = [m]
         cmd = [CLI, "export", "--format", fmt, "--map", m, "-o", out]
         if fmt in ("beckhoff", "linuxcnc") or (fmt == "siemens-cec" and rnd.random() < 0.3):
             cmd += ["--axis", rnd.choice(("x", "y")) if fmt != "siemens-cec" else "both"]
@@ -325,12 +354,16 @@ def t_export():
             cmd += [rnd.choice(("--interval", "--at", "--limit-um")),
                     rnd.choice(("0.5", "1", "0.001", "1e-9", "1000", "-1", "0", "nan")
                                + (() if SKIP else ("1e300",)))]
-        rc = F.check(cmd, [m], [out], "export-" + fmt)
+        if with_profile:
+            opts, r = profile_option(rnd, results, rops, t)
+            cmd += opts
+            ins.append(r)
+        rc = F.check(cmd, ins, outs, "export-" + fmt + ("-profile" if len(ins) > 1 else ""))
         if rc == 2:
             err = F.run(cmd)[2].decode("utf-8", "replace")
-            if m not in err and not err.startswith("selfcal export:"):
+            if not any(i in err for i in ins) and not err.startswith("selfcal export:"):
                 F.soft(err.strip()[:100])
-        for f in (m, out):
+        for f in ins + outs:
             if os.path.exists(f):
                 os.unlink(f)
 
