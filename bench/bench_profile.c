@@ -67,47 +67,47 @@ static result measure(int method, int n, int d1, int d2)
     sc_error err;
     double t0 = now();
     if (method == M_LSQ) {
-        sc_profile_lsq *p;
-        if (sc_profile_lsq_create(n, d1, d2, w1, w2, &p, &err) != SC_OK)
+        sc_profile_lsq_plan *p;
+        if (sc_profile_lsq_plan_create(n, d1, d2, w1, w2, &p, &err) != SC_OK)
             return res;
         double t1 = now();
         int reps = 0;
         double t2;
         do {
-            sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err);
+            sc_profile_lsq_execute(p, y1, y2, f, NULL, NULL, &err);
             ++reps;
             t2 = now();
         } while (t2 - t1 < 0.05 && reps < 50);
         double t3 = now();
-        if (sc_profile_lsq_uncertainty(p, uf, &err) != SC_OK)
+        if (sc_profile_lsq_uncertainty(p, uf, NULL, &err) != SC_OK)
             return res;
         double t4 = now();
         res.create_s = t1 - t0;
         res.solve_s = (t2 - t1) / reps;
         res.unc_s = t4 - t3;
         res.check = uf[n / 2] * 1e3;
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
     } else if (method == M_DFT) {
-        sc_profile_dft *p;
-        if (sc_profile_dft_create(n, d1, d2, w1, w2, &p, &err) != SC_OK)
+        sc_profile_dft_plan *p;
+        if (sc_profile_dft_plan_create(n, d1, d2, w1, w2, &p, &err) != SC_OK)
             return res;
         double t1 = now();
         int reps = 0;
         double t2;
         do {
-            sc_profile_dft_solve(p, y1, y2, f, &err);
+            sc_profile_dft_execute(p, y1, y2, f, &err);
             ++reps;
             t2 = now();
         } while (t2 - t1 < 0.05 && reps < 50);
         double t3 = now();
-        if (sc_profile_dft_uncertainty(p, uf, &err) != SC_OK)
+        if (sc_profile_dft_uncertainty(p, uf, NULL, &err) != SC_OK)
             return res;
         double t4 = now();
         res.create_s = t1 - t0;
         res.solve_s = (t2 - t1) / reps;
         res.unc_s = t4 - t3;
         res.check = uf[n / 2] * 1e3;
-        sc_profile_dft_destroy(p);
+        sc_profile_dft_plan_destroy(p);
     } else {
 #ifdef SELFCAL_BENCH_DENSE
         double c[2];
@@ -118,11 +118,11 @@ static result measure(int method, int n, int d1, int d2)
         res.solve_s = t1 - t0; /* factor + solve + inverse together */
         res.unc_s = 0;
         /* agreement with the fast solver: max |f_dense - f_fast| / max |f| */
-        sc_profile_lsq *p;
+        sc_profile_lsq_plan *p;
         double *g = malloc((size_t)n * sizeof(double)), *ug = malloc((size_t)n * sizeof(double));
-        if (g && ug && sc_profile_lsq_create(n, d1, d2, w1, w2, &p, &err) == SC_OK) {
-            sc_profile_lsq_solve(p, y1, y2, g, NULL, NULL, &err);
-            sc_profile_lsq_uncertainty(p, ug, &err);
+        if (g && ug && sc_profile_lsq_plan_create(n, d1, d2, w1, w2, &p, &err) == SC_OK) {
+            sc_profile_lsq_execute(p, y1, y2, g, NULL, NULL, &err);
+            sc_profile_lsq_uncertainty(p, ug, NULL, &err);
             double df = 0, fm = 0, du = 0;
             for (int i = 0; i < n; ++i) {
                 df = fmax(df, fabs(f[i] - g[i]));
@@ -130,7 +130,7 @@ static result measure(int method, int n, int d1, int d2)
                 du = fmax(du, fabs(uf[i] - ug[i]) / uf[i]);
             }
             res.check = fmax(df / fm, du);
-            sc_profile_lsq_destroy(p);
+            sc_profile_lsq_plan_destroy(p);
         }
         free(g);
         free(ug);

@@ -74,17 +74,17 @@ static double run(enum mode m, int n, int d1, int d2, double *wall)
             exit(4);
         t = now_s() - t0;
     } else {
-        sc_profile_lsq *p = NULL;
+        sc_profile_lsq_plan *p = NULL;
         sc_error err;
         unsigned flags = m == SERIAL_UNC ? SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD
                          : m == HUGE_UNC ? SC_PROFILE_LSQ_HUGE_PAGES
                          : m == EARLY_UNC ? SC_PROFILE_LSQ_EARLY_UNCERTAINTY
                                           : 0u;
-        if (sc_profile_lsq_create_ex(n, d1, d2, w1, w2, flags, &p, &err) != SC_OK) exit(5);
-        if (sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err) != SC_OK) exit(6);
-        if (m != FAST_SOLVE && sc_profile_lsq_uncertainty(p, uf, &err) != SC_OK) exit(7);
+        if (sc_profile_lsq_plan_create_tuned(n, d1, d2, w1, w2, flags, &p, &err) != SC_OK) exit(5);
+        if (sc_profile_lsq_execute(p, y1, y2, f, NULL, NULL, &err) != SC_OK) exit(6);
+        if (m != FAST_SOLVE && sc_profile_lsq_uncertainty(p, uf, NULL, &err) != SC_OK) exit(7);
         t = now_s() - t0;
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
     }
     *wall = wall_s() - w0;
     free(y1);
@@ -158,11 +158,11 @@ int main(int argc, char **argv)
     printf("# CPU seconds, best of %d runs, each in its own process (OpenBLAS on 1 thread); memory "
            "= peak RSS of that process minus the same process only holding the data\n", reps);
     {
-        sc_profile_lsq *p = NULL;
+        sc_profile_lsq_plan *p = NULL;
         sc_error err;
-        if (sc_profile_lsq_create(21, 10, 11, 1, 1, &p, &err) == SC_OK)
+        if (sc_profile_lsq_plan_create(21, 10, 11, 1, 1, &p, &err) == SC_OK)
             printf("# fast kernels: %s\n", sc_profile_lsq_uses_simd(p) ? "AVX2/FMA" : "portable");
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
     }
     printf("# fast = twisted factor (both halves from one, by persymmetry) + page-fault helper thread;"
            " '... early uncert. thread' = with SC_PROFILE_LSQ_EARLY_UNCERTAINTY (the selected"

@@ -226,30 +226,30 @@ typedef struct profile_ctx {
 static sc_status profile_lsq(void *ctx, sc_error *err)
 {
     profile_ctx *c = ctx;
-    sc_profile_lsq *p = NULL;
-    sc_status st = sc_profile_lsq_create(c->n, c->d1, c->d2, 1, 1, &p, err);
+    sc_profile_lsq_plan *p = NULL;
+    sc_status st = sc_profile_lsq_plan_create(c->n, c->d1, c->d2, 1, 1, &p, err);
     if (st != SC_OK)
         assert_null(p);
     if (st == SC_OK)
-        st = sc_profile_lsq_solve(p, c->y1, c->y2, c->f, NULL, NULL, err);
+        st = sc_profile_lsq_execute(p, c->y1, c->y2, c->f, NULL, NULL, err);
     if (st == SC_OK)
-        st = sc_profile_lsq_uncertainty(p, c->uf, err);
-    sc_profile_lsq_destroy(p);
+        st = sc_profile_lsq_uncertainty(p, c->uf, NULL, err);
+    sc_profile_lsq_plan_destroy(p);
     return st;
 }
 
 static sc_status profile_dft(void *ctx, sc_error *err)
 {
     profile_ctx *c = ctx;
-    sc_profile_dft *p = NULL;
-    sc_status st = sc_profile_dft_create(c->n, c->d1, c->d2, 1, 1, &p, err);
+    sc_profile_dft_plan *p = NULL;
+    sc_status st = sc_profile_dft_plan_create(c->n, c->d1, c->d2, 1, 1, &p, err);
     if (st != SC_OK)
         assert_null(p);
     if (st == SC_OK)
-        st = sc_profile_dft_solve(p, c->y1, c->y2, c->f, err);
+        st = sc_profile_dft_execute(p, c->y1, c->y2, c->f, err);
     if (st == SC_OK)
-        st = sc_profile_dft_uncertainty(p, c->uf, err);
-    sc_profile_dft_destroy(p);
+        st = sc_profile_dft_uncertainty(p, c->uf, NULL, err);
+    sc_profile_dft_plan_destroy(p);
     return st;
 }
 
@@ -322,8 +322,8 @@ static void test_profile(void **state)
     assert_true(c.y1 && c.y2 && c.f && c.uf);
     for (int i = 0; i < c.n; ++i)
         c.y1[i] = sin(0.1 * i), c.y2[i] = cos(0.07 * i);
-    every_allocation("sc_profile_lsq create + solve + uncertainty", profile_lsq, &c);
-    every_allocation("sc_profile_dft create + solve + uncertainty", profile_dft, &c);
+    every_allocation("sc_profile_lsq_plan create + solve + uncertainty", profile_lsq, &c);
+    every_allocation("sc_profile_dft_plan create + solve + uncertainty", profile_dft, &c);
     free(c.y1), free(c.y2), free(c.f), free(c.uf);
 }
 

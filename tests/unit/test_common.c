@@ -32,15 +32,15 @@ static void test_parse_numbers(void **state)
     assert_int_equal(sc_parse_double("1.5e-3", &d), 0);
     assert_true(d == 1.5e-3);
     assert_int_equal(sc_parse_double("-0", &d), 0);
-    assert_int_equal(sc_parse_double("1.5x", &d), -1);
-    assert_int_equal(sc_parse_double("", &d), -1);
-    assert_int_equal(sc_parse_double("nan", &d), -1);
-    assert_int_equal(sc_parse_double("inf", &d), -1);
-    assert_int_equal(sc_parse_double("1e999", &d), -1);
+    assert_int_equal(sc_parse_double("1.5x", &d), SC_E_INPUT);
+    assert_int_equal(sc_parse_double("", &d), SC_E_INPUT);
+    assert_int_equal(sc_parse_double("nan", &d), SC_E_INPUT);
+    assert_int_equal(sc_parse_double("inf", &d), SC_E_INPUT);
+    assert_int_equal(sc_parse_double("1e999", &d), SC_E_INPUT);
     assert_int_equal(sc_parse_long("42", &l), 0);
     assert_int_equal(l, 42);
-    assert_int_equal(sc_parse_long("4.2", &l), -1);
-    assert_int_equal(sc_parse_long("99999999999999999999999", &l), -1);
+    assert_int_equal(sc_parse_long("4.2", &l), SC_E_INPUT);
+    assert_int_equal(sc_parse_long("99999999999999999999999", &l), SC_E_INPUT);
 }
 
 static void test_error_messages_stay_one_printable_line(void **state)

@@ -62,7 +62,7 @@ static void test_header_good(void **state)
                            "# unknown = 3", "# stage = 5, 7", "# view 0: rot=0 shift=0,0"};
     int expect_used[] = {0, 1, 1, 0, 0, 1, 0};
     for (int k = 0; k < 7; ++k) {
-        int used = -1;
+        bool used = !expect_used[k]; /* the call must write it */
         assert_int_equal(sc_header_line(&p, "f.csv", k + 1, lines[k], &used, &err), SC_OK);
         assert_int_equal(used, expect_used[k]);
     }
@@ -107,7 +107,7 @@ static void test_header_errors(void **state)
         sc_header_init(&p, keys, 5, &h);
         sc_error err;
         sc_error_clear(&err);
-        int used = -1;
+        bool used = true;
         sc_status st = sc_header_line(&p, "f.csv", 4, cases[k].line, &used, &err);
         if (st != SC_E_INPUT || !strstr(err.msg, cases[k].needle))
             fail_msg("case %zu: status %d msg '%s'", k, st, err.msg);
@@ -132,7 +132,7 @@ static void test_header_errors(void **state)
     memset(longline, 'a', sizeof longline - 1);
     longline[0] = '#';
     longline[sizeof longline - 1] = '\0';
-    int used = 1;
+    bool used = true;
     assert_int_equal(sc_header_line(&p, "f.csv", 7, longline, &used, &err), SC_OK);
     assert_int_equal(used, 0);
 }

@@ -151,7 +151,7 @@ static void test_parse_vs_strtod(void **st)
             for (const char *p = s; *p && *p != 'e'; ++p)
                 nonzero |= *p >= '1' && *p <= '9';
             if (nonzero)
-                assert_int_equal(rc, -1);
+                assert_int_equal(rc, SC_E_INPUT);
         }
     }
 }
@@ -170,7 +170,7 @@ static void test_parse_grammar(void **st)
                          "1 ",  "1,5",  "0x10", "inf", "nan", "-inf", "1e999", "1e-999", "1d5",
                          "--1", "+-1",  "1e5.5", "١"};
     for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i)
-        assert_int_equal(parse_str(bad[i], &v), -1);
+        assert_int_equal(parse_str(bad[i], &v), SC_E_INPUT);
     /* only the given bytes count (no NUL needed) */
     assert_int_equal(sc_number_parse("12345", 3, &v), 0);
     assert_true(v == 123);
@@ -190,7 +190,7 @@ static void test_parse_long(void **st)
     const char *bad[] = {"9223372036854775808", "-9223372036854775809", "", "-", "1.0", "1e3",
                          "12 ", "0x10", "+-1"};
     for (size_t i = 0; i < sizeof bad / sizeof *bad; ++i)
-        assert_int_equal(sc_parse_long(bad[i], &v), -1);
+        assert_int_equal(sc_parse_long(bad[i], &v), SC_E_INPUT);
     sc_rng r;
     sc_rng_seed(&r, 3);
     for (int t = 0; t < 100000; ++t) {

@@ -44,15 +44,15 @@ static void reconstruct_noise_free(int n, int d1, int d2, const double *f_true, 
     double w1 = 1.0 / sc_profile_y_variance(d1, 1.0, 0.01, 1.0);
     double w2 = 1.0 / sc_profile_y_variance(d2, 1.0, 0.01, 1.0);
     if (m == SC_PROFILE_DFT) {
-        sc_profile_dft *pl;
-        assert_int_equal(sc_profile_dft_create(n, d1, d2, w1, w2, &pl, &err), SC_OK);
-        assert_int_equal(sc_profile_dft_solve(pl, y1, y2, f, &err), SC_OK);
-        sc_profile_dft_destroy(pl);
+        sc_profile_dft_plan *pl;
+        assert_int_equal(sc_profile_dft_plan_create(n, d1, d2, w1, w2, &pl, &err), SC_OK);
+        assert_int_equal(sc_profile_dft_execute(pl, y1, y2, f, &err), SC_OK);
+        sc_profile_dft_plan_destroy(pl);
     } else {
-        sc_profile_lsq *pl;
-        assert_int_equal(sc_profile_lsq_create(n, d1, d2, w1, w2, &pl, &err), SC_OK);
-        assert_int_equal(sc_profile_lsq_solve(pl, y1, y2, f, NULL, NULL, &err), SC_OK);
-        sc_profile_lsq_destroy(pl);
+        sc_profile_lsq_plan *pl;
+        assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, w1, w2, &pl, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_execute(pl, y1, y2, f, NULL, NULL, &err), SC_OK);
+        sc_profile_lsq_plan_destroy(pl);
     }
     sc_profile_stage_error(&d, f, ey);
     sc_profile_remove_line(n - d1, ey_true);
@@ -220,17 +220,17 @@ static void test_dft_uncertainty_exact(void **state)
     for (size_t c = 0; c < sizeof cfg / sizeof cfg[0]; ++c) {
         int n = cfg[c][0], d1 = cfg[c][1], d2 = cfg[c][2];
         double w[2] = {3.0, 0.7};
-        sc_profile_dft *p;
+        sc_profile_dft_plan *p;
         sc_error err;
-        assert_int_equal(sc_profile_dft_create(n, d1, d2, w[0], w[1], &p, &err), SC_OK);
+        assert_int_equal(sc_profile_dft_plan_create(n, d1, d2, w[0], w[1], &p, &err), SC_OK);
         double *u = malloc((size_t)n * sizeof(double)), *var = calloc((size_t)n, sizeof(double));
         double *y[2] = {calloc((size_t)n, sizeof(double)), calloc((size_t)n, sizeof(double))};
         double *f = malloc((size_t)n * sizeof(double));
-        assert_int_equal(sc_profile_dft_uncertainty(p, u, &err), SC_OK);
+        assert_int_equal(sc_profile_dft_uncertainty(p, u, NULL, &err), SC_OK);
         for (int k = 0; k < 2; ++k)
             for (int i = 0; i < n - cfg[c][1 + k]; ++i) {
                 y[k][i] = 1.0;
-                assert_int_equal(sc_profile_dft_solve(p, y[0], y[1], f, &err), SC_OK);
+                assert_int_equal(sc_profile_dft_execute(p, y[0], y[1], f, &err), SC_OK);
                 y[k][i] = 0.0;
                 for (int j = 0; j < n; ++j)
                     var[j] += f[j] * f[j] / w[k];
@@ -241,22 +241,22 @@ static void test_dft_uncertainty_exact(void **state)
         print_message("dft N=%d d=%d/%d: analytic vs response, worst relative difference %.2e\n", n, d1,
                       d2, worst);
         assert_true(worst < 1e-9);
-        sc_profile_dft_destroy(p);
+        sc_profile_dft_plan_destroy(p);
         free(u), free(var), free(y[0]), free(y[1]), free(f);
     }
 }
 
 typedef struct mc_ctx {
-    sc_profile_dft *dft;
-    sc_profile_lsq *lsq;
+    sc_profile_dft_plan *dft;
+    sc_profile_lsq_plan *lsq;
 } mc_ctx;
 
 static sc_status mc_solve(void *vc, const double *y1, const double *y2, double *f, sc_error *err)
 {
     mc_ctx *c = vc;
     if (c->dft)
-        return sc_profile_dft_solve(c->dft, y1, y2, f, err);
-    return sc_profile_lsq_solve(c->lsq, y1, y2, f, NULL, NULL, err);
+        return sc_profile_dft_execute(c->dft, y1, y2, f, err);
+    return sc_profile_lsq_execute(c->lsq, y1, y2, f, NULL, NULL, err);
 }
 
 /* The paper's set-up: predicted uncertainty equals Monte Carlo; LS about 12 nm in the middle. */
@@ -274,11 +274,11 @@ static void test_paper_setup_mc(void **state)
             sc_error err;
             double *u = malloc(n * sizeof(double)), *umc = malloc(n * sizeof(double));
             if (m == 0) {
-                assert_int_equal(sc_profile_dft_create(n, d1, d2, 1 / v1, 1 / v2, &c.dft, &err), SC_OK);
-                assert_int_equal(sc_profile_dft_uncertainty(c.dft, u, &err), SC_OK);
+                assert_int_equal(sc_profile_dft_plan_create(n, d1, d2, 1 / v1, 1 / v2, &c.dft, &err), SC_OK);
+                assert_int_equal(sc_profile_dft_uncertainty(c.dft, u, NULL, &err), SC_OK);
             } else {
-                assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / v1, 1 / v2, &c.lsq, &err), SC_OK);
-                assert_int_equal(sc_profile_lsq_uncertainty(c.lsq, u, &err), SC_OK);
+                assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1 / v1, 1 / v2, &c.lsq, &err), SC_OK);
+                assert_int_equal(sc_profile_lsq_uncertainty(c.lsq, u, NULL, &err), SC_OK);
             }
             assert_int_equal(sc_profile_mc_uncertainty(n, d1, d2, sqrt(v1), sqrt(v2), mc_solve, &c, trials,
                                                        99 + pi, NULL, NULL, umc, &err),
@@ -296,8 +296,8 @@ static void test_paper_setup_mc(void **state)
             assert_true(worst < 0.10); /* 3000 trials: 1.3 % per point standard error */
             /* "most of the values close to 12 nm" in the middle */
             assert_true(u[n / 2] > 0.010 && u[n / 2] < 0.014);
-            sc_profile_dft_destroy(c.dft);
-            sc_profile_lsq_destroy(c.lsq);
+            sc_profile_dft_plan_destroy(c.dft);
+            sc_profile_lsq_plan_destroy(c.lsq);
             free(u), free(umc);
         }
     }
@@ -321,15 +321,15 @@ static void test_residual_noise_estimate(void **state)
     assert_int_equal(sc_profile_simulate(&p, f, &d, ey, &err), SC_OK);
     sc_profile_combine(&d, 0, y1);
     sc_profile_combine(&d, 1, y2);
-    sc_profile_lsq *pl;
-    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1, 1, &pl, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_solve(pl, y1, y2, fe, NULL, NULL, &err), SC_OK);
+    sc_profile_lsq_plan *pl;
+    assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1, 1, &pl, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pl, y1, y2, fe, NULL, NULL, &err), SC_OK);
     int dof;
     double ss = sc_profile_residual_ss(n, d1, d2, y1, y2, fe, 1, 1, &dof);
     double est = sqrt(ss / dof), truth = sqrt(2) * 0.02;
     print_message("estimated sigma_y %.5f um, simulated %.5f um\n", est, truth);
     assert_true(fabs(est / truth - 1) < 0.08);
-    sc_profile_lsq_destroy(pl);
+    sc_profile_lsq_plan_destroy(pl);
     sc_profile_data_free(&d);
     free(f), free(ey), free(fe), free(y1), free(y2);
 }
@@ -551,15 +551,15 @@ static void test_dft_refuses(void **state)
 {
     (void)state;
     sc_error err;
-    sc_profile_dft *p = NULL;
-    assert_int_equal(sc_profile_dft_usable(330, 10, 11, &err), 1);
-    assert_int_equal(sc_profile_dft_usable(331, 10, 11, &err), 0);
+    sc_profile_dft_plan *p = NULL;
+    assert_true(sc_profile_dft_is_usable(330, 10, 11, &err));
+    assert_false(sc_profile_dft_is_usable(331, 10, 11, &err));
     assert_non_null(strstr(err.msg, "multiple"));
-    assert_int_equal(sc_profile_dft_usable(360, 10, 12, &err), 0);
+    assert_false(sc_profile_dft_is_usable(360, 10, 12, &err));
     assert_non_null(strstr(err.msg, "coprime"));
-    assert_int_equal(sc_profile_dft_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_dft_plan_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
     assert_null(p);
-    assert_int_equal(sc_profile_dft_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
 }
 
 int main(void)

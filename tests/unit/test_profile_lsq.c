@@ -85,19 +85,19 @@ static double noise_free_error(int n, int d1, int d2, const double *f_in, double
     simulate(n, d1, d2, f, c1, c2, y1, y2, NULL, 0, 0);
     double slope = ls_slope(n, f);
     remove_line(n, f);
-    sc_profile_lsq *p = NULL;
+    sc_profile_lsq_plan *p = NULL;
     sc_error err;
     sc_error_clear(&err);
-    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1.0, 2.0, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1.0, 2.0, &p, &err), SC_OK);
     double c[2], wrss;
-    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, fh, c, &wrss, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(p, y1, y2, fh, c, &wrss, &err), SC_OK);
     double e = 0.0;
     for (int i = 0; i < n; i++) e = fmax(e, fabs(fh[i] - f[i]));
     /* the offsets in the LS-line gauge: c_k + slope·d_k */
     e = fmax(e, fabs(c[0] - (c1 + slope * d1)));
     e = fmax(e, fabs(c[1] - (c2 + slope * d2)));
     assert_true(wrss < 1e-15 * n);
-    sc_profile_lsq_destroy(p);
+    sc_profile_lsq_plan_destroy(p);
     free(f);
     free(y1);
     free(y2);
@@ -116,7 +116,7 @@ static void test_solvable_matches_dense_rank(void **state)
             for (int d2 = 1; d2 <= n; d2++) {
                 sc_error err;
                 sc_error_clear(&err);
-                int s = sc_profile_lsq_solvable(n, d1, d2, &err);
+                int s = sc_profile_lsq_is_solvable(n, d1, d2, &err);
                 int rank = sc_profile_lsq_dense_rank(n, d1, d2);
                 assert_true(rank >= 0);
                 if (s != (rank == n)) {
@@ -139,25 +139,25 @@ static void test_solvable_matches_dense_rank(void **state)
 static void test_refuses_bad_input(void **state)
 {
     (void)state;
-    sc_profile_lsq *p = (sc_profile_lsq *)&p;
+    sc_profile_lsq_plan *p = (sc_profile_lsq_plan *)&p;
     sc_error err;
     sc_error_clear(&err);
-    assert_int_equal(sc_profile_lsq_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_plan_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
     assert_null(p);
     assert_non_null(strstr(err.msg, "common divisor"));
-    assert_int_equal(sc_profile_lsq_create(20, 10, 11, 1, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_plan_create(20, 10, 11, 1, 1, &p, &err), SC_E_INPUT);
     assert_non_null(strstr(err.msg, "too small"));
-    assert_int_equal(sc_profile_lsq_create(330, 0, 11, 1, 1, &p, &err), SC_E_INPUT);
-    assert_int_equal(sc_profile_lsq_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
-    assert_int_equal(sc_profile_lsq_create(330, 10, 11, 1, NAN, &p, &err), SC_E_INPUT);
-    assert_int_equal(sc_profile_lsq_create(330, 10, 11, 1, -1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_plan_create(330, 0, 11, 1, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_plan_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_plan_create(330, 10, 11, 1, NAN, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_profile_lsq_plan_create(330, 10, 11, 1, -1, &p, &err), SC_E_INPUT);
     /* exactly N = d1 + d2 is solvable (no redundancy): see docs/profile-lsq.md */
-    assert_int_equal(sc_profile_lsq_create(21, 10, 11, 1, 1, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_plan_create(21, 10, 11, 1, 1, &p, &err), SC_OK);
     double y1[11] = {0}, y2[10] = {0}, f[21];
     y1[3] = NAN;
-    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err), SC_E_INPUT);
-    sc_profile_lsq_destroy(p);
-    sc_profile_lsq_destroy(NULL);
+    assert_int_equal(sc_profile_lsq_execute(p, y1, y2, f, NULL, NULL, &err), SC_E_INPUT);
+    sc_profile_lsq_plan_destroy(p);
+    sc_profile_lsq_plan_destroy(NULL);
 }
 
 /* ---------- noise-free reconstruction ---------- */
@@ -277,13 +277,13 @@ static void compare_with_dense(int n, int d1, int d2, double w1, double w2, uint
            *ud = dalloc((size_t)n);
     random_profile(n, &rng, f);
     simulate(n, d1, d2, f, 0.3, 0.1, y1, y2, &rng, 1 / sqrt(w1), 1 / sqrt(w2));
-    sc_profile_lsq *p = NULL;
+    sc_profile_lsq_plan *p = NULL;
     sc_error err;
     sc_error_clear(&err);
-    assert_int_equal(sc_profile_lsq_create(n, d1, d2, w1, w2, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, w1, w2, &p, &err), SC_OK);
     double cf[2], cd[2];
-    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, ff, cf, NULL, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(p, y1, y2, ff, cf, NULL, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, NULL, &err), SC_OK);
     assert_int_equal(sc_profile_lsq_dense_solve(n, d1, d2, w1, w2, y1, y2, fd, cd, ud), 0);
     double fmax_ = 0, df = 0, du = 0;
     for (int i = 0; i < n; i++) {
@@ -300,7 +300,7 @@ static void compare_with_dense(int n, int d1, int d2, double w1, double w2, uint
                     df / fmax_, du, dc);
         fail();
     }
-    sc_profile_lsq_destroy(p);
+    sc_profile_lsq_plan_destroy(p);
     free(f);
     free(y1);
     free(y2);
@@ -345,19 +345,19 @@ static void test_portable_and_simd_agree(void **state)
         double *fa = dalloc(n), *fb = dalloc(n), *ua = dalloc(n), *ub = dalloc(n);
         random_profile(n, &rng, f);
         simulate(n, d1, d2, f, 0.1, 0.2, y1, y2, &rng, 0.01, 0.012);
-        sc_profile_lsq *pa = NULL, *pb = NULL;
+        sc_profile_lsq_plan *pa = NULL, *pb = NULL;
         sc_error err;
         sc_error_clear(&err);
-        assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, 0u, &pa, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, 0u, &pa, &err), SC_OK);
         assert_int_equal(
-            sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_PORTABLE, &pb, &err),
+            sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_PORTABLE, &pb, &err),
             SC_OK);
-        assert_int_equal(sc_profile_lsq_uses_simd(pb), 0);
+        assert_false(sc_profile_lsq_uses_simd(pb));
         assert_int_equal(sc_profile_lsq_dof(pa), n - d1 - d2);
-        assert_int_equal(sc_profile_lsq_solve(pa, y1, y2, fa, NULL, NULL, &err), SC_OK);
-        assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, NULL, NULL, &err), SC_OK);
-        assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, &err), SC_OK);
-        assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_execute(pa, y1, y2, fa, NULL, NULL, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_execute(pb, y1, y2, fb, NULL, NULL, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, NULL, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, NULL, &err), SC_OK);
         double fs = 0, df = 0, du = 0;
         for (int i = 0; i < n; i++) {
             fs = fmax(fs, fabs(fb[i]));
@@ -367,8 +367,8 @@ static void test_portable_and_simd_agree(void **state)
         print_message("simd=%d vs portable N=%d d=%d/%d: rel diff f %.2g, uf %.2g\n",
                       sc_profile_lsq_uses_simd(pa), n, d1, d2, df / fs, du);
         assert_true(df <= 1e-11 * fs && du <= 1e-11);
-        sc_profile_lsq_destroy(pa);
-        sc_profile_lsq_destroy(pb);
+        sc_profile_lsq_plan_destroy(pa);
+        sc_profile_lsq_plan_destroy(pb);
         free(f);
         free(y1);
         free(y2);
@@ -402,19 +402,19 @@ static void test_twisted_matches_serial(void **state)
             double *fa = dalloc(n), *fb = dalloc(n), *ua = dalloc(n), *ub = dalloc(n);
             random_profile(n, &rng, f);
             simulate(n, d1, d2, f, 0.1, -0.2, y1, y2, &rng, 0.01, 0.012);
-            sc_profile_lsq *pa = NULL, *pb = NULL;
+            sc_profile_lsq_plan *pa = NULL, *pb = NULL;
             sc_error err;
             sc_error_clear(&err);
-            assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, portable, &pa, &err),
+            assert_int_equal(sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, portable, &pa, &err),
                              SC_OK);
-            assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3,
-                                                      portable | SC_PROFILE_LSQ_SERIAL, &pb, &err),
+            assert_int_equal(sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3,
+                                                              portable | SC_PROFILE_LSQ_SERIAL, &pb, &err),
                              SC_OK);
             double ca[2], cb[2], wa, wb;
-            assert_int_equal(sc_profile_lsq_solve(pa, y1, y2, fa, ca, &wa, &err), SC_OK);
-            assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
-            assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, &err), SC_OK);
-            assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_execute(pa, y1, y2, fa, ca, &wa, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_execute(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, NULL, &err), SC_OK);
+            assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, NULL, &err), SC_OK);
             double fs = 0, df = 0, du = 0;
             for (int i = 0; i < n; i++) {
                 fs = fmax(fs, fabs(fb[i]));
@@ -432,8 +432,8 @@ static void test_twisted_matches_serial(void **state)
             assert_true(dc <= 1e-12);
             assert_true(dw <= 1e-12);
             assert_true(du <= 1e-12);
-            sc_profile_lsq_destroy(pa);
-            sc_profile_lsq_destroy(pb);
+            sc_profile_lsq_plan_destroy(pa);
+            sc_profile_lsq_plan_destroy(pb);
             free(f);
             free(y1);
             free(y2);
@@ -459,49 +459,49 @@ static void test_helper_thread_changes_nothing(void **state)
     double *fa = dalloc(n), *fb = dalloc(n), *ua = dalloc(n), *ub = dalloc(n);
     random_profile(n, &rng, f);
     simulate(n, d1, d2, f, 0.1, -0.2, y1, y2, &rng, 0.01, 0.012);
-    sc_profile_lsq *pa = NULL, *pb = NULL;
+    sc_profile_lsq_plan *pa = NULL, *pb = NULL;
     sc_error err;
     sc_error_clear(&err);
-    assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, 0u, &pa, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, 0u, &pa, &err), SC_OK);
     assert_int_equal(
-        sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_ONE_THREAD, &pb, &err), SC_OK);
+        sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_ONE_THREAD, &pb, &err), SC_OK);
     double ca[2], cb[2], wa, wb;
-    assert_int_equal(sc_profile_lsq_solve(pa, y1, y2, fa, ca, &wa, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pa, y1, y2, fa, ca, &wa, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(pa, ua, NULL, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, NULL, &err), SC_OK);
     assert_memory_equal(fa, fb, (size_t)n * sizeof(double));
     assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
     assert_memory_equal(ca, cb, sizeof ca);
     assert_true(wa == wb);
-    sc_profile_lsq_destroy(pb);
+    sc_profile_lsq_plan_destroy(pb);
     /* the selected inversion started early on a second thread: the same; and a plan with that
      * thread destroyed without asking for the uncertainty (the thread is joined, nothing leaks) */
-    assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3,
-                                              SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &pb, &err),
+    assert_int_equal(sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3,
+                                                      SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &pb, &err),
                      SC_OK);
-    assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, NULL, &err), SC_OK);
     assert_memory_equal(fa, fb, (size_t)n * sizeof(double));
     assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
-    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK); /* again: no second join */
+    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, NULL, &err), SC_OK); /* again: no second join */
     assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
-    sc_profile_lsq_destroy(pb);
-    assert_int_equal(sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3,
-                                              SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &pb, &err),
+    sc_profile_lsq_plan_destroy(pb);
+    assert_int_equal(sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3,
+                                                      SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &pb, &err),
                      SC_OK);
-    sc_profile_lsq_destroy(pb);
+    sc_profile_lsq_plan_destroy(pb);
     /* the factor in transparent huge pages: the same */
     assert_int_equal(
-        sc_profile_lsq_create_ex(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_HUGE_PAGES, &pb, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_solve(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, &err), SC_OK);
+        sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_HUGE_PAGES, &pb, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pb, y1, y2, fb, cb, &wb, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(pb, ub, NULL, &err), SC_OK);
     assert_memory_equal(fa, fb, (size_t)n * sizeof(double));
     assert_memory_equal(ua, ub, (size_t)n * sizeof(double));
     assert_memory_equal(ca, cb, sizeof ca);
     assert_true(wa == wb);
-    sc_profile_lsq_destroy(pa);
-    sc_profile_lsq_destroy(pb);
+    sc_profile_lsq_plan_destroy(pa);
+    sc_profile_lsq_plan_destroy(pb);
     free(f);
     free(y1);
     free(y2);
@@ -519,13 +519,13 @@ static void test_uncertainty_vs_monte_carlo(void **state)
     (void)state;
     const int n = 330, d1 = 10, d2 = 11, trials = 20000;
     double v1 = ding_variance_um2(d1), v2 = ding_variance_um2(d2);
-    sc_profile_lsq *p = NULL;
+    sc_profile_lsq_plan *p = NULL;
     sc_error err;
     sc_error_clear(&err);
-    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / v1, 1 / v2, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1 / v1, 1 / v2, &p, &err), SC_OK);
     double *uf = dalloc(n), *f = dalloc(n), *ft = dalloc(n), *y1 = dalloc(n), *y2 = dalloc(n);
     double *acc = dalloc(n);
-    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, NULL, &err), SC_OK);
     sc_rng rng;
     sc_rng_seed(&rng, 42);
     random_profile(n, &rng, ft);
@@ -535,7 +535,7 @@ static void test_uncertainty_vs_monte_carlo(void **state)
     for (int t = 0; t < trials; t++) {
         simulate(n, d1, d2, ft, 0.5, -0.2, y1, y2, &rng, sqrt(v1), sqrt(v2));
         double wrss;
-        assert_int_equal(sc_profile_lsq_solve(p, y1, y2, f, NULL, &wrss, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_execute(p, y1, y2, f, NULL, &wrss, &err), SC_OK);
         wrss_sum += wrss;
         for (int i = 0; i < n; i++) acc[i] += (f[i] - ft[i]) * (f[i] - ft[i]);
     }
@@ -556,7 +556,7 @@ static void test_uncertainty_vs_monte_carlo(void **state)
     /* E[wrss] = degrees of freedom N - d1 - d2 */
     double dof = n - d1 - d2;
     assert_true(fabs(wrss_sum / trials / dof - 1) < 0.01);
-    sc_profile_lsq_destroy(p);
+    sc_profile_lsq_plan_destroy(p);
     free(uf);
     free(f);
     free(ft);
@@ -572,14 +572,14 @@ static void test_paper_setup(void **state)
     const int ds[2][2] = {{10, 11}, {3, 11}};
     for (int q = 0; q < 2; q++) {
         int d1 = ds[q][0], d2 = ds[q][1];
-        sc_profile_lsq *p = NULL;
+        sc_profile_lsq_plan *p = NULL;
         sc_error err;
         sc_error_clear(&err);
-        assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / ding_variance_um2(d1),
-                                               1 / ding_variance_um2(d2), &p, &err),
+        assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1 / ding_variance_um2(d1),
+                                                    1 / ding_variance_um2(d2), &p, &err),
                          SC_OK);
         double uf[330];
-        assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_uncertainty(p, uf, NULL, &err), SC_OK);
         print_message("paper set-up d = %d/%d: uf(0) = %.2f nm, uf(N/4) = %.2f nm, uf(N/2) = %.2f "
                       "nm\n",
                       d1, d2, uf[0] * 1e3, uf[n / 4] * 1e3, uf[n / 2] * 1e3);
@@ -587,7 +587,7 @@ static void test_paper_setup(void **state)
             /* Ding Fig. 4: about 12 nm in the middle */
             assert_true(uf[n / 2] > 0.010 && uf[n / 2] < 0.014);
         }
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
     }
 }
 
@@ -736,12 +736,12 @@ static void test_million_points_vs_long_double(void **state)
     sc_rng_seed(&rng, 7);
     random_profile(n, &rng, ft);
     simulate(n, d1, d2, ft, 0.5, -0.2, y1, y2, &rng, sqrt(v1), sqrt(v2));
-    sc_profile_lsq *p = NULL;
+    sc_profile_lsq_plan *p = NULL;
     sc_error err;
     sc_error_clear(&err);
-    assert_int_equal(sc_profile_lsq_create(n, d1, d2, 1 / v1, 1 / v2, &p, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_solve(p, y1, y2, f, NULL, NULL, &err), SC_OK);
-    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1 / v1, 1 / v2, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(p, y1, y2, f, NULL, NULL, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_uncertainty(p, uf, NULL, &err), SC_OK);
     const int idx[5] = {0, 17, n / 3 + 5, n / 2, n - 1};
     double var[5];
     long_double_reference(n, d1, d2, 1 / v1, 1 / v2, y1, y2, n / 4, (3 * n) / 4, fr, 5, idx, var);
@@ -758,7 +758,7 @@ static void test_million_points_vs_long_double(void **state)
                       "(rel %.2g)\n", idx[q], uf[idx[q]], ref, fabs(uf[idx[q]] - ref) / ref);
         assert_true(fabs(uf[idx[q]] - ref) <= 1e-8 * ref);
     }
-    sc_profile_lsq_destroy(p);
+    sc_profile_lsq_plan_destroy(p);
     free(ft);
     free(y1);
     free(y2);

@@ -136,29 +136,29 @@ int cmd_profile_plan(int argc, char **argv)
         for (long d2 = d1 + 1; d2 <= dmax; ++d2) {
             sc_error err;
             sc_error_clear(&err);
-            if (!sc_profile_lsq_solvable((int)n, (int)d1, (int)d2, NULL))
+            if (!sc_profile_lsq_is_solvable((int)n, (int)d1, (int)d2, NULL))
                 continue;
             double w1 = 1.0 / sc_profile_y_variance((int)d1, s, sd, sa);
             double w2 = 1.0 / sc_profile_y_variance((int)d2, s, sd, sa);
             plan_row r = {(int)d1, (int)d2, NAN, NAN, NAN, NAN};
-            sc_profile_lsq *lp = NULL;
-            if (sc_profile_lsq_create((int)n, (int)d1, (int)d2, w1, w2, &lp, &err) != SC_OK ||
-                sc_profile_lsq_uncertainty(lp, u, &err) != SC_OK) {
-                sc_profile_lsq_destroy(lp);
+            sc_profile_lsq_plan *lp = NULL;
+            if (sc_profile_lsq_plan_create((int)n, (int)d1, (int)d2, w1, w2, &lp, &err) != SC_OK ||
+                sc_profile_lsq_uncertainty(lp, u, NULL, &err) != SC_OK) {
+                sc_profile_lsq_plan_destroy(lp);
                 rc = cli_report(&err);
                 break;
             }
-            sc_profile_lsq_destroy(lp);
+            sc_profile_lsq_plan_destroy(lp);
             stats(u, (int)n, &r.lsq_rms, &r.lsq_max);
-            if (sc_profile_dft_usable((int)n, (int)d1, (int)d2, NULL)) {
-                sc_profile_dft *dp = NULL;
-                if (sc_profile_dft_create((int)n, (int)d1, (int)d2, w1, w2, &dp, &err) != SC_OK ||
-                    sc_profile_dft_uncertainty(dp, u, &err) != SC_OK) {
-                    sc_profile_dft_destroy(dp);
+            if (sc_profile_dft_is_usable((int)n, (int)d1, (int)d2, NULL)) {
+                sc_profile_dft_plan *dp = NULL;
+                if (sc_profile_dft_plan_create((int)n, (int)d1, (int)d2, w1, w2, &dp, &err) != SC_OK ||
+                    sc_profile_dft_uncertainty(dp, u, NULL, &err) != SC_OK) {
+                    sc_profile_dft_plan_destroy(dp);
                     rc = cli_report(&err);
                     break;
                 }
-                sc_profile_dft_destroy(dp);
+                sc_profile_dft_plan_destroy(dp);
                 stats(u, (int)n, &r.dft_rms, &r.dft_max);
             }
             rows[cnt++] = r;

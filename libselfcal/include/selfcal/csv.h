@@ -7,6 +7,7 @@
 #ifndef SELFCAL_CSV_H
 #define SELFCAL_CSV_H
 
+#include <stdbool.h>
 #include "selfcal/api.h"
 
 #include <stdio.h>
@@ -53,8 +54,8 @@ SC_API void sc_csv_close(sc_csv *r);
 /* Read the next line into r->text: 1 = a line, 0 = end of file, -1 = error (err says which). */
 SC_API int sc_csv_next_line(sc_csv *r, sc_error *err);
 
-/* 1 if the current line is empty or only white space. */
-SC_API int sc_csv_is_blank(const sc_csv *r);
+/* Is the current line empty or only white space? */
+SC_API bool sc_csv_is_blank(const sc_csv *r);
 
 /* Split the current line at commas, trimming blanks around fields; returns the field count or -1. */
 SC_API int sc_csv_split(sc_csv *r, sc_error *err);
@@ -69,13 +70,14 @@ SC_API sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out
 /* Trim white space at both ends of s in place; returns the first non-blank character. */
 SC_API char *sc_str_trim(char *s);
 
-/* Parse s strictly as a finite double / a long; 0 on success, -1 otherwise. */
-SC_API int sc_parse_double(const char *s, double *out);
-SC_API int sc_parse_long(const char *s, long *out);
+/* Parse s strictly as a finite double / a long: SC_OK and *out set, or SC_E_INPUT (no message:
+ * the caller knows the field and the line; sc_csv_double/_long below say them). */
+SC_API sc_status sc_parse_double(const char *s, double *out);
+SC_API sc_status sc_parse_long(const char *s, long *out);
 
 /* For a header line "# key = value", copy the trimmed key and point *value at the trimmed value
- * (the value is the rest of the line with trailing blanks removed in place). 1 if it has that form. */
-SC_API int sc_header_kv(char *line, char *key, size_t keylen, char **value);
+ * (the value is the rest of the line with trailing blanks removed in place). True if it has that form. */
+SC_API bool sc_header_kv(char *line, char *key, size_t keylen, char **value);
 
 #ifdef __cplusplus
 }

@@ -16,6 +16,7 @@
 #ifndef SELFCAL_GRID_H
 #define SELFCAL_GRID_H
 
+#include <stdbool.h>
 #include "selfcal/api.h"
 #include "selfcal/error.h"
 
@@ -99,8 +100,8 @@ SC_API int sc_grid_stage_ny(const sc_grid_plan *p);
 /* Number of stage nodes NX·NY. */
 SC_API long sc_grid_stage_nodes(const sc_grid_plan *p);
 
-/* 1 if the stage grid is the plate's N x N (what the closed-form methods need). */
-SC_API int sc_grid_stage_is_plate(const sc_grid_plan *p);
+/* True if the stage grid is the plate's N x N (what the closed-form methods need). */
+SC_API bool sc_grid_stage_is_plate(const sc_grid_plan *p);
 
 /* Plate-centred nominal position of mark (i, j) in mm: ((j-c)P, (i-c)P). */
 SC_API void sc_grid_mark_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
@@ -109,11 +110,11 @@ SC_API void sc_grid_mark_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm
  * row's own ux/uy if finite, else the view's sigma_um if stated, else NaN (not stated). */
 SC_API double sc_grid_data_u_um(const sc_grid_data *d, int v, long k, int c);
 
-/* Stage node where mark (i, j) lands in view v: 1 and (*ni, *nj) if on the stage grid, else 0. */
-SC_API int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj);
+/* Stage node where mark (i, j) lands in view v: true and (*ni, *nj) if on the stage grid, else false. */
+SC_API bool sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj);
 
-/* 1 if view v measures mark (i, j): it lands on the grid and, if restricted, its row or column is selected. */
-SC_API int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
+/* True if view v measures mark (i, j): it lands on the grid and, if restricted, its row or column is selected. */
+SC_API bool sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
 
 /* Nominal stage node position relative to the stage grid centre, in mm: x = (j-cx)P, y = (i-cy)P. */
 SC_API void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);

@@ -9,6 +9,7 @@
 #ifndef SELFCAL_GRID_EXACT_H
 #define SELFCAL_GRID_EXACT_H
 
+#include <stdbool.h>
 #include "selfcal/api.h"
 
 #include "selfcal/grid.h"
@@ -39,8 +40,8 @@ SC_API int sc_grid_exact_needs(sc_grid_exact_method m, sc_grid_view_need need[4]
 /* The smallest plate size N the method works for (3 for Ye, 9 for double shift). */
 SC_API int sc_grid_exact_min_n(sc_grid_exact_method m);
 
-/* 1 if method m uses mark (i, j) of the view in role r, for an n x n plate. */
-SC_API int sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j);
+/* True if method m uses mark (i, j) of the view in role r, for an n x n plate. */
+SC_API bool sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j);
 
 /* Make a plan for method m and plate size n (Ye: n odd >= 3; double shift: n odd >= 9). */
 SC_API sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact_plan **out,

@@ -20,6 +20,8 @@
 
 #include <stddef.h>
 
+#include <stdbool.h>
+
 #include "selfcal/api.h"
 #include "selfcal/error.h"
 
@@ -60,11 +62,11 @@ typedef struct sc_header {
 SC_API void sc_header_init(sc_header *h, const sc_header_key *keys, int n_keys, void *dst);
 
 /* Feed one line of text (as read, starting with '#') at line `line` of file `path`.
- * *used = 1 if the line was `# key = value` with a key of the table (value stored), else 0 and
+ * *used = true if the line was `# key = value` with a key of the table (value stored), else false and
  * the line is untouched. SC_E_INPUT with FILE:LINE for a bad value, a value out of range or a
  * repeated key. used may be NULL. */
 SC_API sc_status sc_header_line(sc_header *h, const char *path, long line, const char *text,
-                                int *used, sc_error *err);
+                                bool *used, sc_error *err);
 
 /* End of the header: SC_E_INPUT naming the first required key that was not given, reported at
  * `line` (e.g. the line where the header ended). */

@@ -21,6 +21,7 @@
 #ifndef SELFCAL_IMPORT_H
 #define SELFCAL_IMPORT_H
 
+#include <stdbool.h>
 #include "selfcal/api.h"
 #include "selfcal/grid.h"
 #include "selfcal/profile.h"
@@ -84,10 +85,10 @@ SC_API sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *
 /* Doubles of workspace sc_grid_import_assign needs for n_points points. */
 SC_API size_t sc_grid_import_work_doubles(long n_points);
 
-/* 1 and the stage node (*ni, *nj) if view v of the import puts mark (i, j) on a stage node that it
- * measures (rows=/cols= of v applied), else 0. */
-SC_API int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
-                                    int *ni, int *nj);
+/* True and the stage node (*ni, *nj) if view v of the import puts mark (i, j) on a stage node that it
+ * measures (rows=/cols= of v applied), else false. */
+SC_API bool sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
+                                     int *ni, int *nj);
 
 /* Assign the points (x_mm, y_mm: stage frame) of one view v. Fills point_mark[k] (the mark
  * i*n + j of point k, or -1 if left out; n_points values) and mark_point[m] (the point of mark m

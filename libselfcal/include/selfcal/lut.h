@@ -7,6 +7,7 @@
 #ifndef SELFCAL_LUT_H
 #define SELFCAL_LUT_H
 
+#include <stdbool.h>
 #include "selfcal/api.h"
 
 #include <stddef.h>
@@ -121,9 +122,9 @@ SC_API sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_er
 SC_API double sc_lut_quantization_um(uint32_t scale_pm);
 
 /* Bilinear G of the grid at (x, y) mm, in double precision (um); outside the grid the value at
- * the nearest edge point. Returns 1 if (x, y) was outside. The reference for the exporters. */
-SC_API int sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um,
-                            double *gy_um);
+ * the nearest edge point. Returns true if (x, y) was outside. The reference for the exporters. */
+SC_API bool sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um,
+                             double *gy_um);
 
 #ifdef __cplusplus
 }

@@ -15,6 +15,7 @@
 #include <stddef.h>
 
 #include "selfcal/api.h"
+#include "selfcal/error.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -23,8 +24,8 @@ extern "C" {
 /* Buffer size that holds any formatted double with its terminating NUL. */
 #define SC_NUMBER_BUF 32
 
-/* Parse the len bytes at s as a whole number (format above). 0 and *out set, or -1. */
-SC_API int sc_number_parse(const char *s, size_t len, double *out);
+/* Parse the len bytes at s as a whole number (format above): SC_OK and *out set, or SC_E_INPUT. */
+SC_API sc_status sc_number_parse(const char *s, size_t len, double *out);
 
 /* Write v's shortest round-trip text and a NUL into buf (SC_NUMBER_BUF bytes); returns the
  * length. NaN and infinities are written as printf writes them ("nan", "-inf", ...). */

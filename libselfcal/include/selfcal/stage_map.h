@@ -20,6 +20,7 @@
 #ifndef SELFCAL_STAGE_MAP_H
 #define SELFCAL_STAGE_MAP_H
 
+#include <stdbool.h>
 #include <stdio.h>
 
 #include "selfcal/api.h"
@@ -49,8 +50,8 @@ SC_API sc_status sc_stage_map_read(const char *path, sc_stage_map *m, sc_error *
 /* Free the arrays of a map filled by sc_stage_map_read (safe on a zeroed map). */
 SC_API void sc_stage_map_free(sc_stage_map *m);
 
-/* 1 if the map carries at least one finite uncertainty. */
-SC_API int sc_stage_map_has_u(const sc_stage_map *m);
+/* Does the map carry at least one finite uncertainty? */
+SC_API bool sc_stage_map_has_u(const sc_stage_map *m);
 
 /* Position of node (i, j) in mm. */
 SC_API double sc_stage_map_x_mm(const sc_stage_map *m, int j);

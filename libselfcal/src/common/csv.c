@@ -140,12 +140,12 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     return 1;
 }
 
-int sc_csv_is_blank(const sc_csv *r)
+bool sc_csv_is_blank(const sc_csv *r)
 {
     for (const char *p = r->text; p && *p; ++p)
         if (!isspace((unsigned char)*p))
-            return 0;
-    return 1;
+            return false;
+    return true;
 }
 
 char *sc_str_trim(char *s)
@@ -180,37 +180,37 @@ int sc_csv_split(sc_csv *r, sc_error *err)
     return n;
 }
 
-int sc_parse_double(const char *s, double *out)
+sc_status sc_parse_double(const char *s, double *out)
 {
     if (!s || !*s)
-        return -1;
+        return SC_E_INPUT;
     return sc_number_parse(s, strlen(s), out);
 }
 
 /* Decimal whole numbers as strtol(s, 10) takes them (optional blanks and sign first), without the
  * locale machinery: the readers parse two of them per line. */
-int sc_parse_long(const char *s, long *out)
+sc_status sc_parse_long(const char *s, long *out)
 {
     if (!s || !*s)
-        return -1;
+        return SC_E_INPUT;
     while (isspace((unsigned char)*s))
         ++s;
     int neg = *s == '-';
     if (*s == '-' || *s == '+')
         ++s;
     if (!(*s >= '0' && *s <= '9'))
-        return -1;
+        return SC_E_INPUT;
     unsigned long v = 0, lim = neg ? (unsigned long)LONG_MAX + 1 : (unsigned long)LONG_MAX;
     for (; *s >= '0' && *s <= '9'; ++s) {
         unsigned d = (unsigned)(*s - '0');
         if (v > (lim - d) / 10)
-            return -1;
+            return SC_E_INPUT;
         v = v * 10 + d;
     }
     if (*s != '\0')
-        return -1;
+        return SC_E_INPUT;
     *out = neg ? (long)(0UL - v) : (long)v;
-    return 0;
+    return SC_OK;
 }
 
 sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, sc_error *err)
@@ -233,23 +233,23 @@ sc_status sc_csv_long(const sc_csv *r, int k, const char *name, long *out, sc_er
     return SC_OK;
 }
 
-int sc_header_kv(char *line, char *key, size_t keylen, char **value)
+bool sc_header_kv(char *line, char *key, size_t keylen, char **value)
 {
     char *p = line;
     if (*p != '#')
-        return 0;
+        return false;
     ++p;
     char *eq = strchr(p, '=');
     if (!eq)
-        return 0;
+        return false;
     *eq = '\0';
     char *k = sc_str_trim(p);
     char *v = sc_str_trim(eq + 1);
     if (!*k || strlen(k) >= keylen) {
         *eq = '=';
-        return 0;
+        return false;
     }
     snprintf(key, keylen, "%s", k);
     *value = v;
-    return 1;
+    return true;
 }

@@ -98,11 +98,11 @@ static void store(const sc_header_key *d, void *dst, const double v[2])
     }
 }
 
-sc_status sc_header_line(sc_header *h, const char *path, long line, const char *text, int *used,
+sc_status sc_header_line(sc_header *h, const char *path, long line, const char *text, bool *used,
                          sc_error *err)
 {
     if (used)
-        *used = 0;
+        *used = false;
     char buf[1024], key[64], *value;
     if (strlen(text) >= sizeof buf)
         return SC_OK; /* longer than any header line of ours: not a key line */
@@ -126,7 +126,7 @@ sc_status sc_header_line(sc_header *h, const char *path, long line, const char *
     store(d, h->dst, v);
     h->line[k] = line;
     if (used)
-        *used = 1;
+        *used = true;
     return SC_OK;
 }
 

@@ -16,23 +16,23 @@ void sc_number_kernel_shortest(double v, uint64_t *digits, int *exp10);
  * words inf/nan (refused as non-finite), and stops at the first byte outside it (refused: it must
  * consume every byte), so no second scan is needed; only a zero or subnormal result looks at the
  * digits again, to refuse an underflow of nonzero digits. */
-int sc_number_parse(const char *s, size_t len, double *out)
+sc_status sc_number_parse(const char *s, size_t len, double *out)
 {
     const char *p = s, *end = s + len;
     if (p < end && *p == '+') {
         ++p;
         if (p < end && *p == '-')
-            return -1;
+            return SC_E_INPUT;
     }
     double v;
     if (p == end || sc_number_kernel_parse(p, end, &v) != 0 || !isfinite(v))
-        return -1;
+        return SC_E_INPUT;
     if (!(fabs(v) >= DBL_MIN)) /* zero or subnormal: refuse unless every digit is 0 */
         for (const char *q = p; q < end && *q != 'e' && *q != 'E'; ++q)
             if (*q >= '1' && *q <= '9')
-                return -1;
+                return SC_E_INPUT;
     *out = v;
-    return 0;
+    return SC_OK;
 }
 
 int sc_number_format(double v, char *buf)

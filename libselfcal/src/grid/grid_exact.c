@@ -33,15 +33,15 @@ int sc_grid_exact_min_n(sc_grid_exact_method m)
     return m == SC_GRID_YE ? 3 : 9;
 }
 
-int sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j)
+bool sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j)
 {
     sc_grid_view_need need[4];
     int k = sc_grid_exact_needs(m, need), c = (n - 1) / 2;
     if (r < 0 || r >= k)
-        return 0;
+        return false;
     int sx = need[r].shift_x;
     if (j + sx < 0 || j + sx > n - 1) /* lands off the grid (rot 0 views shift along x) */
-        return 0;
+        return false;
     return !need[r].partial || i == c || j == c || j == c + 1;
 }
 

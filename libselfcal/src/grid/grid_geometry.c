@@ -12,7 +12,7 @@ long sc_grid_stage_nodes(const sc_grid_plan *p)
     return (long)sc_grid_stage_nx(p) * sc_grid_stage_ny(p);
 }
 
-int sc_grid_stage_is_plate(const sc_grid_plan *p)
+bool sc_grid_stage_is_plate(const sc_grid_plan *p)
 {
     return sc_grid_stage_nx(p) == p->n && sc_grid_stage_ny(p) == p->n;
 }
@@ -32,7 +32,7 @@ double sc_grid_data_u_um(const sc_grid_data *d, int v, long k, int c)
     return d->plan.view[v].sigma_um > 0 ? d->plan.view[v].sigma_um : NAN;
 }
 
-int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj)
+bool sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *nj)
 {
     const sc_grid_view *w = &p->view[v];
     int c = (p->n - 1) / 2;
@@ -44,25 +44,25 @@ int sc_grid_mark_node(const sc_grid_plan *p, int v, int i, int j, int *ni, int *
     case 90: ru = -q; rq = u; break;
     case 180: ru = -u; rq = -q; break;
     case 270: ru = q; rq = -u; break;
-    default: return 0;
+    default: return false;
     }
     int jn = (nx - 1) / 2 + ru + w->shift_x, in = (ny - 1) / 2 + rq + w->shift_y;
     if (jn < 0 || jn >= nx || in < 0 || in >= ny)
-        return 0;
+        return false;
     *ni = in;
     *nj = jn;
-    return 1;
+    return true;
 }
 
-int sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j)
+bool sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j)
 {
     int ni, nj;
     if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
-        return 0;
+        return false;
     const sc_grid_view *w = &p->view[v];
     if (w->restricted && !w->row_sel[i] && !w->col_sel[j])
-        return 0;
-    return 1;
+        return false;
+    return true;
 }
 
 void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm)

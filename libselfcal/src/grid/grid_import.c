@@ -48,8 +48,8 @@ size_t sc_grid_import_work_doubles(long n_points)
     return (size_t)(n_points > 0 ? n_points : 1);
 }
 
-int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
-                             int *ni, int *nj)
+bool sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
+                              int *ni, int *nj)
 {
     int c = (p->n - 1) / 2;
     int nx = p->stage_nx ? p->stage_nx : p->n, ny = p->stage_ny ? p->stage_ny : p->n;
@@ -62,12 +62,12 @@ int sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view 
     }
     long jj = (long)sx + v->shift_x + (nx - 1) / 2, ii = (long)sy + v->shift_y + (ny - 1) / 2;
     if (ii < 0 || ii >= ny || jj < 0 || jj >= nx)
-        return 0;
+        return false;
     if (v->restricted && !v->row_sel[i] && !v->col_sel[j])
-        return 0;
+        return false;
     *ni = (int)ii;
     *nj = (int)jj;
-    return 1;
+    return true;
 }
 
 /* The placement: measured = origin + t + Rot(theta)·(nominal − origin). */

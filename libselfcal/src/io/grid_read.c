@@ -230,7 +230,7 @@ static sc_status header_comment(read_state *s, long ln, sc_error *err)
     if (!strncmp(body, "view", 4) &&
         (isspace((unsigned char)body[4]) || isdigit((unsigned char)body[4])))
         return header_view(s, ln, body, err);
-    int used = 0;
+    bool used = false;
     sc_status st = sc_header_line(&s->hdr, s->path, ln, s->csv.text, &used, err);
     if (st != SC_OK)
         return st;

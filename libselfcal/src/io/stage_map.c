@@ -260,13 +260,13 @@ void sc_stage_map_free(sc_stage_map *m)
     memset(m, 0, sizeof *m);
 }
 
-int sc_stage_map_has_u(const sc_stage_map *m)
+bool sc_stage_map_has_u(const sc_stage_map *m)
 {
     size_t nn = (size_t)m->nx * (size_t)m->ny;
     for (size_t k = 0; m->ugx_um && m->ugy_um && k < nn; ++k)
         if (isfinite(m->ugx_um[k]) || isfinite(m->ugy_um[k]))
-            return 1;
-    return 0;
+            return true;
+    return false;
 }
 
 double sc_stage_map_x_mm(const sc_stage_map *m, int j)

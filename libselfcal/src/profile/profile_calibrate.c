@@ -24,16 +24,16 @@ void sc_profile_options_default(sc_profile_options *o)
 
 typedef struct solver_ctx {
     sc_profile_method method;
-    sc_profile_dft *dft;
-    sc_profile_lsq *lsq;
+    sc_profile_dft_plan *dft;
+    sc_profile_lsq_plan *lsq;
 } solver_ctx;
 
 static sc_status solve_cb(void *vctx, const double *y1, const double *y2, double *f, sc_error *err)
 {
     solver_ctx *c = vctx;
     if (c->method == SC_PROFILE_DFT)
-        return sc_profile_dft_solve(c->dft, y1, y2, f, err);
-    return sc_profile_lsq_solve(c->lsq, y1, y2, f, NULL, NULL, err);
+        return sc_profile_dft_execute(c->dft, y1, y2, f, err);
+    return sc_profile_lsq_execute(c->lsq, y1, y2, f, NULL, NULL, err);
 }
 
 /* The noise of the scans: options > header > unknown. Sets s's noise fields and the variances
@@ -67,9 +67,9 @@ static sc_status uncertainty(const sc_profile_data *d, const sc_profile_options 
                                        ctx, o->mc_trials, o->mc_seed, o->progress, o->progress_ctx,
                                        uf, err);
     else if (o->method == SC_PROFILE_DFT)
-        st = sc_profile_dft_uncertainty(ctx->dft, uf, err);
+        st = sc_profile_dft_uncertainty(ctx->dft, uf, NULL, err);
     else
-        st = sc_profile_lsq_uncertainty(ctx->lsq, uf, err);
+        st = sc_profile_lsq_uncertainty(ctx->lsq, uf, NULL, err);
     if (st == SC_OK)
         for (int i = 0; i < d->n; ++i)
             uf[i] *= scale;
@@ -86,17 +86,17 @@ static sc_status residuals(const sc_profile_data *d, solver_ctx *ctx, const doub
 {
     const int n = d->n, d1 = d->d[0], d2 = d->d[1];
     const double *fres = f;
-    sc_profile_lsq *lres = NULL;
+    sc_profile_lsq_plan *lres = NULL;
     if (ctx->method == SC_PROFILE_DFT && s->noise_known && !residual_check) {
         s->wrss = NAN;
         s->dof = n - d1 - d2;
         return SC_OK;
     }
     if (ctx->method == SC_PROFILE_DFT) {
-        sc_status st = sc_profile_lsq_create(n, d1, d2, w[0], w[1], &lres, err);
+        sc_status st = sc_profile_lsq_plan_create(n, d1, d2, w[0], w[1], &lres, err);
         if (st == SC_OK)
-            st = sc_profile_lsq_solve(lres, y1, y2, tmp, NULL, NULL, err);
-        sc_profile_lsq_destroy(lres);
+            st = sc_profile_lsq_execute(lres, y1, y2, tmp, NULL, NULL, err);
+        sc_profile_lsq_plan_destroy(lres);
         if (st != SC_OK)
             return st;
         fres = tmp;
@@ -126,10 +126,10 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
     sc_profile_combine(d, 1, y2);
     solver_ctx ctx = {o->method, NULL, NULL};
     if (o->method == SC_PROFILE_DFT)
-        st = sc_profile_dft_create(n, d1, d2, w[0], w[1], &ctx.dft, err);
+        st = sc_profile_dft_plan_create(n, d1, d2, w[0], w[1], &ctx.dft, err);
     else /* every point's uncertainty follows: start the selected inversion on a second core */
-        st = sc_profile_lsq_create_ex(n, d1, d2, w[0], w[1], SC_PROFILE_LSQ_EARLY_UNCERTAINTY,
-                                      &ctx.lsq, err);
+        st = sc_profile_lsq_plan_create_tuned(n, d1, d2, w[0], w[1], SC_PROFILE_LSQ_EARLY_UNCERTAINTY,
+                                              &ctx.lsq, err);
     if (st == SC_OK)
         st = solve_cb(&ctx, y1, y2, f, err);
     if (st == SC_OK)
@@ -168,8 +168,8 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
             s->uf_um[i] = uf[i];
     }
 done:
-    sc_profile_dft_destroy(ctx.dft);
-    sc_profile_lsq_destroy(ctx.lsq);
+    sc_profile_dft_plan_destroy(ctx.dft);
+    sc_profile_lsq_plan_destroy(ctx.lsq);
     free(blk);
     return st;
 }

@@ -10,13 +10,14 @@
 #include <complex.h>
 #include <fftw3.h>
 #include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "selfcal/profile.h"
 #include "selfcal/profile_dft.h"
 
-struct sc_profile_dft {
+struct sc_profile_dft_plan {
     int n, d[2], nh;
     double w[2];
     double *rbuf;               /* N reals (FFTW buffer) */
@@ -38,25 +39,25 @@ static long gcd_l(long a, long b)
     return a < 0 ? -a : a;
 }
 
-int sc_profile_dft_usable(int n, int d1, int d2, sc_error *err)
+bool sc_profile_dft_is_usable(int n, int d1, int d2, sc_error *err)
 {
     if (d1 < 1 || d2 < 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "sensor spacings must be >= 1 (d1 = %d, d2 = %d)", d1, d2),
-               0;
+               false;
     if (d1 == d2 || gcd_l(d1, d2) != 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "d1 = %d and d2 = %d are not coprime (gcd = %ld): the harmonics that both "
                             "scans lose cannot be recovered",
                             d1, d2, gcd_l(d1, d2)),
-               0;
+               false;
     long prod = (long)d1 * d2;
     if (n < 2 * (d1 > d2 ? d1 : d2) || n % prod != 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "N = %d is not a multiple of d1*d2 = %ld (the DFT method needs N = p*d1*d2; "
                             "nearest: %ld; the lsq method has no such restriction)",
                             n, prod, prod * (n / prod < 1 ? 1 : (n % prod) * 2 >= prod ? n / prod + 1 : n / prod)),
-               0;
-    return 1;
+               false;
+    return true;
 }
 
 /* The natural extension of y (n - d values) to a full period x (n values). */
@@ -72,15 +73,15 @@ static void extend(int n, int d, const double *y, double *x)
     }
 }
 
-sc_status sc_profile_dft_create(int n, int d1, int d2, double w1, double w2,
-                                sc_profile_dft **out, sc_error *err)
+sc_status sc_profile_dft_plan_create(int n, int d1, int d2, double w1, double w2,
+                                     sc_profile_dft_plan **out, sc_error *err)
 {
     *out = NULL;
-    if (!sc_profile_dft_usable(n, d1, d2, err))
+    if (!sc_profile_dft_is_usable(n, d1, d2, err))
         return SC_E_INPUT;
     if (!(w1 > 0) || !(w2 > 0) || !isfinite(w1) || !isfinite(w2))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "scan weights must be positive (w1 = %g, w2 = %g)", w1, w2);
-    sc_profile_dft *p = calloc(1, sizeof *p);
+    sc_profile_dft_plan *p = calloc(1, sizeof *p);
     if (!p)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     p->n = n;
@@ -100,13 +101,13 @@ sc_status sc_profile_dft_create(int n, int d1, int d2, double w1, double w2,
     }
     if (!p->rbuf || !p->cbuf || !p->zeta || !p->x1 || !p->alpha[0] || !p->alpha[1] || !p->beta[0] ||
         !p->beta[1]) {
-        sc_profile_dft_destroy(p);
+        sc_profile_dft_plan_destroy(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
     }
     p->r2c = fftw_plan_dft_r2c_1d(n, p->rbuf, p->cbuf, FFTW_ESTIMATE);
     p->c2r = fftw_plan_dft_c2r_1d(n, p->cbuf, p->rbuf, FFTW_ESTIMATE);
     if (!p->r2c || !p->c2r) {
-        sc_profile_dft_destroy(p);
+        sc_profile_dft_plan_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "FFTW could not plan size %d", n);
     }
     /* spectral weights (eqs. 8, 9 with the scans' own noise variances 1/w_k). Every
@@ -121,7 +122,7 @@ sc_status sc_profile_dft_create(int n, int d1, int d2, double w1, double w2,
     for (int pass = 0; pass < 2; ++pass) {
         if (pass == 1) {
             if (!(wsum > 0)) {
-                sc_profile_dft_destroy(p);
+                sc_profile_dft_plan_destroy(p);
                 return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no harmonic seen by both scans");
             }
             p->alpha[0][0] = p->alpha[1][0] = p->zeta[0] = p->beta[0][0] = p->beta[1][0] = 0;
@@ -168,14 +169,14 @@ sc_status sc_profile_dft_create(int n, int d1, int d2, double w1, double w2,
 }
 
 /* x (N values, any real sequence) -> p->cbuf = DFT(x). */
-static void forward(sc_profile_dft *p, const double *x)
+static void forward(sc_profile_dft_plan *p, const double *x)
 {
     memcpy(p->rbuf, x, (size_t)p->n * sizeof(double));
     fftw_execute(p->r2c);
 }
 
 /* The estimator before the removal of the line: y1, y2 -> f_raw (N values) with mean 0. */
-static void solve_raw(sc_profile_dft *p, const double *y1, const double *y2, double *f)
+static void solve_raw(sc_profile_dft_plan *p, const double *y1, const double *y2, double *f)
 {
     int n = p->n, nh = p->nh;
     double complex *c = (double complex *)p->cbuf;
@@ -197,8 +198,8 @@ static void solve_raw(sc_profile_dft *p, const double *y1, const double *y2, dou
         f[i] = p->rbuf[i] / n;
 }
 
-sc_status sc_profile_dft_solve(sc_profile_dft *p, const double *y1_um, const double *y2_um,
-                               double *f_um, sc_error *err)
+sc_status sc_profile_dft_execute(sc_profile_dft_plan *p, const double *y1_um, const double *y2_um,
+                                 double *f_um, sc_error *err)
 {
     (void)err;
     solve_raw(p, y1_um, y2_um, f_um);
@@ -207,7 +208,7 @@ sc_status sc_profile_dft_solve(sc_profile_dft *p, const double *y1_um, const dou
 }
 
 /* out = IDFT(spec) (N reals) for a half spectrum spec (Hermitian). */
-static void inverse(sc_profile_dft *p, const double complex *spec, double *out)
+static void inverse(sc_profile_dft_plan *p, const double complex *spec, double *out)
 {
     double complex *c = (double complex *)p->cbuf;
     memcpy(c, spec, (size_t)p->nh * sizeof(double complex));
@@ -220,7 +221,7 @@ static void inverse(sc_profile_dft *p, const double complex *spec, double *out)
 }
 
 /* out = h ⊛ u (circular convolution, N values); H = DFT(h) given. */
-static void convolve(sc_profile_dft *p, const double complex *H, const double *u, double *out,
+static void convolve(sc_profile_dft_plan *p, const double complex *H, const double *u, double *out,
                      double complex *tmp)
 {
     forward(p, u);
@@ -230,19 +231,32 @@ static void convolve(sc_profile_dft *p, const double complex *H, const double *u
     inverse(p, tmp, out);
 }
 
-sc_status sc_profile_dft_uncertainty(sc_profile_dft *p, double *uf_um, sc_error *err)
+/* Reals of the uncertainty's workspace: 10 arrays of N, 2 prefix arrays of 2N+1, d sums (even,
+ * so that the 3 half spectra after them stay aligned as double complex). */
+static size_t work_reals(const sc_profile_dft_plan *p)
 {
-    const int n = p->n, nh = p->nh;
     const int dmax = p->d[0] > p->d[1] ? p->d[0] : p->d[1];
-    /* one block: 10 real arrays of N, 2 prefix arrays of 2N+1, d sums, 3 half spectra */
-    size_t nreal = 10 * (size_t)n + 2 * (2 * (size_t)n + 1) + (size_t)dmax;
-    double *blk = malloc(nreal * sizeof(double));
-    double complex *cblk = malloc(3 * (size_t)nh * sizeof(double complex));
-    if (!blk || !cblk) {
-        free(blk);
-        free(cblk);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    size_t nreal = 10 * (size_t)p->n + 2 * (2 * (size_t)p->n + 1) + (size_t)dmax;
+    return (nreal + 1) & ~(size_t)1;
+}
+
+size_t sc_profile_dft_work_size(const sc_profile_dft_plan *p)
+{
+    return p ? work_reals(p) + 3 * 2 * (size_t)p->nh : 0;
+}
+
+sc_status sc_profile_dft_uncertainty(sc_profile_dft_plan *p, double *uf_um, double *work,
+                                     sc_error *err)
+{
+    if (!p || !uf_um) return sc_error_set(err, SC_E_INPUT, NULL, 0, "missing argument");
+    const int n = p->n, nh = p->nh;
+    double *own = NULL;
+    if (!work) {
+        work = own = malloc(sc_profile_dft_work_size(p) * sizeof(double));
+        if (!own) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
     }
+    double *blk = work;
+    double complex *cblk = (double complex *)(work + work_reals(p));
     double *h = blk, *v = h + n, *g = v + n, *u = g + n, *psi = u + n, *t1 = psi + n, *t2 = t1 + n;
     double *gam = t2 + n, *b = gam + n, *var = b + n, *pre = var + n, *pre2 = pre + 2 * n + 1;
     double *csum = pre2 + 2 * n + 1;
@@ -325,12 +339,11 @@ sc_status sc_profile_dft_uncertainty(sc_profile_dft *p, double *uf_um, sc_error 
     }
     for (int i = 0; i < n; ++i)
         uf_um[i] = sqrt(var[i] > 0 ? var[i] : 0);
-    free(blk);
-    free(cblk);
+    free(own);
     return SC_OK;
 }
 
-void sc_profile_dft_destroy(sc_profile_dft *p)
+void sc_profile_dft_plan_destroy(sc_profile_dft_plan *p)
 {
     if (!p)
         return;

@@ -1,6 +1,7 @@
 /* profile_io.c — owns the method check of a profile data set read from a file: whether the
  * chosen method can solve its (N, d1, d2), reported at the header line it is about. The files
  * themselves are io/'s (selfcal/profile_file.h). */
+#include <stdbool.h>
 #include <string.h>
 
 #include "selfcal/profile.h"
@@ -12,8 +13,8 @@ sc_status sc_profile_check_method(const sc_profile_data *d, sc_profile_method me
 {
     sc_error e;
     sc_error_clear(&e);
-    int ok = method == SC_PROFILE_DFT ? sc_profile_dft_usable(d->n, d->d[0], d->d[1], &e)
-                                      : sc_profile_lsq_solvable(d->n, d->d[0], d->d[1], &e);
+    bool ok = method == SC_PROFILE_DFT ? sc_profile_dft_is_usable(d->n, d->d[0], d->d[1], &e)
+                                      : sc_profile_lsq_is_solvable(d->n, d->d[0], d->d[1], &e);
     if (ok)
         return SC_OK;
     /* point at the header line the condition is about: the scan lines for the spacings, the N

@@ -32,7 +32,7 @@
 #include "profile_lsq_tuning.h"
 #include "profile_lsq_kernels.h"
 
-struct sc_profile_lsq {
+struct sc_profile_lsq_plan {
     int n, d1, d2, bw;
     double w1, w2;
     sc_lsq_band band; /* B and its factor (profile_lsq_band.h) */
@@ -56,7 +56,7 @@ struct sc_profile_lsq {
     double sinv[4];   /* S⁻¹, S = G - Eᵀ Z (row-major 2×2) */
 };
 
-static size_t inverse_scratch(const sc_profile_lsq *p);
+static size_t inverse_scratch(const sc_profile_lsq_plan *p);
 #if SC_LSQ_PREFAULT
 static void *early_inverse_run(void *arg);
 #endif
@@ -71,16 +71,16 @@ static int gcd_int(int a, int b)
     return a;
 }
 
-int sc_profile_lsq_dof(const sc_profile_lsq *p) { return p ? p->n - p->d1 - p->d2 : 0; }
+int sc_profile_lsq_dof(const sc_profile_lsq_plan *p) { return p ? p->n - p->d1 - p->d2 : 0; }
 
-int sc_profile_lsq_uses_simd(const sc_profile_lsq *p) { return p ? p->band.simd : 0; }
+bool sc_profile_lsq_uses_simd(const sc_profile_lsq_plan *p) { return p && p->band.simd; }
 
-int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
+bool sc_profile_lsq_is_solvable(int n, int d1, int d2, sc_error *err)
 {
     if (d1 < 1 || d2 < 1) {
         sc_error_set(err, SC_E_INPUT, NULL, 0,
                      "sensor spacings must be at least 1 sample (d1 = %d, d2 = %d)", d1, d2);
-        return 0;
+        return false;
     }
     int g = gcd_int(d1, d2);
     if (g != 1) {
@@ -88,7 +88,7 @@ int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
                      "d1 = %d and d2 = %d have the common divisor %d: the profile splits into %d "
                      "interleaved sub-profiles whose relative heights are not measured",
                      d1, d2, g, g);
-        return 0;
+        return false;
     }
     if (n < 2 || (long)n < (long)d1 + d2) {
         sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -96,19 +96,19 @@ int sc_profile_lsq_solvable(int n, int d1, int d2, sc_error *err)
                      "= %ld (with fewer points the zero-point difference of the two scans is not "
                      "determined)",
                      n, d1, d2, (long)d1 + d2);
-        return 0;
+        return false;
     }
     if (n > INT32_MAX / 2 - 8) { /* indices up to 2N + a few stay in int */
         sc_error_set(err, SC_E_INPUT, NULL, 0, "N = %d is too large", n);
-        return 0;
+        return false;
     }
-    return 1;
+    return true;
 }
 
-static int is_pinned(const sc_profile_lsq *p, int i) { return i == 0 || i == p->n - 1; }
+static int is_pinned(const sc_profile_lsq_plan *p, int i) { return i == 0 || i == p->n - 1; }
 
 /* B[i][j] (pinned rows and columns are the identity), as assembled by the band kernels. */
-static double b_entry(const sc_profile_lsq *p, int i, int j)
+static double b_entry(const sc_profile_lsq_plan *p, int i, int j)
 {
     int n = p->n;
     if (i == j) {
@@ -129,7 +129,7 @@ static double b_entry(const sc_profile_lsq *p, int i, int j)
 }
 
 /* Row r (0 <= r < s) of L_C: its entries L[m+r][c], c = c0 .. m-1, in the band storage. */
-static const double *lc_row(const sc_profile_lsq *p, int r, int *c0)
+static const double *lc_row(const sc_profile_lsq_plan *p, int r, int *c0)
 {
     int k = p->m + r;
     int lo = k - p->bw < 0 ? 0 : k - p->bw;
@@ -139,7 +139,7 @@ static const double *lc_row(const sc_profile_lsq *p, int r, int *c0)
 
 /* The separator: S_c = G + J·G·J - B_SS (G = the separator rows' block left by eliminating T,
  * J the reversal of S) into ls, then its dense Cholesky in place. 0 if it is not positive. */
-static int twisted_separator(sc_profile_lsq *p)
+static int twisted_separator(sc_profile_lsq_plan *p)
 {
     int s = p->s, m = p->m, bw = p->bw;
     size_t ld = p->band.ld;
@@ -180,7 +180,7 @@ static void reverse(double *x, int len)
 
 /* xs[r] <- B⁻¹·xs[r] (r < nrhs <= 4) through the twisted factor: the two halves T and reversed
  * bottom share each pass over L_A, the separator in between. */
-static void twisted_solve(const sc_profile_lsq *p, double *const *xs, int nrhs)
+static void twisted_solve(const sc_profile_lsq_plan *p, double *const *xs, int nrhs)
 {
     int m = p->m, s = p->s;
     double *half[8];
@@ -226,7 +226,7 @@ static void twisted_solve(const sc_profile_lsq *p, double *const *xs, int nrhs)
     for (int r = 0; r < nrhs; r++) reverse(xs[r] + m + s, m);
 }
 
-static void solve_many(const sc_profile_lsq *p, double *const *xs, int nrhs)
+static void solve_many(const sc_profile_lsq_plan *p, double *const *xs, int nrhs)
 {
     if (p->twisted)
         twisted_solve(p, xs, nrhs);
@@ -234,7 +234,7 @@ static void solve_many(const sc_profile_lsq *p, double *const *xs, int nrhs)
         sc_lsq_band_solve(&p->band, xs, nrhs);
 }
 
-static void band_solve(const sc_profile_lsq *p, double *x)
+static void band_solve(const sc_profile_lsq_plan *p, double *x)
 {
     double *xs[1] = {x};
     solve_many(p, xs, 1);
@@ -300,24 +300,24 @@ static int env_on(const char *name)
     return v && *v && strcmp(v, "0") != 0;
 }
 
-sc_status sc_profile_lsq_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq **out,
-                                sc_error *err)
+sc_status sc_profile_lsq_plan_create(int n, int d1, int d2, double w1, double w2, sc_profile_lsq_plan **out,
+                                     sc_error *err)
 {
     unsigned flags = (env_on("SELFCAL_PROFILE_LSQ_ONE_THREAD") ? SC_PROFILE_LSQ_ONE_THREAD : 0u) |
                      (env_on("SELFCAL_PROFILE_LSQ_HUGE_PAGES") ? SC_PROFILE_LSQ_HUGE_PAGES : 0u);
-    return sc_profile_lsq_create_ex(n, d1, d2, w1, w2, flags, out, err);
+    return sc_profile_lsq_plan_create_tuned(n, d1, d2, w1, w2, flags, out, err);
 }
 
-sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, unsigned flags,
-                                   sc_profile_lsq **out, sc_error *err)
+sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, double w2, unsigned flags,
+                                           sc_profile_lsq_plan **out, sc_error *err)
 {
     if (out) *out = NULL;
     if (!out) return sc_error_set(err, SC_E_INPUT, NULL, 0, "no output pointer");
-    if (!sc_profile_lsq_solvable(n, d1, d2, err)) return SC_E_INPUT;
+    if (!sc_profile_lsq_is_solvable(n, d1, d2, err)) return SC_E_INPUT;
     if (!(w1 > 0.0) || !(w2 > 0.0) || !isfinite(w1) || !isfinite(w2))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "scan weights must be positive and finite (w1 = %g, w2 = %g)", w1, w2);
-    sc_profile_lsq *p = calloc(1, sizeof *p);
+    sc_profile_lsq_plan *p = calloc(1, sizeof *p);
     if (!p) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     p->n = n;
     p->d1 = d1;
@@ -361,7 +361,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     if (!bd->a || !p->z || !p->e || !p->bu || !col || (p->twisted && !p->ls)) {
         int bw = p->bw;
         free(col);
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0,
                             "out of memory for the banded factor (N = %d, d = %d: %.0f MB)", n,
                             bw, (double)n * (double)(bw + 1) * 8.0 / 1e6);
@@ -386,12 +386,12 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
 #endif
     free(col);
     if (bad >= 0) {
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
                             "banded Cholesky factor lost positive definiteness at row %d", bad);
     }
     if (p->twisted && !twisted_separator(p)) {
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
                             "the separator block of the twisted factor is not positive definite");
     }
@@ -402,7 +402,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
         p->bg_diag = malloc((size_t)n * sizeof(double));
         p->bg_win = malloc(inverse_scratch(p) * sizeof(double));
         if (!p->bg_diag || !p->bg_win) {
-            sc_profile_lsq_destroy(p);
+            sc_profile_lsq_plan_destroy(p);
             return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (early uncertainty)");
         }
         if (pthread_mutex_init(&p->bg_lock, NULL) == 0) {
@@ -451,7 +451,7 @@ sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2, 
     s[1] = s[2] = sym;
     double det = s[0] * s[3] - s[1] * s[2];
     if (!(s[0] > 0.0) || !(det > 1e-14 * s[0] * s[3])) {
-        sc_profile_lsq_destroy(p);
+        sc_profile_lsq_plan_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
                             "the zero-point offsets c1, c2 are numerically undetermined "
                             "(Schur complement det %g)", det);
@@ -483,8 +483,8 @@ static void ls_line(int n, const double *v, double *mean, double *slope)
     *slope = s1 / sxx;
 }
 
-sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, const double *y2_um,
-                               double *f_um, double *c_um, double *wrss, sc_error *err)
+sc_status sc_profile_lsq_execute(const sc_profile_lsq_plan *p, const double *y1_um, const double *y2_um,
+                                 double *f_um, double *c_um, double *wrss, sc_error *err)
 {
     if (!p || !y1_um || !y2_um || !f_um)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "missing argument");
@@ -546,14 +546,14 @@ sc_status sc_profile_lsq_solve(const sc_profile_lsq *p, const double *y1_um, con
     return SC_OK;
 }
 
-static size_t inverse_scratch(const sc_profile_lsq *p)
+static size_t inverse_scratch(const sc_profile_lsq_plan *p)
 {
     size_t nz = p->twisted ? (size_t)p->s * (size_t)p->s : 0;
     return sc_lsq_band_inverse_scratch(p->bw) + 2 * nz + 1;
 }
 
 /* diag[0..n-1] = diag(B⁻¹); win: inverse_scratch(p) doubles. */
-static void inverse_diag_into(const sc_profile_lsq *p, double *win, double *diag)
+static void inverse_diag_into(const sc_profile_lsq_plan *p, double *win, double *diag)
 {
     if (!p->twisted) {
         sc_lsq_band_inverse_diag(&p->band, win, diag);
@@ -589,13 +589,13 @@ static void inverse_diag_into(const sc_profile_lsq *p, double *win, double *diag
 #if SC_LSQ_PREFAULT
 static void *early_inverse_run(void *arg)
 {
-    sc_profile_lsq *p = arg;
+    sc_profile_lsq_plan *p = arg;
     inverse_diag_into(p, p->bg_win, p->bg_diag);
     return NULL;
 }
 
 /* Wait for the early selected inversion (once; the plan's only mutable state, under its lock). */
-static void early_inverse_join(sc_profile_lsq *p)
+static void early_inverse_join(sc_profile_lsq_plan *p)
 {
     pthread_mutex_lock(&p->bg_lock);
     if (!p->bg_joined) {
@@ -608,27 +608,34 @@ static void early_inverse_join(sc_profile_lsq *p)
 }
 #endif
 
-static sc_status selected_inverse_diag(const sc_profile_lsq *p, double *diag, sc_error *err)
+size_t sc_profile_lsq_work_size(const sc_profile_lsq_plan *p) { return p ? inverse_scratch(p) : 0; }
+
+static sc_status selected_inverse_diag(const sc_profile_lsq_plan *p, double *diag, double *work,
+                                       sc_error *err)
 {
 #if SC_LSQ_PREFAULT
     if (p->bg) {
-        early_inverse_join((sc_profile_lsq *)p); /* the join is the one write: under the lock */
+        early_inverse_join((sc_profile_lsq_plan *)p); /* the join is the one write: under the lock */
         memcpy(diag, p->bg_diag, (size_t)p->n * sizeof(double));
         return SC_OK;
     }
 #endif
-    double *win = malloc(inverse_scratch(p) * sizeof(double));
-    if (!win) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
-    inverse_diag_into(p, win, diag);
-    free(win);
+    double *own = NULL;
+    if (!work) {
+        work = own = malloc(inverse_scratch(p) * sizeof(double));
+        if (!own) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
+    }
+    inverse_diag_into(p, work, diag);
+    free(own);
     return SC_OK;
 }
 
-sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_error *err)
+sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq_plan *p, double *uf_um, double *work,
+                                     sc_error *err)
 {
     if (!p || !uf_um) return sc_error_set(err, SC_E_INPUT, NULL, 0, "missing argument");
     int n = p->n;
-    sc_status st = selected_inverse_diag(p, uf_um, err);
+    sc_status st = selected_inverse_diag(p, uf_um, work, err);
     if (st != SC_OK) return st;
     /* C = B⁻¹ (pinned entries 0) + Z S⁻¹ Zᵀ: the pinned-gauge covariance of f */
     const double *z1 = p->z, *z2 = p->z + n;
@@ -685,7 +692,7 @@ sc_status sc_profile_lsq_uncertainty(const sc_profile_lsq *p, double *uf_um, sc_
     return SC_OK;
 }
 
-void sc_profile_lsq_destroy(sc_profile_lsq *p)
+void sc_profile_lsq_plan_destroy(sc_profile_lsq_plan *p)
 {
     if (!p) return;
 #if SC_LSQ_PREFAULT

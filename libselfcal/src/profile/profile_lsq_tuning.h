@@ -1,13 +1,13 @@
 /* profile_lsq_tuning.h — internal tuning switches of the profile least squares (not installed):
  * kernel choice and factor variant for the tests, threading and huge pages for the benchmarks.
- * Users reach the last two through environment variables read by sc_profile_lsq_create
+ * Users reach the last two through environment variables read by sc_profile_lsq_plan_create
  * (SELFCAL_PROFILE_LSQ_ONE_THREAD=1, SELFCAL_PROFILE_LSQ_HUGE_PAGES=1; docs/profile-lsq.md). */
 #ifndef SELFCAL_PROFILE_LSQ_TUNING_H
 #define SELFCAL_PROFILE_LSQ_TUNING_H
 
 #include "selfcal/profile_lsq.h"
 
-/* Flags of sc_profile_lsq_create_ex. */
+/* Flags of sc_profile_lsq_plan_create_tuned. */
 #define SC_PROFILE_LSQ_PORTABLE 1u /* portable kernels even where AVX2/FMA ones exist (testing) */
 #define SC_PROFILE_LSQ_SERIAL 2u   /* one-sided banded factor even where the twisted one applies
                                       (testing; the twisted one halves time and memory) */
@@ -22,8 +22,8 @@
                                         the factor exists; uncertainty then only waits for it and
                                         finishes in O(N). +8·N bytes. Identical results. */
 
-/* sc_profile_lsq_create with flags (0 or an OR of the SC_PROFILE_LSQ_* flags above). */
-sc_status sc_profile_lsq_create_ex(int n, int d1, int d2, double w1, double w2,
-                                          unsigned flags, sc_profile_lsq **out, sc_error *err);
+/* sc_profile_lsq_plan_create with flags (0 or an OR of the SC_PROFILE_LSQ_* flags above). */
+sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, double w2,
+                                           unsigned flags, sc_profile_lsq_plan **out, sc_error *err);
 
 #endif
