@@ -162,7 +162,7 @@ int main(int argc, char **argv)
     snprintf(labels[1], sizeof labels[1], "%u us adaptive", (unsigned)busy_us);
     snprintf(labels[2], sizeof labels[2], "%u us always", (unsigned)busy_us);
     for (int b = 0; b < 3; b++) {
-        char why[600];
+        sc_error err;
         sc_daemon_init(&g_d, path, SC_CORR_MEASURE);
         g_d.busy_poll_us = busy[b];
         g_d.busy_poll_force = force[b];
@@ -173,7 +173,9 @@ int main(int argc, char **argv)
         sc_transport t;
         sc_modbus_tcp_transport(&t, &cfg);
         sc_daemon_add(&g_d, &t);
-        if (sc_daemon_start(&g_d, why, sizeof why) != 0) {
+        if (sc_daemon_start(&g_d, &err) != SC_OK) {
+            char why[sizeof err.file + sizeof err.msg + 32];
+            sc_error_format(&err, why, sizeof why);
             fprintf(stderr, "bench_modbus: %s\n", why);
             return 1;
         }

@@ -53,35 +53,32 @@ void sc_config_defaults(sc_config *c)
     c->log_level = SC_LOG_INFO;
 }
 
-static int parse_ulong(const char *s, unsigned long max, unsigned long *out)
+static sc_status parse_ulong(const char *s, unsigned long max, unsigned long *out)
 {
     if (s == NULL || *s == '\0' || *s == '-' || isspace((unsigned char)*s))
-        return -1;
+        return SC_E_INPUT;
     char *end = NULL;
     errno = 0;
     unsigned long v = strtoul(s, &end, 0); /* decimal, or 0x... for CAN ids */
     if (errno != 0 || end == s || *end != '\0' || v > max)
-        return -1;
+        return SC_E_INPUT;
     *out = v;
-    return 0;
+    return SC_OK;
 }
 
-static int copy_str(char *dst, size_t cap, const char *src)
+static sc_status copy_str(char *dst, size_t cap, const char *src)
 {
     size_t n = strlen(src);
     if (n == 0 || n >= cap)
-        return -1;
+        return SC_E_INPUT;
     memcpy(dst, src, n + 1);
-    return 0;
+    return SC_OK;
 }
 
-#define BAD(...)                                                                              \
-    do {                                                                                       \
-        snprintf(why, (size_t)whylen, __VA_ARGS__);                                            \
-        return -1;                                                                             \
-    } while (0)
+/* Bad input: the message into err, SC_E_INPUT out. */
+#define BAD(...) return sc_error_set(err, SC_E_INPUT, NULL, 0, __VA_ARGS__)
 
-static int parse_host_port(sc_config *c, const char *v, char *why, int whylen)
+static sc_status parse_host_port(sc_config *c, const char *v, sc_error *err)
 {
     const char *colon = strrchr(v, ':');
     unsigned long port;
@@ -104,14 +101,15 @@ static int parse_host_port(sc_config *c, const char *v, char *why, int whylen)
     }
     struct sockaddr_storage a;
     socklen_t alen;
-    if (sc_mbtcp_resolve(c->tcp.host, (uint16_t)port, &a, &alen, why, whylen) != 0)
-        return -1;
+    sc_status st = sc_mbtcp_resolve(c->tcp.host, (uint16_t)port, &a, &alen, err);
+    if (st != SC_OK)
+        return st;
     c->tcp.port = (uint16_t)port;
     c->use_modbus_tcp = 1;
-    return 0;
+    return SC_OK;
 }
 
-static int parse_rtu(sc_config *c, const char *v, char *why, int whylen)
+static sc_status parse_rtu(sc_config *c, const char *v, sc_error *err)
 {
     /* DEV[:BAUD[:PARITY[:DATABITS[:STOPBITS]]]]; the device ends at the first ':' after its
      * last '/'. */
@@ -158,7 +156,7 @@ static int parse_rtu(sc_config *c, const char *v, char *why, int whylen)
         rest = next;
     }
     c->use_modbus_rtu = 1;
-    return 0;
+    return SC_OK;
 }
 
 static int is_yes(const char *v)
@@ -179,7 +177,7 @@ static int is_flag(const char *key)
     return strcmp(key, "syslog") == 0;
 }
 
-int sc_config_set(sc_config *c, const char *key, const char *value, char *why, int whylen)
+sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_error *err)
 {
     unsigned long n;
     if (!is_flag(key) && value == NULL)
@@ -188,9 +186,9 @@ int sc_config_set(sc_config *c, const char *key, const char *value, char *why, i
         if (copy_str(c->table, sizeof c->table, value) != 0)
             BAD("--table: bad path");
     } else if (strcmp(key, "modbus-tcp") == 0) {
-        return parse_host_port(c, value, why, whylen);
+        return parse_host_port(c, value, err);
     } else if (strcmp(key, "modbus-rtu") == 0) {
-        return parse_rtu(c, value, why, whylen);
+        return parse_rtu(c, value, err);
     } else if (strcmp(key, "can") == 0) {
         if (copy_str(c->can.ifname, sizeof c->can.ifname, value) != 0)
             BAD("--can: bad interface name '%s'", value);
@@ -275,7 +273,7 @@ int sc_config_set(sc_config *c, const char *key, const char *value, char *why, i
     } else {
         BAD("unknown option '%s'", key);
     }
-    return 0;
+    return SC_OK;
 }
 
 static char *trim(char *s)
@@ -288,18 +286,18 @@ static char *trim(char *s)
     return s;
 }
 
-int sc_config_load_file(sc_config *c, const char *path, char *why, int whylen)
+sc_status sc_config_load_file(sc_config *c, const char *path, sc_error *err)
 {
     FILE *f = fopen(path, "r");
     if (f == NULL)
-        BAD("%s: cannot open: %s", path, strerror(errno));
+        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
     char line[1024];
     int lineno = 0;
     while (fgets(line, sizeof line, f) != NULL) {
         lineno++;
         if (strchr(line, '\n') == NULL && !feof(f)) {
             fclose(f);
-            BAD("%s:%d: line too long", path, lineno);
+            return sc_error_set(err, SC_E_INPUT, path, lineno, "line too long");
         }
         char *hash = strchr(line, '#');
         if (hash != NULL)
@@ -314,18 +312,19 @@ int sc_config_load_file(sc_config *c, const char *path, char *why, int whylen)
             value = trim(eq + 1);
             key = trim(s);
         }
-        char inner[512];
-        if (sc_config_set(c, key, value, inner, sizeof inner) != 0) {
+        sc_error inner;
+        sc_status st = sc_config_set(c, key, value, &inner);
+        if (st != SC_OK) {
             fclose(f);
-            BAD("%s:%d: %s", path, lineno, inner);
+            return sc_error_set(err, st, path, lineno, "%s", inner.msg);
         }
     }
     fclose(f);
-    return 0;
+    return SC_OK;
 }
 
-int sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *version, char *why,
-                         int whylen)
+sc_status sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *version,
+                               sc_error *err)
 {
     *help = 0;
     *version = 0;
@@ -335,23 +334,25 @@ int sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *ve
         if (strcmp(a, "--config") == 0) {
             if (i + 1 >= argc)
                 BAD("--config needs a file");
-            if (sc_config_load_file(c, argv[i + 1], why, whylen) != 0)
-                return -1;
+            sc_status st = sc_config_load_file(c, argv[i + 1], err);
+            if (st != SC_OK)
+                return st;
             i++;
         } else if (strncmp(a, "--config=", 9) == 0) {
-            if (sc_config_load_file(c, a + 9, why, whylen) != 0)
-                return -1;
+            sc_status st = sc_config_load_file(c, a + 9, err);
+            if (st != SC_OK)
+                return st;
         }
     }
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             *help = 1;
-            return 0;
+            return SC_OK;
         }
         if (strcmp(a, "--version") == 0) {
             *version = 1;
-            return 0;
+            return SC_OK;
         }
         if (strncmp(a, "--", 2) != 0)
             BAD("unexpected argument '%s'", a);
@@ -372,12 +373,13 @@ int sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *ve
         }
         if (strcmp(key, "config") == 0)
             continue; /* already read */
-        if (sc_config_set(c, key, value, why, whylen) != 0)
-            return -1;
+        sc_status st = sc_config_set(c, key, value, err);
+        if (st != SC_OK)
+            return st;
     }
     if (c->table[0] == '\0')
         BAD("--table TABLE is required");
     if (!c->use_modbus_tcp && !c->use_modbus_rtu && !c->use_can)
         c->use_modbus_tcp = 1; /* SPEC §4 default: Modbus TCP on 127.0.0.1:1502 */
-    return 0;
+    return SC_OK;
 }

@@ -24,17 +24,19 @@ typedef struct sc_config {
 
 void sc_config_defaults(sc_config *c);
 
-/* Set one option by its long name (without "--"); value NULL for a flag. 0, or -1 with why. */
-int sc_config_set(sc_config *c, const char *key, const char *value, char *why, int whylen);
+/* Set one option by its long name (without "--"); value NULL for a flag. SC_OK, or SC_E_INPUT
+ * (or SC_E_IO when a host name cannot be resolved) with the reason in err. */
+sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_error *err);
 
-/* Read a configuration file; errors name the file and the line. 0 or -1. */
-int sc_config_load_file(sc_config *c, const char *path, char *why, int whylen);
+/* Read a configuration file: SC_OK, or an error whose file and line (err->file, err->line) are
+ * the file's and the offending line's (SC_E_IO if it cannot be opened). */
+sc_status sc_config_load_file(sc_config *c, const char *path, sc_error *err);
 
 /* Parse argv: --config FILE is read first, then every other flag overrides it. Fills help=1 for
  * --help/-h, version=1 for --version. Checks the result (a table, at least one transport:
- * Modbus TCP 127.0.0.1:1502 when none is given). 0 or -1 with why. */
-int sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *version, char *why,
-                         int whylen);
+ * Modbus TCP 127.0.0.1:1502 when none is given). SC_OK or an error described in err. */
+sc_status sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, int *version,
+                               sc_error *err);
 
 /* The usage text. */
 extern const char sc_config_usage[];

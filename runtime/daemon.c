@@ -40,27 +40,31 @@ void sc_daemon_init(sc_daemon *d, const char *table_path, sc_corr_mode mode)
     d->sigfd = -1;
 }
 
-int sc_daemon_add(sc_daemon *d, const sc_transport *t)
+sc_status sc_daemon_add(sc_daemon *d, const sc_transport *t)
 {
     if (d->nt >= SC_DAEMON_MAX_TRANSPORTS)
-        return -1;
+        return SC_E_INPUT;
     d->t[d->nt++] = *t;
-    return 0;
+    return SC_OK;
 }
 
-int sc_daemon_start(sc_daemon *d, char *why, int whylen)
+sc_status sc_daemon_start(sc_daemon *d, sc_error *err)
 {
-    if (sc_engine_load_file(&d->engine, d->table_path, why, whylen) != 0)
-        return 2;
+    if (sc_engine_load_file(&d->engine, d->table_path, err) != SC_OK) {
+        if (err)
+            err->code = SC_E_INPUT; /* a table that cannot be read is bad input too */
+        return SC_E_INPUT;
+    }
     const sc_corr_table *tb = d->engine.table;
     sc_log(SC_LOG_NOTICE, "table %s loaded: %ux%u nodes, pitch %g x %g mm, %u profile(s), %s mode",
            d->table_path, (unsigned)tb->nx, (unsigned)tb->ny, tb->px_mm, tb->py_mm,
            (unsigned)tb->n_profiles, d->engine.mode == SC_CORR_MEASURE ? "measure" : "position");
     for (int i = 0; i < d->nt; i++) {
-        if (d->t[i].open(d->t[i].state, why, whylen) != 0) {
+        sc_status st = d->t[i].open(d->t[i].state, err);
+        if (st != SC_OK) {
             for (int k = i - 1; k >= 0; k--)
                 d->t[k].close(d->t[k].state);
-            return 1;
+            return st;
         }
     }
     uint64_t wd_usec = sc_notify_watchdog_usec();
@@ -70,10 +74,10 @@ int sc_daemon_start(sc_daemon *d, char *why, int whylen)
     uint64_t now = sc_now_ms();
     d->next_tick_ms = now + TICK_MS;
     d->next_watchdog_ms = now + d->watchdog_period_ms;
-    return 0;
+    return SC_OK;
 }
 
-int sc_daemon_catch_signals(sc_daemon *d)
+sc_status sc_daemon_catch_signals(sc_daemon *d)
 {
     sigset_t set;
     sigemptyset(&set);
@@ -81,10 +85,10 @@ int sc_daemon_catch_signals(sc_daemon *d)
     sigaddset(&set, SIGTERM);
     sigaddset(&set, SIGINT);
     if (sigprocmask(SIG_BLOCK, &set, NULL) != 0)
-        return -1;
+        return SC_E_IO;
     signal(SIGPIPE, SIG_IGN);
     d->sigfd = signalfd(-1, &set, SFD_NONBLOCK | SFD_CLOEXEC);
-    return d->sigfd >= 0 ? 0 : -1;
+    return d->sigfd >= 0 ? SC_OK : SC_E_IO;
 }
 
 void sc_daemon_request_reload(sc_daemon *d)
@@ -97,17 +101,19 @@ void sc_daemon_request_stop(sc_daemon *d)
     d->stop = 1;
 }
 
-int sc_daemon_reload(sc_daemon *d)
+sc_status sc_daemon_reload(sc_daemon *d)
 {
-    char why[600];
+    sc_error err;
+    char why[sizeof err.file + sizeof err.msg + 32];
     sc_notify("RELOADING=1");
-    int rc = sc_engine_load_file(&d->engine, d->table_path, why, sizeof why);
-    if (rc == 0) {
+    sc_status rc = sc_engine_load_file(&d->engine, d->table_path, &err);
+    if (rc == SC_OK) {
         sc_log(SC_LOG_NOTICE, "reload: table %s loaded (%ux%u nodes); reloads ok %u, failed %u",
                d->table_path, (unsigned)d->engine.table->nx, (unsigned)d->engine.table->ny,
                (unsigned)d->engine.reload_ok, (unsigned)d->engine.reload_failed);
         snprintf(g_msg, sizeof g_msg, "READY=1\nSTATUS=serving; table reloaded");
     } else {
+        sc_error_format(&err, why, sizeof why);
         sc_log(SC_LOG_ERR, "reload failed, keeping the previous table: %s", why);
         snprintf(g_msg, sizeof g_msg,
                  "READY=1\nSTATUS=serving the previous table; reload failed: %.180s", why);
@@ -176,7 +182,7 @@ static void read_signals(sc_daemon *d)
     }
 }
 
-int sc_daemon_step(sc_daemon *d, int max_wait_ms)
+bool sc_daemon_step(sc_daemon *d, int max_wait_ms)
 {
     int n = 0;
     if (d->sigfd >= 0) {
@@ -230,7 +236,7 @@ int sc_daemon_step(sc_daemon *d, int max_wait_ms)
         d->reload = 0;
         sc_daemon_reload(d);
     }
-    return d->stop ? 0 : 1;
+    return !d->stop;
 }
 
 void sc_daemon_close(sc_daemon *d)

@@ -5,6 +5,7 @@
 #ifndef SELFCALD_DAEMON_H
 #define SELFCALD_DAEMON_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
 #include "engine.h"
@@ -34,22 +35,24 @@ typedef struct sc_daemon {
 /* Prepare d for table_path and mode (no transports yet). */
 void sc_daemon_init(sc_daemon *d, const char *table_path, sc_corr_mode mode);
 
-/* Add a transport (copied). 0, or -1 if there are already SC_DAEMON_MAX_TRANSPORTS. */
-int sc_daemon_add(sc_daemon *d, const sc_transport *t);
+/* Add a transport (copied). SC_OK, or SC_E_INPUT if there are already SC_DAEMON_MAX_TRANSPORTS. */
+sc_status sc_daemon_add(sc_daemon *d, const sc_transport *t);
 
-/* Load the table, open every transport. 0; 2 if the table is missing or invalid (bad input);
- * 1 if a transport cannot open (why says which; nothing is left open). */
-int sc_daemon_start(sc_daemon *d, char *why, int whylen);
+/* Load the table, open every transport. SC_OK; SC_E_INPUT if the table is missing or invalid
+ * (bad input: selfcald exits 2); another status if a transport cannot open (err says which;
+ * nothing is left open; selfcald exits 1). */
+sc_status sc_daemon_start(sc_daemon *d, sc_error *err);
 
-/* Route SIGHUP/SIGTERM/SIGINT into the loop (signalfd) and ignore SIGPIPE. 0 or -1. */
-int sc_daemon_catch_signals(sc_daemon *d);
+/* Route SIGHUP/SIGTERM/SIGINT into the loop (signalfd) and ignore SIGPIPE. SC_OK or SC_E_IO. */
+sc_status sc_daemon_catch_signals(sc_daemon *d);
 
-/* One round: poll up to max_wait_ms, serve, tick, reload/watchdog as due. Returns 1 while the
- * daemon should go on, 0 once it was asked to stop. */
-int sc_daemon_step(sc_daemon *d, int max_wait_ms);
+/* One round: poll up to max_wait_ms, serve, tick, reload/watchdog as due. Should the daemon go
+ * on? (false once it was asked to stop.) */
+bool sc_daemon_step(sc_daemon *d, int max_wait_ms);
 
-/* Reload the table now (what SIGHUP does): load into the spare slot, swap if valid, log. */
-int sc_daemon_reload(sc_daemon *d);
+/* Reload the table now (what SIGHUP does): load into the spare slot, swap if valid, log.
+ * SC_OK, or the status of the failed load (the previous table stays in use). */
+sc_status sc_daemon_reload(sc_daemon *d);
 
 void sc_daemon_request_reload(sc_daemon *d);
 void sc_daemon_request_stop(sc_daemon *d);

@@ -22,75 +22,67 @@ void sc_engine_init(sc_engine *e, sc_corr_mode mode)
     e->mode = mode;
 }
 
-static int read_file(const char *path, size_t *len, char *why, int whylen)
+static sc_status read_file(const char *path, size_t *len, sc_error *err)
 {
     /* O_NONBLOCK: opening a FIFO (or a device) at the table path must not wait for a writer;
      * anything but a regular file is then refused before a byte is read, and the read is
      * bounded by the buffer. */
     int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
-    if (fd < 0) {
-        snprintf(why, (size_t)whylen, "%s: cannot open: %s", path, strerror(errno));
-        return -1;
-    }
-    struct stat st;
-    if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-        snprintf(why, (size_t)whylen, "%s: not a regular file", path);
-        close(fd);
-        return -1;
-    }
-    if (st.st_size > (off_t)SC_ENGINE_MAX_TABLE_BYTES) {
-        snprintf(why, (size_t)whylen, "%s: larger than %u bytes, not a selfcal table", path,
-                 (unsigned)SC_ENGINE_MAX_TABLE_BYTES);
-        close(fd);
-        return -1;
-    }
+    if (fd < 0)
+        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+    sc_status st = SC_OK;
+    struct stat sb;
     size_t n = 0;
-    for (;;) {
-        ssize_t r = read(fd, g_filebuf + n, sizeof g_filebuf - n);
-        if (r < 0) {
-            if (errno == EINTR)
+    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        st = sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file");
+    } else if (sb.st_size > (off_t)SC_ENGINE_MAX_TABLE_BYTES) {
+        st = sc_error_set(err, SC_E_INPUT, path, 0, "larger than %u bytes, not a selfcal table",
+                          (unsigned)SC_ENGINE_MAX_TABLE_BYTES);
+    } else {
+        for (;;) {
+            ssize_t r = read(fd, g_filebuf + n, sizeof g_filebuf - n);
+            if (r < 0 && errno == EINTR)
                 continue;
-            snprintf(why, (size_t)whylen, "%s: read error: %s", path, strerror(errno));
-            close(fd);
-            return -1;
-        }
-        if (r == 0)
-            break;
-        n += (size_t)r;
-        if (n == sizeof g_filebuf) {
-            snprintf(why, (size_t)whylen, "%s: larger than %u bytes, not a selfcal table", path,
-                     (unsigned)SC_ENGINE_MAX_TABLE_BYTES);
-            close(fd);
-            return -1;
+            if (r < 0) {
+                st = sc_error_set(err, SC_E_IO, path, 0, "read error: %s", strerror(errno));
+                break;
+            }
+            if (r == 0)
+                break;
+            n += (size_t)r;
+            if (n == sizeof g_filebuf) {
+                st = sc_error_set(err, SC_E_INPUT, path, 0,
+                                  "larger than %u bytes, not a selfcal table",
+                                  (unsigned)SC_ENGINE_MAX_TABLE_BYTES);
+                break;
+            }
         }
     }
     close(fd);
     *len = n;
-    return 0;
+    return st;
 }
 
-int sc_engine_load_file(sc_engine *e, const char *path, char *why, int whylen)
+sc_status sc_engine_load_file(sc_engine *e, const char *path, sc_error *err)
 {
     size_t len = 0;
     sc_corr_table *spare = (e->table == &g_slot[0]) ? &g_slot[1] : &g_slot[0];
-    int rc = read_file(path, &len, why, whylen);
-    if (rc == 0) {
+    sc_status st = read_file(path, &len, err);
+    if (st == SC_OK) {
         int code = sc_corr_load(spare, g_filebuf, len);
-        if (code != SC_CORR_OK) {
-            snprintf(why, (size_t)whylen, "%s: not a valid table: %s", path,
-                     sc_corr_strerror(code));
-            rc = -1;
-        }
+        if (code != SC_CORR_OK)
+            st = sc_error_set(err, SC_E_INPUT, path, 0, "not a valid table: %s",
+                              sc_corr_strerror(code));
     }
-    if (rc != 0) {
+    if (st != SC_OK) {
         e->reload_failed++;
         e->status |= SC_ENGINE_ST_RELOAD_FAILED;
-        return -1;
+        return st;
     }
     e->table = spare;
     e->reload_ok++;
     e->status = (uint16_t)((e->status & ~SC_ENGINE_ST_RELOAD_FAILED) | SC_CORR_ST_LOADED);
-    return 0;
+    return SC_OK;
 }
 
 int32_t sc_engine_mm_to_nm(double v_mm, int *saturated)

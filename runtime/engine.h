@@ -8,6 +8,7 @@
 #include <stdint.h>
 
 #include "selfcal/correct.h"
+#include "selfcal/error.h" /* sc_status, sc_error: the library's one error convention */
 
 /* Status bit beyond SC_CORR_ST_* (an extension of SPEC §4: bit 3): the last reload failed and
  * the previous table is still in use. Cleared by the next successful load. */
@@ -32,10 +33,11 @@ typedef struct sc_engine {
 void sc_engine_init(sc_engine *e, sc_corr_mode mode);
 
 /* Read the table file at path into the spare static slot and validate it with sc_corr_load;
- * swap it in only if it is valid. Returns 0, or -1 with a one-line reason in why (the old table,
- * if any, stays in use, and SC_ENGINE_ST_RELOAD_FAILED is set in the status). Allocation-free:
- * open/read into a static buffer. Not reentrant (one engine per process). */
-int sc_engine_load_file(sc_engine *e, const char *path, char *why, int whylen);
+ * swap it in only if it is valid. SC_OK, or SC_E_INPUT (not a valid table) / SC_E_IO (cannot be
+ * read) with err naming the file and the reason (the old table, if any, stays in use, and
+ * SC_ENGINE_ST_RELOAD_FAILED is set in the status). Allocation-free: open/read into a static
+ * buffer. Not reentrant (one engine per process). */
+sc_status sc_engine_load_file(sc_engine *e, const char *path, sc_error *err);
 
 /* Correct one X/Y position in nanometres; updates status and counters; returns the status bits.
  * The result is rounded to the nearest nm and saturated to int32 (saturation sets

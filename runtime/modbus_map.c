@@ -36,10 +36,9 @@ sc_modbus_map *sc_modbus_map_shared(void)
     return &g_map;
 }
 
-int sc_modbus_map_open(sc_modbus_map *mm, sc_word_order order)
+void sc_modbus_map_open(sc_modbus_map *mm, sc_word_order order)
 {
     mm->order = order;
-    return 0;
 }
 
 void sc_modbus_map_close(sc_modbus_map *mm)

@@ -49,8 +49,8 @@ typedef struct sc_modbus_map {
 /* The process's one map (static). */
 sc_modbus_map *sc_modbus_map_shared(void);
 
-/* Set the word order (the registers are static; nothing is allocated). 0. */
-int sc_modbus_map_open(sc_modbus_map *mm, sc_word_order order);
+/* Set the word order (the registers are static; nothing is allocated, nothing can fail). */
+void sc_modbus_map_open(sc_modbus_map *mm, sc_word_order order);
 
 void sc_modbus_map_close(sc_modbus_map *mm);
 

@@ -13,8 +13,10 @@ static struct sockaddr_un g_addr;
 static socklen_t g_addrlen;
 static uint64_t g_watchdog_usec;
 
-int sc_notify_init(void)
+sc_status sc_notify_init(bool *enabled)
 {
+    if (enabled)
+        *enabled = false;
     const char *path = getenv("NOTIFY_SOCKET");
     const char *wd = getenv("WATCHDOG_USEC");
     const char *wdpid = getenv("WATCHDOG_PID");
@@ -29,10 +31,10 @@ int sc_notify_init(void)
             g_watchdog_usec = v;
     }
     if (path == NULL || path[0] == '\0')
-        return 0;
+        return SC_OK;
     size_t len = strlen(path);
     if ((path[0] != '/' && path[0] != '@') || len >= sizeof g_addr.sun_path)
-        return -1;
+        return SC_E_INPUT;
     memset(&g_addr, 0, sizeof g_addr);
     g_addr.sun_family = AF_UNIX;
     memcpy(g_addr.sun_path, path, len);
@@ -40,16 +42,20 @@ int sc_notify_init(void)
         g_addr.sun_path[0] = '\0'; /* abstract namespace */
     g_addrlen = (socklen_t)(offsetof(struct sockaddr_un, sun_path) + len);
     g_fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-    return g_fd >= 0 ? 1 : -1;
+    if (g_fd < 0)
+        return SC_E_IO;
+    if (enabled)
+        *enabled = true;
+    return SC_OK;
 }
 
-int sc_notify(const char *msg)
+sc_status sc_notify(const char *msg)
 {
     if (g_fd < 0)
-        return 0;
+        return SC_OK;
     ssize_t r = sendto(g_fd, msg, strlen(msg), MSG_NOSIGNAL | MSG_DONTWAIT,
                        (const struct sockaddr *)&g_addr, g_addrlen);
-    return r < 0 ? -1 : 0;
+    return r < 0 ? SC_E_IO : SC_OK;
 }
 
 uint64_t sc_notify_watchdog_usec(void)

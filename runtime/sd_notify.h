@@ -4,14 +4,19 @@
 #ifndef SELFCALD_SD_NOTIFY_H
 #define SELFCALD_SD_NOTIFY_H
 
+#include <stdbool.h>
 #include <stdint.h>
 
-/* Read $NOTIFY_SOCKET and $WATCHDOG_USEC (honouring $WATCHDOG_PID) and open the socket.
- * Returns 1 if notification is enabled, 0 if not (no socket in the environment), -1 on error. */
-int sc_notify_init(void);
+#include "selfcal/error.h"
 
-/* Send one message (e.g. "READY=1\nSTATUS=serving"); no-op when disabled. 0 or -1. */
-int sc_notify(const char *msg);
+/* Read $NOTIFY_SOCKET and $WATCHDOG_USEC (honouring $WATCHDOG_PID) and open the socket.
+ * SC_OK (*enabled: is there a socket to notify?), or SC_E_INPUT (unusable $NOTIFY_SOCKET) /
+ * SC_E_IO (no socket) with notification off. enabled may be NULL. */
+sc_status sc_notify_init(bool *enabled);
+
+/* Send one message (e.g. "READY=1\nSTATUS=serving"); no-op (SC_OK) when disabled. SC_OK or
+ * SC_E_IO. */
+sc_status sc_notify(const char *msg);
 
 /* The watchdog interval in microseconds the service manager asked for (0 = none). Send
  * "WATCHDOG=1" at least every half of it. */

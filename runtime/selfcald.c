@@ -19,10 +19,12 @@ static sc_daemon g_daemon;
 
 int main(int argc, char **argv)
 {
-    char why[600];
+    sc_error err;
+    char why[sizeof err.file + sizeof err.msg + 32];
     int help, version;
     sc_config_defaults(&g_cfg);
-    if (sc_config_parse_args(&g_cfg, argc, argv, &help, &version, why, sizeof why) != 0) {
+    if (sc_config_parse_args(&g_cfg, argc, argv, &help, &version, &err) != SC_OK) {
+        sc_error_format(&err, why, sizeof why);
         fprintf(stderr, "selfcald: %s (selfcald --help)\n", why);
         return 2;
     }
@@ -35,7 +37,7 @@ int main(int argc, char **argv)
         return 0;
     }
     sc_log_open_at(g_cfg.use_syslog, g_cfg.log_level, g_cfg.syslog_socket);
-    if (sc_notify_init() < 0)
+    if (sc_notify_init(NULL) != SC_OK)
         sc_log(SC_LOG_WARNING, "NOTIFY_SOCKET is set but unusable; not notifying systemd");
 
     sc_daemon_init(&g_daemon, g_cfg.table, g_cfg.mode);
@@ -63,11 +65,12 @@ int main(int argc, char **argv)
         sc_log(SC_LOG_ERR, "cannot set up signal handling");
         return 1;
     }
-    int rc = sc_daemon_start(&g_daemon, why, sizeof why);
-    if (rc != 0) {
+    sc_status st = sc_daemon_start(&g_daemon, &err);
+    if (st != SC_OK) {
+        sc_error_format(&err, why, sizeof why);
         sc_log(SC_LOG_ERR, "%s", why);
         sc_notify("STATUS=start failed");
-        return rc; /* 2: bad table; 1: a transport could not open */
+        return st == SC_E_INPUT ? 2 : 1; /* 2: bad table; 1: a transport could not open */
     }
     sc_log(SC_LOG_NOTICE, "ready");
     sc_notify("READY=1\nSTATUS=serving");

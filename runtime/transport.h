@@ -18,8 +18,8 @@
 typedef struct sc_transport {
     const char *name;
     void *state; /* the transport's static state */
-    /* Open sockets/devices. Returns 0, or -1 with a message in why (size whylen). */
-    int (*open)(void *state, char *why, int whylen);
+    /* Open sockets/devices. SC_OK, or a status with the reason in err. */
+    sc_status (*open)(void *state, sc_error *err);
     /* Fill up to max pollfds; returns how many. */
     int (*fill_pollfds)(void *state, struct pollfd *fds, int max);
     /* Serve the descriptors that fill_pollfds gave (with revents set). now_ms: monotonic ms. */

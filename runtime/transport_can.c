@@ -155,33 +155,29 @@ void sc_can_config_defaults(sc_can_config *c)
     c->log = NULL;
 }
 
-int sc_can_config_check(const sc_can_config *c, char *why, int whylen)
+sc_status sc_can_config_check(const sc_can_config *c, sc_error *err)
 {
     if (c->ifname[0] == '\0' || memchr(c->ifname, '\0', sizeof c->ifname) == NULL ||
         strlen(c->ifname) >= IFNAMSIZ) {
-        snprintf(why, (size_t)whylen, "CAN: interface name missing or longer than %d characters",
-                 IFNAMSIZ - 1);
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "CAN: interface name missing or longer than %d characters",
+                            IFNAMSIZ - 1);
     }
     const uint32_t ids[3] = {c->in_id, c->out_id, c->status_id};
     const char *names[3] = {"input", "output", "status"};
     for (int k = 0; k < 3; k++) {
         if (ids[k] > CAN_SFF_MASK) {
-            snprintf(why, (size_t)whylen, "CAN: %s id 0x%x is not an 11-bit id (max 0x7ff)",
-                     names[k], (unsigned)ids[k]);
-            return -1;
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "CAN: %s id 0x%x is not an 11-bit id (max 0x7ff)",
+                                names[k], (unsigned)ids[k]);
         }
     }
     if (c->in_id == c->out_id || c->in_id == c->status_id || c->out_id == c->status_id) {
-        snprintf(why, (size_t)whylen, "CAN: ids must differ (in 0x%x, out 0x%x, status 0x%x)",
-                 (unsigned)c->in_id, (unsigned)c->out_id, (unsigned)c->status_id);
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "CAN: ids must differ (in 0x%x, out 0x%x, status 0x%x)",
+                            (unsigned)c->in_id, (unsigned)c->out_id, (unsigned)c->status_id);
     }
     if (c->status_period_ms == 0) {
-        snprintf(why, (size_t)whylen, "CAN: status period must be > 0 ms");
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "CAN: status period must be > 0 ms");
     }
-    return 0;
+    return SC_OK;
 }
 
 /* ---------------------------------------------------------------- logging */
@@ -208,28 +204,26 @@ static void close_socket(void)
     S.fd = -1;
 }
 
-/* Open, filter and bind the CAN socket. Returns 0, or -1 with a message in why. */
-static int open_socket(char *why, int whylen)
+/* Open, filter and bind the CAN socket. SC_OK, or a status with the reason in err. */
+static sc_status open_socket(sc_error *err)
 {
     S.fd_frames = 0;
     if (S.test_fd >= 0) {
         S.fd = S.test_fd;
-        return 0;
+        return SC_OK;
     }
     int fd = socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW);
     if (fd < 0) {
-        snprintf(why, (size_t)whylen, "CAN: socket(PF_CAN, SOCK_RAW, CAN_RAW): %s%s",
-                 strerror(errno),
-                 errno == EAFNOSUPPORT ? " (this kernel has no CAN support: modprobe can-raw)" : "");
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: socket(PF_CAN, SOCK_RAW, CAN_RAW): %s%s",
+                            strerror(errno),
+                            errno == EAFNOSUPPORT ? " (this kernel has no CAN support: modprobe can-raw)" : "");
     }
     struct ifreq ifr;
     memset(&ifr, 0, sizeof ifr);
     memcpy(ifr.ifr_name, S.cfg.ifname, strlen(S.cfg.ifname) + 1);
     if (ioctl(fd, SIOCGIFINDEX, &ifr) < 0) {
-        snprintf(why, (size_t)whylen, "CAN: interface %s: %s", S.cfg.ifname, strerror(errno));
         close(fd);
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: interface %s: %s", S.cfg.ifname, strerror(errno));
     }
     /* Our input id (standard frames, data and remote: remote frames are counted as bad), the same
      * number as an extended id (bad), and our output ids (another sender there is a conflict). */
@@ -244,16 +238,14 @@ static int open_socket(char *why, int whylen)
         {S.cfg.status_id | CAN_EFF_FLAG, eff},
     };
     if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filt, sizeof filt) < 0) {
-        snprintf(why, (size_t)whylen, "CAN: CAN_RAW_FILTER: %s", strerror(errno));
         close(fd);
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: CAN_RAW_FILTER: %s", strerror(errno));
     }
     can_err_mask_t err_mask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_BUSOFF |
                               CAN_ERR_RESTARTED;
     if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) < 0) {
-        snprintf(why, (size_t)whylen, "CAN: CAN_RAW_ERR_FILTER: %s", strerror(errno));
         close(fd);
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: CAN_RAW_ERR_FILTER: %s", strerror(errno));
     }
     /* Optional features: CAN FD frames, the kernel's count of dropped input frames, a larger
      * receive buffer (capped by net.core.rmem_max). */
@@ -271,13 +263,12 @@ static int open_socket(char *why, int whylen)
     addr.can_family = AF_CAN;
     addr.can_ifindex = ifr.ifr_ifindex;
     if (bind(fd, (struct sockaddr *)&addr, sizeof addr) < 0) {
-        snprintf(why, (size_t)whylen, "CAN: bind to %s: %s", S.cfg.ifname, strerror(errno));
         close(fd);
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: bind to %s: %s", S.cfg.ifname, strerror(errno));
     }
     S.fd = fd;
     S.rx_ovfl_seen = 0;
-    return 0;
+    return SC_OK;
 }
 
 /* The interface went away (ENODEV/ENXIO): close now, reopen from tick. */
@@ -534,18 +525,19 @@ static void rx_drain(sc_engine *e, uint64_t now_ms)
 
 /* ---------------------------------------------------------------- interface */
 
-static int can_open(void *state, char *why, int whylen)
+static sc_status can_open(void *state, sc_error *err)
 {
     (void)state;
-    if (sc_can_config_check(&S.cfg, why, whylen) < 0)
-        return -1;
-    if (open_socket(why, whylen) < 0)
-        return -1;
+    sc_status st = sc_can_config_check(&S.cfg, err);
+    if (st == SC_OK)
+        st = open_socket(err);
+    if (st != SC_OK)
+        return st;
     can_log(LOG_INFO, "CAN %s: serving ids 0x%03x in, 0x%03x out, 0x%03x status every %u ms%s",
             S.cfg.ifname, (unsigned)S.cfg.in_id, (unsigned)S.cfg.out_id,
             (unsigned)S.cfg.status_id, (unsigned)S.cfg.status_period_ms,
             S.fd_frames ? " (CAN FD accepted)" : "");
-    return 0;
+    return SC_OK;
 }
 
 static int can_fill_pollfds(void *state, struct pollfd *fds, int max)
@@ -574,14 +566,14 @@ static void can_tick(void *state, sc_engine *e, uint64_t now_ms)
 {
     (void)state;
     if (S.fd < 0 && S.test_fd < 0 && now_ms >= S.next_reopen_ms) {
-        char why[200];
-        if (open_socket(why, sizeof why) == 0) {
+        sc_error why;
+        if (open_socket(&why) == SC_OK) {
             S.st.reopened++;
             can_log(LOG_NOTICE, "CAN %s: socket reopened", S.cfg.ifname);
             link_alive();
         } else {
             if (!S.reopen_failed_logged)
-                can_log(LOG_WARNING, "%s (still retrying)", why);
+                can_log(LOG_WARNING, "%s (still retrying)", why.msg);
             S.reopen_failed_logged = 1;
             S.next_reopen_ms = now_ms + REOPEN_MS;
         }

@@ -78,9 +78,9 @@ typedef enum sc_can_rx_kind {
 } sc_can_rx_kind;
 sc_can_rx_kind sc_can_classify(const sc_can_config *c, uint32_t can_id, uint8_t len);
 
-/* Check a configuration: ids 11-bit and distinct, ifname set, period > 0. Returns 0, or -1 with a
- * message in why. */
-int sc_can_config_check(const sc_can_config *c, char *why, int whylen);
+/* Check a configuration: ids 11-bit and distinct, ifname set, period > 0. SC_OK, or SC_E_INPUT
+ * with the reason in err. */
+sc_status sc_can_config_check(const sc_can_config *c, sc_error *err);
 
 /* For tests: make open() use fd (e.g. one end of a SOCK_SEQPACKET socketpair carrying struct
  * can_frame / canfd_frame datagrams) instead of a CAN socket. fd < 0 restores normal behaviour. */

@@ -25,17 +25,16 @@ uint32_t sc_fake_bad_requests(void)
     return g_fake.bad;
 }
 
-static int fake_open(void *state, char *why, int whylen)
+static sc_status fake_open(void *state, sc_error *err)
 {
     fake_state *s = state;
     if (socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, s->fd) != 0) {
-        snprintf(why, (size_t)whylen, "fake: socketpair: %s", strerror(errno));
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "fake: socketpair: %s", strerror(errno));
     }
     /* The daemon's end never blocks; the test's end is an ordinary blocking socket. */
     fcntl(s->fd[0], F_SETFL, fcntl(s->fd[0], F_GETFL) | O_NONBLOCK);
     s->bad = 0;
-    return 0;
+    return SC_OK;
 }
 
 static int fake_fill(void *state, struct pollfd *fds, int max)

@@ -50,9 +50,9 @@ uint32_t sc_modbus_tcp_evicted(void);
 
 /* Resolve a listen address: an IPv4 literal (dotted decimal, as inet_pton reads it), an IPv6
  * literal, or a name (getaddrinfo; its IPv4 address first). The legacy forms inet_aton accepts
- * (0127.0.0.1 is octal, 127.1, 0x7f.1) are refused. 0, or -1 with a one-line reason. */
-int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *out,
-                     socklen_t *outlen, char *why, int whylen);
+ * (0127.0.0.1 is octal, 127.1, 0x7f.1) are refused. SC_OK, or SC_E_INPUT with the reason in err. */
+sc_status sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *out,
+                           socklen_t *outlen, sc_error *err);
 /* "a.b.c.d:port" or "[v6]:port". */
 void sc_mbtcp_format_addr(const struct sockaddr_storage *a, char *buf, int len);
 

@@ -76,16 +76,12 @@ static int expected_len(const uint8_t *b, int have)
     }
 }
 
-static int rtu_open(void *state, char *why, int whylen)
+static sc_status rtu_open(void *state, sc_error *err)
 {
     mbrtu_state *s = state;
-    if (sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order) != 0) {
-        snprintf(why, (size_t)whylen, "modbus: cannot allocate the register map");
-        return -1;
-    }
+    sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order);
     if (s->cfg.unit_id < 1 || s->cfg.unit_id > 247) {
-        snprintf(why, (size_t)whylen, "modbus-rtu: unit id must be 1..247");
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "modbus-rtu: unit id must be 1..247");
     }
     if (g_test_fd >= 0) {
         s->fd = g_test_fd;
@@ -95,23 +91,22 @@ static int rtu_open(void *state, char *why, int whylen)
     s->ctx = modbus_new_rtu(s->cfg.device, s->cfg.baud, s->cfg.parity, s->cfg.data_bits,
                             s->cfg.stop_bits);
     if (s->ctx == NULL) {
-        snprintf(why, (size_t)whylen, "modbus-rtu: %s: %s", s->cfg.device, modbus_strerror(errno));
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "modbus-rtu: %s: %s", s->cfg.device,
+                            modbus_strerror(errno));
     }
     modbus_set_slave(s->ctx, s->cfg.unit_id);
     if (modbus_connect(s->ctx) != 0) {
-        snprintf(why, (size_t)whylen, "modbus-rtu: cannot open %s: %s", s->cfg.device,
-                 modbus_strerror(errno));
         modbus_free(s->ctx);
         s->ctx = NULL;
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "modbus-rtu: cannot open %s: %s", s->cfg.device,
+                            modbus_strerror(errno));
     }
     s->fd = modbus_get_socket(s->ctx);
     s->len = 0;
     sc_log(SC_LOG_NOTICE, "modbus-rtu: serving %s at %d baud %d%c%d (unit id %u)", s->cfg.device,
            s->cfg.baud, s->cfg.data_bits, s->cfg.parity, s->cfg.stop_bits,
            (unsigned)s->cfg.unit_id);
-    return 0;
+    return SC_OK;
 }
 
 static int rtu_fill(void *state, struct pollfd *fds, int max)

@@ -96,8 +96,8 @@ static int looks_numeric(const char *h)
     return 1;
 }
 
-int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *out,
-                     socklen_t *outlen, char *why, int whylen)
+sc_status sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *out,
+                     socklen_t *outlen, sc_error *err)
 {
     memset(out, 0, sizeof *out);
     struct sockaddr_in *a4 = (struct sockaddr_in *)out;
@@ -106,20 +106,20 @@ int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *o
         a4->sin_family = AF_INET;
         a4->sin_port = htons(port);
         *outlen = sizeof *a4;
-        return 0;
+        return SC_OK;
     }
     if (inet_pton(AF_INET6, host, &a6->sin6_addr) == 1) {
         a6->sin6_family = AF_INET6;
         a6->sin6_port = htons(port);
         *outlen = sizeof *a6;
-        return 0;
+        return SC_OK;
     }
     struct in_addr legacy;
     if (looks_numeric(host) || inet_aton(host, &legacy) != 0) {
-        snprintf(why, (size_t)whylen,
-                 "--modbus-tcp: '%.64s' is not an IPv4 address (a.b.c.d, decimal, no leading "
-                 "zeros) nor an IPv6 address ([::1]:PORT)", host);
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "--modbus-tcp: '%.64s' is not an IPv4 address (a.b.c.d, decimal, no "
+                            "leading zeros) nor an IPv6 address ([::1]:PORT)",
+                            host);
     }
     struct addrinfo hints, *res = NULL;
     memset(&hints, 0, sizeof hints);
@@ -128,9 +128,8 @@ int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *o
     hints.ai_flags = AI_PASSIVE;
     int rc = getaddrinfo(host, NULL, &hints, &res);
     if (rc != 0 || res == NULL) {
-        snprintf(why, (size_t)whylen, "--modbus-tcp: cannot resolve '%.64s': %s", host,
-                 rc == EAI_SYSTEM ? strerror(errno) : gai_strerror(rc));
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "--modbus-tcp: cannot resolve '%.64s': %s",
+                            host, rc == EAI_SYSTEM ? strerror(errno) : gai_strerror(rc));
     }
     const struct addrinfo *pick = NULL; /* IPv4 first: what most Modbus clients dial */
     for (const struct addrinfo *r = res; r != NULL && pick == NULL; r = r->ai_next)
@@ -141,8 +140,8 @@ int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *o
             pick = r;
     if (pick == NULL || pick->ai_addrlen > sizeof *out) {
         freeaddrinfo(res);
-        snprintf(why, (size_t)whylen, "--modbus-tcp: '%.64s' has no IPv4 or IPv6 address", host);
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "--modbus-tcp: '%.64s' has no IPv4 or IPv6 address", host);
     }
     memcpy(out, pick->ai_addr, pick->ai_addrlen);
     *outlen = pick->ai_addrlen;
@@ -151,7 +150,7 @@ int sc_mbtcp_resolve(const char *host, uint16_t port, struct sockaddr_storage *o
         a4->sin_port = htons(port);
     else
         a6->sin6_port = htons(port);
-    return 0;
+    return SC_OK;
 }
 
 void sc_mbtcp_format_addr(const struct sockaddr_storage *a, char *buf, int len)
@@ -196,29 +195,25 @@ static void conn_close(mbtcp_state *s, conn *c, const char *why)
     s->nconn--;
 }
 
-static int tcp_open(void *state, char *why, int whylen)
+static sc_status tcp_open(void *state, sc_error *err)
 {
     mbtcp_state *s = state;
     for (int i = 0; i < SC_MBTCP_MAX_CONN; i++)
         s->c[i].fd = -1;
     s->nconn = 0;
     if (s->cfg.max_connections < 1 || s->cfg.max_connections > SC_MBTCP_MAX_CONN) {
-        snprintf(why, (size_t)whylen, "modbus-tcp: max-connections must be 1..%d",
-                 SC_MBTCP_MAX_CONN);
-        return -1;
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "modbus-tcp: max-connections must be 1..%d",
+                            SC_MBTCP_MAX_CONN);
     }
-    if (sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order) != 0) {
-        snprintf(why, (size_t)whylen, "modbus: cannot allocate the register map");
-        return -1;
-    }
+    sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order);
     struct sockaddr_storage addr;
     socklen_t alen;
-    if (sc_mbtcp_resolve(s->cfg.host, s->cfg.port, &addr, &alen, why, whylen) != 0)
-        return -1;
+    sc_status st = sc_mbtcp_resolve(s->cfg.host, s->cfg.port, &addr, &alen, err);
+    if (st != SC_OK)
+        return st;
     s->listen_fd = socket(addr.ss_family, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
     if (s->listen_fd < 0) {
-        snprintf(why, (size_t)whylen, "modbus-tcp: socket: %s", strerror(errno));
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "modbus-tcp: socket: %s", strerror(errno));
     }
     int one = 1;
     setsockopt(s->listen_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
@@ -226,11 +221,10 @@ static int tcp_open(void *state, char *why, int whylen)
         listen(s->listen_fd, 128) != 0) {
         char a[sizeof s->bound];
         sc_mbtcp_format_addr(&addr, a, sizeof a);
-        snprintf(why, (size_t)whylen, "modbus-tcp: cannot listen on %s (%s): %s", a,
-                 s->cfg.host, strerror(errno));
         close(s->listen_fd);
         s->listen_fd = -1;
-        return -1;
+        return sc_error_set(err, SC_E_IO, NULL, 0, "modbus-tcp: cannot listen on %s (%s): %s", a,
+                            s->cfg.host, strerror(errno));
     }
     struct sockaddr_storage got;
     socklen_t glen = sizeof got;
@@ -243,7 +237,7 @@ static int tcp_open(void *state, char *why, int whylen)
     sc_log(SC_LOG_NOTICE, "modbus-tcp: listening on %s (unit id %u, max %d connections%s)",
            s->bound, (unsigned)s->cfg.unit_id, s->cfg.max_connections,
            s->cfg.max_per_peer > 0 ? ", a per-peer limit" : "");
-    return 0;
+    return SC_OK;
 }
 
 static int tcp_fill(void *state, struct pollfd *fds, int max)

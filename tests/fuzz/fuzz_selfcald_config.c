@@ -9,12 +9,13 @@
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static sc_config c;
-    char why[600];
+    sc_error err;
     sc_config_defaults(&c);
-    why[0] = '\0';
+    sc_error_clear(&err);
     const char *path = fuzz_path(data, size);
-    if (sc_config_load_file(&c, path, why, sizeof why) != 0) {
-        FUZZ_CHECK(why[0] != '\0' && strchr(why, '\n') == NULL);
+    if (sc_config_load_file(&c, path, &err) != SC_OK) {
+        FUZZ_CHECK(err.code != SC_OK && err.msg[0] != '\0' && strchr(err.msg, '\n') == NULL);
+        FUZZ_CHECK(strcmp(err.file, path) == 0);
         return 0;
     }
     FUZZ_CHECK(c.tcp.max_connections >= 1 && c.tcp.max_connections <= SC_MBTCP_MAX_CONN);

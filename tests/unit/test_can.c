@@ -100,24 +100,24 @@ static void test_config_check(void **state)
 {
     (void)state;
     sc_can_config c;
-    char why[200];
+    sc_error why;
     sc_can_config_defaults(&c);
-    assert_int_equal(sc_can_config_check(&c, why, sizeof why), -1); /* no interface */
-    assert_non_null(strstr(why, "interface"));
+    assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT); /* no interface */
+    assert_non_null(strstr(why.msg, "interface"));
     strcpy(c.ifname, "vcan0");
-    assert_int_equal(sc_can_config_check(&c, why, sizeof why), 0);
+    assert_int_equal(sc_can_config_check(&c, &why), SC_OK);
     c.out_id = 0x800;
-    assert_int_equal(sc_can_config_check(&c, why, sizeof why), -1);
-    assert_non_null(strstr(why, "0x800"));
+    assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT);
+    assert_non_null(strstr(why.msg, "0x800"));
     c.out_id = 0x100;
-    assert_int_equal(sc_can_config_check(&c, why, sizeof why), -1);
-    assert_non_null(strstr(why, "differ"));
+    assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT);
+    assert_non_null(strstr(why.msg, "differ"));
     c.out_id = 0x101;
     c.status_period_ms = 0;
-    assert_int_equal(sc_can_config_check(&c, why, sizeof why), -1);
+    assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT);
     memset(c.ifname, 'a', sizeof c.ifname); /* not terminated */
     c.status_period_ms = 1000;
-    assert_int_equal(sc_can_config_check(&c, why, sizeof why), -1);
+    assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT);
 }
 
 /* ---------------------------------------------------------------- serve / tick */
@@ -152,8 +152,8 @@ static void rig_open(rig *r)
     sc_can_transport(&r->t, &c);
     memset(&r->e, 0, sizeof r->e);
     r->e.status = SC_CORR_ST_LOADED;
-    char why[200];
-    assert_int_equal(r->t.open(r->t.state, why, sizeof why), 0);
+    sc_error why;
+    assert_int_equal(r->t.open(r->t.state, &why), SC_OK);
 }
 
 static void rig_close(rig *r)
@@ -418,9 +418,10 @@ static void test_open_without_interface(void **state)
     c.log = capture_log;
     sc_can_transport_use_fd(-1);
     sc_can_transport(&t, &c);
-    char why[200] = "";
-    assert_int_equal(t.open(t.state, why, sizeof why), -1);
-    assert_non_null(strstr(why, "CAN"));
+    sc_error why;
+    sc_error_clear(&why);
+    assert_int_not_equal(t.open(t.state, &why), SC_OK);
+    assert_non_null(strstr(why.msg, "CAN"));
     struct pollfd fds[1];
     assert_int_equal(t.fill_pollfds(t.state, fds, 1), 0);
     t.close(t.state);

@@ -33,6 +33,14 @@
 
 static sc_lut g_lut; /* ~300 KB: static */
 
+/* An sc_error as the daemon prints it ("file:line: message"). */
+static const char *err_text(const sc_error *e)
+{
+    static char buf[sizeof e->file + sizeof e->msg + 32];
+    sc_error_format(e, buf, sizeof buf);
+    return buf;
+}
+
 /* A smooth known map (um); scale k lets two tables differ. */
 static double gx_true(double x, double y, double k)
 {
@@ -120,14 +128,14 @@ static void test_engine_correct(void **state)
 {
     (void)state;
     static sc_engine e;
-    char why[600];
+    sc_error why;
     sc_engine_init(&e, SC_CORR_MEASURE);
     int32_t ox, oy;
     /* Without a table: pass through, LOADED clear. */
     assert_int_equal(sc_engine_correct(&e, 123, -456, &ox, &oy) & SC_CORR_ST_LOADED, 0);
     assert_int_equal(ox, 123);
     assert_int_equal(oy, -456);
-    assert_int_equal(sc_engine_load_file(&e, g_path_a, why, sizeof why), 0);
+    assert_int_equal(sc_engine_load_file(&e, g_path_a, &why), SC_OK);
     assert_true(e.status & SC_CORR_ST_LOADED);
     uint32_t before = e.corrections;
     for (int k = 0; k < 400; k++) {
@@ -190,15 +198,15 @@ static void test_engine_reload(void **state)
 {
     (void)state;
     static sc_engine e;
-    char why[600];
+    sc_error why;
     sc_engine_init(&e, SC_CORR_MEASURE);
-    assert_int_equal(sc_engine_load_file(&e, g_path_a, why, sizeof why), 0);
+    assert_int_equal(sc_engine_load_file(&e, g_path_a, &why), SC_OK);
     const sc_corr_table *first = e.table;
     int32_t ax, ay, bx, by;
     sc_engine_correct(&e, 700000, -300000, &ax, &ay);
     /* Missing file: keep the table, say so in the status. */
-    assert_int_equal(sc_engine_load_file(&e, "/nonexistent/t.lut", why, sizeof why), -1);
-    assert_non_null(strstr(why, "/nonexistent/t.lut"));
+    assert_int_equal(sc_engine_load_file(&e, "/nonexistent/t.lut", &why), SC_E_IO);
+    assert_non_null(strstr(err_text(&why), "/nonexistent/t.lut"));
     assert_ptr_equal(e.table, first);
     assert_true(e.status & SC_ENGINE_ST_RELOAD_FAILED);
     assert_true(e.status & SC_CORR_ST_LOADED);
@@ -214,14 +222,14 @@ static void test_engine_reload(void **state)
     assert_true(n > 100);
     buf[n / 2] ^= 0x40;
     write_bytes(g_path_bad, buf, n);
-    assert_int_equal(sc_engine_load_file(&e, g_path_bad, why, sizeof why), -1);
+    assert_int_equal(sc_engine_load_file(&e, g_path_bad, &why), SC_E_INPUT);
     assert_ptr_equal(e.table, first);
     write_bytes(g_path_bad, "hello", 5);
-    assert_int_equal(sc_engine_load_file(&e, g_path_bad, why, sizeof why), -1);
+    assert_int_equal(sc_engine_load_file(&e, g_path_bad, &why), SC_E_INPUT);
     assert_ptr_equal(e.table, first);
     assert_int_equal(e.reload_failed, 3);
     /* A valid new table: swapped into the other slot, the failure bit cleared. */
-    assert_int_equal(sc_engine_load_file(&e, g_path_b, why, sizeof why), 0);
+    assert_int_equal(sc_engine_load_file(&e, g_path_b, &why), SC_OK);
     assert_ptr_not_equal(e.table, first);
     assert_int_equal(e.status & SC_ENGINE_ST_RELOAD_FAILED, 0);
     sc_engine_correct(&e, 700000, -300000, &bx, &by);
@@ -229,7 +237,7 @@ static void test_engine_reload(void **state)
     assert_true(fabs((bx - 700000) + 2.0 * (ax - 700000)) <= 2.0);
     assert_true(fabs((by + 300000) + 2.0 * (ay + 300000)) <= 2.0);
     /* And back to a: the first slot again. */
-    assert_int_equal(sc_engine_load_file(&e, g_path_a, why, sizeof why), 0);
+    assert_int_equal(sc_engine_load_file(&e, g_path_a, &why), SC_OK);
     assert_ptr_equal(e.table, first);
 }
 
@@ -256,7 +264,8 @@ static void test_config(void **state)
 {
     (void)state;
     static sc_config c;
-    char why[600], path[512];
+    sc_error why;
+    char path[512];
     int help, version;
     snprintf(path, sizeof path, "%s/runtime.conf", SELFCAL_TEST_TMP);
     const char *text = "# selfcald test\n"
@@ -270,7 +279,7 @@ static void test_config(void **state)
     char *argv[] = {"selfcald", "--config", path, "--unit-id", "9", "--modbus-rtu",
                     "/dev/ttyS1:115200:N:8:2", NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 7, argv, &help, &version, why, sizeof why), 0);
+    assert_int_equal(sc_config_parse_args(&c, 7, argv, &help, &version, &why), SC_OK);
     assert_string_equal(c.table, "/tmp/x.lut");
     assert_int_equal(c.use_modbus_tcp, 1);
     assert_int_equal(c.tcp.port, 1700);
@@ -285,7 +294,7 @@ static void test_config(void **state)
     /* Default transport: Modbus TCP on 127.0.0.1:1502. */
     char *argv2[] = {"selfcald", "--table=t.lut", NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 2, argv2, &help, &version, why, sizeof why), 0);
+    assert_int_equal(sc_config_parse_args(&c, 2, argv2, &help, &version, &why), SC_OK);
     assert_int_equal(c.use_modbus_tcp, 1);
     assert_int_equal(c.tcp.port, 1502);
     assert_string_equal(c.tcp.host, "127.0.0.1");
@@ -294,29 +303,29 @@ static void test_config(void **state)
     write_bytes(path, bad, strlen(bad));
     char *argv3[] = {"selfcald", "--config", path, NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 3, argv3, &help, &version, why, sizeof why), -1);
-    assert_non_null(strstr(why, "runtime.conf:3:"));
-    assert_non_null(strstr(why, "sideways"));
+    assert_int_equal(sc_config_parse_args(&c, 3, argv3, &help, &version, &why), SC_E_INPUT);
+    assert_non_null(strstr(err_text(&why), "runtime.conf:3:"));
+    assert_non_null(strstr(err_text(&why), "sideways"));
     char *argv4[] = {"selfcald", "--modbus-tcp", "localhost", NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 3, argv4, &help, &version, why, sizeof why), -1);
+    assert_int_equal(sc_config_parse_args(&c, 3, argv4, &help, &version, &why), SC_E_INPUT);
     char *argv5[] = {"selfcald", "--modbus-tcp", "127.0.0.1:1502", NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 3, argv5, &help, &version, why, sizeof why), -1);
-    assert_non_null(strstr(why, "--table"));
+    assert_int_equal(sc_config_parse_args(&c, 3, argv5, &help, &version, &why), SC_E_INPUT);
+    assert_non_null(strstr(err_text(&why), "--table"));
     /* Busy polling: off by default, a bounded number of microseconds, garbage refused. */
     sc_config_defaults(&c);
     assert_int_equal(c.busy_poll_us, 0);
     char *argv6[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "500", NULL};
-    assert_int_equal(sc_config_parse_args(&c, 5, argv6, &help, &version, why, sizeof why), 0);
+    assert_int_equal(sc_config_parse_args(&c, 5, argv6, &help, &version, &why), SC_OK);
     assert_int_equal(c.busy_poll_us, 500);
     char *argv7[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "-5", NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 5, argv7, &help, &version, why, sizeof why), -1);
-    assert_non_null(strstr(why, "--busy-poll-us"));
+    assert_int_equal(sc_config_parse_args(&c, 5, argv7, &help, &version, &why), SC_E_INPUT);
+    assert_non_null(strstr(err_text(&why), "--busy-poll-us"));
     char *argv8[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "2000000", NULL};
     sc_config_defaults(&c);
-    assert_int_equal(sc_config_parse_args(&c, 5, argv8, &help, &version, why, sizeof why), -1);
+    assert_int_equal(sc_config_parse_args(&c, 5, argv8, &help, &version, &why), SC_E_INPUT);
 }
 
 static sc_daemon g_d;
@@ -324,12 +333,12 @@ static sc_daemon g_d;
 static void test_daemon_fake(void **state)
 {
     (void)state;
-    char why[600];
+    sc_error why;
     sc_daemon_init(&g_d, g_path_a, SC_CORR_MEASURE);
     sc_transport t;
     sc_fake_transport(&t);
-    assert_int_equal(sc_daemon_add(&g_d, &t), 0);
-    assert_int_equal(sc_daemon_start(&g_d, why, sizeof why), 0);
+    assert_int_equal(sc_daemon_add(&g_d, &t), SC_OK);
+    assert_int_equal(sc_daemon_start(&g_d, &why), SC_OK);
     int peer = sc_fake_peer_fd();
     assert_true(peer >= 0);
     /* 300 requests in flight at once (the socket buffers them), then answers in order. */
@@ -381,7 +390,7 @@ static void test_daemon_fake(void **state)
     assert_int_equal(st & (SC_ENGINE_ST_RELOAD_FAILED | SC_CORR_ST_LOADED),
                      SC_ENGINE_ST_RELOAD_FAILED | SC_CORR_ST_LOADED);
     sc_daemon_request_stop(&g_d);
-    assert_int_equal(sc_daemon_step(&g_d, 0), 0);
+    assert_false(sc_daemon_step(&g_d, 0));
     sc_daemon_close(&g_d);
 }
 
@@ -402,21 +411,23 @@ static void test_sd_notify(void **state)
     setenv("NOTIFY_SOCKET", path, 1);
     setenv("WATCHDOG_USEC", "100000", 1); /* 100 ms: WATCHDOG=1 every 50 ms */
     unsetenv("WATCHDOG_PID");
-    assert_int_equal(sc_notify_init(), 1);
+    bool on = false;
+    assert_int_equal(sc_notify_init(&on), SC_OK);
+    assert_true(on);
     assert_int_equal(sc_notify_watchdog_usec(), 100000);
-    assert_int_equal(sc_notify("READY=1"), 0);
+    assert_int_equal(sc_notify("READY=1"), SC_OK);
     char buf[256];
     ssize_t n = recv(s, buf, sizeof buf - 1, 0);
     assert_int_equal(n, 7);
     buf[n] = '\0';
     assert_string_equal(buf, "READY=1");
     /* The loop sends WATCHDOG=1 at half the interval, and RELOADING=1 on a reload. */
-    char why[600];
+    sc_error why;
     sc_daemon_init(&g_d, g_path_a, SC_CORR_MEASURE);
     sc_transport t;
     sc_fake_transport(&t);
     sc_daemon_add(&g_d, &t);
-    assert_int_equal(sc_daemon_start(&g_d, why, sizeof why), 0);
+    assert_int_equal(sc_daemon_start(&g_d, &why), SC_OK);
     assert_int_equal(g_d.watchdog_period_ms, 50);
     uint64_t t0 = sc_now_ms();
     int watchdogs = 0;
@@ -450,11 +461,14 @@ static void test_sd_notify(void **state)
     unsetenv("WATCHDOG_USEC");
     /* The abstract namespace ('@') is accepted too. */
     setenv("NOTIFY_SOCKET", "@selfcald-test-abstract", 1);
-    assert_int_equal(sc_notify_init(), 1);
+    on = false;
+    assert_int_equal(sc_notify_init(&on), SC_OK);
+    assert_true(on);
     sc_notify_close();
     unsetenv("NOTIFY_SOCKET");
-    assert_int_equal(sc_notify_init(), 0);
-    assert_int_equal(sc_notify("READY=1"), 0); /* disabled: a no-op */
+    assert_int_equal(sc_notify_init(&on), SC_OK);
+    assert_false(on);
+    assert_int_equal(sc_notify("READY=1"), SC_OK); /* disabled: a no-op */
     close(s);
     unlink(path);
 }

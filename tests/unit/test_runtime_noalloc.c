@@ -118,7 +118,7 @@ static void make_table(const char *path)
 static void test_no_alloc_after_start(void **state)
 {
     (void)state;
-    char why[600];
+    sc_error why;
     snprintf(g_table, sizeof g_table, "%s/noalloc.lut", SELFCAL_TEST_TMP);
     snprintf(g_bad, sizeof g_bad, "%s/noalloc_bad.lut", SELFCAL_TEST_TMP);
     make_table(g_table);
@@ -137,7 +137,7 @@ static void test_no_alloc_after_start(void **state)
     sc_daemon_add(&g_d, &t);
     sc_fake_transport(&t);
     sc_daemon_add(&g_d, &t);
-    assert_int_equal(sc_daemon_start(&g_d, why, sizeof why), 0);
+    assert_int_equal(sc_daemon_start(&g_d, &why), SC_OK);
     uint16_t port = sc_modbus_tcp_bound_port();
     assert_true(port > 0);
     install_counter();
