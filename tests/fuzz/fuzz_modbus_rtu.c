@@ -119,12 +119,12 @@ static size_t response_len(const uint8_t *p, size_t have)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static int inited;
-    char why[128];
+    sc_error err;
     if (!inited) {
         init();
         inited = 1;
     }
-    FUZZ_CHECK(g_tr.open(g_tr.state, why, sizeof why) == 0);
+    FUZZ_CHECK(g_tr.open(g_tr.state, &err) == SC_OK);
     size_t off = 0, line_bytes = 0;
     while (off < size) {
         uint8_t c = data[off++];
