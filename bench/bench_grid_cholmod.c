@@ -113,10 +113,10 @@ static void selfcal_child(int n, figures *out)
     double base, peak;
     rss_mib(&base, &peak);
     sc_error err;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     double t0 = now_s(), c0 = cpu_s();
-    if (sc_grid_lsq_create(&p, &d, &q, &err) != SC_OK ||
-        sc_grid_lsq_solve(q, &d, 0.0, &res, &err) != SC_OK) {
+    if (sc_grid_lsq_plan_create(&p, &d, NULL, &q, &err) != SC_OK ||
+        sc_grid_lsq_execute(q, &d, 0.0, &res, &err) != SC_OK) {
         fprintf(stderr, "selfcal failed: %s\n", err.msg);
         exit(1);
     }
@@ -132,7 +132,7 @@ static void selfcal_child(int n, figures *out)
     for (int k = 0; k < nn; ++k)
         rms += res.ugx_um[k] * res.ugx_um[k];
     out->check = sqrt(rms / nn);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
 }
 
 static void export_child(int n, const char *path)
@@ -140,8 +140,8 @@ static void export_child(int n, const char *path)
     sc_grid_plan p;
     petro_plan(&p, n);
     sc_error err;
-    sc_grid_lsq *q = NULL;
-    if (sc_grid_lsq_create(&p, NULL, &q, &err) != SC_OK)
+    sc_grid_lsq_plan *q = NULL;
+    if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK)
         exit(1);
     int nx;
     const long *Ap;
@@ -153,7 +153,7 @@ static void export_child(int n, const char *path)
         fwrite(Ai, sizeof(int), Ap[nx], f) != (size_t)Ap[nx] ||
         fwrite(Ax, sizeof(double), Ap[nx], f) != (size_t)Ap[nx] || fclose(f) != 0)
         exit(1);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
 }
 
 static void cholmod_child(const char *path, figures *out)

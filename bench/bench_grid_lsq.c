@@ -99,14 +99,14 @@ static void run(int n, int kind)
     }
     sc_grid_synthesize(&p, gx, gy, ax, ay, tx, ty, th, &d);
     sc_error err;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     double c0 = cpu_s(), t0 = now_s();
-    if (sc_grid_lsq_create(&p, NULL, &q, &err) != SC_OK) {
+    if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK) {
         printf("create failed: %s\n", err.msg);
         exit(1);
     }
     double t1 = now_s(), c1 = cpu_s();
-    sc_status st = sc_grid_lsq_solve(q, &d, 0.0, &res, &err);
+    sc_status st = sc_grid_lsq_execute(q, &d, 0.0, &res, &err);
     double t2 = now_s(), c2 = cpu_s();
     sc_grid_lsq_info info;
     sc_grid_lsq_stats sst;
@@ -123,7 +123,7 @@ static void run(int n, int kind)
            sst.bytes / 1048576.0, peak_mib(), st == SC_OK ? eg : NAN, info.sigma_c_ratio_rms,
            info.sigma_c_ratio_max, sst.min_kept_pivot_ratio);
     fflush(stdout);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     for (int v = 0; v < p.n_views; ++v)
         free(d.dx_um[v]), free(d.dy_um[v]);
     free(buf);
@@ -139,9 +139,9 @@ static void plans_table(void)
         for (size_t i = 0; i < sizeof ns / sizeof *ns; ++i) {
             sc_grid_plan p;
             make_plan(&p, ns[i], kind);
-            sc_grid_lsq *q = NULL;
+            sc_grid_lsq_plan *q = NULL;
             sc_error err;
-            if (sc_grid_lsq_create(&p, NULL, &q, &err) != SC_OK) {
+            if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK) {
                 printf("%-28s %4d create failed: %s\n", plan_name[kind], ns[i], err.msg);
                 continue;
             }
@@ -152,7 +152,7 @@ static void plans_table(void)
             printf("%-28s %4d %6s %4ld %9.4f %9.4f %10.2e %10.2e\n", plan_name[kind], ns[i],
                    info.identifiable ? "yes" : "no", info.free_dof, info.sigma_c_ratio_rms,
                    info.sigma_c_ratio_max, st.min_kept_pivot_ratio, st.max_null_pivot_ratio);
-            sc_grid_lsq_destroy(q);
+            sc_grid_lsq_plan_destroy(q);
         }
 }
 

@@ -24,7 +24,7 @@ typedef struct estimator {
     int method, n;
     sc_grid_plan plan;
     sc_grid_exact_plan *xp;
-    sc_grid_lsq *q;
+    sc_grid_lsq_plan *q;
     double pred_rms; /* lsq: predicted RMS std(G)/σ_r */
 } estimator;
 
@@ -52,7 +52,7 @@ static void est_make(estimator *e, int method, int n)
         st = sc_grid_exact_plan_create(method == M_YE ? SC_GRID_YE : SC_GRID_DOUBLE_SHIFT, n,
                                        &e->xp, &err);
     } else {
-        st = sc_grid_lsq_create(&e->plan, NULL, &e->q, &err);
+        st = sc_grid_lsq_plan_create(&e->plan, NULL, NULL, &e->q, &err);
         if (st == SC_OK) {
             sc_grid_lsq_info info;
             sc_grid_lsq_get_info(e->q, &info);
@@ -66,7 +66,7 @@ static void est_make(estimator *e, int method, int n)
 static void est_free(estimator *e)
 {
     sc_grid_exact_plan_destroy(e->xp);
-    sc_grid_lsq_destroy(e->q);
+    sc_grid_lsq_plan_destroy(e->q);
 }
 
 /* One simulation + estimate; returns σ_C (µm). */
@@ -93,7 +93,7 @@ static double trial(estimator *e, const sc_grid_sim_params *sp)
     memset(&r, 0, sizeof r);
     r.gx_um = buf + 6 * nn, r.gy_um = buf + 7 * nn, r.ax_um = buf + 8 * nn, r.ay_um = buf + 9 * nn;
     sc_status st = e->xp ? sc_grid_exact_execute(e->xp, &d, &r, &err)
-                         : sc_grid_lsq_solve(e->q, &d, sp->sigma_r_um, &r, &err);
+                         : sc_grid_lsq_execute(e->q, &d, sp->sigma_r_um, &r, &err);
     if (st != SC_OK)
         die("solve", &err);
     double mean = 0, var = 0;

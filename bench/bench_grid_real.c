@@ -85,14 +85,14 @@ static void monte_carlo(int trials)
     sc_grid_plan pu = p;
     for (int v = 0; v < 3; ++v)
         pu.view[v].sigma_um = 0;
-    sc_grid_lsq *qw = NULL, *qu = NULL;
+    sc_grid_lsq_plan *qw = NULL, *qu = NULL;
     sc_rng rng;
     sc_rng_seed(&rng, 2026);
     noisy(&s, &rng, sig); /* the mask: which marks are measured */
-    sc_grid_lsq_create(&p, &s.d, &qw, NULL);
+    sc_grid_lsq_plan_create(&p, &s.d, NULL, &qw, NULL);
     sc_grid_data du = s.d;
     du.plan = pu;
-    sc_grid_lsq_create(&pu, &du, &qu, NULL);
+    sc_grid_lsq_plan_create(&pu, &du, NULL, &qu, NULL);
     long ns = s.ns, tot = (long)p.n_views * s.nn;
     double *se_w = calloc(2 * ns, sizeof(double)), *se_u = calloc(2 * ns, sizeof(double));
     double *rx = malloc(sizeof(double) * tot), *ry = malloc(sizeof(double) * tot);
@@ -107,10 +107,10 @@ static void monte_carlo(int trials)
     double t0 = now_s();
     for (int t = 0; t < trials; ++t) {
         noisy(&s, &rng, sig);
-        sc_grid_lsq_solve(qw, &s.d, 0, &s.r, NULL);
+        sc_grid_lsq_execute(qw, &s.d, 0, &s.r, NULL);
         if (t == 0)
             memcpy(ugx, s.r.ugx_um, sizeof(double) * ns), memcpy(ugy, s.r.ugy_um, sizeof(double) * ns);
-        sc_grid_lsq_residuals(qw, rx, ry, tx, ty, h, NULL);
+        sc_grid_lsq_residuals(qw, &s.d, &s.r, rx, ry, tx, ty, h, NULL);
         chi_fail += !s.r.chi2_pass;
         for (long k = 0; k < ns; ++k) {
             double ex = s.r.gx_um[k] - s.gx[k], ey = s.r.gy_um[k] - s.gy[k];
@@ -125,7 +125,7 @@ static void monte_carlo(int trials)
         du.plan = pu;
         for (int v = 0; v < 3; ++v)
             du.dx_um[v] = s.d.dx_um[v], du.dy_um[v] = s.d.dy_um[v];
-        sc_grid_lsq_solve(qu, &du, 0, &ru, NULL);
+        sc_grid_lsq_execute(qu, &du, 0, &ru, NULL);
         for (long k = 0; k < ns; ++k) {
             double ex = ru.gx_um[k] - s.gx[k], ey = ru.gy_um[k] - s.gy[k];
             se_u[2 * k] += ex * ex, se_u[2 * k + 1] += ey * ey;
@@ -164,8 +164,8 @@ static void monte_carlo(int trials)
                 k = (int)(sc_rng_uniform(&rng) * s.nn);
             while (!isfinite(s.d.dx_um[v][k]));
             s.d.dx_um[v][k] += size * sig[v];
-            sc_grid_lsq_solve(qw, &s.d, 0, &s.r, NULL);
-            sc_grid_lsq_residuals(qw, rx, ry, tx, ty, h, NULL);
+            sc_grid_lsq_execute(qw, &s.d, 0, &s.r, NULL);
+            sc_grid_lsq_residuals(qw, &s.d, &s.r, rx, ry, tx, ty, h, NULL);
             long at = (long)v * s.nn + k;
             if (!isfinite(tx[at]))
                 continue; /* a mark seen once is not testable */
@@ -175,7 +175,7 @@ static void monte_carlo(int trials)
         printf("3. one %2d sigma outlier: detected in %.3f of %ld trials\n", size,
                (double)det / n, n);
     }
-    sc_grid_lsq_destroy(qw), sc_grid_lsq_destroy(qu);
+    sc_grid_lsq_plan_destroy(qw), sc_grid_lsq_plan_destroy(qu);
     free(se_w), free(se_u), free(rx), free(ry), free(tx), free(ty), free(h), free(ugx), free(ugy);
     free(ubuf), free(s.buf);
     sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
@@ -189,13 +189,13 @@ static void big_stitched(void)
     setup s;
     setup_make(&s, &p, 3);
     double t0 = now_s(), c0 = cpu_s();
-    sc_grid_lsq *q = NULL;
-    if (sc_grid_lsq_create(&p, &s.clean, &q, NULL) != SC_OK)
+    sc_grid_lsq_plan *q = NULL;
+    if (sc_grid_lsq_plan_create(&p, &s.clean, NULL, &q, NULL) != SC_OK)
         return;
     double t1 = now_s(), c1 = cpu_s();
     sc_grid_lsq_info qi;
     sc_grid_lsq_get_info(q, &qi);
-    sc_grid_lsq_solve(q, &s.clean, 0.01, &s.r, NULL);
+    sc_grid_lsq_execute(q, &s.clean, 0.01, &s.r, NULL);
     double t2 = now_s(), c2 = cpu_s();
     double e = 0;
     for (long k = 0; k < s.ns; ++k)
@@ -206,7 +206,7 @@ static void big_stitched(void)
            "   solve (with O, R, misalignment uncertainties) %.2f s wall, %.2f s CPU;\n"
            "   sigma_c_ratio rms %.4f max %.4f; noise-free error %.2e um\n",
            s.ns, t1 - t0, c1 - c0, t2 - t1, c2 - c1, qi.sigma_c_ratio_rms, qi.sigma_c_ratio_max, e);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     free(s.buf);
     sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
 }

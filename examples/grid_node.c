@@ -52,12 +52,12 @@ int main(int argc, char **argv)
     res.ugy_um = ugy; /* ax_um/ay_um (the plate's errors) stay NULL: not wanted here */
 
     int rc = 0;
-    sc_grid_lsq *lsq = NULL; /* plan object: create analyses and factors, solve, destroy */
+    sc_grid_lsq_plan *lsq = NULL; /* plan object: create analyses and factors, solve, destroy */
     if (!gx || !gy || !ugx || !ugy) {
         fprintf(stderr, "grid_node: out of memory\n");
         rc = 1;
-    } else if (sc_grid_lsq_create(&data.plan, &data, &lsq, &err) != SC_OK ||
-               sc_grid_lsq_solve(lsq, &data, 0.0 /* σ_r from the residuals */, &res, &err) != SC_OK) {
+    } else if (sc_grid_lsq_plan_create(&data.plan, &data, NULL, &lsq, &err) != SC_OK ||
+               sc_grid_lsq_execute(lsq, &data, 0.0 /* σ_r from the residuals */, &res, &err) != SC_OK) {
         rc = fail(&err);
     } else {
         double x_mm, y_mm;
@@ -68,7 +68,7 @@ int main(int argc, char **argv)
         printf("node %d,%d at (%.3f, %.3f) mm: gx = %.6f +- %.6f um, gy = %.6f +- %.6f um\n", i, j,
                x_mm, y_mm, gx[k], ugx[k], gy[k], ugy[k]);
     }
-    sc_grid_lsq_destroy(lsq);
+    sc_grid_lsq_plan_destroy(lsq);
     sc_grid_data_free(&data);
     free(gx);
     free(gy);

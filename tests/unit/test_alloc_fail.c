@@ -191,15 +191,15 @@ static void result_arrays(grid_ctx *g, sc_grid_result *res)
 static sc_status grid_lsq(void *ctx, sc_error *err)
 {
     grid_ctx *g = ctx;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_grid_result res;
     result_arrays(g, &res);
-    sc_status st = sc_grid_lsq_create(&g->d.plan, &g->d, &q, err);
+    sc_status st = sc_grid_lsq_plan_create(&g->d.plan, &g->d, NULL, &q, err);
     if (st != SC_OK)
         assert_null(q);
     if (st == SC_OK)
-        st = sc_grid_lsq_solve(q, &g->d, 0.01, &res, err);
-    sc_grid_lsq_destroy(q);
+        st = sc_grid_lsq_execute(q, &g->d, 0.01, &res, err);
+    sc_grid_lsq_plan_destroy(q);
     return st;
 }
 
@@ -305,7 +305,7 @@ static void test_grid(void **state)
     g.out = __real_malloc(6 * 81 * sizeof(double));
     assert_non_null(g.out);
     every_allocation("sc_grid_read", read_grid, TMP "grid.csv");
-    every_allocation("sc_grid_lsq create + solve", grid_lsq, &g);
+    every_allocation("sc_grid_lsq_plan create + solve", grid_lsq, &g);
     every_allocation("sc_grid_exact double shift create + execute", grid_exact, &g);
     free(g.out);
     sc_grid_data_free(&g.d);

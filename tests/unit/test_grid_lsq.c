@@ -27,16 +27,16 @@ static void check_recovery(int n, int kind, uint64_t seed)
     sc_grid_data d;
     tu_data_alloc(&d, &p);
     sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info info;
     sc_grid_lsq_get_info(q, &info);
     assert_int_equal(info.identifiable, 1);
     assert_int_equal(info.free_dof, 0);
     tu_res res;
     tu_res_alloc(&res, t.nn);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0.0, &res.r, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0.0, &res.r, &err), SC_OK);
     double eg = 0, ea = 0, em = 0, et = 0;
     for (int k = 0; k < t.nn; ++k) {
         eg = fmax(eg, fmax(fabs(res.r.gx_um[k] - t.gx[k]), fabs(res.r.gy_um[k] - t.gy[k])));
@@ -61,7 +61,7 @@ static void check_recovery(int n, int kind, uint64_t seed)
     for (int k = 0; k < t.nn; ++k)
         assert_true(isfinite(res.r.ugx_um[k]) || res.r.sigma_r_used_um != res.r.sigma_r_used_um);
     tu_res_free(&res);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
 }
@@ -93,9 +93,9 @@ static long plan_free_dof(int n, int kind, int *identifiable)
 {
     sc_grid_plan p;
     tu_plan(&p, n, kind);
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info info;
     sc_grid_lsq_get_info(q, &info);
     sc_grid_lsq_stats st;
@@ -110,7 +110,7 @@ static long plan_free_dof(int n, int kind, int *identifiable)
         assert_true(isnan(info.sigma_c_ratio_rms));
         assert_int_equal(sc_grid_lsq_sigma_ratio(q, NULL, NULL, &err), SC_E_UNSOLVABLE);
     }
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     return info.free_dof;
 }
 
@@ -165,12 +165,12 @@ static void test_sigma_estimate(void **s)
         tu_data_alloc(&d, &p);
         sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
         tu_add_noise(&d, 0.05, &r);
-        sc_grid_lsq *q = NULL;
+        sc_grid_lsq_plan *q = NULL;
         sc_error err;
-        assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+        assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
         tu_res res;
         tu_res_alloc(&res, t.nn);
-        assert_int_equal(sc_grid_lsq_solve(q, &d, 0.0, &res.r, &err), SC_OK);
+        assert_int_equal(sc_grid_lsq_execute(q, &d, 0.0, &res.r, &err), SC_OK);
         /* dof ≈ 600..2500 here: the estimate is within a few per cent */
         fprintf(stderr, "N=25 plan %d: sigma_r estimate %.5f (true 0.05), dof %ld\n", kinds[c],
                 res.r.sigma_r_est_um, res.r.dof);
@@ -178,11 +178,11 @@ static void test_sigma_estimate(void **s)
         assert_true(fabs(res.r.sigma_r_est_um / 0.05 - 1) < 0.08);
         assert_true(res.r.sigma_r_used_um == res.r.sigma_r_est_um);
         double u_est = res.r.ugx_um[3];
-        assert_int_equal(sc_grid_lsq_solve(q, &d, 0.2, &res.r, &err), SC_OK);
+        assert_int_equal(sc_grid_lsq_execute(q, &d, 0.2, &res.r, &err), SC_OK);
         assert_true(res.r.sigma_r_used_um == 0.2);
         assert_true(fabs(res.r.ugx_um[3] / u_est - 0.2 / res.r.sigma_r_est_um) < 1e-12);
         tu_res_free(&res);
-        sc_grid_lsq_destroy(q);
+        sc_grid_lsq_plan_destroy(q);
         tu_data_free(&d);
         tu_truth_free(&t);
     }
@@ -199,9 +199,9 @@ static void test_monte_carlo(void **s)
         sc_grid_plan p;
         tu_plan(&p, n, kinds[c]);
         int nn = n * n;
-        sc_grid_lsq *q = NULL;
+        sc_grid_lsq_plan *q = NULL;
         sc_error err;
-        assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+        assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
         double *sgx = malloc(sizeof(double) * nn), *sgy = malloc(sizeof(double) * nn);
         double *acc = calloc(2 * nn, sizeof(double));
         assert_int_equal(sc_grid_lsq_sigma_ratio(q, sgx, sgy, &err), SC_OK);
@@ -217,7 +217,7 @@ static void test_monte_carlo(void **s)
             tu_truth_make(&t, &p, &r);
             sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
             tu_add_noise(&d, sigma, &r);
-            assert_int_equal(sc_grid_lsq_solve(q, &d, sigma, &res.r, &err), SC_OK);
+            assert_int_equal(sc_grid_lsq_execute(q, &d, sigma, &res.r, &err), SC_OK);
             for (int k = 0; k < nn; ++k) {
                 double ex = res.r.gx_um[k] - t.gx[k], ey = res.r.gy_um[k] - t.gy[k];
                 acc[2 * k] += ex * ex;
@@ -250,7 +250,7 @@ static void test_monte_carlo(void **s)
         tu_res_free(&res);
         tu_data_free(&d);
         free(sgx), free(sgy), free(acc);
-        sc_grid_lsq_destroy(q);
+        sc_grid_lsq_plan_destroy(q);
     }
 }
 
@@ -274,15 +274,15 @@ static void test_mask_subset(void **s)
         for (int k = 0; k < nn; ++k)
             if (k == 0 || sc_rng_uniform(&r) < 0.1)
                 d.dx_um[v][k] = d.dy_um[v][k] = NAN;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info info;
     sc_grid_lsq_get_info(q, &info);
     assert_int_equal(info.identifiable, 1);
     tu_res res;
     tu_res_alloc(&res, nn);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_OK);
     double eg = 0;
     for (int k = 0; k < nn; ++k)
         eg = fmax(eg, fmax(fabs(res.r.gx_um[k] - t.gx[k]), fabs(res.r.gy_um[k] - t.gy[k])));
@@ -333,7 +333,7 @@ static void test_mask_subset(void **s)
     }
     assert_true(ea < 1e-9);
     tu_res_free(&res);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
 }
@@ -351,51 +351,51 @@ static void test_bad_input(void **s)
     sc_grid_data d;
     tu_data_alloc(&d, &p);
     sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
     tu_res res;
     tu_res_alloc(&res, nn);
     /* a measured mark missing */
     double keep = d.dx_um[1][40];
     d.dx_um[1][40] = d.dy_um[1][40] = NAN;
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_E_INPUT);
     assert_non_null(strstr(err.msg, "view 1"));
     d.dx_um[1][40] = keep;
     /* only one component */
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_E_INPUT);
     sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
     /* a mark the shifted view cannot see (column N-1 falls off the grid) given a value */
     assert_true(isnan(d.dx_um[2][n - 1]));
     d.dx_um[2][n - 1] = d.dy_um[2][n - 1] = 0.5;
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
-    sc_grid_lsq *q2 = NULL;
-    assert_int_equal(sc_grid_lsq_create(&p, &d, &q2, &err), SC_E_INPUT);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    sc_grid_lsq_plan *q2 = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q2, &err), SC_E_INPUT);
     assert_null(q2);
     sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
     /* a different view in the data */
     d.plan.view[2].shift_x = 2;
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_E_INPUT);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_E_INPUT);
     d.plan.view[2].shift_x = 1;
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_OK);
     /* bad plans */
     sc_grid_plan bad = p;
     bad.n = 8;
-    assert_int_equal(sc_grid_lsq_create(&bad, NULL, &q2, &err), SC_E_INPUT);
+    assert_int_equal(sc_grid_lsq_plan_create(&bad, NULL, NULL, &q2, &err), SC_E_INPUT);
     bad = p;
     bad.view[1].rot_deg = 45;
-    assert_int_equal(sc_grid_lsq_create(&bad, NULL, &q2, &err), SC_E_INPUT);
-    sc_grid_lsq_destroy(q);
+    assert_int_equal(sc_grid_lsq_plan_create(&bad, NULL, NULL, &q2, &err), SC_E_INPUT);
+    sc_grid_lsq_plan_destroy(q);
     /* a plan that does not identify G: made, but solve refuses */
     sc_grid_plan p2;
     tu_plan(&p2, n, PLAN_0_90);
     sc_grid_data d2;
     tu_data_alloc(&d2, &p2);
     sc_grid_synthesize(&p2, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d2);
-    assert_int_equal(sc_grid_lsq_create(&p2, NULL, &q, &err), SC_OK);
-    assert_int_equal(sc_grid_lsq_solve(q, &d2, 0, &res.r, &err), SC_E_UNSOLVABLE);
-    sc_grid_lsq_destroy(q);
-    sc_grid_lsq_destroy(NULL);
+    assert_int_equal(sc_grid_lsq_plan_create(&p2, NULL, NULL, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d2, 0, &res.r, &err), SC_E_UNSOLVABLE);
+    sc_grid_lsq_plan_destroy(q);
+    sc_grid_lsq_plan_destroy(NULL);
     tu_data_free(&d2);
     tu_res_free(&res);
     tu_data_free(&d);
@@ -418,14 +418,14 @@ static void test_unmeasured_node(void **s)
     m.dx_um[0][24] = m.dy_um[0][24] = NAN;
     m.dx_um[1][24] = m.dy_um[1][24] = NAN;
     m.dx_um[2][23] = m.dy_um[2][23] = NAN;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, &m, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &m, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info info;
     sc_grid_lsq_get_info(q, &info);
     assert_int_equal(info.identifiable, 0);
     assert_int_equal(info.free_dof, 2);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     tu_data_free(&m);
 }
 
@@ -448,9 +448,9 @@ static void test_undetermined_view(void **s)
     for (int k = 0; k < nn; ++k)
         if (k != c * n + c + 1)
             d.dx_um[3][k] = d.dy_um[3][k] = NAN;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info info;
     sc_grid_lsq_stats st;
     sc_grid_lsq_get_info(q, &info);
@@ -459,7 +459,7 @@ static void test_undetermined_view(void **s)
     assert_int_equal(st.nullity_misalignment, 4);
     tu_res res;
     tu_res_alloc(&res, nn);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0.01, &res.r, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0.01, &res.r, &err), SC_OK);
     double eg = 0;
     for (int k = 0; k < nn; ++k)
         eg = fmax(eg, fmax(fabs(res.r.gx_um[k] - t.gx[k]), fabs(res.r.gy_um[k] - t.gy[k])));
@@ -469,8 +469,8 @@ static void test_undetermined_view(void **s)
     /* the uncertainties equal those of Ye's plan alone: the extra view adds no information */
     sc_grid_plan pye;
     tu_plan(&pye, n, PLAN_YE);
-    sc_grid_lsq *qy = NULL;
-    assert_int_equal(sc_grid_lsq_create(&pye, NULL, &qy, &err), SC_OK);
+    sc_grid_lsq_plan *qy = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&pye, NULL, NULL, &qy, &err), SC_OK);
     double *sx = malloc(sizeof(double) * nn), *sy = malloc(sizeof(double) * nn);
     assert_int_equal(sc_grid_lsq_sigma_ratio(qy, sx, sy, &err), SC_OK);
     for (int k = 0; k < nn; ++k) {
@@ -478,9 +478,9 @@ static void test_undetermined_view(void **s)
         assert_true(fabs(res.r.ugy_um[k] - 0.01 * sy[k]) < 1e-12);
     }
     free(sx), free(sy);
-    sc_grid_lsq_destroy(qy);
+    sc_grid_lsq_plan_destroy(qy);
     tu_res_free(&res);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
 }

@@ -215,12 +215,12 @@ static void compare(int n, int kind, int use_mask, uint64_t seed)
     assert_int_equal(dense_free_dof(&D), 0);
     double *x = malloc(sizeof(double) * D.nu), *var = malloc(sizeof(double) * 2 * nn), rss;
     dense_solve(&D, &p, x, var, &rss);
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(&p, use_mask ? &d : NULL, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(&p, use_mask ? &d : NULL, NULL, &q, &err), SC_OK);
     tu_res res;
     tu_res_alloc(&res, nn);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &res.r, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_OK);
     double scale_g = 0, eg = 0, ea = 0, eu = 0, em = 0;
     for (int k = 0; k < nn; ++k)
         scale_g = fmax(scale_g, fmax(fabs(x[2 * k]), fabs(x[2 * k + 1])));
@@ -250,7 +250,7 @@ static void compare(int n, int kind, int use_mask, uint64_t seed)
     assert_true(eu <= 1e-9);
     assert_true(fabs(res.r.sigma_r_est_um / sig - 1) <= 1e-9);
     tu_res_free(&res);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     free(x), free(var);
     dense_free(&D);
     tu_data_free(&d);
@@ -284,16 +284,16 @@ static void test_free_dof_vs_dense(void **s)
             dense D;
             dense_build(&D, &p, NULL, NULL);
             long kd = dense_free_dof(&D);
-            sc_grid_lsq *q = NULL;
+            sc_grid_lsq_plan *q = NULL;
             sc_error err;
-            assert_int_equal(sc_grid_lsq_create(&p, NULL, &q, &err), SC_OK);
+            assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
             sc_grid_lsq_info info;
             sc_grid_lsq_get_info(q, &info);
             fprintf(stderr, "N=%2d plan %d: free dof sparse %ld dense %ld\n", ns[i], kinds[c],
                     info.free_dof, kd);
             assert_int_equal(info.free_dof, kd);
             assert_int_equal(info.identifiable, kd == 0);
-            sc_grid_lsq_destroy(q);
+            sc_grid_lsq_plan_destroy(q);
             dense_free(&D);
         }
 }

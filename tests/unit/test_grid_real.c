@@ -100,15 +100,15 @@ static void check_recovery(const sc_grid_plan *p, int dead, double p_miss, int w
     truth_make(&t, p, &r);
     sc_grid_data d;
     make_data(&d, p, &t, dead, p_miss, weighted, &r);
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_error err;
-    assert_int_equal(sc_grid_lsq_create(p, &d, &q, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_plan_create(p, &d, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info qi;
     sc_grid_lsq_get_info(q, &qi);
     assert_true(qi.identifiable);
     out o;
     out_alloc(&o, p);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, &err), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &o.r, &err), SC_OK);
     double e = 0;
     long ns = sc_grid_stage_nodes(p);
     for (long k = 0; k < ns; ++k)
@@ -135,7 +135,7 @@ static void check_recovery(const sc_grid_plan *p, int dead, double p_miss, int w
         assert_true(!isfinite(o.r.ax_um[dead]));
     assert_true(o.r.weighted == weighted);
     free(ax), free(ay), free(o.buf), truth_free(&t);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
 }
 
@@ -263,11 +263,11 @@ static long dense_free_dof(const dense *D)
 
 static long plan_free(const sc_grid_plan *p, const sc_grid_data *d, int *ident)
 {
-    sc_grid_lsq *q = NULL;
-    assert_int_equal(sc_grid_lsq_create(p, d, &q, NULL), SC_OK);
+    sc_grid_lsq_plan *q = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(p, d, NULL, &q, NULL), SC_OK);
     sc_grid_lsq_info qi;
     sc_grid_lsq_get_info(q, &qi);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     *ident = qi.identifiable;
     return qi.free_dof;
 }
@@ -329,14 +329,14 @@ static void test_leverage_vs_dense(void **s)
         for (int k = 0; k < nn; ++k)
             if (isfinite(d.dx_um[v][k]))
                 d.dx_um[v][k] += 0.01 * sc_rng_normal(&r), d.dy_um[v][k] += 0.01 * sc_rng_normal(&r);
-    sc_grid_lsq *q = NULL;
-    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, NULL), SC_OK);
+    sc_grid_lsq_plan *q = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q, NULL), SC_OK);
     out o;
     out_alloc(&o, &p);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &o.r, NULL), SC_OK);
     double *h = malloc(sizeof(double) * nv * nn), *tx = malloc(sizeof(double) * nv * nn);
     double *rx = malloc(sizeof(double) * nv * nn);
-    assert_int_equal(sc_grid_lsq_residuals(q, rx, NULL, tx, NULL, h, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_residuals(q, &d, &o.r, rx, NULL, tx, NULL, h, NULL), SC_OK);
     dense D;
     dense_build(&D, &p, &d);
     double *U = NULL;
@@ -356,7 +356,7 @@ static void test_leverage_vs_dense(void **s)
     assert_true(fabs(sum1h - (double)o.r.dof) < 1e-6);
     free(U), free(h), free(tx), free(rx), free(o.buf), truth_free(&t);
     dense_free(&D);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
 }
 
@@ -374,11 +374,11 @@ static void test_uncertainties_by_linearity(void **s)
     sc_grid_data d;
     make_data(&d, &p, &t, 12, 0.03, 1, &r);
     int nn = p.n * p.n, nv = p.n_views;
-    sc_grid_lsq *q = NULL;
-    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, NULL), SC_OK);
+    sc_grid_lsq_plan *q = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q, NULL), SC_OK);
     out o, o1;
     out_alloc(&o, &p), out_alloc(&o1, &p);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &o.r, NULL), SC_OK);
     /* zero data */
     sc_grid_data z;
     memset(&z, 0, sizeof z);
@@ -395,7 +395,7 @@ static void test_uncertainties_by_linearity(void **s)
             for (int c = 0; c < 2 && isfinite(d.dx_um[v][k]); ++c) {
                 double *a = c ? z.dy_um[v] : z.dx_um[v];
                 a[k] = 1;
-                assert_int_equal(sc_grid_lsq_solve(q, &z, 0, &o1.r, NULL), SC_OK);
+                assert_int_equal(sc_grid_lsq_execute(q, &z, 0, &o1.r, NULL), SC_OK);
                 a[k] = 0;
                 double u = sc_grid_data_u_um(&d, v, k, c), g[2 + 3 * SC_GRID_MAX_VIEWS];
                 g[0] = o1.r.O, g[1] = o1.r.R;
@@ -414,7 +414,7 @@ static void test_uncertainties_by_linearity(void **s)
         assert_true(fabs(want[i] - sqrt(var[i])) <= 1e-7 * sqrt(var[i]) + 1e-15);
     free(var), free(o.buf), free(o1.buf), truth_free(&t);
     sc_grid_data_free(&z), sc_grid_data_free(&d);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
 }
 
 /* The covariance of G: symmetric, its diagonal equals the per-node uncertainties computed by
@@ -430,14 +430,14 @@ static void test_covariance(void **s)
     truth_make(&t, &p, &r);
     sc_grid_data d;
     make_data(&d, &p, &t, -1, 0.02, 1, &r);
-    sc_grid_lsq *q = NULL;
-    assert_int_equal(sc_grid_lsq_create(&p, &d, &q, NULL), SC_OK);
+    sc_grid_lsq_plan *q = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q, NULL), SC_OK);
     out o;
     out_alloc(&o, &p);
-    assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &o.r, NULL), SC_OK);
     int ng = 2 * (int)sc_grid_stage_nodes(&p);
     double *C = malloc(sizeof(double) * ng * ng);
-    assert_int_equal(sc_grid_lsq_covariance(q, C, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_covariance(q, &o.r, C, NULL), SC_OK);
     for (int i = 0; i < ng; ++i) {
         double u = i % 2 ? o.r.ugy_um[i / 2] : o.r.ugx_um[i / 2];
         assert_true(fabs(sqrt(C[i * ng + i]) - u) < 1e-9 * u);
@@ -450,7 +450,7 @@ static void test_covariance(void **s)
         sx += C[j];
     assert_true(fabs(sx) < 1e-10);
     free(C), free(o.buf), truth_free(&t);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
 }
 
@@ -479,14 +479,14 @@ static void test_drift(void **s)
     assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 4 * ns, NULL), SC_OK);
     for (int drift = 0; drift < 2; ++drift) {
         sc_grid_lsq_opts opts = {drift};
-        sc_grid_lsq *q = NULL;
-        assert_int_equal(sc_grid_lsq_create_ex(&p, &d, &opts, &q, NULL), SC_OK);
+        sc_grid_lsq_plan *q = NULL;
+        assert_int_equal(sc_grid_lsq_plan_create(&p, &d, &opts, &q, NULL), SC_OK);
         sc_grid_lsq_info qi;
         sc_grid_lsq_get_info(q, &qi);
         assert_true(qi.identifiable);
         out o;
         out_alloc(&o, &p);
-        assert_int_equal(sc_grid_lsq_solve(q, &d, 0, &o.r, NULL), SC_OK);
+        assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &o.r, NULL), SC_OK);
         double e = 0;
         for (int k = 0; k < ns; ++k)
             e = fmax(e, fmax(fabs(o.r.gx_um[k] - t.gx_um[k]), fabs(o.r.gy_um[k] - t.gy_um[k])));
@@ -508,7 +508,7 @@ static void test_drift(void **s)
             assert_true(e > 1e-3); /* biased by the drift */
         }
         free(o.buf);
-        sc_grid_lsq_destroy(q);
+        sc_grid_lsq_plan_destroy(q);
     }
     free(buf);
     sc_grid_data_free(&d);

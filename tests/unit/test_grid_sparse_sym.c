@@ -80,8 +80,8 @@ static void check_solve_selinv(int n, int m, int per_row, int border, unsigned s
     for (int k = 0; k < n; ++k) {
         memset(x, 0, sizeof(double) * n);
         x[k] = 1;
-        assert_int_equal(sc_spsym_solve(f, x), 0);
-        sc_spsym_matvec(f, x, y);
+        assert_int_equal(sc_spsym_solve(f, x, 1), 0);
+        sc_spsym_matvec(f, x, y, 1);
         for (int i = 0; i < n; ++i)
             assert_true(fabs(y[i] - (i == k)) < 1e-9);
         worst = fmax(worst, fabs(sc_spsym_inv(f, k, k) - x[k]) / fabs(x[k]));
@@ -96,6 +96,23 @@ static void check_solve_selinv(int n, int m, int per_row, int border, unsigned s
     }
     assert_true(checked >= n);
     assert_true(worst < 1e-10);
+    /* a blocked solve of several right-hand sides gives what single solves give */
+    int nb = n < 5 ? n : 5;
+    double *X = calloc((size_t)n * nb, sizeof(double)), *Y = malloc(sizeof(double) * n * nb);
+    for (int c = 0; c < nb; ++c)
+        X[(size_t)c * n + c] = 1, X[(size_t)c * n + (n - 1 - c)] += 0.5;
+    assert_int_equal(sc_spsym_solve(f, X, nb), 0);
+    sc_spsym_matvec(f, X, Y, nb);
+    for (int c = 0; c < nb; ++c) {
+        memset(x, 0, sizeof(double) * n);
+        x[c] = 1, x[n - 1 - c] += 0.5;
+        for (int i = 0; i < n; ++i)
+            assert_true(fabs(Y[(size_t)c * n + i] - x[i]) < 1e-9);
+        assert_int_equal(sc_spsym_solve(f, x, 1), 0);
+        for (int i = 0; i < n; ++i)
+            assert_true(fabs(X[(size_t)c * n + i] - x[i]) <= 1e-10 * (1 + fabs(x[i])));
+    }
+    free(X), free(Y);
     sc_spsym_stats st;
     sc_spsym_get_stats(f, &st);
     assert_true(n == 1 || (st.nnz_factor > 0 && st.factor_flops > 0 && st.selinv_work > 0));
@@ -151,10 +168,10 @@ static void test_rank_decision(void **s)
     double *y = malloc(sizeof(double) * n), *mb = malloc(sizeof(double) * n);
     for (int i = 0; i < n; ++i)
         x0[i] = sc_rng_normal(&r);
-    sc_spsym_matvec(f, x0, b);
+    sc_spsym_matvec(f, x0, b, 1);
     memcpy(y, b, sizeof(double) * n);
-    assert_int_equal(sc_spsym_solve(f, y), 0);
-    sc_spsym_matvec(f, y, mb);
+    assert_int_equal(sc_spsym_solve(f, y, 1), 0);
+    sc_spsym_matvec(f, y, mb, 1);
     for (int i = 0; i < n; ++i)
         assert_true(fabs(mb[i] - b[i]) < 1e-8 * (1 + fabs(b[i])));
     /* refactoring with a tolerance above the kept pivots declares more null pivots */

@@ -114,11 +114,11 @@ static int design(int argc, char **argv)
         sc_grid_plan p;
         if (sc_grid_plan_stitch_step(n, (int)sx, (int)sy, step, pitch, ox, oy, &p, &err) != SC_OK)
             break;
-        sc_grid_lsq *q = NULL;
-        if (sc_grid_lsq_create(&p, NULL, &q, &err) != SC_OK)
+        sc_grid_lsq_plan *q = NULL;
+        if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK)
             return cli_report(&err);
         sc_grid_lsq_get_info(q, &bi);
-        sc_grid_lsq_destroy(q);
+        sc_grid_lsq_plan_destroy(q);
         if (bi.identifiable)
             best = p, found = 1;
     }
@@ -237,14 +237,14 @@ int cmd_plan(int argc, char **argv)
     if (st != SC_OK)
         return cli_report(&err);
     int has_data = fi.n_rows > 0;
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     if (opts.drift && has_data && !fi.has_t) {
         sc_grid_data_free(&d);
         sc_error_set(&err, SC_E_INPUT, in, fi.header_end_line,
                      "--drift linear needs the time of each measurement (column t_s)");
         return cli_report(&err);
     }
-    st = sc_grid_lsq_create_ex(&d.plan, has_data ? &d : NULL, &opts, &q, &err);
+    st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &opts, &q, &err);
     if (st != SC_OK) {
         sc_grid_data_free(&d);
         if (!err.file[0]) {
@@ -256,7 +256,7 @@ int cmd_plan(int argc, char **argv)
     sc_grid_lsq_info qi;
     sc_grid_lsq_get_info(q, &qi);
     print_analysis(&d, &fi, has_data, &qi);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
     return CLI_OK;
 }

@@ -1,8 +1,9 @@
 /* selfcal/grid_lsq.h — the optimal (least-squares) grid self-calibration for any view plan.
  *
  * Unknowns: G at every stage node, A at every mark, (tx, ty, θ) per view; the SPEC gauge as hard
- * constraints. The structure (which marks each view measures) is analysed once when the estimator
- * is created: whether the plan identifies G, how many degrees of freedom stay free, and each node's
+ * constraints. Plan verbs as FFTW's: sc_grid_lsq_plan_create, sc_grid_lsq_execute,
+ * sc_grid_lsq_plan_destroy. The structure (which marks each view measures) is analysed once when
+ * the plan is created: whether the plan identifies G, how many degrees of freedom stay free, and each node's
  * standard uncertainty per unit σ_r from the exact estimator covariance. Sparse: each measurement
  * touches one node, one mark, one view.
  */
@@ -16,7 +17,7 @@
 extern "C" {
 #endif
 
-typedef struct sc_grid_lsq sc_grid_lsq;
+typedef struct sc_grid_lsq_plan sc_grid_lsq_plan;
 
 typedef struct sc_grid_lsq_info {
     int identifiable;         /* 1 if the plan determines G (in the SPEC gauge) */
@@ -44,56 +45,61 @@ typedef struct sc_grid_lsq_opts {
 /* The largest stage (nodes) whose full covariance sc_grid_lsq_covariance writes (41 x 41). */
 #define SC_GRID_LSQ_COV_MAX_NODES 1681
 
-/* Analyse and factor a plan. mask: NULL to measure what the plan says (sc_grid_view_measures),
- * else the marks with finite values in mask->dx_um are the measured ones (dx and dy finite
- * together, on marks that land on the grid: SC_E_INPUT otherwise). A plan that does not
- * identify G is not an error here: *out is made and its info says so. Cost ~N³ time, ~N² log N
- * memory (N = 101: ~0.6 s CPU, ~40 MiB); see docs/grid-lsq.md. */
-SC_API sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
-                                    sc_error *err);
-
-/* The same with model options (NULL: none). With weights stated in mask (ux_um/uy_um, a view's
- * sigma_um) or, for a plan without data, in the views' sigma_um, each coordinate weighs 1/u². */
-SC_API sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *mask,
-                                       const sc_grid_lsq_opts *opts, sc_grid_lsq **out, sc_error *err);
+/* Analyse and factor a plan: everything that does not depend on the measured values is done
+ * here (the factorization, every node's σ by the selected inverse, the leverage of every
+ * measurement, the σ of O, R and the misalignments per unit noise). mask: NULL to measure what
+ * the plan says (sc_grid_view_measures), else the marks with finite values in mask->dx_um are
+ * the measured ones (dx and dy finite together, on marks that land on the grid: SC_E_INPUT
+ * otherwise). With weights stated in mask (ux_um/uy_um, a view's sigma_um) or, for a plan
+ * without data, in the views' sigma_um, each coordinate weighs 1/u². opts: model options (NULL:
+ * none). A plan that does not identify G is not an error here: *out is made and its info says
+ * so. Cost ~N³ time, ~N² log N memory (N = 101: ~0.2 s CPU, ~30 MiB); see docs/grid-lsq.md. */
+SC_API sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *mask,
+                                         const sc_grid_lsq_opts *opts, sc_grid_lsq_plan **out,
+                                         sc_error *err);
 
 /* The p-quantile of the χ² distribution with dof degrees of freedom (NaN for bad arguments). */
 SC_API double sc_chi2_quantile(double p, double dof);
 
 /* The plan's analysis. */
-SC_API void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info);
+SC_API void sc_grid_lsq_get_info(const sc_grid_lsq_plan *q, sc_grid_lsq_info *info);
 
 /* Per-node std(Gx)/σ_r and std(Gy)/σ_r (arrays n*n, caller-owned). SC_E_UNSOLVABLE if G is not identified. */
-SC_API sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy, sc_error *err);
+SC_API sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq_plan *q, double *sgx, double *sgy, sc_error *err);
 
-/* Estimate from data measured as the estimator was made for (same marks; the weights are the
- * estimator's, from its mask). Weighted data: the uncertainties use the stated u as they are and
+/* Estimate from data measured as the plan was made for (same marks; the weights are the plan's,
+ * from its mask). Weighted data: the uncertainties use the stated u as they are and
  * res->variance_factor tests them. Unweighted: sigma_r_um > 0 is used for the uncertainties (and
  * tested), otherwise the noise estimated from the residuals. Also fills O, R, misalignment and
- * drift uncertainties. SC_E_UNSOLVABLE if G is not identified; SC_E_INPUT if d's measured marks
- * differ from the estimator's. */
-SC_API sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
-                                   sc_grid_result *res, sc_error *err);
+ * drift uncertainties. The plan is not changed, but its solve workspace is used: not
+ * thread-safe on one plan (one plan per thread). SC_E_UNSOLVABLE if G is not identified;
+ * SC_E_INPUT if d's measured marks differ from the plan's. */
+SC_API sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                     double sigma_r_um, sc_grid_result *res, sc_error *err);
 
-/* After a solve: residuals r = measured − fitted (µm) and standardized residuals
- * t = r / (σ·√(1−h)) with h the exact leverage of that coordinate's equation, σ its stated or
- * estimated standard deviation (scaled by √(variance factor) when the stated noise fails the χ²
- * test on the high side); h_out: the larger leverage of the two coordinates. Arrays
- * n_views*n*n (index v*n*n + i*n + j), caller-owned, NULL to skip; NaN where a mark is not
- * measured (and t NaN where h = 1: a mark seen in one view only is not tested). */
-SC_API sc_status sc_grid_lsq_residuals(sc_grid_lsq *q, double *rx_um, double *ry_um, double *tx,
-                                       double *ty, double *h_out, sc_error *err);
+/* Residuals of d against a result res of sc_grid_lsq_execute on d (res with its G and A arrays):
+ * r = measured − fitted (µm) and standardized residuals t = r / (σ·√(1−h)) with h the exact
+ * leverage of that coordinate's equation, σ its stated or estimated standard deviation (scaled
+ * by √(variance factor) when the stated noise fails the χ² test on the high side); h_out: the
+ * larger leverage of the two coordinates. Arrays n_views*n*n (index v*n*n + i*n + j),
+ * caller-owned, NULL to skip; NaN where a mark is not measured (and t NaN where h = 1: a mark
+ * seen in one view only is not tested). */
+SC_API sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                       const sc_grid_result *res, double *rx_um, double *ry_um,
+                                       double *tx, double *ty, double *h_out, sc_error *err);
 
-/* The fitted dev (µm) of mark (i, j) in view v from a result of this estimator (NaN where the
+/* The fitted dev (µm) of mark (i, j) in view v from a result of this plan (NaN where the
  * plate error is unknown); t_s: its time, used with drift. For measurements left out of the
- * estimator (rejected outliers). */
-SC_API void sc_grid_lsq_predict(const sc_grid_lsq *q, const sc_grid_result *res, int v, int i, int j,
-                                double t_s, double *dx_um, double *dy_um);
+ * plan (rejected outliers). */
+SC_API void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, int v, int i,
+                                int j, double t_s, double *dx_um, double *dy_um);
 
-/* After a solve: the full covariance of G in the SPEC gauge, µm², (2·NX·NY)² doubles row-major,
- * unknowns ordered node by node (i*NX + j), Gx before Gy. SC_E_INPUT beyond
- * SC_GRID_LSQ_COV_MAX_NODES nodes. */
-SC_API sc_status sc_grid_lsq_covariance(sc_grid_lsq *q, double *cov, sc_error *err);
+/* The full covariance of G in the SPEC gauge for a result res of this plan (its
+ * sigma_r_used_um), µm², (2·NX·NY)² doubles row-major, unknowns ordered node by node
+ * (i*NX + j), Gx before Gy. SC_E_INPUT beyond SC_GRID_LSQ_COV_MAX_NODES nodes. Uses the plan's
+ * solve workspace: not thread-safe on one plan. */
+SC_API sc_status sc_grid_lsq_covariance(const sc_grid_lsq_plan *q, const sc_grid_result *res,
+                                        double *cov, sc_error *err);
 
 /* Internals of the sparse factorization, for benchmarks and diagnostics. */
 typedef struct sc_grid_lsq_stats {
@@ -101,20 +107,20 @@ typedef struct sc_grid_lsq_stats {
     long nnz_matrix;             /* stored entries of the reduced matrix (upper triangle) */
     long nnz_factor;             /* entries of L (strictly lower) */
     double factor_flops;         /* multiply-adds of the LDLᵀ factorization */
-    double selinv_work;          /* entries visited by the selected inverse */
+    double selinv_work;          /* multiply-adds of the selected inverse */
     const char *ordering;        /* fill-reducing order used (a static name) */
     int n_null_pivots;           /* pivots judged null in the pinned reduced matrix */
     int nullity_misalignment;    /* null space of the misalignment block with G held (3 = plate motion) */
     double min_kept_pivot_ratio; /* smallest pivot/diagonal kept: the margin to the tolerance */
     double max_null_pivot_ratio; /* largest pivot/diagonal judged null (0 if none) */
-    size_t bytes;                /* memory the estimator holds (and used for assembly), bytes */
+    size_t bytes;                /* memory the plan holds (and used for assembly), bytes */
 } sc_grid_lsq_stats;
 
-/* Fill st with the estimator's internals. */
-SC_API void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st);
+/* Fill st with the plan's internals. */
+SC_API void sc_grid_lsq_get_stats(const sc_grid_lsq_plan *q, sc_grid_lsq_stats *st);
 
-/* Free the estimator (NULL is fine). */
-SC_API void sc_grid_lsq_destroy(sc_grid_lsq *q);
+/* Free the plan (NULL is fine). */
+SC_API void sc_grid_lsq_plan_destroy(sc_grid_lsq_plan *q);
 
 #ifdef __cplusplus
 }

@@ -232,17 +232,17 @@ void sc_grid_solution_free(sc_grid_solution *s)
  * redundancy or do not identify the model. */
 static double exact_noise_estimate(const sc_grid_plan *p, const sc_grid_data *d)
 {
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_grid_result r;
     memset(&r, 0, sizeof r); /* no arrays: only the scalars are wanted */
     r.sigma_r_est_um = NAN;
     sc_grid_lsq_info qi;
-    if (sc_grid_lsq_create(p, d, &q, NULL) == SC_OK) {
+    if (sc_grid_lsq_plan_create(p, d, NULL, &q, NULL) == SC_OK) {
         sc_grid_lsq_get_info(q, &qi);
-        if (!qi.identifiable || sc_grid_lsq_solve(q, d, 0.0, &r, NULL) != SC_OK)
+        if (!qi.identifiable || sc_grid_lsq_execute(q, d, 0.0, &r, NULL) != SC_OK)
             r.sigma_r_est_um = NAN;
     }
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     return r.sigma_r_est_um;
 }
 
@@ -295,7 +295,7 @@ static long worst_outlier(const sc_grid_solution *s, size_t tot)
  * the only link is kept, with a warning, and rejection stops. keep: the data as they came. */
 static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
                           const sc_grid_options *o, const double *keep, sc_grid_solution *s,
-                          sc_grid_lsq **qp, sc_error *err)
+                          sc_grid_lsq_plan **qp, sc_error *err)
 {
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
@@ -309,9 +309,9 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
                  "%g is ignored",
               src, o->sigma_r_um);
     for (;;) {
-        sc_grid_lsq_destroy(*qp);
+        sc_grid_lsq_plan_destroy(*qp);
         *qp = NULL;
-        sc_status st = sc_grid_lsq_create_ex(p, d, &opts, qp, err);
+        sc_status st = sc_grid_lsq_plan_create(p, d, &opts, qp, err);
         if (st != SC_OK)
             return st;
         sc_grid_lsq_get_info(*qp, &s->plan_info);
@@ -338,9 +338,9 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
                                 "the measured views do not identify G: %ld degree(s) of freedom "
                                 "beyond the gauge stay free (see 'selfcal plan')",
                                 s->plan_info.free_dof);
-        st = sc_grid_lsq_solve(*qp, d, sigma_r, &s->res, err);
+        st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
         if (st == SC_OK)
-            st = sc_grid_lsq_residuals(*qp, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
+            st = sc_grid_lsq_residuals(*qp, d, &s->res, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
         if (st != SC_OK || !o->reject_outliers || stop)
             return st;
         long w = worst_outlier(s, tot);
@@ -357,7 +357,7 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
  * final solution; flagged ones are counted and warned about; the χ² test's verdict. */
 static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
                        const sc_grid_options *o, const double *keep, sc_grid_solution *s,
-                       sc_grid_lsq *q)
+                       sc_grid_lsq_plan *q)
 {
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
@@ -402,7 +402,7 @@ static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const c
     for (int v = 0; v < p->n_views; ++v)
         for (size_t k = 0; k < nn; ++k)
             keep[v * nn + k] = d->dx_um[v][k], keep[tot + v * nn + k] = d->dy_um[v][k];
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     sc_status st = lsq_loop(d, info, path, o, keep, s, &q, err);
     if (st == SC_OK)
         lsq_finish(d, info, path, o, keep, s, q);
@@ -419,10 +419,10 @@ static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const c
         else if (!(s->cov_um2 = malloc((size_t)m * m * sizeof(double))))
             st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
         else
-            st = sc_grid_lsq_covariance(q, s->cov_um2, err);
+            st = sc_grid_lsq_covariance(q, &s->res, s->cov_um2, err);
         s->n_cov = m;
     }
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     free(keep);
     return st;
 }

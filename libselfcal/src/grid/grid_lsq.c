@@ -14,10 +14,17 @@
  *    the plan identifies G (and every view's misalignment). The G of the pinned solution differs
  *    from the gauged one by a gauge pattern, so G = P⊥ g_pin (P⊥ the orthogonal projector of
  *    sc_grid_gauge_stage), exactly.
- * 3. The pinned matrix is factored by sparse LDLᵀ (nested-dissection order on G, the 3V
- *    misalignments last as a dense border); null pivots are decided with a relative tolerance.
- * 4. Per-node variances: Cov(G)/σ² = P⊥ Σ P⊥ with Σ = pinned inverse (zero on pins); diag(Σ) by
- *    the Takahashi selected inverse, the projection with 4 extra solves (ΣU).
+ * 3. The pinned matrix is factored once per plan (sparse_sym.h: CHOLMOD's supernodal Cholesky,
+ *    its fill-reducing order chosen once; a rank-revealing LDLᵀ when it is numerically singular);
+ *    null pivots are decided with a relative tolerance.
+ * 4. Everything that does not depend on the measured values is computed by the plan: per-node
+ *    variances Cov(G)/σ² = P⊥ Σ P⊥ with Σ = pinned inverse (zero on pins), diag(Σ) by the
+ *    supernodal selected inverse and the projection from W = ΣU (4 columns); the leverage of every
+ *    equation (the selected inverse on S's pattern and the nm misalignment columns of Σ); the
+ *    variances of O, R and the misalignments per unit σ. The solves are blocked (several
+ *    right-hand sides per sparse solve, BLAS-3 on the supernodes).
+ * 5. Execute: one solve with 3 refinement steps against the equations, the gauge, the residual
+ *    sums; no allocation (the plan holds the workspace, so one plan serves one thread at a time).
  */
 #include "selfcal/grid_lsq.h"
 
@@ -32,10 +39,10 @@
 #define LSQ_PIVOT_TOL 1e-9 /* pivot / original diagonal below this: null */
 #define LSQ_SMALL_TOL 1e-11 /* relative tolerance of the small dense rank decision */
 
-struct sc_grid_lsq {
+struct sc_grid_lsq_plan {
     sc_grid_plan plan;
-    int n, nn, nv;
-    int snx, sny, ns;       /* stage grid NX, NY and its node count */
+    int n, nn, nv;          /* plate N, its N² marks, views */
+    int stage_nx, stage_ny, ns; /* stage grid NX, NY and its node count */
     int nb;                 /* unknowns per view: tx, ty, φ (+ vx, vy with drift) */
     int drift;
     int weighted;           /* weights were stated (1/u²); else all 1 */
@@ -43,10 +50,6 @@ struct sc_grid_lsq {
     double *eq_dt;          /* drift column: (t - mean t of the view) / T_v */
     double drift_T[SC_GRID_MAX_VIEWS]; /* T_v: the scale of each view's drift column, s */
     double drift_t0[SC_GRID_MAX_VIEWS]; /* mean time of each view's measurements, s */
-    double *eq_r;           /* residual of each equation after the last solve, µm */
-    double sigma0;          /* σ scale of the last solve (1 when weighted) */
-    double tscale;          /* σ scale of the standardized residuals (sigma0, or a posteriori) */
-    double *sig_m;          /* nx * nm: columns of the pinned inverse for the misalignments */
     double L_mm;            /* rotation scale c·P */
     unsigned char *meas;    /* nv*nn: view v measures mark k */
     int *mark_views;        /* per mark: number of views measuring it */
@@ -58,7 +61,8 @@ struct sc_grid_lsq {
     double *eq_pos;         /* coefficient of φ */
     long *grp_ptr;          /* equations of each A component (2*nn groups) */
     long *grp_eq;
-    int ng, nm, nx;
+    int ng, nm;             /* G unknowns (2 per stage node), misalignment unknowns (nb per view) */
+    int n_red;              /* unknowns of the reduced system: ng + nm */
     long *Ap;               /* the pinned reduced matrix: upper CSC, original index space */
     int *Ai;
     double *Ax;
@@ -68,9 +72,13 @@ struct sc_grid_lsq {
     int nullity_pin, nullity_T;
     sc_grid_lsq_info info;
     long rank;
+    /* what does not depend on the measured values, computed by the plan (per unit σ) */
     double *sgx, *sgy;      /* std/σ_r per node (NaN if not identified) */
-    double *work;           /* nx: solves */
-    double *work2;          /* nx */
+    double *eq_h;           /* leverage of each equation */
+    double var_O, var_R;    /* Var(O)/σ0², Var(R)/σ0² (NaN if not computed) */
+    double *var_m;          /* nm: Var(misalignment unknown)/σ0² (NaN where not unique) */
+    int misalignment_unique;
+    double *work;           /* execute's workspace: 4 n_red + ng + 2 nn + nm doubles */
     size_t bytes;
 };
 
@@ -85,15 +93,15 @@ static void rot_component(int rot, int c, int *acomp, int *sign)
     }
 }
 
-void sc_grid_lsq_destroy(sc_grid_lsq *q)
+void sc_grid_lsq_plan_destroy(sc_grid_lsq_plan *q)
 {
     if (!q)
         return;
     free(q->meas), free(q->mark_views), free(q->eq_g), free(q->eq_v), free(q->eq_k);
     free(q->eq_a), free(q->eq_c), free(q->eq_s), free(q->eq_pos), free(q->grp_ptr);
     free(q->grp_eq), free(q->Ap), free(q->Ai), free(q->Ax);
-    free(q->pinned), free(q->sgx), free(q->sgy), free(q->work), free(q->work2);
-    free(q->eq_w), free(q->eq_dt), free(q->eq_r), free(q->sig_m);
+    free(q->pinned), free(q->sgx), free(q->sgy), free(q->work), free(q->eq_h), free(q->var_m);
+    free(q->eq_w), free(q->eq_dt);
     sc_spsym_destroy(q->f);
     free(q);
 }
@@ -147,7 +155,7 @@ typedef struct triplet {
 #define ROW_MAX 4 /* entries of one equation's row */
 
 /* Coefficients of w_e = s_e·J_e over x = (g, m): 3 (index, value) pairs, 4 with drift. */
-static int eq_row(const sc_grid_lsq *q, long e, int *idx, double *val)
+static int eq_row(const sc_grid_lsq_plan *q, long e, int *idx, double *val)
 {
     double s = q->eq_s[e];
     int base = q->ng + q->nb * q->eq_v[e];
@@ -165,7 +173,7 @@ static int eq_row(const sc_grid_lsq *q, long e, int *idx, double *val)
 }
 
 /* Weight of equation e's coordinate from the mask's stated uncertainties (1 when none). */
-static double mask_weight(const sc_grid_lsq *q, const sc_grid_data *mask, int v, int k, int c)
+static double mask_weight(const sc_grid_lsq_plan *q, const sc_grid_data *mask, int v, int k, int c)
 {
     double u = mask ? sc_grid_data_u_um(mask, v, k, c) : q->plan.view[v].sigma_um;
     return u > 0 ? 1.0 / (u * u) : 1.0;
@@ -173,7 +181,7 @@ static double mask_weight(const sc_grid_lsq *q, const sc_grid_data *mask, int v,
 
 /* Per view: the drift column (t - mean)/T from the mask's times, or (plan without data) from
  * the order of measurement (serpentine plate order, one per second, as the simulator). */
-static sc_status build_drift(sc_grid_lsq *q, const sc_grid_data *mask, sc_error *err)
+static sc_status build_drift(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
 {
     for (int v = 0; v < q->nv; ++v) {
         double sum = 0, cnt = 0;
@@ -213,7 +221,7 @@ static sc_status build_drift(sc_grid_lsq *q, const sc_grid_data *mask, sc_error 
 }
 
 /* 1 if the data (or, without data, the plan's views) state uncertainties. */
-static int stated_weights(const sc_grid_lsq *q, const sc_grid_data *mask)
+static int stated_weights(const sc_grid_lsq_plan *q, const sc_grid_data *mask)
 {
     for (int v = 0; v < q->nv; ++v) {
         if (mask && (mask->ux_um[v] || mask->uy_um[v] || mask->plan.view[v].sigma_um > 0))
@@ -224,7 +232,7 @@ static int stated_weights(const sc_grid_lsq *q, const sc_grid_data *mask)
     return 0;
 }
 
-static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_error *err)
+static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
 {
     const sc_grid_plan *p = &q->plan;
     int n = q->n, nn = q->nn, nv = q->nv;
@@ -273,9 +281,8 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
     q->grp_eq = malloc(sizeof(long) * ne);
     q->eq_w = malloc(sizeof(double) * ne);
     q->eq_dt = calloc((size_t)ne, sizeof(double));
-    q->eq_r = calloc((size_t)ne, sizeof(double));
     if (!q->eq_g || !q->eq_v || !q->eq_k || !q->eq_a || !q->eq_c || !q->eq_s || !q->eq_pos ||
-        !q->grp_ptr || !q->grp_eq || !q->eq_w || !q->eq_dt || !q->eq_r)
+        !q->grp_ptr || !q->grp_eq || !q->eq_w || !q->eq_dt)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     long e = 0;
     for (int v = 0; v < nv; ++v)
@@ -284,7 +291,7 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
                 continue;
             int ni, nj;
             sc_grid_mark_node(p, v, k / n, k % n, &ni, &nj);
-            int node = ni * q->snx + nj;
+            int node = ni * q->stage_nx + nj;
             double x, y;
             sc_grid_node_xy_mm(p, ni, nj, &x, &y);
             for (int c = 0; c < 2; ++c, ++e) {
@@ -315,9 +322,9 @@ static sc_status build_equations(sc_grid_lsq *q, const sc_grid_data *mask, sc_er
 
 /* Pins: both G components of two far-apart nodes that equations touch, and one view's
  * misalignment (the view with the most measurements). */
-static sc_status choose_pins(sc_grid_lsq *q, sc_error *err)
+static sc_status choose_pins(sc_grid_lsq_plan *q, sc_error *err)
 {
-    int snx = q->snx;
+    int stage_nx = q->stage_nx;
     int *seen = calloc((size_t)q->ns, sizeof(int));
     int best_lo = -1, best_hi = -1, lo = 1 << 30, hi = -1;
     if (!seen) /* reported, not skipped: pins chosen blind would change the solution's gauge */
@@ -327,7 +334,7 @@ static sc_status choose_pins(sc_grid_lsq *q, sc_error *err)
     for (int k = 0; k < q->ns; ++k) {
         if (!seen[k])
             continue;
-        int s = k / snx + k % snx;
+        int s = k / stage_nx + k % stage_nx;
         if (s < lo)
             lo = s, best_lo = k;
         if (s > hi)
@@ -357,43 +364,24 @@ static sc_status choose_pins(sc_grid_lsq *q, sc_error *err)
     return SC_OK;
 }
 
-/* Assemble the reduced (A-eliminated) matrix, order, pin and factor. */
-static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
+/* The group eliminations: per A component seen at least twice, Σ w_e r_e r_eᵀ − (Σ w_e r_e)
+ * (Σ w_e r_e)ᵀ / Σ w_e over its equations' rows r_e. G-G entries (i <= j) go to the triplets tr,
+ * G-misalignment entries to gm (ng x nm), misalignment pairs to mm (nm x nm). */
+static sc_status assemble_groups(const sc_grid_lsq_plan *q, triplet *tr, long *ntr, double *gm,
+                                 double *mm)
 {
-    int ng = q->ng, nm = q->nm, nx = q->nx;
-    sc_status st = SC_E_NOMEM;
-    triplet *tr = NULL;
-    double *gm = NULL, *mm = NULL, *mmT = NULL;
-    long *rp = NULL;
-    int *ri = NULL, *last = NULL;
-    double *rv = NULL;
-    long ntr = 0, cap = 0;
-    for (int a = 0; a < 2 * q->nn; ++a) {
-        long c = q->grp_ptr[a + 1] - q->grp_ptr[a];
-        if (c > 1)
-            cap += c * c + c;
-    }
-    tr = malloc(sizeof(triplet) * (size_t)(cap + 1));
-    gm = calloc((size_t)ng * nm, sizeof(double));
-    mm = calloc((size_t)nm * nm, sizeof(double));
-    mmT = malloc(sizeof(double) * (size_t)nm * nm);
-    if (!tr || !gm || !mm || !mmT)
-        goto out;
-    q->bytes += sizeof(triplet) * (size_t)cap + sizeof(double) * (size_t)ng * nm;
-    int maxg = 0;
-    for (int a = 0; a < 2 * q->nn; ++a) {
-        long c = q->grp_ptr[a + 1] - q->grp_ptr[a];
-        if (c > maxg)
-            maxg = (int)c;
-    }
-    int *li = malloc(sizeof(int) * (size_t)(ROW_MAX * maxg + 1));
-    double *lv = malloc(sizeof(double) * (size_t)(ROW_MAX * maxg + 1));
-    double *lw = malloc(sizeof(double) * (size_t)(ROW_MAX * maxg + 1));
-    int *lo = malloc(sizeof(int) * (size_t)(ROW_MAX * maxg + 1));
+    int ng = q->ng, nm = q->nm, maxg = 0;
+    for (int a = 0; a < 2 * q->nn; ++a)
+        if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
+            maxg = (int)(q->grp_ptr[a + 1] - q->grp_ptr[a]);
+    size_t cap = (size_t)ROW_MAX * maxg + 1;
+    int *li = malloc(sizeof(int) * cap), *lo = malloc(sizeof(int) * cap);
+    double *lv = malloc(sizeof(double) * cap), *lw = malloc(sizeof(double) * cap);
     if (!li || !lv || !lw || !lo) {
         free(li), free(lv), free(lw), free(lo);
-        goto out;
+        return SC_E_NOMEM;
     }
+    *ntr = 0;
     for (int a = 0; a < 2 * q->nn; ++a) {
         long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
         if (cnt < 2)
@@ -408,8 +396,7 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
             len += l;
             W += q->eq_w[e];
         }
-        /* Σ w_e r_e r_eᵀ - (Σ w_e r_e)(Σ w_e r_e)ᵀ / Σ w_e: A of the group eliminated */
-        for (int pass = 0; pass < 2; ++pass) {
+        for (int pass = 0; pass < 2; ++pass)
             for (int x = 0; x < len; ++x)
                 for (int y = 0; y < len; ++y) {
                     if (pass == 0 && lo[x] != lo[y])
@@ -419,37 +406,35 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
                     double v = coef * lv[x] * lv[y];
                     if (i < ng && j < ng) {
                         if (i <= j)
-                            tr[ntr++] = (triplet){i, j, v};
+                            tr[(*ntr)++] = (triplet){i, j, v};
                     } else if (i < ng) {
                         gm[(size_t)i * nm + (j - ng)] += v;
                     } else if (j >= ng) {
                         mm[(size_t)(i - ng) * nm + (j - ng)] += v;
                     }
                 }
-        }
     }
     free(li), free(lv), free(lw), free(lo);
-    /* rank deficiency of the misalignment block alone (G held at 0) */
-    memcpy(mmT, mm, sizeof(double) * (size_t)nm * nm);
-    q->nullity_T = small_nullity(mmT, nm, LSQ_SMALL_TOL);
-    if (q->nullity_T < 0)
-        goto out;
-    /* upper CSR of the G block, duplicates summed, pins removed */
-    rp = calloc((size_t)ng + 1, sizeof(long));
-    if (!rp)
-        goto out;
+    return SC_OK;
+}
+
+/* The G block as upper rows (rp, ri, rv: CSR) from the triplets, duplicates summed, pinned
+ * rows/columns left out. */
+static sc_status g_block_rows(const sc_grid_lsq_plan *q, triplet *tr, long ntr, long **rp_out,
+                              int **ri_out, double **rv_out)
+{
+    int ng = q->ng;
+    long *rp = calloc((size_t)ng + 1, sizeof(long)), *fill = malloc(sizeof(long) * (ng + 1));
+    int *ri = malloc(sizeof(int) * (size_t)(ntr + 1)), *last = malloc(sizeof(int) * (ng + 1));
+    double *rv = malloc(sizeof(double) * (size_t)(ntr + 1));
+    if (!rp || !fill || !ri || !last || !rv) {
+        free(rp), free(fill), free(ri), free(last), free(rv);
+        return SC_E_NOMEM;
+    }
     for (long t = 0; t < ntr; ++t)
         rp[tr[t].i + 1]++;
     for (int i = 0; i < ng; ++i)
         rp[i + 1] += rp[i];
-    ri = malloc(sizeof(int) * (size_t)(ntr + 1));
-    rv = malloc(sizeof(double) * (size_t)(ntr + 1));
-    last = malloc(sizeof(int) * (size_t)(ng + 1));
-    long *fill = malloc(sizeof(long) * (size_t)(ng + 1));
-    if (!ri || !rv || !last || !fill) {
-        free(fill);
-        goto out;
-    }
     memcpy(fill, rp, sizeof(long) * (size_t)ng);
     for (long t = 0; t < ntr; ++t) {
         long pos = fill[tr[t].i]++;
@@ -457,8 +442,6 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
         rv[pos] = tr[t].v;
     }
     free(fill);
-    free(tr);
-    tr = NULL;
     for (int i = 0; i < ng; ++i)
         last[i] = -1;
     long w = 0;
@@ -480,156 +463,215 @@ static sc_status build_and_factor(sc_grid_lsq *q, sc_error *err)
         }
     }
     rp[ng] = w;
-    /* upper CSC in the original index space: entry (i, j), i <= j, in column j */
-    q->Ap = calloc((size_t)nx + 1, sizeof(long));
-    if (!q->Ap)
-        goto out;
-    long nnz = 0;
-#define COUNT(i, j)                                                                               \
+    free(last);
+    *rp_out = rp, *ri_out = ri, *rv_out = rv;
+    return SC_OK;
+}
+
+/* Visit every entry (i, j, value) of the pinned reduced matrix once (i <= j for the G block). */
+#define FOR_EACH_ENTRY(q, rp, ri, rv, gm, mm, VISIT)                                               \
     do {                                                                                          \
-        q->Ap[((i) > (j) ? (i) : (j)) + 1]++;                                                     \
-        nnz++;                                                                                    \
+        int ng_ = (q)->ng, nm_ = (q)->nm;                                                         \
+        for (int i = 0; i < ng_; ++i)                                                             \
+            for (long p = (rp)[i]; p < (rp)[i + 1]; ++p)                                          \
+                VISIT(i, (ri)[p], (rv)[p]);                                                       \
+        for (int i = 0; i < ng_; ++i)                                                             \
+            for (int t = 0; t < nm_; ++t)                                                         \
+                if (!(q)->pinned[i] && !(q)->pinned[ng_ + t] && (gm)[(size_t)i * nm_ + t] != 0)  \
+                    VISIT(i, ng_ + t, (gm)[(size_t)i * nm_ + t]);                                 \
+        for (int s = 0; s < nm_; ++s)                                                             \
+            for (int t = s; t < nm_; ++t)                                                         \
+                if (!(q)->pinned[ng_ + s] && !(q)->pinned[ng_ + t] && (mm)[(size_t)s * nm_ + t] != 0) \
+                    VISIT(ng_ + s, ng_ + t, (mm)[(size_t)s * nm_ + t]);                           \
+        for (int i = 0; i < (q)->n_red; ++i)                                                      \
+            if ((q)->pinned[i])                                                                   \
+                VISIT(i, i, 1.0);                                                                 \
     } while (0)
-    for (int i = 0; i < ng; ++i)
-        for (long p = rp[i]; p < rp[i + 1]; ++p)
-            COUNT(i, ri[p]);
-    for (int i = 0; i < ng; ++i)
-        for (int t = 0; t < nm; ++t)
-            if (!q->pinned[i] && !q->pinned[ng + t] && gm[(size_t)i * nm + t] != 0)
-                COUNT(i, ng + t);
-    for (int s = 0; s < nm; ++s)
-        for (int t = s; t < nm; ++t)
-            if (!q->pinned[ng + s] && !q->pinned[ng + t] && mm[(size_t)s * nm + t] != 0)
-                COUNT(ng + s, ng + t);
-    for (int i = 0; i < nx; ++i)
-        if (q->pinned[i])
-            COUNT(i, i);
+
+/* The pinned reduced matrix q->Ap, Ai, Ax: upper CSC in the original index space, entry
+ * (i, j), i <= j, in column j; pinned rows/columns replaced by identity rows. */
+static sc_status assemble_matrix(sc_grid_lsq_plan *q, const long *rp, const int *ri,
+                                 const double *rv, const double *gm, const double *mm)
+{
+    int n_red = q->n_red;
+    q->Ap = calloc((size_t)n_red + 1, sizeof(long));
+    if (!q->Ap)
+        return SC_E_NOMEM;
+    long nnz = 0;
+#define COUNT(i, j, v) (q->Ap[((i) > (j) ? (i) : (j)) + 1]++, nnz++)
+    FOR_EACH_ENTRY(q, rp, ri, rv, gm, mm, COUNT);
 #undef COUNT
-    for (int k = 0; k < nx; ++k)
+    for (int k = 0; k < n_red; ++k)
         q->Ap[k + 1] += q->Ap[k];
     q->Ai = malloc(sizeof(int) * (size_t)(nnz + 1));
     q->Ax = malloc(sizeof(double) * (size_t)(nnz + 1));
-    fill = malloc(sizeof(long) * (size_t)(nx + 1));
+    long *fill = malloc(sizeof(long) * (size_t)(n_red + 1));
     if (!q->Ai || !q->Ax || !fill) {
         free(fill);
-        goto out;
+        return SC_E_NOMEM;
     }
-    memcpy(fill, q->Ap, sizeof(long) * (size_t)nx);
+    memcpy(fill, q->Ap, sizeof(long) * (size_t)n_red);
 #define PUT(i, j, v)                                                                              \
     do {                                                                                          \
-        int col_ = (i) > (j) ? (i) : (j), row_ = (i) > (j) ? (j) : (i);                           \
-        long at_ = fill[col_]++;                                                                  \
-        q->Ai[at_] = row_;                                                                        \
+        long at_ = fill[(i) > (j) ? (i) : (j)]++;                                                 \
+        q->Ai[at_] = (i) > (j) ? (j) : (i);                                                       \
         q->Ax[at_] = (v);                                                                         \
     } while (0)
-    for (int i = 0; i < ng; ++i)
-        for (long p = rp[i]; p < rp[i + 1]; ++p)
-            PUT(i, ri[p], rv[p]);
-    for (int i = 0; i < ng; ++i)
-        for (int t = 0; t < nm; ++t)
-            if (!q->pinned[i] && !q->pinned[ng + t] && gm[(size_t)i * nm + t] != 0)
-                PUT(i, ng + t, gm[(size_t)i * nm + t]);
-    for (int s = 0; s < nm; ++s)
-        for (int t = s; t < nm; ++t)
-            if (!q->pinned[ng + s] && !q->pinned[ng + t] && mm[(size_t)s * nm + t] != 0)
-                PUT(ng + s, ng + t, mm[(size_t)s * nm + t]);
-    for (int i = 0; i < nx; ++i)
-        if (q->pinned[i])
-            PUT(i, i, 1.0);
+    FOR_EACH_ENTRY(q, rp, ri, rv, gm, mm, PUT);
 #undef PUT
     free(fill);
-    q->bytes += (size_t)nnz * (sizeof(int) + sizeof(double)) + (size_t)(nx + 1) * sizeof(long);
-    /* the free rows of G and rp/ri/rv are no longer needed */
-    free(rp), free(ri), free(rv), free(last);
-    rp = NULL, ri = NULL, rv = NULL, last = NULL;
-    int arc = sc_spsym_analyze(nx, q->Ap, q->Ai, &q->f);
-    if (arc == -2) {
-        st = sc_error_set(err, SC_E_IO, NULL, 0,
-                          "the sparse solver library libcholmod.so.3 (SuiteSparse CHOLMOD) cannot "
-                          "be loaded");
+    q->bytes += (size_t)nnz * (sizeof(int) + sizeof(double)) + (size_t)(n_red + 1) * sizeof(long);
+    return SC_OK;
+}
+
+/* Order (once) and factor the pinned reduced matrix; the pinned system's nullity. */
+static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
+{
+    int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &q->f);
+    if (arc == -2)
+        return sc_error_set(err, SC_E_IO, NULL, 0,
+                            "the sparse solver library libcholmod.so.3 (SuiteSparse CHOLMOD) "
+                            "cannot be loaded");
+    if (arc != 0 || sc_spsym_factor(q->f, q->Ax, LSQ_PIVOT_TOL) != 0)
+        return SC_E_NOMEM; /* the caller says so */
+    q->nullity_pin = sc_spsym_nullity(q->f);
+    return SC_OK;
+}
+
+/* Assemble the reduced (A-eliminated) matrix, pin, order and factor; the nullity of the
+ * misalignment block alone (G held at 0). */
+static sc_status build_and_factor(sc_grid_lsq_plan *q, sc_error *err)
+{
+    int nm = q->nm;
+    long cap = 0, ntr = 0, *rp = NULL;
+    int *ri = NULL;
+    double *rv = NULL;
+    for (int a = 0; a < 2 * q->nn; ++a) {
+        long c = q->grp_ptr[a + 1] - q->grp_ptr[a];
+        if (c > 1)
+            cap += c * c + c;
+    }
+    triplet *tr = malloc(sizeof(triplet) * (size_t)(cap + 1));
+    double *gm = calloc((size_t)q->ng * nm, sizeof(double));
+    double *mm = calloc((size_t)nm * nm, sizeof(double));
+    double *mmT = malloc(sizeof(double) * (size_t)nm * nm);
+    sc_status st = SC_E_NOMEM;
+    if (!tr || !gm || !mm || !mmT)
+        goto out;
+    q->bytes += sizeof(triplet) * (size_t)cap + sizeof(double) * (size_t)q->ng * nm;
+    if ((st = assemble_groups(q, tr, &ntr, gm, mm)) != SC_OK)
+        goto out;
+    memcpy(mmT, mm, sizeof(double) * (size_t)nm * nm);
+    q->nullity_T = small_nullity(mmT, nm, LSQ_SMALL_TOL);
+    if (q->nullity_T < 0 || (st = g_block_rows(q, tr, ntr, &rp, &ri, &rv)) != SC_OK) {
+        st = SC_E_NOMEM;
         goto out;
     }
-    if (arc != 0 || sc_spsym_factor(q->f, q->Ax, LSQ_PIVOT_TOL) != 0)
-        goto out;
-    q->nullity_pin = sc_spsym_nullity(q->f);
-    st = SC_OK;
+    free(tr);
+    tr = NULL;
+    st = assemble_matrix(q, rp, ri, rv, gm, mm);
+    free(rp), free(ri), free(rv), free(gm), free(mm);
+    rp = NULL, ri = NULL, rv = NULL, gm = NULL, mm = NULL;
+    if (st == SC_OK)
+        st = factor_matrix(q, err);
 out:
     if (st == SC_E_NOMEM)
         sc_error_set(err, st, NULL, 0, "out of memory building the least-squares system");
-    free(tr), free(gm), free(mm), free(mmT), free(rp), free(ri), free(rv), free(last);
+    free(tr), free(gm), free(mm), free(mmT), free(rp), free(ri), free(rv);
     return st;
 }
 
-/* x := pinned-system solve of b (original index space), with `refine` steps of iterative
- * refinement against the assembled matrix. */
-static void pinned_solve(sc_grid_lsq *q, double *x, int refine)
+#define SOLVE_CHUNK 8 /* right-hand sides per blocked solve (workspace 2·n_red·SOLVE_CHUNK) */
+
+/* X (n_red x ncol, column after column) := pinned-system solves of its columns (original index
+ * space), with `refine` steps of iterative refinement against the assembled matrix; B and R:
+ * workspace of n_red·ncol each. Returns 0, -1 if the solver ran out of memory. */
+static int pinned_solve(const sc_grid_lsq_plan *q, double *X, int ncol, int refine, double *B,
+                        double *R)
 {
-    int nx = q->nx;
-    double *b = q->work, *r = q->work2;
-    for (int i = 0; i < nx; ++i)
-        b[i] = x[i] = q->pinned[i] ? 0.0 : x[i];
-    sc_spsym_solve(q->f, x);
+    size_t n = (size_t)q->n_red, tot = n * (size_t)ncol;
+    for (size_t k = 0; k < tot; ++k)
+        B[k] = X[k] = q->pinned[k % n] ? 0.0 : X[k];
+    if (sc_spsym_solve(q->f, X, ncol) != 0)
+        return -1;
     for (int it = 0; it < refine; ++it) {
-        sc_spsym_matvec(q->f, x, r);
-        for (int i = 0; i < nx; ++i)
-            r[i] = b[i] - r[i];
-        sc_spsym_solve(q->f, r);
-        for (int i = 0; i < nx; ++i)
-            x[i] += r[i];
+        sc_spsym_matvec(q->f, X, R, ncol);
+        for (size_t k = 0; k < tot; ++k)
+            R[k] = B[k] - R[k];
+        if (sc_spsym_solve(q->f, R, ncol) != 0)
+            return -1;
+        for (size_t k = 0; k < tot; ++k)
+            X[k] += R[k];
     }
-    for (int i = 0; i < nx; ++i)
-        if (q->pinned[i])
-            x[i] = 0.0;
+    for (size_t k = 0; k < tot; ++k)
+        if (q->pinned[k % n])
+            X[k] = 0.0;
+    return 0;
 }
 
-/* Per-node std/σ_r: diag(P⊥ Σ P⊥), Σ = pinned inverse (0 on pins), U = orthonormal gauge basis. */
-static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
+/* pinned_solve of ncol columns in blocks of SOLVE_CHUNK; work: 2·n_red·SOLVE_CHUNK doubles. */
+static int pinned_solve_cols(const sc_grid_lsq_plan *q, double *X, int ncol, int refine,
+                             double *work)
 {
-    int ng = q->ng, nx = q->nx, snx = q->snx, ns = q->ns;
-    if (sc_spsym_selinv(q->f) != 0)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
-    double *U = malloc(sizeof(double) * (size_t)4 * ng);
-    double *W = malloc(sizeof(double) * (size_t)4 * nx);
-    if (!U || !W) {
-        free(U), free(W);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    size_t n = (size_t)q->n_red;
+    for (int c0 = 0; c0 < ncol; c0 += SOLVE_CHUNK) {
+        int k = ncol - c0 < SOLVE_CHUNK ? ncol - c0 : SOLVE_CHUNK;
+        if (pinned_solve(q, X + (size_t)c0 * n, k, refine, work, work + n * (size_t)k) != 0)
+            return -1;
     }
+    return 0;
+}
+
+/* U (4 x ng, row after row): the orthonormal basis of G's gauge patterns (translations, rotation,
+ * magnification) that sc_grid_gauge_stage projects out. */
+static void gauge_basis(const sc_grid_lsq_plan *q, double *U)
+{
+    int ng = q->ng, ns = q->ns;
     double r2 = 0;
     for (int k = 0; k < ns; ++k) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / snx, k % snx, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
         r2 += x * x + y * y;
     }
     double s0 = 1.0 / sqrt((double)ns), s1 = 1.0 / sqrt(r2);
     for (int k = 0; k < ns; ++k) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / snx, k % snx, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
         U[0 * ng + 2 * k] = s0, U[0 * ng + 2 * k + 1] = 0;
         U[1 * ng + 2 * k] = 0, U[1 * ng + 2 * k + 1] = s0;
         U[2 * ng + 2 * k] = -y * s1, U[2 * ng + 2 * k + 1] = x * s1;
         U[3 * ng + 2 * k] = x * s1, U[3 * ng + 2 * k + 1] = y * s1;
     }
-    for (int c = 0; c < 4; ++c) {
-        double *w = W + (size_t)c * nx;
-        for (int i = 0; i < nx; ++i)
-            w[i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
-        pinned_solve(q, w, 2);
-    }
+}
+
+/* W = Σ U (4 columns of n_red, 2 refinement steps), U as gauge_basis. */
+static int gauge_columns(const sc_grid_lsq_plan *q, const double *U, double *W, double *work)
+{
+    for (int c = 0; c < 4; ++c)
+        for (int i = 0; i < q->n_red; ++i)
+            W[(size_t)c * q->n_red + i] = i < q->ng ? U[(size_t)c * q->ng + i] : 0.0;
+    return pinned_solve_cols(q, W, 4, 2, work);
+}
+
+/* Per-node std/σ_r: diag(P⊥ Σ P⊥) = diag(Σ) − 2 diag(U ᵀW) + diag(Uᵀ (UᵀW) U), Σ = pinned
+ * inverse (0 on pins; its diagonal from the selected inverse), W = Σ U. */
+static void sigma_ratios(sc_grid_lsq_plan *q, const double *U, const double *W)
+{
+    int ng = q->ng, n_red = q->n_red;
     double M[4][4];
     for (int c = 0; c < 4; ++c)
         for (int d = 0; d < 4; ++d) {
             double s = 0;
             for (int i = 0; i < ng; ++i)
-                s += U[(size_t)c * ng + i] * W[(size_t)d * nx + i];
+                s += U[(size_t)c * ng + i] * W[(size_t)d * n_red + i];
             M[c][d] = s;
         }
     double sum2 = 0, mx = 0;
     for (int i = 0; i < ng; ++i) {
-        double zii = q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i);
-        double var = zii;
+        double var = q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i);
         for (int c = 0; c < 4; ++c) {
             double uc = U[(size_t)c * ng + i];
-            var -= 2 * W[(size_t)c * nx + i] * uc;
+            var -= 2 * W[(size_t)c * n_red + i] * uc;
             for (int d = 0; d < 4; ++d)
                 var += uc * M[c][d] * U[(size_t)d * ng + i];
         }
@@ -644,60 +686,32 @@ static sc_status compute_sigma_ratios(sc_grid_lsq *q, sc_error *err)
     }
     q->info.sigma_c_ratio_rms = sqrt(sum2 / ng);
     q->info.sigma_c_ratio_max = mx;
-    free(U), free(W);
-    return SC_OK;
 }
 
-sc_status sc_grid_lsq_create(const sc_grid_plan *plan, const sc_grid_data *mask, sc_grid_lsq **out,
-                             sc_error *err)
-{
-    return sc_grid_lsq_create_ex(plan, mask, NULL, out, err);
-}
+static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err);
 
-sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *mask,
-                                const sc_grid_lsq_opts *opts, sc_grid_lsq **out, sc_error *err)
+/* The plan's sizes from the view plan and options; nothing allocated. */
+static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_grid_lsq_opts *opts)
 {
-    *out = NULL;
-    sc_status st = sc_grid_plan_check(plan, err);
-    if (st != SC_OK)
-        return st;
-    if (mask && (mask->plan.n != plan->n || mask->plan.n_views != plan->n_views))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "the data's N or number of views differs from the plan's");
-    sc_grid_lsq *q = calloc(1, sizeof *q);
-    if (!q)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     q->plan = *plan;
     q->n = plan->n;
     q->nn = plan->n * plan->n;
     q->nv = plan->n_views;
-    q->snx = sc_grid_stage_nx(plan);
-    q->sny = sc_grid_stage_ny(plan);
-    q->ns = q->snx * q->sny;
+    q->stage_nx = sc_grid_stage_nx(plan);
+    q->stage_ny = sc_grid_stage_ny(plan);
+    q->ns = q->stage_nx * q->stage_ny;
     q->drift = opts && opts->drift;
     q->nb = q->drift ? 5 : 3;
-    q->sigma0 = NAN;
     q->L_mm = (plan->n - 1) / 2 * plan->pitch_mm;
     q->ng = 2 * q->ns;
     q->nm = q->nb * q->nv;
-    q->nx = q->ng + q->nm;
-    st = build_equations(q, mask, err);
-    if (st != SC_OK)
-        goto fail;
-    q->pinned = calloc((size_t)q->nx, 1);
-    q->sgx = malloc(sizeof(double) * (size_t)q->ns);
-    q->sgy = malloc(sizeof(double) * (size_t)q->ns);
-    q->work = malloc(sizeof(double) * (size_t)q->nx);
-    q->work2 = malloc(sizeof(double) * (size_t)q->nx);
-    if (!q->pinned || !q->sgx || !q->sgy || !q->work || !q->work2) {
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto fail;
-    }
-    st = choose_pins(q, err);
-    if (st == SC_OK)
-        st = build_and_factor(q, err);
-    if (st != SC_OK)
-        goto fail;
+    q->n_red = q->ng + q->nm;
+    q->var_O = q->var_R = NAN;
+}
+
+/* Free degrees of freedom (K), identifiability, counts; stage nodes no equation touches. */
+static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
+{
     long K = q->nullity_pin - (q->nullity_T - 3);
     if (K < 0)
         K = 0;
@@ -707,58 +721,90 @@ sc_status sc_grid_lsq_create_ex(const sc_grid_plan *plan, const sc_grid_data *ma
     q->info.n_equations = q->neq;
     q->info.n_constraints = 7;
     q->info.n_stage_unmeasured = 0;
-    {
-        unsigned char *seen = calloc((size_t)q->ns, 1);
-        if (!seen) { /* reported, not a silently wrong count */
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-            goto fail;
-        }
-        for (long e = 0; e < q->neq; ++e)
-            seen[q->eq_g[e] / 2] = 1;
-        for (int k = 0; k < q->ns; ++k)
-            q->info.n_stage_unmeasured += !seen[k];
-        free(seen);
-    }
+    unsigned char *seen = calloc((size_t)q->ns, 1);
+    if (!seen) /* reported, not a silently wrong count */
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (long e = 0; e < q->neq; ++e)
+        seen[q->eq_g[e] / 2] = 1;
+    for (int k = 0; k < q->ns; ++k)
+        q->info.n_stage_unmeasured += !seen[k];
+    free(seen);
     q->rank = q->info.n_unknowns - (4 + K + q->nullity_T);
+    q->misalignment_unique = q->nullity_T <= 3;
     for (int k = 0; k < q->ns; ++k)
         q->sgx[k] = q->sgy[k] = NAN;
     q->info.sigma_c_ratio_rms = q->info.sigma_c_ratio_max = NAN;
-    if (K == 0) {
-        st = compute_sigma_ratios(q, err);
-        if (st != SC_OK)
-            goto fail;
+    return SC_OK;
+}
+
+sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *mask,
+                                  const sc_grid_lsq_opts *opts, sc_grid_lsq_plan **out,
+                                  sc_error *err)
+{
+    *out = NULL;
+    sc_status st = sc_grid_plan_check(plan, err);
+    if (st != SC_OK)
+        return st;
+    if (mask && (mask->plan.n != plan->n || mask->plan.n_views != plan->n_views))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the data's N or number of views differs from the plan's");
+    sc_grid_lsq_plan *q = calloc(1, sizeof *q);
+    if (!q)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    plan_init(q, plan, opts);
+    st = build_equations(q, mask, err);
+    if (st != SC_OK)
+        goto fail;
+    size_t nwork = 4 * (size_t)q->n_red + (size_t)q->ng + 2 * (size_t)q->nn + (size_t)q->nm;
+    q->pinned = calloc((size_t)q->n_red, 1);
+    q->sgx = malloc(sizeof(double) * (size_t)q->ns);
+    q->sgy = malloc(sizeof(double) * (size_t)q->ns);
+    q->work = malloc(sizeof(double) * nwork);
+    if (!q->pinned || !q->sgx || !q->sgy || !q->work) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        goto fail;
     }
+    q->bytes += sizeof(double) * nwork;
+    st = choose_pins(q, err);
+    if (st == SC_OK)
+        st = build_and_factor(q, err);
+    if (st == SC_OK)
+        st = analyse_identifiability(q, err);
+    if (st == SC_OK && q->info.identifiable)
+        st = plan_uncertainties(q, err);
+    if (st != SC_OK)
+        goto fail;
     sc_spsym_stats fst;
     sc_spsym_get_stats(q->f, &fst);
-    q->bytes += fst.bytes + (size_t)q->neq * (5 * sizeof(int) + 2 + sizeof(double) + sizeof(long));
+    q->bytes += fst.bytes + (size_t)q->neq * (5 * sizeof(int) + 2 + 2 * sizeof(double) + sizeof(long));
     *out = q;
     return SC_OK;
 fail:
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     return st;
 }
 
-void sc_grid_lsq_get_info(const sc_grid_lsq *q, sc_grid_lsq_info *info)
+void sc_grid_lsq_get_info(const sc_grid_lsq_plan *q, sc_grid_lsq_info *info)
 {
     *info = q->info;
 }
 
-void sc_grid_lsq_matrix(const sc_grid_lsq *q, int *n, const long **Ap, const int **Ai,
+void sc_grid_lsq_matrix(const sc_grid_lsq_plan *q, int *n, const long **Ap, const int **Ai,
                         const double **Ax)
 {
-    *n = q->nx;
+    *n = q->n_red;
     *Ap = q->Ap;
     *Ai = q->Ai;
     *Ax = q->Ax;
 }
 
-void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st)
+void sc_grid_lsq_get_stats(const sc_grid_lsq_plan *q, sc_grid_lsq_stats *st)
 {
     sc_spsym_stats f;
     sc_spsym_get_stats(q->f, &f);
     memset(st, 0, sizeof *st);
-    st->n_reduced = q->nx;
-    st->nnz_matrix = q->Ap ? q->Ap[q->nx] : 0;
+    st->n_reduced = q->n_red;
+    st->nnz_matrix = q->Ap ? q->Ap[q->n_red] : 0;
     st->nnz_factor = f.nnz_factor;
     st->factor_flops = f.factor_flops;
     st->ordering = sc_spsym_ordering_name(f.ordering);
@@ -770,7 +816,7 @@ void sc_grid_lsq_get_stats(const sc_grid_lsq *q, sc_grid_lsq_stats *st)
     st->bytes = q->bytes;
 }
 
-sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy, sc_error *err)
+sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq_plan *q, double *sgx, double *sgy, sc_error *err)
 {
     if (!q->info.identifiable)
         return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0,
@@ -783,14 +829,14 @@ sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq *q, double *sgx, double *sgy
     return SC_OK;
 }
 
-static double eq_data(const sc_grid_lsq *q, const sc_grid_data *d, long e)
+static double eq_data(const sc_grid_lsq_plan *q, const sc_grid_data *d, long e)
 {
     int v = q->eq_v[e], k = q->eq_k[e];
     return q->eq_c[e] ? d->dy_um[v][k] : d->dx_um[v][k];
 }
 
 /* s_e·d_e − w_e·x for equation e (the part of the equation the group's A must absorb). */
-static double eq_misfit(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, long e)
+static double eq_misfit(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *x, long e)
 {
     int idx[ROW_MAX];
     double val[ROW_MAX];
@@ -804,11 +850,11 @@ static double eq_misfit(const sc_grid_lsq *q, const sc_grid_data *d, const doubl
 /* r = b - S x evaluated from the equations themselves (not the assembled matrix, whose rounding
  * slightly moves the gauge null space): r = Σ_e w_e r_e (z_e - weighted group mean of z),
  * z_e = s_e d_e - r_e·x. Zero on pins. */
-static void data_residual(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, double *r)
+static void data_residual(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *x, double *r)
 {
     int idx[ROW_MAX];
     double val[ROW_MAX];
-    memset(r, 0, sizeof(double) * (size_t)q->nx);
+    memset(r, 0, sizeof(double) * (size_t)q->n_red);
     for (int c = 0; c < 2 * q->nn; ++c) {
         long g0 = q->grp_ptr[c], cnt = q->grp_ptr[c + 1] - g0;
         if (cnt < 2)
@@ -828,16 +874,16 @@ static void data_residual(const sc_grid_lsq *q, const sc_grid_data *d, const dou
                 r[idx[k]] += val[k] * z;
         }
     }
-    for (int i = 0; i < q->nx; ++i)
+    for (int i = 0; i < q->n_red; ++i)
         if (q->pinned[i])
             r[i] = 0;
 }
 
-static sc_status check_data(const sc_grid_lsq *q, const sc_grid_data *d, sc_error *err)
+static sc_status check_data(const sc_grid_lsq_plan *q, const sc_grid_data *d, sc_error *err)
 {
     int n = q->n, nn = q->nn, nv = q->nv;
     if (d->plan.n != n || d->plan.n_views != nv ||
-        sc_grid_stage_nx(&d->plan) != q->snx || sc_grid_stage_ny(&d->plan) != q->sny)
+        sc_grid_stage_nx(&d->plan) != q->stage_nx || sc_grid_stage_ny(&d->plan) != q->stage_ny)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "data has N = %d and %d views, the estimator N = %d and %d views "
                             "(or the stages differ)",
@@ -912,10 +958,10 @@ static void small_solve(double *a, double *rhs, int m)
 
 /* G (x's first ng entries, interleaved) in the gauge, A as weighted group means moved with G's
  * magnification and gauged over the measured marks (translation, rotation). */
-static void gauge_solution(const sc_grid_lsq *q, const sc_grid_data *d, const double *x, double *gx,
+static void gauge_solution(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *x, double *gx,
                            double *gy, double *a)
 {
-    int n = q->n, nn = q->nn, ns = q->ns, snx = q->snx;
+    int n = q->n, nn = q->nn, ns = q->ns, stage_nx = q->stage_nx;
     for (int k = 0; k < ns; ++k) {
         gx[k] = x[2 * k];
         gy[k] = x[2 * k + 1];
@@ -923,7 +969,7 @@ static void gauge_solution(const sc_grid_lsq *q, const sc_grid_data *d, const do
     double smag = 0, r2 = 0;
     for (int k = 0; k < ns; ++k) {
         double px, py;
-        sc_grid_node_xy_mm(&q->plan, k / snx, k % snx, &px, &py);
+        sc_grid_node_xy_mm(&q->plan, k / stage_nx, k % stage_nx, &px, &py);
         smag += px * gx[k] + py * gy[k];
         r2 += px * px + py * py;
     }
@@ -962,17 +1008,13 @@ static void gauge_solution(const sc_grid_lsq *q, const sc_grid_data *d, const do
     }
 }
 
-/* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns. */
-static sc_status fit_misalignments(const sc_grid_lsq *q, const sc_grid_data *d, const double *g,
-                                   const double *a, double *m, sc_error *err)
+/* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns
+ * (m: nm; NaN for a view whose columns are singular). */
+static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *g,
+                              const double *a, double *m)
 {
     int nb = q->nb, ns = q->ns;
-    double *nrm = calloc((size_t)q->nv * nb * nb, sizeof(double));
-    double *rh = calloc((size_t)q->nv * nb, sizeof(double));
-    if (!nrm || !rh) { /* reported, never NaN misalignments in a result called OK */
-        free(nrm), free(rh);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
+    double nrm[SC_GRID_MAX_VIEWS * 5 * 5] = {0}, rh[SC_GRID_MAX_VIEWS * 5] = {0};
     int idx[ROW_MAX];
     double val[ROW_MAX];
     for (long e = 0; e < q->neq; ++e) {
@@ -992,8 +1034,6 @@ static sc_status fit_misalignments(const sc_grid_lsq *q, const sc_grid_data *d, 
         for (int t = 0; t < nb; ++t)
             m[v * nb + t] = rh[v * nb + t];
     }
-    free(nrm), free(rh);
-    return SC_OK;
 }
 
 /* Upper quantile helpers: the regularized lower incomplete gamma P(a, x). */
@@ -1049,10 +1089,12 @@ double sc_chi2_quantile(double p, double dof)
     return 0.5 * (lo + hi);
 }
 
-static void fill_result_noise(sc_grid_lsq *q, double wrss, double rss, double sigma_r_um,
-                              sc_grid_result *res)
+/* The noise figures of res from the residual sums; the σ scale the uncertainties use. */
+static double fill_result_noise(const sc_grid_lsq_plan *q, double wrss, double rss,
+                                double sigma_r_um, sc_grid_result *res)
 {
     long dof = q->neq - q->rank;
+    double sigma0;
     res->n_measurements = q->neq;
     res->dof = dof;
     res->residual_rms_um = q->neq > 0 ? sqrt(rss / (double)q->neq) : NAN;
@@ -1063,110 +1105,140 @@ static void fill_result_noise(sc_grid_lsq *q, double wrss, double rss, double si
         /* stated uncertainties: σ̂ is the factor on them; the uncertainties use them as stated */
         res->sigma_r_est_um = dof > 0 ? sqrt(wrss / (double)dof) : NAN;
         res->sigma_r_used_um = 1.0;
-        q->sigma0 = 1.0;
+        sigma0 = 1.0;
         if (dof > 0)
             res->variance_factor = wrss / (double)dof;
     } else {
         res->sigma_r_est_um = dof > 0 ? sqrt(rss / (double)dof) : NAN;
         res->sigma_r_used_um = sigma_r_um > 0 ? sigma_r_um : res->sigma_r_est_um;
-        q->sigma0 = res->sigma_r_used_um;
+        sigma0 = res->sigma_r_used_um;
         if (sigma_r_um > 0 && dof > 0)
             res->variance_factor = rss / (double)dof / (sigma_r_um * sigma_r_um);
     }
-    q->tscale = q->sigma0;
     if (isfinite(res->variance_factor)) {
         res->chi2_lo = sc_chi2_quantile(0.025, (double)dof) / (double)dof;
         res->chi2_hi = sc_chi2_quantile(0.975, (double)dof) / (double)dof;
         res->chi2_pass = res->variance_factor >= res->chi2_lo && res->variance_factor <= res->chi2_hi;
-        /* the stated noise is too small for these residuals: data snooping with it would flag
-         * nearly everything, so the residuals are standardized a posteriori (Pope's τ) */
-        if (res->variance_factor > res->chi2_hi)
-            q->tscale = q->sigma0 * sqrt(res->variance_factor);
     }
+    return sigma0;
 }
 
-static sc_status functional_uncertainties(sc_grid_lsq *q, sc_grid_result *res, sc_error *err);
-
-sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_r_um,
-                            sc_grid_result *res, sc_error *err)
+/* σ scale of the standardized residuals of a result: its σ0, or when the stated noise is too
+ * small for the residuals (χ² test failed high) a posteriori (Pope's τ): data snooping with the
+ * stated noise would flag nearly everything. */
+static double residual_scale(const sc_grid_result *res)
 {
-    int nn = q->nn, nv = q->nv, ng = q->ng, nx = q->nx, ns = q->ns, nb = q->nb;
-    sc_status st = check_data(q, d, err);
-    if (st != SC_OK)
-        return st;
-    double *x = calloc((size_t)nx, sizeof(double));
-    double *g = malloc(sizeof(double) * (size_t)ng);
-    double *a = malloc(sizeof(double) * (size_t)2 * nn);
-    double *r = malloc(sizeof(double) * (size_t)nx);
-    double *m = malloc(sizeof(double) * (size_t)q->nm);
-    if (!x || !g || !a || !r || !m) {
-        free(x), free(g), free(a), free(r), free(m);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
-    /* b - S·0 from the equations, then refinement steps against the equations */
+    double s = res->sigma_r_used_um;
+    if (isfinite(res->variance_factor) && res->variance_factor > res->chi2_hi)
+        s *= sqrt(res->variance_factor);
+    return s;
+}
+
+/* Residual of equation e: data − G − s·A − misalignment (and drift) terms; gv, av: the G and A
+ * components the equation touches, m: the misalignment unknowns (nm). */
+static double eq_residual(const sc_grid_lsq_plan *q, const sc_grid_data *d, long e, double gv,
+                          double av, const double *m)
+{
+    int idx[ROW_MAX];
+    double val[ROW_MAX], mis = 0;
+    int len = eq_row(q, e, idx, val);
+    for (int t = 1; t < len; ++t)
+        mis += q->eq_s[e] * val[t] * m[idx[t] - q->ng];
+    if (!isfinite(mis))
+        mis = 0;
+    return eq_data(q, d, e) - gv - q->eq_s[e] * av - mis;
+}
+
+/* x := the pinned reduced solution for d: b − S·0 from the equations, then 3 refinement steps
+ * against the equations; r, b, r2: workspace (n_red each). */
+static int solve_reduced(const sc_grid_lsq_plan *q, const sc_grid_data *d, double *x, double *r,
+                         double *b, double *r2)
+{
+    int n_red = q->n_red;
+    memset(x, 0, sizeof(double) * (size_t)n_red);
     data_residual(q, d, x, r);
-    memcpy(x, r, sizeof(double) * (size_t)nx);
-    pinned_solve(q, x, 0);
+    memcpy(x, r, sizeof(double) * (size_t)n_red);
+    if (pinned_solve(q, x, 1, 0, b, r2) != 0)
+        return -1;
     for (int it = 0; it < 3; ++it) {
         data_residual(q, d, x, r);
-        pinned_solve(q, r, 0);
-        for (int i = 0; i < nx; ++i)
+        if (pinned_solve(q, r, 1, 0, b, r2) != 0)
+            return -1;
+        for (int i = 0; i < n_red; ++i)
             x[i] += r[i];
     }
-    double *gx = g, *gy = g + ns;
-    gauge_solution(q, d, x, gx, gy, a);
-    st = fit_misalignments(q, d, g, a, m, err);
-    if (st != SC_OK) {
-        free(x), free(g), free(a), free(r), free(m);
-        return st;
-    }
-    /* residuals of the final (G, A, misalignment, drift) */
-    double rss = 0, wrss = 0;
-    int idx[ROW_MAX];
-    double val[ROW_MAX];
-    for (long e = 0; e < q->neq; ++e) {
-        int len = eq_row(q, e, idx, val);
-        double mis = 0;
-        for (int t = 1; t < len; ++t)
-            mis += q->eq_s[e] * val[t] * m[idx[t] - ng];
-        if (!isfinite(mis))
-            mis = 0;
-        double re = eq_data(q, d, e) - g[(q->eq_g[e] % 2) * ns + q->eq_g[e] / 2] -
-                    q->eq_s[e] * a[q->eq_a[e]] - mis;
-        q->eq_r[e] = re;
-        rss += re * re;
-        wrss += q->eq_w[e] * re * re;
-    }
-    fill_result_noise(q, wrss, rss, sigma_r_um, res);
+    return 0;
+}
+
+/* Copy the solution (G as gx | gy, A interleaved, misalignments m) and the uncertainties the plan
+ * computed (scaled by σ0) into res. */
+static void fill_result_values(const sc_grid_lsq_plan *q, const double *g, const double *a,
+                               const double *m, double sigma0, sc_grid_result *res)
+{
+    int nb = q->nb, ns = q->ns;
+    const double *gx = g, *gy = g + ns;
     res->drift = q->drift;
+    res->misalignment_unique = q->misalignment_unique;
+    res->uO = sigma0 * sqrt(q->var_O);
+    res->uR = sigma0 * sqrt(q->var_R);
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
-        int in = v < nv;
+        int in = v < q->nv;
+        const double *um = in ? q->var_m + v * nb : NULL;
+        double L = q->L_mm * 1e-3;
         res->tx_um[v] = in ? m[v * nb] : NAN;
         res->ty_um[v] = in ? m[v * nb + 1] : NAN;
-        res->theta_urad[v] = in ? m[v * nb + 2] / (q->L_mm * 1e-3) : NAN;
+        res->theta_urad[v] = in ? m[v * nb + 2] / L : NAN;
         res->vx_um_s[v] = in && q->drift ? m[v * nb + 3] / q->drift_T[v] : NAN;
         res->vy_um_s[v] = in && q->drift ? m[v * nb + 4] / q->drift_T[v] : NAN;
+        res->utx_um[v] = in ? sigma0 * sqrt(um[0]) : NAN;
+        res->uty_um[v] = in ? sigma0 * sqrt(um[1]) : NAN;
+        res->utheta_urad[v] = in ? sigma0 * sqrt(um[2]) / L : NAN;
+        res->uvx_um_s[v] = in && q->drift ? sigma0 * sqrt(um[3]) / q->drift_T[v] : NAN;
+        res->uvy_um_s[v] = in && q->drift ? sigma0 * sqrt(um[4]) / q->drift_T[v] : NAN;
     }
     sc_grid_first_order(&q->plan, gx, gy, &res->O, &res->R);
-    double su = q->sigma0;
     for (int k = 0; k < ns; ++k) {
         if (res->gx_um)
             res->gx_um[k] = gx[k];
         if (res->gy_um)
             res->gy_um[k] = gy[k];
         if (res->ugx_um)
-            res->ugx_um[k] = su * q->sgx[k];
+            res->ugx_um[k] = sigma0 * q->sgx[k];
         if (res->ugy_um)
-            res->ugy_um[k] = su * q->sgy[k];
+            res->ugy_um[k] = sigma0 * q->sgy[k];
     }
-    for (int k = 0; k < nn; ++k) {
+    for (int k = 0; k < q->nn; ++k) {
         if (res->ax_um)
             res->ax_um[k] = q->mark_views[k] ? a[2 * k] : NAN;
         if (res->ay_um)
             res->ay_um[k] = q->mark_views[k] ? a[2 * k + 1] : NAN;
     }
-    free(x), free(g), free(a), free(r), free(m);
-    return functional_uncertainties(q, res, err);
+}
+
+sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d, double sigma_r_um,
+                              sc_grid_result *res, sc_error *err)
+{
+    int ns = q->ns;
+    sc_status st = check_data(q, d, err);
+    if (st != SC_OK)
+        return st;
+    size_t n = (size_t)q->n_red;
+    double *x = q->work, *r = x + n, *b = r + n, *r2 = b + n, *g = r2 + n, *a = g + q->ng;
+    double *m = a + 2 * (size_t)q->nn;
+    if (solve_reduced(q, d, x, r, b, r2) != 0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (least-squares solve)");
+    gauge_solution(q, d, x, g, g + ns, a);
+    fit_misalignments(q, d, g, a, m);
+    double rss = 0, wrss = 0;
+    for (long e = 0; e < q->neq; ++e) {
+        int c = q->eq_g[e] % 2, node = q->eq_g[e] / 2;
+        double re = eq_residual(q, d, e, g[c * ns + node], a[q->eq_a[e]], m);
+        rss += re * re;
+        wrss += q->eq_w[e] * re * re;
+    }
+    double sigma0 = fill_result_noise(q, wrss, rss, sigma_r_um, res);
+    fill_result_values(q, g, a, m, sigma0, res);
+    return SC_OK;
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -1182,10 +1254,10 @@ sc_status sc_grid_lsq_solve(sc_grid_lsq *q, const sc_grid_data *d, double sigma_
 
 /* Apply the 7 null vectors: nullv(k) restricted to entry class. Values for G node k (stage, both
  * components), A mark (both), and misalignment (view v, component t). */
-static void null_g(const sc_grid_lsq *q, int node, double out[7][2])
+static void null_g(const sc_grid_lsq_plan *q, int node, double out[7][2])
 {
     double x, y;
-    sc_grid_node_xy_mm(&q->plan, node / q->snx, node % q->snx, &x, &y);
+    sc_grid_node_xy_mm(&q->plan, node / q->stage_nx, node % q->stage_nx, &x, &y);
     double L = q->L_mm;
     memset(out, 0, sizeof(double) * 14);
     out[0][0] = 1, out[1][1] = 1;
@@ -1193,7 +1265,7 @@ static void null_g(const sc_grid_lsq *q, int node, double out[7][2])
     out[3][0] = x / L, out[3][1] = y / L;
 }
 
-static void null_a(const sc_grid_lsq *q, int mark, double out[7][2])
+static void null_a(const sc_grid_lsq_plan *q, int mark, double out[7][2])
 {
     double x, y;
     sc_grid_mark_xy_mm(&q->plan, mark / q->n, mark % q->n, &x, &y);
@@ -1204,7 +1276,7 @@ static void null_a(const sc_grid_lsq *q, int mark, double out[7][2])
     out[6][0] = -y / L, out[6][1] = x / L;
 }
 
-static void null_m(const sc_grid_lsq *q, int v, double out[7][5])
+static void null_m(const sc_grid_lsq_plan *q, int v, double out[7][5])
 {
     const sc_grid_view *w = &q->plan.view[v];
     double P = q->plan.pitch_mm, L = q->L_mm, sx = w->shift_x * P / L, sy = w->shift_y * P / L;
@@ -1222,17 +1294,17 @@ static void null_m(const sc_grid_lsq *q, int v, double out[7][5])
 }
 
 /* The 7 gauge functionals C_k as vectors: on G node (both comps) and on A mark (both). */
-static void gauge_g(const sc_grid_lsq *q, int node, double out[7][2])
+static void gauge_g(const sc_grid_lsq_plan *q, int node, double out[7][2])
 {
     double x, y;
-    sc_grid_node_xy_mm(&q->plan, node / q->snx, node % q->snx, &x, &y);
+    sc_grid_node_xy_mm(&q->plan, node / q->stage_nx, node % q->stage_nx, &x, &y);
     memset(out, 0, sizeof(double) * 14);
     out[0][0] = 1, out[1][1] = 1;
     out[2][0] = -y, out[2][1] = x;
     out[3][0] = x, out[3][1] = y;
 }
 
-static void gauge_a(const sc_grid_lsq *q, int mark, double out[7][2])
+static void gauge_a(const sc_grid_lsq_plan *q, int mark, double out[7][2])
 {
     double x, y;
     memset(out, 0, sizeof(double) * 14);
@@ -1243,92 +1315,8 @@ static void gauge_a(const sc_grid_lsq *q, int mark, double out[7][2])
     out[6][0] = -y, out[6][1] = x;
 }
 
-/* Var(fᵀ z_g)/σ0² for f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL). */
-static double functional_var(const sc_grid_lsq *q, const double *Minv_T, const double *fg,
-                             const double *fm, double *ux, double *uA, double *z)
-{
-    int ng = q->ng, nx = q->nx, nn = q->nn, nb = q->nb;
-    double Nf[7] = {0}, gam[7] = {0};
-    double ng7[7][2], nm7[7][5];
-    for (int k = 0; fg && k < q->ns; ++k) {
-        null_g(q, k, ng7);
-        for (int t = 0; t < 7; ++t)
-            Nf[t] += ng7[t][0] * fg[2 * k] + ng7[t][1] * fg[2 * k + 1];
-    }
-    for (int v = 0; fm && v < q->nv; ++v) {
-        null_m(q, v, nm7);
-        for (int t = 0; t < 7; ++t)
-            for (int c = 0; c < nb && c < 5; ++c)
-                Nf[t] += (c < 3 ? nm7[t][c] : 0.0) * fm[v * nb + c];
-    }
-    for (int i = 0; i < 7; ++i)
-        for (int j = 0; j < 7; ++j)
-            gam[i] += Minv_T[i * 7 + j] * Nf[j];
-    /* u = f - Σ_k γ_k C_k */
-    memset(ux, 0, sizeof(double) * (size_t)nx);
-    for (int k = 0; k < q->ns; ++k) {
-        double cg[7][2];
-        gauge_g(q, k, cg);
-        for (int c = 0; c < 2; ++c) {
-            double v = fg ? fg[2 * k + c] : 0;
-            for (int t = 0; t < 7; ++t)
-                v -= gam[t] * cg[t][c];
-            ux[2 * k + c] = v;
-        }
-    }
-    for (int t = 0; fm && t < q->nm; ++t)
-        ux[ng + t] = fm[t];
-    for (int k = 0; k < nn; ++k) {
-        double ca[7][2];
-        gauge_a(q, k, ca);
-        for (int c = 0; c < 2; ++c) {
-            double v = 0;
-            for (int t = 0; t < 7; ++t)
-                v -= gam[t] * ca[t][c];
-            uA[2 * k + c] = v;
-        }
-    }
-    /* uᵀ Σ u: z_x = S⁻¹(u_x - Σ_a (u_A[a]/W_a) Σ_e w_e ρ_e), z_A[a] = (u_A[a] - Σ_e w_e ρ_e·z_x)/W_a */
-    int idx[ROW_MAX];
-    double val[ROW_MAX];
-    memcpy(z, ux, sizeof(double) * (size_t)nx);
-    for (int a = 0; a < 2 * nn; ++a) {
-        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
-        double W = 0;
-        for (long t = 0; t < cnt; ++t)
-            W += q->eq_w[q->grp_eq[g0 + t]];
-        if (cnt == 0 || uA[a] == 0)
-            continue;
-        for (long t = 0; t < cnt; ++t) {
-            long e = q->grp_eq[g0 + t];
-            int len = eq_row(q, e, idx, val);
-            for (int r = 0; r < len; ++r)
-                z[idx[r]] -= uA[a] / W * q->eq_w[e] * val[r];
-        }
-    }
-    pinned_solve((sc_grid_lsq *)q, z, 1);
-    double var = 0;
-    for (int i = 0; i < nx; ++i)
-        var += ux[i] * z[i];
-    for (int a = 0; a < 2 * nn; ++a) {
-        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
-        if (cnt == 0 || uA[a] == 0)
-            continue;
-        double W = 0, proj = 0;
-        for (long t = 0; t < cnt; ++t) {
-            long e = q->grp_eq[g0 + t];
-            int len = eq_row(q, e, idx, val);
-            W += q->eq_w[e];
-            for (int r = 0; r < len; ++r)
-                proj += q->eq_w[e] * val[r] * z[idx[r]];
-        }
-        var += uA[a] * (uA[a] - proj) / W;
-    }
-    return var > 0 ? var : 0.0;
-}
-
 /* (CᵀN)⁻ᵀ, 7 x 7 row-major; 0 if singular. */
-static int gauge_matrix(const sc_grid_lsq *q, double *Minv_T)
+static int gauge_matrix(const sc_grid_lsq_plan *q, double *Minv_T)
 {
     double M[49] = {0};
     for (int k = 0; k < q->ns; ++k) {
@@ -1364,60 +1352,173 @@ static int gauge_matrix(const sc_grid_lsq *q, double *Minv_T)
     return 0;
 }
 
-static sc_status functional_uncertainties(sc_grid_lsq *q, sc_grid_result *res, sc_error *err)
+/* u = Qᵀ f for the functional f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL):
+ * ux on the reduced unknowns (n_red), uA on the A components (2 nn). */
+static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, const double *fg,
+                               const double *fm, double *ux, double *uA)
 {
-    int nv = q->nv, nb = q->nb, ng = q->ng, nx = q->nx;
-    res->uO = res->uR = NAN;
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        res->utx_um[v] = res->uty_um[v] = res->utheta_urad[v] = res->uvx_um_s[v] =
-            res->uvy_um_s[v] = NAN;
+    int ng = q->ng, nb = q->nb;
+    double Nf[7] = {0}, gam[7] = {0};
+    double ng7[7][2], nm7[7][5];
+    for (int k = 0; fg && k < q->ns; ++k) {
+        null_g(q, k, ng7);
+        for (int t = 0; t < 7; ++t)
+            Nf[t] += ng7[t][0] * fg[2 * k] + ng7[t][1] * fg[2 * k + 1];
+    }
+    for (int v = 0; fm && v < q->nv; ++v) {
+        null_m(q, v, nm7);
+        for (int t = 0; t < 7; ++t)
+            for (int c = 0; c < nb && c < 5; ++c)
+                Nf[t] += (c < 3 ? nm7[t][c] : 0.0) * fm[v * nb + c];
+    }
+    for (int i = 0; i < 7; ++i)
+        for (int j = 0; j < 7; ++j)
+            gam[i] += Minv_T[i * 7 + j] * Nf[j];
+    /* u = f - Σ_k γ_k C_k */
+    memset(ux, 0, sizeof(double) * (size_t)q->n_red);
+    for (int k = 0; k < q->ns; ++k) {
+        double cg[7][2];
+        gauge_g(q, k, cg);
+        for (int c = 0; c < 2; ++c) {
+            double v = fg ? fg[2 * k + c] : 0;
+            for (int t = 0; t < 7; ++t)
+                v -= gam[t] * cg[t][c];
+            ux[2 * k + c] = v;
+        }
+    }
+    for (int t = 0; fm && t < q->nm; ++t)
+        ux[ng + t] = fm[t];
+    for (int k = 0; k < q->nn; ++k) {
+        double ca[7][2];
+        gauge_a(q, k, ca);
+        for (int c = 0; c < 2; ++c) {
+            double v = 0;
+            for (int t = 0; t < 7; ++t)
+                v -= gam[t] * ca[t][c];
+            uA[2 * k + c] = v;
+        }
+    }
+}
+
+/* uᵀ Σ u in two halves: z_x = S⁻¹(u_x − Σ_a (u_A[a]/W_a) Σ_e w_e ρ_e) (this right-hand side
+ * here, the solve by the caller), then z_A[a] = (u_A[a] − Σ_e w_e ρ_e·z_x)/W_a (functional_quad). */
+static void functional_rhs(const sc_grid_lsq_plan *q, const double *ux, const double *uA,
+                           double *z)
+{
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
+    memcpy(z, ux, sizeof(double) * (size_t)q->n_red);
+    for (int a = 0; a < 2 * q->nn; ++a) {
+        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+        double W = 0;
+        for (long t = 0; t < cnt; ++t)
+            W += q->eq_w[q->grp_eq[g0 + t]];
+        if (cnt == 0 || uA[a] == 0)
+            continue;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            int len = eq_row(q, e, idx, val);
+            for (int r = 0; r < len; ++r)
+                z[idx[r]] -= uA[a] / W * q->eq_w[e] * val[r];
+        }
+    }
+}
+
+static double functional_quad(const sc_grid_lsq_plan *q, const double *ux, const double *uA,
+                              const double *z)
+{
+    int idx[ROW_MAX];
+    double val[ROW_MAX], var = 0;
+    for (int i = 0; i < q->n_red; ++i)
+        var += ux[i] * z[i];
+    for (int a = 0; a < 2 * q->nn; ++a) {
+        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+        if (cnt == 0 || uA[a] == 0)
+            continue;
+        double W = 0, proj = 0;
+        for (long t = 0; t < cnt; ++t) {
+            long e = q->grp_eq[g0 + t];
+            int len = eq_row(q, e, idx, val);
+            W += q->eq_w[e];
+            for (int r = 0; r < len; ++r)
+                proj += q->eq_w[e] * val[r] * z[idx[r]];
+        }
+        var += uA[a] * (uA[a] - proj) / W;
+    }
+    return var > 0 ? var : 0.0;
+}
+
+/* Functional f of the plan's list: 0 O, 1 R (as sc_grid_first_order), then misalignment
+ * unknown f − 2. Fills fg or fm and says which (the other NULL). */
+static void functional_def(const sc_grid_lsq_plan *q, int f, double r2, double *fg, double *fm,
+                           const double **fg_out, const double **fm_out)
+{
+    *fg_out = *fm_out = NULL;
+    if (f < 2) {
+        for (int k = 0; k < q->ns; ++k) {
+            double x, y;
+            sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
+            fg[2 * k] = (f == 0 ? y : x) / r2 * 1e-3;
+            fg[2 * k + 1] = (f == 0 ? x : -y) / r2 * 1e-3;
+        }
+        *fg_out = fg;
+    } else {
+        memset(fm, 0, sizeof(double) * (size_t)q->nm);
+        fm[f - 2] = 1;
+        *fm_out = fm;
+    }
+}
+
+/* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
+ * u = Qᵀ f, one pinned solve each, blocked. work: 2·n_red·SOLVE_CHUNK doubles. */
+static sc_status functional_variances(sc_grid_lsq_plan *q, double *work, sc_error *err)
+{
     double Minv_T[49];
+    for (int t = 0; t < q->nm; ++t)
+        q->var_m[t] = NAN;
     /* nullity_T > 3: combinations of misalignments (and drift) with A beyond the gauge stay free
      * (with drift: a drift common to all views in the plate frame is a plate error); their
      * values follow a convention and have no uncertainty. O and R depend on G only. */
-    res->misalignment_unique = q->nullity_T <= 3;
     if (gauge_matrix(q, Minv_T) != 0)
         return SC_OK;
-    double *fg = calloc((size_t)ng, sizeof(double));
-    double *fm = calloc((size_t)q->nm, sizeof(double));
-    double *ux = malloc(sizeof(double) * (size_t)nx);
-    double *uA = malloc(sizeof(double) * (size_t)2 * q->nn);
-    double *z = malloc(sizeof(double) * (size_t)nx);
-    if (!fg || !fm || !ux || !uA || !z) {
-        free(fg), free(fm), free(ux), free(uA), free(z);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
-    double s0 = q->sigma0, r2 = 0;
+    int nf = 2 + (q->misalignment_unique ? q->nm : 0);
+    size_t n = (size_t)q->n_red;
+    double *fg = malloc(sizeof(double) * (size_t)q->ng), *fm = malloc(sizeof(double) * q->nm);
+    double *ux = malloc(sizeof(double) * n), *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
+    double *Z = malloc(sizeof(double) * n * SOLVE_CHUNK);
+    sc_status st = SC_OK;
+    if (!fg || !fm || !ux || !uA || !Z)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    double r2 = 0;
     for (int k = 0; k < q->ns; ++k) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
         r2 += x * x + y * y;
     }
-    for (int which = 0; which < 2; ++which) { /* O, R as sc_grid_first_order */
-        for (int k = 0; k < q->ns; ++k) {
-            double x, y;
-            sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
-            fg[2 * k] = (which == 0 ? y : x) / r2 * 1e-3;
-            fg[2 * k + 1] = (which == 0 ? x : -y) / r2 * 1e-3;
+    const double *pg, *pm;
+    for (int f0 = 0; st == SC_OK && f0 < nf; f0 += SOLVE_CHUNK) {
+        int k = nf - f0 < SOLVE_CHUNK ? nf - f0 : SOLVE_CHUNK;
+        for (int c = 0; c < k; ++c) {
+            functional_def(q, f0 + c, r2, fg, fm, &pg, &pm);
+            functional_vectors(q, Minv_T, pg, pm, ux, uA);
+            functional_rhs(q, ux, uA, Z + (size_t)c * n);
         }
-        double var = functional_var(q, Minv_T, fg, NULL, ux, uA, z);
-        *(which == 0 ? &res->uO : &res->uR) = s0 * sqrt(var);
+        if (pinned_solve(q, Z, k, 1, work, work + n * (size_t)k) != 0) {
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (uncertainties)");
+            break;
+        }
+        for (int c = 0; c < k; ++c) {
+            functional_def(q, f0 + c, r2, fg, fm, &pg, &pm);
+            functional_vectors(q, Minv_T, pg, pm, ux, uA);
+            double var = functional_quad(q, ux, uA, Z + (size_t)c * n);
+            if (f0 + c < 2)
+                *(f0 + c == 0 ? &q->var_O : &q->var_R) = var;
+            else
+                q->var_m[f0 + c - 2] = var;
+        }
     }
-    for (int v = 0; v < nv && res->misalignment_unique; ++v)
-        for (int t = 0; t < nb; ++t) {
-            memset(fm, 0, sizeof(double) * (size_t)q->nm);
-            fm[v * nb + t] = 1;
-            double u = s0 * sqrt(functional_var(q, Minv_T, NULL, fm, ux, uA, z));
-            switch (t) {
-            case 0: res->utx_um[v] = u; break;
-            case 1: res->uty_um[v] = u; break;
-            case 2: res->utheta_urad[v] = u / (q->L_mm * 1e-3); break;
-            case 3: res->uvx_um_s[v] = u / q->drift_T[v]; break;
-            default: res->uvy_um_s[v] = u / q->drift_T[v]; break;
-            }
-        }
-    free(fg), free(fm), free(ux), free(uA), free(z);
-    return SC_OK;
+    free(fg), free(fm), free(ux), free(uA), free(Z);
+    return st;
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -1432,36 +1533,21 @@ static sc_status functional_uncertainties(sc_grid_lsq *q, sc_grid_result *res, s
  * the selected inverse holds them; the misalignment columns of Σ come from nm extra solves.
  * ------------------------------------------------------------------------------------------- */
 
-static sc_status ensure_sigma_m(sc_grid_lsq *q, sc_error *err)
-{
-    if (q->sig_m)
-        return SC_OK;
-    q->sig_m = malloc(sizeof(double) * (size_t)q->nx * q->nm);
-    if (!q->sig_m)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
-    for (int t = 0; t < q->nm; ++t) {
-        double *col = q->sig_m + (size_t)t * q->nx;
-        memset(col, 0, sizeof(double) * (size_t)q->nx);
-        col[q->ng + t] = 1;
-        pinned_solve(q, col, 1);
-    }
-    return SC_OK;
-}
-
-/* Σ(i, j) of the pinned reduced inverse (original indices). */
-static double sigma_entry(const sc_grid_lsq *q, int i, int j)
+/* Σ(i, j) of the pinned reduced inverse (original indices); sig_m: its misalignment columns. */
+static double sigma_entry(const sc_grid_lsq_plan *q, const double *sig_m, int i, int j)
 {
     if (q->pinned[i] || q->pinned[j])
         return 0.0;
     if (i >= q->ng)
-        return q->sig_m[(size_t)(i - q->ng) * q->nx + j];
+        return sig_m[(size_t)(i - q->ng) * q->n_red + j];
     if (j >= q->ng)
-        return q->sig_m[(size_t)(j - q->ng) * q->nx + i];
+        return sig_m[(size_t)(j - q->ng) * q->n_red + i];
     return sc_spsym_inv(q->f, i, j);
 }
 
 /* Leverage of every equation of group a into h (by equation index). */
-static void group_leverage(const sc_grid_lsq *q, int a, int *u, double *abar, double *sub, double *h)
+static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a, int *u,
+                           double *abar, double *sub, double *h)
 {
     long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
     int idx[ROW_MAX], nu = 0;
@@ -1490,7 +1576,7 @@ static void group_leverage(const sc_grid_lsq *q, int a, int *u, double *abar, do
     }
     for (int i = 0; i < nu; ++i)
         for (int j = 0; j < nu; ++j)
-            sub[i * nu + j] = sigma_entry(q, u[i], u[j]);
+            sub[i * nu + j] = sigma_entry(q, sig_m, u[i], u[j]);
     for (long t = 0; t < cnt; ++t) {
         long e = q->grp_eq[g0 + t];
         int len = eq_row(q, e, idx, val);
@@ -1508,14 +1594,9 @@ static void group_leverage(const sc_grid_lsq *q, int a, int *u, double *abar, do
     }
 }
 
-sc_status sc_grid_lsq_residuals(sc_grid_lsq *q, double *rx_um, double *ry_um, double *tx,
-                                double *ty, double *h_out, sc_error *err)
+/* q->eq_h: the leverage of every equation, from the selected inverse and sig_m. */
+static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *err)
 {
-    if (!isfinite(q->sigma0) && !(q->sigma0 > 0))
-        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
-    sc_status st = ensure_sigma_m(q, err);
-    if (st != SC_OK)
-        return st;
     int maxg = 0;
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
@@ -1524,14 +1605,78 @@ sc_status sc_grid_lsq_residuals(sc_grid_lsq *q, double *rx_um, double *ry_um, do
     int *u = malloc(sizeof(int) * (size_t)mu);
     double *abar = malloc(sizeof(double) * 2 * (size_t)mu);
     double *sub = malloc(sizeof(double) * (size_t)mu * mu);
-    double *h = malloc(sizeof(double) * (size_t)(q->neq + 1));
-    if (!u || !abar || !sub || !h) {
-        free(u), free(abar), free(sub), free(h);
+    q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1));
+    if (!u || !abar || !sub || !q->eq_h) {
+        free(u), free(abar), free(sub);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
     }
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] > q->grp_ptr[a])
-            group_leverage(q, a, u, abar, sub, h);
+            group_leverage(q, sig_m, a, u, abar, sub, q->eq_h);
+    free(u), free(abar), free(sub);
+    return SC_OK;
+}
+
+/* Everything of an identifying plan that does not depend on the measured values: the gauge
+ * columns W = ΣU and the misalignment columns of Σ (blocked solves on the factor), the σ of O,
+ * R and the misalignments, then the selected inverse for every node's σ and every leverage.
+ * The selected inverse and the columns are dropped after. */
+static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
+{
+    size_t n = (size_t)q->n_red;
+    double *work = malloc(sizeof(double) * 2 * n * SOLVE_CHUNK);
+    double *U = malloc(sizeof(double) * 4 * (size_t)q->ng);
+    double *W = malloc(sizeof(double) * 4 * n);
+    double *sig_m = calloc(n * (size_t)q->nm, sizeof(double));
+    q->var_m = malloc(sizeof(double) * (size_t)q->nm);
+    sc_status st = SC_OK;
+    if (!work || !U || !W || !sig_m || !q->var_m) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        goto out;
+    }
+    gauge_basis(q, U);
+    for (int t = 0; t < q->nm; ++t)
+        sig_m[(size_t)t * n + (size_t)(q->ng + t)] = 1;
+    if (gauge_columns(q, U, W, work) != 0 || pinned_solve_cols(q, sig_m, q->nm, 1, work) != 0) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
+        goto out;
+    }
+    st = functional_variances(q, work, err);
+    if (st != SC_OK)
+        goto out;
+    free(work); /* the selected inverse needs the memory more */
+    work = NULL;
+    if (sc_spsym_selinv(q->f) != 0) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
+        goto out;
+    }
+    sigma_ratios(q, U, W);
+    st = leverages(q, sig_m, err);
+    sc_spsym_drop_inverse(q->f);
+out:
+    free(work), free(U), free(W), free(sig_m);
+    return st;
+}
+
+sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                const sc_grid_result *res, double *rx_um, double *ry_um,
+                                double *tx, double *ty, double *h_out, sc_error *err)
+{
+    sc_status st = check_data(q, d, err);
+    if (st != SC_OK)
+        return st;
+    if (!res->gx_um || !res->gy_um || !res->ax_um || !res->ay_um)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "residuals need the result's G and A");
+    if (!isfinite(res->sigma_r_used_um))
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
+    double m[SC_GRID_MAX_VIEWS * 5], tscale = residual_scale(res);
+    for (int v = 0; v < q->nv; ++v) {
+        double *mv = m + v * q->nb;
+        mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
+        mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
+        if (q->drift)
+            mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
+    }
     size_t tot = (size_t)q->nv * q->nn;
     double *outs[5] = {rx_um, ry_um, tx, ty, h_out};
     for (int o = 0; o < 5; ++o)
@@ -1539,59 +1684,66 @@ sc_status sc_grid_lsq_residuals(sc_grid_lsq *q, double *rx_um, double *ry_um, do
             outs[o][k] = NAN;
     for (long e = 0; e < q->neq; ++e) {
         size_t at = (size_t)q->eq_v[e] * q->nn + (size_t)q->eq_k[e];
-        int c = q->eq_c[e];
-        double sd = q->tscale / sqrt(q->eq_w[e]) * sqrt(fmax(0.0, 1.0 - h[e]));
-        double t = 1.0 - h[e] > 1e-9 && sd > 0 ? q->eq_r[e] / sd : NAN;
+        int c = q->eq_c[e], node = q->eq_g[e] / 2, k = q->eq_a[e] / 2;
+        double gv = c ? res->gy_um[node] : res->gx_um[node];
+        double av = q->eq_a[e] % 2 ? res->ay_um[k] : res->ax_um[k], h = q->eq_h[e];
+        double r = eq_residual(q, d, e, gv, av, m);
+        double sd = tscale / sqrt(q->eq_w[e]) * sqrt(fmax(0.0, 1.0 - h));
+        double t = 1.0 - h > 1e-9 && sd > 0 ? r / sd : NAN;
         if (c == 0) {
-            if (rx_um) rx_um[at] = q->eq_r[e];
+            if (rx_um) rx_um[at] = r;
             if (tx) tx[at] = t;
         } else {
-            if (ry_um) ry_um[at] = q->eq_r[e];
+            if (ry_um) ry_um[at] = r;
             if (ty) ty[at] = t;
         }
-        if (h_out && (c == 0 || !(h_out[at] >= h[e])))
-            h_out[at] = h[e];
+        if (h_out && (c == 0 || !(h_out[at] >= h)))
+            h_out[at] = h;
     }
-    free(u), free(abar), free(sub), free(h);
     return SC_OK;
 }
 
-sc_status sc_grid_lsq_covariance(sc_grid_lsq *q, double *cov, sc_error *err)
+/* cov (ng x ng) := the G block of the pinned inverse Σ, by blocked solves of unit columns. */
+static int pinned_inverse_g(const sc_grid_lsq_plan *q, double *cov)
 {
-    int ng = q->ng, nx = q->nx;
-    if (!q->info.identifiable || !(q->sigma0 > 0))
+    int ng = q->ng;
+    size_t n = (size_t)q->n_red;
+    double *X = malloc(sizeof(double) * 3 * n * SOLVE_CHUNK);
+    if (!X)
+        return -1;
+    for (int j0 = 0; j0 < ng; j0 += SOLVE_CHUNK) {
+        int k = ng - j0 < SOLVE_CHUNK ? ng - j0 : SOLVE_CHUNK;
+        memset(X, 0, sizeof(double) * n * (size_t)k);
+        for (int c = 0; c < k; ++c)
+            X[(size_t)c * n + (size_t)(j0 + c)] = 1;
+        if (pinned_solve(q, X, k, 1, X + n * SOLVE_CHUNK, X + 2 * n * SOLVE_CHUNK) != 0) {
+            free(X);
+            return -1;
+        }
+        for (int c = 0; c < k; ++c)
+            memcpy(cov + (size_t)(j0 + c) * ng, X + (size_t)c * n, sizeof(double) * (size_t)ng);
+    }
+    free(X);
+    return 0;
+}
+
+sc_status sc_grid_lsq_covariance(const sc_grid_lsq_plan *q, const sc_grid_result *res,
+                                 double *cov, sc_error *err)
+{
+    int ng = q->ng;
+    if (!q->info.identifiable || !(res->sigma_r_used_um > 0))
         return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no solution to take a covariance of");
     if (q->ns > SC_GRID_LSQ_COV_MAX_NODES)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "the covariance of %d stage nodes is too large (limit %d nodes)",
                             q->ns, SC_GRID_LSQ_COV_MAX_NODES);
-    double *col = malloc(sizeof(double) * (size_t)nx);
     double *U = malloc(sizeof(double) * (size_t)4 * ng);
     double *SU = calloc((size_t)4 * ng, sizeof(double));
-    if (!col || !U || !SU) {
-        free(col), free(U), free(SU);
+    if (!U || !SU || pinned_inverse_g(q, cov) != 0) {
+        free(U), free(SU);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
     }
-    for (int j = 0; j < ng; ++j) {
-        memset(col, 0, sizeof(double) * (size_t)nx);
-        col[j] = 1;
-        pinned_solve(q, col, 1);
-        memcpy(cov + (size_t)j * ng, col, sizeof(double) * (size_t)ng);
-    }
-    double r2 = 0;
-    for (int k = 0; k < q->ns; ++k) {
-        double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
-        r2 += x * x + y * y;
-    }
-    double s0 = 1.0 / sqrt((double)q->ns), s1 = 1.0 / sqrt(r2);
-    for (int k = 0; k < q->ns; ++k) {
-        double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / q->snx, k % q->snx, &x, &y);
-        double b[4][2] = {{s0, 0}, {0, s0}, {-y * s1, x * s1}, {x * s1, y * s1}};
-        for (int c = 0; c < 4; ++c)
-            U[(size_t)c * ng + 2 * k] = b[c][0], U[(size_t)c * ng + 2 * k + 1] = b[c][1];
-    }
+    gauge_basis(q, U);
     /* P⊥ Σ P⊥ = Σ - U(ΣU)ᵀ - (ΣU)Uᵀ + U(UᵀΣU)Uᵀ */
     for (int c = 0; c < 4; ++c)
         for (int i = 0; i < ng; ++i) {
@@ -1608,7 +1760,7 @@ sc_status sc_grid_lsq_covariance(sc_grid_lsq *q, double *cov, sc_error *err)
                 s += U[(size_t)c * ng + i] * SU[(size_t)d * ng + i];
             M[c][d] = s;
         }
-    double v2 = q->sigma0 * q->sigma0;
+    double v2 = res->sigma_r_used_um * res->sigma_r_used_um;
     for (int i = 0; i < ng; ++i)
         for (int j = 0; j < ng; ++j) {
             double s = cov[(size_t)i * ng + j];
@@ -1620,18 +1772,18 @@ sc_status sc_grid_lsq_covariance(sc_grid_lsq *q, double *cov, sc_error *err)
             }
             cov[(size_t)i * ng + j] = s * v2;
         }
-    free(col), free(U), free(SU);
+    free(U), free(SU);
     return SC_OK;
 }
 
-void sc_grid_lsq_predict(const sc_grid_lsq *q, const sc_grid_result *res, int v, int i, int j,
+void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, int v, int i, int j,
                          double t_s, double *dx_um, double *dy_um)
 {
     int ni, nj;
     *dx_um = *dy_um = NAN;
     if (!res->gx_um || !res->ax_um || !sc_grid_mark_node(&q->plan, v, i, j, &ni, &nj))
         return;
-    int node = ni * q->snx + nj, k = i * q->n + j;
+    int node = ni * q->stage_nx + nj, k = i * q->n + j;
     double x, y, rax, ray;
     sc_grid_node_xy_mm(&q->plan, ni, nj, &x, &y);
     sc_grid_rotate(q->plan.view[v].rot_deg, res->ax_um[k], res->ay_um[k], &rax, &ray);

@@ -7,7 +7,11 @@
  * for a supernode J with diagonal block L_JJ and rows R below it, L̂ = L_RJ L_JJ⁻¹ and
  *     Z_RJ = -Z_RR L̂,   Z_JJ = (L_JJ L_JJᵀ)⁻¹ + L̂ᵀ Z_RR L̂,
  * from the last supernode to the first; R is a clique of the filled graph, so Z_RR lies on the
- * factor's pattern in the supernodes already done (gathered through a relative row map).
+ * factor's pattern in the supernodes already done (gathered through a relative row map). R lies
+ * in J's ancestors, so a supernode's block of Z is freed once its subtree is done: the selected
+ * inverse never holds a second copy of the factor, only the path to the root; what is kept is
+ * the diagonal and the entries on A's own pattern (what the grid least squares asks for). Solves
+ * take many right-hand sides at once (cholmod_solve2 with its workspace kept).
  *
  * Rank decisions: a Cholesky pivot d_k = L_kk² with d_k <= tol·A_kk (or a failed factorization)
  * means the matrix is numerically singular at that tolerance. CHOLMOD then gives no usable
@@ -37,7 +41,8 @@ typedef struct cholmod_api {
     int (*finish)(cholmod_common *);
     cholmod_factor *(*analyze)(cholmod_sparse *, cholmod_common *);
     int (*factorize)(cholmod_sparse *, cholmod_factor *, cholmod_common *);
-    cholmod_dense *(*solve)(int, cholmod_factor *, cholmod_dense *, cholmod_common *);
+    int (*solve2)(int, cholmod_factor *, cholmod_dense *, cholmod_sparse *, cholmod_dense **,
+                  cholmod_sparse **, cholmod_dense **, cholmod_dense **, cholmod_common *);
     int (*free_factor)(cholmod_factor **, cholmod_common *);
     int (*free_dense)(cholmod_dense **, cholmod_common *);
     void (*dtrsm)(const char *, const char *, const char *, const char *, const int *, const int *,
@@ -64,7 +69,7 @@ static void load_api(void)
     void *sym[11];
     static const char *names[11] = {"cholmod_start",       "cholmod_finish",
                                     "cholmod_analyze",     "cholmod_factorize",
-                                    "cholmod_solve",       "cholmod_free_factor",
+                                    "cholmod_solve2",      "cholmod_free_factor",
                                     "cholmod_free_dense",  "dtrsm_",
                                     "dsymm_",              "dgemm_",
                                     "dpotri_"};
@@ -76,7 +81,7 @@ static void load_api(void)
     memcpy(&g_api.finish, &sym[1], sizeof sym[1]);
     memcpy(&g_api.analyze, &sym[2], sizeof sym[2]);
     memcpy(&g_api.factorize, &sym[3], sizeof sym[3]);
-    memcpy(&g_api.solve, &sym[4], sizeof sym[4]);
+    memcpy(&g_api.solve2, &sym[4], sizeof sym[4]);
     memcpy(&g_api.free_factor, &sym[5], sizeof sym[5]);
     memcpy(&g_api.free_dense, &sym[6], sizeof sym[6]);
     memcpy(&g_api.dtrsm, &sym[7], sizeof sym[7]);
@@ -105,9 +110,13 @@ struct sc_spsym {
     int *iperm;           /* iperm[original] = pivot position */
     int ordering;         /* CHOLMOD's ordering code */
     int use_ldl;          /* the last factorization is the rank-revealing LDLᵀ */
-    /* supernodal selected inverse */
+    int sorted;           /* rows ascending within each column of the pattern */
+    /* supernodal selected inverse: what is kept of it */
     int *col2super;
-    double *Zx;           /* same layout as L->x */
+    double *Zd;           /* (A⁻¹)_kk by pivot position k */
+    double *ZA;           /* A⁻¹ on A's pattern, entry by entry as Ax */
+    /* solve workspace, reused from one solve to the next (cholmod_solve2) */
+    cholmod_dense *X, *Y, *E;
     /* rank-revealing fallback: the permuted matrix and its scalar LDLᵀ */
     long *Pp;
     int *Pi;
@@ -127,10 +136,13 @@ void sc_spsym_destroy(sc_spsym *s)
     if (s->cm) {
         if (s->L)
             s->api->free_factor(&s->L, s->cm);
+        s->api->free_dense(&s->X, s->cm);
+        s->api->free_dense(&s->Y, s->cm);
+        s->api->free_dense(&s->E, s->cm);
         s->api->finish(s->cm);
         free(s->cm);
     }
-    free(s->Ap_int), free(s->iperm), free(s->col2super), free(s->Zx);
+    free(s->Ap_int), free(s->iperm), free(s->col2super), free(s->Zd), free(s->ZA);
     free(s->Pp), free(s->Pi), free(s->Px);
     sc_ldl_free(&s->f);
     free(s);
@@ -178,6 +190,10 @@ int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out)
     s->cm->quick_return_if_not_posdef = 1;
     for (int k = 0; k <= n; ++k)
         s->Ap_int[k] = (int)Ap[k];
+    s->sorted = 1;
+    for (int j = 0; j < n; ++j)
+        for (long p = Ap[j] + 1; p < Ap[j + 1]; ++p)
+            s->sorted &= Ai[p - 1] < Ai[p];
     cholmod_sparse *A = &s->A;
     A->nrow = A->ncol = (size_t)n;
     A->nzmax = (size_t)Ap[n];
@@ -251,8 +267,9 @@ int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol)
 {
     int n = s->n;
     s->Ax = Ax;
-    free(s->Zx);
-    s->Zx = NULL;
+    free(s->Zd), free(s->ZA), free(s->col2super);
+    s->Zd = s->ZA = NULL;
+    s->col2super = NULL;
     sc_ldl_free(&s->f);
     s->use_ldl = 0;
     s->selinv_work = 0;
@@ -316,141 +333,255 @@ int sc_spsym_nullity(const sc_spsym *s)
     return s->n_null;
 }
 
-int sc_spsym_solve(const sc_spsym *s, double *x)
+int sc_spsym_solve(sc_spsym *s, double *X, int ncol)
 {
     int n = s->n;
     if (s->use_ldl) {
         double *b = malloc(sizeof(double) * ((size_t)n + 1));
         if (!b)
             return -1;
-        for (int i = 0; i < n; ++i)
-            b[s->iperm[i]] = x[i];
-        sc_ldl_solve(&s->f, b);
-        for (int i = 0; i < n; ++i)
-            x[i] = b[s->iperm[i]];
+        for (int c = 0; c < ncol; ++c) {
+            double *x = X + (size_t)c * n;
+            for (int i = 0; i < n; ++i)
+                b[s->iperm[i]] = x[i];
+            sc_ldl_solve(&s->f, b);
+            for (int i = 0; i < n; ++i)
+                x[i] = b[s->iperm[i]];
+        }
         free(b);
         return 0;
     }
     cholmod_dense B = {0};
     B.nrow = B.d = (size_t)n;
-    B.ncol = 1;
-    B.nzmax = (size_t)n;
-    B.x = x;
+    B.ncol = (size_t)ncol;
+    B.nzmax = (size_t)n * (size_t)ncol;
+    B.x = X;
     B.xtype = CHOLMOD_REAL;
     B.dtype = CHOLMOD_DOUBLE;
-    cholmod_dense *X = s->api->solve(CHOLMOD_A, s->L, &B, s->cm);
-    if (!X)
+    if (!s->api->solve2(CHOLMOD_A, s->L, &B, NULL, &s->X, NULL, &s->Y, &s->E, s->cm))
         return -1;
-    memcpy(x, X->x, sizeof(double) * (size_t)n);
-    s->api->free_dense(&X, s->cm);
+    memcpy(X, s->X->x, sizeof(double) * (size_t)n * (size_t)ncol);
     return 0;
 }
 
-void sc_spsym_matvec(const sc_spsym *s, const double *x, double *y)
+void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol)
 {
     int n = s->n;
-    for (int i = 0; i < n; ++i)
-        y[i] = 0;
-    for (int j = 0; j < n; ++j) {
-        double xj = x[j], yj = 0;
+    memset(Y, 0, sizeof(double) * (size_t)n * (size_t)ncol);
+    for (int j = 0; j < n; ++j)
         for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
             int i = s->Ai[p];
             double a = s->Ax[p];
-            y[i] += a * xj;
-            if (i != j)
-                yj += a * x[i];
+            for (int c = 0; c < ncol; ++c) {
+                size_t o = (size_t)c * n;
+                Y[o + i] += a * X[o + j];
+                if (i != j)
+                    Y[o + j] += a * X[o + i];
+            }
         }
-        y[j] += yj;
-    }
 }
 
-/* Blocked Takahashi on the supernodal factor (see the first comment). */
-static int super_selinv(sc_spsym *s)
+/* The supernodal elimination tree: parent[J] (-1 at a root) is the supernode holding J's first
+ * row below its diagonal block; first[J] the lowest-numbered supernode of J's subtree (CHOLMOD
+ * numbers supernodes in postorder, so J's subtree is first[J] .. J). */
+static void super_tree(const cholmod_factor *L, const int *col2super, int *parent, int *first)
+{
+    const int *Super = L->super, *Lpi = L->pi, *Ls = L->s;
+    int nsuper = (int)L->nsuper;
+    for (int J = 0; J < nsuper; ++J) {
+        int nc = Super[J + 1] - Super[J], nr = Lpi[J + 1] - Lpi[J];
+        parent[J] = nr > nc ? col2super[Ls[Lpi[J] + nc]] : -1;
+        first[J] = J;
+    }
+    for (int J = 0; J < nsuper; ++J)
+        if (parent[J] >= 0 && parent[J] <= J) { /* not a postorder: keep every block to the end */
+            for (int S = 0; S < nsuper; ++S)
+                first[S] = 0;
+            return;
+        }
+    for (int J = 0; J < nsuper; ++J)
+        if (parent[J] >= 0 && first[J] < first[parent[J]])
+            first[parent[J]] = first[J];
+}
+
+/* Entries of A by the pivot position of their column in the factor: the entries p of A whose
+ * (permuted) column min(iperm[i], iperm[j]) is k are bucket[ptr[k] .. ptr[k+1]), their permuted
+ * rows max(iperm[i], iperm[j]) in brow. */
+static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out, int **brow_out)
+{
+    int n = s->n;
+    long nnz = s->Ap[n], *ptr = calloc((size_t)n + 1, sizeof(long));
+    int *bucket = malloc(sizeof(int) * ((size_t)nnz + 1));
+    int *brow = malloc(sizeof(int) * ((size_t)nnz + 1));
+    long *fill = malloc(sizeof(long) * ((size_t)n + 1));
+    if (!ptr || !bucket || !brow || !fill) {
+        free(ptr), free(bucket), free(brow), free(fill);
+        return -1;
+    }
+    for (int j = 0; j < n; ++j)
+        for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
+            int a = s->iperm[s->Ai[p]], b = s->iperm[j];
+            ptr[(a < b ? a : b) + 1]++;
+        }
+    for (int k = 0; k < n; ++k)
+        ptr[k + 1] += ptr[k];
+    memcpy(fill, ptr, sizeof(long) * (size_t)n);
+    for (int j = 0; j < n; ++j)
+        for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
+            int a = s->iperm[s->Ai[p]], b = s->iperm[j];
+            long at = fill[a < b ? a : b]++;
+            bucket[at] = (int)p;
+            brow[at] = a < b ? b : a;
+        }
+    free(fill);
+    *ptr_out = ptr, *bucket_out = bucket, *brow_out = brow;
+    return 0;
+}
+
+/* Workspace of the streaming selected inverse. */
+typedef struct selinv_ws {
+    double **Z;          /* per supernode: its block of the inverse (nr x nc), while needed */
+    int *parent, *first; /* supernodal tree (super_tree) */
+    int *map;            /* n: relative row map */
+    double *Zrr, *W, *Y; /* dense blocks: m x m, m x nc, m x nc */
+    long *bptr;          /* A's entries by factor column (bucket_entries) */
+    int *bucket, *brow;
+} selinv_ws;
+
+static void selinv_ws_free(selinv_ws *w, int nsuper)
+{
+    for (int J = 0; w->Z && J < nsuper; ++J)
+        free(w->Z[J]);
+    free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->W);
+    free(w->Y), free(w->bptr), free(w->bucket), free(w->brow);
+}
+
+static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
+{
+    const cholmod_factor *L = s->L;
+    int n = s->n, nsuper = (int)L->nsuper, maxm = 0, maxc = 0;
+    const int *Super = L->super, *Lpi = L->pi;
+    memset(w, 0, sizeof *w);
+    for (int J = 0; J < nsuper; ++J) {
+        int nc = Super[J + 1] - Super[J], m = Lpi[J + 1] - Lpi[J] - nc;
+        maxm = m > maxm ? m : maxm;
+        maxc = nc > maxc ? nc : maxc;
+    }
+    s->col2super = malloc(sizeof(int) * ((size_t)n + 1));
+    s->Zd = malloc(sizeof(double) * ((size_t)n + 1));
+    s->ZA = malloc(sizeof(double) * ((size_t)s->Ap[n] + 1));
+    w->Z = calloc((size_t)nsuper + 1, sizeof(double *));
+    w->parent = malloc(sizeof(int) * ((size_t)nsuper + 1));
+    w->first = malloc(sizeof(int) * ((size_t)nsuper + 1));
+    w->map = malloc(sizeof(int) * ((size_t)n + 1));
+    w->Zrr = malloc(sizeof(double) * ((size_t)maxm * maxm + 1));
+    w->W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
+    w->Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
+    if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
+        !w->Zrr || !w->W || !w->Y || bucket_entries(s, &w->bptr, &w->bucket, &w->brow) != 0)
+        return -1;
+    for (int J = 0; J < nsuper; ++J)
+        for (int k = Super[J]; k < Super[J + 1]; ++k)
+            s->col2super[k] = J;
+    super_tree(L, s->col2super, w->parent, w->first);
+    return 0;
+}
+
+/* Z_J (nr x nc, column-major, lower part) of supernode J from its ancestors' blocks: Z_JJ =
+ * (L_JJ L_JJᵀ)⁻¹ + L̂ᵀ Z_RR L̂ and Z_RJ = −Z_RR L̂ with L̂ = L_RJ L_JJ⁻¹. Returns the work done,
+ * or -1 (LAPACK failed). */
+static double super_block(sc_spsym *s, selinv_ws *w, int J, double *Zj)
 {
     const cholmod_factor *L = s->L;
     const cholmod_api *A = s->api;
     const double one = 1.0, zero = 0.0;
-    int n = s->n, nsuper = (int)L->nsuper;
     const int *Super = L->super, *Lpi = L->pi, *Lpx = L->px, *Ls = L->s;
-    const double *Lx = L->x;
-    int maxm = 0, maxc = 0;
-    for (int J = 0; J < nsuper; ++J) {
-        int nc = Super[J + 1] - Super[J], m = Lpi[J + 1] - Lpi[J] - nc;
-        if (m > maxm)
-            maxm = m;
-        if (nc > maxc)
-            maxc = nc;
-    }
-    free(s->col2super);
-    s->Zx = malloc(sizeof(double) * (L->xsize + 1));
-    s->col2super = malloc(sizeof(int) * ((size_t)n + 1));
-    int *map = malloc(sizeof(int) * ((size_t)n + 1));
-    double *Zrr = malloc(sizeof(double) * ((size_t)maxm * maxm + 1));
-    double *W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
-    double *Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
-    if (!s->Zx || !s->col2super || !map || !Zrr || !W || !Y) {
-        free(map), free(Zrr), free(W), free(Y);
-        free(s->Zx);
-        s->Zx = NULL;
+    int nc = Super[J + 1] - Super[J], nr = Lpi[J + 1] - Lpi[J], m = nr - nc, info = 0;
+    const int *R = Ls + Lpi[J] + nc;
+    const double *Ljj = (const double *)L->x + Lpx[J];
+    for (int c = 0; c < nc; ++c)
+        memcpy(Zj + (size_t)c * nr + c, Ljj + (size_t)c * nr + c, sizeof(double) * (nc - c));
+    A->dpotri("L", &nc, Zj, &nr, &info, 1);
+    if (info != 0)
         return -1;
+    if (m == 0)
+        return (double)nc * nc * nc / 3;
+    /* gather Z_RR (lower triangle, m x m) from the blocks of R's supernodes (ancestors of J) */
+    for (int b = 0; b < m;) {
+        int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0;
+        for (int t = 0; t < nrS; ++t)
+            w->map[Ls[p0 + t]] = t;
+        for (; b < m && s->col2super[R[b]] == S; ++b) {
+            const double *zc = w->Z[S] + (size_t)(R[b] - Super[S]) * nrS;
+            double *dst = w->Zrr + (size_t)b * m;
+            for (int a = b; a < m; ++a)
+                dst[a] = zc[w->map[R[a]]];
+        }
     }
-    for (int J = 0; J < nsuper; ++J)
-        for (int k = Super[J]; k < Super[J + 1]; ++k)
-            s->col2super[k] = J;
+    for (int c = 0; c < nc; ++c)
+        memcpy(w->W + (size_t)c * m, Ljj + (size_t)c * nr + nc, sizeof(double) * m);
+    A->dtrsm("R", "L", "N", "N", &m, &nc, &one, Ljj, &nr, w->W, &m, 1, 1, 1, 1);
+    A->dsymm("L", "L", &m, &nc, &one, w->Zrr, &m, w->W, &m, &zero, w->Y, &m, 1, 1);
+    for (int c = 0; c < nc; ++c) {
+        double *zc = Zj + (size_t)c * nr + nc;
+        const double *yc = w->Y + (size_t)c * m;
+        for (int a = 0; a < m; ++a)
+            zc[a] = -yc[a];
+    }
+    A->dgemm("T", "N", &nc, &nc, &m, &one, w->W, &m, w->Y, &m, &one, Zj, &nr, 1, 1);
+    return (double)nc * nc * nc / 3 + (double)m * nc * nc + 2.0 * m * m * nc + (double)nc * nc * m;
+}
+
+/* Keep what sc_spsym_inv answers from Z_J: the diagonal and the entries on A's pattern. */
+static void super_extract(sc_spsym *s, selinv_ws *w, int J, const double *Zj)
+{
+    const cholmod_factor *L = s->L;
+    const int *Super = L->super, *Lpi = L->pi, *Ls = L->s;
+    int nr = Lpi[J + 1] - Lpi[J];
+    for (int t = 0; t < nr; ++t)
+        w->map[Ls[Lpi[J] + t]] = t;
+    for (int k = Super[J]; k < Super[J + 1]; ++k) {
+        int c = k - Super[J];
+        s->Zd[k] = Zj[(size_t)c * nr + c];
+        for (long b = w->bptr[k]; b < w->bptr[k + 1]; ++b)
+            s->ZA[w->bucket[b]] = Zj[(size_t)c * nr + w->map[w->brow[b]]];
+    }
+}
+
+/* Blocked Takahashi on the supernodal factor, from the last supernode to the first, streaming:
+ * supernode S's block is needed only by its subtree (R of a supernode lies in its ancestors), so
+ * it is freed once the first supernode of that subtree is done. What stays is the diagonal and
+ * the entries on A's pattern. */
+static int super_selinv(sc_spsym *s)
+{
+    int nsuper = (int)s->L->nsuper;
+    const int *Lpi = s->L->pi, *Super = s->L->super;
+    selinv_ws w;
     double work = 0;
-    int rc = 0;
-    for (int J = nsuper - 1; J >= 0; --J) {
-        int nc = Super[J + 1] - Super[J], nr = Lpi[J + 1] - Lpi[J], m = nr - nc;
-        const int *R = Ls + Lpi[J] + nc;
-        const double *Ljj = Lx + Lpx[J];
-        double *Zj = s->Zx + Lpx[J];
-        /* Z_JJ := (L_JJ L_JJᵀ)⁻¹, in place in the top block (lower triangle) */
-        for (int c = 0; c < nc; ++c)
-            memcpy(Zj + (size_t)c * nr + c, Ljj + (size_t)c * nr + c, sizeof(double) * (nc - c));
-        int info = 0;
-        A->dpotri("L", &nc, Zj, &nr, &info, 1);
-        if (info != 0) {
+    int rc = selinv_ws_alloc(s, &w);
+    for (int J = nsuper - 1; J >= 0 && rc == 0; --J) {
+        size_t nr = (size_t)(Lpi[J + 1] - Lpi[J]), nc = (size_t)(Super[J + 1] - Super[J]);
+        double got;
+        if (!(w.Z[J] = malloc(sizeof(double) * nr * nc)) || (got = super_block(s, &w, J, w.Z[J])) < 0) {
             rc = -1;
             break;
         }
-        work += (double)nc * nc * nc / 3;
-        if (m == 0)
-            continue;
-        /* gather Z_RR (lower triangle, m x m) from the supernodes of R's columns */
-        for (int b = 0; b < m;) {
-            int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0;
-            for (int t = 0; t < nrS; ++t)
-                map[Ls[p0 + t]] = t;
-            for (; b < m && s->col2super[R[b]] == S; ++b) {
-                const double *zc = s->Zx + Lpx[S] + (size_t)(R[b] - Super[S]) * nrS;
-                double *dst = Zrr + (size_t)b * m;
-                for (int a = b; a < m; ++a)
-                    dst[a] = zc[map[R[a]]];
-            }
-        }
-        /* L̂ = L_RJ L_JJ⁻¹ */
-        for (int c = 0; c < nc; ++c)
-            memcpy(W + (size_t)c * m, Ljj + (size_t)c * nr + nc, sizeof(double) * m);
-        A->dtrsm("R", "L", "N", "N", &m, &nc, &one, Ljj, &nr, W, &m, 1, 1, 1, 1);
-        /* Y = Z_RR L̂; Z_RJ = -Y; Z_JJ += L̂ᵀ Y */
-        A->dsymm("L", "L", &m, &nc, &one, Zrr, &m, W, &m, &zero, Y, &m, 1, 1);
-        for (int c = 0; c < nc; ++c) {
-            double *zc = Zj + (size_t)c * nr + nc;
-            const double *yc = Y + (size_t)c * m;
-            for (int a = 0; a < m; ++a)
-                zc[a] = -yc[a];
-        }
-        A->dgemm("T", "N", &nc, &nc, &m, &one, W, &m, Y, &m, &one, Zj, &nr, 1, 1);
-        work += (double)m * nc * nc + 2.0 * m * m * nc + (double)nc * nc * m;
+        work += got;
+        super_extract(s, &w, J, w.Z[J]);
+        for (int S = J; S < nsuper && S >= 0; S = w.parent[S]) /* blocks no longer needed */
+            if (w.first[S] == J)
+                free(w.Z[S]), w.Z[S] = NULL;
+            else
+                break;
     }
-    free(map), free(Zrr), free(W), free(Y);
+    selinv_ws_free(&w, nsuper);
     if (rc != 0) {
-        free(s->Zx);
-        s->Zx = NULL;
+        free(s->Zd), free(s->ZA);
+        s->Zd = s->ZA = NULL;
         return -1;
     }
     s->selinv_work = work;
-    s->bytes += L->xsize * sizeof(double) + (size_t)(n + 1) * sizeof(int);
+    s->bytes += ((size_t)s->n + (size_t)s->Ap[s->n]) * sizeof(double) + (size_t)(s->n + 1) * sizeof(int);
     return 0;
 }
 
@@ -462,9 +593,22 @@ int sc_spsym_selinv(sc_spsym *s)
         s->selinv_work = s->f.selinv_work;
         return 0;
     }
-    if (s->Zx)
+    if (s->Zd)
         return 0;
     return super_selinv(s);
+}
+
+void sc_spsym_drop_inverse(sc_spsym *s)
+{
+    if (s->use_ldl) {
+        free(s->f.Zx), free(s->f.Zd);
+        s->f.Zx = s->f.Zd = NULL;
+    } else if (s->Zd) {
+        free(s->Zd), free(s->ZA), free(s->col2super);
+        s->Zd = s->ZA = NULL;
+        s->col2super = NULL;
+        s->bytes -= ((size_t)s->n + (size_t)s->Ap[s->n]) * sizeof(double) + (size_t)(s->n + 1) * sizeof(int);
+    }
 }
 
 double sc_spsym_inv(const sc_spsym *s, int i, int j)
@@ -486,22 +630,26 @@ double sc_spsym_inv(const sc_spsym *s, int i, int j)
         }
         return lo < s->f.Lp[col + 1] && s->f.Li[lo] == row ? s->f.Zx[lo] : NAN;
     }
-    if (!s->Zx)
+    if (!s->Zd)
         return NAN;
-    const cholmod_factor *L = s->L;
-    const int *Super = L->super, *Lpi = L->pi, *Lpx = L->px, *Ls = L->s;
-    int S = s->col2super[col], nr = Lpi[S + 1] - Lpi[S], c = col - Super[S];
-    int lo = c, hi = nr; /* rows of the supernode ascending; column c starts at its diagonal */
+    if (i == j)
+        return s->Zd[pi];
+    int c = i > j ? i : j, r = i > j ? j : i; /* A holds (r, c), r <= c, in column c */
+    long lo = s->Ap[c], hi = s->Ap[c + 1];
+    if (!s->sorted) {
+        for (long p = lo; p < hi; ++p)
+            if (s->Ai[p] == r)
+                return s->ZA[p];
+        return NAN;
+    }
     while (lo < hi) {
-        int mid = lo + (hi - lo) / 2;
-        if (Ls[Lpi[S] + mid] < row)
+        long mid = lo + (hi - lo) / 2;
+        if (s->Ai[mid] < r)
             lo = mid + 1;
         else
             hi = mid;
     }
-    if (lo >= nr || Ls[Lpi[S] + lo] != row)
-        return NAN;
-    return s->Zx[Lpx[S] + (size_t)c * nr + lo];
+    return lo < s->Ap[c + 1] && s->Ai[lo] == r ? s->ZA[lo] : NAN;
 }
 
 void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st)

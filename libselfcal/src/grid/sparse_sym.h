@@ -4,8 +4,8 @@
  *   analyze(pattern)  once: fill-reducing order and symbolic factorization, chosen once;
  *   factor(values)    numeric factorization with rank decisions (pivot tolerance);
  *   solve / matvec    in the ORIGINAL index space (the order is internal);
- *   selinv            selected inverse: the entries of A⁻¹ on the factor's pattern, which holds
- *                     every diagonal entry and every entry of A's own pattern;
+ *   selinv            selected inverse: the entries of A⁻¹ on the factor's pattern, computed
+ *                     supernode by supernode; kept: the diagonal and A's own pattern;
  *   inv(i, j)         one such entry.
  *
  * The matrix is symmetric positive semidefinite, given by its upper triangle in compressed
@@ -45,18 +45,23 @@ int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol);
 /* Number of null pivots of the last factorization. */
 int sc_spsym_nullity(const sc_spsym *s);
 
-/* x := A⁻¹ b in place (b given in x; null pivots give 0 components). Returns 0, -1 no memory. */
-int sc_spsym_solve(const sc_spsym *s, double *x);
+/* X := A⁻¹ B in place for ncol right-hand sides (B given in X, n x ncol, column after column;
+ * null pivots give 0 components): one blocked solve (BLAS-3 on the supernodes). The solve
+ * workspace is kept in s and reused: not thread-safe on one s. Returns 0, -1 no memory. */
+int sc_spsym_solve(sc_spsym *s, double *X, int ncol);
 
-/* y = A x (the factored values). */
-void sc_spsym_matvec(const sc_spsym *s, const double *x, double *y);
+/* Y = A X for ncol vectors (n x ncol, column after column; the factored values). */
+void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol);
 
 /* Selected inverse on the factor's pattern. Returns 0, or -1 if memory ran out. */
 int sc_spsym_selinv(sc_spsym *s);
 
-/* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in A's pattern (any entry of the factor's
- * pattern); NaN if (i, j) is not on the pattern or the selected inverse was not computed. */
+/* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in A's pattern; NaN if (i, j) is not on
+ * it or the selected inverse was not computed (or dropped). */
 double sc_spsym_inv(const sc_spsym *s, int i, int j);
+
+/* Free the selected inverse (sc_spsym_inv gives NaN after); the factor stays for solves. */
+void sc_spsym_drop_inverse(sc_spsym *s);
 
 /* Name of an ordering code of the stats. */
 const char *sc_spsym_ordering_name(int ordering);

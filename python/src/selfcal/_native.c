@@ -785,11 +785,11 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
     }
     sc_error err;
     sc_error_clear(&err);
-    sc_grid_lsq *q = NULL;
+    sc_grid_lsq_plan *q = NULL;
     PyObject *ret = NULL, *sgx = NULL, *sgy = NULL;
     sc_status st;
     Py_BEGIN_ALLOW_THREADS
-    st = sc_grid_lsq_create(&d.plan, has_data ? &d : NULL, &q, &err);
+    st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, NULL, &q, &err);
     Py_END_ALLOW_THREADS
     if (st != SC_OK) {
         if (!err.file[0] && path) {
@@ -824,7 +824,7 @@ done:
     Py_XDECREF(sgx);
     Py_XDECREF(sgy);
     Py_XDECREF(path);
-    sc_grid_lsq_destroy(q);
+    sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
     return ret;
 }
