@@ -20,7 +20,8 @@
  *     assigned mark is one the view measures, assigned + left out = points, assigned >= the
  *     share, and each assigned point lies within the tolerance of its mark placed by the
  *     reported fit (recomputed here from tx, ty, theta);
- *   - an imported profile has N = samples + d for both scans, d = D / s, and its values are the
+ *   - an imported profile has N = samples + d for both scans, d = D / s (within 1e-6 of D / s),
+ *     and its values are the
  *     logs' values (the same multiset per column); written by sc_profile_write, the selfcal-profile
  *     v1 reader reads back exactly the same data set (what `selfcal import profile` promises). */
 #include <math.h>
@@ -209,7 +210,11 @@ static void fuzz_profile(uint8_t c0, uint8_t c1, const uint8_t *data, size_t siz
             FUZZ_CHECK(d.s_mm > 0 && isfinite(p0));
             for (int k = 0; k < 2; ++k) {
                 FUZZ_CHECK(d.d[k] >= 1 && d.n == t[k].n_rows + d.d[k]);
-                FUZZ_CHECK(fabs(d.d[k] * d.s_mm - ip.spacing_mm[k]) <= 1e-6 * ip.spacing_mm[k]);
+                /* D is d whole steps within 1e-6 of D/s (the import's own rule, same rounding:
+                 * |d·s - D| <= 1e-6·D, rounded differently, refused D/s = 76923.077 taken as
+                 * 76923 steps of 13 nm, which is at the edge; regressions/) */
+                double fd = ip.spacing_mm[k] / d.s_mm;
+                FUZZ_CHECK(fabs(fd - d.d[k]) <= 1e-6 * fd);
             }
             for (int k = 1; k < 4; ++k)
                 check_column(logs, &d, k);
