@@ -1,8 +1,10 @@
-/* io_common.c — owns what every reader and writer of io/ shares: the record loop, the atomic
- * commit with its write-error check, the regular-spacing fit of positions in a file, and the fast
+/* io_common.c — owns what every reader and writer of io/ shares: the record loop, the row array
+ * of the map readers, the atomic commit with its write-error check, the regular-spacing fit of positions in a file, and the fast
  * number output of the writers (selfcal/number.h). */
 #include <math.h>
+#include <stdlib.h>
 
+#include "../common/line_fit.h"
 #include "io_internal.h"
 #include "selfcal/number.h"
 
@@ -16,6 +18,27 @@ int sc_io_next_record(sc_csv *r, sc_error *err)
             continue;
         return sc_csv_split(r, err) < 0 ? -1 : 1;
     }
+}
+
+sc_status sc_io_read_rows(sc_csv *r, sc_io_rows *rows, sc_io_parse_row parse, void *ctx,
+                          sc_error *err)
+{
+    int rc;
+    while ((rc = sc_io_next_record(r, err)) > 0) {
+        if (rows->n == rows->cap) {
+            size_t cap = rows->cap ? 2 * rows->cap : 256;
+            void *nr = realloc(rows->data, cap * rows->size);
+            if (!nr)
+                return sc_error_set(err, SC_E_NOMEM, r->path, r->line, "out of memory");
+            rows->data = nr;
+            rows->cap = cap;
+        }
+        sc_status st = parse(ctx, (char *)rows->data + rows->n * rows->size, rows, err);
+        if (st != SC_OK)
+            return st;
+        ++rows->n;
+    }
+    return rc < 0 ? (err ? err->code : SC_E_INPUT) : SC_OK;
 }
 
 sc_status sc_io_finish(sc_afile *f, sc_error *err)
@@ -48,20 +71,7 @@ void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t 
             *dev = d;
         }
     }
-    double km = 0, vm = 0;
-    for (size_t m = 0; m < n; ++m) {
-        km += k[m];
-        vm += v[m];
-    }
-    km /= (double)n;
-    vm /= (double)n;
-    double skk = 0, skv = 0;
-    for (size_t m = 0; m < n; ++m) {
-        skk += (k[m] - km) * (k[m] - km);
-        skv += (k[m] - km) * (v[m] - vm);
-    }
-    *b = skk > 0 ? skv / skk : 0.0;
-    *a = vm - *b * km;
+    sc_line_fit(k, v, n, a, b);
 }
 
 char *sc_io_put_number(char *p, double v, char sep)

@@ -10,6 +10,21 @@
 /* Next non-blank, non-comment ('#') line, split into fields: 1, 0 at end of file, -1 on error. */
 int sc_io_next_record(sc_csv *r, sc_error *err);
 
+/* A growing array of rows parsed from a file (elements of `size` bytes; zero it to start). */
+typedef struct sc_io_rows {
+    void *data;
+    size_t n, cap, size;
+} sc_io_rows;
+
+/* Parse the current record of the reader behind ctx into row (a fresh element); may look at the
+ * rows kept so far (rows->n of them). */
+typedef sc_status (*sc_io_parse_row)(void *ctx, void *row, const sc_io_rows *rows, sc_error *err);
+
+/* Read every remaining record of r (sc_io_next_record), growing rows by doubling and parsing each
+ * with parse(ctx, ...): the record loop of the map readers. Stops at the first error. */
+sc_status sc_io_read_rows(sc_csv *r, sc_io_rows *rows, sc_io_parse_row parse, void *ctx,
+                          sc_error *err);
+
 /* Append v's shortest round-trip text (selfcal/number.h), then sep unless it is 0; returns the
  * end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
 char *sc_io_put_number(char *p, double v, char sep);

@@ -21,8 +21,7 @@ typedef struct plate_row {
 typedef struct plate_reader {
     sc_csv csv;
     int ncols;
-    plate_row *rows;
-    size_t nrows, cap;
+    sc_io_rows rows; /* of plate_row */
 } plate_reader;
 
 static sc_status read_column_header(plate_reader *r, sc_error *err)
@@ -52,8 +51,11 @@ static sc_status value(const sc_csv *c, int k, double *v, sc_error *err)
     return st;
 }
 
-static sc_status parse_row(const plate_reader *r, plate_row *row, sc_error *err)
+static sc_status parse_row(void *ctx, void *out, const sc_io_rows *rows, sc_error *err)
 {
+    (void)rows;
+    const plate_reader *r = ctx;
+    plate_row *row = out;
     const sc_csv *c = &r->csv;
     if (c->nfields != r->ncols)
         return sc_error_set(err, SC_E_INPUT, c->path, c->line,
@@ -74,35 +76,17 @@ static sc_status parse_row(const plate_reader *r, plate_row *row, sc_error *err)
     return SC_OK;
 }
 
-static sc_status read_rows(plate_reader *r, sc_error *err)
-{
-    int rc;
-    while ((rc = sc_io_next_record(&r->csv, err)) > 0) {
-        if (r->nrows == r->cap) {
-            size_t cap = r->cap ? 2 * r->cap : 256;
-            plate_row *nr = realloc(r->rows, cap * sizeof *nr);
-            if (!nr)
-                return sc_error_set(err, SC_E_NOMEM, r->csv.path, r->csv.line, "out of memory");
-            r->rows = nr;
-            r->cap = cap;
-        }
-        sc_status st = parse_row(r, &r->rows[r->nrows], err);
-        if (st != SC_OK)
-            return st;
-        ++r->nrows;
-    }
-    return rc < 0 ? (err ? err->code : SC_E_INPUT) : SC_OK;
-}
-
 /* n x n marks, each once, n odd. */
 static sc_status build_map(const plate_reader *r, sc_plate_map *m, sc_error *err)
 {
     const char *P = r->csv.path;
-    int n = (int)lround(sqrt((double)r->nrows));
-    if ((size_t)n * (size_t)n != r->nrows || n % 2 == 0 || n < 3)
+    const plate_row *rows = r->rows.data;
+    size_t nrows = r->rows.n;
+    int n = (int)lround(sqrt((double)nrows));
+    if ((size_t)n * (size_t)n != nrows || n % 2 == 0 || n < 3)
         return sc_error_set(err, SC_E_INPUT, P, r->csv.line,
-                            "%zu rows do not make an n x n plate with n odd and >= 3", r->nrows);
-    size_t nn = r->nrows;
+                            "%zu rows do not make an n x n plate with n odd and >= 3", nrows);
+    size_t nn = nrows;
     long *line_of = calloc(nn, sizeof *line_of);
     m->ax_um = malloc(nn * sizeof(double));
     m->ay_um = malloc(nn * sizeof(double));
@@ -112,8 +96,8 @@ static sc_status build_map(const plate_reader *r, sc_plate_map *m, sc_error *err
     }
     m->n = n;
     sc_status st = SC_OK;
-    for (size_t q = 0; q < r->nrows && st == SC_OK; ++q) {
-        const plate_row *row = &r->rows[q];
+    for (size_t q = 0; q < nrows && st == SC_OK; ++q) {
+        const plate_row *row = &rows[q];
         size_t k = (size_t)row->i * (size_t)n + (size_t)row->j;
         if (row->i >= n || row->j >= n)
             st = sc_error_set(err, SC_E_INPUT, P, row->line,
@@ -136,12 +120,14 @@ sc_status sc_plate_map_read(const char *path, sc_plate_map *m, sc_error *err)
     memset(m, 0, sizeof *m);
     plate_reader r;
     memset(&r, 0, sizeof r);
+    r.rows.size = sizeof(plate_row);
     sc_status st = sc_csv_open(&r.csv, path, err);
     if (st != SC_OK)
         return st;
-    if ((st = read_column_header(&r, err)) == SC_OK && (st = read_rows(&r, err)) == SC_OK)
+    if ((st = read_column_header(&r, err)) == SC_OK &&
+        (st = sc_io_read_rows(&r.csv, &r.rows, parse_row, &r, err)) == SC_OK)
         st = build_map(&r, m, err);
-    free(r.rows);
+    free(r.rows.data);
     sc_csv_close(&r.csv);
     if (st != SC_OK)
         sc_plate_map_free(m);

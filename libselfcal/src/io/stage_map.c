@@ -23,8 +23,7 @@ typedef struct map_reader {
     sc_csv csv;
     int ncols;       /* fields per row (the header's) */
     int has_u;       /* the header has ugx_um,ugy_um */
-    map_row *rows;
-    size_t nrows, cap;
+    sc_io_rows rows; /* of map_row */
     long maxi, maxj;
 } map_reader;
 
@@ -55,7 +54,7 @@ static sc_status read_column_header(map_reader *r, sc_error *err)
 }
 
 /* Parse the current row into row; ranges checked here so that the message names the line. */
-static sc_status parse_row(map_reader *r, map_row *row, sc_error *err)
+static sc_status parse_fields(const map_reader *r, map_row *row, sc_error *err)
 {
     const sc_csv *c = &r->csv;
     if (c->nfields != r->ncols)
@@ -92,37 +91,26 @@ static sc_status parse_row(map_reader *r, map_row *row, sc_error *err)
     return SC_OK;
 }
 
-static sc_status read_rows(map_reader *r, sc_error *err)
+/* One row (sc_io_parse_row): its fields, then the node span so far. */
+static sc_status parse_row(void *ctx, void *out, const sc_io_rows *rows, sc_error *err)
 {
-    int rc;
-    r->maxi = r->maxj = -1;
-    while ((rc = sc_io_next_record(&r->csv, err)) > 0) {
-        if (r->nrows == r->cap) {
-            size_t cap = r->cap ? 2 * r->cap : 256;
-            map_row *nr = realloc(r->rows, cap * sizeof *nr);
-            if (!nr)
-                return sc_error_set(err, SC_E_NOMEM, r->csv.path, r->csv.line, "out of memory");
-            r->rows = nr;
-            r->cap = cap;
-        }
-        map_row *row = &r->rows[r->nrows];
-        sc_status st = parse_row(r, row, err);
-        if (st != SC_OK)
-            return st;
-        r->maxi = row->i > r->maxi ? row->i : r->maxi;
-        r->maxj = row->j > r->maxj ? row->j : r->maxj;
-        ++r->nrows;
-        /* Memory bounded by what is valid: distinct nodes within 0..maxi x 0..maxj number at
-         * most (maxi+1)(maxj+1), so more rows than that means a repeated node; stop here
-         * instead of keeping every row of an arbitrarily long file. */
-        if ((unsigned long long)r->nrows >
-            (unsigned long long)(r->maxi + 1) * (unsigned long long)(r->maxj + 1))
-            return sc_error_set(err, SC_E_INPUT, r->csv.path, r->csv.line,
-                                "a node repeats: more rows than the %ld x %ld nodes they span "
-                                "(node (%ld,%ld) or an earlier one)", r->maxj + 1, r->maxi + 1,
-                                row->i, row->j);
-    }
-    return rc < 0 ? (err ? err->code : SC_E_INPUT) : SC_OK;
+    map_reader *r = ctx;
+    map_row *row = out;
+    sc_status st = parse_fields(r, row, err);
+    if (st != SC_OK)
+        return st;
+    r->maxi = row->i > r->maxi ? row->i : r->maxi;
+    r->maxj = row->j > r->maxj ? row->j : r->maxj;
+    /* Memory bounded by what is valid: distinct nodes within 0..maxi x 0..maxj number at
+     * most (maxi+1)(maxj+1), so more rows than that means a repeated node; stop here
+     * instead of keeping every row of an arbitrarily long file. */
+    if ((unsigned long long)rows->n + 1 >
+        (unsigned long long)(r->maxi + 1) * (unsigned long long)(r->maxj + 1))
+        return sc_error_set(err, SC_E_INPUT, r->csv.path, r->csv.line,
+                            "a node repeats: more rows than the %ld x %ld nodes they span "
+                            "(node (%ld,%ld) or an earlier one)", r->maxj + 1, r->maxi + 1,
+                            row->i, row->j);
+    return SC_OK;
 }
 
 static sc_status alloc_map(sc_stage_map *m, const char *path, sc_error *err)
@@ -141,8 +129,9 @@ static sc_status alloc_map(sc_stage_map *m, const char *path, sc_error *err)
 static sc_status place_rows(const map_reader *r, sc_stage_map *m, long *line_of, sc_error *err)
 {
     const char *P = r->csv.path;
-    for (size_t q = 0; q < r->nrows; ++q) {
-        const map_row *row = &r->rows[q];
+    const map_row *rows = r->rows.data;
+    for (size_t q = 0; q < r->rows.n; ++q) {
+        const map_row *row = &rows[q];
         size_t k = (size_t)row->i * (size_t)m->nx + (size_t)row->j;
         if (line_of[k])
             return sc_error_set(err, SC_E_INPUT, P, row->line,
@@ -167,19 +156,21 @@ static sc_status fit_axis(const map_reader *r, int axis, double *kk, double *vv,
                           double *origin, double *pitch, sc_error *err)
 {
     const char *P = r->csv.path, *name = axis ? "y_mm" : "x_mm", *idx = axis ? "i" : "j";
-    for (size_t q = 0; q < r->nrows; ++q) {
-        kk[q] = (double)(axis ? r->rows[q].i : r->rows[q].j);
-        vv[q] = r->rows[q].v[axis];
-        lines[q] = r->rows[q].line;
+    const map_row *rows = r->rows.data;
+    size_t nrows = r->rows.n;
+    for (size_t q = 0; q < nrows; ++q) {
+        kk[q] = (double)(axis ? rows[q].i : rows[q].j);
+        vv[q] = rows[q].v[axis];
+        lines[q] = rows[q].line;
     }
     double dev;
     long worst;
-    sc_io_fit_line(kk, vv, lines, r->nrows, SC_STAGE_MAP_REGULAR_TOL, origin, pitch, &dev, &worst);
+    sc_io_fit_line(kk, vv, lines, nrows, SC_STAGE_MAP_REGULAR_TOL, origin, pitch, &dev, &worst);
     if (!(*pitch > 0) || !(*pitch >= SC_STAGE_MAP_MIN_PITCH_MM)) {
         /* a whole-file property, named at a row: the first row of the largest index, compared
          * with the first row of the smallest */
         size_t qmin = 0, qmax = 0;
-        for (size_t q = 1; q < r->nrows; ++q) {
+        for (size_t q = 1; q < nrows; ++q) {
             if (kk[q] < kk[qmin])
                 qmin = q;
             if (kk[q] > kk[qmax])
@@ -210,7 +201,7 @@ static sc_status build_map(const map_reader *r, sc_stage_map *m, sc_error *err)
                             r->maxi < 0 ? 0 : r->maxi + 1, r->maxj < 0 ? 0 : r->maxj + 1);
     m->nx = (int)r->maxj + 1;
     m->ny = (int)r->maxi + 1;
-    size_t nn = (size_t)m->nx * (size_t)m->ny, n = r->nrows > nn ? r->nrows : nn;
+    size_t nn = (size_t)m->nx * (size_t)m->ny, n = r->rows.n > nn ? r->rows.n : nn;
     long *line_of = calloc(nn, sizeof *line_of), *lines = malloc(n * sizeof *lines);
     double *kk = malloc(n * sizeof *kk), *vv = malloc(n * sizeof *vv);
     sc_status st = SC_OK;
@@ -236,15 +227,17 @@ sc_status sc_stage_map_read(const char *path, sc_stage_map *m, sc_error *err)
     memset(m, 0, sizeof *m);
     map_reader r;
     memset(&r, 0, sizeof r);
+    r.rows.size = sizeof(map_row);
+    r.maxi = r.maxj = -1;
     sc_status st = sc_csv_open(&r.csv, path, err);
     if (st != SC_OK)
         return st;
     st = read_column_header(&r, err);
     if (st == SC_OK)
-        st = read_rows(&r, err);
+        st = sc_io_read_rows(&r.csv, &r.rows, parse_row, &r, err);
     if (st == SC_OK)
         st = build_map(&r, m, err);
-    free(r.rows);
+    free(r.rows.data);
     sc_csv_close(&r.csv);
     if (st != SC_OK)
         sc_stage_map_free(m);

@@ -10,11 +10,7 @@
 #include "selfcal/lut.h"
 #include "selfcal/profile_file.h"
 #include "selfcal/stage_map.h"
-#include "../io/io_internal.h"
-
-/* Regularity tolerance: a node may sit this fraction of a pitch off the fitted regular grid
- * (covers the rounding of printed coordinates; a real irregularity is a sizeable fraction). */
-#define SC_LUT_REGULAR_TOL 1e-3
+#include "../common/line_fit.h"
 
 sc_status sc_lut_set_grid(sc_lut *lut, const sc_stage_map *m, const char *name, sc_error *err)
 {
@@ -67,12 +63,10 @@ sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profil
                           SC_LUT_MAX_PROFILE_POINTS);
     if (st == SC_OK) {
         /* start and step: the least-squares line through the points with a value */
-        double kk[SC_LUT_MAX_PROFILE_POINTS], dev;
-        long lines[SC_LUT_MAX_PROFILE_POINTS] = {0}, worst;
+        double kk[SC_LUT_MAX_PROFILE_POINTS];
         for (int i = 0; i < res.n_ey; ++i)
             kk[i] = i;
-        sc_io_fit_line(kk, res.x_mm, lines, (size_t)res.n_ey, SC_LUT_REGULAR_TOL, &p->start_mm,
-                       &p->step_mm, &dev, &worst);
+        sc_line_fit(kk, res.x_mm, (size_t)res.n_ey, &p->start_mm, &p->step_mm);
         memcpy(p->err_um, res.ey_um, (size_t)res.n_ey * sizeof(double));
         p->axis = axis;
         p->dir = dir;
