@@ -119,6 +119,12 @@ SC_API bool sc_grid_view_measures(const sc_grid_plan *p, int v, int i, int j);
 /* Nominal stage node position relative to the stage grid centre, in mm: x = (j-cx)P, y = (i-cy)P. */
 SC_API void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, double *y_mm);
 
+/* Nominal stage position of mark (i, j) in view v, relative to the stage grid centre (add the
+ * plan's origin_mm for the machine's coordinates), mm: the node it lands on (sc_grid_mark_node)
+ * at its sc_grid_node_xy_mm. False (nothing written) if it lands off the stage grid. */
+SC_API bool sc_grid_mark_stage_xy_mm(const sc_grid_plan *p, int v, int i, int j, double *x_mm,
+                                     double *y_mm);
+
 /* Rotate a plate-frame vector (ax, ay) by rot_deg CCW into the stage frame. */
 SC_API void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy);
 

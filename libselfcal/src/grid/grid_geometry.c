@@ -71,6 +71,16 @@ void sc_grid_node_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, doubl
     *y_mm = (i - (sc_grid_stage_ny(p) - 1) / 2.0) * p->pitch_mm;
 }
 
+bool sc_grid_mark_stage_xy_mm(const sc_grid_plan *p, int v, int i, int j, double *x_mm,
+                              double *y_mm)
+{
+    int ni, nj;
+    if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
+        return false;
+    sc_grid_node_xy_mm(p, ni, nj, x_mm, y_mm);
+    return true;
+}
+
 void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double *sy)
 {
     switch (rot_deg) {

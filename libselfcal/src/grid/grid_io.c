@@ -124,13 +124,11 @@ void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)
     for (int v = 0; v < p->n_views; ++v)
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
-                int k = i * n + j, ni, nj;
-                if (!isfinite(d->dx_um[v][k]) || !isfinite(d->dy_um[v][k]))
-                    continue;
-                if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
-                    continue;
+                int k = i * n + j;
                 double x, y;
-                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+                if (!isfinite(d->dx_um[v][k]) || !isfinite(d->dy_um[v][k]) ||
+                    !sc_grid_mark_stage_xy_mm(p, v, i, j, &x, &y))
+                    continue;
                 x += p->origin_mm[0] + d->dx_um[v][k] * 1e-3;
                 y += p->origin_mm[1] + d->dy_um[v][k] * 1e-3;
                 fprintf(fp, "%d,%d,%d,%.15f,%.15f", v, i, j, x, y);

@@ -400,9 +400,10 @@ static sc_status row_time(read_state *s, sc_grid_data *d, int v, size_t k, long 
     return SC_OK;
 }
 
-/* Which view and mark a row is, and that it may be measured there: *v, *k, node (ni, nj). */
+/* Which view and mark a row is, and that it may be measured there: *v, *k and the mark's nominal
+ * stage position (*nx, *ny) mm, relative to the stage centre. */
 static sc_status row_locate(read_state *s, const sc_grid_plan *p, long vid, long i, long j,
-                            long ln, int *v, size_t *k, int *ni, int *nj, sc_error *err)
+                            long ln, int *v, size_t *k, double *nx, double *ny, sc_error *err)
 {
     int n = p->n;
     *v = -1;
@@ -416,7 +417,7 @@ static sc_status row_locate(read_state *s, const sc_grid_plan *p, long vid, long
         return sc_error_set(err, SC_E_INPUT, s->path, ln,
                             "mark (%ld,%ld) is off the plate (i, j in 0..%d)", i, j, n - 1);
     const sc_grid_view *w = &p->view[*v];
-    if (!sc_grid_mark_node(p, *v, (int)i, (int)j, ni, nj))
+    if (!sc_grid_mark_stage_xy_mm(p, *v, (int)i, (int)j, nx, ny))
         return sc_error_set(err, SC_E_INPUT, s->path, ln,
                             "mark (%ld,%ld) does not land on the stage grid in view %ld "
                             "(rot=%d shift=%d,%d)",
@@ -453,12 +454,11 @@ static sc_status read_row(read_state *s, sc_grid_data *d, long ln, sc_error *err
         (st = sc_csv_double(&s->csv, 3, "x_mm", &x, err)) != SC_OK ||
         (st = sc_csv_double(&s->csv, 4, "y_mm", &y, err)) != SC_OK)
         return st;
-    int v = 0, ni = 0, nj = 0; /* set by row_locate; initialised for GCC -O3 (maybe-uninitialized) */
+    int v = 0; /* set by row_locate; initialised for GCC -O3 (maybe-uninitialized) */
     size_t k = 0;
-    if ((st = row_locate(s, p, vid, i, j, ln, &v, &k, &ni, &nj, err)) != SC_OK)
+    double nx = 0, ny = 0;
+    if ((st = row_locate(s, p, vid, i, j, ln, &v, &k, &nx, &ny, err)) != SC_OK)
         return st;
-    double nx, ny;
-    sc_grid_node_xy_mm(p, ni, nj, &nx, &ny);
     nx += p->origin_mm[0];
     ny += p->origin_mm[1];
     double ex = x - nx, ey = y - ny;
