@@ -195,12 +195,8 @@ static sc_status add_times_and_drift(const sc_grid_plan *plan, const sc_grid_sim
     return SC_OK;
 }
 
-sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
-                          sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err)
+static sc_status check_params(const sc_grid_sim_params *sp, sc_error *err)
 {
-    sc_status st = sc_grid_plan_check(plan, err);
-    if (st != SC_OK)
-        return st;
     if (!(fabs(sp->rho) < 1))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "SAR rho must be in (-1, 1) (got %g)",
                             sp->rho);
@@ -215,25 +211,41 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
     if (!isfinite(sp->drift_vx_um_s) || !isfinite(sp->drift_vy_um_s) || !(sp->dt_s >= 0) ||
         !isfinite(sp->dt_s))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "drift rates and dt must be finite");
-    int n = plan->n, snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
-    size_t nn = (size_t)n * n, ns = (size_t)snx * sny;
-    double *ex = work, *ey = work + ns;
-    sc_rng rng;
-    sc_rng_seed(&rng, sp->seed);
+    return SC_OK;
+}
 
-    /* Second-order part: SAR(1) fields over the stage nodes, unit white noise. */
+/* The second-order part of G: SAR(1) fields over the stage nodes from unit white noise (drawn
+ * into work: 2·NX·NY doubles), gauged, with its own O and R components removed. */
+static sc_status stage_sar_fields(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                                  sc_rng *rng, double *work, sc_grid_sim_truth *truth,
+                                  sc_error *err)
+{
+    int snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
+    size_t ns = (size_t)snx * sny;
+    double *ex = work, *ey = work + ns;
     for (size_t k = 0; k < ns; ++k)
-        ex[k] = sc_rng_normal(&rng);
+        ex[k] = sc_rng_normal(rng);
     for (size_t k = 0; k < ns; ++k)
-        ey[k] = sc_rng_normal(&rng);
+        ey[k] = sc_rng_normal(rng);
     int it1 = sar_solve(snx, sny, sp->rho, ex, truth->gx_um);
     int it2 = sar_solve(snx, sny, sp->rho, ey, truth->gy_um);
     if (it1 < 0 || it2 < 0)
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "SAR(1) solve did not converge");
     truth->sar_iterations = it1 > it2 ? it1 : it2;
+    sc_grid_gauge_stage(plan, truth->gx_um, truth->gy_um);
+    return SC_OK;
+}
+
+/* G = s·F + the first-order terms of O and R, with the scale s that gives G the dispersion
+ * sigma_G; F is the SAR part (stage_sar_fields). The O and R patterns (y, x) and (x, -y) are
+ * taken out of F first (orthogonal to the gauge). */
+static sc_status stage_scale_and_first_order(const sc_grid_plan *plan,
+                                             const sc_grid_sim_params *sp,
+                                             sc_grid_sim_truth *truth, sc_error *err)
+{
+    int snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
+    size_t ns = (size_t)snx * sny;
     double *fx = truth->gx_um, *fy = truth->gy_um;
-    sc_grid_gauge_stage(plan, fx, fy);
-    /* Remove O and R components of F: the patterns (y, x) and (x, −y), orthogonal to the gauge. */
     double O_f, R_f, first2 = 0, f2 = 0;
     sc_grid_first_order(plan, fx, fy, &O_f, &R_f); /* dimensionless; x, y in mm -> ×1e3 µm */
     for (int i = 0; i < sny; ++i)
@@ -268,24 +280,33 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
      * magnification: gauge again and report O and R of the gauged truth (a no-op when square). */
     sc_grid_gauge_stage(plan, fx, fy);
     sc_grid_first_order(plan, fx, fy, &truth->O, &truth->R);
+    return SC_OK;
+}
 
-    /* Plate error. */
+/* Plate error A (gauged) and the views' misalignments, drawn in that order. */
+static void plate_and_misalignment(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                                   sc_rng *rng, sc_grid_sim_truth *truth)
+{
+    size_t nn = (size_t)plan->n * plan->n;
     for (size_t k = 0; k < nn; ++k)
-        truth->ax_um[k] = sp->sigma_a_um * sc_rng_normal(&rng);
+        truth->ax_um[k] = sp->sigma_a_um * sc_rng_normal(rng);
     for (size_t k = 0; k < nn; ++k)
-        truth->ay_um[k] = sp->sigma_a_um * sc_rng_normal(&rng);
+        truth->ay_um[k] = sp->sigma_a_um * sc_rng_normal(rng);
     sc_grid_gauge_plate(plan, truth->ax_um, truth->ay_um);
-
-    /* Misalignment. */
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
         truth->tx_um[v] = truth->ty_um[v] = truth->theta_urad[v] = 0;
     for (int v = 0; v < plan->n_views; ++v) {
-        truth->tx_um[v] = sp->sigma_t_um * sc_rng_normal(&rng);
-        truth->ty_um[v] = sp->sigma_t_um * sc_rng_normal(&rng);
-        truth->theta_urad[v] = sp->sigma_theta_urad * sc_rng_normal(&rng);
+        truth->tx_um[v] = sp->sigma_t_um * sc_rng_normal(rng);
+        truth->ty_um[v] = sp->sigma_t_um * sc_rng_normal(rng);
+        truth->theta_urad[v] = sp->sigma_theta_urad * sc_rng_normal(rng);
     }
+}
 
-    /* Measurements. */
+/* The measurements of the truth, with each view's reading noise. */
+static void measure(const sc_grid_plan *plan, const sc_grid_sim_params *sp, sc_rng *rng,
+                    const sc_grid_sim_truth *truth, sc_grid_data *d)
+{
+    size_t nn = (size_t)plan->n * plan->n;
     if (&d->plan != plan)
         d->plan = *plan;
     sc_grid_synthesize(plan, truth->gx_um, truth->gy_um, truth->ax_um, truth->ay_um, truth->tx_um,
@@ -295,9 +316,26 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
         for (size_t k = 0; k < nn; ++k) {
             if (!isfinite(d->dx_um[v][k]))
                 continue;
-            d->dx_um[v][k] += sr * sc_rng_normal(&rng);
-            d->dy_um[v][k] += sr * sc_rng_normal(&rng);
+            d->dx_um[v][k] += sr * sc_rng_normal(rng);
+            d->dy_um[v][k] += sr * sc_rng_normal(rng);
         }
     }
+}
+
+sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                          sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err)
+{
+    sc_status st = sc_grid_plan_check(plan, err);
+    if (st == SC_OK)
+        st = check_params(sp, err);
+    if (st != SC_OK)
+        return st;
+    sc_rng rng;
+    sc_rng_seed(&rng, sp->seed);
+    if ((st = stage_sar_fields(plan, sp, &rng, work, truth, err)) != SC_OK ||
+        (st = stage_scale_and_first_order(plan, sp, truth, err)) != SC_OK)
+        return st;
+    plate_and_misalignment(plan, sp, &rng, truth);
+    measure(plan, sp, &rng, truth, d);
     return sp->dt_s > 0 ? add_times_and_drift(plan, sp, d, err) : SC_OK;
 }
