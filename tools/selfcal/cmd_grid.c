@@ -79,14 +79,19 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p, const 
     putchar('\n');
 }
 
-int cmd_grid(int argc, char **argv)
-{
-    const char *method = NULL, *in = NULL, *map = NULL, *art = NULL, *sum = NULL, *plot = NULL;
-    const char *residuals = NULL, *covariance = NULL;
+/* What the command line asks for. */
+typedef struct grid_args {
+    const char *method, *in, *map, *art, *sum, *plot, *residuals, *covariance;
     sc_grid_options opt;
-    sc_grid_options_default(&opt);
-    opt.warn = warn_stderr;
-    int quiet = 0;
+    int quiet;
+} grid_args;
+
+/* Parse the arguments into g: -1 to go on, else the exit code (--help, a usage error). */
+static int parse_args(int argc, char **argv, grid_args *g)
+{
+    memset(g, 0, sizeof *g);
+    sc_grid_options_default(&g->opt);
+    g->opt.warn = warn_stderr;
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
         if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
@@ -94,106 +99,116 @@ int cmd_grid(int argc, char **argv)
             return CLI_OK;
         }
         if (!strcmp(o, "--reject-outliers")) {
-            opt.reject_outliers = 1;
+            g->opt.reject_outliers = 1;
             continue;
         }
         if (!strcmp(o, "--quiet")) {
-            quiet = 1;
+            g->quiet = 1;
             continue;
         }
         if (o[0] != '-' || !strcmp(o, "-")) {
-            if (in)
-                return cli_usage_error("grid", "more than one input file ('%s', '%s')", in, o);
-            in = o;
+            if (g->in)
+                return cli_usage_error("grid", "more than one input file ('%s', '%s')", g->in, o);
+            g->in = o;
             continue;
         }
         if (a + 1 >= argc)
             return cli_usage_error("grid", "'%s' needs a value (see --help)", o);
         const char *v = argv[++a];
-        if (!strcmp(o, "--method")) method = v;
-        else if (!strcmp(o, "--map")) map = v;
-        else if (!strcmp(o, "--artifact")) art = v;
-        else if (!strcmp(o, "--summary")) sum = v;
-        else if (!strcmp(o, "--plot")) plot = v;
-        else if (!strcmp(o, "--residuals")) residuals = v;
-        else if (!strcmp(o, "--covariance")) covariance = v;
+        if (!strcmp(o, "--method")) g->method = v;
+        else if (!strcmp(o, "--map")) g->map = v;
+        else if (!strcmp(o, "--artifact")) g->art = v;
+        else if (!strcmp(o, "--summary")) g->sum = v;
+        else if (!strcmp(o, "--plot")) g->plot = v;
+        else if (!strcmp(o, "--residuals")) g->residuals = v;
+        else if (!strcmp(o, "--covariance")) g->covariance = v;
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
-            opt.drift = !strcmp(v, "linear");
+            g->opt.drift = !strcmp(v, "linear");
         }
         else if (!strcmp(o, "--sigma-r-um")) {
-            if (sc_parse_double(v, &opt.sigma_r_um) || !(opt.sigma_r_um > 0))
+            if (sc_parse_double(v, &g->opt.sigma_r_um) || !(g->opt.sigma_r_um > 0))
                 return cli_usage_error("grid", "--sigma-r-um needs a positive number, got '%s'", v);
         } else
             return cli_usage_error("grid", "unknown option '%s' (see --help)", o);
     }
-    if (!method || !in || !map)
+    if (!g->method || !g->in || !g->map)
         return cli_usage_error("grid", "--method, IN.csv and --map are required (see --help)");
-    int m = sc_grid_method_from_name(method);
+    int m = sc_grid_method_from_name(g->method);
     if (m < 0)
         return cli_usage_error("grid", "--method must be ye, double-shift or lsq (got '%s')",
-                               method);
-    opt.method = (sc_grid_method)m;
-    opt.covariance = covariance != NULL;
-    if (m != SC_GRID_METHOD_LSQ && (residuals || covariance || opt.reject_outliers || opt.drift))
+                               g->method);
+    g->opt.method = (sc_grid_method)m;
+    g->opt.covariance = g->covariance != NULL;
+    if (m != SC_GRID_METHOD_LSQ &&
+        (g->residuals || g->covariance || g->opt.reject_outliers || g->opt.drift))
         return cli_usage_error("grid", "--residuals, --reject-outliers, --covariance and --drift "
                                        "need --method lsq");
+    return -1;
+}
 
+/* Everything is computed: write every output asked for, commit them together (all or none). */
+static sc_status write_outputs(const grid_args *g, const sc_grid_plan *p,
+                               const sc_grid_solution *sol, const sc_grid_file_info *info,
+                               sc_error *err)
+{
+    const sc_grid_result *res = &sol->res;
+    const char *paths[6] = {g->map, g->art, g->sum, g->plot, g->residuals, g->covariance};
+    sc_afile f[6];
+    memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
+    int opened = 0;
+    sc_status st = SC_OK;
+    sc_stage_map gm = sc_grid_stage_map(p, res->gx_um, res->gy_um, res->ugx_um, res->ugy_um);
+    for (; opened < 6; ++opened) {
+        if (!paths[opened])
+            continue;
+        st = sc_afile_open(&f[opened], paths[opened], err);
+        if (st != SC_OK)
+            break;
+        switch (opened) {
+        case 0: sc_grid_fprint_map(f[0].fp, p, res->gx_um, res->gy_um, res->ugx_um, res->ugy_um); break;
+        case 1: sc_grid_fprint_artifact(f[1].fp, p, res->ax_um, res->ay_um); break;
+        case 2: sc_grid_fprint_summary(f[2].fp, g->method, p, res); break;
+        case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, cli_basename(g->in), 0); break;
+        case 4:
+            sc_grid_fprint_residuals(f[4].fp, p, info->view_id, sol->rx_um, sol->ry_um, sol->tx,
+                                     sol->ty, sol->outlier);
+            break;
+        case 5: sc_fprint_npy(f[5].fp, sol->cov_um2, sol->n_cov, sol->n_cov); break;
+        }
+    }
+    /* all files or none: sync every one, then rename them together */
+    if (st == SC_OK)
+        return sc_afile_commit_all(f, opened, err);
+    sc_afile_abort_all(f, opened);
+    return st;
+}
+
+int cmd_grid(int argc, char **argv)
+{
+    grid_args g;
+    int rc = parse_args(argc, argv, &g);
+    if (rc >= 0)
+        return rc;
     sc_error err;
     sc_error_clear(&err);
     sc_grid_data d;
     sc_grid_file_info info;
-    sc_status st = sc_grid_read(in, &d, &info, &err);
+    sc_status st = sc_grid_read(g.in, &d, &info, &err);
     if (st != SC_OK)
         return cli_report(&err);
-    const sc_grid_plan *p = &d.plan;
     sc_grid_solution sol;
-    st = sc_grid_calibrate(&d, &info, in, &opt, &sol, &err);
-    const sc_grid_result res = sol.res;
-    if (st != SC_OK)
-        goto done;
-
-    /* Everything is computed: write all outputs, commit them together. */
-    {
-        const char *paths[6] = {map, art, sum, plot, residuals, covariance};
-        sc_afile f[6];
-        memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
-        int opened = 0;
-        sc_stage_map gm = sc_grid_stage_map(p, res.gx_um, res.gy_um, res.ugx_um, res.ugy_um);
-        for (; opened < 6; ++opened) {
-            if (!paths[opened])
-                continue;
-            st = sc_afile_open(&f[opened], paths[opened], &err);
-            if (st != SC_OK)
-                break;
-            switch (opened) {
-            case 0: sc_grid_fprint_map(f[0].fp, p, res.gx_um, res.gy_um, res.ugx_um, res.ugy_um); break;
-            case 1: sc_grid_fprint_artifact(f[1].fp, p, res.ax_um, res.ay_um); break;
-            case 2: sc_grid_fprint_summary(f[2].fp, method, p, &res); break;
-            case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, cli_basename(in), 0); break;
-            case 4:
-                sc_grid_fprint_residuals(f[4].fp, p, info.view_id, sol.rx_um, sol.ry_um, sol.tx,
-                                         sol.ty, sol.outlier);
-                break;
-            case 5: sc_fprint_npy(f[5].fp, sol.cov_um2, sol.n_cov, sol.n_cov); break;
-            }
-        }
-        /* all files or none: sync every one, then rename them together */
-        if (st == SC_OK)
-            st = sc_afile_commit_all(f, opened, &err);
-        else
-            sc_afile_abort_all(f, opened);
-    }
-    if (st == SC_OK && !quiet)
-        print_grid_summary(method, p, &res);
-
-done:
+    st = sc_grid_calibrate(&d, &info, g.in, &g.opt, &sol, &err);
+    if (st == SC_OK)
+        st = write_outputs(&g, &d.plan, &sol, &info, &err);
+    if (st == SC_OK && !g.quiet)
+        print_grid_summary(g.method, &d.plan, &sol.res);
     sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
-            snprintf(err.file, sizeof err.file, "%s", in);
+            snprintf(err.file, sizeof err.file, "%s", g.in);
             if (!err.line)
                 err.line = info.header_end_line;
         }
