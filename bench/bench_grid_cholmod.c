@@ -1,20 +1,23 @@
-/* Benchmark: selfcal's whole least-squares grid solve against SuiteSparse CHOLMOD on the same
- * matrix, in one run (issue 11's targets: time within 2.5x, memory within 1.5x of CHOLMOD's
- * analyze+factor+solve; N = 201 under 1.5 s, N = 401 under 30 s).
+/* Benchmark: the whole `selfcal grid --method lsq` command against SuiteSparse CHOLMOD on the
+ * same matrix, in one run (issue 11's targets: time within 2.5x, peak memory within 1.5x of
+ * CHOLMOD's analyze+factor+solve; N = 201 under 1.5 s, N = 401 under 30 s).
  *
- * Per N (Petrò's plan {0°, 90°, +2x, -3x partial}), three child processes, so each peak RSS is
- * its own:
- *   selfcal  sc_grid_lsq_create (assembly, ordering, factorization, every node's sigma by the
- *            selected inverse) + sc_grid_lsq_solve on noisy data;
- *   export   builds the estimator once and writes its reduced pinned matrix to a temporary file;
- *   CHOLMOD  reads that matrix and runs cholmod_analyze + cholmod_factorize + cholmod_solve with
- *            CHOLMOD's defaults (no selected inverse: CHOLMOD has none).
- * Time is the CPU time (user + system, all threads) of the measured part, with OpenBLAS on one
- * thread for both (the program re-executes itself with OPENBLAS_NUM_THREADS=1 unless it is set):
- * on this shared 2-core machine wall clock mostly measures the other builds, and idle OpenBLAS
- * threads spin. Wall clock is printed too. Memory is the child's peak RSS minus the RSS it had
- * before the measured part (the matrix file's read is outside CHOLMOD's part but its copy counts).
- * Usage: bench_grid_cholmod [N ...]   (default 101 201 301; e.g. 401 for the large target) */
+ * Per N (Petrò's plan {0°, 90°, +2x, -3x partial}, pitch 1 mm):
+ *   data     `selfcal simulate grid --plan double-shift` writes a noisy measurement file (not timed;
+ *            O = R = 2e-6 so that σ_G = 1 µm stays above their dispersion up to N = 401);
+ *   selfcal  `selfcal grid --method lsq FILE --map G.csv --residuals R.csv --quiet`: the whole
+ *            command (reading, analysis, factorization, every node's σ by the selected inverse,
+ *            the leverages and Baarda's outlier test, O/R/misalignment uncertainties, writing),
+ *            run as a child process: its CPU time and peak RSS from wait4;
+ *   export   a child builds the plan of the same view plan and writes its reduced pinned matrix;
+ *   CHOLMOD  a child reads that matrix and runs cholmod_analyze + cholmod_factorize +
+ *            cholmod_solve (one right-hand side) with CHOLMOD's defaults (no selected inverse:
+ *            CHOLMOD has none); its CPU time of those calls and the process's peak RSS.
+ * Time is CPU time (user + system, all threads): on this shared 2-core machine the wall clock
+ * mostly measures the other builds (printed too). Both sides run with the same thread settings:
+ * OPENBLAS_NUM_THREADS and OMP_NUM_THREADS are 1 unless set (the program re-executes itself so
+ * that every child inherits them), and the table says which. Memory is each process's peak RSS.
+ * Usage: bench_grid_cholmod [N ...]   (default 101 201 301; add 401 for the large target) */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -27,7 +30,10 @@
 
 #include "../libselfcal/src/grid/grid_lsq_internal.h"
 #include "selfcal/grid_lsq.h"
-#include "selfcal/rng.h"
+
+#ifndef SELFCAL_CLI
+#error "SELFCAL_CLI (the selfcal executable) must be defined by the build"
+#endif
 
 static double now_s(void)
 {
@@ -36,21 +42,18 @@ static double now_s(void)
     return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
-/* Current and peak resident set, MiB (from /proc/self/status). */
-static void rss_mib(double *cur, double *peak)
+static double cpu_s(void)
 {
-    FILE *f = fopen("/proc/self/status", "r");
-    char line[256];
-    *cur = *peak = NAN;
-    while (f && fgets(line, sizeof line, f)) {
-        long kb;
-        if (sscanf(line, "VmRSS: %ld kB", &kb) == 1)
-            *cur = kb / 1024.0;
-        if (sscanf(line, "VmHWM: %ld kB", &kb) == 1)
-            *peak = kb / 1024.0;
-    }
-    if (f)
-        fclose(f);
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + 1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+}
+
+static double peak_rss_mib(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return ru.ru_maxrss / 1024.0;
 }
 
 static void petro_plan(sc_grid_plan *p, int n)
@@ -69,70 +72,33 @@ static void petro_plan(sc_grid_plan *p, int n)
     p->view[3].row_sel[c] = p->view[3].col_sel[c] = p->view[3].col_sel[c + 1] = 1;
 }
 
-static double cpu_s(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return ru.ru_utime.tv_sec + ru.ru_stime.tv_sec + 1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
-
 typedef struct figures {
-    double seconds, wall, mib, check;
+    double seconds, wall, mib;
     char ordering[32];
 } figures;
 
-static void selfcal_child(int n, figures *out)
+/* Run argv as a child; its CPU time, wall time and peak RSS. 0 if it exited 0. */
+static int run_command(char *const argv[], figures *out)
 {
-    sc_grid_plan p;
-    petro_plan(&p, n);
-    int nn = n * n;
-    sc_rng r;
-    sc_rng_seed(&r, 1000 + n);
-    double *g = malloc(sizeof(double) * 4 * nn), *res_buf = malloc(sizeof(double) * 6 * nn);
-    for (int k = 0; k < 4 * nn; ++k)
-        g[k] = sc_rng_normal(&r);
-    sc_grid_gauge_stage(&p, g, g + nn);
-    sc_grid_gauge_plate(&p, g + 2 * nn, g + 3 * nn);
-    double tx[SC_GRID_MAX_VIEWS] = {0}, ty[SC_GRID_MAX_VIEWS] = {0}, th[SC_GRID_MAX_VIEWS] = {0};
-    sc_grid_data d;
-    memset(&d, 0, sizeof d);
-    d.plan = p;
-    for (int v = 0; v < p.n_views; ++v) {
-        d.dx_um[v] = malloc(sizeof(double) * nn);
-        d.dy_um[v] = malloc(sizeof(double) * nn);
+    double t0 = now_s();
+    pid_t pid = fork();
+    if (pid < 0)
+        return -1;
+    if (pid == 0) {
+        FILE *null = freopen("/dev/null", "w", stderr);
+        (void)null;
+        execv(argv[0], argv);
+        _exit(127);
     }
-    sc_grid_synthesize(&p, g, g + nn, g + 2 * nn, g + 3 * nn, tx, ty, th, &d);
-    for (int v = 0; v < p.n_views; ++v)
-        for (int k = 0; k < nn; ++k)
-            if (isfinite(d.dx_um[v][k]))
-                d.dx_um[v][k] += 0.01 * sc_rng_normal(&r), d.dy_um[v][k] += 0.01 * sc_rng_normal(&r);
-    sc_grid_result res;
-    memset(&res, 0, sizeof res);
-    res.gx_um = res_buf, res.gy_um = res_buf + nn, res.ugx_um = res_buf + 2 * nn;
-    res.ugy_um = res_buf + 3 * nn, res.ax_um = res_buf + 4 * nn, res.ay_um = res_buf + 5 * nn;
-    double base, peak;
-    rss_mib(&base, &peak);
-    sc_error err;
-    sc_grid_lsq_plan *q = NULL;
-    double t0 = now_s(), c0 = cpu_s();
-    if (sc_grid_lsq_plan_create(&p, &d, NULL, &q, &err) != SC_OK ||
-        sc_grid_lsq_execute(q, &d, 0.0, &res, &err) != SC_OK) {
-        fprintf(stderr, "selfcal failed: %s\n", err.msg);
-        exit(1);
-    }
-    out->seconds = cpu_s() - c0;
+    int status = 0;
+    struct rusage ru;
+    if (wait4(pid, &status, 0, &ru) != pid)
+        return -1;
     out->wall = now_s() - t0;
-    rss_mib(&base, &peak);
-    double cur0 = base;
-    (void)cur0;
-    sc_grid_lsq_stats st;
-    sc_grid_lsq_get_stats(q, &st);
-    snprintf(out->ordering, sizeof out->ordering, "%s", st.ordering);
-    double rms = 0;
-    for (int k = 0; k < nn; ++k)
-        rms += res.ugx_um[k] * res.ugx_um[k];
-    out->check = sqrt(rms / nn);
-    sc_grid_lsq_plan_destroy(q);
+    out->seconds = ru.ru_utime.tv_sec + ru.ru_stime.tv_sec +
+                   1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+    out->mib = ru.ru_maxrss / 1024.0;
+    return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
 static void export_child(int n, const char *path)
@@ -143,15 +109,16 @@ static void export_child(int n, const char *path)
     sc_grid_lsq_plan *q = NULL;
     if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK)
         exit(1);
-    int nx;
+    int n_red;
     const long *Ap;
     const int *Ai;
     const double *Ax;
-    sc_grid_lsq_matrix(q, &nx, &Ap, &Ai, &Ax);
+    sc_grid_lsq_matrix(q, &n_red, &Ap, &Ai, &Ax);
     FILE *f = fopen(path, "wb");
-    if (!f || fwrite(&nx, sizeof nx, 1, f) != 1 || fwrite(Ap, sizeof(long), nx + 1, f) != (size_t)nx + 1 ||
-        fwrite(Ai, sizeof(int), Ap[nx], f) != (size_t)Ap[nx] ||
-        fwrite(Ax, sizeof(double), Ap[nx], f) != (size_t)Ap[nx] || fclose(f) != 0)
+    if (!f || fwrite(&n_red, sizeof n_red, 1, f) != 1 ||
+        fwrite(Ap, sizeof(long), n_red + 1, f) != (size_t)n_red + 1 ||
+        fwrite(Ai, sizeof(int), Ap[n_red], f) != (size_t)Ap[n_red] ||
+        fwrite(Ax, sizeof(double), Ap[n_red], f) != (size_t)Ap[n_red] || fclose(f) != 0)
         exit(1);
     sc_grid_lsq_plan_destroy(q);
 }
@@ -159,37 +126,34 @@ static void export_child(int n, const char *path)
 static void cholmod_child(const char *path, figures *out)
 {
     FILE *f = fopen(path, "rb");
-    int nx;
-    if (!f || fread(&nx, sizeof nx, 1, f) != 1)
+    int n_red;
+    if (!f || fread(&n_red, sizeof n_red, 1, f) != 1)
         exit(1);
-    long *Ap = malloc(sizeof(long) * (nx + 1));
-    if (fread(Ap, sizeof(long), nx + 1, f) != (size_t)nx + 1)
+    long *Ap = malloc(sizeof(long) * (n_red + 1));
+    if (fread(Ap, sizeof(long), n_red + 1, f) != (size_t)n_red + 1)
         exit(1);
-    long nnz = Ap[nx];
-    double base, peak;
-    rss_mib(&base, &peak);
+    long nnz = Ap[n_red];
     cholmod_common c;
     cholmod_start(&c);
-    cholmod_sparse *A = cholmod_allocate_sparse(nx, nx, nnz, 0, 1, 1, CHOLMOD_REAL, &c);
-    int *p = A->p, *ip = malloc(sizeof(int) * nnz);
-    for (int k = 0; k <= nx; ++k)
+    cholmod_sparse *A = cholmod_allocate_sparse(n_red, n_red, nnz, 0, 1, 1, CHOLMOD_REAL, &c);
+    int *p = A->p;
+    for (int k = 0; k <= n_red; ++k)
         p[k] = (int)Ap[k];
-    if (fread(ip, sizeof(int), nnz, f) != (size_t)nnz || fread(A->x, sizeof(double), nnz, f) != (size_t)nnz)
+    free(Ap);
+    if (fread(A->i, sizeof(int), nnz, f) != (size_t)nnz ||
+        fread(A->x, sizeof(double), nnz, f) != (size_t)nnz)
         exit(1);
-    memcpy(A->i, ip, sizeof(int) * nnz);
-    free(ip);
     fclose(f);
-    cholmod_dense *b = cholmod_ones(nx, 1, CHOLMOD_REAL, &c);
+    cholmod_dense *b = cholmod_ones(n_red, 1, CHOLMOD_REAL, &c);
     double t0 = now_s(), c0 = cpu_s();
     cholmod_factor *L = cholmod_analyze(A, &c);
     cholmod_factorize(A, L, &c);
     cholmod_dense *x = cholmod_solve(CHOLMOD_A, L, b, &c);
     out->seconds = cpu_s() - c0;
     out->wall = now_s() - t0;
-    double cur;
-    rss_mib(&cur, &peak);
-    out->mib = peak - base;
-    out->check = c.status;
+    out->mib = peak_rss_mib();
+    if (!x || c.status != CHOLMOD_OK)
+        exit(1);
     snprintf(out->ordering, sizeof out->ordering, "%s",
              c.method[c.selected].ordering == CHOLMOD_METIS ? "METIS" : "AMD");
     cholmod_free_dense(&x, &c);
@@ -199,7 +163,7 @@ static void cholmod_child(const char *path, figures *out)
     cholmod_finish(&c);
 }
 
-/* Run fn in a child; its figures come back through a pipe. */
+/* Run the export (which = 1) or CHOLMOD (2) in a child; figures come back through a pipe. */
 static int in_child(figures *out, int which, int n, const char *path)
 {
     int fd[2];
@@ -210,19 +174,10 @@ static int in_child(figures *out, int which, int n, const char *path)
         close(fd[0]);
         figures fg;
         memset(&fg, 0, sizeof fg);
-        double base, peak;
-        rss_mib(&base, &peak);
-        if (which == 0) {
-            /* memory of selfcal: peak minus the RSS before the estimator (data included) */
-            selfcal_child(n, &fg);
-            double b2;
-            rss_mib(&b2, &peak);
-            fg.mib = peak - base;
-        } else if (which == 1) {
+        if (which == 1)
             export_child(n, path);
-        } else {
+        else
             cholmod_child(path, &fg);
-        }
         if (write(fd[1], &fg, sizeof fg) != (ssize_t)sizeof fg)
             _exit(1);
         _exit(0);
@@ -235,10 +190,32 @@ static int in_child(figures *out, int which, int n, const char *path)
     return got == (ssize_t)sizeof *out && WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
+/* selfcal simulate grid (untimed), then the whole selfcal grid command (timed). */
+static int selfcal_command(int n, const char *dir, figures *out)
+{
+    char ns[16], in[256], truth[256], map[256], res[256];
+    snprintf(ns, sizeof ns, "%d", n);
+    snprintf(in, sizeof in, "%s/in.csv", dir);
+    snprintf(truth, sizeof truth, "%s/truth.csv", dir);
+    snprintf(map, sizeof map, "%s/G.csv", dir);
+    snprintf(res, sizeof res, "%s/R.csv", dir);
+    char *sim[] = {SELFCAL_CLI, "simulate", "grid", "--plan", "double-shift", "--n", ns, "--out", in,
+                   "--truth-map", truth, "--seed", "7", "--O", "2e-6", "--R", "2e-6", NULL};
+    char *grid[] = {SELFCAL_CLI, "grid", "--method", "lsq", in, "--map", map, "--residuals", res,
+                    "--quiet", NULL};
+    figures sim_fg;
+    if (run_command(sim, &sim_fg) != 0 || run_command(grid, out) != 0)
+        return -1;
+    snprintf(out->ordering, sizeof out->ordering, "-");
+    remove(in), remove(truth), remove(map), remove(res);
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
-    if (!getenv("OPENBLAS_NUM_THREADS")) {
-        setenv("OPENBLAS_NUM_THREADS", "1", 1);
+    if (!getenv("OPENBLAS_NUM_THREADS") || !getenv("OMP_NUM_THREADS")) {
+        setenv("OPENBLAS_NUM_THREADS", "1", 0);
+        setenv("OMP_NUM_THREADS", "1", 0);
         execv("/proc/self/exe", argv);
     }
     int ns[16], count = 0;
@@ -246,30 +223,36 @@ int main(int argc, char **argv)
         ns[count++] = atoi(argv[i]);
     if (count == 0)
         ns[0] = 101, ns[1] = 201, ns[2] = 301, count = 3;
-    char path[64];
-    snprintf(path, sizeof path, "/tmp/bench_grid_cholmod.%d", (int)getpid());
-    printf("Grid least squares (Petro's plan): selfcal create+solve with every node's sigma vs\n"
-           "CHOLMOD analyze+factor+solve of the same reduced matrix (targets: time ratio <= 2.5,\n"
-           "memory ratio <= 1.5; N = 201 < 1.5 s, N = 401 < 30 s)\n");
-    printf("(CPU seconds, OpenBLAS threads: %s; wall seconds in brackets)\n",
-           getenv("OPENBLAS_NUM_THREADS"));
-    printf("%5s %8s | %8s %8s %7s %-16s | %8s %8s %7s %-6s | %6s %6s\n", "N", "reduced",
-           "selfcal", "(wall)", "MiB", "order", "CHOLMOD", "(wall)", "MiB", "order", "time x",
-           "mem x");
+    char dir[64], path[96];
+    snprintf(dir, sizeof dir, "/tmp/bench_grid_cholmod.XXXXXX");
+    if (!mkdtemp(dir))
+        return 1;
+    snprintf(path, sizeof path, "%s/matrix.bin", dir);
+    printf("Grid least squares (Petro's plan): the whole `selfcal grid --method lsq` command (read,\n"
+           "every node's sigma, leverages and outlier test, write) vs CHOLMOD analyze+factor+solve\n"
+           "of the same reduced matrix (targets: time ratio <= 2.5, memory ratio <= 1.5;\n"
+           "N = 201 < 1.5 s, N = 401 < 30 s)\n");
+    printf("(CPU seconds, both sides with OPENBLAS_NUM_THREADS=%s OMP_NUM_THREADS=%s; wall seconds\n"
+           "in brackets; memory: each process's peak RSS, MiB)\n",
+           getenv("OPENBLAS_NUM_THREADS"), getenv("OMP_NUM_THREADS"));
+    printf("%5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s\n", "N", "reduced", "selfcal",
+           "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x");
     for (int t = 0; t < count; ++t) {
         int n = ns[t];
         figures a, e, c;
-        if (in_child(&a, 0, n, path) != 0 || in_child(&e, 1, n, path) != 0 ||
+        memset(&a, 0, sizeof a);
+        if (selfcal_command(n, dir, &a) != 0 || in_child(&e, 1, n, path) != 0 ||
             in_child(&c, 2, n, path) != 0) {
             printf("%5d failed\n", n);
             continue;
         }
         remove(path);
-        printf("%5d %8d | %8.3f %8.2f %7.1f %-16s | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f\n", n,
-               2 * n * n + 12, a.seconds, a.wall, a.mib, a.ordering, c.seconds, c.wall, c.mib,
-               c.ordering, a.seconds / c.seconds, a.mib / c.mib);
+        printf("%5d %8d | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f\n", n,
+               2 * n * n + 12, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib, c.ordering,
+               a.seconds / c.seconds, a.mib / c.mib);
         fflush(stdout);
     }
     remove(path);
+    rmdir(dir);
     return 0;
 }

@@ -232,11 +232,12 @@ static int stated_weights(const sc_grid_lsq_plan *q, const sc_grid_data *mask)
     return 0;
 }
 
-static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
+/* Which marks each view measures (q->meas, q->mark_views): the plan's, or the mask's finite
+ * values; the number of equations. */
+static sc_status measured_marks(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
 {
     const sc_grid_plan *p = &q->plan;
     int n = q->n, nn = q->nn, nv = q->nv;
-    q->weighted = stated_weights(q, mask);
     q->meas = calloc((size_t)nv * nn, 1);
     q->mark_views = calloc((size_t)nn, sizeof(int));
     if (!q->meas || !q->mark_views)
@@ -269,6 +270,19 @@ static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, 
         q->n_meas_marks += q->mark_views[k] > 0;
     }
     q->neq = 2 * npairs;
+    return SC_OK;
+}
+
+/* The scalar equations (2 per measured mark): node, view, mark, A component and sign, the φ
+ * coefficient, weight; grouped by A component; the drift columns. */
+static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
+{
+    const sc_grid_plan *p = &q->plan;
+    int n = q->n, nn = q->nn, nv = q->nv;
+    q->weighted = stated_weights(q, mask);
+    sc_status st = measured_marks(q, mask, err);
+    if (st != SC_OK)
+        return st;
     long ne = q->neq + 1;
     q->eq_g = malloc(sizeof(int) * ne);
     q->eq_v = malloc(sizeof(int) * ne);
@@ -624,7 +638,7 @@ static int pinned_solve_cols(const sc_grid_lsq_plan *q, double *X, int ncol, int
 
 /* U (4 x ng, row after row): the orthonormal basis of G's gauge patterns (translations, rotation,
  * magnification) that sc_grid_gauge_stage projects out. */
-static void gauge_basis(const sc_grid_lsq_plan *q, double *U)
+static void gauge_basis(const sc_grid_lsq_plan *q, double *U, double scale[4])
 {
     int ng = q->ng, ns = q->ns;
     double r2 = 0;
@@ -634,6 +648,7 @@ static void gauge_basis(const sc_grid_lsq_plan *q, double *U)
         r2 += x * x + y * y;
     }
     double s0 = 1.0 / sqrt((double)ns), s1 = 1.0 / sqrt(r2);
+    scale[0] = scale[1] = s0, scale[2] = scale[3] = s1; /* U_t = scale_t·C_t (gauge_g) */
     for (int k = 0; k < ns; ++k) {
         double x, y;
         sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
@@ -654,8 +669,9 @@ static int gauge_columns(const sc_grid_lsq_plan *q, const double *U, double *W, 
 }
 
 /* Per-node std/σ_r: diag(P⊥ Σ P⊥) = diag(Σ) − 2 diag(U ᵀW) + diag(Uᵀ (UᵀW) U), Σ = pinned
- * inverse (0 on pins; its diagonal from the selected inverse), W = Σ U. */
-static void sigma_ratios(sc_grid_lsq_plan *q, const double *U, const double *W)
+ * inverse (0 on pins), W = Σ U. First the projection's part into sgx/sgy (W is freed after), then
+ * diag(Σ) from the selected inverse. */
+static void sigma_ratios_projection(sc_grid_lsq_plan *q, const double *U, const double *W)
 {
     int ng = q->ng, n_red = q->n_red;
     double M[4][4];
@@ -666,25 +682,31 @@ static void sigma_ratios(sc_grid_lsq_plan *q, const double *U, const double *W)
                 s += U[(size_t)c * ng + i] * W[(size_t)d * n_red + i];
             M[c][d] = s;
         }
-    double sum2 = 0, mx = 0;
     for (int i = 0; i < ng; ++i) {
-        double var = q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i);
+        double var = 0;
         for (int c = 0; c < 4; ++c) {
             double uc = U[(size_t)c * ng + i];
             var -= 2 * W[(size_t)c * n_red + i] * uc;
             for (int d = 0; d < 4; ++d)
                 var += uc * M[c][d] * U[(size_t)d * ng + i];
         }
+        *(i % 2 == 0 ? &q->sgx[i / 2] : &q->sgy[i / 2]) = var;
+    }
+}
+
+static void sigma_ratios_finish(sc_grid_lsq_plan *q)
+{
+    double sum2 = 0, mx = 0;
+    for (int i = 0; i < q->ng; ++i) {
+        double *at = i % 2 == 0 ? &q->sgx[i / 2] : &q->sgy[i / 2];
+        double var = (q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i)) + *at;
         double s = var > 0 ? sqrt(var) : 0.0;
-        if (i % 2 == 0)
-            q->sgx[i / 2] = s;
-        else
-            q->sgy[i / 2] = s;
+        *at = s;
         sum2 += s * s;
         if (s > mx)
             mx = s;
     }
-    q->info.sigma_c_ratio_rms = sqrt(sum2 / ng);
+    q->info.sigma_c_ratio_rms = sqrt(sum2 / q->ng);
     q->info.sigma_c_ratio_max = mx;
 }
 
@@ -1353,12 +1375,13 @@ static int gauge_matrix(const sc_grid_lsq_plan *q, double *Minv_T)
 }
 
 /* u = Qᵀ f for the functional f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL):
- * ux on the reduced unknowns (n_red), uA on the A components (2 nn). */
+ * ux on the reduced unknowns (n_red), uA on the A components (2 nn); u = f − Σ_t γ_t C_t. */
 static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, const double *fg,
-                               const double *fm, double *ux, double *uA)
+                               const double *fm, double *ux, double *uA, double gam[7])
 {
     int ng = q->ng, nb = q->nb;
-    double Nf[7] = {0}, gam[7] = {0};
+    double Nf[7] = {0};
+    memset(gam, 0, sizeof(double) * 7);
     double ng7[7][2], nm7[7][5];
     for (int k = 0; fg && k < q->ns; ++k) {
         null_g(q, k, ng7);
@@ -1400,14 +1423,12 @@ static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, 
     }
 }
 
-/* uᵀ Σ u in two halves: z_x = S⁻¹(u_x − Σ_a (u_A[a]/W_a) Σ_e w_e ρ_e) (this right-hand side
- * here, the solve by the caller), then z_A[a] = (u_A[a] − Σ_e w_e ρ_e·z_x)/W_a (functional_quad). */
-static void functional_rhs(const sc_grid_lsq_plan *q, const double *ux, const double *uA,
-                           double *z)
+/* uᵀ Σ u in two halves: z_x = S⁻¹(u_x − Σ_a (u_A[a]/W_a) Σ_e w_e ρ_e), then z_A[a] = (u_A[a] −
+ * Σ_e w_e ρ_e·z_x)/W_a (functional_quad). This subtracts the A part of the right-hand side from z. */
+static void a_correction(const sc_grid_lsq_plan *q, const double *uA, double *z)
 {
     int idx[ROW_MAX];
     double val[ROW_MAX];
-    memcpy(z, ux, sizeof(double) * (size_t)q->n_red);
     for (int a = 0; a < 2 * q->nn; ++a) {
         long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
         double W = 0;
@@ -1469,11 +1490,36 @@ static void functional_def(const sc_grid_lsq_plan *q, int f, double r2, double *
     }
 }
 
-/* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
- * u = Qᵀ f, one pinned solve each, blocked. work: 2·n_red·SOLVE_CHUNK doubles. */
-static sc_status functional_variances(sc_grid_lsq_plan *q, double *work, sc_error *err)
+/* The right-hand sides whose pinned solves combine into every functional's (5 columns of n_red):
+ * [fg_O; 0], [fg_R; 0] and the A parts D_t (a_correction of the gauge sum C_t on A, t = 4..6). */
+static void functional_basis_rhs(const sc_grid_lsq_plan *q, double r2, double *fg, double *uA,
+                                 double *cols)
 {
-    double Minv_T[49];
+    size_t n = (size_t)q->n_red;
+    const double *pg, *pm;
+    memset(cols, 0, sizeof(double) * 5 * n);
+    for (int f = 0; f < 2; ++f) {
+        functional_def(q, f, r2, fg, uA, &pg, &pm); /* uA: not written for O, R */
+        memcpy(cols + (size_t)f * n, fg, sizeof(double) * (size_t)q->ng);
+    }
+    for (int t = 4; t < 7; ++t) {
+        for (int k = 0; k < q->nn; ++k) {
+            double ca[7][2];
+            gauge_a(q, k, ca);
+            uA[2 * k] = ca[t][0], uA[2 * k + 1] = ca[t][1];
+        }
+        a_correction(q, uA, cols + (size_t)(t - 2) * n);
+    }
+}
+
+/* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
+ * u = Qᵀ f = f − Σ_t γ_t C_t. By linearity Σ's action on u's right-hand side combines solves the
+ * plan has anyway (W = ΣU, U the C_t on G scaled; the misalignment columns sig_m) with 5 more
+ * (functional_basis_rhs), instead of one solve per functional. work: 2·n_red·SOLVE_CHUNK. */
+static sc_status functional_variances(sc_grid_lsq_plan *q, const double *W, const double scale[4],
+                                      const double *sig_m, double *work, sc_error *err)
+{
+    double Minv_T[49], gam[7];
     for (int t = 0; t < q->nm; ++t)
         q->var_m[t] = NAN;
     /* nullity_T > 3: combinations of misalignments (and drift) with A beyond the gauge stay free
@@ -1485,39 +1531,38 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, double *work, sc_erro
     size_t n = (size_t)q->n_red;
     double *fg = malloc(sizeof(double) * (size_t)q->ng), *fm = malloc(sizeof(double) * q->nm);
     double *ux = malloc(sizeof(double) * n), *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-    double *Z = malloc(sizeof(double) * n * SOLVE_CHUNK);
+    double *z = malloc(sizeof(double) * n), *B = malloc(sizeof(double) * 5 * n);
     sc_status st = SC_OK;
-    if (!fg || !fm || !ux || !uA || !Z)
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     double r2 = 0;
     for (int k = 0; k < q->ns; ++k) {
         double x, y;
         sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
         r2 += x * x + y * y;
     }
+    if (!fg || !fm || !ux || !uA || !z || !B)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    else if (functional_basis_rhs(q, r2, fg, uA, B), pinned_solve_cols(q, B, 5, 1, work) != 0)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (uncertainties)");
     const double *pg, *pm;
-    for (int f0 = 0; st == SC_OK && f0 < nf; f0 += SOLVE_CHUNK) {
-        int k = nf - f0 < SOLVE_CHUNK ? nf - f0 : SOLVE_CHUNK;
-        for (int c = 0; c < k; ++c) {
-            functional_def(q, f0 + c, r2, fg, fm, &pg, &pm);
-            functional_vectors(q, Minv_T, pg, pm, ux, uA);
-            functional_rhs(q, ux, uA, Z + (size_t)c * n);
+    for (int f = 0; st == SC_OK && f < nf; ++f) {
+        functional_def(q, f, r2, fg, fm, &pg, &pm);
+        functional_vectors(q, Minv_T, pg, pm, ux, uA, gam);
+        const double *own = f < 2 ? B + (size_t)f * n : sig_m + (size_t)(f - 2) * n;
+        for (size_t i = 0; i < n; ++i) {
+            double v = own[i];
+            for (int t = 0; t < 4; ++t)
+                v -= gam[t] / scale[t] * W[(size_t)t * n + i];
+            for (int t = 4; t < 7; ++t)
+                v -= gam[t] * B[(size_t)(t - 2) * n + i];
+            z[i] = v;
         }
-        if (pinned_solve(q, Z, k, 1, work, work + n * (size_t)k) != 0) {
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (uncertainties)");
-            break;
-        }
-        for (int c = 0; c < k; ++c) {
-            functional_def(q, f0 + c, r2, fg, fm, &pg, &pm);
-            functional_vectors(q, Minv_T, pg, pm, ux, uA);
-            double var = functional_quad(q, ux, uA, Z + (size_t)c * n);
-            if (f0 + c < 2)
-                *(f0 + c == 0 ? &q->var_O : &q->var_R) = var;
-            else
-                q->var_m[f0 + c - 2] = var;
-        }
+        double var = functional_quad(q, ux, uA, z);
+        if (f < 2)
+            *(f == 0 ? &q->var_O : &q->var_R) = var;
+        else
+            q->var_m[f - 2] = var;
     }
-    free(fg), free(fm), free(ux), free(uA), free(Z);
+    free(fg), free(fm), free(ux), free(uA), free(z), free(B);
     return st;
 }
 
@@ -1533,19 +1578,25 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, double *work, sc_erro
  * the selected inverse holds them; the misalignment columns of Σ come from nm extra solves.
  * ------------------------------------------------------------------------------------------- */
 
-/* Σ(i, j) of the pinned reduced inverse (original indices); sig_m: its misalignment columns. */
+/* Σ(i, j) of the pinned reduced inverse (original indices): with sig_m (its misalignment
+ * columns) the pairs involving a misalignment (G pairs 0), without it the G pairs from the
+ * selected inverse (pairs involving a misalignment 0). */
 static double sigma_entry(const sc_grid_lsq_plan *q, const double *sig_m, int i, int j)
 {
     if (q->pinned[i] || q->pinned[j])
         return 0.0;
+    if (i < q->ng && j < q->ng)
+        return sig_m ? 0.0 : sc_spsym_inv(q->f, i, j);
+    if (!sig_m)
+        return 0.0;
     if (i >= q->ng)
         return sig_m[(size_t)(i - q->ng) * q->n_red + j];
-    if (j >= q->ng)
-        return sig_m[(size_t)(j - q->ng) * q->n_red + i];
-    return sc_spsym_inv(q->f, i, j);
+    return sig_m[(size_t)(j - q->ng) * q->n_red + i];
 }
 
-/* Leverage of every equation of group a into h (by equation index). */
+/* Leverage of every equation of group a into h (by equation index), in two parts: with sig_m
+ * h_e = w_e/W_a + w_e·(the part of ãᵀΣã with a misalignment), then without it h_e += w_e·(the G
+ * part), so that the misalignment columns and the selected inverse are never held together. */
 static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a, int *u,
                            double *abar, double *sub, double *h)
 {
@@ -1590,11 +1641,14 @@ static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a
         for (int i = 0; i < nu; ++i)
             for (int j = 0; j < nu; ++j)
                 quad += abar[i] * sub[i * nu + j] * abar[j];
-        h[e] = q->eq_w[e] / W + q->eq_w[e] * quad;
+        if (sig_m)
+            h[e] = q->eq_w[e] / W + q->eq_w[e] * quad;
+        else
+            h[e] += q->eq_w[e] * quad;
     }
 }
 
-/* q->eq_h: the leverage of every equation, from the selected inverse and sig_m. */
+/* q->eq_h: the leverage of every equation; part by part as group_leverage (sig_m first). */
 static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *err)
 {
     int maxg = 0;
@@ -1605,7 +1659,8 @@ static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *e
     int *u = malloc(sizeof(int) * (size_t)mu);
     double *abar = malloc(sizeof(double) * 2 * (size_t)mu);
     double *sub = malloc(sizeof(double) * (size_t)mu * mu);
-    q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1));
+    if (!q->eq_h)
+        q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1));
     if (!u || !abar || !sub || !q->eq_h) {
         free(u), free(abar), free(sub);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
@@ -1634,25 +1689,36 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto out;
     }
-    gauge_basis(q, U);
+    double scale[4];
+    gauge_basis(q, U, scale);
     for (int t = 0; t < q->nm; ++t)
         sig_m[(size_t)t * n + (size_t)(q->ng + t)] = 1;
     if (gauge_columns(q, U, W, work) != 0 || pinned_solve_cols(q, sig_m, q->nm, 1, work) != 0) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
         goto out;
     }
-    st = functional_variances(q, work, err);
+    st = functional_variances(q, W, scale, sig_m, work, err);
+    if (st == SC_OK) {
+        sigma_ratios_projection(q, U, W);
+        st = leverages(q, sig_m, err);
+    }
+    /* the selected inverse needs the memory more */
+    free(work), free(U), free(W), free(sig_m);
+    work = U = W = sig_m = NULL;
     if (st != SC_OK)
         goto out;
-    free(work); /* the selected inverse needs the memory more */
-    work = NULL;
-    if (sc_spsym_selinv(q->f) != 0) {
+    if (sc_spsym_selinv(q->f, q->ng) != 0) { /* leverages ask for G pairs only */
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
         goto out;
     }
-    sigma_ratios(q, U, W);
-    st = leverages(q, sig_m, err);
+    sigma_ratios_finish(q);
+    st = leverages(q, NULL, err);
     sc_spsym_drop_inverse(q->f);
+    /* size the solver's workspace for execute's single right-hand sides now, so that execute
+     * allocates nothing */
+    memset(q->work, 0, sizeof(double) * n);
+    if (st == SC_OK && sc_spsym_solve(q->f, q->work, 1) != 0)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
 out:
     free(work), free(U), free(W), free(sig_m);
     return st;
@@ -1738,12 +1804,12 @@ sc_status sc_grid_lsq_covariance(const sc_grid_lsq_plan *q, const sc_grid_result
                             "the covariance of %d stage nodes is too large (limit %d nodes)",
                             q->ns, SC_GRID_LSQ_COV_MAX_NODES);
     double *U = malloc(sizeof(double) * (size_t)4 * ng);
-    double *SU = calloc((size_t)4 * ng, sizeof(double));
+    double *SU = calloc((size_t)4 * ng, sizeof(double)), scale[4];
     if (!U || !SU || pinned_inverse_g(q, cov) != 0) {
         free(U), free(SU);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
     }
-    gauge_basis(q, U);
+    gauge_basis(q, U, scale);
     /* P⊥ Σ P⊥ = Σ - U(ΣU)ᵀ - (ΣU)Uᵀ + U(UᵀΣU)Uᵀ */
     for (int c = 0; c < 4; ++c)
         for (int i = 0; i < ng; ++i) {

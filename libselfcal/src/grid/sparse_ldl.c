@@ -18,6 +18,75 @@ void sc_ldl_free(sc_ldl *f)
     memset(f, 0, sizeof *f);
 }
 
+/* Symbolic: elimination tree and column counts (lnz), f->Lp and the flop count. */
+static void ldl_symbolic(sc_ldl *f, int *flag, long *lnz)
+{
+    int n = f->n;
+    for (int k = 0; k < n; ++k) {
+        f->parent[k] = -1;
+        flag[k] = k;
+        lnz[k] = 0;
+        for (long p = f->Ap[k]; p < f->Ap[k + 1]; ++p) {
+            int i = f->Ai[p];
+            if (i >= k)
+                continue;
+            for (; flag[i] != k; i = f->parent[i]) {
+                if (f->parent[i] == -1)
+                    f->parent[i] = k;
+                lnz[i]++;
+                flag[i] = k;
+            }
+        }
+    }
+    f->Lp[0] = 0;
+    for (int k = 0; k < n; ++k) {
+        f->Lp[k + 1] = f->Lp[k] + lnz[k];
+        f->flops += (double)lnz[k] * (double)lnz[k];
+    }
+}
+
+/* Row k of L (a sparse triangular solve on the reach of the elimination tree) and the pivot
+ * d_k; returns d_k, akk: A_kk. */
+static double ldl_row(sc_ldl *f, int k, int *flag, long *lnz, int *pattern, double *y, double *akk)
+{
+    int n = f->n, top = n;
+    *akk = 0;
+    y[k] = 0;
+    flag[k] = k;
+    lnz[k] = 0;
+    for (long p = f->Ap[k]; p < f->Ap[k + 1]; ++p) {
+        int i = f->Ai[p];
+        if (i > k)
+            continue;
+        y[i] += f->Ax[p];
+        if (i == k)
+            *akk += f->Ax[p];
+        int len = 0;
+        for (; flag[i] != k; i = f->parent[i]) {
+            pattern[len++] = i;
+            flag[i] = k;
+        }
+        while (len > 0)
+            pattern[--top] = pattern[--len];
+    }
+    double dk = y[k];
+    y[k] = 0;
+    for (; top < n; ++top) {
+        int i = pattern[top];
+        double yi = y[i];
+        y[i] = 0;
+        long p2 = f->Lp[i] + lnz[i], p;
+        for (p = f->Lp[i]; p < p2; ++p)
+            y[f->Li[p]] -= f->Lx[p] * yi;
+        double lki = f->D[i] != 0 ? yi / f->D[i] : 0.0;
+        dk -= lki * yi;
+        f->Li[p] = k;
+        f->Lx[p] = lki;
+        lnz[i]++;
+    }
+    return dk;
+}
+
 int sc_ldl_factor(sc_ldl *f, int n, const long *Ap, const int *Ai, const double *Ax, double tol)
 {
     memset(f, 0, sizeof *f);
@@ -34,28 +103,7 @@ int sc_ldl_factor(sc_ldl *f, int n, const long *Ap, const int *Ai, const double 
     double *y = calloc((size_t)n + 1, sizeof(double));
     if (!f->parent || !f->Lp || !f->D || !flag || !lnz || !pattern || !y)
         goto nomem;
-    /* symbolic: elimination tree and column counts */
-    for (int k = 0; k < n; ++k) {
-        f->parent[k] = -1;
-        flag[k] = k;
-        lnz[k] = 0;
-        for (long p = Ap[k]; p < Ap[k + 1]; ++p) {
-            int i = Ai[p];
-            if (i >= k)
-                continue;
-            for (; flag[i] != k; i = f->parent[i]) {
-                if (f->parent[i] == -1)
-                    f->parent[i] = k;
-                lnz[i]++;
-                flag[i] = k;
-            }
-        }
-    }
-    f->Lp[0] = 0;
-    for (int k = 0; k < n; ++k) {
-        f->Lp[k + 1] = f->Lp[k] + lnz[k];
-        f->flops += (double)lnz[k] * (double)lnz[k];
-    }
+    ldl_symbolic(f, flag, lnz);
     long nz = f->Lp[n];
     f->Li = malloc(sizeof(int) * (size_t)(nz + 1));
     f->Lx = malloc(sizeof(double) * (size_t)(nz + 1));
@@ -63,45 +111,11 @@ int sc_ldl_factor(sc_ldl *f, int n, const long *Ap, const int *Ai, const double 
         goto nomem;
     f->bytes = (size_t)nz * (sizeof(int) + sizeof(double)) +
                (size_t)(n + 1) * (sizeof(int) + sizeof(long) + sizeof(double));
-    /* numeric, up-looking */
+    /* numeric, up-looking, with the rank decisions */
     f->min_kept_ratio = INFINITY;
     f->max_null_ratio = 0;
     for (int k = 0; k < n; ++k) {
-        int top = n;
-        double akk = 0;
-        y[k] = 0;
-        flag[k] = k;
-        lnz[k] = 0;
-        for (long p = Ap[k]; p < Ap[k + 1]; ++p) {
-            int i = Ai[p];
-            if (i > k)
-                continue;
-            y[i] += Ax[p];
-            if (i == k)
-                akk += Ax[p];
-            int len = 0;
-            for (; flag[i] != k; i = f->parent[i]) {
-                pattern[len++] = i;
-                flag[i] = k;
-            }
-            while (len > 0)
-                pattern[--top] = pattern[--len];
-        }
-        double dk = y[k];
-        y[k] = 0;
-        for (; top < n; ++top) {
-            int i = pattern[top];
-            double yi = y[i];
-            y[i] = 0;
-            long p2 = f->Lp[i] + lnz[i], p;
-            for (p = f->Lp[i]; p < p2; ++p)
-                y[f->Li[p]] -= f->Lx[p] * yi;
-            double lki = f->D[i] != 0 ? yi / f->D[i] : 0.0;
-            dk -= lki * yi;
-            f->Li[p] = k;
-            f->Lx[p] = lki;
-            lnz[i]++;
-        }
+        double akk, dk = ldl_row(f, k, flag, lnz, pattern, y, &akk);
         double ratio = akk > 0 ? dk / akk : 0.0;
         if (!(akk > 0) || !(ratio > tol)) {
             f->D[k] = 0;

@@ -111,6 +111,7 @@ struct sc_spsym {
     int ordering;         /* CHOLMOD's ordering code */
     int use_ldl;          /* the last factorization is the rank-revealing LDLᵀ */
     int sorted;           /* rows ascending within each column of the pattern */
+    int keep_cols;        /* the selected inverse keeps A's pattern in columns [0, keep_cols) */
     /* supernodal selected inverse: what is kept of it */
     int *col2super;
     double *Zd;           /* (A⁻¹)_kk by pivot position k */
@@ -404,13 +405,13 @@ static void super_tree(const cholmod_factor *L, const int *col2super, int *paren
             first[parent[J]] = first[J];
 }
 
-/* Entries of A by the pivot position of their column in the factor: the entries p of A whose
- * (permuted) column min(iperm[i], iperm[j]) is k are bucket[ptr[k] .. ptr[k+1]), their permuted
- * rows max(iperm[i], iperm[j]) in brow. */
+/* Entries of A in its first keep columns by the pivot position of their column in the factor:
+ * the entries p whose (permuted) column min(iperm[i], iperm[j]) is k are bucket[ptr[k] ..
+ * ptr[k+1]), their permuted rows max(iperm[i], iperm[j]) in brow. */
 static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out, int **brow_out)
 {
-    int n = s->n;
-    long nnz = s->Ap[n], *ptr = calloc((size_t)n + 1, sizeof(long));
+    int n = s->n, keep = s->keep_cols;
+    long nnz = s->Ap[keep], *ptr = calloc((size_t)n + 1, sizeof(long));
     int *bucket = malloc(sizeof(int) * ((size_t)nnz + 1));
     int *brow = malloc(sizeof(int) * ((size_t)nnz + 1));
     long *fill = malloc(sizeof(long) * ((size_t)n + 1));
@@ -418,7 +419,7 @@ static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out, i
         free(ptr), free(bucket), free(brow), free(fill);
         return -1;
     }
-    for (int j = 0; j < n; ++j)
+    for (int j = 0; j < keep; ++j)
         for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
             int a = s->iperm[s->Ai[p]], b = s->iperm[j];
             ptr[(a < b ? a : b) + 1]++;
@@ -426,7 +427,7 @@ static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out, i
     for (int k = 0; k < n; ++k)
         ptr[k + 1] += ptr[k];
     memcpy(fill, ptr, sizeof(long) * (size_t)n);
-    for (int j = 0; j < n; ++j)
+    for (int j = 0; j < keep; ++j)
         for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
             int a = s->iperm[s->Ai[p]], b = s->iperm[j];
             long at = fill[a < b ? a : b]++;
@@ -469,7 +470,7 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     }
     s->col2super = malloc(sizeof(int) * ((size_t)n + 1));
     s->Zd = malloc(sizeof(double) * ((size_t)n + 1));
-    s->ZA = malloc(sizeof(double) * ((size_t)s->Ap[n] + 1));
+    s->ZA = malloc(sizeof(double) * ((size_t)s->Ap[s->keep_cols] + 1));
     w->Z = calloc((size_t)nsuper + 1, sizeof(double *));
     w->parent = malloc(sizeof(int) * ((size_t)nsuper + 1));
     w->first = malloc(sizeof(int) * ((size_t)nsuper + 1));
@@ -581,11 +582,12 @@ static int super_selinv(sc_spsym *s)
         return -1;
     }
     s->selinv_work = work;
-    s->bytes += ((size_t)s->n + (size_t)s->Ap[s->n]) * sizeof(double) + (size_t)(s->n + 1) * sizeof(int);
+    s->bytes += ((size_t)s->n + (size_t)s->Ap[s->keep_cols]) * sizeof(double) +
+                (size_t)(s->n + 1) * sizeof(int);
     return 0;
 }
 
-int sc_spsym_selinv(sc_spsym *s)
+int sc_spsym_selinv(sc_spsym *s, int keep_cols)
 {
     if (s->use_ldl) {
         if (sc_ldl_selinv(&s->f) != 0)
@@ -595,6 +597,11 @@ int sc_spsym_selinv(sc_spsym *s)
     }
     if (s->Zd)
         return 0;
+    s->keep_cols = keep_cols < 0 || keep_cols > s->n ? s->n : keep_cols;
+    /* the blocked solves' workspace is not needed meanwhile: give its memory back */
+    s->api->free_dense(&s->X, s->cm);
+    s->api->free_dense(&s->Y, s->cm);
+    s->api->free_dense(&s->E, s->cm);
     return super_selinv(s);
 }
 
@@ -607,7 +614,8 @@ void sc_spsym_drop_inverse(sc_spsym *s)
         free(s->Zd), free(s->ZA), free(s->col2super);
         s->Zd = s->ZA = NULL;
         s->col2super = NULL;
-        s->bytes -= ((size_t)s->n + (size_t)s->Ap[s->n]) * sizeof(double) + (size_t)(s->n + 1) * sizeof(int);
+        s->bytes -= ((size_t)s->n + (size_t)s->Ap[s->keep_cols]) * sizeof(double) +
+                    (size_t)(s->n + 1) * sizeof(int);
     }
 }
 
@@ -635,6 +643,8 @@ double sc_spsym_inv(const sc_spsym *s, int i, int j)
     if (i == j)
         return s->Zd[pi];
     int c = i > j ? i : j, r = i > j ? j : i; /* A holds (r, c), r <= c, in column c */
+    if (c >= s->keep_cols)
+        return NAN;
     long lo = s->Ap[c], hi = s->Ap[c + 1];
     if (!s->sorted) {
         for (long p = lo; p < hi; ++p)

@@ -53,11 +53,12 @@ int sc_spsym_solve(sc_spsym *s, double *X, int ncol);
 /* Y = A X for ncol vectors (n x ncol, column after column; the factored values). */
 void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol);
 
-/* Selected inverse on the factor's pattern. Returns 0, or -1 if memory ran out. */
-int sc_spsym_selinv(sc_spsym *s);
+/* Selected inverse on the factor's pattern; kept: the diagonal and A's pattern in its first
+ * keep_cols columns (-1: all). Returns 0, or -1 if memory ran out. */
+int sc_spsym_selinv(sc_spsym *s, int keep_cols);
 
-/* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in A's pattern; NaN if (i, j) is not on
- * it or the selected inverse was not computed (or dropped). */
+/* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in the kept part of A's pattern; NaN if
+ * (i, j) is not on it or the selected inverse was not computed (or dropped). */
 double sc_spsym_inv(const sc_spsym *s, int i, int j);
 
 /* Free the selected inverse (sc_spsym_inv gives NaN after); the factor stays for solves. */
