@@ -306,6 +306,25 @@ static void test_grid(void **state)
     assert_non_null(g.out);
     every_allocation("sc_grid_read", read_grid, TMP "grid.csv");
     every_allocation("sc_grid_lsq_plan create + solve", grid_lsq, &g);
+    /* execute, residuals and predict allocate nothing: any allocation would fail while they run */
+    sc_grid_lsq_plan *q = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&g.d.plan, &g.d, NULL, &q, &err), SC_OK);
+    sc_grid_result res;
+    result_arrays(&g, &res);
+    double *resid = __real_malloc(5 * 4 * nn * sizeof(double)), px, py;
+    assert_non_null(resid);
+    counted = 0, injected = 0, fail_at = 1;
+    sc_status st1 = sc_grid_lsq_execute(q, &g.d, 0.01, &res, &err);
+    sc_status st2 = sc_grid_lsq_residuals(q, &g.d, &res, resid, resid + 4 * nn, resid + 8 * nn,
+                                          resid + 12 * nn, resid + 16 * nn, &err);
+    sc_grid_lsq_predict(q, &res, 0, 4, 4, 0.0, &px, &py);
+    fail_at = 0;
+    assert_int_equal(st1, SC_OK);
+    assert_int_equal(st2, SC_OK);
+    assert_false(injected);
+    assert_true(isfinite(px) && isfinite(py));
+    free(resid);
+    sc_grid_lsq_plan_destroy(q);
     every_allocation("sc_grid_exact double shift create + execute", grid_exact, &g);
     free(g.out);
     sc_grid_data_free(&g.d);

@@ -53,7 +53,7 @@ typedef struct sc_grid_lsq_opts {
  * otherwise). With weights stated in mask (ux_um/uy_um, a view's sigma_um) or, for a plan
  * without data, in the views' sigma_um, each coordinate weighs 1/u². opts: model options (NULL:
  * none). A plan that does not identify G is not an error here: *out is made and its info says
- * so. Cost ~N³ time, ~N² log N memory (N = 101: ~0.2 s CPU, ~30 MiB); see docs/grid-lsq.md. */
+ * so. Cost ~N³ time, ~N² log N memory (N = 101: ~0.3 s CPU, ~35 MiB); see docs/grid-lsq.md. */
 SC_API sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *mask,
                                          const sc_grid_lsq_opts *opts, sc_grid_lsq_plan **out,
                                          sc_error *err);
