@@ -24,7 +24,7 @@ if [ -n "$soak" ]; then
 fi
 section "grid: least squares, solve time and memory (issue: N = 25, 51, 101)"
 "$b/bench_grid_lsq" ${full:+--big}
-section "grid: least squares vs SuiteSparse CHOLMOD on the same matrix (issue 11: N = 101, 201, 301)"
+section "grid: the whole selfcal grid --method lsq command vs SuiteSparse CHOLMOD on the same matrix (issue 11: N = 101, 201, 301; 401 with full)"
 "$b/bench_grid_cholmod" 101 201 301 ${full:+401}
 section "grid: Monte Carlo sigma_C / sigma_r, three methods"
 "$b/bench_grid_mc" $full
