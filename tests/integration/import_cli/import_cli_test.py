@@ -11,31 +11,13 @@ import math
 import os
 import random
 import shlex
-import shutil
-import subprocess
 import sys
 
-CLI, TMP, CASE = sys.argv[1], sys.argv[2], sys.argv[3]
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import clitest  # noqa: E402  (the shared preamble: tests/integration/clitest.py)
+from clitest import fail, fresh_dir, run  # noqa: E402
 
-
-def fail(msg):
-    print("FAIL: " + msg)
-    sys.exit(1)
-
-
-def run(*args, expect=0):
-    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=300)
-    if p.returncode != expect:
-        fail("selfcal %s: exit %d (want %d)\nstdout: %s\nstderr: %s"
-             % (" ".join(map(str, args)), p.returncode, expect, p.stdout, p.stderr))
-    return p
-
-
-def fresh_dir(name):
-    d = os.path.join(TMP, "import_cli_" + name)
-    shutil.rmtree(d, ignore_errors=True)
-    os.makedirs(d)
-    return d
+CLI, TMP, CASE = clitest.setup("import_cli_")
 
 
 def read_grid(path):
