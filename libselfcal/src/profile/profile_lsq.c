@@ -308,17 +308,12 @@ sc_status sc_profile_lsq_plan_create(int n, int d1, int d2, double w1, double w2
     return sc_profile_lsq_plan_create_tuned(n, d1, d2, w1, w2, flags, out, err);
 }
 
-sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, double w2, unsigned flags,
-                                           sc_profile_lsq_plan **out, sc_error *err)
+/* The plan's sizes and the band's layout: one-sided, or twisted with separator s in
+ * [bw, bw+15], s ≡ N (mod 16), so that m = (N - s)/2 is a multiple of 8 (whole panels); twisted
+ * only where both halves are long against the band. */
+static void plan_layout(sc_profile_lsq_plan *p, int n, int d1, int d2, double w1, double w2,
+                        unsigned flags)
 {
-    if (out) *out = NULL;
-    if (!out) return sc_error_set(err, SC_E_INPUT, NULL, 0, "no output pointer");
-    if (!sc_profile_lsq_is_solvable(n, d1, d2, err)) return SC_E_INPUT;
-    if (!(w1 > 0.0) || !(w2 > 0.0) || !isfinite(w1) || !isfinite(w2))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "scan weights must be positive and finite (w1 = %g, w2 = %g)", w1, w2);
-    sc_profile_lsq_plan *p = calloc(1, sizeof *p);
-    if (!p) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     p->n = n;
     p->d1 = d1;
     p->d2 = d2;
@@ -335,8 +330,6 @@ sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, dou
     bd->ld = (size_t)p->bw + 1;
     bd->simd = (flags & SC_PROFILE_LSQ_PORTABLE) ? 0 : sc_lsq_band_cpu_has_simd();
     bd->nrow = bd->ncol = n;
-    /* twisted: separator s in [bw, bw+15] with s ≡ N (mod 16), so that m = (N - s)/2 is a
-     * multiple of 8 (whole panels); only where both halves are long against the band */
     if (!(flags & SC_PROFILE_LSQ_SERIAL) && (long)n >= 4L * p->bw + 32) {
         int sep = p->bw;
         while ((n - sep) % 16 != 0) sep++;
@@ -346,6 +339,129 @@ sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, dou
         bd->nrow = p->m + sep;
         bd->ncol = p->m;
     }
+}
+
+/* Factor the band (col: the factor's column scratch). Factors of 16 MB and more have their pages
+ * faulted in by a helper thread meanwhile (where the faults cost more than a thread). */
+static sc_status factor_band(sc_profile_lsq_plan *p, unsigned flags, double *col, sc_error *err)
+{
+    sc_lsq_band *bd = &p->band;
+#if SC_LSQ_PREFAULT
+    /* only where the faults cost more than a thread: factors of 16 MB and more, page-aligned */
+    prefault_job job;
+    job.base = (char *)bd->a;
+    job.len = (size_t)bd->nrow * bd->ld * sizeof(double) & ~(size_t)4095;
+    atomic_init(&job.stop, 0);
+    pthread_t helper;
+    int helping = !(flags & (SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD)) && job.len >= ((size_t)16 << 20) &&
+                  ((uintptr_t)bd->a & 4095) == 0 &&
+                  pthread_create(&helper, NULL, prefault_run, &job) == 0;
+#else
+    (void)flags;
+#endif
+    int bad = sc_lsq_band_factor(bd, col);
+#if SC_LSQ_PREFAULT
+    if (helping) {
+        atomic_store_explicit(&job.stop, 1, memory_order_relaxed);
+        pthread_join(helper, NULL);
+    }
+#endif
+    if (bad >= 0)
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
+                            "banded Cholesky factor lost positive definiteness at row %d", bad);
+    if (p->twisted && !twisted_separator(p))
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
+                            "the separator block of the twisted factor is not positive definite");
+    return SC_OK;
+}
+
+/* SC_PROFILE_LSQ_EARLY_UNCERTAINTY: the selected inversion needs only the factor, so it runs on a
+ * second thread from here on, while this one does the border solves and the caller its solves. */
+static sc_status start_early_uncertainty(sc_profile_lsq_plan *p, unsigned flags, sc_error *err)
+{
+#if SC_LSQ_PREFAULT
+    if (flags & SC_PROFILE_LSQ_EARLY_UNCERTAINTY) {
+        p->bg_diag = malloc((size_t)p->n * sizeof(double));
+        p->bg_win = malloc(inverse_scratch(p) * sizeof(double));
+        if (!p->bg_diag || !p->bg_win)
+            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (early uncertainty)");
+        if (pthread_mutex_init(&p->bg_lock, NULL) == 0) {
+            if (pthread_create(&p->bg_thread, NULL, early_inverse_run, p) == 0)
+                p->bg = 1;
+            else
+                pthread_mutex_destroy(&p->bg_lock);
+        }
+    }
+#else
+    (void)p;
+    (void)flags;
+    (void)err;
+#endif
+    return SC_OK;
+}
+
+/* The border of the offsets c1, c2: E column k = d(normal eq. of f)/d c_k, G = diag(w_k (n - d_k)),
+ * Z = B⁻¹E, B⁻¹U for the uncertainty (U = [1/√N, (i - nc)/√sxx], pinned entries zeroed) and the
+ * inverse of the Schur complement S = G - EᵀZ. */
+static sc_status border(sc_profile_lsq_plan *p, sc_error *err)
+{
+    const int n = p->n;
+    const int dk[2] = {p->d1, p->d2};
+    const double wk[2] = {p->w1, p->w2};
+    for (int k = 0; k < 2; k++) {
+        double *e = p->e + (size_t)k * n;
+        for (int i = 0; i < n; i++) {
+            double v = 0.0;
+            if (!is_pinned(p, i)) {
+                if (i >= dk[k]) v += wk[k];
+                if (i <= n - 1 - dk[k]) v -= wk[k];
+            }
+            e[i] = v;
+        }
+        memcpy(p->z + (size_t)k * n, e, (size_t)n * sizeof(double));
+        p->g[k] = wk[k] * (double)(n - dk[k]);
+    }
+    double nc = 0.5 * (double)(n - 1);
+    double sxx = (double)n * ((double)n * (double)n - 1.0) / 12.0;
+    double a1 = 1.0 / sqrt((double)n), a2 = 1.0 / sqrt(sxx);
+    for (int i = 0; i < n; i++) {
+        int pin = is_pinned(p, i);
+        p->bu[i] = pin ? 0.0 : a1;
+        p->bu[n + i] = pin ? 0.0 : a2 * ((double)i - nc);
+    }
+    double *rhs[4] = {p->z, p->z + n, p->bu, p->bu + n};
+    solve_many(p, rhs, 4);
+    double s[4];
+    for (int a = 0; a < 2; a++)
+        for (int b = 0; b < 2; b++)
+            s[2 * a + b] = (a == b ? p->g[a] : 0.0) -
+                           sc_lsq_dot(p->e + (size_t)a * n, p->z + (size_t)b * n, n);
+    double sym = 0.5 * (s[1] + s[2]);
+    s[1] = s[2] = sym;
+    double det = s[0] * s[3] - s[1] * s[2];
+    if (!(s[0] > 0.0) || !(det > 1e-14 * s[0] * s[3]))
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
+                            "the zero-point offsets c1, c2 are numerically undetermined "
+                            "(Schur complement det %g)", det);
+    p->sinv[0] = s[3] / det;
+    p->sinv[3] = s[0] / det;
+    p->sinv[1] = p->sinv[2] = -s[1] / det;
+    return SC_OK;
+}
+
+sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, double w2, unsigned flags,
+                                           sc_profile_lsq_plan **out, sc_error *err)
+{
+    if (out) *out = NULL;
+    if (!out) return sc_error_set(err, SC_E_INPUT, NULL, 0, "no output pointer");
+    if (!sc_profile_lsq_is_solvable(n, d1, d2, err)) return SC_E_INPUT;
+    if (!(w1 > 0.0) || !(w2 > 0.0) || !isfinite(w1) || !isfinite(w2))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "scan weights must be positive and finite (w1 = %g, w2 = %g)", w1, w2);
+    sc_profile_lsq_plan *p = calloc(1, sizeof *p);
+    if (!p) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    plan_layout(p, n, d1, d2, w1, w2, flags);
+    sc_lsq_band *bd = &p->band;
     if ((size_t)n > SIZE_MAX / sizeof(double) / (bd->ld + 4)) {
         int bw = p->bw;
         free(p);
@@ -366,99 +482,16 @@ sc_status sc_profile_lsq_plan_create_tuned(int n, int d1, int d2, double w1, dou
                             "out of memory for the banded factor (N = %d, d = %d: %.0f MB)", n,
                             bw, (double)n * (double)(bw + 1) * 8.0 / 1e6);
     }
-#if SC_LSQ_PREFAULT
-    /* only where the faults cost more than a thread: factors of 16 MB and more, page-aligned */
-    prefault_job job;
-    job.base = (char *)bd->a;
-    job.len = (size_t)bd->nrow * bd->ld * sizeof(double) & ~(size_t)4095;
-    atomic_init(&job.stop, 0);
-    pthread_t helper;
-    int helping = !(flags & (SC_PROFILE_LSQ_SERIAL | SC_PROFILE_LSQ_ONE_THREAD)) && job.len >= ((size_t)16 << 20) &&
-                  ((uintptr_t)bd->a & 4095) == 0 &&
-                  pthread_create(&helper, NULL, prefault_run, &job) == 0;
-#endif
-    int bad = sc_lsq_band_factor(bd, col);
-#if SC_LSQ_PREFAULT
-    if (helping) {
-        atomic_store_explicit(&job.stop, 1, memory_order_relaxed);
-        pthread_join(helper, NULL);
-    }
-#endif
+    sc_status st = factor_band(p, flags, col, err);
     free(col);
-    if (bad >= 0) {
+    if (st == SC_OK)
+        st = start_early_uncertainty(p, flags, err);
+    if (st == SC_OK)
+        st = border(p, err);
+    if (st != SC_OK) {
         sc_profile_lsq_plan_destroy(p);
-        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
-                            "banded Cholesky factor lost positive definiteness at row %d", bad);
+        return st;
     }
-    if (p->twisted && !twisted_separator(p)) {
-        sc_profile_lsq_plan_destroy(p);
-        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
-                            "the separator block of the twisted factor is not positive definite");
-    }
-#if SC_LSQ_PREFAULT
-    /* the selected inversion needs only the factor: on a second thread from here on, while this
-     * one does the border solves and the caller its solves */
-    if (flags & SC_PROFILE_LSQ_EARLY_UNCERTAINTY) {
-        p->bg_diag = malloc((size_t)n * sizeof(double));
-        p->bg_win = malloc(inverse_scratch(p) * sizeof(double));
-        if (!p->bg_diag || !p->bg_win) {
-            sc_profile_lsq_plan_destroy(p);
-            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (early uncertainty)");
-        }
-        if (pthread_mutex_init(&p->bg_lock, NULL) == 0) {
-            if (pthread_create(&p->bg_thread, NULL, early_inverse_run, p) == 0)
-                p->bg = 1;
-            else
-                pthread_mutex_destroy(&p->bg_lock);
-        }
-    }
-#endif
-    /* border: E column k = d(normal eq. of f)/d c_k; G = diag(w_k (n - d_k)) */
-    const int dk[2] = {d1, d2};
-    const double wk[2] = {w1, w2};
-    for (int k = 0; k < 2; k++) {
-        double *e = p->e + (size_t)k * n;
-        for (int i = 0; i < n; i++) {
-            double v = 0.0;
-            if (!is_pinned(p, i)) {
-                if (i >= dk[k]) v += wk[k];
-                if (i <= n - 1 - dk[k]) v -= wk[k];
-            }
-            e[i] = v;
-        }
-        memcpy(p->z + (size_t)k * n, e, (size_t)n * sizeof(double));
-        p->g[k] = wk[k] * (double)(n - dk[k]);
-    }
-    /* U = [1/√N, (i - nc)/√sxx] with the pinned entries zeroed; B⁻¹U for the uncertainty */
-    {
-        double nc = 0.5 * (double)(n - 1);
-        double sxx = (double)n * ((double)n * (double)n - 1.0) / 12.0;
-        double a1 = 1.0 / sqrt((double)n), a2 = 1.0 / sqrt(sxx);
-        for (int i = 0; i < n; i++) {
-            int pin = is_pinned(p, i);
-            p->bu[i] = pin ? 0.0 : a1;
-            p->bu[n + i] = pin ? 0.0 : a2 * ((double)i - nc);
-        }
-    }
-    double *rhs[4] = {p->z, p->z + n, p->bu, p->bu + n};
-    solve_many(p, rhs, 4);
-    double s[4];
-    for (int a = 0; a < 2; a++)
-        for (int b = 0; b < 2; b++)
-            s[2 * a + b] = (a == b ? p->g[a] : 0.0) -
-                           sc_lsq_dot(p->e + (size_t)a * n, p->z + (size_t)b * n, n);
-    double sym = 0.5 * (s[1] + s[2]);
-    s[1] = s[2] = sym;
-    double det = s[0] * s[3] - s[1] * s[2];
-    if (!(s[0] > 0.0) || !(det > 1e-14 * s[0] * s[3])) {
-        sc_profile_lsq_plan_destroy(p);
-        return sc_error_set(err, SC_E_INTERNAL, NULL, 0,
-                            "the zero-point offsets c1, c2 are numerically undetermined "
-                            "(Schur complement det %g)", det);
-    }
-    p->sinv[0] = s[3] / det;
-    p->sinv[3] = s[0] / det;
-    p->sinv[1] = p->sinv[2] = -s[1] / det;
     *out = p;
     return SC_OK;
 }
