@@ -228,6 +228,66 @@ static void test_atomic_file_device_target(void **state)
     assert_non_null(strstr(err.msg, "directory"));
 }
 
+/* The plain-row fast path takes a row only as the general path (split, sc_csv_long,
+ * sc_csv_double) takes it, with the same values; any other row is left to the general path. */
+static void test_csv_plain_row(void **state)
+{
+    (void)state;
+    static const char *const fields[] = {
+        "1",  "2",     "-3",   "+4",   " 5",   "6 ",  "0",     "12345678901234567890", "1.5",
+        "",   "-0.25", "1e3",  "abc",  "inf",  "nan", "1e999", "24.178524343604046",   "7,8",
+        ".5", "5.",    "0x10", "1e-400", "\r",  "-",   "3.2675473613268378",
+        "0.000123456789012345678"};
+    const int nf = (int)(sizeof fields / sizeof *fields);
+    const char *path = SELFCAL_TEST_TMP "/plain.csv";
+    sc_rng rng;
+    sc_rng_seed(&rng, 7);
+    static char text[512 * 1024];
+    size_t len = 0;
+    int rows = 4000;
+    for (int t = 0; t < rows; ++t) {
+        int n = 3 + (int)(sc_rng_uniform(&rng) * 3); /* 3..5 fields; 4 is what we ask for */
+        for (int c = 0; c < n; ++c) {
+            const char *f = fields[sc_rng_uniform(&rng) < 0.6 ? c % 2 == 0 ? 0 : 16
+                                                             : (int)(sc_rng_uniform(&rng) * nf)];
+            len += (size_t)snprintf(text + len, sizeof text - len, "%s%s", c ? "," : "", f);
+        }
+        text[len++] = '\n';
+    }
+    write_text(path, text, len);
+    sc_csv r;
+    sc_error err;
+    assert_int_equal(sc_csv_open(&r, path, &err), SC_OK);
+    int plain = 0, other = 0;
+    while (sc_csv_next_line(&r, &err) == 1) {
+        long lv[2];
+        double dv[2];
+        int fast = sc_csv_is_plain_row(&r, "LDLD", lv, dv);
+        char copy[256];
+        snprintf(copy, sizeof copy, "%s", r.text);
+        int ok = sc_csv_split(&r, &err) == 4;
+        long l0 = 0, l1 = 0;
+        double d0 = 0, d1 = 0;
+        ok = ok && sc_csv_long(&r, 0, "a", &l0, &err) == SC_OK &&
+             sc_csv_double(&r, 1, "b", &d0, &err) == SC_OK &&
+             sc_csv_long(&r, 2, "c", &l1, &err) == SC_OK &&
+             sc_csv_double(&r, 3, "d", &d1, &err) == SC_OK;
+        if (fast) {
+            if (!ok)
+                fail_msg("plain row the general path refuses: '%s'", copy);
+            assert_true(lv[0] == l0 && lv[1] == l1);
+            assert_memory_equal(&dv[0], &d0, sizeof d0);
+            assert_memory_equal(&dv[1], &d1, sizeof d1);
+            plain++;
+        } else {
+            /* left to the general path: refused there, or not plain (blanks, a '+', ...) */
+            other++;
+        }
+    }
+    sc_csv_close(&r);
+    assert_true(plain > 100 && other > 100);
+}
+
 static void test_version(void **state)
 {
     (void)state;
@@ -243,6 +303,7 @@ int main(void)
         cmocka_unit_test(test_parse_numbers),
         cmocka_unit_test(test_error_messages_stay_one_printable_line),
         cmocka_unit_test(test_csv_lines_and_errors),
+        cmocka_unit_test(test_csv_plain_row),
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
         cmocka_unit_test(test_atomic_file_device_target),

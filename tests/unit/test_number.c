@@ -176,6 +176,64 @@ static void test_parse_grammar(void **st)
     assert_true(v == 123);
 }
 
+/* The prefix parser ends a number where the grammar ends, with the value the whole-text parser
+ * gives that number alone: random fields (of every length, so the eight-byte scan meets every
+ * split) followed by a byte that ends them or that could continue them. */
+static void test_parse_prefix(void **st)
+{
+    (void)st;
+    sc_rng r;
+    sc_rng_seed(&r, 17);
+    const char after[] = ",\n x.e-+5";
+    char s[96];
+    for (int t = 0; t < 200000; ++t) {
+        int len = 0;
+        if (sc_rng_uniform(&r) < 0.3)
+            s[len++] = sc_rng_uniform(&r) < 0.5 ? '-' : '+';
+        int nd = 1 + (int)(sc_rng_uniform(&r) * 24), dot = (int)(sc_rng_uniform(&r) * (nd + 2));
+        for (int i = 0; i < nd; ++i) {
+            if (i == dot)
+                s[len++] = '.';
+            s[len++] = (char)('0' + (int)(sc_rng_uniform(&r) * 10));
+        }
+        if (sc_rng_uniform(&r) < 0.2)
+            len += snprintf(s + len, sizeof s - len, "e%d", (int)(sc_rng_uniform(&r) * 80) - 40);
+        int field = len;
+        int tail = (int)(sc_rng_uniform(&r) * 12);
+        for (int i = 0; i < tail; ++i)
+            s[len++] = after[(int)(sc_rng_uniform(&r) * (sizeof after - 1))];
+        s[len] = '\0';
+        double whole, pre;
+        const char *stop = NULL;
+        int rc = sc_number_parse_prefix(s, s + len, &stop, &pre);
+        /* the longest prefix the whole-text parser takes is where the prefix parser stops */
+        int longest = -1;
+        for (int k = len; k >= 1 && longest < 0; --k)
+            if (sc_number_parse(s, (size_t)k, &whole) == 0)
+                longest = k;
+        if (rc == 0) {
+            assert_true(longest >= field);
+            assert_int_equal((int)(stop - s), longest);
+            same_bits(pre, whole);
+        } else {
+            /* refused: the field itself is, or the tail continues it into something refused */
+            int continues = field < len && strchr("0123456789.eE", s[field]) != NULL;
+            if (sc_number_parse(s, (size_t)field, &whole) == 0 && !continues)
+                fail_msg("prefix refused '%s' (field of %d bytes)", s, field);
+        }
+    }
+    double v;
+    const char *stop;
+    assert_int_equal(sc_number_parse_prefix("2.5,", "2.5," + 4, &stop, &v), 0);
+    assert_true(v == 2.5 && *stop == ',');
+    assert_int_equal(sc_number_parse_prefix("1e,", "1e," + 3, &stop, &v), 0);
+    assert_true(v == 1 && *stop == 'e');
+    assert_int_equal(sc_number_parse_prefix(",1", ",1" + 2, &stop, &v), SC_E_INPUT);
+    assert_int_equal(sc_number_parse_prefix("inf,", "inf," + 4, &stop, &v), SC_E_INPUT);
+    assert_int_equal(sc_number_parse_prefix("1e-400,", "1e-400," + 7, &stop, &v), SC_E_INPUT);
+    assert_int_equal(sc_number_parse_prefix("0e-400,", "0e-400," + 7, &stop, &v), 0);
+}
+
 /* sc_parse_long (csv.h) agrees with strtol(s, 10) on whole numbers, and refuses what it refuses. */
 static void test_parse_long(void **st)
 {
@@ -210,6 +268,7 @@ int main(void)
         cmocka_unit_test(test_format_special),
         cmocka_unit_test(test_parse_vs_strtod),
         cmocka_unit_test(test_parse_grammar),
+        cmocka_unit_test(test_parse_prefix),
         cmocka_unit_test(test_parse_long),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

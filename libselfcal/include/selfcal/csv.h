@@ -32,8 +32,8 @@ typedef struct sc_csv {
     int owns_fp;
     char path[256];
     long line;                       /* number of the current line, 1-based */
-    char *text;                      /* the current line, without its line end */
-    size_t cap;
+    char *text;                      /* the current line, without its line end (in buf) */
+    size_t len;                      /* its length in bytes */
     int nfields;                     /* after sc_csv_split */
     char *field[SC_CSV_MAX_FIELDS];  /* point into text (split modifies it) */
     char *buf;                       /* read-ahead block of the file (the reader's own) */
@@ -48,10 +48,11 @@ SC_API FILE *sc_open_input(const char *path, sc_error *err);
 /* Open path for reading ("-" reads stdin). */
 SC_API sc_status sc_csv_open(sc_csv *r, const char *path, sc_error *err);
 
-/* Close the file and free the line buffer; safe to call twice. */
+/* Close the file and free the read-ahead block; safe to call twice. */
 SC_API void sc_csv_close(sc_csv *r);
 
-/* Read the next line into r->text: 1 = a line, 0 = end of file, -1 = error (err says which). */
+/* Read the next line: r->text (NUL-terminated, valid until the next call) and r->len; 1 = a line,
+ * 0 = end of file, -1 = error (err says which). */
 SC_API int sc_csv_next_line(sc_csv *r, sc_error *err);
 
 /* Is the current line empty or only white space? */
@@ -59,6 +60,13 @@ SC_API bool sc_csv_is_blank(const sc_csv *r);
 
 /* Split the current line at commas, trimming blanks around fields; returns the field count or -1. */
 SC_API int sc_csv_split(sc_csv *r, sc_error *err);
+
+/* The fast path of a reader's data rows: is the current line exactly the fields that types lists
+ * ('L' a whole number into longs[], 'D' a number into doubles[], in order), separated by single
+ * commas with no blanks, each valid as sc_csv_long / sc_csv_double take it? True with the values
+ * stored; false and the reader takes its general path (sc_csv_split, ...), which says what is
+ * wrong. */
+SC_API bool sc_csv_is_plain_row(const sc_csv *r, const char *types, long *longs, double *doubles);
 
 /* Parse field k as a finite double; name is used in the error message. */
 SC_API sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out,

@@ -21,11 +21,18 @@
 extern "C" {
 #endif
 
-/* Buffer size that holds any formatted double with its terminating NUL. */
-#define SC_NUMBER_BUF 32
+/* Buffer size sc_number_format needs (any formatted double with its NUL is at most 25 bytes; the
+ * formatter copies fixed-size runs and may write scratch bytes up to here). */
+#define SC_NUMBER_BUF 40
 
 /* Parse the len bytes at s as a whole number (format above): SC_OK and *out set, or SC_E_INPUT. */
 SC_API sc_status sc_number_parse(const char *s, size_t len, double *out);
+
+/* Parse the number that starts at s (before end) and ends where the grammar ends (the first byte
+ * that cannot continue it, e.g. a comma): SC_OK with *stop just after it and *out set, or
+ * SC_E_INPUT (no number there, or refused as above). */
+SC_API sc_status sc_number_parse_prefix(const char *s, const char *end, const char **stop,
+                                        double *out);
 
 /* Write v's shortest round-trip text and a NUL into buf (SC_NUMBER_BUF bytes); returns the
  * length. NaN and infinities are written as printf writes them ("nan", "-inf", ...). */

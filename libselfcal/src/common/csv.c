@@ -50,91 +50,85 @@ void sc_csv_close(sc_csv *r)
     if (r->fp && r->owns_fp)
         fclose(r->fp);
     r->fp = NULL;
-    free(r->text);
-    r->text = NULL;
-    r->cap = 0;
     free(r->buf);
     r->buf = NULL;
+    r->text = NULL;
 }
 
-#define CSV_BLOCK 65536 /* bytes read at a time */
+/* Bytes read at a time. Larger than a line may be, so that the unfinished line moved to the front
+ * of the block always leaves room to read more. */
+#define CSV_BLOCK (256 * 1024)
+_Static_assert(CSV_BLOCK > 2 * SC_CSV_MAX_LINE, "a block holds any line with room to spare");
 
-/* Lines are cut from a read-ahead block with memchr (one fgetc per byte cost more than the
- * parsing of the numbers on a 10⁶-line file). */
+/* Read more of the file behind the unfinished line at the block's end (moved to its front).
+ * 1 = bytes read, 0 = end of file, -1 = read error. */
+static int csv_refill(sc_csv *r, sc_error *err)
+{
+    size_t keep = r->buf_len - r->buf_pos;
+    if (r->buf_pos > 0) {
+        memmove(r->buf, r->buf + r->buf_pos, keep);
+        r->buf_pos = 0;
+        r->buf_len = keep;
+    }
+    size_t nread = fread(r->buf + keep, 1, CSV_BLOCK - keep, r->fp);
+    if (nread == 0) {
+        if (ferror(r->fp)) {
+            sc_error_set(err, SC_E_IO, r->path, r->line + 1, "read error: %s", strerror(errno));
+            return -1;
+        }
+        r->eof = 1;
+        return 0;
+    }
+    r->buf_len += nread;
+    return 1;
+}
+
+/* The line is found with memchr in a read-ahead block and handed out in place (its line end
+ * replaced by a NUL): no byte is copied or looked at one by one (on a 10⁶-line file, per-byte
+ * work cost more than the parsing of the numbers). */
 int sc_csv_next_line(sc_csv *r, sc_error *err)
 {
     if (!r->fp)
         return 0;
-    if (!r->text || !r->buf) {
-        if (!r->text) {
-            r->cap = 256;
-            r->text = malloc(r->cap);
-        }
-        if (!r->buf)
-            r->buf = malloc(CSV_BLOCK);
-        if (!r->text || !r->buf) {
+    if (!r->buf) {
+        r->buf = malloc(CSV_BLOCK + 1); /* + 1: the NUL after a last line without line end */
+        if (!r->buf) {
             sc_error_set(err, SC_E_NOMEM, r->path, r->line, "out of memory");
             return -1;
         }
     }
-    size_t len = 0;
-    int got = 0;
+    const char *nl;
     for (;;) {
-        if (r->buf_pos == r->buf_len) {
-            if (r->eof)
-                break;
-            size_t nread = fread(r->buf, 1, CSV_BLOCK, r->fp);
-            if (nread == 0) {
-                if (ferror(r->fp)) {
-                    sc_error_set(err, SC_E_IO, r->path, r->line + 1, "read error: %s",
-                                 strerror(errno));
-                    return -1;
-                }
-                r->eof = 1;
-                break;
-            }
-            r->buf_len = nread;
-            r->buf_pos = 0;
-        }
-        got = 1;
-        const char *s = r->buf + r->buf_pos;
         size_t avail = r->buf_len - r->buf_pos;
-        const char *nl = memchr(s, '\n', avail);
-        size_t take = nl ? (size_t)(nl - s) : avail;
-        if (memchr(s, '\0', take)) {
-            sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file");
-            return -1;
-        }
-        if (len + take >= SC_CSV_MAX_LINE) {
-            sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "line longer than %d bytes",
-                         SC_CSV_MAX_LINE);
-            return -1;
-        }
-        if (len + take + 1 > r->cap) {
-            size_t ncap = r->cap;
-            while (ncap < len + take + 1)
-                ncap *= 2;
-            char *p = realloc(r->text, ncap);
-            if (!p) {
-                sc_error_set(err, SC_E_NOMEM, r->path, r->line + 1, "out of memory");
-                return -1;
-            }
-            r->text = p;
-            r->cap = ncap;
-        }
-        memcpy(r->text + len, s, take);
-        len += take;
-        r->buf_pos += take;
-        if (nl) {
-            r->buf_pos++;
+        nl = memchr(r->buf + r->buf_pos, '\n', avail);
+        if (nl || avail >= SC_CSV_MAX_LINE)
+            break;
+        if (r->eof) {
+            if (avail == 0)
+                return 0;
             break;
         }
+        int rc = csv_refill(r, err);
+        if (rc < 0)
+            return -1;
     }
-    if (!got)
-        return 0;
-    if (len > 0 && r->text[len - 1] == '\r')
+    char *s = r->buf + r->buf_pos;
+    size_t len = nl ? (size_t)(nl - s) : r->buf_len - r->buf_pos;
+    if (memchr(s, '\0', len < SC_CSV_MAX_LINE ? len : SC_CSV_MAX_LINE)) {
+        sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file");
+        return -1;
+    }
+    if (len >= SC_CSV_MAX_LINE) {
+        sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "line longer than %d bytes",
+                     SC_CSV_MAX_LINE);
+        return -1;
+    }
+    r->buf_pos += len + (nl != NULL);
+    if (len > 0 && s[len - 1] == '\r')
         --len;
-    r->text[len] = '\0';
+    s[len] = '\0';
+    r->text = s;
+    r->len = len;
     r->line++;
     r->nfields = 0;
     return 1;
@@ -211,6 +205,40 @@ sc_status sc_parse_long(const char *s, long *out)
         return SC_E_INPUT;
     *out = neg ? (long)(0UL - v) : (long)v;
     return SC_OK;
+}
+
+/* A plain whole number: optional '-', 1..18 digits (no overflow to check). */
+static const char *plain_long(const char *p, const char *end, long *out)
+{
+    int neg = p < end && *p == '-';
+    p += neg;
+    const char *first = p;
+    long v = 0;
+    while (p < end && *p >= '0' && *p <= '9' && p - first < 18)
+        v = v * 10 + (*p++ - '0');
+    if (p == first || (p < end && *p >= '0' && *p <= '9'))
+        return NULL;
+    *out = neg ? -v : v;
+    return p;
+}
+
+bool sc_csv_is_plain_row(const sc_csv *r, const char *types, long *longs, double *doubles)
+{
+    const char *p = r->text, *end = r->text + r->len;
+    for (const char *t = types; *t; ++t) {
+        if (t != types) {
+            if (p == end || *p != ',')
+                return false;
+            ++p;
+        }
+        if (*t == 'L')
+            p = plain_long(p, end, longs++);
+        else if (p == end || sc_number_parse_prefix(p, end, &p, doubles++) != SC_OK)
+            return false;
+        if (!p)
+            return false;
+    }
+    return p == end;
 }
 
 sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, sc_error *err)

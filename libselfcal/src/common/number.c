@@ -1,7 +1,7 @@
-/* Decimal numbers in text files (selfcal/number.h): the grammar check (strict, locale-free) and
- * the "%.17g"-style layout are here; the exact conversions are fast_float's and Dragonbox's
- * (number_kernels.cc), because glibc's strtod/printf took most of a large command's time
- * (docs/profile.md: reading and writing 10⁶ points). */
+/* Decimal numbers in text files (selfcal/number.h): the whole-text parse and the "%.17g"-style
+ * layout are here; the exact conversions (and the parser's grammar check, inlined with its
+ * kernel) are fast_float's and Dragonbox's (number_kernels.cc), because glibc's strtod/printf took
+ * most of a large command's time (docs/profile.md: reading and writing 10⁶ points). */
 #include "selfcal/number.h"
 
 #include <float.h>
@@ -9,101 +9,111 @@
 #include <stdint.h>
 #include <string.h>
 
-int sc_number_kernel_parse(const char *first, const char *last, double *out);
 void sc_number_kernel_shortest(double v, uint64_t *digits, int *exp10);
 
-/* fast_float's from_chars takes exactly this grammar except a leading '+' (skipped here) and the
- * words inf/nan (refused as non-finite), and stops at the first byte outside it (refused: it must
- * consume every byte), so no second scan is needed; only a zero or subnormal result looks at the
- * digits again, to refuse an underflow of nonzero digits. */
+/* sc_number_parse_prefix is in number_kernels.cc, next to the kernel it wraps. */
 sc_status sc_number_parse(const char *s, size_t len, double *out)
 {
-    const char *p = s, *end = s + len;
-    if (p < end && *p == '+') {
-        ++p;
-        if (p < end && *p == '-')
-            return SC_E_INPUT;
-    }
+    const char *stop;
     double v;
-    if (p == end || sc_number_kernel_parse(p, end, &v) != 0 || !isfinite(v))
+    if (sc_number_parse_prefix(s, s + len, &stop, &v) != SC_OK || stop != s + len)
         return SC_E_INPUT;
-    if (!(fabs(v) >= DBL_MIN)) /* zero or subnormal: refuse unless every digit is 0 */
-        for (const char *q = p; q < end && *q != 'e' && *q != 'E'; ++q)
-            if (*q >= '1' && *q <= '9')
-                return SC_E_INPUT;
     *out = v;
     return SC_OK;
 }
 
-int sc_number_format(double v, char *buf)
+/* The 8 decimal digits of x < 10^8, first digit in the lowest byte (the order of memory), as
+ * values 0..9: split into 4 + 4, 2 + 2, 1 + 1 digits in parallel lanes of one word (SWAR). */
+static inline uint64_t digits8(uint32_t x)
+{
+    uint64_t v = x / 10000 | (uint64_t)(x % 10000) << 32;
+    uint64_t q = (v * 10486 >> 20) & 0x0000007F0000007FULL; /* lane / 100 */
+    v = q | (v - q * 100) << 16;
+    q = (v * 103 >> 10) & 0x000F000F000F000FULL; /* lane / 10 */
+    return q | (v - q * 10) << 8;
+}
+
+static const uint64_t pow10_u64[17] = {1,
+                                       10,
+                                       100,
+                                       1000,
+                                       10000,
+                                       100000,
+                                       1000000,
+                                       10000000,
+                                       100000000,
+                                       1000000000,
+                                       10000000000,
+                                       100000000000,
+                                       1000000000000,
+                                       10000000000000,
+                                       100000000000000,
+                                       1000000000000000,
+                                       10000000000000000};
+
+/* The decimal digits of m (0 < m < 10^17), written as 17 characters with leading zeros at t;
+ * returns how many of them are m's own digits (the last ones). */
+static inline int digits17(uint64_t m, char t[17])
+{
+    uint64_t hi = m / 100000000, lo = m % 100000000;
+    uint64_t wh = digits8((uint32_t)(hi % 100000000)), wl = digits8((uint32_t)lo);
+    t[0] = (char)('0' + hi / 100000000);
+    uint64_t ah = wh + 0x3030303030303030ULL, al = wl + 0x3030303030303030ULL;
+    memcpy(t + 1, &ah, 8);
+    memcpy(t + 9, &al, 8);
+    if (m >= 10000000000000000ULL)
+        return 17;
+    if (wh) /* the first nonzero byte is the first digit */
+        return 16 - __builtin_ctzll(wh) / 8;
+    return 8 - __builtin_ctzll(wl) / 8;
+}
+
+/* The rare cases: NaN, infinities, zeros. */
+static int format_special(double v, char *buf)
 {
     char *p = buf;
     if (signbit(v))
         *p++ = '-';
-    if (isnan(v)) {
-        strcpy(p, "nan");
-        return (int)(p - buf) + 3;
-    }
-    if (isinf(v)) {
-        strcpy(p, "inf");
-        return (int)(p - buf) + 3;
-    }
-    if (v == 0) {
-        *p++ = '0';
-        *p = '\0';
-        return (int)(p - buf);
-    }
+    strcpy(p, isnan(v) ? "nan" : isinf(v) ? "inf" : "0");
+    return (int)(p - buf) + (v == 0 ? 1 : 3);
+}
+
+/* The layout copies fixed-size runs (compiled to plain moves, where a copy of k bytes is a call)
+ * and then moves the end to where the text ends: buf holds SC_NUMBER_BUF bytes for that. */
+int sc_number_format(double v, char *buf)
+{
+    if (!(fabs(v) > 0) || !isfinite(v))
+        return format_special(v, buf);
+    char *p = buf;
+    *p = '-';
+    p += signbit(v) != 0;
     uint64_t m;
     int e;
     sc_number_kernel_shortest(fabs(v), &m, &e);
-    /* the digits, most significant first, two at a time */
-    static const char pairs[201] = "00010203040506070809101112131415161718192021222324252627282930"
-                                   "31323334353637383940414243444546474849505152535455565758596061"
-                                   "62636465666768697071727374757677787980818283848586878889909192"
-                                   "93949596979899";
-    char tmp[24], *t = tmp + sizeof tmp;
-    while (m >= 100) {
-        unsigned r = (unsigned)(m % 100);
-        m /= 100;
-        *--t = pairs[2 * r + 1];
-        *--t = pairs[2 * r];
-    }
-    if (m >= 10) {
-        *--t = pairs[2 * m + 1];
-        *--t = pairs[2 * m];
-    } else {
-        *--t = (char)('0' + m);
-    }
-    const char *dig = t;
-    int k = (int)(tmp + sizeof tmp - t);
+    char tmp[40]; /* 17 digits, then slack for the fixed copies */
+    int k = digits17(m, tmp);
     int x = k - 1 + e; /* decimal exponent of the first digit */
-    if (x >= -4 && x < 17) {
-        if (e >= 0) { /* integer: the digits, then e zeros */
-            memcpy(p, dig, (size_t)k);
-            p += k;
-            memset(p, '0', (size_t)e);
-            p += e;
-        } else if (x >= 0) { /* d.ddd */
-            memcpy(p, dig, (size_t)x + 1);
-            p += x + 1;
-            *p++ = '.';
-            memcpy(p, dig + x + 1, (size_t)(k - x - 1));
-            p += k - x - 1;
-        } else { /* 0.000ddd */
-            *p++ = '0';
-            *p++ = '.';
-            memset(p, '0', (size_t)(-x - 1));
-            p += -x - 1;
-            memcpy(p, dig, (size_t)k);
-            p += k;
-        }
-    } else {
-        *p++ = dig[0];
-        if (k > 1) {
-            *p++ = '.';
-            memcpy(p, dig + 1, (size_t)k - 1);
-            p += k - 1;
-        }
+    if (e >= 0 && x < 17) { /* an integer: m·10^e has x + 1 <= 17 digits */
+        k = digits17(m * pow10_u64[e], tmp);
+        memcpy(p, tmp + 17 - k, 17);
+        p += k;
+    } else if (x >= 0 && x < 17) { /* d.ddd: x + 1 digits, the point, the rest */
+        const char *dig = tmp + 17 - k;
+        memcpy(p, dig, 16);
+        p[x + 1] = '.';
+        memcpy(p + x + 2, dig + x + 1, 16);
+        p += k + 1;
+    } else if (x < 0 && x >= -4) { /* 0.000ddd */
+        memcpy(p, "0.000000", 8);
+        p += 1 - x;
+        memcpy(p, tmp + 17 - k, 17);
+        p += k;
+    } else { /* d.ddde±XX */
+        const char *dig = tmp + 17 - k;
+        p[0] = dig[0];
+        p[1] = '.';
+        memcpy(p + 2, dig + 1, 16);
+        p += k > 1 ? k + 1 : 1;
         *p++ = 'e';
         *p++ = x < 0 ? '-' : '+';
         int ax = x < 0 ? -x : x;

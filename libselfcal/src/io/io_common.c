@@ -50,6 +50,34 @@ sc_status sc_io_finish(sc_afile *f, sc_error *err)
     return sc_afile_commit(f, err);
 }
 
+sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err)
+{
+    o->buf = o->p = NULL;
+    sc_status st = sc_afile_open(&o->f, path, err);
+    if (st != SC_OK)
+        return st;
+    o->buf = o->p = malloc(SC_IO_BLOCK);
+    if (!o->buf) {
+        sc_afile_abort(&o->f);
+        return sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
+    }
+    return SC_OK;
+}
+
+void sc_io_out_flush(sc_io_out *o)
+{
+    fwrite(o->buf, 1, (size_t)(o->p - o->buf), o->f.fp);
+    o->p = o->buf;
+}
+
+sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
+{
+    sc_io_out_flush(o);
+    free(o->buf);
+    o->buf = o->p = NULL;
+    return sc_io_finish(&o->f, err);
+}
+
 void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
                     double tol_frac, double *a, double *b, double *dev, long *bad)
 {

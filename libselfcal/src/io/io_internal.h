@@ -32,6 +32,31 @@ char *sc_io_put_number(char *p, double v, char sep);
 /* Append a whole number in decimal, then sep; returns the end. */
 char *sc_io_put_long(char *p, long v, char sep);
 
+/* Rows of text gathered in a block and written to an atomic file in big chunks (one fwrite per
+ * row cost more than formatting it). Write rows at o->p, then call sc_io_out_row. */
+#define SC_IO_BLOCK (256 * 1024)
+#define SC_IO_ROW_MAX 1024 /* the room kept for one row */
+typedef struct sc_io_out {
+    sc_afile f; /* open between sc_io_out_open and sc_io_out_finish */
+    char *buf, *p;
+} sc_io_out;
+
+/* Open path's atomic file and the block. */
+sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err);
+
+/* Write the block out (to f.fp) and start it again. */
+void sc_io_out_flush(sc_io_out *o);
+
+/* After a row: write the block out once less than SC_IO_ROW_MAX bytes are left in it. */
+static inline void sc_io_out_row(sc_io_out *o)
+{
+    if (o->p - o->buf > SC_IO_BLOCK - SC_IO_ROW_MAX)
+        sc_io_out_flush(o);
+}
+
+/* Write the rest, free the block, commit (sc_io_finish). */
+sc_status sc_io_out_finish(sc_io_out *o, sc_error *err);
+
 /* Commit an atomic file, or abort it (SC_E_IO) if a write failed. */
 sc_status sc_io_finish(sc_afile *f, sc_error *err);
 

@@ -245,25 +245,13 @@ static sc_status start_data(profile_reader *pr, sc_error *err)
     return SC_OK;
 }
 
-/* One data row (already split). */
-static sc_status data_row(profile_reader *pr, sc_error *err)
+/* Store one data row's values (scan k, sample idx, the three readings) after its checks. */
+static sc_status store_row(profile_reader *pr, long k, long idx, const double v[3], sc_error *err)
 {
-    sc_csv *r = &pr->csv;
+    const sc_csv *r = &pr->csv;
     const char *P = r->path;
-    if (r->nfields < 5)
-        return sc_error_set(err, SC_E_INPUT, P, r->line,
-                            "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got %d", r->nfields);
-    long k, idx;
-    double v1, v2, v3;
-    sc_status st;
-    if ((st = sc_csv_long(r, 0, "scan", &k, err)) != SC_OK ||
-        (st = sc_csv_long(r, 1, "n", &idx, err)) != SC_OK ||
-        (st = sc_csv_double(r, 2, "m1_um", &v1, err)) != SC_OK ||
-        (st = sc_csv_double(r, 3, "m2_um", &v2, err)) != SC_OK ||
-        (st = sc_csv_double(r, 4, "m3_urad", &v3, err)) != SC_OK)
-        return st;
-    if (!(fabs(v1) <= SC_INPUT_MAX_ABS && fabs(v2) <= SC_INPUT_MAX_ABS &&
-          fabs(v3) <= SC_INPUT_MAX_ABS))
+    if (!(fabs(v[0]) <= SC_INPUT_MAX_ABS && fabs(v[1]) <= SC_INPUT_MAX_ABS &&
+          fabs(v[2]) <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, P, r->line,
                             "a reading beyond 1 m (m1_um, m2_um) or 1 rad (m3_urad) is not a "
                             "sensor reading");
@@ -280,10 +268,29 @@ static sc_status data_row(profile_reader *pr, sc_error *err)
                             "duplicate sample: scan %ld, n = %ld (first at line %ld)", k, idx,
                             *seen);
     *seen = r->line;
-    pr->data.m1_um[k - 1][idx] = v1;
-    pr->data.m2_um[k - 1][idx] = v2;
-    pr->data.m3_urad[k - 1][idx] = v3;
+    pr->data.m1_um[k - 1][idx] = v[0];
+    pr->data.m2_um[k - 1][idx] = v[1];
+    pr->data.m3_urad[k - 1][idx] = v[2];
     return SC_OK;
+}
+
+/* One data row (already split): its fields, then store_row. */
+static sc_status data_row(profile_reader *pr, sc_error *err)
+{
+    sc_csv *r = &pr->csv;
+    if (r->nfields < 5)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                            "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got %d", r->nfields);
+    long k, idx;
+    double v[3];
+    sc_status st;
+    if ((st = sc_csv_long(r, 0, "scan", &k, err)) != SC_OK ||
+        (st = sc_csv_long(r, 1, "n", &idx, err)) != SC_OK ||
+        (st = sc_csv_double(r, 2, "m1_um", &v[0], err)) != SC_OK ||
+        (st = sc_csv_double(r, 3, "m2_um", &v[1], err)) != SC_OK ||
+        (st = sc_csv_double(r, 4, "m3_urad", &v[2], err)) != SC_OK)
+        return st;
+    return store_row(pr, k, idx, v, err);
 }
 
 /* Every sample of both scans present: a gap is reported at the first row of its scan after it
@@ -319,11 +326,25 @@ static sc_status check_complete(const profile_reader *pr, sc_error *err)
     return SC_OK;
 }
 
+/* The data rows. A plain row (five fields, no blanks: what writers write) is parsed in place by
+ * sc_csv_is_plain_row; any other line takes the general path (comments, blanks, split, the fields'
+ * own messages), so both give the same values and the same errors. */
 static sc_status read_rows(profile_reader *pr, sc_error *err)
 {
+    sc_csv *r = &pr->csv;
     int rc;
-    while ((rc = sc_io_next_record(&pr->csv, err)) == 1) {
-        sc_status st = data_row(pr, err);
+    sc_status st;
+    while ((rc = sc_csv_next_line(r, err)) == 1) {
+        long kn[2];
+        double v[3];
+        if (sc_csv_is_plain_row(r, "LLDDD", kn, v))
+            st = store_row(pr, kn[0], kn[1], v, err);
+        else if (r->text[0] == '#' || sc_csv_is_blank(r))
+            continue;
+        else if (sc_csv_split(r, err) < 0)
+            return err ? err->code : SC_E_INPUT;
+        else
+            st = data_row(pr, err);
         if (st != SC_OK)
             return st;
     }
@@ -369,26 +390,28 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
 
 sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
 {
-    sc_afile f;
-    sc_status st = sc_afile_open(&f, path, err);
+    sc_io_out o;
+    sc_status st = sc_io_out_open(&o, path, err);
     if (st != SC_OK)
         return st;
-    fprintf(f.fp, "# selfcal-profile v1\n# N = %d\n# s_mm = %.17g\n# scan 1: d=%d\n# scan 2: d=%d\n",
+    FILE *fp = o.f.fp;
+    fprintf(fp, "# selfcal-profile v1\n# N = %d\n# s_mm = %.17g\n# scan 1: d=%d\n# scan 2: d=%d\n",
             d->n, d->s_mm, d->d[0], d->d[1]);
     if (d->has_sigma_disp)
-        fprintf(f.fp, "# sigma_disp_um = %.17g\n", d->sigma_disp_um);
+        fprintf(fp, "# sigma_disp_um = %.17g\n", d->sigma_disp_um);
     if (d->has_sigma_angle)
-        fprintf(f.fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
-    fprintf(f.fp, "scan,n,m1_um,m2_um,m3_urad\n");
+        fprintf(fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
+    fputs("scan,n,m1_um,m2_um,m3_urad\n", fp);
     for (int k = 0; k < 2; ++k)
         for (int i = 0; i < d->n - d->d[k]; ++i) {
-            char line[8 + 3 * SC_NUMBER_BUF + 16], *p = line;
+            char *p = o.p;
             p = sc_io_put_long(p, k + 1, ',');
             p = sc_io_put_long(p, i, ',');
             p = sc_io_put_number(p, d->m1_um[k][i], ',');
             p = sc_io_put_number(p, d->m2_um[k][i], ',');
             p = sc_io_put_number(p, d->m3_urad[k][i], '\n');
-            fwrite(line, 1, (size_t)(p - line), f.fp);
+            o.p = p;
+            sc_io_out_row(&o);
         }
-    return sc_io_finish(&f, err);
+    return sc_io_out_finish(&o, err);
 }

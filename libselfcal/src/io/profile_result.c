@@ -17,13 +17,13 @@ sc_status sc_profile_write_result(const char *path, int n, double s_mm, const do
                                   const double *uf_um, const double *ey_um, int n_ey,
                                   sc_error *err)
 {
-    sc_afile f;
-    sc_status st = sc_afile_open(&f, path, err);
+    sc_io_out o;
+    sc_status st = sc_io_out_open(&o, path, err);
     if (st != SC_OK)
         return st;
-    fprintf(f.fp, "n,x_mm,f_um,uf_um,ey_um\n");
+    fputs("n,x_mm,f_um,uf_um,ey_um\n", o.f.fp);
     for (int i = 0; i < n; ++i) {
-        char line[24 + 4 * SC_NUMBER_BUF], *p = line;
+        char *p = o.p;
         p = sc_io_put_long(p, i, ',');
         p = sc_io_put_number(p, i * s_mm, ',');
         p = sc_io_put_number(p, f_um[i], ',');
@@ -33,9 +33,10 @@ sc_status sc_profile_write_result(const char *path, int n, double s_mm, const do
         if (ey_um && i < n_ey)
             p = sc_io_put_number(p, ey_um[i], 0);
         *p++ = '\n';
-        fwrite(line, 1, (size_t)(p - line), f.fp);
+        o.p = p;
+        sc_io_out_row(&o);
     }
-    return sc_io_finish(&f, err);
+    return sc_io_out_finish(&o, err);
 }
 
 void sc_profile_result_free(sc_profile_result *r)
