@@ -38,141 +38,192 @@ static int parse_pos_double(const char *cmd, const char *opt, const char *s, dou
     return 0;
 }
 
-int cmd_profile(int argc, char **argv)
+/* The command line. */
+typedef struct profile_args {
+    const char *in, *out, *method_s, *plot;
+    sc_profile_method method;
+    double sigma_disp_um, sigma_angle_urad; /* NaN: not given */
+    long mc;
+    unsigned long long seed;
+    int quiet;
+} profile_args;
+
+#define PARSE_GO_ON (-1) /* parse_option/parse_args: no exit code, carry on */
+
+/* The option at argv[*i] (and its value, *i advanced past it): PARSE_GO_ON or an exit code. */
+static int parse_option(profile_args *pa, int argc, char **argv, int *i)
+{
+    const char *cmd = "profile", *a = argv[*i];
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+        fputs(USAGE, stdout);
+        return CLI_OK;
+    }
+    int has_val = *i + 1 < argc;
+    const char *val = has_val ? argv[*i + 1] : NULL;
+    *i += has_val;
+    if (!strcmp(a, "--method") && has_val)
+        pa->method_s = val;
+    else if ((!strcmp(a, "--out") || !strcmp(a, "-o")) && has_val)
+        pa->out = val;
+    else if (!strcmp(a, "--plot") && has_val)
+        pa->plot = val;
+    else if (!strcmp(a, "--sigma-disp-um") && has_val) {
+        if (parse_pos_double(cmd, a, val, &pa->sigma_disp_um))
+            return CLI_BAD_INPUT;
+    } else if (!strcmp(a, "--sigma-angle-urad") && has_val) {
+        if (parse_pos_double(cmd, a, val, &pa->sigma_angle_urad))
+            return CLI_BAD_INPUT;
+    } else if (!strcmp(a, "--mc") && has_val) {
+        char *e;
+        pa->mc = strtol(val, &e, 10);
+        if (*e || pa->mc < 2 || pa->mc > 100000000)
+            return cli_usage_error(cmd, "--mc: '%s' must be a whole number >= 2", val);
+    } else if (!strcmp(a, "--seed") && has_val) {
+        char *e;
+        pa->seed = strtoull(val, &e, 10);
+        if (*e || !*val)
+            return cli_usage_error(cmd, "--seed: '%s' is not a whole number", val);
+    } else {
+        *i -= has_val; /* no value taken */
+        if (!strcmp(a, "--quiet"))
+            pa->quiet = 1;
+        else
+            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
+    }
+    return PARSE_GO_ON;
+}
+
+/* The whole command line into pa: PARSE_GO_ON, or an exit code (--help, a usage error). */
+static int parse_args(int argc, char **argv, profile_args *pa)
 {
     const char *cmd = "profile";
-    const char *in = NULL, *out = NULL, *method_s = NULL, *plot = NULL;
-    double sd = NAN, sa = NAN;
-    long mc = 0;
-    unsigned long long seed = 1;
-    int quiet = 0;
+    *pa = (profile_args){.sigma_disp_um = NAN, .sigma_angle_urad = NAN, .seed = 1};
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        int has_val = i + 1 < argc;
-        if (!strcmp(a, "--method") && has_val)
-            method_s = argv[++i];
-        else if ((!strcmp(a, "--out") || !strcmp(a, "-o")) && has_val)
-            out = argv[++i];
-        else if (!strcmp(a, "--plot") && has_val)
-            plot = argv[++i];
-        else if (!strcmp(a, "--sigma-disp-um") && has_val) {
-            if (parse_pos_double(cmd, a, argv[++i], &sd))
-                return CLI_BAD_INPUT;
-        } else if (!strcmp(a, "--sigma-angle-urad") && has_val) {
-            if (parse_pos_double(cmd, a, argv[++i], &sa))
-                return CLI_BAD_INPUT;
-        } else if (!strcmp(a, "--mc") && has_val) {
-            char *e;
-            mc = strtol(argv[++i], &e, 10);
-            if (*e || mc < 2 || mc > 100000000)
-                return cli_usage_error(cmd, "--mc: '%s' must be a whole number >= 2", argv[i]);
-        } else if (!strcmp(a, "--seed") && has_val) {
-            char *e;
-            seed = strtoull(argv[++i], &e, 10);
-            if (*e || !*argv[i])
-                return cli_usage_error(cmd, "--seed: '%s' is not a whole number", argv[i]);
-        } else if (!strcmp(a, "--quiet"))
-            quiet = 1;
-        else if (a[0] == '-' && a[1])
-            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
-        else if (!in)
-            in = a;
+        if (a[0] == '-' && a[1]) {
+            int rc = parse_option(pa, argc, argv, &i);
+            if (rc != PARSE_GO_ON)
+                return rc;
+        } else if (!pa->in)
+            pa->in = a;
         else
-            return cli_usage_error(cmd, "more than one input file (%s, %s)", in, a);
+            return cli_usage_error(cmd, "more than one input file (%s, %s)", pa->in, a);
     }
-    if (!method_s || !in || !out) {
+    if (!pa->method_s || !pa->in || !pa->out)
         return cli_usage_error(cmd, "--method, IN.csv and --out are required (see --help)");
-    }
-    if (!strcmp(out, "-"))
-        quiet = 1; /* the result goes to stdout: no summary there */
-    sc_profile_method method;
-    if (!strcmp(method_s, "dft"))
-        method = SC_PROFILE_DFT;
-    else if (!strcmp(method_s, "lsq"))
-        method = SC_PROFILE_LSQ;
+    if (!strcmp(pa->out, "-"))
+        pa->quiet = 1; /* the result goes to stdout: no summary there */
+    if (!strcmp(pa->method_s, "dft"))
+        pa->method = SC_PROFILE_DFT;
+    else if (!strcmp(pa->method_s, "lsq"))
+        pa->method = SC_PROFILE_LSQ;
     else
-        return cli_usage_error(cmd, "--method must be dft or lsq, not '%s'", method_s);
+        return cli_usage_error(cmd, "--method must be dft or lsq, not '%s'", pa->method_s);
+    return PARSE_GO_ON;
+}
 
+/* The library's options from the command line. */
+static void calibrate_options(const profile_args *pa, sc_profile_options *opt)
+{
+    sc_profile_options_default(opt);
+    opt->method = pa->method;
+    opt->sigma_disp_um = pa->sigma_disp_um;
+    opt->sigma_angle_urad = pa->sigma_angle_urad;
+    opt->mc_trials = pa->mc;
+    opt->mc_seed = (uint64_t)pa->seed;
+    /* the summary's residual_ratio line is the least-squares method's: DFT skips its extra solve */
+    opt->residual_check = pa->method == SC_PROFILE_LSQ;
+    opt->progress = pa->mc > 0 && isatty(STDERR_FILENO) && !pa->quiet ? progress_cb : NULL;
+}
+
+/* --plot: the profile with its uncertainty band as SVG. */
+static sc_status write_plot(const profile_args *pa, const sc_profile_data *d,
+                            const sc_profile_solution *sol, sc_error *err)
+{
+    const int n = d->n;
+    double *x = malloc((size_t)n * sizeof(double));
+    if (!x)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (int i = 0; i < n; ++i)
+        x[i] = i * d->s_mm;
+    sc_profile_result r = {.n = n, .x_mm = x, .f_um = sol->f_um, .uf_um = sol->uf_um,
+                           .ey_um = sol->ey_um};
+    char title[128];
+    snprintf(title, sizeof title, "%s method, N = %d, d = %d/%d", pa->method_s, n, d->d[0],
+             d->d[1]);
+    profile_plot_opts o = {title, pa->method_s, NULL, 0};
+    sc_status st = profile_plot_write(pa->plot, &r, NULL, NULL, &o, err);
+    free(x);
+    return st;
+}
+
+/* The summary on stdout (not with --quiet). */
+static void print_summary(const profile_args *pa, const sc_profile_data *d,
+                          const sc_profile_solution *sol)
+{
+    const int n = d->n;
+    const double *uf = sol->uf_um;
+    double ss = 0, mx = 0;
+    for (int i = 0; sol->have_uf && i < n; ++i) {
+        ss += uf[i] * uf[i];
+        if (uf[i] > mx)
+            mx = uf[i];
+    }
+    printf("method: %s\nN: %d\ns_mm: %g\nd1: %d\nd2: %d\n", pa->method_s, n, d->s_mm, d->d[0],
+           d->d[1]);
+    if (sol->noise_known)
+        printf("noise: given (sigma_disp_um = %g, sigma_angle_urad = %g)\n", sol->sigma_disp_um,
+               sol->sigma_angle_urad);
+    else
+        printf("noise: estimated from residuals\n");
+    if (sol->have_uf)
+        printf("sigma_y1_um: %.6g\nsigma_y2_um: %.6g\n", sol->sigma_y_um[0], sol->sigma_y_um[1]);
+    if (!isnan(sol->residual_ratio))
+        printf("residual_ratio: %.4g (RMS of residual/given sigma; dof %d)\n", sol->residual_ratio,
+               sol->dof);
+    if (sol->have_uf)
+        printf("uncertainty: %s\nuf_rms_um: %.6g\nuf_max_um: %.6g\n",
+               pa->mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / n), mx);
+}
+
+/* Calibrate the data read, then write the result, the plot and the summary. */
+static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_data *d,
+                                     double *blk, sc_error *err)
+{
+    const int n = d->n;
+    sc_profile_options opt;
+    calibrate_options(pa, &opt);
+    sc_profile_solution sol = {.f_um = blk, .uf_um = blk + n, .ey_um = blk + 2 * (size_t)n};
+    sc_status st = sc_profile_calibrate(d, &opt, &sol, err);
+    if (st != SC_OK)
+        return st;
+    if (!sol.have_uf && !pa->quiet)
+        fprintf(stderr, "selfcal profile: no redundancy (N - d1 - d2 = %d): noise not estimable, "
+                        "uf_um left empty\n", sol.dof);
+    st = sc_profile_write_result(pa->out, n, d->s_mm, sol.f_um, sol.have_uf ? sol.uf_um : NULL,
+                                 sol.ey_um, n - d->d[0], err);
+    if (st == SC_OK && pa->plot)
+        st = write_plot(pa, d, &sol, err);
+    if (st == SC_OK && !pa->quiet)
+        print_summary(pa, d, &sol);
+    return st;
+}
+
+int cmd_profile(int argc, char **argv)
+{
+    profile_args pa;
+    int rc = parse_args(argc, argv, &pa);
+    if (rc != PARSE_GO_ON)
+        return rc;
     sc_error err;
     sc_error_clear(&err);
     sc_profile_data d;
-    if (sc_profile_read(in, &d, &err) != SC_OK)
+    if (sc_profile_read(pa.in, &d, &err) != SC_OK)
         return cli_report(&err);
-    const int n = d.n, d1 = d.d[0], d2 = d.d[1];
-    sc_profile_options opt;
-    sc_profile_options_default(&opt);
-    opt.method = method;
-    opt.sigma_disp_um = sd;
-    opt.sigma_angle_urad = sa;
-    opt.mc_trials = mc;
-    opt.mc_seed = (uint64_t)seed;
-    /* the summary's residual_ratio line is the least-squares method's: DFT skips its extra solve */
-    opt.residual_check = method == SC_PROFILE_LSQ;
-    opt.progress = mc > 0 && isatty(STDERR_FILENO) && !quiet ? progress_cb : NULL;
-    int rc = CLI_FAIL;
-    sc_status st;
-    double *blk = malloc((size_t)3 * n * sizeof(double));
-    if (!blk) {
-        sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
-        goto done;
-    }
-    double *f = blk, *uf = f + n, *ey = uf + n;
-    sc_profile_solution sol = {.f_um = f, .uf_um = uf, .ey_um = ey};
-    if ((st = sc_profile_calibrate(&d, &opt, &sol, &err)) != SC_OK)
-        goto done;
-    int have_uf = sol.have_uf;
-    if (!have_uf && !quiet)
-        fprintf(stderr, "selfcal profile: no redundancy (N - d1 - d2 = %d): noise not estimable, "
-                        "uf_um left empty\n", sol.dof);
-    if ((st = sc_profile_write_result(out, n, d.s_mm, f, have_uf ? uf : NULL, ey, n - d1, &err)) != SC_OK)
-        goto done;
-    if (plot) {
-        double *x = malloc((size_t)n * sizeof(double));
-        if (!x) {
-            sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-            goto done;
-        }
-        for (int i = 0; i < n; ++i)
-            x[i] = i * d.s_mm;
-        sc_profile_result r = {.n = n, .x_mm = x, .f_um = f, .uf_um = uf, .ey_um = ey};
-        char title[128];
-        snprintf(title, sizeof title, "%s method, N = %d, d = %d/%d", method_s, n, d1, d2);
-        profile_plot_opts o = {title, method_s, NULL, 0};
-        st = profile_plot_write(plot, &r, NULL, NULL, &o, &err);
-        free(x);
-        if (st != SC_OK)
-            goto done;
-    }
-    if (!quiet) {
-        double ss = 0, mx = 0;
-        for (int i = 0; have_uf && i < n; ++i) {
-            ss += uf[i] * uf[i];
-            if (uf[i] > mx)
-                mx = uf[i];
-        }
-        printf("method: %s\nN: %d\ns_mm: %g\nd1: %d\nd2: %d\n", method_s, n, d.s_mm, d1, d2);
-        if (sol.noise_known)
-            printf("noise: given (sigma_disp_um = %g, sigma_angle_urad = %g)\n", sol.sigma_disp_um,
-                   sol.sigma_angle_urad);
-        else
-            printf("noise: estimated from residuals\n");
-        if (have_uf)
-            printf("sigma_y1_um: %.6g\nsigma_y2_um: %.6g\n", sol.sigma_y_um[0], sol.sigma_y_um[1]);
-        if (!isnan(sol.residual_ratio))
-            printf("residual_ratio: %.4g (RMS of residual/given sigma; dof %d)\n", sol.residual_ratio,
-                   sol.dof);
-        if (have_uf)
-            printf("uncertainty: %s\nuf_rms_um: %.6g\nuf_max_um: %.6g\n",
-                   mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / n), mx);
-    }
-    rc = CLI_OK;
-done:
-    if (rc != CLI_OK && err.code != SC_OK)
-        rc = cli_report(&err);
+    double *blk = malloc((size_t)3 * d.n * sizeof(double)); /* f, uf, ey */
+    sc_status st = blk ? calibrate_and_write(&pa, &d, blk, &err)
+                       : sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", d.n);
+    rc = st == SC_OK ? CLI_OK : cli_report(&err);
     free(blk);
     sc_profile_data_free(&d);
     return rc;
