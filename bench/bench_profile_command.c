@@ -2,15 +2,21 @@
  * CSV, solving (sc_profile_calibrate: solve and every point's uncertainty) and writing the result,
  * for both methods; and the number conversions alone against glibc in the same run: our parser
  * (selfcal/number.h: fast_float) vs strtod, our shortest formatter (Dragonbox) vs
- * printf("%.17g"), on the file's own numbers. Issue 11's targets: numbers read and written >= 5x
- * faster; the whole command at N = 10⁶ (d = 10/11) within 2x its solve.
- * Wall-clock seconds, best of three (the machine is shared).
- * usage: bench_profile_command [N]   (default 1000010) */
+ * printf("%.17g"), on the file's own numbers: both parsers read the same text in place (the
+ * numbers as the file has them, each ended by the comma or line end after it), both formatters
+ * write the same doubles. With the path of the `selfcal` program, the command itself is run on the
+ * same file too (a process: start, read, solve, write with fsync, exit). Issue 11's targets:
+ * numbers read and written >= 5x faster; the whole command at N = 10⁶ (d = 10/11) within 2x its
+ * solve. Wall-clock seconds, best of three (the machine is shared).
+ * usage: bench_profile_command [N [SELFCAL]]   (default N = 1000010) */
 #include <math.h>
+#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "selfcal/number.h"
@@ -25,11 +31,51 @@ static double now(void)
     return t.tv_sec + 1e-9 * t.tv_nsec;
 }
 
+/* CPU time of this thread: the conversions run on one thread, and on a shared machine its CPU
+ * time is what they cost (wall time also counts the other programs' time slices). */
+static double cpu_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
+/* CPU time of the whole process (the solver's threads too). */
+static double proc_cpu_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+
 static volatile double sink;
+extern char **environ;
+
+/* Run `selfcal profile --quiet --method M IN --out OUT`; wall seconds (CPU seconds in *cpu), or -1. */
+static double run_command(const char *selfcal, const char *method, const char *in, const char *out,
+                          double *cpu)
+{
+    char *argv[] = {(char *)selfcal, "profile", "--quiet", "--method", (char *)method, (char *)in,
+                    "--out", (char *)out, NULL};
+    pid_t pid;
+    double a = now();
+    if (posix_spawn(&pid, selfcal, NULL, NULL, argv, environ) != 0)
+        return -1;
+    int status;
+    struct rusage ru;
+    if (wait4(pid, &status, 0, &ru) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        return -1;
+    double t = now() - a;
+    *cpu = ru.ru_utime.tv_sec + 1e-6 * ru.ru_utime.tv_usec + ru.ru_stime.tv_sec +
+           1e-6 * ru.ru_stime.tv_usec;
+    return t;
+}
 
 int main(int argc, char **argv)
 {
     int n = argc > 1 ? atoi(argv[1]) : 1000010, d1 = 10, d2 = 11; /* DFT: N multiple of d1·d2 */
+    const char *selfcal = argc > 2 ? argv[2] : NULL;
+    double solve_s[2] = {0, 0};
     char in[64], out[64];
     snprintf(in, sizeof in, "/tmp/bench_profile_command.%d.in.csv", (int)getpid());
     snprintf(out, sizeof out, "/tmp/bench_profile_command.%d.out.csv", (int)getpid());
@@ -52,20 +98,21 @@ int main(int argc, char **argv)
         return 1;
     double t_write_in = now() - t0;
     sc_profile_data_free(&d);
-    printf("selfcal profile at N = %d, d = %d/%d (wall s, best of 3)\n", n, d1, d2);
-    printf("%-6s %8s %8s %8s %8s %12s\n", "method", "read", "solve", "write", "total",
-           "total/solve");
+    printf("selfcal profile at N = %d, d = %d/%d: wall s (best of 3) and the process's CPU s "
+           "(all threads; best of 3)\n", n, d1, d2);
+    printf("%-6s %8s %8s %8s %8s %12s | %8s %8s %8s %12s\n", "method", "read", "solve", "write",
+           "total", "total/solve", "cpu read", "solve", "write", "total/solve");
     double *f = malloc(sizeof(double) * n), *uf = malloc(sizeof(double) * n);
     double *ey = malloc(sizeof(double) * n);
     for (int m = 0; m < 2; ++m) {
-        double best[3] = {1e30, 1e30, 1e30};
+        double best[3] = {1e30, 1e30, 1e30}, cbest[3] = {1e30, 1e30, 1e30};
         for (int rep = 0; rep < 3; ++rep) {
-            double a = now();
+            double a = now(), ca = proc_cpu_now();
             if (sc_profile_read(in, &d, &err) != SC_OK) {
                 printf("read failed: %s\n", err.msg);
                 return 1;
             }
-            double b = now();
+            double b = now(), cb = proc_cpu_now();
             sc_profile_options o;
             sc_profile_options_default(&o);
             o.method = m == 0 ? SC_PROFILE_LSQ : SC_PROFILE_DFT;
@@ -75,21 +122,44 @@ int main(int argc, char **argv)
                 printf("solve failed: %s\n", err.msg);
                 return 1;
             }
-            double c = now();
+            double c = now(), cc = proc_cpu_now();
             if (sc_profile_write_result(out, n, d.s_mm, f, uf, ey, n - d1, &err) != SC_OK)
                 return 1;
-            double e = now();
+            double e = now(), ce = proc_cpu_now();
             sc_profile_data_free(&d);
-            best[0] = fmin(best[0], b - a), best[1] = fmin(best[1], c - b), best[2] = fmin(best[2], e - c);
+            best[0] = fmin(best[0], b - a), best[1] = fmin(best[1], c - b);
+            best[2] = fmin(best[2], e - c);
+            cbest[0] = fmin(cbest[0], cb - ca), cbest[1] = fmin(cbest[1], cc - cb);
+            cbest[2] = fmin(cbest[2], ce - cc);
         }
-        double tot = best[0] + best[1] + best[2];
-        printf("%-6s %8.3f %8.3f %8.3f %8.3f %12.2f\n", m == 0 ? "lsq" : "dft", best[0], best[1],
-               best[2], tot, tot / best[1]);
+        double tot = best[0] + best[1] + best[2], ctot = cbest[0] + cbest[1] + cbest[2];
+        solve_s[m] = best[1];
+        printf("%-6s %8.3f %8.3f %8.3f %8.3f %12.2f | %8.3f %8.3f %8.3f %12.2f\n",
+               m == 0 ? "lsq" : "dft", best[0], best[1], best[2], tot, tot / best[1], cbest[0],
+               cbest[1], cbest[2], ctot / cbest[1]);
     }
-    /* the number conversions alone, on the input file's numbers */
+    if (selfcal) {
+        printf("\nthe command itself (a process, output fsync'ed): %s profile --quiet --method M\n",
+               selfcal);
+        printf("%-6s %8s %8s %12s\n", "method", "wall", "cpu", "wall/solve");
+        for (int m = 0; m < 2; ++m) {
+            double best = 1e30, cpu_best = 1e30;
+            for (int rep = 0; rep < 3; ++rep) {
+                double cpu, t = run_command(selfcal, m == 0 ? "lsq" : "dft", in, out, &cpu);
+                if (t < 0) {
+                    printf("%s profile failed\n", selfcal);
+                    return 1;
+                }
+                best = fmin(best, t), cpu_best = fmin(cpu_best, cpu);
+            }
+            printf("%-6s %8.3f %8.3f %12.2f\n", m == 0 ? "lsq" : "dft", best, cpu_best,
+                   best / solve_s[m]);
+        }
+    }
+    /* the number conversions alone, on the input file's numbers: the text as the file has it */
     long cnt = 0, cap = 6L * n;
     double *v = malloc(sizeof(double) * cap);
-    char *txt = malloc((size_t)cap * SC_NUMBER_BUF);
+    char *txt = malloc((size_t)cap * SC_NUMBER_BUF), *fmt = malloc((size_t)cap * SC_NUMBER_BUF);
     {
         sc_profile_data dd;
         if (sc_profile_read(in, &dd, &err) != SC_OK)
@@ -99,36 +169,51 @@ int main(int argc, char **argv)
                 v[cnt++] = dd.m1_um[k][i], v[cnt++] = dd.m2_um[k][i], v[cnt++] = dd.m3_urad[k][i];
         sc_profile_data_free(&dd);
     }
-    double tf[2] = {1e30, 1e30}, tp[2] = {1e30, 1e30};
-    for (int rep = 0; rep < 3; ++rep) {
-        double a = now();
-        for (long i = 0; i < cnt; ++i)
-            snprintf(txt + i * SC_NUMBER_BUF, SC_NUMBER_BUF, "%.17g", v[i]);
-        double b = now();
-        for (long i = 0; i < cnt; ++i)
-            sink = strtod(txt + i * SC_NUMBER_BUF, NULL);
-        double c = now();
-        for (long i = 0; i < cnt; ++i)
-            sc_number_format(v[i], txt + i * SC_NUMBER_BUF);
-        double e = now();
-        for (long i = 0; i < cnt; ++i) {
-            double x;
-            const char *s = txt + i * SC_NUMBER_BUF;
-            sc_number_parse(s, strlen(s), &x);
-            sink = x;
-        }
-        double g = now();
-        tf[0] = fmin(tf[0], b - a), tp[0] = fmin(tp[0], c - b);
-        tf[1] = fmin(tf[1], e - c), tp[1] = fmin(tp[1], g - e);
+    char *t = txt;
+    for (long i = 0; i < cnt; ++i) {
+        t += sc_number_format(v[i], t);
+        *t++ = i % 3 == 2 ? '\n' : ',';
     }
-    printf("\nnumber conversions, %ld numbers (ns each):\n", cnt);
-    printf("  format: printf(\"%%.17g\") %6.1f   selfcal (Dragonbox) %6.1f   speed-up %5.1fx\n",
+    *t = '\0';
+    const char *txt_end = t;
+    double tf[2] = {1e30, 1e30}, tp[2] = {1e30, 1e30};
+    long bad = 0;
+    for (int rep = 0; rep < 3; ++rep) {
+        double a = cpu_now();
+        for (long i = 0; i < cnt; ++i)
+            snprintf(fmt + i * SC_NUMBER_BUF, SC_NUMBER_BUF, "%.17g", v[i]);
+        double b = cpu_now();
+        char *e;
+        long k = 0;
+        for (const char *p = txt; p < txt_end; p = e + 1) {
+            double x = strtod(p, &e);
+            bad += x != v[k++];
+        }
+        double c = cpu_now();
+        for (long i = 0; i < cnt; ++i)
+            sc_number_format(v[i], fmt + i * SC_NUMBER_BUF);
+        double e2 = cpu_now();
+        k = 0;
+        for (const char *p = txt; p < txt_end; ++p) {
+            double x;
+            if (sc_number_parse_prefix(p, txt_end, &p, &x) != 0)
+                return 1;
+            bad += x != v[k++];
+        }
+        double g = cpu_now();
+        tf[0] = fmin(tf[0], b - a), tp[0] = fmin(tp[0], c - b);
+        tf[1] = fmin(tf[1], e2 - c), tp[1] = fmin(tp[1], g - e2);
+    }
+    sink = (double)bad;
+    printf("\nnumber conversions, %ld numbers of the file (ns each; parsers read the same text in "
+           "place; thread CPU time, best of 3):\n", cnt);
+    printf("  format: printf(\"%%.17g\") %6.1f   selfcal (Dragonbox)   %6.1f   speed-up %5.1fx\n",
            1e9 * tf[0] / cnt, 1e9 * tf[1] / cnt, tf[0] / tf[1]);
-    printf("  parse:  strtod           %6.1f   selfcal (fast_float) %5.1f   speed-up %5.1fx\n",
-           1e9 * tp[0] / cnt, 1e9 * tp[1] / cnt, tp[0] / tp[1]);
+    printf("  parse:  strtod           %6.1f   selfcal (fast_float)  %6.1f   speed-up %5.1fx%s\n",
+           1e9 * tp[0] / cnt, 1e9 * tp[1] / cnt, tp[0] / tp[1], bad ? "  VALUES DIFFER" : "");
     printf("(writing the %d-point input file took %.3f s)\n", n, t_write_in);
     remove(in);
     remove(out);
-    free(v), free(txt), free(f), free(uf), free(ey);
+    free(v), free(txt), free(fmt), free(f), free(uf), free(ey);
     return 0;
 }

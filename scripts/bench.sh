@@ -29,7 +29,7 @@ section "grid: the whole selfcal grid --method lsq command vs SuiteSparse CHOLMO
 section "grid: Monte Carlo sigma_C / sigma_r, three methods"
 "$b/bench_grid_mc" $full
 section "profile: the whole command at N = 10⁶ (read, solve, write) and number conversions vs glibc"
-"$b/bench_profile_command"
+"$b/bench_profile_command" 1000010 "$build/bin/selfcal"
 section "profile: least squares, dense vs fast"
 "$b/bench_profile_lsq" $full
 section "profile: dense LS, fast LS, DFT"
