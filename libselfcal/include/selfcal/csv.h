@@ -38,6 +38,7 @@ typedef struct sc_csv {
     char *field[SC_CSV_MAX_FIELDS];  /* point into text (split modifies it) */
     char *buf;                       /* read-ahead block of the file (the reader's own) */
     size_t buf_len, buf_pos;
+    long long buf_off;               /* offset in the file of buf[0] */
     int eof;
 } sc_csv;
 

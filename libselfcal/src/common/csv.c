@@ -58,7 +58,11 @@ void sc_csv_close(sc_csv *r)
 /* Bytes read at a time. Larger than a line may be, so that the unfinished line moved to the front
  * of the block always leaves room to read more. */
 #define CSV_BLOCK (256 * 1024)
-_Static_assert(CSV_BLOCK > 2 * SC_CSV_MAX_LINE, "a block holds any line with room to spare");
+/* A line too long is reported as too long unless a NUL byte comes first in the part of it that
+ * lies in the file's 64 KiB blocks reaching SC_CSV_MAX_LINE bytes into it (the rule of the
+ * reader's 64 KiB blocks before, kept so that every message stays what it was). */
+#define CSV_NUL_ALIGN 65536
+_Static_assert(CSV_BLOCK > SC_CSV_MAX_LINE + 2 * CSV_NUL_ALIGN, "a block holds what is scanned");
 
 /* Read more of the file behind the unfinished line at the block's end (moved to its front).
  * 1 = bytes read, 0 = end of file, -1 = read error. */
@@ -67,6 +71,7 @@ static int csv_refill(sc_csv *r, sc_error *err)
     size_t keep = r->buf_len - r->buf_pos;
     if (r->buf_pos > 0) {
         memmove(r->buf, r->buf + r->buf_pos, keep);
+        r->buf_off += (long long)r->buf_pos;
         r->buf_pos = 0;
         r->buf_len = keep;
     }
@@ -98,23 +103,26 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
         }
     }
     const char *nl;
+    size_t scan; /* the bytes of a long line searched for a NUL (see CSV_NUL_ALIGN) */
     for (;;) {
         size_t avail = r->buf_len - r->buf_pos;
+        long long at = r->buf_off + (long long)r->buf_pos;
+        scan = (size_t)((at + SC_CSV_MAX_LINE + CSV_NUL_ALIGN - 1) / CSV_NUL_ALIGN *
+                            CSV_NUL_ALIGN - at);
         nl = memchr(r->buf + r->buf_pos, '\n', avail);
-        if (nl || avail >= SC_CSV_MAX_LINE)
+        if (nl || avail >= scan)
             break;
         if (r->eof) {
             if (avail == 0)
                 return 0;
             break;
         }
-        int rc = csv_refill(r, err);
-        if (rc < 0)
+        if (csv_refill(r, err) < 0)
             return -1;
     }
     char *s = r->buf + r->buf_pos;
     size_t len = nl ? (size_t)(nl - s) : r->buf_len - r->buf_pos;
-    if (memchr(s, '\0', len < SC_CSV_MAX_LINE ? len : SC_CSV_MAX_LINE)) {
+    if (memchr(s, '\0', len < scan ? len : scan)) {
         sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file");
         return -1;
     }
