@@ -288,6 +288,39 @@ static void test_csv_plain_row(void **state)
     assert_true(plain > 100 && other > 100);
 }
 
+/* A long line with a NUL byte: the NUL is reported when it lies in the 64 KiB blocks of the file
+ * that reach 65 536 bytes into the line, else the length (the rule the fuzz regressions hold). */
+static void test_csv_long_line_with_nul(void **state)
+{
+    (void)state;
+    const char *path = SELFCAL_TEST_TMP "/long_nul.csv";
+    static char text[140000];
+    const struct {
+        size_t start, nul;
+        const char *msg;
+    } cases[] = {{0, 70000, "line longer"},  /* line at 0: blocks reach 65 536; NUL past it */
+                 {100, 66000, "NUL byte"},   /* line at 100: blocks reach 131 072 */
+                 {100, 131500, "line longer"}, {0, 60000, "NUL byte"}};
+    for (size_t c = 0; c < sizeof cases / sizeof *cases; ++c) {
+        memset(text, 'x', sizeof text);
+        if (cases[c].start)
+            text[cases[c].start - 1] = '\n';
+        text[cases[c].nul] = '\0';
+        write_text(path, text, sizeof text);
+        sc_csv r;
+        sc_error err;
+        sc_error_clear(&err);
+        assert_int_equal(sc_csv_open(&r, path, &err), SC_OK);
+        int rc = sc_csv_next_line(&r, &err);
+        if (cases[c].start)
+            rc = sc_csv_next_line(&r, &err);
+        assert_int_equal(rc, -1);
+        assert_non_null(strstr(err.msg, cases[c].msg));
+        assert_int_equal(err.line, cases[c].start ? 2 : 1);
+        sc_csv_close(&r);
+    }
+}
+
 static void test_version(void **state)
 {
     (void)state;
@@ -304,6 +337,7 @@ int main(void)
         cmocka_unit_test(test_error_messages_stay_one_printable_line),
         cmocka_unit_test(test_csv_lines_and_errors),
         cmocka_unit_test(test_csv_plain_row),
+        cmocka_unit_test(test_csv_long_line_with_nul),
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
         cmocka_unit_test(test_atomic_file_device_target),
