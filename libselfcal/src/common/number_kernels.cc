@@ -87,6 +87,9 @@ inline const char *parse_checked(const char *first, const char *last, double *ou
         exp10 = frac - p;
         digits += p - frac;
     }
+    if (digits > 19) // leading zeros (0.000ddd) add nothing to w: count the digits after them
+        for (const char *z = start; z < p && (*z == '0' || *z == '.'); ++z)
+            digits -= *z == '0';
     fast_float::adjusted_mantissa am;
     if (digits == 0 || digits > 19 || (p < last && (*p == 'e' || *p == 'E')) ||
         (am = fast_float::compute_float<fast_float::binary_format<double>>(exp10, w)).power2 < 0) {
