@@ -84,133 +84,152 @@ static int parse_number(const char *s, double *out, char *mark_seen)
     return sc_parse_double(buf, out);
 }
 
+/* The state of one sc_table_read. */
+typedef struct table_reader {
+    sc_csv r;
+    sc_table *t;
+    const char *path;
+    int n_cols;
+    const char *const *names;
+    const double *scale;
+    char *field[MAX_TABLE_FIELDS];
+    int col_of[16], n_header;
+    long cap, mark_line;
+    char mark; /* the decimal mark seen so far, 0 if none */
+} table_reader;
+
+/* The header line: the delimiter, and where each wanted column is (exactly once). */
+static sc_status read_header_line(table_reader *tr, sc_error *err)
+{
+    sc_table *t = tr->t;
+    t->header_line = tr->r.line;
+    t->delimiter = strchr(tr->r.text, '\t') ? '\t' : strchr(tr->r.text, ';') ? ';' : ',';
+    tr->n_header = split_fields(tr->r.text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
+    if (tr->n_header < 0)
+        return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line, "more than %d columns",
+                            MAX_TABLE_FIELDS);
+    for (int k = 0; k < tr->n_cols; ++k) {
+        tr->col_of[k] = -1;
+        for (int f = 0; f < tr->n_header; ++f)
+            if (name_equal(tr->field[f], tr->names[k])) {
+                if (tr->col_of[k] >= 0)
+                    return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                                        "two columns are named '%s'", tr->names[k]);
+                tr->col_of[k] = f;
+            }
+        if (tr->col_of[k] < 0)
+            return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                                "no column named '%s' in this header line (delimiter '%s')",
+                                tr->names[k], t->delimiter == '\t' ? "tab" : t->delimiter == ';' ? ";" : ",");
+    }
+    return SC_OK;
+}
+
+/* Room for one more row. */
+static sc_status grow(table_reader *tr, sc_error *err)
+{
+    sc_table *t = tr->t;
+    if (t->n_rows < tr->cap)
+        return SC_OK;
+    long ncap = tr->cap ? 2 * tr->cap : 1024;
+    double *nv = realloc(t->value, (size_t)ncap * (size_t)tr->n_cols * sizeof(double));
+    if (nv)
+        t->value = nv;
+    long *nl = nv ? realloc(t->line, (size_t)ncap * sizeof(long)) : NULL;
+    if (!nv || !nl)
+        return sc_error_set(err, SC_E_NOMEM, tr->path, tr->r.line, "out of memory (%ld rows)", ncap);
+    t->line = nl;
+    tr->cap = ncap;
+    return SC_OK;
+}
+
+/* The value of wanted column k in the current line: a number, one decimal mark in the whole file,
+ * no decimal comma in a comma-separated file, within any plausible measurement. */
+static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err)
+{
+    const char *s = tr->field[tr->col_of[k]], *name = tr->names[k], *path = tr->path;
+    long ln = tr->r.line;
+    char seen = 0;
+    int rc = parse_number(s, out, &seen);
+    if (rc == -2)
+        return sc_error_set(err, SC_E_INPUT, path, ln,
+                            "column '%s': '%s' has both '.' and ',' (no thousands separators, please)",
+                            name, s);
+    if (rc != 0)
+        return sc_error_set(err, SC_E_INPUT, path, ln, "column '%s': '%s' is not a number", name,
+                            s);
+    if (seen == ',' && tr->t->delimiter == ',')
+        return sc_error_set(err, SC_E_INPUT, path, ln,
+                            "column '%s': decimal comma in a comma-separated file", name);
+    if (seen && tr->mark && seen != tr->mark)
+        return sc_error_set(err, SC_E_INPUT, path, ln,
+                            "column '%s': decimal '%c' here but '%c' on line %ld (mixed decimal marks)",
+                            name, seen, tr->mark, tr->mark_line);
+    if (seen && !tr->mark) {
+        tr->mark = seen;
+        tr->mark_line = ln;
+    }
+    if (!(fabs(*out) <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, path, ln,
+                            "column '%s': %s is beyond any plausible measurement", name, s);
+    return SC_OK;
+}
+
+/* One data line: as many fields as the header, every wanted value, scaled. */
+static sc_status read_data_line(table_reader *tr, sc_error *err)
+{
+    sc_table *t = tr->t;
+    int nf = split_fields(tr->r.text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
+    if (nf != tr->n_header)
+        return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                            "%d fields, the header line (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,
+                            t->header_line, tr->n_header,
+                            t->delimiter == ',' ? " (decimal commas need ';' or tab as delimiter)" : "");
+    sc_status st = grow(tr, err);
+    for (int k = 0; k < tr->n_cols && st == SC_OK; ++k) {
+        double v;
+        st = parse_value(tr, k, &v, err);
+        if (st == SC_OK)
+            t->value[t->n_rows * tr->n_cols + k] = v * (tr->scale ? tr->scale[k] : 1.0);
+    }
+    if (st == SC_OK)
+        t->line[t->n_rows++] = tr->r.line;
+    return st;
+}
+
 sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
                         const double *scale, sc_table *t, sc_error *err)
 {
     memset(t, 0, sizeof *t);
     snprintf(t->path, sizeof t->path, "%s", path);
     t->n_cols = n_cols;
-    sc_csv r;
-    sc_status st = sc_csv_open(&r, path, err);
+    table_reader tr;
+    memset(&tr, 0, sizeof tr);
+    tr.t = t;
+    tr.path = path;
+    tr.n_cols = n_cols;
+    tr.names = names;
+    tr.scale = scale;
+    sc_status st = sc_csv_open(&tr.r, path, err);
     if (st != SC_OK)
         return st;
-    char *field[MAX_TABLE_FIELDS];
-    int col_of[16], n_header = 0;
-    long cap = 0, mark_line = 0;
-    char mark = 0;
-    int got;
-    if (n_cols < 1 || n_cols > 16) {
+    int got = 0;
+    if (n_cols < 1 || n_cols > 16)
         st = sc_error_set(err, SC_E_INTERNAL, NULL, 0, "sc_table_read: 1..16 columns");
-        goto done;
-    }
-    while ((got = sc_csv_next_line(&r, err)) == 1) {
-        if (sc_csv_is_blank(&r) || r.text[0] == '#')
+    while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
+        if (sc_csv_is_blank(&tr.r) || tr.r.text[0] == '#')
             continue;
-        if (!t->header_line) {
-            t->header_line = r.line;
-            t->delimiter = strchr(r.text, '\t') ? '\t' : strchr(r.text, ';') ? ';' : ',';
-            n_header = split_fields(r.text, t->delimiter, field, MAX_TABLE_FIELDS);
-            if (n_header < 0) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line, "more than %d columns",
-                                  MAX_TABLE_FIELDS);
-                goto done;
-            }
-            for (int k = 0; k < n_cols; ++k) {
-                col_of[k] = -1;
-                for (int f = 0; f < n_header; ++f)
-                    if (name_equal(field[f], names[k])) {
-                        if (col_of[k] >= 0) {
-                            st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                              "two columns are named '%s'", names[k]);
-                            goto done;
-                        }
-                        col_of[k] = f;
-                    }
-                if (col_of[k] < 0) {
-                    st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                      "no column named '%s' in this header line (delimiter '%s')",
-                                      names[k], t->delimiter == '\t' ? "tab" : t->delimiter == ';' ? ";" : ",");
-                    goto done;
-                }
-            }
-            continue;
-        }
-        int nf = split_fields(r.text, t->delimiter, field, MAX_TABLE_FIELDS);
-        if (nf != n_header) {
-            st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                              "%d fields, the header line (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,
-                              t->header_line, n_header,
-                              t->delimiter == ',' ? " (decimal commas need ';' or tab as delimiter)" : "");
-            goto done;
-        }
-        if (t->n_rows == cap) {
-            long ncap = cap ? 2 * cap : 1024;
-            double *nv = realloc(t->value, (size_t)ncap * (size_t)n_cols * sizeof(double));
-            if (nv)
-                t->value = nv;
-            long *nl = nv ? realloc(t->line, (size_t)ncap * sizeof(long)) : NULL;
-            if (!nv || !nl) {
-                st = sc_error_set(err, SC_E_NOMEM, path, r.line, "out of memory (%ld rows)", ncap);
-                goto done;
-            }
-            t->line = nl;
-            cap = ncap;
-        }
-        for (int k = 0; k < n_cols; ++k) {
-            const char *s = field[col_of[k]];
-            double v;
-            char seen = 0;
-            int rc = parse_number(s, &v, &seen);
-            if (rc == -2) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                  "column '%s': '%s' has both '.' and ',' (no thousands separators, please)",
-                                  names[k], s);
-                goto done;
-            }
-            if (rc != 0) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line, "column '%s': '%s' is not a number",
-                                  names[k], s);
-                goto done;
-            }
-            if (seen == ',' && t->delimiter == ',') {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                  "column '%s': decimal comma in a comma-separated file", names[k]);
-                goto done;
-            }
-            if (seen && mark && seen != mark) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                  "column '%s': decimal '%c' here but '%c' on line %ld (mixed decimal marks)",
-                                  names[k], seen, mark, mark_line);
-                goto done;
-            }
-            if (seen && !mark) {
-                mark = seen;
-                mark_line = r.line;
-            }
-            if (!(fabs(v) <= SC_INPUT_MAX_ABS)) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                                  "column '%s': %s is beyond any plausible measurement", names[k], s);
-                goto done;
-            }
-            t->value[t->n_rows * n_cols + k] = v * (scale ? scale[k] : 1.0);
-        }
-        t->line[t->n_rows++] = r.line;
+        st = t->header_line ? read_data_line(&tr, err) : read_header_line(&tr, err);
     }
-    if (got < 0) {
+    if (st == SC_OK && got < 0)
         st = err ? err->code : SC_E_INPUT;
-        goto done;
-    }
-    if (!t->header_line) {
-        st = sc_error_set(err, SC_E_INPUT, path, r.line, "no header line naming the columns");
-        goto done;
-    }
-    if (t->n_rows == 0) {
-        st = sc_error_set(err, SC_E_INPUT, path, r.line, "no data lines after the header");
-        goto done;
-    }
-    t->decimal = mark ? mark : '.';
-done:
-    sc_csv_close(&r);
+    else if (st == SC_OK && !t->header_line)
+        st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no header line naming the columns");
+    else if (st == SC_OK && t->n_rows == 0)
+        st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no data lines after the header");
+    if (st == SC_OK)
+        t->decimal = tr.mark ? tr.mark : '.';
+    sc_csv_close(&tr.r);
     if (st != SC_OK)
         sc_table_free(t);
     return st;
