@@ -73,43 +73,10 @@ static void extend(int n, int d, const double *y, double *x)
     }
 }
 
-sc_status sc_profile_dft_plan_create(int n, int d1, int d2, double w1, double w2,
-                                     sc_profile_dft_plan **out, sc_error *err)
+/* The plan's spectral weights alpha, zeta, beta (eqs. 8, 9), from its N, d_k and w_k. */
+static sc_status spectral_weights(sc_profile_dft_plan *p, sc_error *err)
 {
-    *out = NULL;
-    if (!sc_profile_dft_is_usable(n, d1, d2, err))
-        return SC_E_INPUT;
-    if (!(w1 > 0) || !(w2 > 0) || !isfinite(w1) || !isfinite(w2))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "scan weights must be positive (w1 = %g, w2 = %g)", w1, w2);
-    sc_profile_dft_plan *p = calloc(1, sizeof *p);
-    if (!p)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    p->n = n;
-    p->d[0] = d1;
-    p->d[1] = d2;
-    p->w[0] = w1;
-    p->w[1] = w2;
-    p->nh = n / 2 + 1;
-    size_t nh = (size_t)p->nh;
-    p->rbuf = fftw_alloc_real((size_t)n);
-    p->cbuf = fftw_alloc_complex(nh);
-    p->zeta = malloc(nh * sizeof(double complex));
-    p->x1 = malloc(nh * sizeof(double complex));
-    for (int k = 0; k < 2; ++k) {
-        p->alpha[k] = malloc(nh * sizeof(double complex));
-        p->beta[k] = malloc(nh * sizeof(double complex));
-    }
-    if (!p->rbuf || !p->cbuf || !p->zeta || !p->x1 || !p->alpha[0] || !p->alpha[1] || !p->beta[0] ||
-        !p->beta[1]) {
-        sc_profile_dft_plan_destroy(p);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
-    }
-    p->r2c = fftw_plan_dft_r2c_1d(n, p->rbuf, p->cbuf, FFTW_ESTIMATE);
-    p->c2r = fftw_plan_dft_c2r_1d(n, p->cbuf, p->rbuf, FFTW_ESTIMATE);
-    if (!p->r2c || !p->c2r) {
-        sc_profile_dft_plan_destroy(p);
-        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "FFTW could not plan size %d", n);
-    }
+    const int n = p->n;
     /* spectral weights (eqs. 8, 9 with the scans' own noise variances 1/w_k). Every
      * trigonometric value comes from one table H(j) = exp(iπj/N), j <= N/2 (kept in the x1
      * workspace until the first solve): sin(πr/N) = Im H(r), exp(2πir/N) - 1 = 2i·sin(πr/N)·H(r)
@@ -117,12 +84,11 @@ sc_status sc_profile_dft_plan_create(int n, int d1, int d2, double w1, double w2
     double complex *H = p->x1;
     for (int j = 0; j < p->nh; ++j)
         H[j] = cexp(I * M_PI * (double)j / n);
-    const double var[2] = {1.0 / w1, 1.0 / w2};
+    const double var[2] = {1.0 / p->w[0], 1.0 / p->w[1]};
     double wsum = 0;
     for (int pass = 0; pass < 2; ++pass) {
         if (pass == 1) {
             if (!(wsum > 0)) {
-                sc_profile_dft_plan_destroy(p);
                 return sc_error_set(err, SC_E_UNSOLVABLE, NULL, 0, "no harmonic seen by both scans");
             }
             p->alpha[0][0] = p->alpha[1][0] = p->zeta[0] = p->beta[0][0] = p->beta[1][0] = 0;
@@ -163,6 +129,51 @@ sc_status sc_profile_dft_plan_create(int n, int d1, int d2, double w1, double w2
                 p->beta[0][q] = p->beta[1][q] = 0;
             }
         }
+    }
+    return SC_OK;
+}
+
+sc_status sc_profile_dft_plan_create(int n, int d1, int d2, double w1, double w2,
+                                     sc_profile_dft_plan **out, sc_error *err)
+{
+    *out = NULL;
+    if (!sc_profile_dft_is_usable(n, d1, d2, err))
+        return SC_E_INPUT;
+    if (!(w1 > 0) || !(w2 > 0) || !isfinite(w1) || !isfinite(w2))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "scan weights must be positive (w1 = %g, w2 = %g)", w1, w2);
+    sc_profile_dft_plan *p = calloc(1, sizeof *p);
+    if (!p)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    p->n = n;
+    p->d[0] = d1;
+    p->d[1] = d2;
+    p->w[0] = w1;
+    p->w[1] = w2;
+    p->nh = n / 2 + 1;
+    size_t nh = (size_t)p->nh;
+    p->rbuf = fftw_alloc_real((size_t)n);
+    p->cbuf = fftw_alloc_complex(nh);
+    p->zeta = malloc(nh * sizeof(double complex));
+    p->x1 = malloc(nh * sizeof(double complex));
+    for (int k = 0; k < 2; ++k) {
+        p->alpha[k] = malloc(nh * sizeof(double complex));
+        p->beta[k] = malloc(nh * sizeof(double complex));
+    }
+    if (!p->rbuf || !p->cbuf || !p->zeta || !p->x1 || !p->alpha[0] || !p->alpha[1] || !p->beta[0] ||
+        !p->beta[1]) {
+        sc_profile_dft_plan_destroy(p);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    }
+    p->r2c = fftw_plan_dft_r2c_1d(n, p->rbuf, p->cbuf, FFTW_ESTIMATE);
+    p->c2r = fftw_plan_dft_c2r_1d(n, p->cbuf, p->rbuf, FFTW_ESTIMATE);
+    if (!p->r2c || !p->c2r) {
+        sc_profile_dft_plan_destroy(p);
+        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "FFTW could not plan size %d", n);
+    }
+    sc_status st = spectral_weights(p, err);
+    if (st != SC_OK) {
+        sc_profile_dft_plan_destroy(p);
+        return st;
     }
     *out = p;
     return SC_OK;
