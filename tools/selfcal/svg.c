@@ -52,7 +52,9 @@ static double nice_step(double span, int target)
 
 void svg_nice_range(double *lo, double *hi)
 {
-    if (!(*hi > *lo)) {
+    /* a span of a few ulps (1 and 1.0000000000000008: fuzz_plot_xy) is as empty as none: its
+     * step would vanish against the values and the tick loops never end */
+    if (!(*hi > *lo) || *hi - *lo <= 1e-9 * fmax(fabs(*lo), fabs(*hi))) {
         double m = *lo;
         *lo = m - (fabs(m) > 0 ? fabs(m) * 0.1 : 1);
         *hi = m + (fabs(m) > 0 ? fabs(m) * 0.1 : 1);
@@ -97,14 +99,18 @@ void svg_axes(const svg_chart *c, const char *xlabel, const char *ylabel, const 
         sx = fmax(1.0, ceil(sx)); /* decades */
     if (c->logy)
         sy = fmax(1.0, ceil(sy));
-    for (double t = ceil(c->xmin / sx) * sx; t <= c->xmax + 1e-9 * sx; t += sx) {
+    /* ticks by index, at most 100 each way: t += step could stall on a span of a few ulps */
+    double kx = ceil(c->xmin / sx), ky = ceil(c->ymin / sy);
+    for (int k = 0; k <= 100 && (kx + k) * sx <= c->xmax + 1e-9 * sx; ++k) {
+        double t = (kx + k) * sx;
         double px = svg_px(c, t);
         fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"#e4e4e4\"/>\n",
                 px, c->y, px, c->y + c->h);
         svg_text(fp, px, c->y + c->h + 16, 11, "middle", "#333", "%g",
                  c->logx ? pow(10.0, round(t)) : fabs(t) < 1e-12 * sx ? 0.0 : t);
     }
-    for (double t = ceil(c->ymin / sy) * sy; t <= c->ymax + 1e-9 * sy; t += sy) {
+    for (int k = 0; k <= 100 && (ky + k) * sy <= c->ymax + 1e-9 * sy; ++k) {
+        double t = (ky + k) * sy;
         double py = svg_py(c, t);
         fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"#e4e4e4\"/>\n",
                 c->x, py, c->x + c->w, py);
@@ -292,7 +298,9 @@ void svg_color_bar(FILE *fp, double x, double y, double w, double h, double vmin
             x, y, w, h);
     if (vmax > vmin) {
         double st = nice_step(vmax - vmin, 5);
-        for (double t = ceil(vmin / st) * st; t <= vmax + 1e-9 * st; t += st) {
+        double k0 = ceil(vmin / st); /* by index, at most 100: see svg_axes */
+        for (int k = 0; k <= 100 && (k0 + k) * st <= vmax + 1e-9 * st; ++k) {
+            double t = (k0 + k) * st;
             double py = y + h - (t - vmin) / (vmax - vmin) * h;
             fprintf(fp, "<line x1=\"%.1f\" y1=\"%.1f\" x2=\"%.1f\" y2=\"%.1f\" stroke=\"#333\"/>\n",
                     x + w, py, x + w + 4, py);
