@@ -1,7 +1,9 @@
-/* runtime/config.c — configuration file and flags of selfcald. */
+/* runtime/config.c — configuration file and flags of selfcald: one table of the numeric
+ * options (range and field) and one setter per other option; the file and argv readers feed both. */
 #include "config.h"
 
 #include <ctype.h>
+#include <stddef.h>
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -177,103 +179,181 @@ static int is_flag(const char *key)
     return strcmp(key, "syslog") == 0;
 }
 
-sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_error *err)
+/* The numeric options: the range each accepts and the field it sets. */
+typedef enum { FIELD_U32, FIELD_INT } field_kind;
+
+typedef struct {
+    const char *key;
+    unsigned long min, max;
+    size_t offset; /* of the field in sc_config */
+    field_kind kind;
+    const char *expect; /* the range as the message words it; NULL: "min..max" */
+    const char *note;   /* after the range in the message, or "" */
+} numeric_option;
+
+#define NUMERIC(key, lo, hi, field, kind, expect, note)                                        \
+    { key, lo, hi, offsetof(sc_config, field), kind, expect, note }
+
+static const numeric_option numeric_options[] = {
+    NUMERIC("max-connections", 1, SC_MBTCP_MAX_CONN, tcp.max_connections, FIELD_INT, NULL, ""),
+    NUMERIC("max-per-peer", 0, SC_MBTCP_MAX_CONN, tcp.max_per_peer, FIELD_INT, NULL,
+            " (0 = no limit)"),
+    NUMERIC("byte-timeout-ms", 1, 600000, tcp.byte_timeout_ms, FIELD_U32, NULL, ""),
+    NUMERIC("idle-timeout-ms", 0, 86400000, tcp.idle_timeout_ms, FIELD_U32, NULL, ""),
+    NUMERIC("busy-poll-us", 0, 1000000, busy_poll_us, FIELD_U32, NULL, ""),
+    NUMERIC("rtu-byte-timeout-ms", 1, 60000, rtu.byte_timeout_ms, FIELD_U32, NULL, ""),
+    NUMERIC("can-in-id", 0, 0x7ff, can.in_id, FIELD_U32, "an 11-bit id (0..0x7ff)", ""),
+    NUMERIC("can-out-id", 0, 0x7ff, can.out_id, FIELD_U32, "an 11-bit id (0..0x7ff)", ""),
+    NUMERIC("can-status-id", 0, 0x7ff, can.status_id, FIELD_U32, "an 11-bit id (0..0x7ff)", ""),
+    NUMERIC("can-status-period-ms", 10, 3600000, can.status_period_ms, FIELD_U32, NULL, ""),
+};
+
+static sc_status set_numeric(sc_config *c, const numeric_option *o, const char *value,
+                             sc_error *err)
 {
     unsigned long n;
+    if (parse_ulong(value, o->max, &n) != SC_OK || n < o->min) {
+        if (o->expect != NULL)
+            BAD("--%s: expected %s, got '%s'", o->key, o->expect, value);
+        BAD("--%s: expected %lu..%lu%s, got '%s'", o->key, o->min, o->max, o->note, value);
+    }
+    char *field = (char *)c + o->offset;
+    if (o->kind == FIELD_INT)
+        *(int *)(void *)field = (int)n;
+    else
+        *(uint32_t *)(void *)field = (uint32_t)n;
+    return SC_OK;
+}
+
+static sc_status set_table(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    if (copy_str(c->table, sizeof c->table, value) != SC_OK)
+        BAD("--table: bad path");
+    return SC_OK;
+}
+
+static sc_status set_modbus_tcp(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    return parse_host_port(c, value, err);
+}
+
+static sc_status set_modbus_rtu(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    return parse_rtu(c, value, err);
+}
+
+static sc_status set_can(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    if (copy_str(c->can.ifname, sizeof c->can.ifname, value) != SC_OK)
+        BAD("--can: bad interface name '%s'", value);
+    c->use_can = 1;
+    return SC_OK;
+}
+
+static sc_status set_mode(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    if (strcmp(value, "measure") == 0)
+        c->mode = SC_CORR_MEASURE;
+    else if (strcmp(value, "position") == 0)
+        c->mode = SC_CORR_POSITION;
+    else
+        BAD("--mode: expected measure or position, got '%s'", value);
+    return SC_OK;
+}
+
+static sc_status set_unit_id(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    unsigned long n;
+    if (parse_ulong(value, 255, &n) != SC_OK)
+        BAD("--unit-id: expected 0..255, got '%s'", value);
+    c->tcp.unit_id = (uint8_t)n; /* one unit id for both Modbus transports */
+    c->rtu.unit_id = (uint8_t)n;
+    return SC_OK;
+}
+
+static sc_status set_word_order(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    if (strcmp(value, "high-first") == 0 || strcmp(value, "big") == 0)
+        c->word_order = SC_WORD_HIGH_FIRST;
+    else if (strcmp(value, "low-first") == 0 || strcmp(value, "little") == 0)
+        c->word_order = SC_WORD_LOW_FIRST;
+    else
+        BAD("--word-order: expected high-first or low-first, got '%s'", value);
+    return SC_OK;
+}
+
+static sc_status set_syslog(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    if (is_yes(value))
+        c->use_syslog = 1;
+    else if (is_no(value))
+        c->use_syslog = 0;
+    else
+        BAD("syslog: expected yes or no, got '%s'", value);
+    return SC_OK;
+}
+
+static sc_status set_syslog_socket(sc_config *c, const char *key, const char *value,
+                                   sc_error *err)
+{
+    (void)key;
+    if (copy_str(c->syslog_socket, sizeof c->syslog_socket, value) != SC_OK)
+        BAD("--syslog-socket: bad path '%s'", value);
+    return SC_OK;
+}
+
+static sc_status set_log_level(sc_config *c, const char *key, const char *value, sc_error *err)
+{
+    (void)key;
+    static const char *const levels[] = {"error", "warning", "notice", "info", "debug"};
+    for (int i = 0; i < 5; i++) {
+        if (strcmp(value, levels[i]) == 0) {
+            c->log_level = SC_LOG_ERR + i;
+            return SC_OK;
+        }
+    }
+    BAD("--log-level: expected error, warning, notice, info or debug, got '%s'", value);
+}
+
+/* The other options, each with its own setter. */
+typedef sc_status (*option_setter)(sc_config *c, const char *key, const char *value,
+                                   sc_error *err);
+
+static const struct {
+    const char *key;
+    option_setter set;
+} other_options[] = {
+    {"table", set_table},
+    {"modbus-tcp", set_modbus_tcp},
+    {"modbus-rtu", set_modbus_rtu},
+    {"can", set_can},
+    {"mode", set_mode},
+    {"unit-id", set_unit_id},
+    {"word-order", set_word_order},
+    {"syslog", set_syslog},
+    {"syslog-socket", set_syslog_socket},
+    {"log-level", set_log_level},
+};
+
+sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_error *err)
+{
     if (!is_flag(key) && value == NULL)
         BAD("--%s needs a value", key);
-    if (strcmp(key, "table") == 0) {
-        if (copy_str(c->table, sizeof c->table, value) != 0)
-            BAD("--table: bad path");
-    } else if (strcmp(key, "modbus-tcp") == 0) {
-        return parse_host_port(c, value, err);
-    } else if (strcmp(key, "modbus-rtu") == 0) {
-        return parse_rtu(c, value, err);
-    } else if (strcmp(key, "can") == 0) {
-        if (copy_str(c->can.ifname, sizeof c->can.ifname, value) != 0)
-            BAD("--can: bad interface name '%s'", value);
-        c->use_can = 1;
-    } else if (strcmp(key, "mode") == 0) {
-        if (strcmp(value, "measure") == 0)
-            c->mode = SC_CORR_MEASURE;
-        else if (strcmp(value, "position") == 0)
-            c->mode = SC_CORR_POSITION;
-        else
-            BAD("--mode: expected measure or position, got '%s'", value);
-    } else if (strcmp(key, "unit-id") == 0) {
-        if (parse_ulong(value, 255, &n) != 0)
-            BAD("--unit-id: expected 0..255, got '%s'", value);
-        c->tcp.unit_id = (uint8_t)n;
-        c->rtu.unit_id = (uint8_t)n;
-    } else if (strcmp(key, "word-order") == 0) {
-        if (strcmp(value, "high-first") == 0 || strcmp(value, "big") == 0)
-            c->word_order = SC_WORD_HIGH_FIRST;
-        else if (strcmp(value, "low-first") == 0 || strcmp(value, "little") == 0)
-            c->word_order = SC_WORD_LOW_FIRST;
-        else
-            BAD("--word-order: expected high-first or low-first, got '%s'", value);
-    } else if (strcmp(key, "max-connections") == 0) {
-        if (parse_ulong(value, SC_MBTCP_MAX_CONN, &n) != 0 || n < 1)
-            BAD("--max-connections: expected 1..%d, got '%s'", SC_MBTCP_MAX_CONN, value);
-        c->tcp.max_connections = (int)n;
-    } else if (strcmp(key, "max-per-peer") == 0) {
-        if (parse_ulong(value, SC_MBTCP_MAX_CONN, &n) != 0)
-            BAD("--max-per-peer: expected 0..%d (0 = no limit), got '%s'", SC_MBTCP_MAX_CONN,
-                value);
-        c->tcp.max_per_peer = (int)n;
-    } else if (strcmp(key, "byte-timeout-ms") == 0) {
-        if (parse_ulong(value, 600000, &n) != 0 || n < 1)
-            BAD("--byte-timeout-ms: expected 1..600000, got '%s'", value);
-        c->tcp.byte_timeout_ms = (uint32_t)n;
-    } else if (strcmp(key, "idle-timeout-ms") == 0) {
-        if (parse_ulong(value, 86400000, &n) != 0)
-            BAD("--idle-timeout-ms: expected 0..86400000, got '%s'", value);
-        c->tcp.idle_timeout_ms = (uint32_t)n;
-    } else if (strcmp(key, "busy-poll-us") == 0) {
-        if (parse_ulong(value, 1000000, &n) != 0)
-            BAD("--busy-poll-us: expected 0..1000000, got '%s'", value);
-        c->busy_poll_us = (uint32_t)n;
-    } else if (strcmp(key, "rtu-byte-timeout-ms") == 0) {
-        if (parse_ulong(value, 60000, &n) != 0 || n < 1)
-            BAD("--rtu-byte-timeout-ms: expected 1..60000, got '%s'", value);
-        c->rtu.byte_timeout_ms = (uint32_t)n;
-    } else if (strcmp(key, "can-in-id") == 0 || strcmp(key, "can-out-id") == 0 ||
-               strcmp(key, "can-status-id") == 0) {
-        if (parse_ulong(value, 0x7ff, &n) != 0)
-            BAD("--%s: expected an 11-bit id (0..0x7ff), got '%s'", key, value);
-        if (key[4] == 'i')
-            c->can.in_id = (uint32_t)n;
-        else if (key[4] == 'o')
-            c->can.out_id = (uint32_t)n;
-        else
-            c->can.status_id = (uint32_t)n;
-    } else if (strcmp(key, "can-status-period-ms") == 0) {
-        if (parse_ulong(value, 3600000, &n) != 0 || n < 10)
-            BAD("--can-status-period-ms: expected 10..3600000, got '%s'", value);
-        c->can.status_period_ms = (uint32_t)n;
-    } else if (strcmp(key, "syslog") == 0) {
-        if (is_yes(value))
-            c->use_syslog = 1;
-        else if (is_no(value))
-            c->use_syslog = 0;
-        else
-            BAD("syslog: expected yes or no, got '%s'", value);
-    } else if (strcmp(key, "syslog-socket") == 0) {
-        if (copy_str(c->syslog_socket, sizeof c->syslog_socket, value) != 0)
-            BAD("--syslog-socket: bad path '%s'", value);
-    } else if (strcmp(key, "log-level") == 0) {
-        static const char *const lv[] = {"error", "warning", "notice", "info", "debug"};
-        int found = -1;
-        for (int i = 0; i < 5; i++)
-            if (strcmp(value, lv[i]) == 0)
-                found = i;
-        if (found < 0)
-            BAD("--log-level: expected error, warning, notice, info or debug, got '%s'", value);
-        c->log_level = SC_LOG_ERR + found;
-    } else {
-        BAD("unknown option '%s'", key);
-    }
-    return SC_OK;
+    for (size_t i = 0; i < sizeof numeric_options / sizeof numeric_options[0]; i++)
+        if (strcmp(key, numeric_options[i].key) == 0)
+            return set_numeric(c, &numeric_options[i], value, err);
+    for (size_t i = 0; i < sizeof other_options / sizeof other_options[0]; i++)
+        if (strcmp(key, other_options[i].key) == 0)
+            return other_options[i].set(c, key, value, err);
+    BAD("unknown option '%s'", key);
 }
 
 static char *trim(char *s)

@@ -134,6 +134,102 @@ static int read_regs(uint8_t *rsp, unsigned fn, const uint16_t *table, unsigned 
     return 2 + 2 * (int)n;
 }
 
+/* One handler per served function code: the PDU in, the response PDU out, its length as the
+ * result. Length and value checks first (exception 03), then addresses (02); nothing changes
+ * until the whole request is known to be good. */
+static int answer_read(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
+                       sc_engine *e, uint8_t *rsp)
+{
+    if (plen < 5)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    unsigned addr = be16(pdu + 1), n = be16(pdu + 3);
+    unsigned size = fn == FC_READ_HOLDING ? SC_MB_HOLDING_COUNT : SC_MB_INPUT_COUNT;
+    if (n < 1 || n > MB_MAX_READ)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    if (addr + n > size)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
+    refresh(mm, e);
+    return read_regs(rsp, fn, fn == FC_READ_HOLDING ? mm->holding : mm->input, addr, n);
+}
+
+static int answer_write_single(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
+                               sc_engine *e, uint8_t *rsp)
+{
+    if (plen < 5)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    unsigned addr = be16(pdu + 1);
+    if (!write_range_ok(addr, 1))
+        return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
+    store(mm, addr, 1, pdu + 3);
+    refresh(mm, e);
+    memcpy(rsp, pdu, 5); /* the echo */
+    return 5;
+}
+
+static int answer_mask_write(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
+                             sc_engine *e, uint8_t *rsp)
+{
+    if (plen < 7)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    unsigned addr = be16(pdu + 1);
+    if (!write_range_ok(addr, 1))
+        return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
+    unsigned and_mask = be16(pdu + 3), or_mask = be16(pdu + 5);
+    mm->holding[addr] =
+        (uint16_t)((mm->holding[addr] & and_mask) | (or_mask & ~and_mask & 0xffffu));
+    refresh(mm, e);
+    memcpy(rsp, pdu, 7);
+    return 7;
+}
+
+static int answer_write_multiple(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
+                                 sc_engine *e, uint8_t *rsp)
+{
+    if (plen < 6)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    unsigned addr = be16(pdu + 1), n = be16(pdu + 3), bc = pdu[5];
+    if (n < 1 || n > MB_MAX_WRITE || bc != 2 * n || plen < 6 + (int)bc)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    if (!write_range_ok(addr, n))
+        return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
+    if (addr == 0 && n == 4)
+        compute(mm, pdu + 6, e);
+    store(mm, addr, n, pdu + 6);
+    refresh(mm, e);
+    memcpy(rsp, pdu, 5); /* fn, address, quantity */
+    return 5;
+}
+
+static int answer_write_and_read(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
+                                 sc_engine *e, uint8_t *rsp)
+{
+    if (plen < 10)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    unsigned addr = be16(pdu + 1), nr = be16(pdu + 3), wa = be16(pdu + 5), nw = be16(pdu + 7);
+    unsigned bc = pdu[9];
+    if (nr < 1 || nr > MB_MAX_WR_READ || nw < 1 || nw > MB_MAX_WR_WRITE || bc != 2 * nw ||
+        plen < 10 + (int)bc)
+        return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
+    if (addr + nr > SC_MB_HOLDING_COUNT || !write_range_ok(wa, nw))
+        return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
+    if (wa == 0 && nw == 4)
+        compute(mm, pdu + 10, e);
+    store(mm, wa, nw, pdu + 10);
+    refresh(mm, e);
+    return read_regs(rsp, fn, mm->holding, addr, nr);
+}
+
+static int answer_server_id(unsigned fn, uint8_t unit_id, uint8_t *rsp)
+{
+    const int idlen = (int)sizeof k_server_id - 1;
+    rsp[0] = (uint8_t)fn;
+    rsp[1] = (uint8_t)(2 + idlen);
+    rsp[2] = unit_id;
+    rsp[3] = 0xff; /* run indicator: on */
+    memcpy(rsp + 4, k_server_id, (size_t)idlen);
+    return 4 + idlen;
+}
+
 int sc_modbus_map_answer(sc_modbus_map *mm, uint8_t unit_id, const uint8_t *pdu, int plen,
                          sc_engine *e, uint8_t *rsp)
 {
@@ -141,9 +237,6 @@ int sc_modbus_map_answer(sc_modbus_map *mm, uint8_t unit_id, const uint8_t *pdu,
         return -1;
     mm->requests++;
     unsigned fn = pdu[0];
-    unsigned addr = plen >= 3 ? be16(pdu + 1) : 0;
-    /* Length and value checks first (exception 03), then addresses (02); nothing changes until
-     * the whole request is known to be good. */
     switch (fn) {
     case FC_READ_COILS:
     case FC_READ_DISCRETE_INPUTS:
@@ -151,83 +244,23 @@ int sc_modbus_map_answer(sc_modbus_map *mm, uint8_t unit_id, const uint8_t *pdu,
         if (plen < 5)
             return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
         return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp); /* no coils/inputs */
-    case FC_READ_HOLDING:
-    case FC_READ_INPUT: {
-        if (plen < 5)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        unsigned n = be16(pdu + 3);
-        unsigned size = fn == FC_READ_HOLDING ? SC_MB_HOLDING_COUNT : SC_MB_INPUT_COUNT;
-        if (n < 1 || n > MB_MAX_READ)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        if (addr + n > size)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
-        refresh(mm, e);
-        return read_regs(rsp, fn, fn == FC_READ_HOLDING ? mm->holding : mm->input, addr, n);
-    }
-    case FC_WRITE_SINGLE_REGISTER:
-        if (plen < 5)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        if (!write_range_ok(addr, 1))
-            return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
-        store(mm, addr, 1, pdu + 3);
-        refresh(mm, e);
-        memcpy(rsp, pdu, 5); /* the echo */
-        return 5;
-    case FC_MASK_WRITE_REGISTER: {
-        if (plen < 7)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        if (!write_range_ok(addr, 1))
-            return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
-        unsigned and_mask = be16(pdu + 3), or_mask = be16(pdu + 5);
-        mm->holding[addr] =
-            (uint16_t)((mm->holding[addr] & and_mask) | (or_mask & ~and_mask & 0xffffu));
-        refresh(mm, e);
-        memcpy(rsp, pdu, 7);
-        return 7;
-    }
     case FC_WRITE_MULTIPLE_COILS:
         if (plen < 6)
             return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
         return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
-    case FC_WRITE_MULTIPLE_REGISTERS: {
-        if (plen < 6)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        unsigned n = be16(pdu + 3), bc = pdu[5];
-        if (n < 1 || n > MB_MAX_WRITE || bc != 2 * n || plen < 6 + (int)bc)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        if (!write_range_ok(addr, n))
-            return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
-        if (addr == 0 && n == 4)
-            compute(mm, pdu + 6, e);
-        store(mm, addr, n, pdu + 6);
-        refresh(mm, e);
-        memcpy(rsp, pdu, 5); /* fn, address, quantity */
-        return 5;
-    }
-    case FC_WRITE_AND_READ_REGISTERS: {
-        if (plen < 10)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        unsigned nr = be16(pdu + 3), wa = be16(pdu + 5), nw = be16(pdu + 7), bc = pdu[9];
-        if (nr < 1 || nr > MB_MAX_WR_READ || nw < 1 || nw > MB_MAX_WR_WRITE || bc != 2 * nw ||
-            plen < 10 + (int)bc)
-            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
-        if (addr + nr > SC_MB_HOLDING_COUNT || !write_range_ok(wa, nw))
-            return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
-        if (wa == 0 && nw == 4)
-            compute(mm, pdu + 10, e);
-        store(mm, wa, nw, pdu + 10);
-        refresh(mm, e);
-        return read_regs(rsp, fn, mm->holding, addr, nr);
-    }
-    case FC_REPORT_SERVER_ID: {
-        const int idlen = (int)sizeof k_server_id - 1;
-        rsp[0] = (uint8_t)fn;
-        rsp[1] = (uint8_t)(2 + idlen);
-        rsp[2] = unit_id;
-        rsp[3] = 0xff; /* run indicator: on */
-        memcpy(rsp + 4, k_server_id, (size_t)idlen);
-        return 4 + idlen;
-    }
+    case FC_READ_HOLDING:
+    case FC_READ_INPUT:
+        return answer_read(mm, fn, pdu, plen, e, rsp);
+    case FC_WRITE_SINGLE_REGISTER:
+        return answer_write_single(mm, fn, pdu, plen, e, rsp);
+    case FC_MASK_WRITE_REGISTER:
+        return answer_mask_write(mm, fn, pdu, plen, e, rsp);
+    case FC_WRITE_MULTIPLE_REGISTERS:
+        return answer_write_multiple(mm, fn, pdu, plen, e, rsp);
+    case FC_WRITE_AND_READ_REGISTERS:
+        return answer_write_and_read(mm, fn, pdu, plen, e, rsp);
+    case FC_REPORT_SERVER_ID:
+        return answer_server_id(fn, unit_id, rsp);
     default:
         return except(mm, fn, SC_MB_EX_ILLEGAL_FUNCTION, rsp);
     }
