@@ -121,40 +121,18 @@ static char *read_all(const char *path, sc_error *err)
     return buf;
 }
 
-sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double *f_um,
-                                char *info, size_t infolen, sc_error *err)
+/* What the DABAM metadata (.txt, JSON) says about the .dat file. */
+typedef struct {
+    long header_lines;
+    double x_factor; /* metres per abscissa unit */
+    double y_factor; /* radians (slopes) or metres (heights) per ordinate unit */
+    int is_slope;
+} dabam_meta;
+
+/* Slopes or heights: PLOT_TITLE_Y1 says, else FILE_FORMAT (1 = slopes, 2 = heights). */
+static int dabam_is_slope(const char *meta)
 {
-    char meta_path[4096];
-    size_t L = strlen(dat_path);
-    if (L < 4 || strcmp(dat_path + L - 4, ".dat") != 0 || L >= sizeof meta_path)
-        return sc_error_set(err, SC_E_INPUT, dat_path, 0, "a DABAM profile is a .dat file (with its .txt metadata)");
-    memcpy(meta_path, dat_path, L - 4);
-    strcpy(meta_path + L - 4, ".txt");
-    char *meta = read_all(meta_path, err);
-    if (!meta)
-        return err ? err->code : SC_E_INPUT;
-    char v[128];
-    long hdr = 0;
-    double xf = 1e-3, yf = 1.0;
-    int is_slope = 1;
-    if (!json_value(meta, "FILE_HEADER_LINES", v, sizeof v) || sscanf(v, "%ld", &hdr) != 1 || hdr < 0) {
-        free(meta);
-        return sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid FILE_HEADER_LINES");
-    }
-    if (!json_value(meta, "X1_FACTOR", v, sizeof v) || sc_parse_double(v, &xf) != 0 ||
-        !json_value(meta, "Y1_FACTOR", v, sizeof v) || sc_parse_double(v, &yf) != 0) {
-        free(meta);
-        return sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid X1_FACTOR / Y1_FACTOR");
-    }
-    /* metres per abscissa unit, radians (or metres) per ordinate unit: DABAM uses 1e-3 and 1e-6;
-     * anything beyond 1 would make a mirror longer than a kilometre or slopes beyond 1 rad, and
-     * let the heights overflow (a fuzzed X1_FACTOR = 1e306 made them NaN) */
-    if (!(xf > 0 && xf <= 1) || !(yf != 0 && fabs(yf) <= 1)) {
-        free(meta);
-        return sc_error_set(err, SC_E_INPUT, meta_path, 0,
-                            "X1_FACTOR must be in (0, 1] and Y1_FACTOR nonzero within [-1, 1]");
-    }
-    char title[128] = "";
+    char title[128] = "", v[128];
     if (json_value(meta, "PLOT_TITLE_Y1", title, sizeof title)) {
         char low[128];
         size_t k = 0;
@@ -162,94 +140,146 @@ sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double
             low[k] = (char)tolower((unsigned char)title[k]);
         low[k] = '\0';
         if (strstr(low, "slope"))
-            is_slope = 1;
-        else if (strstr(low, "height") || strstr(low, "heigth"))
-            is_slope = 0;
-    } else if (json_value(meta, "FILE_FORMAT", v, sizeof v)) {
-        /* DABAM's convention: format 1 = slopes in column 2, format 2 = heights */
-        is_slope = strcmp(v, "2") != 0;
+            return 1;
+        if (strstr(low, "height") || strstr(low, "heigth"))
+            return 0;
+        return 1;
+    }
+    if (json_value(meta, "FILE_FORMAT", v, sizeof v))
+        return strcmp(v, "2") != 0;
+    return 1;
+}
+
+static sc_status dabam_read_meta(const char *meta_path, dabam_meta *m, sc_error *err)
+{
+    char *meta = read_all(meta_path, err);
+    if (!meta)
+        return err ? err->code : SC_E_INPUT;
+    char v[128];
+    sc_status st = SC_OK;
+    m->x_factor = 1e-3;
+    m->y_factor = 1.0;
+    if (!json_value(meta, "FILE_HEADER_LINES", v, sizeof v) ||
+        sscanf(v, "%ld", &m->header_lines) != 1 || m->header_lines < 0) {
+        st = sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid FILE_HEADER_LINES");
+    } else if (!json_value(meta, "X1_FACTOR", v, sizeof v) ||
+               sc_parse_double(v, &m->x_factor) != 0 ||
+               !json_value(meta, "Y1_FACTOR", v, sizeof v) ||
+               sc_parse_double(v, &m->y_factor) != 0) {
+        st = sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid X1_FACTOR / Y1_FACTOR");
+    } else if (!(m->x_factor > 0 && m->x_factor <= 1) ||
+               !(m->y_factor != 0 && fabs(m->y_factor) <= 1)) {
+        /* DABAM uses 1e-3 and 1e-6; beyond 1 a mirror would be longer than a kilometre or its
+         * slopes beyond 1 rad, and the heights could overflow (a fuzzed X1_FACTOR = 1e306
+         * made them NaN) */
+        st = sc_error_set(err, SC_E_INPUT, meta_path, 0,
+                          "X1_FACTOR must be in (0, 1] and Y1_FACTOR nonzero within [-1, 1]");
+    } else {
+        m->is_slope = dabam_is_slope(meta);
     }
     free(meta);
+    return st;
+}
 
-    FILE *fp = fopen(dat_path, "rb");
+/* The abscissae (m) and ordinates (rad or m) of the .dat file, in growing arrays. */
+typedef struct {
+    double *xs, *ys;
+    size_t count, cap;
+} dabam_points;
+
+static void dabam_points_free(dabam_points *d)
+{
+    free(d->xs);
+    free(d->ys);
+}
+
+static sc_status dabam_points_push(dabam_points *d, double x, double y)
+{
+    if (d->count == d->cap) {
+        size_t cap = d->cap ? 2 * d->cap : 1024;
+        double *nx = realloc(d->xs, cap * sizeof(double));
+        if (nx)
+            d->xs = nx;
+        double *ny = realloc(d->ys, cap * sizeof(double));
+        if (ny)
+            d->ys = ny;
+        if (!nx || !ny)
+            return SC_E_NOMEM;
+        d->cap = cap;
+    }
+    d->xs[d->count] = x;
+    d->ys[d->count] = y;
+    d->count++;
+    return SC_OK;
+}
+
+/* One data line (past the header): blank and '#' lines are skipped, else two numbers. */
+static sc_status dabam_data_line(const char *path, long ln, const char *line, const dabam_meta *m,
+                                 dabam_points *d, sc_error *err)
+{
+    const char *p = line;
+    while (isspace((unsigned char)*p))
+        ++p;
+    if (!*p || *p == '#')
+        return SC_OK;
+    char *e1, *e2;
+    double a = strtod(p, &e1);
+    double b = strtod(e1, &e2);
+    if (e1 == p || e2 == e1 || !isfinite(a) || !isfinite(b))
+        return sc_error_set(err, SC_E_INPUT, path, ln, "expected two numbers (abscissa, ordinate)");
+    if (!(fabs(a * m->x_factor) <= 1e3 && fabs(b * m->y_factor) <= 1))
+        return sc_error_set(err, SC_E_INPUT, path, ln,
+                            "beyond any mirror (|x| > 1 km, or a slope or height beyond 1 rad or 1 m)");
+    if (dabam_points_push(d, a * m->x_factor, b * m->y_factor) != SC_OK)
+        return sc_error_set(err, SC_E_NOMEM, path, ln, "out of memory");
+    if (d->count > 1 && !(d->xs[d->count - 1] > d->xs[d->count - 2]))
+        return sc_error_set(err, SC_E_INPUT, path, ln, "abscissa not increasing");
+    return SC_OK;
+}
+
+static sc_status dabam_read_points(const char *path, const dabam_meta *m, dabam_points *d,
+                                   sc_error *err)
+{
+    FILE *fp = fopen(path, "rb");
     if (!fp)
-        return sc_error_set(err, SC_E_INPUT, dat_path, 0, "cannot open");
-    size_t cap = 1024, cnt = 0;
-    double *xs = malloc(cap * sizeof(double)), *ys = malloc(cap * sizeof(double));
+        return sc_error_set(err, SC_E_INPUT, path, 0, "cannot open");
     char line[4096];
     long ln = 0;
     sc_status st = SC_OK;
-    while (xs && ys && fgets(line, sizeof line, fp)) {
+    while (st == SC_OK && fgets(line, sizeof line, fp)) {
         ++ln;
-        if (!strchr(line, '\n') && !feof(fp)) {
-            st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "line longer than %zu bytes",
+        if (!strchr(line, '\n') && !feof(fp))
+            st = sc_error_set(err, SC_E_INPUT, path, ln, "line longer than %zu bytes",
                               sizeof line - 2);
-            break;
-        }
-        if (ln <= hdr)
-            continue;
-        char *p = line;
-        while (isspace((unsigned char)*p))
-            ++p;
-        if (!*p || *p == '#')
-            continue;
-        char *e1, *e2;
-        double a = strtod(p, &e1);
-        double b = strtod(e1, &e2);
-        if (e1 == p || e2 == e1 || !isfinite(a) || !isfinite(b)) {
-            st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "expected two numbers (abscissa, ordinate)");
-            break;
-        }
-        if (!(fabs(a * xf) <= 1e3 && fabs(b * yf) <= 1)) {
-            st = sc_error_set(err, SC_E_INPUT, dat_path, ln,
-                              "beyond any mirror (|x| > 1 km, or a slope or height beyond 1 rad or 1 m)");
-            break;
-        }
-        if (cnt == cap) {
-            cap *= 2;
-            double *nx = realloc(xs, cap * sizeof(double)), *ny = realloc(ys, cap * sizeof(double));
-            if (nx)
-                xs = nx;
-            if (ny)
-                ys = ny;
-            if (!nx || !ny) {
-                st = sc_error_set(err, SC_E_NOMEM, dat_path, ln, "out of memory");
-                break;
-            }
-        }
-        xs[cnt] = a * xf;
-        ys[cnt] = b * yf;
-        if (cnt > 0 && !(xs[cnt] > xs[cnt - 1])) {
-            st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "abscissa not increasing");
-            break;
-        }
-        ++cnt;
+        else if (ln > m->header_lines)
+            st = dabam_data_line(path, ln, line, m, d, err);
     }
     fclose(fp);
-    if (st == SC_OK && (!xs || !ys))
-        st = sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
-    if (st == SC_OK && cnt < 4)
-        st = sc_error_set(err, SC_E_INPUT, dat_path, ln, "fewer than 4 points");
-    if (st != SC_OK) {
-        free(xs);
-        free(ys);
-        return st;
-    }
-    /* heights in µm at xs (m) */
-    double *hs = malloc(cnt * sizeof(double));
-    if (!hs) {
-        free(xs);
-        free(ys);
-        return sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
-    }
+    if (st == SC_OK && d->count < 4)
+        st = sc_error_set(err, SC_E_INPUT, path, ln, "fewer than 4 points");
+    return st;
+}
+
+/* Heights in µm at the abscissae: the slopes integrated by the trapezoidal rule, or scaled. */
+static void dabam_heights_um(const dabam_points *d, int is_slope, double *hs)
+{
     if (is_slope) {
         hs[0] = 0;
-        for (size_t i = 1; i < cnt; ++i)
-            hs[i] = hs[i - 1] + 0.5 * (ys[i] + ys[i - 1]) * (xs[i] - xs[i - 1]) * 1e6;
+        for (size_t i = 1; i < d->count; ++i)
+            hs[i] = hs[i - 1] + 0.5 * (d->ys[i] + d->ys[i - 1]) * (d->xs[i] - d->xs[i - 1]) * 1e6;
     } else {
-        for (size_t i = 0; i < cnt; ++i)
-            hs[i] = ys[i] * 1e6;
+        for (size_t i = 0; i < d->count; ++i)
+            hs[i] = d->ys[i] * 1e6;
     }
+}
+
+/* n points at pitch s_mm, centred on the mirror (true scale), or the mirror stretched onto the
+ * scan when it is shorter; linear interpolation of hs. Returns whether at true scale. */
+static int dabam_resample(const dabam_points *d, const double *hs, int n, double s_mm,
+                          double *f_um)
+{
+    const double *xs = d->xs;
+    size_t cnt = d->count;
     double len_m = xs[cnt - 1] - xs[0], span_m = (n - 1) * s_mm * 1e-3;
     int true_scale = span_m <= len_m;
     double x0 = true_scale ? xs[0] + 0.5 * (len_m - span_m) : xs[0];
@@ -268,13 +298,40 @@ sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double
             t = 1;
         f_um[i] = hs[j] + t * (hs[j + 1] - hs[j]);
     }
+    return true_scale;
+}
+
+sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double *f_um,
+                                char *info, size_t infolen, sc_error *err)
+{
+    char meta_path[4096];
+    size_t L = strlen(dat_path);
+    if (L < 4 || strcmp(dat_path + L - 4, ".dat") != 0 || L >= sizeof meta_path)
+        return sc_error_set(err, SC_E_INPUT, dat_path, 0,
+                            "a DABAM profile is a .dat file (with its .txt metadata)");
+    memcpy(meta_path, dat_path, L - 4);
+    strcpy(meta_path + L - 4, ".txt");
+    dabam_meta m;
+    sc_status st = dabam_read_meta(meta_path, &m, err);
+    if (st != SC_OK)
+        return st;
+    dabam_points d = {0};
+    st = dabam_read_points(dat_path, &m, &d, err);
+    double *hs = st == SC_OK ? malloc(d.count * sizeof(double)) : NULL;
+    if (st == SC_OK && !hs)
+        st = sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
+    if (st != SC_OK) {
+        dabam_points_free(&d);
+        return st;
+    }
+    dabam_heights_um(&d, m.is_slope, hs);
+    int true_scale = dabam_resample(&d, hs, n, s_mm, f_um);
     sc_profile_remove_line(n, f_um);
     if (info)
-        snprintf(info, infolen, "%s: %zu %s points over %.1f mm, %s", dat_path, cnt,
-                 is_slope ? "slope" : "height", len_m * 1e3,
+        snprintf(info, infolen, "%s: %zu %s points over %.1f mm, %s", dat_path, d.count,
+                 m.is_slope ? "slope" : "height", (d.xs[d.count - 1] - d.xs[0]) * 1e3,
                  true_scale ? "true scale, centred" : "stretched onto the scan length");
-    free(xs);
-    free(ys);
+    dabam_points_free(&d);
     free(hs);
     return SC_OK;
 }
