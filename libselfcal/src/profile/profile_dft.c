@@ -256,100 +256,150 @@ size_t sc_profile_dft_work_size(const sc_profile_dft_plan *p)
     return p ? work_reals(p) + 3 * 2 * (size_t)p->nh : 0;
 }
 
+/* The uncertainty's workspace, cut from the caller's (or an own) block. */
+typedef struct {
+    double *h, *v, *g, *u, *psi, *t1, *t2, *gam, *b, *var, *pre, *pre2, *csum;
+    double complex *tmp, *Psi, *Hs;
+    double tc;   /* the centre of the abscissae, (N - 1) / 2 */
+    double psiv; /* psi · v */
+} dft_unc_work;
+
+static void unc_work_split(const sc_profile_dft_plan *p, double *work, dft_unc_work *w)
+{
+    const int n = p->n, nh = p->nh;
+    w->h = work;
+    w->v = w->h + n;
+    w->g = w->v + n;
+    w->u = w->g + n;
+    w->psi = w->u + n;
+    w->t1 = w->psi + n;
+    w->t2 = w->t1 + n;
+    w->gam = w->t2 + n;
+    w->b = w->gam + n;
+    w->var = w->b + n;
+    w->pre = w->var + n;
+    w->pre2 = w->pre + 2 * n + 1;
+    w->csum = w->pre2 + 2 * n + 1;
+    w->tmp = (double complex *)(work + work_reals(p));
+    w->Psi = w->tmp + nh;
+    w->Hs = w->Psi + nh;
+}
+
+/* psi(n) = t_n / sum t², the slope functional of the least-squares line (the estimator's
+ * output has mean 0 already: its zero-frequency coefficient is 0); v = IDFT(zeta). */
+static void unc_slope_functional(sc_profile_dft_plan *p, dft_unc_work *w)
+{
+    const int n = p->n;
+    double tss = 0;
+    w->tc = 0.5 * (n - 1);
+    for (int i = 0; i < n; ++i)
+        tss += (i - w->tc) * (i - w->tc);
+    for (int i = 0; i < n; ++i)
+        w->psi[i] = (i - w->tc) / tss;
+    forward(p, w->psi);
+    memcpy(w->Psi, p->cbuf, (size_t)p->nh * sizeof(double complex));
+    inverse(p, p->zeta, w->v);
+    w->psiv = 0;
+    for (int i = 0; i < n; ++i)
+        w->psiv += w->psi[i] * w->v[i];
+}
+
+/* Scan k: h = IDFT(alpha_k), the convolution kernel of its extended data (and its DFT Hs);
+ * gamma(m) = Re sum_q beta_k(q) e^{-2πi q m/N}, so that a12 = sum_m x_k(m)·gamma(m); and
+ * g_i = gamma(i) - gamma(e(i)), e(i) = N - d + (i mod d), a12's weight of y_k(i). Returns |g|². */
+static double unc_scan_weights(sc_profile_dft_plan *p, int k, dft_unc_work *w)
+{
+    const int n = p->n, nh = p->nh, d = p->d[k], m = n - d;
+    const double sgn = k == 0 ? 1.0 : -1.0;
+    inverse(p, p->alpha[k], w->h);
+    forward(p, w->h);
+    memcpy(w->Hs, p->cbuf, (size_t)nh * sizeof(double complex));
+    for (int q = 0; q < nh; ++q)
+        w->tmp[q] = conj(p->beta[k][q]) / ((q == 0 || 2 * q == n) ? 1.0 : 2.0);
+    inverse(p, w->tmp, w->gam);
+    for (int i = 0; i < n; ++i)
+        w->gam[i] *= n * sgn;
+    double g2 = 0;
+    for (int i = 0; i < m; ++i) {
+        w->g[i] = w->gam[i] - w->gam[m + i % d];
+        g2 += w->g[i] * w->g[i];
+    }
+    return g2;
+}
+
+/* t1(n) = Q(n) = sum_i R(n,i)² = A + B + v²|g|² - 2 Cx + 2 v (E - F), with cyclic windows:
+ * A(n) = sum_{i<m} h(n-i)², B(n) = (M-1) sum_{j=n+1}^{n+d} h(j)²,
+ * Cx(n) = sum_{j=n+1}^{n+d} h(j)·C(j mod d) - h(j)², C(r) = sum_{j ≡ r} h(j);
+ * E - F = h ⊛ u with u(i) = g_i (i < m), u(m + r) = -sum_{i ≡ r mod d} g_i. */
+static void unc_row_norms(sc_profile_dft_plan *p, int k, double g2, dft_unc_work *w)
+{
+    const int n = p->n, d = p->d[k], m = n - d, M = n / d;
+    const double *h = w->h;
+    extend(n, d, w->g, w->u);
+    convolve(p, w->Hs, w->u, w->t2, w->tmp);
+    for (int c = 0; c < d; ++c)
+        w->csum[c] = 0;
+    for (int i = 0; i < n; ++i)
+        w->csum[i % d] += h[i];
+    w->pre[0] = w->pre2[0] = 0;
+    for (int i = 0; i < 2 * n; ++i) {
+        double hi = h[i % n];
+        w->pre[i + 1] = w->pre[i] + hi * hi;
+        w->pre2[i + 1] = w->pre2[i] + hi * w->csum[(i % n) % d];
+    }
+    for (int i = 0; i < n; ++i) {
+        double A = w->pre[i + n + 1] - w->pre[i + n + 1 - m];
+        double W2 = w->pre[i + d + 1] - w->pre[i + 1];
+        double hc = w->pre2[i + d + 1] - w->pre2[i + 1];
+        w->t1[i] = A + (M - 1) * W2 + w->v[i] * w->v[i] * g2 - 2.0 * (hc - W2) +
+                   2.0 * w->v[i] * w->t2[i];
+    }
+}
+
+/* Scan k's share of every point's variance: with b_i = sum_n psi(n) R(n,i)
+ * = (psi ⋆ h)(i) - (psi ⋆ h)(e(i)) + g_i (psi·v) and (R b)(n) = h ⊛ (T b) + v(n)·(g·b),
+ * Var f'(n) += σ²·(Q - 2 t (R b) + t² |b|²). */
+static void unc_add_scan(sc_profile_dft_plan *p, int k, dft_unc_work *w)
+{
+    const int n = p->n, nh = p->nh, d = p->d[k], m = n - d;
+    const double sig2 = 1.0 / p->w[k];
+    unc_row_norms(p, k, unc_scan_weights(p, k, w), w);
+    for (int q = 0; q < nh; ++q)
+        w->tmp[q] = w->Psi[q] * conj(w->Hs[q]);
+    inverse(p, w->tmp, w->gam);
+    double b2 = 0, gb = 0;
+    for (int i = 0; i < m; ++i) {
+        w->b[i] = w->gam[i] - w->gam[m + i % d] + w->g[i] * w->psiv;
+        b2 += w->b[i] * w->b[i];
+        gb += w->g[i] * w->b[i];
+    }
+    extend(n, d, w->b, w->u);
+    convolve(p, w->Hs, w->u, w->t2, w->tmp);
+    for (int i = 0; i < n; ++i) {
+        double t = i - w->tc;
+        double rb = w->t2[i] + w->v[i] * gb;
+        w->var[i] += sig2 * (w->t1[i] - 2.0 * t * rb + t * t * b2);
+    }
+}
+
 sc_status sc_profile_dft_uncertainty(sc_profile_dft_plan *p, double *uf_um, double *work,
                                      sc_error *err)
 {
     if (!p || !uf_um) return sc_error_set(err, SC_E_INPUT, NULL, 0, "missing argument");
-    const int n = p->n, nh = p->nh;
+    const int n = p->n;
     double *own = NULL;
     if (!work) {
         work = own = malloc(sc_profile_dft_work_size(p) * sizeof(double));
         if (!own) return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
     }
-    double *blk = work;
-    double complex *cblk = (double complex *)(work + work_reals(p));
-    double *h = blk, *v = h + n, *g = v + n, *u = g + n, *psi = u + n, *t1 = psi + n, *t2 = t1 + n;
-    double *gam = t2 + n, *b = gam + n, *var = b + n, *pre = var + n, *pre2 = pre + 2 * n + 1;
-    double *csum = pre2 + 2 * n + 1;
-    double complex *tmp = cblk, *Psi = tmp + nh, *Hs = Psi + nh;
-    memset(var, 0, (size_t)n * sizeof(double));
-    /* psi(n) = t_n / sum t², the slope functional of the least-squares line (the estimator's
-     * output has mean 0 already: its zero-frequency coefficient is 0) */
-    double tc = 0.5 * (n - 1), tss = 0;
+    dft_unc_work w;
+    unc_work_split(p, work, &w);
+    memset(w.var, 0, (size_t)n * sizeof(double));
+    unc_slope_functional(p, &w);
+    for (int k = 0; k < 2; ++k)
+        unc_add_scan(p, k, &w);
     for (int i = 0; i < n; ++i)
-        tss += (i - tc) * (i - tc);
-    for (int i = 0; i < n; ++i)
-        psi[i] = (i - tc) / tss;
-    forward(p, psi);
-    memcpy(Psi, p->cbuf, (size_t)nh * sizeof(double complex));
-    inverse(p, p->zeta, v);
-    double psiv = 0;
-    for (int i = 0; i < n; ++i)
-        psiv += psi[i] * v[i];
-
-    for (int k = 0; k < 2; ++k) {
-        const int d = p->d[k], m = n - d, M = n / d;
-        const double sig2 = 1.0 / p->w[k];
-        const double sgn = k == 0 ? 1.0 : -1.0;
-        /* h = IDFT(alpha_k): the convolution kernel of scan k's extended data */
-        inverse(p, p->alpha[k], h);
-        forward(p, h);
-        memcpy(Hs, p->cbuf, (size_t)nh * sizeof(double complex));
-        /* gamma(m) = Re sum_q beta_k(q) e^{-2πi q m/N}: a12 = sum_m x_k(m)·gamma(m) */
-        for (int q = 0; q < nh; ++q)
-            tmp[q] = conj(p->beta[k][q]) / ((q == 0 || 2 * q == n) ? 1.0 : 2.0);
-        inverse(p, tmp, gam);
-        for (int i = 0; i < n; ++i)
-            gam[i] *= n * sgn;
-        /* g_i = gamma(i) - gamma(e(i)), e(i) = N - d + (i mod d): a12's weight of y_k(i) */
-        double g2 = 0;
-        for (int i = 0; i < m; ++i) {
-            g[i] = gam[i] - gam[m + i % d];
-            g2 += g[i] * g[i];
-        }
-        /* E - F = h ⊛ u with u(i) = g_i (i < m), u(m + r) = -sum_{i ≡ r mod d} g_i */
-        extend(n, d, g, u);
-        convolve(p, Hs, u, t2, tmp);
-        /* Q(n) = sum_i R(n,i)² = A + B + v²|g|² - 2 Cx + 2 v (E - F), with cyclic windows:
-         * A(n) = sum_{i<m} h(n-i)², B(n) = (M-1) sum_{j=n+1}^{n+d} h(j)²,
-         * Cx(n) = sum_{j=n+1}^{n+d} h(j)·C(j mod d) - h(j)², C(r) = sum_{j ≡ r} h(j) */
-        for (int c = 0; c < d; ++c)
-            csum[c] = 0;
-        for (int i = 0; i < n; ++i)
-            csum[i % d] += h[i];
-        pre[0] = pre2[0] = 0;
-        for (int i = 0; i < 2 * n; ++i) {
-            double hi = h[i % n];
-            pre[i + 1] = pre[i] + hi * hi;
-            pre2[i + 1] = pre2[i] + hi * csum[(i % n) % d];
-        }
-        for (int i = 0; i < n; ++i) {
-            double A = pre[i + n + 1] - pre[i + n + 1 - m];
-            double W2 = pre[i + d + 1] - pre[i + 1];
-            double hc = pre2[i + d + 1] - pre2[i + 1];
-            t1[i] = A + (M - 1) * W2 + v[i] * v[i] * g2 - 2.0 * (hc - W2) + 2.0 * v[i] * t2[i];
-        }
-        /* b_i = sum_n psi(n) R(n,i) = (psi ⋆ h)(i) - (psi ⋆ h)(e(i)) + g_i (psi·v) */
-        for (int q = 0; q < nh; ++q)
-            tmp[q] = Psi[q] * conj(Hs[q]);
-        inverse(p, tmp, gam);
-        double b2 = 0, gb = 0;
-        for (int i = 0; i < m; ++i) {
-            b[i] = gam[i] - gam[m + i % d] + g[i] * psiv;
-            b2 += b[i] * b[i];
-            gb += g[i] * b[i];
-        }
-        /* (R b)(n) = h ⊛ (T b) + v(n)·(g·b);  Var f'(n) = σ²·(Q - 2 t (R b) + t² |b|²) */
-        extend(n, d, b, u);
-        convolve(p, Hs, u, t2, tmp);
-        for (int i = 0; i < n; ++i) {
-            double t = i - tc;
-            double rb = t2[i] + v[i] * gb;
-            var[i] += sig2 * (t1[i] - 2.0 * t * rb + t * t * b2);
-        }
-    }
-    for (int i = 0; i < n; ++i)
-        uf_um[i] = sqrt(var[i] > 0 ? var[i] : 0);
+        uf_um[i] = sqrt(w.var[i] > 0 ? w.var[i] : 0);
     free(own);
     return SC_OK;
 }

@@ -229,7 +229,8 @@ static sc_status dabam_data_line(const char *path, long ln, const char *line, co
         return sc_error_set(err, SC_E_INPUT, path, ln, "expected two numbers (abscissa, ordinate)");
     if (!(fabs(a * m->x_factor) <= 1e3 && fabs(b * m->y_factor) <= 1))
         return sc_error_set(err, SC_E_INPUT, path, ln,
-                            "beyond any mirror (|x| > 1 km, or a slope or height beyond 1 rad or 1 m)");
+                            "beyond any mirror (|x| > 1 km, or a slope or height beyond 1 rad "
+                            "or 1 m)");
     if (dabam_points_push(d, a * m->x_factor, b * m->y_factor) != SC_OK)
         return sc_error_set(err, SC_E_NOMEM, path, ln, "out of memory");
     if (d->count > 1 && !(d->xs[d->count - 1] > d->xs[d->count - 2]))
