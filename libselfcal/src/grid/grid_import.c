@@ -186,70 +186,42 @@ static void fit_rigid(const sc_grid_import_params *p, const sc_grid_view *v, lon
     a->ty = qy - (a->s * mx + a->c * my);
 }
 
-sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
-                                long n_points, const double *x_mm, const double *y_mm,
-                                const long *lines, const char *path, long header_line,
-                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
-                                double *work, sc_error *err)
+/* Step 1 after the nominal matching: the translation is the median offset of the matched
+ * points from their marks (robust to wrong points). The offsets are built in work, which the
+ * next match overwrites. */
+static void median_translation(const sc_grid_import_params *p, const sc_grid_view *v,
+                               const double *x_mm, const double *y_mm, const long *mark_point,
+                               double *work, placement *a)
 {
-    sc_status st = sc_grid_import_check(p, err);
-    if (st != SC_OK)
-        return st;
-    memset(fit, 0, sizeof *fit);
     long nn = (long)p->n * p->n;
-    for (int i = 0; i < p->n; ++i)
-        for (int j = 0; j < p->n; ++j) {
-            int ni, nj;
-            fit->n_marks += sc_grid_import_mark_node(p, v, i, j, &ni, &nj);
+    for (int axis = 0; axis < 2; ++axis) {
+        long c2 = 0;
+        for (long m = 0; m < nn; ++m) {
+            long k = mark_point[m];
+            if (k < 0)
+                continue;
+            double nx, ny;
+            mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+            work[c2++] = axis == 0 ? x_mm[k] - p->origin_mm[0] - nx
+                                   : y_mm[k] - p->origin_mm[1] - ny;
         }
-    if (fit->n_marks == 0)
-        return sc_error_set(err, SC_E_INPUT, path, 0,
-                            "the view (rot=%d shift=%d,%d) puts no mark on the stage",
-                            v->rot_deg, v->shift_x, v->shift_y);
-    for (long k = 0; k < n_points; ++k)
-        point_mark[k] = -2;
-    placement a = {0, 0, 1, 0};
-    double *dist = work, gate = p->pitch_mm / 2;
+        if (c2 == 0)
+            return;
+        double med = median(work, c2);
+        if (axis == 0)
+            a->tx = med;
+        else
+            a->ty = med;
+    }
+}
 
-    /* 1. nominal placement, gate P/2: translation = median offset (robust to wrong points) */
-    match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
-    long cnt = 0;
-    for (long m = 0; m < nn; ++m)
-        if (mark_point[m] >= 0)
-            ++cnt;
-    if (cnt > 0) {
-        /* the offsets are written into dist's slots of the points not used below: build them in
-         * place, first x then y (dist is recomputed by the next match) */
-        for (int axis = 0; axis < 2; ++axis) {
-            long c2 = 0;
-            for (long m = 0; m < nn; ++m) {
-                long k = mark_point[m];
-                if (k < 0)
-                    continue;
-                double nx, ny;
-                mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
-                work[c2++] = axis == 0 ? x_mm[k] - p->origin_mm[0] - nx
-                                       : y_mm[k] - p->origin_mm[1] - ny;
-            }
-            double med = median(work, c2);
-            if (axis == 0)
-                a.tx = med;
-            else
-                a.ty = med;
-        }
-    }
-    /* 2. refit rigid placement on the matched pairs, re-match; gate P/2 once, then T */
-    int it = 0;
-    for (; it < MAX_ITERATIONS; ++it) {
-        long changed = match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
-        if (it >= 2 && changed == 0)
-            break;
-        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, &a);
-        gate = p->tolerance_mm;
-    }
-    fit->iterations = it;
-    /* 3. final matching at T: duplicates are bad input, the rest reported */
-    match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+/* Step 3, after the final matching at T: a mark claimed by two points is bad input (the later
+ * line is named); the others are counted as assigned or left out. */
+static sc_status count_assignment(const sc_grid_import_params *p, long n_points,
+                                  const long *lines, const char *path, const long *point_mark,
+                                  const long *mark_point, const double *dist,
+                                  sc_grid_import_fit *fit, sc_error *err)
+{
     for (long k = 0; k < n_points; ++k) {
         long m = point_mark[k];
         if (m < 0) {
@@ -268,13 +240,58 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
         if (dist[k] * 1e3 > fit->max_dist_um)
             fit->max_dist_um = dist[k] * 1e3;
     }
+    return SC_OK;
+}
+
+sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
+                                long n_points, const double *x_mm, const double *y_mm,
+                                const long *lines, const char *path, long header_line,
+                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
+                                double *work, sc_error *err)
+{
+    sc_status st = sc_grid_import_check(p, err);
+    if (st != SC_OK)
+        return st;
+    memset(fit, 0, sizeof *fit);
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int ni, nj;
+            fit->n_marks += sc_grid_import_mark_node(p, v, i, j, &ni, &nj);
+        }
+    if (fit->n_marks == 0)
+        return sc_error_set(err, SC_E_INPUT, path, 0,
+                            "the view (rot=%d shift=%d,%d) puts no mark on the stage",
+                            v->rot_deg, v->shift_x, v->shift_y);
+    for (long k = 0; k < n_points; ++k)
+        point_mark[k] = -2;
+    placement a = {0, 0, 1, 0};
+    double *dist = work, gate = p->pitch_mm / 2;
+    /* 1. nominal placement, gate P/2, then the median translation */
+    match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    median_translation(p, v, x_mm, y_mm, mark_point, work, &a);
+    /* 2. refit rigid placement on the matched pairs, re-match; gate P/2 once, then T */
+    int it = 0;
+    for (; it < MAX_ITERATIONS; ++it) {
+        long changed = match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+        if (it >= 2 && changed == 0)
+            break;
+        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, &a);
+        gate = p->tolerance_mm;
+    }
+    fit->iterations = it;
+    /* 3. final matching at T */
+    match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    st = count_assignment(p, n_points, lines, path, point_mark, mark_point, dist, fit, err);
+    if (st != SC_OK)
+        return st;
     fit->tx_um = a.tx * 1e3;
     fit->ty_um = a.ty * 1e3;
     fit->theta_urad = atan2(a.s, a.c) * 1e6;
     if ((double)fit->n_assigned < p->min_share * (double)fit->n_marks)
         return sc_error_set(err, SC_E_INPUT, path, header_line,
                             "only %ld of the %ld marks of view rot=%d shift=%d,%d have a point "
-                            "within %g mm (at least %.0f %% needed): wrong --view, --units or columns?",
+                            "within %g mm (at least %.0f %% needed): wrong --view, --units or "
+                            "columns?",
                             fit->n_assigned, fit->n_marks, v->rot_deg, v->shift_x, v->shift_y,
                             p->tolerance_mm, p->min_share * 100);
     return SC_OK;
