@@ -219,15 +219,13 @@ static double beckhoff_eval(const void *vctx, int comp, double x, double y)
     return 0.1 * val;
 }
 
-static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
-                                 sc_export_report *rep, sc_error *err)
+/* The plane table's grid: start positions and one interval (0.1 µm) for both masters, the
+ * table starting at or before the map and covering it, at most 101 points along each. */
+static sc_status beckhoff_grid(const sc_lut *lut, const sc_export_options *o, beckhoff_ctx *ctx,
+                               sc_error *err)
 {
-    if (o->axis != 0 && o->axis != 1)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "beckhoff: choose the compensated (slave) axis, x or y");
+    beckhoff_ctx c = *ctx;
     const double x1 = map_x(lut, lut->nx - 1), y1 = map_y(lut, lut->ny - 1);
-    beckhoff_ctx c;
-    memset(&c, 0, sizeof c);
     /* Positions in 0.1 um; the table starts at or before the map and covers it. */
     c.start[0] = (long long)floor(lut->x0_mm * 1e4 + 1e-6);
     c.start[1] = (long long)floor(lut->y0_mm * 1e4 + 1e-6);
@@ -260,29 +258,15 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
                                 (double)c.interval * 1e-4, c.n[a], a == 0 ? "x" : "y",
                                 SC_EXPORT_BECKHOFF_MAX_POINTS);
     }
-    c.code = malloc(sizeof *c.code * (size_t)c.n[0] * (size_t)c.n[1]);
-    if (!c.code)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    /* ISG's compensation values are measured errors, actual - setpoint (their leadscrew example:
-     * setpoint 19866.7 um, actual 19856.5 um, value -102 x 0.1 um), which the CNC takes off the
-     * setpoint: -G by default (docs/exporters.md). */
-    const double sign = o->negate ? 1.0 : -1.0;
-    rep->limit_um = o->limit_um > 0 ? o->limit_um : 214748364.7; /* SGN32 in 0.1 um */
-    for (int j = 0; j < c.n[1]; ++j)
-        for (int i = 0; i < c.n[0]; ++i) {
-            double x = (double)(c.start[0] + i * c.interval) * 1e-4;
-            double y = (double)(c.start[1] + j * c.interval) * 1e-4;
-            c.code[(size_t)j * c.n[0] + i] =
-                sc_export_quantize(sign * map_g(lut, o->axis, x, y), 0.1, rep->limit_um, &rep->clipped);
-        }
-    int comps[1] = {o->axis};
-    residual(lut, comps, 1, sign, beckhoff_eval, &c, rep);
-    rep->tables = 1;
-    rep->points[0] = c.n[0];
-    rep->points[1] = c.n[1];
-    rep->interval_mm = (double)c.interval * 1e-4;
-    rep->unit_um = 0.1;
+    *ctx = c;
+    return SC_OK;
+}
 
+/* The plane compensation file (kw.crosscomp2), values c.code. */
+static void beckhoff_write(sc_textbuf *t, const sc_export_options *o, const beckhoff_ctx *cp,
+                           double sign, const sc_export_report *rep)
+{
+    const beckhoff_ctx c = *cp;
     const int slave_nr = o->axis == 0 ? o->beckhoff_x_axis_nr : o->beckhoff_y_axis_nr;
     sc_tb_printf(t, "# ****************************************\n");
     sc_tb_printf(t, "# Plane compensation of the %s axis, written by selfcal export\n", axis_upper(o->axis));
@@ -313,6 +297,42 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
             sc_tb_printf(t, "kw.crosscomp2.table[%3d][%3d].correction %lld\n", j, i,
                       c.code[(size_t)j * c.n[0] + i]);
     sc_tb_printf(t, "End\n");
+}
+
+static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
+                                 sc_export_report *rep, sc_error *err)
+{
+    if (o->axis != 0 && o->axis != 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "beckhoff: choose the compensated (slave) axis, x or y");
+    beckhoff_ctx c;
+    memset(&c, 0, sizeof c);
+    sc_status st = beckhoff_grid(lut, o, &c, err);
+    if (st != SC_OK)
+        return st;
+    c.code = malloc(sizeof *c.code * (size_t)c.n[0] * (size_t)c.n[1]);
+    if (!c.code)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    /* ISG's compensation values are measured errors, actual - setpoint (their leadscrew example:
+     * setpoint 19866.7 um, actual 19856.5 um, value -102 x 0.1 um), which the CNC takes off the
+     * setpoint: -G by default (docs/exporters.md). */
+    const double sign = o->negate ? 1.0 : -1.0;
+    rep->limit_um = o->limit_um > 0 ? o->limit_um : 214748364.7; /* SGN32 in 0.1 um */
+    for (int j = 0; j < c.n[1]; ++j)
+        for (int i = 0; i < c.n[0]; ++i) {
+            double x = (double)(c.start[0] + i * c.interval) * 1e-4;
+            double y = (double)(c.start[1] + j * c.interval) * 1e-4;
+            c.code[(size_t)j * c.n[0] + i] = sc_export_quantize(
+                sign * map_g(lut, o->axis, x, y), 0.1, rep->limit_um, &rep->clipped);
+        }
+    int comps[1] = {o->axis};
+    residual(lut, comps, 1, sign, beckhoff_eval, &c, rep);
+    rep->tables = 1;
+    rep->points[0] = c.n[0];
+    rep->points[1] = c.n[1];
+    rep->interval_mm = (double)c.interval * 1e-4;
+    rep->unit_um = 0.1;
+    beckhoff_write(t, o, &c, sign, rep);
     free(c.code);
     return SC_OK;
 }
