@@ -171,8 +171,8 @@ static void scale_lines(outbuf *b, const char *cmt, const char *what, const doub
     }
 }
 
-sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char *buf,
-                             size_t cap, size_t *len, sc_export_report *rep, sc_error *err)
+/* The options a firmware export takes: no --negate, finite non-negative steps and distances. */
+static sc_status fw_check_options(const sc_export_options *o, sc_error *err)
 {
     if (o->negate)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -183,6 +183,86 @@ sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char
             !isfinite(o->steps_per_mm[a]) || !isfinite(o->rotation_distance_mm[a]))
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "steps/mm and rotation distance must be finite and > 0");
+    return SC_OK;
+}
+
+/* Scale factors as written (9 decimals), applied to steps/mm (k) or rotation_distance (1/k). */
+static void fw_scales(int klipper, double R, fw_model *m, sc_export_report *rep)
+{
+    if (klipper) {
+        const double rx = as_written(1.0 - R, FW_DECIMALS), ry = as_written(1.0 + R, FW_DECIMALS);
+        rep->scale[0] = rx;
+        rep->scale[1] = ry;
+        m->k[0] = 1.0 / rx;
+        m->k[1] = 1.0 / ry;
+    } else {
+        rep->scale[0] = as_written(1.0 / (1.0 - R), FW_DECIMALS);
+        rep->scale[1] = as_written(1.0 / (1.0 + R), FW_DECIMALS);
+        m->k[0] = rep->scale[0];
+        m->k[1] = rep->scale[1];
+    }
+}
+
+/* Klipper: SET_SKEW takes the lengths of a printed square; give those of a virtual one whose
+ * calc_skew_factor is the factor we need: -2 O (Klipper moves to x - y * factor). */
+static void fw_write_klipper(outbuf *ob, const sc_export_options *o, double want, fw_model *m,
+                             sc_export_report *rep)
+{
+    const char *cmt = ";";
+    const double fac = -want, theta = M_PI / 2 - atan(fac), L = KLIPPER_AD_MM;
+    const double ac = as_written(L * sqrt(2 + 2 * cos(theta)), FW_DECIMALS);
+    const double bd = as_written(L * sqrt(2 - 2 * cos(theta)), FW_DECIMALS);
+    rep->skew = klipper_skew_factor(ac, bd, L);
+    m->skew_x_per_y = -rep->skew;
+    out(ob, "%s Klipper skew_correction moves to x - y * xy_factor, xy_factor = "
+            "calc_skew_factor(AC, BD, AD);\n",
+        cmt);
+    out(ob, "%s these are the lengths of a virtual %.0f mm square with xy_factor = %.9g\n", cmt,
+        L, rep->skew);
+    out(ob, "%s printer.cfg needs a [skew_correction] section; then run (or put in the start "
+            "macro):\n",
+        cmt);
+    out(ob, "SET_SKEW XY=%.*f,%.*f,%.*f\n", FW_DECIMALS, ac, FW_DECIMALS, bd, FW_DECIMALS, L);
+    out(ob, "%s to keep it: SKEW_PROFILE SAVE=selfcal, SAVE_CONFIG\n", cmt);
+    scale_lines(ob, cmt, "rotation_distance", o->rotation_distance_mm, rep->scale, NULL);
+}
+
+static sc_status fw_write_marlin(outbuf *ob, const sc_export_options *o, double want,
+                                 fw_model *m, sc_export_report *rep, sc_error *err)
+{
+    const char *cmt = ";";
+    const double I = as_written(-want, FW_DECIMALS);
+    if (!(fabs(I) <= SC_EXPORT_MARLIN_MAX_SKEW))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "marlin: skew factor %.6g is beyond M852's limit |I| <= 1", I);
+    rep->skew = I;
+    m->skew_x_per_y = -I;
+    out(ob, "%s Marlin (SKEW_CORRECTION, SKEW_CORRECTION_GCODE) moves to x - y * I\n", cmt);
+    out(ob, "G21 %s M852 reads its value in the current length units: millimetres\n", cmt);
+    out(ob, "M852 I%.*f\n", FW_DECIMALS, I);
+    scale_lines(ob, cmt, "steps/mm (M92)", o->steps_per_mm, rep->scale, "M92");
+    out(ob, "%s M500 stores these in EEPROM\n", cmt);
+    return SC_OK;
+}
+
+static void fw_write_reprap(outbuf *ob, const sc_export_options *o, double want, fw_model *m,
+                            sc_export_report *rep)
+{
+    const char *cmt = ";";
+    const double X = as_written(want * REPRAP_S_MM, FW_DECIMALS - 3);
+    rep->skew = X / REPRAP_S_MM;
+    m->skew_x_per_y = rep->skew;
+    out(ob, "%s RepRapFirmware moves to x + y * tanXY, tanXY = X / S\n", cmt);
+    out(ob, "M556 S%.0f X%.*f\n", REPRAP_S_MM, FW_DECIMALS - 3, X);
+    scale_lines(ob, cmt, "steps/mm (M92)", o->steps_per_mm, rep->scale, "M92");
+}
+
+sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char *buf,
+                             size_t cap, size_t *len, sc_export_report *rep, sc_error *err)
+{
+    sc_status st = fw_check_options(o, err);
+    if (st != SC_OK)
+        return st;
     double b, c, e, f;
     first_order(lut, &b, &c, &e, &f);
     const double O = 0.5 * (c + e), R = 0.5 * (b - f);
@@ -197,21 +277,8 @@ sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char
                             "(|2 O| < 1 and |R| < 0.5 expected)",
                             O, R);
     fw_model m;
-    /* Scale factors as written (9 decimals), applied to steps/mm (k) or rotation_distance (1/k). */
     const int klipper = o->format == SC_EXPORT_KLIPPER;
-    double kx = 1.0 / (1.0 - R), ky = 1.0 / (1.0 + R);
-    if (klipper) {
-        const double rx = as_written(1.0 - R, FW_DECIMALS), ry = as_written(1.0 + R, FW_DECIMALS);
-        rep->scale[0] = rx;
-        rep->scale[1] = ry;
-        m.k[0] = 1.0 / rx;
-        m.k[1] = 1.0 / ry;
-    } else {
-        rep->scale[0] = as_written(kx, FW_DECIMALS);
-        rep->scale[1] = as_written(ky, FW_DECIMALS);
-        m.k[0] = rep->scale[0];
-        m.k[1] = rep->scale[1];
-    }
+    fw_scales(klipper, R, &m, rep);
     const double want = 2 * O; /* x shift per unit y the motors need */
     outbuf ob = {buf, cap, 0, 0};
     const char *cmt = ";";
@@ -221,46 +288,14 @@ sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char
         cmt, O, R);
     out(&ob, "%s XY angle error 2*O = %.6g rad (%.4f um per 100 mm)\n", cmt, 2 * O,
         2 * O * 100e3);
-    if (klipper) {
-        /* SET_SKEW takes the lengths of a printed square; give those of a virtual one whose
-         * calc_skew_factor is the factor we need: -2 O (Klipper moves to x - y * factor). */
-        const double fac = -want, theta = M_PI / 2 - atan(fac), L = KLIPPER_AD_MM;
-        const double ac = as_written(L * sqrt(2 + 2 * cos(theta)), FW_DECIMALS);
-        const double bd = as_written(L * sqrt(2 - 2 * cos(theta)), FW_DECIMALS);
-        rep->skew = klipper_skew_factor(ac, bd, L);
-        m.skew_x_per_y = -rep->skew;
-        out(&ob, "%s Klipper skew_correction moves to x - y * xy_factor, xy_factor = "
-                 "calc_skew_factor(AC, BD, AD);\n",
-            cmt);
-        out(&ob, "%s these are the lengths of a virtual %.0f mm square with xy_factor = %.9g\n",
-            cmt, L, rep->skew);
-        out(&ob, "%s printer.cfg needs a [skew_correction] section; then run (or put in the start "
-                 "macro):\n",
-            cmt);
-        out(&ob, "SET_SKEW XY=%.*f,%.*f,%.*f\n", FW_DECIMALS, ac, FW_DECIMALS, bd, FW_DECIMALS,
-            L);
-        out(&ob, "%s to keep it: SKEW_PROFILE SAVE=selfcal, SAVE_CONFIG\n", cmt);
-        scale_lines(&ob, cmt, "rotation_distance", o->rotation_distance_mm, rep->scale, NULL);
-    } else if (o->format == SC_EXPORT_MARLIN) {
-        const double I = as_written(-want, FW_DECIMALS);
-        if (!(fabs(I) <= SC_EXPORT_MARLIN_MAX_SKEW))
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "marlin: skew factor %.6g is beyond M852's limit |I| <= 1", I);
-        rep->skew = I;
-        m.skew_x_per_y = -I;
-        out(&ob, "%s Marlin (SKEW_CORRECTION, SKEW_CORRECTION_GCODE) moves to x - y * I\n", cmt);
-        out(&ob, "G21 %s M852 reads its value in the current length units: millimetres\n", cmt);
-        out(&ob, "M852 I%.*f\n", FW_DECIMALS, I);
-        scale_lines(&ob, cmt, "steps/mm (M92)", o->steps_per_mm, rep->scale, "M92");
-        out(&ob, "%s M500 stores these in EEPROM\n", cmt);
-    } else {
-        const double X = as_written(want * REPRAP_S_MM, FW_DECIMALS - 3);
-        rep->skew = X / REPRAP_S_MM;
-        m.skew_x_per_y = rep->skew;
-        out(&ob, "%s RepRapFirmware moves to x + y * tanXY, tanXY = X / S\n", cmt);
-        out(&ob, "M556 S%.0f X%.*f\n", REPRAP_S_MM, FW_DECIMALS - 3, X);
-        scale_lines(&ob, cmt, "steps/mm (M92)", o->steps_per_mm, rep->scale, "M92");
-    }
+    if (klipper)
+        fw_write_klipper(&ob, o, want, &m, rep);
+    else if (o->format == SC_EXPORT_MARLIN)
+        st = fw_write_marlin(&ob, o, want, &m, rep, err);
+    else
+        fw_write_reprap(&ob, o, want, &m, rep);
+    if (st != SC_OK)
+        return st;
     if (ob.overflow)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "firmware export: text buffer too small");
     fw_residual(lut, &m, rep);
