@@ -276,7 +276,7 @@ sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char
                             "the map's first order (O = %.3g, R = %.3g) is not a machine's "
                             "(|2 O| < 1 and |R| < 0.5 expected)",
                             O, R);
-    fw_model m;
+    fw_model m = {0};
     const int klipper = o->format == SC_EXPORT_KLIPPER;
     fw_scales(klipper, R, &m, rep);
     const double want = 2 * O; /* x shift per unit y the motors need */
