@@ -169,252 +169,399 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
                o->axis);
 }
 
-int cmd_export(int argc, char **argv)
-{
-    const char *map = NULL, *out = NULL, *fmt = NULL, *axis = NULL;
-    sc_export_options o;
-    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
-    double interval = 0, limit = 0, at = 0, pinterval = 0;
-    int use_at = 0, negate = 0, ax_nr[3] = {1, 2, 3}, first_table = 0;
-    static char names[2][32] = {"AX1", "AX2"};
-    double offset[2] = {0, 0}, steps[2] = {0, 0}, rdist[2] = {0, 0};
-    int np = 0, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
-    /* --travel: [3] for every master axis, [0..2] for master x, y, z ("x:MIN,MAX"). */
-    double travel[4][2] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}};
-    int use_travel[4] = {0, 0, 0, 0};
-    static char prof_path[SC_LUT_MAX_PROFILES][4096];
+/* The command line, as given. */
+typedef struct {
+    const char *map, *out, *fmt, *axis;
+    double interval, limit, at, pinterval;
+    int use_at, negate, ax_nr[3], first_table, target_828d;
+    char names[2][32];
+    double offset[2], steps[2], rdist[2];
+    int np, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
+    char prof_path[SC_LUT_MAX_PROFILES][4096];
     double prof_offset[SC_LUT_MAX_PROFILES];
-    int target_828d = 0;
+    /* --travel: [3] for every master axis, [0..2] for master x, y, z ("x:MIN,MAX"). */
+    double travel[4][2];
+    int use_travel[4];
+} export_args;
+
+enum { NOT_AN_OPTION = -1 };
+
+static int parse_axis_numbers(export_args *a, const char *v)
+{
+    char tail;
+    const int got = sscanf(v, "%d,%d,%d%c", &a->ax_nr[0], &a->ax_nr[1], &a->ax_nr[2], &tail);
+    if ((got != 2 && got != 3) || a->ax_nr[0] < 1 || a->ax_nr[1] < 1 || a->ax_nr[2] < 1 ||
+        a->ax_nr[0] > 65535 || a->ax_nr[1] > 65535 || a->ax_nr[2] > 65535)
+        return cli_usage_error("export", "--axis-numbers: NX,NY[,NZ] (1..65535), not '%s'", v);
+    return CLI_OK;
+}
+
+static int parse_axis_names(export_args *a, const char *v)
+{
+    const char *comma = strchr(v, ',');
+    size_t l0 = comma ? (size_t)(comma - v) : 0, l1 = comma ? strlen(comma + 1) : 0;
+    if (!comma || l0 == 0 || l1 == 0 || l0 >= sizeof a->names[0] || l1 >= sizeof a->names[1] ||
+        strpbrk(v, " ()\t;") != NULL)
+        return cli_usage_error("export", "--axis-names: NAMEX,NAMEY, not '%s'", v);
+    memcpy(a->names[0], v, l0);
+    a->names[0][l0] = '\0';
+    snprintf(a->names[1], sizeof a->names[1], "%s", comma + 1);
+    return CLI_OK;
+}
+
+static int parse_profile(export_args *a, const char *v)
+{
+    const int np = a->np;
+    if (np == SC_LUT_MAX_PROFILES)
+        return cli_usage_error("export", "at most %d profiles", SC_LUT_MAX_PROFILES);
+    if (cli_parse_profile_placed(v, &a->prof_axis[np], &a->prof_dir[np], a->prof_path[np],
+                                 sizeof a->prof_path[np], &a->prof_offset[np]) != 0)
+        return cli_usage_error("export",
+                               "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z "
+                               "and |OFFSET_MM| <= 1e6; not '%s'",
+                               v);
+    if (a->prof_axis[np] == a->prof_dir[np])
+        return cli_usage_error(
+            "export", "--profile: a straightness profile has DIR != AXIS, not '%s'", v);
+    a->np++;
+    return CLI_OK;
+}
+
+static int parse_travel(export_args *a, const char *v)
+{
+    int t = 3;
+    const char *mm = v;
+    if (v[0] && v[1] == ':') {
+        const char ax[2] = {v[0], '\0'};
+        t = sc_lut_axis_from_name(ax);
+        mm = v + 2;
+    }
+    double *tr = t >= 0 ? a->travel[t] : a->travel[3];
+    if (t < 0 || two_doubles(mm, tr) != 0 || !(tr[0] < tr[1]) || fabs(tr[0]) > 1e6 ||
+        fabs(tr[1]) > 1e6)
+        return cli_usage_error("export",
+                               "--travel: [AXIS:]MIN,MAX in mm with MIN < MAX (within 1 km), not "
+                               "'%s'",
+                               v);
+    a->use_travel[t] = 1;
+    return CLI_OK;
+}
+
+/* Options with a number of mm or µm. */
+static int parse_number_option(export_args *a, const char *opt, const char *v)
+{
+    if (!strcmp(opt, "--interval")) {
+        if (sc_parse_double(v, &a->interval) != 0 || a->interval <= 0)
+            return cli_usage_error("export", "--interval: a positive number of mm, not '%s'", v);
+    } else if (!strcmp(opt, "--limit-um")) {
+        if (sc_parse_double(v, &a->limit) != 0 || a->limit <= 0)
+            return cli_usage_error("export", "--limit-um: a positive number, not '%s'", v);
+    } else if (!strcmp(opt, "--at")) {
+        if (sc_parse_double(v, &a->at) != 0)
+            return cli_usage_error("export", "--at: a position in mm, not '%s'", v);
+        a->use_at = 1;
+    } else if (!strcmp(opt, "--profile-interval")) {
+        if (sc_parse_double(v, &a->pinterval) != 0 || !(a->pinterval > 0))
+            return cli_usage_error("export",
+                                   "--profile-interval: a positive number of mm, not '%s'", v);
+    } else if (!strcmp(opt, "--offset")) {
+        if (two_doubles(v, a->offset) != 0 || fabs(a->offset[0]) > 1e6 ||
+            fabs(a->offset[1]) > 1e6)
+            return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
+    } else if (!strcmp(opt, "--steps-per-mm") || !strcmp(opt, "--rotation-distance")) {
+        double *d = opt[2] == 's' ? a->steps : a->rdist;
+        if (two_doubles(v, d) != 0 || !(d[0] > 0) || !(d[1] > 0) || d[0] > 1e9 || d[1] > 1e9)
+            return cli_usage_error("export", "%s: X,Y (positive), not '%s'", opt, v);
+    } else {
+        return NOT_AN_OPTION;
+    }
+    return CLI_OK;
+}
+
+/* Siemens' --target and --first-table. */
+static int parse_siemens_option(export_args *a, const char *opt, const char *v)
+{
+    if (!strcmp(opt, "--target")) {
+        if (!strcmp(v, "828d") || !strcmp(v, "828D"))
+            a->target_828d = 1;
+        else if (strcmp(v, "840d") != 0 && strcmp(v, "840D") != 0)
+            return cli_usage_error("export", "--target: 840d or 828d, not '%s'", v);
+    } else if (!strcmp(opt, "--first-table")) {
+        long t;
+        if (sc_parse_long(v, &t) != 0 || t < 0 || t > 1000)
+            return cli_usage_error("export", "--first-table: a table index >= 0, not '%s'", v);
+        a->first_table = (int)t;
+    } else {
+        return NOT_AN_OPTION;
+    }
+    return CLI_OK;
+}
+
+/* One option with its value. */
+static int parse_value_option(export_args *a, const char *opt, const char *v)
+{
+    if (!strcmp(opt, "--format"))
+        a->fmt = v;
+    else if (!strcmp(opt, "--map"))
+        a->map = v;
+    else if (!strcmp(opt, "-o") || !strcmp(opt, "--out"))
+        a->out = v;
+    else if (!strcmp(opt, "--axis"))
+        a->axis = v;
+    else if (!strcmp(opt, "--axis-numbers"))
+        return parse_axis_numbers(a, v);
+    else if (!strcmp(opt, "--axis-names"))
+        return parse_axis_names(a, v);
+    else if (!strcmp(opt, "--profile"))
+        return parse_profile(a, v);
+    else if (!strcmp(opt, "--travel"))
+        return parse_travel(a, v);
+    else {
+        int rc = parse_number_option(a, opt, v);
+        if (rc == NOT_AN_OPTION)
+            rc = parse_siemens_option(a, opt, v);
+        if (rc == NOT_AN_OPTION)
+            return cli_usage_error("export", "unknown option '%s' (see --help)", opt);
+        return rc;
+    }
+    return CLI_OK;
+}
+
+/* argv into a; *help set for --help. */
+static int parse_args(int argc, char **argv, export_args *a, int *help)
+{
+    memset(a, 0, sizeof *a);
+    a->ax_nr[0] = 1;
+    a->ax_nr[1] = 2;
+    a->ax_nr[2] = 3;
+    snprintf(a->names[0], sizeof a->names[0], "AX1");
+    snprintf(a->names[1], sizeof a->names[1], "AX2");
+    *help = 0;
     for (int k = 1; k < argc; ++k) {
-        const char *a = argv[k];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            export_usage(stdout);
+        const char *opt = argv[k];
+        if (!strcmp(opt, "--help") || !strcmp(opt, "-h")) {
+            *help = 1;
             return CLI_OK;
         }
-        if (!strcmp(a, "--negate")) {
-            negate = 1;
+        if (!strcmp(opt, "--negate")) {
+            a->negate = 1;
             continue;
         }
         const char *v = k + 1 < argc ? argv[k + 1] : NULL;
         if (!v)
-            return cli_usage_error("export", "option %s needs a value (see --help)", a);
+            return cli_usage_error("export", "option %s needs a value (see --help)", opt);
         ++k;
-        if (!strcmp(a, "--format"))
-            fmt = v;
-        else if (!strcmp(a, "--map"))
-            map = v;
-        else if (!strcmp(a, "-o") || !strcmp(a, "--out"))
-            out = v;
-        else if (!strcmp(a, "--axis"))
-            axis = v;
-        else if (!strcmp(a, "--interval")) {
-            if (sc_parse_double(v, &interval) != 0 || interval <= 0)
-                return cli_usage_error("export", "--interval: a positive number of mm, not '%s'", v);
-        } else if (!strcmp(a, "--limit-um")) {
-            if (sc_parse_double(v, &limit) != 0 || limit <= 0)
-                return cli_usage_error("export", "--limit-um: a positive number, not '%s'", v);
-        } else if (!strcmp(a, "--at")) {
-            if (sc_parse_double(v, &at) != 0)
-                return cli_usage_error("export", "--at: a position in mm, not '%s'", v);
-            use_at = 1;
-        } else if (!strcmp(a, "--axis-numbers")) {
-            char tail;
-            const int got = sscanf(v, "%d,%d,%d%c", &ax_nr[0], &ax_nr[1], &ax_nr[2], &tail);
-            if ((got != 2 && got != 3) || ax_nr[0] < 1 || ax_nr[1] < 1 || ax_nr[2] < 1 ||
-                ax_nr[0] > 65535 || ax_nr[1] > 65535 || ax_nr[2] > 65535)
-                return cli_usage_error("export", "--axis-numbers: NX,NY[,NZ] (1..65535), not '%s'", v);
-        } else if (!strcmp(a, "--axis-names")) {
-            const char *comma = strchr(v, ',');
-            size_t l0 = comma ? (size_t)(comma - v) : 0, l1 = comma ? strlen(comma + 1) : 0;
-            if (!comma || l0 == 0 || l1 == 0 || l0 >= sizeof names[0] || l1 >= sizeof names[1] ||
-                strpbrk(v, " ()\t;") != NULL)
-                return cli_usage_error("export", "--axis-names: NAMEX,NAMEY, not '%s'", v);
-            memcpy(names[0], v, l0);
-            names[0][l0] = '\0';
-            snprintf(names[1], sizeof names[1], "%s", comma + 1);
-        } else if (!strcmp(a, "--profile")) {
-            if (np == SC_LUT_MAX_PROFILES)
-                return cli_usage_error("export", "at most %d profiles", SC_LUT_MAX_PROFILES);
-            if (cli_parse_profile_placed(v, &prof_axis[np], &prof_dir[np], prof_path[np],
-                                         sizeof prof_path[np], &prof_offset[np]) != 0)
-                return cli_usage_error("export", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
-            if (prof_axis[np] == prof_dir[np])
-                return cli_usage_error("export", "--profile: a straightness profile has DIR != AXIS, not '%s'", v);
-            ++np;
-        } else if (!strcmp(a, "--profile-interval")) {
-            if (sc_parse_double(v, &pinterval) != 0 || !(pinterval > 0))
-                return cli_usage_error("export", "--profile-interval: a positive number of mm, not '%s'", v);
-        } else if (!strcmp(a, "--travel")) {
-            int t = 3;
-            const char *mm = v;
-            if (v[0] && v[1] == ':') {
-                const char ax[2] = {v[0], '\0'};
-                t = sc_lut_axis_from_name(ax);
-                mm = v + 2;
-            }
-            double *tr = t >= 0 ? travel[t] : travel[3];
-            if (t < 0 || two_doubles(mm, tr) != 0 || !(tr[0] < tr[1]) || fabs(tr[0]) > 1e6 ||
-                fabs(tr[1]) > 1e6)
-                return cli_usage_error("export", "--travel: [AXIS:]MIN,MAX in mm with MIN < MAX (within 1 km), not '%s'", v);
-            use_travel[t] = 1;
-        } else if (!strcmp(a, "--offset")) {
-            if (two_doubles(v, offset) != 0 || fabs(offset[0]) > 1e6 || fabs(offset[1]) > 1e6)
-                return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
-        } else if (!strcmp(a, "--steps-per-mm") || !strcmp(a, "--rotation-distance")) {
-            double *d = a[2] == 's' ? steps : rdist;
-            if (two_doubles(v, d) != 0 || !(d[0] > 0) || !(d[1] > 0) || d[0] > 1e9 || d[1] > 1e9)
-                return cli_usage_error("export", "%s: X,Y (positive), not '%s'", a, v);
-        } else if (!strcmp(a, "--target")) {
-            if (!strcmp(v, "828d") || !strcmp(v, "828D"))
-                target_828d = 1;
-            else if (strcmp(v, "840d") != 0 && strcmp(v, "840D") != 0)
-                return cli_usage_error("export", "--target: 840d or 828d, not '%s'", v);
-        } else if (!strcmp(a, "--first-table")) {
-            long t;
-            if (sc_parse_long(v, &t) != 0 || t < 0 || t > 1000)
-                return cli_usage_error("export", "--first-table: a table index >= 0, not '%s'", v);
-            first_table = (int)t;
-        } else
-            return cli_usage_error("export", "unknown option '%s' (see --help)", a);
+        int rc = parse_value_option(a, opt, v);
+        if (rc != CLI_OK)
+            return rc;
     }
-    if (!fmt || !map || !out)
+    return CLI_OK;
+}
+
+/* --axis for format f: o->axis, or *both_files for one file per axis (OUT-x, OUT-y). */
+static int resolve_axis(const export_args *a, int f, sc_export_options *o, int *both_files)
+{
+    o->axis = f == SC_EXPORT_SIEMENS_CEC ? -1 : 0;
+    *both_files = 0;
+    const char *axis = a->axis;
+    if (!axis)
+        return CLI_OK;
+    if (is_firmware(f) || f == SC_EXPORT_KMOTION)
+        return cli_usage_error("export", "--axis does not apply to --format %s (X and Y at once)",
+                               a->fmt);
+    if (!strcmp(axis, "x") || !strcmp(axis, "X"))
+        o->axis = 0;
+    else if (!strcmp(axis, "y") || !strcmp(axis, "Y"))
+        o->axis = 1;
+    else if (!strcmp(axis, "both") && f == SC_EXPORT_SIEMENS_CEC)
+        o->axis = -1;
+    else if (!strcmp(axis, "both"))
+        *both_files = 1;
+    else
+        return cli_usage_error("export", "--axis: x, y or both, not '%s'", axis);
+    return CLI_OK;
+}
+
+/* The profile options: --profile, --profile-interval and --travel where they apply. */
+static int check_profile_options(const export_args *a, int f)
+{
+    if (a->np > 0 && f != SC_EXPORT_SIEMENS_CEC && f != SC_EXPORT_BECKHOFF)
+        return cli_usage_error("export", "--profile applies to --format siemens-cec and beckhoff only "
+                                         "(LinuxCNC: the HAL component applies profiles)");
+    if (a->pinterval > 0 && a->np == 0)
+        return cli_usage_error("export", "--profile-interval applies to --profile tables only");
+    for (int t = 0; t < 4; ++t) {
+        if (a->use_travel[t] && (f != SC_EXPORT_BECKHOFF || a->np == 0))
+            return cli_usage_error("export", "--travel applies to --format beckhoff with --profile only");
+        int used = t == 3;
+        for (int k = 0; k < a->np; ++k)
+            used |= a->prof_axis[k] == t;
+        if (a->use_travel[t] && !used)
+            return cli_usage_error("export", "--travel %s: no profile has master axis %s",
+                                   sc_lut_axis_name(t), sc_lut_axis_name(t));
+    }
+    for (int i = 0; i < a->np && f == SC_EXPORT_BECKHOFF; ++i)
+        for (int j = 0; j < i; ++j)
+            if (a->prof_dir[i] == a->prof_dir[j])
+                return cli_usage_error("export", "beckhoff: two profiles correct %s; ISG corrects a "
+                                                 "slave axis by one master axis (one cross "
+                                                 "compensation list per slave)",
+                                       sc_lut_axis_name(a->prof_dir[i]));
+    return CLI_OK;
+}
+
+/* Every option applies to format f. */
+static int check_applicability(const export_args *a, int f)
+{
+    if (a->use_at && f != SC_EXPORT_LINUXCNC)
+        return cli_usage_error("export", "--at applies to --format linuxcnc only");
+    int rc = check_profile_options(a, f);
+    if (rc != CLI_OK)
+        return rc;
+    if (a->target_828d && f != SC_EXPORT_SIEMENS_CEC)
+        return cli_usage_error("export", "--target applies to --format siemens-cec only");
+    if (a->steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP)
+        return cli_usage_error("export", "--steps-per-mm applies to --format marlin or reprap only");
+    if (a->rdist[0] > 0 && f != SC_EXPORT_KLIPPER)
+        return cli_usage_error("export", "--rotation-distance applies to --format klipper only");
+    if (is_firmware(f) && (a->negate || a->interval > 0 || a->limit > 0))
+        return cli_usage_error("export", "--negate, --interval and --limit-um do not apply to "
+                                         "--format %s (the firmware's own skew and sign)",
+                               a->fmt);
+    return CLI_OK;
+}
+
+static void options_from_args(const export_args *a, sc_export_options *o)
+{
+    o->interval_mm = a->interval;
+    o->profile_interval_mm = a->pinterval;
+    o->limit_um = a->limit;
+    o->use_line = a->use_at;
+    o->line_mm = a->at;
+    o->negate = a->negate;
+    o->beckhoff_x_axis_nr = a->ax_nr[0];
+    o->beckhoff_y_axis_nr = a->ax_nr[1];
+    o->beckhoff_z_axis_nr = a->ax_nr[2];
+    o->siemens_x_name = a->names[0];
+    o->siemens_y_name = a->names[1];
+    o->siemens_first_table = a->first_table;
+    o->siemens_828d = a->target_828d;
+    for (int k = 0; k < 2; ++k) {
+        o->steps_per_mm[k] = a->steps[k];
+        o->rotation_distance_mm[k] = a->rdist[k];
+    }
+}
+
+/* The map and the profiles, placed in the machine's homed coordinates (--offset). */
+static sc_status load_table(const export_args *a, sc_lut *lut, sc_error *err)
+{
+    sc_lut_init(lut);
+    sc_status st = sc_lut_read_map(a->map, lut, err);
+    for (int k = 0; k < a->np && st == SC_OK; ++k) {
+        st = sc_lut_read_profile(a->prof_path[k], a->prof_axis[k], a->prof_dir[k],
+                                 &lut->profile[k], err);
+        lut->profile[k].start_mm += a->prof_offset[k];
+        lut->n_profiles = k + 1;
+    }
+    lut->x0_mm += a->offset[0];
+    lut->y0_mm += a->offset[1];
+    for (int k = 0; k < lut->n_profiles; ++k)
+        lut->profile[k].start_mm += lut->profile[k].axis < 2 ? a->offset[lut->profile[k].axis] : 0.0;
+    return st;
+}
+
+/* The files: the map's (one, or OUT-x and OUT-y), then a Beckhoff list per profile. */
+enum { MAX_FILES = 2 + SC_LUT_MAX_PROFILES };
+
+static int plan_files(const export_args *a, int f, const sc_export_options *o, int both_files,
+                      char paths[][4096], sc_export_options *opts)
+{
+    int nfiles = 0;
+    for (int k = 0; k < (both_files ? 2 : 1); ++k, ++nfiles) {
+        opts[nfiles] = *o;
+        if (both_files) {
+            opts[nfiles].axis = k;
+            tagged_path(a->out, k == 0 ? "x" : "y", paths[nfiles], 4096);
+        } else {
+            snprintf(paths[nfiles], 4096, "%s", a->out);
+        }
+    }
+    for (int k = 0; k < a->np && f == SC_EXPORT_BECKHOFF; ++k, ++nfiles) {
+        char tag[16];
+        snprintf(tag, sizeof tag, "cross-%s", sc_lut_axis_name(a->prof_dir[k]));
+        opts[nfiles] = *o;
+        opts[nfiles].cross_profile = k;
+        const int t = a->use_travel[a->prof_axis[k]] ? a->prof_axis[k] : 3; /* its own, else all */
+        opts[nfiles].use_travel = a->use_travel[t];
+        opts[nfiles].travel_mm[0] = a->travel[t][0];
+        opts[nfiles].travel_mm[1] = a->travel[t][1];
+        tagged_path(a->out, tag, paths[nfiles], 4096);
+    }
+    return nfiles;
+}
+
+/* Every file computed and checked first (nothing written), then written: all or none. */
+static sc_status write_files(const sc_lut *lut, int nfiles, char paths[][4096],
+                             const sc_export_options *opts, sc_export_report *reps, sc_error *err)
+{
+    sc_status st = SC_OK;
+    for (int k = 0; k < nfiles && st == SC_OK; ++k)
+        st = sc_export_write(lut, &opts[k], NULL, &reps[k], err);
+    int written = 0;
+    for (; written < nfiles && st == SC_OK; ++written)
+        st = sc_export_write(lut, &opts[written], paths[written], &reps[written], err);
+    if (st != SC_OK)
+        for (int k = 0; k + 1 < written; ++k)
+            remove(paths[k]); /* all files or none */
+    return st;
+}
+
+int cmd_export(int argc, char **argv)
+{
+    static export_args a;
+    int help;
+    int rc = parse_args(argc, argv, &a, &help);
+    if (rc != CLI_OK)
+        return rc;
+    if (help) {
+        export_usage(stdout);
+        return CLI_OK;
+    }
+    if (!a.fmt || !a.map || !a.out)
         return cli_usage_error("export", "--format, --map and -o are required (see --help)");
-    int f = sc_export_format_from_name(fmt);
+    int f = sc_export_format_from_name(a.fmt);
     if (f < 0)
         return cli_usage_error("export",
                                "--format: beckhoff, siemens-cec, linuxcnc, kmotion, klipper, "
                                "marlin or reprap, not '%s'",
-                               fmt);
-    const int firmware = is_firmware(f);
+                               a.fmt);
+    sc_export_options o;
     sc_export_options_init(&o, (sc_export_format)f);
-    o.axis = f == SC_EXPORT_SIEMENS_CEC ? -1 : 0;
-    int both_files = 0;
-    if (axis) {
-        if (firmware || f == SC_EXPORT_KMOTION)
-            return cli_usage_error("export", "--axis does not apply to --format %s (X and Y at once)",
-                                   fmt);
-        if (!strcmp(axis, "x") || !strcmp(axis, "X"))
-            o.axis = 0;
-        else if (!strcmp(axis, "y") || !strcmp(axis, "Y"))
-            o.axis = 1;
-        else if (!strcmp(axis, "both") && f == SC_EXPORT_SIEMENS_CEC)
-            o.axis = -1;
-        else if (!strcmp(axis, "both"))
-            both_files = 1; /* one file per axis: OUT-x, OUT-y */
-        else
-            return cli_usage_error("export", "--axis: x, y or both, not '%s'", axis);
-    }
-    if (use_at && f != SC_EXPORT_LINUXCNC)
-        return cli_usage_error("export", "--at applies to --format linuxcnc only");
-    if (np > 0 && f != SC_EXPORT_SIEMENS_CEC && f != SC_EXPORT_BECKHOFF)
-        return cli_usage_error("export", "--profile applies to --format siemens-cec and beckhoff only "
-                                         "(LinuxCNC: the HAL component applies profiles)");
-    if (pinterval > 0 && np == 0)
-        return cli_usage_error("export", "--profile-interval applies to --profile tables only");
-    for (int t = 0; t < 4; ++t) {
-        if (use_travel[t] && (f != SC_EXPORT_BECKHOFF || np == 0))
-            return cli_usage_error("export", "--travel applies to --format beckhoff with --profile only");
-        int used = t == 3;
-        for (int k = 0; k < np; ++k)
-            used |= prof_axis[k] == t;
-        if (use_travel[t] && !used)
-            return cli_usage_error("export", "--travel %s: no profile has master axis %s",
-                                   sc_lut_axis_name(t), sc_lut_axis_name(t));
-    }
-    for (int a = 0; a < np && f == SC_EXPORT_BECKHOFF; ++a)
-        for (int b = 0; b < a; ++b)
-            if (prof_dir[a] == prof_dir[b])
-                return cli_usage_error("export", "beckhoff: two profiles correct %s; ISG corrects a "
-                                                 "slave axis by one master axis (one cross "
-                                                 "compensation list per slave)",
-                                       sc_lut_axis_name(prof_dir[a]));
-    if (target_828d && f != SC_EXPORT_SIEMENS_CEC)
-        return cli_usage_error("export", "--target applies to --format siemens-cec only");
-    if (steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP)
-        return cli_usage_error("export", "--steps-per-mm applies to --format marlin or reprap only");
-    if (rdist[0] > 0 && f != SC_EXPORT_KLIPPER)
-        return cli_usage_error("export", "--rotation-distance applies to --format klipper only");
-    if (firmware && (negate || interval > 0 || limit > 0))
-        return cli_usage_error("export", "--negate, --interval and --limit-um do not apply to "
-                                         "--format %s (the firmware's own skew and sign)",
-                               fmt);
-    o.interval_mm = interval;
-    o.profile_interval_mm = pinterval;
-    o.limit_um = limit;
-    o.use_line = use_at;
-    o.line_mm = at;
-    o.negate = negate;
-    o.beckhoff_x_axis_nr = ax_nr[0];
-    o.beckhoff_y_axis_nr = ax_nr[1];
-    o.beckhoff_z_axis_nr = ax_nr[2];
-    o.siemens_x_name = names[0];
-    o.siemens_y_name = names[1];
-    o.siemens_first_table = first_table;
-    o.siemens_828d = target_828d;
-    o.steps_per_mm[0] = steps[0];
-    o.steps_per_mm[1] = steps[1];
-    o.rotation_distance_mm[0] = rdist[0];
-    o.rotation_distance_mm[1] = rdist[1];
-
+    int both_files;
+    if ((rc = resolve_axis(&a, f, &o, &both_files)) != CLI_OK ||
+        (rc = check_applicability(&a, f)) != CLI_OK)
+        return rc;
+    options_from_args(&a, &o);
     sc_lut *lut = malloc(sizeof *lut);
     if (!lut) {
         fprintf(stderr, "selfcal export: out of memory\n");
         return CLI_FAIL;
     }
-    sc_lut_init(lut);
     sc_error err;
     sc_error_clear(&err);
-    sc_status st = sc_lut_read_map(map, lut, &err);
-    for (int k = 0; k < np && st == SC_OK; ++k) {
-        st = sc_lut_read_profile(prof_path[k], prof_axis[k], prof_dir[k], &lut->profile[k], &err);
-        lut->profile[k].start_mm += prof_offset[k];
-        lut->n_profiles = k + 1;
-    }
-    /* Table positions in the machine's homed coordinates. */
-    lut->x0_mm += offset[0];
-    lut->y0_mm += offset[1];
-    for (int k = 0; k < lut->n_profiles; ++k)
-        lut->profile[k].start_mm += lut->profile[k].axis < 2 ? offset[lut->profile[k].axis] : 0.0;
-    /* The files: the map's (one, or OUT-x and OUT-y), then a Beckhoff list per profile. */
-    enum { MAX_FILES = 2 + SC_LUT_MAX_PROFILES };
     static char paths[MAX_FILES][4096];
     static sc_export_report reps[MAX_FILES];
     static sc_export_options opts[MAX_FILES];
-    int nfiles = 0;
-    for (int k = 0; k < (both_files ? 2 : 1); ++k, ++nfiles) {
-        opts[nfiles] = o;
-        if (both_files) {
-            opts[nfiles].axis = k;
-            tagged_path(out, k == 0 ? "x" : "y", paths[nfiles], sizeof paths[nfiles]);
-        } else {
-            snprintf(paths[nfiles], sizeof paths[nfiles], "%s", out);
-        }
-    }
-    for (int k = 0; k < np && f == SC_EXPORT_BECKHOFF; ++k, ++nfiles) {
-        char tag[16];
-        snprintf(tag, sizeof tag, "cross-%s", sc_lut_axis_name(prof_dir[k]));
-        opts[nfiles] = o;
-        opts[nfiles].cross_profile = k;
-        const int t = use_travel[prof_axis[k]] ? prof_axis[k] : 3; /* its own, else the common one */
-        opts[nfiles].use_travel = use_travel[t];
-        opts[nfiles].travel_mm[0] = travel[t][0];
-        opts[nfiles].travel_mm[1] = travel[t][1];
-        tagged_path(out, tag, paths[nfiles], sizeof paths[nfiles]);
-    }
-    /* Every file computed and checked first (nothing written), then written: all or none. */
-    for (int k = 0; k < nfiles && st == SC_OK; ++k)
-        st = sc_export_write(lut, &opts[k], NULL, &reps[k], &err);
-    int written = 0;
-    for (; written < nfiles && st == SC_OK; ++written)
-        st = sc_export_write(lut, &opts[written], paths[written], &reps[written], &err);
+    int nfiles = plan_files(&a, f, &o, both_files, paths, opts);
+    sc_status st = load_table(&a, lut, &err);
+    if (st == SC_OK)
+        st = write_files(lut, nfiles, paths, opts, reps, &err);
     if (st != SC_OK) {
-        for (int k = 0; k + 1 < written; ++k)
-            remove(paths[k]); /* all files or none */
         free(lut);
         return cli_report(&err);
     }
     for (int k = 0; k < nfiles; ++k)
-        print_report(lut, fmt, f, paths[k], &opts[k], &reps[k]);
+        print_report(lut, a.fmt, f, paths[k], &opts[k], &reps[k]);
     free(lut);
     return CLI_OK;
 }
