@@ -107,148 +107,248 @@ static sc_status compensate(sc_grid_data *d, const char *table, sc_error *err)
     return st;
 }
 
-int cmd_simulate_grid(int argc, char **argv)
-{
-    const char *plan_arg = NULL, *out = NULL, *truth_map = NULL, *truth_art = NULL,
-               *truth_sum = NULL, *comp_table = NULL;
-    double n_d = 25, pitch = 1, ox = 0, oy = 0;
-    int n_given = 0, pitch_given = 0, origin_given = 0, n_vs = 0;
-    long stage_x = 0, stage_y = 0;
+/* The command line, as given. */
+typedef struct {
+    const char *plan_arg, *out, *truth_map, *truth_art, *truth_sum, *comp_table;
+    double n_d, pitch, ox, oy;
+    int n_given, pitch_given, origin_given, n_vs;
+    long stage_x, stage_y;
     double view_sigma[SC_GRID_MAX_VIEWS];
     sc_grid_sim_params sp;
-    sc_grid_sim_defaults(&sp);
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
+} sim_args;
+
+/* "A,B" into its two halves (in buf); NULL when there is no comma. */
+static const char *split_pair(const char *v, char *buf, size_t cap)
+{
+    snprintf(buf, cap, "%s", v);
+    char *comma = strchr(buf, ',');
+    if (!comma)
+        return NULL;
+    *comma = '\0';
+    return comma + 1;
+}
+
+static int parse_origin(sim_args *a, const char *v)
+{
+    char buf[128];
+    const char *second = split_pair(v, buf, sizeof buf);
+    if (!second || sc_parse_double(buf, &a->ox) || sc_parse_double(second, &a->oy))
+        return cli_usage_error("simulate grid", "--origin-mm needs X,Y, got '%s'", v);
+    a->origin_given = 1;
+    return CLI_OK;
+}
+
+static int parse_stage(sim_args *a, const char *v)
+{
+    char buf[64];
+    const char *second = split_pair(v, buf, sizeof buf);
+    if (!second || sc_parse_long(buf, &a->stage_x) || sc_parse_long(second, &a->stage_y) ||
+        a->stage_x < 3 || a->stage_y < 3 || a->stage_x % 2 == 0 || a->stage_y % 2 == 0 ||
+        a->stage_x > SC_GRID_MAX_STAGE || a->stage_y > SC_GRID_MAX_STAGE)
+        return cli_usage_error("simulate grid", "--stage needs NX,NY, both odd and >= 3, got '%s'", v);
+    return CLI_OK;
+}
+
+static int parse_view_sigmas(sim_args *a, const char *v)
+{
+    char buf[1024];
+    snprintf(buf, sizeof buf, "%s", v);
+    a->n_vs = 0;
+    for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
+        if (a->n_vs == SC_GRID_MAX_VIEWS || sc_parse_double(t, &a->view_sigma[a->n_vs]) ||
+            !(a->view_sigma[a->n_vs] > 0) || a->view_sigma[a->n_vs] > 1e6)
+            return cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
+        ++a->n_vs;
+    }
+    return CLI_OK;
+}
+
+static int parse_drift(sim_args *a, const char *v)
+{
+    char buf[128];
+    const char *second = split_pair(v, buf, sizeof buf);
+    if (!second || sc_parse_double(buf, &a->sp.drift_vx_um_s) ||
+        sc_parse_double(second, &a->sp.drift_vy_um_s))
+        return cli_usage_error("simulate grid", "--drift-um-s needs VX,VY, got '%s'", v);
+    return CLI_OK;
+}
+
+/* The options taking one number. */
+static int parse_number_option(sim_args *a, const char *o, const char *v)
+{
+    double x;
+    if (parse_num(o, v, &x))
+        return CLI_BAD_INPUT;
+    sc_grid_sim_params *sp = &a->sp;
+    if (!strcmp(o, "--n")) a->n_d = x, a->n_given = 1;
+    else if (!strcmp(o, "--pitch-mm")) a->pitch = x, a->pitch_given = 1;
+    else if (!strcmp(o, "--sigma-g-um")) sp->sigma_g_um = x;
+    else if (!strcmp(o, "--sigma-a-um")) sp->sigma_a_um = x;
+    else if (!strcmp(o, "--sigma-r-um")) sp->sigma_r_um = x;
+    else if (!strcmp(o, "--sigma-t-um")) sp->sigma_t_um = x;
+    else if (!strcmp(o, "--sigma-theta-urad")) sp->sigma_theta_urad = x;
+    else if (!strcmp(o, "--O")) sp->O = x;
+    else if (!strcmp(o, "--R")) sp->R = x;
+    else if (!strcmp(o, "--rho")) sp->rho = x;
+    else if (!strcmp(o, "--dt-s")) {
+        if (!(x > 0) || x > 1e6)
+            return cli_usage_error("simulate grid", "--dt-s needs a positive number");
+        sp->dt_s = x;
+    }
+    else
+        return cli_usage_error("simulate grid", "unknown option '%s' (see --help)", o);
+    return CLI_OK;
+}
+
+static int parse_option(sim_args *a, const char *o, const char *v)
+{
+    if (!strcmp(o, "--plan")) a->plan_arg = v;
+    else if (!strcmp(o, "--out")) a->out = v;
+    else if (!strcmp(o, "--truth-map")) a->truth_map = v;
+    else if (!strcmp(o, "--truth-artifact")) a->truth_art = v;
+    else if (!strcmp(o, "--truth-summary")) a->truth_sum = v;
+    else if (!strcmp(o, "--compensate-with")) a->comp_table = v;
+    else if (!strcmp(o, "--origin-mm")) return parse_origin(a, v);
+    else if (!strcmp(o, "--stage")) return parse_stage(a, v);
+    else if (!strcmp(o, "--view-sigma-r-um")) return parse_view_sigmas(a, v);
+    else if (!strcmp(o, "--drift-um-s")) return parse_drift(a, v);
+    else if (!strcmp(o, "--seed")) {
+        long s;
+        if (sc_parse_long(v, &s) || s < 0)
+            return cli_usage_error("simulate grid", "--seed needs a whole number >= 0");
+        a->sp.seed = (uint64_t)s;
+    } else
+        return parse_number_option(a, o, v);
+    return CLI_OK;
+}
+
+/* argv into a, with the required options and ranges checked; *help for --help. */
+static int parse_args(int argc, char **argv, sim_args *a, int *help)
+{
+    memset(a, 0, sizeof *a);
+    a->n_d = 25;
+    a->pitch = 1;
+    sc_grid_sim_defaults(&a->sp);
+    *help = 0;
+    for (int k = 1; k < argc; ++k) {
+        const char *o = argv[k];
         if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(USAGE, stdout);
+            *help = 1;
             return CLI_OK;
         }
-        if (a + 1 >= argc)
+        if (k + 1 >= argc)
             return cli_usage_error("simulate grid", "unknown option or missing value: '%s' (see --help)",
                                    o);
-        const char *v = argv[++a];
-        double x;
-        if (!strcmp(o, "--plan")) plan_arg = v;
-        else if (!strcmp(o, "--out")) out = v;
-        else if (!strcmp(o, "--truth-map")) truth_map = v;
-        else if (!strcmp(o, "--truth-artifact")) truth_art = v;
-        else if (!strcmp(o, "--truth-summary")) truth_sum = v;
-        else if (!strcmp(o, "--compensate-with")) comp_table = v;
-        else if (!strcmp(o, "--origin-mm")) {
-            char buf[128];
-            snprintf(buf, sizeof buf, "%s", v);
-            char *comma = strchr(buf, ',');
-            if (!comma)
-                return cli_usage_error("simulate grid", "--origin-mm needs X,Y, got '%s'", v);
-            *comma = '\0';
-            if (sc_parse_double(buf, &ox) || sc_parse_double(comma + 1, &oy))
-                return cli_usage_error("simulate grid", "--origin-mm needs X,Y, got '%s'", v);
-            origin_given = 1;
-        } else if (!strcmp(o, "--stage")) {
-            char buf[64];
-            snprintf(buf, sizeof buf, "%s", v);
-            char *comma = strchr(buf, ',');
-            if (comma)
-                *comma = '\0';
-            if (!comma || sc_parse_long(buf, &stage_x) || sc_parse_long(comma + 1, &stage_y) ||
-                stage_x < 3 || stage_y < 3 || stage_x % 2 == 0 || stage_y % 2 == 0 ||
-                stage_x > SC_GRID_MAX_STAGE || stage_y > SC_GRID_MAX_STAGE)
-                return cli_usage_error("simulate grid", "--stage needs NX,NY, both odd and >= 3, got '%s'", v);
-        } else if (!strcmp(o, "--view-sigma-r-um")) {
-            char buf[1024];
-            snprintf(buf, sizeof buf, "%s", v);
-            n_vs = 0;
-            for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
-                if (n_vs == SC_GRID_MAX_VIEWS || sc_parse_double(t, &view_sigma[n_vs]) ||
-                    !(view_sigma[n_vs] > 0) || view_sigma[n_vs] > 1e6)
-                    return cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
-                ++n_vs;
-            }
-        } else if (!strcmp(o, "--drift-um-s")) {
-            char buf[128];
-            snprintf(buf, sizeof buf, "%s", v);
-            char *comma = strchr(buf, ',');
-            if (comma)
-                *comma = '\0';
-            if (!comma || sc_parse_double(buf, &sp.drift_vx_um_s) ||
-                sc_parse_double(comma + 1, &sp.drift_vy_um_s))
-                return cli_usage_error("simulate grid", "--drift-um-s needs VX,VY, got '%s'", v);
-        } else if (!strcmp(o, "--seed")) {
-            long s;
-            if (sc_parse_long(v, &s) || s < 0)
-                return cli_usage_error("simulate grid", "--seed needs a whole number >= 0");
-            sp.seed = (uint64_t)s;
-        } else {
-            if (parse_num(o, v, &x))
-                return CLI_BAD_INPUT;
-            if (!strcmp(o, "--n")) n_d = x, n_given = 1;
-            else if (!strcmp(o, "--pitch-mm")) pitch = x, pitch_given = 1;
-            else if (!strcmp(o, "--sigma-g-um")) sp.sigma_g_um = x;
-            else if (!strcmp(o, "--sigma-a-um")) sp.sigma_a_um = x;
-            else if (!strcmp(o, "--sigma-r-um")) sp.sigma_r_um = x;
-            else if (!strcmp(o, "--sigma-t-um")) sp.sigma_t_um = x;
-            else if (!strcmp(o, "--sigma-theta-urad")) sp.sigma_theta_urad = x;
-            else if (!strcmp(o, "--O")) sp.O = x;
-            else if (!strcmp(o, "--R")) sp.R = x;
-            else if (!strcmp(o, "--rho")) sp.rho = x;
-            else if (!strcmp(o, "--dt-s")) {
-                if (!(x > 0) || x > 1e6)
-                    return cli_usage_error("simulate grid", "--dt-s needs a positive number");
-                sp.dt_s = x;
-            }
-            else
-                return cli_usage_error("simulate grid", "unknown option '%s' (see --help)", o);
+        int rc = parse_option(a, o, argv[++k]);
+        if (rc != CLI_OK)
+            return rc;
+    }
+    if (!a->plan_arg || !a->out || !a->truth_map)
+        return cli_usage_error("simulate grid", "--plan, --out and --truth-map are required (see --help)");
+    if (a->n_d != floor(a->n_d) || a->n_d < 3 || a->n_d > SC_GRID_MAX_N || fmod(a->n_d, 2) == 0)
+        return cli_usage_error("simulate grid", "--n must be odd and in 3..%d", SC_GRID_MAX_N);
+    if (!(a->pitch > 0))
+        return cli_usage_error("simulate grid", "--pitch-mm must be positive");
+    if ((a->sp.drift_vx_um_s != 0 || a->sp.drift_vy_um_s != 0) && !(a->sp.dt_s > 0))
+        return cli_usage_error("simulate grid", "--drift-um-s needs --dt-s");
+    if (!strcmp(a->plan_arg, "stitch") && !a->stage_x)
+        return cli_usage_error("simulate grid", "--plan stitch needs --stage NX,NY");
+    return CLI_OK;
+}
+
+/* The plan: a named one (stitch, ye, double-shift) or a file's header; then --stage and
+ * --view-sigma-r-um. *usage_rc is set (and an error returned) for a usage problem. */
+static sc_status build_plan(const sim_args *a, sc_grid_plan *plan, int *usage_rc, sc_error *err)
+{
+    const int n = (int)a->n_d;
+    sc_status st;
+    *usage_rc = CLI_OK;
+    if (!strcmp(a->plan_arg, "stitch")) {
+        st = sc_grid_plan_stitch(n, (int)a->stage_x, (int)a->stage_y, a->pitch, a->ox, a->oy, plan,
+                                 err);
+    } else if (!strcmp(a->plan_arg, "ye")) {
+        st = sc_grid_plan_ye(n, a->pitch, a->ox, a->oy, plan, err);
+    } else if (!strcmp(a->plan_arg, "double-shift")) {
+        st = sc_grid_plan_double_shift(n, a->pitch, a->ox, a->oy, plan, err);
+    } else {
+        sc_grid_data pf;
+        sc_grid_file_info info;
+        st = sc_grid_read(a->plan_arg, &pf, &info, err);
+        if (st != SC_OK)
+            return st;
+        *plan = pf.plan;
+        sc_grid_data_free(&pf);
+        if ((a->n_given && n != plan->n) || (a->pitch_given && a->pitch != plan->pitch_mm) ||
+            (a->origin_given && (a->ox != plan->origin_mm[0] || a->oy != plan->origin_mm[1]))) {
+            *usage_rc = cli_usage_error("simulate grid",
+                                        "--n/--pitch-mm/--origin-mm disagree with the header of %s",
+                                        a->plan_arg);
+            return SC_E_INPUT;
         }
     }
-    if (!plan_arg || !out || !truth_map)
-        return cli_usage_error("simulate grid", "--plan, --out and --truth-map are required (see --help)");
-    if (n_d != floor(n_d) || n_d < 3 || n_d > SC_GRID_MAX_N || fmod(n_d, 2) == 0)
-        return cli_usage_error("simulate grid", "--n must be odd and in 3..%d", SC_GRID_MAX_N);
-    if (!(pitch > 0))
-        return cli_usage_error("simulate grid", "--pitch-mm must be positive");
+    if (st == SC_OK && a->stage_x && strcmp(a->plan_arg, "stitch") != 0) {
+        plan->stage_nx = (int)a->stage_x;
+        plan->stage_ny = (int)a->stage_y;
+        st = sc_grid_plan_check(plan, err);
+    }
+    if (st == SC_OK && a->n_vs) {
+        if (a->n_vs != plan->n_views) {
+            *usage_rc = cli_usage_error("simulate grid",
+                                        "--view-sigma-r-um gives %d values for %d views", a->n_vs,
+                                        plan->n_views);
+            return SC_E_INPUT;
+        }
+        for (int v = 0; v < a->n_vs; ++v)
+            plan->view[v].sigma_um = a->view_sigma[v];
+    }
+    return st;
+}
 
+/* Every file written, then committed together: all or none. */
+static sc_status write_outputs(const sim_args *a, const sc_grid_data *d,
+                               const sc_grid_sim_truth *t, sc_error *err)
+{
+    sc_afile f[4];
+    memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
+    const char *paths[4] = {a->out, a->truth_map, a->truth_art, a->truth_sum};
+    sc_status st = SC_OK;
+    int opened = 0;
+    for (; opened < 4; ++opened) {
+        if (!paths[opened])
+            continue;
+        st = sc_afile_open(&f[opened], paths[opened], err);
+        if (st != SC_OK)
+            break;
+        switch (opened) {
+        case 0: sc_grid_fprint_input(f[0].fp, d); break;
+        case 1: sc_grid_fprint_map(f[1].fp, &d->plan, t->gx_um, t->gy_um, NULL, NULL); break;
+        case 2: sc_grid_fprint_artifact(f[2].fp, &d->plan, t->ax_um, t->ay_um); break;
+        case 3: fprint_truth_summary(f[3].fp, a->plan_arg, &d->plan, &a->sp, t); break;
+        }
+    }
+    if (st == SC_OK)
+        return sc_afile_commit_all(f, opened, err);
+    sc_afile_abort_all(f, opened);
+    return st;
+}
+
+int cmd_simulate_grid(int argc, char **argv)
+{
+    sim_args a;
+    int help;
+    int rc = parse_args(argc, argv, &a, &help);
+    if (rc != CLI_OK || help) {
+        if (help)
+            fputs(USAGE, stdout);
+        return rc;
+    }
     sc_error err;
     sc_error_clear(&err);
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    sc_status st;
-    int n = (int)n_d;
-    if ((sp.drift_vx_um_s != 0 || sp.drift_vy_um_s != 0) && !(sp.dt_s > 0))
-        return cli_usage_error("simulate grid", "--drift-um-s needs --dt-s");
-    if (!strcmp(plan_arg, "stitch")) {
-        if (!stage_x)
-            return cli_usage_error("simulate grid", "--plan stitch needs --stage NX,NY");
-        st = sc_grid_plan_stitch(n, (int)stage_x, (int)stage_y, pitch, ox, oy, &d.plan, &err);
-    } else if (!strcmp(plan_arg, "ye")) {
-        st = sc_grid_plan_ye(n, pitch, ox, oy, &d.plan, &err);
-    } else if (!strcmp(plan_arg, "double-shift")) {
-        st = sc_grid_plan_double_shift(n, pitch, ox, oy, &d.plan, &err);
-    } else {
-        sc_grid_data pf;
-        sc_grid_file_info info;
-        st = sc_grid_read(plan_arg, &pf, &info, &err);
-        if (st == SC_OK) {
-            d.plan = pf.plan;
-            sc_grid_data_free(&pf);
-            if ((n_given && n != d.plan.n) || (pitch_given && pitch != d.plan.pitch_mm) ||
-                (origin_given && (ox != d.plan.origin_mm[0] || oy != d.plan.origin_mm[1])))
-                return cli_usage_error("simulate grid",
-                                       "--n/--pitch-mm/--origin-mm disagree with the header of %s",
-                                       plan_arg);
-        }
-    }
-    if (st == SC_OK && stage_x && strcmp(plan_arg, "stitch") != 0) {
-        d.plan.stage_nx = (int)stage_x;
-        d.plan.stage_ny = (int)stage_y;
-        st = sc_grid_plan_check(&d.plan, &err);
-    }
-    if (st == SC_OK && n_vs) {
-        if (n_vs != d.plan.n_views)
-            return cli_usage_error("simulate grid", "--view-sigma-r-um gives %d values for %d views",
-                                   n_vs, d.plan.n_views);
-        for (int v = 0; v < n_vs; ++v)
-            d.plan.view[v].sigma_um = view_sigma[v];
-    }
+    sc_status st = build_plan(&a, &d.plan, &rc, &err);
+    if (rc != CLI_OK)
+        return rc;
     if (st != SC_OK)
         return cli_report(&err);
     size_t nn = (size_t)d.plan.n * d.plan.n, ns = (size_t)sc_grid_stage_nodes(&d.plan);
@@ -265,40 +365,14 @@ int cmd_simulate_grid(int argc, char **argv)
     t.ay_um = buf + 2 * ns + nn;
     st = sc_grid_data_alloc(&d, &err);
     if (st == SC_OK)
-        st = sc_grid_data_alloc_extra(&d, 0, sp.dt_s > 0, &err);
+        st = sc_grid_data_alloc_extra(&d, 0, a.sp.dt_s > 0, &err);
     if (st == SC_OK)
-        st = sc_grid_sim_run(&d.plan, &sp, &t, &d, buf + 2 * ns + 2 * nn, &err);
-    if (st == SC_OK && comp_table)
-        st = compensate(&d, comp_table, &err);
-    if (st != SC_OK) {
-        free(buf);
-        sc_grid_data_free(&d);
-        return cli_report(&err);
-    }
-
+        st = sc_grid_sim_run(&d.plan, &a.sp, &t, &d, buf + 2 * ns + 2 * nn, &err);
+    if (st == SC_OK && a.comp_table)
+        st = compensate(&d, a.comp_table, &err);
     /* Everything is computed: write all files, commit them together. */
-    sc_afile f[4];
-    memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
-    const char *paths[4] = {out, truth_map, truth_art, truth_sum};
-    int opened = 0;
-    for (; opened < 4; ++opened) {
-        if (!paths[opened])
-            continue;
-        st = sc_afile_open(&f[opened], paths[opened], &err);
-        if (st != SC_OK)
-            break;
-        switch (opened) {
-        case 0: sc_grid_fprint_input(f[0].fp, &d); break;
-        case 1: sc_grid_fprint_map(f[1].fp, &d.plan, t.gx_um, t.gy_um, NULL, NULL); break;
-        case 2: sc_grid_fprint_artifact(f[2].fp, &d.plan, t.ax_um, t.ay_um); break;
-        case 3: fprint_truth_summary(f[3].fp, plan_arg, &d.plan, &sp, &t); break;
-        }
-    }
-    /* all files or none: sync every one, then rename them together */
     if (st == SC_OK)
-        st = sc_afile_commit_all(f, opened, &err);
-    else
-        sc_afile_abort_all(f, opened);
+        st = write_outputs(&a, &d, &t, &err);
     free(buf);
     sc_grid_data_free(&d);
     return st == SC_OK ? CLI_OK : cli_report(&err);
