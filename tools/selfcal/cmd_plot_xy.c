@@ -103,76 +103,165 @@ static const char *COLORS[8] = {"#1f5fbf", "#d9731a", "#2a9d3a", "#b3261e",
                                 "#7b4bb7", "#8c564b", "#e377c2", "#555555"};
 static const char *DASHES[4] = {NULL, "6,3", "2,2", "8,3,2,3"};
 
+/* The command line, as given. */
+typedef struct {
+    const char *in, *out, *xname, *title, *xlabel, *ylabel;
+    const char *ynames[XY_MAX_SERIES];
+    int ny, logx, logy;
+} xy_args;
+
+/* One option (and its value, taken from argv[*k + 1]). */
+static int parse_option(int argc, char **argv, int *k, xy_args *a)
+{
+    const char *cmd = "plot xy", *o = argv[*k];
+    if (o[0] != '-' || !strcmp(o, "-")) {
+        if (a->in)
+            return cli_usage_error(cmd, "more than one input file ('%s', '%s')", a->in, o);
+        a->in = o;
+        return CLI_OK;
+    }
+    if (!strcmp(o, "--logx") || !strcmp(o, "--logy")) {
+        *(o[5] == 'x' ? &a->logx : &a->logy) = 1;
+        return CLI_OK;
+    }
+    if (*k + 1 >= argc)
+        return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+    const char *v = argv[++*k];
+    if (!strcmp(o, "-o") || !strcmp(o, "--out")) a->out = v;
+    else if (!strcmp(o, "--x")) a->xname = v;
+    else if (!strcmp(o, "--y")) {
+        if (a->ny == XY_MAX_SERIES)
+            return cli_usage_error(cmd, "at most %d --y columns", XY_MAX_SERIES);
+        a->ynames[a->ny++] = v;
+    } else if (!strcmp(o, "--title")) a->title = v;
+    else if (!strcmp(o, "--xlabel")) a->xlabel = v;
+    else if (!strcmp(o, "--ylabel")) a->ylabel = v;
+    else
+        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    return CLI_OK;
+}
+
+/* The x column and the series' columns (--y, or every other column). */
+static sc_status select_columns(const xy_args *a, const xy_data *t, int *xc, int *yc, int *nser,
+                                sc_error *err)
+{
+    *xc = 0;
+    *nser = 0;
+    if (a->xname) {
+        *xc = -1;
+        for (int k = 0; k < t->ncol; ++k)
+            if (!strcmp(t->names[k], a->xname))
+                *xc = k;
+    }
+    if (*xc < 0)
+        return sc_error_set(err, SC_E_INPUT, a->in, 1, "no column '%s'", a->xname);
+    for (int q = 0; q < a->ny; ++q) {
+        yc[*nser] = -1;
+        for (int k = 0; k < t->ncol; ++k)
+            if (!strcmp(t->names[k], a->ynames[q]))
+                yc[*nser] = k;
+        if (yc[*nser] < 0)
+            return sc_error_set(err, SC_E_INPUT, a->in, 1, "no column '%s'", a->ynames[q]);
+        (*nser)++;
+    }
+    for (int k = 0; !a->ny && k < t->ncol && *nser < XY_MAX_SERIES; ++k)
+        if (k != *xc)
+            yc[(*nser)++] = k;
+    return SC_OK;
+}
+
+/* One axis' range from its finite values: whole decades on a log axis, else a nice range
+ * (with 5 % margins for y). */
+static void axis_range(int is_log, double margin, double *lo, double *hi)
+{
+    if (!(*lo <= *hi))
+        *lo = 0, *hi = 1;
+    if (is_log) {
+        *lo = floor(*lo), *hi = ceil(*hi);
+        if (*hi <= *lo)
+            *hi = *lo + 1;
+        return;
+    }
+    double span = *hi - *lo;
+    *lo -= margin * span, *hi += margin * span;
+    svg_nice_range(lo, hi);
+}
+
+/* The plotted range of x and of every series' y; values <= 0 on a log axis are gaps. */
+static void data_range(const xy_args *a, const xy_data *t, int xc, const int *yc, int nser,
+                       double range[4])
+{
+    double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
+    for (long r = 0; r < t->nrows; ++r) {
+        double x = t->v[r * t->ncol + xc];
+        x = a->logx ? log10(x) : x;
+        if (!isfinite(x))
+            continue;
+        xlo = fmin(xlo, x), xhi = fmax(xhi, x);
+        for (int q = 0; q < nser; ++q) {
+            double y = t->v[r * t->ncol + yc[q]];
+            y = a->logy ? log10(y) : y;
+            if (isfinite(y))
+                ylo = fmin(ylo, y), yhi = fmax(yhi, y);
+        }
+    }
+    axis_range(a->logx, 0.0, &xlo, &xhi);
+    axis_range(a->logy, 0.05, &ylo, &yhi);
+    range[0] = xlo, range[1] = xhi, range[2] = ylo, range[3] = yhi;
+}
+
+/* The chart: axes, one polyline with dots and a legend entry per series; xs, ys: nrows each. */
+static void draw_chart(FILE *fp, const xy_args *a, const xy_data *t, int xc, const int *yc,
+                       int nser, double *xs, double *ys)
+{
+    double range[4];
+    data_range(a, t, xc, yc, nser, range);
+    const int W = 760, H = 460;
+    svg_begin(fp, W, H);
+    svg_chart c;
+    svg_chart_init(&c, fp, 85, 50, W - 115, H - 120, range[0], range[1], range[2], range[3]);
+    c.logx = a->logx;
+    c.logy = a->logy;
+    svg_axes(&c, a->xlabel ? a->xlabel : t->names[xc], a->ylabel, a->title);
+    for (int q = 0; q < nser; ++q) {
+        const char *col = COLORS[q % 8], *dash = DASHES[(q / 8 + q) % 4];
+        for (long r = 0; r < t->nrows; ++r) {
+            double x = t->v[r * t->ncol + xc], y = t->v[r * t->ncol + yc[q]];
+            xs[r] = a->logx ? log10(x) : x;
+            ys[r] = a->logy ? log10(y) : y;
+        }
+        svg_polyline(&c, xs, ys, (int)t->nrows, col, 1.6, dash);
+        for (long r = 0; r < t->nrows; ++r)
+            if (isfinite(xs[r]) && isfinite(ys[r]))
+                svg_dot(fp, svg_px(&c, xs[r]), svg_py(&c, ys[r]), 2.8, col);
+        svg_legend(&c, q, t->names[yc[q]], col, dash);
+    }
+    svg_end(fp);
+}
+
 int cmd_plot_xy(int argc, char **argv)
 {
-    const char *cmd = "plot xy";
-    const char *in = NULL, *out = NULL, *xname = NULL, *title = NULL, *xlabel = NULL, *ylabel = NULL;
-    const char *ynames[XY_MAX_SERIES];
-    int ny = 0, logx = 0, logy = 0;
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+    xy_args a;
+    memset(&a, 0, sizeof a);
+    for (int k = 1; k < argc; ++k) {
+        if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
         }
-        if (o[0] != '-' || !strcmp(o, "-")) {
-            if (in)
-                return cli_usage_error(cmd, "more than one input file ('%s', '%s')", in, o);
-            in = o;
-            continue;
-        }
-        if (!strcmp(o, "--logx")) {
-            logx = 1;
-            continue;
-        }
-        if (!strcmp(o, "--logy")) {
-            logy = 1;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
-        else if (!strcmp(o, "--x")) xname = v;
-        else if (!strcmp(o, "--y")) {
-            if (ny == XY_MAX_SERIES)
-                return cli_usage_error(cmd, "at most %d --y columns", XY_MAX_SERIES);
-            ynames[ny++] = v;
-        } else if (!strcmp(o, "--title")) title = v;
-        else if (!strcmp(o, "--xlabel")) xlabel = v;
-        else if (!strcmp(o, "--ylabel")) ylabel = v;
-        else
-            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+        int rc = parse_option(argc, argv, &k, &a);
+        if (rc != CLI_OK)
+            return rc;
     }
-    if (!in || !out)
-        return cli_usage_error(cmd, "DATA.csv and -o chart.svg are required (see --help)");
+    if (!a.in || !a.out)
+        return cli_usage_error("plot xy", "DATA.csv and -o chart.svg are required (see --help)");
     sc_error err;
     sc_error_clear(&err);
     xy_data t;
-    sc_status st = read_xy(in, &t, &err);
+    sc_status st = read_xy(a.in, &t, &err);
     if (st != SC_OK)
         return cli_report(&err);
-    int xc = 0, yc[XY_MAX_SERIES], nser = 0;
-    if (xname) {
-        xc = -1;
-        for (int k = 0; k < t.ncol; ++k)
-            if (!strcmp(t.names[k], xname))
-                xc = k;
-    }
-    if (xc < 0)
-        st = sc_error_set(&err, SC_E_INPUT, in, 1, "no column '%s'", xname);
-    for (int q = 0; st == SC_OK && q < ny; ++q) {
-        yc[nser] = -1;
-        for (int k = 0; k < t.ncol; ++k)
-            if (!strcmp(t.names[k], ynames[q]))
-                yc[nser] = k;
-        if (yc[nser] < 0)
-            st = sc_error_set(&err, SC_E_INPUT, in, 1, "no column '%s'", ynames[q]);
-        nser++;
-    }
-    for (int k = 0; st == SC_OK && !ny && k < t.ncol && nser < XY_MAX_SERIES; ++k)
-        if (k != xc)
-            yc[nser++] = k;
+    int xc, yc[XY_MAX_SERIES], nser;
+    st = select_columns(&a, &t, &xc, yc, &nser, &err);
     double *xs = NULL, *ys = NULL;
     if (st == SC_OK) {
         xs = malloc((size_t)t.nrows * sizeof(double));
@@ -182,65 +271,10 @@ int cmd_plot_xy(int argc, char **argv)
     }
     sc_afile f;
     if (st == SC_OK)
-        st = sc_afile_open(&f, out, &err);
+        st = sc_afile_open(&f, a.out, &err);
     if (st == SC_OK) {
-        double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
-        for (long r = 0; r < t.nrows; ++r) {
-            double x = t.v[r * t.ncol + xc];
-            x = logx ? log10(x) : x; /* a value <= 0 on a log axis is a gap */
-            if (!isfinite(x))
-                continue;
-            xlo = fmin(xlo, x), xhi = fmax(xhi, x);
-            for (int q = 0; q < nser; ++q) {
-                double y = t.v[r * t.ncol + yc[q]];
-                y = logy ? log10(y) : y;
-                if (isfinite(y)) {
-                    ylo = fmin(ylo, y), yhi = fmax(yhi, y);
-                }
-            }
-        }
-        if (!(ylo <= yhi))
-            ylo = 0, yhi = 1;
-        if (!(xlo <= xhi))
-            xlo = 0, xhi = 1;
-        if (logx) {
-            xlo = floor(xlo), xhi = ceil(xhi);
-            if (xhi <= xlo)
-                xhi = xlo + 1;
-        } else
-            svg_nice_range(&xlo, &xhi);
-        if (logy) {
-            ylo = floor(ylo), yhi = ceil(yhi);
-            if (yhi <= ylo)
-                yhi = ylo + 1;
-        } else {
-            double span = yhi - ylo;
-            ylo -= 0.05 * span, yhi += 0.05 * span;
-            svg_nice_range(&ylo, &yhi);
-        }
-        const int W = 760, H = 460;
-        FILE *fp = f.fp;
-        svg_begin(fp, W, H);
-        svg_chart c;
-        svg_chart_init(&c, fp, 85, 50, W - 115, H - 120, xlo, xhi, ylo, yhi);
-        c.logx = logx;
-        c.logy = logy;
-        svg_axes(&c, xlabel ? xlabel : t.names[xc], ylabel, title);
-        for (int q = 0; q < nser; ++q) {
-            const char *col = COLORS[q % 8], *dash = DASHES[(q / 8 + q) % 4];
-            for (long r = 0; r < t.nrows; ++r) {
-                double x = t.v[r * t.ncol + xc], y = t.v[r * t.ncol + yc[q]];
-                xs[r] = logx ? log10(x) : x;
-                ys[r] = logy ? log10(y) : y;
-            }
-            svg_polyline(&c, xs, ys, (int)t.nrows, col, 1.6, dash);
-            for (long r = 0; r < t.nrows; ++r)
-                if (isfinite(xs[r]) && isfinite(ys[r]))
-                    svg_dot(fp, svg_px(&c, xs[r]), svg_py(&c, ys[r]), 2.8, col);
-            svg_legend(&c, q, t.names[yc[q]], col, dash);
-        }
-        svg_end(fp);
-        st = ferror(fp) ? sc_error_set(&err, SC_E_IO, out, 0, "write failed") : SC_OK;
+        draw_chart(f.fp, &a, &t, xc, yc, nser, xs, ys);
+        st = ferror(f.fp) ? sc_error_set(&err, SC_E_IO, a.out, 0, "write failed") : SC_OK;
         if (st == SC_OK)
             st = sc_afile_commit(&f, &err);
         else
