@@ -80,146 +80,156 @@ static verify_stats stats_of(long m, const double *ex, const double *ey, const d
     return s;
 }
 
-sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
+/* The re-measurement, the plate error (given, or read from o->artifact into own_plate) and the
+ * table; *plate points at the one in use. */
+static sc_status verify_load(const verify_opts *o, verify_result *r, sc_stage_map *own_plate,
+                             const sc_stage_map **plate, sc_corr_table *t, sc_error *err)
 {
-    memset(r, 0, sizeof *r);
-    r->pass = -1;
-    sc_stage_map own_plate;
-    memset(&own_plate, 0, sizeof own_plate);
-    sc_corr_table *t = malloc(sizeof *t);
-    if (!t)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    double *work = NULL;
     sc_status st = sc_grid_read(o->measurement, &r->d, &r->info, err);
     if (st != SC_OK)
-        goto done;
+        return st;
     const sc_grid_plan *p = &r->d.plan;
-    int n = p->n, nv = p->n_views;
-    size_t nn = (size_t)n * n;
-    if (r->info.n_rows == 0) {
-        st = sc_error_set(err, SC_E_INPUT, o->measurement, r->info.header_end_line,
-                          "no data rows: verify needs the re-measured plate");
-        goto done;
-    }
-    const sc_stage_map *plate = o->plate;
-    if (!plate) {
-        st = sc_grid_read_artifact(o->artifact, p->pitch_mm, &own_plate, err);
+    if (r->info.n_rows == 0)
+        return sc_error_set(err, SC_E_INPUT, o->measurement, r->info.header_end_line,
+                            "no data rows: verify needs the re-measured plate");
+    *plate = o->plate;
+    if (!*plate) {
+        st = sc_grid_read_artifact(o->artifact, p->pitch_mm, own_plate, err);
         if (st != SC_OK)
-            goto done;
-        plate = &own_plate;
+            return st;
+        *plate = own_plate;
     }
-    if (plate->nx != n || plate->ny != n) {
-        st = sc_error_set(err, SC_E_INPUT, o->measurement, r->info.n_line,
-                          "N = %d, but the plate error of the calibration has N = %d", n, plate->nx);
-        goto done;
-    }
-    if ((st = sc_lut_load_corr_file(o->table, t, err)) != SC_OK)
-        goto done;
+    if ((*plate)->nx != p->n || (*plate)->ny != p->n)
+        return sc_error_set(err, SC_E_INPUT, o->measurement, r->info.n_line,
+                            "N = %d, but the plate error of the calibration has N = %d", p->n,
+                            (*plate)->nx);
+    return sc_lut_load_corr_file(o->table, t, err);
+}
 
-    size_t nres = (size_t)nv * nn;
-    int snx = sc_grid_stage_nx(p), sny = sc_grid_stage_ny(p);
-    size_t ng = (size_t)snx * sny;
-    r->buf = malloc((4 * nres + 5 * ng) * sizeof(double));
-    work = malloc(6 * nn * sizeof(double));
-    if (!r->buf || !work) {
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto done;
+/* Work arrays: one view's marks (centred and absolute positions, errors before and after, node
+ * index), and all views pooled for the statistics. */
+typedef struct {
+    double *wx, *wy, *ebx, *eby, *eax, *eay; /* nn each */
+    double *absx, *absy;                     /* nn each */
+    long *idx;                               /* nn */
+    double *pbx, *pby, *pax, *pay, *ppx, *ppy; /* nres each */
+    double *block, *pooled;
+} verify_work;
+
+static void verify_work_free(verify_work *w)
+{
+    free(w->block);
+    free(w->idx);
+    free(w->pooled);
+}
+
+static sc_status verify_work_alloc(size_t nn, size_t nres, verify_work *w, sc_error *err)
+{
+    memset(w, 0, sizeof *w);
+    w->block = malloc(8 * nn * sizeof(double));
+    w->idx = malloc(nn * sizeof(long));
+    /* zeroed: stats_of reads only the pm filled, but GCC -O2 cannot see it */
+    w->pooled = calloc(8 * nres + 1, sizeof(double));
+    if (!w->block || !w->idx || !w->pooled) {
+        verify_work_free(w);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     }
-    r->bx = r->buf;
-    r->by = r->bx + nres;
-    r->ax = r->by + nres;
-    r->ay = r->ax + nres;
-    for (size_t k = 0; k < 4 * nres; ++k)
-        r->buf[k] = NAN;
-    /* per-view work: node positions (centred and absolute), before and after */
-    double *wx = work, *wy = wx + nn, *ebx = wy + nn, *eby = ebx + nn, *eax = eby + nn,
-           *eay = eax + nn;
-    long *idx = malloc(nn * sizeof(long));
-    double *absx = malloc(2 * nn * sizeof(double));
-    if (!idx || !absx) {
-        free(idx);
-        free(absx);
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto done;
-    }
-    double *absy = absx + nn;
-    /* all views pooled for the statistics */
-    double *pbx = calloc(8 * nres + 1, sizeof(double)); /* zeroed: stats_of reads only the pm filled, but GCC -O2 cannot see it */
-    if (!pbx) {
-        free(idx);
-        free(absx);
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto done;
-    }
-    double *pby = pbx + nres, *pax = pby + nres, *pay = pax + nres, *ppx = pay + nres,
-           *ppy = ppx + nres;
-    long pm = 0;
-    for (int v = 0; v < nv; ++v) {
-        long m = 0;
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) {
-                size_t k = (size_t)i * n + j;
-                int ni, nj;
-                double dx = r->d.dx_um[v][k], dy = r->d.dy_um[v][k];
-                if (!isfinite(dx) || !isfinite(dy) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
-                    continue;
-                double pax_um = plate->gx_um[k], pay_um = plate->gy_um[k];
-                if (!isfinite(pax_um) || !isfinite(pay_um))
-                    continue; /* a mark the calibration could not see */
-                double rax, ray;
-                sc_grid_rotate(p->view[v].rot_deg, pax_um, pay_um, &rax, &ray);
-                double x, y;
-                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
-                double nx_mm = x + p->origin_mm[0], ny_mm = y + p->origin_mm[1];
-                double in[3] = {nx_mm + dx * 1e-3, ny_mm + dy * 1e-3, 0}, o3[3];
-                double bdx, bdy, adx, ady;
-                if (o->raw) {
-                    bdx = dx, bdy = dy;
-                    sc_corr_apply(t, SC_CORR_MEASURE, in, o3);
-                    adx = (o3[0] - nx_mm) * 1e3, ady = (o3[1] - ny_mm) * 1e3;
-                } else {
-                    adx = dx, ady = dy;
-                    sc_corr_apply(t, SC_CORR_POSITION, in, o3);
-                    bdx = (o3[0] - nx_mm) * 1e3, bdy = (o3[1] - ny_mm) * 1e3;
-                }
-                wx[m] = x, wy[m] = y;
-                absx[m] = nx_mm, absy[m] = ny_mm;
-                ebx[m] = bdx - rax, eby[m] = bdy - ray;
-                eax[m] = adx - rax, eay[m] = ady - ray;
-                idx[m] = (long)k;
-                ++m;
+    double *b = w->block;
+    w->wx = b, w->wy = b + nn, w->ebx = b + 2 * nn, w->eby = b + 3 * nn;
+    w->eax = b + 4 * nn, w->eay = b + 5 * nn, w->absx = b + 6 * nn, w->absy = b + 7 * nn;
+    double *q = w->pooled;
+    w->pbx = q, w->pby = q + nres, w->pax = q + 2 * nres, w->pay = q + 3 * nres;
+    w->ppx = q + 4 * nres, w->ppy = q + 5 * nres;
+    return SC_OK;
+}
+
+/* View v's marks that the calibration saw: the error before and after the table (the plate's
+ * own error, rotated into the view, taken off). Returns their count. */
+static long verify_view_marks(const verify_opts *o, const verify_result *r,
+                              const sc_stage_map *plate, const sc_corr_table *t, int v,
+                              verify_work *w)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    const int n = p->n;
+    long m = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            size_t k = (size_t)i * n + j;
+            int ni, nj;
+            double dx = r->d.dx_um[v][k], dy = r->d.dy_um[v][k];
+            if (!isfinite(dx) || !isfinite(dy) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                continue;
+            double pax_um = plate->gx_um[k], pay_um = plate->gy_um[k];
+            if (!isfinite(pax_um) || !isfinite(pay_um))
+                continue; /* a mark the calibration could not see */
+            double rax, ray;
+            sc_grid_rotate(p->view[v].rot_deg, pax_um, pay_um, &rax, &ray);
+            double x, y;
+            sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+            double nx_mm = x + p->origin_mm[0], ny_mm = y + p->origin_mm[1];
+            double in[3] = {nx_mm + dx * 1e-3, ny_mm + dy * 1e-3, 0}, o3[3];
+            double bdx, bdy, adx, ady;
+            if (o->raw) {
+                bdx = dx, bdy = dy;
+                sc_corr_apply(t, SC_CORR_MEASURE, in, o3);
+                adx = (o3[0] - nx_mm) * 1e3, ady = (o3[1] - ny_mm) * 1e3;
+            } else {
+                adx = dx, ady = dy;
+                sc_corr_apply(t, SC_CORR_POSITION, in, o3);
+                bdx = (o3[0] - nx_mm) * 1e3, bdy = (o3[1] - ny_mm) * 1e3;
             }
+            w->wx[m] = x, w->wy[m] = y;
+            w->absx[m] = nx_mm, w->absy[m] = ny_mm;
+            w->ebx[m] = bdx - rax, w->eby[m] = bdy - ray;
+            w->eax[m] = adx - rax, w->eay[m] = ady - ray;
+            w->idx[m] = (long)k;
+            ++m;
+        }
+    return m;
+}
+
+/* Every view's errors with its misalignment removed, into r's per-mark arrays and the pool;
+ * returns the pooled count. */
+static long verify_views(const verify_opts *o, verify_result *r, const sc_stage_map *plate,
+                         const sc_corr_table *t, verify_work *w)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    const size_t nn = (size_t)p->n * p->n;
+    long pm = 0;
+    for (int v = 0; v < p->n_views; ++v) {
+        long m = verify_view_marks(o, r, plate, t, v, w);
         double tx, ty, th;
-        remove_misalignment(m, wx, wy, ebx, eby, &tx, &ty, &th);
-        remove_misalignment(m, wx, wy, eax, eay, &r->tx_after[v], &r->ty_after[v], &r->th_after[v]);
+        remove_misalignment(m, w->wx, w->wy, w->ebx, w->eby, &tx, &ty, &th);
+        remove_misalignment(m, w->wx, w->wy, w->eax, w->eay, &r->tx_after[v], &r->ty_after[v],
+                            &r->th_after[v]);
         for (long q = 0; q < m; ++q) {
-            size_t g = (size_t)v * nn + (size_t)idx[q];
-            r->bx[g] = ebx[q], r->by[g] = eby[q], r->ax[g] = eax[q], r->ay[g] = eay[q];
-            pbx[pm] = ebx[q], pby[pm] = eby[q], pax[pm] = eax[q], pay[pm] = eay[q];
-            ppx[pm] = absx[q], ppy[pm] = absy[q];
+            size_t g = (size_t)v * nn + (size_t)w->idx[q];
+            r->bx[g] = w->ebx[q], r->by[g] = w->eby[q], r->ax[g] = w->eax[q],
+            r->ay[g] = w->eay[q];
+            w->pbx[pm] = w->ebx[q], w->pby[pm] = w->eby[q];
+            w->pax[pm] = w->eax[q], w->pay[pm] = w->eay[q];
+            w->ppx[pm] = w->absx[q], w->ppy[pm] = w->absy[q];
             ++pm;
         }
     }
-    r->st_before = stats_of(pm, pbx, pby, ppx, ppy);
-    r->st_after = stats_of(pm, pax, pay, ppx, ppy);
-    free(pbx);
-    free(idx);
-    free(absx);
-    if (pm == 0) {
-        st = sc_error_set(err, SC_E_INPUT, o->measurement, r->info.header_end_line,
-                          "no measured mark has a plate error in the calibration");
-        goto done;
-    }
-    if (isfinite(o->tolerance_um))
-        r->pass = r->st_after.max <= o->tolerance_um;
-    /* maps per stage node: the mean over the views that measure it */
-    double *mp = r->buf + 4 * nres, *cnt = mp + 4 * ng;
+    r->st_before = stats_of(pm, w->pbx, w->pby, w->ppx, w->ppy);
+    r->st_after = stats_of(pm, w->pax, w->pay, w->ppx, w->ppy);
+    return pm;
+}
+
+/* Maps per stage node (before, after): the mean over the views that measure it; mp holds
+ * 5 * nodes doubles. */
+static void verify_stage_maps(verify_result *r, double *mp)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    const int n = p->n, snx = sc_grid_stage_nx(p);
+    const size_t nn = (size_t)n * n, ng = (size_t)snx * sc_grid_stage_ny(p);
+    double *bgx = mp, *bgy = mp + ng, *agx = mp + 2 * ng, *agy = mp + 3 * ng, *cnt = mp + 4 * ng;
     for (size_t k = 0; k < 5 * ng; ++k)
         mp[k] = 0;
-    r->before = sc_grid_stage_map(p, mp, mp + ng, NULL, NULL);
-    r->after = sc_grid_stage_map(p, mp + 2 * ng, mp + 3 * ng, NULL, NULL);
-    double *bgx = mp, *bgy = mp + ng, *agx = mp + 2 * ng, *agy = mp + 3 * ng;
-    for (int v = 0; v < nv; ++v)
+    r->before = sc_grid_stage_map(p, bgx, bgy, NULL, NULL);
+    r->after = sc_grid_stage_map(p, agx, agy, NULL, NULL);
+    for (int v = 0; v < p->n_views; ++v)
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
                 size_t g = (size_t)v * nn + (size_t)i * n + j;
@@ -238,8 +248,49 @@ sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
         agx[q] = c > 0 ? agx[q] / c : NAN;
         agy[q] = c > 0 ? agy[q] / c : NAN;
     }
+}
+
+sc_status verify_run(const verify_opts *o, verify_result *r, sc_error *err)
+{
+    memset(r, 0, sizeof *r);
+    r->pass = -1;
+    sc_stage_map own_plate;
+    memset(&own_plate, 0, sizeof own_plate);
+    const sc_stage_map *plate = NULL;
+    verify_work w;
+    memset(&w, 0, sizeof w);
+    sc_corr_table *t = malloc(sizeof *t);
+    if (!t)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    sc_status st = verify_load(o, r, &own_plate, &plate, t, err);
+    if (st != SC_OK)
+        goto done;
+    const sc_grid_plan *p = &r->d.plan;
+    const size_t nn = (size_t)p->n * p->n, nres = (size_t)p->n_views * nn;
+    const size_t ng = (size_t)sc_grid_stage_nx(p) * sc_grid_stage_ny(p);
+    r->buf = malloc((4 * nres + 5 * ng) * sizeof(double));
+    if (!r->buf) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        goto done;
+    }
+    if ((st = verify_work_alloc(nn, nres, &w, err)) != SC_OK)
+        goto done;
+    r->bx = r->buf;
+    r->by = r->bx + nres;
+    r->ax = r->by + nres;
+    r->ay = r->ax + nres;
+    for (size_t k = 0; k < 4 * nres; ++k)
+        r->buf[k] = NAN;
+    if (verify_views(o, r, plate, t, &w) == 0) {
+        st = sc_error_set(err, SC_E_INPUT, o->measurement, r->info.header_end_line,
+                          "no measured mark has a plate error in the calibration");
+        goto done;
+    }
+    if (isfinite(o->tolerance_um))
+        r->pass = r->st_after.max <= o->tolerance_um;
+    verify_stage_maps(r, r->buf + 4 * nres);
 done:
-    free(work);
+    verify_work_free(&w);
     free(t);
     sc_stage_map_free(&own_plate);
     return st;
