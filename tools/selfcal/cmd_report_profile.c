@@ -138,26 +138,32 @@ static double peak_to_valley(const double *v, int n)
     return hi >= lo ? hi - lo : NAN;
 }
 
-static sc_status write_report(FILE *fp, const char *in, const char *method_s,
-                              const sc_profile_data *d, const profile_run *r, int argc,
-                              char **argv, sc_error *err)
+/* Title and the summary paragraph. */
+static void report_summary(FILE *fp, const char *in, const char *method_s,
+                           const sc_profile_data *d, const profile_run *r)
 {
-    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
+    const int n = d->n;
     char title[600];
     snprintf(title, sizeof title, "Straightness profile report — %s", cli_basename(in));
     html_begin(fp, title);
     fputs("<h1>", fp);
     html_esc(fp, title);
     fputs("</h1>\n", fp);
-    double umax, urms = rms_max(r->uf, n, &umax);
-    double fpv = peak_to_valley(r->f, n), eypv = peak_to_valley(r->ey, n);
+    double umax;
+    rms_max(r->uf, n, &umax);
+    double fpv = peak_to_valley(r->f, n);
     fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d points, s = %g mm, "
                 "d1 = %d, d2 = %d. Straightness of f (peak to valley) %.4g µm",
-            method_s, n, d->s_mm, d1, d2, fpv);
+            method_s, n, d->s_mm, d->d[0], d->d[1], fpv);
     if (isfinite(umax))
         fprintf(fp, "; largest u(f) %.4g nm (k = 1), U = %.4g nm (k = 2)", umax * 1e3, 2e3 * umax);
     fputs(".</p></div>\n", fp);
+}
 
+/* 1. Set-up and 2. Method. */
+static void section_setup_method(FILE *fp, const char *method_s, const sc_profile_data *d)
+{
+    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
     fputs("<section id=\"setup\">\n<h2>1. Set-up</h2>\n<table>\n", fp);
     fprintf(fp, "<tr><th class=\"l\">points N</th><td id=\"N\">%d</td></tr>\n", n);
     fprintf(fp, "<tr><th class=\"l\">sampling interval s</th><td id=\"s_mm\">%g mm</td></tr>\n", d->s_mm);
@@ -187,7 +193,11 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
           "scan 1, relative to its least-squares line.</p>\n</section>\n",
           fp);
 
-    const sc_profile_solution *so = &r->sol;
+}
+
+/* 3. Noise: the given and used sigmas, the variance factor and its χ² test. */
+static void section_noise(FILE *fp, const sc_profile_solution *so)
+{
     fputs("<section id=\"noise\">\n<h2>3. Noise</h2>\n<table>\n", fp);
     fputs("<tr><th class=\"l\">σ_disp given (each displacement sensor)</th>", fp);
     html_num_cell(fp, "sigma_disp_um", "%.4g µm", so->noise_known ? so->sigma_disp_um : NAN);
@@ -217,7 +227,13 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
               fp);
     fputs("</section>\n", fp);
 
-    /* residuals */
+}
+
+/* 4. Residuals of both scans, with their histogram. */
+static sc_status section_residuals(FILE *fp, const sc_profile_data *d, const profile_run *r,
+                                   sc_error *err)
+{
+    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
     double *res = malloc((size_t)(2 * n) * sizeof(double));
     if (!res)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
@@ -245,7 +261,16 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
     if (st != SC_OK)
         return st;
 
-    /* results */
+    return SC_OK;
+}
+
+/* 5. Results: the table and the profile figure; x: the abscissae (mm). */
+static sc_status section_results(FILE *fp, const char *method_s, const sc_profile_data *d,
+                                 const profile_run *r, double *x, sc_error *err)
+{
+    const int n = d->n, d1 = d->d[0], d2 = d->d[1];
+    double umax, urms = rms_max(r->uf, n, &umax);
+    double fpv = peak_to_valley(r->f, n), eypv = peak_to_valley(r->ey, n);
     double frms_mx, frms = rms_max(r->f, n, &frms_mx), eymx, eyrms = rms_max(r->ey, n, &eymx);
     fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<table>\n<tr><th class=\"l\">quantity</th>"
           "<th>value</th><th class=\"l\">unit</th></tr>\n",
@@ -269,40 +294,60 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
         fputs("<p class=\"note\">No redundancy (N = d1 + d2): the noise cannot be estimated and "
               "no uncertainty is given.</p>\n",
               fp);
-    double *x = malloc((size_t)n * sizeof(double));
-    if (!x)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    for (int i = 0; i < n; ++i)
-        x[i] = i * d->s_mm;
     sc_profile_result pr = {.n = n, .x_mm = x, .f_um = r->f, .uf_um = r->uf, .ey_um = r->ey};
     char t2[128];
     snprintf(t2, sizeof t2, "%s method, N = %d, d = %d/%d", method_s, n, d1, d2);
     profile_plot_opts po = {t2, method_s, NULL, 0};
     fig_prof fpf = {&pr, &po};
-    st = html_figure(fp, draw_prof, &fpf,
+    sc_status st = html_figure(fp, draw_prof, &fpf,
                      "The profile f with bands f ± u(f) (k = 1) and f ± 2u(f) (k = 2), its standard "
                      "uncertainty u(f) and the stage's straightness motion error e_y.",
                      err);
     fputs("</section>\n", fp);
+    return st;
+}
+
+/* The appendix: the profile at every point. */
+static void report_appendix(FILE *fp, int n, const double *x, const profile_run *r)
+{
+    fputs("<h2>Appendix</h2>\n<details id=\"profile-table\"><summary>The profile at every point "
+          "(table)</summary>\n<table class=\"profile\">\n<tr><th>n</th><th>x (mm)</th>"
+          "<th>f (µm)</th><th>u(f) (µm)</th><th>U(f), k = 2 (µm)</th><th>e_y (µm)</th></tr>\n",
+          fp);
+    for (int i = 0; i < n; ++i) {
+        fprintf(fp, "<tr class=\"pt\"><td>%d</td><td>%g</td>", i, x[i]);
+        html_num_cell(fp, NULL, "%.6f", r->f[i]);
+        html_num_cell(fp, NULL, "%.6f", r->uf[i]);
+        html_num_cell(fp, NULL, "%.6f", 2 * r->uf[i]);
+        html_num_cell(fp, NULL, "%.6f", r->ey[i]);
+        fputs("</tr>\n", fp);
+    }
+    fputs("</table>\n</details>\n", fp);
+}
+
+static sc_status write_report(FILE *fp, const char *in, const char *method_s,
+                              const sc_profile_data *d, const profile_run *r, int argc,
+                              char **argv, sc_error *err)
+{
+    const int n = d->n;
+    report_summary(fp, in, method_s, d, r);
+    section_setup_method(fp, method_s, d);
+    section_noise(fp, &r->sol);
+    sc_status st = section_residuals(fp, d, r, err);
+    if (st != SC_OK)
+        return st;
+    double *x = malloc((size_t)n * sizeof(double));
+    if (!x)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (int i = 0; i < n; ++i)
+        x[i] = i * d->s_mm;
+    st = section_results(fp, method_s, d, r, x, err);
     const char *inputs[1] = {in};
     const char *roles[1] = {"measurement (selfcal-profile v1)"};
     if (st == SC_OK)
         st = html_provenance(fp, argc, argv, inputs, roles, 1, err);
-    if (st == SC_OK && n <= 5000) {
-        fputs("<h2>Appendix</h2>\n<details id=\"profile-table\"><summary>The profile at every point "
-              "(table)</summary>\n<table class=\"profile\">\n<tr><th>n</th><th>x (mm)</th>"
-              "<th>f (µm)</th><th>u(f) (µm)</th><th>U(f), k = 2 (µm)</th><th>e_y (µm)</th></tr>\n",
-              fp);
-        for (int i = 0; i < n; ++i) {
-            fprintf(fp, "<tr class=\"pt\"><td>%d</td><td>%g</td>", i, x[i]);
-            html_num_cell(fp, NULL, "%.6f", r->f[i]);
-            html_num_cell(fp, NULL, "%.6f", r->uf[i]);
-            html_num_cell(fp, NULL, "%.6f", 2 * r->uf[i]);
-            html_num_cell(fp, NULL, "%.6f", r->ey[i]);
-            fputs("</tr>\n", fp);
-        }
-        fputs("</table>\n</details>\n", fp);
-    }
+    if (st == SC_OK && n <= 5000)
+        report_appendix(fp, n, x, r);
     free(x);
     html_end(fp);
     return st;
