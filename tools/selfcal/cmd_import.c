@@ -220,155 +220,198 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
             fit->theta_urad, fit->max_dist_um);
 }
 
-static int import_grid(int argc, char **argv)
-{
-    const char *cmd = "import grid", *out = NULL, *xcol = "x", *ycol = "y", *uxcol = NULL,
-               *uycol = NULL;
-    double n_d = 0, pitch = 0, unit_mm = 1, tol = 0, share = 0.5, ox = 0, oy = 0;
-    long snx = 0, sny = 0;
+/* import grid's command line, as given. */
+typedef struct {
+    const char *out, *xcol, *ycol, *uxcol, *uycol;
+    double n_d, pitch, unit_mm, tol, share, ox, oy;
+    long snx, sny;
     import_view views[SC_GRID_MAX_VIEWS];
     const char *view_spec[SC_GRID_MAX_VIEWS];
-    int n_views = 0;
-    memset(views, 0, sizeof views);
+    int n_views;
+} grid_args;
+
+/* One option of import grid; argv[*a] is the option, its value(s) follow. */
+static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
+{
+    const char *cmd = "import grid", *o = argv[*a];
+    if (*a + 1 >= argc)
+        return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
+    const char *v = argv[++*a];
+    if (!strcmp(o, "--view")) {
+        if (*a + 1 >= argc)
+            return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
+        if (g->n_views == SC_GRID_MAX_VIEWS)
+            return cli_usage_error(cmd, "at most %d views", SC_GRID_MAX_VIEWS);
+        g->view_spec[g->n_views] = v;
+        g->views[g->n_views++].file = argv[++*a];
+    } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
+        g->out = v;
+    } else if (!strcmp(o, "--x-col")) {
+        g->xcol = v;
+    } else if (!strcmp(o, "--y-col")) {
+        g->ycol = v;
+    } else if (!strcmp(o, "--ux-col")) {
+        g->uxcol = v;
+    } else if (!strcmp(o, "--uy-col")) {
+        g->uycol = v;
+    } else if (!strcmp(o, "--units")) {
+        static const char *const names[] = {"mm", "um", "µm"};
+        static const double f[] = {1, 1e-3, 1e-3};
+        if (parse_units(cmd, o, v, names, f, 3, &g->unit_mm))
+            return CLI_BAD_INPUT;
+    } else if (!strcmp(o, "--origin-mm")) {
+        if (parse_pair_double(v, &g->ox, &g->oy))
+            return cli_usage_error(cmd, "--origin-mm needs X,Y, got '%s'", v);
+    } else if (!strcmp(o, "--stage")) {
+        if (parse_pair_long(v, &g->snx, &g->sny) || g->snx < 3 || g->sny < 3 ||
+            g->snx % 2 == 0 || g->sny % 2 == 0 || g->snx > 4 * SC_GRID_MAX_N ||
+            g->sny > 4 * SC_GRID_MAX_N)
+            return cli_usage_error(cmd, "--stage needs NX,NY (odd, >= 3), got '%s'", v);
+    } else {
+        double x;
+        if (sc_parse_double(v, &x))
+            return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
+        if (!strcmp(o, "--n")) g->n_d = x;
+        else if (!strcmp(o, "--pitch-mm")) g->pitch = x;
+        else if (!strcmp(o, "--tolerance-mm")) g->tol = x;
+        else if (!strcmp(o, "--min-share")) g->share = x;
+        else
+            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    }
+    return CLI_OK;
+}
+
+/* The import's parameters and every view's placement, checked. */
+static int grid_params(grid_args *g, sc_grid_import_params *p)
+{
+    const char *cmd = "import grid";
+    if (!g->out || g->n_views == 0 || g->n_d == 0 || g->pitch == 0)
+        return cli_usage_error(cmd, "--n, --pitch-mm, at least one --view \"...\" FILE and -o are required (see --help)");
+    if (g->n_d != floor(g->n_d) || g->n_d < 3 || g->n_d > SC_GRID_MAX_N || fmod(g->n_d, 2) == 0)
+        return cli_usage_error(cmd, "--n must be odd and in 3..%d", SC_GRID_MAX_N);
+    sc_grid_import_defaults(p, (int)g->n_d, g->pitch);
+    p->origin_mm[0] = g->ox;
+    p->origin_mm[1] = g->oy;
+    p->stage_nx = (int)g->snx;
+    p->stage_ny = (int)g->sny;
+    if (g->tol != 0)
+        p->tolerance_mm = g->tol;
+    p->min_share = g->share;
+    sc_error err;
+    sc_error_clear(&err);
+    if (sc_grid_import_check(p, &err) != SC_OK)
+        return cli_usage_error(cmd, "%s", err.msg);
+    for (int k = 0; k < g->n_views; ++k)
+        if (parse_view(g->view_spec[k], p->n, &g->views[k].v, g->views[k].sigma,
+                       sizeof g->views[k].sigma))
+            return CLI_BAD_INPUT;
+    if (!g->uxcol != !g->uycol)
+        return cli_usage_error(cmd, "--ux-col and --uy-col go together");
+    return CLI_OK;
+}
+
+/* One view's file read (nc columns: x, y [, ux, uy]) and its points assigned to marks. */
+static sc_status import_grid_view(const grid_args *g, const sc_grid_import_params *p, int nc,
+                                  import_view *iv, sc_error *err)
+{
+    const char *names[4] = {g->xcol, g->ycol, g->uxcol, g->uycol};
+    const double scale[4] = {g->unit_mm, g->unit_mm, g->unit_mm * 1e3, g->unit_mm * 1e3};
+    sc_status st = sc_table_read(iv->file, nc, names, scale, &iv->t, err);
+    for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
+        if (!(iv->t.value[q * 4 + 2] > 0 && iv->t.value[q * 4 + 3] > 0))
+            st = sc_error_set(err, SC_E_INPUT, iv->file, iv->t.line[q],
+                              "the uncertainties in '%s' and '%s' must be positive", g->uxcol,
+                              g->uycol);
+    if (st != SC_OK)
+        return st;
+    long np = iv->t.n_rows, nn = (long)p->n * p->n;
+    double *xy = malloc((size_t)np * 2 * sizeof(double));
+    double *work = malloc(sc_grid_import_work_doubles(np) * sizeof(double));
+    iv->point_mark = malloc((size_t)np * sizeof(long));
+    iv->mark_point = malloc((size_t)nn * sizeof(long));
+    if (!xy || !work || !iv->point_mark || !iv->mark_point) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (%ld points)", np);
+    } else {
+        for (long q = 0; q < np; ++q) {
+            xy[q] = iv->t.value[nc * q];
+            xy[np + q] = iv->t.value[nc * q + 1];
+        }
+        st = sc_grid_import_assign(p, &iv->v, np, xy, xy + np, iv->t.line, iv->file,
+                                   iv->t.header_line, iv->point_mark, iv->mark_point, &iv->fit,
+                                   work, err);
+    }
+    free(xy);
+    free(work);
+    return st;
+}
+
+/* The selfcal-grid v1 file: header, views, one row per assigned mark. */
+static sc_status write_grid_file(const grid_args *g, const sc_grid_import_params *p, int nc,
+                                 sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, g->out, err);
+    if (st != SC_OK)
+        return st;
+    const long nn = (long)p->n * p->n;
+    fprintf(f.fp, "# selfcal-grid v1\n# N = %d\n# pitch_mm = %.17g\n", p->n, p->pitch_mm);
+    if (g->ox != 0 || g->oy != 0)
+        fprintf(f.fp, "# origin_mm = %.17g,%.17g\n", g->ox, g->oy);
+    if (g->snx && (g->snx != p->n || g->sny != p->n))
+        fprintf(f.fp, "# stage = %ld,%ld\n", g->snx, g->sny);
+    for (int k = 0; k < g->n_views; ++k)
+        fprint_view_line(f.fp, k, &g->views[k].v, g->views[k].sigma, p->n);
+    fprintf(f.fp, nc == 4 ? "view,i,j,x_mm,y_mm,ux_um,uy_um\n" : "view,i,j,x_mm,y_mm\n");
+    for (int k = 0; k < g->n_views; ++k)
+        for (long m = 0; m < nn; ++m) {
+            long q = g->views[k].mark_point[m];
+            if (q < 0)
+                continue;
+            const double *row = &g->views[k].t.value[nc * q];
+            fprintf(f.fp, "%d,%ld,%ld,%.17g,%.17g", k, m / p->n, m % p->n, row[0], row[1]);
+            if (nc == 4)
+                fprintf(f.fp, ",%.17g,%.17g", row[2], row[3]);
+            fputc('\n', f.fp);
+        }
+    return sc_afile_commit(&f, err);
+}
+
+static int import_grid(int argc, char **argv)
+{
+    static grid_args g;
+    memset(&g, 0, sizeof g);
+    g.xcol = "x";
+    g.ycol = "y";
+    g.unit_mm = 1;
+    g.share = 0.5;
     for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(GRID_USAGE, stdout);
             return CLI_OK;
         }
-        if (a + 1 >= argc)
-            return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "--view")) {
-            if (a + 1 >= argc)
-                return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
-            if (n_views == SC_GRID_MAX_VIEWS)
-                return cli_usage_error(cmd, "at most %d views", SC_GRID_MAX_VIEWS);
-            view_spec[n_views] = v;
-            views[n_views++].file = argv[++a];
-        } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
-            out = v;
-        } else if (!strcmp(o, "--x-col")) {
-            xcol = v;
-        } else if (!strcmp(o, "--y-col")) {
-            ycol = v;
-        } else if (!strcmp(o, "--ux-col")) {
-            uxcol = v;
-        } else if (!strcmp(o, "--uy-col")) {
-            uycol = v;
-        } else if (!strcmp(o, "--units")) {
-            static const char *const names[] = {"mm", "um", "µm"};
-            static const double f[] = {1, 1e-3, 1e-3};
-            if (parse_units(cmd, o, v, names, f, 3, &unit_mm))
-                return CLI_BAD_INPUT;
-        } else if (!strcmp(o, "--origin-mm")) {
-            if (parse_pair_double(v, &ox, &oy))
-                return cli_usage_error(cmd, "--origin-mm needs X,Y, got '%s'", v);
-        } else if (!strcmp(o, "--stage")) {
-            if (parse_pair_long(v, &snx, &sny) || snx < 3 || sny < 3 || snx % 2 == 0 ||
-                sny % 2 == 0 || snx > 4 * SC_GRID_MAX_N || sny > 4 * SC_GRID_MAX_N)
-                return cli_usage_error(cmd, "--stage needs NX,NY (odd, >= 3), got '%s'", v);
-        } else {
-            double x;
-            if (sc_parse_double(v, &x))
-                return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
-            if (!strcmp(o, "--n")) n_d = x;
-            else if (!strcmp(o, "--pitch-mm")) pitch = x;
-            else if (!strcmp(o, "--tolerance-mm")) tol = x;
-            else if (!strcmp(o, "--min-share")) share = x;
-            else
-                return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-        }
+        int rc = parse_grid_option(argc, argv, &a, &g);
+        if (rc != CLI_OK)
+            return rc;
     }
-    if (!out || n_views == 0 || n_d == 0 || pitch == 0)
-        return cli_usage_error(cmd, "--n, --pitch-mm, at least one --view \"...\" FILE and -o are required (see --help)");
-    if (n_d != floor(n_d) || n_d < 3 || n_d > SC_GRID_MAX_N || fmod(n_d, 2) == 0)
-        return cli_usage_error(cmd, "--n must be odd and in 3..%d", SC_GRID_MAX_N);
     sc_grid_import_params p;
-    sc_grid_import_defaults(&p, (int)n_d, pitch);
-    p.origin_mm[0] = ox;
-    p.origin_mm[1] = oy;
-    p.stage_nx = (int)snx;
-    p.stage_ny = (int)sny;
-    if (tol != 0)
-        p.tolerance_mm = tol;
-    p.min_share = share;
+    int rc = grid_params(&g, &p);
+    if (rc != CLI_OK)
+        return rc;
     sc_error err;
     sc_error_clear(&err);
-    if (sc_grid_import_check(&p, &err) != SC_OK)
-        return cli_usage_error(cmd, "%s", err.msg);
-    for (int k = 0; k < n_views; ++k)
-        if (parse_view(view_spec[k], p.n, &views[k].v, views[k].sigma, sizeof views[k].sigma))
-            return CLI_BAD_INPUT;
-
     sc_status st = SC_OK;
-    long nn = (long)p.n * p.n;
-    if (!uxcol != !uycol)
-        return cli_usage_error(cmd, "--ux-col and --uy-col go together");
-    const int nc = uxcol ? 4 : 2; /* columns per row: x, y [, ux, uy] */
-    const char *names[4] = {xcol, ycol, uxcol, uycol};
-    const double scale[4] = {unit_mm, unit_mm, unit_mm * 1e3, unit_mm * 1e3};
-    for (int k = 0; k < n_views && st == SC_OK; ++k) {
-        import_view *iv = &views[k];
-        st = sc_table_read(iv->file, nc, names, scale, &iv->t, &err);
-        for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
-            if (!(iv->t.value[q * 4 + 2] > 0 && iv->t.value[q * 4 + 3] > 0))
-                st = sc_error_set(&err, SC_E_INPUT, iv->file, iv->t.line[q],
-                                  "the uncertainties in '%s' and '%s' must be positive", uxcol,
-                                  uycol);
-        if (st != SC_OK)
-            break;
-        long np = iv->t.n_rows;
-        double *xy = malloc((size_t)np * 2 * sizeof(double));
-        double *work = malloc(sc_grid_import_work_doubles(np) * sizeof(double));
-        iv->point_mark = malloc((size_t)np * sizeof(long));
-        iv->mark_point = malloc((size_t)nn * sizeof(long));
-        if (!xy || !work || !iv->point_mark || !iv->mark_point) {
-            st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory (%ld points)", np);
-        } else {
-            for (long q = 0; q < np; ++q) {
-                xy[q] = iv->t.value[nc * q];
-                xy[np + q] = iv->t.value[nc * q + 1];
-            }
-            st = sc_grid_import_assign(&p, &iv->v, np, xy, xy + np, iv->t.line, iv->file,
-                                       iv->t.header_line, iv->point_mark, iv->mark_point,
-                                       &iv->fit, work, &err);
-        }
-        free(xy);
-        free(work);
-    }
+    const int nc = g.uxcol ? 4 : 2; /* columns per row: x, y [, ux, uy] */
+    for (int k = 0; k < g.n_views && st == SC_OK; ++k)
+        st = import_grid_view(&g, &p, nc, &g.views[k], &err);
     if (st == SC_OK) { /* all views numbered: report, then write */
-        for (int k = 0; k < n_views; ++k)
-            report_view(&p, k, &views[k]);
-        sc_afile f;
-        st = sc_afile_open(&f, out, &err);
-        if (st == SC_OK) {
-            fprintf(f.fp, "# selfcal-grid v1\n# N = %d\n# pitch_mm = %.17g\n", p.n, p.pitch_mm);
-            if (ox != 0 || oy != 0)
-                fprintf(f.fp, "# origin_mm = %.17g,%.17g\n", ox, oy);
-            if (snx && (snx != p.n || sny != p.n))
-                fprintf(f.fp, "# stage = %ld,%ld\n", snx, sny);
-            for (int k = 0; k < n_views; ++k)
-                fprint_view_line(f.fp, k, &views[k].v, views[k].sigma, p.n);
-            fprintf(f.fp, nc == 4 ? "view,i,j,x_mm,y_mm,ux_um,uy_um\n" : "view,i,j,x_mm,y_mm\n");
-            for (int k = 0; k < n_views; ++k)
-                for (long m = 0; m < nn; ++m) {
-                    long q = views[k].mark_point[m];
-                    if (q < 0)
-                        continue;
-                    const double *row = &views[k].t.value[nc * q];
-                    fprintf(f.fp, "%d,%ld,%ld,%.17g,%.17g", k, m / p.n, m % p.n, row[0], row[1]);
-                    if (nc == 4)
-                        fprintf(f.fp, ",%.17g,%.17g", row[2], row[3]);
-                    fputc('\n', f.fp);
-                }
-            st = sc_afile_commit(&f, &err);
-        }
+        for (int k = 0; k < g.n_views; ++k)
+            report_view(&p, k, &g.views[k]);
+        st = write_grid_file(&g, &p, nc, &err);
     }
-    for (int k = 0; k < n_views; ++k) {
-        sc_table_free(&views[k].t);
-        free(views[k].mark_point);
-        free(views[k].point_mark);
+    for (int k = 0; k < g.n_views; ++k) {
+        sc_table_free(&g.views[k].t);
+        free(g.views[k].mark_point);
+        free(g.views[k].point_mark);
     }
     return st == SC_OK ? CLI_OK : cli_report(&err);
 }
