@@ -62,6 +62,170 @@ static int report_length_mismatch(sc_error *err, const char *path, int n, int n_
     return cli_report(err);
 }
 
+/* What every panel of the profile plot shares. */
+typedef struct {
+    FILE *fp;
+    const sc_profile_result *a, *truth, *cmp;
+    const char *la, *lb; /* legend labels of a and cmp */
+    int W, PH;           /* width, panel height (px) */
+    double xmin, xmax;
+    double *b1, *b2, *b3; /* n doubles each */
+} plot_panels;
+
+/* The profile f with its k = 1 and k = 2 bands, the truth and the compared profile. */
+static void panel_profile(const plot_panels *P, double y0)
+{
+    FILE *fp = P->fp;
+    const sc_profile_result *a = P->a, *truth = P->truth, *cmp = P->cmp;
+    const int n = a->n, W = P->W, PH = P->PH;
+    const double xmin = P->xmin, xmax = P->xmax;
+    const char *la = P->la, *lb = P->lb;
+    double *b1 = P->b1, *b2 = P->b2;
+    svg_chart c;
+    double lo = INFINITY, hi = -INFINITY;
+    int band = any_finite(a->uf_um, n);
+    for (int i = 0; i < n; ++i) { /* f ± U (k = 2) in b1/b2, then f ± u (k = 1) */
+        double u = a->uf_um ? a->uf_um[i] : NAN;
+        b1[i] = a->f_um[i] - 2 * u;
+        b2[i] = a->f_um[i] + 2 * u;
+    }
+    range_of(a->f_um, n, 1, &lo, &hi);
+    if (band) {
+        range_of(b1, n, 1, &lo, &hi);
+        range_of(b2, n, 1, &lo, &hi);
+    }
+    if (truth)
+        range_of(truth->f_um, n, 1, &lo, &hi);
+    if (cmp)
+        range_of(cmp->f_um, n, 1, &lo, &hi);
+    pad_nice(&lo, &hi);
+    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
+    svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
+    int k = 0;
+    if (band) {
+        svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.15);
+        for (int i = 0; i < n; ++i) {
+            b1[i] = a->f_um[i] - a->uf_um[i];
+            b2[i] = a->f_um[i] + a->uf_um[i];
+        }
+        svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.30);
+        double umax = 0;
+        for (int i = 0; i < n; ++i)
+            if (isfinite(a->uf_um[i]) && a->uf_um[i] > umax)
+                umax = a->uf_um[i];
+        svg_text(fp, c.x + 8, c.y + 16, 11, "start", "#333",
+                 "bands: f ± u(f) (k = 1, dark) and f ± 2u(f) (k = 2, light); max u(f) = %.3g nm",
+                 umax * 1e3);
+    }
+    if (truth) {
+        svg_polyline(&c, truth->x_mm, truth->f_um, n, COL_T, 1.2, "5,3");
+        svg_legend(&c, k++, "truth", COL_T, "5,3");
+    }
+    svg_polyline(&c, a->x_mm, a->f_um, n, COL_A, 1.5, NULL);
+    svg_legend(&c, k++, la, COL_A, NULL);
+    if (cmp) {
+        svg_polyline(&c, cmp->x_mm, cmp->f_um, n, COL_B, 1.2, "2,2");
+        svg_legend(&c, k++, lb, COL_B, "2,2");
+    }
+}
+
+/* The standard uncertainty u(f) in nm. */
+static void panel_uncertainty(const plot_panels *P, double y0)
+{
+    FILE *fp = P->fp;
+    const sc_profile_result *a = P->a, *cmp = P->cmp;
+    const int n = a->n, W = P->W, PH = P->PH;
+    const double xmin = P->xmin, xmax = P->xmax;
+    const char *la = P->la, *lb = P->lb;
+    double *b1 = P->b1;
+    svg_chart c;
+    double lo = 0, hi = -INFINITY;
+    range_of(a->uf_um, n, 1e3, &lo, &hi);
+    if (cmp)
+        range_of(cmp->uf_um, n, 1e3, &lo, &hi);
+    pad_nice(&lo, &hi);
+    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
+    svg_axes(&c, "x (mm)", "u(f) (nm)", "standard uncertainty of f (k = 1)");
+    int k = 0;
+    if (any_finite(a->uf_um, n)) {
+        svg_polyline(&c, a->x_mm, scaled(a->uf_um, n, 1e3, b1), n, COL_A, 1.5, NULL);
+        svg_legend(&c, k++, la, COL_A, NULL);
+    }
+    if (cmp && any_finite(cmp->uf_um, n)) {
+        svg_polyline(&c, cmp->x_mm, scaled(cmp->uf_um, n, 1e3, b1), n, COL_B, 1.5, "6,3");
+        svg_legend(&c, k++, lb, COL_B, "6,3");
+    }
+}
+
+/* The error of f against the truth, with ± u(f). */
+static void panel_error(const plot_panels *P, double y0)
+{
+    FILE *fp = P->fp;
+    const sc_profile_result *a = P->a, *truth = P->truth, *cmp = P->cmp;
+    const int n = a->n, W = P->W, PH = P->PH;
+    const double xmin = P->xmin, xmax = P->xmax;
+    const char *la = P->la, *lb = P->lb;
+    double *b1 = P->b1, *b2 = P->b2, *b3 = P->b3;
+    svg_chart c;
+    double lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i < n; ++i) {
+        b1[i] = (a->f_um[i] - truth->f_um[i]) * 1e3;
+        b2[i] = a->uf_um ? a->uf_um[i] * 1e3 : NAN;
+        b3[i] = -b2[i];
+    }
+    range_of(b1, n, 1, &lo, &hi);
+    range_of(b2, n, 1, &lo, &hi);
+    range_of(b3, n, 1, &lo, &hi);
+    if (cmp)
+        for (int i = 0; i < n; ++i) {
+            double e = (cmp->f_um[i] - truth->f_um[i]) * 1e3;
+            if (isfinite(e))
+                lo = e < lo ? e : lo, hi = e > hi ? e : hi;
+        }
+    pad_nice(&lo, &hi);
+    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
+    svg_axes(&c, "x (mm)", "error (nm)", "error of f against the truth");
+    int k = 0;
+    svg_polyline(&c, a->x_mm, b1, n, COL_A, 1.2, NULL);
+    svg_legend(&c, k++, la, COL_A, NULL);
+    if (any_finite(b2, n)) {
+        svg_polyline(&c, a->x_mm, b2, n, COL_U, 1.0, "4,3");
+        svg_polyline(&c, a->x_mm, b3, n, COL_U, 1.0, "4,3");
+        svg_legend(&c, k++, "± u(f)", COL_U, "4,3");
+    }
+    if (cmp) {
+        for (int i = 0; i < n; ++i)
+            b1[i] = (cmp->f_um[i] - truth->f_um[i]) * 1e3;
+        svg_polyline(&c, cmp->x_mm, b1, n, COL_B, 1.0, "2,2");
+        svg_legend(&c, k++, lb, COL_B, "2,2");
+    }
+}
+
+/* The stage's straightness motion error e_y. */
+static void panel_motion(const plot_panels *P, double y0)
+{
+    FILE *fp = P->fp;
+    const sc_profile_result *a = P->a, *truth = P->truth;
+    const int n = a->n, W = P->W, PH = P->PH;
+    const double xmin = P->xmin, xmax = P->xmax;
+    const char *la = P->la;
+    svg_chart c;
+    double lo = INFINITY, hi = -INFINITY;
+    range_of(a->ey_um, n, 1, &lo, &hi);
+    if (truth)
+        range_of(truth->ey_um, n, 1, &lo, &hi);
+    pad_nice(&lo, &hi);
+    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
+    svg_axes(&c, "x (mm)", "e_y (µm)", "stage straightness motion error e_y (scan 1)");
+    int k = 0;
+    if (truth && any_finite(truth->ey_um, n)) {
+        svg_polyline(&c, truth->x_mm, truth->ey_um, n, COL_T, 1.2, "5,3");
+        svg_legend(&c, k++, "truth", COL_T, "5,3");
+    }
+    svg_polyline(&c, a->x_mm, a->ey_um, n, COL_A, 1.5, NULL);
+    svg_legend(&c, k++, la, COL_A, NULL);
+}
+
 sc_status profile_plot_svg(FILE *fp, const sc_profile_result *a, const sc_profile_result *truth,
                            const sc_profile_result *cmp, const profile_plot_opts *o, sc_error *err)
 {
@@ -71,8 +235,6 @@ sc_status profile_plot_svg(FILE *fp, const sc_profile_result *a, const sc_profil
     if (cmp && cmp->n != n)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the compared profile has %d points, the profile %d",
                             cmp->n, n);
-    const char *la = o && o->label_a ? o->label_a : "profile";
-    const char *lb = o && o->label_b ? o->label_b : "compare";
     int uonly = o && o->uncertainty_only;
     int p_f = !uonly, p_u = any_finite(a->uf_um, n) || (cmp && any_finite(cmp->uf_um, n));
     int p_e = !uonly && truth, p_y = !uonly && any_finite(a->ey_um, n);
@@ -82,133 +244,24 @@ sc_status profile_plot_svg(FILE *fp, const sc_profile_result *a, const sc_profil
     double *b1 = malloc((size_t)n * sizeof(double) * 3);
     if (!b1)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    double *b2 = b1 + n, *b3 = b2 + n;
-    const int W = 900, PH = 250, top = o && o->title ? 40 : 15;
-    const int H = top + panels * (PH + 80) + 10;
-    svg_begin(fp, W, H);
+    plot_panels P = {fp, a, truth, cmp,
+                     o && o->label_a ? o->label_a : "profile",
+                     o && o->label_b ? o->label_b : "compare",
+                     900, 250, a->x_mm[0], a->x_mm[n - 1], b1, b1 + n, b1 + 2 * n};
+    const int top = o && o->title ? 40 : 15;
+    const int H = top + panels * (P.PH + 80) + 10;
+    svg_begin(fp, P.W, H);
     if (o && o->title)
-        svg_text_fit(fp, W / 2.0, 26, 16, W - 20, "middle", "#000", "%s", o->title);
-    double xmin = a->x_mm[0], xmax = a->x_mm[n - 1];
+        svg_text_fit(fp, P.W / 2.0, 26, 16, P.W - 20, "middle", "#000", "%s", o->title);
     double y0 = top;
-    svg_chart c;
-    if (p_f) {
-        double lo = INFINITY, hi = -INFINITY;
-        int band = any_finite(a->uf_um, n);
-        for (int i = 0; i < n; ++i) { /* f ± U (k = 2) in b1/b2, f ± u (k = 1) in b3/b4 */
-            double u = a->uf_um ? a->uf_um[i] : NAN;
-            b1[i] = a->f_um[i] - 2 * u;
-            b2[i] = a->f_um[i] + 2 * u;
+    void (*const draw[4])(const plot_panels *, double) = {panel_profile, panel_uncertainty,
+                                                          panel_error, panel_motion};
+    const int shown[4] = {p_f, p_u, p_e, p_y};
+    for (int k = 0; k < 4; ++k)
+        if (shown[k]) {
+            draw[k](&P, y0);
+            y0 += P.PH + 80;
         }
-        range_of(a->f_um, n, 1, &lo, &hi);
-        if (band) {
-            range_of(b1, n, 1, &lo, &hi);
-            range_of(b2, n, 1, &lo, &hi);
-        }
-        if (truth)
-            range_of(truth->f_um, n, 1, &lo, &hi);
-        if (cmp)
-            range_of(cmp->f_um, n, 1, &lo, &hi);
-        pad_nice(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-        svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
-        int k = 0;
-        if (band) {
-            svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.15);
-            for (int i = 0; i < n; ++i) {
-                b1[i] = a->f_um[i] - a->uf_um[i];
-                b2[i] = a->f_um[i] + a->uf_um[i];
-            }
-            svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.30);
-            double umax = 0;
-            for (int i = 0; i < n; ++i)
-                if (isfinite(a->uf_um[i]) && a->uf_um[i] > umax)
-                    umax = a->uf_um[i];
-            svg_text(fp, c.x + 8, c.y + 16, 11, "start", "#333",
-                     "bands: f ± u(f) (k = 1, dark) and f ± 2u(f) (k = 2, light); max u(f) = %.3g nm",
-                     umax * 1e3);
-        }
-        if (truth) {
-            svg_polyline(&c, truth->x_mm, truth->f_um, n, COL_T, 1.2, "5,3");
-            svg_legend(&c, k++, "truth", COL_T, "5,3");
-        }
-        svg_polyline(&c, a->x_mm, a->f_um, n, COL_A, 1.5, NULL);
-        svg_legend(&c, k++, la, COL_A, NULL);
-        if (cmp) {
-            svg_polyline(&c, cmp->x_mm, cmp->f_um, n, COL_B, 1.2, "2,2");
-            svg_legend(&c, k++, lb, COL_B, "2,2");
-        }
-        y0 += PH + 80;
-    }
-    if (p_u) {
-        double lo = 0, hi = -INFINITY;
-        range_of(a->uf_um, n, 1e3, &lo, &hi);
-        if (cmp)
-            range_of(cmp->uf_um, n, 1e3, &lo, &hi);
-        pad_nice(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-        svg_axes(&c, "x (mm)", "u(f) (nm)", "standard uncertainty of f (k = 1)");
-        int k = 0;
-        if (any_finite(a->uf_um, n)) {
-            svg_polyline(&c, a->x_mm, scaled(a->uf_um, n, 1e3, b1), n, COL_A, 1.5, NULL);
-            svg_legend(&c, k++, la, COL_A, NULL);
-        }
-        if (cmp && any_finite(cmp->uf_um, n)) {
-            svg_polyline(&c, cmp->x_mm, scaled(cmp->uf_um, n, 1e3, b1), n, COL_B, 1.5, "6,3");
-            svg_legend(&c, k++, lb, COL_B, "6,3");
-        }
-        y0 += PH + 80;
-    }
-    if (p_e) {
-        double lo = INFINITY, hi = -INFINITY;
-        for (int i = 0; i < n; ++i) {
-            b1[i] = (a->f_um[i] - truth->f_um[i]) * 1e3;
-            b2[i] = a->uf_um ? a->uf_um[i] * 1e3 : NAN;
-            b3[i] = -b2[i];
-        }
-        range_of(b1, n, 1, &lo, &hi);
-        range_of(b2, n, 1, &lo, &hi);
-        range_of(b3, n, 1, &lo, &hi);
-        if (cmp)
-            for (int i = 0; i < n; ++i) {
-                double e = (cmp->f_um[i] - truth->f_um[i]) * 1e3;
-                if (isfinite(e))
-                    lo = e < lo ? e : lo, hi = e > hi ? e : hi;
-            }
-        pad_nice(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-        svg_axes(&c, "x (mm)", "error (nm)", "error of f against the truth");
-        int k = 0;
-        svg_polyline(&c, a->x_mm, b1, n, COL_A, 1.2, NULL);
-        svg_legend(&c, k++, la, COL_A, NULL);
-        if (any_finite(b2, n)) {
-            svg_polyline(&c, a->x_mm, b2, n, COL_U, 1.0, "4,3");
-            svg_polyline(&c, a->x_mm, b3, n, COL_U, 1.0, "4,3");
-            svg_legend(&c, k++, "± u(f)", COL_U, "4,3");
-        }
-        if (cmp) {
-            for (int i = 0; i < n; ++i)
-                b1[i] = (cmp->f_um[i] - truth->f_um[i]) * 1e3;
-            svg_polyline(&c, cmp->x_mm, b1, n, COL_B, 1.0, "2,2");
-            svg_legend(&c, k++, lb, COL_B, "2,2");
-        }
-        y0 += PH + 80;
-    }
-    if (p_y) {
-        double lo = INFINITY, hi = -INFINITY;
-        range_of(a->ey_um, n, 1, &lo, &hi);
-        if (truth)
-            range_of(truth->ey_um, n, 1, &lo, &hi);
-        pad_nice(&lo, &hi);
-        svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-        svg_axes(&c, "x (mm)", "e_y (µm)", "stage straightness motion error e_y (scan 1)");
-        int k = 0;
-        if (truth && any_finite(truth->ey_um, n)) {
-            svg_polyline(&c, truth->x_mm, truth->ey_um, n, COL_T, 1.2, "5,3");
-            svg_legend(&c, k++, "truth", COL_T, "5,3");
-        }
-        svg_polyline(&c, a->x_mm, a->ey_um, n, COL_A, 1.5, NULL);
-        svg_legend(&c, k++, la, COL_A, NULL);
-    }
     svg_end(fp);
     free(b1);
     return SC_OK;
