@@ -58,36 +58,36 @@ static void print_num(double v)
         printf(",");
 }
 
-int cmd_profile_plan(int argc, char **argv)
+/* The command line, as given. */
+typedef struct {
+    long n, dmin, dmax, top;
+    double s, sd, sa; /* s_mm, sigma_disp_um, sigma_angle_urad */
+} plan_args;
+
+/* argv into a (sort_by_max too); *help for --help. */
+static int parse_args(int argc, char **argv, plan_args *a, int *help)
 {
     const char *cmd = "profile-plan";
-    long n = 0, dmin = 2, dmax = 30, top = 20;
-    double s = NAN, sd = NAN, sa = NAN;
+    *a = (plan_args){0, 2, 30, 20, NAN, NAN, NAN};
     sort_by_max = 0;
+    *help = 0;
     for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
+        const char *o = argv[i];
         int hv = i + 1 < argc;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            fputs(USAGE, stdout);
+        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+            *help = 1;
             return CLI_OK;
         }
         long *lp = NULL;
         double *dp = NULL;
-        if (!strcmp(a, "--n") && hv)
-            lp = &n;
-        else if (!strcmp(a, "--d-min") && hv)
-            lp = &dmin;
-        else if (!strcmp(a, "--d-max") && hv)
-            lp = &dmax;
-        else if (!strcmp(a, "--top") && hv)
-            lp = &top;
-        else if (!strcmp(a, "--s-mm") && hv)
-            dp = &s;
-        else if (!strcmp(a, "--sigma-disp-um") && hv)
-            dp = &sd;
-        else if (!strcmp(a, "--sigma-angle-urad") && hv)
-            dp = &sa;
-        else if (!strcmp(a, "--sort") && hv) {
+        if (!strcmp(o, "--n") && hv) lp = &a->n;
+        else if (!strcmp(o, "--d-min") && hv) lp = &a->dmin;
+        else if (!strcmp(o, "--d-max") && hv) lp = &a->dmax;
+        else if (!strcmp(o, "--top") && hv) lp = &a->top;
+        else if (!strcmp(o, "--s-mm") && hv) dp = &a->s;
+        else if (!strcmp(o, "--sigma-disp-um") && hv) dp = &a->sd;
+        else if (!strcmp(o, "--sigma-angle-urad") && hv) dp = &a->sa;
+        else if (!strcmp(o, "--sort") && hv) {
             const char *v = argv[++i];
             if (!strcmp(v, "rms"))
                 sort_by_max = 0;
@@ -97,98 +97,126 @@ int cmd_profile_plan(int argc, char **argv)
                 return cli_usage_error(cmd, "--sort must be rms or max, not '%s'", v);
             continue;
         } else
-            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
+            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", o);
         const char *v = argv[++i];
         if (lp && (sc_parse_long(v, lp) != 0 || *lp < 1))
-            return cli_usage_error(cmd, "%s: '%s' must be a positive whole number", a, v);
+            return cli_usage_error(cmd, "%s: '%s' must be a positive whole number", o, v);
         if (dp && (sc_parse_double(v, dp) != 0 || *dp < 0))
-            return cli_usage_error(cmd, "%s: '%s' must be a non-negative number", a, v);
+            return cli_usage_error(cmd, "%s: '%s' must be a non-negative number", o, v);
     }
-    if (n <= 0 || isnan(s) || isnan(sd) || isnan(sa)) {
+    return CLI_OK;
+}
+
+/* The required options and their ranges; d-max is clamped to N - 1. */
+static int check_args(plan_args *a)
+{
+    const char *cmd = "profile-plan";
+    if (a->n <= 0 || isnan(a->s) || isnan(a->sd) || isnan(a->sa))
         return cli_usage_error(cmd, "--n, --s-mm, --sigma-disp-um and --sigma-angle-urad are required (see --help)");
-    }
-    if (!(s > 0))
+    if (!(a->s > 0))
         return cli_usage_error(cmd, "--s-mm must be positive");
-    if (n > 100000000)
-        return cli_usage_error(cmd, "--n %ld is too large", n);
-    if (dmax >= n)
-        dmax = n - 1;
-    if (dmin < 1 || dmin >= dmax)
-        return cli_usage_error(cmd, "need 1 <= d-min < d-max < N (d-min %ld, d-max %ld)", dmin, dmax);
-    if (!(sd > 0 || sa > 0))
+    if (a->n > 100000000)
+        return cli_usage_error(cmd, "--n %ld is too large", a->n);
+    if (a->dmax >= a->n)
+        a->dmax = a->n - 1;
+    if (a->dmin < 1 || a->dmin >= a->dmax)
+        return cli_usage_error(cmd, "need 1 <= d-min < d-max < N (d-min %ld, d-max %ld)", a->dmin,
+                               a->dmax);
+    if (!(a->sd > 0 || a->sa > 0))
         return cli_usage_error(cmd, "give a positive --sigma-disp-um or --sigma-angle-urad");
-    size_t cap = (size_t)(dmax - dmin + 1) * (size_t)(dmax - dmin + 1) / 2 + 1;
+    return CLI_OK;
+}
+
+/* One pair's uncertainty figures by both methods (the DFT's only where it is usable); u: N
+ * doubles of work. */
+static sc_status evaluate_pair(const plan_args *a, int d1, int d2, double *u, plan_row *r,
+                               sc_error *err)
+{
+    const int n = (int)a->n;
+    double w1 = 1.0 / sc_profile_y_variance(d1, a->s, a->sd, a->sa);
+    double w2 = 1.0 / sc_profile_y_variance(d2, a->s, a->sd, a->sa);
+    *r = (plan_row){d1, d2, NAN, NAN, NAN, NAN};
+    sc_profile_lsq_plan *lp = NULL;
+    sc_status st = sc_profile_lsq_plan_create(n, d1, d2, w1, w2, &lp, err);
+    if (st == SC_OK)
+        st = sc_profile_lsq_uncertainty(lp, u, NULL, err);
+    sc_profile_lsq_plan_destroy(lp);
+    if (st != SC_OK)
+        return st;
+    stats(u, n, &r->lsq_rms, &r->lsq_max);
+    if (!sc_profile_dft_is_usable(n, d1, d2, NULL))
+        return SC_OK;
+    sc_profile_dft_plan *dp = NULL;
+    st = sc_profile_dft_plan_create(n, d1, d2, w1, w2, &dp, err);
+    if (st == SC_OK)
+        st = sc_profile_dft_uncertainty(dp, u, NULL, err);
+    sc_profile_dft_plan_destroy(dp);
+    if (st == SC_OK)
+        stats(u, n, &r->dft_rms, &r->dft_max);
+    return st;
+}
+
+/* The ranking on stdout: a comment line, the header, the best `top` rows. */
+static void print_ranking(const plan_args *a, plan_row *rows, size_t cnt)
+{
+    qsort(rows, cnt, sizeof *rows, cmp_rows);
+    printf("# profile-plan: N = %ld, s_mm = %g, sigma_disp_um = %g, sigma_angle_urad = %g; "
+           "%zu usable pairs with %ld <= d1 < d2 <= %ld, ranked by least-squares %s of u(f)\n",
+           a->n, a->s, a->sd, a->sa, cnt, a->dmin, a->dmax, sort_by_max ? "worst point" : "RMS");
+    printf("rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm\n");
+    for (size_t i = 0; i < cnt && (long)i < a->top; ++i) {
+        printf("%zu,%d,%d,%g,%g", i + 1, rows[i].d1, rows[i].d2, rows[i].d1 * a->s,
+               rows[i].d2 * a->s);
+        print_num(rows[i].lsq_rms);
+        print_num(rows[i].lsq_max);
+        print_num(rows[i].dft_rms);
+        print_num(rows[i].dft_max);
+        printf("\n");
+    }
+}
+
+int cmd_profile_plan(int argc, char **argv)
+{
+    plan_args a;
+    int help;
+    int rc = parse_args(argc, argv, &a, &help);
+    if (rc == CLI_OK && help) {
+        fputs(USAGE, stdout);
+        return CLI_OK;
+    }
+    if (rc != CLI_OK || (rc = check_args(&a)) != CLI_OK)
+        return rc;
+    size_t cap = (size_t)(a.dmax - a.dmin + 1) * (size_t)(a.dmax - a.dmin + 1) / 2 + 1;
     plan_row *rows = malloc(cap * sizeof *rows);
-    double *u = malloc((size_t)n * sizeof(double));
+    double *u = malloc((size_t)a.n * sizeof(double));
+    sc_error err;
+    sc_error_clear(&err);
     if (!rows || !u) {
         free(rows);
         free(u);
-        sc_error err;
         sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
         return cli_report(&err);
     }
     size_t cnt = 0;
-    int rc = CLI_OK;
+    sc_status st = SC_OK;
     const int tty = isatty(STDERR_FILENO);
-    for (long d1 = dmin; d1 <= dmax && rc == CLI_OK; ++d1) {
+    for (long d1 = a.dmin; d1 <= a.dmax && st == SC_OK; ++d1) {
         if (tty)
-            fprintf(stderr, "\rprofile-plan: d1 = %ld of %ld", d1, dmax), fflush(stderr);
-        for (long d2 = d1 + 1; d2 <= dmax; ++d2) {
-            sc_error err;
-            sc_error_clear(&err);
-            if (!sc_profile_lsq_is_solvable((int)n, (int)d1, (int)d2, NULL))
-                continue;
-            double w1 = 1.0 / sc_profile_y_variance((int)d1, s, sd, sa);
-            double w2 = 1.0 / sc_profile_y_variance((int)d2, s, sd, sa);
-            plan_row r = {(int)d1, (int)d2, NAN, NAN, NAN, NAN};
-            sc_profile_lsq_plan *lp = NULL;
-            if (sc_profile_lsq_plan_create((int)n, (int)d1, (int)d2, w1, w2, &lp, &err) != SC_OK ||
-                sc_profile_lsq_uncertainty(lp, u, NULL, &err) != SC_OK) {
-                sc_profile_lsq_plan_destroy(lp);
-                rc = cli_report(&err);
-                break;
-            }
-            sc_profile_lsq_plan_destroy(lp);
-            stats(u, (int)n, &r.lsq_rms, &r.lsq_max);
-            if (sc_profile_dft_is_usable((int)n, (int)d1, (int)d2, NULL)) {
-                sc_profile_dft_plan *dp = NULL;
-                if (sc_profile_dft_plan_create((int)n, (int)d1, (int)d2, w1, w2, &dp, &err) != SC_OK ||
-                    sc_profile_dft_uncertainty(dp, u, NULL, &err) != SC_OK) {
-                    sc_profile_dft_plan_destroy(dp);
-                    rc = cli_report(&err);
-                    break;
-                }
-                sc_profile_dft_plan_destroy(dp);
-                stats(u, (int)n, &r.dft_rms, &r.dft_max);
-            }
-            rows[cnt++] = r;
-        }
+            fprintf(stderr, "\rprofile-plan: d1 = %ld of %ld", d1, a.dmax), fflush(stderr);
+        for (long d2 = d1 + 1; d2 <= a.dmax && st == SC_OK; ++d2)
+            if (sc_profile_lsq_is_solvable((int)a.n, (int)d1, (int)d2, NULL) &&
+                (st = evaluate_pair(&a, (int)d1, (int)d2, u, &rows[cnt], &err)) == SC_OK)
+                cnt++;
     }
     if (tty)
         fprintf(stderr, "\r%40s\r", "");
-    if (rc == CLI_OK) {
-        if (cnt == 0) {
-            sc_error err;
-            sc_error_set(&err, SC_E_UNSOLVABLE, NULL, 0,
-                         "no usable pair with %ld <= d1 < d2 <= %ld for N = %ld", dmin, dmax, n);
-            rc = cli_report(&err);
-        } else {
-            qsort(rows, cnt, sizeof *rows, cmp_rows);
-            printf("# profile-plan: N = %ld, s_mm = %g, sigma_disp_um = %g, sigma_angle_urad = %g; "
-                   "%zu usable pairs with %ld <= d1 < d2 <= %ld, ranked by least-squares %s of u(f)\n",
-                   n, s, sd, sa, cnt, dmin, dmax, sort_by_max ? "worst point" : "RMS");
-            printf("rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm\n");
-            for (size_t i = 0; i < cnt && (long)i < top; ++i) {
-                printf("%zu,%d,%d,%g,%g", i + 1, rows[i].d1, rows[i].d2, rows[i].d1 * s, rows[i].d2 * s);
-                print_num(rows[i].lsq_rms);
-                print_num(rows[i].lsq_max);
-                print_num(rows[i].dft_rms);
-                print_num(rows[i].dft_max);
-                printf("\n");
-            }
-        }
-    }
+    if (st == SC_OK && cnt == 0)
+        st = sc_error_set(&err, SC_E_UNSOLVABLE, NULL, 0,
+                          "no usable pair with %ld <= d1 < d2 <= %ld for N = %ld", a.dmin, a.dmax,
+                          a.n);
+    if (st == SC_OK)
+        print_ranking(&a, rows, cnt);
     free(rows);
     free(u);
-    return rc;
+    return st == SC_OK ? CLI_OK : cli_report(&err);
 }
