@@ -282,17 +282,12 @@ static int cmp_worst(const void *a, const void *b)
     return x < y ? 1 : x > y ? -1 : 0;
 }
 
-static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, sc_error *err)
+/* The per-view table of residuals; the flagged and the measured counts out. */
+static void residual_table(FILE *fp, const grid_report *r, long *flagged, long *measured)
 {
     const sc_grid_plan *p = &r->d.plan;
-    int n = p->n;
-    size_t nn = NSQ(r);
-    fputs("<section id=\"residuals\">\n<h2>4. Residuals</h2>\n<p>Residual r = measured − fitted "
-          "position of each mark in each view (least-squares fit).</p>\n<table id=\"residual-table\">\n"
-          "<tr><th>view</th><th>rot</th><th>shift</th><th>marks</th><th>RMS r<sub>x</sub> (µm)</th>"
-          "<th>RMS r<sub>y</sub> (µm)</th><th>max |r| (µm)</th><th class=\"l\">at node (x, y) mm</th>"
-          "<th>flagged</th></tr>\n",
-          fp);
+    const int n = p->n;
+    const size_t nn = NSQ(r);
     long n_flag = 0, n_all = 0;
     for (int v = 0; v < p->n_views; ++v) {
         double sx = 0, sy = 0, mx = -1;
@@ -329,16 +324,18 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
             fputs("<td class=\"l\">—</td>", fp);
         fprintf(fp, "<td>%ld</td></tr>\n", fl);
     }
-    fputs("</table>\n", fp);
-    /* histogram of all residual components */
-    size_t nres = (size_t)p->n_views * nn;
-    double *all = malloc(2 * nres * sizeof(double));
-    worst *ws = malloc((size_t)(n_all > 0 ? n_all : 1) * sizeof(worst));
-    if (!all || !ws) {
-        free(all);
-        free(ws);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
+    *flagged = n_flag;
+    *measured = n_all;
+}
+
+/* The histograms of the residual components and of the standardized residuals; every measured
+ * mark into ws (*nw of them); all: 2 * views * N² doubles of work. */
+static sc_status residual_histograms(FILE *fp, const grid_report *r, double *all, worst *ws,
+                                     long *nw_out, sc_error *err)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    const int n = p->n;
+    const size_t nn = NSQ(r);
     long m = 0, nw = 0;
     for (int v = 0; v < p->n_views; ++v)
         for (size_t k = 0; k < nn; ++k) {
@@ -375,11 +372,13 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
                          "Histogram of the standardized residuals with the standard normal density; "
                          "beyond ±3.29 a measurement is flagged.",
                          err);
-    free(all);
-    if (st != SC_OK) {
-        free(ws);
-        return st;
-    }
+    *nw_out = nw;
+    return st;
+}
+
+/* The ten worst measurements and Baarda's test. */
+static void outlier_table(FILE *fp, const grid_report *r, worst *ws, long nw, long n_flag)
+{
     qsort(ws, (size_t)nw, sizeof *ws, cmp_worst);
     fputs("<h3>Outliers</h3>\n", fp);
     fprintf(fp, "<p>Baarda's data snooping: a measurement is flagged when a standardized residual "
@@ -404,9 +403,35 @@ static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, 
                 !isfinite(w->t) ? "not tested" : w->t > SC_GRID_BAARDA_CRIT ? "yes" : "no");
     }
     fputs("</table>\n</section>\n", fp);
+}
+
+static sc_status section_residuals(FILE *fp, const grid_report *r, long *n_out, sc_error *err)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    fputs("<section id=\"residuals\">\n<h2>4. Residuals</h2>\n<p>Residual r = measured − fitted "
+          "position of each mark in each view (least-squares fit).</p>\n<table id=\"residual-table\">\n"
+          "<tr><th>view</th><th>rot</th><th>shift</th><th>marks</th><th>RMS r<sub>x</sub> (µm)</th>"
+          "<th>RMS r<sub>y</sub> (µm)</th><th>max |r| (µm)</th><th class=\"l\">at node (x, y) mm</th>"
+          "<th>flagged</th></tr>\n",
+          fp);
+    long n_flag, n_all, nw = 0;
+    residual_table(fp, r, &n_flag, &n_all);
+    fputs("</table>\n", fp);
+    size_t nres = (size_t)p->n_views * NSQ(r);
+    double *all = malloc(2 * nres * sizeof(double));
+    worst *ws = malloc((size_t)(n_all > 0 ? n_all : 1) * sizeof(worst));
+    if (!all || !ws) {
+        free(all);
+        free(ws);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    sc_status st = residual_histograms(fp, r, all, ws, &nw, err);
+    free(all);
+    if (st == SC_OK)
+        outlier_table(fp, r, ws, nw, n_flag);
     free(ws);
     *n_out = n_flag;
-    return SC_OK;
+    return st;
 }
 
 static double rms_of(const double *v, size_t n, double *max_abs)
@@ -553,6 +578,102 @@ static void appendix_table(FILE *fp, const grid_report *r)
     fputs("</table>\n</details>\n", fp);
 }
 
+/* One option (and its value, from argv[*a + 1]) into r, vo and *out. */
+static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_opts *vo,
+                        const char **out)
+{
+    const char *cmd = "report grid", *o = argv[*a];
+    if (o[0] != '-' || !strcmp(o, "-")) {
+        if (r->in)
+            return cli_usage_error(cmd, "more than one input file ('%s', '%s')", r->in, o);
+        r->in = o;
+        return CLI_OK;
+    }
+    if (!strcmp(o, "--raw")) {
+        vo->raw = 1;
+        return CLI_OK;
+    }
+    if (*a + 1 >= argc)
+        return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+    const char *v = argv[++*a];
+    if (!strcmp(o, "-o") || !strcmp(o, "--out"))
+        *out = v;
+    else if (!strcmp(o, "--method"))
+        r->method = v;
+    else if (!strcmp(o, "--sigma-r-um")) {
+        if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||
+            !(r->sigma_r_given <= SC_INPUT_MAX_ABS))
+            return cli_usage_error(cmd, "--sigma-r-um needs a positive number, got '%s'", v);
+    } else if (!strcmp(o, "--verify"))
+        vo->measurement = v;
+    else if (!strcmp(o, "--table"))
+        vo->table = v;
+    else if (!strcmp(o, "--tolerance-um")) {
+        if (sc_parse_double(v, &vo->tolerance_um) || !(vo->tolerance_um > 0) ||
+            !(vo->tolerance_um <= SC_INPUT_MAX_ABS))
+            return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
+    } else
+        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    return CLI_OK;
+}
+
+/* Title and the summary paragraph (its numbers from the run and the verification). */
+static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo,
+                           const verify_result *vr)
+{
+    char title[600];
+    snprintf(title, sizeof title, "Grid plate self-calibration report — %s", cli_basename(r->in));
+    html_begin(fp, title);
+    fputs("<h1>", fp);
+    html_esc(fp, title);
+    fputs("</h1>\n", fp);
+    double mux, muy;
+    rms_of(r->res.ugx_um, NG(r), &mux);
+    rms_of(r->res.ugy_um, NG(r), &muy);
+    fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d, pitch %g mm, "
+                "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated %.4g µm",
+            r->method, r->d.plan.n, r->d.plan.pitch_mm, r->d.plan.n_views, r->info.n_rows,
+            r->identifiable ? "yes" : "no", r->lres.sigma_r_est_um);
+    if (r->sigma_r_given > 0)
+        fprintf(fp, " (given %.4g µm)", r->sigma_r_given);
+    fputs(".", fp);
+    if (isfinite(mux))
+        fprintf(fp, " Largest u(G): %.4g µm (k = 1), U = %.4g µm (k = 2).", fmax(mux, muy),
+                2 * fmax(mux, muy));
+    if (vo->measurement)
+        fprintf(fp, " Verification: <b class=\"%s\">%s</b>.", vr->pass ? "pass" : "fail",
+                vr->pass ? "pass" : "fail");
+    fputs("</p></div>\n", fp);
+}
+
+/* The whole report into fp: summary, sections 1-6, provenance, appendix. */
+static sc_status write_report(FILE *fp, const grid_report *r, const verify_opts *vo,
+                              const verify_result *vr, int argc, char **argv, sc_error *err)
+{
+    report_summary(fp, r, vo, vr);
+    section_plan(fp, r);
+    section_method(fp, r);
+    int chi2;
+    section_noise(fp, r, &chi2);
+    long n_out = 0;
+    sc_status st = section_residuals(fp, r, &n_out, err);
+    if (st == SC_OK)
+        st = section_results(fp, r, err);
+    if (st == SC_OK && vo->measurement)
+        st = verify_html_section(fp, vo, vr, "6. Verification of the compensated machine", err);
+    const char *inputs[3] = {r->in, vo->measurement, vo->table};
+    const char *roles[3] = {"measurement (selfcal-grid v1)", "re-measurement (verify)",
+                            "lookup table (verify)"};
+    if (st == SC_OK)
+        st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, vo->measurement ? 3 : 1, err);
+    if (st == SC_OK) {
+        fputs("<h2>Appendix</h2>\n", fp);
+        appendix_table(fp, r);
+        html_end(fp);
+    }
+    return st;
+}
+
 int cmd_report_grid(int argc, char **argv)
 {
     const char *cmd = "report grid";
@@ -563,42 +684,13 @@ int cmd_report_grid(int argc, char **argv)
     verify_opts vo;
     verify_opts_init(&vo);
     for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
+        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
         }
-        if (o[0] != '-' || !strcmp(o, "-")) {
-            if (r.in)
-                return cli_usage_error(cmd, "more than one input file ('%s', '%s')", r.in, o);
-            r.in = o;
-            continue;
-        }
-        if (!strcmp(o, "--raw")) {
-            vo.raw = 1;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "-o") || !strcmp(o, "--out"))
-            out = v;
-        else if (!strcmp(o, "--method"))
-            r.method = v;
-        else if (!strcmp(o, "--sigma-r-um")) {
-            if (sc_parse_double(v, &r.sigma_r_given) || !(r.sigma_r_given > 0) ||
-                !(r.sigma_r_given <= SC_INPUT_MAX_ABS))
-                return cli_usage_error(cmd, "--sigma-r-um needs a positive number, got '%s'", v);
-        } else if (!strcmp(o, "--verify"))
-            vo.measurement = v;
-        else if (!strcmp(o, "--table"))
-            vo.table = v;
-        else if (!strcmp(o, "--tolerance-um")) {
-            if (sc_parse_double(v, &vo.tolerance_um) || !(vo.tolerance_um > 0) ||
-                !(vo.tolerance_um <= SC_INPUT_MAX_ABS))
-                return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
-        } else
-            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+        int rc = parse_option(argc, argv, &a, &r, &vo, &out);
+        if (rc != CLI_OK)
+            return rc;
     }
     if (!r.in || !out)
         return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
@@ -606,7 +698,6 @@ int cmd_report_grid(int argc, char **argv)
         return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
     if (!vo.measurement != !vo.table)
         return cli_usage_error(cmd, "--verify and --table go together (see --help)");
-
     sc_error err;
     sc_error_clear(&err);
     sc_status st = run(&r, &err);
@@ -621,52 +712,8 @@ int cmd_report_grid(int argc, char **argv)
     if (st == SC_OK)
         st = sc_afile_open(&f, out, &err);
     if (st == SC_OK) {
-        FILE *fp = f.fp;
-        char title[600];
-        snprintf(title, sizeof title, "Grid plate self-calibration report — %s", cli_basename(r.in));
-        html_begin(fp, title);
-        fputs("<h1>", fp);
-        html_esc(fp, title);
-        fputs("</h1>\n", fp);
-        /* summary first; the numbers are filled from the sections' results */
-        double mux, muy;
-        rms_of(r.res.ugx_um, NG(&r), &mux);
-        rms_of(r.res.ugy_um, NG(&r), &muy);
-        fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d, pitch %g mm, "
-                    "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated %.4g µm",
-                r.method, r.d.plan.n, r.d.plan.pitch_mm, r.d.plan.n_views, r.info.n_rows,
-                r.identifiable ? "yes" : "no", r.lres.sigma_r_est_um);
-        if (r.sigma_r_given > 0)
-            fprintf(fp, " (given %.4g µm)", r.sigma_r_given);
-        fputs(".", fp);
-        if (isfinite(mux))
-            fprintf(fp, " Largest u(G): %.4g µm (k = 1), U = %.4g µm (k = 2).", fmax(mux, muy),
-                    2 * fmax(mux, muy));
-        if (vo.measurement)
-            fprintf(fp, " Verification: <b class=\"%s\">%s</b>.", vr.pass ? "pass" : "fail",
-                    vr.pass ? "pass" : "fail");
-        fputs("</p></div>\n", fp);
-        section_plan(fp, &r);
-        section_method(fp, &r);
-        int chi2;
-        section_noise(fp, &r, &chi2);
-        long n_out = 0;
-        st = section_residuals(fp, &r, &n_out, &err);
-        if (st == SC_OK)
-            st = section_results(fp, &r, &err);
-        if (st == SC_OK && vo.measurement)
-            st = verify_html_section(fp, &vo, &vr, "6. Verification of the compensated machine", &err);
-        const char *inputs[3] = {r.in, vo.measurement, vo.table};
-        const char *roles[3] = {"measurement (selfcal-grid v1)", "re-measurement (verify)",
-                                "lookup table (verify)"};
-        if (st == SC_OK)
-            st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, vo.measurement ? 3 : 1, &err);
-        if (st == SC_OK) {
-            fputs("<h2>Appendix</h2>\n", fp);
-            appendix_table(fp, &r);
-            html_end(fp);
-        }
-        if (st == SC_OK && ferror(fp))
+        st = write_report(f.fp, &r, &vo, &vr, argc, argv, &err);
+        if (st == SC_OK && ferror(f.fp))
             st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
         if (st == SC_OK)
             st = sc_afile_commit(&f, &err);
