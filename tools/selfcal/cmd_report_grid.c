@@ -449,25 +449,16 @@ static double rms_of(const double *v, size_t n, double *max_abs)
     return c ? sqrt(s / c) : NAN;
 }
 
-static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
+/* O, R and every view's misalignment with their uncertainties. */
+static void results_first_order(FILE *fp, const grid_report *r)
 {
     const sc_grid_plan *p = &r->d.plan;
     const sc_grid_result *s = &r->res;
-    size_t nn = NSQ(r);
-    double uO = NAN, uR = NAN;
-    uO = s->uO;
-    uR = s->uR;
-    fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
-          "<table>\n<tr><th class=\"l\">quantity</th><th>value</th><th>u (k = 1)</th>"
-          "<th>U (k = 2)</th><th class=\"l\">unit</th></tr>\n",
-          fp);
+    const double uO = s->uO, uR = s->uR;
     html_u_row(fp, "O, non-orthogonality (Petrò eq. 4)", "O", s->O * 1e6, uO * 1e6, "%.5g", "µm/m");
     html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "µm/m");
     for (int v = 0; v < p->n_views; ++v) {
-        double ut = NAN, uu = NAN, uth = NAN;
-        ut = s->utx_um[v];
-        uu = s->uty_um[v];
-        uth = s->utheta_urad[v];
+        const double ut = s->utx_um[v], uu = s->uty_um[v], uth = s->utheta_urad[v];
         char name[96], id[32];
         snprintf(name, sizeof name, "view %d: tx", r->info.view_id[v]);
         snprintf(id, sizeof id, "tx-%d", v);
@@ -484,7 +475,13 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
         fputs("<p class=\"note\">The closed forms give no uncertainties of O, R and the "
               "misalignments (—); use --method lsq.</p>\n",
               fp);
-    /* G statistics */
+}
+
+/* The statistics of G, u(G) and A. */
+static void results_g_table(FILE *fp, const grid_report *r)
+{
+    const sc_grid_result *s = &r->res;
+    const size_t nn = NSQ(r);
     double mgx, mgy, mux, muy, ma;
     size_t ng = NG(r);
     double rgx = rms_of(s->gx_um, ng, &mgx), rgy = rms_of(s->gy_um, ng, &mgy);
@@ -516,6 +513,12 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
     html_num_cell(fp, "ay-rms", "%.4g", ray);
     fputs("<td class=\"l\">µm</td></tr>\n</table>\n", fp);
 
+}
+
+/* The figures: G as arrows and colour maps, u(G) where known, A as arrows. */
+static sc_status results_figures(FILE *fp, const grid_report *r, sc_error *err)
+{
+    const sc_grid_result *s = &r->res;
     fig_ar far = {&r->gm, 0, "stage error G (arrows)", "G"};
     sc_status st = html_figure(fp, draw_ar, &far, "The stage error map G at the stage nodes.", err);
     fig_cm cgx = {&r->gm, 0, s->gx_um, "Gx (µm)", "µm", 1};
@@ -543,6 +546,18 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
         st = html_figure(fp, draw_ar, &fa,
                          "The plate error A at the plate's marks (plate frame), as separated from G.",
                          err);
+    return st;
+}
+
+static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
+{
+    fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
+          "<table>\n<tr><th class=\"l\">quantity</th><th>value</th><th>u (k = 1)</th>"
+          "<th>U (k = 2)</th><th class=\"l\">unit</th></tr>\n",
+          fp);
+    results_first_order(fp, r);
+    results_g_table(fp, r);
+    sc_status st = results_figures(fp, r, err);
     fputs("</section>\n", fp);
     return st;
 }
