@@ -62,10 +62,123 @@ typedef struct missing_mark {
     double dx_um, dy_um; /* --displace: the offset of this mark in this view */
 } missing_mark;
 
+/* The damage asked for: missing marks, displaced marks, stray points per view. */
+typedef struct {
+    const missing_mark *miss, *disp;
+    int n_miss, n_disp;
+    const int *stray;
+    int n_stray;
+} damage;
+
+/* Every damaged mark and stray view exists in plan p. */
+static int check_damage(const sc_grid_plan *p, const damage *dm)
+{
+    for (int k = 0; k < dm->n_miss; ++k)
+        if (dm->miss[k].i >= p->n || dm->miss[k].j >= p->n || dm->miss[k].view >= p->n_views)
+            return cli_usage_error("simulate exports", "--missing %ld,%ld: no such mark or view",
+                                   dm->miss[k].i, dm->miss[k].j);
+    for (int k = 0; k < dm->n_disp; ++k)
+        if (dm->disp[k].i >= p->n || dm->disp[k].j >= p->n || dm->disp[k].view >= p->n_views)
+            return cli_usage_error("simulate exports", "--displace %ld,%ld@%ld: no such mark or view",
+                                   dm->disp[k].i, dm->disp[k].j, dm->disp[k].view);
+    for (int k = 0; k < dm->n_stray; ++k)
+        if (dm->stray[k] >= p->n_views)
+            return cli_usage_error("simulate exports", "--stray %d: no such view", dm->stray[k]);
+    return CLI_OK;
+}
+
+/* View v's points (x, y in mm) as a measuring machine reports them: missing marks dropped,
+ * displaced ones moved, stray points added, all in a random order. Returns their count. */
+static long view_points(const sc_grid_data *d, int v, const damage *dm, sc_rng *rng, double *pts)
+{
+    const sc_grid_plan *p = &d->plan;
+    long np = 0;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            double dx = d->dx_um[v][(long)i * p->n + j], dy = d->dy_um[v][(long)i * p->n + j];
+            int ni, nj, drop = 0;
+            if (isnan(dx) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
+                continue;
+            for (int k = 0; k < dm->n_miss; ++k)
+                drop |= dm->miss[k].i == i && dm->miss[k].j == j &&
+                        (dm->miss[k].view < 0 || dm->miss[k].view == v);
+            if (drop)
+                continue;
+            double x, y;
+            sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+            for (int k = 0; k < dm->n_disp; ++k)
+                if (dm->disp[k].i == i && dm->disp[k].j == j && dm->disp[k].view == v)
+                    dx += dm->disp[k].dx_um, dy += dm->disp[k].dy_um;
+            pts[2 * np] = p->origin_mm[0] + x + dx * 1e-3;
+            pts[2 * np + 1] = p->origin_mm[1] + y + dy * 1e-3;
+            ++np;
+        }
+    for (int k = 0; k < dm->n_stray; ++k)
+        if (dm->stray[k] == v && np > 0) {
+            long q = (long)(sc_rng_uniform(rng) * np) % np;
+            pts[2 * np] = pts[2 * q] + 0.5 * p->pitch_mm;
+            pts[2 * np + 1] = pts[2 * q + 1] + 0.5 * p->pitch_mm;
+            ++np;
+        }
+    for (long q = np - 1; q > 0; --q) { /* Fisher-Yates */
+        long r = (long)(sc_rng_uniform(rng) * (q + 1)) % (q + 1);
+        double tx = pts[2 * q], ty = pts[2 * q + 1];
+        pts[2 * q] = pts[2 * r], pts[2 * q + 1] = pts[2 * r + 1];
+        pts[2 * r] = tx, pts[2 * r + 1] = ty;
+    }
+    return np;
+}
+
+/* One view's file: Nr, X, Y, Z in the machine's unit and style. */
+static void print_view_file(FILE *fp, const double *pts, long np, double unit_per_mm,
+                            const style *sty)
+{
+    const char *fmt = unit_per_mm == 1 ? "%.15f" : "%.12f";
+    fprintf(fp, "Nr%cX%cY%cZ\n", sty->delim, sty->delim, sty->delim);
+    for (long q = 0; q < np; ++q) {
+        fprintf(fp, "%ld%c", q + 1, sty->delim);
+        put_num(fp, pts[2 * q] * unit_per_mm, fmt, sty);
+        fputc(sty->delim, fp);
+        put_num(fp, pts[2 * q + 1] * unit_per_mm, fmt, sty);
+        fputc(sty->delim, fp);
+        put_num(fp, 0.0, "%.3f", sty);
+        fputc('\n', fp);
+    }
+}
+
+/* The `selfcal import grid` command that reads the files back. */
+static void print_import_command(const sc_grid_plan *p, const char *dir, double unit_per_mm)
+{
+    printf("selfcal import grid --n %d --pitch-mm %.17g", p->n, p->pitch_mm);
+    if (p->origin_mm[0] != 0 || p->origin_mm[1] != 0)
+        printf(" --origin-mm %.17g,%.17g", p->origin_mm[0], p->origin_mm[1]);
+    if (p->stage_nx || p->stage_ny)
+        printf(" --stage %d,%d", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
+    printf(" --units %s --x-col X --y-col Y", unit_per_mm == 1 ? "mm" : "um");
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        printf(" \\\n  --view \"rot=%d shift=%d,%d", w->rot_deg, w->shift_x, w->shift_y);
+        for (int pass = 0; w->restricted && pass < 2; ++pass) {
+            const unsigned char *sel = pass ? w->col_sel : w->row_sel;
+            int first = 1;
+            for (int q = 0; q < p->n; ++q)
+                if (sel[q]) {
+                    printf("%s%d", first ? (pass ? " cols=" : " rows=") : ",", q);
+                    first = 0;
+                }
+        }
+        if (w->sigma_um > 0)
+            printf(" sigma_um=%.17g", w->sigma_um);
+        printf("\" %s/view%d.csv", dir, v);
+    }
+    printf(" \\\n  -o IN.csv\n");
+}
+
 static int grid_exports(const char *in, const char *dir, double unit_per_mm, const style *sty,
                         const missing_mark *miss, int n_miss, const missing_mark *disp,
                         int n_disp, const int *stray, int n_stray, uint64_t seed)
 {
+    const damage dm = {miss, disp, n_miss, n_disp, stray, n_stray};
     sc_error err;
     sc_error_clear(&err);
     sc_grid_data d;
@@ -74,117 +187,37 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     if (st != SC_OK)
         return cli_report(&err);
     const sc_grid_plan *p = &d.plan;
-    long nn = (long)p->n * p->n;
-    for (int k = 0; k < n_miss; ++k)
-        if (miss[k].i >= p->n || miss[k].j >= p->n || miss[k].view >= p->n_views) {
-            sc_grid_data_free(&d);
-            return cli_usage_error("simulate exports", "--missing %ld,%ld: no such mark or view",
-                                   miss[k].i, miss[k].j);
-        }
-    for (int k = 0; k < n_disp; ++k)
-        if (disp[k].i >= p->n || disp[k].j >= p->n || disp[k].view >= p->n_views) {
-            sc_grid_data_free(&d);
-            return cli_usage_error("simulate exports", "--displace %ld,%ld@%ld: no such mark or view",
-                                   disp[k].i, disp[k].j, disp[k].view);
-        }
-    for (int k = 0; k < n_stray; ++k)
-        if (stray[k] >= p->n_views) {
-            sc_grid_data_free(&d);
-            return cli_usage_error("simulate exports", "--stray %d: no such view", stray[k]);
-        }
-    if (make_dir(dir, &err)) {
+    int rc = check_damage(p, &dm);
+    if (rc == CLI_OK && make_dir(dir, &err))
+        rc = cli_report(&err);
+    if (rc != CLI_OK) {
         sc_grid_data_free(&d);
-        return cli_report(&err);
+        return rc;
     }
     sc_rng rng;
     sc_rng_seed(&rng, seed);
-    double *pts = malloc((size_t)(nn + n_stray) * 2 * sizeof(double));
+    double *pts = malloc((size_t)((long)p->n * p->n + n_stray) * 2 * sizeof(double));
     sc_afile f[SC_GRID_MAX_VIEWS];
     memset(f, 0, sizeof f);
     int opened = 0;
     if (!pts)
         st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-    const char *fmt = unit_per_mm == 1 ? "%.15f" : "%.12f";
     for (int v = 0; v < p->n_views && st == SC_OK; ++v) {
-        long np = 0;
-        for (int i = 0; i < p->n; ++i)
-            for (int j = 0; j < p->n; ++j) {
-                double dx = d.dx_um[v][(long)i * p->n + j], dy = d.dy_um[v][(long)i * p->n + j];
-                int ni, nj, drop = 0;
-                if (isnan(dx) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
-                    continue;
-                for (int k = 0; k < n_miss; ++k)
-                    drop |= miss[k].i == i && miss[k].j == j && (miss[k].view < 0 || miss[k].view == v);
-                if (drop)
-                    continue;
-                double x, y;
-                sc_grid_node_xy_mm(p, ni, nj, &x, &y);
-                for (int k = 0; k < n_disp; ++k)
-                    if (disp[k].i == i && disp[k].j == j && disp[k].view == v)
-                        dx += disp[k].dx_um, dy += disp[k].dy_um;
-                pts[2 * np] = p->origin_mm[0] + x + dx * 1e-3;
-                pts[2 * np + 1] = p->origin_mm[1] + y + dy * 1e-3;
-                ++np;
-            }
-        for (int k = 0; k < n_stray; ++k)
-            if (stray[k] == v && np > 0) {
-                long q = (long)(sc_rng_uniform(&rng) * np) % np;
-                pts[2 * np] = pts[2 * q] + 0.5 * p->pitch_mm;
-                pts[2 * np + 1] = pts[2 * q + 1] + 0.5 * p->pitch_mm;
-                ++np;
-            }
-        for (long q = np - 1; q > 0; --q) { /* Fisher-Yates */
-            long r = (long)(sc_rng_uniform(&rng) * (q + 1)) % (q + 1);
-            double tx = pts[2 * q], ty = pts[2 * q + 1];
-            pts[2 * q] = pts[2 * r], pts[2 * q + 1] = pts[2 * r + 1];
-            pts[2 * r] = tx, pts[2 * r + 1] = ty;
-        }
+        long np = view_points(&d, v, &dm, &rng, pts);
         char path[1024];
         snprintf(path, sizeof path, "%s/view%d.csv", dir, v);
         st = sc_afile_open(&f[v], path, &err);
         if (st != SC_OK)
             break;
         opened = v + 1;
-        fprintf(f[v].fp, "Nr%cX%cY%cZ\n", sty->delim, sty->delim, sty->delim);
-        for (long q = 0; q < np; ++q) {
-            fprintf(f[v].fp, "%ld%c", q + 1, sty->delim);
-            put_num(f[v].fp, pts[2 * q] * unit_per_mm, fmt, sty);
-            fputc(sty->delim, f[v].fp);
-            put_num(f[v].fp, pts[2 * q + 1] * unit_per_mm, fmt, sty);
-            fputc(sty->delim, f[v].fp);
-            put_num(f[v].fp, 0.0, "%.3f", sty);
-            fputc('\n', f[v].fp);
-        }
+        print_view_file(f[v].fp, pts, np, unit_per_mm, sty);
     }
     if (st == SC_OK)
         st = sc_afile_commit_all(f, opened, &err);
     else
         sc_afile_abort_all(f, opened);
-    if (st == SC_OK) {
-        printf("selfcal import grid --n %d --pitch-mm %.17g", p->n, p->pitch_mm);
-        if (p->origin_mm[0] != 0 || p->origin_mm[1] != 0)
-            printf(" --origin-mm %.17g,%.17g", p->origin_mm[0], p->origin_mm[1]);
-        if (p->stage_nx || p->stage_ny)
-            printf(" --stage %d,%d", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
-        printf(" --units %s --x-col X --y-col Y", unit_per_mm == 1 ? "mm" : "um");
-        for (int v = 0; v < p->n_views; ++v) {
-            const sc_grid_view *w = &p->view[v];
-            printf(" \\\n  --view \"rot=%d shift=%d,%d", w->rot_deg, w->shift_x, w->shift_y);
-            for (int pass = 0; w->restricted && pass < 2; ++pass) {
-                const unsigned char *sel = pass ? w->col_sel : w->row_sel;
-                int first = 1;
-                for (int q = 0; q < p->n; ++q)
-                    if (sel[q]) {
-                        printf("%s%d", first ? (pass ? " cols=" : " rows=") : ",", q);
-                        first = 0;
-                    }
-            }
-            if (w->sigma_um > 0)
-                printf(" sigma_um=%.17g", w->sigma_um);
-            printf("\" %s/view%d.csv", dir, v);
-        }
-        printf(" \\\n  -o IN.csv\n");
-    }
+    if (st == SC_OK)
+        print_import_command(p, dir, unit_per_mm);
     free(pts);
     sc_grid_data_free(&d);
     return st == SC_OK ? CLI_OK : cli_report(&err);
