@@ -271,93 +271,127 @@ static int profile_exports(const char *in, const char *dir, const style *sty)
     return st == SC_OK ? CLI_OK : cli_report(&err);
 }
 
+/* The command line, as given. */
+typedef struct {
+    const char *in, *dir;
+    double unit_per_mm;
+    style sty;
+    missing_mark miss[64], disp[64];
+    int stray[64], n_miss, n_disp, n_stray;
+    long seed;
+} exports_args;
+
+/* --missing I,J[@V] */
+static int parse_missing(exports_args *a, const char *v)
+{
+    const char *cmd = "simulate exports";
+    char buf[128];
+    snprintf(buf, sizeof buf, "%s", v);
+    char *at = strchr(buf, '@'), *comma = strchr(buf, ',');
+    long view = -1;
+    if (at) {
+        *at = '\0';
+        if (sc_parse_long(at + 1, &view) || view < 0)
+            return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
+    }
+    if (!comma || a->n_miss == 64)
+        return cli_usage_error(cmd, "--missing I,J[@V] (at most 64), got '%s'", v);
+    *comma = '\0';
+    missing_mark m = {0, 0, view, 0, 0};
+    if (sc_parse_long(buf, &m.i) || sc_parse_long(comma + 1, &m.j) || m.i < 0 || m.j < 0)
+        return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
+    a->miss[a->n_miss++] = m;
+    return CLI_OK;
+}
+
+/* --displace I,J@V:DX,DY (µm) */
+static int parse_displace(exports_args *a, const char *v)
+{
+    const char *cmd = "simulate exports";
+    char buf[128];
+    missing_mark m = {0, 0, 0, 0, 0};
+    snprintf(buf, sizeof buf, "%s", v);
+    char *at = strchr(buf, '@');
+    char *colon = at ? strchr(at, ':') : NULL;
+    char *c1 = strchr(buf, ',');
+    char *c2 = colon ? strchr(colon, ',') : NULL;
+    if (!at || !colon || !c1 || c1 > at || !c2 || a->n_disp == 64)
+        return cli_usage_error(cmd, "--displace I,J@V:DX,DY (um; at most 64), got '%s'", v);
+    *c1 = *at = *colon = *c2 = '\0';
+    if (sc_parse_long(buf, &m.i) || sc_parse_long(c1 + 1, &m.j) ||
+        sc_parse_long(at + 1, &m.view) || sc_parse_double(colon + 1, &m.dx_um) ||
+        sc_parse_double(c2 + 1, &m.dy_um) || m.i < 0 || m.j < 0 || m.view < 0 ||
+        fabs(m.dx_um) > 1e5 || fabs(m.dy_um) > 1e5)
+        return cli_usage_error(cmd, "--displace I,J@V:DX,DY (um), got '%s'", v);
+    a->disp[a->n_disp++] = m;
+    return CLI_OK;
+}
+
+/* One option with its value. */
+static int parse_option(exports_args *a, const char *o, const char *v)
+{
+    const char *cmd = "simulate exports";
+    if (!strcmp(o, "--dir")) {
+        a->dir = v;
+    } else if (!strcmp(o, "--units")) {
+        if (!strcmp(v, "mm")) a->unit_per_mm = 1;
+        else if (!strcmp(v, "um")) a->unit_per_mm = 1000;
+        else return cli_usage_error(cmd, "--units mm or um, got '%s'", v);
+    } else if (!strcmp(o, "--style")) {
+        if (!strcmp(v, "semicolon")) a->sty = (style){';', ','};
+        else if (!strcmp(v, "comma")) a->sty = (style){',', '.'};
+        else if (!strcmp(v, "tab")) a->sty = (style){'\t', '.'};
+        else return cli_usage_error(cmd, "--style semicolon, comma or tab, got '%s'", v);
+    } else if (!strcmp(o, "--missing")) {
+        return parse_missing(a, v);
+    } else if (!strcmp(o, "--displace")) {
+        return parse_displace(a, v);
+    } else if (!strcmp(o, "--stray")) {
+        long s;
+        if (sc_parse_long(v, &s) || s < 0 || a->n_stray == 64)
+            return cli_usage_error(cmd, "--stray V (a view index, at most 64 times), got '%s'", v);
+        a->stray[a->n_stray++] = (int)s;
+    } else if (!strcmp(o, "--seed")) {
+        if (sc_parse_long(v, &a->seed) || a->seed < 0)
+            return cli_usage_error(cmd, "--seed needs a whole number >= 0");
+    } else {
+        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
+    }
+    return CLI_OK;
+}
+
 int cmd_simulate_exports(int argc, char **argv)
 {
-    const char *cmd = "simulate exports", *in = NULL, *dir = NULL;
-    double unit_per_mm = 1000;
-    style sty = {';', ','};
-    missing_mark miss[64], disp[64];
-    int stray[64], n_miss = 0, n_disp = 0, n_stray = 0;
-    long seed = 1;
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
+    const char *cmd = "simulate exports";
+    static exports_args a;
+    memset(&a, 0, sizeof a);
+    a.unit_per_mm = 1000;
+    a.sty = (style){';', ','};
+    a.seed = 1;
+    for (int k = 1; k < argc; ++k) {
+        const char *o = argv[k];
         if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
         }
         if (o[0] != '-' || !o[1]) {
-            if (in)
-                return cli_usage_error(cmd, "one input file, got '%s' and '%s'", in, o);
-            in = o;
+            if (a.in)
+                return cli_usage_error(cmd, "one input file, got '%s' and '%s'", a.in, o);
+            a.in = o;
             continue;
         }
-        if (a + 1 >= argc)
+        if (k + 1 >= argc)
             return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "--dir")) {
-            dir = v;
-        } else if (!strcmp(o, "--units")) {
-            if (!strcmp(v, "mm")) unit_per_mm = 1;
-            else if (!strcmp(v, "um")) unit_per_mm = 1000;
-            else return cli_usage_error(cmd, "--units mm or um, got '%s'", v);
-        } else if (!strcmp(o, "--style")) {
-            if (!strcmp(v, "semicolon")) sty = (style){';', ','};
-            else if (!strcmp(v, "comma")) sty = (style){',', '.'};
-            else if (!strcmp(v, "tab")) sty = (style){'\t', '.'};
-            else return cli_usage_error(cmd, "--style semicolon, comma or tab, got '%s'", v);
-        } else if (!strcmp(o, "--missing")) {
-            char buf[128];
-            snprintf(buf, sizeof buf, "%s", v);
-            char *at = strchr(buf, '@'), *comma = strchr(buf, ',');
-            long view = -1;
-            if (at) {
-                *at = '\0';
-                if (sc_parse_long(at + 1, &view) || view < 0)
-                    return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
-            }
-            if (!comma || n_miss == 64)
-                return cli_usage_error(cmd, "--missing I,J[@V] (at most 64), got '%s'", v);
-            *comma = '\0';
-            missing_mark m = {0, 0, view, 0, 0};
-            if (sc_parse_long(buf, &m.i) || sc_parse_long(comma + 1, &m.j) || m.i < 0 || m.j < 0)
-                return cli_usage_error(cmd, "--missing I,J[@V], got '%s'", v);
-            miss[n_miss++] = m;
-        } else if (!strcmp(o, "--displace")) {
-            char buf[128];
-            missing_mark m = {0, 0, 0, 0, 0};
-            char *at, *colon, *c1, *c2;
-            snprintf(buf, sizeof buf, "%s", v);
-            at = strchr(buf, '@');
-            colon = at ? strchr(at, ':') : NULL;
-            c1 = strchr(buf, ',');
-            c2 = colon ? strchr(colon, ',') : NULL;
-            if (!at || !colon || !c1 || c1 > at || !c2 || n_disp == 64)
-                return cli_usage_error(cmd, "--displace I,J@V:DX,DY (um; at most 64), got '%s'", v);
-            *c1 = *at = *colon = *c2 = '\0';
-            if (sc_parse_long(buf, &m.i) || sc_parse_long(c1 + 1, &m.j) ||
-                sc_parse_long(at + 1, &m.view) || sc_parse_double(colon + 1, &m.dx_um) ||
-                sc_parse_double(c2 + 1, &m.dy_um) || m.i < 0 || m.j < 0 || m.view < 0 ||
-                fabs(m.dx_um) > 1e5 || fabs(m.dy_um) > 1e5)
-                return cli_usage_error(cmd, "--displace I,J@V:DX,DY (um), got '%s'", v);
-            disp[n_disp++] = m;
-        } else if (!strcmp(o, "--stray")) {
-            long s;
-            if (sc_parse_long(v, &s) || s < 0 || n_stray == 64)
-                return cli_usage_error(cmd, "--stray V (a view index, at most 64 times), got '%s'", v);
-            stray[n_stray++] = (int)s;
-        } else if (!strcmp(o, "--seed")) {
-            if (sc_parse_long(v, &seed) || seed < 0)
-                return cli_usage_error(cmd, "--seed needs a whole number >= 0");
-        } else {
-            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-        }
+        int rc = parse_option(&a, o, argv[++k]);
+        if (rc != CLI_OK)
+            return rc;
     }
-    if (!in || !dir)
+    if (!a.in || !a.dir)
         return cli_usage_error(cmd, "IN.csv and --dir DIR are required (see --help)");
     /* which format: the first line says */
     sc_error err;
     sc_error_clear(&err);
-    FILE *fp = sc_open_input(in, &err);
+    FILE *fp = sc_open_input(a.in, &err);
     if (!fp)
         return cli_report(&err);
     char first[64] = "";
@@ -365,7 +399,7 @@ int cmd_simulate_exports(int argc, char **argv)
         first[0] = '\0';
     fclose(fp);
     if (!strncmp(first, "# selfcal-profile v1", 20))
-        return profile_exports(in, dir, &sty);
-    return grid_exports(in, dir, unit_per_mm, &sty, miss, n_miss, disp, n_disp, stray, n_stray,
-                        (uint64_t)seed);
+        return profile_exports(a.in, a.dir, &a.sty);
+    return grid_exports(a.in, a.dir, a.unit_per_mm, &a.sty, a.miss, a.n_miss, a.disp, a.n_disp,
+                        a.stray, a.n_stray, (uint64_t)a.seed);
 }
