@@ -35,113 +35,152 @@ static int get_int(const char *opt, const char *s, long lo, long hi, long *out)
     return 0;
 }
 
+/* The command line besides the simulation's own parameters. */
+typedef struct {
+    const char *out, *truth, *prof;
+    double amp;
+    long harmonics;
+} sim_profile_args;
+
+enum { NOT_NUMERIC = -1 };
+
+/* The options with a number: into the parameters p or a. Returns NOT_NUMERIC for others. */
+static int parse_number_option(const char *o, const char *v, sc_profile_sim *p,
+                               sim_profile_args *a)
+{
+    const struct {
+        const char *name;
+        double *dst;
+    } reals[] = {
+        {"--s-mm", &p->s_mm},
+        {"--amp-um", &a->amp},
+        {"--sigma-disp-um", &p->sigma_disp_um},
+        {"--sigma-angle-urad", &p->sigma_angle_urad},
+        {"--ey-um", &p->ey_amp_um},
+        {"--ep-urad", &p->ep_amp_urad},
+        {"--u1-um", &p->u1_um},
+        {"--u2-um", &p->u2_um},
+        {"--u3-urad", &p->u3_urad},
+        {"--b0-um", &p->b0_um},
+    };
+    for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k)
+        if (!strcmp(o, reals[k].name))
+            return get_double(o, v, reals[k].dst);
+    const struct {
+        const char *name;
+        int *dst;
+    } ints[] = {{"--n", &p->n}, {"--N", &p->n}, {"--d1", &p->d1}, {"--d2", &p->d2}};
+    long l;
+    for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k)
+        if (!strcmp(o, ints[k].name)) {
+            int bad = get_int(o, v, k < 2 ? 3 : 1, 100000000, &l);
+            if (!bad)
+                *ints[k].dst = (int)l;
+            return bad;
+        }
+    if (!strcmp(o, "--harmonics"))
+        return get_int(o, v, 1, 100000, &a->harmonics);
+    if (!strcmp(o, "--seed")) {
+        char *e;
+        p->seed = strtoull(v, &e, 10);
+        if (*e || !*v)
+            return cli_usage_error("simulate profile", "--seed: '%s' is not a whole number", v);
+        return CLI_OK;
+    }
+    return NOT_NUMERIC;
+}
+
+/* One option (with its value from argv[*i + 1]). */
+static int parse_option(int argc, char **argv, int *i, sc_profile_sim *p, sim_profile_args *a)
+{
+    const char *o = argv[*i];
+    const int hv = *i + 1 < argc;
+    if ((!strcmp(o, "--out") || !strcmp(o, "-o")) && hv)
+        a->out = argv[++*i];
+    else if (!strcmp(o, "--truth") && hv)
+        a->truth = argv[++*i];
+    else if (!strcmp(o, "--profile") && hv)
+        a->prof = argv[++*i];
+    else if (!strcmp(o, "--noise-free"))
+        p->sigma_disp_um = p->sigma_angle_urad = 0;
+    else if (!strcmp(o, "--no-sigma-lines"))
+        p->write_sigma = 0;
+    else {
+        int rc = hv ? parse_number_option(o, argv[*i + 1], p, a) : NOT_NUMERIC;
+        if (rc == NOT_NUMERIC)
+            return cli_usage_error("simulate profile",
+                                   "unknown option or missing value: %s (see --help)", o);
+        ++*i;
+        return rc ? CLI_BAD_INPUT : CLI_OK;
+    }
+    return CLI_OK;
+}
+
+static int check_args(const sc_profile_sim *p, const sim_profile_args *a)
+{
+    if (!a->out || !a->truth)
+        return cli_usage_error("simulate profile", "--out and --truth are required (see --help)");
+    if (!(p->s_mm > 0))
+        return cli_usage_error("simulate profile", "--s-mm must be positive");
+    if (p->d1 >= p->n || p->d2 >= p->n)
+        return cli_usage_error("simulate profile", "spacings d1 = %d, d2 = %d leave no sample for N = %d",
+                               p->d1, p->d2, p->n);
+    if (p->sigma_disp_um < 0 || p->sigma_angle_urad < 0 || a->amp < 0)
+        return cli_usage_error("simulate profile", "noise levels and amplitudes must be non-negative");
+    return CLI_OK;
+}
+
+/* The truth (random or a DABAM mirror), the two scans, and both files written. */
+static sc_status simulate_and_write(const sc_profile_sim *p, const sim_profile_args *a,
+                                    sc_error *err)
+{
+    const int n = p->n;
+    double *f = malloc((size_t)n * sizeof(double)), *ey = malloc((size_t)n * sizeof(double));
+    sc_profile_data d;
+    memset(&d, 0, sizeof d);
+    char info[512] = "random smooth profile";
+    sc_status st = SC_OK;
+    if (!f || !ey)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    else if (!strcmp(a->prof, "random"))
+        sc_profile_sim_random_truth(p, a->amp, (int)a->harmonics, f);
+    else
+        st = sc_profile_load_dabam(a->prof, n, p->s_mm, f, info, sizeof info, err);
+    if (st == SC_OK)
+        st = sc_profile_simulate(p, f, &d, ey, err);
+    if (st == SC_OK) {
+        sc_profile_remove_line(n - p->d1, ey);
+        /* both files are computed; write the data, then the truth (each atomically) */
+        st = sc_profile_write(a->out, &d, err);
+    }
+    if (st == SC_OK)
+        st = sc_profile_write_result(a->truth, n, p->s_mm, f, NULL, ey, n - p->d1, err);
+    if (st == SC_OK)
+        printf("%s\n", info);
+    sc_profile_data_free(&d);
+    free(f);
+    free(ey);
+    return st;
+}
+
 int cmd_simulate_profile(int argc, char **argv)
 {
     sc_profile_sim p;
     sc_profile_sim_defaults(&p);
-    const char *out = NULL, *truth = NULL, *prof = "random";
-    double amp = 1.0;
-    long harmonics = 40;
+    sim_profile_args a = {NULL, NULL, "random", 1.0, 40};
     for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        int hv = i + 1 < argc;
-        long v;
-        int bad = 0;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
-        } else if ((!strcmp(a, "--out") || !strcmp(a, "-o")) && hv)
-            out = argv[++i];
-        else if (!strcmp(a, "--truth") && hv)
-            truth = argv[++i];
-        else if (!strcmp(a, "--profile") && hv)
-            prof = argv[++i];
-        else if ((!strcmp(a, "--n") || !strcmp(a, "--N")) && hv) {
-            bad = get_int(a, argv[++i], 3, 100000000, &v);
-            p.n = (int)v;
-        } else if (!strcmp(a, "--d1") && hv) {
-            bad = get_int(a, argv[++i], 1, 100000000, &v);
-            p.d1 = (int)v;
-        } else if (!strcmp(a, "--d2") && hv) {
-            bad = get_int(a, argv[++i], 1, 100000000, &v);
-            p.d2 = (int)v;
-        } else if (!strcmp(a, "--harmonics") && hv) {
-            bad = get_int(a, argv[++i], 1, 100000, &harmonics);
-        } else if (!strcmp(a, "--seed") && hv) {
-            char *e;
-            p.seed = strtoull(argv[++i], &e, 10);
-            if (*e || !*argv[i])
-                bad = cli_usage_error("simulate profile", "--seed: '%s' is not a whole number", argv[i]);
-        } else if (!strcmp(a, "--s-mm") && hv)
-            bad = get_double(a, argv[++i], &p.s_mm);
-        else if (!strcmp(a, "--amp-um") && hv)
-            bad = get_double(a, argv[++i], &amp);
-        else if (!strcmp(a, "--sigma-disp-um") && hv)
-            bad = get_double(a, argv[++i], &p.sigma_disp_um);
-        else if (!strcmp(a, "--sigma-angle-urad") && hv)
-            bad = get_double(a, argv[++i], &p.sigma_angle_urad);
-        else if (!strcmp(a, "--ey-um") && hv)
-            bad = get_double(a, argv[++i], &p.ey_amp_um);
-        else if (!strcmp(a, "--ep-urad") && hv)
-            bad = get_double(a, argv[++i], &p.ep_amp_urad);
-        else if (!strcmp(a, "--u1-um") && hv)
-            bad = get_double(a, argv[++i], &p.u1_um);
-        else if (!strcmp(a, "--u2-um") && hv)
-            bad = get_double(a, argv[++i], &p.u2_um);
-        else if (!strcmp(a, "--u3-urad") && hv)
-            bad = get_double(a, argv[++i], &p.u3_urad);
-        else if (!strcmp(a, "--b0-um") && hv)
-            bad = get_double(a, argv[++i], &p.b0_um);
-        else if (!strcmp(a, "--noise-free"))
-            p.sigma_disp_um = p.sigma_angle_urad = 0;
-        else if (!strcmp(a, "--no-sigma-lines"))
-            p.write_sigma = 0;
-        else
-            return cli_usage_error("simulate profile", "unknown option or missing value: %s (see --help)", a);
-        if (bad)
-            return CLI_BAD_INPUT;
+        }
+        int rc = parse_option(argc, argv, &i, &p, &a);
+        if (rc != CLI_OK)
+            return rc;
     }
-    if (!out || !truth) {
-        return cli_usage_error("simulate profile", "--out and --truth are required (see --help)");
-    }
-    if (!(p.s_mm > 0))
-        return cli_usage_error("simulate profile", "--s-mm must be positive");
-    if (p.d1 >= p.n || p.d2 >= p.n)
-        return cli_usage_error("simulate profile", "spacings d1 = %d, d2 = %d leave no sample for N = %d",
-                               p.d1, p.d2, p.n);
-    if (p.sigma_disp_um < 0 || p.sigma_angle_urad < 0 || amp < 0)
-        return cli_usage_error("simulate profile", "noise levels and amplitudes must be non-negative");
+    int rc = check_args(&p, &a);
+    if (rc != CLI_OK)
+        return rc;
     sc_error err;
     sc_error_clear(&err);
-    const int n = p.n;
-    double *f = malloc((size_t)n * sizeof(double)), *ey = malloc((size_t)n * sizeof(double));
-    int rc = CLI_FAIL;
-    sc_profile_data d;
-    memset(&d, 0, sizeof d);
-    if (!f || !ey) {
-        sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto done;
-    }
-    char info[512] = "random smooth profile";
-    if (!strcmp(prof, "random")) {
-        sc_profile_sim_random_truth(&p, amp, (int)harmonics, f);
-    } else if (sc_profile_load_dabam(prof, n, p.s_mm, f, info, sizeof info, &err) != SC_OK) {
-        goto done;
-    }
-    if (sc_profile_simulate(&p, f, &d, ey, &err) != SC_OK)
-        goto done;
-    sc_profile_remove_line(n - p.d1, ey);
-    /* both files are computed; write the data, then the truth (each atomically) */
-    if (sc_profile_write(out, &d, &err) != SC_OK ||
-        sc_profile_write_result(truth, n, p.s_mm, f, NULL, ey, n - p.d1, &err) != SC_OK)
-        goto done;
-    printf("%s\n", info);
-    rc = CLI_OK;
-done:
-    if (rc != CLI_OK)
-        rc = cli_report(&err);
-    sc_profile_data_free(&d);
-    free(f);
-    free(ey);
-    return rc;
+    return simulate_and_write(&p, &a, &err) == SC_OK ? CLI_OK : cli_report(&err);
 }
