@@ -424,113 +424,144 @@ typedef struct scan_log {
     sc_table t;
 } scan_log;
 
-static int import_profile(int argc, char **argv)
-{
-    const char *cmd = "import profile", *out = NULL;
-    const char *col[4] = {"position", "m1", "m2", "m3"};
-    double pos_unit = 1, disp_unit = 1, angle_unit = 1, step = 0, step_tol = 0.1;
-    double sigma_disp = NAN, sigma_angle = NAN;
+/* import profile's command line, as given. */
+typedef struct {
+    const char *out;
+    const char *col[4]; /* position, m1, m2, m3 */
+    double pos_unit, disp_unit, angle_unit, step, step_tol, sigma_disp, sigma_angle;
     scan_log scans[2];
-    int n_scans = 0;
-    memset(scans, 0, sizeof scans);
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(PROFILE_USAGE, stdout);
+    int n_scans;
+} profile_args;
+
+/* --pos-units, --disp-units, --angle-units; NOT_UNITS for other options. */
+enum { NOT_UNITS = -1 };
+
+static int parse_profile_units(profile_args *g, const char *o, const char *v)
+{
+    const char *cmd = "import profile";
+    if (!strcmp(o, "--pos-units")) {
+        static const char *const names[] = {"mm", "um", "µm"};
+        static const double f[] = {1, 1e-3, 1e-3};
+        return parse_units(cmd, o, v, names, f, 3, &g->pos_unit) ? CLI_BAD_INPUT : CLI_OK;
+    }
+    if (!strcmp(o, "--disp-units")) {
+        static const char *const names[] = {"um", "µm", "nm", "mm"};
+        static const double f[] = {1, 1, 1e-3, 1e3};
+        return parse_units(cmd, o, v, names, f, 4, &g->disp_unit) ? CLI_BAD_INPUT : CLI_OK;
+    }
+    if (!strcmp(o, "--angle-units")) {
+        static const char *const names[] = {"urad", "µrad", "mrad", "arcsec"};
+        static const double f[] = {1, 1, 1e3, 4.84813681109535994e0};
+        return parse_units(cmd, o, v, names, f, 4, &g->angle_unit) ? CLI_BAD_INPUT : CLI_OK;
+    }
+    return NOT_UNITS;
+}
+
+/* One option of import profile; argv[*a] is the option, its value(s) follow. */
+static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
+{
+    const char *cmd = "import profile", *o = argv[*a];
+    if (*a + 1 >= argc)
+        return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
+    const char *v = argv[++*a];
+    double x;
+    static const char *const col_opts[4] = {"--pos-col", "--m1-col", "--m2-col", "--m3-col"};
+    for (int k = 0; k < 4; ++k)
+        if (!strcmp(o, col_opts[k])) {
+            g->col[k] = v;
             return CLI_OK;
         }
-        if (a + 1 >= argc)
-            return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
-        const char *v = argv[++a];
-        double x;
-        if (!strcmp(o, "--spacing-mm")) {
-            if (a + 1 >= argc)
-                return cli_usage_error(cmd, "--spacing-mm D must be followed by FILE");
-            if (n_scans == 2)
-                return cli_usage_error(cmd, "two scans: --spacing-mm D1 FILE1 --spacing-mm D2 FILE2");
-            if (sc_parse_double(v, &x) || !(x > 0) || x > SC_INPUT_MAX_ABS)
-                return cli_usage_error(cmd, "--spacing-mm needs a positive number, got '%s'", v);
-            scans[n_scans].spacing_mm = x;
-            scans[n_scans++].file = argv[++a];
-        } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
-            out = v;
-        } else if (!strcmp(o, "--pos-col")) {
-            col[0] = v;
-        } else if (!strcmp(o, "--m1-col")) {
-            col[1] = v;
-        } else if (!strcmp(o, "--m2-col")) {
-            col[2] = v;
-        } else if (!strcmp(o, "--m3-col")) {
-            col[3] = v;
-        } else if (!strcmp(o, "--pos-units")) {
-            static const char *const names[] = {"mm", "um", "µm"};
-            static const double f[] = {1, 1e-3, 1e-3};
-            if (parse_units(cmd, o, v, names, f, 3, &pos_unit))
-                return CLI_BAD_INPUT;
-        } else if (!strcmp(o, "--disp-units")) {
-            static const char *const names[] = {"um", "µm", "nm", "mm"};
-            static const double f[] = {1, 1, 1e-3, 1e3};
-            if (parse_units(cmd, o, v, names, f, 4, &disp_unit))
-                return CLI_BAD_INPUT;
-        } else if (!strcmp(o, "--angle-units")) {
-            static const char *const names[] = {"urad", "µrad", "mrad", "arcsec"};
-            static const double f[] = {1, 1, 1e3, 4.84813681109535994e0};
-            if (parse_units(cmd, o, v, names, f, 4, &angle_unit))
-                return CLI_BAD_INPUT;
-        } else {
-            if (sc_parse_double(v, &x))
-                return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
-            if (!strcmp(o, "--step-mm") && x > 0) step = x;
-            else if (!strcmp(o, "--step-tolerance") && x > 0 && x < 0.5) step_tol = x;
-            else if (!strcmp(o, "--sigma-disp-um") && x > 0) sigma_disp = x;
-            else if (!strcmp(o, "--sigma-angle-urad") && x > 0) sigma_angle = x;
-            else
-                return cli_usage_error(cmd, "unknown option '%s' or value '%s' out of range (see --help)",
-                                       o, v);
-        }
+    if (!strcmp(o, "--spacing-mm")) {
+        if (*a + 1 >= argc)
+            return cli_usage_error(cmd, "--spacing-mm D must be followed by FILE");
+        if (g->n_scans == 2)
+            return cli_usage_error(cmd, "two scans: --spacing-mm D1 FILE1 --spacing-mm D2 FILE2");
+        if (sc_parse_double(v, &x) || !(x > 0) || x > SC_INPUT_MAX_ABS)
+            return cli_usage_error(cmd, "--spacing-mm needs a positive number, got '%s'", v);
+        g->scans[g->n_scans].spacing_mm = x;
+        g->scans[g->n_scans++].file = argv[++*a];
+        return CLI_OK;
     }
-    if (!out || n_scans != 2)
-        return cli_usage_error(cmd, "--spacing-mm D1 FILE1 --spacing-mm D2 FILE2 and -o are required (see --help)");
+    if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
+        g->out = v;
+        return CLI_OK;
+    }
+    int rc = parse_profile_units(g, o, v);
+    if (rc != NOT_UNITS)
+        return rc;
+    if (sc_parse_double(v, &x))
+        return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
+    if (!strcmp(o, "--step-mm") && x > 0) g->step = x;
+    else if (!strcmp(o, "--step-tolerance") && x > 0 && x < 0.5) g->step_tol = x;
+    else if (!strcmp(o, "--sigma-disp-um") && x > 0) g->sigma_disp = x;
+    else if (!strcmp(o, "--sigma-angle-urad") && x > 0) g->sigma_angle = x;
+    else
+        return cli_usage_error(cmd, "unknown option '%s' or value '%s' out of range (see --help)",
+                               o, v);
+    return CLI_OK;
+}
 
-    sc_error err;
-    sc_error_clear(&err);
+/* Both logs read, merged onto one grid and written as a selfcal-profile v1 file. */
+static sc_status import_profile_run(profile_args *g, sc_error *err)
+{
     sc_status st = SC_OK;
-    const double scale[4] = {pos_unit, disp_unit, disp_unit, angle_unit};
+    const double scale[4] = {g->pos_unit, g->disp_unit, g->disp_unit, g->angle_unit};
     for (int k = 0; k < 2 && st == SC_OK; ++k)
-        st = sc_table_read(scans[k].file, 4, col, scale, &scans[k].t, &err);
+        st = sc_table_read(g->scans[k].file, 4, g->col, scale, &g->scans[k].t, err);
     sc_profile_data d;
     memset(&d, 0, sizeof d);
     double p0 = 0;
     if (st == SC_OK) {
         sc_profile_import_params ip;
         sc_profile_import_defaults(&ip);
-        ip.spacing_mm[0] = scans[0].spacing_mm;
-        ip.spacing_mm[1] = scans[1].spacing_mm;
-        ip.step_mm = step;
-        ip.step_tolerance = step_tol;
-        const sc_table *const logs[2] = {&scans[0].t, &scans[1].t};
-        st = sc_profile_import(&ip, logs, &d, &p0, &err);
+        ip.spacing_mm[0] = g->scans[0].spacing_mm;
+        ip.spacing_mm[1] = g->scans[1].spacing_mm;
+        ip.step_mm = g->step;
+        ip.step_tolerance = g->step_tol;
+        const sc_table *const logs[2] = {&g->scans[0].t, &g->scans[1].t};
+        st = sc_profile_import(&ip, logs, &d, &p0, err);
     }
     if (st == SC_OK) {
-        if (!isnan(sigma_disp)) {
+        if (!isnan(g->sigma_disp)) {
             d.has_sigma_disp = 1;
-            d.sigma_disp_um = sigma_disp;
+            d.sigma_disp_um = g->sigma_disp;
         }
-        if (!isnan(sigma_angle)) {
+        if (!isnan(g->sigma_angle)) {
             d.has_sigma_angle = 1;
-            d.sigma_angle_urad = sigma_angle;
+            d.sigma_angle_urad = g->sigma_angle;
         }
-        st = sc_profile_write(out, &d, &err);
+        st = sc_profile_write(g->out, &d, err);
         if (st == SC_OK)
             fprintf(stderr,
                     "selfcal import profile: N = %d points, step %.9g mm from %.6f mm, d1 = %d, "
                     "d2 = %d (%ld and %ld samples)\n",
-                    d.n, d.s_mm, p0, d.d[0], d.d[1], scans[0].t.n_rows, scans[1].t.n_rows);
+                    d.n, d.s_mm, p0, d.d[0], d.d[1], g->scans[0].t.n_rows, g->scans[1].t.n_rows);
     }
     sc_profile_data_free(&d);
-    for (int k = 0; k < 2; ++k) {
-        sc_table_free(&scans[k].t);
+    return st;
+}
+
+static int import_profile(int argc, char **argv)
+{
+    profile_args g = {NULL, {"position", "m1", "m2", "m3"}, 1, 1, 1, 0, 0.1, NAN, NAN,
+                      {{0}}, 0};
+    memset(g.scans, 0, sizeof g.scans);
+    for (int a = 1; a < argc; ++a) {
+        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
+            fputs(PROFILE_USAGE, stdout);
+            return CLI_OK;
+        }
+        int rc = parse_profile_option(argc, argv, &a, &g);
+        if (rc != CLI_OK)
+            return rc;
     }
+    if (!g.out || g.n_scans != 2)
+        return cli_usage_error("import profile", "--spacing-mm D1 FILE1 --spacing-mm D2 FILE2 and -o are required (see --help)");
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st = import_profile_run(&g, &err);
+    for (int k = 0; k < 2; ++k)
+        sc_table_free(&g.scans[k].t);
     return st == SC_OK ? CLI_OK : cli_report(&err);
 }
 
