@@ -63,14 +63,89 @@ static void warn_if_apart(const sc_lut *lut, const sc_lut_profile *p, const char
                 sc_lut_axis_name(p->dir), path);
 }
 
+/* lut build's command line, as given. */
+typedef struct {
+    const char *map, *out, *method;
+    double sigma;
+    long long created;
+    sc_lut_encoding enc;
+    profile_arg pa[SC_LUT_MAX_PROFILES];
+    int np;
+} build_args;
+
+/* One option of lut build with its value. */
+static int parse_build_option(build_args *b, const char *a, const char *v)
+{
+    if (!strcmp(a, "--map"))
+        b->map = v;
+    else if (!strcmp(a, "-o") || !strcmp(a, "--out"))
+        b->out = v;
+    else if (!strcmp(a, "--method")) {
+        if (strlen(v) >= SC_LUT_METHOD_LEN)
+            return cli_usage_error("lut build", "--method: at most %d characters",
+                                   SC_LUT_METHOD_LEN - 1);
+        b->method = v;
+    } else if (!strcmp(a, "--sigma")) {
+        if (sc_parse_double(v, &b->sigma) != 0 || b->sigma < 0)
+            return cli_usage_error("lut build", "--sigma: a non-negative number in um, not '%s'", v);
+    } else if (!strcmp(a, "--created")) {
+        long c;
+        if (sc_parse_long(v, &c) != 0 || c < 0)
+            return cli_usage_error("lut build", "--created: Unix seconds, not '%s'", v);
+        b->created = c;
+    } else if (!strcmp(a, "--encoding")) {
+        if (!strcmp(v, "auto"))
+            b->enc = SC_LUT_ENC_AUTO;
+        else if (!strcmp(v, "int16"))
+            b->enc = SC_LUT_ENC_INT16;
+        else if (!strcmp(v, "int32"))
+            b->enc = SC_LUT_ENC_INT32;
+        else
+            return cli_usage_error("lut build", "--encoding: auto, int16 or int32, not '%s'", v);
+    } else if (!strcmp(a, "--profile")) {
+        if (b->np == SC_LUT_MAX_PROFILES)
+            return cli_usage_error("lut build", "at most %d profiles", SC_LUT_MAX_PROFILES);
+        if (parse_profile_arg(v, &b->pa[b->np]) != 0)
+            return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
+        ++b->np;
+    } else
+        return cli_usage_error("lut build", "unknown option '%s' (see --help)", a);
+    return CLI_OK;
+}
+
+/* The map and the profiles read, their hashes as provenance, the table written. */
+static sc_status build_table(const build_args *b, sc_lut *lut, sc_error *err)
+{
+    sc_lut_init(lut);
+    sc_status st = sc_lut_read_map(b->map, lut, err);
+    for (int k = 0; st == SC_OK && k < b->np; ++k) {
+        const profile_arg *pa = &b->pa[k];
+        st = sc_lut_read_profile(pa->path, pa->axis, pa->dir, &lut->profile[k], err);
+        lut->profile[k].start_mm += pa->offset_mm;
+        lut->n_profiles = k + 1;
+    }
+    /* Provenance: the hash of each source file, as `sha256sum` prints it. */
+    if (st == SC_OK)
+        st = sc_sha256_file(b->map, lut->prov.sha256[0], err);
+    for (int k = 0; st == SC_OK && k < b->np; ++k)
+        st = sc_sha256_file(b->pa[k].path, lut->prov.sha256[k + 1], err);
+    if (st != SC_OK)
+        return st;
+    lut->prov.n_sources = 1 + b->np;
+    lut->prov.created_unix_s = b->created;
+    lut->prov.sigma_um = b->sigma;
+    if (b->method)
+        snprintf(lut->prov.method, sizeof lut->prov.method, "%s", b->method);
+    return sc_lut_write_file(b->out, lut, b->enc, err);
+}
+
 static int lut_build(int argc, char **argv)
 {
-    const char *map = NULL, *out = NULL, *method = NULL;
-    double sigma = -1.0;
-    long long created = -1;
-    sc_lut_encoding enc = SC_LUT_ENC_AUTO;
-    profile_arg pa[SC_LUT_MAX_PROFILES];
-    int np = 0;
+    static build_args b;
+    memset(&b, 0, sizeof b);
+    b.sigma = -1.0;
+    b.created = -1;
+    b.enc = SC_LUT_ENC_AUTO;
     for (int k = 1; k < argc; ++k) {
         const char *a = argv[k];
         const char *v = k + 1 < argc ? argv[k + 1] : NULL;
@@ -81,86 +156,35 @@ static int lut_build(int argc, char **argv)
         if (!v)
             return cli_usage_error("lut build", "option %s needs a value (see --help)", a);
         ++k;
-        if (!strcmp(a, "--map"))
-            map = v;
-        else if (!strcmp(a, "-o") || !strcmp(a, "--out"))
-            out = v;
-        else if (!strcmp(a, "--method")) {
-            if (strlen(v) >= SC_LUT_METHOD_LEN)
-                return cli_usage_error("lut build", "--method: at most %d characters",
-                                       SC_LUT_METHOD_LEN - 1);
-            method = v;
-        } else if (!strcmp(a, "--sigma")) {
-            if (sc_parse_double(v, &sigma) != 0 || sigma < 0)
-                return cli_usage_error("lut build", "--sigma: a non-negative number in um, not '%s'", v);
-        } else if (!strcmp(a, "--created")) {
-            long c;
-            if (sc_parse_long(v, &c) != 0 || c < 0)
-                return cli_usage_error("lut build", "--created: Unix seconds, not '%s'", v);
-            created = c;
-        } else if (!strcmp(a, "--encoding")) {
-            if (!strcmp(v, "auto"))
-                enc = SC_LUT_ENC_AUTO;
-            else if (!strcmp(v, "int16"))
-                enc = SC_LUT_ENC_INT16;
-            else if (!strcmp(v, "int32"))
-                enc = SC_LUT_ENC_INT32;
-            else
-                return cli_usage_error("lut build", "--encoding: auto, int16 or int32, not '%s'", v);
-        } else if (!strcmp(a, "--profile")) {
-            if (np == SC_LUT_MAX_PROFILES)
-                return cli_usage_error("lut build", "at most %d profiles", SC_LUT_MAX_PROFILES);
-            if (parse_profile_arg(v, &pa[np]) != 0)
-                return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
-            ++np;
-        } else
-            return cli_usage_error("lut build", "unknown option '%s' (see --help)", a);
+        int rc = parse_build_option(&b, a, v);
+        if (rc != CLI_OK)
+            return rc;
     }
-    if (!map || !out)
+    if (!b.map || !b.out)
         return cli_usage_error("lut build", "--map and -o are required (see --help)");
-    if (created < 0) {
+    if (b.created < 0) {
         const char *sde = getenv("SOURCE_DATE_EPOCH");
         long c;
-        created = (sde && sc_parse_long(sde, &c) == 0 && c >= 0) ? c : (long long)time(NULL);
+        b.created = (sde && sc_parse_long(sde, &c) == 0 && c >= 0) ? c : (long long)time(NULL);
     }
-
     sc_lut *lut = malloc(sizeof *lut);
     if (!lut) {
         fprintf(stderr, "selfcal lut build: out of memory\n");
         return CLI_FAIL;
     }
-    sc_lut_init(lut);
     sc_error err;
     sc_error_clear(&err);
-    sc_status st = sc_lut_read_map(map, lut, &err);
-    for (int k = 0; st == SC_OK && k < np; ++k) {
-        st = sc_lut_read_profile(pa[k].path, pa[k].axis, pa[k].dir, &lut->profile[k], &err);
-        lut->profile[k].start_mm += pa[k].offset_mm;
-        lut->n_profiles = k + 1;
-    }
-    /* Provenance: the hash of each source file, as `sha256sum` prints it. */
-    if (st == SC_OK)
-        st = sc_sha256_file(map, lut->prov.sha256[0], &err);
-    for (int k = 0; st == SC_OK && k < np; ++k)
-        st = sc_sha256_file(pa[k].path, lut->prov.sha256[k + 1], &err);
-    if (st == SC_OK) {
-        lut->prov.n_sources = 1 + np;
-        lut->prov.created_unix_s = created;
-        lut->prov.sigma_um = sigma;
-        if (method)
-            snprintf(lut->prov.method, sizeof lut->prov.method, "%s", method);
-        st = sc_lut_write_file(out, lut, enc, &err);
-    }
+    sc_status st = build_table(&b, lut, &err);
     if (st != SC_OK) {
         free(lut);
         return cli_report(&err);
     }
-    for (int k = 0; k < np; ++k)
-        warn_if_apart(lut, &lut->profile[k], pa[k].path);
-    size_t bytes = sc_lut_encoded_size(lut, enc); /* what was just written */
+    for (int k = 0; k < b.np; ++k)
+        warn_if_apart(lut, &lut->profile[k], b.pa[k].path);
+    size_t bytes = sc_lut_encoded_size(lut, b.enc); /* what was just written */
     printf("table %s: %d x %d nodes, pitch %.6f x %.6f mm, %d profile(s), %zu bytes, "
            "map quantization <= %.4f nm (%s)\n",
-           out, lut->nx, lut->ny, lut->px_mm, lut->py_mm, lut->n_profiles, bytes,
+           b.out, lut->nx, lut->ny, lut->px_mm, lut->py_mm, lut->n_profiles, bytes,
            1e3 * sc_lut_quantization_um(lut->grid_scale_pm),
            lut->grid_encoding == SC_LUT_ENC_INT16 ? "int16" : "int32");
     free(lut);
