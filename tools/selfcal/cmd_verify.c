@@ -61,81 +61,109 @@ static void draw_plot(FILE *fp, const verify_result *r)
                          "Re-measurement of the plate: residual maps before and after compensation");
 }
 
+/* The optional outputs: residuals, plot, HTML section. */
+typedef struct {
+    const char *res_path, *plot, *html;
+} verify_outputs;
+
+/* One option (with its value from argv[*a + 1]) into o and out. */
+static int parse_option(int argc, char **argv, int *a, verify_opts *o, verify_outputs *out)
+{
+    const char *cmd = "verify", *s = argv[*a];
+    if (s[0] != '-' || !strcmp(s, "-")) {
+        if (o->measurement)
+            return cli_usage_error(cmd, "more than one measurement ('%s', '%s')", o->measurement, s);
+        o->measurement = s;
+        return CLI_OK;
+    }
+    if (!strcmp(s, "--raw")) {
+        o->raw = 1;
+        return CLI_OK;
+    }
+    if (*a + 1 >= argc)
+        return cli_usage_error(cmd, "'%s' needs a value (see --help)", s);
+    const char *v = argv[++*a];
+    if (!strcmp(s, "--table")) o->table = v;
+    else if (!strcmp(s, "--artifact")) o->artifact = v;
+    else if (!strcmp(s, "--residuals")) out->res_path = v;
+    else if (!strcmp(s, "--plot")) out->plot = v;
+    else if (!strcmp(s, "--html")) out->html = v;
+    else if (!strcmp(s, "--tolerance-um")) {
+        if (sc_parse_double(v, &o->tolerance_um) || !(o->tolerance_um > 0) ||
+            !(o->tolerance_um <= SC_INPUT_MAX_ABS))
+            return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
+    } else
+        return cli_usage_error(cmd, "unknown option '%s' (see --help)", s);
+    return CLI_OK;
+}
+
+/* The standalone HTML page of the verification. */
+static sc_status write_html(FILE *fp, const verify_opts *o, const verify_result *r, int argc,
+                            char **argv, sc_error *err)
+{
+    html_begin(fp, "Verification of a compensated stage");
+    fputs("<h1>Verification of a compensated stage</h1>\n", fp);
+    sc_status st = verify_html_section(fp, o, r, "Re-measurement after compensation", err);
+    const char *inputs[3] = {o->measurement, o->table, o->artifact};
+    const char *roles[3] = {"re-measurement (selfcal-grid v1)", "lookup table",
+                            "plate error of the calibration"};
+    if (st == SC_OK)
+        st = html_provenance(fp, argc, argv, inputs, roles, 3, err);
+    html_end(fp);
+    return st;
+}
+
+/* Every output asked for, committed together: all or none. */
+static sc_status write_outputs(const verify_outputs *out, const verify_opts *o,
+                               const verify_result *r, int argc, char **argv, sc_error *err)
+{
+    const char *paths[3] = {out->res_path, out->plot, out->html};
+    sc_afile f[3];
+    memset(f, 0, sizeof f);
+    sc_status st = SC_OK;
+    int opened = 0;
+    for (; opened < 3 && st == SC_OK; ++opened) {
+        if (!paths[opened])
+            continue;
+        st = sc_afile_open(&f[opened], paths[opened], err);
+        if (st != SC_OK)
+            break;
+        FILE *fp = f[opened].fp;
+        if (opened == 0)
+            print_residuals(fp, r);
+        else if (opened == 1)
+            draw_plot(fp, r);
+        else
+            st = write_html(fp, o, r, argc, argv, err);
+    }
+    if (st == SC_OK)
+        return sc_afile_commit_all(f, opened, err);
+    sc_afile_abort_all(f, opened);
+    return st;
+}
+
 int cmd_verify(int argc, char **argv)
 {
-    const char *cmd = "verify", *res_path = NULL, *plot = NULL, *html = NULL;
     verify_opts o;
     verify_opts_init(&o);
+    verify_outputs out = {NULL, NULL, NULL};
     for (int a = 1; a < argc; ++a) {
-        const char *s = argv[a];
-        if (!strcmp(s, "--help") || !strcmp(s, "-h")) {
+        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
         }
-        if (s[0] != '-' || !strcmp(s, "-")) {
-            if (o.measurement)
-                return cli_usage_error(cmd, "more than one measurement ('%s', '%s')", o.measurement, s);
-            o.measurement = s;
-            continue;
-        }
-        if (!strcmp(s, "--raw")) {
-            o.raw = 1;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error(cmd, "'%s' needs a value (see --help)", s);
-        const char *v = argv[++a];
-        if (!strcmp(s, "--table")) o.table = v;
-        else if (!strcmp(s, "--artifact")) o.artifact = v;
-        else if (!strcmp(s, "--residuals")) res_path = v;
-        else if (!strcmp(s, "--plot")) plot = v;
-        else if (!strcmp(s, "--html")) html = v;
-        else if (!strcmp(s, "--tolerance-um")) {
-            if (sc_parse_double(v, &o.tolerance_um) || !(o.tolerance_um > 0) ||
-                !(o.tolerance_um <= SC_INPUT_MAX_ABS))
-                return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
-        } else
-            return cli_usage_error(cmd, "unknown option '%s' (see --help)", s);
+        int rc = parse_option(argc, argv, &a, &o, &out);
+        if (rc != CLI_OK)
+            return rc;
     }
     if (!o.measurement || !o.table || !o.artifact || !isfinite(o.tolerance_um))
-        return cli_usage_error(cmd, "V.csv, --table, --artifact and --tolerance-um are required (see --help)");
+        return cli_usage_error("verify", "V.csv, --table, --artifact and --tolerance-um are required (see --help)");
     sc_error err;
     sc_error_clear(&err);
     verify_result r;
     sc_status st = verify_run(&o, &r, &err);
-    if (st == SC_OK) {
-        const char *paths[3] = {res_path, plot, html};
-        sc_afile f[3];
-        memset(f, 0, sizeof f);
-        int opened = 0;
-        for (; opened < 3 && st == SC_OK; ++opened) {
-            if (!paths[opened])
-                continue;
-            st = sc_afile_open(&f[opened], paths[opened], &err);
-            if (st != SC_OK)
-                break;
-            FILE *fp = f[opened].fp;
-            if (opened == 0)
-                print_residuals(fp, &r);
-            else if (opened == 1)
-                draw_plot(fp, &r);
-            else {
-                html_begin(fp, "Verification of a compensated stage");
-                fputs("<h1>Verification of a compensated stage</h1>\n", fp);
-                st = verify_html_section(fp, &o, &r, "Re-measurement after compensation", &err);
-                const char *inputs[3] = {o.measurement, o.table, o.artifact};
-                const char *roles[3] = {"re-measurement (selfcal-grid v1)", "lookup table",
-                                        "plate error of the calibration"};
-                if (st == SC_OK)
-                    st = html_provenance(fp, argc, argv, inputs, roles, 3, &err);
-                html_end(fp);
-            }
-        }
-        if (st == SC_OK)
-            st = sc_afile_commit_all(f, opened, &err);
-        else
-            sc_afile_abort_all(f, opened);
-    }
+    if (st == SC_OK)
+        st = write_outputs(&out, &o, &r, argc, argv, &err);
     if (st != SC_OK) {
         verify_result_free(&r);
         return cli_report(&err);
