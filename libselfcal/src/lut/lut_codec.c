@@ -191,6 +191,40 @@ static sc_status check_encodable(const sc_lut *lut, sc_error *err)
     return SC_OK;
 }
 
+/* The fixed header of a table of `size` bytes with grid encoding genc and scale gscale. */
+static void put_header(uint8_t *buf, const sc_lut *lut, size_t size, int genc, uint32_t gscale)
+{
+    memcpy(buf, sc_lutf_magic, SC_LUTF_MAGIC_LEN);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_VERSION, SC_LUTF_VERSION);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_HEADER_BYTES, SC_LUTF_HEADER_BYTES);
+    sc_lutf_put_u32(buf + SC_LUTF_OFF_FILE_BYTES, (uint32_t)size);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_NX, (uint16_t)lut->nx);
+    sc_lutf_put_u16(buf + SC_LUTF_OFF_NY, (uint16_t)lut->ny);
+    buf[SC_LUTF_OFF_NPROFILES] = (uint8_t)lut->n_profiles;
+    buf[SC_LUTF_OFF_GRID_ENC] = (uint8_t)genc;
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_X0, lut->x0_mm);
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_Y0, lut->y0_mm);
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_PX, lut->px_mm);
+    sc_lutf_put_f64(buf + SC_LUTF_OFF_PY, lut->py_mm);
+    sc_lutf_put_u32(buf + SC_LUTF_OFF_GRID_SCALE, gscale);
+    sc_lutf_put_u32(buf + SC_LUTF_OFF_PROV_BYTES,
+                    (uint32_t)(SC_LUTF_PROV_FIXED_BYTES +
+                               (size_t)lut->prov.n_sources * SC_LUTF_SHA256_BYTES));
+}
+
+/* The provenance block at w; returns the byte after it. */
+static uint8_t *put_provenance(uint8_t *w, const sc_lut *lut)
+{
+    memcpy(w, lut->prov.method, SC_LUT_METHOD_LEN);
+    sc_lutf_put_u64(w + SC_LUTF_VOFF_CREATED, (uint64_t)lut->prov.created_unix_s);
+    sc_lutf_put_f64(w + SC_LUTF_VOFF_SIGMA, lut->prov.sigma_um < 0.0 ? -1.0 : lut->prov.sigma_um);
+    w[SC_LUTF_VOFF_COUNT] = (uint8_t)lut->prov.n_sources;
+    w += SC_LUTF_PROV_FIXED_BYTES;
+    for (int k = 0; k < lut->prov.n_sources; ++k, w += SC_LUTF_SHA256_BYTES)
+        memcpy(w, lut->prov.sha256[k], SC_LUTF_SHA256_BYTES);
+    return w;
+}
+
 sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t cap, size_t *len,
                         sc_error *err)
 {
@@ -221,22 +255,7 @@ sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t c
                             cap);
 
     memset(buf, 0, size);
-    memcpy(buf, sc_lutf_magic, SC_LUTF_MAGIC_LEN);
-    sc_lutf_put_u16(buf + SC_LUTF_OFF_VERSION, SC_LUTF_VERSION);
-    sc_lutf_put_u16(buf + SC_LUTF_OFF_HEADER_BYTES, SC_LUTF_HEADER_BYTES);
-    sc_lutf_put_u32(buf + SC_LUTF_OFF_FILE_BYTES, (uint32_t)size);
-    sc_lutf_put_u16(buf + SC_LUTF_OFF_NX, (uint16_t)lut->nx);
-    sc_lutf_put_u16(buf + SC_LUTF_OFF_NY, (uint16_t)lut->ny);
-    buf[SC_LUTF_OFF_NPROFILES] = (uint8_t)lut->n_profiles;
-    buf[SC_LUTF_OFF_GRID_ENC] = (uint8_t)genc;
-    sc_lutf_put_f64(buf + SC_LUTF_OFF_X0, lut->x0_mm);
-    sc_lutf_put_f64(buf + SC_LUTF_OFF_Y0, lut->y0_mm);
-    sc_lutf_put_f64(buf + SC_LUTF_OFF_PX, lut->px_mm);
-    sc_lutf_put_f64(buf + SC_LUTF_OFF_PY, lut->py_mm);
-    sc_lutf_put_u32(buf + SC_LUTF_OFF_GRID_SCALE, gscale);
-    sc_lutf_put_u32(buf + SC_LUTF_OFF_PROV_BYTES,
-                    (uint32_t)(SC_LUTF_PROV_FIXED_BYTES +
-                               (size_t)lut->prov.n_sources * SC_LUTF_SHA256_BYTES));
+    put_header(buf, lut, size, genc, gscale);
     uint8_t *w = buf + SC_LUTF_HEADER_BYTES;
     w = put_codes(w, lut->gx_um, cells, genc, gscale);
     w = put_codes(w, lut->gy_um, cells, genc, gscale);
@@ -251,13 +270,7 @@ sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t c
         sc_lutf_put_u32(w + SC_LUTF_POFF_SCALE, pscale[k]);
         w = put_codes(w + SC_LUTF_PROFILE_HEADER_BYTES, p->err_um, (size_t)p->n, penc[k], pscale[k]);
     }
-    memcpy(w, lut->prov.method, SC_LUT_METHOD_LEN);
-    sc_lutf_put_u64(w + SC_LUTF_VOFF_CREATED, (uint64_t)lut->prov.created_unix_s);
-    sc_lutf_put_f64(w + SC_LUTF_VOFF_SIGMA, lut->prov.sigma_um < 0.0 ? -1.0 : lut->prov.sigma_um);
-    w[SC_LUTF_VOFF_COUNT] = (uint8_t)lut->prov.n_sources;
-    w += SC_LUTF_PROV_FIXED_BYTES;
-    for (int k = 0; k < lut->prov.n_sources; ++k, w += SC_LUTF_SHA256_BYTES)
-        memcpy(w, lut->prov.sha256[k], SC_LUTF_SHA256_BYTES);
+    w = put_provenance(w, lut);
     if ((size_t)(w - buf) != size - SC_LUTF_CRC_BYTES)
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "table layout mismatch");
     sc_lutf_put_u32(w, sc_corr_crc32(buf, size - SC_LUTF_CRC_BYTES));
