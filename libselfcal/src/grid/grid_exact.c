@@ -421,13 +421,13 @@ static long fit_view(const sc_grid_exact_plan *p, const sc_grid_plan *pl, const 
     return (long)m;
 }
 
-static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_grid_data *d,
-                   const int *views, int nroles, sc_grid_result *res)
+/* G = O Y + R X + F (eq. 6) and A from views 0 and 1 (eqs. 10, 13), in the SPEC gauge. */
+static void finish_g_and_a(sc_grid_exact_plan *p, const sc_grid_exact_run *x,
+                           const sc_grid_plan *pl)
 {
-    int n = p->n, c = p->c;
-    const sc_grid_plan *pl = &d->plan;
-    size_t nn = (size_t)n * n;
-    /* G = O Y + R X + F (eq. 6), then the SPEC gauge (a no-op without noise) */
+    const int n = p->n, c = p->c;
+    const size_t nn = (size_t)n * n;
+    /* G, then the SPEC gauge (a no-op without noise) */
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             int k = IDX(i, j);
@@ -451,19 +451,14 @@ static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_g
         p->ax[k] = 0.5 * (p->ax[k] + p->bx[k]);
         p->ay[k] = 0.5 * (p->ay[k] + p->by[k]);
     }
-    /* misalignment of every view with data (used or not; used views over the marks used) */
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
-        res->tx_um[v] = res->ty_um[v] = res->theta_urad[v] = NAN;
-        if (v >= pl->n_views)
-            continue;
-        int role = -1;
-        for (int r = 0; r < nroles; ++r)
-            if (views[r] == v)
-                role = r;
-        fit_view(p, pl, d, v, role, p->gx, p->gy, p->ax, p->ay, &res->tx_um[v], &res->ty_um[v],
-                 &res->theta_urad[v]);
-    }
-    /* residuals over the marks the method used */
+}
+
+/* The residuals over the marks the method used: their sum of squares, *nm components. */
+static double finish_residuals(const sc_grid_exact_plan *p, const sc_grid_data *d,
+                               const int *views, int nroles, const sc_grid_result *res, long *nm_out)
+{
+    const int n = p->n;
+    const sc_grid_plan *pl = &d->plan;
     double ss = 0;
     long nm = 0;
     for (int r = 0; r < nroles; ++r) {
@@ -484,6 +479,31 @@ static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_g
                 nm += 2;
             }
     }
+    *nm_out = nm;
+    return ss;
+}
+
+static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_grid_data *d,
+                   const int *views, int nroles, sc_grid_result *res)
+{
+    int n = p->n;
+    const sc_grid_plan *pl = &d->plan;
+    size_t nn = (size_t)n * n;
+    finish_g_and_a(p, x, pl);
+    /* misalignment of every view with data (used or not; used views over the marks used) */
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+        res->tx_um[v] = res->ty_um[v] = res->theta_urad[v] = NAN;
+        if (v >= pl->n_views)
+            continue;
+        int role = -1;
+        for (int r = 0; r < nroles; ++r)
+            if (views[r] == v)
+                role = r;
+        fit_view(p, pl, d, v, role, p->gx, p->gy, p->ax, p->ay, &res->tx_um[v], &res->ty_um[v],
+                 &res->theta_urad[v]);
+    }
+    long nm;
+    double ss = finish_residuals(p, d, views, nroles, res, &nm);
     res->n_measurements = nm;
     long params = 4L * n * n + 3L * nroles - 7;
     res->dof = nm - params;
