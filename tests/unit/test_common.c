@@ -134,6 +134,43 @@ static int file_exists(const char *path)
     return stat(path, &st) == 0;
 }
 
+/* sc_afile_finish_all: a failed computation aborts the group (old files kept, no temporary
+ * file, the status passed through); a good one commits it. */
+static void test_atomic_finish_all(void **state)
+{
+    (void)state;
+    const char *a = SELFCAL_TEST_TMP "/finish_a.txt", *b = SELFCAL_TEST_TMP "/finish_b.txt";
+    sc_error err;
+    assert_int_equal(sc_write_file_atomic(a, "old a\n", 6, &err), SC_OK);
+    unlink(b);
+    sc_afile f[2];
+    memset(f, 0, sizeof f);
+    assert_int_equal(sc_afile_open(&f[0], a, &err), SC_OK);
+    assert_int_equal(sc_afile_open(&f[1], b, &err), SC_OK);
+    fputs("new a\n", f[0].fp);
+    char tmp0[sizeof f[0].tmp_path];
+    snprintf(tmp0, sizeof tmp0, "%s", f[0].tmp_path);
+    assert_int_equal(sc_afile_finish_all(f, 2, SC_E_INPUT, &err), SC_E_INPUT);
+    char buf[32] = {0};
+    FILE *in = fopen(a, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "old a\n");
+    assert_false(file_exists(b));
+    assert_false(file_exists(tmp0));
+    memset(f, 0, sizeof f);
+    assert_int_equal(sc_afile_open(&f[0], a, &err), SC_OK);
+    assert_int_equal(sc_afile_open(&f[1], b, &err), SC_OK);
+    fputs("new a\n", f[0].fp);
+    fputs("new b\n", f[1].fp);
+    assert_int_equal(sc_afile_finish_all(f, 2, SC_OK, &err), SC_OK);
+    in = fopen(a, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "new a\n");
+    assert_true(file_exists(b));
+}
+
 static void test_atomic_group(void **state)
 {
     (void)state;
@@ -340,6 +377,7 @@ int main(void)
         cmocka_unit_test(test_csv_long_line_with_nul),
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
+        cmocka_unit_test(test_atomic_finish_all),
         cmocka_unit_test(test_atomic_file_device_target),
         cmocka_unit_test(test_rng),
         cmocka_unit_test(test_version),

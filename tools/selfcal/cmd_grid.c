@@ -179,10 +179,7 @@ static sc_status write_outputs(const grid_args *g, const sc_grid_plan *p,
         }
     }
     /* all files or none: sync every one, then rename them together */
-    if (st == SC_OK)
-        return sc_afile_commit_all(f, opened, err);
-    sc_afile_abort_all(f, opened);
-    return st;
+    return sc_afile_finish_all(f, opened, st, err);
 }
 
 int cmd_grid(int argc, char **argv)

@@ -212,10 +212,7 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
         opened = v + 1;
         print_view_file(f[v].fp, pts, np, unit_per_mm, sty);
     }
-    if (st == SC_OK)
-        st = sc_afile_commit_all(f, opened, &err);
-    else
-        sc_afile_abort_all(f, opened);
+    st = sc_afile_finish_all(f, opened, st, &err);
     if (st == SC_OK)
         print_import_command(p, dir, unit_per_mm);
     free(pts);
@@ -259,10 +256,7 @@ static int profile_exports(const char *in, const char *dir, const style *sty)
             fputc('\n', f[k].fp);
         }
     }
-    if (st == SC_OK)
-        st = sc_afile_commit_all(f, opened, &err);
-    else
-        sc_afile_abort_all(f, opened);
+    st = sc_afile_finish_all(f, opened, st, &err);
     if (st == SC_OK)
         printf("selfcal import profile --spacing-mm %.17g %s/scan1.csv --spacing-mm %.17g %s/scan2.csv \\\n"
                "  --pos-col Position --m1-col SensorA --m2-col SensorB --m3-col Angle -o IN.csv\n",

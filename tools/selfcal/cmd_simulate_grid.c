@@ -326,10 +326,8 @@ static sc_status write_outputs(const sim_args *a, const sc_grid_data *d,
         case 3: fprint_truth_summary(f[3].fp, a->plan_arg, &d->plan, &a->sp, t); break;
         }
     }
-    if (st == SC_OK)
-        return sc_afile_commit_all(f, opened, err);
-    sc_afile_abort_all(f, opened);
-    return st;
+    /* all files or none: sync every one, then rename them together */
+    return sc_afile_finish_all(f, opened, st, err);
 }
 
 int cmd_simulate_grid(int argc, char **argv)

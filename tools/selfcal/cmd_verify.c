@@ -136,10 +136,8 @@ static sc_status write_outputs(const verify_outputs *out, const verify_opts *o,
         else
             st = write_html(fp, o, r, argc, argv, err);
     }
-    if (st == SC_OK)
-        return sc_afile_commit_all(f, opened, err);
-    sc_afile_abort_all(f, opened);
-    return st;
+    /* all files or none: sync every one, then rename them together */
+    return sc_afile_finish_all(f, opened, st, err);
 }
 
 int cmd_verify(int argc, char **argv)

@@ -290,6 +290,14 @@ void sc_afile_abort_all(sc_afile *f, int n)
         sc_afile_abort(&f[k]);
 }
 
+sc_status sc_afile_finish_all(sc_afile *f, int n, sc_status st, sc_error *err)
+{
+    if (st == SC_OK)
+        return sc_afile_commit_all(f, n, err);
+    sc_afile_abort_all(f, n);
+    return st;
+}
+
 void sc_afile_abort(sc_afile *f)
 {
     if (!f->fp)
