@@ -41,6 +41,23 @@ sc_status sc_io_read_rows(sc_csv *r, sc_io_rows *rows, sc_io_parse_row parse, vo
     return rc < 0 ? (err ? err->code : SC_E_INPUT) : SC_OK;
 }
 
+sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
+                           const sc_io_table_steps *steps, void *ctx, sc_error *err)
+{
+    sc_status st = sc_csv_open(csv, path, err);
+    if (st != SC_OK)
+        return st;
+    st = steps->header(ctx, err);
+    if (st == SC_OK)
+        st = sc_io_read_rows(csv, rows, steps->row, ctx, err);
+    if (st == SC_OK)
+        st = steps->build(ctx, err);
+    free(rows->data);
+    rows->data = NULL;
+    sc_csv_close(csv);
+    return st;
+}
+
 sc_status sc_io_finish(sc_afile *f, sc_error *err)
 {
     if (ferror(f->fp)) {

@@ -25,6 +25,19 @@ typedef sc_status (*sc_io_parse_row)(void *ctx, void *row, const sc_io_rows *row
 sc_status sc_io_read_rows(sc_csv *r, sc_io_rows *rows, sc_io_parse_row parse, void *ctx,
                           sc_error *err);
 
+/* The steps of a map reader over the reader ctx: the column header, each row, then the result
+ * built from the rows. */
+typedef struct sc_io_table_steps {
+    sc_status (*header)(void *ctx, sc_error *err);
+    sc_io_parse_row row;
+    sc_status (*build)(void *ctx, sc_error *err);
+} sc_io_table_steps;
+
+/* Open path into csv, run the steps (rows through sc_io_read_rows), then free rows->data and
+ * close csv: the skeleton every map reader shares. */
+sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
+                           const sc_io_table_steps *steps, void *ctx, sc_error *err);
+
 /* Append v's shortest round-trip text (selfcal/number.h), then sep unless it is 0; returns the
  * end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
 char *sc_io_put_number(char *p, double v, char sep);

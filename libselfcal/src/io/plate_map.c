@@ -22,10 +22,12 @@ typedef struct plate_reader {
     sc_csv csv;
     int ncols;
     sc_io_rows rows; /* of plate_row */
+    sc_plate_map *out; /* what build_map fills */
 } plate_reader;
 
-static sc_status read_column_header(plate_reader *r, sc_error *err)
+static sc_status read_column_header(void *ctx, sc_error *err)
 {
+    plate_reader *r = ctx;
     int rc = sc_io_next_record(&r->csv, err);
     if (rc < 0)
         return err ? err->code : SC_E_INPUT;
@@ -77,8 +79,10 @@ static sc_status parse_row(void *ctx, void *out, const sc_io_rows *rows, sc_erro
 }
 
 /* n x n marks, each once, n odd. */
-static sc_status build_map(const plate_reader *r, sc_plate_map *m, sc_error *err)
+static sc_status build_map(void *ctx, sc_error *err)
 {
+    const plate_reader *r = ctx;
+    sc_plate_map *m = r->out;
     const char *P = r->csv.path;
     const plate_row *rows = r->rows.data;
     size_t nrows = r->rows.n;
@@ -115,20 +119,16 @@ static sc_status build_map(const plate_reader *r, sc_plate_map *m, sc_error *err
     return st;
 }
 
+static const sc_io_table_steps plate_steps = {read_column_header, parse_row, build_map};
+
 sc_status sc_plate_map_read(const char *path, sc_plate_map *m, sc_error *err)
 {
     memset(m, 0, sizeof *m);
     plate_reader r;
     memset(&r, 0, sizeof r);
     r.rows.size = sizeof(plate_row);
-    sc_status st = sc_csv_open(&r.csv, path, err);
-    if (st != SC_OK)
-        return st;
-    if ((st = read_column_header(&r, err)) == SC_OK &&
-        (st = sc_io_read_rows(&r.csv, &r.rows, parse_row, &r, err)) == SC_OK)
-        st = build_map(&r, m, err);
-    free(r.rows.data);
-    sc_csv_close(&r.csv);
+    r.out = m;
+    sc_status st = sc_io_read_table(path, &r.csv, &r.rows, &plate_steps, &r, err);
     if (st != SC_OK)
         sc_plate_map_free(m);
     return st;

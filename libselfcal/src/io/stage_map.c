@@ -25,11 +25,13 @@ typedef struct map_reader {
     int has_u;       /* the header has ugx_um,ugy_um */
     sc_io_rows rows; /* of map_row */
     long maxi, maxj;
+    sc_stage_map *out; /* what build_map fills */
 } map_reader;
 
 /* The column header: the six SPEC columns, the two uncertainties as a pair, anything after. */
-static sc_status read_column_header(map_reader *r, sc_error *err)
+static sc_status read_column_header(void *ctx, sc_error *err)
 {
+    map_reader *r = ctx;
     const char *P = r->csv.path;
     int rc = sc_io_next_record(&r->csv, err);
     if (rc < 0)
@@ -192,8 +194,10 @@ static sc_status fit_axis(const map_reader *r, int axis, double *kk, double *vv,
 }
 
 /* From the rows read: dimensions, values, regular geometry. */
-static sc_status build_map(const map_reader *r, sc_stage_map *m, sc_error *err)
+static sc_status build_map(void *ctx, sc_error *err)
 {
+    const map_reader *r = ctx;
+    sc_stage_map *m = r->out;
     const char *P = r->csv.path;
     if (r->maxi < 1 || r->maxj < 1)
         return sc_error_set(err, SC_E_INPUT, P, r->csv.line,
@@ -222,6 +226,8 @@ static sc_status build_map(const map_reader *r, sc_stage_map *m, sc_error *err)
     return st;
 }
 
+static const sc_io_table_steps map_steps = {read_column_header, parse_row, build_map};
+
 sc_status sc_stage_map_read(const char *path, sc_stage_map *m, sc_error *err)
 {
     memset(m, 0, sizeof *m);
@@ -229,16 +235,8 @@ sc_status sc_stage_map_read(const char *path, sc_stage_map *m, sc_error *err)
     memset(&r, 0, sizeof r);
     r.rows.size = sizeof(map_row);
     r.maxi = r.maxj = -1;
-    sc_status st = sc_csv_open(&r.csv, path, err);
-    if (st != SC_OK)
-        return st;
-    st = read_column_header(&r, err);
-    if (st == SC_OK)
-        st = sc_io_read_rows(&r.csv, &r.rows, parse_row, &r, err);
-    if (st == SC_OK)
-        st = build_map(&r, m, err);
-    free(r.rows.data);
-    sc_csv_close(&r.csv);
+    r.out = m;
+    sc_status st = sc_io_read_table(path, &r.csv, &r.rows, &map_steps, &r, err);
     if (st != SC_OK)
         sc_stage_map_free(m);
     return st;
