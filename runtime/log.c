@@ -172,14 +172,20 @@ static size_t format(int level, const char *fmt, va_list ap)
     return len;
 }
 
+/* Format and write one line; a line the sink does not take is counted as dropped. */
+static void emit_vfmt(int level, const char *fmt, va_list ap)
+{
+    size_t len = format(level, fmt, ap);
+    if (len > 0 && !emit(len))
+        g_dropped++;
+}
+
 static void emit_fmt(int level, const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
-    size_t len = format(level, fmt, ap);
+    emit_vfmt(level, fmt, ap);
     va_end(ap);
-    if (len > 0 && !emit(len))
-        g_dropped++;
 }
 
 void sc_log(int level, const char *fmt, ...)
@@ -199,8 +205,6 @@ void sc_log(int level, const char *fmt, ...)
     }
     va_list ap;
     va_start(ap, fmt);
-    size_t len = format(level, fmt, ap);
+    emit_vfmt(level, fmt, ap);
     va_end(ap);
-    if (len > 0 && !emit(len))
-        g_dropped++;
 }
