@@ -4,6 +4,7 @@
 #include "selfcal/import.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -148,6 +149,17 @@ static long match(const sc_grid_import_params *p, const sc_grid_view *v, const p
     return changed;
 }
 
+/* Mark m's point *k and the mark's nominal position (mm): false when no point is assigned. */
+static bool matched_mark(const sc_grid_import_params *p, const sc_grid_view *v,
+                         const long *mark_point, long m, long *k, double *nx, double *ny)
+{
+    *k = mark_point[m];
+    if (*k < 0)
+        return false;
+    mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), nx, ny);
+    return true;
+}
+
 /* Least-squares rigid placement from the pairs point k <-> mark_point (one point per mark). */
 static void fit_rigid(const sc_grid_import_params *p, const sc_grid_view *v, long n_points,
                       const double *x, const double *y, const long *mark_point, placement *a)
@@ -155,11 +167,10 @@ static void fit_rigid(const sc_grid_import_params *p, const sc_grid_view *v, lon
     long nn = (long)p->n * p->n, cnt = 0;
     double mx = 0, my = 0, qx = 0, qy = 0;
     for (long m = 0; m < nn; ++m) {
-        long k = mark_point[m];
-        if (k < 0 || k >= n_points)
-            continue;
+        long k;
         double nx, ny;
-        mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+        if (!matched_mark(p, v, mark_point, m, &k, &nx, &ny) || k >= n_points)
+            continue;
         mx += nx, my += ny;
         qx += x[k] - p->origin_mm[0], qy += y[k] - p->origin_mm[1];
         ++cnt;
@@ -169,11 +180,10 @@ static void fit_rigid(const sc_grid_import_params *p, const sc_grid_view *v, lon
     mx /= cnt, my /= cnt, qx /= cnt, qy /= cnt;
     double sdot = 0, scross = 0;
     for (long m = 0; m < nn; ++m) {
-        long k = mark_point[m];
-        if (k < 0)
-            continue;
+        long k;
         double nx, ny;
-        mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+        if (!matched_mark(p, v, mark_point, m, &k, &nx, &ny))
+            continue;
         double ax = nx - mx, ay = ny - my;
         double bx = x[k] - p->origin_mm[0] - qx, by = y[k] - p->origin_mm[1] - qy;
         sdot += ax * bx + ay * by;
@@ -197,11 +207,10 @@ static void median_translation(const sc_grid_import_params *p, const sc_grid_vie
     for (int axis = 0; axis < 2; ++axis) {
         long c2 = 0;
         for (long m = 0; m < nn; ++m) {
-            long k = mark_point[m];
-            if (k < 0)
-                continue;
+            long k;
             double nx, ny;
-            mark_nominal(p, v, (int)(m / p->n), (int)(m % p->n), &nx, &ny);
+            if (!matched_mark(p, v, mark_point, m, &k, &nx, &ny))
+                continue;
             work[c2++] = axis == 0 ? x_mm[k] - p->origin_mm[0] - nx
                                    : y_mm[k] - p->origin_mm[1] - ny;
         }
