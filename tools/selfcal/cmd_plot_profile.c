@@ -72,13 +72,21 @@ typedef struct {
     double *b1, *b2, *b3; /* n doubles each */
 } plot_panels;
 
+/* A panel's chart at height y0: y from lo to hi (widened to nice ticks), x along the profile. */
+static void panel_chart(const plot_panels *P, svg_chart *c, double y0, double lo, double hi,
+                        const char *ylabel, const char *title)
+{
+    pad_nice(&lo, &hi);
+    svg_chart_init(c, P->fp, 80, y0 + 30, P->W - 110, P->PH, P->xmin, P->xmax, lo, hi);
+    svg_axes(c, "x (mm)", ylabel, title);
+}
+
 /* The profile f with its k = 1 and k = 2 bands, the truth and the compared profile. */
 static void panel_profile(const plot_panels *P, double y0)
 {
     FILE *fp = P->fp;
     const sc_profile_result *a = P->a, *truth = P->truth, *cmp = P->cmp;
-    const int n = a->n, W = P->W, PH = P->PH;
-    const double xmin = P->xmin, xmax = P->xmax;
+    const int n = a->n;
     const char *la = P->la, *lb = P->lb;
     double *b1 = P->b1, *b2 = P->b2;
     svg_chart c;
@@ -98,9 +106,7 @@ static void panel_profile(const plot_panels *P, double y0)
         range_of(truth->f_um, n, 1, &lo, &hi);
     if (cmp)
         range_of(cmp->f_um, n, 1, &lo, &hi);
-    pad_nice(&lo, &hi);
-    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-    svg_axes(&c, "x (mm)", "f (µm)", "profile f, relative to its least-squares line");
+    panel_chart(P, &c, y0, lo, hi, "f (µm)", "profile f, relative to its least-squares line");
     int k = 0;
     if (band) {
         svg_band(&c, a->x_mm, b1, b2, n, COL_A, 0.15);
@@ -132,10 +138,8 @@ static void panel_profile(const plot_panels *P, double y0)
 /* The standard uncertainty u(f) in nm. */
 static void panel_uncertainty(const plot_panels *P, double y0)
 {
-    FILE *fp = P->fp;
     const sc_profile_result *a = P->a, *cmp = P->cmp;
-    const int n = a->n, W = P->W, PH = P->PH;
-    const double xmin = P->xmin, xmax = P->xmax;
+    const int n = a->n;
     const char *la = P->la, *lb = P->lb;
     double *b1 = P->b1;
     svg_chart c;
@@ -143,9 +147,7 @@ static void panel_uncertainty(const plot_panels *P, double y0)
     range_of(a->uf_um, n, 1e3, &lo, &hi);
     if (cmp)
         range_of(cmp->uf_um, n, 1e3, &lo, &hi);
-    pad_nice(&lo, &hi);
-    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-    svg_axes(&c, "x (mm)", "u(f) (nm)", "standard uncertainty of f (k = 1)");
+    panel_chart(P, &c, y0, lo, hi, "u(f) (nm)", "standard uncertainty of f (k = 1)");
     int k = 0;
     if (any_finite(a->uf_um, n)) {
         svg_polyline(&c, a->x_mm, scaled(a->uf_um, n, 1e3, b1), n, COL_A, 1.5, NULL);
@@ -160,10 +162,8 @@ static void panel_uncertainty(const plot_panels *P, double y0)
 /* The error of f against the truth, with ± u(f). */
 static void panel_error(const plot_panels *P, double y0)
 {
-    FILE *fp = P->fp;
     const sc_profile_result *a = P->a, *truth = P->truth, *cmp = P->cmp;
-    const int n = a->n, W = P->W, PH = P->PH;
-    const double xmin = P->xmin, xmax = P->xmax;
+    const int n = a->n;
     const char *la = P->la, *lb = P->lb;
     double *b1 = P->b1, *b2 = P->b2, *b3 = P->b3;
     svg_chart c;
@@ -182,9 +182,7 @@ static void panel_error(const plot_panels *P, double y0)
             if (isfinite(e))
                 lo = e < lo ? e : lo, hi = e > hi ? e : hi;
         }
-    pad_nice(&lo, &hi);
-    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-    svg_axes(&c, "x (mm)", "error (nm)", "error of f against the truth");
+    panel_chart(P, &c, y0, lo, hi, "error (nm)", "error of f against the truth");
     int k = 0;
     svg_polyline(&c, a->x_mm, b1, n, COL_A, 1.2, NULL);
     svg_legend(&c, k++, la, COL_A, NULL);
@@ -204,19 +202,15 @@ static void panel_error(const plot_panels *P, double y0)
 /* The stage's straightness motion error e_y. */
 static void panel_motion(const plot_panels *P, double y0)
 {
-    FILE *fp = P->fp;
     const sc_profile_result *a = P->a, *truth = P->truth;
-    const int n = a->n, W = P->W, PH = P->PH;
-    const double xmin = P->xmin, xmax = P->xmax;
+    const int n = a->n;
     const char *la = P->la;
     svg_chart c;
     double lo = INFINITY, hi = -INFINITY;
     range_of(a->ey_um, n, 1, &lo, &hi);
     if (truth)
         range_of(truth->ey_um, n, 1, &lo, &hi);
-    pad_nice(&lo, &hi);
-    svg_chart_init(&c, fp, 80, y0 + 30, W - 110, PH, xmin, xmax, lo, hi);
-    svg_axes(&c, "x (mm)", "e_y (µm)", "stage straightness motion error e_y (scan 1)");
+    panel_chart(P, &c, y0, lo, hi, "e_y (µm)", "stage straightness motion error e_y (scan 1)");
     int k = 0;
     if (truth && any_finite(truth->ey_um, n)) {
         svg_polyline(&c, truth->x_mm, truth->ey_um, n, COL_T, 1.2, "5,3");
