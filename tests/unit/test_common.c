@@ -134,7 +134,7 @@ static int file_exists(const char *path)
     return stat(path, &st) == 0;
 }
 
-/* sc_afile_finish_all: a failed computation aborts the group (old files kept, no temporary
+/* sc_afile_finish_all and sc_afile_finish: a failed computation aborts the group (old files kept, no temporary
  * file, the status passed through); a good one commits it. */
 static void test_atomic_finish_all(void **state)
 {
@@ -169,6 +169,22 @@ static void test_atomic_finish_all(void **state)
     fclose(in);
     assert_string_equal(buf, "new a\n");
     assert_true(file_exists(b));
+    /* one file: sc_afile_finish */
+    sc_afile one;
+    assert_int_equal(sc_afile_open(&one, a, &err), SC_OK);
+    fputs("newer a\n", one.fp);
+    assert_int_equal(sc_afile_finish(&one, SC_E_NOMEM, &err), SC_E_NOMEM);
+    in = fopen(a, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "new a\n");
+    assert_int_equal(sc_afile_open(&one, a, &err), SC_OK);
+    fputs("newer a\n", one.fp);
+    assert_int_equal(sc_afile_finish(&one, SC_OK, &err), SC_OK);
+    in = fopen(a, "r");
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "newer a\n");
 }
 
 static void test_atomic_group(void **state)

@@ -275,10 +275,7 @@ int cmd_plot_xy(int argc, char **argv)
     if (st == SC_OK) {
         draw_chart(f.fp, &a, &t, xc, yc, nser, xs, ys);
         st = ferror(f.fp) ? sc_error_set(&err, SC_E_IO, a.out, 0, "write failed") : SC_OK;
-        if (st == SC_OK)
-            st = sc_afile_commit(&f, &err);
-        else
-            sc_afile_abort(&f);
+        st = sc_afile_finish(&f, st, &err);
     }
     free(xs);
     free(ys);

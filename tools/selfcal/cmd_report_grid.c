@@ -730,10 +730,7 @@ int cmd_report_grid(int argc, char **argv)
         st = write_report(f.fp, &r, &vo, &vr, argc, argv, &err);
         if (st == SC_OK && ferror(f.fp))
             st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
-        if (st == SC_OK)
-            st = sc_afile_commit(&f, &err);
-        else
-            sc_afile_abort(&f);
+        st = sc_afile_finish(&f, st, &err);
     }
     verify_result_free(&vr);
     free_report(&r);

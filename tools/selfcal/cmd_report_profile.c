@@ -412,10 +412,7 @@ int cmd_report_profile(int argc, char **argv)
             st = write_report(f.fp, in, method_s, &d, &r, argc + 1, argv - 1, &err);
             if (st == SC_OK && ferror(f.fp))
                 st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
-            if (st == SC_OK)
-                st = sc_afile_commit(&f, &err);
-            else
-                sc_afile_abort(&f);
+            st = sc_afile_finish(&f, st, &err);
         }
     }
     profile_run_free(&r);

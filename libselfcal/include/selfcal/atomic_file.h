@@ -44,6 +44,10 @@ SC_API sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err);
 /* Abort every open entry of f[0..n-1]. */
 SC_API void sc_afile_abort_all(sc_afile *f, int n);
 
+/* End one file that was being written: commit it when st is SC_OK, else abort it and return st
+ * unchanged (its message stays in err). */
+SC_API sc_status sc_afile_finish(sc_afile *f, sc_status st, sc_error *err);
+
 /* End a group that was being written: commit it (sc_afile_commit_all) when st is SC_OK, else
  * abort every entry and return st unchanged (its message stays in err). */
 SC_API sc_status sc_afile_finish_all(sc_afile *f, int n, sc_status st, sc_error *err);

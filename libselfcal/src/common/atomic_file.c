@@ -290,6 +290,14 @@ void sc_afile_abort_all(sc_afile *f, int n)
         sc_afile_abort(&f[k]);
 }
 
+sc_status sc_afile_finish(sc_afile *f, sc_status st, sc_error *err)
+{
+    if (st == SC_OK)
+        return sc_afile_commit(f, err);
+    sc_afile_abort(f);
+    return st;
+}
+
 sc_status sc_afile_finish_all(sc_afile *f, int n, sc_status st, sc_error *err)
 {
     if (st == SC_OK)
