@@ -21,34 +21,14 @@ import time
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "..", "tests", "integration", "modbus"))
-from sclib import Daemon, i32_to_regs, make_table, regs_to_i32  # noqa: E402
+from sclib import (Daemon, i32_to_regs, recv_exact,  # noqa: E402
+                   regs_to_i32, reload_step, replace_file, storm_tables)
 
 cli, selfcald = sys.argv[1], sys.argv[2]
 seconds = float(sys.argv[3]) if len(sys.argv) > 3 else 600.0
 nclients = int(sys.argv[4]) if len(sys.argv) > 4 else 64
 work = tempfile.mkdtemp(prefix="selfcal-soak-")
-table_a, ref_a = make_table(cli, work, "a", n=9, pitch=2.0, scale_um=1.5)
-table_b, ref_b = make_table(cli, work, "b", n=9, pitch=2.0, scale_um=-2.0, phase=0.9)
-blob_a, blob_b = open(table_a, "rb").read(), open(table_b, "rb").read()
-corrupt = bytearray(blob_b)
-corrupt[len(corrupt) // 2] ^= 0x40
-live = os.path.join(work, "live.lut")
-
-
-def put(blob):
-    with open(live + ".new", "wb") as f:
-        f.write(blob)
-    os.replace(live + ".new", live)
-
-
-def recv_exact(s, n):
-    b = b""
-    while len(b) < n:
-        c = s.recv(n - len(b))
-        if not c:
-            raise ConnectionError("closed")
-        b += c
-    return b
+ref_a, ref_b, blob_a, blob_b, corrupt, live = storm_tables(cli, work)
 
 
 def ok(ref, x, y, gx, gy):
@@ -111,7 +91,7 @@ def rss_kib(pid):
     return -1
 
 
-put(blob_a)
+replace_file(live, blob_a)
 d = Daemon(selfcald, live, ["--log-level", "notice", "--max-connections", "79"])
 reloads = 0
 samples = []
@@ -127,16 +107,7 @@ try:
         now = time.time()
         if now >= next_storm:
             for _ in range(50):
-                step = k % 4
-                if step == 0:
-                    put(blob_a)
-                elif step == 1:
-                    put(bytes(corrupt))
-                elif step == 2:
-                    if os.path.exists(live):
-                        os.unlink(live)
-                else:
-                    put(blob_b)
+                reload_step(k, live, blob_a, corrupt, blob_b)
                 d.signal(signal.SIGHUP)
                 reloads += 1
                 k += 1

@@ -24,34 +24,13 @@ import time
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, "..", "modbus"))
-from sclib import Daemon, check, i32_to_regs, make_table, regs_to_i32  # noqa: E402
+from sclib import (Daemon, check, i32_to_regs, recv_exact,  # noqa: E402
+                   regs_to_i32, reload_step, replace_file, storm_tables)
 
 cli, selfcald, work = sys.argv[1], sys.argv[2], sys.argv[3]
 reloads = int(sys.argv[4]) if len(sys.argv) > 4 else 1000
 os.makedirs(work, exist_ok=True)
-table_a, ref_a = make_table(cli, work, "a", n=9, pitch=2.0, scale_um=1.5)
-table_b, ref_b = make_table(cli, work, "b", n=9, pitch=2.0, scale_um=-2.0, phase=0.9)
-blob_a, blob_b = open(table_a, "rb").read(), open(table_b, "rb").read()
-corrupt = bytearray(blob_b)
-corrupt[len(corrupt) // 2] ^= 0x40
-live = os.path.join(work, "live.lut")
-
-
-def put(blob):
-    tmp = live + ".new"
-    with open(tmp, "wb") as f:
-        f.write(blob)
-    os.replace(tmp, live)
-
-
-def recv_exact(s, n):
-    b = b""
-    while len(b) < n:
-        c = s.recv(n - len(b))
-        if not c:
-            raise ConnectionError("closed by the daemon")
-        b += c
-    return b
+ref_a, ref_b, blob_a, blob_b, corrupt, live = storm_tables(cli, work)
 
 
 def correct(s, tid, x, y):
@@ -103,7 +82,7 @@ def daemon_fds(pid):
 
 
 # 1. SIGHUP storm.
-put(blob_a)
+replace_file(live, blob_a)
 d = Daemon(selfcald, live, ["--log-level", "notice", "--max-connections", "64",
                             "--byte-timeout-ms", "300"])
 try:
@@ -115,16 +94,7 @@ try:
         t.start()
     t0 = time.time()
     for k in range(reloads):
-        step = k % 4
-        if step == 0:
-            put(blob_a)
-        elif step == 1:
-            put(bytes(corrupt))
-        elif step == 2:
-            if os.path.exists(live):
-                os.unlink(live)
-        else:
-            put(blob_b)
+        reload_step(k, live, blob_a, corrupt, blob_b)
         d.signal(signal.SIGHUP)
         time.sleep(0.002)
     storm_s = time.time() - t0
@@ -138,7 +108,7 @@ try:
     check(not errors, f"storm: requests lost: {errors[:3]}")
     check(wrong == 0, f"storm: {wrong} of {answered} answers match neither table")
     check(answered > 100, f"storm: only {answered} answers")
-    put(blob_b)
+    replace_file(live, blob_b)
     d.signal(signal.SIGHUP)
     time.sleep(0.3)
     s = socket.create_connection(("127.0.0.1", d.port))
@@ -154,7 +124,7 @@ finally:
     check(d.stop() == 0, "exit status after the storm")
 
 # 2-4. Connection floods, half-open and trickling clients, SIGTERM under load.
-put(blob_a)
+replace_file(live, blob_a)
 d = Daemon(selfcald, live, ["--log-level", "notice", "--max-connections", "64",
                             "--byte-timeout-ms", "300"])
 try:

@@ -187,3 +187,52 @@ def check(cond, msg):
     if not cond:
         print("FAIL:", msg, file=sys.stderr)
         sys.exit(1)
+
+
+def recv_exact(s, n):
+    """n bytes from socket s; ConnectionError if the daemon closes the connection first."""
+    b = b""
+    while len(b) < n:
+        c = s.recv(n - len(b))
+        if not c:
+            raise ConnectionError("closed by the daemon")
+        b += c
+    return b
+
+
+def replace_file(path, blob):
+    """Write blob to path atomically: a .new file renamed over it (what an operator's deploy does)."""
+    tmp = path + ".new"
+    with open(tmp, "wb") as f:
+        f.write(blob)
+    os.replace(tmp, path)
+
+
+def reload_step(k, live, good_a, corrupt, good_b):
+    """Step k of the reload storm's cycle at path live: table A, a corrupt table, no table, table B.
+    The caller sends SIGHUP after it."""
+    step = k % 4
+    if step == 0:
+        replace_file(live, good_a)
+    elif step == 1:
+        replace_file(live, bytes(corrupt))
+    elif step == 2:
+        if os.path.exists(live):
+            os.unlink(live)
+    else:
+        replace_file(live, good_b)
+
+
+def storm_tables(cli, work):
+    """The reload storm's tables in work: two valid ones (A, B) with their references, B with one
+    bit flipped (its CRC no longer matches), and the live path selfcald serves.
+    Returns ref_a, ref_b, blob_a, blob_b, corrupt, live."""
+    table_a, ref_a = make_table(cli, work, "a", n=9, pitch=2.0, scale_um=1.5)
+    table_b, ref_b = make_table(cli, work, "b", n=9, pitch=2.0, scale_um=-2.0, phase=0.9)
+    with open(table_a, "rb") as f:
+        blob_a = f.read()
+    with open(table_b, "rb") as f:
+        blob_b = f.read()
+    corrupt = bytearray(blob_b)
+    corrupt[len(corrupt) // 2] ^= 0x40
+    return ref_a, ref_b, blob_a, blob_b, corrupt, os.path.join(work, "live.lut")

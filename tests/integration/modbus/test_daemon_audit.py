@@ -23,21 +23,11 @@ import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sclib import Daemon, check, i32_to_regs, make_table, regs_to_i32  # noqa: E402
+from sclib import Daemon, check, i32_to_regs, make_table, recv_exact, regs_to_i32  # noqa: E402
 
 cli, selfcald, work = sys.argv[1], sys.argv[2], sys.argv[3]
 os.makedirs(work, exist_ok=True)
 table, ref = make_table(cli, work, "audit", n=7, pitch=2.0)
-
-
-def recv_exact(s, n):
-    b = b""
-    while len(b) < n:
-        chunk = s.recv(n - len(b))
-        if not chunk:
-            raise ConnectionError("closed")
-        b += chunk
-    return b
 
 
 def transact(s, tid, pdu, unit=1):
