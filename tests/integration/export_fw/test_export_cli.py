@@ -13,7 +13,7 @@ import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from exportlib import Export  # noqa: E402
+from exportlib import Export, read_beckhoff_plane  # noqa: E402
 
 cli, work = sys.argv[1], sys.argv[2]
 E = Export(cli, work)
@@ -85,16 +85,7 @@ for negate in (False, True):
     rc, out, err = run(*args)
     check(rc == 0, f"beckhoff both: {err}")
     for axis, name in ((0, "B-x.lis"), (1, "B-y.lis")):
-        tab, hdr = {}, {}
-        for line in open(path(name)):
-            m = re.match(r"kw\.crosscomp2\.table\[\s*(\d+)\]\[\s*(\d+)\]\.correction\s+(-?\d+)",
-                         line)
-            if m:
-                tab[(int(m.group(1)), int(m.group(2)))] = int(m.group(3))
-                continue
-            m = re.match(r"(kw\.crosscomp2\.\w+|kopf\.\w+)\s+(\S+)", line)
-            if m:
-                hdr[m.group(1)] = m.group(2)
+        tab, hdr = read_beckhoff_plane(path(name))
         check(hdr.get("kopf.log_achs_name") == ("X", "Y")[axis], f"{name}: slave axis")
         iv = int(hdr["kw.crosscomp2.interval"])
         s1 = int(hdr["kw.crosscomp2.start_position_master1"])

@@ -14,6 +14,9 @@ import re
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "export_fw"))
+from exportlib import read_beckhoff_plane  # noqa: E402
+
 SELFCAL, WORK = sys.argv[1], sys.argv[2]
 os.makedirs(WORK, exist_ok=True)
 failures = []
@@ -223,15 +226,7 @@ truth = write_map("E.csv", 11, 9, -25.0, 40.0, 5.0, 5.0, 2.0)
 rc, out, err = run("export", "--format", "beckhoff", "--map", path("E.csv"), "--axis", "y", "-o", path("E.lis"))
 check(rc == 0, f"export beckhoff: {err}")
 check(re.search(r"residual .* rms [0-9.]+ um, max [0-9.]+ um", out) is not None, f"beckhoff report: {out}")
-tab, hdr = {}, {}
-for line in open(path("E.lis")):
-    m = re.match(r"kw\.crosscomp2\.table\[\s*(\d+)\]\[\s*(\d+)\]\.correction\s+(-?\d+)", line)
-    if m:
-        tab[(int(m.group(1)), int(m.group(2)))] = int(m.group(3))
-        continue
-    m = re.match(r"(kw\.crosscomp2\.\w+|kopf\.\w+)\s+(\S+)", line)
-    if m:
-        hdr[m.group(1)] = m.group(2)
+tab, hdr = read_beckhoff_plane(path("E.lis"))
 check(hdr.get("kw.crosscomp2.unit") == "1" and hdr.get("kopf.log_achs_name") == "Y", "beckhoff header")
 iv = int(hdr["kw.crosscomp2.interval"])
 s1, s2 = int(hdr["kw.crosscomp2.start_position_master1"]), int(hdr["kw.crosscomp2.start_position_master2"])
