@@ -32,7 +32,9 @@ gcovr "${gcov_args[@]}" --filter 'libselfcal/' --filter 'runtime/' --print-summa
 printf '%-24s %18s %18s\n' "area" "lines" "branches"
 for area in libselfcal/src/common libselfcal/src/io libselfcal/src/core libselfcal/src/grid \
             libselfcal/src/profile libselfcal/src/lut runtime; do
-  sum=$(gcovr "${gcov_args[@]}" --filter "$area/" --print-summary -o /dev/null)
+  # the report goes to a scratch file: gcovr replaces its output file, and with `-o /dev/null`
+  # as root it replaced the device with a regular file (and broke every later redirection)
+  sum=$(gcovr "${gcov_args[@]}" --filter "$area/" --print-summary -o "$build/coverage/area.txt")
   lines=$(echo "$sum" | awk '/^lines:/ {print $2, $3 "/" $6}' | tr -d '()')
   branches=$(echo "$sum" | awk '/^branches:/ {print $2, $3 "/" $6}' | tr -d '()')
   printf '%-24s %18s %18s\n' "${area#libselfcal/src/}" "$lines" "$branches"
