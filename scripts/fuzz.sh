@@ -6,8 +6,9 @@
 # SECONDS given too, whichever comes first). Prints one line per target: seconds it ran,
 # executions, exec/s, coverage (edges), features, corpus size, and the crash files if any
 # (build-fuzz/crashes/<target>/); each target's libFuzzer log is build-fuzz/fuzz-<target>.log.
-# usage: [RUNS=10000000] [JOBS=1] [NICE=5] scripts/fuzz.sh [SECONDS] [TARGET...]
-#        (JOBS=2 runs two targets at once; NICE lowers the campaign's priority)
+# usage: [RUNS=10000000] [JOBS=1] [NICE=5] [MAX_LEN=65536] scripts/fuzz.sh [SECONDS] [TARGET...]
+#        (JOBS=2 runs two targets at once; NICE lowers the campaign's priority; MAX_LEN caps the
+#        input size in bytes: stream targets such as modbus_rtu slow down as their inputs grow)
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 cd "$here"
@@ -34,7 +35,7 @@ run_one() {
   local limit=(-max_total_time="$secs") start end
   [ -n "$runs" ] && limit+=(-runs="$runs")
   start=$(date +%s)
-  nice -n "${NICE:-0}" "$build/fuzz/fuzz_$t" "${limit[@]}" -timeout=10 -rss_limit_mb=2048 -max_len=65536 \
+  nice -n "${NICE:-0}" "$build/fuzz/fuzz_$t" "${limit[@]}" -timeout=10 -rss_limit_mb=2048 -max_len="${MAX_LEN:-65536}" \
     -print_final_stats=1 -artifact_prefix="$crashes/" "${dict[@]}" "${dirs[@]}" >"$log" 2>&1 || true
   end=$(date +%s)
   local execs rate cov ft corp

@@ -268,11 +268,59 @@ static void test_parse_long(void **st)
     }
 }
 
+/* sc_number_format_15g against glibc's printf, byte for byte: random bits, measurement-like
+ * values, arithmetic results of every magnitude, the decades' edges (9.99...95 rounding up to
+ * the next power of ten), exact ties at the 16th digit (halves of integers near 10^15 and
+ * dyadic fractions) and the specials. */
+static void test_format_15g_vs_printf(void **st)
+{
+    (void)st;
+    sc_rng r;
+    sc_rng_seed(&r, 15);
+    char buf[SC_NUMBER_BUF], ref[64];
+    for (int t = 0; t < 400000; ++t) {
+        double v;
+        switch (t % 6) {
+        case 0: v = random_double(&r); break;
+        case 1: v = round(sc_rng_normal(&r) * 1e6) / pow(10, (int)(sc_rng_uniform(&r) * 12)); break;
+        case 2: v = sc_rng_normal(&r) * pow(10, (int)(sc_rng_uniform(&r) * 40) - 20); break;
+        case 3: /* around 10^k - 5·10^(k-16): where rounding carries into a new decade */
+            v = pow(10, (int)(sc_rng_uniform(&r) * 30) - 12) * (1 - 5e-16);
+            v = nextafter(v, (t / 6) % 2 ? INFINITY : 0);
+            for (int s = (int)(sc_rng_uniform(&r) * 4); s > 0; --s)
+                v = nextafter(v, (t / 12) % 2 ? INFINITY : 0);
+            break;
+        case 4: /* d.ddd...d5 at the 16th digit, exact: an odd integer / 2 near 10^15 */
+            v = (double)(2 * (uint64_t)(1e14 + sc_rng_uniform(&r) * 9e14) + 1) / 2 /
+                ((t / 6) % 2 ? 1 : 8);
+            break;
+        default: /* small dyadic values: exact decimal expansions ending in 5 */
+            v = ldexp((double)(int64_t)(sc_rng_normal(&r) * 1e9), -(int)(sc_rng_uniform(&r) * 60));
+            break;
+        }
+        int len = sc_number_format_15g(v, buf);
+        snprintf(ref, sizeof ref, "%.15g", v);
+        if (strcmp(buf, ref) != 0)
+            fail_msg("%.17g: %s, printf %s", v, buf, ref);
+        assert_int_equal(len, (int)strlen(buf));
+    }
+    const double special[] = {0.0, -0.0, 1.0, -1.0, 1e15, 1e-5, 1e-4, 9.99999999999999e14,
+                              999999999999999.5, 0.5, 123456789012345.5, 1e300, 5e-324,
+                              2.2250738585072014e-308, INFINITY, -INFINITY, NAN, 4.8e-7,
+                              4.76837158203125e-7, 4503599627370496.0, 4503599627370495.5};
+    for (size_t k = 0; k < sizeof special / sizeof special[0]; ++k) {
+        sc_number_format_15g(special[k], buf);
+        snprintf(ref, sizeof ref, "%.15g", special[k]);
+        assert_string_equal(buf, ref);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_format_round_trip),
         cmocka_unit_test(test_format_special),
+        cmocka_unit_test(test_format_15g_vs_printf),
         cmocka_unit_test(test_parse_vs_strtod),
         cmocka_unit_test(test_parse_grammar),
         cmocka_unit_test(test_parse_prefix),

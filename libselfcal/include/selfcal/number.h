@@ -8,7 +8,8 @@
  * or that underflow to zero or to a subnormal from nonzero digits, are refused.
  *
  * Format: the fewest significant digits that read back to exactly the same double, laid out as
- * printf's "%.17g" lays them out (fixed for decimal exponents -4..16, else d.ddde±XX). */
+ * printf's "%.17g" lays them out (fixed for decimal exponents -4..16, else d.ddde±XX); and
+ * printf's "%.15g" text exactly, without printf's cost. */
 #ifndef SELFCAL_NUMBER_H
 #define SELFCAL_NUMBER_H
 
@@ -37,6 +38,11 @@ SC_API sc_status sc_number_parse_prefix(const char *s, const char *end, const ch
 /* Write v's shortest round-trip text and a NUL into buf (SC_NUMBER_BUF bytes); returns the
  * length. NaN and infinities are written as printf writes them ("nan", "-inf", ...). */
 SC_API int sc_number_format(double v, char *buf);
+
+/* Write v as printf's "%.15g" writes it in the C locale (byte for byte: 15 significant digits,
+ * correctly rounded, ties to even; trailing zeros dropped) and a NUL into buf (SC_NUMBER_BUF
+ * bytes); returns the length. The fixed-precision text of the map and residual files. */
+SC_API int sc_number_format_15g(double v, char *buf);
 
 #ifdef __cplusplus
 }

@@ -7,6 +7,7 @@
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 
 void sc_number_kernel_shortest(double v, uint64_t *digits, int *exp10);
@@ -33,7 +34,7 @@ static inline uint64_t digits8(uint32_t x)
     return q | (v - q * 10) << 8;
 }
 
-static const uint64_t pow10_u64[17] = {1,
+static const uint64_t pow10_u64[19] = {1,
                                        10,
                                        100,
                                        1000,
@@ -49,7 +50,9 @@ static const uint64_t pow10_u64[17] = {1,
                                        10000000000000,
                                        100000000000000,
                                        1000000000000000,
-                                       10000000000000000};
+                                       10000000000000000,
+                                       100000000000000000,
+                                       1000000000000000000};
 
 /* The decimal digits of m (0 < m < 10^17), written as 17 characters with leading zeros at t;
  * returns how many of them are m's own digits (the last ones). */
@@ -78,26 +81,20 @@ static int format_special(double v, char *buf)
     return (int)(p - buf) + (v == 0 ? 1 : 3);
 }
 
-/* The layout copies fixed-size runs (compiled to plain moves, where a copy of k bytes is a call)
- * and then moves the end to where the text ends: buf holds SC_NUMBER_BUF bytes for that. */
-int sc_number_format(double v, char *buf)
+/* Lay out m·10^e (m > 0 without trailing zeros, at most 17 digits) as printf's "%.<prec>g" does:
+ * fixed for decimal exponents -4 .. prec - 1, else d.ddde±XX. The layout copies fixed-size runs
+ * (compiled to plain moves, where a copy of k bytes is a call) and then moves the end to where the
+ * text ends: p has room up to SC_NUMBER_BUF bytes from the buffer's start for that. */
+static char *layout(char *p, uint64_t m, int e, int prec)
 {
-    if (!(fabs(v) > 0) || !isfinite(v))
-        return format_special(v, buf);
-    char *p = buf;
-    *p = '-';
-    p += signbit(v) != 0;
-    uint64_t m;
-    int e;
-    sc_number_kernel_shortest(fabs(v), &m, &e);
     char tmp[40]; /* 17 digits, then slack for the fixed copies */
     int k = digits17(m, tmp);
     int x = k - 1 + e; /* decimal exponent of the first digit */
-    if (e >= 0 && x < 17) { /* an integer: m·10^e has x + 1 <= 17 digits */
+    if (e >= 0 && x < prec) { /* an integer: m·10^e has x + 1 <= prec digits */
         k = digits17(m * pow10_u64[e], tmp);
         memcpy(p, tmp + 17 - k, 17);
         p += k;
-    } else if (x >= 0 && x < 17) { /* d.ddd: x + 1 digits, the point, the rest */
+    } else if (x >= 0 && x < prec) { /* d.ddd: x + 1 digits, the point, the rest */
         const char *dig = tmp + 17 - k;
         memcpy(p, dig, 16);
         p[x + 1] = '.';
@@ -123,5 +120,93 @@ int sc_number_format(double v, char *buf)
         *p++ = (char)('0' + ax % 10);
     }
     *p = '\0';
-    return (int)(p - buf);
+    return p;
+}
+
+int sc_number_format(double v, char *buf)
+{
+    if (!(fabs(v) > 0) || !isfinite(v))
+        return format_special(v, buf);
+    char *p = buf;
+    *p = '-';
+    p += signbit(v) != 0;
+    uint64_t m;
+    int e;
+    sc_number_kernel_shortest(fabs(v), &m, &e);
+    return (int)(layout(p, m, e, 17) - buf);
+}
+
+/* 10^s for s = 0..38, exact in 128 bits. */
+static unsigned __int128 pow10_u128(int s)
+{
+    unsigned __int128 r = 1;
+    for (; s >= 19; s -= 19)
+        r *= (unsigned __int128)10000000000000000000ULL;
+    return r * pow10_u64[s];
+}
+
+/* a (normal, > 0) rounded to 15 significant digits, exactly: *r (10^14 <= *r < 10^15) times
+ * 10^(*x - 14). a = m·2^q; with s = 14 - x, floor(a·10^s) = (m·10^s) >> -q in 128-bit integers and
+ * the bits shifted out decide the rounding (ties to even, as glibc's printf in the default
+ * rounding mode). Returns 0 where that does not fit in 128 bits (a >= 2^52 or a < 2^-21, about
+ * 4.8e-7; and subnormals): the caller then asks printf. */
+static int round15(double a, uint64_t *r, int *x)
+{
+    uint64_t bits;
+    memcpy(&bits, &a, 8);
+    int be = (int)(bits >> 52 & 0x7FF);
+    if (be == 0)
+        return 0; /* subnormal */
+    uint64_t m = (bits & ((1ULL << 52) - 1)) | 1ULL << 52;
+    int sh = 1075 - be; /* a = m·2^-sh */
+    /* a·10^s < 10^16 < 2^54 below, so m·10^s < 2^(54 + sh) fits 128 bits for sh <= 73 */
+    if (sh <= 0 || sh > 73)
+        return 0;
+    int e = (int)floor(log10(a)); /* may be off by one near powers of ten: corrected below */
+    for (int tries = 0; tries < 3; ++tries) {
+        int s = 14 - e;
+        if (s < 0 || s > 38)
+            return 0;
+        unsigned __int128 n = (unsigned __int128)m * pow10_u128(s);
+        uint64_t t = (uint64_t)(n >> sh);
+        if (t >= 1000000000000000ULL) {
+            ++e;
+            continue;
+        }
+        if (t < 100000000000000ULL) {
+            --e;
+            continue;
+        }
+        unsigned __int128 rem = n & (((unsigned __int128)1 << sh) - 1);
+        unsigned __int128 half = (unsigned __int128)1 << (sh - 1);
+        if (rem > half || (rem == half && (t & 1)))
+            ++t;
+        if (t == 1000000000000000ULL) {
+            t = 100000000000000ULL;
+            ++e;
+        }
+        *r = t;
+        *x = e;
+        return 1;
+    }
+    return 0;
+}
+
+int sc_number_format_15g(double v, char *buf)
+{
+    if (!(fabs(v) > 0) || !isfinite(v))
+        return format_special(v, buf);
+    uint64_t r;
+    int x;
+    if (!round15(fabs(v), &r, &x))
+        return snprintf(buf, SC_NUMBER_BUF, "%.15g", v);
+    char *p = buf;
+    *p = '-';
+    p += signbit(v) != 0;
+    int e = x - 14;
+    while (r % 10 == 0) {
+        r /= 10;
+        ++e;
+    }
+    return (int)(layout(p, r, e, 15) - buf);
 }

@@ -12,6 +12,8 @@
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/plate_map.h"
+#include "selfcal/number.h"
+#include "../io/io_internal.h"
 
 #define COLUMN_HEADER "view,i,j,x_mm,y_mm"
 
@@ -108,8 +110,9 @@ static sc_status finish(sc_afile *f, sc_error *err)
 
 static void put_num(FILE *fp, const double *a, int k)
 {
+    char b[SC_NUMBER_BUF];
     if (a && isfinite(a[k]))
-        fprintf(fp, "%.15g", a[k]);
+        fwrite(b, 1, (size_t)sc_number_format_15g(a[k], b), fp);
 }
 
 void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)
@@ -302,17 +305,21 @@ void sc_grid_fprint_residuals(FILE *fp, const sc_grid_plan *p, const int *view_i
     int n = p->n;
     size_t nn = (size_t)n * n;
     fputs("view,i,j,rx_um,ry_um,tx,ty,outlier\n", fp);
+    char line[8 * SC_NUMBER_BUF];
     for (int v = 0; v < p->n_views; ++v)
         for (size_t k = 0; k < nn; ++k) {
             size_t at = (size_t)v * nn + k;
             if (!isfinite(rx_um[at]))
                 continue;
-            fprintf(fp, "%d,%d,%d,%.15g,%.15g,", view_id ? view_id[v] : v, (int)(k / n),
-                    (int)(k % n), rx_um[at], ry_um[at]);
-            put_num(fp, tx, (int)at);
-            fputc(',', fp);
-            put_num(fp, ty, (int)at);
-            fprintf(fp, ",%d\n", outlier && outlier[at] ? 1 : 0);
+            char *q = sc_io_put_long(line, view_id ? view_id[v] : v, ',');
+            q = sc_io_put_long(q, (long)(k / n), ',');
+            q = sc_io_put_long(q, (long)(k % n), ',');
+            q = sc_io_put_15g(q, rx_um[at], ',');
+            q = sc_io_put_15g(q, ry_um[at], ',');
+            q = sc_io_put_15g_opt(q, tx, at, ',');
+            q = sc_io_put_15g_opt(q, ty, at, ',');
+            q = sc_io_put_long(q, outlier && outlier[at] ? 1 : 0, '\n');
+            fwrite(line, 1, (size_t)(q - line), fp);
         }
 }
 

@@ -127,6 +127,23 @@ char *sc_io_put_number(char *p, double v, char sep)
     return p;
 }
 
+char *sc_io_put_15g(char *p, double v, char sep)
+{
+    p += sc_number_format_15g(v, p);
+    if (sep)
+        *p++ = sep;
+    return p;
+}
+
+char *sc_io_put_15g_opt(char *p, const double *a, size_t k, char sep)
+{
+    if (a && isfinite(a[k]))
+        p += sc_number_format_15g(a[k], p);
+    if (sep)
+        *p++ = sep;
+    return p;
+}
+
 char *sc_io_put_long(char *p, long v, char sep)
 {
     char tmp[24];

@@ -42,6 +42,14 @@ sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
  * end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
 char *sc_io_put_number(char *p, double v, char sep);
 
+/* Append v as printf's "%.15g" writes it (sc_number_format_15g), then sep unless it is 0;
+ * returns the end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
+char *sc_io_put_15g(char *p, double v, char sep);
+
+/* As sc_io_put_15g for a[k], but nothing (only sep) when a is NULL or a[k] is not finite: the
+ * optional columns of the map and residual files. */
+char *sc_io_put_15g_opt(char *p, const double *a, size_t k, char sep);
+
 /* Append a whole number in decimal, then sep; returns the end. */
 char *sc_io_put_long(char *p, long v, char sep);
 

@@ -9,6 +9,7 @@
 
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/number.h"
 #include "io_internal.h"
 
 static const char *const columns[4] = {"i", "j", "ax_um", "ay_um"};
@@ -145,13 +146,20 @@ void sc_plate_map_fprint(FILE *fp, const sc_plate_map *m)
 {
     int n = m->n;
     fprintf(fp, "i,j,ax_um,ay_um\n");
+    char line[4 * SC_NUMBER_BUF];
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             size_t k = (size_t)i * n + j;
-            if (isfinite(m->ax_um[k]) && isfinite(m->ay_um[k]))
-                fprintf(fp, "%d,%d,%.15g,%.15g\n", i, j, m->ax_um[k], m->ay_um[k]);
-            else
-                fprintf(fp, "%d,%d,,\n", i, j);
+            char *p = sc_io_put_long(line, i, ',');
+            p = sc_io_put_long(p, j, ',');
+            if (isfinite(m->ax_um[k]) && isfinite(m->ay_um[k])) {
+                p = sc_io_put_15g(p, m->ax_um[k], ',');
+                p = sc_io_put_15g(p, m->ay_um[k], '\n');
+            } else {
+                *p++ = ',';
+                *p++ = '\n';
+            }
+            fwrite(line, 1, (size_t)(p - line), fp);
         }
 }
 

@@ -9,6 +9,7 @@
 
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/number.h"
 #include "io_internal.h"
 
 static const char *const columns[8] = {"i", "j", "x_mm", "y_mm", "gx_um", "gy_um", "ugx_um",
@@ -270,24 +271,22 @@ double sc_stage_map_y_mm(const sc_stage_map *m, int i)
     return m->y0_mm + i * m->py_mm;
 }
 
-static void put_num(FILE *fp, const double *a, size_t k)
-{
-    if (a && isfinite(a[k]))
-        fprintf(fp, "%.15g", a[k]);
-}
-
 void sc_stage_map_fprint(FILE *fp, const sc_stage_map *m)
 {
     fprintf(fp, "i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n");
+    char line[8 * SC_NUMBER_BUF];
     for (int i = 0; i < m->ny; ++i)
         for (int j = 0; j < m->nx; ++j) {
             size_t k = (size_t)i * m->nx + j;
-            fprintf(fp, "%d,%d,%.15g,%.15g,%.15g,%.15g,", i, j, sc_stage_map_x_mm(m, j),
-                    sc_stage_map_y_mm(m, i), m->gx_um[k], m->gy_um[k]);
-            put_num(fp, m->ugx_um, k);
-            fputc(',', fp);
-            put_num(fp, m->ugy_um, k);
-            fputc('\n', fp);
+            char *p = sc_io_put_long(line, i, ',');
+            p = sc_io_put_long(p, j, ',');
+            p = sc_io_put_15g(p, sc_stage_map_x_mm(m, j), ',');
+            p = sc_io_put_15g(p, sc_stage_map_y_mm(m, i), ',');
+            p = sc_io_put_15g(p, m->gx_um[k], ',');
+            p = sc_io_put_15g(p, m->gy_um[k], ',');
+            p = sc_io_put_15g_opt(p, m->ugx_um, k, ',');
+            p = sc_io_put_15g_opt(p, m->ugy_um, k, '\n');
+            fwrite(line, 1, (size_t)(p - line), fp);
         }
 }
 
