@@ -1,5 +1,7 @@
 /* selfcal — the command line: simulate, calibrate, build and inspect tables, draw. */
+#include <dlfcn.h>
 #include <errno.h>
+#include <stdlib.h>
 #include <malloc.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -154,8 +156,32 @@ static int finish(int rc)
     return rc;
 }
 
+/* CHOLMOD's supernodal factorization (Debian's SuiteSparse 5.12) opens OpenMP parallel regions of
+ * a fixed four threads for its small scatter loops, whatever OMP_NUM_THREADS says; its work is in
+ * BLAS. On this project's shared 2-core machine the idle threads' futex waits cost the N = 201
+ * grid command 0.2-0.3 s of CPU and 22 000 context switches (docs/grid-lsq.md), so the command
+ * line runs OpenMP regions on one thread (max-active-levels 0). The library loads CHOLMOD with
+ * dlopen at its first grid solve; the command line loads GNU OpenMP's runtime first (the one
+ * Debian's CHOLMOD uses; the same instance is shared) and sets that there: no OpenMP runtime is
+ * linked, nothing happens where none is installed, and the library itself never changes a
+ * process-wide setting. SELFCAL_OPENMP=1 keeps OpenMP's own settings. */
+static void openmp_regions_serial(void)
+{
+    const char *keep = getenv("SELFCAL_OPENMP");
+    if (keep && !strcmp(keep, "1"))
+        return;
+    void *h = dlopen("libgomp.so.1", RTLD_NOW | RTLD_GLOBAL);
+    void *sym = h ? dlsym(h, "omp_set_max_active_levels") : NULL;
+    if (!sym)
+        return;
+    void (*set_levels)(int);
+    memcpy(&set_levels, &sym, sizeof sym);
+    set_levels(0);
+}
+
 int main(int argc, char **argv)
 {
+    openmp_regions_serial();
     sc_afile_cleanup_on_signals(); /* no *.tmpXXXXXX left by Ctrl-C or a service stop */
     /* Large buffers go back to the system when freed: glibc's dynamic mmap threshold would keep
      * the factorization's freed workspaces in the heap, and the grid least squares' peak memory

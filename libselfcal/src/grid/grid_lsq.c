@@ -1625,22 +1625,39 @@ static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a
                 if (u[f] == idx[r])
                     mean[f] += q->eq_w[e] * val[r] / W;
     }
+    /* this part's pairs only (G-G without sig_m, the others with it; the rest 0). With ã_e =
+     * ρ_e − m (m the group's weighted mean row), ã_eᵀΣã_e = ρ_eᵀΣρ_e − 2ρ_eᵀ(Σm) + mᵀΣm: ρ_e has
+     * ROW_MAX entries, so Σm and mᵀΣm once per group and ROW_MAX² terms per equation */
+    int want_gg = sig_m == NULL;
     for (int i = 0; i < nu; ++i)
         for (int j = 0; j < nu; ++j)
-            sub[i * nu + j] = sigma_entry(q, sig_m, u[i], u[j]);
+            sub[i * nu + j] = ((u[i] < q->ng) & (u[j] < q->ng)) == want_gg
+                                  ? sigma_entry(q, sig_m, u[i], u[j])
+                                  : 0.0;
+    double *sm = abar, msm = 0;
+    for (int i = 0; i < nu; ++i) {
+        double v = 0;
+        for (int j = 0; j < nu; ++j)
+            v += sub[i * nu + j] * mean[j];
+        sm[i] = v;
+        msm += mean[i] * v;
+    }
     for (long t = 0; t < cnt; ++t) {
         long e = q->grp_eq[g0 + t];
-        int len = eq_row(q, e, idx, val);
-        for (int f = 0; f < nu; ++f) {
-            abar[f] = -mean[f];
-            for (int r = 0; r < len; ++r)
-                if (u[f] == idx[r])
-                    abar[f] += val[r];
+        int len = eq_row(q, e, idx, val), pos[ROW_MAX];
+        for (int r = 0; r < len; ++r) {
+            int f = 0;
+            while (u[f] != idx[r])
+                ++f;
+            pos[r] = f;
         }
-        double quad = 0;
-        for (int i = 0; i < nu; ++i)
-            for (int j = 0; j < nu; ++j)
-                quad += abar[i] * sub[i * nu + j] * abar[j];
+        double quad = msm;
+        for (int r = 0; r < len; ++r) {
+            double v = -2 * sm[pos[r]];
+            for (int c = 0; c < len; ++c)
+                v += sub[pos[r] * nu + pos[c]] * val[c];
+            quad += val[r] * v;
+        }
         if (sig_m)
             h[e] = q->eq_w[e] / W + q->eq_w[e] * quad;
         else
