@@ -18,7 +18,8 @@
  * OPENBLAS_NUM_THREADS and OMP_NUM_THREADS are 1 unless set (the program re-executes itself so
  * that every child inherits them), and the table says which. Memory is each process's peak RSS.
  * Each side runs REPEAT times (default 3), interleaved; the table keeps each side's fastest run
- * (on the shared machine a run's CPU time moved by up to 40 % from one run to the next, 23-26 Nov).
+ * and the median of the ratios of the runs made side by side (on the shared machine a run's CPU
+ * time moved by up to 40 % from one run to the next, 23-26 Nov, and both sides moved together).
  * Usage: [REPEAT=3] bench_grid_cholmod [N ...]   (default 101 201 301; add 401 for the large
  * target) */
 #include <math.h>
@@ -245,9 +246,18 @@ static void keep_best(figures *best, const figures *run, int first)
 }
 
 /* One N: the data, the matrix, then REPEAT runs of each side, interleaved. */
-static int bench_one(int n, const char *dir, const char *path, int repeat, figures *a,
-                     figures *c)
+static int cmp_double(const void *x, const void *y)
 {
+    double a = *(const double *)x, b = *(const double *)y;
+    return (a > b) - (a < b);
+}
+
+static int bench_one(int n, const char *dir, const char *path, int repeat, figures *a,
+                     figures *c, double *ratio)
+{
+    double ratios[64];
+    if (repeat > 64)
+        repeat = 64;
     bench_files f;
     bench_files_init(&f, n, dir);
     figures e, run;
@@ -258,10 +268,14 @@ static int bench_one(int n, const char *dir, const char *path, int repeat, figur
         if (selfcal_command(&f, &run) != 0)
             return -1;
         keep_best(a, &run, r == 0);
+        double mine = run.seconds;
         if (in_child(&run, 2, n, path) != 0)
             return -1;
         keep_best(c, &run, r == 0);
+        ratios[r] = mine / run.seconds;
     }
+    qsort(ratios, (size_t)repeat, sizeof ratios[0], cmp_double);
+    *ratio = repeat % 2 ? ratios[repeat / 2] : 0.5 * (ratios[repeat / 2 - 1] + ratios[repeat / 2]);
     remove(f.in), remove(f.truth), remove(f.map), remove(f.res), remove(path);
     return 0;
 }
@@ -291,7 +305,7 @@ int main(int argc, char **argv)
            "N = 201 < 1.5 s, N = 401 < 30 s)\n");
     printf("(CPU seconds, both sides with OPENBLAS_NUM_THREADS=%s OMP_NUM_THREADS=%s; wall seconds\n"
            "in brackets; memory: each process's peak RSS, MiB; each side run %d times, interleaved:\n"
-           "the fastest run's time, the largest peak)\n",
+           "the fastest run's time, the largest peak; time x: the median of the runs' paired ratios)\n",
            getenv("OPENBLAS_NUM_THREADS"), getenv("OMP_NUM_THREADS"), repeat);
     printf("%5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s\n", "N", "reduced", "selfcal",
            "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x");
@@ -300,13 +314,14 @@ int main(int argc, char **argv)
         figures a, c;
         memset(&a, 0, sizeof a);
         memset(&c, 0, sizeof c);
-        if (bench_one(n, dir, path, repeat, &a, &c) != 0) {
+        double ratio;
+        if (bench_one(n, dir, path, repeat, &a, &c, &ratio) != 0) {
             printf("%5d failed\n", n);
             continue;
         }
         printf("%5d %8d | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f\n", n,
                2 * n * n + 12, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib, c.ordering,
-               a.seconds / c.seconds, a.mib / c.mib);
+               ratio, a.mib / c.mib);
         fflush(stdout);
     }
     remove(path);
