@@ -225,38 +225,33 @@ static sc_status set_numeric(sc_config *c, const numeric_option *o, const char *
     return SC_OK;
 }
 
-static sc_status set_table(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_table(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     if (copy_str(c->table, sizeof c->table, value) != SC_OK)
         BAD("--table: bad path");
     return SC_OK;
 }
 
-static sc_status set_modbus_tcp(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_modbus_tcp(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     return parse_host_port(c, value, err);
 }
 
-static sc_status set_modbus_rtu(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_modbus_rtu(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     return parse_rtu(c, value, err);
 }
 
-static sc_status set_can(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_can(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     if (copy_str(c->can.ifname, sizeof c->can.ifname, value) != SC_OK)
         BAD("--can: bad interface name '%s'", value);
     c->use_can = 1;
     return SC_OK;
 }
 
-static sc_status set_mode(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_mode(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     if (strcmp(value, "measure") == 0)
         c->mode = SC_CORR_MEASURE;
     else if (strcmp(value, "position") == 0)
@@ -266,9 +261,8 @@ static sc_status set_mode(sc_config *c, const char *key, const char *value, sc_e
     return SC_OK;
 }
 
-static sc_status set_unit_id(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_unit_id(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     unsigned long n;
     if (parse_ulong(value, 255, &n) != SC_OK)
         BAD("--unit-id: expected 0..255, got '%s'", value);
@@ -277,9 +271,8 @@ static sc_status set_unit_id(sc_config *c, const char *key, const char *value, s
     return SC_OK;
 }
 
-static sc_status set_word_order(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_word_order(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     if (strcmp(value, "high-first") == 0 || strcmp(value, "big") == 0)
         c->word_order = SC_WORD_HIGH_FIRST;
     else if (strcmp(value, "low-first") == 0 || strcmp(value, "little") == 0)
@@ -289,9 +282,8 @@ static sc_status set_word_order(sc_config *c, const char *key, const char *value
     return SC_OK;
 }
 
-static sc_status set_syslog(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_syslog(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     if (is_yes(value))
         c->use_syslog = 1;
     else if (is_no(value))
@@ -301,18 +293,15 @@ static sc_status set_syslog(sc_config *c, const char *key, const char *value, sc
     return SC_OK;
 }
 
-static sc_status set_syslog_socket(sc_config *c, const char *key, const char *value,
-                                   sc_error *err)
+static sc_status set_syslog_socket(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     if (copy_str(c->syslog_socket, sizeof c->syslog_socket, value) != SC_OK)
         BAD("--syslog-socket: bad path '%s'", value);
     return SC_OK;
 }
 
-static sc_status set_log_level(sc_config *c, const char *key, const char *value, sc_error *err)
+static sc_status set_log_level(sc_config *c, const char *value, sc_error *err)
 {
-    (void)key;
     static const char *const levels[] = {"error", "warning", "notice", "info", "debug"};
     for (int i = 0; i < 5; i++) {
         if (strcmp(value, levels[i]) == 0) {
@@ -324,8 +313,7 @@ static sc_status set_log_level(sc_config *c, const char *key, const char *value,
 }
 
 /* The other options, each with its own setter. */
-typedef sc_status (*option_setter)(sc_config *c, const char *key, const char *value,
-                                   sc_error *err);
+typedef sc_status (*option_setter)(sc_config *c, const char *value, sc_error *err);
 
 static const struct {
     const char *key;
@@ -352,7 +340,7 @@ sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_err
             return set_numeric(c, &numeric_options[i], value, err);
     for (size_t i = 0; i < sizeof other_options / sizeof other_options[0]; i++)
         if (strcmp(key, other_options[i].key) == 0)
-            return other_options[i].set(c, key, value, err);
+            return other_options[i].set(c, value, err);
     BAD("unknown option '%s'", key);
 }
 

@@ -138,9 +138,26 @@ static double peak_to_valley(const double *v, int n)
     return hi >= lo ? hi - lo : NAN;
 }
 
+/* The figures the summary and the results both state, computed once. */
+typedef struct profile_figures {
+    double umax, urms, fpv, frms, eypv, eyrms;
+} profile_figures;
+
+static profile_figures figures_of(const sc_profile_data *d, const profile_run *r)
+{
+    profile_figures g;
+    double mx;
+    g.urms = rms_max(r->uf, d->n, &g.umax);
+    g.fpv = peak_to_valley(r->f, d->n);
+    g.eypv = peak_to_valley(r->ey, d->n);
+    g.frms = rms_max(r->f, d->n, &mx);
+    g.eyrms = rms_max(r->ey, d->n, &mx);
+    return g;
+}
+
 /* Title and the summary paragraph. */
 static void report_summary(FILE *fp, const char *in, const char *method_s,
-                           const sc_profile_data *d, const profile_run *r)
+                           const sc_profile_data *d, const profile_figures *g)
 {
     const int n = d->n;
     char title[600];
@@ -149,9 +166,7 @@ static void report_summary(FILE *fp, const char *in, const char *method_s,
     fputs("<h1>", fp);
     html_esc(fp, title);
     fputs("</h1>\n", fp);
-    double umax;
-    rms_max(r->uf, n, &umax);
-    double fpv = peak_to_valley(r->f, n);
+    double umax = g->umax, fpv = g->fpv;
     fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d points, s = %g mm, "
                 "d1 = %d, d2 = %d. Straightness of f (peak to valley) %.4g µm",
             method_s, n, d->s_mm, d->d[0], d->d[1], fpv);
@@ -266,12 +281,12 @@ static sc_status section_residuals(FILE *fp, const sc_profile_data *d, const pro
 
 /* 5. Results: the table and the profile figure; x: the abscissae (mm). */
 static sc_status section_results(FILE *fp, const char *method_s, const sc_profile_data *d,
-                                 const profile_run *r, double *x, sc_error *err)
+                                 const profile_run *r, const profile_figures *g, double *x,
+                                 sc_error *err)
 {
     const int n = d->n, d1 = d->d[0], d2 = d->d[1];
-    double umax, urms = rms_max(r->uf, n, &umax);
-    double fpv = peak_to_valley(r->f, n), eypv = peak_to_valley(r->ey, n);
-    double frms_mx, frms = rms_max(r->f, n, &frms_mx), eymx, eyrms = rms_max(r->ey, n, &eymx);
+    double umax = g->umax, urms = g->urms, fpv = g->fpv, eypv = g->eypv;
+    double frms = g->frms, eyrms = g->eyrms;
     fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<table>\n<tr><th class=\"l\">quantity</th>"
           "<th>value</th><th class=\"l\">unit</th></tr>\n",
           fp);
@@ -330,7 +345,8 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
                               char **argv, sc_error *err)
 {
     const int n = d->n;
-    report_summary(fp, in, method_s, d, r);
+    profile_figures g = figures_of(d, r);
+    report_summary(fp, in, method_s, d, &g);
     section_setup_method(fp, method_s, d);
     section_noise(fp, &r->sol);
     sc_status st = section_residuals(fp, d, r, err);
@@ -341,7 +357,7 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     for (int i = 0; i < n; ++i)
         x[i] = i * d->s_mm;
-    st = section_results(fp, method_s, d, r, x, err);
+    st = section_results(fp, method_s, d, r, &g, x, err);
     const char *inputs[1] = {in};
     const char *roles[1] = {"measurement (selfcal-profile v1)"};
     if (st == SC_OK)

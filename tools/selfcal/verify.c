@@ -129,7 +129,7 @@ static sc_status verify_work_alloc(size_t nn, size_t nres, verify_work *w, sc_er
     w->block = malloc(8 * nn * sizeof(double));
     w->idx = malloc(nn * sizeof(long));
     /* zeroed: stats_of reads only the pm filled, but GCC -O2 cannot see it */
-    w->pooled = calloc(8 * nres + 1, sizeof(double));
+    w->pooled = calloc(6 * nres + 1, sizeof(double)); /* pbx .. ppy below */
     if (!w->block || !w->idx || !w->pooled) {
         verify_work_free(w);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
