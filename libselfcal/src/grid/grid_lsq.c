@@ -1701,6 +1701,28 @@ static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *e
     return SC_OK;
 }
 
+/* sig_m (nm columns of n_red, zeroed) := Σ's misalignment columns, one refinement step: the
+ * pinned misalignments' columns are 0 (Σ is 0 on pins), so only the others are solved, packed
+ * in front, then moved to their places (each to a place at or after its own). */
+static int misalignment_columns(const sc_grid_lsq_plan *q, double *sig_m, double *work)
+{
+    size_t n = (size_t)q->n_red;
+    int at[SC_GRID_MAX_VIEWS * 5], nfree = 0;
+    for (int t = 0; t < q->nm; ++t)
+        if (!q->pinned[q->ng + t])
+            at[nfree++] = t;
+    for (int c = 0; c < nfree; ++c)
+        sig_m[(size_t)c * n + (size_t)(q->ng + at[c])] = 1;
+    if (pinned_solve_cols(q, sig_m, nfree, 1, work) != 0)
+        return -1;
+    for (int c = nfree - 1; c >= 0; --c)
+        if (at[c] != c) {
+            memcpy(sig_m + (size_t)at[c] * n, sig_m + (size_t)c * n, sizeof(double) * n);
+            memset(sig_m + (size_t)c * n, 0, sizeof(double) * n);
+        }
+    return 0;
+}
+
 /* Everything of an identifying plan that does not depend on the measured values: the gauge
  * columns W = ΣU and the misalignment columns of Σ (blocked solves on the factor), the σ of O,
  * R and the misalignments, then the selected inverse for every node's σ and every leverage.
@@ -1720,9 +1742,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     }
     double scale[4];
     gauge_basis(q, U, scale);
-    for (int t = 0; t < q->nm; ++t)
-        sig_m[(size_t)t * n + (size_t)(q->ng + t)] = 1;
-    if (gauge_columns(q, U, W, work) != 0 || pinned_solve_cols(q, sig_m, q->nm, 1, work) != 0) {
+    if (gauge_columns(q, U, W, work) != 0 || misalignment_columns(q, sig_m, work) != 0) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
         goto out;
     }
