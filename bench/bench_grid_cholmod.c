@@ -16,12 +16,15 @@
  * Time is CPU time (user + system, all threads): on this shared 2-core machine the wall clock
  * mostly measures the other builds (printed too). Both sides run with the same thread settings:
  * OPENBLAS_NUM_THREADS and OMP_NUM_THREADS are 1 unless set (the program re-executes itself so
- * that every child inherits them), and the table says which. Memory is each process's peak RSS.
+ * that every child inherits them), and the table says which; OpenMP's parallel regions run on
+ * one thread on both sides (CHOLMOD opens four-thread regions whatever OMP_NUM_THREADS says). Memory is each process's peak RSS.
  * Each side runs REPEAT times (default 3), interleaved; the table keeps each side's fastest run
  * and the median of the ratios of the runs made side by side (on the shared machine a run's CPU
  * time moved by up to 40 % from one run to the next, 23-26 Nov, and both sides moved together).
  * Usage: [REPEAT=3] bench_grid_cholmod [N ...]   (default 101 201 301; add 401 for the large
  * target) */
+#define _GNU_SOURCE /* RTLD_DEFAULT */
+#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -127,8 +130,23 @@ static void export_child(int n, const char *path)
     sc_grid_lsq_plan_destroy(q);
 }
 
-static void cholmod_child(const char *path, figures *out)
+/* The CHOLMOD side runs OpenMP regions on one thread, as the selfcal command line does
+ * (tools/selfcal/main.c): with an idle second core, CHOLMOD's four-thread regions spin there and
+ * their CPU time would flatter the ratio; on a busy one they wait. Same settings on both sides. */
+static void openmp_regions_serial(void)
 {
+    void *sym = dlsym(RTLD_DEFAULT, "omp_set_max_active_levels");
+    if (!sym)
+        return;
+    void (*set_levels)(int);
+    memcpy(&set_levels, &sym, sizeof sym);
+    set_levels(0);
+}
+
+static void cholmod_child(const char *path, int serial_openmp, figures *out)
+{
+    if (serial_openmp)
+        openmp_regions_serial();
     FILE *f = fopen(path, "rb");
     int n_red;
     if (!f || fread(&n_red, sizeof n_red, 1, f) != 1)
@@ -167,7 +185,8 @@ static void cholmod_child(const char *path, figures *out)
     cholmod_finish(&c);
 }
 
-/* Run the export (which = 1) or CHOLMOD (2) in a child; figures come back through a pipe. */
+/* Run the export (which = 1), CHOLMOD with OpenMP regions on one thread (2) or as shipped (3) in
+ * a child; figures come back through a pipe. */
 static int in_child(figures *out, int which, int n, const char *path)
 {
     int fd[2];
@@ -181,7 +200,7 @@ static int in_child(figures *out, int which, int n, const char *path)
         if (which == 1)
             export_child(n, path);
         else
-            cholmod_child(path, &fg);
+            cholmod_child(path, which == 2, &fg);
         if (write(fd[1], &fg, sizeof fg) != (ssize_t)sizeof fg)
             _exit(1);
         _exit(0);
@@ -253,7 +272,7 @@ static int cmp_double(const void *x, const void *y)
 }
 
 static int bench_one(int n, const char *dir, const char *path, int repeat, figures *a,
-                     figures *c, double *ratio)
+                     figures *c, figures *shipped, double *ratio)
 {
     double ratios[64];
     if (repeat > 64)
@@ -273,6 +292,9 @@ static int bench_one(int n, const char *dir, const char *path, int repeat, figur
             return -1;
         keep_best(c, &run, r == 0);
         ratios[r] = mine / run.seconds;
+        if (in_child(&run, 3, n, path) != 0)
+            return -1;
+        keep_best(shipped, &run, r == 0);
     }
     qsort(ratios, (size_t)repeat, sizeof ratios[0], cmp_double);
     *ratio = repeat % 2 ? ratios[repeat / 2] : 0.5 * (ratios[repeat / 2 - 1] + ratios[repeat / 2]);
@@ -307,21 +329,26 @@ int main(int argc, char **argv)
            "in brackets; memory: each process's peak RSS, MiB; each side run %d times, interleaved:\n"
            "the fastest run's time, the largest peak; time x: the median of the runs' paired ratios)\n",
            getenv("OPENBLAS_NUM_THREADS"), getenv("OMP_NUM_THREADS"), repeat);
-    printf("%5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s\n", "N", "reduced", "selfcal",
-           "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x");
+    printf("(CHOLMOD: OpenMP regions on one thread, as selfcal's command line runs them: the target's\n"
+           "ratios; shipped: CHOLMOD's own four-thread regions, whose idle threads spin or wait;\n"
+           "its CPU s and the ratio of the fastest runs, for reference)\n");
+    printf("%5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s | %8s %6s\n", "N", "reduced",
+           "selfcal", "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x",
+           "shipped", "x");
     for (int t = 0; t < count; ++t) {
         int n = ns[t];
-        figures a, c;
+        figures a, c, sh;
         memset(&a, 0, sizeof a);
         memset(&c, 0, sizeof c);
+        memset(&sh, 0, sizeof sh);
         double ratio;
-        if (bench_one(n, dir, path, repeat, &a, &c, &ratio) != 0) {
+        if (bench_one(n, dir, path, repeat, &a, &c, &sh, &ratio) != 0) {
             printf("%5d failed\n", n);
             continue;
         }
-        printf("%5d %8d | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f\n", n,
-               2 * n * n + 12, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib, c.ordering,
-               ratio, a.mib / c.mib);
+        printf("%5d %8d | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f | %8.3f %6.2f\n",
+               n, 2 * n * n + 12, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib, c.ordering,
+               ratio, a.mib / c.mib, sh.seconds, a.seconds / sh.seconds);
         fflush(stdout);
     }
     remove(path);
