@@ -179,9 +179,25 @@ static void openmp_regions_serial(void)
     set_levels(0);
 }
 
+/* The commands that factor a grid's normal matrix (grid, plan, report grid) and only they: OpenMP
+ * regions on one thread (above), and large buffers handed back to the system when freed: glibc's
+ * dynamic mmap threshold would keep the factorization's freed workspaces in the heap, and the grid
+ * least squares' peak memory would carry them (+60 MB at N = 401, bench_grid_cholmod). Not the
+ * others: no OpenMP runtime loaded at their start, and FFTW's buffers, mapped and unmapped at
+ * every transform with that threshold, made `profile --method dft` at N = 10⁶ spend 0.6 s
+ * faulting pages in (1.6 s instead of 1.1 s). */
+static int run_command(const command *c, int argc, char **argv)
+{
+    if (!strcmp(c->name, "grid") || !strcmp(c->name, "plan") ||
+        (!strcmp(c->name, "report") && c->sub && !strcmp(c->sub, "grid"))) {
+        openmp_regions_serial();
+        mallopt(M_MMAP_THRESHOLD, 256 * 1024);
+    }
+    return finish(c->run(argc, argv));
+}
+
 int main(int argc, char **argv)
 {
-    openmp_regions_serial();
     sc_afile_cleanup_on_signals(); /* no *.tmpXXXXXX left by Ctrl-C or a service stop */
     if (argc < 2) {
         fprintf(stderr, "selfcal: a COMMAND is needed (selfcal --help lists them)\n");
@@ -199,19 +215,10 @@ int main(int argc, char **argv)
         const command *c = &commands[k];
         if (!c->run || strcmp(argv[1], c->name) != 0)
             continue;
-        /* The commands that factor a grid's normal matrix (grid, plan, report grid) hand large
-         * buffers back to the system when freed: glibc's dynamic mmap threshold would keep the
-         * factorization's freed workspaces in the heap, and the grid least squares' peak memory
-         * would carry them (+60 MB at N = 401, bench_grid_cholmod). Not the others: FFTW's
-         * buffers, mapped and unmapped at every transform, made `profile --method dft` at
-         * N = 10⁶ spend 0.6 s faulting pages in (1.6 s instead of 1.1 s). */
-        if (!strcmp(c->name, "grid") || !strcmp(c->name, "plan") ||
-            (!strcmp(c->name, "report") && argc >= 3 && !strcmp(argv[2], "grid")))
-            mallopt(M_MMAP_THRESHOLD, 256 * 1024);
         if (!c->sub)
-            return finish(c->run(argc - 1, argv + 1));
+            return run_command(c, argc - 1, argv + 1);
         if (argc >= 3 && !strcmp(argv[2], c->sub))
-            return finish(c->run(argc - 2, argv + 2));
+            return run_command(c, argc - 2, argv + 2);
     }
     /* a known first word whose second word is missing or unknown: list the choices */
     int known = 0;

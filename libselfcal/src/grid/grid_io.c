@@ -111,8 +111,7 @@ static sc_status finish(sc_afile *f, sc_error *err)
 static void put_num(FILE *fp, const double *a, int k)
 {
     char b[SC_NUMBER_BUF];
-    if (a && isfinite(a[k]))
-        fwrite(b, 1, (size_t)sc_number_format_15g(a[k], b), fp);
+    fwrite(b, 1, (size_t)(sc_io_put_15g_opt(b, a, (size_t)k, 0) - b), fp);
 }
 
 void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)

@@ -1608,9 +1608,10 @@ static double sigma_entry(const sc_grid_lsq_plan *q, const double *sig_m, int i,
 
 /* Leverage of every equation of group a into h (by equation index), in two parts: with sig_m
  * h_e = w_e/W_a + w_e·(the part of ãᵀΣã with a misalignment), then without it h_e += w_e·(the G
- * part), so that the misalignment columns and the selected inverse are never held together. */
+ * part), so that the misalignment columns and the selected inverse are never held together.
+ * u: the group's unknowns; vec: 2 vectors over them (Σm, then m); sub: Σ's block on them. */
 static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a, int *u,
-                           double *abar, double *sub, double *h)
+                           double *vec, double *sub, double *h)
 {
     long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
     int idx[ROW_MAX], nu = 0;
@@ -1627,7 +1628,7 @@ static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a
                 u[nu++] = idx[r];
         }
     }
-    double *mean = abar + nu;
+    double *mean = vec + nu;
     memset(mean, 0, sizeof(double) * (size_t)nu);
     for (long t = 0; t < cnt; ++t) {
         long e = q->grp_eq[g0 + t];
@@ -1646,7 +1647,7 @@ static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a
             sub[i * nu + j] = ((u[i] < q->ng) & (u[j] < q->ng)) == want_gg
                                   ? sigma_entry(q, sig_m, u[i], u[j])
                                   : 0.0;
-    double *sm = abar, msm = 0;
+    double *sm = vec, msm = 0;
     for (int i = 0; i < nu; ++i) {
         double v = 0;
         for (int j = 0; j < nu; ++j)
@@ -1686,18 +1687,18 @@ static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *e
             maxg = (int)(q->grp_ptr[a + 1] - q->grp_ptr[a]);
     int mu = ROW_MAX * maxg + 1;
     int *u = malloc(sizeof(int) * (size_t)mu);
-    double *abar = malloc(sizeof(double) * 2 * (size_t)mu);
+    double *vec = malloc(sizeof(double) * 2 * (size_t)mu);
     double *sub = malloc(sizeof(double) * (size_t)mu * mu);
     if (!q->eq_h)
         q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1));
-    if (!u || !abar || !sub || !q->eq_h) {
-        free(u), free(abar), free(sub);
+    if (!u || !vec || !sub || !q->eq_h) {
+        free(u), free(vec), free(sub);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
     }
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] > q->grp_ptr[a])
-            group_leverage(q, sig_m, a, u, abar, sub, q->eq_h);
-    free(u), free(abar), free(sub);
+            group_leverage(q, sig_m, a, u, vec, sub, q->eq_h);
+    free(u), free(vec), free(sub);
     return SC_OK;
 }
 

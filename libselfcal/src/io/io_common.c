@@ -138,7 +138,7 @@ char *sc_io_put_15g(char *p, double v, char sep)
 char *sc_io_put_15g_opt(char *p, const double *a, size_t k, char sep)
 {
     if (a && isfinite(a[k]))
-        p += sc_number_format_15g(a[k], p);
+        return sc_io_put_15g(p, a[k], sep);
     if (sep)
         *p++ = sep;
     return p;
