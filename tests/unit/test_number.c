@@ -36,6 +36,17 @@ static double random_double(sc_rng *r)
     }
 }
 
+/* A value of one of three kinds: 0 random bits, 1 few digits (as measurements have), 2 the
+ * result of arithmetic, of any magnitude. */
+static double sample_value(sc_rng *r, int kind)
+{
+    if (kind == 0)
+        return random_double(r);
+    if (kind == 1)
+        return round(sc_rng_normal(r) * 1e6) / pow(10, (int)(sc_rng_uniform(r) * 12));
+    return sc_rng_normal(r) * pow(10, (int)(sc_rng_uniform(r) * 40) - 20);
+}
+
 static int parse_str(const char *s, double *v)
 {
     return sc_number_parse(s, strlen(s), v);
@@ -53,13 +64,7 @@ static void test_format_round_trip(void **st)
     sc_rng_seed(&r, 2026);
     char buf[SC_NUMBER_BUF], ref[64];
     for (int t = 0; t < 300000; ++t) {
-        double v;
-        if (t % 3 == 0)
-            v = random_double(&r);
-        else if (t % 3 == 1) /* values with few digits, as measurements have */
-            v = round(sc_rng_normal(&r) * 1e6) / pow(10, (int)(sc_rng_uniform(&r) * 12));
-        else /* results of arithmetic, of every magnitude */
-            v = sc_rng_normal(&r) * pow(10, (int)(sc_rng_uniform(&r) * 40) - 20);
+        double v = sample_value(&r, t % 3);
         int len = sc_number_format(v, buf);
         assert_int_equal(len, (int)strlen(buf));
         assert_true(len < SC_NUMBER_BUF);
@@ -281,9 +286,9 @@ static void test_format_15g_vs_printf(void **st)
     for (int t = 0; t < 400000; ++t) {
         double v;
         switch (t % 6) {
-        case 0: v = random_double(&r); break;
-        case 1: v = round(sc_rng_normal(&r) * 1e6) / pow(10, (int)(sc_rng_uniform(&r) * 12)); break;
-        case 2: v = sc_rng_normal(&r) * pow(10, (int)(sc_rng_uniform(&r) * 40) - 20); break;
+        case 0:
+        case 1:
+        case 2: v = sample_value(&r, t % 6); break;
         case 3: /* around 10^k - 5·10^(k-16): where rounding carries into a new decade */
             v = pow(10, (int)(sc_rng_uniform(&r) * 30) - 12) * (1 - 5e-16);
             v = nextafter(v, (t / 6) % 2 ? INFINITY : 0);
