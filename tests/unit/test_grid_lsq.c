@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../../libselfcal/src/grid/grid_lsq_internal.h"
 #include "selfcal/grid_lsq.h"
 #include "test_grid_lsq_util.h"
 
@@ -87,6 +88,32 @@ static void test_recovery_rich(void **s)
     (void)s;
     for (size_t i = 0; i < sizeof sizes / sizeof *sizes; ++i)
         check_recovery(sizes[i], PLAN_RICH, 300 + i);
+}
+
+/* The plan's node σ and leverages (selected inverse, its whole misalignment columns, the 9
+ * blocked solves) against solves refined with long-double residuals, at sizes the dense
+ * reference (test_grid_lsq_dense) cannot reach. */
+static void test_reference_accuracy(void **s)
+{
+    (void)s;
+    const int kinds[] = {PLAN_YE, PLAN_PETRO, PLAN_RICH}, n = 61, ns = 24;
+    for (int t = 0; t < 3; ++t) {
+        sc_grid_plan p;
+        tu_plan(&p, n, kinds[t]);
+        sc_grid_lsq_plan *q = NULL;
+        sc_error err;
+        assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
+        int node[ns];
+        long eq[ns];
+        double sref[ns], splan[ns], href[ns], hplan[ns];
+        assert_int_equal(sc_grid_lsq_reference(q, ns, node, sref, splan, eq, href, hplan), 0);
+        for (int k = 0; k < ns; ++k) {
+            assert_true(sref[k] > 0 && href[k] > 0 && href[k] < 1);
+            assert_true(fabs(splan[k] - sref[k]) <= 1e-10 * sref[k]);
+            assert_true(fabs(hplan[k] - href[k]) <= 1e-10 * href[k]);
+        }
+        sc_grid_lsq_plan_destroy(q);
+    }
 }
 
 static long plan_free_dof(int n, int kind, int *identifiable)
@@ -490,6 +517,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_recovery_ye),    cmocka_unit_test(test_recovery_petro),
         cmocka_unit_test(test_recovery_rich),  cmocka_unit_test(test_plan_cases),
+        cmocka_unit_test(test_reference_accuracy),
         cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),

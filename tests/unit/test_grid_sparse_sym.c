@@ -68,11 +68,11 @@ static void check_solve_selinv(int n, int m, int per_row, int border, unsigned s
     double *Ax;
     upper_csc(M, n, &Ap, &Ai, &Ax);
     sc_spsym *f = NULL;
-    assert_int_equal(sc_spsym_analyze(n, Ap, Ai, &f), 0);
+    assert_int_equal(sc_spsym_analyze(n, Ap, Ai, NULL, &f), 0);
     assert_int_equal(sc_spsym_factor(f, Ax, 1e-10), 0);
     assert_int_equal(sc_spsym_nullity(f), 0);
     assert_true(isnan(sc_spsym_inv(f, 0, 0))); /* not computed yet */
-    assert_int_equal(sc_spsym_selinv(f, -1), 0);
+    assert_int_equal(sc_spsym_selinv(f, -1, NULL, 0), 0);
     /* column k of the inverse by a solve; compare its diagonal and the pattern entries */
     double *x = malloc(sizeof(double) * n), *y = malloc(sizeof(double) * n);
     double worst = 0;
@@ -132,6 +132,81 @@ static void test_solve_selinv(void **s)
     check_solve_selinv(1, 1, 1, 0, 33);
 }
 
+/* Whole columns of the inverse from the selected inverse: for the border unknowns a hint orders
+ * last (within the recurrences), and for unknowns anywhere else (by solves); both against
+ * single solves. A grouped hint (pairs) gives the same solutions as CHOLMOD's own order. */
+static void check_tracked_columns(int n, int border, int group, unsigned seed)
+{
+    sc_rng r;
+    sc_rng_seed(&r, seed);
+    double *M = random_gram(2 * n, n, 3, border, 0.5, &r);
+    long *Ap;
+    int *Ai;
+    double *Ax;
+    upper_csc(M, n, &Ap, &Ai, &Ax);
+    int last[16], other[3] = {0, n / 2, n - border - 1};
+    for (int t = 0; t < border; ++t)
+        last[t] = n - 1 - t; /* in reverse: the caller's order is not the pivots' order */
+    int n_grouped = (n - border) / group * group;
+    sc_spsym_hint hint = {group, n_grouped, last, border};
+    double *x = malloc(sizeof(double) * n), *x0 = malloc(sizeof(double) * n);
+    for (int pass = 0; pass < 2; ++pass) {
+        sc_spsym *f = NULL, *f0 = NULL;
+        assert_int_equal(sc_spsym_analyze(n, Ap, Ai, &hint, &f), 0);
+        assert_int_equal(sc_spsym_factor(f, Ax, 1e-10), 0);
+        assert_int_equal(sc_spsym_analyze(n, Ap, Ai, NULL, &f0), 0);
+        assert_int_equal(sc_spsym_factor(f0, Ax, 1e-10), 0);
+        sc_spsym_stats st;
+        sc_spsym_get_stats(f, &st);
+        assert_int_equal(st.ordering, SC_SPSYM_ORDER_GROUPED_AMD);
+        assert_string_equal(sc_spsym_ordering_name(st.ordering),
+                            "AMD of the grouped graph, given unknowns last (CHOLMOD)");
+        const int *cols = pass == 0 ? last : other;
+        int nc = pass == 0 ? border : 3;
+        assert_true(isnan(sc_spsym_inv_col(f, 0, 0)));
+        assert_int_equal(sc_spsym_selinv(f, -1, cols, nc), 0);
+        sc_spsym_get_stats(f, &st);
+        assert_int_equal(st.tracked_by_solves, pass); /* the last pivots: in the recurrences */
+        double worst = 0;
+        for (int t = 0; t < nc; ++t) {
+            memset(x, 0, sizeof(double) * n);
+            x[cols[t]] = 1;
+            memcpy(x0, x, sizeof(double) * n);
+            assert_int_equal(sc_spsym_solve(f, x, 1), 0);
+            assert_int_equal(sc_spsym_solve(f0, x0, 1), 0);
+            for (int i = 0; i < n; ++i) {
+                double z = sc_spsym_inv_col(f, t, i), scale = fabs(x[cols[t]]);
+                worst = fmax(worst, fabs(z - x[i]) / scale);
+                worst = fmax(worst, fabs(x0[i] - x[i]) / scale);
+            }
+            /* on the pattern, the two parts of the selected inverse agree */
+            assert_true(fabs(sc_spsym_inv(f, cols[t], cols[t]) - sc_spsym_inv_col(f, t, cols[t])) <=
+                        1e-12 * fabs(x[cols[t]]));
+        }
+        assert_true(worst < 1e-10);
+        assert_true(isnan(sc_spsym_inv_col(f, nc, 0)));
+        sc_spsym_drop_inverse(f);
+        assert_true(isnan(sc_spsym_inv_col(f, 0, 0)));
+        sc_spsym_destroy(f);
+        sc_spsym_destroy(f0);
+    }
+    /* a bad hint (an unknown twice) is refused */
+    int twice[2] = {n - 1, n - 1};
+    sc_spsym_hint bad = {1, 0, twice, 2};
+    sc_spsym *f = NULL;
+    assert_int_equal(sc_spsym_analyze(n, Ap, Ai, &bad, &f), -1);
+    assert_null(f);
+    free(x), free(x0), free(Ap), free(Ai), free(Ax), free(M);
+}
+
+static void test_tracked_columns(void **s)
+{
+    (void)s;
+    check_tracked_columns(300, 9, 1, 41);
+    check_tracked_columns(400, 12, 2, 42);
+    check_tracked_columns(60, 1, 2, 43);
+}
+
 /* Semidefinite: M = BᵀB with B of rank n - 5 (5 columns are combinations of others). */
 static void test_rank_decision(void **s)
 {
@@ -156,7 +231,7 @@ static void test_rank_decision(void **s)
     double *Ax;
     upper_csc(M, n, &Ap, &Ai, &Ax);
     sc_spsym *f = NULL;
-    assert_int_equal(sc_spsym_analyze(n, Ap, Ai, &f), 0);
+    assert_int_equal(sc_spsym_analyze(n, Ap, Ai, NULL, &f), 0);
     assert_int_equal(sc_spsym_factor(f, Ax, 1e-10), 0);
     assert_int_equal(sc_spsym_nullity(f), 5);
     sc_spsym_stats st;
@@ -189,6 +264,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_solve_selinv),
         cmocka_unit_test(test_rank_decision),
+        cmocka_unit_test(test_tracked_columns),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -538,10 +538,24 @@ static sc_status assemble_matrix(sc_grid_lsq_plan *q, const long *rp, const int 
     return SC_OK;
 }
 
+/* The free (unpinned) misalignment unknowns into at (original indices, ascending); their count. */
+static int free_misalignments(const sc_grid_lsq_plan *q, int *at)
+{
+    int k = 0;
+    for (int t = 0; t < q->nm; ++t)
+        if (!q->pinned[q->ng + t])
+            at[k++] = q->ng + t;
+    return k;
+}
+
 /* Order (once) and factor the pinned reduced matrix; the pinned system's nullity. */
 static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
 {
-    int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &q->f);
+    /* a node's two components share their couplings; the free misalignments couple to nearly
+     * every node of their view: ordered last, their columns of Σ come from the selected inverse */
+    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last);
+    sc_spsym_hint hint = {2, q->ng, last, n_last};
+    int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
     if (arc == -2)
         return sc_error_set(err, SC_E_IO, NULL, 0,
                             "the sparse solver library libcholmod.so.3 (SuiteSparse CHOLMOD) "
@@ -623,19 +637,6 @@ static int pinned_solve(const sc_grid_lsq_plan *q, double *X, int ncol, int refi
     return 0;
 }
 
-/* pinned_solve of ncol columns in blocks of SOLVE_CHUNK; work: 2·n_red·SOLVE_CHUNK doubles. */
-static int pinned_solve_cols(const sc_grid_lsq_plan *q, double *X, int ncol, int refine,
-                             double *work)
-{
-    size_t n = (size_t)q->n_red;
-    for (int c0 = 0; c0 < ncol; c0 += SOLVE_CHUNK) {
-        int k = ncol - c0 < SOLVE_CHUNK ? ncol - c0 : SOLVE_CHUNK;
-        if (pinned_solve(q, X + (size_t)c0 * n, k, refine, work, work + n * (size_t)k) != 0)
-            return -1;
-    }
-    return 0;
-}
-
 /* U (4 x ng, row after row): the orthonormal basis of G's gauge patterns (translations, rotation,
  * magnification) that sc_grid_gauge_stage projects out. */
 static void gauge_basis(const sc_grid_lsq_plan *q, double *U, double scale[4])
@@ -657,15 +658,6 @@ static void gauge_basis(const sc_grid_lsq_plan *q, double *U, double scale[4])
         U[2 * ng + 2 * k] = -y * s1, U[2 * ng + 2 * k + 1] = x * s1;
         U[3 * ng + 2 * k] = x * s1, U[3 * ng + 2 * k + 1] = y * s1;
     }
-}
-
-/* W = Σ U (4 columns of n_red, 2 refinement steps), U as gauge_basis. */
-static int gauge_columns(const sc_grid_lsq_plan *q, const double *U, double *W, double *work)
-{
-    for (int c = 0; c < 4; ++c)
-        for (int i = 0; i < q->n_red; ++i)
-            W[(size_t)c * q->n_red + i] = i < q->ng ? U[(size_t)c * q->ng + i] : 0.0;
-    return pinned_solve_cols(q, W, 4, 2, work);
 }
 
 /* Per-node std/σ_r: diag(P⊥ Σ P⊥) = diag(Σ) − 2 diag(U ᵀW) + diag(Uᵀ (UᵀW) U), Σ = pinned
@@ -1433,7 +1425,7 @@ static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, 
 }
 
 /* uᵀ Σ u in two halves: z_x = S⁻¹(u_x − Σ_a (u_A[a]/W_a) Σ_e w_e ρ_e), then z_A[a] = (u_A[a] −
- * Σ_e w_e ρ_e·z_x)/W_a (functional_quad). This subtracts the A part of the right-hand side from z. */
+ * Σ_e w_e ρ_e·z_x)/W_a (functional_form). This subtracts the A part of the right-hand side from z. */
 static void a_correction(const sc_grid_lsq_plan *q, const double *uA, double *z)
 {
     int idx[ROW_MAX];
@@ -1454,8 +1446,11 @@ static void a_correction(const sc_grid_lsq_plan *q, const double *uA, double *z)
     }
 }
 
-static double functional_quad(const sc_grid_lsq_plan *q, const double *ux, const double *uA,
-                              const double *z)
+/* The affine form behind uᵀΣu (a_correction): uxᵀz − Σ_a u_A[a]·(Σ_e w_e ρ_e·z)/W_a, plus the
+ * constant Σ_a u_A[a]²/W_a when with_const. Linear in z, so a z combined from several columns of
+ * Σ can be taken column by column. */
+static double functional_form(const sc_grid_lsq_plan *q, const double *ux, const double *uA,
+                              const double *z, int with_const)
 {
     int idx[ROW_MAX];
     double val[ROW_MAX], var = 0;
@@ -1473,9 +1468,9 @@ static double functional_quad(const sc_grid_lsq_plan *q, const double *ux, const
             for (int r = 0; r < len; ++r)
                 proj += q->eq_w[e] * val[r] * z[idx[r]];
         }
-        var += uA[a] * (uA[a] - proj) / W;
+        var += uA[a] * ((with_const ? uA[a] : 0.0) - proj) / W;
     }
-    return var > 0 ? var : 0.0;
+    return var;
 }
 
 /* Functional f of the plan's list: 0 O, 1 R (as sc_grid_first_order), then misalignment
@@ -1522,60 +1517,80 @@ static void functional_basis_rhs(const sc_grid_lsq_plan *q, double r2, double *f
 }
 
 /* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
- * u = Qᵀ f = f − Σ_t γ_t C_t. By linearity Σ's action on u's right-hand side combines solves the
- * plan has anyway (W = ΣU, U the C_t on G scaled; the misalignment columns sig_m) with 5 more
- * (functional_basis_rhs), instead of one solve per functional. work: 2·n_red·SOLVE_CHUNK. */
-static sc_status functional_variances(sc_grid_lsq_plan *q, const double *W, const double scale[4],
-                                      const double *sig_m, double *work, sc_error *err)
+ * u = Qᵀ f = f − Σ_t γ_t C_t. By linearity Σ's action on u's right-hand side combines columns the
+ * plan has: W = ΣU (U the C_t on G scaled), B = Σ·functional_basis_rhs (5 columns) and, for a
+ * misalignment, its own column of Σ (from the selected inverse), instead of one solve per
+ * functional. In two phases: before the selected inverse (phase 0: O and R whole, the
+ * misalignments' part from W and B into part[]), after it (phase 1: each misalignment's own
+ * column added). */
+static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const double *W,
+                                      const double scale[4], const double *B, double *part,
+                                      sc_error *err)
 {
     double Minv_T[49], gam[7];
-    for (int t = 0; t < q->nm; ++t)
-        q->var_m[t] = NAN;
+    if (phase == 0)
+        for (int t = 0; t < q->nm; ++t)
+            q->var_m[t] = NAN;
     /* nullity_T > 3: combinations of misalignments (and drift) with A beyond the gauge stay free
      * (with drift: a drift common to all views in the plate frame is a plate error); their
      * values follow a convention and have no uncertainty. O and R depend on G only. */
     if (gauge_matrix(q, Minv_T) != 0)
         return SC_OK;
-    int nf = 2 + (q->misalignment_unique ? q->nm : 0);
+    int nf = 2 + (q->misalignment_unique ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5], k = 0;
+    if (phase == 1 && nf == 2)
+        return SC_OK;
+    for (int t = 0; t < q->nm; ++t)
+        slot[t] = q->pinned[q->ng + t] ? -1 : k++; /* the selected inverse's column of t */
     size_t n = (size_t)q->n_red;
     double *fg = malloc(sizeof(double) * (size_t)q->ng), *fm = malloc(sizeof(double) * q->nm);
     double *ux = malloc(sizeof(double) * n), *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-    double *z = malloc(sizeof(double) * n), *B = malloc(sizeof(double) * 5 * n);
-    sc_status st = SC_OK;
+    double *z = malloc(sizeof(double) * n);
+    if (!fg || !fm || !ux || !uA || !z) {
+        free(fg), free(fm), free(ux), free(uA), free(z);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
     double r2 = 0;
-    for (int k = 0; k < q->ns; ++k) {
+    for (int k2 = 0; k2 < q->ns; ++k2) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, k2 / q->stage_nx, k2 % q->stage_nx, &x, &y);
         r2 += x * x + y * y;
     }
-    if (!fg || !fm || !ux || !uA || !z || !B)
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    else if (functional_basis_rhs(q, r2, fg, uA, B), pinned_solve_cols(q, B, 5, 1, work) != 0)
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (uncertainties)");
     const double *pg, *pm;
-    for (int f = 0; st == SC_OK && f < nf; ++f) {
+    for (int f = phase == 0 ? 0 : 2; f < nf; ++f) {
         functional_def(q, f, r2, fg, fm, &pg, &pm);
         functional_vectors(q, Minv_T, pg, pm, ux, uA, gam);
-        const double *own = f < 2 ? B + (size_t)f * n : sig_m + (size_t)(f - 2) * n;
-        double cw[4];
-        for (int t = 0; t < 4; ++t)
-            cw[t] = gam[t] / scale[t];
-        for (size_t i = 0; i < n; ++i) {
-            double v = own[i];
+        double var;
+        if (phase == 0) {
+            double cw[4];
             for (int t = 0; t < 4; ++t)
-                v -= cw[t] * W[(size_t)t * n + i];
-            for (int t = 4; t < 7; ++t)
-                v -= gam[t] * B[(size_t)(t - 2) * n + i];
-            z[i] = v;
+                cw[t] = gam[t] / scale[t];
+            for (size_t i = 0; i < n; ++i) {
+                double v = f < 2 ? B[(size_t)f * n + i] : 0.0;
+                for (int t = 0; t < 4; ++t)
+                    v -= cw[t] * W[(size_t)t * n + i];
+                for (int t = 4; t < 7; ++t)
+                    v -= gam[t] * B[(size_t)(t - 2) * n + i];
+                z[i] = v;
+            }
+            var = functional_form(q, ux, uA, z, 1);
+            if (f >= 2) {
+                part[f - 2] = var;
+                continue;
+            }
+        } else {
+            int c = slot[f - 2];
+            for (size_t i = 0; i < n; ++i)
+                z[i] = c < 0 || q->pinned[i] ? 0.0 : sc_spsym_inv_col(q->f, c, (int)i);
+            var = part[f - 2] + functional_form(q, ux, uA, z, 0);
         }
-        double var = functional_quad(q, ux, uA, z);
+        var = var > 0 ? var : 0.0;
         if (f < 2)
             *(f == 0 ? &q->var_O : &q->var_R) = var;
         else
             q->var_m[f - 2] = var;
     }
-    free(fg), free(fm), free(ux), free(uA), free(z), free(B);
-    return st;
+    free(fg), free(fm), free(ux), free(uA), free(z);
+    return SC_OK;
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -1590,28 +1605,24 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, const double *W, cons
  * the selected inverse holds them; the misalignment columns of Σ come from nm extra solves.
  * ------------------------------------------------------------------------------------------- */
 
-/* Σ(i, j) of the pinned reduced inverse (original indices): with sig_m (its misalignment
- * columns) the pairs involving a misalignment (G pairs 0), without it the G pairs from the
- * selected inverse (pairs involving a misalignment 0). */
-static double sigma_entry(const sc_grid_lsq_plan *q, const double *sig_m, int i, int j)
+/* Σ(i, j) of the pinned reduced inverse (original indices), after the selected inverse: the G
+ * pairs on S's pattern from it, the pairs with a misalignment from its whole columns (slot: the
+ * column of each misalignment unknown, -1 pinned). */
+static double sigma_entry(const sc_grid_lsq_plan *q, const int *slot, int i, int j)
 {
     if (q->pinned[i] || q->pinned[j])
         return 0.0;
     if (i < q->ng && j < q->ng)
-        return sig_m ? 0.0 : sc_spsym_inv(q->f, i, j);
-    if (!sig_m)
-        return 0.0;
+        return sc_spsym_inv(q->f, i, j);
     if (i >= q->ng)
-        return sig_m[(size_t)(i - q->ng) * q->n_red + j];
-    return sig_m[(size_t)(j - q->ng) * q->n_red + i];
+        return sc_spsym_inv_col(q->f, slot[i - q->ng], j);
+    return sc_spsym_inv_col(q->f, slot[j - q->ng], i);
 }
 
-/* Leverage of every equation of group a into h (by equation index), in two parts: with sig_m
- * h_e = w_e/W_a + w_e·(the part of ãᵀΣã with a misalignment), then without it h_e += w_e·(the G
- * part), so that the misalignment columns and the selected inverse are never held together.
- * u: the group's unknowns; vec: 2 vectors over them (Σm, then m); sub: Σ's block on them. */
-static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a, int *u,
-                           double *vec, double *sub, double *h)
+/* Leverage of every equation of group a into h (by equation index). u: the group's unknowns;
+ * vec: 2 vectors over them (Σm, then m); sub: Σ's block on them. */
+static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, int a, int *u, double *vec,
+                           double *sub, double *h)
 {
     long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
     int idx[ROW_MAX], nu = 0;
@@ -1638,15 +1649,12 @@ static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a
                 if (u[f] == idx[r])
                     mean[f] += q->eq_w[e] * val[r] / W;
     }
-    /* this part's pairs only (G-G without sig_m, the others with it; the rest 0). With ã_e =
-     * ρ_e − m (m the group's weighted mean row), ã_eᵀΣã_e = ρ_eᵀΣρ_e − 2ρ_eᵀ(Σm) + mᵀΣm: ρ_e has
-     * ROW_MAX entries, so Σm and mᵀΣm once per group and ROW_MAX² terms per equation */
-    int want_gg = sig_m == NULL;
+    /* with ã_e = ρ_e − m (m the group's weighted mean row), ã_eᵀΣã_e = ρ_eᵀΣρ_e − 2ρ_eᵀ(Σm) +
+     * mᵀΣm: ρ_e has ROW_MAX entries, so Σm and mᵀΣm once per group and ROW_MAX² terms per
+     * equation */
     for (int i = 0; i < nu; ++i)
-        for (int j = 0; j < nu; ++j)
-            sub[i * nu + j] = ((u[i] < q->ng) & (u[j] < q->ng)) == want_gg
-                                  ? sigma_entry(q, sig_m, u[i], u[j])
-                                  : 0.0;
+        for (int j = i; j < nu; ++j)
+            sub[i * nu + j] = sub[j * nu + i] = sigma_entry(q, slot, u[i], u[j]);
     double *sm = vec, msm = 0;
     for (int i = 0; i < nu; ++i) {
         double v = 0;
@@ -1671,17 +1679,16 @@ static void group_leverage(const sc_grid_lsq_plan *q, const double *sig_m, int a
                 v += sub[pos[r] * nu + pos[c]] * val[c];
             quad += val[r] * v;
         }
-        if (sig_m)
-            h[e] = q->eq_w[e] / W + q->eq_w[e] * quad;
-        else
-            h[e] += q->eq_w[e] * quad;
+        h[e] = q->eq_w[e] / W + q->eq_w[e] * quad;
     }
 }
 
-/* q->eq_h: the leverage of every equation; part by part as group_leverage (sig_m first). */
-static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *err)
+/* q->eq_h: the leverage of every equation (after the selected inverse). */
+static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
 {
-    int maxg = 0;
+    int maxg = 0, slot[SC_GRID_MAX_VIEWS * 5], k = 0;
+    for (int t = 0; t < q->nm; ++t)
+        slot[t] = q->pinned[q->ng + t] ? -1 : k++;
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
             maxg = (int)(q->grp_ptr[a + 1] - q->grp_ptr[a]);
@@ -1697,72 +1704,74 @@ static sc_status leverages(sc_grid_lsq_plan *q, const double *sig_m, sc_error *e
     }
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] > q->grp_ptr[a])
-            group_leverage(q, sig_m, a, u, vec, sub, q->eq_h);
+            group_leverage(q, slot, a, u, vec, sub, q->eq_h);
     free(u), free(vec), free(sub);
     return SC_OK;
 }
 
-/* sig_m (nm columns of n_red, zeroed) := Σ's misalignment columns, one refinement step: the
- * pinned misalignments' columns are 0 (Σ is 0 on pins), so only the others are solved, packed
- * in front, then moved to their places (each to a place at or after its own). */
-static int misalignment_columns(const sc_grid_lsq_plan *q, double *sig_m, double *work)
+/* X (n_red x ncol) := 0 at the pinned unknowns. */
+static void zero_pinned(const sc_grid_lsq_plan *q, double *X, int ncol)
 {
-    size_t n = (size_t)q->n_red;
-    int at[SC_GRID_MAX_VIEWS * 5], nfree = 0;
-    for (int t = 0; t < q->nm; ++t)
-        if (!q->pinned[q->ng + t])
-            at[nfree++] = t;
-    for (int c = 0; c < nfree; ++c)
-        sig_m[(size_t)c * n + (size_t)(q->ng + at[c])] = 1;
-    if (pinned_solve_cols(q, sig_m, nfree, 1, work) != 0)
-        return -1;
-    for (int c = nfree - 1; c >= 0; --c)
-        if (at[c] != c) {
-            memcpy(sig_m + (size_t)at[c] * n, sig_m + (size_t)c * n, sizeof(double) * n);
-            memset(sig_m + (size_t)c * n, 0, sizeof(double) * n);
-        }
-    return 0;
+    for (int i = 0; i < q->n_red; ++i)
+        if (q->pinned[i])
+            for (int c = 0; c < ncol; ++c)
+                X[(size_t)c * q->n_red + i] = 0.0;
 }
 
-/* Everything of an identifying plan that does not depend on the measured values: the gauge
- * columns W = ΣU and the misalignment columns of Σ (blocked solves on the factor), the σ of O,
- * R and the misalignments, then the selected inverse for every node's σ and every leverage.
- * The selected inverse and the columns are dropped after. */
+/* Everything of an identifying plan that does not depend on the measured values. First 9 blocked
+ * solves on the factor: W = ΣU (the gauge columns) and B = Σ·functional_basis_rhs, which give the
+ * projection's part of every node's σ and the σ of O and R; then the selected inverse (kept: the
+ * diagonal, the G pairs on S's pattern, the free misalignments' whole columns) for diag(Σ), the
+ * misalignments' σ and every leverage. The selected inverse and the columns are dropped after.
+ * No iterative refinement: diag(Σ) and the misalignment columns come from the recurrences on the
+ * same factor, so refined columns would not make the results more accurate (docs/grid-lsq.md). */
 static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
 {
     size_t n = (size_t)q->n_red;
-    double *work = malloc(sizeof(double) * 2 * n * SOLVE_CHUNK);
     double *U = malloc(sizeof(double) * 4 * (size_t)q->ng);
-    double *W = malloc(sizeof(double) * 4 * n);
-    double *sig_m = calloc(n * (size_t)q->nm, sizeof(double));
+    double *WB = malloc(sizeof(double) * 9 * n); /* W: columns 0-3, B: 4-8 */
+    double *fg = malloc(sizeof(double) * (size_t)q->ng);
+    double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
+    double part[SC_GRID_MAX_VIEWS * 5];
+    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last);
     q->var_m = malloc(sizeof(double) * (size_t)q->nm);
     sc_status st = SC_OK;
-    if (!work || !U || !W || !sig_m || !q->var_m) {
+    if (!U || !WB || !fg || !uA || !q->var_m) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto out;
     }
-    double scale[4];
+    double scale[4], r2 = 0, *W = WB, *B = WB + 4 * n;
     gauge_basis(q, U, scale);
-    if (gauge_columns(q, U, W, work) != 0 || misalignment_columns(q, sig_m, work) != 0) {
+    for (int c = 0; c < 4; ++c)
+        for (size_t i = 0; i < n; ++i)
+            W[(size_t)c * n + i] = i < (size_t)q->ng ? U[(size_t)c * q->ng + i] : 0.0;
+    for (int k = 0; k < q->ns; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
+        r2 += x * x + y * y;
+    }
+    functional_basis_rhs(q, r2, fg, uA, B);
+    zero_pinned(q, WB, 9);
+    if (sc_spsym_solve(q->f, WB, 9) != 0) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
         goto out;
     }
-    st = functional_variances(q, W, scale, sig_m, work, err);
-    if (st == SC_OK) {
-        sigma_ratios_projection(q, U, W);
-        st = leverages(q, sig_m, err);
-    }
+    zero_pinned(q, WB, 9);
+    sigma_ratios_projection(q, U, W);
+    st = functional_variances(q, 0, W, scale, B, part, err);
     /* the selected inverse needs the memory more */
-    free(work), free(U), free(W), free(sig_m);
-    work = U = W = sig_m = NULL;
+    free(U), free(WB), free(fg), free(uA);
+    U = WB = fg = uA = NULL;
     if (st != SC_OK)
         goto out;
-    if (sc_spsym_selinv(q->f, q->ng) != 0) { /* leverages ask for G pairs only */
+    if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) { /* leverages: G pairs on S's pattern */
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
         goto out;
     }
     sigma_ratios_finish(q);
-    st = leverages(q, NULL, err);
+    st = functional_variances(q, 1, NULL, NULL, NULL, part, err);
+    if (st == SC_OK)
+        st = leverages(q, err);
     sc_spsym_drop_inverse(q->f);
     /* size the solver's workspace for execute's single right-hand sides now, so that execute
      * allocates nothing */
@@ -1770,7 +1779,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     if (st == SC_OK && sc_spsym_solve(q->f, q->work, 1) != 0)
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
 out:
-    free(work), free(U), free(W), free(sig_m);
+    free(U), free(WB), free(fg), free(uA);
     return st;
 }
 
@@ -1909,4 +1918,97 @@ void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, i
         *dx_um += res->vx_um_s[v] * (t_s - q->drift_t0[v]);
         *dy_um += res->vy_um_s[v] * (t_s - q->drift_t0[v]);
     }
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * Reference values for the accuracy tests (grid_lsq_internal.h): column solves refined against
+ * residuals in long double until they stop changing, independent of the selected inverse.
+ * ------------------------------------------------------------------------------------------- */
+
+/* y = S x (the pinned matrix), in long double. */
+static void matvec_long(const sc_grid_lsq_plan *q, const long double *x, long double *y)
+{
+    for (int i = 0; i < q->n_red; ++i)
+        y[i] = 0;
+    for (int j = 0; j < q->n_red; ++j)
+        for (long p = q->Ap[j]; p < q->Ap[j + 1]; ++p) {
+            int i = q->Ai[p];
+            y[i] += (long double)q->Ax[p] * x[j];
+            if (i != j)
+                y[j] += (long double)q->Ax[p] * x[i];
+        }
+}
+
+/* vᵀ Σ v (Σ the pinned inverse, 0 on pins) by a refined solve; -1 if memory ran out. */
+static double exact_quad(const sc_grid_lsq_plan *q, const double *v, double *b, long double *x,
+                         long double *r)
+{
+    int n = q->n_red;
+    for (int i = 0; i < n; ++i)
+        b[i] = q->pinned[i] ? 0.0 : v[i];
+    for (int i = 0; i < n; ++i)
+        x[i] = 0;
+    for (int it = 0; it < 6; ++it) {
+        matvec_long(q, x, r);
+        for (int i = 0; i < n; ++i)
+            b[i] = q->pinned[i] ? 0.0 : (double)((long double)v[i] - r[i]);
+        if (sc_spsym_solve(q->f, b, 1) != 0)
+            return -1;
+        for (int i = 0; i < n; ++i)
+            x[i] += q->pinned[i] ? 0.0L : (long double)b[i];
+    }
+    long double s = 0;
+    for (int i = 0; i < n; ++i)
+        s += q->pinned[i] ? 0.0L : (long double)v[i] * x[i];
+    return (double)s;
+}
+
+int sc_grid_lsq_reference(const sc_grid_lsq_plan *q, int nsample, int *node, double *sx_ref,
+                          double *sx_plan, long *eq, double *h_ref, double *h_plan)
+{
+    int n = q->n_red, ng = q->ng;
+    double *v = calloc((size_t)n, sizeof(double)), *b = malloc(sizeof(double) * (size_t)n);
+    double *U = malloc(sizeof(double) * 4 * (size_t)ng), scale[4];
+    long double *x = malloc(sizeof(long double) * (size_t)n);
+    long double *r = malloc(sizeof(long double) * (size_t)n);
+    int rc = -1;
+    if (!v || !b || !U || !x || !r || !q->sgx || !q->eq_h)
+        goto out;
+    gauge_basis(q, U, scale);
+    for (int s = 0; s < nsample; ++s) {
+        /* σ_x of a node: (P⊥e)ᵀ Σ (P⊥e) */
+        int k = (int)((long)s * q->ns / nsample), i = 2 * k;
+        memset(v, 0, sizeof(double) * (size_t)n);
+        v[i] = 1;
+        for (int t = 0; t < 4; ++t)
+            for (int j = 0; j < ng; ++j)
+                v[j] -= U[(size_t)t * ng + i] * U[(size_t)t * ng + j];
+        double var = exact_quad(q, v, b, x, r);
+        node[s] = k;
+        sx_ref[s] = sqrt(var > 0 ? var : 0);
+        sx_plan[s] = q->sgx[k];
+        /* the leverage of an equation: w_e/W_a + w_e ãᵀΣã, ã = ρ_e − the group's mean row */
+        long e = (long)((double)s * q->neq / nsample);
+        int a = q->eq_a[e], idx[ROW_MAX];
+        double val[ROW_MAX], W = 0;
+        memset(v, 0, sizeof(double) * (size_t)n);
+        for (long t = q->grp_ptr[a]; t < q->grp_ptr[a + 1]; ++t)
+            W += q->eq_w[q->grp_eq[t]];
+        for (long t = q->grp_ptr[a]; t < q->grp_ptr[a + 1]; ++t) {
+            long e2 = q->grp_eq[t];
+            int len = eq_row(q, e2, idx, val);
+            for (int c = 0; c < len; ++c)
+                v[idx[c]] -= q->eq_w[e2] * val[c] / W;
+        }
+        int len = eq_row(q, e, idx, val);
+        for (int c = 0; c < len; ++c)
+            v[idx[c]] += val[c];
+        eq[s] = e;
+        h_ref[s] = q->eq_w[e] / W + q->eq_w[e] * exact_quad(q, v, b, x, r);
+        h_plan[s] = q->eq_h[e];
+    }
+    rc = 0;
+out:
+    free(v), free(b), free(U), free(x), free(r);
+    return rc;
 }

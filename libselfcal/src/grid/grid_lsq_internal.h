@@ -1,5 +1,6 @@
-/* grid_lsq_internal.h — private to the grid area (and its benchmarks): the reduced, pinned normal
- * matrix a plan factors, so a benchmark can hand the very same matrix to another solver. */
+/* grid_lsq_internal.h — private to the grid area (its tests and benchmarks): the reduced, pinned
+ * normal matrix a plan factors, so a benchmark can hand the very same matrix to another solver,
+ * and reference values of the plan's uncertainties by refined solves. */
 #ifndef SELFCAL_GRID_LSQ_INTERNAL_H
 #define SELFCAL_GRID_LSQ_INTERNAL_H
 
@@ -8,5 +9,13 @@
 /* The matrix of q: n x n, upper triangle in compressed columns (borrowed from q). */
 void sc_grid_lsq_matrix(const sc_grid_lsq_plan *q, int *n, const long **Ap, const int **Ai,
                         const double **Ax);
+
+/* Reference values for accuracy tests, independent of the selected inverse: for nsample nodes
+ * spread over the stage, the σ_x ratio by one solve refined against long-double residuals
+ * (sx_ref) next to the plan's (sx_plan); for nsample equations spread over the list, the leverage
+ * likewise (h_ref, h_plan). Slow (2 nsample refined solves): tests and benchmarks only.
+ * Returns 0, -1 if memory ran out or the plan has no uncertainties. */
+int sc_grid_lsq_reference(const sc_grid_lsq_plan *q, int nsample, int *node, double *sx_ref,
+                          double *sx_plan, long *eq, double *h_ref, double *h_plan);
 
 #endif

@@ -40,6 +40,8 @@ typedef struct cholmod_api {
     int (*start)(cholmod_common *);
     int (*finish)(cholmod_common *);
     cholmod_factor *(*analyze)(cholmod_sparse *, cholmod_common *);
+    cholmod_factor *(*analyze_p)(cholmod_sparse *, int *, int *, size_t, cholmod_common *);
+    int (*amd)(cholmod_sparse *, int *, size_t, int *, cholmod_common *);
     int (*factorize)(cholmod_sparse *, cholmod_factor *, cholmod_common *);
     int (*solve2)(int, cholmod_factor *, cholmod_dense *, cholmod_sparse *, cholmod_dense **,
                   cholmod_sparse **, cholmod_dense **, cholmod_dense **, cholmod_common *);
@@ -66,28 +68,25 @@ static void load_api(void)
     void *h = dlopen("libcholmod.so.3", RTLD_NOW | RTLD_LOCAL);
     if (!h)
         return;
-    void *sym[11];
-    static const char *names[11] = {"cholmod_start",       "cholmod_finish",
-                                    "cholmod_analyze",     "cholmod_factorize",
-                                    "cholmod_solve2",      "cholmod_free_factor",
-                                    "cholmod_free_dense",  "dtrsm_",
-                                    "dsymm_",              "dgemm_",
-                                    "dpotri_"};
-    for (int k = 0; k < 11; ++k)
+    enum { NSYM = 13 };
+    void *sym[NSYM];
+    static const char *names[NSYM] = {"cholmod_start",      "cholmod_finish",
+                                      "cholmod_analyze",    "cholmod_analyze_p",
+                                      "cholmod_amd",        "cholmod_factorize",
+                                      "cholmod_solve2",     "cholmod_free_factor",
+                                      "cholmod_free_dense", "dtrsm_",
+                                      "dsymm_",             "dgemm_",
+                                      "dpotri_"};
+    for (int k = 0; k < NSYM; ++k)
         if (!(sym[k] = dlsym(h, names[k])))
             return;
     /* object pointer to function pointer: POSIX guarantees dlsym's results convert */
-    memcpy(&g_api.start, &sym[0], sizeof sym[0]);
-    memcpy(&g_api.finish, &sym[1], sizeof sym[1]);
-    memcpy(&g_api.analyze, &sym[2], sizeof sym[2]);
-    memcpy(&g_api.factorize, &sym[3], sizeof sym[3]);
-    memcpy(&g_api.solve2, &sym[4], sizeof sym[4]);
-    memcpy(&g_api.free_factor, &sym[5], sizeof sym[5]);
-    memcpy(&g_api.free_dense, &sym[6], sizeof sym[6]);
-    memcpy(&g_api.dtrsm, &sym[7], sizeof sym[7]);
-    memcpy(&g_api.dsymm, &sym[8], sizeof sym[8]);
-    memcpy(&g_api.dgemm, &sym[9], sizeof sym[9]);
-    memcpy(&g_api.dpotri, &sym[10], sizeof sym[10]);
+    void *slot[NSYM] = {&g_api.start,       &g_api.finish,     &g_api.analyze, &g_api.analyze_p,
+                        &g_api.amd,         &g_api.factorize,  &g_api.solve2,  &g_api.free_factor,
+                        &g_api.free_dense,  &g_api.dtrsm,      &g_api.dsymm,   &g_api.dgemm,
+                        &g_api.dpotri};
+    for (int k = 0; k < NSYM; ++k)
+        memcpy(slot[k], &sym[k], sizeof sym[k]);
     g_api.ok = 1;
 }
 
@@ -116,6 +115,10 @@ struct sc_spsym {
     int *col2super;
     double *Zd;           /* (A⁻¹)_kk by pivot position k */
     double *ZA;           /* A⁻¹ on A's pattern, entry by entry as Ax */
+    int n_track;          /* whole columns of A⁻¹ asked of the selected inverse */
+    int *track_slot;      /* the caller's column t is slot track_slot[t] of Zt */
+    int track_solved;     /* Zt came from solves (its unknowns were not the last pivots) */
+    double *Zt;           /* by pivot position k: Zt[k·n_track + slot] = (A⁻¹)(perm[k], column) */
     /* solve workspace, reused from one solve to the next (cholmod_solve2) */
     cholmod_dense *X, *Y, *E;
     /* rank-revealing fallback: the permuted matrix and its scalar LDLᵀ */
@@ -143,7 +146,8 @@ void sc_spsym_destroy(sc_spsym *s)
         s->api->finish(s->cm);
         free(s->cm);
     }
-    free(s->Ap_int), free(s->iperm), free(s->col2super), free(s->Zd), free(s->ZA);
+    free(s->Ap_int), free(s->iperm), free(s->col2super), free(s->Zd), free(s->ZA), free(s->Zt);
+    free(s->track_slot);
     free(s->Pp), free(s->Pi), free(s->Px);
     sc_ldl_free(&s->f);
     free(s);
@@ -157,11 +161,125 @@ const char *sc_spsym_ordering_name(int ordering)
     case CHOLMOD_METIS: return "METIS (CHOLMOD)";
     case CHOLMOD_NESDIS: return "NESDIS (CHOLMOD)";
     case CHOLMOD_COLAMD: return "COLAMD (CHOLMOD)";
+    case SC_SPSYM_ORDER_GROUPED_AMD: return "AMD of the grouped graph, given unknowns last (CHOLMOD)";
     default: return "?";
     }
 }
 
-int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out)
+/* The neighbours w < v of vertex v in the grouped graph (A's pattern between the vertices'
+ * unknowns), each once (mark: stamps by vertex), written to out when out is not NULL; the count. */
+static long vertex_neighbours(const sc_spsym *s, const int *vid, const int *first, int nv, int v,
+                              int *mark, int *out)
+{
+    long cnt = 0;
+    int u1 = v + 1 < nv ? first[v + 1] : s->n;
+    for (int u = first[v]; u < u1; ++u) {
+        if (vid[u] != v)
+            continue;
+        for (long p = s->Ap[u]; p < s->Ap[u + 1]; ++p) {
+            int w = vid[s->Ai[p]];
+            if (w < 0 || w >= v || mark[w] == v)
+                continue;
+            mark[w] = v;
+            if (out)
+                out[cnt] = w;
+            ++cnt;
+        }
+    }
+    return cnt;
+}
+
+/* The grouped graph, upper CSC in G (rows < column; G->p and G->i allocated here). A vertex's
+ * unknowns are first[v] .. first[v+1]-1 with vid == v (vid -1: ordered last, not in the graph);
+ * vid is nondecreasing over the unknowns it numbers, so A's upper pattern maps to an upper one. */
+static int grouped_graph(const sc_spsym *s, const int *vid, const int *first, int nv,
+                         cholmod_sparse *G)
+{
+    int *mark = malloc(sizeof(int) * ((size_t)nv + 1));
+    int *Gp = malloc(sizeof(int) * ((size_t)nv + 1)), *Gi = NULL;
+    long cnt = 0;
+    if (!mark || !Gp)
+        goto fail;
+    for (int v = 0; v < nv; ++v)
+        mark[v] = -1;
+    Gp[0] = 0;
+    for (int v = 0; v < nv; ++v) {
+        cnt += vertex_neighbours(s, vid, first, nv, v, mark, NULL);
+        if (cnt > 2147483647L)
+            goto fail;
+        Gp[v + 1] = (int)cnt;
+    }
+    if (!(Gi = malloc(sizeof(int) * ((size_t)cnt + 1))))
+        goto fail;
+    for (int v = 0; v < nv; ++v)
+        mark[v] = -1;
+    for (int v = 0; v < nv; ++v)
+        vertex_neighbours(s, vid, first, nv, v, mark, Gi + Gp[v]);
+    free(mark);
+    memset(G, 0, sizeof *G);
+    G->nrow = G->ncol = (size_t)nv;
+    G->nzmax = (size_t)cnt;
+    G->p = Gp;
+    G->i = Gi;
+    G->stype = 1;
+    G->itype = CHOLMOD_INT;
+    G->xtype = CHOLMOD_PATTERN;
+    G->dtype = CHOLMOD_DOUBLE;
+    G->packed = 1;
+    return 0;
+fail:
+    free(mark), free(Gp), free(Gi);
+    return -1;
+}
+
+/* The order a hint asks for (sc_spsym_hint): CHOLMOD's AMD of the grouped graph, each vertex's
+ * unknowns together, then h->last in its order. perm: n. Returns 0, -1 (no memory, AMD failed). */
+static int hinted_order(sc_spsym *s, const sc_spsym_hint *h, int *perm)
+{
+    int n = s->n, group = h->group > 0 ? h->group : 1, nv = 0, prev = -1, rc = -1;
+    int *vid = malloc(sizeof(int) * ((size_t)n + 1)), *first = malloc(sizeof(int) * ((size_t)n + 1));
+    int *vperm = malloc(sizeof(int) * ((size_t)n + 1));
+    cholmod_sparse G;
+    if (!vid || !first || !vperm)
+        goto out;
+    memset(vid, 0, sizeof(int) * (size_t)n);
+    for (int t = 0; t < h->n_last; ++t) {
+        if (h->last[t] < 0 || h->last[t] >= n || vid[h->last[t]] < 0)
+            goto out; /* out of range or twice */
+        vid[h->last[t]] = -1;
+    }
+    for (int u = 0; u < n; ++u) {
+        if (vid[u] < 0)
+            continue;
+        int g = u < h->n_grouped ? u / group : -1;
+        if (g < 0 || g != prev)
+            first[nv++] = u;
+        vid[u] = nv - 1;
+        prev = g;
+    }
+    if (grouped_graph(s, vid, first, nv, &G) != 0)
+        goto out;
+    int ok = nv == 0 || s->api->amd(&G, NULL, 0, vperm, s->cm);
+    free(G.p), free(G.i);
+    if (!ok || s->cm->status < CHOLMOD_OK)
+        goto out;
+    int k = 0;
+    for (int t = 0; t < nv; ++t) {
+        int v = vperm[t], u1 = v + 1 < nv ? first[v + 1] : n;
+        for (int u = first[v]; u < u1; ++u)
+            if (vid[u] == v)
+                perm[k++] = u;
+    }
+    for (int t = 0; t < h->n_last; ++t)
+        perm[k++] = h->last[t];
+    rc = k == n ? 0 : -1;
+out:
+    free(vid), free(first), free(vperm);
+    return rc;
+}
+
+int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *hint,
+                     sc_spsym **out)
 {
     *out = NULL;
     sc_spsym *s = calloc(1, sizeof *s);
@@ -207,12 +325,23 @@ int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out)
     A->dtype = CHOLMOD_DOUBLE;
     A->sorted = 0;
     A->packed = 1;
-    s->L = s->api->analyze(A, s->cm);
+    if (hint) {
+        int *perm = malloc(sizeof(int) * ((size_t)n + 1));
+        if (perm && hinted_order(s, hint, perm) == 0) {
+            s->cm->nmethods = 1;
+            s->cm->method[0].ordering = CHOLMOD_GIVEN;
+            s->cm->postorder = 1;
+            s->L = s->api->analyze_p(A, perm, NULL, 0, s->cm);
+        }
+        free(perm);
+    } else {
+        s->L = s->api->analyze(A, s->cm);
+    }
     if (!s->L || s->cm->status < CHOLMOD_OK) {
         sc_spsym_destroy(s);
         return -1;
     }
-    s->ordering = s->cm->method[s->cm->selected].ordering;
+    s->ordering = hint ? SC_SPSYM_ORDER_GROUPED_AMD : s->cm->method[s->cm->selected].ordering;
     const int *perm = s->L->Perm;
     for (int k = 0; k < n; ++k)
         s->iperm[perm[k]] = k;
@@ -268,8 +397,8 @@ int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol)
 {
     int n = s->n;
     s->Ax = Ax;
-    free(s->Zd), free(s->ZA), free(s->col2super);
-    s->Zd = s->ZA = NULL;
+    sc_spsym_drop_inverse(s);
+    free(s->col2super);
     s->col2super = NULL;
     sc_ldl_free(&s->f);
     s->use_ldl = 0;
@@ -405,18 +534,19 @@ static void super_tree(const cholmod_factor *L, const int *col2super, int *paren
             first[parent[J]] = first[J];
 }
 
-/* Entries of A in its first keep columns by the pivot position of their column in the factor:
- * the entries p whose (permuted) column min(iperm[i], iperm[j]) is k are bucket[ptr[k] ..
- * ptr[k+1]), their permuted rows max(iperm[i], iperm[j]) in brow. */
-static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out, int **brow_out)
+/* Entries of A in its first keep columns by the earlier pivot of their two ends: the entries p
+ * whose pivot min(iperm[i], iperm[j]) is k are bucket[ptr[k] .. ptr[k+1]), each as p when that
+ * pivot is its column's (the other end is its row Ai[p]), else as -1 - j (the other end is its
+ * column j; p is found in column j by its row). No second index per entry: the selected inverse
+ * holds these at its peak. */
+static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out)
 {
     int n = s->n, keep = s->keep_cols;
     long nnz = s->Ap[keep], *ptr = calloc((size_t)n + 1, sizeof(long));
-    int *bucket = malloc(sizeof(int) * ((size_t)nnz + 1));
-    int *brow = malloc(sizeof(int) * ((size_t)nnz + 1));
+    int *bucket = malloc(sizeof(int) * ((size_t)nnz + 1)); /* nnz < 2^31 (sc_spsym_analyze) */
     long *fill = malloc(sizeof(long) * ((size_t)n + 1));
-    if (!ptr || !bucket || !brow || !fill) {
-        free(ptr), free(bucket), free(brow), free(fill);
+    if (!ptr || !bucket || !fill) {
+        free(ptr), free(bucket), free(fill);
         return -1;
     }
     for (int j = 0; j < keep; ++j)
@@ -430,13 +560,30 @@ static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out, i
     for (int j = 0; j < keep; ++j)
         for (long p = s->Ap[j]; p < s->Ap[j + 1]; ++p) {
             int a = s->iperm[s->Ai[p]], b = s->iperm[j];
-            long at = fill[a < b ? a : b]++;
-            bucket[at] = (int)p;
-            brow[at] = a < b ? b : a;
+            bucket[fill[a < b ? a : b]++] = b <= a ? (int)p : -1 - j;
         }
     free(fill);
-    *ptr_out = ptr, *bucket_out = bucket, *brow_out = brow;
+    *ptr_out = ptr, *bucket_out = bucket;
     return 0;
+}
+
+/* The position of row i in A's column j (it is there). */
+static long entry_of(const sc_spsym *s, int i, int j)
+{
+    long lo = s->Ap[j], hi = s->Ap[j + 1];
+    if (!s->sorted) {
+        while (s->Ai[lo] != i)
+            ++lo;
+        return lo;
+    }
+    while (lo < hi) {
+        long mid = lo + (hi - lo) / 2;
+        if (s->Ai[mid] < i)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
 }
 
 /* Workspace of the streaming selected inverse. */
@@ -445,8 +592,9 @@ typedef struct selinv_ws {
     int *parent, *first; /* supernodal tree (super_tree) */
     int *map;            /* n: relative row map */
     double *Zrr, *W, *Y; /* dense blocks: m x m, m x nc, m x nc */
+    double *Gt;          /* the tracked columns' rows R: n_track x m */
     long *bptr;          /* A's entries by factor column (bucket_entries) */
-    int *bucket, *brow;
+    int *bucket;
 } selinv_ws;
 
 static void selinv_ws_free(selinv_ws *w, int nsuper)
@@ -454,7 +602,7 @@ static void selinv_ws_free(selinv_ws *w, int nsuper)
     for (int J = 0; w->Z && J < nsuper; ++J)
         free(w->Z[J]);
     free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->W);
-    free(w->Y), free(w->bptr), free(w->bucket), free(w->brow);
+    free(w->Y), free(w->Gt), free(w->bptr), free(w->bucket);
 }
 
 static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
@@ -478,8 +626,10 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     w->Zrr = malloc(sizeof(double) * ((size_t)maxm * maxm + 1));
     w->W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
+    w->Gt = malloc(sizeof(double) * ((size_t)s->n_track * maxm + 1));
     if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
-        !w->Zrr || !w->W || !w->Y || bucket_entries(s, &w->bptr, &w->bucket, &w->brow) != 0)
+        !w->Zrr || !w->W || !w->Y || !w->Gt ||
+        bucket_entries(s, &w->bptr, &w->bucket) != 0)
         return -1;
     for (int J = 0; J < nsuper; ++J)
         for (int k = Super[J]; k < Super[J + 1]; ++k)
@@ -544,18 +694,86 @@ static void super_extract(sc_spsym *s, selinv_ws *w, int J, const double *Zj)
     for (int k = Super[J]; k < Super[J + 1]; ++k) {
         int c = k - Super[J];
         s->Zd[k] = Zj[(size_t)c * nr + c];
-        for (long b = w->bptr[k]; b < w->bptr[k + 1]; ++b)
-            s->ZA[w->bucket[b]] = Zj[(size_t)c * nr + w->map[w->brow[b]]];
+        for (long b = w->bptr[k]; b < w->bptr[k + 1]; ++b) {
+            int v = w->bucket[b], other;
+            long p;
+            if (v >= 0) {
+                p = v;
+                other = s->Ai[p];
+            } else {
+                other = -1 - v;
+                p = entry_of(s, ((const int *)L->Perm)[k], other);
+            }
+            s->ZA[p] = Zj[(size_t)c * nr + w->map[s->iperm[other]]];
+        }
     }
+}
+
+/* The tracked columns (the last n_track pivots p0 .. n-1) in the rows of supernode J before
+ * them: for a row r after J's columns, (L⁻ᵀ)_rJ = 0, so Z_rJ = −Z_rR L̂ whether or not r is in R:
+ * one product of n_track x m by L̂ (w->W, m x nc, left by super_block). */
+static double track_rule(sc_spsym *s, selinv_ws *w, int J)
+{
+    const cholmod_factor *L = s->L;
+    const int *Super = L->super, *Lpi = L->pi, *Ls = L->s;
+    int nt = s->n_track, nc = Super[J + 1] - Super[J], m = Lpi[J + 1] - Lpi[J] - nc;
+    if (m == 0) /* a root: no coupling to the tracked pivots (their entries stay 0) */
+        return 0;
+    const int *R = Ls + Lpi[J] + nc;
+    for (int b = 0; b < m; ++b)
+        memcpy(w->Gt + (size_t)b * nt, s->Zt + (size_t)R[b] * nt, sizeof(double) * nt);
+    const double minus_one = -1.0, zero = 0.0;
+    s->api->dgemm("N", "N", &nt, &nc, &m, &minus_one, w->Gt, &nt, w->W, &m, &zero,
+                  s->Zt + (size_t)Super[J] * nt, &nt, 1, 1);
+    return (double)nt * m * nc;
+}
+
+/* The tracked columns in a supernode J that reaches the last pivots: its block holds them all
+ * (tracked_on_pattern), copied both ways (Z is symmetric). */
+static void track_copy(sc_spsym *s, int J, const double *Zj)
+{
+    const cholmod_factor *L = s->L;
+    const int *Super = L->super, *Lpi = L->pi, *Ls = L->s;
+    int nt = s->n_track, p0 = s->n - nt, nr = Lpi[J + 1] - Lpi[J];
+    const int *rows = Ls + Lpi[J];
+    for (int k = Super[J]; k < Super[J + 1]; ++k) {
+        int c = k - Super[J];
+        for (int a = c; a < nr; ++a) {
+            int r = rows[a];
+            if (r < p0)
+                continue;
+            double z = Zj[(size_t)c * nr + a];
+            s->Zt[(size_t)k * nt + (r - p0)] = z;
+            if (k >= p0)
+                s->Zt[(size_t)r * nt + (k - p0)] = z;
+        }
+    }
+}
+
+/* Whether the recurrences give the tracked columns: every supernode that reaches the last
+ * n_track pivots holds, below each of its columns, every later one of those pivots as a row. */
+static int tracked_on_pattern(const sc_spsym *s)
+{
+    const cholmod_factor *L = s->L;
+    const int *Super = L->super, *Lpi = L->pi, *Ls = L->s;
+    int p0 = s->n - s->n_track;
+    for (int J = (int)L->nsuper - 1; J >= 0 && Super[J + 1] > p0; --J) {
+        int from = Super[J] > p0 ? Super[J] : p0, have = 0;
+        for (long a = Lpi[J]; a < Lpi[J + 1]; ++a)
+            have += Ls[a] >= from;
+        if (have != s->n - from)
+            return 0;
+    }
+    return 1;
 }
 
 /* Blocked Takahashi on the supernodal factor, from the last supernode to the first, streaming:
  * supernode S's block is needed only by its subtree (R of a supernode lies in its ancestors), so
- * it is freed once the first supernode of that subtree is done. What stays is the diagonal and
- * the entries on A's pattern. */
+ * it is freed once the first supernode of that subtree is done. What stays is the diagonal, the
+ * entries on A's pattern and the tracked columns (when s->Zt is set: they are the last pivots). */
 static int super_selinv(sc_spsym *s)
 {
-    int nsuper = (int)s->L->nsuper;
+    int nsuper = (int)s->L->nsuper, p0 = s->n - s->n_track;
     const int *Lpi = s->L->pi, *Super = s->L->super;
     selinv_ws w;
     double work = 0;
@@ -568,6 +786,10 @@ static int super_selinv(sc_spsym *s)
             break;
         }
         work += got;
+        if (s->Zt && Super[J + 1] <= p0)
+            work += track_rule(s, &w, J);
+        else if (s->Zt)
+            track_copy(s, J, w.Z[J]);
         super_extract(s, &w, J, w.Z[J]);
         for (int S = J; S < nsuper && S >= 0; S = w.parent[S]) /* blocks no longer needed */
             if (w.first[S] == J)
@@ -587,26 +809,85 @@ static int super_selinv(sc_spsym *s)
     return 0;
 }
 
-int sc_spsym_selinv(sc_spsym *s, int keep_cols)
+/* The tracked columns by solves (their unknowns are not the last pivots), into s->Zt. */
+static int track_by_solves(sc_spsym *s, const int *cols)
 {
+    int n = s->n, nt = s->n_track;
+    double *X = calloc((size_t)n * (nt < 8 ? nt : 8), sizeof(double));
+    if (!X)
+        return -1;
+    for (int t0 = 0; t0 < nt; t0 += 8) {
+        int k = nt - t0 < 8 ? nt - t0 : 8;
+        memset(X, 0, sizeof(double) * (size_t)n * k);
+        for (int c = 0; c < k; ++c)
+            X[(size_t)c * n + cols[t0 + c]] = 1;
+        if (sc_spsym_solve(s, X, k) != 0) {
+            free(X);
+            return -1;
+        }
+        for (int c = 0; c < k; ++c)
+            for (int i = 0; i < n; ++i)
+                s->Zt[(size_t)s->iperm[i] * nt + t0 + c] = X[(size_t)c * n + i];
+    }
+    free(X);
+    return 0;
+}
+
+int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols)
+{
+    if (!s->use_ldl && s->Zd)
+        return 0;
+    free(s->Zt), free(s->track_slot);
+    s->Zt = NULL;
+    s->track_slot = NULL;
+    s->n_track = ncols > 0 ? ncols : 0;
+    int in_recurrences = 0;
+    if (s->n_track) {
+        int nt = s->n_track, p0 = s->n - nt;
+        s->Zt = calloc((size_t)nt * (size_t)s->n, sizeof(double));
+        s->track_slot = malloc(sizeof(int) * (size_t)nt);
+        if (!s->Zt || !s->track_slot)
+            return -1;
+        in_recurrences = !s->use_ldl;
+        for (int t = 0; t < nt && in_recurrences; ++t)
+            in_recurrences = s->iperm[cols[t]] >= p0; /* distinct unknowns: all of p0 .. n-1 */
+        in_recurrences = in_recurrences && tracked_on_pattern(s);
+        s->track_solved = !in_recurrences;
+        for (int t = 0; t < nt; ++t) /* the recurrences store by pivot, the solves as asked */
+            s->track_slot[t] = in_recurrences ? s->iperm[cols[t]] - p0 : t;
+        if (!in_recurrences && track_by_solves(s, cols) != 0)
+            return -1;
+        s->bytes += (size_t)nt * ((size_t)s->n * sizeof(double) + sizeof(int));
+    }
     if (s->use_ldl) {
         if (sc_ldl_selinv(&s->f) != 0)
             return -1;
         s->selinv_work = s->f.selinv_work;
         return 0;
     }
-    if (s->Zd)
-        return 0;
     s->keep_cols = keep_cols < 0 || keep_cols > s->n ? s->n : keep_cols;
     /* the blocked solves' workspace is not needed meanwhile: give its memory back */
     s->api->free_dense(&s->X, s->cm);
     s->api->free_dense(&s->Y, s->cm);
     s->api->free_dense(&s->E, s->cm);
-    return super_selinv(s);
+    double *Zt = s->Zt;
+    if (!in_recurrences)
+        s->Zt = NULL; /* already filled: the recurrences leave it alone */
+    int rc = super_selinv(s);
+    s->Zt = Zt;
+    if (rc != 0)
+        sc_spsym_drop_inverse(s);
+    return rc;
 }
 
 void sc_spsym_drop_inverse(sc_spsym *s)
 {
+    if (s->Zt) {
+        s->bytes -= (size_t)s->n_track * ((size_t)s->n * sizeof(double) + sizeof(int));
+        free(s->Zt), free(s->track_slot);
+        s->Zt = NULL;
+        s->track_slot = NULL;
+    }
     if (s->use_ldl) {
         free(s->f.Zx), free(s->f.Zd);
         s->f.Zx = s->f.Zd = NULL;
@@ -662,6 +943,13 @@ double sc_spsym_inv(const sc_spsym *s, int i, int j)
     return lo < s->Ap[c + 1] && s->Ai[lo] == r ? s->ZA[lo] : NAN;
 }
 
+double sc_spsym_inv_col(const sc_spsym *s, int t, int i)
+{
+    if (!s->Zt || t < 0 || t >= s->n_track)
+        return NAN;
+    return s->Zt[(size_t)s->iperm[i] * s->n_track + s->track_slot[t]];
+}
+
 void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st)
 {
     memset(st, 0, sizeof *st);
@@ -673,4 +961,5 @@ void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st)
     st->min_kept_ratio = s->min_kept;
     st->max_null_ratio = s->max_null;
     st->bytes = s->bytes;
+    st->tracked_by_solves = s->track_solved;
 }

@@ -1,12 +1,14 @@
 /* sparse_sym.h — private to the grid area: the symmetric sparse solver behind the grid least
  * squares (grid_lsq.c calls only this). One object per plan:
  *
- *   analyze(pattern)  once: fill-reducing order and symbolic factorization, chosen once;
+ *   analyze(pattern)  once: fill-reducing order and symbolic factorization, chosen once
+ *                     (CHOLMOD's choice, or the order a hint describes);
  *   factor(values)    numeric factorization with rank decisions (pivot tolerance);
  *   solve / matvec    in the ORIGINAL index space (the order is internal);
  *   selinv            selected inverse: the entries of A⁻¹ on the factor's pattern, computed
- *                     supernode by supernode; kept: the diagonal and A's own pattern;
- *   inv(i, j)         one such entry.
+ *                     supernode by supernode; kept: the diagonal and A's own pattern, and
+ *                     whole columns of A⁻¹ for a few unknowns asked for;
+ *   inv(i, j)         one such entry; inv_col(t, i) one entry of such a column.
  *
  * The matrix is symmetric positive semidefinite, given by its upper triangle in compressed
  * columns (column j holds rows i <= j; no duplicates). Pivots judged null (d_k <= tol·A_kk) are
@@ -30,12 +32,28 @@ typedef struct sc_spsym_stats {
     double min_kept_ratio;  /* smallest pivot/diagonal among kept pivots */
     double max_null_ratio;  /* largest pivot/diagonal among null pivots (0 if none) */
     size_t bytes;           /* memory the object holds */
+    int tracked_by_solves;  /* the selected inverse's whole columns came from solves */
 } sc_spsym_stats;
 
+/* What the caller knows of its unknowns' graph, for the order: the unknowns [0, n_grouped)
+ * come in consecutive groups of `group` that share their couplings (a node's x and y), which
+ * AMD orders as one vertex; the n_last unknowns `last` (couplings to nearly everything: the
+ * misalignments) are ordered last, in this order, as minimum degree would place them, and then
+ * their whole columns of A⁻¹ cost the selected inverse little (sc_spsym_selinv). */
+typedef struct sc_spsym_hint {
+    int group, n_grouped;
+    const int *last;
+    int n_last;
+} sc_spsym_hint;
+
+#define SC_SPSYM_ORDER_GROUPED_AMD 1000 /* ordering code of a hinted analysis */
+
 /* Analyze the n x n pattern (upper CSC Ap[n+1], Ai[Ap[n]]; borrowed: it must stay unchanged
- * until sc_spsym_destroy): one fill-reducing order, chosen here once.
- * Returns 0, -1 if memory ran out, -2 if the solver library (CHOLMOD) cannot be loaded. */
-int sc_spsym_analyze(int n, const long *Ap, const int *Ai, sc_spsym **out);
+ * until sc_spsym_destroy): one fill-reducing order, chosen here once: CHOLMOD's own choice when
+ * hint is NULL, else AMD of the hint's grouped graph with its last unknowns last.
+ * Returns 0, -1 if memory ran out (or a bad hint), -2 if CHOLMOD cannot be loaded. */
+int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *hint,
+                     sc_spsym **out);
 
 /* Numeric factorization of the values Ax (same layout as the analyzed pattern; borrowed until
  * the next factorization or destroy; matvec uses them).
@@ -53,9 +71,14 @@ int sc_spsym_solve(sc_spsym *s, double *X, int ncol);
 /* Y = A X for ncol vectors (n x ncol, column after column; the factored values). */
 void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol);
 
-/* Selected inverse on the factor's pattern; kept: the diagonal and A's pattern in its first
- * keep_cols columns (-1: all). Returns 0, or -1 if memory ran out. */
-int sc_spsym_selinv(sc_spsym *s, int keep_cols);
+/* Selected inverse on the factor's pattern; kept: the diagonal, A's pattern in its first
+ * keep_cols columns (-1: all), and the whole columns of A⁻¹ of the ncols unknowns cols (may be
+ * 0): within the recurrences (one small product per supernode) when they are the last pivots,
+ * as a hint's last unknowns are, else by solves. Returns 0, or -1 if memory ran out. */
+int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols);
+
+/* (A⁻¹)(i, cols[t]) after sc_spsym_selinv (NaN if not computed or dropped). */
+double sc_spsym_inv_col(const sc_spsym *s, int t, int i);
 
 /* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in the kept part of A's pattern; NaN if
  * (i, j) is not on it or the selected inverse was not computed (or dropped). */
