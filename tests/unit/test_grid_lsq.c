@@ -112,6 +112,15 @@ static void test_reference_accuracy(void **s)
             assert_true(fabs(splan[k] - sref[k]) <= 1e-10 * sref[k]);
             assert_true(fabs(hplan[k] - href[k]) <= 1e-10 * href[k]);
         }
+        double vref[SC_GRID_MAX_VIEWS * 5], vplan[SC_GRID_MAX_VIEWS * 5];
+        assert_int_equal(sc_grid_lsq_reference_misalignments(q, vref, vplan), 0);
+        int compared = 0;
+        for (int t = 0; t < 3 * p.n_views; ++t)
+            if (!isnan(vref[t])) {
+                assert_true(fabs(vplan[t] - vref[t]) <= 1e-10 * vref[t]);
+                compared++;
+            }
+        assert_true(compared >= 3 * (p.n_views - 1)); /* the pinned view's may be 0 */
         sc_grid_lsq_plan_destroy(q);
     }
 }

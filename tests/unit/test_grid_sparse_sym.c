@@ -184,6 +184,12 @@ static void check_tracked_columns(int n, int border, int group, unsigned seed)
                         1e-12 * fabs(x[cols[t]]));
         }
         assert_true(worst < 1e-10);
+        for (int t = 0; t < nc; ++t) { /* whole columns: the entries one by one */
+            assert_int_equal(sc_spsym_inv_column(f, t, x), 0);
+            for (int i = 0; i < n; ++i)
+                assert_true(x[i] == sc_spsym_inv_col(f, t, i));
+        }
+        assert_int_equal(sc_spsym_inv_column(f, nc, x), -1);
         assert_true(isnan(sc_spsym_inv_col(f, nc, 0)));
         sc_spsym_drop_inverse(f);
         assert_true(isnan(sc_spsym_inv_col(f, 0, 0)));

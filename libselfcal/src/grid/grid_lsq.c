@@ -637,6 +637,15 @@ static int pinned_solve(const sc_grid_lsq_plan *q, double *X, int ncol, int refi
     return 0;
 }
 
+/* X (n_red x ncol) := 0 at the pinned unknowns. */
+static void zero_pinned(const sc_grid_lsq_plan *q, double *X, int ncol)
+{
+    for (int i = 0; i < q->n_red; ++i)
+        if (q->pinned[i])
+            for (int c = 0; c < ncol; ++c)
+                X[(size_t)c * q->n_red + i] = 0.0;
+}
+
 /* U (4 x ng, row after row): the orthonormal basis of G's gauge patterns (translations, rotation,
  * magnification) that sc_grid_gauge_stage projects out. */
 static void gauge_basis(const sc_grid_lsq_plan *q, double *U, double scale[4])
@@ -1579,8 +1588,9 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
             }
         } else {
             int c = slot[f - 2];
-            for (size_t i = 0; i < n; ++i)
-                z[i] = c < 0 || q->pinned[i] ? 0.0 : sc_spsym_inv_col(q->f, c, (int)i);
+            if (c < 0 || sc_spsym_inv_column(q->f, c, z) != 0)
+                memset(z, 0, sizeof(double) * n);
+            zero_pinned(q, z, 1);
             var = part[f - 2] + functional_form(q, ux, uA, z, 0);
         }
         var = var > 0 ? var : 0.0;
@@ -1707,15 +1717,6 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
             group_leverage(q, slot, a, u, vec, sub, q->eq_h);
     free(u), free(vec), free(sub);
     return SC_OK;
-}
-
-/* X (n_red x ncol) := 0 at the pinned unknowns. */
-static void zero_pinned(const sc_grid_lsq_plan *q, double *X, int ncol)
-{
-    for (int i = 0; i < q->n_red; ++i)
-        if (q->pinned[i])
-            for (int c = 0; c < ncol; ++c)
-                X[(size_t)c * q->n_red + i] = 0.0;
 }
 
 /* Everything of an identifying plan that does not depend on the measured values. First 9 blocked
@@ -1961,6 +1962,50 @@ static double exact_quad(const sc_grid_lsq_plan *q, const double *v, double *b, 
     for (int i = 0; i < n; ++i)
         s += q->pinned[i] ? 0.0L : (long double)v[i] * x[i];
     return (double)s;
+}
+
+/* Var/σ0² of every misalignment unknown by refined solves into var (NaN where the plan has
+ * none): uᵀΣu = rᵀΣr + Σ_a u_A[a]²/W_a with r = u_x − a_correction(u_A). */
+static int reference_misalignments(const sc_grid_lsq_plan *q, double *var, double *b,
+                                   long double *x, long double *r)
+{
+    double Minv_T[49], gam[7];
+    int n = q->n_red;
+    for (int t = 0; t < q->nm; ++t)
+        var[t] = NAN;
+    if (!q->misalignment_unique || gauge_matrix(q, Minv_T) != 0)
+        return 0;
+    double *fm = calloc((size_t)q->nm, sizeof(double)), *ux = malloc(sizeof(double) * (size_t)n);
+    double *rv = malloc(sizeof(double) * (size_t)n), *zero = calloc((size_t)n, sizeof(double));
+    double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
+    int rc = fm && ux && rv && zero && uA ? 0 : -1;
+    for (int t = 0; rc == 0 && t < q->nm; ++t) {
+        memset(fm, 0, sizeof(double) * (size_t)q->nm);
+        fm[t] = 1;
+        functional_vectors(q, Minv_T, NULL, fm, ux, uA, gam);
+        memcpy(rv, ux, sizeof(double) * (size_t)n);
+        a_correction(q, uA, rv);
+        double quad = exact_quad(q, rv, b, x, r);
+        if (quad < 0)
+            rc = -1;
+        var[t] = quad + functional_form(q, ux, uA, zero, 1);
+    }
+    free(fm), free(ux), free(rv), free(zero), free(uA);
+    return rc;
+}
+
+int sc_grid_lsq_reference_misalignments(const sc_grid_lsq_plan *q, double *var_ref,
+                                        double *var_plan)
+{
+    int n = q->n_red;
+    double *b = malloc(sizeof(double) * (size_t)n);
+    long double *x = malloc(sizeof(long double) * (size_t)n);
+    long double *r = malloc(sizeof(long double) * (size_t)n);
+    int rc = b && x && r && q->var_m ? reference_misalignments(q, var_ref, b, x, r) : -1;
+    for (int t = 0; rc == 0 && t < q->nm; ++t)
+        var_plan[t] = q->var_m[t];
+    free(b), free(x), free(r);
+    return rc;
 }
 
 int sc_grid_lsq_reference(const sc_grid_lsq_plan *q, int nsample, int *node, double *sx_ref,

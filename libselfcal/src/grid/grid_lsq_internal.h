@@ -18,4 +18,9 @@ void sc_grid_lsq_matrix(const sc_grid_lsq_plan *q, int *n, const long **Ap, cons
 int sc_grid_lsq_reference(const sc_grid_lsq_plan *q, int nsample, int *node, double *sx_ref,
                           double *sx_plan, long *eq, double *h_ref, double *h_plan);
 
+/* The same for the variance per unit σ of every misalignment unknown (q's nm of them; NaN
+ * where the plan has none): var_ref by refined solves, var_plan the plan's. */
+int sc_grid_lsq_reference_misalignments(const sc_grid_lsq_plan *q, double *var_ref,
+                                        double *var_plan);
+
 #endif

@@ -950,6 +950,17 @@ double sc_spsym_inv_col(const sc_spsym *s, int t, int i)
     return s->Zt[(size_t)s->iperm[i] * s->n_track + s->track_slot[t]];
 }
 
+int sc_spsym_inv_column(const sc_spsym *s, int t, double *out)
+{
+    if (!s->Zt || t < 0 || t >= s->n_track)
+        return -1;
+    const int *perm = s->L ? (const int *)s->L->Perm : NULL;
+    size_t nt = (size_t)s->n_track, slot = (size_t)s->track_slot[t];
+    for (int k = 0; k < s->n; ++k) /* by pivot: Zt read in order */
+        out[perm ? perm[k] : k] = s->Zt[(size_t)k * nt + slot];
+    return 0;
+}
+
 void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st)
 {
     memset(st, 0, sizeof *st);

@@ -80,6 +80,9 @@ int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols);
 /* (A⁻¹)(i, cols[t]) after sc_spsym_selinv (NaN if not computed or dropped). */
 double sc_spsym_inv_col(const sc_spsym *s, int t, int i);
 
+/* The whole column cols[t] of A⁻¹ into out (n); -1 if it was not computed (or dropped). */
+int sc_spsym_inv_column(const sc_spsym *s, int t, double *out);
+
 /* (A⁻¹)_ij after sc_spsym_selinv, for i == j or (i, j) in the kept part of A's pattern; NaN if
  * (i, j) is not on it or the selected inverse was not computed (or dropped). */
 double sc_spsym_inv(const sc_spsym *s, int i, int j);
