@@ -308,12 +308,14 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
         warnf(o, "%s: the file states its uncertainties (ux_um,uy_um or sigma_um=): --sigma-r-um "
                  "%g is ignored",
               src, o->sigma_r_um);
-    for (;;) {
-        sc_grid_lsq_plan_destroy(*qp);
-        *qp = NULL;
-        sc_status st = sc_grid_lsq_plan_create(p, d, &opts, qp, err);
-        if (st != SC_OK)
-            return st;
+    for (int first = 1;; first = 0) {
+        if (!first || !*qp) { /* the first plan may come made (sc_grid_calibrate) */
+            sc_grid_lsq_plan_destroy(*qp);
+            *qp = NULL;
+            sc_status st = sc_grid_lsq_plan_create(p, d, &opts, qp, err);
+            if (st != SC_OK)
+                return st;
+        }
         sc_grid_lsq_get_info(*qp, &s->plan_info);
         if (pending >= 0) {
             int v = (int)(pending / (long)nn), k = (int)(pending % (long)nn);
@@ -338,7 +340,7 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
                                 "the measured views do not identify G: %ld degree(s) of freedom "
                                 "beyond the gauge stay free (see 'selfcal plan')",
                                 s->plan_info.free_dof);
-        st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
+        sc_status st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
         if (st == SC_OK)
             st = sc_grid_lsq_residuals(*qp, d, &s->res, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
         if (st != SC_OK || !o->reject_outliers || stop)
@@ -392,17 +394,20 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
 }
 
 static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
-                         const sc_grid_options *o, sc_grid_solution *s, sc_error *err)
+                         const sc_grid_options *o, sc_grid_lsq_plan *q0, sc_grid_solution *s,
+                         sc_error *err)
 {
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
     double *keep = malloc((2 * tot + 1) * sizeof(double));
-    if (!keep)
+    if (!keep) {
+        sc_grid_lsq_plan_destroy(q0);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
     for (int v = 0; v < p->n_views; ++v)
         for (size_t k = 0; k < nn; ++k)
             keep[v * nn + k] = d->dx_um[v][k], keep[tot + v * nn + k] = d->dy_um[v][k];
-    sc_grid_lsq_plan *q = NULL;
+    sc_grid_lsq_plan *q = q0;
     sc_status st = lsq_loop(d, info, path, o, keep, s, &q, err);
     if (st == SC_OK)
         lsq_finish(d, info, path, o, keep, s, q);
@@ -432,11 +437,19 @@ sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, cons
 {
     memset(s, 0, sizeof *s);
     sc_status st = sc_grid_check_method(d, info, path, o, err);
+    /* the least squares' first plan before the solution's arrays: its selected inverse sets the
+     * command's peak memory, and the arrays are not needed yet */
+    sc_grid_lsq_plan *q0 = NULL;
+    sc_grid_lsq_opts opts = {o->drift};
+    if (st == SC_OK && o->method == SC_GRID_METHOD_LSQ)
+        st = sc_grid_lsq_plan_create(&d->plan, d, &opts, &q0, err);
     if (st == SC_OK)
         st = solution_alloc(&d->plan, o, s, err);
     if (st == SC_OK)
-        st = o->method == SC_GRID_METHOD_LSQ ? run_lsq(d, info, path, o, s, err)
+        st = o->method == SC_GRID_METHOD_LSQ ? run_lsq(d, info, path, o, q0, s, err)
                                              : run_exact(d, o, s, err);
+    else
+        sc_grid_lsq_plan_destroy(q0);
     if (st != SC_OK)
         return st;
     /* O and R come with the result: every method computes them (sc_grid_first_order) */

@@ -778,16 +778,13 @@ sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *
     st = build_equations(q, mask, err);
     if (st != SC_OK)
         goto fail;
-    size_t nwork = 4 * (size_t)q->n_red + (size_t)q->ng + 2 * (size_t)q->nn + (size_t)q->nm;
     q->pinned = calloc((size_t)q->n_red, 1);
     q->sgx = malloc(sizeof(double) * (size_t)q->ns);
     q->sgy = malloc(sizeof(double) * (size_t)q->ns);
-    q->work = malloc(sizeof(double) * nwork);
-    if (!q->pinned || !q->sgx || !q->sgy || !q->work) {
+    if (!q->pinned || !q->sgx || !q->sgy) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto fail;
     }
-    q->bytes += sizeof(double) * nwork;
     st = choose_pins(q, err);
     if (st == SC_OK)
         st = build_and_factor(q, err);
@@ -797,6 +794,15 @@ sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *
         st = plan_uncertainties(q, err);
     if (st != SC_OK)
         goto fail;
+    /* execute's workspace, after the selected inverse (which needs the memory more), and the
+     * solver's own for execute's single right-hand sides, so that execute allocates nothing */
+    size_t nwork = 4 * (size_t)q->n_red + (size_t)q->ng + 2 * (size_t)q->nn + (size_t)q->nm;
+    if (!(q->work = calloc(nwork, sizeof(double))) ||
+        (q->info.identifiable && sc_spsym_solve(q->f, q->work, 1) != 0)) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
+        goto fail;
+    }
+    q->bytes += sizeof(double) * nwork;
     sc_spsym_stats fst;
     sc_spsym_get_stats(q->f, &fst);
     q->bytes += fst.bytes + (size_t)q->neq * (5 * sizeof(int) + 2 + 2 * sizeof(double) + sizeof(long));
@@ -1774,11 +1780,6 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     if (st == SC_OK)
         st = leverages(q, err);
     sc_spsym_drop_inverse(q->f);
-    /* size the solver's workspace for execute's single right-hand sides now, so that execute
-     * allocates nothing */
-    memset(q->work, 0, sizeof(double) * n);
-    if (st == SC_OK && sc_spsym_solve(q->f, q->work, 1) != 0)
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
 out:
     free(U), free(WB), free(fg), free(uA);
     return st;

@@ -586,12 +586,18 @@ static long entry_of(const sc_spsym *s, int i, int j)
     return lo;
 }
 
+/* Fronts with more rows below their diagonal block than this take Z_RR · L̂ panel by panel (one
+ * ancestor's columns of Z_RR at a time) instead of gathering Z_RR whole: the m² workspace of the
+ * largest front would otherwise set the selected inverse's peak memory (14 MB at N = 201). */
+#define ZRR_MAX 256
+
 /* Workspace of the streaming selected inverse. */
 typedef struct selinv_ws {
     double **Z;          /* per supernode: its block of the inverse (nr x nc), while needed */
     int *parent, *first; /* supernodal tree (super_tree) */
     int *map;            /* n: relative row map */
-    double *Zrr, *W, *Y; /* dense blocks: m x m, m x nc, m x nc */
+    double *Zrr, *W, *Y; /* dense blocks: m x m (m <= ZRR_MAX), m x nc, m x nc */
+    double *P;           /* a panel of Z_RR from one ancestor (larger fronts): m x nc */
     double *Gt;          /* the tracked columns' rows R: n_track x m */
     long *bptr;          /* A's entries by factor column (bucket_entries) */
     int *bucket;
@@ -601,7 +607,7 @@ static void selinv_ws_free(selinv_ws *w, int nsuper)
 {
     for (int J = 0; w->Z && J < nsuper; ++J)
         free(w->Z[J]);
-    free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->W);
+    free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->P), free(w->W);
     free(w->Y), free(w->Gt), free(w->bptr), free(w->bucket);
 }
 
@@ -623,12 +629,14 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     w->parent = malloc(sizeof(int) * ((size_t)nsuper + 1));
     w->first = malloc(sizeof(int) * ((size_t)nsuper + 1));
     w->map = malloc(sizeof(int) * ((size_t)n + 1));
-    w->Zrr = malloc(sizeof(double) * ((size_t)maxm * maxm + 1));
+    int mz = maxm < ZRR_MAX ? maxm : ZRR_MAX;
+    w->Zrr = malloc(sizeof(double) * ((size_t)mz * mz + 1));
+    w->P = maxm > ZRR_MAX ? malloc(sizeof(double) * ((size_t)maxm * maxc + 1)) : NULL;
     w->W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Gt = malloc(sizeof(double) * ((size_t)s->n_track * maxm + 1));
     if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
-        !w->Zrr || !w->W || !w->Y || !w->Gt ||
+        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt ||
         bucket_entries(s, &w->bptr, &w->bucket) != 0)
         return -1;
     for (int J = 0; J < nsuper; ++J)
@@ -657,22 +665,51 @@ static double super_block(sc_spsym *s, selinv_ws *w, int J, double *Zj)
         return -1;
     if (m == 0)
         return (double)nc * nc * nc / 3;
-    /* gather Z_RR (lower triangle, m x m) from the blocks of R's supernodes (ancestors of J) */
-    for (int b = 0; b < m;) {
-        int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0;
-        for (int t = 0; t < nrS; ++t)
-            w->map[Ls[p0 + t]] = t;
-        for (; b < m && s->col2super[R[b]] == S; ++b) {
-            const double *zc = w->Z[S] + (size_t)(R[b] - Super[S]) * nrS;
-            double *dst = w->Zrr + (size_t)b * m;
-            for (int a = b; a < m; ++a)
-                dst[a] = zc[w->map[R[a]]];
-        }
-    }
     for (int c = 0; c < nc; ++c)
         memcpy(w->W + (size_t)c * m, Ljj + (size_t)c * nr + nc, sizeof(double) * m);
     A->dtrsm("R", "L", "N", "N", &m, &nc, &one, Ljj, &nr, w->W, &m, 1, 1, 1, 1);
-    A->dsymm("L", "L", &m, &nc, &one, w->Zrr, &m, w->W, &m, &zero, w->Y, &m, 1, 1);
+    if (m <= ZRR_MAX) {
+        /* gather Z_RR (lower triangle, m x m) from the blocks of R's supernodes (ancestors) */
+        for (int b = 0; b < m;) {
+            int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0;
+            for (int t = 0; t < nrS; ++t)
+                w->map[Ls[p0 + t]] = t;
+            for (; b < m && s->col2super[R[b]] == S; ++b) {
+                const double *zc = w->Z[S] + (size_t)(R[b] - Super[S]) * nrS;
+                double *dst = w->Zrr + (size_t)b * m;
+                for (int a = b; a < m; ++a)
+                    dst[a] = zc[w->map[R[a]]];
+            }
+        }
+        A->dsymm("L", "L", &m, &nc, &one, w->Zrr, &m, w->W, &m, &zero, w->Y, &m, 1, 1);
+    } else {
+        /* Y = Z_RR L̂ panel by panel: the columns R[b..e) of one ancestor S give the panel
+         * P = Z(R[b..m), R[b..e)) (its top square made symmetric), and Y[b..m) += P L̂[b..e),
+         * Y[b..e) += P[e-b..]ᵀ L̂[e..m) (the part of Z_RR above the panel, by symmetry) */
+        memset(w->Y, 0, sizeof(double) * (size_t)m * nc);
+        for (int b = 0; b < m;) {
+            int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0, e = b;
+            while (e < m && s->col2super[R[e]] == S)
+                ++e;
+            int pr = m - b, pc = e - b, below = m - e;
+            for (int t = 0; t < nrS; ++t)
+                w->map[Ls[p0 + t]] = t;
+            for (int c = b; c < e; ++c) {
+                const double *zc = w->Z[S] + (size_t)(R[c] - Super[S]) * nrS;
+                double *dst = w->P + (size_t)(c - b) * pr;
+                for (int a = c; a < m; ++a)
+                    dst[a - b] = zc[w->map[R[a]]];
+                for (int a = b; a < c; ++a) /* the top square's upper part */
+                    dst[a - b] = w->P[(size_t)(a - b) * pr + (c - b)];
+            }
+            A->dgemm("N", "N", &pr, &nc, &pc, &one, w->P, &pr, w->W + b, &m, &one, w->Y + b, &m,
+                     1, 1);
+            if (below > 0)
+                A->dgemm("T", "N", &pc, &nc, &below, &one, w->P + pc, &pr, w->W + e, &m, &one,
+                         w->Y + b, &m, 1, 1);
+            b = e;
+        }
+    }
     for (int c = 0; c < nc; ++c) {
         double *zc = Zj + (size_t)c * nr + nc;
         const double *yc = w->Y + (size_t)c * m;
