@@ -139,10 +139,8 @@ int sc_number_format(double v, char *buf)
 /* 10^s for s = 0..38, exact in 128 bits. */
 static unsigned __int128 pow10_u128(int s)
 {
-    unsigned __int128 r = 1;
-    for (; s >= 19; s -= 19)
-        r *= (unsigned __int128)10000000000000000000ULL;
-    return r * pow10_u64[s];
+    unsigned __int128 e18 = pow10_u64[18];
+    return s <= 18 ? pow10_u64[s] : s <= 36 ? e18 * pow10_u64[s - 18] : e18 * e18 * pow10_u64[s - 36];
 }
 
 /* a (normal, > 0) rounded to 15 significant digits, exactly: *r (10^14 <= *r < 10^15) times
@@ -162,7 +160,9 @@ static int round15(double a, uint64_t *r, int *x)
     /* a·10^s < 10^16 < 2^54 below, so m·10^s < 2^(54 + sh) fits 128 bits for sh <= 73 */
     if (sh <= 0 || sh > 73)
         return 0;
-    int e = (int)floor(log10(a)); /* may be off by one near powers of ten: corrected below */
+    /* floor(log10(a)) from the binary exponent (log10 2 ≈ 78913/2^18): off by at most one,
+     * corrected below */
+    int k2 = be - 1023, e = k2 >= 0 ? (k2 * 78913) >> 18 : -((-k2 * 78913 + 262143) >> 18);
     for (int tries = 0; tries < 3; ++tries) {
         int s = 14 - e;
         if (s < 0 || s > 38)

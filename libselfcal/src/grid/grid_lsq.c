@@ -1390,12 +1390,12 @@ static int gauge_matrix(const sc_grid_lsq_plan *q, double *Minv_T)
     return 0;
 }
 
-/* u = Qᵀ f for the functional f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL):
- * ux on the reduced unknowns (n_red), uA on the A components (2 nn); u = f − Σ_t γ_t C_t. */
-static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, const double *fg,
-                               const double *fm, double *ux, double *uA, double gam[7])
+/* γ of the functional f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL): the
+ * coefficients of the gauge patterns C_t that Qᵀ removes (functional_vectors). */
+static void functional_gamma(const sc_grid_lsq_plan *q, const double *Minv_T, const double *fg,
+                             const double *fm, double gam[7])
 {
-    int ng = q->ng, nb = q->nb;
+    int nb = q->nb;
     double Nf[7] = {0};
     memset(gam, 0, sizeof(double) * 7);
     double ng7[7][2], nm7[7][5];
@@ -1413,6 +1413,15 @@ static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, 
     for (int i = 0; i < 7; ++i)
         for (int j = 0; j < 7; ++j)
             gam[i] += Minv_T[i * 7 + j] * Nf[j];
+}
+
+/* u = Qᵀ f for the functional f given on G (fg, ng, may be NULL) and m (fm, nm, may be NULL):
+ * ux on the reduced unknowns (n_red), uA on the A components (2 nn); u = f − Σ_t γ_t C_t. */
+static void functional_vectors(const sc_grid_lsq_plan *q, const double *Minv_T, const double *fg,
+                               const double *fm, double *ux, double *uA, double gam[7])
+{
+    int ng = q->ng;
+    functional_gamma(q, Minv_T, fg, fm, gam);
     /* u = f - Σ_k γ_k C_k */
     memset(ux, 0, sizeof(double) * (size_t)q->n_red);
     for (int k = 0; k < q->ns; ++k) {
@@ -1509,6 +1518,21 @@ static void functional_def(const sc_grid_lsq_plan *q, int f, double r2, double *
     }
 }
 
+/* D_t = a_correction of the A gauge pattern C_t, t = 4..6 (3 columns of n_red); uA: scratch. */
+static void gauge_a_rhs(const sc_grid_lsq_plan *q, double *uA, double *D)
+{
+    size_t n = (size_t)q->n_red;
+    memset(D, 0, sizeof(double) * 3 * n);
+    for (int t = 4; t < 7; ++t) {
+        for (int k = 0; k < q->nn; ++k) {
+            double ca[7][2];
+            gauge_a(q, k, ca);
+            uA[2 * k] = ca[t][0], uA[2 * k + 1] = ca[t][1];
+        }
+        a_correction(q, uA, D + (size_t)(t - 4) * n);
+    }
+}
+
 /* The right-hand sides whose pinned solves combine into every functional's (5 columns of n_red):
  * [fg_O; 0], [fg_R; 0] and the A parts D_t (a_correction of the gauge sum C_t on A, t = 4..6). */
 static void functional_basis_rhs(const sc_grid_lsq_plan *q, double r2, double *fg, double *uA,
@@ -1516,96 +1540,134 @@ static void functional_basis_rhs(const sc_grid_lsq_plan *q, double r2, double *f
 {
     size_t n = (size_t)q->n_red;
     const double *pg, *pm;
-    memset(cols, 0, sizeof(double) * 5 * n);
+    memset(cols, 0, sizeof(double) * 2 * n);
     for (int f = 0; f < 2; ++f) {
         functional_def(q, f, r2, fg, uA, &pg, &pm); /* uA: not written for O, R */
         memcpy(cols + (size_t)f * n, fg, sizeof(double) * (size_t)q->ng);
     }
-    for (int t = 4; t < 7; ++t) {
-        for (int k = 0; k < q->nn; ++k) {
-            double ca[7][2];
-            gauge_a(q, k, ca);
-            uA[2 * k] = ca[t][0], uA[2 * k + 1] = ca[t][1];
-        }
-        a_correction(q, uA, cols + (size_t)(t - 2) * n);
+    gauge_a_rhs(q, uA, cols + 2 * n);
+}
+/* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
+ * u = Qᵀ f = f − Σ_t γ_t C_t. In the reduced unknowns uᵀΣu = r·Σr + Σ_a u_A[a]²/W_a with
+ * r = u_x − a_correction(u_A) (functional_form). The gauge patterns C_t lie on G for t < 4 (U_t =
+ * scale_t·C_t) and on A for t >= 4 (a_correction of them: D_t), so
+ *     r = f − Σ_{t<4} γ_t U_t/scale_t + Σ_{t>=4} γ_t D_t,
+ * and Σr combines the 9 solved columns X = (W = ΣU, B = Σ(fg_O, fg_R, D_4..6)) with Σ f for a
+ * misalignment f = e_m: its own column of Σ, from the selected inverse. The form r·z is then
+ * f·z − Σ_{t<4} γ_t U_t·z/scale_t − Σ_{t>=4} γ_t D_t·z: dot products, no pass over the equations
+ * per functional. */
+static double dot(const double *a, const double *b, size_t n)
+{
+    double s = 0;
+    for (size_t i = 0; i < n; ++i)
+        s += a[i] * b[i];
+    return s;
+}
+
+/* C[t][t'] = Σ_a C_t[a] C_t'[a] / W_a over the A components, t, t' = 4..6 (the A gauges): the
+ * constant Σ_a u_A[a]²/W_a of every form is γᵀCγ. */
+static void a_gauge_gram(const sc_grid_lsq_plan *q, double C[3][3])
+{
+    memset(C, 0, sizeof(double) * 9);
+    for (int a = 0; a < 2 * q->nn; ++a) {
+        double W = 0, ca[7][2];
+        for (long t = q->grp_ptr[a]; t < q->grp_ptr[a + 1]; ++t)
+            W += q->eq_w[q->grp_eq[t]];
+        if (W == 0)
+            continue;
+        gauge_a(q, a / 2, ca);
+        for (int t = 0; t < 3; ++t)
+            for (int u = 0; u < 3; ++u)
+                C[t][u] += ca[4 + t][a % 2] * ca[4 + u][a % 2] / W;
     }
 }
 
-/* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
- * u = Qᵀ f = f − Σ_t γ_t C_t. By linearity Σ's action on u's right-hand side combines columns the
- * plan has: W = ΣU (U the C_t on G scaled), B = Σ·functional_basis_rhs (5 columns) and, for a
- * misalignment, its own column of Σ (from the selected inverse), instead of one solve per
- * functional. In two phases: before the selected inverse (phase 0: O and R whole, the
- * misalignments' part from W and B into part[]), after it (phase 1: each misalignment's own
- * column added). */
-static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const double *W,
-                                      const double scale[4], const double *B, double *part,
-                                      sc_error *err)
+/* Phase 0 (before the selected inverse): O and R, and part[t] for every misalignment unknown t
+ * (its variance without its own column's share; NaN where it has none). Phase 1 (after): the
+ * misalignments' variances, adding r·(Σ e_m) from their columns of Σ; D must be the same. */
+static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const double scale[4],
+                                      const double *U, const double *D, const double *X,
+                                      double *part, sc_error *err)
 {
     double Minv_T[49], gam[7];
     if (phase == 0)
         for (int t = 0; t < q->nm; ++t)
-            q->var_m[t] = NAN;
+            q->var_m[t] = part[t] = NAN;
     /* nullity_T > 3: combinations of misalignments (and drift) with A beyond the gauge stay free
      * (with drift: a drift common to all views in the plate frame is a plate error); their
      * values follow a convention and have no uncertainty. O and R depend on G only. */
     if (gauge_matrix(q, Minv_T) != 0)
         return SC_OK;
-    int nf = 2 + (q->misalignment_unique ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5], k = 0;
-    if (phase == 1 && nf == 2)
-        return SC_OK;
+    int nf = 2 + (q->misalignment_unique ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5], ns = 0;
     for (int t = 0; t < q->nm; ++t)
-        slot[t] = q->pinned[q->ng + t] ? -1 : k++; /* the selected inverse's column of t */
-    size_t n = (size_t)q->n_red;
-    double *fg = malloc(sizeof(double) * (size_t)q->ng), *fm = malloc(sizeof(double) * q->nm);
-    double *ux = malloc(sizeof(double) * n), *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-    double *z = malloc(sizeof(double) * n);
-    if (!fg || !fm || !ux || !uA || !z) {
-        free(fg), free(fm), free(ux), free(uA), free(z);
+        slot[t] = q->pinned[q->ng + t] ? -1 : ns++;
+    size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
+    double *fm = calloc((size_t)q->nm, sizeof(double)), *fg = NULL;
+    double *col = malloc(sizeof(double) * n), *z = col; /* phase 0: z0; phase 1: the column */
+    if (!fm || !col || (phase == 0 && !(fg = malloc(sizeof(double) * ng)))) {
+        free(fm), free(fg), free(col);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     }
     double r2 = 0;
-    for (int k2 = 0; k2 < q->ns; ++k2) {
+    for (int j = 0; phase == 0 && j < q->ns; ++j) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k2 / q->stage_nx, k2 % q->stage_nx, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, j / q->stage_nx, j % q->stage_nx, &x, &y);
         r2 += x * x + y * y;
     }
+    double C[3][3];
+    if (phase == 0)
+        a_gauge_gram(q, C);
     const double *pg, *pm;
     for (int f = phase == 0 ? 0 : 2; f < nf; ++f) {
-        functional_def(q, f, r2, fg, fm, &pg, &pm);
-        functional_vectors(q, Minv_T, pg, pm, ux, uA, gam);
-        double var;
-        if (phase == 0) {
-            double cw[4];
-            for (int t = 0; t < 4; ++t)
-                cw[t] = gam[t] / scale[t];
-            for (size_t i = 0; i < n; ++i) {
-                double v = f < 2 ? B[(size_t)f * n + i] : 0.0;
-                for (int t = 0; t < 4; ++t)
-                    v -= cw[t] * W[(size_t)t * n + i];
-                for (int t = 4; t < 7; ++t)
-                    v -= gam[t] * B[(size_t)(t - 2) * n + i];
-                z[i] = v;
-            }
-            var = functional_form(q, ux, uA, z, 1);
-            if (f >= 2) {
-                part[f - 2] = var;
+        functional_def(q, f, r2, fg ? fg : fm, fm, &pg, &pm); /* phase 1: misalignments only */
+        functional_gamma(q, Minv_T, pg, pm, gam);
+        int m = (int)ng + f - 2;
+        if (phase == 1) { /* r·(Σ e_m) = (Σ e_m)_m − Σ_{t<4} γ_t U_t·col/scale_t − Σ γ_t D_t·col */
+            if (slot[f - 2] < 0) { /* a pinned one: its column is 0 */
+                q->var_m[f - 2] = part[f - 2] > 0 ? part[f - 2] : 0.0;
                 continue;
             }
-        } else {
-            int c = slot[f - 2];
-            if (c < 0 || sc_spsym_inv_column(q->f, c, z) != 0)
-                memset(z, 0, sizeof(double) * n);
-            zero_pinned(q, z, 1);
-            var = part[f - 2] + functional_form(q, ux, uA, z, 0);
+            if (sc_spsym_inv_column(q->f, slot[f - 2], col) != 0)
+                break;
+            zero_pinned(q, col, 1);
+            double v = col[m];
+            for (int t = 0; t < 4; ++t)
+                v -= gam[t] / scale[t] * dot(U + (size_t)t * ng, col, ng);
+            for (int t = 0; t < 3; ++t)
+                v -= gam[4 + t] * dot(D + (size_t)t * n, col, n);
+            double var = part[f - 2] + v;
+            q->var_m[f - 2] = var > 0 ? var : 0.0;
+            continue;
         }
-        var = var > 0 ? var : 0.0;
-        if (f < 2)
-            *(f == 0 ? &q->var_O : &q->var_R) = var;
+        /* z0 = Σ(r − own) = Σ_s c_s X_s, formed first (a sum of the dot tables' products would
+         * lose more to cancellation), then its form: own·z0 − Σ_{t<4} γ_t U_t·z0/scale_t
+         * − Σ_{t>=4} γ_t D_t·z0 + Σ γ_t γ_t' C_tt' */
+        double c[9];
+        for (int t = 0; t < 4; ++t)
+            c[t] = -gam[t] / scale[t];
+        c[4] = f == 0, c[5] = f == 1;
+        for (int t = 0; t < 3; ++t)
+            c[6 + t] = -gam[4 + t];
+        for (size_t i = 0; i < n; ++i) {
+            double v = 0;
+            for (int s2 = 0; s2 < 9; ++s2)
+                v += c[s2] * X[(size_t)s2 * n + i];
+            z[i] = v;
+        }
+        double var = f < 2 ? dot(fg, z, ng) : z[m];
+        for (int t = 0; t < 4; ++t)
+            var -= gam[t] / scale[t] * dot(U + (size_t)t * ng, z, ng);
+        for (int t = 0; t < 3; ++t)
+            var -= gam[4 + t] * dot(D + (size_t)t * n, z, n);
+        for (int t = 0; t < 3; ++t)
+            for (int u = 0; u < 3; ++u)
+                var += gam[4 + t] * gam[4 + u] * C[t][u];
+        if (f >= 2)
+            part[f - 2] = var;
         else
-            q->var_m[f - 2] = var;
+            *(f == 0 ? &q->var_O : &q->var_R) = var > 0 ? var : 0.0;
     }
-    free(fg), free(fm), free(ux), free(uA), free(z);
+    free(fm), free(fg), free(col);
     return SC_OK;
 }
 
@@ -1734,30 +1796,30 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
  * same factor, so refined columns would not make the results more accurate (docs/grid-lsq.md). */
 static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
 {
-    size_t n = (size_t)q->n_red;
-    double *U = malloc(sizeof(double) * 4 * (size_t)q->ng);
+    size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
+    double *U = malloc(sizeof(double) * 4 * ng);
     double *WB = malloc(sizeof(double) * 9 * n); /* W: columns 0-3, B: 4-8 */
-    double *fg = malloc(sizeof(double) * (size_t)q->ng);
+    double *D = malloc(sizeof(double) * 3 * n), *fg = malloc(sizeof(double) * ng);
     double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-    double part[SC_GRID_MAX_VIEWS * 5];
+    double part[SC_GRID_MAX_VIEWS * 5], scale[4], r2 = 0, *W = WB, *B = WB + 4 * n;
     int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last);
     q->var_m = malloc(sizeof(double) * (size_t)q->nm);
     sc_status st = SC_OK;
-    if (!U || !WB || !fg || !uA || !q->var_m) {
+    if (!U || !WB || !D || !fg || !uA || !q->var_m) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto out;
     }
-    double scale[4], r2 = 0, *W = WB, *B = WB + 4 * n;
     gauge_basis(q, U, scale);
     for (int c = 0; c < 4; ++c)
         for (size_t i = 0; i < n; ++i)
-            W[(size_t)c * n + i] = i < (size_t)q->ng ? U[(size_t)c * q->ng + i] : 0.0;
-    for (int k = 0; k < q->ns; ++k) {
+            W[(size_t)c * n + i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
+    for (int j = 0; j < q->ns; ++j) {
         double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
+        sc_grid_node_xy_mm(&q->plan, j / q->stage_nx, j % q->stage_nx, &x, &y);
         r2 += x * x + y * y;
     }
     functional_basis_rhs(q, r2, fg, uA, B);
+    memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
     zero_pinned(q, WB, 9);
     if (sc_spsym_solve(q->f, WB, 9) != 0) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
@@ -1765,10 +1827,10 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     }
     zero_pinned(q, WB, 9);
     sigma_ratios_projection(q, U, W);
-    st = functional_variances(q, 0, W, scale, B, part, err);
-    /* the selected inverse needs the memory more */
-    free(U), free(WB), free(fg), free(uA);
-    U = WB = fg = uA = NULL;
+    st = functional_variances(q, 0, scale, U, D, WB, part, err);
+    /* the selected inverse needs the memory more (U and D are made again after it) */
+    free(U), free(WB), free(D), free(fg), free(uA);
+    U = WB = D = fg = uA = NULL;
     if (st != SC_OK)
         goto out;
     if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) { /* leverages: G pairs on S's pattern */
@@ -1776,12 +1838,22 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
         goto out;
     }
     sigma_ratios_finish(q);
-    st = functional_variances(q, 1, NULL, NULL, NULL, part, err);
-    if (st == SC_OK)
-        st = leverages(q, err);
+    st = leverages(q, err);
+    if (st == SC_OK && q->misalignment_unique) {
+        U = malloc(sizeof(double) * 4 * ng);
+        D = malloc(sizeof(double) * 3 * n);
+        uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
+        if (!U || !D || !uA)
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        else {
+            gauge_basis(q, U, scale);
+            gauge_a_rhs(q, uA, D);
+            st = functional_variances(q, 1, scale, U, D, NULL, part, err);
+        }
+    }
     sc_spsym_drop_inverse(q->f);
 out:
-    free(U), free(WB), free(fg), free(uA);
+    free(U), free(WB), free(D), free(fg), free(uA);
     return st;
 }
 
