@@ -1683,27 +1683,31 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
  * the selected inverse holds them; the misalignment columns of Σ come from nm extra solves.
  * ------------------------------------------------------------------------------------------- */
 
-/* Σ(i, j) of the pinned reduced inverse (original indices), after the selected inverse: the G
- * pairs on S's pattern from it, the pairs with a misalignment from its whole columns (slot: the
- * column of each misalignment unknown, -1 pinned). */
-static double sigma_entry(const sc_grid_lsq_plan *q, const int *slot, int i, int j)
+/* Σ on the misalignments' rows: mrow[t * nm + t'] = Σ(ng + t, ng + t') (0 on pins); slot: the
+ * selected inverse's column of each misalignment unknown (-1 pinned). */
+static void misalignment_block(const sc_grid_lsq_plan *q, const int *slot, double *mrow,
+                               double *tmp)
 {
-    if (q->pinned[i] || q->pinned[j])
-        return 0.0;
-    if (i < q->ng && j < q->ng)
-        return sc_spsym_inv(q->f, i, j);
-    if (i >= q->ng)
-        return sc_spsym_inv_col(q->f, slot[i - q->ng], j);
-    return sc_spsym_inv_col(q->f, slot[j - q->ng], i);
+    int nm = q->nm;
+    for (int t = 0; t < nm; ++t) {
+        if (q->pinned[q->ng + t]) {
+            memset(mrow + (size_t)t * nm, 0, sizeof(double) * (size_t)nm);
+            continue;
+        }
+        sc_spsym_inv_cols_at(q->f, q->ng + t, tmp);
+        for (int u = 0; u < nm; ++u)
+            mrow[(size_t)t * nm + u] = slot[u] < 0 ? 0.0 : tmp[slot[u]];
+    }
 }
 
 /* Leverage of every equation of group a into h (by equation index). u: the group's unknowns;
- * vec: 2 vectors over them (Σm, then m); sub: Σ's block on them. */
-static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, int a, int *u, double *vec,
-                           double *sub, double *h)
+ * vec: 2 vectors over them (Σm, then m); sub: Σ's block on them; mrow: misalignment_block;
+ * grow: scratch of ROW_MAX·(group size) x n_track (the G unknowns' rows of Σ's whole columns). */
+static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const double *mrow, int a,
+                           int *u, double *vec, double *sub, double *grow, double *h)
 {
     long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
-    int idx[ROW_MAX], nu = 0;
+    int idx[ROW_MAX], nu = 0, ng = q->ng, nm = q->nm;
     double val[ROW_MAX], W = 0;
     for (long t = 0; t < cnt; ++t) {
         long e = q->grp_eq[g0 + t];
@@ -1727,12 +1731,31 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, int a, in
                 if (u[f] == idx[r])
                     mean[f] += q->eq_w[e] * val[r] / W;
     }
-    /* with ã_e = ρ_e − m (m the group's weighted mean row), ã_eᵀΣã_e = ρ_eᵀΣρ_e − 2ρ_eᵀ(Σm) +
-     * mᵀΣm: ρ_e has ROW_MAX entries, so Σm and mᵀΣm once per group and ROW_MAX² terms per
-     * equation */
+    /* Σ's block on the group's unknowns: G pairs from the selected inverse (on S's pattern), G
+     * with a misalignment from the G unknown's row of the whole columns (fetched once), two
+     * misalignments from mrow */
+    int nt = 0;
+    for (int t = 0; t < nm; ++t)
+        nt += slot[t] >= 0;
     for (int i = 0; i < nu; ++i)
-        for (int j = i; j < nu; ++j)
-            sub[i * nu + j] = sub[j * nu + i] = sigma_entry(q, slot, u[i], u[j]);
+        if (u[i] < ng && !q->pinned[u[i]])
+            sc_spsym_inv_cols_at(q->f, u[i], grow + (size_t)i * nt);
+    for (int i = 0; i < nu; ++i)
+        for (int j = i; j < nu; ++j) {
+            int ui = u[i], uj = u[j];
+            double v;
+            if (q->pinned[ui] || q->pinned[uj])
+                v = 0.0;
+            else if (ui < ng && uj < ng)
+                v = sc_spsym_inv(q->f, ui, uj);
+            else if (ui >= ng && uj >= ng)
+                v = mrow[(size_t)(ui - ng) * nm + (uj - ng)];
+            else if (ui < ng)
+                v = grow[(size_t)i * nt + slot[uj - ng]];
+            else
+                v = grow[(size_t)j * nt + slot[ui - ng]];
+            sub[i * nu + j] = sub[j * nu + i] = v;
+        }
     double *sm = vec, msm = 0;
     for (int i = 0; i < nu; ++i) {
         double v = 0;
@@ -1764,8 +1787,8 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, int a, in
 /* q->eq_h: the leverage of every equation (after the selected inverse). */
 static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
 {
-    int maxg = 0, slot[SC_GRID_MAX_VIEWS * 5], k = 0;
-    for (int t = 0; t < q->nm; ++t)
+    int maxg = 0, slot[SC_GRID_MAX_VIEWS * 5], k = 0, nm = q->nm;
+    for (int t = 0; t < nm; ++t)
         slot[t] = q->pinned[q->ng + t] ? -1 : k++;
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
@@ -1774,17 +1797,22 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
     int *u = malloc(sizeof(int) * (size_t)mu);
     double *vec = malloc(sizeof(double) * 2 * (size_t)mu);
     double *sub = malloc(sizeof(double) * (size_t)mu * mu);
+    double *grow = malloc(sizeof(double) * ((size_t)mu * (k + 1)));
+    double *mrow = malloc(sizeof(double) * ((size_t)nm * nm + 1));
+    double *tmp = malloc(sizeof(double) * ((size_t)nm + 1));
     if (!q->eq_h)
         q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1));
-    if (!u || !vec || !sub || !q->eq_h) {
-        free(u), free(vec), free(sub);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
+    sc_status st = SC_OK;
+    if (!u || !vec || !sub || !grow || !mrow || !tmp || !q->eq_h)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
+    else {
+        misalignment_block(q, slot, mrow, tmp);
+        for (int a = 0; a < 2 * q->nn; ++a)
+            if (q->grp_ptr[a + 1] > q->grp_ptr[a])
+                group_leverage(q, slot, mrow, a, u, vec, sub, grow, q->eq_h);
     }
-    for (int a = 0; a < 2 * q->nn; ++a)
-        if (q->grp_ptr[a + 1] > q->grp_ptr[a])
-            group_leverage(q, slot, a, u, vec, sub, q->eq_h);
-    free(u), free(vec), free(sub);
-    return SC_OK;
+    free(u), free(vec), free(sub), free(grow), free(mrow), free(tmp);
+    return st;
 }
 
 /* Everything of an identifying plan that does not depend on the measured values. First 9 blocked

@@ -987,6 +987,13 @@ double sc_spsym_inv_col(const sc_spsym *s, int t, int i)
     return s->Zt[(size_t)s->iperm[i] * s->n_track + s->track_slot[t]];
 }
 
+void sc_spsym_inv_cols_at(const sc_spsym *s, int i, double *out)
+{
+    const double *row = s->Zt ? s->Zt + (size_t)s->iperm[i] * (size_t)s->n_track : NULL;
+    for (int t = 0; t < s->n_track; ++t)
+        out[t] = row ? row[s->track_slot[t]] : NAN;
+}
+
 int sc_spsym_inv_column(const sc_spsym *s, int t, double *out)
 {
     if (!s->Zt || t < 0 || t >= s->n_track)

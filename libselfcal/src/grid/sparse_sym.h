@@ -80,6 +80,9 @@ int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols);
 /* (A⁻¹)(i, cols[t]) after sc_spsym_selinv (NaN if not computed or dropped). */
 double sc_spsym_inv_col(const sc_spsym *s, int t, int i);
 
+/* Row i of the whole columns: out[t] = (A⁻¹)(i, cols[t]) for every t (NaN if not computed). */
+void sc_spsym_inv_cols_at(const sc_spsym *s, int i, double *out);
+
 /* The whole column cols[t] of A⁻¹ into out (n); -1 if it was not computed (or dropped). */
 int sc_spsym_inv_column(const sc_spsym *s, int t, double *out);
 
