@@ -14,15 +14,15 @@
  *    the plan identifies G (and every view's misalignment). The G of the pinned solution differs
  *    from the gauged one by a gauge pattern, so G = P⊥ g_pin (P⊥ the orthogonal projector of
  *    sc_grid_gauge_stage), exactly.
- * 3. The pinned matrix is factored once per plan (sparse_sym.h: CHOLMOD's supernodal Cholesky,
- *    its fill-reducing order chosen once; a rank-revealing LDLᵀ when it is numerically singular);
- *    null pivots are decided with a relative tolerance.
+ * 3. The pinned matrix is factored once per plan (sparse_sym.h: CHOLMOD's supernodal Cholesky in
+ *    the order of AMD on the node graph with the free misalignments last; a rank-revealing LDLᵀ
+ *    when it is numerically singular); null pivots are decided with a relative tolerance.
  * 4. Everything that does not depend on the measured values is computed by the plan: per-node
  *    variances Cov(G)/σ² = P⊥ Σ P⊥ with Σ = pinned inverse (zero on pins), diag(Σ) by the
  *    supernodal selected inverse and the projection from W = ΣU (4 columns); the leverage of every
- *    equation (the selected inverse on S's pattern and the nm misalignment columns of Σ); the
- *    variances of O, R and the misalignments per unit σ. The solves are blocked (several
- *    right-hand sides per sparse solve, BLAS-3 on the supernodes).
+ *    equation (the selected inverse on S's pattern and the free misalignments' whole columns of
+ *    Σ, which the same selected inverse gives); the variances of O, R and the misalignments per
+ *    unit σ (W, 5 more columns, the misalignment columns). One blocked solve of 9 columns.
  * 5. Execute: one solve with 3 refinement steps against the equations, the gauge, the residual
  *    sums; no allocation (the plan holds the workspace, so one plan serves one thread at a time).
  */
