@@ -147,11 +147,6 @@ static int small_nullity(double *a, int m, double tol)
     return m - r;
 }
 
-typedef struct triplet {
-    int i, j;
-    double v;
-} triplet;
-
 #define ROW_MAX 4 /* entries of one equation's row */
 
 /* Coefficients of w_e = s_e·J_e over x = (g, m): 3 (index, value) pairs, 4 with drift. */
@@ -379,10 +374,9 @@ static sc_status choose_pins(sc_grid_lsq_plan *q, sc_error *err)
 }
 
 /* The group eliminations: per A component seen at least twice, Σ w_e r_e r_eᵀ − (Σ w_e r_e)
- * (Σ w_e r_e)ᵀ / Σ w_e over its equations' rows r_e. G-G entries (i <= j) go to the triplets tr,
- * G-misalignment entries to gm (ng x nm), misalignment pairs to mm (nm x nm). */
-static sc_status assemble_groups(const sc_grid_lsq_plan *q, triplet *tr, long *ntr, double *gm,
-                                 double *mm)
+ * (Σ w_e r_e)ᵀ / Σ w_e over its equations' rows r_e. Here the entries with a misalignment:
+ * G-misalignment to gm (ng x nm), misalignment pairs to mm (nm x nm); the G block is g_block_cols. */
+static sc_status assemble_groups(const sc_grid_lsq_plan *q, double *gm, double *mm)
 {
     int ng = q->ng, nm = q->nm, maxg = 0;
     for (int a = 0; a < 2 * q->nn; ++a)
@@ -395,7 +389,6 @@ static sc_status assemble_groups(const sc_grid_lsq_plan *q, triplet *tr, long *n
         free(li), free(lv), free(lw), free(lo);
         return SC_E_NOMEM;
     }
-    *ntr = 0;
     for (int a = 0; a < 2 * q->nn; ++a) {
         long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
         if (cnt < 2)
@@ -410,85 +403,114 @@ static sc_status assemble_groups(const sc_grid_lsq_plan *q, triplet *tr, long *n
             len += l;
             W += q->eq_w[e];
         }
-        for (int pass = 0; pass < 2; ++pass)
-            for (int x = 0; x < len; ++x)
-                for (int y = 0; y < len; ++y) {
-                    if (pass == 0 && lo[x] != lo[y])
-                        continue;
-                    double coef = pass == 0 ? lw[x] : -lw[x] * lw[y] / W;
-                    int i = li[x], j = li[y];
-                    double v = coef * lv[x] * lv[y];
-                    if (i < ng && j < ng) {
-                        if (i <= j)
-                            tr[(*ntr)++] = (triplet){i, j, v};
-                    } else if (i < ng) {
-                        gm[(size_t)i * nm + (j - ng)] += v;
-                    } else if (j >= ng) {
-                        mm[(size_t)(i - ng) * nm + (j - ng)] += v;
-                    }
-                }
+        for (int x = 0; x < len; ++x) {
+            int i = li[x];
+            for (int y = 0; y < len; ++y) {
+                int j = li[y];
+                if (j < ng) /* G-G (g_block_cols), or the transposed G-misalignment pair */
+                    continue;
+                double v = (lo[x] == lo[y] ? lw[x] : 0.0) - lw[x] * lw[y] / W;
+                v *= lv[x] * lv[y];
+                if (i < ng)
+                    gm[(size_t)i * nm + (j - ng)] += v;
+                else
+                    mm[(size_t)(i - ng) * nm + (j - ng)] += v;
+            }
+        }
     }
     free(li), free(lv), free(lw), free(lo);
     return SC_OK;
 }
 
-/* The G block as upper rows (rp, ri, rv: CSR) from the triplets, duplicates summed, pinned
- * rows/columns left out. */
-static sc_status g_block_rows(const sc_grid_lsq_plan *q, triplet *tr, long ntr, long **rp_out,
-                              int **ri_out, double **rv_out)
+/* The G block of the pinned reduced matrix as upper columns (cp, ci, cv: column j holds rows
+ * i <= j, duplicates summed, pinned rows and columns left out), built column by column: every
+ * equation e has one G unknown g_e (coefficient s_e), so column j gathers, over the equations e
+ * at j and the equations e' of e's group, (w_e s_e² if e' = e) − w_e w_e' s_e s_e' / W at row
+ * g_e'. No triplets: one dense accumulator of ng and its list of touched rows. */
+static sc_status g_block_cols(const sc_grid_lsq_plan *q, long **cp_out, int **ci_out,
+                              double **cv_out)
 {
-    int ng = q->ng;
-    long *rp = calloc((size_t)ng + 1, sizeof(long)), *fill = malloc(sizeof(long) * (ng + 1));
-    int *ri = malloc(sizeof(int) * (size_t)(ntr + 1)), *last = malloc(sizeof(int) * (ng + 1));
-    double *rv = malloc(sizeof(double) * (size_t)(ntr + 1));
-    if (!rp || !fill || !ri || !last || !rv) {
-        free(rp), free(fill), free(ri), free(last), free(rv);
-        return SC_E_NOMEM;
+    int ng = q->ng, n2 = 2 * q->nn;
+    long *ep = calloc((size_t)ng + 1, sizeof(long)), *cp = malloc(sizeof(long) * (ng + 1));
+    long *eg = malloc(sizeof(long) * (size_t)(q->neq + 1)), bound = 0;
+    double *Wg = malloc(sizeof(double) * (size_t)(n2 + 1)), *acc = calloc((size_t)ng + 1, sizeof(double));
+    int *touched = malloc(sizeof(int) * (ng + 1)), *mark = malloc(sizeof(int) * (ng + 1));
+    int *ci = NULL;
+    double *cv = NULL;
+    sc_status st = SC_E_NOMEM;
+    if (!ep || !cp || !eg || !Wg || !acc || !touched || !mark)
+        goto out;
+    for (int a = 0; a < n2; ++a) {
+        double W = 0;
+        for (long t = q->grp_ptr[a]; t < q->grp_ptr[a + 1]; ++t)
+            W += q->eq_w[q->grp_eq[t]];
+        Wg[a] = W;
     }
-    for (long t = 0; t < ntr; ++t)
-        rp[tr[t].i + 1]++;
-    for (int i = 0; i < ng; ++i)
-        rp[i + 1] += rp[i];
-    memcpy(fill, rp, sizeof(long) * (size_t)ng);
-    for (long t = 0; t < ntr; ++t) {
-        long pos = fill[tr[t].i]++;
-        ri[pos] = tr[t].j;
-        rv[pos] = tr[t].v;
+    for (long e = 0; e < q->neq; ++e) { /* the equations at each G unknown */
+        ep[q->eq_g[e] + 1]++;
+        bound += q->grp_ptr[q->eq_a[e] + 1] - q->grp_ptr[q->eq_a[e]];
     }
-    free(fill);
+    for (int j = 0; j < ng; ++j)
+        ep[j + 1] += ep[j];
+    memcpy(cp, ep, sizeof(long) * (size_t)ng);
+    for (long e = 0; e < q->neq; ++e)
+        eg[cp[q->eq_g[e]]++] = e;
+    if (!(ci = malloc(sizeof(int) * (size_t)(bound + 1))) ||
+        !(cv = malloc(sizeof(double) * (size_t)(bound + 1))))
+        goto out;
     for (int i = 0; i < ng; ++i)
-        last[i] = -1;
+        mark[i] = -1;
     long w = 0;
-    for (int i = 0; i < ng; ++i) {
-        long p0 = rp[i], p1 = rp[i + 1], start = w;
-        rp[i] = start;
-        for (long p = p0; p < p1; ++p) {
-            int j = ri[p];
-            if (q->pinned[i] || q->pinned[j])
+    for (int j = 0; j < ng; ++j) {
+        cp[j] = w;
+        if (q->pinned[j])
+            continue;
+        int nt = 0;
+        for (long p = ep[j]; p < ep[j + 1]; ++p) {
+            long e = eg[p];
+            int a = q->eq_a[e];
+            long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+            if (cnt < 2)
                 continue;
-            if (last[j] >= start) {
-                rv[last[j]] += rv[p];
-            } else {
-                last[j] = (int)w;
-                ri[w] = j;
-                rv[w] = rv[p];
-                w++;
+            double we = q->eq_w[e] * q->eq_s[e], W = Wg[a];
+            for (long t = 0; t < cnt; ++t) {
+                long e2 = q->grp_eq[g0 + t];
+                int i = q->eq_g[e2];
+                if (i > j || q->pinned[i])
+                    continue;
+                double v = -we * q->eq_w[e2] * q->eq_s[e2] / W;
+                if (e2 == e)
+                    v += we * q->eq_s[e];
+                if (mark[i] != j) {
+                    mark[i] = j;
+                    acc[i] = 0;
+                    touched[nt++] = i;
+                }
+                acc[i] += v;
             }
         }
+        for (int t = 0; t < nt; ++t) {
+            ci[w] = touched[t];
+            cv[w++] = acc[touched[t]];
+        }
     }
-    rp[ng] = w;
-    free(last);
-    *rp_out = rp, *ri_out = ri, *rv_out = rv;
-    return SC_OK;
+    cp[ng] = w;
+    *cp_out = cp, *ci_out = ci, *cv_out = cv;
+    cp = NULL, ci = NULL, cv = NULL;
+    st = SC_OK;
+out:
+    free(ep), free(cp), free(eg), free(Wg), free(acc), free(touched), free(mark), free(ci), free(cv);
+    return st;
 }
 
-/* Visit every entry (i, j, value) of the pinned reduced matrix once (i <= j for the G block). */
+/* Visit every entry (i, j, value) of the pinned reduced matrix once (i <= j for the G block, whose
+ * upper columns are rp, ri, rv). */
 #define FOR_EACH_ENTRY(q, rp, ri, rv, gm, mm, VISIT)                                               \
     do {                                                                                          \
         int ng_ = (q)->ng, nm_ = (q)->nm;                                                         \
-        for (int i = 0; i < ng_; ++i)                                                             \
-            for (long p = (rp)[i]; p < (rp)[i + 1]; ++p)                                          \
-                VISIT(i, (ri)[p], (rv)[p]);                                                       \
+        for (int j = 0; j < ng_; ++j)                                                             \
+            for (long p = (rp)[j]; p < (rp)[j + 1]; ++p)                                          \
+                VISIT((ri)[p], j, (rv)[p]);                                                       \
         for (int i = 0; i < ng_; ++i)                                                             \
             for (int t = 0; t < nm_; ++t)                                                         \
                 if (!(q)->pinned[i] && !(q)->pinned[ng_ + t] && (gm)[(size_t)i * nm_ + t] != 0)  \
@@ -571,32 +593,24 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
 static sc_status build_and_factor(sc_grid_lsq_plan *q, sc_error *err)
 {
     int nm = q->nm;
-    long cap = 0, ntr = 0, *rp = NULL;
+    long *rp = NULL;
     int *ri = NULL;
     double *rv = NULL;
-    for (int a = 0; a < 2 * q->nn; ++a) {
-        long c = q->grp_ptr[a + 1] - q->grp_ptr[a];
-        if (c > 1)
-            cap += c * c + c;
-    }
-    triplet *tr = malloc(sizeof(triplet) * (size_t)(cap + 1));
     double *gm = calloc((size_t)q->ng * nm, sizeof(double));
     double *mm = calloc((size_t)nm * nm, sizeof(double));
     double *mmT = malloc(sizeof(double) * (size_t)nm * nm);
     sc_status st = SC_E_NOMEM;
-    if (!tr || !gm || !mm || !mmT)
+    if (!gm || !mm || !mmT)
         goto out;
-    q->bytes += sizeof(triplet) * (size_t)cap + sizeof(double) * (size_t)q->ng * nm;
-    if ((st = assemble_groups(q, tr, &ntr, gm, mm)) != SC_OK)
+    q->bytes += sizeof(double) * (size_t)q->ng * nm;
+    if ((st = assemble_groups(q, gm, mm)) != SC_OK)
         goto out;
     memcpy(mmT, mm, sizeof(double) * (size_t)nm * nm);
     q->nullity_T = small_nullity(mmT, nm, LSQ_SMALL_TOL);
-    if (q->nullity_T < 0 || (st = g_block_rows(q, tr, ntr, &rp, &ri, &rv)) != SC_OK) {
+    if (q->nullity_T < 0 || (st = g_block_cols(q, &rp, &ri, &rv)) != SC_OK) {
         st = SC_E_NOMEM;
         goto out;
     }
-    free(tr);
-    tr = NULL;
     st = assemble_matrix(q, rp, ri, rv, gm, mm);
     free(rp), free(ri), free(rv), free(gm), free(mm);
     rp = NULL, ri = NULL, rv = NULL, gm = NULL, mm = NULL;
@@ -605,7 +619,7 @@ static sc_status build_and_factor(sc_grid_lsq_plan *q, sc_error *err)
 out:
     if (st == SC_E_NOMEM)
         sc_error_set(err, st, NULL, 0, "out of memory building the least-squares system");
-    free(tr), free(gm), free(mm), free(mmT), free(rp), free(ri), free(rv);
+    free(gm), free(mm), free(mmT), free(rp), free(ri), free(rv);
     return st;
 }
 
