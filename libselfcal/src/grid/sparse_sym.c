@@ -494,6 +494,23 @@ int sc_spsym_solve(sc_spsym *s, double *X, int ncol)
     return 0;
 }
 
+int sc_spsym_reserve_solve(sc_spsym *s, int ncol, double *scratch)
+{
+    if (s->use_ldl)
+        return 0;
+    int n = s->n;
+    memset(scratch, 0, sizeof(double) * (size_t)n * (size_t)ncol);
+    cholmod_dense B = {0};
+    B.nrow = B.d = (size_t)n;
+    B.ncol = (size_t)ncol;
+    B.nzmax = (size_t)n * (size_t)ncol;
+    B.x = scratch;
+    B.xtype = CHOLMOD_REAL;
+    B.dtype = CHOLMOD_DOUBLE;
+    /* the forward half only: it makes the same workspace (X, Y, E) as a whole solve */
+    return s->api->solve2(CHOLMOD_L, s->L, &B, NULL, &s->X, NULL, &s->Y, &s->E, s->cm) ? 0 : -1;
+}
+
 void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol)
 {
     int n = s->n;

@@ -68,6 +68,10 @@ int sc_spsym_nullity(const sc_spsym *s);
  * workspace is kept in s and reused: not thread-safe on one s. Returns 0, -1 no memory. */
 int sc_spsym_solve(sc_spsym *s, double *X, int ncol);
 
+/* Make the solve workspace for ncol right-hand sides now (one forward pass over zeros), so that
+ * later sc_spsym_solve calls of ncol columns allocate nothing. scratch: n x ncol. 0, -1. */
+int sc_spsym_reserve_solve(sc_spsym *s, int ncol, double *scratch);
+
 /* Y = A X for ncol vectors (n x ncol, column after column; the factored values). */
 void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol);
 
