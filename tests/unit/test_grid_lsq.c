@@ -103,6 +103,24 @@ static void test_reference_accuracy(void **s)
         sc_grid_lsq_plan *q = NULL;
         sc_error err;
         assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
+        /* execute's solves find CHOLMOD's workspace made (sc_spsym_reserve_solve) */
+        sc_rng r;
+        sc_rng_seed(&r, 90 + t);
+        tu_truth tr;
+        tu_truth_make(&tr, &p, &r);
+        sc_grid_data d;
+        tu_data_alloc(&d, &p);
+        sc_grid_synthesize(&p, tr.gx, tr.gy, tr.ax, tr.ay, tr.tx, tr.ty, tr.th, &d);
+        sc_grid_result res;
+        tu_res res_arrays;
+        tu_res_alloc(&res_arrays, p.n * p.n);
+        res = res_arrays.r;
+        long made = sc_grid_lsq_workspace_made(q);
+        assert_int_equal(sc_grid_lsq_execute(q, &d, 0.01, &res, &err), SC_OK);
+        assert_int_equal(sc_grid_lsq_workspace_made(q), made);
+        tu_res_free(&res_arrays);
+        tu_data_free(&d);
+        tu_truth_free(&tr);
         int node[ns];
         long eq[ns];
         double sref[ns], splan[ns], href[ns], hplan[ns];

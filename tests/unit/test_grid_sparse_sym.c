@@ -196,6 +196,25 @@ static void check_tracked_columns(int n, int border, int group, unsigned seed)
         sc_spsym_destroy(f);
         sc_spsym_destroy(f0);
     }
+    /* a reserved workspace serves solves of that many columns without being made anew */
+    {
+        sc_spsym *f = NULL;
+        assert_int_equal(sc_spsym_analyze(n, Ap, Ai, &hint, &f), 0);
+        assert_int_equal(sc_spsym_factor(f, Ax, 1e-10), 0);
+        sc_spsym_stats st;
+        assert_int_equal(sc_spsym_reserve_solve(f, 1), 0);
+        memset(x, 0, sizeof(double) * n);
+        x[0] = 1;
+        assert_int_equal(sc_spsym_solve(f, x, 1), 0);
+        sc_spsym_get_stats(f, &st);
+        assert_int_equal(st.workspace_made, 0);
+        double *X3 = calloc((size_t)n * 3, sizeof(double));
+        assert_int_equal(sc_spsym_solve(f, X3, 3), 0); /* another shape: made anew */
+        sc_spsym_get_stats(f, &st);
+        assert_int_equal(st.workspace_made, 1);
+        free(X3);
+        sc_spsym_destroy(f);
+    }
     /* a bad hint (an unknown twice) is refused */
     int twice[2] = {n - 1, n - 1};
     sc_spsym_hint bad = {1, 0, twice, 2};

@@ -812,7 +812,7 @@ sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *
      * solver's own for execute's single right-hand sides, so that execute allocates nothing */
     size_t nwork = 4 * (size_t)q->n_red + (size_t)q->ng + 2 * (size_t)q->nn + (size_t)q->nm;
     if (!(q->work = calloc(nwork, sizeof(double))) ||
-        (q->info.identifiable && sc_spsym_reserve_solve(q->f, 1, q->work) != 0)) {
+        (q->info.identifiable && sc_spsym_reserve_solve(q->f, 1) != 0)) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
         goto fail;
     }
@@ -839,6 +839,13 @@ void sc_grid_lsq_matrix(const sc_grid_lsq_plan *q, int *n, const long **Ap, cons
     *Ap = q->Ap;
     *Ai = q->Ai;
     *Ax = q->Ax;
+}
+
+long sc_grid_lsq_workspace_made(const sc_grid_lsq_plan *q)
+{
+    sc_spsym_stats f;
+    sc_spsym_get_stats(q->f, &f);
+    return f.workspace_made;
 }
 
 void sc_grid_lsq_get_stats(const sc_grid_lsq_plan *q, sc_grid_lsq_stats *st)

@@ -23,4 +23,7 @@ int sc_grid_lsq_reference(const sc_grid_lsq_plan *q, int nsample, int *node, dou
 int sc_grid_lsq_reference_misalignments(const sc_grid_lsq_plan *q, double *var_ref,
                                         double *var_plan);
 
+/* How many solves so far had CHOLMOD make its solve workspace anew (execute must add none). */
+long sc_grid_lsq_workspace_made(const sc_grid_lsq_plan *q);
+
 #endif

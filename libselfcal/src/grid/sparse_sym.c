@@ -47,6 +47,7 @@ typedef struct cholmod_api {
                   cholmod_sparse **, cholmod_dense **, cholmod_dense **, cholmod_common *);
     int (*free_factor)(cholmod_factor **, cholmod_common *);
     int (*free_dense)(cholmod_dense **, cholmod_common *);
+    cholmod_dense *(*allocate_dense)(size_t, size_t, size_t, int, cholmod_common *);
     void (*dtrsm)(const char *, const char *, const char *, const char *, const int *, const int *,
                   const double *, const double *, const int *, double *, const int *, size_t,
                   size_t, size_t, size_t);
@@ -68,7 +69,7 @@ static void load_api(void)
     void *h = dlopen("libcholmod.so.3", RTLD_NOW | RTLD_LOCAL);
     if (!h)
         return;
-    enum { NSYM = 13 };
+    enum { NSYM = 14 };
     void *sym[NSYM];
     static const char *names[NSYM] = {"cholmod_start",      "cholmod_finish",
                                       "cholmod_analyze",    "cholmod_analyze_p",
@@ -76,7 +77,7 @@ static void load_api(void)
                                       "cholmod_solve2",     "cholmod_free_factor",
                                       "cholmod_free_dense", "dtrsm_",
                                       "dsymm_",             "dgemm_",
-                                      "dpotri_"};
+                                      "dpotri_",            "cholmod_allocate_dense"};
     for (int k = 0; k < NSYM; ++k)
         if (!(sym[k] = dlsym(h, names[k])))
             return;
@@ -84,7 +85,7 @@ static void load_api(void)
     void *slot[NSYM] = {&g_api.start,       &g_api.finish,     &g_api.analyze, &g_api.analyze_p,
                         &g_api.amd,         &g_api.factorize,  &g_api.solve2,  &g_api.free_factor,
                         &g_api.free_dense,  &g_api.dtrsm,      &g_api.dsymm,   &g_api.dgemm,
-                        &g_api.dpotri};
+                        &g_api.dpotri,      &g_api.allocate_dense};
     for (int k = 0; k < NSYM; ++k)
         memcpy(slot[k], &sym[k], sizeof sym[k]);
     g_api.ok = 1;
@@ -121,6 +122,7 @@ struct sc_spsym {
     double *Zt;           /* by pivot position k: Zt[k·n_track + slot] = (A⁻¹)(perm[k], column) */
     /* solve workspace, reused from one solve to the next (cholmod_solve2) */
     cholmod_dense *X, *Y, *E;
+    long workspace_made;  /* solves that had CHOLMOD make that workspace anew */
     /* rank-revealing fallback: the permuted matrix and its scalar LDLᵀ */
     long *Pp;
     int *Pi;
@@ -488,27 +490,41 @@ int sc_spsym_solve(sc_spsym *s, double *X, int ncol)
     B.x = X;
     B.xtype = CHOLMOD_REAL;
     B.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense *was[3] = {s->X, s->Y, s->E};
+    size_t shape[3][2];
+    for (int w = 0; w < 3; ++w)
+        shape[w][0] = was[w] ? was[w]->nrow : 0, shape[w][1] = was[w] ? was[w]->ncol : 0;
     if (!s->api->solve2(CHOLMOD_A, s->L, &B, NULL, &s->X, NULL, &s->Y, &s->E, s->cm))
         return -1;
+    cholmod_dense *now[3] = {s->X, s->Y, s->E};
+    for (int w = 0; w < 3; ++w) /* CHOLMOD made its workspace anew: shape or place changed */
+        if (now[w] != was[w] || now[w]->nrow != shape[w][0] || now[w]->ncol != shape[w][1]) {
+            s->workspace_made++;
+            break;
+        }
     memcpy(X, s->X->x, sizeof(double) * (size_t)n * (size_t)ncol);
     return 0;
 }
 
-int sc_spsym_reserve_solve(sc_spsym *s, int ncol, double *scratch)
+int sc_spsym_reserve_solve(sc_spsym *s, int ncol)
 {
     if (s->use_ldl)
         return 0;
-    int n = s->n;
-    memset(scratch, 0, sizeof(double) * (size_t)n * (size_t)ncol);
-    cholmod_dense B = {0};
-    B.nrow = B.d = (size_t)n;
-    B.ncol = (size_t)ncol;
-    B.nzmax = (size_t)n * (size_t)ncol;
-    B.x = scratch;
-    B.xtype = CHOLMOD_REAL;
-    B.dtype = CHOLMOD_DOUBLE;
-    /* the forward half only: it makes the same workspace (X, Y, E) as a whole solve */
-    return s->api->solve2(CHOLMOD_L, s->L, &B, NULL, &s->X, NULL, &s->Y, &s->E, s->cm) ? 0 : -1;
+    /* the shapes cholmod_solve2 asks of its workspace for a supernodal factor (SuiteSparse's
+     * cholmod_solve.c): X and Y n x ncol, E ncol x maxesize; cholmod_ensure_dense keeps a matrix
+     * of exactly that shape, so the solves that follow allocate nothing */
+    size_t n = (size_t)s->n, k = (size_t)ncol;
+    cholmod_dense **h[3] = {&s->X, &s->Y, &s->E};
+    size_t rows[3] = {n, n, k}, cols[3] = {k, k, s->L->maxesize}, ld[3] = {n, n, k};
+    for (int w = 0; w < 3; ++w) {
+        cholmod_dense *d = *h[w];
+        if (d && d->nrow == rows[w] && d->ncol == cols[w] && d->d == ld[w])
+            continue;
+        s->api->free_dense(h[w], s->cm);
+        if (!(*h[w] = s->api->allocate_dense(rows[w], cols[w], ld[w], CHOLMOD_REAL, s->cm)))
+            return -1;
+    }
+    return 0;
 }
 
 void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol)
@@ -1034,4 +1050,5 @@ void sc_spsym_get_stats(const sc_spsym *s, sc_spsym_stats *st)
     st->max_null_ratio = s->max_null;
     st->bytes = s->bytes;
     st->tracked_by_solves = s->track_solved;
+    st->workspace_made = s->workspace_made;
 }

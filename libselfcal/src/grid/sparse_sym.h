@@ -33,6 +33,7 @@ typedef struct sc_spsym_stats {
     double max_null_ratio;  /* largest pivot/diagonal among null pivots (0 if none) */
     size_t bytes;           /* memory the object holds */
     int tracked_by_solves;  /* the selected inverse's whole columns came from solves */
+    long workspace_made;    /* solves that had to make CHOLMOD's solve workspace anew */
 } sc_spsym_stats;
 
 /* What the caller knows of its unknowns' graph, for the order: the unknowns [0, n_grouped)
@@ -68,9 +69,9 @@ int sc_spsym_nullity(const sc_spsym *s);
  * workspace is kept in s and reused: not thread-safe on one s. Returns 0, -1 no memory. */
 int sc_spsym_solve(sc_spsym *s, double *X, int ncol);
 
-/* Make the solve workspace for ncol right-hand sides now (one forward pass over zeros), so that
- * later sc_spsym_solve calls of ncol columns allocate nothing. scratch: n x ncol. 0, -1. */
-int sc_spsym_reserve_solve(sc_spsym *s, int ncol, double *scratch);
+/* Make the solve workspace for ncol right-hand sides now, so that later sc_spsym_solve calls of
+ * ncol columns allocate nothing. 0, or -1 if memory ran out. */
+int sc_spsym_reserve_solve(sc_spsym *s, int ncol);
 
 /* Y = A X for ncol vectors (n x ncol, column after column; the factored values). */
 void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol);
