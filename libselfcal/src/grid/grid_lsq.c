@@ -32,6 +32,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/big_alloc.h"
 #include "grid_lsq_internal.h"
 #include "selfcal/grid_sim.h"
 #include "sparse_sym.h"
@@ -539,8 +540,8 @@ static sc_status assemble_matrix(sc_grid_lsq_plan *q, const long *rp, const int 
 #undef COUNT
     for (int k = 0; k < n_red; ++k)
         q->Ap[k + 1] += q->Ap[k];
-    q->Ai = malloc(sizeof(int) * (size_t)(nnz + 1));
-    q->Ax = malloc(sizeof(double) * (size_t)(nnz + 1));
+    q->Ai = sc_big_alloc((size_t)(nnz + 1), sizeof(int), 0);
+    q->Ax = sc_big_alloc((size_t)(nnz + 1), sizeof(double), 0);
     long *fill = malloc(sizeof(long) * (size_t)(n_red + 1));
     if (!q->Ai || !q->Ax || !fill) {
         free(fill);
@@ -596,7 +597,7 @@ static sc_status build_and_factor(sc_grid_lsq_plan *q, sc_error *err)
     long *rp = NULL;
     int *ri = NULL;
     double *rv = NULL;
-    double *gm = calloc((size_t)q->ng * nm, sizeof(double));
+    double *gm = sc_big_alloc((size_t)q->ng * nm, sizeof(double), 1);
     double *mm = calloc((size_t)nm * nm, sizeof(double));
     double *mmT = malloc(sizeof(double) * (size_t)nm * nm);
     sc_status st = SC_E_NOMEM;
@@ -1847,7 +1848,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
 {
     size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
     double *U = malloc(sizeof(double) * 4 * ng);
-    double *WB = malloc(sizeof(double) * 9 * n); /* W: columns 0-3, B: 4-8 */
+    double *WB = sc_big_alloc(9 * n, sizeof(double), 0); /* W: columns 0-3, B: 4-8 */
     double *D = malloc(sizeof(double) * 3 * n), *fg = malloc(sizeof(double) * ng);
     double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
     double part[SC_GRID_MAX_VIEWS * 5], scale[4], r2 = 0, *W = WB, *B = WB + 4 * n;

@@ -28,6 +28,7 @@
 #include <string.h>
 #include <suitesparse/cholmod.h>
 
+#include "../common/big_alloc.h"
 #include "sparse_ldl.h"
 
 /* CHOLMOD and the BLAS/LAPACK it uses are loaded at the first analysis (dlopen), not linked:
@@ -576,7 +577,7 @@ static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out)
 {
     int n = s->n, keep = s->keep_cols;
     long nnz = s->Ap[keep], *ptr = calloc((size_t)n + 1, sizeof(long));
-    int *bucket = malloc(sizeof(int) * ((size_t)nnz + 1)); /* nnz < 2^31 (sc_spsym_analyze) */
+    int *bucket = sc_big_alloc((size_t)nnz + 1, sizeof(int), 0); /* nnz < 2^31 (analyze) */
     long *fill = malloc(sizeof(long) * ((size_t)n + 1));
     if (!ptr || !bucket || !fill) {
         free(ptr), free(bucket), free(fill);
@@ -657,7 +658,7 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     }
     s->col2super = malloc(sizeof(int) * ((size_t)n + 1));
     s->Zd = malloc(sizeof(double) * ((size_t)n + 1));
-    s->ZA = malloc(sizeof(double) * ((size_t)s->Ap[s->keep_cols] + 1));
+    s->ZA = sc_big_alloc((size_t)s->Ap[s->keep_cols] + 1, sizeof(double), 0);
     w->Z = calloc((size_t)nsuper + 1, sizeof(double *));
     w->parent = malloc(sizeof(int) * ((size_t)nsuper + 1));
     w->first = malloc(sizeof(int) * ((size_t)nsuper + 1));
@@ -851,7 +852,8 @@ static int super_selinv(sc_spsym *s)
     for (int J = nsuper - 1; J >= 0 && rc == 0; --J) {
         size_t nr = (size_t)(Lpi[J + 1] - Lpi[J]), nc = (size_t)(Super[J + 1] - Super[J]);
         double got;
-        if (!(w.Z[J] = malloc(sizeof(double) * nr * nc)) || (got = super_block(s, &w, J, w.Z[J])) < 0) {
+        if (!(w.Z[J] = sc_big_alloc(nr * nc, sizeof(double), 0)) ||
+            (got = super_block(s, &w, J, w.Z[J])) < 0) {
             rc = -1;
             break;
         }
@@ -914,7 +916,7 @@ int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols)
     int in_recurrences = 0;
     if (s->n_track) {
         int nt = s->n_track, p0 = s->n - nt;
-        s->Zt = calloc((size_t)nt * (size_t)s->n, sizeof(double));
+        s->Zt = sc_big_alloc((size_t)nt * (size_t)s->n, sizeof(double), 1);
         s->track_slot = malloc(sizeof(int) * (size_t)nt);
         if (!s->Zt || !s->track_slot)
             return -1;

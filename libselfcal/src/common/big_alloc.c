@@ -1,0 +1,26 @@
+/* big_alloc.c — the large work arrays' allocation with a huge-page hint (big_alloc.h). */
+#include "big_alloc.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <sys/mman.h>
+
+#define BIG_FROM ((size_t)4 << 20)
+#define HUGE_PAGE ((uintptr_t)2 << 20)
+
+void *sc_big_alloc(size_t count, size_t size, int zeroed)
+{
+    if (size && count > SIZE_MAX / size)
+        return NULL;
+    size_t n = count * size;
+    void *p = zeroed ? calloc(count ? count : 1, size ? size : 1) : malloc(n ? n : 1);
+#ifdef MADV_HUGEPAGE
+    if (p && n >= BIG_FROM) {
+        uintptr_t a = ((uintptr_t)p + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
+        uintptr_t b = ((uintptr_t)p + n) & ~(HUGE_PAGE - 1);
+        if (b > a)
+            madvise((void *)a, b - a, MADV_HUGEPAGE); /* a hint: refused or not, nothing changes */
+    }
+#endif
+    return p;
+}
