@@ -630,6 +630,7 @@ typedef struct selinv_ws {
     double **Z;          /* per supernode: its block of the inverse (nr x nc), while needed */
     int *parent, *first; /* supernodal tree (super_tree) */
     int *map;            /* n: relative row map */
+    int *rel;            /* maxm: rows' places in an ancestor (relative_rows) */
     double *Zrr, *W, *Y; /* dense blocks: m x m (m <= ZRR_MAX), m x nc, m x nc */
     double *P;           /* a panel of Z_RR from one ancestor (larger fronts): m x nc */
     double *Gt;          /* the tracked columns' rows R: n_track x m */
@@ -642,7 +643,7 @@ static void selinv_ws_free(selinv_ws *w, int nsuper)
     for (int J = 0; w->Z && J < nsuper; ++J)
         free(w->Z[J]);
     free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->P), free(w->W);
-    free(w->Y), free(w->Gt), free(w->bptr), free(w->bucket);
+    free(w->Y), free(w->Gt), free(w->bptr), free(w->bucket), free(w->rel);
 }
 
 static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
@@ -669,8 +670,9 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     w->W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Gt = malloc(sizeof(double) * ((size_t)s->n_track * maxm + 1));
+    w->rel = malloc(sizeof(int) * ((size_t)maxm + 1));
     if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
-        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt ||
+        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt || !w->rel ||
         bucket_entries(s, &w->bptr, &w->bucket) != 0)
         return -1;
     for (int J = 0; J < nsuper; ++J)
@@ -678,6 +680,27 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
             s->col2super[k] = J;
     super_tree(L, s->col2super, w->parent, w->first);
     return 0;
+}
+
+/* rel[a - b] := the place of row R[a] among the rows of an ancestor supernode (rowsS, nrS
+ * ascending, as CHOLMOD keeps a supernode's rows), for a in [b, m): R[b..m) are all rows of it
+ * (R is a clique of the filled graph), so one walk from R[b]'s place (a binary search) finds
+ * them, instead of mapping every row of the ancestor for each descendant. */
+static void relative_rows(const int *rowsS, int nrS, const int *R, int b, int m, int *rel)
+{
+    int lo = 0, hi = nrS;
+    while (lo < hi) {
+        int mid = lo + (hi - lo) / 2;
+        if (rowsS[mid] < R[b])
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    for (int a = b, t = lo; a < m; ++a) {
+        while (t < nrS - 1 && rowsS[t] != R[a]) /* bounded: found for CHOLMOD's factors */
+            ++t;
+        rel[a - b] = t++;
+    }
 }
 
 /* Z_J (nr x nc, column-major, lower part) of supernode J from its ancestors' blocks: Z_JJ =
@@ -705,14 +728,13 @@ static double super_block(sc_spsym *s, selinv_ws *w, int J, double *Zj)
     if (m <= ZRR_MAX) {
         /* gather Z_RR (lower triangle, m x m) from the blocks of R's supernodes (ancestors) */
         for (int b = 0; b < m;) {
-            int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0;
-            for (int t = 0; t < nrS; ++t)
-                w->map[Ls[p0 + t]] = t;
+            int S = s->col2super[R[b]], p0 = Lpi[S], nrS = Lpi[S + 1] - p0, b0 = b;
+            relative_rows(Ls + p0, nrS, R, b0, m, w->rel);
             for (; b < m && s->col2super[R[b]] == S; ++b) {
                 const double *zc = w->Z[S] + (size_t)(R[b] - Super[S]) * nrS;
                 double *dst = w->Zrr + (size_t)b * m;
                 for (int a = b; a < m; ++a)
-                    dst[a] = zc[w->map[R[a]]];
+                    dst[a] = zc[w->rel[a - b0]];
             }
         }
         A->dsymm("L", "L", &m, &nc, &one, w->Zrr, &m, w->W, &m, &zero, w->Y, &m, 1, 1);
@@ -726,13 +748,12 @@ static double super_block(sc_spsym *s, selinv_ws *w, int J, double *Zj)
             while (e < m && s->col2super[R[e]] == S)
                 ++e;
             int pr = m - b, pc = e - b, below = m - e;
-            for (int t = 0; t < nrS; ++t)
-                w->map[Ls[p0 + t]] = t;
+            relative_rows(Ls + p0, nrS, R, b, m, w->rel);
             for (int c = b; c < e; ++c) {
                 const double *zc = w->Z[S] + (size_t)(R[c] - Super[S]) * nrS;
                 double *dst = w->P + (size_t)(c - b) * pr;
                 for (int a = c; a < m; ++a)
-                    dst[a - b] = zc[w->map[R[a]]];
+                    dst[a - b] = zc[w->rel[a - b]];
                 for (int a = b; a < c; ++a) /* the top square's upper part */
                     dst[a - b] = w->P[(size_t)(a - b) * pr + (c - b)];
             }
