@@ -1878,9 +1878,10 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     zero_pinned(q, WB, 9);
     sigma_ratios_projection(q, U, W);
     st = functional_variances(q, 0, scale, U, D, WB, part, err);
-    /* the selected inverse needs the memory more (U and D are made again after it) */
-    free(U), free(WB), free(D), free(fg), free(uA);
-    U = WB = D = fg = uA = NULL;
+    /* the selected inverse needs the memory more (U is made again after it; D, 3 columns, is
+     * kept: making it again takes 3 passes over the equations) */
+    free(U), free(WB), free(fg), free(uA);
+    U = WB = fg = uA = NULL;
     if (st != SC_OK)
         goto out;
     if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) { /* leverages: G pairs on S's pattern */
@@ -1890,14 +1891,10 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     sigma_ratios_finish(q);
     st = leverages(q, err);
     if (st == SC_OK && q->misalignment_unique) {
-        U = malloc(sizeof(double) * 4 * ng);
-        D = malloc(sizeof(double) * 3 * n);
-        uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-        if (!U || !D || !uA)
+        if (!(U = malloc(sizeof(double) * 4 * ng)))
             st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         else {
             gauge_basis(q, U, scale);
-            gauge_a_rhs(q, uA, D);
             st = functional_variances(q, 1, scale, U, D, NULL, part, err);
         }
     }
