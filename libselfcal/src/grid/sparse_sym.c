@@ -1,8 +1,9 @@
 /* The symmetric sparse solver of the grid area (sparse_sym.h).
  *
  * Ordering and factorization are SuiteSparse CHOLMOD's (Debian libsuitesparse-dev): one analysis
- * per pattern (CHOLMOD's own choice between AMD and METIS, made once), supernodal LLᵀ with BLAS-3
- * kernels. CHOLMOD has no selected inverse, so that part is ours: the blocked Takahashi
+ * per pattern (CHOLMOD's own choice between AMD and METIS, or CHOLMOD's AMD of the caller's
+ * grouped graph with given unknowns last: sc_spsym_hint), supernodal LLᵀ with BLAS-3 kernels.
+ * CHOLMOD has no selected inverse, so that part is ours: the blocked Takahashi
  * recurrences on CHOLMOD's supernodes (dense kernels: the BLAS/LAPACK CHOLMOD uses, OpenBLAS):
  * for a supernode J with diagonal block L_JJ and rows R below it, L̂ = L_RJ L_JJ⁻¹ and
  *     Z_RJ = -Z_RR L̂,   Z_JJ = (L_JJ L_JJᵀ)⁻¹ + L̂ᵀ Z_RR L̂,
@@ -10,7 +11,8 @@
  * factor's pattern in the supernodes already done (gathered through a relative row map). R lies
  * in J's ancestors, so a supernode's block of Z is freed once its subtree is done: the selected
  * inverse never holds a second copy of the factor, only the path to the root; what is kept is
- * the diagonal and the entries on A's own pattern (what the grid least squares asks for). Solves
+ * the diagonal, the entries on A's own pattern (what the grid least squares asks for) and the
+ * whole columns of the last pivots asked for (for a row t after J, Z_tJ = −Z_tR L̂ too). Solves
  * take many right-hand sides at once (cholmod_solve2 with its workspace kept).
  *
  * Rank decisions: a Cholesky pivot d_k = L_kk² with d_k <= tol·A_kk (or a failed factorization)
