@@ -140,7 +140,9 @@ int sc_number_format(double v, char *buf)
 static unsigned __int128 pow10_u128(int s)
 {
     unsigned __int128 e18 = pow10_u64[18];
-    return s <= 18 ? pow10_u64[s] : s <= 36 ? e18 * pow10_u64[s - 18] : e18 * e18 * pow10_u64[s - 36];
+    return s <= 18   ? pow10_u64[s]
+           : s <= 36 ? e18 * pow10_u64[s - 18]
+                     : e18 * e18 * pow10_u64[s - 36];
 }
 
 /* a (normal, > 0) rounded to 15 significant digits, exactly: *r (10^14 <= *r < 10^15) times

@@ -376,7 +376,8 @@ static sc_status choose_pins(sc_grid_lsq_plan *q, sc_error *err)
 
 /* The group eliminations: per A component seen at least twice, Σ w_e r_e r_eᵀ − (Σ w_e r_e)
  * (Σ w_e r_e)ᵀ / Σ w_e over its equations' rows r_e. Here the entries with a misalignment:
- * G-misalignment to gm (ng x nm), misalignment pairs to mm (nm x nm); the G block is g_block_cols. */
+ * G-misalignment to gm (ng x nm), misalignment pairs to mm (nm x nm); the G block is
+ * g_block_cols. */
 static sc_status assemble_groups(const sc_grid_lsq_plan *q, double *gm, double *mm)
 {
     int ng = q->ng, nm = q->nm, maxg = 0;
@@ -434,7 +435,8 @@ static sc_status g_block_cols(const sc_grid_lsq_plan *q, long **cp_out, int **ci
     int ng = q->ng, n2 = 2 * q->nn;
     long *ep = calloc((size_t)ng + 1, sizeof(long)), *cp = malloc(sizeof(long) * (ng + 1));
     long *eg = malloc(sizeof(long) * (size_t)(q->neq + 1)), bound = 0;
-    double *Wg = malloc(sizeof(double) * (size_t)(n2 + 1)), *acc = calloc((size_t)ng + 1, sizeof(double));
+    double *Wg = malloc(sizeof(double) * (size_t)(n2 + 1));
+    double *acc = calloc((size_t)ng + 1, sizeof(double));
     int *touched = malloc(sizeof(int) * (ng + 1)), *mark = malloc(sizeof(int) * (ng + 1));
     int *ci = NULL;
     double *cv = NULL;
@@ -500,7 +502,8 @@ static sc_status g_block_cols(const sc_grid_lsq_plan *q, long **cp_out, int **ci
     cp = NULL, ci = NULL, cv = NULL;
     st = SC_OK;
 out:
-    free(ep), free(cp), free(eg), free(Wg), free(acc), free(touched), free(mark), free(ci), free(cv);
+    free(ep), free(cp), free(eg), free(Wg), free(acc), free(touched), free(mark);
+    free(ci), free(cv);
     return st;
 }
 
