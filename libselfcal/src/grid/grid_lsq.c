@@ -1858,7 +1858,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     double *WB = sc_big_alloc(9 * n, sizeof(double), 0); /* W: columns 0-3, B: 4-8 */
     double *D = malloc(sizeof(double) * 3 * n), *fg = malloc(sizeof(double) * ng);
     double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-    double part[SC_GRID_MAX_VIEWS * 5], scale[4], r2 = 0, *W = WB, *B = WB + 4 * n;
+    double part[SC_GRID_MAX_VIEWS * 5], scale[4], r2 = 0, *W = NULL, *B = NULL;
     int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last);
     q->var_m = malloc(sizeof(double) * (size_t)q->nm);
     sc_status st = SC_OK;
@@ -1866,6 +1866,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto out;
     }
+    W = WB, B = WB + 4 * n;
     gauge_basis(q, U, scale);
     for (int c = 0; c < 4; ++c)
         for (size_t i = 0; i < n; ++i)
