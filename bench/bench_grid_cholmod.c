@@ -332,6 +332,10 @@ int main(int argc, char **argv)
     printf("(CHOLMOD: OpenMP regions on one thread, as selfcal's command line runs them: the target's\n"
            "ratios; shipped: CHOLMOD's own four-thread regions, whose idle threads spin or wait;\n"
            "its CPU s and the ratio of the fastest runs, for reference)\n");
+    const char *huge = getenv("SELFCAL_HUGEPAGES");
+    printf("(selfcal %s huge pages for SuiteSparse's large blocks; the CHOLMOD child uses\n"
+           "SuiteSparse's own allocator: SELFCAL_HUGEPAGES=0 runs selfcal the same way)\n",
+           huge && !strcmp(huge, "0") ? "without" : "with");
     printf("%5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s | %8s %6s\n", "N", "reduced",
            "selfcal", "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x",
            "shipped", "x");
