@@ -171,6 +171,23 @@ const char *sc_spsym_ordering_name(int ordering)
     }
 }
 
+/* CHOLMOD's view of an n x n symmetric pattern given by its upper triangle in compressed columns
+ * (int pointers p[n+1], rows i; borrowed), no values. */
+static void upper_pattern(cholmod_sparse *M, int n, int *p, int *i)
+{
+    memset(M, 0, sizeof *M);
+    M->nrow = M->ncol = (size_t)n;
+    M->nzmax = (size_t)p[n];
+    M->p = p;
+    M->i = i;
+    M->stype = 1;
+    M->itype = CHOLMOD_INT;
+    M->xtype = CHOLMOD_PATTERN;
+    M->dtype = CHOLMOD_DOUBLE;
+    M->sorted = 0;
+    M->packed = 1;
+}
+
 /* The neighbours w < v of vertex v in the grouped graph (A's pattern between the vertices'
  * unknowns), each once (mark: stamps by vertex), written to out when out is not NULL; the count. */
 static long vertex_neighbours(const sc_spsym *s, const int *vid, const int *first, int nv, int v,
@@ -221,16 +238,7 @@ static int grouped_graph(const sc_spsym *s, const int *vid, const int *first, in
     for (int v = 0; v < nv; ++v)
         vertex_neighbours(s, vid, first, nv, v, mark, Gi + Gp[v]);
     free(mark);
-    memset(G, 0, sizeof *G);
-    G->nrow = G->ncol = (size_t)nv;
-    G->nzmax = (size_t)cnt;
-    G->p = Gp;
-    G->i = Gi;
-    G->stype = 1;
-    G->itype = CHOLMOD_INT;
-    G->xtype = CHOLMOD_PATTERN;
-    G->dtype = CHOLMOD_DOUBLE;
-    G->packed = 1;
+    upper_pattern(G, nv, Gp, Gi);
     return 0;
 fail:
     free(mark), free(Gp), free(Gi);
@@ -319,17 +327,7 @@ int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *
         for (long p = Ap[j] + 1; p < Ap[j + 1]; ++p)
             s->sorted &= Ai[p - 1] < Ai[p];
     cholmod_sparse *A = &s->A;
-    A->nrow = A->ncol = (size_t)n;
-    A->nzmax = (size_t)Ap[n];
-    A->p = s->Ap_int;
-    A->i = (void *)Ai;
-    A->x = NULL;
-    A->stype = 1;
-    A->itype = CHOLMOD_INT;
-    A->xtype = CHOLMOD_PATTERN;
-    A->dtype = CHOLMOD_DOUBLE;
-    A->sorted = 0;
-    A->packed = 1;
+    upper_pattern(A, n, s->Ap_int, (int *)Ai); /* CHOLMOD reads Ai, never writes it */
     if (hint) {
         int *perm = malloc(sizeof(int) * ((size_t)n + 1));
         if (perm && hinted_order(s, hint, perm) == 0) {
@@ -603,23 +601,26 @@ static int bucket_entries(const sc_spsym *s, long **ptr_out, int **bucket_out)
     return 0;
 }
 
-/* The position of row i in A's column j (it is there). */
-static long entry_of(const sc_spsym *s, int i, int j)
+/* The position of row r among rows[lo .. hi) (ascending when sorted, else in any order), or -1:
+ * an entry of A's pattern (sc_spsym_inv, the selected inverse's extraction) or of the fallback's
+ * factor. */
+static long find_row(const int *rows, long lo, long hi, int r, int sorted)
 {
-    long lo = s->Ap[j], hi = s->Ap[j + 1];
-    if (!s->sorted) {
-        while (s->Ai[lo] != i)
-            ++lo;
-        return lo;
+    if (!sorted) {
+        for (long p = lo; p < hi; ++p)
+            if (rows[p] == r)
+                return p;
+        return -1;
     }
+    long end = hi;
     while (lo < hi) {
         long mid = lo + (hi - lo) / 2;
-        if (s->Ai[mid] < i)
+        if (rows[mid] < r)
             lo = mid + 1;
         else
             hi = mid;
     }
-    return lo;
+    return lo < end && rows[lo] == r ? lo : -1;
 }
 
 /* Fronts with more rows below their diagonal block than this take Z_RR · L̂ panel by panel (one
@@ -796,7 +797,8 @@ static void super_extract(sc_spsym *s, selinv_ws *w, int J, const double *Zj)
                 other = s->Ai[p];
             } else {
                 other = -1 - v;
-                p = entry_of(s, ((const int *)L->Perm)[k], other);
+                p = find_row(s->Ai, s->Ap[other], s->Ap[other + 1],
+                             ((const int *)L->Perm)[k], s->sorted); /* on A's pattern */
             }
             s->ZA[p] = Zj[(size_t)c * nr + w->map[s->iperm[other]]];
         }
@@ -1004,15 +1006,8 @@ double sc_spsym_inv(const sc_spsym *s, int i, int j)
             return NAN;
         if (row == col)
             return s->f.Zd[col];
-        long lo = s->f.Lp[col], hi = s->f.Lp[col + 1];
-        while (lo < hi) { /* rows ascending within a column */
-            long mid = lo + (hi - lo) / 2;
-            if (s->f.Li[mid] < row)
-                lo = mid + 1;
-            else
-                hi = mid;
-        }
-        return lo < s->f.Lp[col + 1] && s->f.Li[lo] == row ? s->f.Zx[lo] : NAN;
+        long p = find_row(s->f.Li, s->f.Lp[col], s->f.Lp[col + 1], row, 1); /* ascending */
+        return p < 0 ? NAN : s->f.Zx[p];
     }
     if (!s->Zd)
         return NAN;
@@ -1021,28 +1016,8 @@ double sc_spsym_inv(const sc_spsym *s, int i, int j)
     int c = i > j ? i : j, r = i > j ? j : i; /* A holds (r, c), r <= c, in column c */
     if (c >= s->keep_cols)
         return NAN;
-    long lo = s->Ap[c], hi = s->Ap[c + 1];
-    if (!s->sorted) {
-        for (long p = lo; p < hi; ++p)
-            if (s->Ai[p] == r)
-                return s->ZA[p];
-        return NAN;
-    }
-    while (lo < hi) {
-        long mid = lo + (hi - lo) / 2;
-        if (s->Ai[mid] < r)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo < s->Ap[c + 1] && s->Ai[lo] == r ? s->ZA[lo] : NAN;
-}
-
-double sc_spsym_inv_col(const sc_spsym *s, int t, int i)
-{
-    if (!s->Zt || t < 0 || t >= s->n_track)
-        return NAN;
-    return s->Zt[(size_t)s->iperm[i] * s->n_track + s->track_slot[t]];
+    long p = find_row(s->Ai, s->Ap[c], s->Ap[c + 1], r, s->sorted);
+    return p < 0 ? NAN : s->ZA[p];
 }
 
 void sc_spsym_inv_cols_at(const sc_spsym *s, int i, double *out)

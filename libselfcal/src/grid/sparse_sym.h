@@ -8,7 +8,7 @@
  *   selinv            selected inverse: the entries of A⁻¹ on the factor's pattern, computed
  *                     supernode by supernode; kept: the diagonal and A's own pattern, and
  *                     whole columns of A⁻¹ for a few unknowns asked for;
- *   inv(i, j)         one such entry; inv_col(t, i) one entry of such a column.
+ *   inv(i, j)         one such entry; inv_column / inv_cols_at: the whole columns.
  *
  * The matrix is symmetric positive semidefinite, given by its upper triangle in compressed
  * columns (column j holds rows i <= j; no duplicates). Pivots judged null (d_k <= tol·A_kk) are
@@ -81,9 +81,6 @@ void sc_spsym_matvec(const sc_spsym *s, const double *X, double *Y, int ncol);
  * 0): within the recurrences (one small product per supernode) when they are the last pivots,
  * as a hint's last unknowns are, else by solves. Returns 0, or -1 if memory ran out. */
 int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols);
-
-/* (A⁻¹)(i, cols[t]) after sc_spsym_selinv (NaN if not computed or dropped). */
-double sc_spsym_inv_col(const sc_spsym *s, int t, int i);
 
 /* Row i of the whole columns: out[t] = (A⁻¹)(i, cols[t]) for every t (NaN if not computed). */
 void sc_spsym_inv_cols_at(const sc_spsym *s, int i, double *out);
