@@ -52,6 +52,7 @@ struct sc_grid_lsq_plan {
     double drift_T[SC_GRID_MAX_VIEWS]; /* T_v: the scale of each view's drift column, s */
     double drift_t0[SC_GRID_MAX_VIEWS]; /* mean time of each view's measurements, s */
     double L_mm;            /* rotation scale c·P */
+    double r2_mm2;          /* Σ x² + y² over the stage nodes (gauge basis, O and R functionals) */
     unsigned char *meas;    /* nv*nn: view v measures mark k */
     int *mark_views;        /* per mark: number of views measuring it */
     long n_meas_marks;
@@ -564,13 +565,20 @@ static sc_status assemble_matrix(sc_grid_lsq_plan *q, const long *rp, const int 
     return SC_OK;
 }
 
-/* The free (unpinned) misalignment unknowns into at (original indices, ascending); their count. */
-static int free_misalignments(const sc_grid_lsq_plan *q, int *at)
+/* The free (unpinned) misalignment unknowns: their original indices into at (ascending; may be
+ * NULL), and into slot each misalignment's place among them, which is its whole column's in the
+ * selected inverse (-1 pinned; may be NULL); their count. */
+static int free_misalignments(const sc_grid_lsq_plan *q, int *at, int *slot)
 {
     int k = 0;
-    for (int t = 0; t < q->nm; ++t)
-        if (!q->pinned[q->ng + t])
-            at[k++] = q->ng + t;
+    for (int t = 0; t < q->nm; ++t) {
+        int free_t = !q->pinned[q->ng + t];
+        if (slot)
+            slot[t] = free_t ? k : -1;
+        if (free_t && at)
+            at[k] = q->ng + t;
+        k += free_t;
+    }
     return k;
 }
 
@@ -579,7 +587,7 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
 {
     /* a node's two components share their couplings; the free misalignments couple to nearly
      * every node of their view: ordered last, their columns of Σ come from the selected inverse */
-    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last);
+    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
     sc_spsym_hint hint = {2, q->ng, last, n_last};
     int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
     if (arc == -2)
@@ -669,13 +677,7 @@ static void zero_pinned(const sc_grid_lsq_plan *q, double *X, int ncol)
 static void gauge_basis(const sc_grid_lsq_plan *q, double *U, double scale[4])
 {
     int ng = q->ng, ns = q->ns;
-    double r2 = 0;
-    for (int k = 0; k < ns; ++k) {
-        double x, y;
-        sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
-        r2 += x * x + y * y;
-    }
-    double s0 = 1.0 / sqrt((double)ns), s1 = 1.0 / sqrt(r2);
+    double s0 = 1.0 / sqrt((double)ns), s1 = 1.0 / sqrt(q->r2_mm2);
     scale[0] = scale[1] = s0, scale[2] = scale[3] = s1; /* U_t = scale_t·C_t (gauge_g) */
     for (int k = 0; k < ns; ++k) {
         double x, y;
@@ -748,6 +750,12 @@ static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_gr
     q->nm = q->nb * q->nv;
     q->n_red = q->ng + q->nm;
     q->var_O = q->var_R = NAN;
+    q->r2_mm2 = 0;
+    for (int k = 0; k < q->ns; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
+        q->r2_mm2 += x * x + y * y;
+    }
 }
 
 /* Free degrees of freedom (K), identifiability, counts; stage nodes no equation touches. */
@@ -1528,7 +1536,7 @@ static double functional_form(const sc_grid_lsq_plan *q, const double *ux, const
 
 /* Functional f of the plan's list: 0 O, 1 R (as sc_grid_first_order), then misalignment
  * unknown f − 2. Fills fg or fm and says which (the other NULL). */
-static void functional_def(const sc_grid_lsq_plan *q, int f, double r2, double *fg, double *fm,
+static void functional_def(const sc_grid_lsq_plan *q, int f, double *fg, double *fm,
                            const double **fg_out, const double **fm_out)
 {
     *fg_out = *fm_out = NULL;
@@ -1536,8 +1544,8 @@ static void functional_def(const sc_grid_lsq_plan *q, int f, double r2, double *
         for (int k = 0; k < q->ns; ++k) {
             double x, y;
             sc_grid_node_xy_mm(&q->plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
-            fg[2 * k] = (f == 0 ? y : x) / r2 * 1e-3;
-            fg[2 * k + 1] = (f == 0 ? x : -y) / r2 * 1e-3;
+            fg[2 * k] = (f == 0 ? y : x) / q->r2_mm2 * 1e-3;
+            fg[2 * k + 1] = (f == 0 ? x : -y) / q->r2_mm2 * 1e-3;
         }
         *fg_out = fg;
     } else {
@@ -1564,14 +1572,14 @@ static void gauge_a_rhs(const sc_grid_lsq_plan *q, double *uA, double *D)
 
 /* The right-hand sides whose pinned solves combine into every functional's (5 columns of n_red):
  * [fg_O; 0], [fg_R; 0] and the A parts D_t (a_correction of the gauge sum C_t on A, t = 4..6). */
-static void functional_basis_rhs(const sc_grid_lsq_plan *q, double r2, double *fg, double *uA,
+static void functional_basis_rhs(const sc_grid_lsq_plan *q, double *fg, double *uA,
                                  double *cols)
 {
     size_t n = (size_t)q->n_red;
     const double *pg, *pm;
     memset(cols, 0, sizeof(double) * 2 * n);
     for (int f = 0; f < 2; ++f) {
-        functional_def(q, f, r2, fg, uA, &pg, &pm); /* uA: not written for O, R */
+        functional_def(q, f, fg, uA, &pg, &pm); /* uA: not written for O, R */
         memcpy(cols + (size_t)f * n, fg, sizeof(double) * (size_t)q->ng);
     }
     gauge_a_rhs(q, uA, cols + 2 * n);
@@ -1627,9 +1635,8 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
      * values follow a convention and have no uncertainty. O and R depend on G only. */
     if (gauge_matrix(q, Minv_T) != 0)
         return SC_OK;
-    int nf = 2 + (q->misalignment_unique ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5], ns = 0;
-    for (int t = 0; t < q->nm; ++t)
-        slot[t] = q->pinned[q->ng + t] ? -1 : ns++;
+    int nf = 2 + (q->misalignment_unique ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5];
+    free_misalignments(q, NULL, slot);
     size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
     double *fm = calloc((size_t)q->nm, sizeof(double)), *fg = NULL;
     double *col = malloc(sizeof(double) * n), *z = col; /* phase 0: z0; phase 1: the column */
@@ -1637,18 +1644,12 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
         free(fm), free(fg), free(col);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     }
-    double r2 = 0;
-    for (int j = 0; phase == 0 && j < q->ns; ++j) {
-        double x, y;
-        sc_grid_node_xy_mm(&q->plan, j / q->stage_nx, j % q->stage_nx, &x, &y);
-        r2 += x * x + y * y;
-    }
     double C[3][3];
     if (phase == 0)
         a_gauge_gram(q, C);
     const double *pg, *pm;
     for (int f = phase == 0 ? 0 : 2; f < nf; ++f) {
-        functional_def(q, f, r2, fg ? fg : fm, fm, &pg, &pm); /* phase 1: misalignments only */
+        functional_def(q, f, fg ? fg : fm, fm, &pg, &pm); /* phase 1: misalignments only */
         functional_gamma(q, Minv_T, pg, pm, gam);
         int m = (int)ng + f - 2;
         if (phase == 1) { /* r·(Σ e_m) = (Σ e_m)_m − Σ_{t<4} γ_t U_t·col/scale_t − Σ γ_t D_t·col */
@@ -1816,9 +1817,8 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const dou
 /* q->eq_h: the leverage of every equation (after the selected inverse). */
 static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
 {
-    int maxg = 0, slot[SC_GRID_MAX_VIEWS * 5], k = 0, nm = q->nm;
-    for (int t = 0; t < nm; ++t)
-        slot[t] = q->pinned[q->ng + t] ? -1 : k++;
+    int maxg = 0, slot[SC_GRID_MAX_VIEWS * 5], nm = q->nm;
+    int k = free_misalignments(q, NULL, slot);
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
             maxg = (int)(q->grp_ptr[a + 1] - q->grp_ptr[a]);
@@ -1858,8 +1858,8 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     double *WB = sc_big_alloc(9 * n, sizeof(double), 0); /* W: columns 0-3, B: 4-8 */
     double *D = malloc(sizeof(double) * 3 * n), *fg = malloc(sizeof(double) * ng);
     double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
-    double part[SC_GRID_MAX_VIEWS * 5], scale[4], r2 = 0, *W = NULL, *B = NULL;
-    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last);
+    double part[SC_GRID_MAX_VIEWS * 5], scale[4], *W = NULL, *B = NULL;
+    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
     q->var_m = malloc(sizeof(double) * (size_t)q->nm);
     sc_status st = SC_OK;
     if (!U || !WB || !D || !fg || !uA || !q->var_m) {
@@ -1871,12 +1871,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     for (int c = 0; c < 4; ++c)
         for (size_t i = 0; i < n; ++i)
             W[(size_t)c * n + i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
-    for (int j = 0; j < q->ns; ++j) {
-        double x, y;
-        sc_grid_node_xy_mm(&q->plan, j / q->stage_nx, j % q->stage_nx, &x, &y);
-        r2 += x * x + y * y;
-    }
-    functional_basis_rhs(q, r2, fg, uA, B);
+    functional_basis_rhs(q, fg, uA, B);
     memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
     zero_pinned(q, WB, 9);
     if (sc_spsym_solve(q->f, WB, 9) != 0) {
