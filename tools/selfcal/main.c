@@ -6,9 +6,8 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
-#include <stdint.h>
-#include <sys/mman.h>
 
+#include "../../libselfcal/src/common/big_alloc.h"
 #include "cli.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -158,6 +157,18 @@ static int finish(int rc)
     return rc;
 }
 
+/* A symbol of a shared library loaded here for a process-wide setting, or NULL: when the
+ * environment variable env says keep (the user keeps the library's own setting), or where the
+ * library or the symbol is missing (nothing to set then). */
+static void *setting_symbol(const char *env, const char *keep, const char *lib, const char *name)
+{
+    const char *v = getenv(env);
+    if (v && !strcmp(v, keep))
+        return NULL;
+    void *h = dlopen(lib, RTLD_NOW | RTLD_GLOBAL);
+    return h ? dlsym(h, name) : NULL;
+}
+
 /* CHOLMOD's supernodal factorization (Debian's SuiteSparse 5.12) opens OpenMP parallel regions of
  * a fixed four threads for its small scatter loops, whatever OMP_NUM_THREADS says; its work is in
  * BLAS. On this project's shared 2-core machine the idle threads' futex waits cost the N = 201
@@ -169,11 +180,7 @@ static int finish(int rc)
  * process-wide setting. SELFCAL_OPENMP=1 keeps OpenMP's own settings. */
 static void openmp_regions_serial(void)
 {
-    const char *keep = getenv("SELFCAL_OPENMP");
-    if (keep && !strcmp(keep, "1"))
-        return;
-    void *h = dlopen("libgomp.so.1", RTLD_NOW | RTLD_GLOBAL);
-    void *sym = h ? dlsym(h, "omp_set_max_active_levels") : NULL;
+    void *sym = setting_symbol("SELFCAL_OPENMP", "1", "libgomp.so.1", "omp_set_max_active_levels");
     if (!sym)
         return;
     void (*set_levels)(int);
@@ -186,63 +193,34 @@ static void openmp_regions_serial(void)
  * pages each page costs a fault (at N = 201 19 000 of them, about 10 % of the command's CPU).
  * SuiteSparse takes its allocator from SuiteSparse_config, set once by the application before
  * any use (SuiteSparse_config.h): the command line is that application here (the library leaves
- * process-wide settings alone). Blocks from 4 MiB up: glibc maps them, and their 2 MiB-aligned
- * inside is advised before the first touch; freeing is glibc's. SELFCAL_HUGEPAGES=0 leaves
- * SuiteSparse's allocator alone. */
-#define HUGE_FROM ((size_t)4 << 20)
-#define HUGE_PAGE ((uintptr_t)2 << 20)
-static void advise_huge(void *p, size_t n)
-{
-#ifdef MADV_HUGEPAGE
-    if (!p || n < HUGE_FROM)
-        return;
-    uintptr_t a = ((uintptr_t)p + HUGE_PAGE - 1) & ~(HUGE_PAGE - 1);
-    uintptr_t b = ((uintptr_t)p + n) & ~(HUGE_PAGE - 1);
-    if (b > a)
-        madvise((void *)a, b - a, MADV_HUGEPAGE); /* a hint: refused or not, nothing changes */
-#else
-    (void)p, (void)n;
-#endif
-}
-
+ * process-wide settings alone). The library's own allocation with the hint serves
+ * (libselfcal/src/common/big_alloc.c, compiled here too): blocks from 4 MiB up, glibc maps them
+ * and their 2 MiB-aligned inside is advised before the first touch; freeing is glibc's.
+ * SELFCAL_HUGEPAGES=0 leaves SuiteSparse's allocator alone. */
 static void *huge_malloc(size_t n)
 {
-    void *p = malloc(n);
-    advise_huge(p, n);
-    return p;
+    return sc_big_alloc(n, 1, 0);
 }
 
 static void *huge_calloc(size_t k, size_t n)
 {
-    void *p = calloc(k, n);
-    advise_huge(p, k * n); /* calloc refuses k·n overflows: p is NULL then */
-    return p;
-}
-
-static void *huge_realloc(void *q, size_t n)
-{
-    void *p = realloc(q, n);
-    advise_huge(p, n);
-    return p;
+    return sc_big_alloc(k, n, 1);
 }
 
 static void suitesparse_huge_pages(void)
 {
-    const char *keep = getenv("SELFCAL_HUGEPAGES");
-    if (keep && !strcmp(keep, "0"))
-        return;
-    void *h = dlopen("libsuitesparseconfig.so.5", RTLD_NOW | RTLD_GLOBAL);
     struct suitesparse_config { /* the head of SuiteSparse_config_struct (5.x) */
         void *(*malloc_func)(size_t);
         void *(*calloc_func)(size_t, size_t);
         void *(*realloc_func)(void *, size_t);
         void (*free_func)(void *);
-    } *c = h ? dlsym(h, "SuiteSparse_config") : NULL;
+    } *c = setting_symbol("SELFCAL_HUGEPAGES", "0", "libsuitesparseconfig.so.5",
+                          "SuiteSparse_config");
     if (!c || c->malloc_func != malloc || c->calloc_func != calloc || c->realloc_func != realloc)
         return; /* not SuiteSparse's defaults: someone chose already, or another layout */
     c->malloc_func = huge_malloc;
     c->calloc_func = huge_calloc;
-    c->realloc_func = huge_realloc;
+    c->realloc_func = sc_big_realloc;
 }
 
 /* The commands that factor a grid's normal matrix (grid, plan, report grid) and only they: OpenMP
