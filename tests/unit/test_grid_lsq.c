@@ -24,10 +24,8 @@ static void check_recovery(int n, int kind, uint64_t seed)
     sc_rng r;
     sc_rng_seed(&r, seed);
     tu_truth t;
-    tu_truth_make(&t, &p, &r);
     sc_grid_data d;
-    tu_data_alloc(&d, &p);
-    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    tu_truth_data(&p, &r, &t, &d);
     sc_grid_lsq_plan *q = NULL;
     sc_error err;
     assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
@@ -107,10 +105,8 @@ static void test_reference_accuracy(void **s)
         sc_rng r;
         sc_rng_seed(&r, 90 + t);
         tu_truth tr;
-        tu_truth_make(&tr, &p, &r);
         sc_grid_data d;
-        tu_data_alloc(&d, &p);
-        sc_grid_synthesize(&p, tr.gx, tr.gy, tr.ax, tr.ay, tr.tx, tr.ty, tr.th, &d);
+        tu_truth_data(&p, &r, &tr, &d);
         sc_grid_result res;
         tu_res res_arrays;
         tu_res_alloc(&res_arrays, p.n * p.n);
@@ -214,10 +210,8 @@ static void test_sigma_estimate(void **s)
         sc_rng r;
         sc_rng_seed(&r, 77 + c);
         tu_truth t;
-        tu_truth_make(&t, &p, &r);
         sc_grid_data d;
-        tu_data_alloc(&d, &p);
-        sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+        tu_truth_data(&p, &r, &t, &d);
         tu_add_noise(&d, 0.05, &r);
         sc_grid_lsq_plan *q = NULL;
         sc_error err;
@@ -319,10 +313,8 @@ static void test_mask_subset(void **s)
     sc_rng r;
     sc_rng_seed(&r, 9);
     tu_truth t;
-    tu_truth_make(&t, &p, &r);
     sc_grid_data d;
-    tu_data_alloc(&d, &p);
-    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    tu_truth_data(&p, &r, &t, &d);
     /* drop ~10 % of the measurements at random, and mark 0 from every view */
     for (int v = 0; v < p.n_views; ++v)
         for (int k = 0; k < nn; ++k)
@@ -401,10 +393,8 @@ static void test_bad_input(void **s)
     sc_rng r;
     sc_rng_seed(&r, 5);
     tu_truth t;
-    tu_truth_make(&t, &p, &r);
     sc_grid_data d;
-    tu_data_alloc(&d, &p);
-    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    tu_truth_data(&p, &r, &t, &d);
     sc_grid_lsq_plan *q = NULL;
     sc_error err;
     assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
@@ -495,10 +485,8 @@ static void test_undetermined_view(void **s)
     sc_rng r;
     sc_rng_seed(&r, 12);
     tu_truth t;
-    tu_truth_make(&t, &p, &r);
     sc_grid_data d;
-    tu_data_alloc(&d, &p);
-    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    tu_truth_data(&p, &r, &t, &d);
     for (int k = 0; k < nn; ++k)
         if (k != c * n + c + 1)
             d.dx_um[3][k] = d.dy_um[3][k] = NAN;

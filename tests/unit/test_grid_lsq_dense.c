@@ -200,10 +200,8 @@ static void compare(int n, int kind, int use_mask, uint64_t seed)
     sc_rng r;
     sc_rng_seed(&r, seed);
     tu_truth t;
-    tu_truth_make(&t, &p, &r);
     sc_grid_data d;
-    tu_data_alloc(&d, &p);
-    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    tu_truth_data(&p, &r, &t, &d);
     if (use_mask)
         for (int v = 0; v < p.n_views; ++v)
             for (int k = 0; k < nn; ++k)

@@ -101,6 +101,14 @@ static void tu_data_alloc(sc_grid_data *d, const sc_grid_plan *p)
     }
 }
 
+/* A truth for plan p drawn from r and its noise-free data in d (allocated here). */
+static void tu_truth_data(const sc_grid_plan *p, sc_rng *r, tu_truth *t, sc_grid_data *d)
+{
+    tu_truth_make(t, p, r);
+    tu_data_alloc(d, p);
+    sc_grid_synthesize(p, t->gx, t->gy, t->ax, t->ay, t->tx, t->ty, t->th, d);
+}
+
 static void tu_data_free(sc_grid_data *d)
 {
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
