@@ -29,6 +29,7 @@
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 #include "selfcal/stage_map.h"
+#include "../../libselfcal/src/io/profile_file_internal.h"
 
 #define TMP SELFCAL_TEST_TMP "/allocfail_"
 
@@ -130,6 +131,31 @@ static sc_status read_profile(void *ctx, sc_error *err)
 {
     sc_profile_data d;
     sc_status st = sc_profile_read((const char *)ctx, &d, err);
+    if (st != SC_OK)
+        assert_null(d.m1_um[0]);
+    sc_profile_data_free(&d);
+    return st;
+}
+
+/* A result file above the writers' two-thread threshold: on failure, no file at all. */
+static sc_status write_profile_result(void *ctx, sc_error *err)
+{
+    (void)ctx;
+    enum { n = 40000 };
+    static double f[n];
+    const char *path = TMP "result_large.csv";
+    remove(path);
+    sc_status st = sc_profile_write_result(path, n, 0.5, f, f, f, n, err);
+    struct stat sb;
+    assert_int_equal(stat(path, &sb) == 0, st == SC_OK);
+    return st;
+}
+
+/* The same file with its rows read by two threads (profile_file.c's fast pass at any size). */
+static sc_status read_profile_two_threads(void *ctx, sc_error *err)
+{
+    sc_profile_data d;
+    sc_status st = sc_profile_read_tuned((const char *)ctx, 0, NULL, &d, err);
     if (st != SC_OK)
         assert_null(d.m1_um[0]);
     sc_profile_data_free(&d);
@@ -278,6 +304,8 @@ static void test_readers(void **state)
     every_allocation("sc_stage_map_read", read_stage_map, TMP "map.csv");
     every_allocation("sc_plate_map_read", read_plate_map, TMP "plate.csv");
     every_allocation("sc_profile_read", read_profile, TMP "profile.csv");
+    every_allocation("sc_profile_read (two threads)", read_profile_two_threads, TMP "profile.csv");
+    every_allocation("sc_profile_write_result (two threads)", write_profile_result, NULL);
     every_allocation("sc_profile_read_result", read_profile_result, TMP "result.csv");
     const char *paths[3] = {TMP "map.csv", TMP "result.csv", TMP "table.lut"};
     every_allocation("lut build (read map, profile, write)", lut_from_files, paths);

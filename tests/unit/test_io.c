@@ -1,6 +1,7 @@
 /* Unit tests of io/ and of the declarative header parser (common/header.c): the stage map's one
  * reader and writer (round trips, rectangles, every rule of selfcal/stage_map.h with its line),
  * and the header table (types, ranges, duplicates, missing keys, FILE:LINE). */
+#include <limits.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -18,6 +19,9 @@
 #include "selfcal/plate_map.h"
 #include "selfcal/profile_file.h"
 #include "selfcal/stage_map.h"
+#include "selfcal/number.h"
+#include "selfcal/rng.h"
+#include "../../libselfcal/src/io/io_internal.h" /* the writers' row formatter (two threads) */
 
 static void tmp_path(char *buf, size_t n, const char *name)
 {
@@ -329,6 +333,75 @@ static void test_profile_result(void **state)
 
 /* ---- plate error ---- */
 
+/* ---- rows written by two threads (row_writer.c) ---- */
+
+/* "i,v[i]\n" with v of varying length (1 to 23 characters) */
+static char *numbered_row(const void *ctx, long i, char *p)
+{
+    const double *v = ctx;
+    p = sc_io_put_long(p, i, ',');
+    return sc_io_put_number(p, v[i], '\n');
+}
+
+static char *slurp(const char *path, long *len)
+{
+    FILE *fp = fopen(path, "rb");
+    assert_non_null(fp);
+    fseek(fp, 0, SEEK_END);
+    *len = ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    char *b = malloc((size_t)*len + 1);
+    assert_non_null(b);
+    assert_int_equal(fread(b, 1, (size_t)*len, fp), (size_t)*len);
+    fclose(fp);
+    return b;
+}
+
+static void write_numbered(const char *path, long n, const double *v, long parallel_from)
+{
+    sc_io_out o;
+    sc_error err;
+    assert_int_equal(sc_io_out_open(&o, path, &err), SC_OK);
+    fputs("i,v\n", o.f.fp); /* text before the rows, as the writers' column headers */
+    sc_io_out_rows_tuned(&o, n, numbered_row, v, parallel_from);
+    assert_int_equal(sc_io_out_finish(&o, &err), SC_OK);
+}
+
+static void test_rows_two_threads(void **state)
+{
+    (void)state;
+    const long sizes[] = {0, 1, 2047, 2048, 2049, 4 * 2048 + 5, 9 * 2048, 50001};
+    const long nmax = 50001;
+    double *v = malloc(sizeof(double) * nmax);
+    char *expect = malloc((size_t)nmax * 48 + 8);
+    assert_non_null(v);
+    assert_non_null(expect);
+    sc_rng r;
+    sc_rng_seed(&r, 11);
+    for (long i = 0; i < nmax; ++i) /* short and long texts: 0.5, 1e-300, 12345.678901234567 */
+        v[i] = i % 3 == 0 ? 0.5 * (double)(i % 7) : sc_rng_normal(&r) * pow(10, (double)(i % 40) - 20);
+    for (size_t c = 0; c < sizeof sizes / sizeof sizes[0]; ++c) {
+        long n = sizes[c], la, lb;
+        char *e = expect + sprintf(expect, "i,v\n");
+        for (long i = 0; i < n; ++i) {
+            e += sprintf(e, "%ld,", i);
+            e += sc_number_format(v[i], e);
+            *e++ = '\n';
+        }
+        write_numbered(SELFCAL_TEST_TMP "/io_rows_one.csv", n, v, LONG_MAX);
+        write_numbered(SELFCAL_TEST_TMP "/io_rows_two.csv", n, v, 0);
+        char *a = slurp(SELFCAL_TEST_TMP "/io_rows_one.csv", &la), *b = slurp(SELFCAL_TEST_TMP "/io_rows_two.csv", &lb);
+        assert_int_equal(la, e - expect);
+        assert_memory_equal(a, expect, (size_t)la);
+        assert_int_equal(lb, la);
+        assert_memory_equal(b, a, (size_t)la);
+        free(a);
+        free(b);
+    }
+    free(v);
+    free(expect);
+}
+
 static void test_plate_map(void **state)
 {
     (void)state;
@@ -408,6 +481,7 @@ int main(void)
         cmocka_unit_test(test_stage_map_errors),
         cmocka_unit_test(test_profile_result),
         cmocka_unit_test(test_plate_map),
+        cmocka_unit_test(test_rows_two_threads),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

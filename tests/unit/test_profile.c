@@ -1,13 +1,16 @@
 /* Unit tests of the straightness-profile area: both methods against simulated truth (random and
  * DABAM profiles, stage errors, zero-point errors), the DFT method's analytic uncertainty against
  * its brute-force linear response and against Monte Carlo, the strict reader, the simulation. */
+#define _GNU_SOURCE /* sched_getaffinity: is there a second core for the two-thread reader */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <limits.h>
 #include <math.h>
+#include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -16,6 +19,7 @@
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 #include "selfcal/profile_sim.h"
+#include "../../libselfcal/src/io/profile_file_internal.h" /* the reader's two-thread switch */
 
 #define TMP SELFCAL_TEST_TMP
 #define DABAM SELFCAL_TEST_DATA_DIR "/dabam/"
@@ -379,15 +383,69 @@ static void text_set(text *t, int ln, const char *s)
     t->line[ln - 1] = strdup(s);
 }
 
-static const char *text_write(const text *t)
+/* The lines, each ended by eol (the last one too unless last_eol is 0). */
+static const char *text_write_ends(const text *t, const char *eol, int last_eol)
 {
     static const char *path = TMP "/profile_reader.csv";
     FILE *fp = fopen(path, "w");
     assert_non_null(fp);
     for (int i = 0; i < t->nlines; ++i)
-        fprintf(fp, "%s\n", t->line[i]);
+        fprintf(fp, "%s%s", t->line[i], i + 1 < t->nlines || last_eol ? eol : "");
     fclose(fp);
     return path;
+}
+
+static const char *text_write(const text *t)
+{
+    return text_write_ends(t, "\n", 1);
+}
+
+static void assert_same_data(const sc_profile_data *a, const sc_profile_data *b)
+{
+    assert_int_equal(a->n, b->n);
+    assert_int_equal(a->d[0], b->d[0]);
+    assert_int_equal(a->d[1], b->d[1]);
+    assert_true(a->s_mm == b->s_mm);
+    for (int k = 0; k < 2; ++k) {
+        size_t bytes = (size_t)(a->n - a->d[k]) * sizeof(double);
+        assert_memory_equal(a->m1_um[k], b->m1_um[k], bytes);
+        assert_memory_equal(a->m2_um[k], b->m2_um[k], bytes);
+        assert_memory_equal(a->m3_urad[k], b->m3_urad[k], bytes);
+    }
+}
+
+/* Two cores for this process: then the reader must have used both. */
+static int two_cpus(void)
+{
+    cpu_set_t set;
+    return sched_getaffinity(0, sizeof set, &set) == 0 && CPU_COUNT(&set) > 1;
+}
+
+/* The file at path read with its rows split between two threads (threshold 0) and by one: same
+ * status, same message and line, same values. The two-thread read's status. */
+static sc_status read_both_ways(const char *path, int *threads)
+{
+    sc_profile_data a, b;
+    sc_error ea, eb;
+    sc_error_clear(&ea);
+    sc_error_clear(&eb);
+    int one = -1;
+    sc_status sa = sc_profile_read_tuned(path, 0, threads, &a, &ea);
+    sc_status sb = sc_profile_read_tuned(path, LLONG_MAX, &one, &b, &eb);
+    assert_int_equal(sa, sb);
+    if (sa != SC_OK) {
+        assert_int_equal(ea.line, eb.line);
+        assert_string_equal(ea.msg, eb.msg);
+        assert_int_equal(*threads, 0);
+        return sa;
+    }
+    assert_int_equal(one, 1);
+    assert_same_data(&a, &b);
+    assert_true(a.line_n == b.line_n && a.line_scan[0] == b.line_scan[0] &&
+                a.line_scan[1] == b.line_scan[1] && a.has_sigma_disp == b.has_sigma_disp);
+    sc_profile_data_free(&a);
+    sc_profile_data_free(&b);
+    return sa;
 }
 
 static void expect_bad(const text *t, long line, const char *what, int method)
@@ -405,6 +463,8 @@ static void expect_bad(const text *t, long line, const char *what, int method)
     char msg[1024];
     sc_error_format(&err, msg, sizeof msg);
     print_message("  %s -> %s\n", what, msg);
+    int threads;
+    read_both_ways(text_write(t), &threads); /* the same message from the two-thread reader */
     assert_int_equal(st, SC_E_INPUT);
     assert_int_equal(err.line, line);
     assert_non_null(strstr(err.file, "profile_reader.csv"));
@@ -509,6 +569,88 @@ static void test_reader_good_and_bad(void **state)
     text_free(&t);
 }
 
+/* The fast pass on two threads (profile_file.c): what it reads is what one thread reads, on files
+ * that split anywhere; whatever is wrong sends it to the exact pass and its messages. */
+static void test_reader_two_threads(void **state)
+{
+    (void)state;
+    const int n = 300, d1 = 7, d2 = 11;
+    const int rows = 2 * n - d1 - d2, s1 = 7; /* first data line */
+    text t;
+    int threads;
+    /* a plain file, and the same ended by CR LF, and without the last line end */
+    text_good(&t, n, d1, d2);
+    assert_int_equal(read_both_ways(text_write(&t), &threads), SC_OK);
+    if (two_cpus())
+        assert_int_equal(threads, 2);
+    assert_int_equal(read_both_ways(text_write_ends(&t, "\r\n", 1), &threads), SC_OK);
+    assert_int_equal(read_both_ways(text_write_ends(&t, "\n", 0), &threads), SC_OK);
+    /* comments, blank lines and rows with blanks (the general path) all through the file */
+    for (int i = s1 + 5; i < t.nlines; i += 37) {
+        char buf[128];
+        snprintf(buf, sizeof buf, " %s ", t.line[i - 1]);
+        for (char *c = strchr(buf, ','); c; c = strchr(c + 2, ','))
+            memmove(c + 1, c, strlen(c) + 1), c[0] = ' ', c++; /* "a ,b" */
+        text_set(&t, i, buf);
+    }
+    char *extra[] = {"# a remark", "", "   ", "#"};
+    for (int i = 0; i < 4; ++i) { /* insert at four places */
+        int at = s1 + (i + 1) * rows / 5;
+        memmove(&t.line[at], &t.line[at - 1], (size_t)(t.nlines - at + 1) * sizeof(char *));
+        t.line[at - 1] = strdup(extra[i]);
+        t.nlines++;
+    }
+    assert_int_equal(read_both_ways(text_write(&t), &threads), SC_OK);
+    if (two_cpus())
+        assert_int_equal(threads, 2);
+    text_free(&t);
+    /* the scans' rows interleaved, then in reverse order */
+    text_good(&t, n, d1, d2);
+    for (int i = 0; i < (n - d2) / 2; ++i) { /* swap scan 1's odd rows with scan 2's even rows */
+        char *a = t.line[s1 - 1 + 2 * i + 1];
+        t.line[s1 - 1 + 2 * i + 1] = t.line[s1 - 1 + (n - d1) + 2 * i];
+        t.line[s1 - 1 + (n - d1) + 2 * i] = a;
+    }
+    assert_int_equal(read_both_ways(text_write(&t), &threads), SC_OK);
+    for (int i = 0; i < rows / 2; ++i) {
+        char *a = t.line[s1 - 1 + i];
+        t.line[s1 - 1 + i] = t.line[t.nlines - 1 - i];
+        t.line[t.nlines - 1 - i] = a;
+    }
+    assert_int_equal(read_both_ways(text_write(&t), &threads), SC_OK);
+    text_free(&t);
+    /* wrong files, where the fault lies in either half or across them: the exact messages */
+    text_good(&t, n, d1, d2);
+    t.line[t.nlines++] = strdup("1,0,0,0,0"); /* a duplicate of the first row, at the end */
+    expect_bad(&t, t.nlines, "duplicate sample: scan 1, n = 0 (first at line 7)", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    text_delete(&t, s1 + 5); /* a gap and a duplicate: as many rows as samples */
+    t.line[t.nlines++] = strdup("1,0,0,0,0");
+    expect_bad(&t, t.nlines, "duplicate sample: scan 1, n = 0 (first at line 7)", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    text_set(&t, s1 + 3, t.line[t.nlines - 2]); /* the second last row, early */
+    expect_bad(&t, t.nlines - 1, "duplicate sample", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    int gap = t.nlines - 40;
+    text_delete(&t, gap); /* a gap in the second half: reported at the row after it */
+    expect_bad(&t, gap, "gap in scan 2", -1);
+    text_set(&t, t.nlines - 5, "2,7,0,0,x"); /* and a bad field after it: the field first */
+    expect_bad(&t, t.nlines - 5, "m3_urad", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    text_set(&t, s1 + 4, "1,4,0,0"); /* a short row in the first half */
+    text_set(&t, t.nlines - 3, "2,4,0,0,0,"); /* and a long one in the second */
+    expect_bad(&t, s1 + 4, "expected 5 fields", -1);
+    text_free(&t);
+    text_good(&t, n, d1, d2);
+    text_delete(&t, t.nlines); /* the last row missing: reported at the end */
+    expect_bad(&t, t.nlines, "gap in scan 2", -1);
+    text_free(&t);
+}
+
 static void test_write_read_roundtrip(void **state)
 {
     (void)state;
@@ -547,6 +689,41 @@ static void test_write_read_roundtrip(void **state)
     sc_profile_data_free(&b);
 }
 
+/* Files above the writers' two-thread threshold (SC_IO_PARALLEL_ROWS rows) read back exactly. */
+static void test_write_read_large(void **state)
+{
+    (void)state;
+    const int n = 20000; /* 2n - d1 - d2 data rows, n result rows: both written by two threads */
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(sizeof(double) * n), *ey = malloc(sizeof(double) * n);
+    double *uf = malloc(sizeof(double) * n);
+    assert_non_null(f), assert_non_null(ey), assert_non_null(uf);
+    random_profile(n, 9, f);
+    sc_profile_data a, b;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &a, ey, &err), SC_OK);
+    assert_int_equal(sc_profile_write(TMP "/profile_large.csv", &a, &err), SC_OK);
+    assert_int_equal(sc_profile_read(TMP "/profile_large.csv", &b, &err), SC_OK);
+    assert_same_data(&a, &b);
+    for (int i = 0; i < n; ++i)
+        uf[i] = 1e-3 * i;
+    assert_int_equal(sc_profile_write_result(TMP "/profile_large_res.csv", n, 0.25, f, uf, ey,
+                                             n - 30, &err), SC_OK);
+    sc_profile_result r;
+    assert_int_equal(sc_profile_read_result(TMP "/profile_large_res.csv", &r, &err), SC_OK);
+    assert_int_equal(r.n, n);
+    for (int i = 0; i < n; ++i) {
+        assert_true(r.f_um[i] == f[i] && r.uf_um[i] == uf[i] && r.x_mm[i] == 0.25 * i);
+        assert_true(i < n - 30 ? r.ey_um[i] == ey[i] : isnan(r.ey_um[i]));
+    }
+    sc_profile_result_free(&r);
+    sc_profile_data_free(&a);
+    sc_profile_data_free(&b);
+    free(f), free(ey), free(uf);
+}
+
 static void test_dft_refuses(void **state)
 {
     (void)state;
@@ -574,7 +751,9 @@ int main(void)
         cmocka_unit_test(test_paper_setup_mc),
         cmocka_unit_test(test_residual_noise_estimate),
         cmocka_unit_test(test_reader_good_and_bad),
+        cmocka_unit_test(test_reader_two_threads),
         cmocka_unit_test(test_write_read_roundtrip),
+        cmocka_unit_test(test_write_read_large),
         cmocka_unit_test(test_dft_refuses),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

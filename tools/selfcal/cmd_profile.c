@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "../../libselfcal/src/common/big_alloc.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
@@ -220,7 +221,7 @@ int cmd_profile(int argc, char **argv)
     sc_profile_data d;
     if (sc_profile_read(pa.in, &d, &err) != SC_OK)
         return cli_report(&err);
-    double *blk = malloc((size_t)3 * d.n * sizeof(double)); /* f, uf, ey */
+    double *blk = sc_big_alloc((size_t)3 * d.n, sizeof(double), 0); /* f, uf, ey */
     sc_status st = blk ? calibrate_and_write(&pa, &d, blk, &err)
                        : sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", d.n);
     rc = st == SC_OK ? CLI_OK : cli_report(&err);

@@ -31,7 +31,8 @@ typedef struct sc_profile_options {
                                 that solve (wrss and residual_ratio NaN for DFT with given noise) */
 } sc_profile_options;
 
-/* What came out. The arrays are the caller's, each of the data's N values (NULL: not wanted). */
+/* What came out. The arrays are the caller's, distinct, each of the data's N values (NULL: not
+ * wanted); they are worked in, so after a failure their content is unspecified. */
 typedef struct sc_profile_solution {
     double *f_um;            /* the profile relative to its least-squares line */
     double *uf_um;           /* its standard uncertainty (k = 1); NaN when no noise is known or

@@ -3,6 +3,7 @@
 #include "selfcal/csv.h"
 
 #include "selfcal/number.h"
+#include "csv_internal.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -11,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 FILE *sc_open_input(const char *path, sc_error *err)
 {
@@ -140,6 +142,35 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     r->line++;
     r->nfields = 0;
     return 1;
+}
+
+long long sc_csv_line_offset(const sc_csv *r)
+{
+    return r->buf_off + (long long)(r->text - r->buf);
+}
+
+/* The file through /proc/self/fd (a new file description of the very file r has open, whatever
+ * its path has become since), checked to be that file. */
+sc_status sc_csv_open_at(sc_csv *w, const sc_csv *r, long long at, sc_error *err)
+{
+    memset(w, 0, sizeof *w);
+    snprintf(w->path, sizeof w->path, "%s", r->path);
+    struct stat a, b;
+    char self[64];
+    if (!r->fp || fstat(fileno(r->fp), &a) != 0 || !S_ISREG(a.st_mode))
+        return sc_error_set(err, SC_E_IO, r->path, 0, "not a regular file");
+    snprintf(self, sizeof self, "/proc/self/fd/%d", fileno(r->fp));
+    w->fp = fopen(self, "rb");
+    if (!w->fp)
+        return sc_error_set(err, SC_E_IO, r->path, 0, "cannot open again: %s", strerror(errno));
+    w->owns_fp = 1;
+    if (fstat(fileno(w->fp), &b) != 0 || a.st_dev != b.st_dev || a.st_ino != b.st_ino ||
+        fseeko(w->fp, (off_t)at, SEEK_SET) != 0) {
+        sc_csv_close(w);
+        return sc_error_set(err, SC_E_IO, r->path, 0, "cannot open again at byte %lld", at);
+    }
+    w->buf_off = at;
+    return SC_OK;
 }
 
 bool sc_csv_is_blank(const sc_csv *r)

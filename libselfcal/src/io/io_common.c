@@ -70,6 +70,7 @@ sc_status sc_io_finish(sc_afile *f, sc_error *err)
 sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err)
 {
     o->buf = o->p = NULL;
+    o->nomem = 0;
     sc_status st = sc_afile_open(&o->f, path, err);
     if (st != SC_OK)
         return st;
@@ -89,9 +90,15 @@ void sc_io_out_flush(sc_io_out *o)
 
 sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
 {
-    sc_io_out_flush(o);
+    if (!o->nomem)
+        sc_io_out_flush(o);
     free(o->buf);
     o->buf = o->p = NULL;
+    if (o->nomem) {
+        sc_error_set(err, SC_E_NOMEM, o->f.path, 0, "out of memory");
+        sc_afile_abort(&o->f);
+        return SC_E_NOMEM;
+    }
     return sc_io_finish(&o->f, err);
 }
 

@@ -60,6 +60,7 @@ char *sc_io_put_long(char *p, long v, char sep);
 typedef struct sc_io_out {
     sc_afile f; /* open between sc_io_out_open and sc_io_out_finish */
     char *buf, *p;
+    int nomem;  /* sc_io_out_rows ran out of memory: sc_io_out_finish aborts the file */
 } sc_io_out;
 
 /* Open path's atomic file and the block. */
@@ -75,7 +76,24 @@ static inline void sc_io_out_row(sc_io_out *o)
         sc_io_out_flush(o);
 }
 
-/* Write the rest, free the block, commit (sc_io_finish). */
+/* Format row i of ctx at p (room for SC_IO_ROW_MAX bytes); returns the end of the row. */
+typedef char *(*sc_io_format_row)(const void *ctx, long i, char *p);
+
+/* From this many rows on, sc_io_out_rows formats on two threads where two cores are free. */
+#define SC_IO_PARALLEL_ROWS 32768
+
+/* Write rows 0..n-1 (format(ctx, i, ...)) in order after what o holds. Large files where a
+ * second core is free: a second thread formats every other chunk of 2048 rows (row_writer.c);
+ * the text is the same either way. format must be safe to call from two threads at once. Out of
+ * memory for the chunks: nothing written, o->nomem set (sc_io_out_finish says it). */
+void sc_io_out_rows(sc_io_out *o, long n, sc_io_format_row format, const void *ctx);
+
+/* sc_io_out_rows with the row count from which two threads format (for the tests). */
+void sc_io_out_rows_tuned(sc_io_out *o, long n, sc_io_format_row format, const void *ctx,
+                          long parallel_from);
+
+/* Write the rest, free the block, commit (sc_io_finish); SC_E_NOMEM and the file aborted after
+ * sc_io_out_rows ran out of memory. */
 sc_status sc_io_out_finish(sc_io_out *o, sc_error *err);
 
 /* Commit an atomic file, or abort it (SC_E_IO) if a write failed. */

@@ -1,21 +1,37 @@
 /* profile_file.c — owns the `selfcal-profile v1` measurement file (SPEC §2): the data type's
  * allocation, the strict reader (header through the declarative parser of common/header.c) and
- * the writer. */
+ * the writer.
+ *
+ * The reader makes up to two passes. The fast pass (a regular file) keeps one bit per sample
+ * instead of each row's line and, when the data rows fill at least SC_PROFILE_PARALLEL_FROM
+ * bytes and a second core is there, reads the second half of the rows on a second thread (the
+ * rows say their own scan and n, so the halves fill disjoint samples). Anything wrong in it (a
+ * bad row, a duplicate, a gap) sends the file to the exact pass: one thread, each row's line
+ * kept, every message and line number as they always were. Readers of a pipe make the exact
+ * pass only. */
+#define _GNU_SOURCE /* sched_getaffinity */
 #include "selfcal/profile_file.h"
+#include "profile_file_internal.h"
 
 #include <ctype.h>
 #include <math.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdint.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/header.h"
 #include "selfcal/number.h"
 #include "io_internal.h"
+#include "../common/big_alloc.h"
+#include "../common/csv_internal.h"
 
 /* The shortest data row a valid file can have: "1,0,0,0,0\n". */
 #define SC_PROFILE_MIN_ROW_BYTES 10
@@ -42,9 +58,9 @@ sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, int d1, i
     d->d[1] = d2;
     for (int k = 0; k < 2; ++k) {
         size_t m = (size_t)(n - d->d[k]);
-        d->m1_um[k] = calloc(m, sizeof(double));
-        d->m2_um[k] = calloc(m, sizeof(double));
-        d->m3_urad[k] = calloc(m, sizeof(double));
+        d->m1_um[k] = sc_big_alloc(m, sizeof(double), 1);
+        d->m2_um[k] = sc_big_alloc(m, sizeof(double), 1);
+        d->m3_urad[k] = sc_big_alloc(m, sizeof(double), 1);
         if (!d->m1_um[k] || !d->m2_um[k] || !d->m3_urad[k]) {
             sc_profile_data_free(d);
             return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
@@ -88,7 +104,11 @@ typedef struct profile_reader {
     sc_header hdr;
     profile_header v;
     long d[2], line_scan[2];
-    long *row_line[2]; /* per scan and n: the line of the row (0 = not seen) */
+    int exact;          /* the exact pass (row_line) or the fast pass (seen) */
+    long *row_line[2];  /* exact: per scan and n, the line of the row (0 = not seen) */
+    uint64_t *seen[2];  /* fast: per scan, one bit per sample this thread stored */
+    long stored[2];     /* rows this thread stored, per scan */
+    long long stop_at;  /* fast, first half: the offset of the second half's first line (-1: none) */
     sc_profile_data data;
 } profile_reader;
 
@@ -215,6 +235,31 @@ static sc_status read_header(profile_reader *pr, sc_error *err)
     return check_size(pr, err);
 }
 
+/* The rows' bookkeeping: each row's line (exact pass) or a bit per sample (fast pass). */
+static sc_status alloc_row_marks(profile_reader *pr, sc_error *err)
+{
+    for (int k = 0; k < 2; ++k) {
+        size_t m = (size_t)(pr->v.n - pr->d[k]);
+        if (pr->exact)
+            pr->row_line[k] = sc_big_alloc(m, sizeof(long), 1);
+        else
+            pr->seen[k] = calloc((m + 63) / 64, sizeof(uint64_t));
+        if (pr->exact ? !pr->row_line[k] : !pr->seen[k])
+            return sc_error_set(err, SC_E_NOMEM, pr->csv.path, 0, "out of memory");
+    }
+    return SC_OK;
+}
+
+static void free_row_marks(profile_reader *pr)
+{
+    for (int k = 0; k < 2; ++k) {
+        free(pr->row_line[k]);
+        free(pr->seen[k]);
+        pr->row_line[k] = NULL;
+        pr->seen[k] = NULL;
+    }
+}
+
 /* The column header (current line), then the data set and the row bookkeeping. */
 static sc_status start_data(profile_reader *pr, sc_error *err)
 {
@@ -237,12 +282,7 @@ static sc_status start_data(profile_reader *pr, sc_error *err)
                 err->line = sc_header_line_of(&pr->hdr, "N");
         return st;
     }
-    for (int k = 0; k < 2; ++k) {
-        pr->row_line[k] = calloc((size_t)(pr->v.n - pr->d[k]), sizeof(long));
-        if (!pr->row_line[k])
-            return sc_error_set(err, SC_E_NOMEM, r->path, 0, "out of memory");
-    }
-    return SC_OK;
+    return alloc_row_marks(pr, err);
 }
 
 /* Store one data row's values (scan k, sample idx, the three readings) after its checks. */
@@ -262,15 +302,26 @@ static sc_status store_row(profile_reader *pr, long k, long idx, const double v[
         return sc_error_set(err, SC_E_INPUT, P, r->line,
                             "n = %ld out of range for scan %ld (0..%ld: N - d = %ld samples)", idx,
                             k, m - 1, m);
-    long *seen = &pr->row_line[k - 1][idx];
-    if (*seen)
-        return sc_error_set(err, SC_E_INPUT, P, r->line,
-                            "duplicate sample: scan %ld, n = %ld (first at line %ld)", k, idx,
-                            *seen);
-    *seen = r->line;
-    pr->data.m1_um[k - 1][idx] = v[0];
-    pr->data.m2_um[k - 1][idx] = v[1];
-    pr->data.m3_urad[k - 1][idx] = v[2];
+    if (pr->exact) {
+        long *seen = &pr->row_line[k - 1][idx];
+        if (*seen)
+            return sc_error_set(err, SC_E_INPUT, P, r->line,
+                                "duplicate sample: scan %ld, n = %ld (first at line %ld)", k, idx,
+                                *seen);
+        *seen = r->line;
+    } else {
+        uint64_t *w = &pr->seen[k - 1][idx >> 6], bit = (uint64_t)1 << (idx & 63);
+        if (*w & bit) /* the exact pass says where it was first */
+            return sc_error_set(err, SC_E_INPUT, P, r->line, "duplicate sample");
+        *w |= bit;
+    }
+    pr->stored[k - 1]++;
+    /* Relaxed atomic stores, plain moves: in the fast pass a sample given in both halves (a
+     * duplicate, found after both and read again exactly) is written by both threads. */
+    double m1 = v[0], m2 = v[1], m3 = v[2];
+    __atomic_store(&pr->data.m1_um[k - 1][idx], &m1, __ATOMIC_RELAXED);
+    __atomic_store(&pr->data.m2_um[k - 1][idx], &m2, __ATOMIC_RELAXED);
+    __atomic_store(&pr->data.m3_urad[k - 1][idx], &m3, __ATOMIC_RELAXED);
     return SC_OK;
 }
 
@@ -326,15 +377,19 @@ static sc_status check_complete(const profile_reader *pr, sc_error *err)
     return SC_OK;
 }
 
-/* The data rows. A plain row (five fields, no blanks: what writers write) is parsed in place by
- * sc_csv_is_plain_row; any other line takes the general path (comments, blanks, split, the fields'
- * own messages), so both give the same values and the same errors. */
+/* The data rows (up to the line at pr->stop_at, if any). A plain row (five fields, no blanks:
+ * what writers write) is parsed in place by sc_csv_is_plain_row; any other line takes the general
+ * path (comments, blanks, split, the fields' own messages), so both give the same values and the
+ * same errors. The exact pass then checks that no sample is missing; the fast pass's caller
+ * checks it over both halves. */
 static sc_status read_rows(profile_reader *pr, sc_error *err)
 {
     sc_csv *r = &pr->csv;
     int rc;
     sc_status st;
     while ((rc = sc_csv_next_line(r, err)) == 1) {
+        if (pr->stop_at >= 0 && sc_csv_line_offset(r) >= pr->stop_at)
+            return SC_OK;
         long kn[2];
         double v[3];
         if (sc_csv_is_plain_row(r, "LLDDD", kn, v))
@@ -350,23 +405,119 @@ static sc_status read_rows(profile_reader *pr, sc_error *err)
     }
     if (rc < 0)
         return err ? err->code : SC_E_INPUT;
-    return check_complete(pr, err);
+    return pr->exact ? check_complete(pr, err) : SC_OK;
 }
 
-sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
+/* CPUs this thread may run on. */
+static int cpus_available(void)
 {
-    memset(out, 0, sizeof *out);
+    cpu_set_t set;
+    return sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : 1;
+}
+
+/* The offset of the first line that starts at or after the middle of [from, size) of the file
+ * r reads, or -1 if there is none within a line's length of it. */
+static long long middle_line(const sc_csv *r, long long from, long long size)
+{
+    char buf[4096];
+    long long at = from + (size - from) / 2 - 1;
+    for (long long end = at + SC_CSV_MAX_LINE + 2; at < size && at < end;) {
+        ssize_t got = pread(fileno(r->fp), buf, sizeof buf, (off_t)at);
+        if (got <= 0)
+            return -1;
+        const char *nl = memchr(buf, '\n', (size_t)got);
+        if (nl)
+            return at + (nl - buf) + 1 < size ? at + (nl - buf) + 1 : -1;
+        at += got;
+    }
+    return -1;
+}
+
+/* The second half's thread: its own reader, the same data arrays. */
+typedef struct half_job {
+    profile_reader r;
+    sc_error err;
+    sc_status st;
+} half_job;
+
+static void *read_half(void *arg)
+{
+    half_job *j = arg;
+    j->st = read_rows(&j->r, &j->err);
+    return NULL;
+}
+
+/* The fast pass's rows: the second half on a second thread where it pays (*threads = 2), then
+ * every sample once over both halves. Any failure is the exact pass's to explain. */
+static sc_status read_rows_fast(profile_reader *pr, long long parallel_from, int *threads,
+                                sc_error *err)
+{
+    struct stat sb;
+    long long from = sc_csv_line_offset(&pr->csv), split = -1;
+    if (fstat(fileno(pr->csv.fp), &sb) == 0 && sb.st_size - from >= parallel_from &&
+        sb.st_size - from > 1 && cpus_available() > 1)
+        split = middle_line(&pr->csv, from, sb.st_size);
+    half_job *job = NULL;
+    pthread_t helper;
+    if (split > 0) { /* no memory: SC_E_NOMEM; the file not to be opened again: one thread */
+        if (!(job = calloc(1, sizeof *job)))
+            return sc_error_set(err, SC_E_NOMEM, pr->csv.path, 0, "out of memory");
+        job->r = *pr; /* the header's values; a reader, marks and counts of its own */
+        memset(&job->r.csv, 0, sizeof job->r.csv);
+        job->r.stored[0] = job->r.stored[1] = 0;
+        job->r.stop_at = -1;
+        job->r.seen[0] = job->r.seen[1] = NULL;
+        sc_status st = alloc_row_marks(&job->r, err);
+        if (st != SC_OK || sc_csv_open_at(&job->r.csv, &pr->csv, split, NULL) != SC_OK ||
+            pthread_create(&helper, NULL, read_half, job) != 0) {
+            free_row_marks(&job->r);
+            sc_csv_close(&job->r.csv);
+            free(job);
+            job = NULL;
+            if (st != SC_OK)
+                return st;
+        }
+    }
+    pr->stop_at = job ? split : -1;
+    sc_status st = read_rows(pr, err);
+    if (job) {
+        pthread_join(helper, NULL);
+        *threads = 2;
+        if (job->st != SC_OK && (st == SC_OK || job->st == SC_E_NOMEM))
+            st = sc_error_set(err, job->st, pr->csv.path, 0, "%s", job->err.msg);
+        for (int k = 0; k < 2 && st == SC_OK; ++k) {
+            size_t words = (size_t)(pr->v.n - pr->d[k] + 63) / 64;
+            for (size_t i = 0; i < words && st == SC_OK; ++i)
+                if (pr->seen[k][i] & job->r.seen[k][i])
+                    st = sc_error_set(err, SC_E_INPUT, pr->csv.path, 0, "duplicate sample");
+            pr->stored[k] += job->r.stored[k];
+        }
+        free_row_marks(&job->r);
+        sc_csv_close(&job->r.csv);
+        free(job);
+    }
+    for (int k = 0; k < 2 && st == SC_OK; ++k)
+        if (pr->stored[k] != pr->v.n - pr->d[k])
+            st = sc_error_set(err, SC_E_INPUT, pr->csv.path, 0, "samples missing");
+    return st;
+}
+
+/* One pass over the file (exact or fast, as above). */
+static sc_status read_pass(const char *path, int exact, long long parallel_from, int *threads,
+                           sc_profile_data *out, sc_error *err)
+{
     profile_reader pr;
     memset(&pr, 0, sizeof pr);
+    pr.exact = exact;
+    pr.stop_at = -1;
     sc_header_init(&pr.hdr, header_keys, (int)(sizeof header_keys / sizeof header_keys[0]), &pr.v);
     sc_status st = sc_csv_open(&pr.csv, path, err);
     if (st != SC_OK)
         return st;
     if ((st = read_magic(&pr, err)) == SC_OK && (st = read_header(&pr, err)) == SC_OK &&
         (st = start_data(&pr, err)) == SC_OK)
-        st = read_rows(&pr, err);
-    free(pr.row_line[0]);
-    free(pr.row_line[1]);
+        st = exact ? read_rows(&pr, err) : read_rows_fast(&pr, parallel_from, threads, err);
+    free_row_marks(&pr);
     if (st != SC_OK) {
         sc_profile_data_free(&pr.data);
         sc_csv_close(&pr.csv);
@@ -386,7 +537,48 @@ sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
     return SC_OK;
 }
 
+/* A regular file (not a pipe: it can be read twice). */
+static int is_regular_file(const char *path)
+{
+    struct stat sb;
+    return strcmp(path, "-") != 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode);
+}
+
+sc_status sc_profile_read_tuned(const char *path, long long parallel_from, int *threads,
+                                sc_profile_data *out, sc_error *err)
+{
+    int used = 1;
+    memset(out, 0, sizeof *out);
+    sc_status st = SC_E_INPUT;
+    int fast = is_regular_file(path);
+    if (fast)
+        st = read_pass(path, 0, parallel_from, &used, out, err);
+    if (!fast || (st != SC_OK && st != SC_E_NOMEM)) /* out of memory stays out of memory */
+        used = 1, st = read_pass(path, 1, 0, &used, out, err);
+    if (threads)
+        *threads = st == SC_OK ? used : 0;
+    return st;
+}
+
+sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
+{
+    return sc_profile_read_tuned(path, SC_PROFILE_PARALLEL_FROM, NULL, out, err);
+}
+
 /* ---- writer ---- */
+
+/* Row i of the data rows: scan 1's samples, then scan 2's. */
+static char *measurement_row(const void *ctx, long i, char *p)
+{
+    const sc_profile_data *d = ctx;
+    int k = i >= d->n - d->d[0];
+    long j = k ? i - (d->n - d->d[0]) : i;
+    p = sc_io_put_long(p, k + 1, ',');
+    p = sc_io_put_long(p, j, ',');
+    p = sc_io_put_number(p, d->m1_um[k][j], ',');
+    p = sc_io_put_number(p, d->m2_um[k][j], ',');
+    return sc_io_put_number(p, d->m3_urad[k][j], '\n');
+}
 
 sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
 {
@@ -402,16 +594,6 @@ sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error 
     if (d->has_sigma_angle)
         fprintf(fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
     fputs("scan,n,m1_um,m2_um,m3_urad\n", fp);
-    for (int k = 0; k < 2; ++k)
-        for (int i = 0; i < d->n - d->d[k]; ++i) {
-            char *p = o.p;
-            p = sc_io_put_long(p, k + 1, ',');
-            p = sc_io_put_long(p, i, ',');
-            p = sc_io_put_number(p, d->m1_um[k][i], ',');
-            p = sc_io_put_number(p, d->m2_um[k][i], ',');
-            p = sc_io_put_number(p, d->m3_urad[k][i], '\n');
-            o.p = p;
-            sc_io_out_row(&o);
-        }
+    sc_io_out_rows(&o, 2L * d->n - d->d[0] - d->d[1], measurement_row, d);
     return sc_io_out_finish(&o, err);
 }

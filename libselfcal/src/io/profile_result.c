@@ -13,6 +13,28 @@
 
 #define PROFILE_REGULAR_TOL 1e-3 /* of the step */
 
+/* The result file's columns, for its rows' formatter. */
+typedef struct result_rows {
+    double s_mm;
+    const double *f_um, *uf_um, *ey_um;
+    long n_ey;
+} result_rows;
+
+static char *result_row(const void *ctx, long i, char *p)
+{
+    const result_rows *t = ctx;
+    p = sc_io_put_long(p, i, ',');
+    p = sc_io_put_number(p, (double)i * t->s_mm, ',');
+    p = sc_io_put_number(p, t->f_um[i], ',');
+    if (t->uf_um)
+        p = sc_io_put_number(p, t->uf_um[i], 0);
+    *p++ = ',';
+    if (t->ey_um && i < t->n_ey)
+        p = sc_io_put_number(p, t->ey_um[i], 0);
+    *p++ = '\n';
+    return p;
+}
+
 sc_status sc_profile_write_result(const char *path, int n, double s_mm, const double *f_um,
                                   const double *uf_um, const double *ey_um, int n_ey,
                                   sc_error *err)
@@ -22,20 +44,8 @@ sc_status sc_profile_write_result(const char *path, int n, double s_mm, const do
     if (st != SC_OK)
         return st;
     fputs("n,x_mm,f_um,uf_um,ey_um\n", o.f.fp);
-    for (int i = 0; i < n; ++i) {
-        char *p = o.p;
-        p = sc_io_put_long(p, i, ',');
-        p = sc_io_put_number(p, i * s_mm, ',');
-        p = sc_io_put_number(p, f_um[i], ',');
-        if (uf_um)
-            p = sc_io_put_number(p, uf_um[i], 0);
-        *p++ = ',';
-        if (ey_um && i < n_ey)
-            p = sc_io_put_number(p, ey_um[i], 0);
-        *p++ = '\n';
-        o.p = p;
-        sc_io_out_row(&o);
-    }
+    result_rows t = {s_mm, f_um, uf_um, ey_um, n_ey};
+    sc_io_out_rows(&o, n, result_row, &t);
     return sc_io_out_finish(&o, err);
 }
 

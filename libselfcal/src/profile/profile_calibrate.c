@@ -6,6 +6,7 @@
 #include <stdlib.h>
 
 #include "selfcal/profile_calibrate.h"
+#include "../common/big_alloc.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 #include "profile_lsq_tuning.h"
@@ -118,10 +119,18 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
     if (zero_noise)
         var[0] = var[1] = 1; /* the weights are then arbitrary; uncertainties 0 */
     const double w[2] = {1.0 / var[0], 1.0 / var[1]};
-    double *blk = malloc((size_t)5 * n * sizeof(double));
+    /* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the
+     * DFT's residuals */
+    size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT);
+    double *blk = sc_big_alloc(own * (size_t)n, sizeof(double), 0);
     if (!blk)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
-    double *y1 = blk, *y2 = y1 + n, *f = y2 + n, *uf = f + n, *tmp = uf + n;
+    double *y1 = blk, *y2 = y1 + n, *next = y2 + n, *f = s->f_um, *uf = s->uf_um;
+    if (!f)
+        f = next, next += n;
+    if (!uf)
+        uf = next, next += n;
+    double *tmp = o->method == SC_PROFILE_DFT ? next : NULL;
     sc_profile_combine(d, 0, y1);
     sc_profile_combine(d, 1, y2);
     solver_ctx ctx = {o->method, NULL, NULL};
@@ -160,12 +169,6 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
         sc_profile_stage_error(d, f, s->ey_um);
         for (int i = n - d1; i < n; ++i)
             s->ey_um[i] = NAN;
-    }
-    for (int i = 0; i < n; ++i) {
-        if (s->f_um)
-            s->f_um[i] = f[i];
-        if (s->uf_um)
-            s->uf_um[i] = uf[i];
     }
 done:
     sc_profile_dft_plan_destroy(ctx.dft);
