@@ -17,6 +17,7 @@
 #include "selfcal/csv.h"
 #include "selfcal/number.h"
 #include "selfcal/rng.h"
+#include "../../libselfcal/src/common/number_internal.h" /* parsing inside a larger buffer */
 
 static uint64_t next_bits(sc_rng *r)
 {
@@ -246,6 +247,77 @@ static void test_parse_prefix(void **st)
     assert_int_equal(parse_prefix_whole("0e-400,", &stop, &v), 0);
 }
 
+/* A random number text at s (sign, 1..25 digits with the point anywhere or nowhere, sometimes an
+ * exponent), as the parser tests above write them; its length. */
+static int random_number_text(sc_rng *r, char *s, size_t cap)
+{
+    int len = 0;
+    if (sc_rng_uniform(r) < 0.3)
+        s[len++] = sc_rng_uniform(r) < 0.8 ? '-' : '+';
+    int nd = 1 + (int)(sc_rng_uniform(r) * 25), dot = (int)(sc_rng_uniform(r) * (nd + 2));
+    if (sc_rng_uniform(r) < 0.5) /* the writers' shape: 1-3 digits, the point, the rest */
+        dot = 1 + (int)(sc_rng_uniform(r) * 3);
+    for (int i = 0; i < nd; ++i) {
+        if (i == dot)
+            s[len++] = '.';
+        s[len++] = (char)('0' + (int)(sc_rng_uniform(r) * (i == 0 && sc_rng_uniform(r) < 0.3 ? 1 : 10)));
+    }
+    if (sc_rng_uniform(r) < 0.1)
+        len += snprintf(s + len, cap - (size_t)len, "%c%d", sc_rng_uniform(r) < 0.5 ? 'e' : 'E',
+                        (int)(sc_rng_uniform(r) * 80) - 40);
+    if (sc_rng_uniform(r) < 0.25) /* the writers' own texts */
+        len = sc_number_format(sample_value(r, (int)(sc_rng_uniform(r) * 3)), s);
+    s[len] = '\0';
+    return len;
+}
+
+/* The fast path for long buffers (number_kernels.cc: 32 bytes readable from the number on) gives
+ * what the scan gives on the same number alone: the same end, the same bits (strtod's), the same
+ * refusals; and it never takes a byte past the text's end when it may read beyond it. */
+static void test_parse_long_buffers(void **st)
+{
+    (void)st;
+    sc_rng r;
+    sc_rng_seed(&r, 23);
+    const char tail_bytes[] = "0123456789.,eE-+\n x";
+    char s[160], alone[64];
+    for (int t = 0; t < 300000; ++t) {
+        int len = random_number_text(&r, s, sizeof s);
+        int total = len;
+        s[total++] = ",\n x"[(int)(sc_rng_uniform(&r) * 4)]; /* what ends a field */
+        for (int i = 0; i < 40; ++i)
+            s[total++] = tail_bytes[(int)(sc_rng_uniform(&r) * (sizeof tail_bytes - 1))];
+        s[total] = '\0';
+        memcpy(alone, s, (size_t)len + 1);
+        alone[len + 1] = '\0';
+        double in_long = 0, by_itself = 0;
+        const char *stop_long = NULL, *stop_alone = NULL;
+        int rc_long = sc_number_parse_prefix(s, s + total, &stop_long, &in_long);
+        int rc_alone = sc_number_parse_prefix(alone, alone + len + 1, &stop_alone, &by_itself);
+        assert_int_equal(rc_long, rc_alone);
+        if (rc_long != 0)
+            continue;
+        assert_int_equal((int)(stop_long - s), (int)(stop_alone - alone));
+        same_bits(in_long, by_itself);
+        if (stop_long - s == len) {
+            s[len] = '\0';
+            double ref = strtod(s, NULL);
+            same_bits(in_long, ref);
+        }
+        /* the text cut anywhere inside, the rest of the buffer readable: as if it ended there */
+        int cut = 1 + (int)(sc_rng_uniform(&r) * len);
+        double within = 0, short_text = 0;
+        const char *stop_within = NULL, *stop_short = NULL;
+        int rc_within = sc_number_parse_prefix_within(s, s + cut, s + total, &stop_within, &within);
+        int rc_short = sc_number_parse_prefix(s, s + cut, &stop_short, &short_text);
+        assert_int_equal(rc_within, rc_short);
+        if (rc_within == 0) {
+            assert_ptr_equal(stop_within, stop_short);
+            same_bits(within, short_text);
+        }
+    }
+}
+
 /* sc_parse_long (csv.h) agrees with strtol(s, 10) on whole numbers, and refuses what it refuses. */
 static void test_parse_long(void **st)
 {
@@ -329,6 +401,7 @@ int main(void)
         cmocka_unit_test(test_parse_vs_strtod),
         cmocka_unit_test(test_parse_grammar),
         cmocka_unit_test(test_parse_prefix),
+        cmocka_unit_test(test_parse_long_buffers),
         cmocka_unit_test(test_parse_long),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

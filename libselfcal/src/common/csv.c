@@ -4,6 +4,7 @@
 
 #include "selfcal/number.h"
 #include "csv_internal.h"
+#include "number_internal.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -264,6 +265,11 @@ static const char *plain_long(const char *p, const char *end, long *out)
 bool sc_csv_is_plain_row(const sc_csv *r, const char *types, long *longs, double *doubles)
 {
     const char *p = r->text, *end = r->text + r->len;
+    /* the number parser may look past the line into the rest of the block (the next lines:
+     * read bytes; it takes none of them) */
+    const char *readable = end;
+    if (r->buf && r->text >= r->buf && end <= r->buf + r->buf_len)
+        readable = r->buf + r->buf_len;
     for (const char *t = types; *t; ++t) {
         if (t != types) {
             if (p == end || *p != ',')
@@ -272,7 +278,7 @@ bool sc_csv_is_plain_row(const sc_csv *r, const char *types, long *longs, double
         }
         if (*t == 'L')
             p = plain_long(p, end, longs++);
-        else if (p == end || sc_number_parse_prefix(p, end, &p, doubles++) != SC_OK)
+        else if (p == end || sc_number_parse_prefix_within(p, end, readable, &p, doubles++) != SC_OK)
             return false;
         if (!p)
             return false;
