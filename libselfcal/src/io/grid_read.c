@@ -437,23 +437,12 @@ static sc_status row_locate(read_state *s, const sc_grid_plan *p, long vid, long
     return SC_OK;
 }
 
-/* One data row (already split). */
-static sc_status read_row(read_state *s, sc_grid_data *d, long ln, sc_error *err)
+/* One data row's values (view, i, j, x_mm, y_mm), then its optional fields (split rows only). */
+static sc_status place_row(read_state *s, sc_grid_data *d, long vid, long i, long j, double x,
+                           double y, long ln, sc_error *err)
 {
     const sc_grid_plan *p = &d->plan;
-    if (s->csv.nfields != s->n_fields)
-        return sc_error_set(err, SC_E_INPUT, s->path, ln,
-                            "expected %d fields (as the column header), got %d", s->n_fields,
-                            s->csv.nfields);
-    long vid, i, j;
-    double x, y;
     sc_status st;
-    if ((st = sc_csv_long(&s->csv, 0, "view", &vid, err)) != SC_OK ||
-        (st = sc_csv_long(&s->csv, 1, "i", &i, err)) != SC_OK ||
-        (st = sc_csv_long(&s->csv, 2, "j", &j, err)) != SC_OK ||
-        (st = sc_csv_double(&s->csv, 3, "x_mm", &x, err)) != SC_OK ||
-        (st = sc_csv_double(&s->csv, 4, "y_mm", &y, err)) != SC_OK)
-        return st;
     int v = 0; /* set by row_locate; initialised for GCC -O3 (maybe-uninitialized) */
     size_t k = 0;
     double nx = 0, ny = 0;
@@ -478,12 +467,41 @@ static sc_status read_row(read_state *s, sc_grid_data *d, long ln, sc_error *err
     return SC_OK;
 }
 
-/* Data rows after the column header. */
+/* One data row (already split). */
+static sc_status read_row(read_state *s, sc_grid_data *d, long ln, sc_error *err)
+{
+    if (s->csv.nfields != s->n_fields)
+        return sc_error_set(err, SC_E_INPUT, s->path, ln,
+                            "expected %d fields (as the column header), got %d", s->n_fields,
+                            s->csv.nfields);
+    long vid, i, j;
+    double x, y;
+    sc_status st;
+    if ((st = sc_csv_long(&s->csv, 0, "view", &vid, err)) != SC_OK ||
+        (st = sc_csv_long(&s->csv, 1, "i", &i, err)) != SC_OK ||
+        (st = sc_csv_long(&s->csv, 2, "j", &j, err)) != SC_OK ||
+        (st = sc_csv_double(&s->csv, 3, "x_mm", &x, err)) != SC_OK ||
+        (st = sc_csv_double(&s->csv, 4, "y_mm", &y, err)) != SC_OK)
+        return st;
+    return place_row(s, d, vid, i, j, x, y, ln, err);
+}
+
+/* Data rows after the column header. A file of the five plain columns has its rows parsed in
+ * place when they are plain (single commas, no blanks: what writers write; sc_csv_is_plain_row),
+ * every other line takes the general path, which also says what is wrong: same values, same
+ * messages. */
 static sc_status read_rows(read_state *s, sc_grid_data *d, sc_error *err)
 {
     int got = 0;
     while (s->have_columns && (got = sc_csv_next_line(&s->csv, err)) > 0) {
-        long ln = s->csv.line;
+        long ln = s->csv.line, ints[3];
+        double xy[2];
+        if (s->n_fields == 5 && sc_csv_is_plain_row(&s->csv, "LLLDD", ints, xy)) {
+            sc_status st = place_row(s, d, ints[0], ints[1], ints[2], xy[0], xy[1], ln, err);
+            if (st != SC_OK)
+                return st;
+            continue;
+        }
         if (sc_csv_is_blank(&s->csv))
             continue;
         if (s->csv.text[0] == '#') {
