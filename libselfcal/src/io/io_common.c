@@ -1,7 +1,10 @@
 /* io_common.c — owns what every reader and writer of io/ shares: the record loop, the row array
  * of the map readers, the atomic commit with its write-error check, the regular-spacing fit of positions in a file, and the fast
- * number output of the writers (selfcal/number.h). */
+ * number output of the writers (selfcal/number.h), and how many cores a reader or writer may
+ * spread over. */
+#define _GNU_SOURCE /* sched_getaffinity */
 #include <math.h>
+#include <sched.h>
 #include <stdlib.h>
 
 #include "../common/line_fit.h"
@@ -165,4 +168,10 @@ char *sc_io_put_long(char *p, long v, char sep)
         *p++ = tmp[--k];
     *p++ = sep;
     return p;
+}
+
+int sc_io_cpus_available(void)
+{
+    cpu_set_t set;
+    return sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : 1;
 }

@@ -76,6 +76,10 @@ static inline void sc_io_out_row(sc_io_out *o)
         sc_io_out_flush(o);
 }
 
+/* The CPUs this thread may run on (1 if that cannot be told): the readers and writers use a
+ * second thread only where there is a second core. */
+int sc_io_cpus_available(void);
+
 /* Format row i of ctx at p (room for SC_IO_ROW_MAX bytes); returns the end of the row. */
 typedef char *(*sc_io_format_row)(const void *ctx, long i, char *p);
 

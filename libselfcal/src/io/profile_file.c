@@ -7,16 +7,14 @@
  * bytes and a second core is there, reads the second half of the rows on a second thread (the
  * rows say their own scan and n, so the halves fill disjoint samples). Anything wrong in it (a
  * bad row, a duplicate, a gap) sends the file to the exact pass: one thread, each row's line
- * kept, every message and line number as they always were. Readers of a pipe make the exact
- * pass only. */
-#define _GNU_SOURCE /* sched_getaffinity */
+ * kept, every message and line number as they always were (running out of memory is reported as
+ * it is). Readers of a pipe make the exact pass only. */
 #include "selfcal/profile_file.h"
 #include "profile_file_internal.h"
 
 #include <ctype.h>
 #include <math.h>
 #include <pthread.h>
-#include <sched.h>
 #include <stdint.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -408,13 +406,6 @@ static sc_status read_rows(profile_reader *pr, sc_error *err)
     return pr->exact ? check_complete(pr, err) : SC_OK;
 }
 
-/* CPUs this thread may run on. */
-static int cpus_available(void)
-{
-    cpu_set_t set;
-    return sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : 1;
-}
-
 /* The offset of the first line that starts at or after the middle of [from, size) of the file
  * r reads, or -1 if there is none within a line's length of it. */
 static long long middle_line(const sc_csv *r, long long from, long long size)
@@ -455,7 +446,7 @@ static sc_status read_rows_fast(profile_reader *pr, long long parallel_from, int
     struct stat sb;
     long long from = sc_csv_line_offset(&pr->csv), split = -1;
     if (fstat(fileno(pr->csv.fp), &sb) == 0 && sb.st_size - from >= parallel_from &&
-        sb.st_size - from > 1 && cpus_available() > 1)
+        sb.st_size - from > 1 && sc_io_cpus_available() > 1)
         split = middle_line(&pr->csv, from, sb.st_size);
     half_job *job = NULL;
     pthread_t helper;

@@ -2,10 +2,8 @@
  * thread formats chunks of rows while this one formats others and writes every chunk in order
  * (io_internal.h: sc_io_out_rows). Formatting the numbers is most of a large write (docs/profile.md:
  * 10⁶ points); the second core is idle while a command writes its result. */
-#define _GNU_SOURCE /* sched_getaffinity */
 #include <fcntl.h>
 #include <pthread.h>
-#include <sched.h>
 #include <stdlib.h>
 
 #include "io_internal.h"
@@ -115,12 +113,6 @@ static void write_chunks(row_pipeline *q, FILE *fp)
     pthread_mutex_unlock(&q->lock);
 }
 
-static int cpus_available(void)
-{
-    cpu_set_t set;
-    return sched_getaffinity(0, sizeof set, &set) == 0 ? CPU_COUNT(&set) : 1;
-}
-
 /* Two threads; 0 if they could not start (nothing written then; o->nomem for want of memory). */
 static int write_rows_two_threads(sc_io_out *o, long n, sc_io_format_row format, const void *ctx)
 {
@@ -151,7 +143,7 @@ static int write_rows_two_threads(sc_io_out *o, long n, sc_io_format_row format,
 void sc_io_out_rows_tuned(sc_io_out *o, long n, sc_io_format_row format, const void *ctx,
                           long parallel_from)
 {
-    if (n >= parallel_from && n > CHUNK_ROWS && cpus_available() > 1 &&
+    if (n >= parallel_from && n > CHUNK_ROWS && sc_io_cpus_available() > 1 &&
         (write_rows_two_threads(o, n, format, ctx) || o->nomem))
         return;
     for (long i = 0; i < n; ++i) {
