@@ -2,6 +2,7 @@
  * thread formats chunks of rows while this one formats others and writes every chunk in order
  * (io_internal.h: sc_io_out_rows). Formatting the numbers is most of a large write (docs/profile.md:
  * 10⁶ points); the second core is idle while a command writes its result. */
+#define _GNU_SOURCE /* sync_file_range */
 #include <fcntl.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -77,6 +78,9 @@ static void *format_helper(void *arg)
 
 static void start_writeback(FILE *fp, long long *from)
 {
+#if defined(__linux__) && !defined(SYNC_FILE_RANGE_WRITE)
+#error "sync_file_range is Linux's: its declaration needs _GNU_SOURCE before the first include"
+#endif
 #ifdef SYNC_FILE_RANGE_WRITE
     long long at = (long long)ftello(fp);
     if (at - *from < WRITEBACK_EVERY || fflush(fp) != 0)
