@@ -221,6 +221,44 @@ def case_plot():
             s = fh.read()
         assert s.startswith("<?xml") and s.rstrip().endswith("</svg>") and s.count("<polyline") >= 3, f
     run("plot", "profile", path("missing.csv"), "-o", path("x.svg"), expect=2)
+    case_plot_long()
+
+
+def svg_shapes(p, tag):
+    """The points of every <tag> (polyline, polygon) of an SVG file, as lists of (x, y)."""
+    import xml.etree.ElementTree as ET
+    root = ET.parse(p).getroot()
+    return [[tuple(map(float, q.split(","))) for q in e.get("points").split()]
+            for e in root.iter("{http://www.w3.org/2000/svg}" + tag)]
+
+
+def case_plot_long():
+    """A curve of 300 000 points is thinned to what the drawing shows (svg.c: per half-pixel
+    column its first, lowest, highest and last point), and keeps what the eye sees: one sample
+    high and one low on a flat line, and its ends."""
+    n = 300000
+    lines = ["n,x_mm,f_um,uf_um,ey_um"]
+    for i in range(n):
+        f = 1.0 if i == 123457 else -1.0 if i == 234567 else 0.0
+        u = 0.5 if i == 54321 else 0.1
+        lines.append(f"{i},{i * 0.001:.3f},{f},{u},{f}")
+    write_lines(path("long.csv"), lines)
+    run("plot", "profile", path("long.csv"), "-o", path("long.svg"))
+    size = os.path.getsize(path("long.svg"))
+    assert size < 2_000_000, f"long.svg: {size} bytes"
+    curves = [c for c in svg_shapes(path("long.svg"), "polyline") if len(c) > 4]
+    assert curves, "no curve"
+    for c in curves:
+        assert len(c) < 8 * 900, f"{len(c)} points kept of {n}"
+    f_curve = curves[0]  # the profile panel's f
+    ys = sorted({y for _, y in f_curve})
+    assert len(ys) == 3, f"f drawn at {len(ys)} heights, expected the line and both samples: {ys[:5]}"
+    xs = [x for x, _ in f_curve]
+    assert xs[0] == min(xs) and xs[-1] == max(xs), "the curve's ends are kept"
+    bands = [b for b in svg_shapes(path("long.svg"), "polygon") if len(b) > 8]
+    assert bands, "no band"
+    # f ± k·u: the upper edge at two heights (0.1k, 0.5k) and the spikes of f add theirs
+    assert all(len({y for _, y in b}) >= 4 for b in bands), "a band lost its wide sample"
 
 
 {"end_to_end": case_end_to_end, "bad_input": case_bad_input, "noise": case_noise, "plan": case_plan,
