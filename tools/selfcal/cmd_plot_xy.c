@@ -210,7 +210,12 @@ static void data_range(const xy_args *a, const xy_data *t, int xc, const int *yc
     range[0] = xlo, range[1] = xhi, range[2] = ylo, range[3] = yhi;
 }
 
-/* The chart: axes, one polyline with dots and a legend entry per series; xs, ys: nrows each. */
+/* Series of more points than this are drawn without a dot per point: the dots would merge into a
+ * thick line (and a series of 10⁶ points made a 116 MB drawing). */
+#define XY_MAX_DOTS 200
+
+/* The chart: axes, one polyline (with dots where there are few points) and a legend entry per
+ * series; xs, ys: nrows each. */
 static void draw_chart(FILE *fp, const xy_args *a, const xy_data *t, int xc, const int *yc,
                        int nser, double *xs, double *ys)
 {
@@ -231,7 +236,10 @@ static void draw_chart(FILE *fp, const xy_args *a, const xy_data *t, int xc, con
             ys[r] = a->logy ? log10(y) : y;
         }
         svg_polyline(&c, xs, ys, (int)t->nrows, col, 1.6, dash);
+        long shown = 0;
         for (long r = 0; r < t->nrows; ++r)
+            shown += isfinite(xs[r]) && isfinite(ys[r]);
+        for (long r = 0; shown <= XY_MAX_DOTS && r < t->nrows; ++r)
             if (isfinite(xs[r]) && isfinite(ys[r]))
                 svg_dot(fp, svg_px(&c, xs[r]), svg_py(&c, ys[r]), 2.8, col);
         svg_legend(&c, q, t->names[yc[q]], col, dash);

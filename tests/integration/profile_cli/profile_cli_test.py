@@ -259,6 +259,16 @@ def case_plot_long():
     assert bands, "no band"
     # f ± k·u: the upper edge at two heights (0.1k, 0.5k) and the spikes of f add theirs
     assert all(len({y for _, y in b}) >= 4 for b in bands), "a band lost its wide sample"
+    # plot xy: a dot on each point of a short series, none on a long one (only its thinned line)
+    import xml.etree.ElementTree as ET
+    write_lines(path("short.csv"), lines[:151])
+    for name, dots in (("short", 2 * 150), ("long", 0)):
+        run("plot", "xy", path(f"{name}.csv"), "-o", path(f"{name}_xy.svg"), "--x", "x_mm",
+            "--y", "f_um", "--y", "uf_um")
+        root = ET.parse(path(f"{name}_xy.svg")).getroot()
+        circles = len(root.findall("{http://www.w3.org/2000/svg}circle"))
+        assert circles == dots, f"plot xy {name}: {circles} dots, expected {dots}"
+    assert os.path.getsize(path("long_xy.svg")) < 1_000_000
 
 
 {"end_to_end": case_end_to_end, "bad_input": case_bad_input, "noise": case_noise, "plan": case_plan,
