@@ -93,17 +93,32 @@ static void node_range(const sc_stage_map *m, double pad_mm, double *lo_x, doubl
 static const char *axis_x(int plate) { return plate ? "x (mm, plate frame)" : "x (mm, stage)"; }
 static const char *axis_y(int plate) { return plate ? "y (mm, plate frame)" : "y (mm, stage)"; }
 
-/* One arrow panel at (x0, y0), sz px square: arrows at nodes, the statistics line above, the
- * scale bar below. The data range holds the longest arrow, so no arrow crosses the frame. */
+/* A map of more nodes than this on a side is drawn at every stride-th node in x and y (arrows) or
+ * in blocks of stride × stride nodes (colour cells): at N = 401 a panel had 160 000 arrows about
+ * 1.4 px apart (a 37 MB drawing nobody can read); with the stride the arrows stay ~10 px apart. */
+#define MAP_MAX_ARROWS 56
+#define MAP_MAX_CELLS 140
+
+static int map_stride(const sc_stage_map *m, int most)
+{
+    int n = map_nside(m);
+    return n > most ? (n + most - 1) / most : 1;
+}
+
+/* One arrow panel at (x0, y0), sz px square: arrows at nodes (every stride-th of a large map, and
+ * always the largest), missing marks, the statistics line above, the scale bar below. The data
+ * range holds the longest arrow, so no arrow crosses the frame. */
 static void arrow_panel(FILE *fp, double x0, double y0, double sz, const sc_stage_map *m, int plate,
                         const double *gx, const double *gy, double scale_um_per_pitch,
                         const char *title, const char *what, const char *color)
 {
-    int n = map_nside(m);
+    int stride = map_stride(m, MAP_MAX_ARROWS);
+    int n = (map_nside(m) + stride - 1) / stride; /* arrows on a side */
     long nn = map_nodes(m);
     stats s = map_stats(nn, gx, gy);
-    /* Default: a round number at or above half the largest arrow (longest arrow <= 2 pitches). */
-    double scale = scale_um_per_pitch > 0 ? scale_um_per_pitch : round_up(0.5 * s.max);
+    /* Default: a round number at or above half the largest arrow (longest arrow <= 2 of the
+     * arrows' spacing: stride pitches). */
+    double scale = scale_um_per_pitch > 0 ? scale_um_per_pitch : round_up(0.5 * s.max / stride);
     double mm_per_um = map_pitch(m) / scale;
     double lo_x, lo_y, span;
     node_range(m, fmax(0.7 * map_pitch(m), s.max * mm_per_um + 0.3 * map_pitch(m)), &lo_x, &lo_y,
@@ -125,17 +140,24 @@ static void arrow_panel(FILE *fp, double x0, double y0, double sz, const sc_stag
                     px, py, dot + 1.5);
             continue;
         }
+        if ((k % m->nx % stride || k / m->nx % stride) && k != s.kmax)
+            continue;
         svg_dot(fp, px, py, dot, "#9a9a9a");
         svg_arrow(fp, px, py, svg_px(&c, map_x(m, k) + gx[k] * mm_per_um),
                   svg_py(&c, map_y(m, k) + gy[k] * mm_per_um), color, width);
     }
-    /* Scale bar: one pitch = scale µm, below the plot area. */
+    /* Scale bar: one pitch = scale µm (stride pitches = stride·scale µm), below the plot area. */
     double bx = x0 + 10, by = y0 + sz + 52;
-    double blen = svg_px(&c, map_pitch(m)) - svg_px(&c, 0);
+    double blen = svg_px(&c, stride * map_pitch(m)) - svg_px(&c, 0);
     svg_arrow(fp, bx, by, bx + blen, by, color, width + 0.4);
-    svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
-             "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, map_pitch(m),
-             scale);
+    if (stride == 1)
+        svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
+                 "%g µm   (scale: an arrow one pitch long, %g mm, is %g µm)", scale, map_pitch(m),
+                 scale);
+    else
+        svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
+                 "%g µm   (an arrow %d pitches long, %g mm, is %g µm; one node in %d drawn each way)",
+                 stride * scale, stride, stride * map_pitch(m), stride * scale, stride);
 }
 
 /* One colour-map panel at (x0, y0), sz px square: a cell per node coloured by v (NaN: grey),
@@ -163,17 +185,32 @@ static void colormap_panel(FILE *fp, double x0, double y0, double sz, const sc_s
     svg_chart c;
     svg_chart_init(&c, fp, x0, y0, sz, sz, lo_x, lo_x + span, lo_y, lo_y + span);
     svg_axes(&c, axis_x(plate), axis_y(plate), NULL);
+    /* a cell per node, or per block of stride × stride nodes of a large map: the block's value of
+     * largest magnitude (its worst node), grey where it has none */
+    int st = map_stride(m, MAP_MAX_CELLS);
     double cell = svg_px(&c, m->px_mm) - svg_px(&c, 0), cell_h = svg_px(&c, m->py_mm) - svg_px(&c, 0);
     char col[8];
-    for (long k = 0; k < nn; ++k) {
-        double px = svg_px(&c, map_x(m, k)), py = svg_py(&c, map_y(m, k));
-        if (isfinite(v[k]))
-            svg_palette((v[k] - lo) / (hi - lo), diverging, col);
-        else
-            snprintf(col, sizeof col, "#d0d0d0");
-        fprintf(fp, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"%s\"/>\n",
-                px - cell / 2, py - cell_h / 2, cell + 0.3, cell_h + 0.3, col);
-    }
+    for (int by = 0; by < m->ny; by += st)
+        for (int bx = 0; bx < m->nx; bx += st) {
+            int ex = bx + st < m->nx ? bx + st : m->nx, ey = by + st < m->ny ? by + st : m->ny;
+            double val = NAN;
+            for (int iy = by; iy < ey; ++iy)
+                for (int ix = bx; ix < ex; ++ix) {
+                    double w = v[(long)iy * m->nx + ix];
+                    if (isfinite(w) && !(fabs(w) <= fabs(val)))
+                        val = w;
+                }
+            if (isfinite(val))
+                svg_palette((val - lo) / (hi - lo), diverging, col);
+            else
+                snprintf(col, sizeof col, "#d0d0d0");
+            /* from the block's first node's cell corner to its last node's */
+            double ax = svg_px(&c, sc_stage_map_x_mm(m, bx)), ay = svg_py(&c, sc_stage_map_y_mm(m, by));
+            double zx = svg_px(&c, sc_stage_map_x_mm(m, ex - 1)), zy = svg_py(&c, sc_stage_map_y_mm(m, ey - 1));
+            double x_lo = fmin(ax, zx) - cell / 2, y_lo = fmin(ay, zy) - cell_h / 2;
+            fprintf(fp, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"%s\"/>\n",
+                    x_lo, y_lo, fabs(zx - ax) + cell + 0.3, fabs(zy - ay) + cell_h + 0.3, col);
+        }
     fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#333\"/>\n",
             c.x, c.y, c.w, c.h);
     svg_text_fit(fp, x0 + sz / 2, y0 - 30, 15, sz + 60, "middle", "#000", "%s", title);

@@ -620,6 +620,34 @@ def case_plots():
     if len(lines) != 3:  # ye, and lsq broken at its gap
         fail("plot xy: %d polylines" % len(lines))
     run("plot", "xy", p("xy.csv"), "-o", p("xy2.svg"), "--y", "nope", expect=2)
+    # a large map (151 x 151 nodes) is drawn at one node in three each way, always with its
+    # largest arrow; its u(G) cells in blocks of 2 x 2 nodes
+    n = 151
+    with open(p("big.csv"), "w") as f:
+        f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
+        for i in range(n):
+            for j in range(n):
+                gx = 5.0 if (i, j) == (61, 62) else 0.3 * math.sin(i / 7.0)
+                u = 0.9 if (i, j) == (100, 101) else 0.1
+                f.write("%d,%d,%g,%g,%g,%g,%g,%g\n" % (i, j, j - 75, i - 75, gx, 0.2, u, u))
+    run("plot", "map", p("big.csv"), "-o", p("big.svg"))
+    root, ns, texts = svg_texts(p("big.svg"))
+    arrows = [a for a in root.iter(ns + "line") if a.get("stroke") == "#1f4e9c"]
+    if not 51 * 51 <= len(arrows) <= 51 * 51 + 2:  # 51 x 51 nodes, the largest, the scale bar
+        fail("large map: %d arrows" % len(arrows))
+    alltext = " ".join(t.text or "" for t in texts)
+    if "one node in 3" not in alltext or "max |G| = 5" not in alltext:
+        fail("large map texts: %s" % alltext[:400])
+    # the largest arrow (5 µm at node (61, 62), off the drawn nodes) is drawn: longer than 3 times
+    # any other but the scale bar
+    bar = max(arrows, key=lambda a: float(a.get("y1")))  # the scale bar, below the frame
+    lens = sorted(math.hypot(float(a.get("x2")) - float(a.get("x1")), float(a.get("y2")) - float(a.get("y1")))
+                  for a in arrows if a is not bar)
+    if not lens[-1] > 3 * lens[-3]:
+        fail("large map: the largest arrow is not drawn (%s)" % lens[-4:])
+    cells = [r for r in root.iter(ns + "rect") if r.get("fill", "").startswith("#") and r.get("fill") != "#333"]
+    if not 76 * 76 <= len(cells) <= 76 * 76 + 80 or os.path.getsize(p("big.svg")) > 2_000_000:
+        fail("large map: %d cells, %d bytes" % (len(cells), os.path.getsize(p("big.svg"))))
     # profile plot: the f chart has uncertainty bands
     pin, pout = p("p.csv"), p("P.csv")
     run("simulate", "profile", "--out", pin, "--truth", p("pt.csv"))
