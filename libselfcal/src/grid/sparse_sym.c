@@ -687,19 +687,12 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
 
 /* rel[a - b] := the place of row R[a] among the rows of an ancestor supernode (rowsS, nrS
  * ascending, as CHOLMOD keeps a supernode's rows), for a in [b, m): R[b..m) are all rows of it
- * (R is a clique of the filled graph), so one walk from R[b]'s place (a binary search) finds
- * them, instead of mapping every row of the ancestor for each descendant. */
+ * (R is a clique of the filled graph), so one walk from R[b]'s place (find_row's binary search)
+ * finds them, instead of mapping every row of the ancestor for each descendant. */
 static void relative_rows(const int *rowsS, int nrS, const int *R, int b, int m, int *rel)
 {
-    int lo = 0, hi = nrS;
-    while (lo < hi) {
-        int mid = lo + (hi - lo) / 2;
-        if (rowsS[mid] < R[b])
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    for (int a = b, t = lo; a < m; ++a) {
+    long at = find_row(rowsS, 0, nrS, R[b], 1);
+    for (int a = b, t = at < 0 ? 0 : (int)at; a < m; ++a) {
         while (t < nrS - 1 && rowsS[t] != R[a]) /* bounded: found for CHOLMOD's factors */
             ++t;
         rel[a - b] = t++;
