@@ -197,8 +197,8 @@ static void colormap_panel(FILE *fp, double x0, double y0, double sz, const sc_s
             for (int iy = by; iy < ey; ++iy)
                 for (int ix = bx; ix < ex; ++ix) {
                     double w = v[(long)iy * m->nx + ix];
-                    if (isfinite(w) && !(fabs(w) <= fabs(val)))
-                        val = w;
+                    if (isfinite(w) && (isnan(val) || fabs(w) > fabs(val)))
+                        val = w; /* the first of the largest magnitude */
                 }
             if (isfinite(val))
                 svg_palette((val - lo) / (hi - lo), diverging, col);

@@ -87,7 +87,8 @@ typedef char *(*sc_io_format_row)(const void *ctx, long i, char *p);
 #define SC_IO_PARALLEL_ROWS 32768
 
 /* Write rows 0..n-1 (format(ctx, i, ...)) in order after what o holds. Large files where a
- * second core is free: a second thread formats every other chunk of 2048 rows (row_writer.c);
+ * second core is free: both threads take chunks of 2048 rows to format as they come free, and
+ * this one writes every chunk in order (row_writer.c);
  * the text is the same either way. format must be safe to call from two threads at once. Out of
  * memory for the chunks: nothing written, o->nomem set (sc_io_out_finish says it). */
 void sc_io_out_rows(sc_io_out *o, long n, sc_io_format_row format, const void *ctx);
