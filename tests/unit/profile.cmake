@@ -4,4 +4,4 @@
 selfcal_unit_test(NAME test_profile
   SOURCES unit/test_profile.c
   LIBS selfcal_static
-  LABELS profile TIMEOUT 120)
+  LABELS profile threads TIMEOUT 120)

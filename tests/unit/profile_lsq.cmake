@@ -3,4 +3,4 @@
 selfcal_unit_test(NAME test_profile_lsq
   SOURCES unit/test_profile_lsq.c unit/profile_lsq_dense.c
   LIBS selfcal_static PkgConfig::LAPACKE
-  LABELS profile TIMEOUT 600)  # 46-69 s under ctest -j2, load 15-25
+  LABELS profile threads TIMEOUT 600)  # 46-69 s under ctest -j2, load 15-25
