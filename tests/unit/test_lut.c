@@ -362,6 +362,182 @@ static void test_read_map(void **state)
     free(lut);
 }
 
+/* A map of nx x ny nodes at origin (x0, y0), pitch (px, py), values from f (owned arrays). */
+static sc_stage_map make_map(int nx, int ny, double x0, double y0, double px, double py)
+{
+    sc_stage_map m;
+    memset(&m, 0, sizeof m);
+    m.nx = nx, m.ny = ny, m.x0_mm = x0, m.y0_mm = y0, m.px_mm = px, m.py_mm = py;
+    m.gx_um = calloc((size_t)nx * ny, sizeof(double));
+    m.gy_um = calloc((size_t)nx * ny, sizeof(double));
+    assert_non_null(m.gx_um);
+    assert_non_null(m.gy_um);
+    return m;
+}
+
+/* The table fitted to a map (sc_lut_fit_grid) against the least squares solved here the dense
+ * way: the design matrix built column by column from the table's own bilinear evaluation
+ * (sc_lut_grid_eval of a table holding a single 1), its normal equations solved by Gaussian
+ * elimination. Also: a map that is itself bilinear on the table's nodes is recovered exactly, a
+ * map within the limit is copied node for node, and the report's figures are those of the table
+ * evaluated at the map's nodes. */
+static void dense_fit(const sc_stage_map *m, const sc_lut *shape, const double *g, double *c)
+{
+    int nt = shape->nx * shape->ny, nm = m->nx * m->ny;
+    sc_lut *unit = malloc(sizeof *unit);
+    double *b = calloc((size_t)nm * nt, sizeof(double)); /* b[node * nt + t] */
+    double *a = calloc((size_t)nt * (nt + 1), sizeof(double));
+    assert_non_null(unit);
+    assert_non_null(b);
+    assert_non_null(a);
+    sc_lut_init(unit);
+    unit->nx = shape->nx, unit->ny = shape->ny, unit->x0_mm = shape->x0_mm;
+    unit->y0_mm = shape->y0_mm, unit->px_mm = shape->px_mm, unit->py_mm = shape->py_mm;
+    for (int t = 0; t < nt; ++t) {
+        memset(unit->gx_um, 0, sizeof unit->gx_um);
+        unit->gx_um[t] = 1;
+        for (int i = 0; i < m->ny; ++i)
+            for (int j = 0; j < m->nx; ++j) {
+                double vx, vy;
+                sc_lut_grid_eval(unit, sc_stage_map_x_mm(m, j), sc_stage_map_y_mm(m, i), &vx, &vy);
+                b[((size_t)i * m->nx + j) * nt + t] = vx;
+            }
+    }
+    for (int r = 0; r < nt; ++r) { /* [B^T B | B^T g] */
+        for (int q = 0; q < nt; ++q)
+            for (int k = 0; k < nm; ++k)
+                a[r * (nt + 1) + q] += b[(size_t)k * nt + r] * b[(size_t)k * nt + q];
+        for (int k = 0; k < nm; ++k)
+            a[r * (nt + 1) + nt] += b[(size_t)k * nt + r] * g[k];
+    }
+    for (int col = 0; col < nt; ++col) { /* SPD: no pivoting needed */
+        for (int r = col + 1; r < nt; ++r) {
+            double f = a[r * (nt + 1) + col] / a[col * (nt + 1) + col];
+            for (int q = col; q <= nt; ++q)
+                a[r * (nt + 1) + q] -= f * a[col * (nt + 1) + q];
+        }
+    }
+    for (int r = nt - 1; r >= 0; --r) {
+        double v = a[r * (nt + 1) + nt];
+        for (int q = r + 1; q < nt; ++q)
+            v -= a[r * (nt + 1) + q] * c[q];
+        c[r] = v / a[r * (nt + 1) + r];
+    }
+    free(a), free(b), free(unit);
+}
+
+static void test_fit_grid(void **state)
+{
+    (void)state;
+    sc_rng rng;
+    sc_rng_seed(&rng, 11);
+    sc_lut *lut = malloc(sizeof *lut);
+    assert_non_null(lut);
+    sc_error err;
+    sc_error_clear(&err);
+    sc_lut_fit_report rep;
+
+    /* 1. Random values, 11 x 9 nodes (pitch ratios 10/3 and 8/3 of 4 table nodes): the dense
+     * least squares, and the report from the table evaluated at the nodes. */
+    sc_stage_map m = make_map(11, 9, -5.0, 2.0, 0.75, 1.25);
+    for (int k = 0; k < 99; ++k)
+        m.gx_um[k] = sc_rng_normal(&rng), m.gy_um[k] = 0.3 * sc_rng_normal(&rng);
+    sc_lut_init(lut);
+    assert_int_equal(sc_lut_fit_grid(lut, &m, 4, "m.csv", &rep, &err), SC_OK);
+    assert_int_equal(lut->nx, 4);
+    assert_int_equal(lut->ny, 4);
+    assert_int_equal(rep.fitted, 1);
+    assert_int_equal(rep.map_nx, 11);
+    assert_int_equal(rep.map_ny, 9);
+    assert_true(fabs(lut->x0_mm + 5.0) < 1e-15 && fabs(lut->y0_mm - 2.0) < 1e-15);
+    assert_true(fabs(lut->px_mm - 0.75 * 10 / 3) < 1e-12 && fabs(lut->py_mm - 1.25 * 8 / 3) < 1e-12);
+    double cx[16], cy[16];
+    dense_fit(&m, lut, m.gx_um, cx);
+    dense_fit(&m, lut, m.gy_um, cy);
+    for (int t = 0; t < 16; ++t) {
+        assert_true(fabs(lut->gx_um[t] - cx[t]) < 1e-10);
+        assert_true(fabs(lut->gy_um[t] - cy[t]) < 1e-10);
+    }
+    double sum2 = 0, worst = 0;
+    for (int i = 0; i < 9; ++i)
+        for (int j = 0; j < 11; ++j) {
+            double vx, vy;
+            sc_lut_grid_eval(lut, sc_stage_map_x_mm(&m, j), sc_stage_map_y_mm(&m, i), &vx, &vy);
+            double e2 = pow(vx - m.gx_um[i * 11 + j], 2) + pow(vy - m.gy_um[i * 11 + j], 2);
+            sum2 += e2;
+            worst = fmax(worst, e2);
+        }
+    assert_true(fabs(rep.rms_um - sqrt(sum2 / 99)) < 1e-12);
+    assert_true(fabs(rep.max_um - sqrt(worst)) < 1e-12);
+    assert_true(rep.rms_um > 0.1); /* random values: a 4 x 4 table cannot follow them */
+    /* least squares beats keeping every third node's value (nodes 0, 3, 6, 9 ~ the table's) */
+    double sum_nodes = 0;
+    sc_lut *kept = malloc(sizeof *kept);
+    assert_non_null(kept);
+    *kept = *lut;
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            int mi = (int)lround(i * 8.0 / 3), mj = (int)lround(j * 10.0 / 3);
+            kept->gx_um[i * 4 + j] = m.gx_um[mi * 11 + mj];
+            kept->gy_um[i * 4 + j] = m.gy_um[mi * 11 + mj];
+        }
+    for (int i = 0; i < 9; ++i)
+        for (int j = 0; j < 11; ++j) {
+            double vx, vy;
+            sc_lut_grid_eval(kept, sc_stage_map_x_mm(&m, j), sc_stage_map_y_mm(&m, i), &vx, &vy);
+            sum_nodes += pow(vx - m.gx_um[i * 11 + j], 2) + pow(vy - m.gy_um[i * 11 + j], 2);
+        }
+    assert_true(sum2 < sum_nodes);
+    free(kept);
+
+    /* 2. A map bilinear on a 5-node table along x (y kept: 4 nodes, within the limit): the fit
+     * gives that table back, y's nodes and pitch exactly. */
+    sc_stage_map_free(&m);
+    m = make_map(13, 5, 0.0, -1.0, 0.5, 0.8);
+    double c0x[25], c0y[25];
+    for (int t = 0; t < 25; ++t)
+        c0x[t] = sc_rng_normal(&rng), c0y[t] = sc_rng_normal(&rng);
+    sc_lut_init(lut);
+    lut->nx = 5, lut->ny = 5, lut->x0_mm = 0.0, lut->y0_mm = -1.0, lut->px_mm = 1.5;
+    lut->py_mm = 0.8;
+    memcpy(lut->gx_um, c0x, sizeof c0x);
+    memcpy(lut->gy_um, c0y, sizeof c0y);
+    for (int i = 0; i < 5; ++i)
+        for (int j = 0; j < 13; ++j)
+            sc_lut_grid_eval(lut, sc_stage_map_x_mm(&m, j), sc_stage_map_y_mm(&m, i),
+                             &m.gx_um[i * 13 + j], &m.gy_um[i * 13 + j]);
+    sc_lut_init(lut);
+    assert_int_equal(sc_lut_fit_grid(lut, &m, 5, "m.csv", &rep, &err), SC_OK);
+    assert_int_equal(lut->nx, 5);
+    assert_int_equal(lut->ny, 5);
+    assert_true(lut->py_mm == 0.8); /* kept axis: its pitch unchanged */
+    assert_true(fabs(lut->px_mm - 1.5) < 1e-12);
+    for (int t = 0; t < 25; ++t) {
+        assert_true(fabs(lut->gx_um[t] - c0x[t]) < 1e-12);
+        assert_true(fabs(lut->gy_um[t] - c0y[t]) < 1e-12);
+    }
+    assert_true(rep.rms_um < 1e-12 && rep.max_um < 1e-12);
+
+    /* 3. Within the limit: copied node for node, not fitted. */
+    for (int k = 0; k < 65; ++k)
+        m.gx_um[k] = sc_rng_normal(&rng), m.gy_um[k] = sc_rng_normal(&rng);
+    sc_lut_init(lut);
+    assert_int_equal(sc_lut_fit_grid(lut, &m, 101, "m.csv", &rep, &err), SC_OK);
+    assert_int_equal(rep.fitted, 0);
+    assert_int_equal(lut->nx, 13);
+    assert_true(lut->px_mm == 0.5 && lut->py_mm == 0.8);
+    for (int k = 0; k < 65; ++k)
+        assert_true(lut->gx_um[k] == m.gx_um[k] && lut->gy_um[k] == m.gy_um[k]);
+    assert_true(rep.rms_um == 0 && rep.max_um == 0);
+
+    /* 4. Bad limits. */
+    assert_int_equal(sc_lut_fit_grid(lut, &m, 1, "m.csv", &rep, &err), SC_E_INPUT);
+    assert_int_equal(sc_lut_fit_grid(lut, &m, 102, "m.csv", &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "2..101"));
+    sc_stage_map_free(&m);
+    free(lut);
+}
+
 static void test_read_profile(void **state)
 {
     (void)state;
@@ -414,6 +590,7 @@ int main(void)
         cmocka_unit_test(test_encode_decode_round_trip),
         cmocka_unit_test(test_encode_rejects),
         cmocka_unit_test(test_read_map),
+        cmocka_unit_test(test_fit_grid),
         cmocka_unit_test(test_read_profile),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

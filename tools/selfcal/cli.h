@@ -31,6 +31,12 @@ int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path)
 int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, size_t cap,
                              double *offset_mm);
 
+struct sc_lut;
+struct sc_lut_fit_report;
+/* Print (stdout) what a table fitted to a larger map is and how far it is from the map. */
+void cli_print_fit(const char *map_path, const struct sc_lut *lut,
+                   const struct sc_lut_fit_report *fit);
+
 /* Subcommands: argv[0] is the subcommand's own name. */
 int cmd_grid(int argc, char **argv);
 int cmd_plan(int argc, char **argv);

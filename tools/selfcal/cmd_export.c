@@ -23,7 +23,7 @@ static void export_usage(FILE *to)
             "                      [--axis-names NAMEX,NAMEY] [--first-table T] [--target 840d|828d]\n"
             "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
             "                      [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] [--travel [AXIS:]MIN,MAX]\n"
-            "                      [--profile-interval MM]\n"
+            "                      [--profile-interval MM] [--max-nodes N]\n"
             "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y;\n"
             "               both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual - setpoint (-G)\n"
             "  siemens-cec  SINUMERIK $AN_CEC part program: tables X->X, Y->X (Gx) and X->Y, Y->Y (Gy)\n"
@@ -36,6 +36,8 @@ static void export_usage(FILE *to)
             "  kmotion      Dynomotion KMotionCNC geometric correction table: the whole 2-D map\n"
             "               (X and Y at once, inches, ideal + G)\n"
             "  --interval   table spacing in mm (default: the map's pitch)\n"
+            "  --max-nodes N  a map with more than N (2..101) nodes along an axis is first fitted\n"
+            "               by a table of N nodes there, as in lut build (its error is printed)\n"
             "  --at MM      linuxcnc: G along the line y = MM (x axis) or x = MM (y axis) instead of\n"
             "               the mean over that coordinate\n"
             "  --limit-um   clip values above this magnitude (and count them)\n"
@@ -173,7 +175,7 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
 typedef struct {
     const char *map, *out, *fmt, *axis;
     double interval, limit, at, pinterval;
-    int use_at, negate, ax_nr[3], first_table, target_828d;
+    int use_at, negate, ax_nr[3], first_table, target_828d, max_nodes;
     char names[2][32];
     double offset[2], steps[2], rdist[2];
     int np, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
@@ -253,6 +255,12 @@ static int parse_number_option(export_args *a, const char *opt, const char *v)
     if (!strcmp(opt, "--interval")) {
         if (sc_parse_double(v, &a->interval) != 0 || a->interval <= 0)
             return cli_usage_error("export", "--interval: a positive number of mm, not '%s'", v);
+    } else if (!strcmp(opt, "--max-nodes")) {
+        long n;
+        if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
+            return cli_usage_error("export", "--max-nodes: 2..%d nodes per axis, not '%s'",
+                                   SC_LUT_MAX_NX, v);
+        a->max_nodes = (int)n;
     } else if (!strcmp(opt, "--limit-um")) {
         if (sc_parse_double(v, &a->limit) != 0 || a->limit <= 0)
             return cli_usage_error("export", "--limit-um: a positive number, not '%s'", v);
@@ -453,10 +461,13 @@ static void options_from_args(const export_args *a, sc_export_options *o)
 }
 
 /* The map and the profiles, placed in the machine's homed coordinates (--offset). */
-static sc_status load_table(const export_args *a, sc_lut *lut, sc_error *err)
+static sc_status load_table(const export_args *a, sc_lut *lut, sc_lut_fit_report *fit,
+                            sc_error *err)
 {
     sc_lut_init(lut);
-    sc_status st = sc_lut_read_map(a->map, lut, err);
+    memset(fit, 0, sizeof *fit);
+    sc_status st = a->max_nodes ? sc_lut_read_map_fitted(a->map, lut, a->max_nodes, fit, err)
+                                : sc_lut_read_map(a->map, lut, err);
     for (int k = 0; k < a->np && st == SC_OK; ++k) {
         st = sc_lut_read_profile(a->prof_path[k], a->prof_axis[k], a->prof_dir[k],
                                  &lut->profile[k], err);
@@ -553,13 +564,16 @@ int cmd_export(int argc, char **argv)
     static sc_export_report reps[MAX_FILES];
     static sc_export_options opts[MAX_FILES];
     int nfiles = plan_files(&a, f, &o, both_files, paths, opts);
-    sc_status st = load_table(&a, lut, &err);
+    sc_lut_fit_report fit;
+    sc_status st = load_table(&a, lut, &fit, &err);
     if (st == SC_OK)
         st = write_files(lut, nfiles, paths, opts, reps, &err);
     if (st != SC_OK) {
         free(lut);
         return cli_report(&err);
     }
+    if (fit.fitted) /* the fit's positions are the map's own (before --offset) */
+        cli_print_fit(a.map, lut, &fit);
     for (int k = 0; k < nfiles; ++k)
         print_report(lut, a.fmt, f, paths[k], &opts[k], &reps[k]);
     free(lut);

@@ -16,7 +16,7 @@ static void lut_usage(FILE *to)
     fprintf(to,
             "usage: selfcal lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] -o TABLE\n"
             "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
-            "                         [--created UNIX_SECONDS]\n"
+            "                         [--created UNIX_SECONDS] [--max-nodes N]\n"
             "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
             "       selfcal lut info TABLE     print size, encoding, quantization and provenance\n"
             "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
@@ -24,6 +24,10 @@ static void lut_usage(FILE *to)
             "                            The profile's x_mm is placed at machine position\n"
             "                            x_mm + OFFSET_MM along AXIS (default offset 0); a profile\n"
             "                            that does not overlap the map gets a warning on stderr\n"
+            "  --max-nodes N             a map with more than N nodes along an axis (a table\n"
+            "                            holds 101) gets N table nodes there spanning it, fitted\n"
+            "                            by least squares; the fit's error at the map's nodes is\n"
+            "                            printed (N = 2..101)\n"
             "  --sigma UM                estimated sigma of the map (provenance)\n"
             "  --created                 creation time to record (default: SOURCE_DATE_EPOCH or now)\n",
             SC_LUT_MAX_PROFILES);
@@ -68,6 +72,7 @@ typedef struct {
     const char *map, *out, *method;
     double sigma;
     long long created;
+    int max_nodes; /* 0: the map as it is */
     sc_lut_encoding enc;
     profile_arg pa[SC_LUT_MAX_PROFILES];
     int np;
@@ -93,6 +98,12 @@ static int parse_build_option(build_args *b, const char *a, const char *v)
         if (sc_parse_long(v, &c) != 0 || c < 0)
             return cli_usage_error("lut build", "--created: Unix seconds, not '%s'", v);
         b->created = c;
+    } else if (!strcmp(a, "--max-nodes")) {
+        long n;
+        if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
+            return cli_usage_error("lut build", "--max-nodes: 2..%d nodes per axis, not '%s'",
+                                   SC_LUT_MAX_NX, v);
+        b->max_nodes = (int)n;
     } else if (!strcmp(a, "--encoding")) {
         if (!strcmp(v, "auto"))
             b->enc = SC_LUT_ENC_AUTO;
@@ -114,10 +125,13 @@ static int parse_build_option(build_args *b, const char *a, const char *v)
 }
 
 /* The map and the profiles read, their hashes as provenance, the table written. */
-static sc_status build_table(const build_args *b, sc_lut *lut, sc_error *err)
+static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report *fit,
+                             sc_error *err)
 {
     sc_lut_init(lut);
-    sc_status st = sc_lut_read_map(b->map, lut, err);
+    memset(fit, 0, sizeof *fit);
+    sc_status st = b->max_nodes ? sc_lut_read_map_fitted(b->map, lut, b->max_nodes, fit, err)
+                                : sc_lut_read_map(b->map, lut, err);
     for (int k = 0; st == SC_OK && k < b->np; ++k) {
         const profile_arg *pa = &b->pa[k];
         st = sc_lut_read_profile(pa->path, pa->axis, pa->dir, &lut->profile[k], err);
@@ -174,13 +188,16 @@ static int lut_build(int argc, char **argv)
     }
     sc_error err;
     sc_error_clear(&err);
-    sc_status st = build_table(&b, lut, &err);
+    sc_lut_fit_report fit;
+    sc_status st = build_table(&b, lut, &fit, &err);
     if (st != SC_OK) {
         free(lut);
         return cli_report(&err);
     }
     for (int k = 0; k < b.np; ++k)
         warn_if_apart(lut, &lut->profile[k], b.pa[k].path);
+    if (fit.fitted)
+        cli_print_fit(b.map, lut, &fit);
     size_t bytes = sc_lut_encoded_size(lut, b.enc); /* what was just written */
     printf("table %s: %d x %d nodes, pitch %.6f x %.6f mm, %d profile(s), %zu bytes, "
            "map quantization <= %.4f nm (%s)\n",

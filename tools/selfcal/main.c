@@ -52,6 +52,14 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
     return 0;
 }
 
+void cli_print_fit(const char *map_path, const sc_lut *lut, const sc_lut_fit_report *fit)
+{
+    printf("map %s: %d x %d nodes fitted by a %d x %d table (least squares, pitch %.6f x %.6f mm): "
+           "table - map at the map's nodes rms %.4f um, max %.4f um at (%.6g, %.6g) mm\n",
+           map_path, fit->map_nx, fit->map_ny, lut->nx, lut->ny, lut->px_mm, lut->py_mm,
+           fit->rms_um, fit->max_um, fit->max_at_mm[0], fit->max_at_mm[1]);
+}
+
 int cli_usage_error(const char *cmd, const char *fmt, ...)
 {
     va_list ap;

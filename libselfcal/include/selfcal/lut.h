@@ -81,6 +81,27 @@ SC_API sc_status sc_lut_set_grid(sc_lut *lut, const sc_stage_map *m, const char 
 /* Read a stage map file (sc_stage_map_read: the one reader and its rules) into the grid of lut. */
 SC_API sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err);
 
+/* What sc_lut_fit_grid made of a map: the map's nodes, whether a coarser grid was fitted, and the
+ * table's error at every map node, |table(node) − G(node)| over both components (µm). */
+typedef struct sc_lut_fit_report {
+    int map_nx, map_ny;  /* nodes of the map */
+    int fitted;          /* 1 if the table has fewer nodes than the map along x or y */
+    double rms_um;       /* RMS over the map's nodes of the vector error (0 when copied) */
+    double max_um;       /* the largest of them ... */
+    double max_at_mm[2]; /* ... at this map node (x, y) */
+} sc_lut_fit_report;
+
+/* The grid of lut from a map of any size: along an axis with more than max_nodes nodes (2..101),
+ * max_nodes table nodes spanning the map's extent exactly, valued by least squares so that the
+ * table's bilinear interpolation is closest to G over all the map's nodes (docs/lut-format.md);
+ * other axes copied node for node. rep (may be NULL) gets the table's error at the map's nodes. */
+SC_API sc_status sc_lut_fit_grid(sc_lut *lut, const sc_stage_map *m, int max_nodes,
+                                 const char *name, sc_lut_fit_report *rep, sc_error *err);
+
+/* Read a stage map file and fit the grid of lut to it (sc_lut_fit_grid). */
+SC_API sc_status sc_lut_read_map_fitted(const char *path, sc_lut *lut, int max_nodes,
+                                        sc_lut_fit_report *rep, sc_error *err);
+
 /* Read the ey_um column of a SPEC §2 profile output file (`n,x_mm,f_um,uf_um,ey_um`) as the
  * error of coordinate dir along axis; trailing empty ey cells are dropped, an empty cell between
  * values is an error. Positions come from x_mm (must be regular). */

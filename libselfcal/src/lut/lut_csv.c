@@ -16,8 +16,9 @@ sc_status sc_lut_set_grid(sc_lut *lut, const sc_stage_map *m, const char *name, 
 {
     if (m->nx > SC_LUT_MAX_NX || m->ny > SC_LUT_MAX_NY)
         return sc_error_set(err, SC_E_INPUT, name, 0,
-                            "the map has %d x %d nodes; a table holds at most %d x %d", m->nx,
-                            m->ny, SC_LUT_MAX_NX, SC_LUT_MAX_NY);
+                            "the map has %d x %d nodes; a table holds at most %d x %d (a "
+                            "coarser table can be fitted to it: --max-nodes)",
+                            m->nx, m->ny, SC_LUT_MAX_NX, SC_LUT_MAX_NY);
     if (!(m->px_mm >= SC_LUTF_MIN_PITCH_MM && m->py_mm >= SC_LUTF_MIN_PITCH_MM))
         return sc_error_set(err, SC_E_INPUT, name, 0, "pitch %g x %g mm is below the table's 1 nm",
                             m->px_mm, m->py_mm);

@@ -273,6 +273,68 @@ check(rc == 2, "unknown format")
 rc, out, err = run("export", "--format", "beckhoff", "--map", missing, "-o", path("bad.comp"))
 check(rc == 2 and "missing.csv" in err and not os.path.exists(path("bad.comp")), "export of a bad map")
 
+# ---- large maps: a table holds 101 x 101 nodes; --max-nodes fits a coarser one ----
+# A smooth map of 151 x 131 nodes (pitch 0.5 mm) with a little node-scale roughness.
+import math  # noqa: E402
+nx_big, ny_big = 151, 131
+big = {}
+with open(path("B.csv"), "w") as f:
+    f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
+    for i in range(ny_big):
+        for j in range(nx_big):
+            x, y = -37.5 + 0.5 * j, -32.5 + 0.5 * i
+            gx = 0.8 * math.sin(x / 9.0) * math.cos(y / 13.0) + rng.gauss(0, 0.01)
+            gy = 0.5 * math.cos(x / 11.0 + y / 7.0) + rng.gauss(0, 0.01)
+            big[(i, j)] = (x, y, round(gx, 6), round(gy, 6))
+            f.write(f"{i},{j},{x:.6f},{y:.6f},{gx:.6f},{gy:.6f},0.003,0.003\n")
+expect_bad(["--map", path("B.csv")], r"B\.csv: the map has 151 x 131 nodes; a table holds at most "
+           r"101 x 101 .*--max-nodes", "map over 101 nodes")
+expect_bad(["--map", path("B.csv"), "--max-nodes", "102"], r"--max-nodes: 2\.\.101", "--max-nodes 102")
+expect_bad(["--map", path("B.csv"), "--max-nodes", "1"], r"--max-nodes: 2\.\.101", "--max-nodes 1")
+rc, out, err = run("lut", "build", "--map", path("B.csv"), "--max-nodes", "101", "-o", path("B.lut"))
+check(rc == 0, f"lut build --max-nodes: exit {rc}: {err}")
+m = re.search(r"map \S*B\.csv: 151 x 131 nodes fitted by a 101 x 101 table \(least squares, pitch "
+              r"0\.750000 x 0\.650000 mm\): table - map at the map's nodes rms ([0-9.]+) um, max "
+              r"([0-9.]+) um at \((-?[0-9.]+), (-?[0-9.]+)\) mm", out)
+check(m is not None, f"fit report line: {out!r}")
+grid, _ = parse_dump(run("lut", "dump", path("B.lut"))[1])
+check(len(grid) == 101 * 101, f"fitted table has {len(grid)} nodes")
+check(abs(grid[(0, 0)][0] + 37.5) < 1e-9 and abs(grid[(100, 100)][0] - 37.5) < 1e-9
+      and abs(grid[(0, 0)][1] + 32.5) < 1e-9 and abs(grid[(100, 100)][1] - 32.5) < 1e-9,
+      "the fitted table spans the map exactly")
+
+
+def table_at(g, n, x0, y0, px, py, x, y):
+    u, v = (x - x0) / px, (y - y0) / py
+    j, i = min(int(u), n - 2), min(int(v), n - 2)
+    fu, fv = u - j, v - i
+    return [(1 - fv) * ((1 - fu) * g[(i, j)][c] + fu * g[(i, j + 1)][c])
+            + fv * ((1 - fu) * g[(i + 1, j)][c] + fu * g[(i + 1, j + 1)][c]) for c in (2, 3)]
+
+
+errs = []
+for (i, j), (x, y, gx, gy) in big.items():
+    tx, ty = table_at(grid, 101, -37.5, -32.5, 0.75, 0.65, x, y)
+    errs.append(math.hypot(tx - gx, ty - gy))
+rms = math.sqrt(sum(e * e for e in errs) / len(errs))
+if m:
+    print(f"151 x 131 map in a 101 x 101 table: rms {rms * 1e3:.2f} nm, max {max(errs) * 1e3:.2f} nm "
+          f"(reported {m.group(1)} / {m.group(2)} um)")
+    check(abs(rms - float(m.group(1))) < 2e-4 and abs(max(errs) - float(m.group(2))) < 2e-4,
+          "the reported fit error is the table's at the map's nodes")
+# the fit follows the smooth part: what is left is about the 10 nm roughness (sqrt(2) * 10 nm
+# RMS as a vector; the table interpolates part of it away)
+check(rms < 0.02, f"fitted table within 20 nm RMS of a smooth map ({rms * 1e3:.2f} nm)")
+# the same through export (here Beckhoff's plane list of x)
+rc, out, err = run("export", "--format", "beckhoff", "--axis", "x", "--map", path("B.csv"), "-o",
+                   path("B.beckhoff"))
+check(rc == 2 and "--max-nodes" in err and not os.path.exists(path("B.beckhoff")),
+      f"export of a large map without --max-nodes: exit {rc} {err!r}")
+rc, out, err = run("export", "--format", "beckhoff", "--axis", "x", "--map", path("B.csv"),
+                   "--max-nodes", "101", "-o", path("B.beckhoff"))
+check(rc == 0 and "fitted by a 101 x 101 table" in out and os.path.exists(path("B.beckhoff")),
+      f"export --max-nodes: exit {rc} {err!r}")
+
 if failures:
     print(f"{len(failures)} failure(s)")
     sys.exit(1)
