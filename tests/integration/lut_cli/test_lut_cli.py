@@ -326,6 +326,8 @@ if m:
 # RMS as a vector; the table interpolates part of it away)
 check(rms < 0.02, f"fitted table within 20 nm RMS of a smooth map ({rms * 1e3:.2f} nm)")
 # the same through export (here Beckhoff's plane list of x)
+if os.path.exists(path("B.beckhoff")):
+    os.remove(path("B.beckhoff"))  # from an earlier run
 rc, out, err = run("export", "--format", "beckhoff", "--axis", "x", "--map", path("B.csv"), "-o",
                    path("B.beckhoff"))
 check(rc == 2 and "--max-nodes" in err and not os.path.exists(path("B.beckhoff")),
