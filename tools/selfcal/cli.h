@@ -31,6 +31,9 @@ int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path)
 int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, size_t cap,
                              double *offset_mm);
 
+/* --max-nodes N (2..SC_LUT_MAX_NX) of lut build and export into *out: CLI_OK, or the usage error. */
+int cli_parse_max_nodes(const char *cmd, const char *v, int *out);
+
 struct sc_lut;
 struct sc_lut_fit_report;
 /* Print (stdout) what a table fitted to a larger map is and how far it is from the map. */

@@ -256,11 +256,7 @@ static int parse_number_option(export_args *a, const char *opt, const char *v)
         if (sc_parse_double(v, &a->interval) != 0 || a->interval <= 0)
             return cli_usage_error("export", "--interval: a positive number of mm, not '%s'", v);
     } else if (!strcmp(opt, "--max-nodes")) {
-        long n;
-        if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
-            return cli_usage_error("export", "--max-nodes: 2..%d nodes per axis, not '%s'",
-                                   SC_LUT_MAX_NX, v);
-        a->max_nodes = (int)n;
+        return cli_parse_max_nodes("export", v, &a->max_nodes);
     } else if (!strcmp(opt, "--limit-um")) {
         if (sc_parse_double(v, &a->limit) != 0 || a->limit <= 0)
             return cli_usage_error("export", "--limit-um: a positive number, not '%s'", v);

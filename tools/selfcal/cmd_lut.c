@@ -99,11 +99,7 @@ static int parse_build_option(build_args *b, const char *a, const char *v)
             return cli_usage_error("lut build", "--created: Unix seconds, not '%s'", v);
         b->created = c;
     } else if (!strcmp(a, "--max-nodes")) {
-        long n;
-        if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
-            return cli_usage_error("lut build", "--max-nodes: 2..%d nodes per axis, not '%s'",
-                                   SC_LUT_MAX_NX, v);
-        b->max_nodes = (int)n;
+        return cli_parse_max_nodes("lut build", v, &b->max_nodes);
     } else if (!strcmp(a, "--encoding")) {
         if (!strcmp(v, "auto"))
             b->enc = SC_LUT_ENC_AUTO;

@@ -52,6 +52,15 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
     return 0;
 }
 
+int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
+{
+    long n;
+    if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
+        return cli_usage_error(cmd, "--max-nodes: 2..%d nodes per axis, not '%s'", SC_LUT_MAX_NX, v);
+    *out = (int)n;
+    return CLI_OK;
+}
+
 void cli_print_fit(const char *map_path, const sc_lut *lut, const sc_lut_fit_report *fit)
 {
     printf("map %s: %d x %d nodes fitted by a %d x %d table (least squares, pitch %.6f x %.6f mm): "
