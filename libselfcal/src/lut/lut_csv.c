@@ -6,7 +6,6 @@
 
 #include "selfcal/correct.h"
 #include "selfcal/csv.h"
-#include "../core/lut_format.h"
 #include "selfcal/lut.h"
 #include "selfcal/profile_file.h"
 #include "selfcal/stage_map.h"
@@ -19,19 +18,8 @@ sc_status sc_lut_set_grid(sc_lut *lut, const sc_stage_map *m, const char *name, 
                             "the map has %d x %d nodes; a table holds at most %d x %d (a "
                             "coarser table can be fitted to it: --max-nodes)",
                             m->nx, m->ny, SC_LUT_MAX_NX, SC_LUT_MAX_NY);
-    if (!(m->px_mm >= SC_LUTF_MIN_PITCH_MM && m->py_mm >= SC_LUTF_MIN_PITCH_MM))
-        return sc_error_set(err, SC_E_INPUT, name, 0, "pitch %g x %g mm is below the table's 1 nm",
-                            m->px_mm, m->py_mm);
-    size_t nn = (size_t)m->nx * (size_t)m->ny;
-    memcpy(lut->gx_um, m->gx_um, nn * sizeof(double));
-    memcpy(lut->gy_um, m->gy_um, nn * sizeof(double));
-    lut->nx = m->nx;
-    lut->ny = m->ny;
-    lut->x0_mm = m->x0_mm;
-    lut->y0_mm = m->y0_mm;
-    lut->px_mm = m->px_mm;
-    lut->py_mm = m->py_mm;
-    return SC_OK;
+    /* within the limit the fit copies every node's values and the geometry exactly */
+    return sc_lut_fit_grid(lut, m, SC_LUT_MAX_NX, name, NULL, err);
 }
 
 sc_status sc_lut_read_map(const char *path, sc_lut *lut, sc_error *err)
