@@ -88,7 +88,7 @@ static void test_recovery_rich(void **s)
         check_recovery(sizes[i], PLAN_RICH, 300 + i);
 }
 
-/* The plan's node σ and leverages (selected inverse, its whole misalignment columns, the 9
+/* The plan's node σ and leverages (selected inverse, its whole misalignment columns, the
  * blocked solves) against solves refined with long-double residuals, at sizes the dense
  * reference (test_grid_lsq_dense) cannot reach. */
 static void test_reference_accuracy(void **s)
@@ -231,6 +231,58 @@ static void test_sigma_estimate(void **s)
         assert_true(fabs(res.r.ugx_um[3] / u_est - 0.2 / res.r.sigma_r_est_um) < 1e-12);
         tu_res_free(&res);
         sc_grid_lsq_plan_destroy(q);
+        tu_data_free(&d);
+        tu_truth_free(&t);
+    }
+}
+
+/* node_sigma_only: the same estimate, node σ and leverages to the last bit (W is solved alone in
+ * both modes), only the σ of O, R and the misalignments left out (NaN); the default gives them. */
+static void test_node_sigma_only(void **s)
+{
+    (void)s;
+    int kinds[] = {PLAN_YE, PLAN_PETRO, PLAN_RICH};
+    for (int c = 0; c < 3; ++c) {
+        sc_grid_plan p;
+        tu_plan(&p, 41, kinds[c]); /* large enough that 4 and 9 columns solve differently */
+        sc_rng r;
+        sc_rng_seed(&r, 55 + c);
+        tu_truth t;
+        sc_grid_data d;
+        tu_truth_data(&p, &r, &t, &d);
+        tu_add_noise(&d, 0.05, &r);
+        sc_grid_lsq_plan *q[2] = {NULL, NULL};
+        sc_error err;
+        sc_grid_lsq_opts opts[2] = {{.node_sigma_only = 0}, {.node_sigma_only = 1}};
+        tu_res res[2];
+        size_t tot = (size_t)p.n_views * t.nn;
+        double *rt[2];
+        for (int m = 0; m < 2; ++m) {
+            assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &opts[m], &q[m], &err), SC_OK);
+            tu_res_alloc(&res[m], t.nn);
+            assert_int_equal(sc_grid_lsq_execute(q[m], &d, 0.0, &res[m].r, &err), SC_OK);
+            rt[m] = malloc(sizeof(double) * 3 * tot);
+            assert_non_null(rt[m]);
+            assert_int_equal(sc_grid_lsq_residuals(q[m], &d, &res[m].r, NULL, NULL, rt[m],
+                                                   rt[m] + tot, rt[m] + 2 * tot, &err), SC_OK);
+        }
+        assert_memory_equal(res[0].buf, res[1].buf, sizeof(double) * 6 * t.nn); /* G, u, A */
+        assert_memory_equal(rt[0], rt[1], sizeof(double) * 3 * tot); /* t and leverages */
+        assert_true(res[0].r.sigma_r_est_um == res[1].r.sigma_r_est_um);
+        assert_true(isfinite(res[0].r.uO) && isfinite(res[0].r.uR) && res[0].r.uO > 0);
+        assert_true(isnan(res[1].r.uO) && isnan(res[1].r.uR));
+        for (int v = 0; v < p.n_views; ++v) {
+            assert_true(res[0].r.tx_um[v] == res[1].r.tx_um[v]);
+            assert_true(res[0].r.theta_urad[v] == res[1].r.theta_urad[v]);
+            assert_true(isfinite(res[0].r.utx_um[v]) && isfinite(res[0].r.utheta_urad[v]));
+            assert_true(isnan(res[1].r.utx_um[v]) && isnan(res[1].r.uty_um[v]) &&
+                        isnan(res[1].r.utheta_urad[v]));
+        }
+        for (int m = 0; m < 2; ++m) {
+            free(rt[m]);
+            tu_res_free(&res[m]);
+            sc_grid_lsq_plan_destroy(q[m]);
+        }
         tu_data_free(&d);
         tu_truth_free(&t);
     }
@@ -533,7 +585,8 @@ int main(void)
         cmocka_unit_test(test_recovery_ye),    cmocka_unit_test(test_recovery_petro),
         cmocka_unit_test(test_recovery_rich),  cmocka_unit_test(test_plan_cases),
         cmocka_unit_test(test_reference_accuracy),
-        cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_monte_carlo),
+        cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_node_sigma_only),
+        cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),
     };

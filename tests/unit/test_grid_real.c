@@ -478,7 +478,7 @@ static void test_drift(void **s)
     t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 3 * ns;
     assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 4 * ns, NULL), SC_OK);
     for (int drift = 0; drift < 2; ++drift) {
-        sc_grid_lsq_opts opts = {drift};
+        sc_grid_lsq_opts opts = {.drift = drift};
         sc_grid_lsq_plan *q = NULL;
         assert_int_equal(sc_grid_lsq_plan_create(&p, &d, &opts, &q, NULL), SC_OK);
         sc_grid_lsq_info qi;

@@ -29,7 +29,8 @@ static const char *USAGE =
     "                the residuals. The exact methods give no uncertainties (columns left empty).\n"
     "                With ux_um,uy_um columns or sigma_um= on view lines the measurements are\n"
     "                weighted by 1/u^2, the uncertainties use the stated u, and the summary gives\n"
-    "                the variance factor and its chi^2 test at 95 %.\n"
+    "                the variance factor and its chi^2 test at 95 %. The uncertainties of O, R\n"
+    "                and the misalignments are computed for --summary only (less work without).\n"
     "  lsq options:  --residuals R.csv  view,i,j,rx_um,ry_um,tx,ty,outlier (t: standardized\n"
     "                residuals with the exact leverage; outlier: Baarda's data snooping at\n"
     "                alpha = 0.001, |t| > 3.29); each outlier is a warning on stderr.\n"
@@ -141,6 +142,9 @@ static int parse_args(int argc, char **argv, grid_args *g)
                                g->method);
     g->opt.method = (sc_grid_method)m;
     g->opt.covariance = g->covariance != NULL;
+    /* the σ of O, R and the misalignments goes to the summary file only: not computed without it
+     * (every node's σ and the outlier test are the same either way) */
+    g->opt.node_sigma_only = g->sum == NULL;
     if (m != SC_GRID_METHOD_LSQ &&
         (g->residuals || g->covariance || g->opt.reject_outliers || g->opt.drift))
         return cli_usage_error("grid", "--residuals, --reject-outliers, --covariance and --drift "

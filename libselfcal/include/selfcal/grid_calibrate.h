@@ -39,6 +39,8 @@ typedef struct sc_grid_options {
                                 repeat until none is flagged */
     int covariance;          /* least squares: the full covariance of G (stages of at most
                                 SC_GRID_LSQ_COV_MAX_NODES nodes) */
+    int node_sigma_only;     /* least squares: skip the σ of O, R and the misalignments (NaN);
+                                every node's σ and the outlier test are unchanged */
     sc_grid_warn_fn warn;    /* warnings (NULL: none) */
     void *warn_ctx;
 } sc_grid_options;

@@ -35,6 +35,9 @@ typedef struct sc_grid_lsq_opts {
     int drift;                /* 1: per-view translation drift rates (vx, vy)·(t − mean t) as
                                  unknowns; times from the data's t_s, or for a plan without data
                                  the serpentine order of measurement, one per second */
+    int node_sigma_only;      /* 1: every node's σ and every leverage, but not the σ of O, R and
+                                 the misalignments (NaN in sc_grid_result): less work (N = 101:
+                                 10 ms of 0.15 s); node σ identical either way. 0: all of them */
 } sc_grid_lsq_opts;
 
 /* Baarda's data snooping: each standardized residual is N(0, 1) without outliers; a coordinate

@@ -46,6 +46,7 @@ struct sc_grid_lsq_plan {
     int stage_nx, stage_ny, ns; /* stage grid NX, NY and its node count */
     int nb;                 /* unknowns per view: tx, ty, φ (+ vx, vy with drift) */
     int drift;
+    int node_sigma_only;    /* no σ of O, R and the misalignments (sc_grid_lsq_opts) */
     int weighted;           /* weights were stated (1/u²); else all 1 */
     double *eq_w;           /* weight of each scalar equation */
     double *eq_dt;          /* drift column: (t - mean t of the view) / T_v */
@@ -744,6 +745,7 @@ static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_gr
     q->stage_ny = sc_grid_stage_ny(plan);
     q->ns = q->stage_nx * q->stage_ny;
     q->drift = opts && opts->drift;
+    q->node_sigma_only = opts && opts->node_sigma_only;
     q->nb = q->drift ? 5 : 3;
     q->L_mm = (plan->n - 1) / 2 * plan->pitch_mm;
     q->ng = 2 * q->ns;
@@ -1844,43 +1846,62 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
     return st;
 }
 
-/* Everything of an identifying plan that does not depend on the measured values. First 9 blocked
- * solves on the factor: W = ΣU (the gauge columns) and B = Σ·functional_basis_rhs, which give the
- * projection's part of every node's σ and the σ of O and R; then the selected inverse (kept: the
+/* Solve the ncol columns X in place (pins zero before and after); SC_OK or no memory. */
+static sc_status plan_solve(const sc_grid_lsq_plan *q, double *X, int ncol, sc_error *err)
+{
+    zero_pinned(q, X, ncol);
+    if (sc_spsym_solve(q->f, X, ncol) != 0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
+    zero_pinned(q, X, ncol);
+    return SC_OK;
+}
+
+/* Everything of an identifying plan that does not depend on the measured values. First blocked
+ * solves on the factor: W = ΣU (the gauge columns, 4) for the projection's part of every node's
+ * σ, and B = Σ·functional_basis_rhs (5) for the σ of O and R; then the selected inverse (kept: the
  * diagonal, the G pairs on S's pattern, the free misalignments' whole columns) for diag(Σ), the
  * misalignments' σ and every leverage. The selected inverse and the columns are dropped after.
- * No iterative refinement: diag(Σ) and the misalignment columns come from the recurrences on the
- * same factor, so refined columns would not make the results more accurate (docs/grid-lsq.md). */
+ * W and B are two solves, so that every node's σ is the same to the last bit whether or not the
+ * σ of O, R and the misalignments is asked for (node_sigma_only skips B and what uses it: 10 ms
+ * of the 0.15 s grid command at N = 101). No iterative refinement: diag(Σ) and the misalignment
+ * columns come from the recurrences on the same factor, so refined columns would not make the
+ * results more accurate (docs/grid-lsq.md). */
 static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
 {
     size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
+    int functionals = !q->node_sigma_only;
     double *U = malloc(sizeof(double) * 4 * ng);
-    double *WB = sc_big_alloc(9 * n, sizeof(double), 0); /* W: columns 0-3, B: 4-8 */
-    double *D = malloc(sizeof(double) * 3 * n), *fg = malloc(sizeof(double) * ng);
-    double *uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
+    double *WB = sc_big_alloc((functionals ? 9 : 4) * n, sizeof(double), 0); /* W: 0-3, B: 4-8 */
+    double *D = NULL, *fg = NULL, *uA = NULL;
     double part[SC_GRID_MAX_VIEWS * 5], scale[4], *W = NULL, *B = NULL;
     int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
     q->var_m = malloc(sizeof(double) * (size_t)q->nm);
     sc_status st = SC_OK;
-    if (!U || !WB || !D || !fg || !uA || !q->var_m) {
+    if (functionals) {
+        D = malloc(sizeof(double) * 3 * n), fg = malloc(sizeof(double) * ng);
+        uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
+    }
+    if (!U || !WB || (functionals && (!D || !fg || !uA)) || !q->var_m) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto out;
     }
+    for (int t = 0; t < q->nm; ++t)
+        q->var_m[t] = NAN;
     W = WB, B = WB + 4 * n;
     gauge_basis(q, U, scale);
     for (int c = 0; c < 4; ++c)
         for (size_t i = 0; i < n; ++i)
             W[(size_t)c * n + i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
-    functional_basis_rhs(q, fg, uA, B);
-    memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
-    zero_pinned(q, WB, 9);
-    if (sc_spsym_solve(q->f, WB, 9) != 0) {
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
+    if ((st = plan_solve(q, W, 4, err)) != SC_OK)
         goto out;
-    }
-    zero_pinned(q, WB, 9);
     sigma_ratios_projection(q, U, W);
-    st = functional_variances(q, 0, scale, U, D, WB, part, err);
+    if (functionals) {
+        functional_basis_rhs(q, fg, uA, B);
+        memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
+        if ((st = plan_solve(q, B, 5, err)) != SC_OK)
+            goto out;
+        st = functional_variances(q, 0, scale, U, D, WB, part, err);
+    }
     /* the selected inverse needs the memory more (U is made again after it; D, 3 columns, is
      * kept: making it again takes 3 passes over the equations) */
     free(U), free(WB), free(fg), free(uA);
@@ -1893,7 +1914,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     }
     sigma_ratios_finish(q);
     st = leverages(q, err);
-    if (st == SC_OK && q->misalignment_unique) {
+    if (st == SC_OK && q->misalignment_unique && functionals) {
         if (!(U = malloc(sizeof(double) * 4 * ng)))
             st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         else {
