@@ -637,6 +637,9 @@ typedef struct selinv_ws {
     double *Zrr, *W, *Y; /* dense blocks: m x m (m <= ZRR_MAX), m x nc, m x nc */
     double *P;           /* a panel of Z_RR from one ancestor (larger fronts): m x nc */
     double *Gt;          /* the tracked columns' rows R: n_track x m */
+    double *Tt;          /* their product for one supernode: n_track x nc */
+    int *miss;           /* n_track: the tracked pivots not among a supernode's rows */
+    unsigned char *have; /* n_track: flags of the ones that are */
     long *bptr;          /* A's entries by factor column (bucket_entries) */
     int *bucket;
 } selinv_ws;
@@ -646,7 +649,8 @@ static void selinv_ws_free(selinv_ws *w, int nsuper)
     for (int J = 0; w->Z && J < nsuper; ++J)
         free(w->Z[J]);
     free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->P), free(w->W);
-    free(w->Y), free(w->Gt), free(w->bptr), free(w->bucket), free(w->rel);
+    free(w->Y), free(w->Gt), free(w->Tt), free(w->miss), free(w->have), free(w->bptr);
+    free(w->bucket), free(w->rel);
 }
 
 static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
@@ -673,9 +677,12 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     w->W = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Y = malloc(sizeof(double) * ((size_t)maxm * maxc + 1));
     w->Gt = malloc(sizeof(double) * ((size_t)s->n_track * maxm + 1));
+    w->Tt = malloc(sizeof(double) * ((size_t)s->n_track * maxc + 1));
+    w->miss = malloc(sizeof(int) * ((size_t)s->n_track + 1));
+    w->have = malloc((size_t)s->n_track + 1);
     w->rel = malloc(sizeof(int) * ((size_t)maxm + 1));
     if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
-        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt || !w->rel ||
+        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt || !w->Tt || !w->miss || !w->have || !w->rel ||
         bucket_entries(s, &w->bptr, &w->bucket) != 0)
         return -1;
     for (int J = 0; J < nsuper; ++J)
@@ -799,22 +806,48 @@ static void super_extract(sc_spsym *s, selinv_ws *w, int J, const double *Zj)
 }
 
 /* The tracked columns (the last n_track pivots p0 .. n-1) in the rows of supernode J before
- * them: for a row r after J's columns, (L⁻ᵀ)_rJ = 0, so Z_rJ = −Z_rR L̂ whether or not r is in R:
- * one product of n_track x m by L̂ (w->W, m x nc, left by super_block). */
-static double track_rule(sc_spsym *s, selinv_ws *w, int J)
+ * them. A tracked pivot t among J's rows R has Z_tJ in the block just made (Z_RJ = −Z_RR L̂): a
+ * copy. For the others (t not in R: (L⁻ᵀ)_tJ = 0, so Z_tJ = −Z_tR L̂ all the same) one product of
+ * their rows of Z_tR (from Zt) by L̂ (w->W, m x nc, left by super_block). The grid's free
+ * misalignments couple with nearly every node, so most are copies (N = 101: the product had all
+ * 9 rows, 9 x nnz(L) multiply-adds; a view measuring a few marks keeps its 3 in the product). */
+static double track_rule(sc_spsym *s, selinv_ws *w, int J, const double *Zj)
 {
     const cholmod_factor *L = s->L;
     const int *Super = L->super, *Lpi = L->pi, *Ls = L->s;
     int nt = s->n_track, nc = Super[J + 1] - Super[J], m = Lpi[J + 1] - Lpi[J] - nc;
+    int p0 = s->n - nt, nr = nc + m, in_r = 0, nmiss = 0;
     if (m == 0) /* a root: no coupling to the tracked pivots (their entries stay 0) */
         return 0;
     const int *R = Ls + Lpi[J] + nc;
-    for (int b = 0; b < m; ++b)
-        memcpy(w->Gt + (size_t)b * nt, s->Zt + (size_t)R[b] * nt, sizeof(double) * nt);
+    double *zt = s->Zt + (size_t)Super[J] * nt;
+    while (in_r < m && R[m - 1 - in_r] >= p0) /* R ascends: the tracked pivots in it end it */
+        ++in_r;
+    unsigned char *have = w->have;
+    memset(have, 0, (size_t)nt);
+    for (int a = m - in_r; a < m; ++a) {
+        int t = R[a] - p0;
+        have[t] = 1;
+        for (int c = 0; c < nc; ++c)
+            zt[(size_t)c * nt + t] = Zj[(size_t)c * nr + nc + a];
+    }
+    for (int t = 0; t < nt; ++t)
+        if (!have[t])
+            w->miss[nmiss++] = t;
+    if (nmiss == 0)
+        return 0;
+    for (int b = 0; b < m; ++b) {
+        const double *zr = s->Zt + (size_t)R[b] * nt;
+        for (int i = 0; i < nmiss; ++i)
+            w->Gt[(size_t)b * nmiss + i] = zr[w->miss[i]];
+    }
     const double minus_one = -1.0, zero = 0.0;
-    s->api->dgemm("N", "N", &nt, &nc, &m, &minus_one, w->Gt, &nt, w->W, &m, &zero,
-                  s->Zt + (size_t)Super[J] * nt, &nt, 1, 1);
-    return (double)nt * m * nc;
+    s->api->dgemm("N", "N", &nmiss, &nc, &m, &minus_one, w->Gt, &nmiss, w->W, &m, &zero, w->Tt,
+                  &nmiss, 1, 1);
+    for (int c = 0; c < nc; ++c)
+        for (int i = 0; i < nmiss; ++i)
+            zt[(size_t)c * nt + w->miss[i]] = w->Tt[(size_t)c * nmiss + i];
+    return (double)nmiss * m * nc;
 }
 
 /* The tracked columns in a supernode J that reaches the last pivots: its block holds them all
@@ -877,7 +910,7 @@ static int super_selinv(sc_spsym *s)
         }
         work += got;
         if (s->Zt && Super[J + 1] <= p0)
-            work += track_rule(s, &w, J);
+            work += track_rule(s, &w, J, w.Z[J]);
         else if (s->Zt)
             track_copy(s, J, w.Z[J]);
         super_extract(s, &w, J, w.Z[J]);
