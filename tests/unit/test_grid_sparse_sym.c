@@ -159,9 +159,9 @@ static void check_tracked_columns(int n, int border, int group, unsigned seed)
         assert_int_equal(sc_spsym_factor(f0, Ax, 1e-10), 0);
         sc_spsym_stats st;
         sc_spsym_get_stats(f, &st);
-        assert_int_equal(st.ordering, SC_SPSYM_ORDER_GROUPED_AMD);
+        assert_int_equal(st.ordering, SC_SPSYM_ORDER_HINTED_AMD);
         assert_string_equal(sc_spsym_ordering_name(st.ordering),
-                            "AMD of the grouped graph, given unknowns last (CHOLMOD)");
+                            "AMD, given unknowns last (CHOLMOD)");
         const int *cols = pass == 0 ? last : other;
         int nc = pass == 0 ? border : 3;
         assert_int_equal(sc_spsym_inv_column(f, 0, col), -1); /* not computed yet */

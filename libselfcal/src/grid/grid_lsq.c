@@ -15,7 +15,7 @@
  *    from the gauged one by a gauge pattern, so G = P⊥ g_pin (P⊥ the orthogonal projector of
  *    sc_grid_gauge_stage), exactly.
  * 3. The pinned matrix is factored once per plan (sparse_sym.h: CHOLMOD's supernodal Cholesky in
- *    the order of AMD on the node graph with the free misalignments last; a rank-revealing LDLᵀ
+ *    the order of AMD with the free misalignments last; a rank-revealing LDLᵀ
  *    when it is numerically singular); null pivots are decided with a relative tolerance.
  * 4. Everything that does not depend on the measured values is computed by the plan: per-node
  *    variances Cov(G)/σ² = P⊥ Σ P⊥ with Σ = pinned inverse (zero on pins), diag(Σ) by the
@@ -586,10 +586,12 @@ static int free_misalignments(const sc_grid_lsq_plan *q, int *at, int *slot)
 /* Order (once) and factor the pinned reduced matrix; the pinned system's nullity. */
 static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
 {
-    /* a node's two components share their couplings; the free misalignments couple to nearly
-     * every node of their view: ordered last, their columns of Σ come from the selected inverse */
+    /* the free misalignments couple to nearly every node of their view: ordered last, their
+     * columns of Σ come from the selected inverse. AMD orders the G unknowns one by one: a node's
+     * two components as one vertex (its couplings are not the same for x and y: a rotated view
+     * swaps them) needed 17-40 % more flops (docs/grid-lsq.md) */
     int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
-    sc_spsym_hint hint = {2, q->ng, last, n_last};
+    sc_spsym_hint hint = {1, q->ng, last, n_last};
     int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
     if (arc == -2)
         return sc_error_set(err, SC_E_IO, NULL, 0,

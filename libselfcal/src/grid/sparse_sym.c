@@ -1,8 +1,8 @@
 /* The symmetric sparse solver of the grid area (sparse_sym.h).
  *
  * Ordering and factorization are SuiteSparse CHOLMOD's (Debian libsuitesparse-dev): one analysis
- * per pattern (CHOLMOD's own choice between AMD and METIS, or CHOLMOD's AMD of the caller's
- * grouped graph with given unknowns last: sc_spsym_hint), supernodal LLᵀ with BLAS-3 kernels.
+ * per pattern (CHOLMOD's own choice between AMD and METIS, or CHOLMOD's AMD with the caller's
+ * given unknowns last: sc_spsym_hint), supernodal LLᵀ with BLAS-3 kernels.
  * CHOLMOD has no selected inverse, so that part is ours: the blocked Takahashi
  * recurrences on CHOLMOD's supernodes (dense kernels: the BLAS/LAPACK CHOLMOD uses, OpenBLAS):
  * for a supernode J with diagonal block L_JJ and rows R below it, L̂ = L_RJ L_JJ⁻¹ and
@@ -166,7 +166,7 @@ const char *sc_spsym_ordering_name(int ordering)
     case CHOLMOD_METIS: return "METIS (CHOLMOD)";
     case CHOLMOD_NESDIS: return "NESDIS (CHOLMOD)";
     case CHOLMOD_COLAMD: return "COLAMD (CHOLMOD)";
-    case SC_SPSYM_ORDER_GROUPED_AMD: return "AMD of the grouped graph, given unknowns last (CHOLMOD)";
+    case SC_SPSYM_ORDER_HINTED_AMD: return "AMD, given unknowns last (CHOLMOD)";
     default: return "?";
     }
 }
@@ -245,8 +245,9 @@ fail:
     return -1;
 }
 
-/* The order a hint asks for (sc_spsym_hint): CHOLMOD's AMD of the grouped graph, each vertex's
- * unknowns together, then h->last in its order. perm: n. Returns 0, -1 (no memory, AMD failed). */
+/* The order a hint asks for (sc_spsym_hint): CHOLMOD's AMD of the graph without h->last (a
+ * vertex per unknown, or per group of them), each vertex's unknowns together, then h->last in
+ * its order. perm: n. Returns 0, -1 (no memory, AMD failed). */
 static int hinted_order(sc_spsym *s, const sc_spsym_hint *h, int *perm)
 {
     int n = s->n, group = h->group > 0 ? h->group : 1, nv = 0, prev = -1, rc = -1;
@@ -344,7 +345,7 @@ int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *
         sc_spsym_destroy(s);
         return -1;
     }
-    s->ordering = hint ? SC_SPSYM_ORDER_GROUPED_AMD : s->cm->method[s->cm->selected].ordering;
+    s->ordering = hint ? SC_SPSYM_ORDER_HINTED_AMD : s->cm->method[s->cm->selected].ordering;
     const int *perm = s->L->Perm;
     for (int k = 0; k < n; ++k)
         s->iperm[perm[k]] = k;
