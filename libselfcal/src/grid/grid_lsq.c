@@ -22,7 +22,8 @@
  *    supernodal selected inverse and the projection from W = ΣU (4 columns); the leverage of every
  *    equation (the selected inverse on S's pattern and the free misalignments' whole columns of
  *    Σ, which the same selected inverse gives); the variances of O, R and the misalignments per
- *    unit σ (W, 5 more columns, the misalignment columns). One blocked solve of 9 columns.
+ *    unit σ (W, 5 more columns, the misalignment columns; left out with node_sigma_only). Two
+ *    blocked solves: W (4 columns), then the 5 functional ones.
  * 5. Execute: one solve refined against the equations (up to 3 steps), the gauge, the residual
  *    sums; no allocation (the plan holds the workspace, so one plan serves one thread at a time).
  */
