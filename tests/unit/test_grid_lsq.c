@@ -206,13 +206,9 @@ static void test_sigma_estimate(void **s)
     int kinds[] = {PLAN_YE, PLAN_PETRO, PLAN_RICH};
     for (int c = 0; c < 3; ++c) {
         sc_grid_plan p;
-        tu_plan(&p, 25, kinds[c]);
-        sc_rng r;
-        sc_rng_seed(&r, 77 + c);
         tu_truth t;
         sc_grid_data d;
-        tu_truth_data(&p, &r, &t, &d);
-        tu_add_noise(&d, 0.05, &r);
+        tu_noisy_case(&p, 25, kinds[c], 77 + c, 0.05, &t, &d);
         sc_grid_lsq_plan *q = NULL;
         sc_error err;
         assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
@@ -244,13 +240,9 @@ static void test_node_sigma_only(void **s)
     int kinds[] = {PLAN_YE, PLAN_PETRO, PLAN_RICH};
     for (int c = 0; c < 3; ++c) {
         sc_grid_plan p;
-        tu_plan(&p, 41, kinds[c]); /* large enough that 4 and 9 columns solve differently */
-        sc_rng r;
-        sc_rng_seed(&r, 55 + c);
         tu_truth t;
-        sc_grid_data d;
-        tu_truth_data(&p, &r, &t, &d);
-        tu_add_noise(&d, 0.05, &r);
+        sc_grid_data d; /* N = 41: large enough that 4 and 9 columns solve differently */
+        tu_noisy_case(&p, 41, kinds[c], 55 + c, 0.05, &t, &d);
         sc_grid_lsq_plan *q[2] = {NULL, NULL};
         sc_error err;
         sc_grid_lsq_opts opts[2] = {{.node_sigma_only = 0}, {.node_sigma_only = 1}};

@@ -127,6 +127,17 @@ static void tu_add_noise(sc_grid_data *d, double sigma, sc_rng *r)
             }
 }
 
+/* Plan `kind` at size n, a gauged truth and its data with noise sigma (µm), from seed. */
+static inline void tu_noisy_case(sc_grid_plan *p, int n, int kind, uint64_t seed, double sigma,
+                                 tu_truth *t, sc_grid_data *d)
+{
+    tu_plan(p, n, kind);
+    sc_rng r;
+    sc_rng_seed(&r, seed);
+    tu_truth_data(p, &r, t, d);
+    tu_add_noise(d, sigma, &r);
+}
+
 typedef struct tu_res {
     sc_grid_result r;
     double *buf;
