@@ -211,8 +211,9 @@ static void openmp_regions_serial(void)
  * SuiteSparse takes its allocator from SuiteSparse_config, set once by the application before
  * any use (SuiteSparse_config.h): the command line is that application here (the library leaves
  * process-wide settings alone). The library's own allocation with the hint serves
- * (libselfcal/src/common/big_alloc.c, compiled here too): blocks from 4 MiB up, glibc maps them
- * and their 2 MiB-aligned inside is advised before the first touch; freeing is glibc's.
+ * (libselfcal/src/common/big_alloc.c, compiled here too): blocks from 2 MiB up start on a 2 MiB
+ * boundary (unless asked zeroed) and their 2 MiB-aligned inside is advised before the first
+ * touch; freeing is glibc's.
  * SELFCAL_HUGEPAGES=0 leaves SuiteSparse's allocator alone. */
 static void *huge_malloc(size_t n)
 {
@@ -245,9 +246,8 @@ static void suitesparse_huge_pages(void)
  * back to the system when freed: glibc's
  * dynamic mmap threshold would keep the factorization's freed workspaces in the heap, and the grid
  * least squares' peak memory would carry them (+60 MB at N = 401, bench_grid_cholmod). The fixed
- * threshold is 4 MiB, where the huge-page hint starts (big_alloc.c): blocks below it come from
- * the heap and are used again when freed. With 256 KiB every block from there up was mapped,
- * faulted in and unmapped anew: N = 101 took 3 300 more page faults (11 100 against 7 900, about
+ * threshold is 4 MiB: blocks below it come from the heap and are used again when freed. With
+ * 256 KiB every block from there up was mapped, faulted in and unmapped anew: N = 101 took 3 300 more page faults (11 100 against 7 900, about
  * 5 % of its CPU) and N = 401 0.8 s more system time, for 1 MB less peak memory. Not the
  * others: no OpenMP runtime loaded at their start, and FFTW's buffers, mapped and unmapped at
  * every transform with that threshold, made `profile --method dft` at N = 10⁶ spend 0.6 s
