@@ -247,8 +247,9 @@ static void suitesparse_huge_pages(void)
  * dynamic mmap threshold would keep the factorization's freed workspaces in the heap, and the grid
  * least squares' peak memory would carry them (+60 MB at N = 401, bench_grid_cholmod). The fixed
  * threshold is 4 MiB: blocks below it come from the heap and are used again when freed. With
- * 256 KiB every block from there up was mapped, faulted in and unmapped anew: N = 101 took 3 300 more page faults (11 100 against 7 900, about
- * 5 % of its CPU) and N = 401 0.8 s more system time, for 1 MB less peak memory. Not the
+ * 256 KiB every block from there up was mapped, faulted in and unmapped anew: N = 101 took
+ * 3 300 more page faults (11 100 against 7 900, about 5 % of its CPU) and N = 401 0.8 s more
+ * system time, for 1 MB less peak memory. Not the
  * others: no OpenMP runtime loaded at their start, and FFTW's buffers, mapped and unmapped at
  * every transform with that threshold, made `profile --method dft` at N = 10⁶ spend 0.6 s
  * faulting pages in (1.6 s instead of 1.1 s). `profile` keeps blocks up to 32 MiB in the heap and

@@ -683,8 +683,8 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     w->have = malloc((size_t)s->n_track + 1);
     w->rel = malloc(sizeof(int) * ((size_t)maxm + 1));
     if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
-        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt || !w->Tt || !w->miss || !w->have || !w->rel ||
-        bucket_entries(s, &w->bptr, &w->bucket) != 0)
+        !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt || !w->Tt || !w->miss ||
+        !w->have || !w->rel || bucket_entries(s, &w->bptr, &w->bucket) != 0)
         return -1;
     for (int J = 0; J < nsuper; ++J)
         for (int k = Super[J]; k < Super[J + 1]; ++k)
