@@ -115,7 +115,8 @@ static int design(int argc, char **argv)
         if (sc_grid_plan_stitch_step(n, (int)sx, (int)sy, step, pitch, ox, oy, &p, &err) != SC_OK)
             break;
         sc_grid_lsq_plan *q = NULL;
-        if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK)
+        sc_grid_lsq_opts only = {.node_sigma_only = 1}; /* what is printed: no σ of O, R */
+        if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK)
             return cli_report(&err);
         sc_grid_lsq_get_info(q, &bi);
         sc_grid_lsq_plan_destroy(q);
@@ -207,7 +208,9 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
 int cmd_plan(int argc, char **argv)
 {
     const char *in = NULL;
-    sc_grid_lsq_opts opts = {0};
+    /* the analysis printed needs every node's σ (the σ_C ratios), not the σ of O, R and the
+     * misalignments */
+    sc_grid_lsq_opts opts = {.node_sigma_only = 1};
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
