@@ -290,6 +290,13 @@ static long worst_outlier(const sc_grid_solution *s, size_t tot)
     return best;
 }
 
+/* The least squares' model options from the calibration's. */
+static sc_grid_lsq_opts lsq_opts(const sc_grid_options *o)
+{
+    sc_grid_lsq_opts q = {.drift = o->drift, .node_sigma_only = o->node_sigma_only};
+    return q;
+}
+
 /* Solve, then while asked remove the worst flagged measurement and solve again. A removal is
  * confirmed (and warned about) once the views still identify G without it; an outlier that is
  * the only link is kept, with a warning, and rejection stops. keep: the data as they came. */
@@ -299,7 +306,7 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
 {
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
-    sc_grid_lsq_opts opts = {.drift = o->drift, .node_sigma_only = o->node_sigma_only};
+    sc_grid_lsq_opts opts = lsq_opts(o);
     const char *src = path ? path : "data";
     long pending = -1; /* the row just removed, confirmed once G stays identified without it */
     int stop = 0;
@@ -440,7 +447,7 @@ sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, cons
     /* the least squares' first plan before the solution's arrays: its selected inverse sets the
      * command's peak memory, and the arrays are not needed yet */
     sc_grid_lsq_plan *q0 = NULL;
-    sc_grid_lsq_opts opts = {.drift = o->drift, .node_sigma_only = o->node_sigma_only};
+    sc_grid_lsq_opts opts = lsq_opts(o);
     if (st == SC_OK && o->method == SC_GRID_METHOD_LSQ)
         st = sc_grid_lsq_plan_create(&d->plan, d, &opts, &q0, err);
     if (st == SC_OK)

@@ -643,13 +643,16 @@ out:
 
 /* X (n_red x ncol, column after column) := pinned-system solves of its columns (original index
  * space), with `refine` steps of iterative refinement against the assembled matrix; B and R:
- * workspace of n_red·ncol each. Returns 0, -1 if the solver ran out of memory. */
+ * workspace of n_red·ncol each (unused, may be NULL, without refinement). Returns 0, -1 if the
+ * solver ran out of memory. */
 static int pinned_solve(const sc_grid_lsq_plan *q, double *X, int ncol, int refine, double *B,
                         double *R)
 {
     size_t n = (size_t)q->n_red, tot = n * (size_t)ncol;
     for (size_t k = 0; k < tot; ++k)
-        B[k] = X[k] = q->pinned[k % n] ? 0.0 : X[k];
+        X[k] = q->pinned[k % n] ? 0.0 : X[k];
+    if (refine > 0)
+        memcpy(B, X, sizeof(double) * tot);
     if (sc_spsym_solve(q->f, X, ncol) != 0)
         return -1;
     for (int it = 0; it < refine; ++it) {
@@ -1632,9 +1635,9 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
                                       double *part, sc_error *err)
 {
     double Minv_T[49], gam[7];
-    if (phase == 0)
+    if (phase == 0) /* var_m is NaN until phase 1 (plan_uncertainties) */
         for (int t = 0; t < q->nm; ++t)
-            q->var_m[t] = part[t] = NAN;
+            part[t] = NAN;
     /* nullity_T > 3: combinations of misalignments (and drift) with A beyond the gauge stay free
      * (with drift: a drift common to all views in the plate frame is a plate error); their
      * values follow a convention and have no uncertainty. O and R depend on G only. */
@@ -1849,16 +1852,6 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
     return st;
 }
 
-/* Solve the ncol columns X in place (pins zero before and after); SC_OK or no memory. */
-static sc_status plan_solve(const sc_grid_lsq_plan *q, double *X, int ncol, sc_error *err)
-{
-    zero_pinned(q, X, ncol);
-    if (sc_spsym_solve(q->f, X, ncol) != 0)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
-    zero_pinned(q, X, ncol);
-    return SC_OK;
-}
-
 /* Everything of an identifying plan that does not depend on the measured values. First blocked
  * solves on the factor: W = ΣU (the gauge columns, 4) for the projection's part of every node's
  * σ, and B = Σ·functional_basis_rhs (5) for the σ of O and R; then the selected inverse (kept: the
@@ -1890,19 +1883,23 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     }
     for (int t = 0; t < q->nm; ++t)
         q->var_m[t] = NAN;
-    W = WB, B = WB + 4 * n;
+    W = WB, B = functionals ? WB + 4 * n : NULL;
     gauge_basis(q, U, scale);
     for (int c = 0; c < 4; ++c)
         for (size_t i = 0; i < n; ++i)
             W[(size_t)c * n + i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
-    if ((st = plan_solve(q, W, 4, err)) != SC_OK)
+    if (pinned_solve(q, W, 4, 0, NULL, NULL) != 0) {
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
         goto out;
+    }
     sigma_ratios_projection(q, U, W);
     if (functionals) {
         functional_basis_rhs(q, fg, uA, B);
         memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
-        if ((st = plan_solve(q, B, 5, err)) != SC_OK)
+        if (pinned_solve(q, B, 5, 0, NULL, NULL) != 0) {
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
             goto out;
+        }
         st = functional_variances(q, 0, scale, U, D, WB, part, err);
     }
     /* the selected inverse needs the memory more (U is made again after it; D, 3 columns, is

@@ -640,7 +640,6 @@ typedef struct selinv_ws {
     double *Gt;          /* the tracked columns' rows R: n_track x m */
     double *Tt;          /* their product for one supernode: n_track x nc */
     int *miss;           /* n_track: the tracked pivots not among a supernode's rows */
-    unsigned char *have; /* n_track: flags of the ones that are */
     long *bptr;          /* A's entries by factor column (bucket_entries) */
     int *bucket;
 } selinv_ws;
@@ -650,8 +649,8 @@ static void selinv_ws_free(selinv_ws *w, int nsuper)
     for (int J = 0; w->Z && J < nsuper; ++J)
         free(w->Z[J]);
     free(w->Z), free(w->parent), free(w->first), free(w->map), free(w->Zrr), free(w->P), free(w->W);
-    free(w->Y), free(w->Gt), free(w->Tt), free(w->miss), free(w->have), free(w->bptr);
-    free(w->bucket), free(w->rel);
+    free(w->Y), free(w->Gt), free(w->Tt), free(w->miss), free(w->bptr), free(w->bucket);
+    free(w->rel);
 }
 
 static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
@@ -680,11 +679,10 @@ static int selinv_ws_alloc(sc_spsym *s, selinv_ws *w)
     w->Gt = malloc(sizeof(double) * ((size_t)s->n_track * maxm + 1));
     w->Tt = malloc(sizeof(double) * ((size_t)s->n_track * maxc + 1));
     w->miss = malloc(sizeof(int) * ((size_t)s->n_track + 1));
-    w->have = malloc((size_t)s->n_track + 1);
     w->rel = malloc(sizeof(int) * ((size_t)maxm + 1));
     if (!s->col2super || !s->Zd || !s->ZA || !w->Z || !w->parent || !w->first || !w->map ||
         !w->Zrr || (maxm > ZRR_MAX && !w->P) || !w->W || !w->Y || !w->Gt || !w->Tt || !w->miss ||
-        !w->have || !w->rel || bucket_entries(s, &w->bptr, &w->bucket) != 0)
+        !w->rel || bucket_entries(s, &w->bptr, &w->bucket) != 0)
         return -1;
     for (int J = 0; J < nsuper; ++J)
         for (int k = Super[J]; k < Super[J + 1]; ++k)
@@ -824,17 +822,15 @@ static double track_rule(sc_spsym *s, selinv_ws *w, int J, const double *Zj)
     double *zt = s->Zt + (size_t)Super[J] * nt;
     while (in_r < m && R[m - 1 - in_r] >= p0) /* R ascends: the tracked pivots in it end it */
         ++in_r;
-    unsigned char *have = w->have;
-    memset(have, 0, (size_t)nt);
-    for (int a = m - in_r; a < m; ++a) {
-        int t = R[a] - p0;
-        have[t] = 1;
-        for (int c = 0; c < nc; ++c)
-            zt[(size_t)c * nt + t] = Zj[(size_t)c * nr + nc + a];
-    }
-    for (int t = 0; t < nt; ++t)
-        if (!have[t])
+    for (int t = 0, a = m - in_r; t < nt; ++t) { /* both ascend: one merge */
+        if (a < m && R[a] - p0 == t) {
+            for (int c = 0; c < nc; ++c)
+                zt[(size_t)c * nt + t] = Zj[(size_t)c * nr + nc + a];
+            ++a;
+        } else {
             w->miss[nmiss++] = t;
+        }
+    }
     if (nmiss == 0)
         return 0;
     for (int b = 0; b < m; ++b) {
