@@ -1,15 +1,16 @@
 /* bench_profile_command — the whole `selfcal profile` pipeline at large N, split into reading the
  * CSV, solving (sc_profile_calibrate: solve and every point's uncertainty) and writing the result,
  * for both methods; and the number conversions alone against glibc in the same run: our parser
- * (selfcal/number.h: fast_float) vs strtod, our shortest formatter (Dragonbox) vs
- * printf("%.17g"), on the file's own numbers: both parsers read the same text in place (the
- * numbers as the file has them, each ended by the comma or line end after it), both formatters
- * write the same doubles. With the path of the `selfcal` program, the command itself is run on the
- * same file too (a process: start, read, solve, write with fsync, exit). Issue 11's targets:
- * numbers read and written >= 5x faster; the whole command at N = 10⁶ (d = 10/11) within 2x its
- * solve. Wall-clock seconds, best of three (the machine is shared). Reading and writing use two
- * threads where there are two cores (docs/profile.md); the floor printed is the CPU seconds of the
- * three steps spread over the cores, what no overlap of them could beat.
+ * (selfcal/number.h: fast_float) vs strtod, our shortest formatter (Dragonbox) vs printf("%.17g"),
+ * on the file's own numbers: both parsers read the same text in place (the numbers as the file has
+ * them, each ended by the comma or line end after it), both formatters write the same doubles
+ * (ours also as the writers call it: a row's three numbers' digits found, then laid out into one
+ * text, which must equal the file's). With the path of the `selfcal` program, the command itself
+ * is run on the same file too (a process: start, read, solve, write with fsync, exit). Issue 11's
+ * targets: numbers read and written >= 5x faster; the whole command at N = 10⁶ (d = 10/11) within
+ * 2x its solve. Wall-clock seconds, best of three (the machine is shared). Reading and writing use
+ * two threads where there are two cores (docs/profile.md); the floor printed is the CPU seconds of
+ * the three steps spread over the cores, what no overlap of them could beat.
  * usage: bench_profile_command [N [SELFCAL]]   (default N = 1000010) */
 #include <math.h>
 #include <spawn.h>
@@ -22,6 +23,7 @@
 #include <unistd.h>
 
 #include "selfcal/number.h"
+#include "../libselfcal/src/common/number_internal.h" /* the writers' row form */
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
 #include "selfcal/rng.h"
@@ -185,7 +187,7 @@ int main(int argc, char **argv)
     }
     *t = '\0';
     const char *txt_end = t;
-    double tf[2] = {1e30, 1e30}, tp[2] = {1e30, 1e30};
+    double tf[2] = {1e30, 1e30}, tp[2] = {1e30, 1e30}, trow = 1e30;
     long bad = 0;
     for (int rep = 0; rep < 3; ++rep) {
         double a = cpu_now();
@@ -210,6 +212,20 @@ int main(int argc, char **argv)
             bad += x != v[k++];
         }
         double g = cpu_now();
+        char *o = fmt; /* as the writers do: a row's three numbers found, then laid out */
+        for (long i = 0; i + 2 < cnt; i += 3) {
+            sc_number_shortest d3[3];
+            for (int j = 0; j < 3; ++j)
+                sc_number_find_shortest(v[i + j], &d3[j]);
+            for (int j = 0; j < 3; ++j) {
+                o = sc_number_put_shortest(o, &d3[j]);
+                *o++ = j == 2 ? '\n' : ',';
+            }
+        }
+        double h = cpu_now();
+        if (o - fmt != txt_end - txt || memcmp(fmt, txt, (size_t)(o - fmt)) != 0)
+            bad++;
+        trow = fmin(trow, h - g);
         tf[0] = fmin(tf[0], b - a), tp[0] = fmin(tp[0], c - b);
         tf[1] = fmin(tf[1], e2 - c), tp[1] = fmin(tp[1], g - e2);
     }
@@ -218,6 +234,8 @@ int main(int argc, char **argv)
            "place; thread CPU time, best of 3):\n", cnt);
     printf("  format: printf(\"%%.17g\") %6.1f   selfcal (Dragonbox)   %6.1f   speed-up %5.1fx\n",
            1e9 * tf[0] / cnt, 1e9 * tf[1] / cnt, tf[0] / tf[1]);
+    printf("          as rows (a row's three numbers found, then laid out, as the writers do): "
+           "%.1f   speed-up %.1fx\n", 1e9 * trow / cnt, tf[0] / trow);
     printf("  parse:  strtod           %6.1f   selfcal (fast_float)  %6.1f   speed-up %5.1fx%s\n",
            1e9 * tp[0] / cnt, 1e9 * tp[1] / cnt, tp[0] / tp[1], bad ? "  VALUES DIFFER" : "");
     printf("(writing the %d-point input file took %.3f s)\n", n, t_write_in);

@@ -335,6 +335,22 @@ static void test_profile_result(void **state)
 
 /* ---- rows written by two threads (row_writer.c) ---- */
 
+/* sc_io_put_long writes what printf("%ld") writes, then the separator, for every sign and length. */
+static void test_put_long(void **st)
+{
+    (void)st;
+    char buf[64], ref[40];
+    long edge[] = {0, -1, 1, LONG_MAX, LONG_MIN, -99999999, 100000000, -100000000000000000L};
+    for (long t = 0; t < 100000; ++t) {
+        long v = t < (long)(sizeof edge / sizeof *edge) ? edge[t]
+                                                         : (long)((unsigned long)t * 0x9E3779B97F4A7C15UL) >> (t % 63);
+        char *end = sc_io_put_long(buf, v, ';');
+        snprintf(ref, sizeof ref, "%ld;", v);
+        assert_int_equal(end - buf, (int)strlen(ref));
+        assert_memory_equal(buf, ref, strlen(ref));
+    }
+}
+
 /* "i,v[i]\n" with v of varying length (1 to 23 characters) */
 static char *numbered_row(const void *ctx, long i, char *p)
 {
@@ -475,6 +491,7 @@ static void test_plate_map(void **state)
 int main(void)
 {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_put_long),
         cmocka_unit_test(test_header_good),
         cmocka_unit_test(test_header_errors),
         cmocka_unit_test(test_stage_map_round_trip),

@@ -392,11 +392,84 @@ static void test_format_15g_vs_printf(void **st)
     }
 }
 
+void sc_number_kernel_shortest(double v, uint64_t *digits, int *exp10); /* number_kernels.cc */
+
+/* An integral value below 2^53 skips the shortest-digit search: its text must be what the search
+ * gives (the integer's digits), printf's "%.0f", and round-trip, near 2^53 and at every length;
+ * 2^53 and above go through the search. */
+static void test_format_integers(void **st)
+{
+    (void)st;
+    sc_rng r;
+    sc_rng_seed(&r, 53);
+    char buf[SC_NUMBER_BUF], ref[64];
+    for (int t = 0; t < 400000; ++t) {
+        double v;
+        int kind = t % 4;
+        if (kind == 0) /* any length up to 2^53 */
+            v = (double)(next_bits(&r) >> (11 + (int)(sc_rng_uniform(&r) * 53)));
+        else if (kind == 1) /* just below and above 2^53 */
+            v = 0x1p53 + (double)((long)(sc_rng_uniform(&r) * 2000) - 1000) * 2;
+        else if (kind == 2) /* round numbers: trailing zeros */
+            v = round(sc_rng_uniform(&r) * 1000) * pow(10, (int)(sc_rng_uniform(&r) * 14));
+        else /* positions on a pitch: i·s */
+            v = (double)(long)(sc_rng_uniform(&r) * 2e6) * (sc_rng_uniform(&r) < 0.5 ? 1.0 : 25.0);
+        if (t % 7 == 0)
+            v = -v;
+        int len = sc_number_format(v, buf);
+        assert_int_equal(len, (int)strlen(buf));
+        double back;
+        assert_int_equal(parse_str(buf, &back), 0);
+        same_bits(back, v);
+        if (v == 0)
+            continue;
+        uint64_t m;
+        int e;
+        sc_number_kernel_shortest(fabs(v), &m, &e);
+        if (fabs(v) < 0x1p53) { /* the search's digits, laid out as the integer printf writes */
+            assert_true(e >= 0);
+            for (int k = 0; k < e; ++k)
+                m *= 10;
+            assert_true((double)m == fabs(v));
+            snprintf(ref, sizeof ref, "%.0f", v);
+            assert_string_equal(buf, ref);
+        }
+    }
+}
+
+/* sc_number_put_u64 and its scratch bytes: the digits printf writes, nothing past p + 17. */
+static void test_put_u64(void **st)
+{
+    (void)st;
+    char buf[64], ref[32];
+    uint64_t edge[] = {0, 1, 9, 10, 99999999, 100000000, 9999999999999999ULL,
+                       10000000000000000ULL, 99999999999999999ULL, 100000000000000000ULL,
+                       UINT64_MAX};
+    sc_rng r;
+    sc_rng_seed(&r, 64);
+    for (int t = 0; t < 200000; ++t) {
+        uint64_t u = t < (int)(sizeof edge / sizeof *edge)
+                         ? edge[t]
+                         : next_bits(&r) >> (int)(sc_rng_uniform(&r) * 64);
+        memset(buf, 'x', sizeof buf);
+        char *end = sc_number_put_u64(buf + 8, u);
+        snprintf(ref, sizeof ref, "%llu", (unsigned long long)u);
+        assert_int_equal(end - (buf + 8), (int)strlen(ref));
+        assert_memory_equal(buf + 8, ref, strlen(ref));
+        for (int k = 0; k < 8; ++k)
+            assert_int_equal(buf[k], 'x');
+        for (int k = 8 + 18 > (int)(end - buf) ? 8 + 18 : (int)(end - buf); k < 64; ++k)
+            assert_int_equal(buf[k], 'x');
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_format_round_trip),
         cmocka_unit_test(test_format_special),
+        cmocka_unit_test(test_format_integers),
+        cmocka_unit_test(test_put_u64),
         cmocka_unit_test(test_format_15g_vs_printf),
         cmocka_unit_test(test_parse_vs_strtod),
         cmocka_unit_test(test_parse_grammar),

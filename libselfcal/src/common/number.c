@@ -3,6 +3,7 @@
  * kernel) are fast_float's and Dragonbox's (number_kernels.cc), because glibc's strtod/printf took
  * most of a large command's time (docs/profile.md: reading and writing 10⁶ points). */
 #include "selfcal/number.h"
+#include "number_internal.h"
 
 #include <float.h>
 #include <math.h>
@@ -54,9 +55,8 @@ static const uint64_t pow10_u64[19] = {1,
                                        100000000000000000,
                                        1000000000000000000};
 
-/* The decimal digits of m (0 < m < 10^17), written as 17 characters with leading zeros at t;
- * returns how many of them are m's own digits (the last ones). */
-static inline int digits17(uint64_t m, char t[17])
+/* The decimal digits of m (0 < m < 10^17), written as 17 characters with leading zeros at t. */
+static inline void digits17(uint64_t m, char t[17])
 {
     uint64_t hi = m / 100000000, lo = m % 100000000;
     uint64_t wh = digits8((uint32_t)(hi % 100000000)), wl = digits8((uint32_t)lo);
@@ -64,11 +64,59 @@ static inline int digits17(uint64_t m, char t[17])
     uint64_t ah = wh + 0x3030303030303030ULL, al = wl + 0x3030303030303030ULL;
     memcpy(t + 1, &ah, 8);
     memcpy(t + 9, &al, 8);
-    if (m >= 10000000000000000ULL)
-        return 17;
-    if (wh) /* the first nonzero byte is the first digit */
-        return 16 - __builtin_ctzll(wh) / 8;
-    return 8 - __builtin_ctzll(wl) / 8;
+}
+
+/* The number of decimal digits of m (1 <= m < 10^18). */
+static inline int count_digits(uint64_t m)
+{
+    int t = (64 - __builtin_clzll(m)) * 1233 >> 12; /* floor(log10(2^bits)) */
+    return t + (m >= pow10_u64[t]);
+}
+
+/* Store the last k digits of m (1 <= k <= 17, m < 10^17) at q, leading zeros included, by 8-byte
+ * stores from registers: the second store overwrites the first one's spare bytes, and nothing is
+ * read back (a load of bytes just written by several stores waits for them to reach the cache).
+ * Writes up to q + 17. */
+static inline void put_digits(char *q, uint64_t m, int k)
+{
+    const uint64_t zeros = 0x3030303030303030ULL;
+    if (k <= 8) {
+        uint64_t w = (digits8((uint32_t)(m % 100000000)) + zeros) >> (8 * (8 - k));
+        memcpy(q, &w, 8);
+        return;
+    }
+    uint64_t hi = m / 100000000, lo = digits8((uint32_t)(m % 100000000)) + zeros;
+    if (k <= 16) {
+        uint64_t w = (digits8((uint32_t)hi) + zeros) >> (8 * (16 - k));
+        memcpy(q, &w, 8);
+        memcpy(q + k - 8, &lo, 8);
+        return;
+    }
+    uint64_t mid = digits8((uint32_t)(hi % 100000000)) + zeros;
+    q[0] = (char)('0' + hi / 100000000 % 10);
+    memcpy(q + 1, &mid, 8);
+    memcpy(q + 9, &lo, 8);
+}
+
+char *sc_number_put_u64(char *p, uint64_t u)
+{
+    if (u == 0) {
+        *p = '0';
+        return p + 1;
+    }
+    if (u < 100000000000000000ULL) {
+        int k = count_digits(u);
+        put_digits(p, u, k);
+        return p + k;
+    }
+    char tmp[24];
+    int k = 0;
+    do
+        tmp[k++] = (char)('0' + u % 10);
+    while ((u /= 10) > 0);
+    while (k > 0)
+        *p++ = tmp[--k];
+    return p;
 }
 
 /* The rare cases: NaN, infinities, zeros. */
@@ -81,20 +129,22 @@ static int format_special(double v, char *buf)
     return (int)(p - buf) + (v == 0 ? 1 : 3);
 }
 
-/* Lay out m·10^e (m > 0 without trailing zeros, at most 17 digits) as printf's "%.<prec>g" does:
- * fixed for decimal exponents -4 .. prec - 1, else d.ddde±XX. The layout copies fixed-size runs
- * (compiled to plain moves, where a copy of k bytes is a call) and then moves the end to where the
- * text ends: p has room up to SC_NUMBER_BUF bytes from the buffer's start for that. */
+/* Lay out m·10^e (m > 0 with at most 17 digits, without trailing zeros unless e = 0 and m·10^e
+ * has at most prec digits) as printf's "%.<prec>g" does: fixed for decimal exponents
+ * -4 .. prec - 1, else d.ddde±XX. Integers and 0.000ddd are stored from registers (put_digits);
+ * the point inside the digits copies fixed-size runs from a small array (compiled to plain moves,
+ * where a copy of k bytes is a call; laying those out from registers too measured slower). The
+ * runs write past the text's end: p has room up to SC_NUMBER_BUF bytes from the buffer's start. */
 static char *layout(char *p, uint64_t m, int e, int prec)
 {
     char tmp[40]; /* 17 digits, then slack for the fixed copies */
-    int k = digits17(m, tmp);
+    int k = count_digits(m);
     int x = k - 1 + e; /* decimal exponent of the first digit */
     if (e >= 0 && x < prec) { /* an integer: m·10^e has x + 1 <= prec digits */
-        k = digits17(m * pow10_u64[e], tmp);
-        memcpy(p, tmp + 17 - k, 17);
-        p += k;
+        put_digits(p, m * pow10_u64[e], x + 1);
+        p += x + 1;
     } else if (x >= 0 && x < prec) { /* d.ddd: x + 1 digits, the point, the rest */
+        digits17(m, tmp);
         const char *dig = tmp + 17 - k;
         memcpy(p, dig, 16);
         p[x + 1] = '.';
@@ -103,9 +153,10 @@ static char *layout(char *p, uint64_t m, int e, int prec)
     } else if (x < 0 && x >= -4) { /* 0.000ddd */
         memcpy(p, "0.000000", 8);
         p += 1 - x;
-        memcpy(p, tmp + 17 - k, 17);
+        put_digits(p, m, k);
         p += k;
     } else { /* d.ddde±XX */
+        digits17(m, tmp);
         const char *dig = tmp + 17 - k;
         p[0] = dig[0];
         p[1] = '.';
@@ -123,17 +174,38 @@ static char *layout(char *p, uint64_t m, int e, int prec)
     return p;
 }
 
+void sc_number_find_shortest(double v, sc_number_shortest *d)
+{
+    double a = fabs(v);
+    d->v = v;
+    d->m = 0; /* 0, NaN and the infinities: format_special */
+    d->e = 0;
+    if (!(a > 0) || !isfinite(a))
+        return;
+    /* An integer below 2^53 is its own shortest text: the doubles there are at most 1 apart, so
+     * only numbers within 1/2 of a read back as a, and a decimal with no more significant digits
+     * than a's integer part is an integer. Indices and positions on a whole-millimetre pitch are
+     * such numbers, and this skips the shortest-digit search for them. */
+    if (a < 0x1p53 && a == (double)(uint64_t)a)
+        d->m = (uint64_t)a;
+    else
+        sc_number_kernel_shortest(a, &d->m, &d->e);
+}
+
+char *sc_number_put_shortest(char *p, const sc_number_shortest *d)
+{
+    if (d->m == 0)
+        return p + format_special(d->v, p);
+    *p = '-';
+    p += signbit(d->v) != 0;
+    return layout(p, d->m, d->e, 17);
+}
+
 int sc_number_format(double v, char *buf)
 {
-    if (!(fabs(v) > 0) || !isfinite(v))
-        return format_special(v, buf);
-    char *p = buf;
-    *p = '-';
-    p += signbit(v) != 0;
-    uint64_t m;
-    int e;
-    sc_number_kernel_shortest(fabs(v), &m, &e);
-    return (int)(layout(p, m, e, 17) - buf);
+    sc_number_shortest d;
+    sc_number_find_shortest(v, &d);
+    return (int)(sc_number_put_shortest(buf, &d) - buf);
 }
 
 /* 10^s for s = 0..38, exact in 128 bits. */

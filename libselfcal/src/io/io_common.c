@@ -8,6 +8,7 @@
 #include <stdlib.h>
 
 #include "../common/line_fit.h"
+#include "../common/number_internal.h"
 #include "io_internal.h"
 #include "selfcal/number.h"
 
@@ -137,6 +138,14 @@ char *sc_io_put_number(char *p, double v, char sep)
     return p;
 }
 
+char *sc_io_put_shortest(char *p, const sc_number_shortest *d, char sep)
+{
+    p = sc_number_put_shortest(p, d);
+    if (sep)
+        *p++ = sep;
+    return p;
+}
+
 char *sc_io_put_15g(char *p, double v, char sep)
 {
     p += sc_number_format_15g(v, p);
@@ -156,16 +165,9 @@ char *sc_io_put_15g_opt(char *p, const double *a, size_t k, char sep)
 
 char *sc_io_put_long(char *p, long v, char sep)
 {
-    char tmp[24];
-    int k = 0;
     unsigned long u = v < 0 ? 0UL - (unsigned long)v : (unsigned long)v;
-    do
-        tmp[k++] = (char)('0' + u % 10);
-    while ((u /= 10) > 0);
-    if (v < 0)
-        *p++ = '-';
-    while (k > 0)
-        *p++ = tmp[--k];
+    *p = '-';
+    p = sc_number_put_u64(p + (v < 0), u);
     *p++ = sep;
     return p;
 }

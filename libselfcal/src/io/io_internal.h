@@ -4,6 +4,7 @@
 
 #include <stddef.h>
 
+#include "../common/number_internal.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 
@@ -42,6 +43,10 @@ sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
  * end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
 char *sc_io_put_number(char *p, double v, char sep);
 
+/* As sc_io_put_number, for digits found before (sc_number_find_shortest): a row's numbers are
+ * all found first, then laid out (number_internal.h says why). */
+char *sc_io_put_shortest(char *p, const sc_number_shortest *d, char sep);
+
 /* Append v as printf's "%.15g" writes it (sc_number_format_15g), then sep unless it is 0;
  * returns the end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
 char *sc_io_put_15g(char *p, double v, char sep);
@@ -50,7 +55,8 @@ char *sc_io_put_15g(char *p, double v, char sep);
  * optional columns of the map and residual files. */
 char *sc_io_put_15g_opt(char *p, const double *a, size_t k, char sep);
 
-/* Append a whole number in decimal, then sep; returns the end. */
+/* Append a whole number in decimal, then sep; returns the end. Like the number writers above, it
+ * may write scratch bytes past the end (up to 18 bytes from p): keep SC_NUMBER_BUF of room. */
 char *sc_io_put_long(char *p, long v, char sep);
 
 /* Rows of text gathered in a block and written to an atomic file in big chunks (one fwrite per

@@ -564,11 +564,15 @@ static char *measurement_row(const void *ctx, long i, char *p)
     const sc_profile_data *d = ctx;
     int k = i >= d->n - d->d[0];
     long j = k ? i - (d->n - d->d[0]) : i;
+    sc_number_shortest m[3]; /* the three numbers' digits first, then the text */
+    sc_number_find_shortest(d->m1_um[k][j], &m[0]);
+    sc_number_find_shortest(d->m2_um[k][j], &m[1]);
+    sc_number_find_shortest(d->m3_urad[k][j], &m[2]);
     p = sc_io_put_long(p, k + 1, ',');
     p = sc_io_put_long(p, j, ',');
-    p = sc_io_put_number(p, d->m1_um[k][j], ',');
-    p = sc_io_put_number(p, d->m2_um[k][j], ',');
-    return sc_io_put_number(p, d->m3_urad[k][j], '\n');
+    p = sc_io_put_shortest(p, &m[0], ',');
+    p = sc_io_put_shortest(p, &m[1], ',');
+    return sc_io_put_shortest(p, &m[2], '\n');
 }
 
 sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)

@@ -23,14 +23,20 @@ typedef struct result_rows {
 static char *result_row(const void *ctx, long i, char *p)
 {
     const result_rows *t = ctx;
+    int has_uf = t->uf_um != NULL, has_ey = t->ey_um && i < t->n_ey;
+    sc_number_shortest d[4]; /* every number's digits first, then the text */
+    sc_number_find_shortest((double)i * t->s_mm, &d[0]);
+    sc_number_find_shortest(t->f_um[i], &d[1]);
+    sc_number_find_shortest(has_uf ? t->uf_um[i] : 0.0, &d[2]);
+    sc_number_find_shortest(has_ey ? t->ey_um[i] : 0.0, &d[3]);
     p = sc_io_put_long(p, i, ',');
-    p = sc_io_put_number(p, (double)i * t->s_mm, ',');
-    p = sc_io_put_number(p, t->f_um[i], ',');
-    if (t->uf_um)
-        p = sc_io_put_number(p, t->uf_um[i], 0);
+    p = sc_io_put_shortest(p, &d[0], ',');
+    p = sc_io_put_shortest(p, &d[1], ',');
+    if (has_uf)
+        p = sc_io_put_shortest(p, &d[2], 0);
     *p++ = ',';
-    if (t->ey_um && i < t->n_ey)
-        p = sc_io_put_number(p, t->ey_um[i], 0);
+    if (has_ey)
+        p = sc_io_put_shortest(p, &d[3], 0);
     *p++ = '\n';
     return p;
 }
