@@ -10,12 +10,14 @@
 
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "selfcal/profile.h"
+#include "selfcal/profile_calibrate.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 #include "selfcal/profile_sim.h"
@@ -338,6 +340,92 @@ static void test_residual_noise_estimate(void **state)
     free(f), free(ey), free(fe), free(y1), free(y2);
 }
 
+/* ---- the calibration in two steps (plan from the header, run on the data) ------------------- */
+
+/* sc_profile_calibrate(d, o) and create(header of d, o) + run (twice): the same values, bit for bit. */
+static void same_calibration(const sc_profile_data *d, const sc_profile_options *o)
+{
+    int n = d->n;
+    size_t bytes = (size_t)n * sizeof(double);
+    double *a = malloc(3 * bytes), *b = malloc(3 * bytes);
+    sc_profile_solution sa = {.f_um = a, .uf_um = a + n, .ey_um = a + 2 * n};
+    sc_error err;
+    assert_int_equal(sc_profile_calibrate(d, o, &sa, &err), SC_OK);
+    sc_profile_data hdr = *d; /* the header's fields only: the plan may not read the arrays */
+    for (int k = 0; k < 2; ++k)
+        hdr.m1_um[k] = hdr.m2_um[k] = hdr.m3_urad[k] = NULL;
+    sc_profile_calibration *c;
+    assert_int_equal(sc_profile_calibration_create(&hdr, o, &c, &err), SC_OK);
+    for (int run = 0; run < 2; ++run) {
+        memset(b, 0x5a, 3 * bytes);
+        sc_profile_solution sb = {.f_um = b, .uf_um = b + n, .ey_um = b + 2 * n};
+        assert_int_equal(sc_profile_calibration_run(c, d, &sb, &err), SC_OK);
+        assert_memory_equal(a, b, 3 * bytes);
+        assert_int_equal(sa.have_uf, sb.have_uf);
+        assert_int_equal(sa.noise_known, sb.noise_known);
+        assert_int_equal(sa.dof, sb.dof);
+        double x[] = {sa.sigma_disp_um, sa.sigma_angle_urad, sa.sigma_y_um[0], sa.sigma_y_um[1],
+                      sa.wrss, sa.residual_ratio};
+        double y[] = {sb.sigma_disp_um, sb.sigma_angle_urad, sb.sigma_y_um[0], sb.sigma_y_um[1],
+                      sb.wrss, sb.residual_ratio};
+        assert_memory_equal(x, y, sizeof x);
+    }
+    sc_profile_calibration_destroy(c);
+    free(a), free(b);
+}
+
+static void test_calibration_plan_and_run(void **state)
+{
+    (void)state;
+    const int n = 1100;
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double));
+    random_profile(n, 11, f);
+    sc_profile_data d;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &d, ey, &err), SC_OK);
+    for (int m = 0; m < 2; ++m)
+        for (int noise = 0; noise < 4; ++noise) {
+            sc_profile_options o;
+            sc_profile_options_default(&o);
+            o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+            d.has_sigma_disp = d.has_sigma_angle = noise == 0; /* 0: the header's noise */
+            if (noise == 2) /* the options' noise */
+                o.sigma_disp_um = 0.02, o.sigma_angle_urad = 0.5;
+            if (noise == 3) /* Monte Carlo */
+                o.mc_trials = 20, o.mc_seed = 9;
+            o.residual_check = m == 0;
+            same_calibration(&d, &o);
+        }
+    /* data of another header: refused, nothing written */
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    sc_profile_calibration *c;
+    assert_int_equal(sc_profile_calibration_create(&d, &o, &c, &err), SC_OK);
+    sc_profile_data other = d;
+    other.n = n - 1;
+    double *out = malloc(3 * n * sizeof(double));
+    sc_profile_solution s = {.f_um = out, .uf_um = out + n, .ey_um = out + 2 * n};
+    assert_int_equal(sc_profile_calibration_run(c, &other, &s, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "not those the calibration was made for"));
+    sc_profile_calibration_destroy(c);
+    /* a plan the method cannot make: create's error is calibrate's, and *out NULL */
+    other.n = 1101; /* not a multiple of d1·d2 = 110 for the DFT */
+    o.method = SC_PROFILE_DFT;
+    sc_error e1, e2;
+    sc_status s1 = sc_profile_calibrate(&other, &o, &s, &e1);
+    c = (sc_profile_calibration *)&o; /* must be set to NULL */
+    sc_status s2 = sc_profile_calibration_create(&other, &o, &c, &e2);
+    assert_int_equal(s1, SC_E_INPUT);
+    assert_int_equal(s2, s1);
+    assert_null(c);
+    assert_string_equal(e1.msg, e2.msg);
+    sc_profile_data_free(&d);
+    free(f), free(ey), free(out);
+}
+
 /* ---- the reader ------------------------------------------------------------------------------ */
 
 typedef struct text {
@@ -571,6 +659,141 @@ static void test_reader_good_and_bad(void **state)
 
 /* The fast pass on two threads (profile_file.c): what it reads is what one thread reads, on files
  * that split anywhere; whatever is wrong sends it to the exact pass and its messages. */
+/* The header hook: called once with the header's fields and no arrays, before the rows; the data
+ * and the errors as sc_profile_read's; never for a wrong header; once when the fast pass fails
+ * and the exact pass reads the file again. */
+typedef struct hook_seen {
+    int calls;
+    sc_profile_data hdr;
+} hook_seen;
+
+static void record_header(void *ctx, const sc_profile_data *hdr)
+{
+    hook_seen *h = ctx;
+    h->calls++;
+    h->hdr = *hdr;
+}
+
+static void test_read_hooked(void **state)
+{
+    (void)state;
+    text t;
+    text_good(&t, 300, 10, 11);
+    text_set(&t, 3, "# s_mm = 0.25");
+    memmove(&t.line[4], &t.line[3], (size_t)(t.nlines - 3) * sizeof(char *));
+    t.nlines++;
+    t.line[3] = strdup("# sigma_disp_um = 0.03"); /* line 4: the rows start at line 8 */
+    sc_profile_data a, b;
+    sc_error ea, eb;
+    hook_seen h = {0};
+    assert_int_equal(sc_profile_read_hooked(text_write(&t), record_header, &h, &a, &ea), SC_OK);
+    assert_int_equal(sc_profile_read(text_write(&t), &b, &eb), SC_OK);
+    assert_int_equal(h.calls, 1);
+    assert_same_data(&a, &b);
+    assert_int_equal(h.hdr.n, 300);
+    assert_int_equal(h.hdr.d[0], 10);
+    assert_int_equal(h.hdr.d[1], 11);
+    assert_true(h.hdr.s_mm == 0.25);
+    assert_true(h.hdr.has_sigma_disp && h.hdr.sigma_disp_um == 0.03 && !h.hdr.has_sigma_angle);
+    assert_int_equal(h.hdr.line_n, a.line_n);
+    assert_string_equal(h.hdr.path, a.path);
+    for (int k = 0; k < 2; ++k)
+        assert_true(!h.hdr.m1_um[k] && !h.hdr.m2_um[k] && !h.hdr.m3_urad[k]);
+    sc_profile_data_free(&a);
+    sc_profile_data_free(&b);
+    /* a bad row: the same error, the hook heard once over both passes */
+    text_set(&t, 200, "1,190,0.5,x,0.5");
+    h.calls = 0;
+    sc_error_clear(&ea);
+    sc_error_clear(&eb);
+    assert_int_equal(sc_profile_read_hooked(text_write(&t), record_header, &h, &a, &ea),
+                     SC_E_INPUT);
+    assert_int_equal(sc_profile_read(text_write(&t), &b, &eb), SC_E_INPUT);
+    assert_int_equal(h.calls, 1);
+    assert_int_equal(ea.line, 200);
+    assert_int_equal(ea.line, eb.line);
+    assert_string_equal(ea.msg, eb.msg);
+    /* a wrong header: never heard */
+    text_set(&t, 2, "# N = 3.5");
+    h.calls = 0;
+    assert_int_equal(sc_profile_read_hooked(text_write(&t), record_header, &h, &a, &ea),
+                     SC_E_INPUT);
+    assert_int_equal(h.calls, 0);
+    /* NULL hook: a plain read */
+    text_free(&t);
+    text_good(&t, 300, 10, 11);
+    assert_int_equal(sc_profile_read_hooked(text_write(&t), NULL, NULL, &a, &ea), SC_OK);
+    sc_profile_data_free(&a);
+    text_free(&t);
+}
+
+/* As `selfcal profile` does: the plan made on a thread started by the header hook while two
+ * threads read the rows (a file above the two-thread threshold), then run: the values of
+ * sc_profile_calibrate on the data read plainly (TSan runs this test: label threads). */
+typedef struct plan_job {
+    sc_profile_data hdr;
+    sc_profile_options o;
+    sc_profile_calibration *c;
+    sc_status st;
+    sc_error err;
+    pthread_t thread;
+    int started;
+} plan_job;
+
+static void *plan_thread(void *arg)
+{
+    plan_job *j = arg;
+    j->st = sc_profile_calibration_create(&j->hdr, &j->o, &j->c, &j->err);
+    return NULL;
+}
+
+static void start_plan(void *ctx, const sc_profile_data *hdr)
+{
+    plan_job *j = ctx;
+    j->hdr = *hdr;
+    j->started = pthread_create(&j->thread, NULL, plan_thread, j) == 0;
+}
+
+static void test_plan_while_reading(void **state)
+{
+    (void)state;
+    const int n = 66000; /* about 4.4 MB of rows */
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double));
+    random_profile(n, 12, f);
+    sc_profile_data d, r;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &d, ey, &err), SC_OK);
+    const char *path = TMP "/profile_plan_while_reading.csv";
+    assert_int_equal(sc_profile_write(path, &d, &err), SC_OK);
+    sc_profile_data_free(&d);
+    assert_int_equal(sc_profile_read(path, &d, &err), SC_OK);
+    for (int m = 0; m < 2; ++m) {
+        plan_job j = {.st = SC_E_INTERNAL};
+        sc_profile_options_default(&j.o);
+        j.o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+        assert_int_equal(sc_profile_read_hooked(path, start_plan, &j, &r, &err), SC_OK);
+        assert_true(j.started);
+        pthread_join(j.thread, NULL);
+        assert_int_equal(j.st, SC_OK);
+        assert_same_data(&d, &r);
+        double *a = malloc(3 * (size_t)n * sizeof(double)), *b = malloc(3 * (size_t)n * sizeof(double));
+        sc_profile_solution sa = {.f_um = a, .uf_um = a + n, .ey_um = a + 2 * n};
+        sc_profile_solution sb = {.f_um = b, .uf_um = b + n, .ey_um = b + 2 * n};
+        assert_int_equal(sc_profile_calibrate(&d, &j.o, &sa, &err), SC_OK);
+        assert_int_equal(sc_profile_calibration_run(j.c, &r, &sb, &err), SC_OK);
+        assert_memory_equal(a, b, 3 * (size_t)n * sizeof(double));
+        sc_profile_calibration_destroy(j.c);
+        sc_profile_data_free(&r);
+        free(a), free(b);
+    }
+    sc_profile_data_free(&d);
+    remove(path);
+    free(f), free(ey);
+}
+
 static void test_reader_two_threads(void **state)
 {
     (void)state;
@@ -750,6 +973,9 @@ int main(void)
         cmocka_unit_test(test_dft_uncertainty_exact),
         cmocka_unit_test(test_paper_setup_mc),
         cmocka_unit_test(test_residual_noise_estimate),
+        cmocka_unit_test(test_calibration_plan_and_run),
+        cmocka_unit_test(test_read_hooked),
+        cmocka_unit_test(test_plan_while_reading),
         cmocka_unit_test(test_reader_good_and_bad),
         cmocka_unit_test(test_reader_two_threads),
         cmocka_unit_test(test_write_read_roundtrip),

@@ -61,6 +61,26 @@ SC_API void sc_profile_options_default(sc_profile_options *o);
 SC_API sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
                                       sc_profile_solution *s, sc_error *err);
 
+/* sc_profile_calibrate in two steps, plan and run (as FFTW's plan and execute), so that the first
+ * can work while the rows are still being read (sc_profile_read_hooked). */
+typedef struct sc_profile_calibration sc_profile_calibration;
+
+/* The part of the calibration that needs only hdr's header fields (n, s_mm, d, the noise; its
+ * arrays are not read): the noise and weights, the method's plan and, for least squares, the
+ * banded factor with every point's unit uncertainty started on a second core. o is copied. Errors
+ * as sc_profile_calibrate's; *out NULL on failure. */
+SC_API sc_status sc_profile_calibration_create(const sc_profile_data *hdr,
+                                               const sc_profile_options *o,
+                                               sc_profile_calibration **out, sc_error *err);
+
+/* Calibrate d into s with c: the same values as sc_profile_calibrate(d, o, s). d must have the
+ * N, s_mm and spacings c was made for (SC_E_INPUT otherwise). c may run again. */
+SC_API sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile_data *d,
+                                            sc_profile_solution *s, sc_error *err);
+
+/* Free c and its plan (NULL: nothing). */
+SC_API void sc_profile_calibration_destroy(sc_profile_calibration *c);
+
 #ifdef __cplusplus
 }
 #endif

@@ -44,6 +44,17 @@ SC_API void sc_profile_data_free(sc_profile_data *d);
  * Method-specific conditions are checked by sc_profile_check_method. */
 SC_API sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err);
 
+/* Called by sc_profile_read_hooked once the header has been read, before the rows: hdr holds the
+ * header's fields (n, s_mm, d, the noise, path and lines) and no arrays. */
+typedef void (*sc_profile_header_fn)(void *ctx, const sc_profile_data *hdr);
+
+/* sc_profile_read, calling on_header(ctx, hdr) once when the header has been read and found valid
+ * (once whatever passes the reader makes over the file; never for a file whose header is wrong),
+ * so that work depending on the header alone (sc_profile_calibration_create) can overlap the
+ * reading of the rows. The rows may still be found wrong after it was called. */
+SC_API sc_status sc_profile_read_hooked(const char *path, sc_profile_header_fn on_header,
+                                        void *ctx, sc_profile_data *out, sc_error *err);
+
 /* Write d as a `selfcal-profile v1` file atomically (each number with the fewest digits that read
  * back exactly, selfcal/number.h; the sigma lines only when known). */
 SC_API sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err);

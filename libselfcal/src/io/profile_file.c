@@ -493,9 +493,29 @@ static sc_status read_rows_fast(profile_reader *pr, long long parallel_from, int
     return st;
 }
 
+/* The header's fields of pr into d (d's arrays untouched). */
+static void header_fields(const profile_reader *pr, sc_profile_data *d)
+{
+    d->has_sigma_disp = sc_header_line_of(&pr->hdr, "sigma_disp_um") != 0;
+    d->has_sigma_angle = sc_header_line_of(&pr->hdr, "sigma_angle_urad") != 0;
+    d->sigma_disp_um = pr->v.sigma_disp_um;
+    d->sigma_angle_urad = pr->v.sigma_angle_urad;
+    d->line_n = sc_header_line_of(&pr->hdr, "N");
+    d->line_scan[0] = pr->line_scan[0];
+    d->line_scan[1] = pr->line_scan[1];
+    snprintf(d->path, sizeof d->path, "%s", pr->csv.path);
+}
+
+/* Who hears of the header, and whether it has (sc_profile_read_hooked). */
+typedef struct header_hook {
+    sc_profile_header_fn fn;
+    void *ctx;
+    int called;
+} header_hook;
+
 /* One pass over the file (exact or fast, as above). */
 static sc_status read_pass(const char *path, int exact, long long parallel_from, int *threads,
-                           sc_profile_data *out, sc_error *err)
+                           header_hook *hook, sc_profile_data *out, sc_error *err)
 {
     profile_reader pr;
     memset(&pr, 0, sizeof pr);
@@ -506,25 +526,26 @@ static sc_status read_pass(const char *path, int exact, long long parallel_from,
     if (st != SC_OK)
         return st;
     if ((st = read_magic(&pr, err)) == SC_OK && (st = read_header(&pr, err)) == SC_OK &&
-        (st = start_data(&pr, err)) == SC_OK)
+        (st = start_data(&pr, err)) == SC_OK) {
+        if (hook && hook->fn && !hook->called) {
+            sc_profile_data hdr = pr.data;
+            for (int k = 0; k < 2; ++k)
+                hdr.m1_um[k] = hdr.m2_um[k] = hdr.m3_urad[k] = NULL;
+            header_fields(&pr, &hdr);
+            hook->called = 1;
+            hook->fn(hook->ctx, &hdr);
+        }
         st = exact ? read_rows(&pr, err) : read_rows_fast(&pr, parallel_from, threads, err);
+    }
     free_row_marks(&pr);
     if (st != SC_OK) {
         sc_profile_data_free(&pr.data);
         sc_csv_close(&pr.csv);
         return st;
     }
-    sc_profile_data *d = &pr.data;
-    d->has_sigma_disp = sc_header_line_of(&pr.hdr, "sigma_disp_um") != 0;
-    d->has_sigma_angle = sc_header_line_of(&pr.hdr, "sigma_angle_urad") != 0;
-    d->sigma_disp_um = pr.v.sigma_disp_um;
-    d->sigma_angle_urad = pr.v.sigma_angle_urad;
-    d->line_n = sc_header_line_of(&pr.hdr, "N");
-    d->line_scan[0] = pr.line_scan[0];
-    d->line_scan[1] = pr.line_scan[1];
-    snprintf(d->path, sizeof d->path, "%s", pr.csv.path);
+    header_fields(&pr, &pr.data);
     sc_csv_close(&pr.csv);
-    *out = *d;
+    *out = pr.data;
     return SC_OK;
 }
 
@@ -535,25 +556,39 @@ static int is_regular_file(const char *path)
     return strcmp(path, "-") != 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode);
 }
 
-sc_status sc_profile_read_tuned(const char *path, long long parallel_from, int *threads,
-                                sc_profile_data *out, sc_error *err)
+/* sc_profile_read_tuned with the header hook. */
+static sc_status read_file(const char *path, long long parallel_from, int *threads,
+                           header_hook *hook, sc_profile_data *out, sc_error *err)
 {
     int used = 1;
     memset(out, 0, sizeof *out);
     sc_status st = SC_E_INPUT;
     int fast = is_regular_file(path);
     if (fast)
-        st = read_pass(path, 0, parallel_from, &used, out, err);
+        st = read_pass(path, 0, parallel_from, &used, hook, out, err);
     if (!fast || (st != SC_OK && st != SC_E_NOMEM)) /* out of memory stays out of memory */
-        used = 1, st = read_pass(path, 1, 0, &used, out, err);
+        used = 1, st = read_pass(path, 1, 0, &used, hook, out, err);
     if (threads)
         *threads = st == SC_OK ? used : 0;
     return st;
 }
 
+sc_status sc_profile_read_tuned(const char *path, long long parallel_from, int *threads,
+                                sc_profile_data *out, sc_error *err)
+{
+    return read_file(path, parallel_from, threads, NULL, out, err);
+}
+
 sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err)
 {
-    return sc_profile_read_tuned(path, SC_PROFILE_PARALLEL_FROM, NULL, out, err);
+    return read_file(path, SC_PROFILE_PARALLEL_FROM, NULL, NULL, out, err);
+}
+
+sc_status sc_profile_read_hooked(const char *path, sc_profile_header_fn on_header, void *ctx,
+                                 sc_profile_data *out, sc_error *err)
+{
+    header_hook hook = {on_header, ctx, 0};
+    return read_file(path, SC_PROFILE_PARALLEL_FROM, NULL, &hook, out, err);
 }
 
 /* ---- writer ---- */

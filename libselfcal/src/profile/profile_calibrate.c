@@ -106,19 +106,75 @@ static sc_status residuals(const sc_profile_data *d, solver_ctx *ctx, const doub
     return SC_OK;
 }
 
-sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
-                               sc_profile_solution *s, sc_error *err)
+/* What sc_profile_calibration_create decides from the header alone. */
+struct sc_profile_calibration {
+    sc_profile_options o;
+    int n, d1, d2;
+    double s_mm;
+    int noise_known, zero_noise;
+    double sigma_disp_um, sigma_angle_urad, var[2], w[2];
+    solver_ctx ctx;
+};
+
+sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_profile_options *o,
+                                        sc_profile_calibration **out, sc_error *err)
 {
-    sc_status st = sc_profile_check_method(d, o->method, err);
+    *out = NULL;
+    sc_status st = sc_profile_check_method(hdr, o->method, err);
     if (st != SC_OK)
         return st;
+    sc_profile_calibration *c = calloc(1, sizeof *c);
+    if (!c)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    c->o = *o;
+    c->n = hdr->n, c->d1 = hdr->d[0], c->d2 = hdr->d[1], c->s_mm = hdr->s_mm;
+    sc_profile_solution noise;
+    choose_noise(hdr, o, &noise, c->var);
+    c->noise_known = noise.noise_known;
+    c->sigma_disp_um = noise.sigma_disp_um;
+    c->sigma_angle_urad = noise.sigma_angle_urad;
+    c->zero_noise = c->noise_known && !(c->var[0] > 0 && c->var[1] > 0);
+    if (c->zero_noise)
+        c->var[0] = c->var[1] = 1; /* the weights are then arbitrary; uncertainties 0 */
+    c->w[0] = 1.0 / c->var[0];
+    c->w[1] = 1.0 / c->var[1];
+    c->ctx.method = o->method;
+    if (o->method == SC_PROFILE_DFT)
+        st = sc_profile_dft_plan_create(c->n, c->d1, c->d2, c->w[0], c->w[1], &c->ctx.dft, err);
+    else /* every point's uncertainty follows: start the selected inversion on a second core */
+        st = sc_profile_lsq_plan_create_tuned(c->n, c->d1, c->d2, c->w[0], c->w[1],
+                                              SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &c->ctx.lsq, err);
+    if (st != SC_OK) {
+        sc_profile_calibration_destroy(c);
+        return st;
+    }
+    *out = c;
+    return SC_OK;
+}
+
+void sc_profile_calibration_destroy(sc_profile_calibration *c)
+{
+    if (!c)
+        return;
+    sc_profile_dft_plan_destroy(c->ctx.dft);
+    sc_profile_lsq_plan_destroy(c->ctx.lsq);
+    free(c);
+}
+
+sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile_data *d,
+                                     sc_profile_solution *s, sc_error *err)
+{
+    const sc_profile_options *o = &c->o;
     const int n = d->n, d1 = d->d[0], d2 = d->d[1];
-    double var[2];
-    choose_noise(d, o, s, var);
-    int zero_noise = s->noise_known && !(var[0] > 0 && var[1] > 0);
-    if (zero_noise)
-        var[0] = var[1] = 1; /* the weights are then arbitrary; uncertainties 0 */
-    const double w[2] = {1.0 / var[0], 1.0 / var[1]};
+    if (n != c->n || d1 != c->d1 || d2 != c->d2 || d->s_mm != c->s_mm)
+        return sc_error_set(err, SC_E_INPUT, d->path[0] ? d->path : NULL, 0,
+                            "the data (N = %d, d = %d/%d, s_mm = %g) are not those the "
+                            "calibration was made for (N = %d, d = %d/%d, s_mm = %g)",
+                            n, d1, d2, d->s_mm, c->n, c->d1, c->d2, c->s_mm);
+    s->noise_known = c->noise_known;
+    s->sigma_disp_um = c->sigma_disp_um;
+    s->sigma_angle_urad = c->sigma_angle_urad;
+    const double *var = c->var, *w = c->w;
     /* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the
      * DFT's residuals */
     size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT);
@@ -133,22 +189,15 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
     double *tmp = o->method == SC_PROFILE_DFT ? next : NULL;
     sc_profile_combine(d, 0, y1);
     sc_profile_combine(d, 1, y2);
-    solver_ctx ctx = {o->method, NULL, NULL};
-    if (o->method == SC_PROFILE_DFT)
-        st = sc_profile_dft_plan_create(n, d1, d2, w[0], w[1], &ctx.dft, err);
-    else /* every point's uncertainty follows: start the selected inversion on a second core */
-        st = sc_profile_lsq_plan_create_tuned(n, d1, d2, w[0], w[1], SC_PROFILE_LSQ_EARLY_UNCERTAINTY,
-                                              &ctx.lsq, err);
+    sc_status st = solve_cb(&c->ctx, y1, y2, f, err);
     if (st == SC_OK)
-        st = solve_cb(&ctx, y1, y2, f, err);
-    if (st == SC_OK)
-        st = residuals(d, &ctx, y1, y2, f, w, tmp, o->residual_check, s, err);
+        st = residuals(d, &c->ctx, y1, y2, f, w, tmp, o->residual_check, s, err);
     if (st != SC_OK)
         goto done;
     double scale = 1.0; /* multiplies the plan's unit uncertainties */
     s->have_uf = 1;
     s->residual_ratio = NAN;
-    if (zero_noise)
+    if (c->zero_noise)
         scale = 0.0;
     else if (!s->noise_known && s->dof <= 0)
         s->have_uf = 0; /* no redundancy: the noise is not estimable */
@@ -159,7 +208,7 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
     s->sigma_y_um[0] = s->have_uf ? sqrt(var[0]) * scale : NAN;
     s->sigma_y_um[1] = s->have_uf ? sqrt(var[1]) * scale : NAN;
     if (s->have_uf)
-        st = uncertainty(d, o, &ctx, var, scale, uf, err);
+        st = uncertainty(d, o, &c->ctx, var, scale, uf, err);
     else
         for (int i = 0; i < n; ++i)
             uf[i] = NAN;
@@ -171,8 +220,17 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
             s->ey_um[i] = NAN;
     }
 done:
-    sc_profile_dft_plan_destroy(ctx.dft);
-    sc_profile_lsq_plan_destroy(ctx.lsq);
     free(blk);
+    return st;
+}
+
+sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_options *o,
+                               sc_profile_solution *s, sc_error *err)
+{
+    sc_profile_calibration *c;
+    sc_status st = sc_profile_calibration_create(d, o, &c, err);
+    if (st == SC_OK)
+        st = sc_profile_calibration_run(c, d, s, err);
+    sc_profile_calibration_destroy(c);
     return st;
 }
