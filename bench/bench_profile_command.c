@@ -13,7 +13,6 @@
  * the three steps spread over the cores, what no overlap of them could beat.
  * usage: bench_profile_command [N [SELFCAL]]   (default N = 1000010) */
 #include <math.h>
-#include <pthread.h>
 #include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,31 +54,6 @@ static double proc_cpu_now(void)
 
 static volatile double sink;
 
-/* The command's pipeline in process: the calibration's plan made on a thread while the rows are
- * read (sc_profile_read_hooked), as `selfcal profile` does. */
-typedef struct early_plan {
-    sc_profile_options opt;
-    sc_profile_data hdr;
-    sc_profile_calibration *cal;
-    sc_status st;
-    sc_error err;
-    pthread_t thread;
-    int started;
-} early_plan;
-
-static void *make_plan(void *arg)
-{
-    early_plan *e = arg;
-    e->st = sc_profile_calibration_create(&e->hdr, &e->opt, &e->cal, &e->err);
-    return NULL;
-}
-
-static void on_header(void *ctx, const sc_profile_data *hdr)
-{
-    early_plan *e = ctx;
-    e->hdr = *hdr;
-    e->started = pthread_create(&e->thread, NULL, make_plan, e) == 0;
-}
 extern char **environ;
 
 /* Run `selfcal profile --quiet --method M IN --out OUT`; wall seconds (CPU seconds in *cpu), or -1. */
@@ -177,25 +151,23 @@ int main(int argc, char **argv)
     for (int m = 0; m < 2; ++m) {
         double best[3] = {1e30, 1e30, 1e30}, tbest = 1e30;
         for (int rep = 0; rep < 3; ++rep) {
-            early_plan e = {.st = SC_OK};
-            sc_profile_options_default(&e.opt);
-            e.opt.method = m == 0 ? SC_PROFILE_LSQ : SC_PROFILE_DFT;
-            e.opt.residual_check = m == 0;
+            sc_profile_options o;
+            sc_profile_options_default(&o);
+            o.method = m == 0 ? SC_PROFILE_LSQ : SC_PROFILE_DFT;
+            o.residual_check = m == 0;
+            sc_profile_calibration *cal;
             double a = now();
-            sc_status st = sc_profile_read_hooked(in, on_header, &e, &d, &err);
-            if (e.started)
-                pthread_join(e.thread, NULL);
-            if (st != SC_OK || !e.started || e.st != SC_OK) {
-                printf("read or plan failed\n");
+            if (sc_profile_read_and_plan(in, &o, &d, &cal, &err) != SC_OK) {
+                printf("read or plan failed: %s\n", err.msg);
                 return 1;
             }
             double b = now();
             sc_profile_solution s = {.f_um = f, .uf_um = uf, .ey_um = ey};
-            if (sc_profile_calibration_run(e.cal, &d, &s, &err) != SC_OK) {
+            if (sc_profile_calibration_run(cal, &d, &s, &err) != SC_OK) {
                 printf("run failed: %s\n", err.msg);
                 return 1;
             }
-            sc_profile_calibration_destroy(e.cal); /* as the command: before the writing */
+            sc_profile_calibration_destroy(cal); /* as the command: before the writing */
             double c = now();
             if (sc_profile_write_result(out, n, d.s_mm, f, uf, ey, n - d1, &err) != SC_OK)
                 return 1;

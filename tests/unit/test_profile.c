@@ -10,7 +10,6 @@
 
 #include <limits.h>
 #include <math.h>
-#include <pthread.h>
 #include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -727,33 +726,10 @@ static void test_read_hooked(void **state)
     text_free(&t);
 }
 
-/* As `selfcal profile` does: the plan made on a thread started by the header hook while two
- * threads read the rows (a file above the two-thread threshold), then run: the values of
- * sc_profile_calibrate on the data read plainly (TSan runs this test: label threads). */
-typedef struct plan_job {
-    sc_profile_data hdr;
-    sc_profile_options o;
-    sc_profile_calibration *c;
-    sc_status st;
-    sc_error err;
-    pthread_t thread;
-    int started;
-} plan_job;
-
-static void *plan_thread(void *arg)
-{
-    plan_job *j = arg;
-    j->st = sc_profile_calibration_create(&j->hdr, &j->o, &j->c, &j->err);
-    return NULL;
-}
-
-static void start_plan(void *ctx, const sc_profile_data *hdr)
-{
-    plan_job *j = ctx;
-    j->hdr = *hdr;
-    j->started = pthread_create(&j->thread, NULL, plan_thread, j) == 0;
-}
-
+/* sc_profile_read_and_plan, as `selfcal profile` uses it: the plan made on a thread started by
+ * the header hook while two threads read the rows (a file above the two-thread threshold), then
+ * run: the values of sc_profile_calibrate on the data read plainly; the reading's error before
+ * the plan's, and nothing left to free after either (TSan and ASan run this test). */
 static void test_plan_while_reading(void **state)
 {
     (void)state;
@@ -771,24 +747,44 @@ static void test_plan_while_reading(void **state)
     sc_profile_data_free(&d);
     assert_int_equal(sc_profile_read(path, &d, &err), SC_OK);
     for (int m = 0; m < 2; ++m) {
-        plan_job j = {.st = SC_E_INTERNAL};
-        sc_profile_options_default(&j.o);
-        j.o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
-        assert_int_equal(sc_profile_read_hooked(path, start_plan, &j, &r, &err), SC_OK);
-        assert_true(j.started);
-        pthread_join(j.thread, NULL);
-        assert_int_equal(j.st, SC_OK);
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+        sc_profile_calibration *c;
+        assert_int_equal(sc_profile_read_and_plan(path, &o, &r, &c, &err), SC_OK);
         assert_same_data(&d, &r);
         double *a = malloc(3 * (size_t)n * sizeof(double)), *b = malloc(3 * (size_t)n * sizeof(double));
         sc_profile_solution sa = {.f_um = a, .uf_um = a + n, .ey_um = a + 2 * n};
         sc_profile_solution sb = {.f_um = b, .uf_um = b + n, .ey_um = b + 2 * n};
-        assert_int_equal(sc_profile_calibrate(&d, &j.o, &sa, &err), SC_OK);
-        assert_int_equal(sc_profile_calibration_run(j.c, &r, &sb, &err), SC_OK);
+        assert_int_equal(sc_profile_calibrate(&d, &o, &sa, &err), SC_OK);
+        assert_int_equal(sc_profile_calibration_run(c, &r, &sb, &err), SC_OK);
         assert_memory_equal(a, b, 3 * (size_t)n * sizeof(double));
-        sc_profile_calibration_destroy(j.c);
+        sc_profile_calibration_destroy(c);
         sc_profile_data_free(&r);
         free(a), free(b);
     }
+    /* errors: a bad row (the reading's), a plan the method cannot make (the plan's) */
+    text t;
+    text_good(&t, 1101, 10, 11); /* not a multiple of d1·d2 for the DFT */
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    o.method = SC_PROFILE_DFT;
+    sc_profile_calibration *c = (sc_profile_calibration *)&o;
+    sc_error e2;
+    assert_int_equal(sc_profile_read_and_plan(text_write(&t), &o, &r, &c, &err), SC_E_INPUT);
+    assert_null(c);
+    assert_null(r.m1_um[0]);
+    assert_int_equal(sc_profile_read(text_write(&t), &r, &e2), SC_OK);
+    assert_int_equal(sc_profile_check_method(&r, SC_PROFILE_DFT, &e2), SC_E_INPUT);
+    assert_string_equal(err.msg, e2.msg);
+    assert_int_equal(err.line, e2.line);
+    sc_profile_data_free(&r);
+    text_set(&t, 300, "1,292,0.5,0.5"); /* a field short, and still the DFT refusal to come */
+    assert_int_equal(sc_profile_read_and_plan(text_write(&t), &o, &r, &c, &err), SC_E_INPUT);
+    assert_null(c);
+    assert_int_equal(err.line, 300);
+    assert_non_null(strstr(err.msg, "expected 5 fields"));
+    text_free(&t);
     sc_profile_data_free(&d);
     remove(path);
     free(f), free(ey);

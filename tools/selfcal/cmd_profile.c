@@ -1,9 +1,8 @@
 /* selfcal profile — reconstruct a straightness profile from two-scan data (SPEC §2) by the DFT
  * or the least-squares method, with per-point uncertainty and the stage's e_y. The calibration's
- * plan (which needs only the file's header) is made on a thread of its own while the rows are
- * read (docs/profile.md). */
+ * plan (which needs only the file's header) is made while the rows are read
+ * (sc_profile_read_and_plan). */
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -190,33 +189,6 @@ static void print_summary(const profile_args *pa, const sc_profile_data *d,
                pa->mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / n), mx);
 }
 
-/* The calibration's plan, made from the file's header on a thread of its own while the rows are
- * read (sc_profile_read_hooked); made after the reading where no thread could be started. */
-typedef struct early_plan {
-    sc_profile_options opt;
-    sc_profile_data hdr;
-    sc_profile_calibration *cal;
-    sc_status st;
-    sc_error err;
-    pthread_t thread;
-    int started;
-} early_plan;
-
-static void *make_plan(void *arg)
-{
-    early_plan *e = arg;
-    sc_error_clear(&e->err);
-    e->st = sc_profile_calibration_create(&e->hdr, &e->opt, &e->cal, &e->err);
-    return NULL;
-}
-
-static void on_header(void *ctx, const sc_profile_data *hdr)
-{
-    early_plan *e = ctx;
-    e->hdr = *hdr;
-    e->started = pthread_create(&e->thread, NULL, make_plan, e) == 0;
-}
-
 /* Calibrate the data read with the plan (freed then: the writing reuses its memory), then write
  * the result, the plot and the summary. */
 static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_data *d,
@@ -250,27 +222,17 @@ int cmd_profile(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     sc_profile_data d;
-    early_plan e = {.st = SC_OK};
-    calibrate_options(&pa, &e.opt);
-    sc_status st = sc_profile_read_hooked(pa.in, on_header, &e, &d, &err);
-    if (e.started)
-        pthread_join(e.thread, NULL);
-    if (st != SC_OK) { /* the reading's error first: the plan is not wanted */
-        sc_profile_calibration_destroy(e.cal);
+    sc_profile_options opt;
+    calibrate_options(&pa, &opt);
+    sc_profile_calibration *cal;
+    if (sc_profile_read_and_plan(pa.in, &opt, &d, &cal, &err) != SC_OK)
         return cli_report(&err);
-    }
-    if (!e.started) /* no thread: the plan now */
-        make_plan(&e);
-    if (e.st != SC_OK) {
-        sc_profile_data_free(&d);
-        return cli_report(&e.err);
-    }
     double *blk = sc_big_alloc((size_t)3 * d.n, sizeof(double), 0); /* f, uf, ey */
-    st = blk ? calibrate_and_write(&pa, &d, &e.cal, blk, &err)
-             : sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", d.n);
+    sc_status st = blk ? calibrate_and_write(&pa, &d, &cal, blk, &err)
+                       : sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", d.n);
     rc = st == SC_OK ? CLI_OK : cli_report(&err);
     free(blk);
-    sc_profile_calibration_destroy(e.cal);
+    sc_profile_calibration_destroy(cal);
     sc_profile_data_free(&d);
     return rc;
 }

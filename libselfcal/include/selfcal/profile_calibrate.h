@@ -81,6 +81,14 @@ SC_API sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_
 /* Free c and its plan (NULL: nothing). */
 SC_API void sc_profile_calibration_destroy(sc_profile_calibration *c);
 
+/* sc_profile_read(path, out), with *cal = sc_profile_calibration_create(header, o) made on a
+ * thread of its own from the moment the header is read, while the rows are (at N = 10⁶ the plan
+ * then costs little more than the reading). On failure nothing is left to free (*out zeroed,
+ * *cal NULL) and err has the reading's error, else the plan's. */
+SC_API sc_status sc_profile_read_and_plan(const char *path, const sc_profile_options *o,
+                                          sc_profile_data *out, sc_profile_calibration **cal,
+                                          sc_error *err);
+
 #ifdef __cplusplus
 }
 #endif

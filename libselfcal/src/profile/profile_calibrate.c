@@ -1,8 +1,10 @@
 /* profile_calibrate.c — owns the end-to-end straightness calibration (selfcal/profile_calibrate.h):
  * noise precedence, scan weights, the method's plan, the residual noise estimate, uncertainties
- * (analytic or Monte Carlo) and e_y. The command line and the Python package call only this.
- */
+ * (analytic or Monte Carlo) and e_y, whole or in two steps (the plan from the header, then the
+ * run on the data), and the reading of a file with the plan made on a thread of its own while
+ * the rows are read. The command line and the Python package call only this. */
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 
 #include "selfcal/profile_calibrate.h"
@@ -234,3 +236,55 @@ sc_status sc_profile_calibrate(const sc_profile_data *d, const sc_profile_option
     sc_profile_calibration_destroy(c);
     return st;
 }
+
+/* The plan made on its own thread, started by the reader's header callback. */
+typedef struct plan_job {
+    sc_profile_options o;
+    sc_profile_data hdr;
+    sc_profile_calibration *cal;
+    sc_status st;
+    sc_error err;
+    pthread_t thread;
+    int started;
+} plan_job;
+
+static void *plan_thread(void *arg)
+{
+    plan_job *j = arg;
+    sc_error_clear(&j->err);
+    j->st = sc_profile_calibration_create(&j->hdr, &j->o, &j->cal, &j->err);
+    return NULL;
+}
+
+static void plan_on_header(void *ctx, const sc_profile_data *hdr)
+{
+    plan_job *j = ctx;
+    j->hdr = *hdr;
+    j->started = pthread_create(&j->thread, NULL, plan_thread, j) == 0;
+}
+
+sc_status sc_profile_read_and_plan(const char *path, const sc_profile_options *o,
+                                   sc_profile_data *out, sc_profile_calibration **cal,
+                                   sc_error *err)
+{
+    *cal = NULL;
+    plan_job j = {.o = *o, .st = SC_OK};
+    sc_status st = sc_profile_read_hooked(path, plan_on_header, &j, out, err);
+    if (j.started)
+        pthread_join(j.thread, NULL);
+    if (st != SC_OK) { /* the reading's error first: the plan is not wanted */
+        sc_profile_calibration_destroy(j.cal);
+        return st;
+    }
+    if (!j.started) /* no thread could start: the plan now */
+        plan_thread(&j);
+    if (j.st != SC_OK) {
+        if (err)
+            *err = j.err;
+        sc_profile_data_free(out);
+        return j.st;
+    }
+    *cal = j.cal;
+    return SC_OK;
+}
+
