@@ -355,8 +355,10 @@ static void test_put_long(void **st)
 static char *numbered_row(const void *ctx, long i, char *p)
 {
     const double *v = ctx;
+    sc_number_shortest d;
+    sc_number_find_shortest(v[i], &d);
     p = sc_io_put_long(p, i, ',');
-    return sc_io_put_number(p, v[i], '\n');
+    return sc_io_put_shortest(p, &d, '\n');
 }
 
 static char *slurp(const char *path, long *len)

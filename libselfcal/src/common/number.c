@@ -100,23 +100,14 @@ static inline void put_digits(char *q, uint64_t m, int k)
 
 char *sc_number_put_u64(char *p, uint64_t u)
 {
-    if (u == 0) {
-        *p = '0';
-        return p + 1;
+    if (u >= pow10_u64[17]) { /* 18 to 20 digits: the first 1 to 3, then 17 */
+        p = sc_number_put_u64(p, u / pow10_u64[17]);
+        put_digits(p, u % pow10_u64[17], 17);
+        return p + 17;
     }
-    if (u < 100000000000000000ULL) {
-        int k = count_digits(u);
-        put_digits(p, u, k);
-        return p + k;
-    }
-    char tmp[24];
-    int k = 0;
-    do
-        tmp[k++] = (char)('0' + u % 10);
-    while ((u /= 10) > 0);
-    while (k > 0)
-        *p++ = tmp[--k];
-    return p;
+    int k = u ? count_digits(u) : 1;
+    put_digits(p, u, k);
+    return p + k;
 }
 
 /* The rare cases: NaN, infinities, zeros. */

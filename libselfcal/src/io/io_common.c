@@ -130,14 +130,6 @@ void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t 
     sc_line_fit(k, v, n, a, b);
 }
 
-char *sc_io_put_number(char *p, double v, char sep)
-{
-    p += sc_number_format(v, p);
-    if (sep)
-        *p++ = sep;
-    return p;
-}
-
 char *sc_io_put_shortest(char *p, const sc_number_shortest *d, char sep)
 {
     p = sc_number_put_shortest(p, d);

@@ -39,12 +39,10 @@ typedef struct sc_io_table_steps {
 sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
                            const sc_io_table_steps *steps, void *ctx, sc_error *err);
 
-/* Append v's shortest round-trip text (selfcal/number.h), then sep unless it is 0; returns the
- * end. The caller's buffer holds SC_NUMBER_BUF bytes per number. */
-char *sc_io_put_number(char *p, double v, char sep);
-
-/* As sc_io_put_number, for digits found before (sc_number_find_shortest): a row's numbers are
- * all found first, then laid out (number_internal.h says why). */
+/* Append the shortest round-trip text (selfcal/number.h) of digits found before
+ * (sc_number_find_shortest), then sep unless it is 0; returns the end. The caller's buffer holds
+ * SC_NUMBER_BUF bytes per number. A row's numbers are all found first, then laid out
+ * (number_internal.h says why). */
 char *sc_io_put_shortest(char *p, const sc_number_shortest *d, char sep);
 
 /* Append v as printf's "%.15g" writes it (sc_number_format_15g), then sep unless it is 0;

@@ -287,4 +287,3 @@ sc_status sc_profile_read_and_plan(const char *path, const sc_profile_options *o
     *cal = j.cal;
     return SC_OK;
 }
-
