@@ -36,6 +36,12 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out);
 
 struct sc_lut;
 struct sc_lut_fit_report;
+/* The map at path into lut's grid: fitted by at most max_nodes nodes per axis
+ * (sc_lut_read_map_fitted, *fit filled), or with max_nodes 0 as it is (sc_lut_read_map, *fit
+ * zeroed: not fitted). */
+sc_status cli_read_map(const char *path, int max_nodes, struct sc_lut *lut,
+                       struct sc_lut_fit_report *fit, sc_error *err);
+
 /* Print (stdout) what a table fitted to a larger map is and how far it is from the map. */
 void cli_print_fit(const char *map_path, const struct sc_lut *lut,
                    const struct sc_lut_fit_report *fit);

@@ -461,9 +461,7 @@ static sc_status load_table(const export_args *a, sc_lut *lut, sc_lut_fit_report
                             sc_error *err)
 {
     sc_lut_init(lut);
-    memset(fit, 0, sizeof *fit);
-    sc_status st = a->max_nodes ? sc_lut_read_map_fitted(a->map, lut, a->max_nodes, fit, err)
-                                : sc_lut_read_map(a->map, lut, err);
+    sc_status st = cli_read_map(a->map, a->max_nodes, lut, fit, err);
     for (int k = 0; k < a->np && st == SC_OK; ++k) {
         st = sc_lut_read_profile(a->prof_path[k], a->prof_axis[k], a->prof_dir[k],
                                  &lut->profile[k], err);

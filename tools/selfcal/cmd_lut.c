@@ -125,9 +125,7 @@ static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report
                              sc_error *err)
 {
     sc_lut_init(lut);
-    memset(fit, 0, sizeof *fit);
-    sc_status st = b->max_nodes ? sc_lut_read_map_fitted(b->map, lut, b->max_nodes, fit, err)
-                                : sc_lut_read_map(b->map, lut, err);
+    sc_status st = cli_read_map(b->map, b->max_nodes, lut, fit, err);
     for (int k = 0; st == SC_OK && k < b->np; ++k) {
         const profile_arg *pa = &b->pa[k];
         st = sc_lut_read_profile(pa->path, pa->axis, pa->dir, &lut->profile[k], err);

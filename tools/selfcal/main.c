@@ -61,6 +61,14 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
     return CLI_OK;
 }
 
+sc_status cli_read_map(const char *path, int max_nodes, sc_lut *lut, sc_lut_fit_report *fit,
+                       sc_error *err)
+{
+    memset(fit, 0, sizeof *fit);
+    return max_nodes ? sc_lut_read_map_fitted(path, lut, max_nodes, fit, err)
+                     : sc_lut_read_map(path, lut, err);
+}
+
 void cli_print_fit(const char *map_path, const sc_lut *lut, const sc_lut_fit_report *fit)
 {
     printf("map %s: %d x %d nodes fitted by a %d x %d table (least squares, pitch %.6f x %.6f mm): "
