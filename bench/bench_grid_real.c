@@ -99,7 +99,11 @@ static void monte_carlo(int trials)
     double *tx = malloc(sizeof(double) * tot), *ty = malloc(sizeof(double) * tot);
     double *h = malloc(sizeof(double) * tot);
     double *ugx = malloc(sizeof(double) * ns), *ugy = malloc(sizeof(double) * ns);
-    long coords = 0, flag_c = 0, meas = 0, flag_m = 0, chi_fail = 0;
+    long coords = 0, flag_c = 0, meas = 0, flag_m = 0, chi_fail = 0, fam_fail = 0, m_tests = 0;
+    /* the two tests: Baarda's classical alpha0 for each coordinate, and the default alpha for the
+     * whole data set (its critical value from the number of coordinates tested, found at t = 0) */
+    const double a_each = 0.001, crit_each = sc_grid_outlier_critical(a_each, 0, 1);
+    double crit_fam = NAN;
     sc_grid_result ru = s.r;
     double *ubuf = malloc(sizeof(double) * (4 * ns + 2 * s.nn));
     ru.gx_um = ubuf, ru.gy_um = ubuf + ns, ru.ugx_um = ubuf + 2 * ns, ru.ugy_um = ubuf + 3 * ns;
@@ -116,12 +120,20 @@ static void monte_carlo(int trials)
             double ex = s.r.gx_um[k] - s.gx[k], ey = s.r.gy_um[k] - s.gy[k];
             se_w[2 * k] += ex * ex, se_w[2 * k + 1] += ey * ey;
         }
+        if (t == 0) {
+            for (long k = 0; k < tot; ++k)
+                m_tests += isfinite(tx[k]) + isfinite(ty[k]);
+            crit_fam = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, m_tests, 0);
+        }
+        int any = 0;
         for (long k = 0; k < tot; ++k) {
             if (!isfinite(tx[k]) || !isfinite(ty[k]))
                 continue;
-            int fx = fabs(tx[k]) > SC_GRID_BAARDA_CRIT, fy = fabs(ty[k]) > SC_GRID_BAARDA_CRIT;
+            int fx = fabs(tx[k]) > crit_each, fy = fabs(ty[k]) > crit_each;
             coords += 2, flag_c += fx + fy, meas += 1, flag_m += fx || fy;
+            any |= fabs(tx[k]) > crit_fam || fabs(ty[k]) > crit_fam;
         }
+        fam_fail += any;
         du.plan = pu;
         for (int v = 0; v < 3; ++v)
             du.dx_um[v] = s.d.dx_um[v], du.dy_um[v] = s.d.dy_um[v];
@@ -147,16 +159,20 @@ static void monte_carlo(int trials)
            100 / sqrt(2.0 * trials));
     printf("   RMS error of G: weighted %.5f um, unweighted %.5f um (same data)\n",
            sqrt(uw2 / (2 * ns)), sqrt(uu2 / (2 * ns)));
-    printf("2. outlier test on clean data (Baarda, alpha = %g per coordinate, |t| > %.4f):\n",
-           SC_GRID_BAARDA_ALPHA, SC_GRID_BAARDA_CRIT);
+    printf("2. outlier test on clean data, alpha = %g per coordinate (Baarda's alpha0, |t| > %.4f):\n",
+           a_each, crit_each);
     printf("   flagged coordinates %.5f (alpha %.5f), flagged measurements %.5f (1-(1-alpha)^2 = %.5f)\n",
-           (double)flag_c / coords, SC_GRID_BAARDA_ALPHA, (double)flag_m / meas,
-           1 - (1 - SC_GRID_BAARDA_ALPHA) * (1 - SC_GRID_BAARDA_ALPHA));
+           (double)flag_c / coords, a_each, (double)flag_m / meas, 1 - (1 - a_each) * (1 - a_each));
+    printf("   the default, alpha = %g for the whole data set (%ld coordinates, |t| > %.4f):\n"
+           "   calibrations with any flag %.4f (%g for independent tests, at most that for correlated\n"
+           "   ones by Sidak's inequality; sampling +- %.4f)\n",
+           SC_GRID_OUTLIER_ALPHA, m_tests, crit_fam, (double)fam_fail / trials,
+           SC_GRID_OUTLIER_ALPHA, sqrt(SC_GRID_OUTLIER_ALPHA * (1 - SC_GRID_OUTLIER_ALPHA) / trials));
     printf("   chi2 test (95 %%, two-sided) false alarms: %.4f (expected 0.05 +- %.4f)\n",
            (double)chi_fail / trials, sqrt(0.05 * 0.95 / trials));
     /* 3. detection */
-    for (int size = 5; size <= 10; size += 5) {
-        long det = 0, n = 0;
+    for (int size = 5; size <= 20; size *= 2) {
+        long det = 0, det_fam = 0, n = 0;
         for (int t = 0; t < trials; ++t) {
             noisy(&s, &rng, sig);
             int v = (int)(sc_rng_uniform(&rng) * 3), k;
@@ -170,10 +186,12 @@ static void monte_carlo(int trials)
             if (!isfinite(tx[at]))
                 continue; /* a mark seen once is not testable */
             n++;
-            det += fabs(tx[at]) > SC_GRID_BAARDA_CRIT;
+            det += fabs(tx[at]) > crit_each;
+            det_fam += fabs(tx[at]) > crit_fam;
         }
-        printf("3. one %2d sigma outlier: detected in %.3f of %ld trials\n", size,
-               (double)det / n, n);
+        printf("3. one %2d sigma outlier: detected in %.3f of %ld trials (alpha0 = %g each), "
+               "%.3f (alpha = %g for all)\n",
+               size, (double)det / n, n, a_each, (double)det_fam / n, SC_GRID_OUTLIER_ALPHA);
     }
     sc_grid_lsq_plan_destroy(qw), sc_grid_lsq_plan_destroy(qu);
     free(se_w), free(se_u), free(rx), free(ry), free(tx), free(ty), free(h), free(ugx), free(ugy);

@@ -1,5 +1,6 @@
 """Grid self-calibration from Python: recovery against simulated truth, equality with the
 command line on the same files, plans, errors."""
+import math
 import warnings
 
 import numpy as np
@@ -89,7 +90,22 @@ def test_weights_outliers_and_residuals(cli, tmp_path):
     with pytest.warns(UserWarning, match=r"view 0 mark \(3,4\) is an outlier"):
         r = selfcal.calibrate_grid(m)
     assert r.outlier[0, 3, 4] and r.n_flagged >= 1
-    assert abs(r.tx[0, 3, 4]) > 3.29
+    assert abs(r.tx[0, 3, 4]) > r.outlier_crit
+    # the test it ran: 0.05 for the whole data set by default, Baarda's alpha0 on request
+    assert r.outlier_alpha == 0.05 and not r.outlier_alpha_each
+    nt = int(np.isfinite(r.tx).sum() + np.isfinite(r.ty).sum())
+    assert r.n_outlier_tests == nt
+    assert math.isclose(math.erfc(r.outlier_crit / math.sqrt(2)), 1 - 0.95 ** (1 / nt),
+                        rel_tol=1e-9)
+    with pytest.warns(UserWarning, match="alpha = 0.001 for each coordinate"):
+        r_each = selfcal.calibrate_grid(m, outlier_alpha_each=0.001)
+    assert r_each.outlier_alpha_each and abs(r_each.outlier_crit - 3.2905267314919) < 1e-9
+    t_max = np.fmax(np.abs(np.nan_to_num(r_each.tx)), np.abs(np.nan_to_num(r_each.ty)))
+    assert np.array_equal(r_each.outlier, t_max > r_each.outlier_crit)
+    for bad in ({"outlier_alpha": 0}, {"outlier_alpha": 1.5}, {"outlier_alpha_each": -1},
+                {"outlier_alpha": 0.1, "outlier_alpha_each": 0.1}):
+        with pytest.raises(selfcal.Error):
+            selfcal.calibrate_grid(m, **bad)
     with pytest.warns(UserWarning, match="removed outlier view 0 mark"):
         rr = selfcal.calibrate_grid(m, reject_outliers=True)
     assert rr.n_removed >= 1

@@ -196,6 +196,10 @@ static void test_golden_summary(void **state)
         res.theta_urad[v] = v == 3 ? NAN : 0.5 * v;
     }
     res.residual_rms_um = 0.0078125;
+    res.outlier_alpha = 0.05; /* the least squares' outlier test */
+    res.outlier_alpha_coord = 2.1371e-5;
+    res.outlier_crit = 4.25;
+    res.n_outlier_tests = 2400;
     res.sigma_r_est_um = 0.009765625;
     res.sigma_r_used_um = NAN;
     res.n_measurements = 566;

@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "selfcal/grid_calibrate.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
@@ -524,6 +525,145 @@ static void test_chi2_quantile(void **s)
     assert_true(isnan(sc_chi2_quantile(1.5, 3)));
 }
 
+/* The normal critical values against independent ones (Python's statistics.NormalDist, Wichura's
+ * AS241) and the Šidák share of the outlier test. */
+static void test_outlier_critical(void **s)
+{
+    (void)s;
+    static const double ref[][2] = {{0.05, 1.9599639845400538}, {0.001, 3.2905267314918945},
+                                    {1e-6, 4.89163847569859},   {1e-12, 7.130506848171323},
+                                    {1e-300, 37.06578788077212}};
+    for (size_t k = 0; k < sizeof ref / sizeof ref[0]; ++k) {
+        double z = sc_normal_two_sided_critical(ref[k][0]);
+        assert_true(fabs(z - ref[k][1]) < 1e-13 * ref[k][1]);
+        assert_true(fabs(erfc(z / sqrt(2.0)) / ref[k][0] - 1) < 1e-12); /* P(|Z| > z) = alpha */
+        assert_true(sc_grid_outlier_critical(ref[k][0], 12345, 1) == z); /* each: m unused */
+    }
+    /* one test of one coordinate: the family is the coordinate */
+    assert_true(sc_grid_outlier_critical(0.05, 1, 0) == sc_normal_two_sided_critical(0.05));
+    /* m tests at a each miss all with probability (1 - a)^m = 1 - alpha */
+    for (long m = 2; m <= 2000000; m *= 7) {
+        double z = sc_grid_outlier_critical(0.05, m, 0), a = erfc(z / sqrt(2.0));
+        assert_true(fabs(pow(1 - a, (double)m) - 0.95) < 1e-9); /* pow loses ~m ulps */
+        assert_true(z > sc_grid_outlier_critical(0.05, m / 2, 0)); /* more tests, stricter */
+    }
+    assert_true(fabs(sc_grid_outlier_critical(0.05, 4000, 0) - 4.363099791965617) < 1e-12); /* Python */
+    double bad[] = {0, 1, -0.1, 1.5, NAN, INFINITY};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        assert_true(isnan(sc_normal_two_sided_critical(bad[k])));
+        assert_true(isnan(sc_grid_outlier_critical(bad[k], 100, 0)));
+        assert_true(isnan(sc_grid_outlier_critical(bad[k], 100, 1)));
+    }
+    assert_true(isnan(sc_grid_outlier_critical(0.05, 0, 0)));
+}
+
+/* Petrò's plan, N = 25, simulated with seed: d filled (free with sc_grid_data_free). */
+static void petro_data(sc_grid_data *d, uint64_t seed)
+{
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_double_shift(25, 1.0, 0, 0, &p, NULL), SC_OK);
+    memset(d, 0, sizeof *d);
+    d->plan = p;
+    assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
+    long ns = sc_grid_stage_nodes(&p), nn = 25 * 25;
+    double *buf = malloc(sizeof(double) * (4 * ns + sc_grid_sim_work_doubles_plan(&p)));
+    sc_grid_sim_params sp;
+    sc_grid_sim_defaults(&sp);
+    sp.seed = seed;
+    sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
+                           .ay_um = buf + 2 * ns + nn};
+    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, d, buf + 4 * ns, NULL), SC_OK);
+    free(buf);
+}
+
+static void count_warning(void *ctx, const char *msg)
+{
+    (void)msg;
+    ++*(int *)ctx;
+}
+
+/* The outlier test of sc_grid_calibrate: by default alpha = 0.05 for the whole data set, so that
+ * clean plates stay quiet (Baarda's alpha0 = 0.001 per coordinate flags ~4 marks of every
+ * 3800-coordinate plate); a blunder is flagged and removed either way; the result states the
+ * test it ran. */
+static void test_outlier_test_calibrate(void **s)
+{
+    (void)s;
+    int quiet_default = 0, flags_each = 0;
+    for (uint64_t seed = 1; seed <= 6; ++seed) {
+        sc_grid_data d;
+        petro_data(&d, seed);
+        long m = 0;
+        for (int v = 0; v < d.plan.n_views; ++v)
+            for (int k = 0; k < 25 * 25; ++k)
+                m += 2 * (isfinite(d.dx_um[v][k]) != 0);
+        for (int each = 0; each <= 1; ++each) {
+            sc_grid_options o;
+            sc_grid_options_default(&o);
+            int warnings = 0;
+            o.warn = count_warning, o.warn_ctx = &warnings;
+            if (each)
+                o.outlier_alpha = 0.001, o.outlier_alpha_each = 1;
+            sc_grid_solution sol;
+            assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, NULL), SC_OK);
+            const sc_grid_result *r = &sol.res;
+            assert_true(r->outlier_alpha == (each ? 0.001 : SC_GRID_OUTLIER_ALPHA));
+            assert_int_equal(r->outlier_alpha_each, each);
+            assert_true(r->n_outlier_tests > m - 200 && r->n_outlier_tests <= m); /* h = 1: untested */
+            assert_true(r->outlier_crit ==
+                        sc_grid_outlier_critical(r->outlier_alpha, r->n_outlier_tests, each));
+            assert_true(each ? fabs(r->outlier_crit - 3.2905) < 1e-4 : r->outlier_crit > 4.2);
+            long flagged = 0;
+            for (long k = 0; k < (long)d.plan.n_views * 625; ++k) {
+                int f = (isfinite(sol.tx[k]) && fabs(sol.tx[k]) > r->outlier_crit) ||
+                        (isfinite(sol.ty[k]) && fabs(sol.ty[k]) > r->outlier_crit);
+                assert_int_equal(sol.outlier[k], f);
+                flagged += f;
+            }
+            assert_int_equal(flagged, sol.n_flagged);
+            assert_int_equal(warnings, (int)sol.n_flagged);
+            if (each)
+                flags_each += sol.n_flagged > 0;
+            else
+                quiet_default += sol.n_flagged == 0;
+            sc_grid_solution_free(&sol);
+        }
+        if (seed == 1) { /* a 50-sigma blunder: flagged, and removed alone */
+            double keep = d.dx_um[2][300];
+            d.dx_um[2][300] += 0.5;
+            sc_grid_options o;
+            sc_grid_options_default(&o);
+            o.reject_outliers = 1;
+            sc_grid_solution sol;
+            assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, NULL), SC_OK);
+            assert_int_equal(sol.n_removed, 1);
+            assert_int_equal(sol.outlier[2 * 625 + 300], 1);
+            assert_true(d.dx_um[2][300] == keep + 0.5); /* the data as they came */
+            sc_grid_solution_free(&sol);
+            d.dx_um[2][300] = keep;
+        }
+        sc_grid_data_free(&d);
+    }
+    assert_true(quiet_default >= 5); /* 0.95 each */
+    assert_true(flags_each >= 5);    /* 1 - 0.999^3800 = 0.98 each */
+    /* significances outside (0, 1), and a test asked of a closed form: bad input */
+    sc_grid_data d;
+    petro_data(&d, 1);
+    sc_grid_options o;
+    sc_grid_options_default(&o);
+    sc_grid_solution sol;
+    sc_error err;
+    o.outlier_alpha = 1;
+    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "between 0 and 1"));
+    sc_grid_solution_free(&sol);
+    o.outlier_alpha = 0.01, o.method = SC_GRID_METHOD_DOUBLE_SHIFT;
+    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "need least squares"));
+    sc_grid_solution_free(&sol);
+    sc_grid_data_free(&d);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -535,6 +675,8 @@ int main(void)
         cmocka_unit_test(test_covariance),
         cmocka_unit_test(test_drift),
         cmocka_unit_test(test_chi2_quantile),
+        cmocka_unit_test(test_outlier_critical),
+        cmocka_unit_test(test_outlier_test_calibrate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

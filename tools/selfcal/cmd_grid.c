@@ -16,7 +16,7 @@ static const char *USAGE =
     "usage: selfcal grid --method {ye,double-shift,lsq} IN.csv --map G.csv\n"
     "                    [--artifact A.csv] [--summary S.json] [--sigma-r-um X] [--plot map.svg]\n"
     "                    [--residuals R.csv] [--reject-outliers] [--covariance C.npy]\n"
-    "                    [--drift linear] [--quiet]\n"
+    "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear] [--quiet]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -32,8 +32,13 @@ static const char *USAGE =
     "                the variance factor and its chi^2 test at 95 %. The uncertainties of O, R\n"
     "                and the misalignments are computed for --summary only (less work without).\n"
     "  lsq options:  --residuals R.csv  view,i,j,rx_um,ry_um,tx,ty,outlier (t: standardized\n"
-    "                residuals with the exact leverage; outlier: Baarda's data snooping at\n"
-    "                alpha = 0.001, |t| > 3.29); each outlier is a warning on stderr.\n"
+    "                residuals with the exact leverage; outlier: |t| beyond the critical value\n"
+    "                of Baarda's data snooping); each outlier is a warning on stderr.\n"
+    "                --outlier-alpha A  the test's significance for the whole data set (default\n"
+    "                0.05: clean data raise a flag in 1 calibration of 20, whatever their size;\n"
+    "                each of the m coordinates is tested at 1-(1-A)^(1/m), e.g. |t| > 4.4 for\n"
+    "                m = 4000). --outlier-alpha-each A: A for each coordinate on its own\n"
+    "                (Baarda's classical 0.001, |t| > 3.29: ~1 flag per 1000 clean coordinates).\n"
     "                --reject-outliers  remove the worst outlier, solve again, repeat.\n"
     "                --covariance C.npy  the covariance of G (um^2, numpy .npy, 2*NX*NY square,\n"
     "                node by node, gx then gy; stages up to 1681 nodes).\n"
@@ -49,8 +54,10 @@ static void warn_stderr(void *ctx, const char *msg)
 }
 
 /* The short summary on stdout (as `selfcal profile` prints one): key: value lines. */
-static void print_grid_summary(const char *method, const sc_grid_plan *p, const sc_grid_result *r)
+static void print_grid_summary(const char *method, const sc_grid_plan *p,
+                               const sc_grid_solution *s)
 {
+    const sc_grid_result *r = &s->res;
     int nx = sc_grid_stage_nx(p);
     long ns = sc_grid_stage_nodes(p), worst = 0;
     double worst_um = -1;
@@ -78,6 +85,10 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p, const 
     if (isfinite(r->ugx_um[worst]))
         printf(", u = %.3g, %.3g um", r->ugx_um[worst], r->ugy_um[worst]);
     putchar('\n');
+    if (isfinite(r->outlier_crit))
+        printf("outliers: %ld flagged, %ld removed (|t| > %.4g: alpha %g %s)\n", s->n_flagged,
+               s->n_removed, r->outlier_crit, r->outlier_alpha,
+               r->outlier_alpha_each ? "for each coordinate" : "for the whole data set");
 }
 
 /* What the command line asks for. */
@@ -127,6 +138,11 @@ static int parse_args(int argc, char **argv, grid_args *g)
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
             g->opt.drift = !strcmp(v, "linear");
+        }
+        else if (!strcmp(o, "--outlier-alpha") || !strcmp(o, "--outlier-alpha-each")) {
+            int used, rc = cli_parse_outlier_option("grid", o, v, &g->opt, &used);
+            if (rc != CLI_OK)
+                return rc;
         }
         else if (!strcmp(o, "--sigma-r-um")) {
             if (sc_parse_double(v, &g->opt.sigma_r_um) || !(g->opt.sigma_r_um > 0))
@@ -204,7 +220,7 @@ int cmd_grid(int argc, char **argv)
     if (st == SC_OK)
         st = write_outputs(&g, &d.plan, &sol, &info, &err);
     if (st == SC_OK && !g.quiet)
-        print_grid_summary(g.method, &d.plan, &sol.res);
+        print_grid_summary(g.method, &d.plan, &sol);
     sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
     if (st != SC_OK) {

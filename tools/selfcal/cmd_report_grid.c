@@ -20,6 +20,7 @@
 
 static const char *USAGE =
     "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
+    "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
     "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]]\n"
     "\n"
     "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
@@ -30,7 +31,8 @@ static const char *USAGE =
     "arrows, Gx, Gy, u(Gx), u(Gy) as colour maps, the plate error A, and the provenance (selfcal\n"
     "version, date, command line, SHA-256 of every input). Default method: lsq.\n"
     "Residuals and the noise estimate always come from the least-squares fit of the data (the\n"
-    "closed forms are not least-squares estimates). --verify adds the check of the compensated\n"
+    "closed forms are not least-squares estimates); the outlier test's options are selfcal grid's.\n"
+    "--verify adds the check of the compensated\n"
     "machine (see selfcal verify --help) against the plate error of this calibration.\n"
     "Exit 0, or 2 on bad input (one line naming the file and line; no report is left).\n";
 
@@ -38,6 +40,7 @@ static const char *USAGE =
 typedef struct grid_report {
     const char *in, *method;
     double sigma_r_given; /* 0: not given */
+    sc_grid_options test; /* the outlier test's significance (outlier_alpha, _each) */
     sc_grid_data d;
     sc_grid_file_info info;
     sc_grid_lsq_info qi;
@@ -85,6 +88,8 @@ static sc_status run(grid_report *r, sc_error *err)
         st = sc_grid_calibrate(&r->d, &r->info, r->in, &o, &r->sol, err);
     sc_grid_options lo = o;
     lo.method = SC_GRID_METHOD_LSQ;
+    lo.outlier_alpha = r->test.outlier_alpha; /* the test runs on the least-squares fit */
+    lo.outlier_alpha_each = r->test.outlier_alpha_each;
     if (st == SC_OK) /* residuals, standardized residuals (exact leverage), Baarda's test */
         st = sc_grid_calibrate(&r->d, &r->info, r->in, &lo, &r->lsol, err);
     if (st != SC_OK)
@@ -282,6 +287,12 @@ static int cmp_worst(const void *a, const void *b)
     return x < y ? 1 : x > y ? -1 : 0;
 }
 
+/* Whether a standardized residual fails the least-squares fit's outlier test. */
+static int flagged_t(const grid_report *r, double t)
+{
+    return isfinite(t) && fabs(t) > r->lres.outlier_crit;
+}
+
 /* The per-view table of residuals; the flagged and the measured counts out. */
 static void residual_table(FILE *fp, const grid_report *r, long *flagged, long *measured)
 {
@@ -302,7 +313,7 @@ static void residual_table(FILE *fp, const grid_report *r, long *flagged, long *
             cnt++;
             if (hypot(a, b) > mx)
                 mx = hypot(a, b), kmax = k;
-            if ((fabs(r->tx[v * nn + k]) > SC_GRID_BAARDA_CRIT || fabs(r->ty[v * nn + k]) > SC_GRID_BAARDA_CRIT))
+            if (flagged_t(r, r->tx[v * nn + k]) || flagged_t(r, r->ty[v * nn + k]))
                 fl++;
         }
         n_flag += fl;
@@ -381,12 +392,23 @@ static void outlier_table(FILE *fp, const grid_report *r, worst *ws, long nw, lo
 {
     qsort(ws, (size_t)nw, sizeof *ws, cmp_worst);
     fputs("<h3>Outliers</h3>\n", fp);
+    const sc_grid_result *l = &r->lres;
     fprintf(fp, "<p>Baarda's data snooping: a measurement is flagged when a standardized residual "
-                "|t| = |r|/(σ·√(1 − h)), h its leverage, exceeds %.3f (two-sided, significance %g "
-                "per coordinate; a mark seen in one view only has h = 1 and is not tested). "
-                "<b id=\"n_outliers\">%ld</b> measurement(s) flagged. <code>selfcal grid --method lsq "
-                "--reject-outliers</code> removes them one by one and solves again.</p>\n",
-                SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA, n_flag);
+                "|t| = |r|/(σ·√(1 − h)), h its leverage, exceeds <span id=\"outlier_crit\">%.4f"
+                "</span> (two-sided; a mark seen in one view only has h = 1 and is not tested): ",
+            l->outlier_crit);
+    if (l->outlier_alpha_each)
+        fprintf(fp, "significance %g for each coordinate on its own, so that about %.3g of the "
+                    "%ld coordinates tested would be flagged on clean data. ",
+                l->outlier_alpha, l->outlier_alpha * (double)l->n_outlier_tests, l->n_outlier_tests);
+    else
+        fprintf(fp, "significance %g for the whole data set (%ld coordinates tested, each at "
+                    "%.3g: Šidák), so that clean data raise a flag in a fraction %g of "
+                    "calibrations. ",
+                l->outlier_alpha, l->n_outlier_tests, l->outlier_alpha_coord, l->outlier_alpha);
+    fprintf(fp, "<b id=\"n_outliers\">%ld</b> measurement(s) flagged. <code>selfcal grid --method "
+                "lsq --reject-outliers</code> removes them one by one and solves again.</p>\n",
+            n_flag);
     fputs("<table id=\"worst-residuals\">\n<tr><th>view</th><th>mark i</th><th>mark j</th>"
           "<th>r<sub>x</sub> (µm)</th><th>r<sub>y</sub> (µm)</th><th>|r|/σ̂_r</th><th>max |t|</th>"
           "<th>flagged</th></tr>\n",
@@ -399,8 +421,8 @@ static void outlier_table(FILE *fp, const grid_report *r, worst *ws, long nw, lo
         html_num_cell(fp, NULL, "%.2f", w->r / r->lres.sigma_r_est_um);
         html_num_cell(fp, NULL, "%.2f", w->t);
         fprintf(fp, "<td class=\"%s\">%s</td></tr>\n",
-                w->t > SC_GRID_BAARDA_CRIT ? "fail" : "",
-                !isfinite(w->t) ? "not tested" : w->t > SC_GRID_BAARDA_CRIT ? "yes" : "no");
+                flagged_t(r, w->t) ? "fail" : "",
+                !isfinite(w->t) ? "not tested" : flagged_t(r, w->t) ? "yes" : "no");
     }
     fputs("</table>\n</section>\n", fp);
 }
@@ -615,6 +637,10 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
         *out = v;
     else if (!strcmp(o, "--method"))
         r->method = v;
+    else if (!strcmp(o, "--outlier-alpha") || !strcmp(o, "--outlier-alpha-each")) {
+        int used;
+        return cli_parse_outlier_option(cmd, o, v, &r->test, &used);
+    }
     else if (!strcmp(o, "--sigma-r-um")) {
         if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||
             !(r->sigma_r_given <= SC_INPUT_MAX_ABS))

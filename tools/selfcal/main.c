@@ -11,6 +11,7 @@
 #include "cli.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/grid_calibrate.h"
 #include "selfcal/lut.h"
 #include "selfcal/version.h"
 
@@ -58,6 +59,23 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
     if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
         return cli_usage_error(cmd, "--max-nodes: 2..%d nodes per axis, not '%s'", SC_LUT_MAX_NX, v);
     *out = (int)n;
+    return CLI_OK;
+}
+
+int cli_parse_outlier_option(const char *cmd, const char *opt, const char *v, sc_grid_options *o,
+                             int *used)
+{
+    int each = !strcmp(opt, "--outlier-alpha-each");
+    *used = each || !strcmp(opt, "--outlier-alpha");
+    if (!*used)
+        return CLI_OK;
+    double a;
+    if (sc_parse_double(v, &a) || !(a > 0 && a < 1))
+        return cli_usage_error(cmd, "%s needs a significance between 0 and 1, got '%s'", opt, v);
+    if (o->outlier_alpha > 0 && o->outlier_alpha_each != each)
+        return cli_usage_error(cmd, "--outlier-alpha and --outlier-alpha-each exclude each other");
+    o->outlier_alpha = a;
+    o->outlier_alpha_each = each;
     return CLI_OK;
 }
 

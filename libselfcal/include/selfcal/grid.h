@@ -89,6 +89,13 @@ typedef struct sc_grid_result {
     double variance_factor;   /* weighted RSS / dof (σ̂²/σ² of the stated noise); NaN if not weighted */
     double chi2_lo, chi2_hi;  /* the 95 % acceptance interval of variance_factor (two-sided) */
     int chi2_pass;            /* 1 if variance_factor lies in it (or the test does not apply) */
+    /* least squares' outlier test (sc_grid_calibrate; NaN and 0 where it was not run): */
+    double outlier_alpha;     /* its significance, for the whole data set or (outlier_alpha_each)
+                                 for each coordinate on its own */
+    int outlier_alpha_each;   /* 1: outlier_alpha is each coordinate's (Baarda's α0) */
+    double outlier_alpha_coord; /* each coordinate's own significance (the Šidák share) */
+    double outlier_crit;      /* |t| beyond which a coordinate is flagged */
+    long n_outlier_tests;     /* coordinates tested (finite t in the first solution) */
 } sc_grid_result;
 
 /* ---- geometry (grid_geometry.c) ---- */

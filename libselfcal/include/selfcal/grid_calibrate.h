@@ -41,6 +41,10 @@ typedef struct sc_grid_options {
                                 SC_GRID_LSQ_COV_MAX_NODES nodes) */
     int node_sigma_only;     /* least squares: skip the σ of O, R and the misalignments (NaN);
                                 every node's σ and the outlier test are unchanged */
+    double outlier_alpha;    /* least squares: the outlier test's significance, in (0, 1); 0:
+                                SC_GRID_OUTLIER_ALPHA (0.05) for the whole data set */
+    int outlier_alpha_each;  /* 1: outlier_alpha is each coordinate's own (Baarda's α0, e.g.
+                                0.001) instead of the whole data set's */
     sc_grid_warn_fn warn;    /* warnings (NULL: none) */
     void *warn_ctx;
 } sc_grid_options;

@@ -40,10 +40,23 @@ typedef struct sc_grid_lsq_opts {
                                  10 ms of 0.15 s); node σ identical either way. 0: all of them */
 } sc_grid_lsq_opts;
 
-/* Baarda's data snooping: each standardized residual is N(0, 1) without outliers; a coordinate
- * is flagged when |t| exceeds the two-sided critical value at significance α = 0.001. */
-#define SC_GRID_BAARDA_ALPHA 0.001
-#define SC_GRID_BAARDA_CRIT 3.2905267314919255
+/* The outlier test, Baarda's data snooping (docs/grid-lsq.md): on clean data each standardized
+ * residual t is N(0, 1); a coordinate is flagged when |t| exceeds a two-sided critical value. By
+ * default its significance α holds for the whole data set: the chance that clean data raise any
+ * flag among the m coordinates tested, each tested at 1 − (1 − α)^(1/m) (Šidák), so that a clean
+ * calibration stays quiet whatever its size; SC_GRID_OUTLIER_ALPHA is that default. Baarda's
+ * classical choice, α0 = 0.001 for each coordinate on its own (|t| > 3.29), flags ~1 coordinate in
+ * 1000 of clean data: several on every plate of a few thousand measurements. */
+#define SC_GRID_OUTLIER_ALPHA 0.05
+
+/* z > 0 with P(|Z| > z) = alpha for a standard normal Z (0 < alpha < 1, else NaN): 1.96 for
+ * 0.05, 3.2905 for 0.001. Accurate to a few ulps of z down to the smallest alpha. */
+SC_API double sc_normal_two_sided_critical(double alpha);
+
+/* The |t| beyond which the outlier test flags a coordinate: alpha for the whole set of n_tests
+ * coordinates (each = 0), or for each coordinate on its own (each = 1; n_tests unused). NaN for
+ * alpha outside (0, 1), or n_tests < 1 with each = 0. */
+SC_API double sc_grid_outlier_critical(double alpha, long n_tests, int each);
 
 /* The largest stage (nodes) whose full covariance sc_grid_lsq_covariance writes (41 x 41). */
 #define SC_GRID_LSQ_COV_MAX_NODES 1681

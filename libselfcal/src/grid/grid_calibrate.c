@@ -145,6 +145,10 @@ static double given_sigma_r(const sc_grid_data *d, const sc_grid_file_info *info
 static sc_status check_lsq(const sc_grid_data *d, const sc_grid_file_info *info, const char *path,
                            const sc_grid_options *o, sc_error *err)
 {
+    if (!(o->outlier_alpha >= 0 && o->outlier_alpha < 1))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the outlier test's significance must lie between 0 and 1, got %g",
+                            o->outlier_alpha);
     if (o->drift && !(info ? info->has_t : has_times(d)))
         return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
                             "--drift linear needs the time of each measurement (column t_s)");
@@ -159,9 +163,10 @@ sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_info *i
                             "no data rows (a plan file? use 'selfcal plan' for plans)");
     if (o->method == SC_GRID_METHOD_LSQ)
         return check_lsq(d, info, path, o, err);
-    if (o->drift || o->reject_outliers || o->covariance)
+    if (o->drift || o->reject_outliers || o->covariance || o->outlier_alpha != 0 ||
+        o->outlier_alpha_each)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "residuals, outlier rejection, covariance and drift need least squares");
+                            "residuals, the outlier test, covariance and drift need least squares");
     return check_exact(d, info, path, o->method, err);
 }
 
@@ -211,6 +216,7 @@ static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
     r->O = r->R = r->residual_rms_um = r->sigma_r_est_um = r->sigma_r_used_um = NAN;
     r->uO = r->uR = r->variance_factor = r->chi2_lo = r->chi2_hi = NAN;
     r->chi2_pass = 1;
+    r->outlier_alpha = r->outlier_alpha_coord = r->outlier_crit = NAN;
     r->misalignment_unique = 1;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
         r->tx_um[v] = r->ty_um[v] = r->theta_urad[v] = r->utx_um[v] = r->uty_um[v] =
@@ -274,13 +280,36 @@ static int outlier_test_applies(const sc_grid_result *r)
     return !(r->sigma_r_est_um < NOISE_FLOOR_UM) || (r->weighted && !(r->sigma_r_used_um < NOISE_FLOOR_UM));
 }
 
+/* The outlier test's figures in s->res from the first solution's standardized residuals: the
+ * coordinates tested (finite t) and the critical value for o's significance. */
+static void outlier_test_set(const sc_grid_options *o, sc_grid_solution *s, size_t tot)
+{
+    sc_grid_result *r = &s->res;
+    long m = 0;
+    for (size_t k = 0; k < tot; ++k)
+        m += isfinite(s->tx[k]) + isfinite(s->ty[k]);
+    r->outlier_alpha = o->outlier_alpha > 0 ? o->outlier_alpha : SC_GRID_OUTLIER_ALPHA;
+    r->outlier_alpha_each = o->outlier_alpha_each != 0;
+    r->n_outlier_tests = m;
+    r->outlier_alpha_coord = r->outlier_alpha_each || m < 1
+                                 ? r->outlier_alpha
+                                 : -expm1(log1p(-r->outlier_alpha) / (double)m);
+    r->outlier_crit = sc_grid_outlier_critical(r->outlier_alpha, m, r->outlier_alpha_each);
+}
+
+/* Whether coordinate value t fails the test of r. */
+static int beyond(const sc_grid_result *r, double t)
+{
+    return isfinite(t) && fabs(t) > r->outlier_crit;
+}
+
 /* The worst flagged measurement not yet removed: index v*n*n + k, or -1. */
 static long worst_outlier(const sc_grid_solution *s, size_t tot)
 {
     long best = -1;
-    if (!outlier_test_applies(&s->res))
+    if (!outlier_test_applies(&s->res) || !isfinite(s->res.outlier_crit))
         return -1;
-    double bt = SC_GRID_BAARDA_CRIT;
+    double bt = s->res.outlier_crit;
     for (size_t k = 0; k < tot; ++k) {
         double t = fmax(isfinite(s->tx[k]) ? fabs(s->tx[k]) : 0,
                         isfinite(s->ty[k]) ? fabs(s->ty[k]) : 0);
@@ -339,7 +368,7 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
             warnf(o, "%s: removed outlier view %d mark (%d,%d) (tx %.3g, ty %.3g; critical value "
                      "%.3f) and solved again",
                   src, view_id(info, v), k / p->n, k % p->n, s->tx[pending], s->ty[pending],
-                  SC_GRID_BAARDA_CRIT);
+                  s->res.outlier_crit);
             pending = -1;
         }
         if (!s->plan_info.identifiable)
@@ -350,7 +379,11 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
         sc_status st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
         if (st == SC_OK)
             st = sc_grid_lsq_residuals(*qp, d, &s->res, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
-        if (st != SC_OK || !o->reject_outliers || stop)
+        if (st != SC_OK)
+            return st;
+        if (first) /* the test is fixed by the data as they came (execute leaves it alone) */
+            outlier_test_set(o, s, tot);
+        if (!o->reject_outliers || stop)
             return st;
         long w = worst_outlier(s, tot);
         if (w < 0)
@@ -381,13 +414,19 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
             d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
             s->n_flagged++;
         } else if (outlier_test_applies(&s->res) &&
-                   (fabs(s->tx[k]) > SC_GRID_BAARDA_CRIT || fabs(s->ty[k]) > SC_GRID_BAARDA_CRIT)) {
+                   (beyond(&s->res, s->tx[k]) || beyond(&s->res, s->ty[k]))) {
             s->outlier[k] = 1;
             s->n_flagged++;
-            warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, ty "
-                     "%.3g beyond %.3f: Baarda, alpha = %g)",
-                  src, view_id(info, v), m / p->n, m % p->n, s->tx[k], s->ty[k],
-                  SC_GRID_BAARDA_CRIT, SC_GRID_BAARDA_ALPHA);
+            if (s->res.outlier_alpha_each)
+                warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, "
+                         "ty %.3g beyond %.3f: data snooping, alpha = %g for each coordinate)",
+                      src, view_id(info, v), m / p->n, m % p->n, s->tx[k], s->ty[k],
+                      s->res.outlier_crit, s->res.outlier_alpha);
+            else
+                warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, "
+                         "ty %.3g beyond %.3f: data snooping, alpha = %g over %ld coordinates)",
+                      src, view_id(info, v), m / p->n, m % p->n, s->tx[k], s->ty[k],
+                      s->res.outlier_crit, s->res.outlier_alpha, s->res.n_outlier_tests);
         }
     }
     if (!s->res.chi2_pass)

@@ -277,6 +277,15 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
     fprintf(fp, "],\n  \"chi2_test\": \"%s\",\n  \"drift\": \"%s\"",
             !isfinite(res->variance_factor) ? "n/a" : res->chi2_pass ? "pass" : "fail",
             res->drift ? "linear" : "none");
+    if (isfinite(res->outlier_crit) && res->outlier_crit > 0) { /* the least squares' test ran */
+        fprintf(fp, ",\n  \"outlier_test\": {\"alpha\": %.6g, \"for\": \"%s\", ",
+                res->outlier_alpha, res->outlier_alpha_each ? "each coordinate" : "data set");
+        fputs("\"alpha_coordinate\": ", fp);
+        json_num(fp, res->outlier_alpha_coord);
+        fputs(", \"critical_t\": ", fp);
+        json_num(fp, res->outlier_crit);
+        fprintf(fp, ", \"coordinates_tested\": %ld}", res->n_outlier_tests);
+    }
     fprintf(fp, ",\n  \"misalignment_unique\": %s", res->misalignment_unique ? "true" : "false");
     fprintf(fp, ",\n  \"n_measurements\": %ld,\n  \"dof\": %ld\n}\n", res->n_measurements,
             res->dof);

@@ -29,6 +29,7 @@
  */
 #include "selfcal/grid_lsq.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -1157,6 +1158,37 @@ double sc_chi2_quantile(double p, double dof)
             hi = mid;
     }
     return 0.5 * (lo + hi);
+}
+
+double sc_normal_two_sided_critical(double alpha)
+{
+    if (!(alpha > 0) || !(alpha < 1))
+        return NAN;
+    /* erfc(z/√2) = alpha, decreasing in z; libm's erfc keeps its relative accuracy far into the
+     * tail (erfc(38.6/√2) is near the smallest double), so bisection on it is exact to the
+     * ulp it converges to */
+    double lo = 0, hi = 40;
+    while (hi - lo > 4 * DBL_EPSILON * hi) {
+        double mid = 0.5 * (lo + hi);
+        if (erfc(mid * 0.70710678118654752440) > alpha)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+double sc_grid_outlier_critical(double alpha, long n_tests, int each)
+{
+    if (!(alpha > 0) || !(alpha < 1))
+        return NAN;
+    if (each)
+        return sc_normal_two_sided_critical(alpha);
+    if (n_tests < 1)
+        return NAN;
+    /* Šidák: m independent tests at a each miss all with probability (1 − a)^m = 1 − alpha */
+    double a = -expm1(log1p(-alpha) / (double)n_tests);
+    return sc_normal_two_sided_critical(a);
 }
 
 /* The noise figures of res from the residual sums; the σ scale the uncertainties use. */

@@ -233,7 +233,9 @@ class GridResult:
     misalignments ``tx_um``, ``ty_um``, ``theta_urad`` (with ``utx_um`` ...),
     ``residual_rms_um``, ``sigma_r_est_um``, ``sigma_r_used_um``, ``dof``, ``variance_factor``,
     ``chi2_pass``. Least squares also gives the residuals ``rx_um``, ``ry_um``, the standardized
-    residuals ``tx``, ``ty`` and ``outlier`` flags, shape (views, N, N), and on request
+    residuals ``tx``, ``ty`` and ``outlier`` flags, shape (views, N, N), the outlier test
+    (``outlier_alpha``, ``outlier_alpha_each``, each coordinate's ``outlier_alpha_coord``, the
+    critical value ``outlier_crit`` of |t|, ``n_outlier_tests``) and on request
     ``covariance_um2``. ``warnings``: the lines ``selfcal grid`` prints as warnings."""
 
     def __init__(self, d, method):
@@ -242,6 +244,7 @@ class GridResult:
             setattr(self, k, v)
         self.chi2_pass = bool(self.chi2_pass)
         self.weighted = bool(self.weighted)
+        self.outlier_alpha_each = bool(self.outlier_alpha_each)
 
     def expanded(self, k: float = 2.0):
         """The expanded uncertainties (k·u(Gx), k·u(Gy)), GUM coverage factor k (default 2)."""
@@ -253,7 +256,8 @@ class GridResult:
 
 
 def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = False,
-                   reject_outliers: bool = False, covariance: bool = False) -> GridResult:
+                   reject_outliers: bool = False, covariance: bool = False,
+                   outlier_alpha=None, outlier_alpha_each=None) -> GridResult:
     """Separate the stage error G from the plate error A, as ``selfcal grid``.
 
     ``source``: a ``selfcal-grid v1`` file path or a :class:`GridMeasurement`. ``method``:
@@ -262,16 +266,24 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
     noise if known (µm, data without stated uncertainties), else estimated from the residuals.
     ``drift``: per-view linear drift (needs ``t_s``). ``reject_outliers``: remove the worst
     flagged measurement and solve again until none is flagged. ``covariance``: the full
-    covariance of G (small stages). Warnings (outliers, the χ² test) are in ``result.warnings``
-    and issued with :mod:`warnings` too.
+    covariance of G (small stages). ``outlier_alpha``: the outlier test's significance for the
+    whole data set (default 0.05, as ``--outlier-alpha``); ``outlier_alpha_each`` instead: for
+    each coordinate on its own (Baarda's α0, e.g. 0.001, as ``--outlier-alpha-each``). Warnings
+    (outliers, the χ² test) are in ``result.warnings`` and issued with :mod:`warnings` too.
     """
     if method not in _GRID_METHODS:
         raise Error(f"method must be 'ye', 'double-shift' or 'lsq', not {method!r}")
     if sigma_r_um is not None and not sigma_r_um > 0:
         raise Error("sigma_r_um must be positive")
+    if outlier_alpha is not None and outlier_alpha_each is not None:
+        raise Error("outlier_alpha and outlier_alpha_each exclude each other")
+    alpha = outlier_alpha if outlier_alpha_each is None else outlier_alpha_each
+    if alpha is not None and not 0 < alpha < 1:
+        raise Error("the outlier test's significance must lie between 0 and 1")
     d = _native.grid_calibrate(_grid_source(source), _GRID_METHODS[method],
                                float(sigma_r_um or 0.0), bool(drift), bool(reject_outliers),
-                               bool(covariance))
+                               bool(covariance), float(alpha or 0.0),
+                               outlier_alpha_each is not None)
     r = GridResult(d, method)
     if r.warnings:
         import warnings as _w

@@ -192,6 +192,67 @@ def case_outliers():
     print("outliers: ok (error %.3g -> %.3g um)" % (err_before, err_after))
 
 
+def case_outlier_test():
+    """The outlier test's significance: by default 0.05 for the whole data set, so that clean
+    simulated plates (Petro N = 25, ~3800 coordinates) stay quiet, where Baarda's 0.001 for each
+    coordinate (--outlier-alpha-each) flags several marks on nearly every one; the summary, the
+    printed summary and the residual file agree with the warnings; bad values exit 2."""
+    d = fresh_dir("outlier_test")
+    quiet = noisy = 0
+    for seed in range(1, 7):
+        s = simulate(d, "p%d" % seed, "--plan", "double-shift", "--seed", seed)
+        g, r, sm = (os.path.join(d, "p%d_%s" % (seed, x)) for x in ("g.csv", "r.csv", "s.json"))
+        for each in (False, True):
+            extra = ["--outlier-alpha-each", "0.001"] if each else []
+            p = run("grid", "--method", "lsq", s["inp"], "--map", g, "--residuals", r,
+                    "--summary", sm, *extra)
+            warn = [l for l in p.stderr.splitlines() if "is an outlier" in l]
+            test = json.load(open(sm))["outlier_test"]
+            want_alpha, want_for = (0.001, "each coordinate") if each else (0.05, "data set")
+            if test["alpha"] != want_alpha or test["for"] != want_for:
+                fail("summary outlier_test %r" % test)
+            m = test["coordinates_tested"]
+            if not 3000 < m <= 2 * sum(1 for _ in rows(r)):
+                fail("coordinates tested %d" % m)
+            a = want_alpha if each else 1 - (1 - want_alpha) ** (1.0 / m)
+            # the critical value: P(|Z| > crit) = a (erfc: independent of selfcal's own solver)
+            if abs(math.erfc(test["critical_t"] / math.sqrt(2)) / a - 1) > 1e-9:
+                fail("critical value %r for alpha %g" % (test["critical_t"], a))
+            R = rows(r)
+            flagged = [x for x in R if x["outlier"] == "1"]
+            beyond = [x for x in R if x["tx"] != "" and
+                      max(abs(float(x["tx"])), abs(float(x["ty"]))) > test["critical_t"]]
+            if len(flagged) != len(warn) or len(beyond) != len(flagged):
+                fail("seed %d: %d warnings, %d flagged rows, %d beyond the critical value"
+                     % (seed, len(warn), len(flagged), len(beyond)))
+            line = [l for l in p.stdout.splitlines() if l.startswith("outliers:")]
+            if line != ["outliers: %d flagged, 0 removed (|t| > %.4g: alpha %g %s)"
+                        % (len(flagged), test["critical_t"], want_alpha,
+                           "for each coordinate" if each else "for the whole data set")]:
+                fail("printed summary %r" % line)
+            if each:
+                noisy += len(flagged) > 0
+            else:
+                quiet += not flagged
+    if quiet < 5 or noisy < 5:
+        fail("clean plates: %d of 6 quiet by default, %d of 6 flagged at 0.001 each" % (quiet, noisy))
+    s = simulate(d, "p1", "--plan", "double-shift", "--seed", 1)
+    g = os.path.join(d, "bad_g.csv")
+    for args, needle in ((["--outlier-alpha", "0"], "between 0 and 1"),
+                         (["--outlier-alpha", "1"], "between 0 and 1"),
+                         (["--outlier-alpha-each", "x"], "between 0 and 1"),
+                         (["--outlier-alpha", "0.1", "--outlier-alpha-each", "0.1"], "exclude")):
+        p = run("grid", "--method", "lsq", s["inp"], "--map", g, *args, expect=2)
+        if needle not in p.stderr or os.path.exists(g):
+            fail("%r: %r" % (args, p.stderr))
+    p = run("grid", "--method", "double-shift", s["inp"], "--map", g, "--outlier-alpha", "0.01",
+            expect=2)
+    if "need least squares" not in p.stderr or os.path.exists(g):
+        fail("a closed form with --outlier-alpha: %r" % p.stderr)
+    print("outlier_test: ok (%d of 6 clean plates quiet by default, %d flagged at 0.001 each)"
+          % (quiet, noisy))
+
+
 def case_covariance():
     d = fresh_dir("cov")
     s = simulate(d, "c", "--plan", "stitch", "--n", 5, "--stage", "9,7", "--sigma-r-um", 0.01)
@@ -322,6 +383,7 @@ def case_bad_input():
 
 
 CASES = {"damaged": case_damaged, "weights": case_weights, "outliers": case_outliers,
+         "outlier_test": case_outlier_test,
          "covariance": case_covariance, "drift": case_drift, "plan": case_plan_stitched,
          "bad_input": case_bad_input}
 CASES[CASE]()

@@ -405,6 +405,17 @@ def case_outliers():
     c = parse(check_self_contained(out))
     if c.ids["chi2"][1] != "pass":
         fail("clean data fail the chi-square test: %r" % (c.ids["chi2"],))
+    # the outlier test's significance: 0.05 for the whole data set by default, or each
+    # coordinate's own; the critical value shown is P(|Z| > crit) = that share (erfc)
+    m = 2 * sum(1 for l in open(inp) if l[:1].isdigit())
+    for extra, a in (([], 1 - 0.95 ** (1.0 / m)), (["--outlier-alpha-each", "0.001"], 0.001),
+                     (["--outlier-alpha", "0.5"], 1 - 0.5 ** (1.0 / m))):
+        run("report", "grid", inp, "-o", out, "--sigma-r-um", 0.01, *extra)
+        c = parse(check_self_contained(out))
+        crit = float(c.ids["outlier_crit"][1])
+        if abs(math.erfc(crit / math.sqrt(2)) / a - 1) > 3e-3:  # crit to 4 decimals: 0.03 %
+            fail("report %r: critical value %g for a share %g" % (extra, crit, a))
+    run("report", "grid", inp, "-o", out, "--outlier-alpha", "2", expect=2)
 
 
 def write_neg_map(src, dst):
