@@ -56,6 +56,11 @@ def test_plan_analysis_matches_cli(cli, tmp_path):
     assert int(lines["free"]) == b.free == 0
     assert float(lines["sigma_c_ratio_rms"]) == pytest.approx(b.sigma_c_ratio_rms, rel=1e-5)
     assert float(lines["sigma_c_ratio_max"]) == pytest.approx(b.sigma_c_ratio_max, rel=1e-5)
+    assert int(lines["testable_equations"]) == b.n_testable
+    assert int(lines["untestable_equations"]) == b.n_untestable
+    for key in ("redundancy_min", "redundancy_mean", "mdb_ratio_max", "mdb_ratio_mean_r"):
+        assert float(lines[key]) == pytest.approx(getattr(b, key), rel=1e-5)
+    assert np.isnan(a.redundancy_min) and a.n_testable == 0  # not identifiable: no figures
 
 
 @pytest.mark.parametrize("method", ["lsq", "double-shift"])

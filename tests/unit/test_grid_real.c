@@ -557,6 +557,85 @@ static void test_outlier_critical(void **s)
     assert_true(isnan(sc_grid_outlier_critical(0.05, 0, 0)));
 }
 
+/* Baarda's internal reliability from the plan: the redundancy numbers sum to the residual
+ * degrees of freedom, and a blunder of the minimal detectable size, planted on a coordinate of
+ * redundancy r, is found by the default test in 80 % of noisy trials (Monte Carlo). */
+static void test_minimal_detectable_bias(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_ye(11, 1.0, 0, 0, &p, NULL), SC_OK);
+    sc_rng r;
+    sc_rng_seed(&r, 7);
+    truth t;
+    truth_make(&t, &p, &r);
+    sc_grid_data d;
+    make_data(&d, &p, &t, -1, 0, 0, &r); /* noise-free */
+    sc_grid_lsq_plan *q = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, &d, NULL, &q, NULL), SC_OK);
+    sc_grid_lsq_info qi;
+    sc_grid_lsq_get_info(q, &qi);
+    assert_true(qi.identifiable);
+    assert_int_equal(qi.n_testable + qi.n_untestable, qi.n_equations);
+    assert_true(qi.redundancy_min > 0 && qi.redundancy_min <= qi.redundancy_mean &&
+                qi.redundancy_mean < 1);
+    long dof = qi.n_equations + qi.n_constraints - qi.n_unknowns;
+    assert_true(fabs(qi.redundancy_mean * (double)qi.n_testable - (double)dof) < 1e-6 * dof);
+    /* the mark with the largest leverage, and its x coordinate's own r from the response of the
+     * residual to a blunder on noise-free data: r_x = residual / blunder */
+    int nn = 121, nv = p.n_views;
+    double *buf = malloc(sizeof(double) * 3 * nv * nn);
+    double *rx = buf, *tx = buf + nv * nn, *h = buf + 2 * nv * nn;
+    out o;
+    out_alloc(&o, &p);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0.01, &o.r, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_residuals(q, &d, &o.r, rx, NULL, tx, NULL, h, NULL), SC_OK);
+    int at = 0;
+    for (int k = 1; k < nv * nn; ++k)
+        if (isfinite(h[k]) && !(h[k] <= h[at]))
+            at = k;
+    int v = at / nn, k = at % nn;
+    double x0 = d.dx_um[v][k];
+    d.dx_um[v][k] = x0 + 1e-3;
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0.01, &o.r, NULL), SC_OK);
+    assert_int_equal(sc_grid_lsq_residuals(q, &d, &o.r, rx, NULL, tx, NULL, NULL, NULL), SC_OK);
+    double r_x = rx[at] / 1e-3;
+    assert_true(r_x >= qi.redundancy_min - 1e-9 && r_x < 1);
+    double crit = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, qi.n_testable, 0);
+    double mdb = sc_grid_mdb_ratio(crit, 0.8, r_x);
+    assert_true(fabs(mdb - (crit + 0.8416212335729143) / sqrt(r_x)) < 1e-12 * mdb);
+    /* noisy trials with the blunder: the test finds it with 80 % power */
+    const double sigma = 0.01;
+    double *clean = malloc(sizeof(double) * 2 * nv * nn);
+    for (int w = 0; w < nv; ++w)
+        for (int m = 0; m < nn; ++m)
+            clean[w * nn + m] = d.dx_um[w][m], clean[(nv + w) * nn + m] = d.dy_um[w][m];
+    clean[at] = x0;
+    int trials = 400, found = 0;
+    for (int tr = 0; tr < trials; ++tr) {
+        for (int w = 0; w < nv; ++w)
+            for (int m = 0; m < nn; ++m)
+                if (isfinite(clean[w * nn + m])) {
+                    d.dx_um[w][m] = clean[w * nn + m] + sigma * sc_rng_normal(&r);
+                    d.dy_um[w][m] = clean[(nv + w) * nn + m] + sigma * sc_rng_normal(&r);
+                }
+        d.dx_um[v][k] += mdb * sigma;
+        assert_int_equal(sc_grid_lsq_execute(q, &d, sigma, &o.r, NULL), SC_OK);
+        assert_int_equal(sc_grid_lsq_residuals(q, &d, &o.r, NULL, NULL, tx, NULL, NULL, NULL), SC_OK);
+        found += fabs(tx[at]) > crit;
+    }
+    double rate = (double)found / trials; /* sampling sd 0.02 */
+    assert_true(rate > 0.72 && rate < 0.88);
+    /* the formula's edges */
+    assert_true(isnan(sc_grid_mdb_ratio(crit, 0.8, 0)));
+    assert_true(isnan(sc_grid_mdb_ratio(crit, 1.0, 0.5)));
+    assert_true(sc_grid_mdb_ratio(crit, 0.5, 0.25) == 2 * crit);
+    assert_true(sc_grid_mdb_ratio(crit, 0.2, 1) < crit);
+    free(clean), free(buf), free(o.buf), truth_free(&t);
+    sc_grid_lsq_plan_destroy(q);
+    sc_grid_data_free(&d);
+}
+
 /* Petrò's plan, N = 25, simulated with seed: d filled (free with sc_grid_data_free). */
 static void petro_data(sc_grid_data *d, uint64_t seed)
 {
@@ -676,6 +755,7 @@ int main(void)
         cmocka_unit_test(test_drift),
         cmocka_unit_test(test_chi2_quantile),
         cmocka_unit_test(test_outlier_critical),
+        cmocka_unit_test(test_minimal_detectable_bias),
         cmocka_unit_test(test_outlier_test_calibrate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

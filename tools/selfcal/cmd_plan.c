@@ -22,7 +22,13 @@ static const char *USAGE =
     "  sigma_c_ratio_max: Y      the worst node component\n"
     "For a plan that does not identify G both ratios are printed as 'inf'.\n"
     "Then: N, pitch, the views with the marks each measures, equations, unknowns, constraints\n"
-    "and which closed-form methods (ye, double-shift) the plan supports.\n"
+    "and which closed-form methods (ye, double-shift) the plan supports. For an identifying\n"
+    "plan, Baarda's internal reliability: how many coordinate equations the outlier test can\n"
+    "check (untestable: a mark seen in one view only, whose plate error absorbs any error), the\n"
+    "smallest and mean redundancy r = 1 - h (h the leverage), and the minimal detectable blunder\n"
+    "in units of the coordinate's sigma, (crit + 0.84)/sqrt(r): found with 80 % power by the\n"
+    "default outlier test (alpha 0.05 for the data set) at the least redundant coordinate\n"
+    "(mdb_ratio_max) and at the mean redundancy (mdb_ratio_mean_r).\n"
     "A stage node no view measures leaves G free there (identifiable: no, counted in free).\n"
     "--drift linear: analyse with per-view drift rates as unknowns (times from the data's t_s,\n"
     "or for a plan file one raster position per second in serpentine plate order).\n"
@@ -147,6 +153,20 @@ static int design(int argc, char **argv)
     return CLI_OK;
 }
 
+/* Baarda's internal reliability of an identifying plan (see the usage text). */
+static void print_reliability(const sc_grid_lsq_info *qi)
+{
+    printf("testable_equations: %ld\nuntestable_equations: %ld\n", qi->n_testable,
+           qi->n_untestable);
+    if (qi->n_testable == 0)
+        return;
+    double crit = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, qi->n_testable, 0);
+    printf("redundancy_min: %.6g\nredundancy_mean: %.6g\n", qi->redundancy_min,
+           qi->redundancy_mean);
+    printf("mdb_ratio_max: %.6g\n", sc_grid_mdb_ratio(crit, 0.8, qi->redundancy_min));
+    printf("mdb_ratio_mean_r: %.6g\n", sc_grid_mdb_ratio(crit, 0.8, qi->redundancy_mean));
+}
+
 /* The analysis lines of a plan or data file (see the usage text). */
 static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, int has_data,
                            const sc_grid_lsq_info *qi)
@@ -189,9 +209,11 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
            qi->n_constraints);
     /* Equations minus the rank: the gauge, a view without marks (its misalignment) and a mark no
      * view measures (its plate error) leave unknowns undetermined without costing equations. */
-    if (qi->identifiable)
+    if (qi->identifiable) {
         printf("residual_dof: %ld\n", qi->n_equations + qi->n_constraints - qi->n_unknowns +
                                            3 * empty_views);
+        print_reliability(qi);
+    }
     if (empty_views || unseen_marks)
         printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
                "misalignment / plate error stay unknown)\n",

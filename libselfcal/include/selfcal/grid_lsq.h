@@ -28,6 +28,13 @@ typedef struct sc_grid_lsq_info {
     double sigma_c_ratio_rms; /* predicted RMS over nodes and both components of std(G)/σ_r */
     double sigma_c_ratio_max; /* the worst node component */
     long n_stage_unmeasured;  /* stage nodes no measurement touches (each leaves G free there) */
+    /* internal reliability (Baarda), identifying plans only (else NaN and 0): the redundancy
+     * number r = 1 − h of each coordinate's equation, h its leverage */
+    long n_testable;          /* equations the outlier test can check (r > 1e-9) */
+    long n_untestable;        /* equations with r = 0 (a mark seen in one view only: its plate
+                                 error absorbs any error there, which no test can see) */
+    double redundancy_min;    /* the smallest r of a testable equation */
+    double redundancy_mean;   /* the mean r of the testable equations */
 } sc_grid_lsq_info;
 
 /* Model options. */
@@ -52,6 +59,12 @@ typedef struct sc_grid_lsq_opts {
 /* z > 0 with P(|Z| > z) = alpha for a standard normal Z (0 < alpha < 1, else NaN): 1.96 for
  * 0.05, 3.2905 for 0.001. Accurate to a few ulps of z down to the smallest alpha. */
 SC_API double sc_normal_two_sided_critical(double alpha);
+
+/* Baarda's minimal detectable bias of an equation with redundancy r, in units of its σ: the
+ * blunder the test at critical value crit (sc_grid_outlier_critical) finds with probability
+ * power, (crit + z_power)/√r, z_power the one-sided normal quantile of power (0.80: 0.8416).
+ * NaN for r ≤ 0 or power outside (0, 1). */
+SC_API double sc_grid_mdb_ratio(double crit, double power, double r);
 
 /* The |t| beyond which the outlier test flags a coordinate: alpha for the whole set of n_tests
  * coordinates (each = 0), or for each coordinate on its own (each = 1; n_tests unused). NaN for

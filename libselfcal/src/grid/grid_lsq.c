@@ -792,7 +792,27 @@ static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
     for (int k = 0; k < q->ns; ++k)
         q->sgx[k] = q->sgy[k] = NAN;
     q->info.sigma_c_ratio_rms = q->info.sigma_c_ratio_max = NAN;
+    q->info.redundancy_min = q->info.redundancy_mean = NAN;
+    q->info.n_testable = q->info.n_untestable = 0;
     return SC_OK;
+}
+
+/* The redundancy figures of q->info from the leverages. */
+static void redundancy_info(sc_grid_lsq_plan *q)
+{
+    long testable = 0;
+    double rmin = INFINITY, rsum = 0;
+    for (long e = 0; e < q->neq; ++e) {
+        double r = 1.0 - q->eq_h[e];
+        if (r > 1e-9) { /* as the residuals' test: t is NaN beyond */
+            testable++, rsum += r;
+            rmin = fmin(rmin, r);
+        }
+    }
+    q->info.n_testable = testable;
+    q->info.n_untestable = q->neq - testable;
+    q->info.redundancy_min = testable ? rmin : NAN;
+    q->info.redundancy_mean = testable ? rsum / (double)testable : NAN;
 }
 
 sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *mask,
@@ -1176,6 +1196,18 @@ double sc_normal_two_sided_critical(double alpha)
             hi = mid;
     }
     return 0.5 * (lo + hi);
+}
+
+double sc_grid_mdb_ratio(double crit, double power, double r)
+{
+    if (!(r > 0) || !(power > 0 && power < 1) || !(crit >= 0))
+        return NAN;
+    /* P(Z > z) = 1 − power is the two-sided tail 2(1 − power) of |Z|; below the median
+     * (power < 0.5) z is negative */
+    double z = power > 0.5   ? sc_normal_two_sided_critical(2 * (1 - power))
+               : power < 0.5 ? -sc_normal_two_sided_critical(2 * power)
+                             : 0.0;
+    return (crit + z) / sqrt(r);
 }
 
 double sc_grid_outlier_critical(double alpha, long n_tests, int each)
@@ -1946,6 +1978,8 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     }
     sigma_ratios_finish(q);
     st = leverages(q, err);
+    if (st == SC_OK)
+        redundancy_info(q);
     if (st == SC_OK && q->misalignment_unique && functionals) {
         if (!(U = malloc(sizeof(double) * 4 * ng)))
             st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");

@@ -305,6 +305,22 @@ def case_plan_stitched():
     p2 = run("plan", pl)
     if p2.stdout.splitlines()[:4] != p.stdout.splitlines()[:4]:
         fail("plan of the designed plan differs:\n%s\n%s" % (p.stdout, p2.stdout))
+    # Baarda's internal reliability: counts add up, the redundancy numbers sum to the residual
+    # dof, and the minimal detectable blunder is (crit + z_0.8)/sqrt(r) (Python's NormalDist)
+    kv = dict(l.split(": ", 1) for l in p2.stdout.splitlines() if ": " in l)
+    nt, nu = int(kv["testable_equations"]), int(kv["untestable_equations"])
+    if nt + nu != int(kv["equations"]) or nu == 0:  # the corner placements' marks are seen once
+        fail("testable %d + untestable %d vs %s equations" % (nt, nu, kv["equations"]))
+    rmin, rmean = float(kv["redundancy_min"]), float(kv["redundancy_mean"])
+    if abs(rmean * nt - int(kv["residual_dof"])) > 1e-3 * nt or not 0 < rmin <= rmean < 1:
+        fail("redundancy min %g mean %g, %d testable, dof %s" % (rmin, rmean, nt, kv["residual_dof"]))
+    from statistics import NormalDist
+    a = -math.expm1(math.log1p(-0.05) / nt)
+    crit = -NormalDist().inv_cdf(a / 2)
+    for key, r in (("mdb_ratio_max", rmin), ("mdb_ratio_mean_r", rmean)):
+        want = (crit + NormalDist().inv_cdf(0.8)) / math.sqrt(r)
+        if abs(float(kv[key]) / want - 1) > 1e-5:
+            fail("%s %s, want %g" % (key, kv[key], want))
     s = simulate(d, "des", "--plan", pl, "--sigma-r-um", 0)
     g = os.path.join(d, "g.csv")
     run("grid", "--method", "lsq", s["inp"], "--map", g)
