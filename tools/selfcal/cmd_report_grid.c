@@ -180,6 +180,21 @@ static void section_plan(FILE *fp, const grid_report *r)
     html_num_cell(fp, "sigma_c_ratio_rms", "%.4f", r->qi.sigma_c_ratio_rms);
     fputs("</tr>\n<tr><th class=\"l\">predicted std(G)/σ_r, worst node</th>", fp);
     html_num_cell(fp, "sigma_c_ratio_max", "%.4f", r->qi.sigma_c_ratio_max);
+    if (r->qi.n_testable > 0) { /* Baarda's internal reliability (selfcal plan) */
+        const sc_grid_result *l = &r->lres;
+        fprintf(fp, "</tr>\n<tr><th class=\"l\">coordinate equations the outlier test can check "
+                    "/ cannot (a mark seen in one view only)</th><td><span id=\"n_testable\">%ld"
+                    "</span> / <span id=\"n_untestable\">%ld</span></td>",
+                r->qi.n_testable, r->qi.n_untestable);
+        fputs("</tr>\n<tr><th class=\"l\">redundancy r = 1 − h, smallest / mean</th>", fp);
+        fprintf(fp, "<td>%.4f / %.4f</td>", r->qi.redundancy_min, r->qi.redundancy_mean);
+        fputs("</tr>\n<tr><th class=\"l\">smallest blunder found with 80 % power by this "
+              "report's outlier test, in σ of the coordinate: at the smallest / the mean r</th>",
+              fp);
+        fprintf(fp, "<td><span id=\"mdb_ratio_max\">%.3g</span> / %.3g</td>",
+                sc_grid_mdb_ratio(l->outlier_crit, 0.8, r->qi.redundancy_min),
+                sc_grid_mdb_ratio(l->outlier_crit, 0.8, r->qi.redundancy_mean));
+    }
     fputs("</tr>\n</table>\n<table>\n<tr><th>view</th><th>rot (°)</th><th>shift (pitches)</th>"
           "<th class=\"l\">measures</th><th>rows in file</th></tr>\n",
           fp);

@@ -416,6 +416,14 @@ def case_outliers():
         if abs(math.erfc(crit / math.sqrt(2)) / a - 1) > 3e-3:  # crit to 4 decimals: 0.03 %
             fail("report %r: critical value %g for a share %g" % (extra, crit, a))
     run("report", "grid", inp, "-o", out, "--outlier-alpha", "2", expect=2)
+    # the plan's reliability as `selfcal plan` gives it (the default test)
+    run("report", "grid", inp, "-o", out, "--sigma-r-um", 0.01)
+    c = parse(check_self_contained(out))
+    kv = dict(l.split(": ", 1) for l in run("plan", inp).stdout.splitlines() if ": " in l)
+    if c.ids["n_testable"][1] != kv["testable_equations"] or \
+            abs(float(c.ids["mdb_ratio_max"][1]) / float(kv["mdb_ratio_max"]) - 1) > 5e-3:
+        fail("report reliability %r %r, plan %s %s" % (c.ids["n_testable"], c.ids["mdb_ratio_max"],
+                                                       kv["testable_equations"], kv["mdb_ratio_max"]))
 
 
 def write_neg_map(src, dst):
