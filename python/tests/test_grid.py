@@ -1,6 +1,8 @@
 """Grid self-calibration from Python: recovery against simulated truth, equality with the
 command line on the same files, plans, errors."""
+import json
 import math
+import re
 import warnings
 
 import numpy as np
@@ -108,7 +110,8 @@ def test_weights_outliers_and_residuals(cli, tmp_path):
     t_max = np.fmax(np.abs(np.nan_to_num(r_each.tx)), np.abs(np.nan_to_num(r_each.ty)))
     assert np.array_equal(r_each.outlier, t_max > r_each.outlier_crit)
     for bad in ({"outlier_alpha": 0}, {"outlier_alpha": 1.5}, {"outlier_alpha_each": -1},
-                {"outlier_alpha": 0.1, "outlier_alpha_each": 0.1}):
+                {"outlier_alpha": 0.1, "outlier_alpha_each": 0.1}, {"view_noise": "guess"},
+                {"view_noise": "estimate", "sigma_r_um": 0.01}):
         with pytest.raises(selfcal.Error):
             selfcal.calibrate_grid(m, **bad)
     with pytest.warns(UserWarning, match="removed outlier view 0 mark"):
@@ -174,3 +177,25 @@ def test_example_script_runs(tmp_path):
                        text=True, timeout=300, cwd=tmp_path)
     assert p.returncode == 0, p.stderr
     assert "identifiable: True" in p.stdout and "corrected a 5 x 5 raster" in p.stdout
+
+
+def test_view_noise_estimated(cli, tmp_path):
+    sig = [0.02 if v == 1 else 0.03 if v == 3 else 0.05 if v == 20 else 0.01 for v in range(22)]
+    std = selfcal.GridPlan.standard("stitch", 15, 1.0, stage=(41, 31))
+    plan = selfcal.GridPlan(15, 1.0, [dict(v, sigma_um=s) for v, s in zip(std.views, sig)],
+                            stage=(41, 31))
+    m, _ = selfcal.simulate_grid(plan, sigma_r_um=0.01, seed=5)
+    f = tmp_path / "st.csv"
+    m.write(f)
+    text = f.read_text().splitlines(True)
+    g = tmp_path / "unstated.csv"
+    g.write_text("".join(re.sub(r" sigma_um=[0-9.e-]+", "", l) for l in text))
+    r = selfcal.calibrate_grid(str(g), view_noise="estimate")
+    assert r.view_noise_estimated and r.view_sigma_um.shape == (22,)
+    assert np.all(np.abs(r.view_sigma_um / np.array(sig) - 1) < 0.25)
+    assert np.all(np.isnan(r.view_noise_factor))
+    # the command line's summary gives the same estimates
+    cli("grid", "--method", "lsq", g, "--map", tmp_path / "G.csv", "--summary",
+        tmp_path / "S.json", "--view-noise", "estimate", "--quiet")
+    s = json.loads((tmp_path / "S.json").read_text())
+    assert np.allclose([v["sigma_um_est"] for v in s["views"]], r.view_sigma_um, rtol=1e-9)

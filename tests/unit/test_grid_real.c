@@ -636,6 +636,153 @@ static void test_minimal_detectable_bias(void **s)
     sc_grid_data_free(&d);
 }
 
+/* A plan simulated with each view's own noise sig[v] (µm), the data then stating none (d filled;
+ * the truth's G in the returned gx then gy, 2 NX·NY doubles the caller frees). */
+static double *unequal_views(sc_grid_data *d, const sc_grid_plan *plan, const double *sig,
+                             uint64_t seed)
+{
+    sc_grid_plan p = *plan;
+    for (int v = 0; v < p.n_views; ++v)
+        p.view[v].sigma_um = sig[v];
+    memset(d, 0, sizeof *d);
+    d->plan = p;
+    assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
+    long ns = sc_grid_stage_nodes(&p), nn = (long)p.n * p.n;
+    double *buf = malloc(sizeof(double) * (2 * ns + 2 * nn + sc_grid_sim_work_doubles_plan(&p)));
+    sc_grid_sim_params sp;
+    sc_grid_sim_defaults(&sp);
+    sp.seed = seed;
+    sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
+                           .ay_um = buf + 2 * ns + nn};
+    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, d, buf + 2 * ns + 2 * nn, NULL), SC_OK);
+    for (int v = 0; v < p.n_views; ++v)
+        d->plan.view[v].sigma_um = 0; /* as if the file stated nothing */
+    return buf;
+}
+
+static void count_warning(void *ctx, const char *msg);
+
+/* Each view's noise estimated (Förstner's variance components). On a stitched plan (22 views,
+ * each with redundancy of its own) the estimates match the simulated noise of every view within
+ * their sampling spread and do not depend on the weights the iteration starts from; on Ye's
+ * three views (whose rot-0 views trade their noise against each other: estimates scatter ±25 %)
+ * the uncertainties still describe the actual errors over seeds and the estimated weights beat
+ * the unweighted fit. The data's weights are left as they came; noise-free data and bad
+ * combinations are refused. */
+static void test_view_noise(void **s)
+{
+    (void)s;
+    sc_grid_plan st;
+    assert_int_equal(sc_grid_plan_stitch(15, 41, 31, 1.0, 0, 0, &st, NULL), SC_OK);
+    assert_int_equal(st.n_views, 22);
+    double sig_st[22];
+    for (int v = 0; v < 22; ++v)
+        sig_st[v] = v == 1 ? 0.02 : v == 3 ? 0.03 : v == 20 ? 0.05 : 0.01;
+    for (uint64_t seed = 1; seed <= 2; ++seed) {
+        sc_grid_data d;
+        double *truth = unequal_views(&d, &st, sig_st, seed);
+        sc_grid_options o;
+        sc_grid_options_default(&o);
+        o.estimate_view_noise = 1;
+        int warnings = 0;
+        o.warn = count_warning, o.warn_ctx = &warnings;
+        sc_grid_solution est, est2;
+        assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &est, NULL), SC_OK);
+        assert_int_equal(warnings, (int)est.n_flagged); /* nothing else to say */
+        const sc_grid_result *r = &est.res;
+        assert_int_equal(r->view_noise_estimated, 1);
+        assert_true(r->view_noise_iterations > 0 && r->view_noise_iterations < 30);
+        assert_true(r->weighted && isnan(r->chi2_lo));
+        for (int v = 0; v < 22; ++v) { /* measured within ±13 % over four seeds */
+            assert_true(fabs(r->view_sigma_um[v] / sig_st[v] - 1) < 0.2);
+            assert_true(isnan(r->view_noise_factor[v])); /* the file stated none */
+            assert_true(d.plan.view[v].sigma_um == 0);   /* the data as they came */
+        }
+        /* from the true weights stated, the same fixed point */
+        for (int v = 0; v < 22; ++v)
+            d.plan.view[v].sigma_um = sig_st[v];
+        assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &est2, NULL), SC_OK);
+        for (int v = 0; v < 22; ++v) {
+            assert_true(fabs(est2.res.view_sigma_um[v] / r->view_sigma_um[v] - 1) < 1e-4);
+            assert_true(fabs(est2.res.view_noise_factor[v] - r->view_sigma_um[v] / sig_st[v]) <
+                        1e-4);
+            assert_true(d.plan.view[v].sigma_um == sig_st[v]);
+        }
+        for (long k = 0; k < est.n_nodes; ++k)
+            assert_true(fabs(est2.res.gx_um[k] - r->gx_um[k]) < 1e-6);
+        sc_grid_solution_free(&est2);
+        sc_grid_solution_free(&est);
+        free(truth);
+        sc_grid_data_free(&d);
+    }
+    sc_grid_plan ye;
+    assert_int_equal(sc_grid_plan_ye(15, 1.0, 0, 0, &ye, NULL), SC_OK);
+    static const double sig_ye[3] = {0.01, 0.03, 0.02};
+    double e2_est = 0, e2_unw = 0, u2_est = 0;
+    for (uint64_t seed = 1; seed <= 6; ++seed) {
+        sc_grid_data d;
+        double *truth = unequal_views(&d, &ye, sig_ye, seed);
+        sc_grid_options o;
+        sc_grid_options_default(&o);
+        o.estimate_view_noise = 1;
+        sc_grid_solution est, unw;
+        assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &est, NULL), SC_OK);
+        assert_int_equal(est.res.view_noise_estimated, 1);
+        o.estimate_view_noise = 0;
+        assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &unw, NULL), SC_OK);
+        const sc_grid_result *r = &est.res;
+        for (long k = 0; k < 225; ++k) {
+            double ex = r->gx_um[k] - truth[k], ey = r->gy_um[k] - truth[225 + k];
+            e2_est += ex * ex + ey * ey;
+            u2_est += r->ugx_um[k] * r->ugx_um[k] + r->ugy_um[k] * r->ugy_um[k];
+            ex = unw.res.gx_um[k] - truth[k], ey = unw.res.gy_um[k] - truth[225 + k];
+            e2_unw += ex * ex + ey * ey;
+        }
+        sc_grid_solution_free(&est);
+        sc_grid_solution_free(&unw);
+        free(truth);
+        sc_grid_data_free(&d);
+    }
+    /* 2700 components but correlated within a seed: a wide margin */
+    double ratio = sqrt(e2_est / u2_est);
+    assert_true(ratio > 0.75 && ratio < 1.33);
+    assert_true(e2_est < 0.95 * e2_unw);
+    /* noise-free data: a warning, the weights as stated */
+    sc_grid_data d;
+    double *truth = unequal_views(&d, &ye, sig_ye, 1);
+    sc_grid_sim_params sp;
+    sc_grid_sim_defaults(&sp);
+    sc_grid_plan p = d.plan;
+    sp.sigma_r_um = 0;
+    double *buf = malloc(sizeof(double) * (900 + sc_grid_sim_work_doubles_plan(&p)));
+    sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + 225, .ax_um = buf + 450,
+                           .ay_um = buf + 675};
+    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 900, NULL), SC_OK);
+    free(buf);
+    sc_grid_options o;
+    sc_grid_options_default(&o);
+    o.estimate_view_noise = 1;
+    int warnings = 0;
+    o.warn = count_warning, o.warn_ctx = &warnings;
+    sc_grid_solution sol;
+    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, NULL), SC_OK);
+    assert_int_equal(sol.res.view_noise_estimated, 0);
+    assert_true(warnings >= 1);
+    sc_grid_solution_free(&sol);
+    /* bad combinations */
+    sc_error err;
+    o.sigma_r_um = 0.01;
+    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "exclude each other"));
+    sc_grid_solution_free(&sol);
+    o.sigma_r_um = 0, o.method = SC_GRID_METHOD_YE;
+    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "need least squares"));
+    sc_grid_solution_free(&sol);
+    free(truth);
+    sc_grid_data_free(&d);
+}
+
 /* Petrò's plan, N = 25, simulated with seed: d filled (free with sc_grid_data_free). */
 static void petro_data(sc_grid_data *d, uint64_t seed)
 {
@@ -756,6 +903,7 @@ int main(void)
         cmocka_unit_test(test_chi2_quantile),
         cmocka_unit_test(test_outlier_critical),
         cmocka_unit_test(test_minimal_detectable_bias),
+        cmocka_unit_test(test_view_noise),
         cmocka_unit_test(test_outlier_test_calibrate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -16,7 +16,8 @@ static const char *USAGE =
     "usage: selfcal grid --method {ye,double-shift,lsq} IN.csv --map G.csv\n"
     "                    [--artifact A.csv] [--summary S.json] [--sigma-r-um X] [--plot map.svg]\n"
     "                    [--residuals R.csv] [--reject-outliers] [--covariance C.npy]\n"
-    "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear] [--quiet]\n"
+    "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear]\n"
+    "                    [--view-noise stated|estimate] [--quiet]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -43,6 +44,11 @@ static const char *USAGE =
     "                --covariance C.npy  the covariance of G (um^2, numpy .npy, 2*NX*NY square,\n"
     "                node by node, gx then gy; stages up to 1681 nodes).\n"
     "                --drift linear  per-view drift rates from the t_s column as unknowns.\n"
+    "                --view-noise estimate  each view's noise estimated from its residuals\n"
+    "                (variance components, re-weighted until it settles): views measured with\n"
+    "                different noise get their own weights and the uncertainties use them; on a\n"
+    "                file stating uncertainties, a factor on them per view. Printed and in the\n"
+    "                summary (sigma_um_est per view). Excludes --sigma-r-um.\n"
     "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
     "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
 
@@ -85,6 +91,12 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
     if (isfinite(r->ugx_um[worst]))
         printf(", u = %.3g, %.3g um", r->ugx_um[worst], r->ugy_um[worst]);
     putchar('\n');
+    if (r->view_noise_estimated) {
+        printf("view_sigma_um:");
+        for (int v = 0; v < p->n_views; ++v)
+            printf(" %.4g", r->view_sigma_um[v]);
+        printf(" (estimated per view, %d re-weighted solves)\n", r->view_noise_iterations);
+    }
     if (isfinite(r->outlier_crit))
         printf("outliers: %ld flagged, %ld removed (|t| > %.4g: alpha %g %s)\n", s->n_flagged,
                s->n_removed, r->outlier_crit, r->outlier_alpha,
@@ -134,6 +146,11 @@ static int parse_args(int argc, char **argv, grid_args *g)
         else if (!strcmp(o, "--plot")) g->plot = v;
         else if (!strcmp(o, "--residuals")) g->residuals = v;
         else if (!strcmp(o, "--covariance")) g->covariance = v;
+        else if (!strcmp(o, "--view-noise")) {
+            if (strcmp(v, "estimate") != 0 && strcmp(v, "stated") != 0)
+                return cli_usage_error("grid", "--view-noise must be stated or estimate, got '%s'", v);
+            g->opt.estimate_view_noise = !strcmp(v, "estimate");
+        }
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);

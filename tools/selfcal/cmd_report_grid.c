@@ -21,6 +21,7 @@
 static const char *USAGE =
     "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
     "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
+    "                           [--view-noise stated|estimate]\n"
     "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]]\n"
     "\n"
     "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
@@ -31,7 +32,8 @@ static const char *USAGE =
     "arrows, Gx, Gy, u(Gx), u(Gy) as colour maps, the plate error A, and the provenance (selfcal\n"
     "version, date, command line, SHA-256 of every input). Default method: lsq.\n"
     "Residuals and the noise estimate always come from the least-squares fit of the data (the\n"
-    "closed forms are not least-squares estimates); the outlier test's options are selfcal grid's.\n"
+    "closed forms are not least-squares estimates); the outlier test's options and --view-noise\n"
+    "are selfcal grid's.\n"
     "--verify adds the check of the compensated\n"
     "machine (see selfcal verify --help) against the plate error of this calibration.\n"
     "Exit 0, or 2 on bad input (one line naming the file and line; no report is left).\n";
@@ -90,6 +92,7 @@ static sc_status run(grid_report *r, sc_error *err)
     lo.method = SC_GRID_METHOD_LSQ;
     lo.outlier_alpha = r->test.outlier_alpha; /* the test runs on the least-squares fit */
     lo.outlier_alpha_each = r->test.outlier_alpha_each;
+    lo.estimate_view_noise = r->test.estimate_view_noise;
     if (st == SC_OK) /* residuals, standardized residuals (exact leverage), Baarda's test */
         st = sc_grid_calibrate(&r->d, &r->info, r->in, &lo, &r->lsol, err);
     if (st != SC_OK)
@@ -266,7 +269,7 @@ static void section_noise(FILE *fp, const grid_report *r, int *chi2_pass)
             l->n_measurements, l->dof);
     /* the library's test of the stated noise (--sigma-r-um or the file's uncertainties) */
     double vf = l->weighted ? l->variance_factor : NAN, lo = l->chi2_lo, hi = l->chi2_hi;
-    int pass = l->weighted && isfinite(vf) && l->dof > 0 ? l->chi2_pass : -1;
+    int pass = l->weighted && isfinite(vf) && l->dof > 0 && isfinite(lo) ? l->chi2_pass : -1;
     *chi2_pass = pass;
     fputs("<tr><th class=\"l\">variance factor σ̂²/σ² (weighted RSS / dof)</th>", fp);
     html_num_cell(fp, "variance_factor", "%.4f", vf);
@@ -277,8 +280,21 @@ static void section_noise(FILE *fp, const grid_report *r, int *chi2_pass)
                 lo, hi, pass ? "pass" : "fail", pass ? "pass" : "fail");
     else
         fputs("<td>—</td></tr>\n<tr><th class=\"l\">χ² test</th><td id=\"chi2\">not applicable</td>", fp);
+    if (l->view_noise_estimated) {
+        fputs("</tr>\n<tr><th class=\"l\">each view's noise, estimated from its residuals "
+              "(variance components), views in file order</th><td id=\"view_sigma_um\">",
+              fp);
+        for (int v = 0; v < r->d.plan.n_views; ++v)
+            fprintf(fp, "%s%.4g", v ? ", " : "", l->view_sigma_um[v]);
+        fputs(" µm</td>", fp);
+    }
     fputs("</tr>\n</table>\n", fp);
-    if (pass < 0)
+    if (l->view_noise_estimated)
+        fputs("<p class=\"note\">Each view's noise was estimated from its own residuals "
+              "(--view-noise estimate): the views are weighted by it and the uncertainties use "
+              "it, so the variance factor is 1 by construction and there is nothing to test.</p>\n",
+              fp);
+    else if (pass < 0)
         fputs("<p class=\"note\">No noise level was stated (neither --sigma-r-um nor uncertainties "
               "in the file), so σ_r is estimated from the residuals and the variance factor is 1 "
               "by construction: there is nothing to test. Give the instrument's σ_r to test it.</p>\n",
@@ -655,6 +671,10 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
     else if (!strcmp(o, "--outlier-alpha") || !strcmp(o, "--outlier-alpha-each")) {
         int used;
         return cli_parse_outlier_option(cmd, o, v, &r->test, &used);
+    } else if (!strcmp(o, "--view-noise")) {
+        if (strcmp(v, "estimate") != 0 && strcmp(v, "stated") != 0)
+            return cli_usage_error(cmd, "--view-noise must be stated or estimate, got '%s'", v);
+        r->test.estimate_view_noise = !strcmp(v, "estimate");
     }
     else if (!strcmp(o, "--sigma-r-um")) {
         if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||

@@ -96,6 +96,13 @@ typedef struct sc_grid_result {
     double outlier_alpha_coord; /* each coordinate's own significance (the Šidák share) */
     double outlier_crit;      /* |t| beyond which a coordinate is flagged */
     long n_outlier_tests;     /* coordinates tested (finite t in the first solution) */
+    /* each view's noise estimated (sc_grid_options.estimate_view_noise; 0 and NaN otherwise): */
+    int view_noise_estimated; /* 1: the weights are the estimated ones */
+    int view_noise_iterations; /* the re-weighted solves it took */
+    double view_sigma_um[SC_GRID_MAX_VIEWS];     /* RMS standard deviation of a coordinate of the
+                                                    view, as estimated */
+    double view_noise_factor[SC_GRID_MAX_VIEWS]; /* the factor on the view's stated
+                                                    uncertainties (NaN if it stated none) */
 } sc_grid_result;
 
 /* ---- geometry (grid_geometry.c) ---- */

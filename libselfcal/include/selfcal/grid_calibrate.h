@@ -45,6 +45,11 @@ typedef struct sc_grid_options {
                                 SC_GRID_OUTLIER_ALPHA (0.05) for the whole data set */
     int outlier_alpha_each;  /* 1: outlier_alpha is each coordinate's own (Baarda's α0, e.g.
                                 0.001) instead of the whole data set's */
+    int estimate_view_noise; /* least squares: each view's noise estimated from its residuals
+                                (Förstner's variance components, iterated to convergence): the
+                                views are weighted by it and the uncertainties use it. On data
+                                stating uncertainties, a factor on them per view; excludes
+                                sigma_r_um */
     sc_grid_warn_fn warn;    /* warnings (NULL: none) */
     void *warn_ctx;
 } sc_grid_options;

@@ -11,6 +11,7 @@
 
 #include "selfcal/grid_calibrate.h"
 #include "selfcal/grid_exact.h"
+#include "grid_lsq_internal.h"
 
 int sc_grid_method_from_name(const char *name)
 {
@@ -145,6 +146,10 @@ static double given_sigma_r(const sc_grid_data *d, const sc_grid_file_info *info
 static sc_status check_lsq(const sc_grid_data *d, const sc_grid_file_info *info, const char *path,
                            const sc_grid_options *o, sc_error *err)
 {
+    if (o->estimate_view_noise && o->sigma_r_um > 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "a given noise (--sigma-r-um) and the noise estimated per view "
+                            "(--view-noise estimate) exclude each other");
     if (!(o->outlier_alpha >= 0 && o->outlier_alpha < 1))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "the outlier test's significance must lie between 0 and 1, got %g",
@@ -164,9 +169,10 @@ sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_info *i
     if (o->method == SC_GRID_METHOD_LSQ)
         return check_lsq(d, info, path, o, err);
     if (o->drift || o->reject_outliers || o->covariance || o->outlier_alpha != 0 ||
-        o->outlier_alpha_each)
+        o->outlier_alpha_each || o->estimate_view_noise)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "residuals, the outlier test, covariance and drift need least squares");
+                            "residuals, the outlier test, covariance, drift and the noise per view "
+                            "need least squares");
     return check_exact(d, info, path, o->method, err);
 }
 
@@ -217,6 +223,8 @@ static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
     r->uO = r->uR = r->variance_factor = r->chi2_lo = r->chi2_hi = NAN;
     r->chi2_pass = 1;
     r->outlier_alpha = r->outlier_alpha_coord = r->outlier_crit = NAN;
+    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+        r->view_sigma_um[v] = r->view_noise_factor[v] = NAN;
     r->misalignment_unique = 1;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
         r->tx_um[v] = r->ty_um[v] = r->theta_urad[v] = r->utx_um[v] = r->uty_um[v] =
@@ -326,12 +334,307 @@ static sc_grid_lsq_opts lsq_opts(const sc_grid_options *o)
     return q;
 }
 
+/* ---- each view's noise: Förstner's variance components ----
+ * A view's weighted residual sum of squares has the expectation k_v·r_v, r_v = Σ(1 − h) over its
+ * equations and k_v the factor its noise has on its current uncertainties; so k_v = wrss_v / r_v,
+ * the uncertainties are multiplied by √k_v and the fit made again, until every k_v is 1 within
+ * VCE_TOL. A view with less redundancy than VCE_MIN_RED is pooled with the other such views (or,
+ * if they are too few together, takes the factor of all views). */
+#define VCE_MIN_RED 3.0
+#define VCE_TOL 1e-5
+#define VCE_MAX_IT 30
+#define VCE_COLLAPSE 1e-2 /* a view's σ below this fraction of the views' RMS: not separable */
+
+/* The uncertainties the data came with (restored on return), and the factors applied on them. */
+typedef struct view_noise {
+    double sigma_um[SC_GRID_MAX_VIEWS]; /* each view's sigma_um as read (0: none) */
+    double *u;                          /* the rows' ux then uy as read, per view (NULL: none) */
+    double f[SC_GRID_MAX_VIEWS];        /* the factors now in d */
+    int active;                         /* 1: saved, to be restored */
+} view_noise;
+
+/* Save d's uncertainties into vn if the noise per view is to be estimated (else nothing). */
+static sc_status view_noise_save(const sc_grid_data *d, int estimate, view_noise *vn,
+                                 sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n;
+    memset(vn, 0, sizeof *vn);
+    if (!estimate)
+        return SC_OK;
+    vn->active = 1;
+    int rows = 0;
+    for (int v = 0; v < p->n_views; ++v) {
+        vn->sigma_um[v] = p->view[v].sigma_um;
+        vn->f[v] = 1;
+        rows |= d->ux_um[v] != NULL;
+    }
+    if (rows && !(vn->u = malloc(2 * nn * (size_t)p->n_views * sizeof(double))))
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (int v = 0; rows && v < p->n_views; ++v)
+        for (size_t k = 0; k < nn; ++k) {
+            vn->u[(2 * v) * nn + k] = d->ux_um[v] ? d->ux_um[v][k] : NAN;
+            vn->u[(2 * v + 1) * nn + k] = d->uy_um[v] ? d->uy_um[v][k] : NAN;
+        }
+    return SC_OK;
+}
+
+/* d's uncertainties := as read times f (a view that states none counts as 1 µm, the unit weight
+ * of unweighted least squares, so that its factor is its noise in µm). */
+static void view_noise_apply(sc_grid_data *d, const view_noise *vn, const double *f)
+{
+    sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n;
+    for (int v = 0; v < p->n_views; ++v) {
+        p->view[v].sigma_um = (vn->sigma_um[v] > 0 ? vn->sigma_um[v] : 1.0) * f[v];
+        for (size_t k = 0; vn->u && k < nn; ++k) {
+            if (d->ux_um[v])
+                d->ux_um[v][k] = vn->u[(2 * v) * nn + k] * f[v];
+            if (d->uy_um[v])
+                d->uy_um[v][k] = vn->u[(2 * v + 1) * nn + k] * f[v];
+        }
+    }
+}
+
+/* d's uncertainties as read (vn kept). */
+static void view_noise_restore_weights(sc_grid_data *d, const view_noise *vn)
+{
+    sc_grid_plan *p = &d->plan;
+    size_t nn = (size_t)p->n * p->n;
+    for (int v = 0; vn->active && v < p->n_views; ++v) {
+        p->view[v].sigma_um = vn->sigma_um[v];
+        for (size_t k = 0; vn->u && k < nn; ++k) {
+            if (d->ux_um[v])
+                d->ux_um[v][k] = vn->u[(2 * v) * nn + k];
+            if (d->uy_um[v])
+                d->uy_um[v][k] = vn->u[(2 * v + 1) * nn + k];
+        }
+    }
+}
+
+/* d's uncertainties as read; vn released. */
+static void view_noise_restore(sc_grid_data *d, view_noise *vn)
+{
+    view_noise_restore_weights(d, vn);
+    free(vn->u);
+    vn->u = NULL;
+    vn->active = 0;
+}
+
+/* The factor k_v of every view from its components (pooling those with little redundancy). */
+static void vce_factors(int nv, const double *wrss, const double *red, double *k)
+{
+    double w_all = 0, r_all = 0, w_low = 0, r_low = 0;
+    for (int v = 0; v < nv; ++v) {
+        w_all += wrss[v], r_all += red[v];
+        if (red[v] < VCE_MIN_RED)
+            w_low += wrss[v], r_low += red[v];
+    }
+    double k_all = r_all > 0 ? w_all / r_all : 1.0;
+    double k_low = r_low >= VCE_MIN_RED ? w_low / r_low : k_all;
+    for (int v = 0; v < nv; ++v)
+        k[v] = red[v] >= VCE_MIN_RED ? wrss[v] / red[v] : k_low;
+}
+
+/* The plain iteration, log f += ½ log k, converges linearly, slowly where the views share
+ * their redundancy (every mark seen in three views: 7 % per step measured on Ye's plan). Anderson
+ * acceleration (Walker & Ni 2011) on x = log f with the last VCE_HIST steps settles it in a few
+ * solves; a step that makes the change larger than the last one's restarts the history. */
+#define VCE_HIST 5
+typedef struct vce_accel {
+    int nv, nh;                               /* views, steps in the history */
+    double px[SC_GRID_MAX_VIEWS], pg[SC_GRID_MAX_VIEWS]; /* the last x and its g = ½ log k */
+    double dx[VCE_HIST][SC_GRID_MAX_VIEWS], dg[VCE_HIST][SC_GRID_MAX_VIEWS];
+    double last_norm;                         /* |g| of the last step (-1: none yet) */
+} vce_accel;
+
+static void vce_accel_init(vce_accel *a, int nv)
+{
+    memset(a, 0, sizeof *a);
+    a->nv = nv;
+    a->last_norm = -1;
+}
+
+/* f := the next factors from the current f and its k (k_v = 1 at the fixed point). */
+static void vce_accel_step(vce_accel *a, double *f, const double *k)
+{
+    int nv = a->nv;
+    double x[SC_GRID_MAX_VIEWS], g[SC_GRID_MAX_VIEWS], norm = 0;
+    for (int v = 0; v < nv; ++v) {
+        x[v] = log(f[v]), g[v] = 0.5 * log(k[v]);
+        norm += g[v] * g[v];
+    }
+    if (a->last_norm >= 0 && norm > a->last_norm)
+        a->nh = 0; /* worse than before: start again from the plain step */
+    else if (a->last_norm >= 0) { /* the newest difference into the history */
+        if (a->nh == VCE_HIST) {
+            memmove(a->dx[0], a->dx[1], sizeof a->dx[0] * (VCE_HIST - 1));
+            memmove(a->dg[0], a->dg[1], sizeof a->dg[0] * (VCE_HIST - 1));
+            a->nh--;
+        }
+        for (int v = 0; v < nv; ++v)
+            a->dx[a->nh][v] = x[v] - a->px[v], a->dg[a->nh][v] = g[v] - a->pg[v];
+        a->nh++;
+    }
+    memcpy(a->px, x, sizeof x);
+    memcpy(a->pg, g, sizeof g);
+    a->last_norm = norm;
+    /* γ = argmin |g − ΔG γ| by the normal equations (m ≤ VCE_HIST, Cholesky with a tiny ridge);
+     * x += g − (ΔX + ΔG) γ */
+    int m = a->nh;
+    double A[VCE_HIST][VCE_HIST], b[VCE_HIST], gam[VCE_HIST];
+    for (int i = 0; i < m; ++i) {
+        b[i] = 0;
+        for (int v = 0; v < nv; ++v)
+            b[i] += a->dg[i][v] * g[v];
+        for (int j = 0; j <= i; ++j) {
+            double t = 0;
+            for (int v = 0; v < nv; ++v)
+                t += a->dg[i][v] * a->dg[j][v];
+            A[i][j] = A[j][i] = t;
+        }
+    }
+    double tr = 0;
+    for (int i = 0; i < m; ++i)
+        tr += A[i][i];
+    int ok = 1;
+    for (int i = 0; i < m && ok; ++i) { /* in place: A = L Lᵀ */
+        A[i][i] += 1e-12 * tr + 1e-300;
+        for (int j = 0; j <= i; ++j) {
+            double t = A[i][j];
+            for (int q = 0; q < j; ++q)
+                t -= A[i][q] * A[j][q];
+            if (j < i)
+                A[i][j] = t / A[j][j];
+            else if (t > 0)
+                A[i][i] = sqrt(t);
+            else
+                ok = 0;
+        }
+    }
+    for (int i = 0; i < m && ok; ++i) { /* L y = b, Lᵀ γ = y */
+        double t = b[i];
+        for (int q = 0; q < i; ++q)
+            t -= A[i][q] * gam[q];
+        gam[i] = t / A[i][i];
+    }
+    for (int i = m - 1; i >= 0 && ok; --i) {
+        double t = gam[i];
+        for (int q = i + 1; q < m; ++q)
+            t -= A[q][i] * gam[q];
+        gam[i] = t / A[i][i];
+    }
+    if (!ok)
+        m = a->nh = 0;
+    for (int v = 0; v < nv; ++v) {
+        double extra = 0; /* the extrapolation beyond the plain step, at most a factor e */
+        for (int i = 0; i < m; ++i)
+            extra -= (a->dx[i][v] + a->dg[i][v]) * gam[i];
+        extra = isfinite(extra) ? fmax(-1.0, fmin(1.0, extra)) : 0.0;
+        f[v] = exp(x[v] + g[v] + extra);
+    }
+}
+
+/* Re-weight the views by their estimated noise and solve again until it settles; *qp and s->res
+ * are then the fit with the estimated weights. Data whose residuals are at the rounding level
+ * (noise-free) keep their weights, with a warning. */
+/* d's uncertainties back to vn's start (as read), *qp and s->res the fit with them. */
+static sc_status view_noise_reset(sc_grid_data *d, const sc_grid_options *o, view_noise *vn,
+                                  sc_grid_solution *s, sc_grid_lsq_plan **qp, sc_error *err)
+{
+    sc_grid_lsq_opts opts = lsq_opts(o);
+    double sigma_r = 0;
+    for (int v = 0; v < d->plan.n_views; ++v)
+        vn->f[v] = 1;
+    view_noise_restore_weights(d, vn);
+    sc_grid_lsq_plan_destroy(*qp);
+    *qp = NULL;
+    sc_status st = sc_grid_lsq_plan_create(&d->plan, d, &opts, qp, err);
+    if (st == SC_OK)
+        st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
+    return st;
+}
+
+static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *info,
+                                     const sc_grid_options *o, view_noise *vn,
+                                     sc_grid_solution *s, sc_grid_lsq_plan **qp, const char *src,
+                                     sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    int nv = p->n_views, it = 0;
+    sc_grid_lsq_opts opts = lsq_opts(o);
+    double wrss[SC_GRID_MAX_VIEWS], red[SC_GRID_MAX_VIEWS], u2[SC_GRID_MAX_VIEWS];
+    double k[SC_GRID_MAX_VIEWS];
+    vce_accel acc;
+    vce_accel_init(&acc, nv);
+    for (;; ++it) {
+        sc_status st = sc_grid_lsq_view_components(*qp, d, &s->res, wrss, red, u2, err);
+        if (st != SC_OK)
+            return st;
+        vce_factors(nv, wrss, red, k);
+        double worst = 0, s2_all = 0, n_all = 0;
+        for (int v = 0; v < nv; ++v)
+            if (isfinite(u2[v]))
+                s2_all += k[v] * u2[v], n_all += 1;
+        s2_all /= n_all > 0 ? n_all : 1; /* the views' mean variance */
+        for (int v = 0; v < nv; ++v) {
+            if (!isfinite(u2[v]))
+                continue;
+            if (!(k[v] * u2[v] >= NOISE_FLOOR_UM * NOISE_FLOOR_UM)) {
+                warnf(o, "%s: the residuals of view %d are at the rounding level: the noise per "
+                         "view is not estimated (the weights stay as stated)",
+                      src, view_id(info, v));
+                return it ? view_noise_reset(d, o, vn, s, qp, err) : SC_OK;
+            }
+            /* a view whose estimate runs to zero against the others' is not separable from
+             * them by these views (its equations become the ones the fit must pass through):
+             * Förstner's estimator has no answer there */
+            if (!(k[v] * u2[v] >= VCE_COLLAPSE * VCE_COLLAPSE * s2_all)) {
+                warnf(o, "%s: the noise of view %d runs to zero against the other views' (not "
+                         "separable by this plan, or an outlier elsewhere): the noise per view is "
+                         "not estimated (the weights stay as stated)",
+                      src, view_id(info, v));
+                return view_noise_reset(d, o, vn, s, qp, err);
+            }
+            worst = fmax(worst, fabs(k[v] - 1));
+        }
+        if (worst < VCE_TOL)
+            break;
+        if (it >= VCE_MAX_IT) {
+            warnf(o, "%s: the noise per view did not settle in %d re-weighted solves (its factors "
+                     "still change by %.2g): not estimated (the weights stay as stated)",
+                  src, VCE_MAX_IT, worst);
+            return view_noise_reset(d, o, vn, s, qp, err);
+        }
+        vce_accel_step(&acc, vn->f, k);
+        view_noise_apply(d, vn, vn->f);
+        sc_grid_lsq_plan_destroy(*qp);
+        *qp = NULL;
+        st = sc_grid_lsq_plan_create(p, d, &opts, qp, err);
+        if (st == SC_OK)
+            st = sc_grid_lsq_execute(*qp, d, 0, &s->res, err);
+        if (st != SC_OK)
+            return st;
+    }
+    sc_grid_result *r = &s->res;
+    r->view_noise_estimated = 1;
+    r->view_noise_iterations = it;
+    for (int v = 0; v < nv; ++v) {
+        r->view_sigma_um[v] = sqrt(k[v] * u2[v]);
+        r->view_noise_factor[v] = vn->sigma_um[v] > 0 || vn->u ? vn->f[v] * sqrt(k[v]) : NAN;
+    }
+    /* the variance factor is 1 by construction: no test of the noise is left */
+    r->chi2_lo = r->chi2_hi = NAN;
+    r->chi2_pass = 1;
+    return SC_OK;
+}
+
 /* Solve, then while asked remove the worst flagged measurement and solve again. A removal is
  * confirmed (and warned about) once the views still identify G without it; an outlier that is
  * the only link is kept, with a warning, and rejection stops. keep: the data as they came. */
 static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
-                          const sc_grid_options *o, const double *keep, sc_grid_solution *s,
-                          sc_grid_lsq_plan **qp, sc_error *err)
+                          const sc_grid_options *o, const double *keep, view_noise *vn,
+                          sc_grid_solution *s, sc_grid_lsq_plan **qp, sc_error *err)
 {
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
@@ -348,6 +651,12 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
         if (!first || !*qp) { /* the first plan may come made (sc_grid_calibrate) */
             sc_grid_lsq_plan_destroy(*qp);
             *qp = NULL;
+            if (vn->active) { /* each pass estimates the noise per view afresh from the
+                                 weights as read: a removed outlier no longer pulls it */
+                for (int v = 0; v < p->n_views; ++v)
+                    vn->f[v] = 1;
+                view_noise_restore_weights(d, vn);
+            }
             sc_status st = sc_grid_lsq_plan_create(p, d, &opts, qp, err);
             if (st != SC_OK)
                 return st;
@@ -377,6 +686,8 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
                                 "beyond the gauge stay free (see 'selfcal plan')",
                                 s->plan_info.free_dof);
         sc_status st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
+        if (st == SC_OK && o->estimate_view_noise)
+            st = estimate_view_noise(d, info, o, vn, s, qp, src, err);
         if (st == SC_OK)
             st = sc_grid_lsq_residuals(*qp, d, &s->res, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
         if (st != SC_OK)
@@ -454,7 +765,14 @@ static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const c
         for (size_t k = 0; k < nn; ++k)
             keep[v * nn + k] = d->dx_um[v][k], keep[tot + v * nn + k] = d->dy_um[v][k];
     sc_grid_lsq_plan *q = q0;
-    sc_status st = lsq_loop(d, info, path, o, keep, s, &q, err);
+    view_noise vn;
+    sc_status st = view_noise_save(d, o->estimate_view_noise, &vn, err);
+    if (st != SC_OK) {
+        free(keep);
+        sc_grid_lsq_plan_destroy(q0);
+        return st;
+    }
+    st = lsq_loop(d, info, path, o, keep, &vn, s, &q, err);
     if (st == SC_OK)
         lsq_finish(d, info, path, o, keep, s, q);
     else /* the data as they came, whatever was removed */
@@ -473,6 +791,7 @@ static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const c
             st = sc_grid_lsq_covariance(q, &s->res, s->cov_um2, err);
         s->n_cov = m;
     }
+    view_noise_restore(d, &vn); /* the uncertainties as they came */
     sc_grid_lsq_plan_destroy(q);
     free(keep);
     return st;

@@ -254,6 +254,10 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
         json_kv(fp, "utx_um", res->utx_um[v]);
         json_kv(fp, "uty_um", res->uty_um[v]);
         json_kv(fp, "utheta_urad", res->utheta_urad[v]);
+        if (res->view_noise_estimated) {
+            json_kv(fp, "sigma_um_est", res->view_sigma_um[v]);
+            json_kv(fp, "noise_factor", res->view_noise_factor[v]);
+        }
         if (res->drift) {
             json_kv(fp, "vx_um_s", res->vx_um_s[v]);
             json_kv(fp, "vy_um_s", res->vy_um_s[v]);
@@ -275,7 +279,9 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
     fputs(", ", fp);
     json_num(fp, res->chi2_hi);
     fprintf(fp, "],\n  \"chi2_test\": \"%s\",\n  \"drift\": \"%s\"",
-            !isfinite(res->variance_factor) ? "n/a" : res->chi2_pass ? "pass" : "fail",
+            !isfinite(res->variance_factor) || !isfinite(res->chi2_lo) ? "n/a"
+            : res->chi2_pass                                          ? "pass"
+                                                                      : "fail",
             res->drift ? "linear" : "none");
     if (isfinite(res->outlier_crit) && res->outlier_crit > 0) { /* the least squares' test ran */
         fprintf(fp, ",\n  \"outlier_test\": {\"alpha\": %.6g, \"for\": \"%s\", ",
@@ -286,6 +292,7 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
         json_num(fp, res->outlier_crit);
         fprintf(fp, ", \"coordinates_tested\": %ld}", res->n_outlier_tests);
     }
+    fprintf(fp, ",\n  \"view_noise\": \"%s\"", res->view_noise_estimated ? "estimated" : "stated");
     fprintf(fp, ",\n  \"misalignment_unique\": %s", res->misalignment_unique ? "true" : "false");
     fprintf(fp, ",\n  \"n_measurements\": %ld,\n  \"dof\": %ld\n}\n", res->n_measurements,
             res->dof);

@@ -2039,6 +2039,38 @@ sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d
     return SC_OK;
 }
 
+sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                      const sc_grid_result *res, double *wrss, double *red,
+                                      double *u2, sc_error *err)
+{
+    sc_status st = check_data(q, d, err);
+    if (st != SC_OK)
+        return st;
+    if (!res->gx_um || !res->gy_um || !res->ax_um || !res->ay_um)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "variance components need G and A");
+    double m[SC_GRID_MAX_VIEWS * 5], cnt[SC_GRID_MAX_VIEWS];
+    for (int v = 0; v < q->nv; ++v) {
+        double *mv = m + v * q->nb;
+        mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
+        mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
+        if (q->drift)
+            mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
+        wrss[v] = red[v] = u2[v] = cnt[v] = 0;
+    }
+    for (long e = 0; e < q->neq; ++e) {
+        int v = q->eq_v[e], c = q->eq_c[e], node = q->eq_g[e] / 2, k = q->eq_a[e] / 2;
+        double gv = c ? res->gy_um[node] : res->gx_um[node];
+        double av = q->eq_a[e] % 2 ? res->ay_um[k] : res->ax_um[k];
+        double r = eq_residual(q, d, e, gv, av, m);
+        wrss[v] += q->eq_w[e] * r * r;
+        red[v] += fmax(0.0, 1.0 - q->eq_h[e]);
+        u2[v] += 1.0 / q->eq_w[e], cnt[v] += 1;
+    }
+    for (int v = 0; v < q->nv; ++v)
+        u2[v] = cnt[v] > 0 ? u2[v] / cnt[v] : NAN;
+    return SC_OK;
+}
+
 /* cov (ng x ng) := the G block of the pinned inverse Σ, by blocked solves of unit columns. */
 static int pinned_inverse_g(const sc_grid_lsq_plan *q, double *cov)
 {

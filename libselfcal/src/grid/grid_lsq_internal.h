@@ -23,6 +23,14 @@ int sc_grid_lsq_reference(const sc_grid_lsq_plan *q, int nsample, int *node, dou
 int sc_grid_lsq_reference_misalignments(const sc_grid_lsq_plan *q, double *var_ref,
                                         double *var_plan);
 
+/* Förstner's variance components of d's views against a result of q on d: per view v,
+ * wrss[v] = Σ w_e r_e² and red[v] = Σ (1 − h_e) over its equations (E[wrss] = σ_v²·red when the
+ * view's noise is σ_v times its weights' 1/√w), and u2[v] the mean 1/w_e (µm²; NaN for a view
+ * without equations). Arrays of q's views. */
+sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                      const sc_grid_result *res, double *wrss, double *red,
+                                      double *u2, sc_error *err);
+
 /* How many solves so far had CHOLMOD make its solve workspace anew (execute must add none). */
 long sc_grid_lsq_workspace_made(const sc_grid_lsq_plan *q);
 

@@ -239,7 +239,9 @@ class GridResult:
     ``chi2_pass``. Least squares also gives the residuals ``rx_um``, ``ry_um``, the standardized
     residuals ``tx``, ``ty`` and ``outlier`` flags, shape (views, N, N), the outlier test
     (``outlier_alpha``, ``outlier_alpha_each``, each coordinate's ``outlier_alpha_coord``, the
-    critical value ``outlier_crit`` of |t|, ``n_outlier_tests``) and on request
+    critical value ``outlier_crit`` of |t|, ``n_outlier_tests``), with ``view_noise="estimate"``
+    each view's estimated noise ``view_sigma_um`` and ``view_noise_factor`` (on its stated
+    uncertainties; NaN if it stated none), ``view_noise_estimated``, and on request
     ``covariance_um2``. ``warnings``: the lines ``selfcal grid`` prints as warnings."""
 
     def __init__(self, d, method):
@@ -249,6 +251,7 @@ class GridResult:
         self.chi2_pass = bool(self.chi2_pass)
         self.weighted = bool(self.weighted)
         self.outlier_alpha_each = bool(self.outlier_alpha_each)
+        self.view_noise_estimated = bool(self.view_noise_estimated)
 
     def expanded(self, k: float = 2.0):
         """The expanded uncertainties (k·u(Gx), k·u(Gy)), GUM coverage factor k (default 2)."""
@@ -261,7 +264,8 @@ class GridResult:
 
 def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = False,
                    reject_outliers: bool = False, covariance: bool = False,
-                   outlier_alpha=None, outlier_alpha_each=None) -> GridResult:
+                   outlier_alpha=None, outlier_alpha_each=None,
+                   view_noise: str = "stated") -> GridResult:
     """Separate the stage error G from the plate error A, as ``selfcal grid``.
 
     ``source``: a ``selfcal-grid v1`` file path or a :class:`GridMeasurement`. ``method``:
@@ -272,7 +276,9 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
     flagged measurement and solve again until none is flagged. ``covariance``: the full
     covariance of G (small stages). ``outlier_alpha``: the outlier test's significance for the
     whole data set (default 0.05, as ``--outlier-alpha``); ``outlier_alpha_each`` instead: for
-    each coordinate on its own (Baarda's α0, e.g. 0.001, as ``--outlier-alpha-each``). Warnings
+    each coordinate on its own (Baarda's α0, e.g. 0.001, as ``--outlier-alpha-each``).
+    ``view_noise="estimate"``: each view's noise estimated from its residuals (variance
+    components, as ``--view-noise estimate``): ``result.view_sigma_um`` per view. Warnings
     (outliers, the χ² test) are in ``result.warnings`` and issued with :mod:`warnings` too.
     """
     if method not in _GRID_METHODS:
@@ -281,13 +287,15 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
         raise Error("sigma_r_um must be positive")
     if outlier_alpha is not None and outlier_alpha_each is not None:
         raise Error("outlier_alpha and outlier_alpha_each exclude each other")
+    if view_noise not in ("stated", "estimate"):
+        raise Error(f"view_noise must be 'stated' or 'estimate', not {view_noise!r}")
     alpha = outlier_alpha if outlier_alpha_each is None else outlier_alpha_each
     if alpha is not None and not 0 < alpha < 1:
         raise Error("the outlier test's significance must lie between 0 and 1")
     d = _native.grid_calibrate(_grid_source(source), _GRID_METHODS[method],
                                float(sigma_r_um or 0.0), bool(drift), bool(reject_outliers),
                                bool(covariance), float(alpha or 0.0),
-                               outlier_alpha_each is not None)
+                               outlier_alpha_each is not None, view_noise == "estimate")
     r = GridResult(d, method)
     if r.warnings:
         import warnings as _w

@@ -881,7 +881,8 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
 #define OPT(ptr, nd, shp) ((ptr) ? arr_from((ptr), (nd), (shp)) : Py_NewRef(Py_None))
     PyObject *ret = outlier ? Py_BuildValue(
         "{s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,s:d,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,"
-        "s:l,s:l,s:O,s:d,s:d,s:d,s:O,s:N,s:N,s:N,s:N,s:N,s:l,s:l,s:N,s:O,s:d,s:O,s:d,s:d,s:l}",
+        "s:l,s:l,s:O,s:d,s:d,s:d,s:O,s:N,s:N,s:N,s:N,s:N,s:l,s:l,s:N,s:O,s:d,s:O,s:d,s:d,s:l,"
+        "s:O,s:N,s:N}",
         "gx_um", arr_from(r->gx_um, 2, sg), "gy_um", arr_from(r->gy_um, 2, sg),
         "ugx_um", arr_from(r->ugx_um, 2, sg), "ugy_um", arr_from(r->ugy_um, 2, sg),
         "x_mm", arr_from(xy, 2, sg), "y_mm", arr_from(xy + (size_t)nx * ny, 2, sg),
@@ -899,14 +900,17 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
         s->n_removed, "covariance_um2", OPT(s->cov_um2, 2, sc), "warnings", warnings,
         "outlier_alpha", r->outlier_alpha, "outlier_alpha_each",
         r->outlier_alpha_each ? Py_True : Py_False, "outlier_alpha_coord", r->outlier_alpha_coord,
-        "outlier_crit", r->outlier_crit, "n_outlier_tests", r->n_outlier_tests) : NULL;
+        "outlier_crit", r->outlier_crit, "n_outlier_tests", r->n_outlier_tests,
+        "view_noise_estimated", r->view_noise_estimated ? Py_True : Py_False,
+        "view_sigma_um", per_view(r->view_sigma_um, nv),
+        "view_noise_factor", per_view(r->view_noise_factor, nv)) : NULL;
 #undef OPT
     free(xy);
     return ret;
 }
 
 /* grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha,
- * outlier_alpha_each) -> dict */
+ * outlier_alpha_each, estimate_view_noise) -> dict */
 static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -914,9 +918,9 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     sc_grid_options o;
     sc_grid_options_default(&o);
     int method;
-    if (!PyArg_ParseTuple(args, "Oidpppdp", &src, &method, &o.sigma_r_um, &o.drift,
+    if (!PyArg_ParseTuple(args, "Oidpppdpp", &src, &method, &o.sigma_r_um, &o.drift,
                           &o.reject_outliers, &o.covariance, &o.outlier_alpha,
-                          &o.outlier_alpha_each))
+                          &o.outlier_alpha_each, &o.estimate_view_noise))
         return NULL;
     o.method = (sc_grid_method)method;
     sc_grid_data d;
@@ -1322,7 +1326,7 @@ static PyMethodDef module_methods[] = {
     {"grid_plan", py_grid_plan, METH_VARARGS, "grid_plan(path, plan or measurement) -> analysis dict."},
     {"grid_calibrate", py_grid_calibrate, METH_VARARGS,
      "grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha, "
-     "outlier_alpha_each) -> dict."},
+     "outlier_alpha_each, estimate_view_noise) -> dict."},
     {"grid_standard_plan", py_grid_standard_plan, METH_VARARGS,
      "grid_standard_plan(name, n, pitch_mm, ox, oy, nx, ny) -> plan dict."},
     {"grid_simulate", py_grid_simulate, METH_VARARGS, "grid_simulate(plan, params) -> (measurement, truth)."},

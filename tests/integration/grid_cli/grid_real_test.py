@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import os
+import re
 import struct
 import sys
 
@@ -253,6 +254,55 @@ def case_outlier_test():
           % (quiet, noisy))
 
 
+def case_view_noise():
+    """--view-noise estimate: each view's noise from its residuals. A stitched plan simulated
+    with unequal views (the file then stating none): the summary's per-view estimates match the
+    simulation, the printed line lists them, the chi-square test is n/a; noise-free data warn and
+    keep the weights; bad combinations exit 2."""
+    d = fresh_dir("view_noise")
+    sig = [0.02 if v == 1 else 0.03 if v == 3 else 0.05 if v == 20 else 0.01 for v in range(22)]
+    s = simulate(d, "st", "--plan", "stitch", "--n", 15, "--stage", "41,31", "--seed", 3,
+                 "--view-sigma-r-um", ",".join(str(x) for x in sig))
+    lines = open(s["inp"]).read().splitlines(True)
+    if lines[6].count("sigma_um=") != 1:
+        fail("simulate did not state the views' noise: %r" % lines[6])
+    path = os.path.join(d, "unstated.csv")
+    open(path, "w").write("".join(re.sub(r" sigma_um=[0-9.e-]+", "", l) for l in lines))
+    g, sm = os.path.join(d, "g.csv"), os.path.join(d, "s.json")
+    p = run("grid", "--method", "lsq", path, "--map", g, "--summary", sm, "--view-noise", "estimate")
+    S = json.load(open(sm))
+    if S["view_noise"] != "estimated" or S["chi2_test"] != "n/a":
+        fail("summary view_noise %r chi2 %r" % (S["view_noise"], S["chi2_test"]))
+    est = [v["sigma_um_est"] for v in S["views"]]
+    bad = [(v, e, t) for v, (e, t) in enumerate(zip(est, sig)) if abs(e / t - 1) > 0.25]
+    if len(est) != 22 or bad:
+        fail("estimates off the simulated noise: %r" % bad)
+    line = [l for l in p.stdout.splitlines() if l.startswith("view_sigma_um:")]
+    if len(line) != 1 or len(line[0].split("(")[0].split()) != 23:
+        fail("printed line %r" % line)
+    # the map with estimated weights is close to the truth (within 6 u of each node)
+    m = {(r["i"], r["j"]): r for r in rows(g)}
+    t = {(r["i"], r["j"]): r for r in rows(s["g"])}
+    worst = max(abs(float(m[k]["gx_um"]) - float(t[k]["gx_um"])) / float(m[k]["ugx_um"]) for k in t)
+    if worst > 6:
+        fail("estimated-weight map off its uncertainty: %g u" % worst)
+    # noise-free data: a warning, the weights as stated
+    s0 = simulate(d, "nf", "--plan", "ye", "--n", 9, "--sigma-r-um", 0)
+    p = run("grid", "--method", "lsq", s0["inp"], "--map", g, "--summary", sm, "--view-noise",
+            "estimate")
+    if "rounding level" not in p.stderr or json.load(open(sm))["view_noise"] != "stated":
+        fail("noise-free data: %r" % p.stderr)
+    os.remove(g)
+    for args in (["--view-noise", "estimate", "--sigma-r-um", "0.01"], ["--view-noise", "maybe"],
+                 ["--view-noise", "estimate", "--method", "ye"]):
+        meth = [] if "--method" in args else ["--method", "lsq"]
+        p = run("grid", *meth, s0["inp"], "--map", g, *args, expect=2)
+        if os.path.exists(g) or len(p.stderr.strip().splitlines()) != 1:
+            fail("%r: %r" % (args, p.stderr))
+    print("view_noise: ok (estimates within %.0f %% of the simulated noise)"
+          % (100 * max(abs(e / t - 1) for e, t in zip(est, sig))))
+
+
 def case_covariance():
     d = fresh_dir("cov")
     s = simulate(d, "c", "--plan", "stitch", "--n", 5, "--stage", "9,7", "--sigma-r-um", 0.01)
@@ -399,7 +449,7 @@ def case_bad_input():
 
 
 CASES = {"damaged": case_damaged, "weights": case_weights, "outliers": case_outliers,
-         "outlier_test": case_outlier_test,
+         "outlier_test": case_outlier_test, "view_noise": case_view_noise,
          "covariance": case_covariance, "drift": case_drift, "plan": case_plan_stitched,
          "bad_input": case_bad_input}
 CASES[CASE]()

@@ -416,6 +416,13 @@ def case_outliers():
         if abs(math.erfc(crit / math.sqrt(2)) / a - 1) > 3e-3:  # crit to 4 decimals: 0.03 %
             fail("report %r: critical value %g for a share %g" % (extra, crit, a))
     run("report", "grid", inp, "-o", out, "--outlier-alpha", "2", expect=2)
+    # each view's noise estimated: listed, and the chi-square test not applicable
+    run("report", "grid", inp, "-o", out, "--view-noise", "estimate")
+    c = parse(check_self_contained(out))
+    vs = [float(x) for x in c.ids["view_sigma_um"][1].replace("µm", "").split(",")]
+    if len(vs) != 3 or not all(0.005 < x < 0.02 for x in vs) or c.ids["chi2"][1] != "not applicable":
+        fail("report --view-noise estimate: %r %r" % (c.ids["view_sigma_um"], c.ids["chi2"]))
+    run("report", "grid", inp, "-o", out, "--view-noise", "estimate", "--sigma-r-um", 0.01, expect=2)
     # the plan's reliability as `selfcal plan` gives it (the default test)
     run("report", "grid", inp, "-o", out, "--sigma-r-um", 0.01)
     c = parse(check_self_contained(out))
