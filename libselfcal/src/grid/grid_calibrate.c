@@ -535,9 +535,6 @@ static void vce_accel_step(vce_accel *a, double *f, const double *k)
     }
 }
 
-/* Re-weight the views by their estimated noise and solve again until it settles; *qp and s->res
- * are then the fit with the estimated weights. Data whose residuals are at the rounding level
- * (noise-free) keep their weights, with a warning. */
 /* d's uncertainties back to vn's start (as read), *qp and s->res the fit with them. */
 static sc_status view_noise_reset(sc_grid_data *d, const sc_grid_options *o, view_noise *vn,
                                   sc_grid_solution *s, sc_grid_lsq_plan **qp, sc_error *err)
@@ -555,6 +552,10 @@ static sc_status view_noise_reset(sc_grid_data *d, const sc_grid_options *o, vie
     return st;
 }
 
+/* Re-weight the views by their estimated noise and solve again until it settles; *qp and s->res
+ * are then the fit with the estimated weights. When it cannot settle in VCE_MAX_IT solves, runs
+ * to zero for a view, or the residuals are at the rounding level (noise-free data), the weights
+ * as read are kept (and fitted), with a warning. */
 static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *info,
                                      const sc_grid_options *o, view_noise *vn,
                                      sc_grid_solution *s, sc_grid_lsq_plan **qp, const char *src,
@@ -621,7 +622,8 @@ static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *i
     r->view_noise_iterations = it;
     for (int v = 0; v < nv; ++v) {
         r->view_sigma_um[v] = sqrt(k[v] * u2[v]);
-        r->view_noise_factor[v] = vn->sigma_um[v] > 0 || vn->u ? vn->f[v] * sqrt(k[v]) : NAN;
+        int stated = vn->sigma_um[v] > 0 || d->ux_um[v] || d->uy_um[v];
+        r->view_noise_factor[v] = stated ? vn->f[v] * sqrt(k[v]) : NAN;
     }
     /* the variance factor is 1 by construction: no test of the noise is left */
     r->chi2_lo = r->chi2_hi = NAN;
