@@ -5,7 +5,11 @@
  *     against the significance α; the χ² test's false-alarm rate against its 5 %;
  *  3. detection rate of one 5σ and one 10σ outlier;
  *  4. a stitched 101 x 101 stage with a 51 x 51 plate: create (analysis, factorization, every
- *     node's σ) and solve times.
+ *     node's σ) and solve times;
+ *  5. each view's noise estimated (sc_grid_options.estimate_view_noise) on data stating none:
+ *     the estimates against the simulated noise (mean and spread of σ̂/σ per view), the solves
+ *     it took, and the RMS error of G and its predicted u against the fit with the true weights
+ *     stated and the unweighted fit, on Ye's plan and on a stitched plan.
  * Usage: bench_grid_real [--trials T] [--no-big]   (default T = 400) */
 #include <math.h>
 #include <stdio.h>
@@ -13,6 +17,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "selfcal/grid_calibrate.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
@@ -229,6 +234,101 @@ static void big_stitched(void)
     sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
 }
 
+/* Counts the estimate's fallbacks by their warning: [0] did not settle, [1] ran to zero. */
+static void count_fallback(void *ctx, const char *msg)
+{
+    long *c = ctx;
+    c[0] += strstr(msg, "did not settle") != NULL;
+    c[1] += strstr(msg, "runs to zero") != NULL;
+}
+
+/* 5. the noise per view on one plan: trials calibrations of data with views' noise sig. */
+static void view_noise_mc(const char *name, const sc_grid_plan *plan, const double *sig,
+                          int trials)
+{
+    int nv = plan->n_views;
+    setup s;
+    setup_make(&s, plan, 11);
+    sc_rng rng;
+    sc_rng_seed(&rng, 77);
+    double m1[SC_GRID_MAX_VIEWS] = {0}, m2[SC_GRID_MAX_VIEWS] = {0};
+    double e2[3] = {0}, u2[3] = {0}; /* estimated, true stated, unweighted */
+    long its = 0, fails = 0, n = 0, why[2] = {0, 0};
+    double t0 = now_s();
+    for (int t = 0; t < trials; ++t) {
+        noisy(&s, &rng, sig);
+        for (int mode = 0; mode < 3; ++mode) {
+            sc_grid_options o;
+            sc_grid_options_default(&o);
+            o.node_sigma_only = 1;
+            o.estimate_view_noise = mode == 0;
+            o.warn = count_fallback, o.warn_ctx = why;
+            for (int v = 0; v < nv; ++v)
+                s.d.plan.view[v].sigma_um = mode == 1 ? sig[v] : 0;
+            sc_grid_solution sol;
+            if (sc_grid_calibrate(&s.d, NULL, NULL, &o, &sol, NULL) != SC_OK) {
+                fails++;
+                sc_grid_solution_free(&sol);
+                continue;
+            }
+            const sc_grid_result *r = &sol.res;
+            if (mode == 0 && !r->view_noise_estimated)
+                fails++;
+            else if (mode == 0) {
+                its += r->view_noise_iterations;
+                for (int v = 0; v < nv; ++v) {
+                    double q = r->view_sigma_um[v] / sig[v];
+                    m1[v] += q, m2[v] += q * q;
+                }
+                n++;
+            }
+            for (long k = 0; k < s.ns; ++k) {
+                double ex = r->gx_um[k] - s.gx[k], ey = r->gy_um[k] - s.gy[k];
+                e2[mode] += ex * ex + ey * ey;
+                u2[mode] += r->ugx_um[k] * r->ugx_um[k] + r->ugy_um[k] * r->ugy_um[k];
+            }
+            sc_grid_solution_free(&sol);
+        }
+    }
+    double el = now_s() - t0;
+    printf("5. noise per view estimated, %s, %d views, %d trials (%.1f s)\n"
+           "   not estimated (stated weights kept): %ld (did not settle %ld, ran to zero %ld)\n",
+           name, nv, trials, el, fails, why[0], why[1]);
+    double worst_mean = 0, worst_sd = 0;
+    for (int v = 0; v < nv; ++v) {
+        double mean = m1[v] / n, sd = sqrt(fmax(0, m2[v] / n - mean * mean));
+        if (nv <= 4)
+            printf("   view %d: sigma %.3g um, estimate/sigma mean %.3f, spread %.3f\n", v, sig[v],
+                   mean, sd);
+        worst_mean = fmax(worst_mean, fabs(mean - 1));
+        worst_sd = fmax(worst_sd, sd);
+    }
+    if (nv > 4)
+        printf("   estimate/sigma over the views: mean within 1 +- %.3f, spread at most %.3f\n",
+               worst_mean, worst_sd);
+    printf("   %.1f re-weighted solves each; RMS error of G / its predicted u (all trials):\n",
+           (double)its / n);
+    static const char *lab[3] = {"estimated weights", "true weights stated", "unweighted"};
+    for (int mode = 0; mode < 3; ++mode)
+        printf("   %-20s %.5f um / %.5f um\n", lab[mode], sqrt(e2[mode] / (2.0 * s.ns * trials)),
+               sqrt(u2[mode] / (2.0 * s.ns * trials)));
+    free(s.buf);
+    sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
+}
+
+static void view_noise_bench(int trials)
+{
+    sc_grid_plan ye, st;
+    sc_grid_plan_ye(15, 1.0, 0, 0, &ye, NULL);
+    const double sig_ye[3] = {0.01, 0.03, 0.02};
+    view_noise_mc("Ye N = 15", &ye, sig_ye, trials);
+    sc_grid_plan_stitch(15, 41, 31, 1.0, 0, 0, &st, NULL);
+    double sig_st[SC_GRID_MAX_VIEWS];
+    for (int v = 0; v < st.n_views; ++v)
+        sig_st[v] = v == 1 ? 0.02 : v == 3 ? 0.03 : v == 20 ? 0.05 : 0.01;
+    view_noise_mc("stitched 41 x 31 stage, 15 x 15 plate", &st, sig_st, trials / 10 > 5 ? trials / 10 : 5);
+}
+
 int main(int argc, char **argv)
 {
     int trials = 400, big = 1;
@@ -243,5 +343,6 @@ int main(int argc, char **argv)
     monte_carlo(trials);
     if (big)
         big_stitched();
+    view_noise_bench(trials / 4 > 10 ? trials / 4 : 10);
     return 0;
 }
