@@ -59,6 +59,45 @@ static void test_table_dialects(void **state)
     }
 }
 
+/* A machine's preamble (program, date, operator) before the header line is skipped, whatever
+ * it holds but data; the rows keep their own line numbers; more than 100 such lines are not a
+ * preamble. */
+static void test_table_preamble(void **state)
+{
+    (void)state;
+    char path[512];
+    tmp_path(path, sizeof path, "preamble.csv");
+    write_text(path, "Program: plate_11x11\nDate;2026-11-27;Operator: A. B.\n\n# comment\n"
+                     "Nr;X;Y;Z\n1;1,5;-2,25;0\n2;3;4,125;0\n");
+    sc_table t;
+    sc_error err;
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_int_equal(t.header_line, 5);
+    assert_int_equal(t.n_rows, 2);
+    assert_int_equal(t.line[0], 6);
+    assert_int_equal(t.line[1], 7);
+    assert_true(t.value[0] == 1.5 && t.value[3] == 4.125 && t.decimal == ',');
+    sc_table_free(&t);
+    char *text = malloc(101 * 24 + 64);
+    for (int lines = 100; lines <= 101; ++lines) { /* 100 preamble lines are read, 101 not */
+        char *q = text;
+        for (int k = 0; k < lines; ++k)
+            q += sprintf(q, "Note %d: none\n", k);
+        strcpy(q, "x;y\n1;2\n");
+        write_text(path, text);
+        sc_status st = sc_table_read(path, 2, XY, NULL, &t, &err);
+        if (lines == 100) {
+            assert_int_equal(st, SC_OK);
+            assert_int_equal(t.header_line, 101);
+            sc_table_free(&t);
+        } else {
+            assert_int_equal(st, SC_E_INPUT);
+            assert_int_equal(err.line, 1);
+        }
+    }
+    free(text);
+}
+
 /* Each bad table names its line. */
 static void test_table_errors(void **state)
 {
@@ -76,6 +115,12 @@ static void test_table_errors(void **state)
         {"x;y\n1;\n", 2, "'' is not a number"},
         {"x;y\n1;2e7\n", 2, "beyond any plausible"},
         {"x;y\n", 1, "no data lines"},
+        /* no line names both: the first line naming one of them is the header that failed */
+        {"Program: P\nDate: 2026\nnr;xx;y\n1;2;3\n", 3, "no column named 'x'"},
+        /* a preamble line without any of them, then data: the first line */
+        {"Program: P\n1;2\n", 1, "no column named 'x'"},
+        {"1;2\nx;y\n1;2\n", 1, "no column named 'x'"}, /* data before the header */
+        {"Program: P\nOperator: Q\n", 1, "no column named 'x'"},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
         char path[512];
@@ -168,6 +213,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_table_dialects),
         cmocka_unit_test(test_table_errors),
+        cmocka_unit_test(test_table_preamble),
         cmocka_unit_test(test_assign),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -12,6 +12,7 @@
 #include "selfcal/csv.h"
 
 #define MAX_TABLE_FIELDS 256
+#define PREAMBLE_MAX 100 /* lines before the header line that name no columns */
 
 /* Split line s at delim in place (double-quoted fields may hold the delimiter; the quotes are
  * removed), trimming blanks; returns the field count or -1 if there are too many. */
@@ -98,31 +99,72 @@ typedef struct table_reader {
     char mark; /* the decimal mark seen so far, 0 if none */
 } table_reader;
 
-/* The header line: the delimiter, and where each wanted column is (exactly once). */
-static sc_status read_header_line(table_reader *tr, sc_error *err)
+/* The header line, text (split in place) at line ln: the delimiter, and where each wanted
+ * column is (exactly once). */
+static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_error *err)
 {
     sc_table *t = tr->t;
-    t->header_line = tr->r.line;
-    t->delimiter = strchr(tr->r.text, '\t') ? '\t' : strchr(tr->r.text, ';') ? ';' : ',';
-    tr->n_header = split_fields(tr->r.text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
+    t->header_line = ln;
+    t->delimiter = strchr(text, '\t') ? '\t' : strchr(text, ';') ? ';' : ',';
+    tr->n_header = split_fields(text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
     if (tr->n_header < 0)
-        return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line, "more than %d columns",
+        return sc_error_set(err, SC_E_INPUT, tr->path, ln, "more than %d columns",
                             MAX_TABLE_FIELDS);
     for (int k = 0; k < tr->n_cols; ++k) {
         tr->col_of[k] = -1;
         for (int f = 0; f < tr->n_header; ++f)
             if (name_equal(tr->field[f], tr->names[k])) {
                 if (tr->col_of[k] >= 0)
-                    return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                    return sc_error_set(err, SC_E_INPUT, tr->path, ln,
                                         "two columns are named '%s'", tr->names[k]);
                 tr->col_of[k] = f;
             }
         if (tr->col_of[k] < 0)
-            return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+            return sc_error_set(err, SC_E_INPUT, tr->path, ln,
                                 "no column named '%s' in this header line (delimiter '%s')",
                                 tr->names[k], t->delimiter == '\t' ? "tab" : t->delimiter == ';' ? ";" : ",");
     }
     return SC_OK;
+}
+
+/* How many of the wanted columns text (not modified) names: all of them, the header line. */
+static int names_count(const table_reader *tr, const char *text)
+{
+    char buf[4096], *field[MAX_TABLE_FIELDS];
+    size_t len = strlen(text);
+    if (len >= sizeof buf)
+        return tr->n_cols; /* read_header_line decides */
+    memcpy(buf, text, len + 1);
+    char delim = strchr(buf, '\t') ? '\t' : strchr(buf, ';') ? ';' : ',';
+    int n = split_fields(buf, delim, field, MAX_TABLE_FIELDS), named = 0;
+    for (int k = 0; k < tr->n_cols; ++k) {
+        int found = 0;
+        for (int f = 0; f < n && !found; ++f)
+            found = name_equal(field[f], tr->names[k]);
+        named += found;
+    }
+    return named;
+}
+
+/* Whether text (not modified) is a row of numbers: a data line, so no header comes before it. */
+static int looks_like_data(const char *text)
+{
+    char buf[4096], *field[MAX_TABLE_FIELDS];
+    size_t len = strlen(text);
+    if (len >= sizeof buf)
+        return 1; /* no preamble line is that long */
+    memcpy(buf, text, len + 1);
+    char delim = strchr(buf, '\t') ? '\t' : strchr(buf, ';') ? ';' : ',';
+    int n = split_fields(buf, delim, field, MAX_TABLE_FIELDS);
+    if (n < 2)
+        return 0;
+    for (int f = 0; f < n; ++f) {
+        double v;
+        char mark;
+        if (parse_number(field[f], &v, &mark) != 0)
+            return 0;
+    }
+    return 1;
 }
 
 /* Room for one more row. */
@@ -216,15 +258,45 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
     int got = 0;
     if (n_cols < 1 || n_cols > 16)
         st = sc_error_set(err, SC_E_INTERNAL, NULL, 0, "sc_table_read: 1..16 columns");
+    /* the header is the first line naming every wanted column; lines before it that are not
+     * data (a machine's preamble: program, date, operator) are skipped, up to PREAMBLE_MAX of
+     * them. If none names them all, the first line naming some of them (else the first line)
+     * is taken for the header and its error told. */
+    char *first = NULL; /* that line, and its number */
+    long first_line = 0, preamble = 0;
+    int first_named = 0;
     while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
         if (sc_csv_is_blank(&tr.r) || tr.r.text[0] == '#')
             continue;
-        st = t->header_line ? read_data_line(&tr, err) : read_header_line(&tr, err);
+        if (t->header_line) {
+            st = read_data_line(&tr, err);
+            continue;
+        }
+        int named = names_count(&tr, tr.r.text);
+        if (named == n_cols) {
+            st = read_header_line(&tr, tr.r.text, tr.r.line, err);
+            continue;
+        }
+        if (!first || (named > 0 && !first_named)) {
+            free(first);
+            first = strdup(tr.r.text);
+            first_line = tr.r.line;
+            first_named = named > 0;
+            if (!first)
+                st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        }
+        if (st == SC_OK && (looks_like_data(tr.r.text) || ++preamble > PREAMBLE_MAX))
+            break; /* no header before the data: the first line's error */
     }
     if (st == SC_OK && got < 0)
         st = err ? err->code : SC_E_INPUT;
+    else if (st == SC_OK && !t->header_line && first)
+        st = read_header_line(&tr, first, first_line, err);
     else if (st == SC_OK && !t->header_line)
         st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no header line naming the columns");
+    free(first);
+    if (st == SC_OK && !t->header_line) /* cannot happen: read_header_line failed or set it */
+        st = sc_error_set(err, SC_E_INTERNAL, path, tr.r.line, "no header line");
     else if (st == SC_OK && t->n_rows == 0)
         st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no data lines after the header");
     if (st == SC_OK)

@@ -170,6 +170,23 @@ def case_formats():
         worst = max(max(abs(irows[k][0] - rows[k][0]), abs(irows[k][1] - rows[k][1])) for k in rows)
         if worst > 1e-9:
             fail("style %r: positions differ by %g mm" % (delim, worst))
+    # a machine's preamble before the header line (program, date, operator, a blank line): the
+    # same grid as without it
+    pre = "Program: plate_9x9\nDate%s2026-11-27%sOperator: A. B.\n\n" % (";", ";")
+    files2 = []
+    for f in files:
+        files2.append(f.replace(".csv", "_pre.csv"))
+        open(files2[-1], "w").write(pre + open(f).read())
+    out2 = os.path.join(d, "out_pre.csv")
+    run(*[files2[files.index(x)] if x in files else x for x in a], "-o", out2)
+    if read_grid(out2)[1] != irows:
+        fail("a preamble changed the import")
+    # a misspelt column in a file with a preamble: the error names the header line (4)
+    bad = [x if x != "x" else "xx" for x in a]
+    p = run(*[files2[files.index(x)] if x in files else x for x in bad], "-o", out2 + "2",
+            expect=2)
+    if ":4: no column named 'xx'" not in p.stderr or os.path.exists(out2 + "2"):
+        fail("misspelt column after a preamble: %r" % p.stderr)
 
 
 def case_placement():
