@@ -1994,6 +1994,18 @@ out:
     return st;
 }
 
+/* m := the plan's misalignment unknowns (nb per view, in the equations' units) from res. */
+static void misalignment_unknowns(const sc_grid_lsq_plan *q, const sc_grid_result *res, double *m)
+{
+    for (int v = 0; v < q->nv; ++v) {
+        double *mv = m + v * q->nb;
+        mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
+        mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
+        if (q->drift)
+            mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
+    }
+}
+
 sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d,
                                 const sc_grid_result *res, double *rx_um, double *ry_um,
                                 double *tx, double *ty, double *h_out, sc_error *err)
@@ -2006,13 +2018,7 @@ sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d
     if (!isfinite(res->sigma_r_used_um))
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
     double m[SC_GRID_MAX_VIEWS * 5], tscale = residual_scale(res);
-    for (int v = 0; v < q->nv; ++v) {
-        double *mv = m + v * q->nb;
-        mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
-        mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
-        if (q->drift)
-            mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
-    }
+    misalignment_unknowns(q, res, m);
     size_t tot = (size_t)q->nv * q->nn;
     double *outs[5] = {rx_um, ry_um, tx, ty, h_out};
     for (int o = 0; o < 5; ++o)
@@ -2049,14 +2055,9 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
     if (!res->gx_um || !res->gy_um || !res->ax_um || !res->ay_um)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "variance components need G and A");
     double m[SC_GRID_MAX_VIEWS * 5], cnt[SC_GRID_MAX_VIEWS];
-    for (int v = 0; v < q->nv; ++v) {
-        double *mv = m + v * q->nb;
-        mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
-        mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
-        if (q->drift)
-            mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
+    misalignment_unknowns(q, res, m);
+    for (int v = 0; v < q->nv; ++v)
         wrss[v] = red[v] = u2[v] = cnt[v] = 0;
-    }
     for (long e = 0; e < q->neq; ++e) {
         int v = q->eq_v[e], c = q->eq_c[e], node = q->eq_g[e] / 2, k = q->eq_a[e] / 2;
         double gv = c ? res->gy_um[node] : res->gx_um[node];
