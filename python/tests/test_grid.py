@@ -194,6 +194,8 @@ def test_view_noise_estimated(cli, tmp_path):
     assert r.view_noise_estimated and r.view_sigma_um.shape == (22,)
     assert np.all(np.abs(r.view_sigma_um / np.array(sig) - 1) < 0.25)
     assert np.all(np.isnan(r.view_noise_factor))
+    assert np.all((r.view_sigma_u_um > 0.02 * r.view_sigma_um) &
+                  (r.view_sigma_u_um < 0.15 * r.view_sigma_um))
     # the command line's summary gives the same estimates
     cli("grid", "--method", "lsq", g, "--map", tmp_path / "G.csv", "--summary",
         tmp_path / "S.json", "--view-noise", "estimate", "--quiet")

@@ -48,7 +48,8 @@ static const char *USAGE =
     "                (variance components, re-weighted until it settles): views measured with\n"
     "                different noise get their own weights and the uncertainties use them; on a\n"
     "                file stating uncertainties, a factor on them per view. Printed and in the\n"
-    "                summary (sigma_um_est per view). Excludes --sigma-r-um.\n"
+    "                summary (sigma_um_est per view, u_sigma_um_est its standard uncertainty).\n"
+    "                Excludes --sigma-r-um.\n"
     "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
     "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
 
@@ -95,7 +96,11 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
         printf("view_sigma_um:");
         for (int v = 0; v < p->n_views; ++v)
             printf(" %.4g", r->view_sigma_um[v]);
-        printf(" (estimated per view, %d re-weighted solves)\n", r->view_noise_iterations);
+        printf(" (estimated per view, %d re-weighted solves)\nview_sigma_u_um:",
+               r->view_noise_iterations);
+        for (int v = 0; v < p->n_views; ++v)
+            printf(" %.2g", r->view_sigma_u_um[v]);
+        printf(" (their standard uncertainties)\n");
     }
     if (isfinite(r->outlier_crit))
         printf("outliers: %ld flagged, %ld removed (|t| > %.4g: alpha %g %s)\n", s->n_flagged,

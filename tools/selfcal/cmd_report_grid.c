@@ -286,6 +286,10 @@ static void section_noise(FILE *fp, const grid_report *r, int *chi2_pass)
               fp);
         for (int v = 0; v < r->d.plan.n_views; ++v)
             fprintf(fp, "%s%.4g", v ? ", " : "", l->view_sigma_um[v]);
+        fputs(" µm</td></tr>\n<tr><th class=\"l\">their standard uncertainties</th>"
+              "<td id=\"view_sigma_u_um\">", fp);
+        for (int v = 0; v < r->d.plan.n_views; ++v)
+            fprintf(fp, "%s%.2g", v ? ", " : "", l->view_sigma_u_um[v]);
         fputs(" µm</td>", fp);
     }
     fputs("</tr>\n</table>\n", fp);

@@ -103,6 +103,9 @@ typedef struct sc_grid_result {
                                                     view, as estimated */
     double view_noise_factor[SC_GRID_MAX_VIEWS]; /* the factor on the view's stated
                                                     uncertainties (NaN if it stated none) */
+    double view_sigma_u_um[SC_GRID_MAX_VIEWS];   /* the standard uncertainty of view_sigma_um
+                                                    (REML's 2F⁻¹, F by random probes; NaN if
+                                                    it could not be had) */
 } sc_grid_result;
 
 /* ---- geometry (grid_geometry.c) ---- */

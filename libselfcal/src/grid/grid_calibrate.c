@@ -12,6 +12,7 @@
 #include "selfcal/grid_calibrate.h"
 #include "selfcal/grid_exact.h"
 #include "grid_lsq_internal.h"
+#include "selfcal/rng.h"
 
 int sc_grid_method_from_name(const char *name)
 {
@@ -224,7 +225,7 @@ static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
     r->chi2_pass = 1;
     r->outlier_alpha = r->outlier_alpha_coord = r->outlier_crit = NAN;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        r->view_sigma_um[v] = r->view_noise_factor[v] = NAN;
+        r->view_sigma_um[v] = r->view_noise_factor[v] = r->view_sigma_u_um[v] = NAN;
     r->misalignment_unique = 1;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
         r->tx_um[v] = r->ty_um[v] = r->theta_urad[v] = r->utx_um[v] = r->uty_um[v] =
@@ -552,6 +553,98 @@ static sc_status view_noise_reset(sc_grid_data *d, const sc_grid_options *o, vie
     return st;
 }
 
+/* How well the estimates are determined. At the fixed point (every view's weights its estimated
+ * noise, normalized θ_v = 1) E[wrss_u] = Σ_v θ_v F_uv with F_uv = Σ_{e∈u, f∈v} R_ef², R = I − H the
+ * weighted residual projector; under normal noise Cov(wrss) = 2F, so Cov(θ̂) = 2F⁻¹ and a σ̂_v
+ * (= √θ_v) has the relative standard deviation √((F⁻¹)_vv / 2) — 1/√(2 r_v) for a view whose
+ * redundancy is its own, far more where views trade their noise. F's column v is
+ * E[Σ_{e∈u} w_e r_e²] over residuals r of random ±u data on view v alone (Rademacher probes,
+ * VCE_PROBES per view: a few % on F at these sizes): nv·VCE_PROBES solves on the factored plan.
+ * Pooled views share one θ: their rows and columns of F are summed. rel_sd: per view; NaN where
+ * F is not positive definite. */
+#define VCE_PROBES 8
+static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const double *red,
+                                   double *rel_sd, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    int nv = p->n_views, nn = p->n * p->n, ng = 0, grp[SC_GRID_MAX_VIEWS], low = -1;
+    long ns = sc_grid_stage_nodes(p);
+    for (int v = 0; v < nv; ++v) {
+        rel_sd[v] = NAN;
+        if (red[v] >= VCE_MIN_RED)
+            grp[v] = ng++;
+        else
+            grp[v] = low >= 0 ? low : (low = ng++);
+    }
+    size_t tot = (size_t)nv * nn;
+    double *buf = malloc(sizeof(double) * (2 * tot + 4 * (size_t)ns + 2 * (size_t)nn));
+    if (!buf)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    double *save = buf, *o = buf + 2 * tot;
+    for (int v = 0; v < nv; ++v)
+        for (int k = 0; k < nn; ++k)
+            save[v * nn + k] = d->dx_um[v][k], save[tot + v * nn + k] = d->dy_um[v][k];
+    sc_grid_result res = {0};
+    res.gx_um = o, res.gy_um = o + ns, res.ugx_um = o + 2 * ns, res.ugy_um = o + 3 * ns;
+    res.ax_um = o + 4 * ns, res.ay_um = o + 4 * ns + nn;
+    double F[SC_GRID_MAX_VIEWS][SC_GRID_MAX_VIEWS] = {{0}};
+    double wrss[SC_GRID_MAX_VIEWS], rd[SC_GRID_MAX_VIEWS], u2[SC_GRID_MAX_VIEWS];
+    sc_rng rng;
+    sc_rng_seed(&rng, 20261127); /* the same probes every run: reproducible figures */
+    sc_status st = SC_OK;
+    for (int v = 0; v < nv && st == SC_OK; ++v)
+        for (int t = 0; t < VCE_PROBES && st == SC_OK; ++t) {
+            for (int w = 0; w < nv; ++w)
+                for (int k = 0; k < nn; ++k) {
+                    if (!isfinite(save[w * nn + k]))
+                        continue;
+                    double ux = sc_grid_data_u_um(d, w, k, 0), uy = sc_grid_data_u_um(d, w, k, 1);
+                    int on = w == v;
+                    d->dx_um[w][k] = on ? (sc_rng_u64(&rng) & 1 ? 1 : -1) * (ux > 0 ? ux : 1) : 0;
+                    d->dy_um[w][k] = on ? (sc_rng_u64(&rng) & 1 ? 1 : -1) * (uy > 0 ? uy : 1) : 0;
+                }
+            st = sc_grid_lsq_execute(q, d, 0, &res, err);
+            if (st == SC_OK)
+                st = sc_grid_lsq_view_components(q, d, &res, wrss, rd, u2, err);
+            for (int u = 0; u < nv && st == SC_OK; ++u)
+                F[grp[u]][grp[v]] += wrss[u] / VCE_PROBES;
+        }
+    for (int v = 0; v < nv; ++v)
+        for (int k = 0; k < nn; ++k)
+            d->dx_um[v][k] = save[v * nn + k], d->dy_um[v][k] = save[tot + v * nn + k];
+    free(buf);
+    if (st != SC_OK)
+        return st;
+    /* (F⁻¹)_gg by Cholesky of the symmetrized F (its two estimates of F_uv averaged) */
+    double L[SC_GRID_MAX_VIEWS][SC_GRID_MAX_VIEWS], inv_diag[SC_GRID_MAX_VIEWS];
+    for (int i = 0; i < ng; ++i)
+        for (int j = 0; j <= i; ++j) {
+            double t = 0.5 * (F[i][j] + F[j][i]);
+            for (int k = 0; k < j; ++k)
+                t -= L[i][k] * L[j][k];
+            if (j < i)
+                L[i][j] = t / L[j][j];
+            else if (t > 0)
+                L[i][i] = sqrt(t);
+            else
+                return SC_OK; /* not positive definite: NaN */
+        }
+    for (int g = 0; g < ng; ++g) { /* column g of L⁻¹: (F⁻¹)_gg = Σ_i (L⁻¹)_ig² */
+        double y[SC_GRID_MAX_VIEWS] = {0}, sum = 0;
+        for (int i = g; i < ng; ++i) {
+            double t = i == g ? 1.0 : 0.0;
+            for (int k = g; k < i; ++k)
+                t -= L[i][k] * y[k];
+            y[i] = t / L[i][i];
+            sum += y[i] * y[i];
+        }
+        inv_diag[g] = sum;
+    }
+    for (int v = 0; v < nv; ++v)
+        rel_sd[v] = sqrt(inv_diag[grp[v]] / 2);
+    return SC_OK;
+}
+
 /* Re-weight the views by their estimated noise and solve again until it settles; *qp and s->res
  * are then the fit with the estimated weights. When it cannot settle in VCE_MAX_IT solves, runs
  * to zero for a view, or the residuals are at the rounding level (noise-free data), the weights
@@ -617,11 +710,17 @@ static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *i
         if (st != SC_OK)
             return st;
     }
+    double rel_sd[SC_GRID_MAX_VIEWS];
+    sc_status st = view_noise_spread(d, *qp, red, rel_sd, err);
+    if (st != SC_OK)
+        return st;
+    /* the probes' solves wrote into the plan's workspace only; s->res is the fit's */
     sc_grid_result *r = &s->res;
     r->view_noise_estimated = 1;
     r->view_noise_iterations = it;
     for (int v = 0; v < nv; ++v) {
         r->view_sigma_um[v] = sqrt(k[v] * u2[v]);
+        r->view_sigma_u_um[v] = r->view_sigma_um[v] * rel_sd[v];
         int stated = vn->sigma_um[v] > 0 || d->ux_um[v] || d->uy_um[v];
         r->view_noise_factor[v] = stated ? vn->f[v] * sqrt(k[v]) : NAN;
     }

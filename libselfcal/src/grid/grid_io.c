@@ -256,6 +256,7 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
         json_kv(fp, "utheta_urad", res->utheta_urad[v]);
         if (res->view_noise_estimated) {
             json_kv(fp, "sigma_um_est", res->view_sigma_um[v]);
+            json_kv(fp, "u_sigma_um_est", res->view_sigma_u_um[v]);
             json_kv(fp, "noise_factor", res->view_noise_factor[v]);
         }
         if (res->drift) {

@@ -240,7 +240,8 @@ class GridResult:
     residuals ``tx``, ``ty`` and ``outlier`` flags, shape (views, N, N), the outlier test
     (``outlier_alpha``, ``outlier_alpha_each``, each coordinate's ``outlier_alpha_coord``, the
     critical value ``outlier_crit`` of |t|, ``n_outlier_tests``), with ``view_noise="estimate"``
-    each view's estimated noise ``view_sigma_um`` and ``view_noise_factor`` (on its stated
+    each view's estimated noise ``view_sigma_um`` with its uncertainty ``view_sigma_u_um``, and
+    ``view_noise_factor`` (on its stated
     uncertainties; NaN if it stated none), ``view_noise_estimated``, and on request
     ``covariance_um2``. ``warnings``: the lines ``selfcal grid`` prints as warnings."""
 

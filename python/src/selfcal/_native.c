@@ -882,7 +882,7 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
     PyObject *ret = outlier ? Py_BuildValue(
         "{s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,s:d,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,"
         "s:l,s:l,s:O,s:d,s:d,s:d,s:O,s:N,s:N,s:N,s:N,s:N,s:l,s:l,s:N,s:O,s:d,s:O,s:d,s:d,s:l,"
-        "s:O,s:N,s:N}",
+        "s:O,s:N,s:N,s:N}",
         "gx_um", arr_from(r->gx_um, 2, sg), "gy_um", arr_from(r->gy_um, 2, sg),
         "ugx_um", arr_from(r->ugx_um, 2, sg), "ugy_um", arr_from(r->ugy_um, 2, sg),
         "x_mm", arr_from(xy, 2, sg), "y_mm", arr_from(xy + (size_t)nx * ny, 2, sg),
@@ -903,7 +903,8 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
         "outlier_crit", r->outlier_crit, "n_outlier_tests", r->n_outlier_tests,
         "view_noise_estimated", r->view_noise_estimated ? Py_True : Py_False,
         "view_sigma_um", per_view(r->view_sigma_um, nv),
-        "view_noise_factor", per_view(r->view_noise_factor, nv)) : NULL;
+        "view_noise_factor", per_view(r->view_noise_factor, nv),
+        "view_sigma_u_um", per_view(r->view_sigma_u_um, nv)) : NULL;
 #undef OPT
     free(xy);
     return ret;

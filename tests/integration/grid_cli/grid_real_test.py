@@ -280,6 +280,13 @@ def case_view_noise():
     line = [l for l in p.stdout.splitlines() if l.startswith("view_sigma_um:")]
     if len(line) != 1 or len(line[0].split("(")[0].split()) != 23:
         fail("printed line %r" % line)
+    line = [l for l in p.stdout.splitlines() if l.startswith("view_sigma_u_um:")]
+    if len(line) != 1 or len(line[0].split("(")[0].split()) != 23:
+        fail("printed line %r" % line)
+    # each estimate's own uncertainty: a few % where every placement has redundancy of its own
+    rel = [v["u_sigma_um_est"] / v["sigma_um_est"] for v in S["views"]]
+    if not all(0.02 < x < 0.15 for x in rel):
+        fail("the estimates' uncertainties %r" % rel)
     # the map with estimated weights is close to the truth (within 6 u of each node)
     m = {(r["i"], r["j"]): r for r in rows(g)}
     t = {(r["i"], r["j"]): r for r in rows(s["g"])}

@@ -422,6 +422,9 @@ def case_outliers():
     vs = [float(x) for x in c.ids["view_sigma_um"][1].replace("µm", "").split(",")]
     if len(vs) != 3 or not all(0.005 < x < 0.02 for x in vs) or c.ids["chi2"][1] != "not applicable":
         fail("report --view-noise estimate: %r %r" % (c.ids["view_sigma_um"], c.ids["chi2"]))
+    us = [float(x) for x in c.ids["view_sigma_u_um"][1].replace("µm", "").split(",")]
+    if len(us) != 3 or not all(0 < u < x for u, x in zip(us, vs)):
+        fail("report: the estimates' uncertainties %r" % (c.ids["view_sigma_u_um"],))
     run("report", "grid", inp, "-o", out, "--view-noise", "estimate", "--sigma-r-um", 0.01, expect=2)
     # the plan's reliability as `selfcal plan` gives it (the default test)
     run("report", "grid", inp, "-o", out, "--sigma-r-um", 0.01)
