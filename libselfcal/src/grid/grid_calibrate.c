@@ -437,6 +437,26 @@ static void vce_factors(int nv, const double *wrss, const double *red, double *k
         k[v] = red[v] >= VCE_MIN_RED ? wrss[v] / red[v] : k_low;
 }
 
+/* a (n x n, row stride lda, lower triangle read) := its Cholesky factor L in the lower triangle;
+ * 0 if a is not positive definite. n is at most SC_GRID_MAX_VIEWS here: by hand, as the library
+ * links no LAPACK for a few dozen flops. */
+static int chol_small(int n, double *a, int lda)
+{
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j <= i; ++j) {
+            double t = a[i * lda + j];
+            for (int k = 0; k < j; ++k)
+                t -= a[i * lda + k] * a[j * lda + k];
+            if (j < i)
+                a[i * lda + j] = t / a[j * lda + j];
+            else if (t > 0)
+                a[i * lda + i] = sqrt(t);
+            else
+                return 0;
+        }
+    return 1;
+}
+
 /* The plain iteration, log f += ½ log k, converges linearly, slowly where the views share
  * their redundancy (every mark seen in three views: 7 % per step measured on Ye's plan). Anderson
  * acceleration (Walker & Ni 2011) on x = log f with the last VCE_HIST steps settles it in a few
@@ -498,21 +518,9 @@ static void vce_accel_step(vce_accel *a, double *f, const double *k)
     double tr = 0;
     for (int i = 0; i < m; ++i)
         tr += A[i][i];
-    int ok = 1;
-    for (int i = 0; i < m && ok; ++i) { /* in place: A = L Lᵀ */
+    for (int i = 0; i < m; ++i)
         A[i][i] += 1e-12 * tr + 1e-300;
-        for (int j = 0; j <= i; ++j) {
-            double t = A[i][j];
-            for (int q = 0; q < j; ++q)
-                t -= A[i][q] * A[j][q];
-            if (j < i)
-                A[i][j] = t / A[j][j];
-            else if (t > 0)
-                A[i][i] = sqrt(t);
-            else
-                ok = 0;
-        }
-    }
+    int ok = chol_small(m, &A[0][0], VCE_HIST); /* in place: A = L Lᵀ */
     for (int i = 0; i < m && ok; ++i) { /* L y = b, Lᵀ γ = y */
         double t = b[i];
         for (int q = 0; q < i; ++q)
@@ -618,17 +626,10 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     /* (F⁻¹)_gg by Cholesky of the symmetrized F (its two estimates of F_uv averaged) */
     double L[SC_GRID_MAX_VIEWS][SC_GRID_MAX_VIEWS], inv_diag[SC_GRID_MAX_VIEWS];
     for (int i = 0; i < ng; ++i)
-        for (int j = 0; j <= i; ++j) {
-            double t = 0.5 * (F[i][j] + F[j][i]);
-            for (int k = 0; k < j; ++k)
-                t -= L[i][k] * L[j][k];
-            if (j < i)
-                L[i][j] = t / L[j][j];
-            else if (t > 0)
-                L[i][i] = sqrt(t);
-            else
-                return SC_OK; /* not positive definite: NaN */
-        }
+        for (int j = 0; j <= i; ++j)
+            L[i][j] = 0.5 * (F[i][j] + F[j][i]);
+    if (!chol_small(ng, &L[0][0], SC_GRID_MAX_VIEWS))
+        return SC_OK; /* not positive definite: NaN */
     for (int g = 0; g < ng; ++g) { /* column g of L⁻¹: (F⁻¹)_gg = Σ_i (L⁻¹)_ig² */
         double y[SC_GRID_MAX_VIEWS] = {0}, sum = 0;
         for (int i = g; i < ng; ++i) {
