@@ -662,6 +662,16 @@ static double *unequal_views(sc_grid_data *d, const sc_grid_plan *plan, const do
 
 static void count_warning(void *ctx, const char *msg);
 
+/* sc_grid_calibrate refuses d with o: SC_E_INPUT, its message containing needle. */
+static void expect_refused(sc_grid_data *d, const sc_grid_options *o, const char *needle)
+{
+    sc_grid_solution sol;
+    sc_error err;
+    assert_int_equal(sc_grid_calibrate(d, NULL, NULL, o, &sol, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, needle));
+    sc_grid_solution_free(&sol);
+}
+
 /* Each view's noise estimated (Förstner's variance components). On a stitched plan (22 views,
  * each with redundancy of its own) the estimates match the simulated noise of every view within
  * their sampling spread and do not depend on the weights the iteration starts from; on Ye's
@@ -779,15 +789,10 @@ static void test_view_noise(void **s)
     assert_true(warnings >= 1);
     sc_grid_solution_free(&sol);
     /* bad combinations */
-    sc_error err;
     o.sigma_r_um = 0.01;
-    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "exclude each other"));
-    sc_grid_solution_free(&sol);
+    expect_refused(&d, &o, "exclude each other");
     o.sigma_r_um = 0, o.method = SC_GRID_METHOD_YE;
-    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "need least squares"));
-    sc_grid_solution_free(&sol);
+    expect_refused(&d, &o, "need least squares");
     free(truth);
     sc_grid_data_free(&d);
 }
@@ -886,16 +891,10 @@ static void test_outlier_test_calibrate(void **s)
     petro_data(&d, 1);
     sc_grid_options o;
     sc_grid_options_default(&o);
-    sc_grid_solution sol;
-    sc_error err;
     o.outlier_alpha = 1;
-    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "between 0 and 1"));
-    sc_grid_solution_free(&sol);
+    expect_refused(&d, &o, "between 0 and 1");
     o.outlier_alpha = 0.01, o.method = SC_GRID_METHOD_DOUBLE_SHIFT;
-    assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "need least squares"));
-    sc_grid_solution_free(&sol);
+    expect_refused(&d, &o, "need least squares");
     sc_grid_data_free(&d);
 }
 
