@@ -602,6 +602,8 @@ static void test_minimal_detectable_bias(void **s)
     double r_x = rx[at] / 1e-3;
     assert_true(r_x >= qi.redundancy_min - 1e-9 && r_x < 1);
     double crit = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, qi.n_testable, 0);
+    assert_true(qi.mdb_ratio_max == sc_grid_mdb_ratio(crit, 0.8, qi.redundancy_min));
+    assert_true(qi.mdb_ratio_mean_r == sc_grid_mdb_ratio(crit, 0.8, qi.redundancy_mean));
     double mdb = sc_grid_mdb_ratio(crit, 0.8, r_x);
     assert_true(fabs(mdb - (crit + 0.8416212335729143) / sqrt(r_x)) < 1e-12 * mdb);
     /* noisy trials with the blunder: the test finds it with 80 % power */

@@ -35,11 +35,12 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
 int cli_parse_max_nodes(const char *cmd, const char *v, int *out);
 
 struct sc_grid_options;
-/* The outlier test's options of grid and report grid: "--outlier-alpha A" (for the whole data
- * set) or "--outlier-alpha-each A" (each coordinate), 0 < A < 1, into o. *used = 1 if opt is
- * one of them (then v is its value); CLI_OK, or the usage error. */
-int cli_parse_outlier_option(const char *cmd, const char *opt, const char *v,
-                             struct sc_grid_options *o, int *used);
+/* The least-squares options grid and report grid share, with their value v, into o:
+ * "--outlier-alpha A" (for the whole data set) or "--outlier-alpha-each A" (each coordinate),
+ * 0 < A < 1, and "--view-noise stated|estimate". -1 if opt is none of them, else CLI_OK or the
+ * usage error. */
+int cli_parse_lsq_option(const char *cmd, const char *opt, const char *v,
+                         struct sc_grid_options *o);
 
 struct sc_lut;
 struct sc_lut_fit_report;

@@ -144,6 +144,12 @@ static int parse_args(int argc, char **argv, grid_args *g)
         if (a + 1 >= argc)
             return cli_usage_error("grid", "'%s' needs a value (see --help)", o);
         const char *v = argv[++a];
+        int rc = cli_parse_lsq_option("grid", o, v, &g->opt); /* the outlier test, view noise */
+        if (rc >= 0) {
+            if (rc != CLI_OK)
+                return rc;
+            continue;
+        }
         if (!strcmp(o, "--method")) g->method = v;
         else if (!strcmp(o, "--map")) g->map = v;
         else if (!strcmp(o, "--artifact")) g->art = v;
@@ -151,20 +157,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
         else if (!strcmp(o, "--plot")) g->plot = v;
         else if (!strcmp(o, "--residuals")) g->residuals = v;
         else if (!strcmp(o, "--covariance")) g->covariance = v;
-        else if (!strcmp(o, "--view-noise")) {
-            if (strcmp(v, "estimate") != 0 && strcmp(v, "stated") != 0)
-                return cli_usage_error("grid", "--view-noise must be stated or estimate, got '%s'", v);
-            g->opt.estimate_view_noise = !strcmp(v, "estimate");
-        }
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
             g->opt.drift = !strcmp(v, "linear");
-        }
-        else if (!strcmp(o, "--outlier-alpha") || !strcmp(o, "--outlier-alpha-each")) {
-            int used, rc = cli_parse_outlier_option("grid", o, v, &g->opt, &used);
-            if (rc != CLI_OK)
-                return rc;
         }
         else if (!strcmp(o, "--sigma-r-um")) {
             if (sc_parse_double(v, &g->opt.sigma_r_um) || !(g->opt.sigma_r_um > 0))

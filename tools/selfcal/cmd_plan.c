@@ -160,11 +160,10 @@ static void print_reliability(const sc_grid_lsq_info *qi)
            qi->n_untestable);
     if (qi->n_testable == 0)
         return;
-    double crit = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, qi->n_testable, 0);
     printf("redundancy_min: %.6g\nredundancy_mean: %.6g\n", qi->redundancy_min,
            qi->redundancy_mean);
-    printf("mdb_ratio_max: %.6g\n", sc_grid_mdb_ratio(crit, 0.8, qi->redundancy_min));
-    printf("mdb_ratio_mean_r: %.6g\n", sc_grid_mdb_ratio(crit, 0.8, qi->redundancy_mean));
+    printf("mdb_ratio_max: %.6g\nmdb_ratio_mean_r: %.6g\n", qi->mdb_ratio_max,
+           qi->mdb_ratio_mean_r);
 }
 
 /* The analysis lines of a plan or data file (see the usage text). */

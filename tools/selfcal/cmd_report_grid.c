@@ -42,7 +42,7 @@ static const char *USAGE =
 typedef struct grid_report {
     const char *in, *method;
     double sigma_r_given; /* 0: not given */
-    sc_grid_options test; /* the outlier test's significance (outlier_alpha, _each) */
+    sc_grid_options test; /* the fit's options: outlier_alpha, _each, estimate_view_noise */
     sc_grid_data d;
     sc_grid_file_info info;
     sc_grid_lsq_info qi;
@@ -322,12 +322,6 @@ static int cmp_worst(const void *a, const void *b)
     return x < y ? 1 : x > y ? -1 : 0;
 }
 
-/* Whether a standardized residual fails the least-squares fit's outlier test. */
-static int flagged_t(const grid_report *r, double t)
-{
-    return isfinite(t) && fabs(t) > r->lres.outlier_crit;
-}
-
 /* The per-view table of residuals; the flagged and the measured counts out. */
 static void residual_table(FILE *fp, const grid_report *r, long *flagged, long *measured)
 {
@@ -348,7 +342,8 @@ static void residual_table(FILE *fp, const grid_report *r, long *flagged, long *
             cnt++;
             if (hypot(a, b) > mx)
                 mx = hypot(a, b), kmax = k;
-            if (flagged_t(r, r->tx[v * nn + k]) || flagged_t(r, r->ty[v * nn + k]))
+            if (sc_grid_outlier_beyond(&r->lres, r->tx[v * nn + k]) ||
+                sc_grid_outlier_beyond(&r->lres, r->ty[v * nn + k]))
                 fl++;
         }
         n_flag += fl;
@@ -455,9 +450,9 @@ static void outlier_table(FILE *fp, const grid_report *r, worst *ws, long nw, lo
         html_num_cell(fp, NULL, "%.4g", w->ry);
         html_num_cell(fp, NULL, "%.2f", w->r / r->lres.sigma_r_est_um);
         html_num_cell(fp, NULL, "%.2f", w->t);
-        fprintf(fp, "<td class=\"%s\">%s</td></tr>\n",
-                flagged_t(r, w->t) ? "fail" : "",
-                !isfinite(w->t) ? "not tested" : flagged_t(r, w->t) ? "yes" : "no");
+        int flag = sc_grid_outlier_beyond(&r->lres, w->t);
+        fprintf(fp, "<td class=\"%s\">%s</td></tr>\n", flag ? "fail" : "",
+                !isfinite(w->t) ? "not tested" : flag ? "yes" : "no");
     }
     fputs("</table>\n</section>\n", fp);
 }
@@ -668,18 +663,13 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
     if (*a + 1 >= argc)
         return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
     const char *v = argv[++*a];
+    int rc = cli_parse_lsq_option(cmd, o, v, &r->test); /* the outlier test, view noise */
+    if (rc >= 0)
+        return rc;
     if (!strcmp(o, "-o") || !strcmp(o, "--out"))
         *out = v;
     else if (!strcmp(o, "--method"))
         r->method = v;
-    else if (!strcmp(o, "--outlier-alpha") || !strcmp(o, "--outlier-alpha-each")) {
-        int used;
-        return cli_parse_outlier_option(cmd, o, v, &r->test, &used);
-    } else if (!strcmp(o, "--view-noise")) {
-        if (strcmp(v, "estimate") != 0 && strcmp(v, "stated") != 0)
-            return cli_usage_error(cmd, "--view-noise must be stated or estimate, got '%s'", v);
-        r->test.estimate_view_noise = !strcmp(v, "estimate");
-    }
     else if (!strcmp(o, "--sigma-r-um")) {
         if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||
             !(r->sigma_r_given <= SC_INPUT_MAX_ABS))

@@ -62,13 +62,17 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
     return CLI_OK;
 }
 
-int cli_parse_outlier_option(const char *cmd, const char *opt, const char *v, sc_grid_options *o,
-                             int *used)
+int cli_parse_lsq_option(const char *cmd, const char *opt, const char *v, sc_grid_options *o)
 {
-    int each = !strcmp(opt, "--outlier-alpha-each");
-    *used = each || !strcmp(opt, "--outlier-alpha");
-    if (!*used)
+    if (!strcmp(opt, "--view-noise")) {
+        if (strcmp(v, "estimate") != 0 && strcmp(v, "stated") != 0)
+            return cli_usage_error(cmd, "--view-noise must be stated or estimate, got '%s'", v);
+        o->estimate_view_noise = !strcmp(v, "estimate");
         return CLI_OK;
+    }
+    int each = !strcmp(opt, "--outlier-alpha-each");
+    if (!each && strcmp(opt, "--outlier-alpha") != 0)
+        return -1;
     double a;
     if (sc_parse_double(v, &a) || !(a > 0 && a < 1))
         return cli_usage_error(cmd, "%s needs a significance between 0 and 1, got '%s'", opt, v);

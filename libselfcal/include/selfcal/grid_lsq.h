@@ -35,6 +35,10 @@ typedef struct sc_grid_lsq_info {
                                  error absorbs any error there, which no test can see) */
     double redundancy_min;    /* the smallest r of a testable equation */
     double redundancy_mean;   /* the mean r of the testable equations */
+    double mdb_ratio_max;     /* the minimal detectable blunder (sc_grid_mdb_ratio, 80 % power)
+                                 of the default test (SC_GRID_OUTLIER_ALPHA over the testable
+                                 equations) at redundancy_min, in units of the coordinate's σ */
+    double mdb_ratio_mean_r;  /* the same at redundancy_mean */
 } sc_grid_lsq_info;
 
 /* Model options. */
@@ -70,6 +74,10 @@ SC_API double sc_grid_mdb_ratio(double crit, double power, double r);
  * coordinates (each = 0), or for each coordinate on its own (each = 1; n_tests unused). NaN for
  * alpha outside (0, 1), or n_tests < 1 with each = 0. */
 SC_API double sc_grid_outlier_critical(double alpha, long n_tests, int each);
+
+/* Whether a standardized residual t fails the outlier test a result ran (res->outlier_crit, of
+ * sc_grid_calibrate); NaN t (not tested) never does. */
+SC_API int sc_grid_outlier_beyond(const sc_grid_result *res, double t);
 
 /* The largest stage (nodes) whose full covariance sc_grid_lsq_covariance writes (41 x 41). */
 #define SC_GRID_LSQ_COV_MAX_NODES 1681

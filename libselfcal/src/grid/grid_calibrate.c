@@ -302,14 +302,8 @@ static void outlier_test_set(const sc_grid_options *o, sc_grid_solution *s, size
     r->n_outlier_tests = m;
     r->outlier_alpha_coord = r->outlier_alpha_each || m < 1
                                  ? r->outlier_alpha
-                                 : -expm1(log1p(-r->outlier_alpha) / (double)m);
+                                 : sc_grid_sidak_share(r->outlier_alpha, m);
     r->outlier_crit = sc_grid_outlier_critical(r->outlier_alpha, m, r->outlier_alpha_each);
-}
-
-/* Whether coordinate value t fails the test of r. */
-static int beyond(const sc_grid_result *r, double t)
-{
-    return isfinite(t) && fabs(t) > r->outlier_crit;
 }
 
 /* The worst flagged measurement not yet removed: index v*n*n + k, or -1. */
@@ -380,43 +374,38 @@ static sc_status view_noise_save(const sc_grid_data *d, int estimate, view_noise
     return SC_OK;
 }
 
-/* d's uncertainties := as read times f (a view that states none counts as 1 µm, the unit weight
- * of unweighted least squares, so that its factor is its noise in µm). */
+/* d's uncertainties := as read times f, or with f NULL as read (a view that states none counts,
+ * times f, as 1 µm: the unit weight of unweighted least squares, so that its factor is its
+ * noise in µm). Nothing unless vn is active. */
 static void view_noise_apply(sc_grid_data *d, const view_noise *vn, const double *f)
 {
     sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n;
-    for (int v = 0; v < p->n_views; ++v) {
-        p->view[v].sigma_um = (vn->sigma_um[v] > 0 ? vn->sigma_um[v] : 1.0) * f[v];
+    for (int v = 0; vn->active && v < p->n_views; ++v) {
+        double fv = f ? f[v] : 1.0;
+        p->view[v].sigma_um = f ? (vn->sigma_um[v] > 0 ? vn->sigma_um[v] : 1.0) * fv
+                                : vn->sigma_um[v];
         for (size_t k = 0; vn->u && k < nn; ++k) {
             if (d->ux_um[v])
-                d->ux_um[v][k] = vn->u[(2 * v) * nn + k] * f[v];
+                d->ux_um[v][k] = vn->u[(2 * v) * nn + k] * fv;
             if (d->uy_um[v])
-                d->uy_um[v][k] = vn->u[(2 * v + 1) * nn + k] * f[v];
+                d->uy_um[v][k] = vn->u[(2 * v + 1) * nn + k] * fv;
         }
     }
 }
 
-/* d's uncertainties as read (vn kept). */
-static void view_noise_restore_weights(sc_grid_data *d, const view_noise *vn)
+/* d's uncertainties as read and vn's factors back to 1 (vn kept). */
+static void view_noise_as_read(sc_grid_data *d, view_noise *vn)
 {
-    sc_grid_plan *p = &d->plan;
-    size_t nn = (size_t)p->n * p->n;
-    for (int v = 0; vn->active && v < p->n_views; ++v) {
-        p->view[v].sigma_um = vn->sigma_um[v];
-        for (size_t k = 0; vn->u && k < nn; ++k) {
-            if (d->ux_um[v])
-                d->ux_um[v][k] = vn->u[(2 * v) * nn + k];
-            if (d->uy_um[v])
-                d->uy_um[v][k] = vn->u[(2 * v + 1) * nn + k];
-        }
-    }
+    for (int v = 0; v < d->plan.n_views; ++v)
+        vn->f[v] = 1;
+    view_noise_apply(d, vn, NULL);
 }
 
 /* d's uncertainties as read; vn released. */
 static void view_noise_restore(sc_grid_data *d, view_noise *vn)
 {
-    view_noise_restore_weights(d, vn);
+    view_noise_apply(d, vn, NULL);
     free(vn->u);
     vn->u = NULL;
     vn->active = 0;
@@ -549,15 +538,12 @@ static sc_status view_noise_reset(sc_grid_data *d, const sc_grid_options *o, vie
                                   sc_grid_solution *s, sc_grid_lsq_plan **qp, sc_error *err)
 {
     sc_grid_lsq_opts opts = lsq_opts(o);
-    double sigma_r = 0;
-    for (int v = 0; v < d->plan.n_views; ++v)
-        vn->f[v] = 1;
-    view_noise_restore_weights(d, vn);
+    view_noise_as_read(d, vn);
     sc_grid_lsq_plan_destroy(*qp);
     *qp = NULL;
     sc_status st = sc_grid_lsq_plan_create(&d->plan, d, &opts, qp, err);
     if (st == SC_OK)
-        st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
+        st = sc_grid_lsq_execute(*qp, d, 0, &s->res, err);
     return st;
 }
 
@@ -753,12 +739,9 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
         if (!first || !*qp) { /* the first plan may come made (sc_grid_calibrate) */
             sc_grid_lsq_plan_destroy(*qp);
             *qp = NULL;
-            if (vn->active) { /* each pass estimates the noise per view afresh from the
-                                 weights as read: a removed outlier no longer pulls it */
-                for (int v = 0; v < p->n_views; ++v)
-                    vn->f[v] = 1;
-                view_noise_restore_weights(d, vn);
-            }
+            /* each pass estimates the noise per view afresh from the weights as read: a
+             * removed outlier no longer pulls it */
+            view_noise_as_read(d, vn);
             sc_status st = sc_grid_lsq_plan_create(p, d, &opts, qp, err);
             if (st != SC_OK)
                 return st;
@@ -827,7 +810,8 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
             d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
             s->n_flagged++;
         } else if (outlier_test_applies(&s->res) &&
-                   (beyond(&s->res, s->tx[k]) || beyond(&s->res, s->ty[k]))) {
+                   (sc_grid_outlier_beyond(&s->res, s->tx[k]) ||
+                    sc_grid_outlier_beyond(&s->res, s->ty[k]))) {
             s->outlier[k] = 1;
             s->n_flagged++;
             if (s->res.outlier_alpha_each)

@@ -793,6 +793,7 @@ static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
         q->sgx[k] = q->sgy[k] = NAN;
     q->info.sigma_c_ratio_rms = q->info.sigma_c_ratio_max = NAN;
     q->info.redundancy_min = q->info.redundancy_mean = NAN;
+    q->info.mdb_ratio_max = q->info.mdb_ratio_mean_r = NAN;
     q->info.n_testable = q->info.n_untestable = 0;
     return SC_OK;
 }
@@ -813,6 +814,9 @@ static void redundancy_info(sc_grid_lsq_plan *q)
     q->info.n_untestable = q->neq - testable;
     q->info.redundancy_min = testable ? rmin : NAN;
     q->info.redundancy_mean = testable ? rsum / (double)testable : NAN;
+    double crit = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, testable, 0);
+    q->info.mdb_ratio_max = sc_grid_mdb_ratio(crit, 0.8, q->info.redundancy_min);
+    q->info.mdb_ratio_mean_r = sc_grid_mdb_ratio(crit, 0.8, q->info.redundancy_mean);
 }
 
 sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *mask,
@@ -1218,9 +1222,18 @@ double sc_grid_outlier_critical(double alpha, long n_tests, int each)
         return sc_normal_two_sided_critical(alpha);
     if (n_tests < 1)
         return NAN;
-    /* Šidák: m independent tests at a each miss all with probability (1 − a)^m = 1 − alpha */
-    double a = -expm1(log1p(-alpha) / (double)n_tests);
-    return sc_normal_two_sided_critical(a);
+    return sc_normal_two_sided_critical(sc_grid_sidak_share(alpha, n_tests));
+}
+
+double sc_grid_sidak_share(double alpha, long m)
+{
+    /* m independent tests at a each miss all with probability (1 − a)^m = 1 − alpha */
+    return -expm1(log1p(-alpha) / (double)m);
+}
+
+int sc_grid_outlier_beyond(const sc_grid_result *res, double t)
+{
+    return isfinite(t) && fabs(t) > res->outlier_crit;
 }
 
 /* The noise figures of res from the residual sums; the σ scale the uncertainties use. */

@@ -31,6 +31,9 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
                                       const sc_grid_result *res, double *wrss, double *red,
                                       double *u2, sc_error *err);
 
+/* Šidák's share of a significance alpha over m tests: 1 − (1 − alpha)^(1/m), each test's own. */
+double sc_grid_sidak_share(double alpha, long m);
+
 /* How many solves so far had CHOLMOD make its solve workspace anew (execute must add none). */
 long sc_grid_lsq_workspace_made(const sc_grid_lsq_plan *q);
 

@@ -812,7 +812,6 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
         raise_sc(&err);
         goto done;
     }
-    double mdb_crit = sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, qi.n_testable, 0);
     ret = Py_BuildValue("{s:O,s:l,s:d,s:d,s:l,s:l,s:l,s:l,s:O,s:O,s:N,s:l,s:l,s:d,s:d,s:d,s:d}",
                         "identifiable",
                         qi.identifiable ? Py_True : Py_False, "free", qi.identifiable ? 0L : qi.free_dof,
@@ -823,9 +822,8 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
                         qi.n_stage_unmeasured, "sigma_ratio_gx", sgx, "sigma_ratio_gy", sgy,
                         "plan", plan_to_dict(&d.plan), "n_testable", qi.n_testable,
                         "n_untestable", qi.n_untestable, "redundancy_min", qi.redundancy_min,
-                        "redundancy_mean", qi.redundancy_mean, "mdb_ratio_max",
-                        sc_grid_mdb_ratio(mdb_crit, 0.8, qi.redundancy_min), "mdb_ratio_mean_r",
-                        sc_grid_mdb_ratio(mdb_crit, 0.8, qi.redundancy_mean));
+                        "redundancy_mean", qi.redundancy_mean, "mdb_ratio_max", qi.mdb_ratio_max,
+                        "mdb_ratio_mean_r", qi.mdb_ratio_mean_r);
 done:
     Py_XDECREF(sgx);
     Py_XDECREF(sgy);
