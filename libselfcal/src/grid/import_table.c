@@ -99,13 +99,31 @@ typedef struct table_reader {
     char mark; /* the decimal mark seen so far, 0 if none */
 } table_reader;
 
+/* The delimiter of a line: a tab if it has one, else ';' if it has one, else ','. */
+static char delimiter_of(const char *text)
+{
+    return strchr(text, '\t') ? '\t' : strchr(text, ';') ? ';' : ',';
+}
+
+/* text (not modified) copied into buf (PREAMBLE_LINE bytes) and split there at its delimiter
+ * into field; the field count, or -2 if the line is longer than buf. */
+#define PREAMBLE_LINE 4096
+static int split_copy(const char *text, char *buf, char **field)
+{
+    size_t len = strlen(text);
+    if (len >= PREAMBLE_LINE)
+        return -2;
+    memcpy(buf, text, len + 1);
+    return split_fields(buf, delimiter_of(buf), field, MAX_TABLE_FIELDS);
+}
+
 /* The header line, text (split in place) at line ln: the delimiter, and where each wanted
  * column is (exactly once). */
 static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_error *err)
 {
     sc_table *t = tr->t;
     t->header_line = ln;
-    t->delimiter = strchr(text, '\t') ? '\t' : strchr(text, ';') ? ';' : ',';
+    t->delimiter = delimiter_of(text);
     tr->n_header = split_fields(text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
     if (tr->n_header < 0)
         return sc_error_set(err, SC_E_INPUT, tr->path, ln, "more than %d columns",
@@ -130,13 +148,10 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
 /* How many of the wanted columns text (not modified) names: all of them, the header line. */
 static int names_count(const table_reader *tr, const char *text)
 {
-    char buf[4096], *field[MAX_TABLE_FIELDS];
-    size_t len = strlen(text);
-    if (len >= sizeof buf)
+    char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
+    int n = split_copy(text, buf, field), named = 0;
+    if (n == -2)
         return tr->n_cols; /* read_header_line decides */
-    memcpy(buf, text, len + 1);
-    char delim = strchr(buf, '\t') ? '\t' : strchr(buf, ';') ? ';' : ',';
-    int n = split_fields(buf, delim, field, MAX_TABLE_FIELDS), named = 0;
     for (int k = 0; k < tr->n_cols; ++k) {
         int found = 0;
         for (int f = 0; f < n && !found; ++f)
@@ -149,13 +164,10 @@ static int names_count(const table_reader *tr, const char *text)
 /* Whether text (not modified) is a row of numbers: a data line, so no header comes before it. */
 static int looks_like_data(const char *text)
 {
-    char buf[4096], *field[MAX_TABLE_FIELDS];
-    size_t len = strlen(text);
-    if (len >= sizeof buf)
+    char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
+    int n = split_copy(text, buf, field);
+    if (n == -2)
         return 1; /* no preamble line is that long */
-    memcpy(buf, text, len + 1);
-    char delim = strchr(buf, '\t') ? '\t' : strchr(buf, ';') ? ';' : ',';
-    int n = split_fields(buf, delim, field, MAX_TABLE_FIELDS);
     if (n < 2)
         return 0;
     for (int f = 0; f < n; ++f) {
