@@ -228,6 +228,11 @@ static void test_stage_map_errors(void **state)
         {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n0,1,1,0,1,1\n", 5, "repeats line 3"},
         {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n1,1,1.2,1,1,1\n", 5, "irregular grid: x_mm"},
         {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,1,1\n1,1,1,1.1,1,1\n", 5, "irregular grid: y_mm"},
+        /* the bad value is the first of the largest index (the reference used to run through
+         * it) and a gross one makes the least-squares pitch negative: both named at their line */
+        {H "0,0,0,0,1,1\n0,1,2,0,1,1\n0,2,4.5,0,1,1\n1,0,0,2,1,1\n1,1,2,2,1,1\n1,2,4,2,1,1\n2,0,0,4,1,1\n2,1,2,4,1,1\n2,2,4,4,1,1\n", 4, "irregular grid: x_mm is 0.5"},
+        {H "0,0,0,0,1,1\n0,1,2,0,1,1\n0,2,4,0,1,1\n1,0,-999,2,1,1\n1,1,2,2,1,1\n1,2,4,2,1,1\n2,0,0,4,1,1\n2,1,2,4,1,1\n2,2,4,4,1,1\n", 5, "irregular grid: x_mm is 999"},
+        {H "0,0,0,0,1,1\n0,1,2,0,1,1\n0,2,4,0,1,1\n1,0,0,2,1,1\n1,1,2,2,1,1\n1,2,4,2,1,1\n2,0,0,7,1,1\n2,1,2,4,1,1\n2,2,4,4,1,1\n", 8, "irregular grid: y_mm is 3"},
         {H "0,0,0,0,1,1\n0,1,1,0,1,1\n1,0,0,1,abc,1\n1,1,1,1,1,1\n", 4, "gx_um"},
         {H "0,0,0,0,1,1\n0,1,1,0,1\n", 3, "expected 6 fields"},
         {H "0,0,0,0,1,1,7\n", 2, "expected 6 fields"},
@@ -312,6 +317,11 @@ static void test_profile_result(void **state)
         {H "0,0,0,0,1\n1,1,0,0,\n2,2,0,0,3\n", 3, "empty ey_um"},
         {H "0,0,0,0,1\n2,1,0,0,2\n", 3, "expected n = 1, got 2"},
         {H "0,0,0,0,1\n1,1,0,0,2\n2,2.5,0,0,3\n3,3,0,0,3\n", 4, "irregular"},
+        /* the first or the last point off (the reference used to run through them), or so far
+         * off that the least-squares spacing is negative: named at their line */
+        {H "0,0.5,0,0,1\n1,1,0,0,2\n2,2,0,0,3\n3,3,0,0,3\n", 2, "x_mm is 0.5 mm off"},
+        {H "0,0,0,0,1\n1,1,0,0,2\n2,2,0,0,3\n3,3.25,0,0,3\n", 5, "x_mm is 0.25 mm off"},
+        {H "0,0,0,0,1\n1,-900,0,0,2\n2,2,0,0,3\n3,3,0,0,3\n4,4,0,0,3\n", 3, "x_mm is 901 mm off"},
         {H "0,0,0,0,1\n1,-1,0,0,2\n", 3, "increase"},
         {H "0,0,0,0,1\n1,1,0,0,x\n", 3, "ey_um"},
         {H "0,0,0,0,1\n1,1,,0,1\n", 3, "f_um is empty"},

@@ -106,8 +106,112 @@ sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
     return sc_io_finish(&o->f, err);
 }
 
-void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
-                    double tol_frac, double *a, double *b, double *dev, long *bad)
+/* The deviating points of v against a + b·k (beyond tol): how many; *bad the one of smallest
+ * line number (-1 if none), *dev its deviation. */
+static size_t deviating(const double *k, const double *v, const long *lines, size_t n, double a,
+                        double b, double tol, long *bad, double *dev)
+{
+    size_t count = 0;
+    *bad = -1;
+    *dev = 0;
+    for (size_t m = 0; m < n; ++m) {
+        double d = fabs(v[m] - (a + b * k[m]));
+        if (!(d <= tol)) {
+            count++;
+            if (*bad < 0 || lines[m] < lines[*bad]) {
+                *bad = (long)m;
+                *dev = d;
+            }
+        }
+    }
+    return count;
+}
+
+/* The median of x[0..n-1] (n >= 1; x is reordered): Hoare's selection, twice for even n. */
+static double select_kth(double *x, size_t n, size_t kth)
+{
+    size_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        double pivot = x[lo + (hi - lo) / 2];
+        size_t i = lo, j = hi;
+        while (i <= j) {
+            while (x[i] < pivot)
+                i++;
+            while (x[j] > pivot)
+                j--;
+            if (i <= j) {
+                double t = x[i];
+                x[i] = x[j];
+                x[j] = t;
+                i++;
+                if (j == 0)
+                    break;
+                j--;
+            }
+        }
+        if (kth <= j)
+            hi = j;
+        else if (kth >= i)
+            lo = i;
+        else
+            break;
+    }
+    return x[kth];
+}
+
+static double median(double *x, size_t n)
+{
+    double hi = select_kth(x, n, n / 2);
+    if (n % 2)
+        return hi;
+    double lo = x[0]; /* the largest of the lower half, which selection left below n/2 */
+    for (size_t m = 1; m < n / 2; ++m)
+        lo = x[m] > lo ? x[m] : lo;
+    return 0.5 * (lo + hi);
+}
+
+/* The robust reference line: the median of each index's values, the median of the slopes
+ * between neighbouring indices, the median of the intercepts. k are whole numbers from kmin to
+ * kmax (kmax - kmin < n). -1 if out of memory. */
+static int robust_line(const double *k, const double *v, size_t n, double kmin, double kmax,
+                       double *a, double *b)
+{
+    size_t groups = (size_t)(kmax - kmin) + 1;
+    size_t *start = calloc(groups + 1, sizeof *start), *fill = malloc(groups * sizeof *fill);
+    double *byk = malloc(n * sizeof *byk), *med = malloc(groups * sizeof *med);
+    double *work = malloc(groups * sizeof *work);
+    int ok = start && fill && byk && med && work;
+    if (ok) {
+        for (size_t m = 0; m < n; ++m)
+            start[(size_t)(k[m] - kmin) + 1]++;
+        for (size_t g = 0; g < groups; ++g)
+            start[g + 1] += start[g], fill[g] = start[g];
+        for (size_t m = 0; m < n; ++m)
+            byk[fill[(size_t)(k[m] - kmin)]++] = v[m];
+        size_t used = 0, slopes = 0;
+        for (size_t g = 0; g < groups; ++g)
+            if (start[g + 1] > start[g])
+                med[g] = median(byk + start[g], start[g + 1] - start[g]);
+        for (size_t g = 0, prev = 0; g < groups; ++g) {
+            if (start[g + 1] == start[g])
+                continue;
+            if (used++)
+                work[slopes++] = (med[g] - med[prev]) / (double)(g - prev);
+            prev = g;
+        }
+        *b = slopes ? median(work, slopes) : 0.0;
+        used = 0;
+        for (size_t g = 0; g < groups; ++g)
+            if (start[g + 1] > start[g])
+                work[used++] = med[g] - *b * (kmin + (double)g);
+        *a = median(work, used);
+    }
+    free(start), free(fill), free(byk), free(med), free(work);
+    return ok ? 0 : -1;
+}
+
+int sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
+                   double tol_frac, double *a, double *b, double *slope, double *dev, long *bad)
 {
     size_t lo = 0, hi = 0;
     for (size_t m = 1; m < n; ++m) {
@@ -117,17 +221,21 @@ void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t 
             hi = m;
     }
     double b0 = k[hi] > k[lo] ? (v[hi] - v[lo]) / (k[hi] - k[lo]) : 0.0;
-    double tol = tol_frac * fabs(b0);
-    *bad = -1;
-    *dev = 0;
-    for (size_t m = 0; m < n; ++m) {
-        double d = fabs(v[m] - (v[lo] + b0 * (k[m] - k[lo])));
-        if (d > tol && (*bad < 0 || lines[m] < lines[*bad])) {
-            *bad = (long)m;
-            *dev = d;
-        }
+    double a0 = v[lo] - b0 * k[lo];
+    size_t off = deviating(k, v, lines, n, a0, b0, tol_frac * fabs(b0), bad, dev);
+    *slope = b0;
+    if (off > 0 && k[hi] - k[lo] < (double)n) {
+        /* the first point of the smallest or the largest index may be the bad one: then against
+         * the medians' line, if fewer points deviate from it */
+        double a1, b1, dev1;
+        long bad1;
+        if (robust_line(k, v, n, k[lo], k[hi], &a1, &b1) != 0)
+            return -1;
+        if (deviating(k, v, lines, n, a1, b1, tol_frac * fabs(b1), &bad1, &dev1) < off)
+            *slope = b1, *bad = bad1, *dev = dev1;
     }
     sc_line_fit(k, v, n, a, b);
+    return 0;
 }
 
 char *sc_io_put_shortest(char *p, const sc_number_shortest *d, char sep)

@@ -108,11 +108,15 @@ sc_status sc_io_out_finish(sc_io_out *o, sc_error *err);
 /* Commit an atomic file, or abort it (SC_E_IO) if a write failed. */
 sc_status sc_io_finish(sc_afile *f, sc_error *err);
 
-/* Fit v = a + b·k to points (k, v) in any order, lines[m] the file line of point m. Regularity is
- * judged against the line through the points of smallest and largest k, so that one bad point
- * shows alone: *bad = the deviating point (beyond tol_frac of the slope) with the smallest line
- * number, or -1, *dev its deviation. a, b: the least-squares line over all points. */
-void sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
-                    double tol_frac, double *a, double *b, double *dev, long *bad);
+/* Fit v = a + b·k to points (k, v) in any order (k whole numbers, each index at least once),
+ * lines[m] the file line of point m, and judge its regularity. The reference line goes through
+ * the first points of the smallest and the largest k, so that one bad point shows alone; where
+ * points deviate from it, the line of the medians (each index's median, the median slope between
+ * neighbouring indices) is the reference instead if fewer deviate from that (the bad point was
+ * one of the two). *slope: the reference's slope (whether v increases); *bad: the deviating point
+ * (beyond tol_frac of the slope) with the smallest line number, or -1, *dev its deviation; a, b:
+ * the least-squares line over all points. -1 if out of memory, else 0. */
+int sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n, double tol_frac,
+                   double *a, double *b, double *slope, double *dev, long *bad);
 
 #endif

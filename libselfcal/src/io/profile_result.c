@@ -180,12 +180,14 @@ static sc_status check_regular(const result_reader *rr, sc_error *err)
         return sc_error_set(err, SC_E_NOMEM, rr->csv.path, 0, "out of memory");
     for (int i = 0; i < res->n; ++i)
         k[i] = i;
-    double a, b, dev;
+    double a, b, slope, dev;
     long bad;
-    sc_io_fit_line(k, res->x_mm, rr->lines, (size_t)res->n, PROFILE_REGULAR_TOL, &a, &b, &dev,
-                   &bad);
+    int rc = sc_io_fit_line(k, res->x_mm, rr->lines, (size_t)res->n, PROFILE_REGULAR_TOL, &a, &b,
+                            &slope, &dev, &bad);
     free(k);
-    if (!(b > 0))
+    if (rc != 0)
+        return sc_error_set(err, SC_E_NOMEM, rr->csv.path, 0, "out of memory");
+    if (!(slope > 0))
         return sc_error_set(err, SC_E_INPUT, rr->csv.path, rr->lines[res->n - 1],
                             "x_mm does not increase with n: %g here, %g at the first point "
                             "(line %ld)",
@@ -193,7 +195,7 @@ static sc_status check_regular(const result_reader *rr, sc_error *err)
     if (bad >= 0)
         return sc_error_set(err, SC_E_INPUT, rr->csv.path, rr->lines[bad],
                             "irregular profile: x_mm is %.3g mm off the regular spacing %.6f mm",
-                            dev, b);
+                            dev, slope);
     return SC_OK;
 }
 

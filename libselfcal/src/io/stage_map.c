@@ -166,31 +166,32 @@ static sc_status fit_axis(const map_reader *r, int axis, double *kk, double *vv,
         vv[q] = rows[q].v[axis];
         lines[q] = rows[q].line;
     }
-    double dev;
+    double dev, slope;
     long worst;
-    sc_io_fit_line(kk, vv, lines, nrows, SC_STAGE_MAP_REGULAR_TOL, origin, pitch, &dev, &worst);
-    if (!(*pitch > 0) || !(*pitch >= SC_STAGE_MAP_MIN_PITCH_MM)) {
-        /* a whole-file property, named at a row: the first row of the largest index, compared
-         * with the first row of the smallest */
-        size_t qmin = 0, qmax = 0;
-        for (size_t q = 1; q < nrows; ++q) {
-            if (kk[q] < kk[qmin])
-                qmin = q;
-            if (kk[q] > kk[qmax])
-                qmax = q;
-        }
-        if (!(*pitch > 0))
-            return sc_error_set(err, SC_E_INPUT, P, lines[qmax],
-                                "%s does not increase with %s: %s = %g at %s = %g, %g at %s = %g "
-                                "(line %ld)", name, idx, name, vv[qmax], idx, kk[qmax], vv[qmin],
-                                idx, kk[qmin], lines[qmin]);
-        return sc_error_set(err, SC_E_INPUT, P, lines[qmax], "%c pitch %g mm is below 1 nm",
-                            name[0], *pitch);
+    if (sc_io_fit_line(kk, vv, lines, nrows, SC_STAGE_MAP_REGULAR_TOL, origin, pitch, &slope, &dev,
+                       &worst) != 0)
+        return sc_error_set(err, SC_E_NOMEM, P, 0, "out of memory");
+    /* whole-file properties, named at a row: the first row of the largest index, compared with
+     * the first row of the smallest */
+    size_t qmin = 0, qmax = 0;
+    for (size_t q = 1; q < nrows; ++q) {
+        if (kk[q] < kk[qmin])
+            qmin = q;
+        if (kk[q] > kk[qmax])
+            qmax = q;
     }
+    if (!(slope > 0))
+        return sc_error_set(err, SC_E_INPUT, P, lines[qmax],
+                            "%s does not increase with %s: %s = %g at %s = %g, %g at %s = %g "
+                            "(line %ld)", name, idx, name, vv[qmax], idx, kk[qmax], vv[qmin],
+                            idx, kk[qmin], lines[qmin]);
     if (worst >= 0)
         return sc_error_set(err, SC_E_INPUT, P, lines[worst],
                             "irregular grid: %s is %.3g mm off the regular grid (pitch %.6f mm)",
-                            name, dev, *pitch);
+                            name, dev, slope);
+    if (!(*pitch >= SC_STAGE_MAP_MIN_PITCH_MM))
+        return sc_error_set(err, SC_E_INPUT, P, lines[qmax], "%c pitch %g mm is below 1 nm",
+                            name[0], *pitch);
     return SC_OK;
 }
 
