@@ -8,7 +8,7 @@
 #   P/<libdir>/cmake/selfcal/               CMake package: find_package(selfcal) -> selfcal::selfcal,
 #                                           selfcal::selfcal_static
 #   P/share/man/man1/selfcal.1, man8/selfcald.8
-#   P/lib/systemd/system/selfcald.service   with the installed paths filled in at configure time
+#   P/lib/systemd/system/selfcald.service   with P's paths filled in at install time (install_paths.cmake)
 #   P/share/doc/selfcal/                    README, docs, selfcald.conf.example, examples/
 # Adding something: an install() rule next to the target that makes it (programs: call
 # selfcal_install_program(TARGET) from the folder that defines TARGET).
@@ -46,10 +46,11 @@ configure_file(${CMAKE_CURRENT_LIST_DIR}/selfcal.pc.in ${PROJECT_BINARY_DIR}/sel
 install(FILES ${PROJECT_BINARY_DIR}/selfcal.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
 
 # ---- man pages (roff sources in docs/man/, the version filled in) ----
+# (selfcald.8 names installed paths: filled in for the prefix it is installed to)
 foreach(page selfcal.1 selfcald.8)
   string(REGEX REPLACE ".*\\.([0-9])$" "\\1" section ${page})
-  configure_file(${PROJECT_SOURCE_DIR}/docs/man/${page}.in ${PROJECT_BINARY_DIR}/man/${page} @ONLY)
-  install(FILES ${PROJECT_BINARY_DIR}/man/${page} DESTINATION ${CMAKE_INSTALL_MANDIR}/man${section})
+  selfcal_install_with_paths(${PROJECT_SOURCE_DIR}/docs/man/${page}.in ${PROJECT_BINARY_DIR}/man/${page}
+    ${CMAKE_INSTALL_MANDIR}/man${section})
 endforeach()
 
 # ---- documentation and the example program ----

@@ -166,10 +166,14 @@ def case_install():
     usage = run([os.path.join(bindir, "selfcal"), "--help"], env=clean_env()).stdout
     for cmd in sorted(set(re.findall(r"^  selfcal ([a-z][a-z-]*(?: [a-z]+)?)", usage, re.M))):
         check(cmd.replace("-", "\\-") in man1, "selfcal.1 documents 'selfcal %s'" % cmd)
+    # the paths of the prefix it was installed to (stage), not the one configured (/usr/local)
     unit = open(os.path.join(prefix, "lib/systemd/system/selfcald.service")).read()
-    check(re.search(r"^ExecStart=/\S*/bin/selfcald --config /\S+/selfcal/selfcald.conf$", unit, re.M) and "@" not in
-          re.sub(r"^SystemCallFilter=.*$", "", unit, flags=re.M), "selfcald.service has its paths filled in: %r" %
-          re.findall(r"^ExecStart=.*$", unit, re.M))
+    check(re.search(r"^ExecStart=%s/bin/selfcald --config %s/etc/selfcal/selfcald.conf$" % (re.escape(stage), re.escape(stage)), unit,
+                    re.M) and "@" not in re.sub(r"^SystemCallFilter=.*$", "", unit, flags=re.M),
+          "selfcald.service names the installed paths under %s: %r" % (stage, re.findall(r"^ExecStart=.*$", unit, re.M)))
+    man8 = open(os.path.join(prefix, "share/man/man8/selfcald.8")).read()
+    check("%s/bin/selfcald" % stage in man8 and "@CMAKE" not in man8,
+          "selfcald.8 names %s/bin/selfcald" % stage)
 
     # examples, built as an outside project against the moved prefix
     work = fresh(os.path.join(WORK, "examples"))
@@ -230,6 +234,16 @@ def case_deb():
                  "libselfcal.so.", "libselfcal.a", "man1/selfcal.1", "man8/selfcald.8",
                  "systemd/system/selfcald.service"):
         check(name in contents, ".deb contains %s" % name)
+    # the unit starts the program the package installs, with Debian's /etc
+    units = glob.glob(os.path.join(root, "usr/lib/systemd/system/selfcald.service")) + \
+        glob.glob(os.path.join(root, "lib/systemd/system/selfcald.service"))
+    if check(len(units) == 1, ".deb unit found (%r)" % units):
+        unit = open(units[0]).read()
+        check(re.search(r"^ExecStart=/usr/bin/selfcald --config /etc/selfcal/selfcald.conf$", unit, re.M) and
+              re.search(r"^ReadOnlyPaths=/etc/selfcal$", unit, re.M),
+              ".deb unit names /usr/bin/selfcald and /etc/selfcal: %r" % re.findall(r"^(?:ExecStart|ReadOnlyPaths)=.*$",
+                                                                                   unit, re.M))
+        check(os.path.isfile(os.path.join(root, "usr/bin/selfcald")), ".deb installs /usr/bin/selfcald")
     # the CLI from the unpacked package does real work
     work = fresh(os.path.join(WORK, "deb-run"))
     make_measurement(bindir, work)

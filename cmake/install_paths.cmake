@@ -1,0 +1,49 @@
+# Files that name installed paths (selfcald.service, selfcald.8) are filled in when they are
+# installed, for the prefix they are installed to — `cmake --install BUILD --prefix P`, or
+# cpack's /usr for the .deb — not for the prefix configured (CMAKE_INSTALL_PREFIX at configure
+# time, /usr/local by default): a unit naming /usr/local/bin/selfcald in a package that installs
+# /usr/bin/selfcald cannot start.
+#
+# selfcal_install_with_paths(TEMPLATE OUTPUT DESTINATION): TEMPLATE is configured now (@ONLY)
+# with everything but @CMAKE_INSTALL_FULL_BINDIR@, @CMAKE_INSTALL_FULL_SYSCONFDIR@ and
+# @CMAKE_INSTALL_FULL_DOCDIR@, which are filled in at install time by GNUInstallDirs' rules for
+# the actual prefix (the system configuration folder of the prefixes / and /usr is /etc, of
+# /opt/X /etc/opt/X), and installed to DESTINATION (relative to the prefix, or absolute).
+
+function(selfcal_install_with_paths template output destination)
+  foreach(dir BINDIR SYSCONFDIR DOCDIR)
+    set(CMAKE_INSTALL_FULL_${dir} "@CMAKE_INSTALL_FULL_${dir}@")
+  endforeach()
+  configure_file(${template} ${output}.in @ONLY)
+  install(CODE "
+    set(_selfcal_prefix \"\${CMAKE_INSTALL_PREFIX}\")
+    foreach(_dir BINDIR SYSCONFDIR DOCDIR)
+      if(_dir STREQUAL BINDIR)
+        set(_rel \"${CMAKE_INSTALL_BINDIR}\")
+      elseif(_dir STREQUAL SYSCONFDIR)
+        set(_rel \"${CMAKE_INSTALL_SYSCONFDIR}\")
+      else()
+        set(_rel \"${CMAKE_INSTALL_DOCDIR}\")
+      endif()
+      if(IS_ABSOLUTE \"\${_rel}\")
+        set(_abs \"\${_rel}\")
+      elseif(_dir STREQUAL SYSCONFDIR AND _selfcal_prefix MATCHES \"^/(usr/?)?$\")
+        set(_abs \"/\${_rel}\")
+      elseif(_dir STREQUAL SYSCONFDIR AND _selfcal_prefix MATCHES \"^/opt/\")
+        set(_abs \"/\${_rel}\${_selfcal_prefix}\")
+      elseif(_selfcal_prefix MATCHES \"^/$\")
+        set(_abs \"/usr/\${_rel}\")
+      else()
+        string(REGEX REPLACE \"/+$\" \"\" _p \"\${_selfcal_prefix}\")
+        set(_abs \"\${_p}/\${_rel}\")
+      endif()
+      set(CMAKE_INSTALL_FULL_\${_dir} \"\${_abs}\")
+    endforeach()
+    configure_file(\"${output}.in\" \"${output}\" @ONLY)
+    set(_dest \"${destination}\")
+    if(NOT IS_ABSOLUTE \"\${_dest}\")
+      set(_dest \"\${CMAKE_INSTALL_PREFIX}/\${_dest}\")
+    endif()
+    file(INSTALL DESTINATION \"\${_dest}\" TYPE FILE FILES \"${output}\")
+  ")
+endfunction()
