@@ -110,7 +110,7 @@ static void fuzz_grid(uint8_t c0, uint8_t c1, const char *path)
         FUZZ_CHECK(isfinite(fit.tx_um) && isfinite(fit.ty_um) && isfinite(fit.theta_urad));
         FUZZ_CHECK(fit.n_assigned + fit.n_left_out == np);
         FUZZ_CHECK(fit.n_marks >= 1 && fit.n_assigned <= fit.n_marks);
-        FUZZ_CHECK((double)fit.n_assigned >= p.min_share * (double)fit.n_marks);
+        FUZZ_CHECK(fit.n_assigned >= 1 && (double)fit.n_assigned >= p.min_share * (double)np);
         FUZZ_CHECK(fit.max_dist_um <= p.tolerance_mm * 1e3 * (1 + 1e-12));
         long assigned = 0;
         for (long m = 0; m < nn; ++m) {

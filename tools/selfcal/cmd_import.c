@@ -30,7 +30,7 @@ static const char *GRID_USAGE =
     "point goes to the nearest mark the view measures. Points farther than --tolerance-mm from\n"
     "every mark are reported and left out; marks without a point are reported and absent.\n"
     "Bad input (exit 2, no output): a missing column, two points on one mark, a view where fewer\n"
-    "than --min-share of its marks got a point, mixed decimal marks.\n";
+    "than --min-share of its points (or none) fall on a mark, mixed decimal marks.\n";
 
 static const char *PROFILE_USAGE =
     "usage: selfcal import profile --spacing-mm D1 FILE1 --spacing-mm D2 FILE2 -o OUT.csv\n"

@@ -11,8 +11,9 @@
  *      (2-D Procrustes) on the pairs within the gate, points are matched again under it, and this
  *      repeats with the gate at the tolerance T until the matching no longer changes.
  *   3. A point farther than T from every mark the view measures is left out (reported by the
- *      caller); a mark without a point is absent. Two points within T of one mark, or a view where
- *      fewer than min_share of its marks got a point, are bad input.
+ *      caller); a mark without a point is absent (a view may measure few of its marks). Two points
+ *      within T of one mark, or a view where fewer than min_share of its points (or none) fall
+ *      on a mark — the wrong file, view, units or columns — are bad input.
  * Since T < P/2, the mark nearest a point is found in O(1) by rounding its plate coordinates.
  *
  * Straightness logs (sc_profile_import): the two scans' tables (position mm, m1 µm, m2 µm,
@@ -62,7 +63,7 @@ typedef struct sc_grid_import_params {
     double origin_mm[2];   /* stage position of the stage grid's centre */
     int stage_nx, stage_ny; /* stage nodes along x and y (SPEC §5); 0, 0: N x N */
     double tolerance_mm;   /* T, 0 < T < P/2; points farther from every mark are left out */
-    double min_share;      /* a view must give a point to at least this share of its marks */
+    double min_share;      /* at least this share of a view's points must fall on its marks */
 } sc_grid_import_params;
 
 /* The fitted placement of one view and what was matched. */

@@ -296,12 +296,15 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     fit->tx_um = a.tx * 1e3;
     fit->ty_um = a.ty * 1e3;
     fit->theta_urad = atan2(a.s, a.c) * 1e6;
-    if ((double)fit->n_assigned < p->min_share * (double)fit->n_marks)
+    /* A view may measure few of its marks (a partial view, a damaged plate: SPEC §10, marks
+     * without a point are absent); a file whose points mostly fall on no mark is the wrong
+     * file, view, units or columns. */
+    if (fit->n_assigned == 0 || (double)fit->n_assigned < p->min_share * (double)n_points)
         return sc_error_set(err, SC_E_INPUT, path, header_line,
-                            "only %ld of the %ld marks of view rot=%d shift=%d,%d have a point "
-                            "within %g mm (at least %.0f %% needed): wrong --view, --units or "
+                            "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
+                            "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "
                             "columns?",
-                            fit->n_assigned, fit->n_marks, v->rot_deg, v->shift_x, v->shift_y,
-                            p->tolerance_mm, p->min_share * 100);
+                            fit->n_assigned, n_points, p->tolerance_mm, v->rot_deg, v->shift_x,
+                            v->shift_y, p->min_share * 100);
     return SC_OK;
 }
