@@ -519,6 +519,33 @@ static sc_status read_rows(read_state *s, sc_grid_data *d, sc_error *err)
     return s->have_columns && got < 0 ? csv_failure(err) : SC_OK;
 }
 
+/* Without ux_um, uy_um columns the views' sigma_um= state the weights: on every view that has
+ * rows (every view of a plan file) or on none. Some views stating it and others not would leave
+ * the others' weights to an arbitrary default. */
+static sc_status check_stated_noise(const read_state *s, const sc_grid_data *d, sc_error *err)
+{
+    if (s->has_u) /* every row states its own or its view's (row_uncertainties) */
+        return SC_OK;
+    int with = -1, without = -1;
+    for (int v = 0; v < s->n_decl; ++v) {
+        if (s->info->n_rows > 0 && s->info->view_rows[v] == 0)
+            continue;
+        if (d->plan.view[v].sigma_um > 0) {
+            if (with < 0)
+                with = v;
+        } else if (without < 0) {
+            without = v;
+        }
+    }
+    if (with < 0 || without < 0)
+        return SC_OK;
+    return sc_error_set(err, SC_E_INPUT, s->path, s->decl[without].line,
+                        "view %d states no sigma_um but view %d does (sigma_um=%g): state every "
+                        "view's uncertainty (sigma_um= or the ux_um,uy_um columns) or none (the "
+                        "noise is then estimated from the residuals)",
+                        s->decl[without].id, s->decl[with].id, d->plan.view[with].sigma_um);
+}
+
 sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *info, sc_error *err)
 {
     sc_grid_file_info local_info;
@@ -550,6 +577,8 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
         st = sc_grid_data_alloc_extra(d, s.has_u, s.has_t, err);
     if (st == SC_OK)
         st = read_rows(&s, d, err);
+    if (st == SC_OK)
+        st = check_stated_noise(&s, d, err);
     read_state_free(&s);
     if (st != SC_OK) {
         sc_grid_data_free(d);

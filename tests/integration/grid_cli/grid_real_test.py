@@ -434,6 +434,10 @@ def case_bad_input():
     # sigma_um not positive on a view line
     out = [l.replace("# view 1: rot=90 shift=0,0", "# view 1: rot=90 shift=0,0 sigma_um=0") for l in lines]
     cases.append(("sigma_zero", out, 6, "sigma_um"))
+    # views 0 and 2 state sigma_um, view 1 (line 6) does not: its weights would be a guess
+    out = [l.replace("# view 0: rot=0 shift=0,0", "# view 0: rot=0 shift=0,0 sigma_um=0.01")
+            .replace("# view 2: rot=0 shift=1,0", "# view 2: rot=0 shift=1,0 sigma_um=0.02") for l in lines]
+    cases.append(("sigma_mixed", out, 6, "view 1 states no sigma_um but view 0 does (sigma_um=0.01)"))
     for name, body, line, needle in cases:
         path = os.path.join(d, name + ".csv")
         open(path, "w").write("".join(body))
