@@ -408,11 +408,16 @@ static sc_status residual_histograms(FILE *fp, const grid_report *r, double *all
             }
         }
     fig_hist ft = {all, mt, 1.0, "standardized residuals t_x and t_y", "t = r / (σ·√(1 − h))"};
+    char caption[256]; /* the test's own critical value (the Outliers section's) */
+    double crit = r->lres.outlier_crit;
+    snprintf(caption, sizeof caption,
+             "Histogram of the standardized residuals with the standard normal density%s",
+             crit > 0 && isfinite(crit) ? "" : ".");
+    if (crit > 0 && isfinite(crit))
+        snprintf(caption + strlen(caption), sizeof caption - strlen(caption),
+                 "; beyond ±%.2f a measurement is flagged (Outliers, below).", crit);
     if (st == SC_OK && mt > 0)
-        st = html_figure(fp, draw_hist, &ft,
-                         "Histogram of the standardized residuals with the standard normal density; "
-                         "beyond ±3.29 a measurement is flagged.",
-                         err);
+        st = html_figure(fp, draw_hist, &ft, caption, err);
     *nw_out = nw;
     return st;
 }

@@ -415,6 +415,10 @@ def case_outliers():
         crit = float(c.ids["outlier_crit"][1])
         if abs(math.erfc(crit / math.sqrt(2)) / a - 1) > 3e-3:  # crit to 4 decimals: 0.03 %
             fail("report %r: critical value %g for a share %g" % (extra, crit, a))
+        # the standardized residuals' histogram states the same threshold
+        want = "beyond ±%.2f a measurement is flagged" % crit
+        if want not in open(out, encoding="utf-8").read():
+            fail("report %r: the histogram caption does not say %r" % (extra, want))
     run("report", "grid", inp, "-o", out, "--outlier-alpha", "2", expect=2)
     # each view's noise estimated: listed, and the chi-square test not applicable
     run("report", "grid", inp, "-o", out, "--view-noise", "estimate")
