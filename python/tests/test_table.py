@@ -117,6 +117,19 @@ def test_mode_checked(table):
         t.apply(0, 0, mode="forward")
 
 
+def test_bad_positions_raise_selfcal_error(table):
+    """SPEC §8: errors raise selfcal.Error, also for arguments numpy would refuse."""
+    t = selfcal.Table(table[0])
+    with pytest.raises(selfcal.Error, match="do not broadcast"):
+        t.apply(np.ones(3), np.ones(2))
+    with pytest.raises(selfcal.Error, match="x_mm: not numbers"):
+        t.apply("a", "b")
+    with pytest.raises(selfcal.Error, match="z_mm: not numbers"):
+        t.apply(1.0, 2.0, z_mm=[1.0, "c"])
+    with pytest.raises(selfcal.Error, match="out must hold 3"):
+        t.apply(1.0, 2.0, out=(np.empty(()),))
+
+
 def test_build_table_from_arrays_equals_cli(cli, tmp_path):
     m, truth = selfcal.simulate_grid("double-shift", n=9, pitch_mm=2.0, sigma_r_um=0.01, seed=8)
     r = selfcal.calibrate_grid(m)

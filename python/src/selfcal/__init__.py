@@ -79,7 +79,18 @@ class Table:
         """
         code = _mode_code(mode)
         arrays = [x_mm, y_mm] + ([z_mm] if z_mm is not None else [])
-        b = _np.broadcast_arrays(*[_np.asarray(a, dtype=_np.float64) for a in arrays])
+        names = ("x_mm", "y_mm", "z_mm")
+        conv = []
+        for name, a in zip(names, arrays):
+            try:
+                conv.append(_np.asarray(a, dtype=_np.float64))
+            except (TypeError, ValueError) as e:
+                raise Error(f"{name}: not numbers ({e})") from None
+        try:
+            b = _np.broadcast_arrays(*conv)
+        except ValueError:
+            raise Error("the positions' shapes %s do not broadcast together"
+                        % ", ".join(str(c.shape) for c in conv)) from None
         shape = b[0].shape
         flat = [_np.ascontiguousarray(a).reshape(-1) for a in b]
         n_out = 4 if z_mm is not None else 3
@@ -87,10 +98,10 @@ class Table:
             out = tuple(_np.empty(shape, dtype=_np.float64) for _ in range(n_out - 1)) + (
                 _np.empty(shape, dtype=_np.uint32),)
         elif len(out) != n_out:
-            raise ValueError(f"out must hold {n_out} arrays")
+            raise Error(f"out must hold {n_out} arrays")
         for o in out:
             if not isinstance(o, _np.ndarray) or o.shape != shape or not o.flags.c_contiguous:
-                raise ValueError(f"out arrays must be C-contiguous numpy arrays of shape {shape}")
+                raise Error(f"out arrays must be C-contiguous numpy arrays of shape {shape}")
         flat_out = [o.reshape(-1) for o in out]  # views: the arrays are C-contiguous
         z = flat[2] if z_mm is not None else None
         zo = flat_out[2] if z_mm is not None else None
