@@ -15,8 +15,9 @@
 #define PREAMBLE_MAX 100 /* lines before the header line that name no columns */
 
 /* Split line s at delim in place (double-quoted fields may hold the delimiter; the quotes are
- * removed), trimming blanks; returns the field count or -1 if there are too many. */
-static int split_fields(char *s, char delim, char **field, int max)
+ * removed), trimming blanks; returns the field count or -1 if there are too many. quoted (may be
+ * NULL): 1 for each field that was in quotes. */
+static int split_fields_q(char *s, char delim, char **field, unsigned char *quoted, int max)
 {
     int n = 0;
     char *p = s;
@@ -26,6 +27,8 @@ static int split_fields(char *s, char delim, char **field, int max)
         while (*p == ' ' || (*p == '\t' && delim != '\t'))
             ++p;
         char *start = p, *end;
+        if (quoted)
+            quoted[n] = *p == '"';
         if (*p == '"') {
             start = ++p;
             char *q = strchr(p, '"');
@@ -47,6 +50,11 @@ static int split_fields(char *s, char delim, char **field, int max)
             return n;
         ++p;
     }
+}
+
+static int split_fields(char *s, char delim, char **field, int max)
+{
+    return split_fields_q(s, delim, field, NULL, max);
 }
 
 static int name_equal(const char *a, const char *b)
@@ -94,6 +102,7 @@ typedef struct table_reader {
     const char *const *names;
     const double *scale;
     char *field[MAX_TABLE_FIELDS];
+    unsigned char quoted[MAX_TABLE_FIELDS]; /* the data line's fields that were in quotes */
     int col_of[16], n_header;
     long cap, mark_line;
     char mark; /* the decimal mark seen so far, 0 if none */
@@ -198,7 +207,8 @@ static sc_status grow(table_reader *tr, sc_error *err)
 }
 
 /* The value of wanted column k in the current line: a number, one decimal mark in the whole file,
- * no decimal comma in a comma-separated file, within any plausible measurement. */
+ * no decimal comma in a comma-separated file unless the field is quoted ("99,5"), within any
+ * plausible measurement. */
 static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err)
 {
     const char *s = tr->field[tr->col_of[k]], *name = tr->names[k], *path = tr->path;
@@ -212,9 +222,10 @@ static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err
     if (rc != 0)
         return sc_error_set(err, SC_E_INPUT, path, ln, "column '%s': '%s' is not a number", name,
                             s);
-    if (seen == ',' && tr->t->delimiter == ',')
+    if (seen == ',' && tr->t->delimiter == ',' && !tr->quoted[tr->col_of[k]])
         return sc_error_set(err, SC_E_INPUT, path, ln,
-                            "column '%s': decimal comma in a comma-separated file", name);
+                            "column '%s': decimal comma in a comma-separated file (quote the "
+                            "field, or use ';' or tab as delimiter)", name);
     if (seen && tr->mark && seen != tr->mark)
         return sc_error_set(err, SC_E_INPUT, path, ln,
                             "column '%s': decimal '%c' here but '%c' on line %ld (mixed decimal marks)",
@@ -233,7 +244,7 @@ static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err
 static sc_status read_data_line(table_reader *tr, sc_error *err)
 {
     sc_table *t = tr->t;
-    int nf = split_fields(tr->r.text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
+    int nf = split_fields_q(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
     if (nf != tr->n_header)
         return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
                             "%d fields, the header line (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,

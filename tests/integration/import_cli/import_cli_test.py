@@ -303,6 +303,22 @@ def case_bad_input():
     open(bad, "w").write("\n".join(lines) + "\n")
     a = import_args(views, [bad, files[1], files[2]], n=9)
     check_bad(a, d, out, "commas.csv:2: 7 fields, the header line (line 1) has 4")
+    # ... unless the fields are quoted: "12,5" is then a number with a decimal comma
+    quoted = [lines[0]] + [",".join('"%s"' % f for f in l.split(";"))
+                           for l in open(files[0]).read().splitlines()[1:]]
+    good_q = os.path.join(d, "quoted.csv")
+    open(good_q, "w").write("\n".join(quoted) + "\n")
+    run(*import_args(views, [good_q, files[1], files[2]], n=9), "-o", out)
+    ref = os.path.join(d, "ref.csv")
+    run(*import_args(views, files, n=9), "-o", ref)
+    if read_grid(out) != read_grid(ref):
+        fail("quoted decimal commas in a comma-separated file read differently")
+    os.remove(out)
+    # a quoted field with a decimal comma next to an unquoted one: the unquoted is still refused
+    f3 = open(files[0]).read().splitlines()[2].split(";")
+    mixed_q = quoted[:2] + ['"%s",%s,"%s","%s"' % tuple(f3)] + quoted[3:]
+    open(good_q, "w").write("\n".join(mixed_q) + "\n")
+    check_bad(import_args(views, [good_q, files[1], files[2]], n=9), d, out, "quoted.csv:3: ")
     # not a number, both marks in one number, empty file, missing file
     for name, text, want in [("nan.csv", "X;Y\n1;nan\n", "nan.csv:2: column 'Y': 'nan' is not a number"),
                              ("thou.csv", "X;Y\n1.000,5;2\n", "thou.csv:2: column 'X': '1.000,5' has both"),
