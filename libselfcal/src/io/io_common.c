@@ -3,9 +3,11 @@
  * number output of the writers (selfcal/number.h), and how many cores a reader or writer may
  * spread over. */
 #define _GNU_SOURCE /* sched_getaffinity */
+#include <errno.h>
 #include <math.h>
 #include <sched.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "../common/line_fit.h"
 #include "../common/number_internal.h"
@@ -75,6 +77,7 @@ sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err)
 {
     o->buf = o->p = NULL;
     o->nomem = 0;
+    o->write_errno = 0;
     sc_status st = sc_afile_open(&o->f, path, err);
     if (st != SC_OK)
         return st;
@@ -86,9 +89,16 @@ sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err)
     return SC_OK;
 }
 
+void sc_io_out_write(sc_io_out *o, const char *data, size_t len)
+{
+    errno = 0;
+    if (fwrite(data, 1, len, o->f.fp) != len && !o->write_errno)
+        o->write_errno = errno ? errno : EIO;
+}
+
 void sc_io_out_flush(sc_io_out *o)
 {
-    fwrite(o->buf, 1, (size_t)(o->p - o->buf), o->f.fp);
+    sc_io_out_write(o, o->buf, (size_t)(o->p - o->buf));
     o->p = o->buf;
 }
 
@@ -102,6 +112,11 @@ sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
         sc_error_set(err, SC_E_NOMEM, o->f.path, 0, "out of memory");
         sc_afile_abort(&o->f);
         return SC_E_NOMEM;
+    }
+    if (o->write_errno) { /* the reason, which ferror alone no longer knows */
+        sc_afile_abort(&o->f);
+        return sc_error_set(err, SC_E_IO, o->f.path, 0, "write error: %s",
+                            strerror(o->write_errno));
     }
     return sc_io_finish(&o->f, err);
 }

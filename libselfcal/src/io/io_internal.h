@@ -65,6 +65,7 @@ typedef struct sc_io_out {
     sc_afile f; /* open between sc_io_out_open and sc_io_out_finish */
     char *buf, *p;
     int nomem;  /* sc_io_out_rows ran out of memory: sc_io_out_finish aborts the file */
+    int write_errno; /* errno of the first failed write (0: none): the error's reason */
 } sc_io_out;
 
 /* Open path's atomic file and the block. */
@@ -72,6 +73,9 @@ sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err);
 
 /* Write the block out (to f.fp) and start it again. */
 void sc_io_out_flush(sc_io_out *o);
+
+/* fwrite to the file, keeping the errno of the first failure for sc_io_out_finish's message. */
+void sc_io_out_write(sc_io_out *o, const char *data, size_t len);
 
 /* After a row: write the block out once less than SC_IO_ROW_MAX bytes are left in it. */
 static inline void sc_io_out_row(sc_io_out *o)

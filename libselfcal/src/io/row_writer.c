@@ -93,8 +93,9 @@ static void start_writeback(FILE *fp, long long *from)
 }
 
 /* This thread: write the next chunk when it is ready, else format one, else wait. */
-static void write_chunks(row_pipeline *q, FILE *fp)
+static void write_chunks(row_pipeline *q, sc_io_out *o)
 {
+    FILE *fp = o->f.fp;
     long long written_back = (long long)ftello(fp);
     pthread_mutex_lock(&q->lock);
     while (q->next_write < q->chunks) {
@@ -102,7 +103,7 @@ static void write_chunks(row_pipeline *q, FILE *fp)
         long c;
         if (s->ready) {
             pthread_mutex_unlock(&q->lock);
-            fwrite(s->buf, 1, s->len, fp); /* an error stays in ferror(fp): sc_io_finish */
+            sc_io_out_write(o, s->buf, s->len); /* a failure's errno: sc_io_out_finish */
             start_writeback(fp, &written_back);
             pthread_mutex_lock(&q->lock);
             s->ready = 0;
@@ -132,7 +133,7 @@ static int write_rows_two_threads(sc_io_out *o, long n, sc_io_format_row format,
     int helping = conds && pthread_create(&helper, NULL, format_helper, &q) == 0;
     if (helping) {
         sc_io_out_flush(o);
-        write_chunks(&q, o->f.fp);
+        write_chunks(&q, o);
         pthread_join(helper, NULL);
     }
     if (conds)

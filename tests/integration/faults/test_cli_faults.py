@@ -191,6 +191,8 @@ if ns is not None:
         res = R()
         res.returncode, res.stderr = rc, err
         one_line_error(res, 1, what)
+        if what == "full file system":  # the reason, not just "write error"
+            check("No space left on device" in err, f"{what}: the message gives no reason: {err!r}")
         check(open(p("ns_after.txt"), "rb").read() == old, f"{what}: the old file was changed")
         left = [f for f in open(p("ns_ls.txt")).read().split() if ".tmp" in f]
         check(not left, f"{what}: temporaries left: {left}")
