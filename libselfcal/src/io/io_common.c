@@ -225,16 +225,22 @@ static int robust_line(const double *k, const double *v, size_t n, double kmin, 
     return ok ? 0 : -1;
 }
 
+void sc_io_index_range(const double *k, size_t n, size_t *lo, size_t *hi)
+{
+    *lo = *hi = 0;
+    for (size_t m = 1; m < n; ++m) {
+        if (k[m] < k[*lo])
+            *lo = m;
+        if (k[m] > k[*hi])
+            *hi = m;
+    }
+}
+
 int sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n,
                    double tol_frac, double *a, double *b, double *slope, double *dev, long *bad)
 {
-    size_t lo = 0, hi = 0;
-    for (size_t m = 1; m < n; ++m) {
-        if (k[m] < k[lo])
-            lo = m;
-        if (k[m] > k[hi])
-            hi = m;
-    }
+    size_t lo, hi;
+    sc_io_index_range(k, n, &lo, &hi);
     double b0 = k[hi] > k[lo] ? (v[hi] - v[lo]) / (k[hi] - k[lo]) : 0.0;
     double a0 = v[lo] - b0 * k[lo];
     size_t off = deviating(k, v, lines, n, a0, b0, tol_frac * fabs(b0), bad, dev);

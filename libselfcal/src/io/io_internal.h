@@ -123,4 +123,7 @@ sc_status sc_io_finish(sc_afile *f, sc_error *err);
 int sc_io_fit_line(const double *k, const double *v, const long *lines, size_t n, double tol_frac,
                    double *a, double *b, double *slope, double *dev, long *bad);
 
+/* The first point of the smallest k (*lo) and of the largest (*hi); n >= 1. */
+void sc_io_index_range(const double *k, size_t n, size_t *lo, size_t *hi);
+
 #endif

@@ -173,13 +173,8 @@ static sc_status fit_axis(const map_reader *r, int axis, double *kk, double *vv,
         return sc_error_set(err, SC_E_NOMEM, P, 0, "out of memory");
     /* whole-file properties, named at a row: the first row of the largest index, compared with
      * the first row of the smallest */
-    size_t qmin = 0, qmax = 0;
-    for (size_t q = 1; q < nrows; ++q) {
-        if (kk[q] < kk[qmin])
-            qmin = q;
-        if (kk[q] > kk[qmax])
-            qmax = q;
-    }
+    size_t qmin, qmax;
+    sc_io_index_range(kk, nrows, &qmin, &qmax);
     if (!(slope > 0))
         return sc_error_set(err, SC_E_INPUT, P, lines[qmax],
                             "%s does not increase with %s: %s = %g at %s = %g, %g at %s = %g "
