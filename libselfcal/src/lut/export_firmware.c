@@ -223,7 +223,11 @@ static void fw_write_klipper(outbuf *ob, const sc_export_options *o, double want
             "macro):\n",
         cmt);
     out(ob, "SET_SKEW XY=%.*f,%.*f,%.*f\n", FW_DECIMALS, ac, FW_DECIMALS, bd, FW_DECIMALS, L);
-    out(ob, "%s to keep it: SKEW_PROFILE SAVE=selfcal, SAVE_CONFIG\n", cmt);
+    /* skew_correction starts every boot at 0: a saved profile is only applied once loaded */
+    out(ob, "%s Klipper starts with no skew at every restart: to keep it, SKEW_PROFILE "
+            "SAVE=selfcal and SAVE_CONFIG once,\n", cmt);
+    out(ob, "%s then SKEW_PROFILE LOAD=selfcal in the start macro after homing (and SET_SKEW "
+            "CLEAR=1 in the end macro)\n", cmt);
     scale_lines(ob, cmt, "rotation_distance", o->rotation_distance_mm, rep->scale, NULL);
 }
 

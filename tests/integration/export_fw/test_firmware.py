@@ -122,6 +122,8 @@ def firmware_transform(fmt, text, present):
     if fmt == "klipper":
         m = re.search(r"^SET_SKEW XY=([-0-9.]+),([-0-9.]+),([-0-9.]+)\s*$", text, re.M)
         check(m is not None, f"klipper: SET_SKEW line in\n{text}")
+        # Klipper restarts with no skew: the saved profile must be loaded after homing
+        check("SKEW_PROFILE LOAD=selfcal" in text, f"klipper: no SKEW_PROFILE LOAD in\n{text}")
         f = klipper_calc_skew_factor(*map(float, m.groups()))
         shift = -f
         if present:
