@@ -520,6 +520,9 @@ static void siemens_write_header(sc_textbuf *t, const sc_export_options *o, cons
     sc_tb_printf(t, "CHANDATA(1)\n");
     sc_tb_printf(t, "; cross error compensation written by selfcal export: %d table(s), values in mm\n",
               c->ntab);
+    /* K3: CEC positions and values are read in the current measuring system */
+    sc_tb_printf(t, "; positions and values in mm, for a metric basic system (MD10240 = 1); an inch "
+                    "machine needs them / 25.4\n");
     sc_tb_printf(t, "; map = A(x) + B(y) + residual; tables hold %sA and %sB of %s (G = indicated - true)\n",
               sign < 0 ? "-" : "+", sign < 0 ? "-" : "+", ncomp == 2 ? "Gx and Gy" : (comps[0] == 0 ? "Gx" : "Gy"));
     sc_tb_printf(t, "; %s\n", sign < 0 ? "Siemens' sign (K3): a positive value moves the axis negative, so -G moves it by +G"
@@ -775,8 +778,9 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
                  llabs(v) % 1000000);
         sc_tb_printf(t, "%.6f %s %s\n", lo + k * c.step_mm, trim, trim);
     }
-    sc_tb_printf(t, "# selfcal export: %s trims (%sG%s, mm) - needs COMP_FILE_TYPE = 1 in [JOINT_n]: "
-                 "LinuxCNC's default 0 reads them as positions\n",
+    sc_tb_printf(t, "# selfcal export: %s trims (%sG%s, mm; a machine in inches needs them / 25.4) - "
+                 "needs COMP_FILE_TYPE = 1 in [JOINT_n]: LinuxCNC's default 0 reads them as "
+                 "positions\n",
               axis_upper(o->axis), sign < 0 ? "-" : "+", o->axis == 0 ? "x" : "y");
     free(code);
     free(c.value_um);
