@@ -19,6 +19,12 @@ int cli_usage_error(const char *cmd, const char *fmt, ...)
 #endif
     ;
 
+/* Before a command runs: its outputs (the values of the options listed in outputs, space
+ * separated) against its inputs (every other argument naming an existing file) and each other.
+ * An output that is an input, two outputs on one file or an empty path: the usage error
+ * (CLI_BAD_INPUT); else -1. */
+int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char **argv);
+
 /* The last component of a path (for titles: an absolute path says nothing and runs off). */
 const char *cli_basename(const char *path);
 

@@ -122,37 +122,38 @@ typedef struct command {
     const char *name, *sub; /* sub: second word, or NULL */
     int (*run)(int argc, char **argv);
     const char *synopsis, *what;
+    const char *outputs; /* its output options, space separated (cli_check_output_paths) */
 } command;
 
 static const command commands[] = {
     {"grid", NULL, cmd_grid, "grid --method {ye,double-shift,lsq} IN.csv --map G.csv [...]",
-     "separate stage error G from plate error A"},
-    {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one"},
+     "separate stage error G from plate error A", "--map --artifact --summary --residuals --covariance --plot"},
+    {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one", "-o --out"},
     {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv",
-     "straightness profile + stage motion error"},
-    {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)"},
+     "straightness profile + stage motion error", "--out -o --plot"},
+    {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)", NULL},
     {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM]] -o TABLE",
-     "build a correction table"},
-    {"lut", NULL, NULL, "lut dump TABLE", "print a table as CSV"},
-    {"lut", NULL, NULL, "lut info TABLE", "size, encoding, quantization, provenance"},
-    {"export", NULL, cmd_export, "export --format F --map G.csv -o OUT", "resample the map for a machine controller"},
+     "build a correction table", "-o --out"},
+    {"lut", NULL, NULL, "lut dump TABLE", "print a table as CSV", NULL},
+    {"lut", NULL, NULL, "lut info TABLE", "size, encoding, quantization, provenance", NULL},
+    {"export", NULL, cmd_export, "export --format F --map G.csv -o OUT", "resample the map for a machine controller", "-o --out"},
     {"import", "grid", cmd_import_grid, "import grid --n N --pitch-mm P --view \"rot=R shift=SX,SY\" FILE ... -o IN.csv",
-     "a measuring machine's export -> selfcal-grid v1"},
+     "a measuring machine's export -> selfcal-grid v1", "-o --out"},
     {"import", "profile", cmd_import_profile, "import profile --spacing-mm D1 LOG1 --spacing-mm D2 LOG2 -o IN.csv",
-     "two scans' logs -> selfcal-profile v1"},
+     "two scans' logs -> selfcal-profile v1", "-o --out"},
     {"simulate", "grid", cmd_simulate_grid, "simulate grid --plan P --out IN.csv --truth-map T.csv",
-     "simulated plate measurements + truth"},
+     "simulated plate measurements + truth", "--out --truth-map --truth-artifact --truth-summary"},
     {"simulate", "profile", cmd_simulate_profile, "simulate profile --out IN.csv --truth T.csv",
-     "simulated two-scan data + truth"},
-    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR", "a measuring machine's files"},
-    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg", "arrow plot of an error map"},
-    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves"},
-    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns"},
-    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML)"},
+     "simulated two-scan data + truth", "--out -o --truth"},
+    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR", "a measuring machine's files", NULL},
+    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg", "arrow plot of an error map", "-o --out"},
+    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves", "-o --out"},
+    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns", "-o --out"},
+    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML)", "-o --out"},
     {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]",
-     "profile report (HTML)"},
+     "profile report (HTML)", "-o --out"},
     {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T",
-     "check a compensated stage"},
+     "check a compensated stage", "--html --plot --residuals"},
 };
 #define N_COMMANDS (sizeof commands / sizeof commands[0])
 
@@ -291,6 +292,11 @@ static void suitesparse_huge_pages(void)
  * profile`'s from 50 to 70 MB for no time saved, so they keep glibc's own. */
 static int run_command(const command *c, int argc, char **argv)
 {
+    if (c->outputs) {
+        int rc = cli_check_output_paths(c->sub ? c->sub : c->name, c->outputs, argc, argv);
+        if (rc >= 0)
+            return rc;
+    }
     if (!strcmp(c->name, "grid") || !strcmp(c->name, "plan") ||
         (!strcmp(c->name, "report") && c->sub && !strcmp(c->sub, "grid"))) {
         openmp_regions_serial();

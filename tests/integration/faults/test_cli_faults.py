@@ -10,6 +10,8 @@ failing disk, a read-only folder, an unwritable stdout and oversized inputs leav
    tmpfs remounted read-only) and fsync failing with EIO or ENOSPC (an LD_PRELOAD shim): exit 1,
    one stderr line, no temporary file, the old file untouched;
 4. stdout that cannot be written (`lut info`, `lut dump`, `plan` > /dev/full): exit 1, one line;
+   an output that is one of the command's inputs, two outputs on one file, an empty output path:
+   exit 2 before anything is written;
 5. limits: a profile whose header declares N = 20 000 000 in a few hundred bytes, a map repeating
    its nodes over 20 MB, a 10 MB line, a 100 MB table: exit 2 with one line naming the file (and
    the line), peak memory far below what the claim would need.
@@ -223,6 +225,39 @@ for args in (["lut", "info", p("t.lut")], ["lut", "dump", p("t.lut")], ["plan", 
         r = subprocess.run([cli] + args, stdout=full, stderr=subprocess.PIPE, text=True,
                            timeout=120)
     one_line_error(r, 1, f"{' '.join(args[:2])} > /dev/full")
+
+# ---- 4b. an output that is an input, two outputs on one file, an empty output path ----------
+# every command reads, then replaces its outputs: exit 2 before anything is written, the input
+# untouched (checked byte for byte), no output file made
+def digest(path):
+    with open(path, "rb") as f:
+        return zlib.crc32(f.read())
+
+
+for what, args, victim in (
+        ("grid --map IN", ["grid", "--method", "lsq", p("grid.csv"), "--map", p("grid.csv")],
+         "grid.csv"),
+        ("profile --out IN", ["profile", "--method", "lsq", p("prof.csv"), "--out", p("prof.csv")],
+         "prof.csv"),
+        ("lut build -o MAP", ["lut", "build", "--map", p("map_ref.csv"), "-o", p("map_ref.csv")],
+         "map_ref.csv"),
+        ("lut build -o PROFILE", ["lut", "build", "--map", p("map_ref.csv"), "--profile",
+                                  "x:y:" + p("prof_truth.csv") + "@0", "-o", p("prof_truth.csv")],
+         "prof_truth.csv"),
+        ("export -o MAP (another name)", ["export", "--format", "klipper", "--map", p("map_ref.csv"),
+                                          "-o", os.path.join(work, ".", "map_ref.csv")], "map_ref.csv"),
+        ("report grid -o IN", ["report", "grid", p("grid.csv"), "-o", p("grid.csv")], "grid.csv")):
+    before = digest(p(victim))
+    r = run(args)
+    one_line_error(r, 2, what, "also an input")
+    check(digest(p(victim)) == before, f"{what}: the input was changed")
+r = run(["grid", "--method", "ye", p("grid.csv"), "--map", p("same.csv"), "--artifact",
+         os.path.join(work, ".", "same.csv")])
+one_line_error(r, 2, "grid --map X --artifact X", "name the same file")
+check(not os.path.exists(p("same.csv")), "grid --map X --artifact X: an output was written")
+r = run(["grid", "--method", "ye", p("grid.csv"), "--map", p("m_empty.csv"), "--summary", ""])
+one_line_error(r, 2, "grid --summary ''", "--summary: the path is empty")
+check(not os.path.exists(p("m_empty.csv")), "grid --summary '': the map was written")
 
 # ---- 5. limits ----------------------------------------------------------------------------
 
