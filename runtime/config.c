@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "log.h"
 
@@ -359,14 +360,23 @@ sc_status sc_config_load_file(sc_config *c, const char *path, sc_error *err)
     FILE *f = fopen(path, "r");
     if (f == NULL)
         return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+    struct stat st;
+    if (fstat(fileno(f), &st) != 0 || S_ISDIR(st.st_mode)) { /* fgets would read it as empty */
+        fclose(f);
+        return sc_error_set(err, SC_E_INPUT, path, 0, "is a directory, not a configuration file");
+    }
     char line[1024];
     int lineno = 0;
     while (fgets(line, sizeof line, f) != NULL) {
         lineno++;
         if (strchr(line, '\n') == NULL && !feof(f)) {
+            int nul = strlen(line) < sizeof line - 1; /* fgets stopped at the line end after it */
             fclose(f);
-            return sc_error_set(err, SC_E_INPUT, path, lineno, "line too long");
+            return sc_error_set(err, SC_E_INPUT, path, lineno,
+                                nul ? "NUL byte in a text file" : "line too long");
         }
+        if (lineno == 1 && !strncmp(line, "\xEF\xBB\xBF", 3)) /* a UTF-8 byte-order mark */
+            memmove(line, line + 3, strlen(line + 3) + 1);
         char *hash = strchr(line, '#');
         if (hash != NULL)
             *hash = '\0';

@@ -1,5 +1,6 @@
 /* runtime/selfcald.c — the machine-side correction daemon (SPEC §3-4): loads a lookup table and
  * corrects positions for Modbus TCP, Modbus RTU and SocketCAN clients from one poll() loop. */
+#include <errno.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -28,12 +29,17 @@ int main(int argc, char **argv)
         fprintf(stderr, "selfcald: %s (selfcald --help)\n", why);
         return 2;
     }
-    if (help) {
-        fputs(sc_config_usage, stdout);
-        return 0;
-    }
-    if (version) {
-        printf("selfcald %s\n", sc_version());
+    if (help || version) { /* printed in full, or exit 1 (a full disk, a closed pipe) */
+        if (help)
+            fputs(sc_config_usage, stdout);
+        else
+            printf("selfcald %s\n", sc_version());
+        errno = 0;
+        if (fflush(stdout) != 0 || ferror(stdout)) {
+            fprintf(stderr, "selfcald: cannot write to standard output: %s\n",
+                    errno ? strerror(errno) : "write error");
+            return 1;
+        }
         return 0;
     }
     sc_log_open_at(g_cfg.use_syslog, g_cfg.log_level, g_cfg.syslog_socket);

@@ -99,6 +99,17 @@ static void test_csv_lines_and_errors(void **state)
     assert_non_null(strstr(err.msg, "directory"));
     assert_null(sc_open_input(SELFCAL_TEST_TMP, &err));
     assert_int_equal(err.code, SC_E_INPUT);
+
+    /* a UTF-8 byte-order mark before the first line is not text; the same bytes later are */
+    const char bom[] = "\xEF\xBB\xBF# selfcal-grid v1\r\n\xEF\xBB\xBFx\n";
+    write_text(path, bom, sizeof bom - 1);
+    assert_int_equal(sc_csv_open(&r, path, &err), SC_OK);
+    assert_int_equal(sc_csv_next_line(&r, &err), 1);
+    assert_string_equal(r.text, "# selfcal-grid v1");
+    assert_int_equal((int)r.len, 17);
+    assert_int_equal(sc_csv_next_line(&r, &err), 1);
+    assert_string_equal(r.text, "\xEF\xBB\xBFx");
+    sc_csv_close(&r);
 }
 
 static void test_atomic_file(void **state)

@@ -125,6 +125,7 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     }
     char *s = r->buf + r->buf_pos;
     size_t len = nl ? (size_t)(nl - s) : r->buf_len - r->buf_pos;
+    long long start = r->buf_off + (long long)r->buf_pos;
     if (memchr(s, '\0', len < scan ? len : scan)) {
         sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file");
         return -1;
@@ -135,6 +136,11 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
         return -1;
     }
     r->buf_pos += len + (nl != NULL);
+    if (start == 0 && len >= 3 && !memcmp(s, "\xEF\xBB\xBF", 3)) {
+        /* a UTF-8 byte-order mark (spreadsheets' "CSV UTF-8" writes one): not part of the text */
+        s += 3;
+        len -= 3;
+    }
     if (len > 0 && s[len - 1] == '\r')
         --len;
     s[len] = '\0';

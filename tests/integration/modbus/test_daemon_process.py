@@ -100,6 +100,21 @@ conf = os.path.join(work, "bad.conf")
 open(conf, "w").write("table = x.lut\nunit-id = 300\n")
 rc, err = status(["--config", conf])
 check(rc == 2 and "bad.conf:2:" in err, f"bad config: {rc} {err}")
+# a configuration saved with a UTF-8 byte-order mark reads as without; a directory or a NUL byte
+# is said as such (a directory used to read as an empty configuration)
+open(conf, "wb").write(b"\xef\xbb\xbftable = " + os.path.join(work, "missing.lut").encode() + b"\n")
+rc, err = status(["--config", conf])
+check(rc == 2 and "missing.lut" in err and "unknown" not in err, f"config with a BOM: {rc} {err}")
+rc, err = status(["--config", work])
+check(rc == 2 and "is a directory" in err, f"config is a directory: {rc} {err}")
+open(conf, "wb").write(b"# ok\nta\0ble = x.lut\n")
+rc, err = status(["--config", conf])
+check(rc == 2 and "bad.conf:2: NUL byte" in err, f"config with a NUL byte: {rc} {err}")
+# --help and --version must reach stdout (exit 1 with /dev/full, as selfcal does)
+for opt in ("--help", "--version"):
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([selfcald, opt], stdout=full, stderr=subprocess.PIPE, text=True, timeout=10)
+    check(r.returncode == 1 and "cannot write to standard output" in r.stderr, f"{opt} > /dev/full: {r.returncode} {r.stderr}")
 d = Daemon(selfcald, table)
 try:
     rc, err = status(["--table", table, "--modbus-tcp", f"127.0.0.1:{d.port}"])
