@@ -3,6 +3,7 @@
 #define SELFCAL_CLI_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "selfcal/error.h"
 
@@ -36,6 +37,9 @@ int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path)
  * "@number" needs an explicit "@0"; |OFFSET_MM| <= SC_INPUT_MAX_ABS) -> 0, or -1. */
 int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, size_t cap,
                              double *offset_mm);
+
+/* --seed S: a whole number 0..2^64-1 (digits only) into *out: CLI_OK, or the usage error. */
+int cli_parse_seed(const char *cmd, const char *v, uint64_t *out);
 
 /* --max-nodes N (2..SC_LUT_MAX_NX) of lut build and export into *out: CLI_OK, or the usage error. */
 int cli_parse_max_nodes(const char *cmd, const char *v, int *out);

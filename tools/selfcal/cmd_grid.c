@@ -163,8 +163,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
             g->opt.drift = !strcmp(v, "linear");
         }
         else if (!strcmp(o, "--sigma-r-um")) {
-            if (sc_parse_double(v, &g->opt.sigma_r_um) || !(g->opt.sigma_r_um > 0))
-                return cli_usage_error("grid", "--sigma-r-um needs a positive number, got '%s'", v);
+            if (sc_parse_double(v, &g->opt.sigma_r_um) || !(g->opt.sigma_r_um > 0) ||
+                !(g->opt.sigma_r_um <= SC_INPUT_MAX_ABS))
+                return cli_usage_error("grid", "--sigma-r-um needs a positive number of um (at "
+                                               "most 1e6), got '%s'", v);
         } else
             return cli_usage_error("grid", "unknown option '%s' (see --help)", o);
     }

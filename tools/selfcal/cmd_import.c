@@ -285,7 +285,7 @@ static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
 static int grid_params(grid_args *g, sc_grid_import_params *p)
 {
     const char *cmd = "import grid";
-    if (!g->out || g->n_views == 0 || g->n_d == 0 || g->pitch == 0)
+    if (!g->out || g->n_views == 0 || g->n_d == 0 || isnan(g->pitch))
         return cli_usage_error(cmd, "--n, --pitch-mm, at least one --view \"...\" FILE and -o are required (see --help)");
     if (g->n_d != floor(g->n_d) || g->n_d < 3 || g->n_d > SC_GRID_MAX_N || fmod(g->n_d, 2) == 0)
         return cli_usage_error(cmd, "--n must be odd and in 3..%d", SC_GRID_MAX_N);
@@ -294,7 +294,7 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
     p->origin_mm[1] = g->oy;
     p->stage_nx = (int)g->snx;
     p->stage_ny = (int)g->sny;
-    if (g->tol != 0)
+    if (!isnan(g->tol))
         p->tolerance_mm = g->tol;
     p->min_share = g->share;
     sc_error err;
@@ -384,6 +384,7 @@ static int import_grid(int argc, char **argv)
     g.ycol = "y";
     g.unit_mm = 1;
     g.share = 0.5;
+    g.pitch = g.tol = NAN; /* not given (0 is a value, refused by the checks) */
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(GRID_USAGE, stdout);

@@ -82,10 +82,10 @@ static int parse_option(profile_args *pa, int argc, char **argv, int *i)
         if (*e || pa->mc < 2 || pa->mc > 100000000)
             return cli_usage_error(cmd, "--mc: '%s' must be a whole number >= 2", val);
     } else if (!strcmp(a, "--seed") && has_val) {
-        char *e;
-        pa->seed = strtoull(val, &e, 10);
-        if (*e || !*val)
-            return cli_usage_error(cmd, "--seed: '%s' is not a whole number", val);
+        uint64_t s;
+        if (cli_parse_seed(cmd, val, &s) != CLI_OK)
+            return CLI_BAD_INPUT;
+        pa->seed = s;
     } else {
         *i -= has_val; /* no value taken */
         if (!strcmp(a, "--quiet"))

@@ -272,7 +272,7 @@ typedef struct {
     style sty;
     missing_mark miss[64], disp[64];
     int stray[64], n_miss, n_disp, n_stray;
-    long seed;
+    uint64_t seed;
 } exports_args;
 
 /* --missing I,J[@V] */
@@ -346,8 +346,8 @@ static int parse_option(exports_args *a, const char *o, const char *v)
             return cli_usage_error(cmd, "--stray V (a view index, at most 64 times), got '%s'", v);
         a->stray[a->n_stray++] = (int)s;
     } else if (!strcmp(o, "--seed")) {
-        if (sc_parse_long(v, &a->seed) || a->seed < 0)
-            return cli_usage_error(cmd, "--seed needs a whole number >= 0");
+        if (cli_parse_seed(cmd, v, &a->seed) != CLI_OK)
+            return CLI_BAD_INPUT;
     } else {
         return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
     }

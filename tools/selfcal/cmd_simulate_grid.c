@@ -213,10 +213,8 @@ static int parse_option(sim_args *a, const char *o, const char *v)
     else if (!strcmp(o, "--view-sigma-r-um")) return parse_view_sigmas(a, v);
     else if (!strcmp(o, "--drift-um-s")) return parse_drift(a, v);
     else if (!strcmp(o, "--seed")) {
-        long s;
-        if (sc_parse_long(v, &s) || s < 0)
-            return cli_usage_error("simulate grid", "--seed needs a whole number >= 0");
-        a->sp.seed = (uint64_t)s;
+        if (cli_parse_seed("simulate grid", v, &a->sp.seed) != CLI_OK)
+            return CLI_BAD_INPUT;
     } else
         return parse_number_option(a, o, v);
     return CLI_OK;

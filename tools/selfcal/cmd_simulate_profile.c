@@ -81,10 +81,10 @@ static int parse_number_option(const char *o, const char *v, sc_profile_sim *p,
     if (!strcmp(o, "--harmonics"))
         return get_int(o, v, 1, 100000, &a->harmonics);
     if (!strcmp(o, "--seed")) {
-        char *e;
-        p->seed = strtoull(v, &e, 10);
-        if (*e || !*v)
-            return cli_usage_error("simulate profile", "--seed: '%s' is not a whole number", v);
+        uint64_t s;
+        if (cli_parse_seed("simulate profile", v, &s) != CLI_OK)
+            return CLI_BAD_INPUT;
+        p->seed = s;
         return CLI_OK;
     }
     return NOT_NUMERIC;

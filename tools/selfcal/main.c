@@ -62,6 +62,22 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
     return CLI_OK;
 }
 
+int cli_parse_seed(const char *cmd, const char *v, uint64_t *out)
+{
+    /* digits only: strtoull would take a sign (and wrap a negative) and saturate silently */
+    int digits = *v != '\0';
+    for (const char *c = v; *c; ++c)
+        digits &= *c >= '0' && *c <= '9';
+    errno = 0;
+    char *e;
+    unsigned long long s = digits ? strtoull(v, &e, 10) : 0;
+    if (!digits || errno == ERANGE)
+        return cli_usage_error(cmd, "--seed needs a whole number from 0 to %llu, got '%s'",
+                               (unsigned long long)UINT64_MAX, v);
+    *out = (uint64_t)s;
+    return CLI_OK;
+}
+
 int cli_parse_lsq_option(const char *cmd, const char *opt, const char *v, sc_grid_options *o)
 {
     if (!strcmp(opt, "--view-noise")) {

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "selfcal/grid_calibrate.h"
+#include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 #include "selfcal/grid_exact.h"
 #include "grid_lsq_internal.h"
 #include "selfcal/rng.h"
@@ -167,6 +168,11 @@ sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_info *i
     if (info && info->n_rows == 0)
         return sc_error_set(err, SC_E_INPUT, path, info->header_end_line,
                             "no data rows (a plan file? use 'selfcal plan' for plans)");
+    /* 0: not given; else what the map's uncertainties can carry (its reader's limit, 1 m) */
+    if (!(o->sigma_r_um >= 0 && o->sigma_r_um <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the given noise sigma_r must be positive and at most %g um, got %g",
+                            SC_INPUT_MAX_ABS, o->sigma_r_um);
     if (o->method == SC_GRID_METHOD_LSQ)
         return check_lsq(d, info, path, o, err);
     if (o->drift || o->reject_outliers || o->covariance || o->outlier_alpha != 0 ||

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "selfcal/csv.h" /* SC_INPUT_MAX_ABS: the readers' limit */
 #include "selfcal/rng.h"
 
 void sc_grid_sim_defaults(sc_grid_sim_params *sp)
@@ -44,8 +45,13 @@ static sc_status plan_base(int n, double pitch_mm, double ox, double oy, sc_grid
     p->pitch_mm = pitch_mm;
     p->origin_mm[0] = ox;
     p->origin_mm[1] = oy;
-    if (!isfinite(ox) || !isfinite(oy))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "origin must be finite");
+    if (!(fabs(ox) <= SC_INPUT_MAX_ABS) || !(fabs(oy) <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be within +-%g mm",
+                            SC_INPUT_MAX_ABS);
+    if (!(pitch_mm > 0) || !(pitch_mm <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the pitch must be positive and at most %g mm, got %g",
+                            SC_INPUT_MAX_ABS, pitch_mm);
     return SC_OK;
 }
 
@@ -206,8 +212,19 @@ static sc_status check_params(const sc_grid_sim_params *sp, sc_error *err)
         !isfinite(sp->sigma_theta_urad) || !isfinite(sp->sigma_r_um))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "standard deviations must be finite and >= 0");
-    if (!isfinite(sp->O) || !isfinite(sp->R))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "O and R must be finite");
+    /* the readers' limits: what a simulation writes must read back (errors within 1 m, SC_INPUT_MAX_ABS µm) */
+    if (sp->sigma_g_um > SC_INPUT_MAX_ABS || sp->sigma_a_um > SC_INPUT_MAX_ABS ||
+        sp->sigma_t_um > SC_INPUT_MAX_ABS || sp->sigma_r_um > SC_INPUT_MAX_ABS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "standard deviations in um must be at most %g (1 m)", SC_INPUT_MAX_ABS);
+    if (sp->sigma_theta_urad > 1e6)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "sigma_theta = %g urad is beyond a plate's placement (at most 1 rad)",
+                            sp->sigma_theta_urad);
+    if (!(fabs(sp->O) <= 0.1) || !(fabs(sp->R) <= 0.1))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "O and R must be finite and within +-0.1 (100 mm/m), got %g, %g",
+                            sp->O, sp->R);
     if (!isfinite(sp->drift_vx_um_s) || !isfinite(sp->drift_vy_um_s) || !(sp->dt_s >= 0) ||
         !isfinite(sp->dt_s))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "drift rates and dt must be finite");
@@ -236,6 +253,32 @@ static sc_status stage_sar_fields(const sc_grid_plan *plan, const sc_grid_sim_pa
     return SC_OK;
 }
 
+/* Σ over the stage nodes of |first-order terms of O, R|² (µm²), and the sum of squares that
+ * gives G the dispersion sigma_G; refused when the first exceeds the second (before the SAR
+ * fields, whose solve takes a minute on the largest stages). */
+static sc_status first_order_budget(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                                    double *first2, double *target2, sc_error *err)
+{
+    int snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
+    size_t ns = (size_t)snx * sny;
+    *first2 = 0;
+    for (int i = 0; i < sny; ++i)
+        for (int j = 0; j < snx; ++j) {
+            double x, y;
+            sc_grid_node_xy_mm(plan, i, j, &x, &y);
+            double gx1 = (sp->O * y + sp->R * x) * 1e3, gy1 = (sp->O * x - sp->R * y) * 1e3;
+            *first2 += gx1 * gx1 + gy1 * gy1;
+        }
+    /* All parts have zero mean, so the sample variance of the 2N² values is sum of squares / (2N²−1). */
+    *target2 = sp->sigma_g_um * sp->sigma_g_um * (double)(2 * ns - 1);
+    if (*first2 > *target2 * (1 + 1e-12))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "sigma_G = %g um is smaller than the dispersion of the first-order "
+                            "terms alone (%g um for O = %g, R = %g): raise sigma_G or lower O, R",
+                            sp->sigma_g_um, sqrt(*first2 / (double)(2 * ns - 1)), sp->O, sp->R);
+    return SC_OK;
+}
+
 /* G = s·F + the first-order terms of O and R, with the scale s that gives G the dispersion
  * sigma_G; F is the SAR part (stage_sar_fields). The O and R patterns (y, x) and (x, -y) are
  * taken out of F first (orthogonal to the gauge). */
@@ -244,9 +287,11 @@ static sc_status stage_scale_and_first_order(const sc_grid_plan *plan,
                                              sc_grid_sim_truth *truth, sc_error *err)
 {
     int snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
-    size_t ns = (size_t)snx * sny;
     double *fx = truth->gx_um, *fy = truth->gy_um;
-    double O_f, R_f, first2 = 0, f2 = 0;
+    double O_f, R_f, first2, target2, f2 = 0;
+    sc_status st = first_order_budget(plan, sp, &first2, &target2, err);
+    if (st != SC_OK)
+        return st;
     sc_grid_first_order(plan, fx, fy, &O_f, &R_f); /* dimensionless; x, y in mm -> ×1e3 µm */
     for (int i = 0; i < sny; ++i)
         for (int j = 0; j < snx; ++j) {
@@ -256,16 +301,7 @@ static sc_status stage_scale_and_first_order(const sc_grid_plan *plan,
             fx[k] -= (O_f * y + R_f * x) * 1e3;
             fy[k] -= (O_f * x - R_f * y) * 1e3;
             f2 += fx[k] * fx[k] + fy[k] * fy[k];
-            double gx1 = (sp->O * y + sp->R * x) * 1e3, gy1 = (sp->O * x - sp->R * y) * 1e3;
-            first2 += gx1 * gx1 + gy1 * gy1;
         }
-    /* All parts have zero mean, so the sample variance of the 2N² values is sum of squares / (2N²−1). */
-    double target2 = sp->sigma_g_um * sp->sigma_g_um * (double)(2 * ns - 1);
-    if (first2 > target2 * (1 + 1e-12))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "sigma_G = %g um is smaller than the dispersion of the first-order "
-                            "terms alone (%g um for O = %g, R = %g): raise sigma_G or lower O, R",
-                            sp->sigma_g_um, sqrt(first2 / (double)(2 * ns - 1)), sp->O, sp->R);
     double s = f2 > 0 ? sqrt(fmax(0.0, target2 - first2) / f2) : 0.0;
     truth->sar_scale = s;
     for (int i = 0; i < sny; ++i)
@@ -328,6 +364,9 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
     sc_status st = sc_grid_plan_check(plan, err);
     if (st == SC_OK)
         st = check_params(sp, err);
+    double first2, target2;
+    if (st == SC_OK)
+        st = first_order_budget(plan, sp, &first2, &target2, err);
     if (st != SC_OK)
         return st;
     sc_rng rng;

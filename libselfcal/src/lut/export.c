@@ -733,6 +733,15 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
     if (o->axis != 0 && o->axis != 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "linuxcnc: one joint at a time: choose the axis, x or y");
+    if (o->use_line) { /* the line must cross the map: beyond it the map would be clamped */
+        double a = o->axis == 0 ? lut->y0_mm : lut->x0_mm;
+        double b = o->axis == 0 ? map_y(lut, lut->ny - 1) : map_x(lut, lut->nx - 1);
+        double tol = 1e-9 * (fabs(a) + fabs(b) + 1);
+        if (!(o->line_mm >= a - tol && o->line_mm <= b + tol))
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "linuxcnc: --at %g mm is outside the map (%c from %g to %g mm)",
+                                o->line_mm, o->axis == 0 ? 'y' : 'x', a, b);
+    }
     lcnc_ctx c;
     c.axis = o->axis;
     const double lo = o->axis == 0 ? lut->x0_mm : lut->y0_mm;

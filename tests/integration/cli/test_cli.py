@@ -164,9 +164,44 @@ def case_lut_offset():
               "offset %s: rc %d, stderr %r" % (spec, rc, err))
 
 
+def case_bad_values():
+    """Option values beyond what the outputs' readers accept, or that would be silently clamped
+    or wrapped: exit 2, one stderr line, nothing written (exploratory testing, stop 27)."""
+    must("simulate", "grid", "--plan", "ye", "--n", 7, "--out", path("in.csv"), "--truth-map", path("T.csv"))
+    must("simulate", "profile", "--n", 200, "--d1", 5, "--d2", 7, "--out", path("p.csv"), "--truth", path("pt.csv"))
+    with open(path("v0.csv"), "w") as f:
+        f.write("X,Y\n0,0\n1,0\n")
+    cases = [
+        (["simulate", "grid", "--plan", "ye", "--n", 7, "--sigma-g-um", "1e200"], "at most 1e+06"),
+        (["simulate", "grid", "--plan", "ye", "--n", 7, "--sigma-a-um", "1e308"], "at most 1e+06"),
+        (["simulate", "grid", "--plan", "ye", "--n", 7, "--pitch-mm", "1e308"], "pitch"),
+        (["simulate", "grid", "--plan", "ye", "--n", 7, "--O", "5"], "within +-0.1"),
+        (["simulate", "grid", "--plan", "ye", "--n", 7, "--seed", "-1"], "--seed"),
+        (["simulate", "profile", "--n", 200, "--d1", 5, "--d2", 7, "--seed", "99999999999999999999"], "--seed"),
+        (["grid", "--method", "lsq", path("in.csv"), "--map", path("G.csv"), "--sigma-r-um", "1e308"],
+         "--sigma-r-um"),
+        (["export", "--format", "linuxcnc", "--axis", "x", "--map", path("T.csv"), "--at", "100",
+          "-o", path("x.comp")], "outside the map"),
+        (["import", "grid", "--n", 3, "--pitch-mm", 1, "--x-col", "X", "--y-col", "Y", "--tolerance-mm", 0,
+          "--view", "rot=0 shift=0,0", path("v0.csv"), "-o", path("imp.csv")], "tolerance must be positive"),
+        (["import", "grid", "--n", 3, "--pitch-mm", 0, "--x-col", "X", "--y-col", "Y",
+          "--view", "rot=0 shift=0,0", path("v0.csv"), "-o", path("imp.csv")], "pitch must be positive"),
+    ]
+    for args, needle in cases:
+        if args[0] == "simulate":
+            args = args + ["--out", path("s_out.csv")] + (["--truth-map", path("s_t.csv")] if args[1] == "grid"
+                                                          else ["--truth", path("s_t.csv")])
+        before = sorted(os.listdir(WORK))
+        rc, out, err = run(*args)
+        check(rc == 2 and len(err.splitlines()) == 1 and needle in err and sorted(os.listdir(WORK)) == before,
+              "%s: rc %d, stderr %r (want 2 with %r, nothing written)" % (" ".join(map(str, args[:4])), rc, err,
+                                                                          needle))
+
+
 shutil.rmtree(WORK, ignore_errors=True)
 os.makedirs(WORK)
-{"help": case_help, "grid_summary": case_grid_summary, "lut_offset": case_lut_offset}[CASE]()
+{"help": case_help, "grid_summary": case_grid_summary, "lut_offset": case_lut_offset,
+ "bad_values": case_bad_values}[CASE]()
 if FAILS:
     print("%d check(s) failed" % len(FAILS), file=sys.stderr)
     sys.exit(1)
