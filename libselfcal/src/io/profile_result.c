@@ -9,6 +9,7 @@
 #include "selfcal/csv.h"
 #include "selfcal/number.h"
 #include "selfcal/profile_file.h"
+#include "selfcal/stage_map.h" /* SC_STAGE_MAP_MIN_PITCH_MM */
 #include "io_internal.h"
 
 #define PROFILE_REGULAR_TOL 1e-3 /* of the step */
@@ -196,6 +197,9 @@ static sc_status check_regular(const result_reader *rr, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, rr->csv.path, rr->lines[bad],
                             "irregular profile: x_mm is %.3g mm off the regular spacing %.6f mm",
                             dev, slope);
+    if (!(b >= SC_STAGE_MAP_MIN_PITCH_MM)) /* as a map's pitch: what a table can place */
+        return sc_error_set(err, SC_E_INPUT, rr->csv.path, rr->lines[1],
+                            "x_mm spacing %g mm is below 1 nm", b);
     return SC_OK;
 }
 

@@ -178,7 +178,10 @@ static sc_status check_encodable(const sc_lut *lut, sc_error *err)
                                 p->n, SC_LUT_MAX_PROFILE_POINTS);
         if (!pos_ok(p->start_mm) || !(p->step_mm >= SC_LUTF_MIN_PITCH_MM) ||
             !pos_ok(p->start_mm + p->step_mm * (p->n - 1)))
-            return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: start/step out of range", k);
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "profile %d: step %g mm (at least 1 nm) or positions %g .. %g mm "
+                                "(within 1 km) out of range",
+                                k, p->step_mm, p->start_mm, p->start_mm + p->step_mm * (p->n - 1));
     }
     if (lut->prov.n_sources < 0 || lut->prov.n_sources > SC_LUT_MAX_SOURCES)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "%d source hashes: at most %d",
