@@ -124,6 +124,16 @@ static int check_args(plan_args *a)
                                a->dmax);
     if (!(a->sd > 0 || a->sa > 0))
         return cli_usage_error(cmd, "give a positive --sigma-disp-um or --sigma-angle-urad");
+    /* Each pair's least-squares factor holds 8·N·(d2 + 1) bytes, its vectors and the DFT's
+     * buffers about 200 bytes a point: refused up front where that exceeds the machine's memory
+     * (it would be killed there after a long time, or take the machine down with it). */
+    double need = 8.0 * (double)a->n * (double)(a->dmax + 1) + 200.0 * (double)a->n;
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    double have = pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+    if (have > 0 && need > have)
+        return cli_usage_error(cmd, "--n %ld with --d-max %ld needs about %.1f GB, more than this "
+                                    "machine's %.1f GB: lower --n or --d-max",
+                               a->n, a->dmax, need / 1e9, have / 1e9);
     return CLI_OK;
 }
 

@@ -187,6 +187,10 @@ def case_bad_values():
         (["import", "grid", "--n", 3, "--pitch-mm", 0, "--x-col", "X", "--y-col", "Y",
           "--view", "rot=0 shift=0,0", path("v0.csv"), "-o", path("imp.csv")], "pitch must be positive"),
     ]
+    # a plan that needs terabytes: refused before any work (it ran out of memory after minutes)
+    rc, out, err = run("profile-plan", "--n", 100000000, "--s-mm", 1, "--sigma-disp-um", 0.01,
+                       "--sigma-angle-urad", 1, "--d-max", 5000)
+    check(rc == 2 and "needs about" in err and len(err.splitlines()) == 1, "profile-plan 4 TB: rc %d %r" % (rc, err))
     for args, needle in cases:
         if args[0] == "simulate":
             args = args + ["--out", path("s_out.csv")] + (["--truth-map", path("s_t.csv")] if args[1] == "grid"
