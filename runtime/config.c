@@ -334,14 +334,19 @@ static const struct {
 
 sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_error *err)
 {
-    if (!is_flag(key) && value == NULL)
-        BAD("--%s needs a value", key);
+    /* an unknown option is said as such, even as the last word (not "needs a value") */
     for (size_t i = 0; i < sizeof numeric_options / sizeof numeric_options[0]; i++)
-        if (strcmp(key, numeric_options[i].key) == 0)
+        if (strcmp(key, numeric_options[i].key) == 0) {
+            if (value == NULL)
+                BAD("--%s needs a value", key);
             return set_numeric(c, &numeric_options[i], value, err);
+        }
     for (size_t i = 0; i < sizeof other_options / sizeof other_options[0]; i++)
-        if (strcmp(key, other_options[i].key) == 0)
+        if (strcmp(key, other_options[i].key) == 0) {
+            if (!is_flag(key) && value == NULL)
+                BAD("--%s needs a value", key);
             return other_options[i].set(c, value, err);
+        }
     BAD("unknown option '%s'", key);
 }
 
@@ -444,10 +449,8 @@ sc_status sc_config_parse_args(sc_config *c, int argc, char **argv, int *help, i
         key[kl] = '\0';
         if (eq != NULL) {
             value = eq + 1;
-        } else if (!is_flag(key)) {
-            if (i + 1 >= argc)
-                BAD("--%s needs a value", key);
-            value = argv[++i];
+        } else if (!is_flag(key) && i + 1 < argc) {
+            value = argv[++i]; /* as the last word: sc_config_set says unknown or needs a value */
         }
         if (strcmp(key, "config") == 0)
             continue; /* already read */

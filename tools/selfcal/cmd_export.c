@@ -353,7 +353,7 @@ static int parse_args(int argc, char **argv, export_args *a, int *help)
         }
         const char *v = k + 1 < argc ? argv[k + 1] : NULL;
         if (!v)
-            return cli_usage_error("export", "option %s needs a value (see --help)", opt);
+            return cli_usage_error("export", "%s: unknown option or missing value (see --help)", opt);
         ++k;
         int rc = parse_value_option(a, opt, v);
         if (rc != CLI_OK)

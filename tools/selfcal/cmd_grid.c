@@ -142,7 +142,7 @@ static int parse_args(int argc, char **argv, grid_args *g)
             continue;
         }
         if (a + 1 >= argc)
-            return cli_usage_error("grid", "'%s' needs a value (see --help)", o);
+            return cli_usage_error("grid", "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
         int rc = cli_parse_lsq_option("grid", o, v, &g->opt); /* the outlier test, view noise */
         if (rc >= 0) {

@@ -161,8 +161,11 @@ static int lut_build(int argc, char **argv)
             lut_usage(stdout);
             return CLI_OK;
         }
+        if (a[0] != '-')
+            return cli_usage_error("lut build", "'%s': lut build takes options only (--map G.csv ... "
+                                                "-o TABLE; see --help)", a);
         if (!v)
-            return cli_usage_error("lut build", "option %s needs a value (see --help)", a);
+            return cli_usage_error("lut build", "%s: unknown option or missing value (see --help)", a);
         ++k;
         int rc = parse_build_option(&b, a, v);
         if (rc != CLI_OK)

@@ -87,7 +87,7 @@ static int design(int argc, char **argv)
         if (!strcmp(o, "--design"))
             continue;
         if (a + 1 >= argc)
-            return cli_usage_error("plan", "'%s' needs a value (see --help)", o);
+            return cli_usage_error("plan", "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
         if (!strcmp(o, "--stage")) {
             if (parse_pair(v, &sx, &sy))

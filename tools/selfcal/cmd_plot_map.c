@@ -400,7 +400,7 @@ int cmd_plot_map(int argc, char **argv)
             continue;
         }
         if (a + 1 >= argc)
-            return cli_usage_error("plot map", "'%s' needs a value (see --help)", o);
+            return cli_usage_error("plot map", "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
         if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
         else if (!strcmp(o, "--truth")) truth_path = v;

@@ -125,7 +125,7 @@ static int parse_option(int argc, char **argv, int *k, xy_args *a)
         return CLI_OK;
     }
     if (*k + 1 >= argc)
-        return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+        return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
     const char *v = argv[++*k];
     if (!strcmp(o, "-o") || !strcmp(o, "--out")) a->out = v;
     else if (!strcmp(o, "--x")) a->xname = v;

@@ -666,7 +666,7 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
         return CLI_OK;
     }
     if (*a + 1 >= argc)
-        return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+        return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
     const char *v = argv[++*a];
     int rc = cli_parse_lsq_option(cmd, o, v, &r->test); /* the outlier test, view noise */
     if (rc >= 0)

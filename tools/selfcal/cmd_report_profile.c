@@ -387,7 +387,7 @@ int cmd_report_profile(int argc, char **argv)
             continue;
         }
         if (a + 1 >= argc)
-            return cli_usage_error(cmd, "'%s' needs a value (see --help)", o);
+            return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
         if (!strcmp(o, "-o") || !strcmp(o, "--out"))
             out = v;

@@ -81,7 +81,7 @@ static int parse_option(int argc, char **argv, int *a, verify_opts *o, verify_ou
         return CLI_OK;
     }
     if (*a + 1 >= argc)
-        return cli_usage_error(cmd, "'%s' needs a value (see --help)", s);
+        return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", s);
     const char *v = argv[++*a];
     if (!strcmp(s, "--table")) o->table = v;
     else if (!strcmp(s, "--artifact")) o->artifact = v;

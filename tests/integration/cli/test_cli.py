@@ -77,6 +77,13 @@ def case_help():
         rc, out, err = run(*args)
         check(rc == 2 and out == "" and len(err.splitlines()) == 1,
               "selfcal %s: rc %d, stdout %r, stderr %r (want 2, one line)" % (" ".join(args), rc, out, err))
+    # an unknown option as the last word is said to be unknown (it was "needs a value")
+    for args, prog in ((["grid", "--bogus"], None), (["lut", "build", "--bogus"], None),
+                       (["--table", "x.lut", "--bogus"], DAEMON)):
+        if prog == "none":
+            continue
+        rc, out, err = run(*args, prog=prog)
+        check(rc == 2 and "unknown option" in err, "%s: rc %d, stderr %r" % (" ".join(args), rc, err))
 
 
 def read_map(p):
