@@ -207,10 +207,11 @@ static int lut_build(int argc, char **argv)
 
 static int load_table(const char *cmd, int argc, char **argv, sc_lut **out)
 {
-    if (argc == 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
-        lut_usage(stdout);
-        return -1;
-    }
+    for (int k = 1; k < argc; ++k) /* --help anywhere: the usage, as the other commands */
+        if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
+            lut_usage(stdout);
+            return -1;
+        }
     if (argc != 2)
         return cli_usage_error(cmd, "expected one table file (see --help)");
     sc_lut *lut = malloc(sizeof *lut);

@@ -268,6 +268,13 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
     memset(t, 0, sizeof *t);
     snprintf(t->path, sizeof t->path, "%s", path);
     t->n_cols = n_cols;
+    for (int a = 0; a < n_cols; ++a) /* one column cannot be two quantities */
+        for (int b = 0; b < a; ++b)
+            if (name_equal(names[a], names[b]))
+                return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                    "the column '%s' is asked for twice (as the %s and the %s "
+                                    "quantity)", names[a], b == 0 ? "1st" : b == 1 ? "2nd" : "3rd",
+                                    a == 1 ? "2nd" : a == 2 ? "3rd" : "4th");
     table_reader tr;
     memset(&tr, 0, sizeof tr);
     tr.t = t;
