@@ -76,7 +76,8 @@ static sc_status read_xy(const char *path, xy_data *t,
             if ((st = sc_csv_double(&r, k, t->names[k], &row[k], err)) != SC_OK)
                 goto fail;
             if (!(fabs(row[k]) <= 1e300)) {
-                st = sc_error_set(err, SC_E_INPUT, path, r.line, "%s is not a finite number", t->names[k]);
+                st = sc_error_set(err, SC_E_INPUT, path, r.line, "%s = %g is beyond +-1e300",
+                                  t->names[k], row[k]);
                 goto fail;
             }
         }

@@ -296,9 +296,10 @@ sc_status sc_csv_double(const sc_csv *r, int k, const char *name, double *out, s
 {
     if (k < 0 || k >= r->nfields)
         return sc_error_set(err, SC_E_INPUT, r->path, r->line, "missing field '%s'", name);
-    if (sc_parse_double(r->field[k], out) != 0)
+    if (sc_parse_double(r->field[k], out) != 0) /* not a number, not finite, or it underflows */
         return sc_error_set(err, SC_E_INPUT, r->path, r->line,
-                            "field '%s' is not a finite number: '%.40s'", name, r->field[k]);
+                            "field '%s' is not a finite number (nor 0 or above 1e-308 in "
+                            "magnitude): '%.40s'", name, r->field[k]);
     return SC_OK;
 }
 
