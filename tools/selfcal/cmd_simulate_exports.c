@@ -75,8 +75,12 @@ static int check_damage(const sc_grid_plan *p, const damage *dm)
 {
     for (int k = 0; k < dm->n_miss; ++k)
         if (dm->miss[k].i >= p->n || dm->miss[k].j >= p->n || dm->miss[k].view >= p->n_views)
-            return cli_usage_error("simulate exports", "--missing %ld,%ld: no such mark or view",
-                                   dm->miss[k].i, dm->miss[k].j);
+            return dm->miss[k].view < 0
+                       ? cli_usage_error("simulate exports", "--missing %ld,%ld: no such mark",
+                                         dm->miss[k].i, dm->miss[k].j)
+                       : cli_usage_error("simulate exports",
+                                         "--missing %ld,%ld@%ld: no such mark or view",
+                                         dm->miss[k].i, dm->miss[k].j, dm->miss[k].view);
     for (int k = 0; k < dm->n_disp; ++k)
         if (dm->disp[k].i >= p->n || dm->disp[k].j >= p->n || dm->disp[k].view >= p->n_views)
             return cli_usage_error("simulate exports", "--displace %ld,%ld@%ld: no such mark or view",
