@@ -10,11 +10,13 @@
 
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <sched.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "selfcal/grid_exact.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
 #include "selfcal/profile_dft.h"
@@ -958,6 +960,47 @@ static void test_dft_refuses(void **state)
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
 }
 
+/* FFTW's planner is not thread-safe: plans made and destroyed in several threads at once (DFT
+ * profile plans and exact grid plans, as two calibrations on separate data would) must neither
+ * crash nor give wrong results; the library serializes its planner calls (fft_planner.c). Before
+ * that, four threads aborted with "double free or corruption" in most runs. */
+static void *plans_in_a_thread(void *arg)
+{
+    int *bad = arg;
+    const int n = 330;
+    double y1[330], y2[330], f[330];
+    for (int i = 0; i < n; ++i)
+        y1[i] = y2[i] = 0.0;
+    for (int k = 0; k < 150 && !*bad; ++k) {
+        sc_error err;
+        sc_profile_dft_plan *p = NULL;
+        sc_grid_exact_plan *g = NULL;
+        if (sc_profile_dft_plan_create(n, 10, 11, 1.0, 2.0, &p, &err) != SC_OK ||
+            sc_profile_dft_execute(p, y1, y2, f, &err) != SC_OK ||
+            sc_grid_exact_plan_create(SC_GRID_YE, 9, &g, &err) != SC_OK)
+            *bad = 1;
+        for (int i = 0; i < n && !*bad; ++i)
+            if (f[i] != 0.0)
+                *bad = 1;
+        sc_grid_exact_plan_destroy(g);
+        sc_profile_dft_plan_destroy(p);
+    }
+    return NULL;
+}
+
+static void test_dft_plans_in_threads(void **state)
+{
+    (void)state;
+    pthread_t t[4];
+    int bad[4] = {0, 0, 0, 0};
+    for (int k = 0; k < 4; ++k)
+        assert_int_equal(pthread_create(&t[k], NULL, plans_in_a_thread, &bad[k]), 0);
+    for (int k = 0; k < 4; ++k) {
+        pthread_join(t[k], NULL);
+        assert_int_equal(bad[k], 0);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -977,6 +1020,7 @@ int main(void)
         cmocka_unit_test(test_write_read_roundtrip),
         cmocka_unit_test(test_write_read_large),
         cmocka_unit_test(test_dft_refuses),
+        cmocka_unit_test(test_dft_plans_in_threads),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -2,9 +2,9 @@
  *   Ye et al. (1997): views {rot 0}, {rot 90}, {shift +1,0};
  *   Petrò (2019) double shift: {rot 0}, {rot 90}, {shift +2,0}, {shift -3,0: row c, columns c, c+1}.
  * Plan objects in the manner of FFTW: create once for a size N (allocates the FFTW plans and the
- * workspace), execute on any number of data sets without allocating, destroy. Creation calls the
- * FFTW planner (not thread-safe); a plan holds its workspace: not thread-safe on one plan (one plan
- * per thread).
+ * workspace), execute on any number of data sets without allocating, destroy. Creation and
+ * destruction call FFTW's planner under the library's own lock, so threads may make and destroy
+ * plans at once; a plan holds its workspace: not thread-safe on one plan (one plan per thread).
  * Derivation and figures: docs/grid-exact.md.
  */
 #ifndef SELFCAL_GRID_EXACT_H

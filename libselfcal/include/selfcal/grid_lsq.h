@@ -101,7 +101,8 @@ SC_API double sc_chi2_quantile(double p, double dof);
 /* The plan's analysis. */
 SC_API void sc_grid_lsq_get_info(const sc_grid_lsq_plan *q, sc_grid_lsq_info *info);
 
-/* Per-node std(Gx)/σ_r and std(Gy)/σ_r (arrays n*n, caller-owned). SC_E_UNSOLVABLE if G is not identified. */
+/* Per-node std(Gx)/σ_r and std(Gy)/σ_r (arrays of the stage's NX·NY nodes, sc_grid_stage_nx(plan)
+ * · sc_grid_stage_ny(plan): n*n on an N x N stage; caller-owned). SC_E_UNSOLVABLE if G is not identified. */
 SC_API sc_status sc_grid_lsq_sigma_ratio(const sc_grid_lsq_plan *q, double *sgx, double *sgy, sc_error *err);
 
 /* Estimate from data measured as the plan was made for (same marks; the weights are the plan's,

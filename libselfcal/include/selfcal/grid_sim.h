@@ -66,7 +66,8 @@ SC_API void sc_grid_sim_defaults(sc_grid_sim_params *sp);
  * right to left when odd (the order the simulator and the drift plan analysis assume). */
 SC_API long sc_grid_serpentine_index(int n, int k);
 
-/* Workspace needed by sc_grid_sim_run for plate size n on an N x N stage, in doubles. */
+/* Workspace needed by sc_grid_sim_run for plate size n on an N x N stage (no `stage` larger than
+ * the plate: use sc_grid_sim_work_doubles_plan for those), in doubles. */
 SC_API size_t sc_grid_sim_work_doubles(int n);
 
 /* Workspace needed by sc_grid_sim_run for a plan (any stage), in doubles. */
@@ -89,7 +90,7 @@ SC_API sc_status sc_grid_plan_stitch(int n, int nx, int ny, double pitch_mm, dou
                                      sc_grid_plan *p, sc_error *err);
 
 /* Simulate: fill truth and d (d->plan must equal *plan's content and d's arrays be allocated,
- * e.g. with sc_grid_data_alloc). work: sc_grid_sim_work_doubles(plan->n) doubles.
+ * e.g. with sc_grid_data_alloc). work: sc_grid_sim_work_doubles_plan(plan) doubles.
  * SC_E_INPUT for invalid parameters (|ρ| >= 1, negative σ, or σ_G too small to hold the
  * requested O and R). */
 SC_API sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,

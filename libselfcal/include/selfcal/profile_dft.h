@@ -6,7 +6,8 @@
  * Plan object in the manner of FFTW: sc_profile_dft_plan_create for (N, d1, d2, w1, w2) makes the
  * FFTW plans and every spectral weight once; sc_profile_dft_execute then solves any number of data
  * sets without allocating. Derivation: docs/profile.md.
- * The plan holds its FFT buffers: not thread-safe on one plan (one plan per thread).
+ * The plan holds its FFT buffers: not thread-safe on one plan (one plan per thread); creating and
+ * destroying plans in several threads at once is safe (FFTW's planner runs under a library lock).
  */
 #ifndef SELFCAL_PROFILE_DFT_H
 #define SELFCAL_PROFILE_DFT_H

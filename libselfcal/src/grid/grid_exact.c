@@ -3,6 +3,7 @@
  * W M W of his eq. (23), computed with FFTW. The method-specific step (the wrap-around columns
  * of H) is in grid_ye.c and grid_double_shift.c; the derivation is in docs/grid-exact.md.
  */
+#include "../common/fft_planner.h"
 #include "grid_exact_internal.h"
 
 #include <math.h>
@@ -49,10 +50,12 @@ void sc_grid_exact_plan_destroy(sc_grid_exact_plan *p)
 {
     if (!p)
         return;
+    sc_fft_planner_lock();
     if (p->fwd)
         fftw_destroy_plan(p->fwd);
     if (p->bwd)
         fftw_destroy_plan(p->bwd);
+    sc_fft_planner_unlock();
     fftw_free(p->buf);
     fftw_free(p->sp);
     fftw_free(p->sq);
@@ -106,8 +109,10 @@ sc_status sc_grid_exact_plan_create(sc_grid_exact_method m, int n, sc_grid_exact
         sc_grid_exact_plan_destroy(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "exact grid plan: out of memory (N = %d)", n);
     }
+    sc_fft_planner_lock();
     p->fwd = fftw_plan_dft_2d(n, n, p->buf, p->buf, FFTW_FORWARD, FFTW_ESTIMATE);
     p->bwd = fftw_plan_dft_2d(n, n, p->buf, p->buf, FFTW_BACKWARD, FFTW_ESTIMATE);
+    sc_fft_planner_unlock();
     if (!p->fwd || !p->bwd) {
         sc_grid_exact_plan_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "exact grid plan: FFTW planning failed");

@@ -14,6 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/fft_planner.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_dft.h"
 
@@ -164,8 +165,10 @@ sc_status sc_profile_dft_plan_create(int n, int d1, int d2, double w1, double w2
         sc_profile_dft_plan_destroy(p);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
     }
+    sc_fft_planner_lock();
     p->r2c = fftw_plan_dft_r2c_1d(n, p->rbuf, p->cbuf, FFTW_ESTIMATE);
     p->c2r = fftw_plan_dft_c2r_1d(n, p->cbuf, p->rbuf, FFTW_ESTIMATE);
+    sc_fft_planner_unlock();
     if (!p->r2c || !p->c2r) {
         sc_profile_dft_plan_destroy(p);
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "FFTW could not plan size %d", n);
@@ -408,10 +411,12 @@ void sc_profile_dft_plan_destroy(sc_profile_dft_plan *p)
 {
     if (!p)
         return;
+    sc_fft_planner_lock();
     if (p->r2c)
         fftw_destroy_plan(p->r2c);
     if (p->c2r)
         fftw_destroy_plan(p->c2r);
+    sc_fft_planner_unlock();
     fftw_free(p->rbuf);
     fftw_free(p->cbuf);
     free(p->zeta);
