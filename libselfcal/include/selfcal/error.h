@@ -1,7 +1,9 @@
-/* selfcal/error.h — status codes and the error record every libselfcal call fills in.
+/* selfcal/error.h — status codes and the error record a failing libselfcal call fills in.
  *
  * The library never prints: a failing call returns a status and, when the caller passes an
  * sc_error, describes the problem there (the input file and line when the problem is in a file).
+ * A call that succeeds leaves the record as it was (like errno): test the returned status, not
+ * err.code, or clear the record first with sc_error_clear.
  */
 #ifndef SELFCAL_ERROR_H
 #define SELFCAL_ERROR_H

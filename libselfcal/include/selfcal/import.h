@@ -49,7 +49,8 @@ typedef struct sc_table {
  * The delimiter is a tab if the header has one, else ';' if it has one, else ','. The decimal mark
  * is ',' or '.' as the selected fields show; both in one file, a field with both, a missing column,
  * an empty or non-numeric field, or |value| > SC_INPUT_MAX_ABS (in the file's unit) -> SC_E_INPUT
- * with file:line. scale (may be NULL: 1) multiplies column k's values (unit conversion). */
+ * with file:line. n_cols: 1..16 distinct names; scale (may be NULL: 1; finite, nonzero)
+ * multiplies column k's values (unit conversion). */
 SC_API sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
                                const double *scale, sc_table *t, sc_error *err);
 

@@ -143,7 +143,8 @@ SC_API sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_er
 SC_API double sc_lut_quantization_um(uint32_t scale_pm);
 
 /* Bilinear G of the grid at (x, y) mm, in double precision (um); outside the grid the value at
- * the nearest edge point. Returns true if (x, y) was outside. The reference for the exporters. */
+ * the nearest edge point. Returns true if (x, y) was outside (and, with NaN values, when the table
+ * has no grid). The reference for the exporters. */
 SC_API bool sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um,
                              double *gy_um);
 

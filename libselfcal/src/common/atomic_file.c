@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -14,12 +15,17 @@
  * sc_afile_cleanup_on_signals (process-wide by nature: a signal is); the paths are copied, so the
  * handler never follows a pointer into a caller's frame. */
 #define SC_AFILE_TRACKED 64
+/* A slot is claimed by one thread at a time (0 free, 2 being filled, 1 tracked: the handler
+ * reads only those), so threads writing files at once never share one; lock-free atomics are
+ * safe to read in a signal handler. */
 static char g_tracked_path[SC_AFILE_TRACKED][4096];
-static volatile sig_atomic_t g_tracked_used[SC_AFILE_TRACKED];
+static atomic_int g_tracked_used[SC_AFILE_TRACKED];
 static volatile sig_atomic_t g_tracking;
-/* A group commit in progress (another thread may take the signal: OpenBLAS workers do not block
- * it), and the signal that arrived meanwhile, acted on once the group is in place. */
-static volatile sig_atomic_t g_in_commit, g_pending_sig;
+/* Group commits in progress (another thread may take the signal: OpenBLAS workers do not block
+ * it; a count, since threads may commit at once), and the signal that arrived meanwhile, acted
+ * on once the last group is in place. */
+static atomic_int g_in_commit;
+static volatile sig_atomic_t g_pending_sig;
 
 static void block_signals(sigset_t *old)
 {
@@ -41,29 +47,31 @@ static void track(const sc_afile *f)
 {
     if (!g_tracking)
         return;
-    for (int k = 0; k < SC_AFILE_TRACKED; ++k)
-        if (!g_tracked_used[k]) {
+    for (int k = 0; k < SC_AFILE_TRACKED; ++k) {
+        int free_slot = 0;
+        if (atomic_compare_exchange_strong(&g_tracked_used[k], &free_slot, 2)) {
             memcpy(g_tracked_path[k], f->tmp_path, sizeof g_tracked_path[k]);
-            g_tracked_used[k] = 1;
+            atomic_store(&g_tracked_used[k], 1);
             return;
         }
+    }
 }
 
 static void untrack(const sc_afile *f)
 {
     for (int k = 0; k < SC_AFILE_TRACKED; ++k)
-        if (g_tracked_used[k] && strcmp(g_tracked_path[k], f->tmp_path) == 0)
-            g_tracked_used[k] = 0;
+        if (atomic_load(&g_tracked_used[k]) == 1 && strcmp(g_tracked_path[k], f->tmp_path) == 0)
+            atomic_store(&g_tracked_used[k], 0); /* the path is unique: only its owner gets here */
 }
 
 static void on_fatal_signal(int sig)
 {
-    if (g_in_commit) {
+    if (atomic_load(&g_in_commit) > 0) {
         g_pending_sig = sig;
         return;
     }
     for (int k = 0; k < SC_AFILE_TRACKED; ++k)
-        if (g_tracked_used[k])
+        if (atomic_load(&g_tracked_used[k]) == 1)
             unlink(g_tracked_path[k]); /* async-signal-safe */
     signal(sig, SIG_DFL);
     raise(sig);
@@ -73,13 +81,12 @@ static void on_fatal_signal(int sig)
  * here, once the temporary is tracked or the group is in place. */
 static void defer_signals_begin(void)
 {
-    g_in_commit = 1;
+    atomic_fetch_add(&g_in_commit, 1);
 }
 
 static void defer_signals_end(void)
 {
-    g_in_commit = 0;
-    if (g_pending_sig) {
+    if (atomic_fetch_sub(&g_in_commit, 1) == 1 && g_pending_sig) { /* the last group in place */
         int sig = g_pending_sig;
         g_pending_sig = 0;
         on_fatal_signal(sig);

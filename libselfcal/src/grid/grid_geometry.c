@@ -113,11 +113,17 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
                             p->stage_nx, p->stage_ny);
     if (!(p->pitch_mm > 0) || !isfinite(p->pitch_mm))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "pitch must be positive");
+    if (!isfinite(p->origin_mm[0]) || !isfinite(p->origin_mm[1]))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be finite");
     if (p->n_views < 1 || p->n_views > SC_GRID_MAX_VIEWS)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d",
                             SC_GRID_MAX_VIEWS);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
+        if (!(w->sigma_um >= 0) || !isfinite(w->sigma_um)) /* 0: not stated */
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "view %d: sigma_um must be positive (0: not stated), got %g", v,
+                                w->sigma_um);
         if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);

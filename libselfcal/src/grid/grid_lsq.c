@@ -309,6 +309,11 @@ static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, 
             double x, y;
             sc_grid_node_xy_mm(p, ni, nj, &x, &y);
             for (int c = 0; c < 2; ++c, ++e) {
+                double u = mask ? sc_grid_data_u_um(mask, v, k, c) : NAN;
+                if (!isnan(u) && !(u > 0 && isfinite(u))) /* the reader refuses these too */
+                    return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                        "view %d mark (%d,%d): the %s uncertainty %g um is not "
+                                        "positive and finite", v, k / n, k % n, c ? "y" : "x", u);
                 q->eq_w[e] = mask_weight(q, mask, v, k, c);
                 int ac, s;
                 rot_component(p->view[v].rot_deg, c, &ac, &s);
@@ -2163,7 +2168,8 @@ void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, i
 {
     int ni, nj;
     *dx_um = *dy_um = NAN;
-    if (!res->gx_um || !res->ax_um || !sc_grid_mark_node(&q->plan, v, i, j, &ni, &nj))
+    if (v < 0 || v >= q->nv || i < 0 || i >= q->n || j < 0 || j >= q->n || !res->gx_um ||
+        !res->ax_um || !sc_grid_mark_node(&q->plan, v, i, j, &ni, &nj))
         return;
     int node = ni * q->stage_nx + nj, k = i * q->n + j;
     double x, y, rax, ray;

@@ -361,6 +361,9 @@ static void measure(const sc_grid_plan *plan, const sc_grid_sim_params *sp, sc_r
 sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
                           sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err)
 {
+    if (!truth->gx_um || !truth->gy_um || !truth->ax_um || !truth->ay_um || !work)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the truth's gx_um, gy_um, ax_um, ay_um and the workspace are required");
     sc_status st = sc_grid_plan_check(plan, err);
     if (st == SC_OK)
         st = check_params(sp, err);

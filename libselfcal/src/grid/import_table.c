@@ -268,6 +268,14 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
     memset(t, 0, sizeof *t);
     snprintf(t->path, sizeof t->path, "%s", path);
     t->n_cols = n_cols;
+    if (n_cols < 1 || n_cols > 16 || !names)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read asks for 1..16 columns, got %d",
+                            n_cols);
+    for (int a = 0; scale && a < n_cols; ++a)
+        if (!isfinite(scale[a]) || scale[a] == 0)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "the scale of column '%s' must be finite and nonzero, got %g",
+                                names[a], scale[a]);
     for (int a = 0; a < n_cols; ++a) /* one column cannot be two quantities */
         for (int b = 0; b < a; ++b)
             if (name_equal(names[a], names[b]))
@@ -286,8 +294,6 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
     if (st != SC_OK)
         return st;
     int got = 0;
-    if (n_cols < 1 || n_cols > 16)
-        st = sc_error_set(err, SC_E_INTERNAL, NULL, 0, "sc_table_read: 1..16 columns");
     /* the header is the first line naming every wanted column; lines before it that are not
      * data (a machine's preamble: program, date, operator) are skipped, up to PREAMBLE_MAX of
      * them. If none names them all, the first line naming some of them (else the first line)

@@ -231,6 +231,9 @@ static uint8_t *put_provenance(uint8_t *w, const sc_lut *lut)
 sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t cap, size_t *len,
                         sc_error *err)
 {
+    if (enc != SC_LUT_ENC_AUTO && enc != SC_LUT_ENC_INT16 && enc != SC_LUT_ENC_INT32)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown encoding %d (auto, int16, int32)",
+                            (int)enc);
     sc_status st = check_encodable(lut, err);
     if (st != SC_OK)
         return st;
@@ -446,6 +449,10 @@ static int cell_of(double u, int n, double *f)
 
 bool sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um, double *gy_um)
 {
+    if (lut->nx < 2 || lut->ny < 2) { /* no grid (sc_lut_init) */
+        *gx_um = *gy_um = NAN;
+        return true;
+    }
     double x1 = lut->x0_mm + lut->px_mm * (lut->nx - 1);
     double y1 = lut->y0_mm + lut->py_mm * (lut->ny - 1);
     bool outside = x_mm < lut->x0_mm || x_mm > x1 || y_mm < lut->y0_mm || y_mm > y1;

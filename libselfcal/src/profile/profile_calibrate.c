@@ -8,6 +8,7 @@
 #include <stdlib.h>
 
 #include "selfcal/profile_calibrate.h"
+#include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 #include "../common/big_alloc.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
@@ -122,6 +123,22 @@ sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_pro
                                         sc_profile_calibration **out, sc_error *err)
 {
     *out = NULL;
+    /* the options as profile_calibrate.h states them: a known method, noise NaN (not given) or
+     * >= 0 and finite, analytic (0) or Monte Carlo (>= 2) */
+    if (o->method != SC_PROFILE_DFT && o->method != SC_PROFILE_LSQ)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown method %d", (int)o->method);
+    if (!isnan(o->sigma_disp_um) && !(o->sigma_disp_um >= 0 && o->sigma_disp_um <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "sigma_disp_um must be >= 0 and finite (NaN: not given), got %g",
+                            o->sigma_disp_um);
+    if (!isnan(o->sigma_angle_urad) &&
+        !(o->sigma_angle_urad >= 0 && o->sigma_angle_urad <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "sigma_angle_urad must be >= 0 and finite (NaN: not given), got %g",
+                            o->sigma_angle_urad);
+    if (o->mc_trials < 0 || o->mc_trials == 1)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "mc_trials must be 0 (analytic) or at least 2, got %ld", o->mc_trials);
     sc_status st = sc_profile_check_method(hdr, o->method, err);
     if (st != SC_OK)
         return st;

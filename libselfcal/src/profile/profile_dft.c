@@ -215,7 +215,16 @@ static void solve_raw(sc_profile_dft_plan *p, const double *y1, const double *y2
 sc_status sc_profile_dft_execute(sc_profile_dft_plan *p, const double *y1_um, const double *y2_um,
                                  double *f_um, sc_error *err)
 {
-    (void)err;
+    const double *yk[2] = {y1_um, y2_um};
+    const int dk[2] = {p->d[0], p->d[1]};
+    for (int k = 0; k < 2; ++k) /* as least squares: a NaN would spread over the whole spectrum */
+        for (int j = 0; j < p->n - dk[k]; ++j)
+            if (!isfinite(yk[k][j])) {
+                for (int i = 0; i < p->n; ++i)
+                    f_um[i] = 0.0;
+                return sc_error_set(err, SC_E_INPUT, NULL, 0, "y%d(%d) is not a finite number",
+                                    k + 1, j);
+            }
     solve_raw(p, y1_um, y2_um, f_um);
     sc_profile_remove_line(p->n, f_um);
     return SC_OK;
