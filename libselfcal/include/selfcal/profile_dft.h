@@ -25,8 +25,8 @@ extern "C" {
 
 typedef struct sc_profile_dft_plan sc_profile_dft_plan;
 
-/* Can the DFT method solve (n, d1, d2)? (d1, d2 >= 2, d1 != d2, gcd = 1, n = p·d1·d2.) If not,
- * false and the reason in err (SC_E_INPUT). */
+/* Can the DFT method solve (n, d1, d2)? (d1, d2 >= 1, d1 != d2, gcd = 1, n = p·d1·d2 and
+ * n >= 2·max(d1, d2).) If not, false and the reason in err (SC_E_INPUT). */
 SC_API bool sc_profile_dft_is_usable(int n, int d1, int d2, sc_error *err);
 
 /* Make the plan (all allocation and FFTW planning). w1, w2 > 0: weights of scans 1 and 2
