@@ -165,6 +165,36 @@ def test_errors(cli, tmp_path):
     assert str(e.value).startswith(f"{bad}:{len(lines)}: ")
     with pytest.raises(selfcal.Error, match="do not identify G"):
         selfcal.calibrate_grid(selfcal.simulate_grid(selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)]))[0])
+    # bad input in memory is refused as the file reader refuses it (stop 27's audit)
+    x, y = m.x_mm.copy(), m.y_mm.copy()
+    x[0, 3, 3] = y[0, 3, 3] = np.inf
+    with pytest.raises(selfcal.Error, match="infinite"):
+        selfcal.calibrate_grid(selfcal.GridMeasurement(m.plan, x, y))
+    x, y = m.x_mm.copy(), m.y_mm.copy()
+    j = int(np.argwhere(np.isnan(x[2]))[0][1]) if np.isnan(x[2]).any() else None
+    if j is not None:  # view 2 (shift +1) leaves a column of the plate off the stage
+        i = int(np.argwhere(np.isnan(x[2]))[0][0])
+        x[2, i, j], y[2, i, j] = 123.0, -5.0
+        with pytest.raises(selfcal.Error, match="does not place that mark"):
+            selfcal.calibrate_grid(selfcal.GridMeasurement(m.plan, x, y))
+    u = np.full(m.x_mm.shape, 0.01)
+    u2 = u.copy()
+    u2[0, 4, 4] = -0.01
+    with pytest.raises(selfcal.Error, match="not positive"):
+        selfcal.calibrate_grid(selfcal.GridMeasurement(m.plan, m.x_mm, m.y_mm, u2, u))
+    for bad_source in (5, {}):
+        with pytest.raises(selfcal.Error):
+            selfcal.plan(bad_source)
+        with pytest.raises(selfcal.Error):
+            selfcal.calibrate_grid(bad_source)
+    with pytest.raises(selfcal.Error, match="method"):
+        selfcal.calibrate_grid(m, method=[])
+    with pytest.raises(selfcal.Error):
+        selfcal.GridPlan.standard("ye", 2**31)
+    with pytest.raises(selfcal.Error):
+        selfcal.GridPlan(9, 1.0, [dict(rot=2**32, shift=(0, 0))])
+    # no χ² test without stated noise: None, as the command line's "n/a"
+    assert selfcal.calibrate_grid(m).chi2_pass is None
 
 
 def test_example_script_runs(tmp_path):

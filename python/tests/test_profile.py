@@ -106,6 +106,20 @@ def test_errors():
         selfcal.simulate_profile(n=20, d1=30, d2=31)
     with pytest.raises(TypeError):
         selfcal.simulate_profile(wobble_um=3)
+    # bad input raises selfcal.Error, as the command line refuses it (stop 27's audit)
+    with pytest.raises(selfcal.Error, match="sigma_disp_um"):
+        selfcal.calibrate_profile(m, sigma_disp_um=-1)
+    with pytest.raises(selfcal.Error, match="sigma_angle_urad"):
+        selfcal.calibrate_profile(m, sigma_angle_urad=float("nan"))
+    with pytest.raises(selfcal.Error, match="mc_trials"):
+        selfcal.calibrate_profile(m, mc_trials=2**40)
+    with pytest.raises(selfcal.Error, match="harmonics"):
+        selfcal.simulate_profile(harmonics=-1)
+    with pytest.raises(selfcal.Error, match="beyond"):
+        selfcal.calibrate_profile(selfcal.ProfileMeasurement(2**32 + 120, m.s_mm, m.d1, m.d2, m.m1_um,
+                                                             m.m2_um, m.m3_urad))
+    with pytest.raises(selfcal.Error):
+        selfcal.calibrate_profile(5)
     m, _ = selfcal.simulate_profile(n=50, d1=3, d2=7)
     m.m1_um = (m.m1_um[0][:-1], m.m1_um[1])
     with pytest.raises(selfcal.Error, match="m1_um of scan 1 has 46 values, expected 47"):

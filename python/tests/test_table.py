@@ -128,6 +128,11 @@ def test_bad_positions_raise_selfcal_error(table):
         t.apply(1.0, 2.0, z_mm=[1.0, "c"])
     with pytest.raises(selfcal.Error, match="out must hold 3"):
         t.apply(1.0, 2.0, out=(np.empty(()),))
+    x = np.zeros((3, 4))
+    for bad in ((np.empty((3, 4), np.float32), np.empty((3, 4)), np.empty((3, 4), np.uint32)),
+                (np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 4), np.int64))):
+        with pytest.raises(selfcal.Error, match="out arrays"):
+            t.apply(x, x, out=bad)
 
 
 def test_build_table_from_arrays_equals_cli(cli, tmp_path):

@@ -99,9 +99,12 @@ class Table:
                 _np.empty(shape, dtype=_np.uint32),)
         elif len(out) != n_out:
             raise Error(f"out must hold {n_out} arrays")
-        for o in out:
-            if not isinstance(o, _np.ndarray) or o.shape != shape or not o.flags.c_contiguous:
-                raise Error(f"out arrays must be C-contiguous numpy arrays of shape {shape}")
+        for k, o in enumerate(out):
+            want = _np.uint32 if k == n_out - 1 else _np.float64
+            if not isinstance(o, _np.ndarray) or o.shape != shape or not o.flags.c_contiguous \
+                    or o.dtype != want or not o.flags.writeable:
+                raise Error(f"out arrays must be writeable C-contiguous numpy arrays of shape "
+                            f"{shape}: float64, the status uint32")
         flat_out = [o.reshape(-1) for o in out]  # views: the arrays are C-contiguous
         z = flat[2] if z_mm is not None else None
         zo = flat_out[2] if z_mm is not None else None
@@ -150,9 +153,12 @@ class GridPlan:
         ``"stitch"`` (a stage ``stage = (NX, NY)`` larger than the plate, covered by shifted
         placements plus a rotated and a +1 view)."""
         nx, ny = stage if stage is not None else (n, n)
-        return cls._from_dict(_native.grid_standard_plan(name, int(n), float(pitch_mm),
-                                                         float(origin_mm[0]), float(origin_mm[1]),
-                                                         int(nx), int(ny)))
+        try:
+            d = _native.grid_standard_plan(name, int(n), float(pitch_mm), float(origin_mm[0]),
+                                           float(origin_mm[1]), int(nx), int(ny))
+        except (OverflowError, TypeError) as e:
+            raise Error(f"GridPlan.standard: {e}") from None
+        return cls._from_dict(d)
 
     @property
     def n_views(self) -> int:
@@ -260,7 +266,10 @@ class GridResult:
         self.method = method
         for k, v in d.items():
             setattr(self, k, v)
-        self.chi2_pass = bool(self.chi2_pass)
+        # None where no χ² test ran (no stated noise, or each view's noise estimated): the
+        # command line's "n/a"
+        tested = self.variance_factor == self.variance_factor and not self.view_noise_estimated
+        self.chi2_pass = bool(self.chi2_pass) if tested else None
         self.weighted = bool(self.weighted)
         self.outlier_alpha_each = bool(self.outlier_alpha_each)
         self.view_noise_estimated = bool(self.view_noise_estimated)
@@ -293,7 +302,7 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
     components, as ``--view-noise estimate``): ``result.view_sigma_um`` per view. Warnings
     (outliers, the χ² test) are in ``result.warnings`` and issued with :mod:`warnings` too.
     """
-    if method not in _GRID_METHODS:
+    if not isinstance(method, str) or method not in _GRID_METHODS:
         raise Error(f"method must be 'ye', 'double-shift' or 'lsq', not {method!r}")
     if sigma_r_um is not None and not sigma_r_um > 0:
         raise Error("sigma_r_um must be positive")
@@ -429,7 +438,7 @@ def calibrate_profile(source, method: str = "lsq", sigma_disp_um=None, sigma_ang
     file's header lines; with neither it is estimated from the residuals. ``mc_trials`` >= 2:
     Monte Carlo uncertainties instead of the analytic ones.
     """
-    if method not in _PROFILE_METHODS:
+    if not isinstance(method, str) or method not in _PROFILE_METHODS:
         raise Error(f"method must be 'dft' or 'lsq', not {method!r}")
     if mc_trials and mc_trials < 2:
         raise Error("mc_trials must be 0 or at least 2")
@@ -490,8 +499,9 @@ def build_table(path, gx_um, gy_um, x0_mm: float, y0_mm: float, px_mm: float, py
         try:
             prof.append((_AXES[p["axis"].lower()], _AXES[p["dir"].lower()], float(p["start_mm"]),
                          float(p["step_mm"]), _np.asarray(p["err_um"], dtype=_np.float64)))
-        except KeyError as e:
-            raise Error(f"profile needs axis and dir among x, y, z, start_mm, step_mm, err_um ({e})") from None
+        except (KeyError, AttributeError, TypeError, ValueError) as e:
+            raise Error(f"a profile needs axis and dir among 'x', 'y', 'z', and start_mm, step_mm, "
+                        f"err_um ({e!r})") from None
     _native.lut_build(path, gx_um, gy_um, float(x0_mm), float(y0_mm), float(px_mm),
                       float(py_mm if py_mm is not None else px_mm), prof, str(method),
                       float(sigma_um), int(created_unix_s))

@@ -13,6 +13,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -92,6 +93,44 @@ static int copy_vec(PyObject *obj, double *dst, npy_intp n, const char *what)
 }
 
 /* An optional float (None -> NaN). */
+/* A Python int into a C int: selfcal.Error (not a silent truncation) beyond its range. */
+static int as_int(PyObject *o, const char *what, int *out)
+{
+    long v = PyLong_AsLong(o);
+    if (v == -1 && PyErr_Occurred()) {
+        if (!PyErr_ExceptionMatches(PyExc_OverflowError) && !PyErr_ExceptionMatches(PyExc_TypeError))
+            return -1;
+        PyErr_Clear();
+        PyErr_Format(sc_py_error, "%s must be a whole number within +-%d", what, INT_MAX);
+        return -1;
+    }
+    if (v < INT_MIN || v > INT_MAX) {
+        PyErr_Format(sc_py_error, "%s = %ld is beyond +-%d", what, v, INT_MAX);
+        return -1;
+    }
+    *out = (int)v;
+    return 0;
+}
+
+/* An optional noise: None (not given) or a finite number >= 0; selfcal.Error otherwise (NaN
+ * too: "not given" is None). */
+static int opt_noise(PyObject *o, const char *what, double *v)
+{
+    if (o == Py_None) {
+        *v = NAN;
+        return 0;
+    }
+    *v = PyFloat_AsDouble(o);
+    if (*v == -1.0 && PyErr_Occurred())
+        return -1;
+    if (!(*v >= 0) || !isfinite(*v)) {
+        PyErr_Format(sc_py_error, "%s must be a finite number >= 0 (None: not given), got %g", what,
+                     *v);
+        return -1;
+    }
+    return 0;
+}
+
 static int opt_double(PyObject *o, double *v)
 {
     if (o == Py_None) {
@@ -135,6 +174,11 @@ static PyObject *profile_to_dict(const sc_profile_data *d)
 static int profile_from_dict(PyObject *dict, sc_profile_data *d)
 {
     memset(d, 0, sizeof *d);
+    if (!PyDict_Check(dict)) {
+        PyErr_SetString(sc_py_error, "a profile measurement file path or a "
+                                     "selfcal.ProfileMeasurement is needed");
+        return -1;
+    }
     int n, d1, d2;
     double s_mm, sd, sa;
     PyObject *m[3], *osd, *osa;
@@ -153,14 +197,15 @@ static int profile_from_dict(PyObject *dict, sc_profile_data *d)
     for (int a = 0; a < 3; ++a)
         m[a] = PyDict_GetItemString(dict, keys[a]);
     if (!on || !os || !od1 || !od2 || !m[0] || !m[1] || !m[2]) {
-        PyErr_SetString(PyExc_KeyError, "profile measurement lacks n, s_mm, d1, d2 or a sensor");
+        PyErr_SetString(sc_py_error, "a profile measurement needs n, s_mm, d1, d2 and the three sensors "
+                                     "(use selfcal.ProfileMeasurement)");
         return -1;
     }
-    n = (int)PyLong_AsLong(on);
-    d1 = (int)PyLong_AsLong(od1);
-    d2 = (int)PyLong_AsLong(od2);
+    if (as_int(on, "n", &n) || as_int(od1, "d1", &d1) || as_int(od2, "d2", &d2))
+        return -1;
     s_mm = PyFloat_AsDouble(os);
-    if (PyErr_Occurred() || opt_double(osd ? osd : Py_None, &sd) || opt_double(osa ? osa : Py_None, &sa))
+    if (PyErr_Occurred() || opt_noise(osd ? osd : Py_None, "sigma_disp_um", &sd) ||
+        opt_noise(osa ? osa : Py_None, "sigma_angle_urad", &sa))
         return -1;
     sc_error err;
     sc_error_clear(&err);
@@ -264,8 +309,13 @@ static PyObject *py_profile_calibrate(PyObject *self, PyObject *args)
     o.method = method ? SC_PROFILE_LSQ : SC_PROFILE_DFT;
     o.mc_trials = mc;
     o.mc_seed = seed;
-    if (opt_double(osd, &o.sigma_disp_um) || opt_double(osa, &o.sigma_angle_urad))
+    if (opt_noise(osd, "sigma_disp_um", &o.sigma_disp_um) ||
+        opt_noise(osa, "sigma_angle_urad", &o.sigma_angle_urad))
         return NULL;
+    if (mc < 0 || mc == 1 || mc > 100000000) { /* as the command line's --mc */
+        PyErr_Format(sc_py_error, "mc_trials must be 0 (analytic) or 2..100000000, got %ld", mc);
+        return NULL;
+    }
     sc_profile_data d;
     if (profile_source(src, &d))
         return NULL;
@@ -331,11 +381,8 @@ static PyObject *py_profile_simulate(PyObject *self, PyObject *args)
         {"n", &p.n}, {"d1", &p.d1}, {"d2", &p.d2}, {"write_sigma", &p.write_sigma}};
     for (size_t k = 0; k < sizeof ikeys / sizeof ikeys[0]; ++k) {
         PyObject *v = PyDict_GetItemString(params, ikeys[k].key);
-        if (v) {
-            *ikeys[k].dst = (int)PyLong_AsLong(v);
-            if (PyErr_Occurred())
-                return NULL;
-        }
+        if (v && as_int(v, ikeys[k].key, ikeys[k].dst))
+            return NULL;
     }
     PyObject *vs = PyDict_GetItemString(params, "seed");
     if (vs) {
@@ -368,6 +415,11 @@ static PyObject *py_profile_simulate(PyObject *self, PyObject *args)
         if (copy_vec(fobj, fv, n, "f_um"))
             goto done;
     } else {
+        if (harmonics < 1 || harmonics > 100000 || !(amp >= 0) || !isfinite(amp)) {
+            PyErr_Format(sc_py_error, "harmonics must be 1..100000 and amp_um a finite number >= 0 "
+                                      "(as the command line's), got %d and %g", harmonics, amp);
+            goto done;
+        }
         sc_profile_sim_random_truth(&p, amp, harmonics, fv);
     }
     if (sc_profile_simulate(&p, fv, &d, eyv, &err) != SC_OK) {
@@ -473,17 +525,18 @@ static int plan_from_dict(PyObject *dict, sc_grid_plan *p)
 {
     memset(p, 0, sizeof *p);
     if (!PyDict_Check(dict)) {
-        PyErr_SetString(PyExc_TypeError, "a grid plan is a dict (use selfcal.GridPlan)");
+        PyErr_SetString(sc_py_error, "a grid plan is needed (use selfcal.GridPlan)");
         return -1;
     }
     PyObject *on = PyDict_GetItemString(dict, "n"), *op = PyDict_GetItemString(dict, "pitch_mm"),
              *oo = PyDict_GetItemString(dict, "origin_mm"), *os = PyDict_GetItemString(dict, "stage"),
              *ov = PyDict_GetItemString(dict, "views");
     if (!on || !op || !ov) {
-        PyErr_SetString(PyExc_KeyError, "a grid plan needs n, pitch_mm and views");
+        PyErr_SetString(sc_py_error, "a grid plan needs n, pitch_mm and views (use selfcal.GridPlan)");
         return -1;
     }
-    p->n = (int)PyLong_AsLong(on);
+    if (as_int(on, "n", &p->n))
+        return -1;
     p->pitch_mm = PyFloat_AsDouble(op);
     if (oo && oo != Py_None && !PyArg_ParseTuple(oo, "dd", &p->origin_mm[0], &p->origin_mm[1]))
         return -1;
@@ -514,11 +567,10 @@ static int plan_from_dict(PyObject *dict, sc_grid_plan *p)
                  *sh = PyDict_Check(w) ? PyDict_GetItemString(w, "shift") : NULL;
         if (!r || !sh) {
             Py_DECREF(views);
-            PyErr_SetString(PyExc_KeyError, "a view is a dict with rot and shift");
+            PyErr_SetString(sc_py_error, "a view is a dict with rot and shift");
             return -1;
         }
-        g->rot_deg = (int)PyLong_AsLong(r);
-        if (PyErr_Occurred() || !PyArg_ParseTuple(sh, "ii", &g->shift_x, &g->shift_y)) {
+        if (as_int(r, "rot", &g->rot_deg) || !PyArg_ParseTuple(sh, "ii", &g->shift_x, &g->shift_y)) {
             Py_DECREF(views);
             return -1;
         }
@@ -617,8 +669,12 @@ static int fill_views(PyObject *dict, const char *key, const sc_grid_plan *p, do
 {
     PyObject *o = PyDict_GetItemString(dict, key);
     PyArrayObject *a = o ? (PyArrayObject *)PyArray_FROMANY(o, NPY_DOUBLE, 3, 3, NPY_ARRAY_IN_ARRAY) : NULL;
-    if (!a)
+    if (!a) { /* numpy's own ValueError/TypeError: said as the others, a selfcal.Error */
+        PyErr_Clear();
+        PyErr_Format(sc_py_error, "%s must be numbers of the shape (views, N, N) = (%d, %d, %d)",
+                     key, p->n_views, p->n, p->n);
         return -1;
+    }
     int n = p->n;
     if (PyArray_DIM(a, 0) != p->n_views || PyArray_DIM(a, 1) != n || PyArray_DIM(a, 2) != n) {
         PyErr_Format(sc_py_error, "%s must have the shape (views, N, N) = (%d, %d, %d)", key,
@@ -630,6 +686,16 @@ static int fill_views(PyObject *dict, const char *key, const sc_grid_plan *p, do
     for (int v = 0; v < p->n_views; ++v)
         for (long k = 0; k < (long)n * n; ++k) {
             double val = src[(long)v * n * n + k];
+            /* NaN: not measured; anything else must be a number (and a mark the view places on
+             * the stage, where a nominal position is subtracted) */
+            if (isinf(val) || (sub && !isnan(val) && isnan(sub[(long)v * n * n + k]))) {
+                PyErr_Format(sc_py_error, isinf(val) ? "%s[%d, %ld, %ld] is infinite (NaN: not measured)"
+                                                     : "%s[%d, %ld, %ld] is given but view %d does "
+                                                       "not place that mark on the stage",
+                             key, v, k / n, k % n, v);
+                Py_DECREF(a);
+                return -1;
+            }
             dst[v][k] = sub ? (val - sub[(long)v * n * n + k]) * scale : val;
         }
     Py_DECREF(a);
@@ -642,7 +708,8 @@ static int data_from_dict(PyObject *dict, sc_grid_data *d)
     memset(d, 0, sizeof *d);
     PyObject *plan = PyDict_Check(dict) ? PyDict_GetItemString(dict, "plan") : NULL;
     if (!plan) {
-        PyErr_SetString(PyExc_TypeError, "a grid measurement needs a plan (use selfcal.GridMeasurement)");
+        PyErr_SetString(sc_py_error, "a grid measurement file path or a selfcal.GridMeasurement is "
+                                     "needed");
         return -1;
     }
     if (plan_from_dict(plan, &d->plan))

@@ -18,8 +18,10 @@ import glob, sys, zipfile
 w = glob.glob(sys.argv[1] + "/selfcal-*.whl")
 assert len(w) == 1, w
 names = zipfile.ZipFile(w[0]).namelist()
-for need in ("selfcal/__init__.py", "selfcal/libselfcal.so.0"):
+for need in ("selfcal/__init__.py", "selfcal/libselfcal.so"):
     assert need in names, (need, names)
+# one copy of the library: a wheel stores a symlink as a second copy
+assert len([n for n in names if "libselfcal.so" in n]) == 1, names
 assert any(n.startswith("selfcal/_native.") and n.endswith(".so") for n in names), names
 assert not any(n.endswith(".c") for n in names), names
 print("wheel:", w[0].rsplit("/", 1)[1], len(names), "files")
