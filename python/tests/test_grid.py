@@ -193,6 +193,9 @@ def test_errors(cli, tmp_path):
         selfcal.GridPlan.standard("ye", 2**31)
     with pytest.raises(selfcal.Error):
         selfcal.GridPlan(9, 1.0, [dict(rot=2**32, shift=(0, 0))])
+    with pytest.raises(selfcal.Error, match="pitch"):
+        selfcal.plan(selfcal.GridPlan(9, 1e308, [dict(rot=0, shift=(0, 0)), dict(rot=90, shift=(0, 0)),
+                                                 dict(rot=0, shift=(1, 0))]))
     # no χ² test without stated noise: None, as the command line's "n/a"
     assert selfcal.calibrate_grid(m).chi2_pass is None
 

@@ -94,7 +94,7 @@ def test_bad_file_message_equals_cli(cli, tmp_path):
     assert not (tmp_path / "P.csv").exists()
 
 
-def test_errors():
+def test_errors(tmp_path):
     with pytest.raises(selfcal.Error, match="missing"):
         selfcal.read_profile("/nonexistent/missing.csv")
     m, _ = selfcal.simulate_profile(n=120, d1=4, d2=6)  # gcd 2: not solvable
@@ -120,6 +120,11 @@ def test_errors():
                                                              m.m2_um, m.m3_urad))
     with pytest.raises(selfcal.Error):
         selfcal.calibrate_profile(5)
+    m2, _ = selfcal.simulate_profile(n=50, d1=3, d2=7)
+    m2.m1_um[0][3] = np.nan
+    with pytest.raises(selfcal.Error, match="not a finite measurement"):
+        m2.write(tmp_path / "nan.csv")
+    assert not (tmp_path / "nan.csv").exists()
     m, _ = selfcal.simulate_profile(n=50, d1=3, d2=7)
     m.m1_um = (m.m1_um[0][:-1], m.m1_um[1])
     with pytest.raises(selfcal.Error, match="m1_um of scan 1 has 46 values, expected 47"):

@@ -1,5 +1,6 @@
 /* Geometry of views, the noise-free forward model and the gauge of SPEC §1. */
 #include "selfcal/grid.h"
+#include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 
 #include <math.h>
 
@@ -111,8 +112,9 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "stage NX, NY must be odd and in 3..%d (got %d,%d)", SC_GRID_MAX_STAGE,
                             p->stage_nx, p->stage_ny);
-    if (!(p->pitch_mm > 0) || !isfinite(p->pitch_mm))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "pitch must be positive");
+    if (!(p->pitch_mm > 0) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "pitch must be positive and at most %g mm",
+                            SC_INPUT_MAX_ABS);
     if (!isfinite(p->origin_mm[0]) || !isfinite(p->origin_mm[1]))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be finite");
     if (p->n_views < 1 || p->n_views > SC_GRID_MAX_VIEWS)

@@ -612,6 +612,19 @@ static char *measurement_row(const void *ctx, long i, char *p)
 
 sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
 {
+    /* only what the reader reads back: every sample a finite number (checked before the file
+     * is opened: nothing is written otherwise) */
+    static const char *const sensor[3] = {"m1_um", "m2_um", "m3_urad"};
+    for (int k = 0; k < 2; ++k) {
+        const double *v[3] = {d->m1_um[k], d->m2_um[k], d->m3_urad[k]};
+        for (int s = 0; s < 3; ++s)
+            for (int j = 0; j < d->n - d->d[k]; ++j)
+                if (!isfinite(v[s][j]) || !(fabs(v[s][j]) <= SC_INPUT_MAX_ABS))
+                    return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                        "scan %d n = %d: %s = %g is not a finite measurement "
+                                        "(|value| <= %g)", k + 1, j, sensor[s], v[s][j],
+                                        SC_INPUT_MAX_ABS);
+    }
     sc_io_out o;
     sc_status st = sc_io_out_open(&o, path, err);
     if (st != SC_OK)
