@@ -112,11 +112,14 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "stage NX, NY must be odd and in 3..%d (got %d,%d)", SC_GRID_MAX_STAGE,
                             p->stage_nx, p->stage_ny);
+    /* the readers' limits (a plan made in memory must write a file that reads back) */
     if (!(p->pitch_mm > 0) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "pitch must be positive and at most %g mm",
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the pitch must be positive and at most %g mm, got %g",
+                            SC_INPUT_MAX_ABS, p->pitch_mm);
+    if (!(fabs(p->origin_mm[0]) <= SC_INPUT_MAX_ABS) || !(fabs(p->origin_mm[1]) <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be within +-%g mm",
                             SC_INPUT_MAX_ABS);
-    if (!isfinite(p->origin_mm[0]) || !isfinite(p->origin_mm[1]))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be finite");
     if (p->n_views < 1 || p->n_views > SC_GRID_MAX_VIEWS)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d",
                             SC_GRID_MAX_VIEWS);

@@ -37,31 +37,22 @@ size_t sc_grid_sim_work_doubles_plan(const sc_grid_plan *p)
     return a > b ? a : b;
 }
 
-static sc_status plan_base(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
-                           sc_error *err)
+/* The plan's geometry; pitch and origin are judged by sc_grid_plan_check, which every plan made
+ * here ends with (the views' layout below uses neither). */
+static void plan_base(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p)
 {
     memset(p, 0, sizeof *p);
     p->n = n;
     p->pitch_mm = pitch_mm;
     p->origin_mm[0] = ox;
     p->origin_mm[1] = oy;
-    if (!(fabs(ox) <= SC_INPUT_MAX_ABS) || !(fabs(oy) <= SC_INPUT_MAX_ABS))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be within +-%g mm",
-                            SC_INPUT_MAX_ABS);
-    if (!(pitch_mm > 0) || !(pitch_mm <= SC_INPUT_MAX_ABS))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "the pitch must be positive and at most %g mm, got %g",
-                            SC_INPUT_MAX_ABS, pitch_mm);
-    return SC_OK;
 }
 
 /* The plan of an exact method, from the views the method states it needs (grid_exact.c). */
 static sc_status plan_exact(sc_grid_exact_method m, int n, double pitch_mm, double ox, double oy,
                             sc_grid_plan *p, sc_error *err)
 {
-    sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
-    if (st != SC_OK)
-        return st;
+    plan_base(n, pitch_mm, ox, oy, p);
     if (n < sc_grid_exact_min_n(m) || n > SC_GRID_MAX_N || n % 2 == 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "%s needs N odd and >= %d (got %d)",
                             m == SC_GRID_YE ? "Ye's method" : "double shift",
@@ -113,9 +104,7 @@ static int stitch_offsets(int ns, int n, int step, int *off)
 sc_status sc_grid_plan_stitch_step(int n, int nx, int ny, int step, double pitch_mm, double ox,
                                    double oy, sc_grid_plan *p, sc_error *err)
 {
-    sc_status st = plan_base(n, pitch_mm, ox, oy, p, err);
-    if (st != SC_OK)
-        return st;
+    plan_base(n, pitch_mm, ox, oy, p);
     p->stage_nx = nx;
     p->stage_ny = ny;
     if (n < 3 || n % 2 == 0 || nx < 3 || ny < 3 || nx % 2 == 0 || ny % 2 == 0 || step < 1)
@@ -280,18 +269,14 @@ static sc_status first_order_budget(const sc_grid_plan *plan, const sc_grid_sim_
 }
 
 /* G = s·F + the first-order terms of O and R, with the scale s that gives G the dispersion
- * sigma_G; F is the SAR part (stage_sar_fields). The O and R patterns (y, x) and (x, -y) are
- * taken out of F first (orthogonal to the gauge). */
-static sc_status stage_scale_and_first_order(const sc_grid_plan *plan,
-                                             const sc_grid_sim_params *sp,
-                                             sc_grid_sim_truth *truth, sc_error *err)
+ * sigma_G (first2, target2: first_order_budget's sums); F is the SAR part (stage_sar_fields).
+ * The O and R patterns (y, x) and (x, -y) are taken out of F first (orthogonal to the gauge). */
+static void stage_scale_and_first_order(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
+                                        double first2, double target2, sc_grid_sim_truth *truth)
 {
     int snx = sc_grid_stage_nx(plan), sny = sc_grid_stage_ny(plan);
     double *fx = truth->gx_um, *fy = truth->gy_um;
-    double O_f, R_f, first2, target2, f2 = 0;
-    sc_status st = first_order_budget(plan, sp, &first2, &target2, err);
-    if (st != SC_OK)
-        return st;
+    double O_f, R_f, f2 = 0;
     sc_grid_first_order(plan, fx, fy, &O_f, &R_f); /* dimensionless; x, y in mm -> ×1e3 µm */
     for (int i = 0; i < sny; ++i)
         for (int j = 0; j < snx; ++j) {
@@ -316,7 +301,6 @@ static sc_status stage_scale_and_first_order(const sc_grid_plan *plan,
      * magnification: gauge again and report O and R of the gauged truth (a no-op when square). */
     sc_grid_gauge_stage(plan, fx, fy);
     sc_grid_first_order(plan, fx, fy, &truth->O, &truth->R);
-    return SC_OK;
 }
 
 /* Plate error A (gauged) and the views' misalignments, drawn in that order. */
@@ -374,9 +358,9 @@ sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp
         return st;
     sc_rng rng;
     sc_rng_seed(&rng, sp->seed);
-    if ((st = stage_sar_fields(plan, sp, &rng, work, truth, err)) != SC_OK ||
-        (st = stage_scale_and_first_order(plan, sp, truth, err)) != SC_OK)
+    if ((st = stage_sar_fields(plan, sp, &rng, work, truth, err)) != SC_OK)
         return st;
+    stage_scale_and_first_order(plan, sp, first2, target2, truth);
     plate_and_misalignment(plan, sp, &rng, truth);
     measure(plan, sp, &rng, truth, d);
     return sp->dt_s > 0 ? add_times_and_drift(plan, sp, d, err) : SC_OK;
