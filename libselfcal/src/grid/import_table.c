@@ -17,7 +17,7 @@
 /* Split line s at delim in place (double-quoted fields may hold the delimiter; the quotes are
  * removed), trimming blanks; returns the field count or -1 if there are too many. quoted (may be
  * NULL): 1 for each field that was in quotes. */
-static int split_fields_q(char *s, char delim, char **field, unsigned char *quoted, int max)
+static int split_fields(char *s, char delim, char **field, unsigned char *quoted, int max)
 {
     int n = 0;
     char *p = s;
@@ -50,11 +50,6 @@ static int split_fields_q(char *s, char delim, char **field, unsigned char *quot
             return n;
         ++p;
     }
-}
-
-static int split_fields(char *s, char delim, char **field, int max)
-{
-    return split_fields_q(s, delim, field, NULL, max);
 }
 
 static int name_equal(const char *a, const char *b)
@@ -123,7 +118,7 @@ static int split_copy(const char *text, char *buf, char **field)
     if (len >= PREAMBLE_LINE)
         return -2;
     memcpy(buf, text, len + 1);
-    return split_fields(buf, delimiter_of(buf), field, MAX_TABLE_FIELDS);
+    return split_fields(buf, delimiter_of(buf), field, NULL, MAX_TABLE_FIELDS);
 }
 
 /* The header line, text (split in place) at line ln: the delimiter, and where each wanted
@@ -133,7 +128,7 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
     sc_table *t = tr->t;
     t->header_line = ln;
     t->delimiter = delimiter_of(text);
-    tr->n_header = split_fields(text, t->delimiter, tr->field, MAX_TABLE_FIELDS);
+    tr->n_header = split_fields(text, t->delimiter, tr->field, NULL, MAX_TABLE_FIELDS);
     if (tr->n_header < 0)
         return sc_error_set(err, SC_E_INPUT, tr->path, ln, "more than %d columns",
                             MAX_TABLE_FIELDS);
@@ -244,7 +239,7 @@ static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err
 static sc_status read_data_line(table_reader *tr, sc_error *err)
 {
     sc_table *t = tr->t;
-    int nf = split_fields_q(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
+    int nf = split_fields(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
     if (nf != tr->n_header)
         return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
                             "%d fields, the header line (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,
