@@ -61,7 +61,8 @@ static int same_file(const named_file *a, const named_file *b)
 
 int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char **argv)
 {
-    named_file out[MAX_PATHS], in[MAX_PATHS];
+    named_file out[MAX_PATHS];
+    struct stat in[MAX_PATHS]; /* the inputs: existing files, compared by device and inode */
     int nout = 0, nin = 0;
     char profile_path[PATH_MAX];
     for (int i = 1; i < argc; ++i) {
@@ -82,20 +83,12 @@ int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char 
             cli_parse_profile_placed(a, &axis, &dir, profile_path, sizeof profile_path,
                                      &offset) == 0)
             a = profile_path;
-        if (nin == MAX_PATHS)
-            continue;
-        in[nin] = (named_file){a, NULL, 0, 0, 0};
-        identify(&in[nin]);
-        if (in[nin].exists) {
-            if (a == profile_path) { /* keep the inode only: the buffer is reused */
-                in[nin].arg = argv[i];
-            }
+        if (nin < MAX_PATHS && stat(a, &in[nin]) == 0 && S_ISREG(in[nin].st_mode))
             nin++;
-        }
     }
     for (int o = 0; o < nout; ++o) {
         for (int k = 0; k < nin; ++k)
-            if (out[o].exists && same_file(&out[o], &in[k]))
+            if (out[o].exists && out[o].dev == in[k].st_dev && out[o].ino == in[k].st_ino)
                 return cli_usage_error(cmd, "%s %s: that file is also an input of this command "
                                             "(it would be replaced by the output)",
                                        out[o].opt, out[o].arg);
