@@ -440,8 +440,6 @@ def calibrate_profile(source, method: str = "lsq", sigma_disp_um=None, sigma_ang
     """
     if not isinstance(method, str) or method not in _PROFILE_METHODS:
         raise Error(f"method must be 'dft' or 'lsq', not {method!r}")
-    if mc_trials and mc_trials < 2:
-        raise Error("mc_trials must be 0 or at least 2")
     src = source._as_dict() if isinstance(source, ProfileMeasurement) else source
     d = _native.profile_calibrate(src, _PROFILE_METHODS[method], sigma_disp_um, sigma_angle_urad,
                                   int(mc_trials), int(seed))
