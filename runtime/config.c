@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "log.h"
+#include "selfcal/csv.h"
 
 const char sc_config_usage[] =
     "usage: selfcald --table TABLE [transports] [options]\n"
@@ -364,7 +365,8 @@ sc_status sc_config_load_file(sc_config *c, const char *path, sc_error *err)
 {
     FILE *f = fopen(path, "r");
     if (f == NULL)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+        return sc_error_set(err, sc_open_failure_status(errno), path, 0, "cannot open: %s",
+                            strerror(errno));
     struct stat st;
     if (fstat(fileno(f), &st) != 0 || S_ISDIR(st.st_mode)) { /* fgets would read it as empty */
         fclose(f);

@@ -4,6 +4,8 @@
  * A file system that hangs a read of a regular file would still stall it. */
 #include "engine.h"
 
+#include "selfcal/csv.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -29,7 +31,8 @@ static sc_status read_file(const char *path, size_t *len, sc_error *err)
      * bounded by the buffer. */
     int fd = open(path, O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
     if (fd < 0)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+        return sc_error_set(err, sc_open_failure_status(errno), path, 0, "cannot open: %s",
+                            strerror(errno));
     sc_status st = SC_OK;
     struct stat sb;
     size_t n = 0;

@@ -5,6 +5,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -99,6 +100,19 @@ static void test_csv_lines_and_errors(void **state)
     assert_non_null(strstr(err.msg, "directory"));
     assert_null(sc_open_input(SELFCAL_TEST_TMP, &err));
     assert_int_equal(err.code, SC_E_INPUT);
+    /* a path naming nothing is bad input (exit 2); the system refusing a file is not (exit 1) */
+    assert_int_equal(sc_open_failure_status(ENOENT), SC_E_INPUT);
+    assert_int_equal(sc_open_failure_status(ENOTDIR), SC_E_INPUT);
+    assert_int_equal(sc_open_failure_status(EACCES), SC_E_IO);
+    assert_int_equal(sc_open_failure_status(EIO), SC_E_IO);
+    assert_int_equal(sc_open_failure_status(EMFILE), SC_E_IO);
+    assert_int_equal(sc_open_failure_status(ENOMEM), SC_E_NOMEM);
+    write_text(path, "x\n", 2);
+    if (geteuid() != 0 && chmod(path, 0) == 0) { /* root reads any file */
+        assert_int_equal(sc_csv_open(&r, path, &err), SC_E_IO);
+        assert_non_null(strstr(err.msg, "ermission"));
+        chmod(path, 0644);
+    }
 
     /* a UTF-8 byte-order mark before the first line is not text; the same bytes later are */
     const char bom[] = "\xEF\xBB\xBF# selfcal-grid v1\r\n\xEF\xBB\xBFx\n";

@@ -42,8 +42,13 @@ typedef struct sc_csv {
     int eof;
 } sc_csv;
 
-/* Open an input file for reading (binary). A missing or unreadable file, or a directory, is bad
- * input (SC_E_INPUT: the user named the wrong thing); NULL with err set on failure. */
+/* The status of a failed open with errno errnum: a path that names nothing (or a directory) is
+ * bad input (SC_E_INPUT); a refusal by the system (permission, I/O, no descriptors) is SC_E_IO. */
+SC_API sc_status sc_open_failure_status(int errnum);
+
+/* Open an input file for reading (binary); NULL with err set on failure. A missing file or a
+ * directory is bad input (SC_E_INPUT: the user named the wrong thing); a file the system will not
+ * let us read is SC_E_IO (sc_open_failure_status). */
 SC_API FILE *sc_open_input(const char *path, sc_error *err);
 
 /* Open path for reading ("-" reads stdin). */

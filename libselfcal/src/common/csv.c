@@ -15,12 +15,24 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+sc_status sc_open_failure_status(int errnum)
+{
+    switch (errnum) {
+    case ENOENT: case ENOTDIR: case EISDIR: case ELOOP: case ENAMETOOLONG:
+        return SC_E_INPUT; /* the path named is wrong: bad input (exit 2) */
+    case ENOMEM:
+        return SC_E_NOMEM;
+    default:
+        return SC_E_IO; /* permission, I/O, too many files: the system refused (exit 1) */
+    }
+}
+
 FILE *sc_open_input(const char *path, sc_error *err)
 {
     FILE *fp = fopen(path, "rb");
     if (!fp) {
-        sc_error_set(err, errno == ENOMEM ? SC_E_NOMEM : SC_E_INPUT, path, 0, "cannot open: %s",
-                     strerror(errno));
+        int e = errno;
+        sc_error_set(err, sc_open_failure_status(e), path, 0, "cannot open: %s", strerror(e));
         return NULL;
     }
     struct stat st;

@@ -91,11 +91,9 @@ static int json_value(const char *json, const char *key, char *out, size_t len)
 
 static char *read_all(const char *path, sc_error *err)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        sc_error_set(err, SC_E_INPUT, path, 0, "cannot open");
+    FILE *f = sc_open_input(path, err);
+    if (!f)
         return NULL;
-    }
     size_t cap = 4096, len = 0;
     char *buf = malloc(cap);
     size_t got;
@@ -241,9 +239,9 @@ static sc_status dabam_data_line(const char *path, long ln, const char *line, co
 static sc_status dabam_read_points(const char *path, const dabam_meta *m, dabam_points *d,
                                    sc_error *err)
 {
-    FILE *fp = fopen(path, "rb");
+    FILE *fp = sc_open_input(path, err);
     if (!fp)
-        return sc_error_set(err, SC_E_INPUT, path, 0, "cannot open");
+        return err ? err->code : SC_E_INPUT;
     char line[4096];
     long ln = 0;
     sc_status st = SC_OK;
