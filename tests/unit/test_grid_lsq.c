@@ -14,6 +14,7 @@
 
 #include "../../libselfcal/src/grid/grid_lsq_internal.h"
 #include "selfcal/grid_lsq.h"
+#include "selfcal/grid_sim.h"
 #include "test_grid_lsq_util.h"
 
 /* Noise-free data from a gauged truth: the estimate must equal the truth. */
@@ -230,6 +231,31 @@ static void test_sigma_estimate(void **s)
         tu_data_free(&d);
         tu_truth_free(&t);
     }
+}
+
+/* max_bytes: a plan estimated to need more memory is refused before it is factored, saying how
+ * much; one allowed about twice what it holds is made (the estimate is near the real peak). */
+static void test_memory_limit(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    sc_error err;
+    assert_int_equal(sc_grid_plan_stitch_step(33, 129, 129, 32, 1.0, 0, 0, &p, &err), SC_OK);
+    sc_grid_lsq_plan *q = NULL;
+    sc_grid_lsq_opts free_opts = {.node_sigma_only = 1};
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &free_opts, &q, &err), SC_OK);
+    sc_grid_lsq_stats st;
+    sc_grid_lsq_get_stats(q, &st);
+    sc_grid_lsq_plan_destroy(q);
+    q = NULL;
+    sc_grid_lsq_opts tight = {.node_sigma_only = 1, .max_bytes = (double)st.bytes / 3};
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &tight, &q, &err), SC_E_NOMEM);
+    assert_null(q);
+    assert_non_null(strstr(err.msg, "needs about"));
+    assert_non_null(strstr(err.msg, "33336 unknowns"));
+    sc_grid_lsq_opts room = {.node_sigma_only = 1, .max_bytes = 2.0 * (double)st.bytes};
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &room, &q, &err), SC_OK);
+    sc_grid_lsq_plan_destroy(q);
 }
 
 /* node_sigma_only: the same estimate, node σ and leverages to the last bit (W is solved alone in
@@ -578,6 +604,7 @@ int main(void)
         cmocka_unit_test(test_recovery_rich),  cmocka_unit_test(test_plan_cases),
         cmocka_unit_test(test_reference_accuracy),
         cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_node_sigma_only),
+        cmocka_unit_test(test_memory_limit),
         cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),

@@ -39,6 +39,10 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
                              double *offset_mm);
 
 /* --seed S: a whole number 0..2^64-1 (digits only) into *out: CLI_OK, or the usage error. */
+/* This machine's physical memory in bytes (0 if unknown): the limit a command's large work is
+ * refused above, up front, instead of being killed after a long time (or taking the machine). */
+double cli_memory_bytes(void);
+
 int cli_parse_seed(const char *cmd, const char *v, uint64_t *out);
 
 /* --max-nodes N (2..SC_LUT_MAX_NX) of lut build and export into *out: CLI_OK, or the usage error. */

@@ -120,6 +120,7 @@ static int parse_args(int argc, char **argv, grid_args *g)
 {
     memset(g, 0, sizeof *g);
     sc_grid_options_default(&g->opt);
+    g->opt.max_bytes = cli_memory_bytes();
     g->opt.warn = warn_stderr;
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];

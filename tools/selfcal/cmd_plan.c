@@ -77,6 +77,10 @@ static int parse_pair(const char *v, double *a, double *b)
     return sc_parse_double(buf, a) || sc_parse_double(comma + 1, b) ? -1 : 0;
 }
 
+/* Stages of more nodes than this take a second or more per candidate raster: each is announced
+ * on stderr. */
+#define DESIGN_ANNOUNCE_NODES 100000
+
 /* The designer: the largest raster step that identifies G. */
 static int design(int argc, char **argv)
 {
@@ -120,8 +124,12 @@ static int design(int argc, char **argv)
         sc_grid_plan p;
         if (sc_grid_plan_stitch_step(n, (int)sx, (int)sy, step, pitch, ox, oy, &p, &err) != SC_OK)
             break;
+        if (sx * sy > DESIGN_ANNOUNCE_NODES) /* seconds to minutes each: say what is going on */
+            fprintf(stderr, "selfcal: plan --design: trying a raster step of %d (%d placements, "
+                            "%.0f unknowns)\n", step, p.n_views, 2 * sx * sy + 3.0 * p.n_views);
         sc_grid_lsq_plan *q = NULL;
-        sc_grid_lsq_opts only = {.node_sigma_only = 1}; /* what is printed: no σ of O, R */
+        sc_grid_lsq_opts only = {.node_sigma_only = 1, /* what is printed: no σ of O, R */
+                                 .max_bytes = cli_memory_bytes()};
         if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK)
             return cli_report(&err);
         sc_grid_lsq_get_info(q, &bi);
@@ -231,7 +239,7 @@ int cmd_plan(int argc, char **argv)
     const char *in = NULL;
     /* the analysis printed needs every node's σ (the σ_C ratios), not the σ of O, R and the
      * misalignments */
-    sc_grid_lsq_opts opts = {.node_sigma_only = 1};
+    sc_grid_lsq_opts opts = {.node_sigma_only = 1, .max_bytes = cli_memory_bytes()};
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);

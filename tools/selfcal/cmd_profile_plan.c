@@ -128,8 +128,7 @@ static int check_args(plan_args *a)
      * buffers about 200 bytes a point: refused up front where that exceeds the machine's memory
      * (it would be killed there after a long time, or take the machine down with it). */
     double need = 8.0 * (double)a->n * (double)(a->dmax + 1) + 200.0 * (double)a->n;
-    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    double have = pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+    double have = cli_memory_bytes();
     if (have > 0 && need > have)
         return cli_usage_error(cmd, "--n %ld with --d-max %ld needs about %.1f GB, more than this "
                                     "machine's %.1f GB: lower --n or --d-max",

@@ -81,6 +81,7 @@ static sc_status run(grid_report *r, sc_error *err)
         return st;
     sc_grid_options o;
     sc_grid_options_default(&o);
+    o.max_bytes = cli_memory_bytes();
     int m = sc_grid_method_from_name(r->method);
     o.method = m < 0 ? SC_GRID_METHOD_LSQ : (sc_grid_method)m;
     o.sigma_r_um = r->sigma_r_given;

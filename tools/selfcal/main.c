@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "../../libselfcal/src/common/big_alloc.h"
 #include "cli.h"
@@ -60,6 +61,12 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
         return cli_usage_error(cmd, "--max-nodes: 2..%d nodes per axis, not '%s'", SC_LUT_MAX_NX, v);
     *out = (int)n;
     return CLI_OK;
+}
+
+double cli_memory_bytes(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
 }
 
 int cli_parse_seed(const char *cmd, const char *v, uint64_t *out)

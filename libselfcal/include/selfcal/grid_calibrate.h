@@ -50,6 +50,8 @@ typedef struct sc_grid_options {
                                 views are weighted by it and the uncertainties use it. On data
                                 stating uncertainties, a factor on them per view; excludes
                                 sigma_r_um */
+    double max_bytes;        /* least squares: > 0 refuses a plan estimated to need more memory
+                                (sc_grid_lsq_opts.max_bytes); 0: no limit */
     sc_grid_warn_fn warn;    /* warnings (NULL: none) */
     void *warn_ctx;
 } sc_grid_options;

@@ -49,6 +49,9 @@ typedef struct sc_grid_lsq_opts {
     int node_sigma_only;      /* 1: every node's σ and every leverage, but not the σ of O, R and
                                  the misalignments (NaN in sc_grid_result): less work (N = 101:
                                  10 ms of 0.15 s); node σ identical either way. 0: all of them */
+    double max_bytes;         /* > 0: refuse (SC_E_NOMEM, saying how much it needs) a plan whose
+                                 peak memory, estimated from the factor's analysis (about 4x the
+                                 factor), exceeds it, before factoring; 0: no limit */
 } sc_grid_lsq_opts;
 
 /* The outlier test, Baarda's data snooping (docs/grid-lsq.md): on clean data each standardized

@@ -331,7 +331,8 @@ static long worst_outlier(const sc_grid_solution *s, size_t tot)
 /* The least squares' model options from the calibration's. */
 static sc_grid_lsq_opts lsq_opts(const sc_grid_options *o)
 {
-    sc_grid_lsq_opts q = {.drift = o->drift, .node_sigma_only = o->node_sigma_only};
+    sc_grid_lsq_opts q = {.drift = o->drift, .node_sigma_only = o->node_sigma_only,
+                          .max_bytes = o->max_bytes};
     return q;
 }
 

@@ -397,6 +397,18 @@ static int factor_ldl(sc_spsym *s, double tol)
     return 0;
 }
 
+size_t sc_spsym_factor_bytes(const sc_spsym *s)
+{
+    const cholmod_factor *L = s->L;
+    if (L->is_super)
+        return L->xsize * sizeof(double) + L->ssize * sizeof(int) +
+               (L->nsuper + 1) * 3 * sizeof(int);
+    size_t lnz = 0; /* a simplicial analysis: its column counts */
+    for (size_t j = 0; j < L->n; ++j)
+        lnz += (size_t)((const int *)L->ColCount)[j];
+    return lnz * (sizeof(double) + sizeof(int));
+}
+
 int sc_spsym_factor(sc_spsym *s, const double *Ax, double tol)
 {
     int n = s->n;

@@ -57,6 +57,9 @@ typedef struct sc_spsym_hint {
 int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *hint,
                      sc_spsym **out);
 
+/* The bytes the numeric factor will hold, known from the analysis (CHOLMOD's supernodal sizes). */
+size_t sc_spsym_factor_bytes(const sc_spsym *s);
+
 /* Numeric factorization of the values Ax (same layout as the analyzed pattern; borrowed until
  * the next factorization or destroy; matvec uses them).
  * Pivots with d_k <= tol·A_kk are null. Returns 0, or -1 if memory ran out. */
