@@ -280,7 +280,9 @@ static void ref_total(const double in[3], double c[3])
 
 static int ref_outside(double x, double y)
 {
-    return x < S.x0 || x > S.x0 + (S.nx - 1) * S.px || y < S.y0 || y > S.y0 + (S.ny - 1) * S.py;
+    const double tx = SC_CORR_EDGE_TOL * S.px, ty = SC_CORR_EDGE_TOL * S.py;
+    return x < S.x0 - tx || x > S.x0 + (S.nx - 1) * S.px + tx || y < S.y0 - ty ||
+           y > S.y0 + (S.ny - 1) * S.py + ty;
 }
 
 /* Largest |value| (um) in the current table. */
@@ -430,6 +432,36 @@ static void test_clamping_and_status(void **state)
                      SC_CORR_ST_LOADED | SC_CORR_ST_OUTSIDE);
     assert_close(out[0] - in[0], 1e-3 * node_um(S.gx[S.nx - 1], S.gscale_pm), TOL_MM);
     assert_close(out[1] - in[1], 1e-3 * node_um(S.gy[S.nx - 1], S.gscale_pm), TOL_MM);
+}
+
+/* A table whose origin and pitch come from a least-squares fit of 12.7 mm nodes (lut build:
+ * x0 = -38.099999999999994, pitch 12.699999999999998, so x0 + 14 pitches is 4e-14 short of
+ * 139.7): every node, the edge ones too, however its position rounds from nanometres, is inside;
+ * a nanometre beyond the edge is outside. */
+static void test_edge_nodes_inside(void **state)
+{
+    (void)state;
+    make_grid(15, 15, 1, 100, 30000);
+    S.x0 = S.y0 = -38.099999999999994;
+    S.px = S.py = 12.699999999999998;
+    load_ok();
+    for (int i = 0; i < 15; ++i)
+        for (int j = 0; j < 15; ++j) {
+            long x_nm = -38100000L + 12700000L * j, y_nm = -38100000L + 12700000L * i;
+            const double xs[2] = {x_nm * 1e-6, x_nm / 1e6}, ys[2] = {y_nm * 1e-6, y_nm / 1e6};
+            for (int r = 0; r < 2; ++r) {
+                double in[3] = {xs[r], ys[r], 0}, out[3];
+                assert_int_equal(sc_corr_apply(&T, SC_CORR_MEASURE, in, out), SC_CORR_ST_LOADED);
+                assert_close(out[0], in[0] - 1e-3 * node_um(S.gx[i * 15 + j], S.gscale_pm), TOL_MM);
+                assert_close(out[1], in[1] - 1e-3 * node_um(S.gy[i * 15 + j], S.gscale_pm), TOL_MM);
+            }
+        }
+    const double beyond[4][2] = {{-38.100001, 0}, {139.700001, 0}, {0, -38.100001}, {0, 139.700001}};
+    for (int k = 0; k < 4; ++k) {
+        double in[3] = {beyond[k][0], beyond[k][1], 0}, out[3];
+        assert_int_equal(sc_corr_apply(&T, SC_CORR_MEASURE, in, out),
+                         SC_CORR_ST_LOADED | SC_CORR_ST_OUTSIDE);
+    }
 }
 
 static void test_profiles(void **state)
@@ -767,6 +799,7 @@ int main(void)
         cmocka_unit_test(test_between_nodes_bilinear),
         cmocka_unit_test(test_continuity_across_edges),
         cmocka_unit_test(test_clamping_and_status),
+        cmocka_unit_test(test_edge_nodes_inside),
         cmocka_unit_test(test_profiles),
         cmocka_unit_test(test_profile_counts_axes_and_reload),
         cmocka_unit_test(test_invalid_input),

@@ -88,10 +88,19 @@ typedef struct sc_corr_profile {
     sc_corr_value err_um[SC_CORR_MAX_PROFILE_POINTS + 1];
 } sc_corr_profile;
 
+/* The tolerance, in pitches, of the test whether a position is outside the grid: 1e-9 of a pitch
+ * (1.27e-8 mm at 12.7 mm), far below any stage's resolution, far above the rounding of a grid's
+ * edge position (a few 1e-16 of it). */
+#define SC_CORR_EDGE_TOL 1e-9
+
 typedef struct sc_corr_table {
     /* x and y pairs first, 16-byte aligned on hosts so that apply loads each pair at once. */
     double x0_mm SC_CORR_ALIGN16, y0_mm; /* position of node (0, 0) */
-    double x1_mm SC_CORR_ALIGN16, y1_mm; /* position of the last node along x and y, computed at load */
+    /* inside the grid: [in_lo, in_hi] along x and y, the first and last nodes' positions widened
+     * by SC_CORR_EDGE_TOL of a pitch, computed at load (an edge node is inside however its
+     * position rounds: a table's fitted origin and pitch can end the grid 1e-15 mm short) */
+    double in_lo_mm[2] SC_CORR_ALIGN16;
+    double in_hi_mm[2] SC_CORR_ALIGN16;
     double inv_px SC_CORR_ALIGN16, inv_py; /* 1 / pitch, computed at load */
     double lastx SC_CORR_ALIGN16, lasty;   /* nx - 1 and ny - 1 as doubles, computed at load */
     double px_mm, py_mm;   /* pitch along x and y */

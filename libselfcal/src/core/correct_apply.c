@@ -126,8 +126,8 @@ static inline unsigned eval2(const sc_corr_table *t, const double pos[3], v2d xy
                              double *cz)
 {
     const v2d lo = load2(&t->x0_mm);
-    const v2d out = __builtin_ia32_orpd(__builtin_ia32_cmpltpd(xy, lo),
-                                        __builtin_ia32_cmpltpd(load2(&t->x1_mm), xy));
+    const v2d out = __builtin_ia32_orpd(__builtin_ia32_cmpltpd(xy, load2(t->in_lo_mm)),
+                                        __builtin_ia32_cmpltpd(load2(t->in_hi_mm), xy));
     const unsigned outside = (unsigned)__builtin_ia32_movmskpd(out);
     v2d f;
     const uint64_t ji = cell2((xy - lo) * load2(&t->inv_px), load2(&t->lastx), &f);
@@ -173,8 +173,8 @@ static inline unsigned eval_um(const sc_corr_table *t, double x, double y, doubl
     c_um[1] = cxy[1];
     return st;
 #else
-    const unsigned outside = (unsigned)(x < t->x0_mm) | (unsigned)(x > t->x1_mm) |
-                             (unsigned)(y < t->y0_mm) | (unsigned)(y > t->y1_mm);
+    const unsigned outside = (unsigned)(x < t->in_lo_mm[0]) | (unsigned)(x > t->in_hi_mm[0]) |
+                             (unsigned)(y < t->in_lo_mm[1]) | (unsigned)(y > t->in_hi_mm[1]);
     /* Clamping the node coordinate to [0, last] is clamping the position to the grid's edges. */
     double fx, fy;
     const int32_t j = cell((x - t->x0_mm) * t->inv_px, t->lastx, &fx);

@@ -220,8 +220,10 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
     t->py_mm = L.py;
     t->inv_px = 1.0 / L.px;
     t->inv_py = 1.0 / L.py;
-    t->x1_mm = L.x1;
-    t->y1_mm = L.y1;
+    t->in_lo_mm[0] = L.x0 - SC_CORR_EDGE_TOL * L.px;
+    t->in_lo_mm[1] = L.y0 - SC_CORR_EDGE_TOL * L.py;
+    t->in_hi_mm[0] = L.x1 + SC_CORR_EDGE_TOL * L.px;
+    t->in_hi_mm[1] = L.y1 + SC_CORR_EDGE_TOL * L.py;
     t->lastx = (double)(nx - 1);
     t->lasty = (double)(ny - 1);
     const double gum = (double)L.gscale * 1e-6;

@@ -455,7 +455,9 @@ bool sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um
     }
     double x1 = lut->x0_mm + lut->px_mm * (lut->nx - 1);
     double y1 = lut->y0_mm + lut->py_mm * (lut->ny - 1);
-    bool outside = x_mm < lut->x0_mm || x_mm > x1 || y_mm < lut->y0_mm || y_mm > y1;
+    double tx = SC_CORR_EDGE_TOL * lut->px_mm, ty = SC_CORR_EDGE_TOL * lut->py_mm; /* correct.h */
+    bool outside = x_mm < lut->x0_mm - tx || x_mm > x1 + tx || y_mm < lut->y0_mm - ty ||
+                   y_mm > y1 + ty;
     double x = fmin(fmax(x_mm, lut->x0_mm), x1), y = fmin(fmax(y_mm, lut->y0_mm), y1);
     double fx, fy;
     int j = cell_of((x - lut->x0_mm) / lut->px_mm, lut->nx, &fx);
