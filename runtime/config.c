@@ -22,7 +22,8 @@ const char sc_config_usage[] =
     "  --can IFACE                   SocketCAN raw (ids 0x100 in, 0x101 out, 0x102 status)\n"
     "options:\n"
     "  --config FILE                 read 'key = value' lines (keys = these long options)\n"
-    "  --mode measure|position       measure: p - G(p) (default); position: t + G(t)\n"
+    "  --mode measure|position       measure: p - G(p) - profile offsets (default);\n"
+    "                                position: t + G(t) + profile offsets\n"
     "  --unit-id N                   Modbus unit id (default 1)\n"
     "  --word-order high-first|low-first   32-bit word order (default high-first)\n"
     "  --max-connections N           Modbus TCP connection cap (default 64); at the cap a new\n"
@@ -37,6 +38,8 @@ const char sc_config_usage[] =
     "  --syslog                      log to syslog instead of stderr\n"
     "  --syslog-socket PATH          the syslog datagram socket (/dev/log)\n"
     "  --log-level error|warning|notice|info|debug  (default info)\n"
+    "  --version, --help\n"
+    "numbers are decimal (a leading 0 is not octal); CAN ids also 0x...\n"
     "signals: SIGHUP reloads the table (kept if the new one is invalid); SIGTERM/SIGINT stop.\n";
 
 void sc_config_defaults(sc_config *c)
@@ -57,13 +60,18 @@ void sc_config_defaults(sc_config *c)
     c->log_level = SC_LOG_INFO;
 }
 
-static sc_status parse_ulong(const char *s, unsigned long max, unsigned long *out)
+/* A whole number in 0..max: decimal (a leading 0 is not octal: "01502" is 1502), or with
+ * hex = 1 also 0x... (the CAN ids). */
+static sc_status parse_ulong(const char *s, unsigned long max, int hex, unsigned long *out)
 {
-    if (s == NULL || *s == '\0' || *s == '-' || isspace((unsigned char)*s))
+    if (s == NULL || *s == '\0' || *s == '-' || *s == '+' || isspace((unsigned char)*s))
+        return SC_E_INPUT;
+    int is_hex = s[0] == '0' && (s[1] == 'x' || s[1] == 'X');
+    if (is_hex && (!hex || !isxdigit((unsigned char)s[2])))
         return SC_E_INPUT;
     char *end = NULL;
     errno = 0;
-    unsigned long v = strtoul(s, &end, 0); /* decimal, or 0x... for CAN ids */
+    unsigned long v = strtoul(is_hex ? s + 2 : s, &end, is_hex ? 16 : 10);
     if (errno != 0 || end == s || *end != '\0' || v > max)
         return SC_E_INPUT;
     *out = v;
@@ -86,7 +94,7 @@ static sc_status parse_host_port(sc_config *c, const char *v, sc_error *err)
 {
     const char *colon = strrchr(v, ':');
     unsigned long port;
-    if (colon == NULL || parse_ulong(colon + 1, 65535, &port) != 0)
+    if (colon == NULL || parse_ulong(colon + 1, 65535, 0, &port) != 0)
         BAD("--modbus-tcp: expected HOST:PORT, got '%s'", v);
     size_t hl = (size_t)(colon - v);
     if (hl >= 2 && v[0] == '[' && v[hl - 1] == ']') { /* [IPv6]:PORT */
@@ -134,7 +142,7 @@ static sc_status parse_rtu(sc_config *c, const char *v, sc_error *err)
         unsigned long n;
         switch (field) {
         case 0:
-            if (parse_ulong(rest, 4000000, &n) != 0 || n < 50)
+            if (parse_ulong(rest, 4000000, 0, &n) != 0 || n < 50)
                 BAD("--modbus-rtu: bad baud rate '%s'", rest);
             c->rtu.baud = (int)n;
             break;
@@ -144,12 +152,12 @@ static sc_status parse_rtu(sc_config *c, const char *v, sc_error *err)
             c->rtu.parity = (char)toupper((unsigned char)rest[0]);
             break;
         case 2:
-            if (parse_ulong(rest, 8, &n) != 0 || n < 5)
+            if (parse_ulong(rest, 8, 0, &n) != 0 || n < 5)
                 BAD("--modbus-rtu: data bits must be 5..8, got '%s'", rest);
             c->rtu.data_bits = (int)n;
             break;
         case 3:
-            if (parse_ulong(rest, 2, &n) != 0 || n < 1)
+            if (parse_ulong(rest, 2, 0, &n) != 0 || n < 1)
                 BAD("--modbus-rtu: stop bits must be 1 or 2, got '%s'", rest);
             c->rtu.stop_bits = (int)n;
             break;
@@ -191,10 +199,13 @@ typedef struct {
     field_kind kind;
     const char *expect; /* the range as the message words it; NULL: "min..max" */
     const char *note;   /* after the range in the message, or "" */
+    int hex;            /* 0x... accepted too (the CAN ids) */
 } numeric_option;
 
 #define NUMERIC(key, lo, hi, field, kind, expect, note)                                        \
-    { key, lo, hi, offsetof(sc_config, field), kind, expect, note }
+    { key, lo, hi, offsetof(sc_config, field), kind, expect, note, 0 }
+#define CAN_ID(key, field)                                                                     \
+    { key, 0, 0x7ff, offsetof(sc_config, field), FIELD_U32, "an 11-bit id (0..0x7ff)", "", 1 }
 
 static const numeric_option numeric_options[] = {
     NUMERIC("max-connections", 1, SC_MBTCP_MAX_CONN, tcp.max_connections, FIELD_INT, NULL, ""),
@@ -204,9 +215,9 @@ static const numeric_option numeric_options[] = {
     NUMERIC("idle-timeout-ms", 0, 86400000, tcp.idle_timeout_ms, FIELD_U32, NULL, ""),
     NUMERIC("busy-poll-us", 0, 1000000, busy_poll_us, FIELD_U32, NULL, ""),
     NUMERIC("rtu-byte-timeout-ms", 1, 60000, rtu.byte_timeout_ms, FIELD_U32, NULL, ""),
-    NUMERIC("can-in-id", 0, 0x7ff, can.in_id, FIELD_U32, "an 11-bit id (0..0x7ff)", ""),
-    NUMERIC("can-out-id", 0, 0x7ff, can.out_id, FIELD_U32, "an 11-bit id (0..0x7ff)", ""),
-    NUMERIC("can-status-id", 0, 0x7ff, can.status_id, FIELD_U32, "an 11-bit id (0..0x7ff)", ""),
+    CAN_ID("can-in-id", can.in_id),
+    CAN_ID("can-out-id", can.out_id),
+    CAN_ID("can-status-id", can.status_id),
     NUMERIC("can-status-period-ms", 10, 3600000, can.status_period_ms, FIELD_U32, NULL, ""),
 };
 
@@ -214,7 +225,7 @@ static sc_status set_numeric(sc_config *c, const numeric_option *o, const char *
                              sc_error *err)
 {
     unsigned long n;
-    if (parse_ulong(value, o->max, &n) != SC_OK || n < o->min) {
+    if (parse_ulong(value, o->max, o->hex, &n) != SC_OK || n < o->min) {
         if (o->expect != NULL)
             BAD("--%s: expected %s, got '%s'", o->key, o->expect, value);
         BAD("--%s: expected %lu..%lu%s, got '%s'", o->key, o->min, o->max, o->note, value);
@@ -266,7 +277,7 @@ static sc_status set_mode(sc_config *c, const char *value, sc_error *err)
 static sc_status set_unit_id(sc_config *c, const char *value, sc_error *err)
 {
     unsigned long n;
-    if (parse_ulong(value, 255, &n) != SC_OK)
+    if (parse_ulong(value, 255, 0, &n) != SC_OK)
         BAD("--unit-id: expected 0..255, got '%s'", value);
     c->tcp.unit_id = (uint8_t)n; /* one unit id for both Modbus transports */
     c->rtu.unit_id = (uint8_t)n;

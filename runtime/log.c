@@ -101,6 +101,11 @@ void sc_log_open_at(int use_syslog, int max_level, const char *syslog_path)
     g_syslog_fd = fd;
 }
 
+int sc_log_to_syslog(void)
+{
+    return g_syslog_fd >= 0;
+}
+
 void sc_log_close(void)
 {
     if (g_syslog_fd >= 0)

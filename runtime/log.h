@@ -31,6 +31,9 @@ void sc_log(int level, const char *fmt, ...)
 
 void sc_log_close(void);
 
+/* 1 if lines go to syslog (not stderr). */
+int sc_log_to_syslog(void);
+
 /* Lines dropped since start (rate limit, or a sink that would have blocked). */
 uint64_t sc_log_dropped(void);
 

@@ -18,6 +18,15 @@
 static sc_config g_cfg;
 static sc_daemon g_daemon;
 
+/* A failure to start: logged, and on stderr too when the log goes to syslog (whoever started
+ * the daemon by hand sees why it exited). */
+static void start_failed(const char *why)
+{
+    sc_log(SC_LOG_ERR, "%s", why);
+    if (sc_log_to_syslog())
+        fprintf(stderr, "selfcald: %s\n", why);
+}
+
 int main(int argc, char **argv)
 {
     sc_error err;
@@ -68,13 +77,13 @@ int main(int argc, char **argv)
 #endif
     }
     if (sc_daemon_catch_signals(&g_daemon) != 0) {
-        sc_log(SC_LOG_ERR, "cannot set up signal handling");
+        start_failed("cannot set up signal handling");
         return 1;
     }
     sc_status st = sc_daemon_start(&g_daemon, &err);
     if (st != SC_OK) {
         sc_error_format(&err, why, sizeof why);
-        sc_log(SC_LOG_ERR, "%s", why);
+        start_failed(why);
         sc_notify("STATUS=start failed");
         return st == SC_E_INPUT ? 2 : 1; /* 2: bad table; 1: a transport could not open */
     }

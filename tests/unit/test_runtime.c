@@ -205,7 +205,7 @@ static void test_engine_reload(void **state)
     int32_t ax, ay, bx, by;
     sc_engine_correct(&e, 700000, -300000, &ax, &ay);
     /* Missing file: keep the table, say so in the status. */
-    assert_int_equal(sc_engine_load_file(&e, "/nonexistent/t.lut", &why), SC_E_IO);
+    assert_int_equal(sc_engine_load_file(&e, "/nonexistent/t.lut", &why), SC_E_INPUT); /* bad input */
     assert_non_null(strstr(err_text(&why), "/nonexistent/t.lut"));
     assert_ptr_equal(e.table, first);
     assert_true(e.status & SC_ENGINE_ST_RELOAD_FAILED);
@@ -326,6 +326,24 @@ static void test_config(void **state)
     char *argv8[] = {"selfcald", "--table", "t.lut", "--busy-poll-us", "2000000", NULL};
     sc_config_defaults(&c);
     assert_int_equal(sc_config_parse_args(&c, 5, argv8, &help, &version, &why), SC_E_INPUT);
+    /* Numbers are decimal, leading zeros and all (never octal); only CAN ids take 0x... */
+    char *argv9[] = {"selfcald", "--table", "t.lut", "--modbus-tcp", "127.0.0.1:015030",
+                     "--unit-id", "010", "--can-in-id", "0x101", "--can-out-id", "0102", NULL};
+    sc_config_defaults(&c);
+    assert_int_equal(sc_config_parse_args(&c, 11, argv9, &help, &version, &why), SC_OK);
+    assert_int_equal(c.tcp.port, 15030);
+    assert_int_equal(c.tcp.unit_id, 10);
+    assert_int_equal(c.can.in_id, 0x101);
+    assert_int_equal(c.can.out_id, 102);
+    const char *not_numbers[][2] = {{"--unit-id", "0x10"}, {"--modbus-tcp", "127.0.0.1:0x3ab0"},
+                                    {"--byte-timeout-ms", "0x10"}, {"--can-in-id", "0x"},
+                                    {"--can-in-id", "0x-1"}, {"--unit-id", "+5"}};
+    for (size_t k = 0; k < sizeof not_numbers / sizeof not_numbers[0]; ++k) {
+        char *argv10[] = {"selfcald", "--table", "t.lut", (char *)not_numbers[k][0],
+                          (char *)not_numbers[k][1], NULL};
+        sc_config_defaults(&c);
+        assert_int_equal(sc_config_parse_args(&c, 5, argv10, &help, &version, &why), SC_E_INPUT);
+    }
 }
 
 static sc_daemon g_d;

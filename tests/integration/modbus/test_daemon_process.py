@@ -139,6 +139,14 @@ try:
     p.send_signal(signal.SIGTERM)
     check(p.wait(5) == 0, "exit status with --syslog")
     check(p.stderr.read() == "", "logged to stderr despite --syslog")
+    # a failure to start goes to syslog and, for whoever started it, to stderr too
+    rc, err = status(["--table", os.path.join(work, "missing.lut"), "--modbus-tcp",
+                      "127.0.0.1:0", "--syslog", "--syslog-socket", log_path])
+    check(rc == 2 and err.count("missing.lut") == 1, f"start failure with --syslog: {rc} {err}")
+    got = ls.recv(2048).decode()
+    while "missing.lut" not in got:
+        got = ls.recv(2048).decode()
+    check(got.startswith("<27>"), f"an error in facility daemon is <27>: {got}")
 finally:
     if p.poll() is None:
         p.kill()
