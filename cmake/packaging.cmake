@@ -1,5 +1,6 @@
 # Packages with CPack: `cpack -G DEB` (selfcal_<version>_<arch>.deb, installs under /usr) and
-# `cpack -G TGZ` (selfcal-<version>-Linux.tar.gz, the install tree), from a configured build:
+# `cpack -G TGZ` (selfcal-<version>-Linux.tar.gz, a /usr/local tree: cmake/cpack_generator.cmake),
+# from a configured build:
 #   cmake --build BUILD && (cd BUILD && cpack -G "DEB;TGZ")
 set(CPACK_PACKAGE_NAME selfcal)
 set(CPACK_PACKAGE_VENDOR "selfcal")
@@ -14,8 +15,13 @@ set(CPACK_GENERATOR "DEB;TGZ")
 set(CPACK_SOURCE_GENERATOR "")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
-# The shared libraries the programs and libselfcal.so need (Debian 12 names).
-set(CPACK_DEBIAN_PACKAGE_DEPENDS "libc6, libfftw3-double3, libmodbus5, libcholmod3")
+# The shared libraries the programs and libselfcal.so link, with the versions they need, from
+# dpkg-shlibdeps (dpkg-dev); libcholmod3 is loaded at run time (dlopen), so it is named here.
+set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON) # a shlibs file for libselfcal.so.<major>: a
+set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS_POLICY ">=") # package linking it needs this version or later
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "libcholmod3")
+set(CPACK_PROJECT_CONFIG_FILE ${CMAKE_CURRENT_LIST_DIR}/cpack_generator.cmake)
 # linuxcnc-uspace: the HAL component selfcal_xy (in /usr/lib/linuxcnc/modules, when built) runs
 # only inside LinuxCNC, built against the LinuxCNC version of the build machine.
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "libfftw3-dev, pkg-config, linuxcnc-uspace")

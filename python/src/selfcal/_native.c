@@ -14,6 +14,7 @@
 #include <numpy/arrayobject.h>
 
 #include <limits.h>
+#include <stdarg.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,6 +33,18 @@
 #include "selfcal/version.h"
 
 static PyObject *sc_py_error; /* selfcal.Error, a ValueError */
+
+/* selfcal.Error with a printf message: PyErr_Format knows no %g, which numbers need. */
+static void error_printf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static void error_printf(const char *fmt, ...)
+{
+    char msg[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    PyErr_SetString(sc_py_error, msg);
+}
 
 /* Raise selfcal.Error with the library's one-line message ("file:line: reason"), the same text
  * the command line prints after "selfcal: ". Out-of-memory becomes MemoryError, I/O OSError. */
@@ -124,8 +137,7 @@ static int opt_noise(PyObject *o, const char *what, double *v)
     if (*v == -1.0 && PyErr_Occurred())
         return -1;
     if (!(*v >= 0) || !isfinite(*v)) {
-        PyErr_Format(sc_py_error, "%s must be a finite number >= 0 (None: not given), got %g", what,
-                     *v);
+        error_printf("%s must be a finite number >= 0 (None: not given), got %g", what, *v);
         return -1;
     }
     return 0;
@@ -416,8 +428,8 @@ static PyObject *py_profile_simulate(PyObject *self, PyObject *args)
             goto done;
     } else {
         if (harmonics < 1 || harmonics > 100000 || !(amp >= 0) || !isfinite(amp)) {
-            PyErr_Format(sc_py_error, "harmonics must be 1..100000 and amp_um a finite number >= 0 "
-                                      "(as the command line's), got %d and %g", harmonics, amp);
+            error_printf("harmonics must be 1..100000 and amp_um a finite number >= 0 (as the "
+                         "command line's), got %d and %g", harmonics, amp);
             goto done;
         }
         sc_profile_sim_random_truth(&p, amp, harmonics, fv);

@@ -136,7 +136,8 @@ def case_install():
     for rel in ("bin/selfcal", "bin/selfcald", "include/selfcal/version.h", "include/selfcal/grid_lsq.h",
                 "include/selfcal/api.h", "share/man/man1/selfcal.1", "share/man/man8/selfcald.8",
                 "lib/systemd/system/selfcald.service", "share/doc/selfcal/selfcald.conf.example",
-                "share/doc/selfcal/examples/grid_node.c"):
+                "share/doc/selfcal/examples/grid_node.c",
+                "share/doc/selfcal/examples/python/calibrate_stage.py"):
         check(os.path.isfile(os.path.join(prefix, rel)), "installed %s" % rel)
     for rel in ("libselfcal.so", "libselfcal.a", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
                 "cmake/selfcal/selfcalConfigVersion.cmake"):
@@ -181,8 +182,13 @@ def case_install():
     src = os.path.join(work, "src")
     shutil.copytree(os.path.join(prefix, "share/doc/selfcal/examples"), src)
     cflags = "-O2 -Wall -Wextra -Werror " + XFLAGS
-    run(["make", "-C", src, "grid_node", "grid_node_static", "CFLAGS=" + cflags, "LDFLAGS=" + XFLAGS],
-        env=clean_env(PKG_CONFIG_PATH=os.path.join(libdir, "pkgconfig")))
+    # PKG_CONFIG_PATH on make's command line, as the Makefile says (make < 4.4 does not hand such
+    # a variable to $(shell) by itself); `make clean` runs no pkg-config
+    run(["make", "-C", src, "grid_node", "grid_node_static", "CFLAGS=" + cflags, "LDFLAGS=" + XFLAGS,
+         "PKG_CONFIG_PATH=" + os.path.join(libdir, "pkgconfig")], env=clean_env())
+    p = run(["make", "-C", os.path.join(prefix, "share/doc/selfcal/examples"), "-n", "clean"],
+            env=clean_env(), ok=False)
+    check(p.returncode == 0 and p.stderr == "", "make clean runs no pkg-config: %r" % p.stderr)
     check_example_output(os.path.join(src, "grid_node"), inp, rows, "example via pkg-config (shared)")
     check_example_output(os.path.join(src, "grid_node_static"), inp, rows, "example via pkg-config (static)")
     ldd = run(["ldd", os.path.join(src, "grid_node_static")]).stdout
@@ -193,6 +199,23 @@ def case_install():
     run(["cmake", "--build", build], env=clean_env())
     check_example_output(os.path.join(build, "grid_node"), inp, rows, "example via find_package (shared)")
     check_example_output(os.path.join(build, "grid_node_static"), inp, rows, "example via find_package (static)")
+    # the shared library needs neither FFTW's development files nor pkg-config (a .deb-only
+    # machine): pkg-config and find_package with no fftw3.pc to be found
+    nofftw = fresh(os.path.join(work, "no-pc"))
+    env = clean_env(PKG_CONFIG_LIBDIR=nofftw, PKG_CONFIG_PATH=os.path.join(libdir, "pkgconfig"))
+    p = run(["pkg-config", "--cflags", "--libs", "selfcal"], env=env, ok=False)
+    check(p.returncode == 0 and "-lselfcal" in p.stdout, "pkg-config without fftw3.pc: %r" % p.stderr)
+    shared_src = fresh(os.path.join(work, "shared-only"))
+    shutil.copy(os.path.join(src, "grid_node.c"), shared_src)
+    with open(os.path.join(shared_src, "CMakeLists.txt"), "w") as f:
+        f.write("cmake_minimum_required(VERSION 3.20)\nproject(shared_only C)\n"
+                "find_package(selfcal CONFIG REQUIRED)\nadd_executable(grid_node grid_node.c)\n"
+                "target_link_libraries(grid_node PRIVATE selfcal::selfcal)\n")
+    build = os.path.join(work, "shared-only-build")
+    run(["cmake", "-S", shared_src, "-B", build, "-DCMAKE_PREFIX_PATH=" + prefix, "-DCMAKE_C_FLAGS=" + cflags,
+         "-DCMAKE_EXE_LINKER_FLAGS=" + XFLAGS], env=env)
+    run(["cmake", "--build", build], env=env)
+    check_example_output(os.path.join(build, "grid_node"), inp, rows, "find_package without FFTW's files")
     # the complete example of README.md ("Using the library"), as printed there
     readme = open(os.path.join(SRC, "README.md")).read()
     m = re.search(r"^## Using the library$.*?^```c\n(.*?)^```$", readme, re.M | re.S)
@@ -224,7 +247,10 @@ def case_deb():
         return
     info = run(["dpkg-deb", "-f", debs[0]]).stdout
     check(re.search(r"^Package: selfcal$", info, re.M), "deb Package: selfcal")
-    check(re.search(r"^Depends: .*libfftw3", info, re.M), "deb depends on FFTW")
+    check(re.search(r"^Depends: .*libfftw3-double3 \(>= [0-9.]+\)", info, re.M) and
+          re.search(r"^Depends: .*libcholmod3", info, re.M) and
+          re.search(r"^Depends: .*libc6 \(>= 2\.[0-9]+\)", info, re.M),
+          "deb depends on FFTW, libc (versioned) and CHOLMOD: %r" % re.findall(r"^Depends:.*$", info, re.M))
     root = fresh(os.path.join(WORK, "deb-root"))
     run(["dpkg-deb", "-x", debs[0], root])
     bindir = os.path.join(root, "usr", "bin")
@@ -251,8 +277,14 @@ def case_deb():
     check(p.stdout.startswith("identifiable: yes"), "plan from the .deb: %r" % p.stdout[:80])
     with tarfile.open(tgzs[0]) as t:
         names = t.getnames()
-    check(any(n.endswith("/bin/selfcal") for n in names) and any(n.endswith("/bin/selfcald") for n in names),
-          ".tar.gz holds bin/selfcal and bin/selfcald")
+        units = [n for n in names if n.endswith("/selfcald.service")]
+        unit = t.extractfile(units[0]).read().decode() if len(units) == 1 else ""
+    names = [n[2:] if n.startswith("./") else n for n in names]
+    check("usr/local/bin/selfcal" in names and "usr/local/bin/selfcald" in names,
+          ".tar.gz is a /usr/local tree holding bin/selfcal and bin/selfcald: %r" % names[:5])
+    check(re.search(r"^ExecStart=/usr/local/bin/selfcald --config /usr/local/etc/selfcal/selfcald.conf$",
+                    unit, re.M) and "_CPack_Packages" not in unit,
+          ".tar.gz unit names /usr/local paths: %r" % re.findall(r"^ExecStart=.*$", unit, re.M))
 
 
 {"install": case_install, "deb": case_deb}[CASE]()
