@@ -18,6 +18,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "selfcal/correct.h"
 #include "selfcal/error.h"
@@ -33,6 +34,13 @@
 #include "selfcal/version.h"
 
 static PyObject *sc_py_error; /* selfcal.Error, a ValueError */
+
+/* This machine's physical memory in bytes (0: unknown): the grid solver's limit, as the CLI's. */
+static double memory_bytes(void)
+{
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+}
 
 /* selfcal.Error with a printf message: PyErr_Format knows no %g, which numbers need. */
 static void error_printf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -262,7 +270,10 @@ static int profile_source(PyObject *src, sc_profile_data *d)
         return profile_from_dict(src, d);
     sc_error err;
     sc_error_clear(&err);
-    sc_status st = sc_profile_read(PyBytes_AS_STRING(path), d, &err);
+    sc_status st;
+    Py_BEGIN_ALLOW_THREADS
+    st = sc_profile_read(PyBytes_AS_STRING(path), d, &err);
+    Py_END_ALLOW_THREADS
     Py_DECREF(path);
     if (st != SC_OK) {
         raise_sc(&err);
@@ -296,7 +307,11 @@ static PyObject *py_profile_write(PyObject *self, PyObject *args)
     if (profile_from_dict(dict, &d) == 0) {
         sc_error err;
         sc_error_clear(&err);
-        if (sc_profile_write(PyBytes_AS_STRING(pathobj), &d, &err) != SC_OK)
+        sc_status st;
+        Py_BEGIN_ALLOW_THREADS
+        st = sc_profile_write(PyBytes_AS_STRING(pathobj), &d, &err);
+        Py_END_ALLOW_THREADS
+        if (st != SC_OK)
             raise_sc(&err);
         else
             ret = Py_NewRef(Py_None);
@@ -796,7 +811,11 @@ static int grid_source(PyObject *src, sc_grid_data *d, sc_grid_file_info *info, 
         return data_from_dict(src, d);
     sc_error err;
     sc_error_clear(&err);
-    if (sc_grid_read(PyBytes_AS_STRING(path), d, info, &err) != SC_OK) {
+    sc_status st;
+    Py_BEGIN_ALLOW_THREADS
+    st = sc_grid_read(PyBytes_AS_STRING(path), d, info, &err);
+    Py_END_ALLOW_THREADS
+    if (st != SC_OK) {
         Py_DECREF(path);
         raise_sc(&err);
         return -1;
@@ -912,9 +931,11 @@ done:
     return ret;
 }
 
-/* Warnings of the calibration collected into a Python list. */
+/* Warnings of the calibration collected into a Python list; called during the solve, which runs
+ * without the GIL: taken for the append. */
 static void warn_collect(void *ctx, const char *msg)
 {
+    PyGILState_STATE g = PyGILState_Ensure();
     PyObject *s = PyUnicode_DecodeUTF8(msg, (Py_ssize_t)strlen(msg), "replace");
     if (s) {
         PyList_Append((PyObject *)ctx, s);
@@ -922,6 +943,7 @@ static void warn_collect(void *ctx, const char *msg)
     } else {
         PyErr_Clear();
     }
+    PyGILState_Release(g);
 }
 
 /* The per-view scalars of a result as a (views,) array. */
@@ -1010,12 +1032,17 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     memset(&s, 0, sizeof s);
     if (!warnings)
         goto done;
-    o.warn = warn_collect; /* called with the GIL held: the solve below keeps it */
+    o.warn = warn_collect; /* takes the GIL for each warning */
     o.warn_ctx = warnings;
+    o.max_bytes = memory_bytes(); /* a plan too large for the machine: refused, saying so */
     sc_error err;
     sc_error_clear(&err);
     const char *pth = path ? PyBytes_AS_STRING(path) : NULL;
-    if (sc_grid_calibrate(&d, path ? &info : NULL, pth, &o, &s, &err) != SC_OK) {
+    sc_status st;
+    Py_BEGIN_ALLOW_THREADS /* other Python threads run during the solve */
+    st = sc_grid_calibrate(&d, path ? &info : NULL, pth, &o, &s, &err);
+    Py_END_ALLOW_THREADS
+    if (st != SC_OK) {
         if (!err.file[0] && pth && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
             snprintf(err.file, sizeof err.file, "%s", pth);
             if (!err.line)
