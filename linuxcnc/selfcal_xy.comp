@@ -41,6 +41,7 @@ variable int corr_mode; /* this instance's sc_corr_mode */
 /* The correction core, compiled into the module before the pin macros below exist. */
 include "selfcal/correct.h";
 include "correct_load.c";
+include "correct_explain.c";
 include "correct_apply.c";
 
 license "MIT";
@@ -99,7 +100,7 @@ static int selfcal_xy_load(const char *path)
         int code = sc_corr_load(&selfcal_table, buf, n);
         if (code != SC_CORR_OK) {
             rtapi_print_msg(RTAPI_MSG_ERR, "selfcal_xy: table=%s: not a valid table: %s\n", path,
-                            sc_corr_strerror(code));
+                            sc_corr_explain(buf, n));
             rc = -EINVAL;
         }
     }

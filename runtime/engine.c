@@ -75,7 +75,7 @@ sc_status sc_engine_load_file(sc_engine *e, const char *path, sc_error *err)
         int code = sc_corr_load(spare, g_filebuf, len);
         if (code != SC_CORR_OK)
             st = sc_error_set(err, SC_E_INPUT, path, 0, "not a valid table: %s",
-                              sc_corr_strerror(code));
+                              sc_corr_explain(g_filebuf, len));
     }
     if (st != SC_OK) {
         e->reload_failed++;

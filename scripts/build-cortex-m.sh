@@ -23,7 +23,12 @@ if [ ! -f "$build/CMakeCache.txt" ]; then
   cmake -S "$here/tests/cortex-m" -B "$build" "${generator[@]}" \
     -DCMAKE_TOOLCHAIN_FILE="$here/cmake/arm-none-eabi.cmake" -DCMAKE_BUILD_TYPE=MinSizeRel >/dev/null
 fi
-cmake --build "$build" >/dev/null
+# quiet when it builds; the compiler's messages when it does not
+if ! out=$(cmake --build "$build" 2>&1); then
+  printf '%s\n' "$out" >&2
+  echo "build-cortex-m: the Cortex-M4 build failed" >&2
+  exit 1
+fi
 
 if [ "$run_tests" -eq 0 ]; then
   echo "== correction core for Cortex-M4F ($(arm-none-eabi-gcc -dumpversion), -Os -mthumb -mfloat-abi=hard -mfpu=fpv4-sp-d16)"

@@ -7,6 +7,7 @@ selfcal_unit_test(NAME test_core SOURCES unit/test_core.c LIBS selfcal_static LA
 selfcal_unit_test(NAME test_core_scalar SOURCES unit/test_core.c
   ${CMAKE_SOURCE_DIR}/libselfcal/src/core/correct_apply.c
   ${CMAKE_SOURCE_DIR}/libselfcal/src/core/correct_load.c
+  ${CMAKE_SOURCE_DIR}/libselfcal/src/core/correct_explain.c
   LIBS selfcal_static LABELS core TIMEOUT 60)
 target_compile_definitions(test_core_scalar PRIVATE SC_CORR_SCALAR=1)
 

@@ -671,6 +671,15 @@ static void test_every_bit_flip_and_truncation(void **state)
         assert_int_equal(T.loaded, (want) == SC_CORR_OK ? 1 : 0);         \
     } while (0)
 
+/* Refused with code want, sc_corr_explain naming the field (its text contains `what`). */
+#define EXPECT_REFUSED(want, what)                                        \
+    do {                                                                  \
+        size_t len_ = write_image();                                      \
+        assert_int_equal(sc_corr_load(&T, img, len_), (want));            \
+        assert_int_equal(T.loaded, 0);                                    \
+        assert_non_null(strstr(sc_corr_explain(img, len_), (what)));      \
+    } while (0)
+
 static void base_spec(void)
 {
     make_grid(4, 3, 1, 100, 30000);
@@ -682,26 +691,26 @@ static void test_semantic_errors(void **state)
     (void)state;
     base_spec();
     EXPECT_LOAD(SC_CORR_OK);
-    base_spec(); S.nx = 1; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.ny = 0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.px = 0.0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.py = -1.0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.x0 = make_nan(); EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.y0 = make_inf(); EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.px = make_nan(); EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.x0 = 2e6; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.genc = 3; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.gscale_pm = 0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].axis = 3; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].dir = 7; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].n = 1; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].step = 0.0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].start = make_nan(); EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].enc = 0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.p[0].scale_pm = 0; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.sigma = make_nan(); EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.nsrc = 10; EXPECT_LOAD(SC_CORR_E_RANGE);
-    base_spec(); S.np = 9; EXPECT_LOAD(SC_CORR_E_RANGE);
+    base_spec(); S.nx = 1; EXPECT_REFUSED(SC_CORR_E_RANGE, "fewer than 2 nodes");
+    base_spec(); S.ny = 0; EXPECT_REFUSED(SC_CORR_E_RANGE, "fewer than 2 nodes");
+    base_spec(); S.px = 0.0; EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's pitch");
+    base_spec(); S.py = -1.0; EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's pitch");
+    base_spec(); S.x0 = make_nan(); EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's origin");
+    base_spec(); S.y0 = make_inf(); EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's origin");
+    base_spec(); S.px = make_nan(); EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's pitch");
+    base_spec(); S.x0 = 2e6; EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's origin");
+    base_spec(); S.genc = 3; EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's value encoding");
+    base_spec(); S.gscale_pm = 0; EXPECT_REFUSED(SC_CORR_E_RANGE, "grid's value scale");
+    base_spec(); S.p[0].axis = 3; EXPECT_REFUSED(SC_CORR_E_RANGE, "axis or dir");
+    base_spec(); S.p[0].dir = 7; EXPECT_REFUSED(SC_CORR_E_RANGE, "axis or dir");
+    base_spec(); S.p[0].n = 1; EXPECT_REFUSED(SC_CORR_E_RANGE, "fewer than 2 points");
+    base_spec(); S.p[0].step = 0.0; EXPECT_REFUSED(SC_CORR_E_RANGE, "profile's step");
+    base_spec(); S.p[0].start = make_nan(); EXPECT_REFUSED(SC_CORR_E_RANGE, "profile's start");
+    base_spec(); S.p[0].enc = 0; EXPECT_REFUSED(SC_CORR_E_RANGE, "profile's value encoding");
+    base_spec(); S.p[0].scale_pm = 0; EXPECT_REFUSED(SC_CORR_E_RANGE, "profile's value scale");
+    base_spec(); S.sigma = make_nan(); EXPECT_REFUSED(SC_CORR_E_RANGE, "provenance's sigma");
+    base_spec(); S.nsrc = 10; EXPECT_REFUSED(SC_CORR_E_RANGE, "more than 9 sources");
+    base_spec(); S.np = 9; EXPECT_REFUSED(SC_CORR_E_RANGE, "more than 8 profiles");
     base_spec(); S.sigma = 0.05; S.nsrc = 9; EXPECT_LOAD(SC_CORR_OK);
 
     /* Raw edits of fields the writer always fills correctly, with the CRC recomputed. */
@@ -723,14 +732,20 @@ static void test_semantic_errors(void **state)
     base_spec(); len = write_image(); img[prov + 50] = 1; fix_crc(len);
     assert_int_equal(sc_corr_load(&T, img, len), SC_CORR_E_RANGE); /* provenance reserved */
 
+    assert_int_equal(strcmp(sc_corr_explain(img, 3), "shorter than a table's header and checksum"), 0);
+    base_spec(); len = write_image(); img[100] ^= 1;
+    assert_non_null(strstr(sc_corr_explain(img, len), "checksum mismatch"));
+    base_spec(); len = write_image();
+    assert_int_equal(strcmp(sc_corr_explain(img, len), "ok"), 0);
+
     /* Valid tables larger than this build: capacity. */
     make_grid(SC_CORR_MAX_NX + 1, 2, 1, 100, 100);
-    EXPECT_LOAD(SC_CORR_E_CAPACITY);
+    EXPECT_REFUSED(SC_CORR_E_CAPACITY, "SC_CORR_MAX_NX");
     make_grid(2, SC_CORR_MAX_NY + 1, 1, 100, 100);
     EXPECT_LOAD(SC_CORR_E_CAPACITY);
     make_grid(2, 2, 1, 100, 100);
     add_profile(SC_CORR_AXIS_X, SC_CORR_AXIS_Y, SC_CORR_MAX_PROFILE_POINTS + 1, 0.0, 0.1, 100, 100);
-    EXPECT_LOAD(SC_CORR_E_CAPACITY);
+    EXPECT_REFUSED(SC_CORR_E_CAPACITY, "SC_CORR_MAX_PROFILE_POINTS");
     make_grid(2, 2, 1, 100, 100);
     add_profile(SC_CORR_AXIS_X, SC_CORR_AXIS_Y, SC_CORR_MAX_PROFILE_POINTS, 0.0, 0.1, 100, 100);
     EXPECT_LOAD(SC_CORR_OK);

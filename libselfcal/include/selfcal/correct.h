@@ -153,6 +153,11 @@ SC_API int sc_corr_validate(const void *buf, size_t len);
 /* A constant, one-line description of a load error code. */
 SC_API const char *sc_corr_strerror(int code);
 
+/* Why sc_corr_load refuses this image, in one constant line naming the field or block ("the
+ * grid's pitch is not finite or below 1e-6 mm"); "ok" if it would load. For messages only: it
+ * runs every check again. */
+SC_API const char *sc_corr_explain(const void *buf, size_t len);
+
 /* Correct one position (mm; z passes through unless a profile has DIR z). Returns status bits.
  * NaN or infinite input: out = in, SC_CORR_ST_INVALID set. Constant time, no allocation. */
 SC_API unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],

@@ -8,6 +8,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "correct_reason.h"
 #include "lut_format.h"
 #include "selfcal/correct.h"
 
@@ -71,23 +72,34 @@ static int scale_ok(uint32_t scale_pm)
     return scale_pm >= 1u && scale_pm <= SC_LUTF_MAX_SCALE_PM;
 }
 
-/* Checks a profile header; 0 or an error code. */
-static int check_profile_header(const uint8_t *h)
+/* The failure code with its reason (correct_reason.h) in *why, when asked for. */
+static int fail(unsigned char *why, int code, unsigned char reason)
+{
+    if (why)
+        *why = reason;
+    return code;
+}
+
+/* Checks a profile header; 0 or an error code (the reason in *why, may be NULL). */
+static int check_profile_header(const uint8_t *h, unsigned char *why)
 {
     unsigned axis = h[SC_LUTF_POFF_AXIS], dir = h[SC_LUTF_POFF_DIR], enc = h[SC_LUTF_POFF_ENC];
     uint16_t n = sc_lutf_get_u16(h + SC_LUTF_POFF_N);
     double start = sc_lutf_get_f64(h + SC_LUTF_POFF_START), step = sc_lutf_get_f64(h + SC_LUTF_POFF_STEP);
     if (axis > SC_CORR_AXIS_Z || dir > SC_CORR_AXIS_Z)
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_AXIS);
     if (enc != SC_LUTF_ENC_INT16 && enc != SC_LUTF_ENC_INT32)
-        return SC_CORR_E_RANGE;
-    if (h[SC_LUTF_POFF_RESERVED0] != 0 || sc_lutf_get_u16(h + SC_LUTF_POFF_RESERVED1) != 0 || n < 2)
-        return SC_CORR_E_RANGE;
-    if (!within(start, SC_LUTF_MAX_ABS_MM) || !(step >= SC_LUTF_MIN_PITCH_MM) ||
-        !within(start + step * (double)(n - 1), SC_LUTF_MAX_ABS_MM))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_ENC);
+    if (h[SC_LUTF_POFF_RESERVED0] != 0 || sc_lutf_get_u16(h + SC_LUTF_POFF_RESERVED1) != 0)
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_RESERVED);
+    if (n < 2)
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_N);
+    if (!within(start, SC_LUTF_MAX_ABS_MM) || !within(start + step * (double)(n - 1), SC_LUTF_MAX_ABS_MM))
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_EXTENT);
+    if (!(step >= SC_LUTF_MIN_PITCH_MM))
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_STEP);
     if (!scale_ok(sc_lutf_get_u32(h + SC_LUTF_POFF_SCALE)))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_SCALE);
     return SC_CORR_OK;
 }
 
@@ -104,20 +116,21 @@ typedef struct layout {
     uint64_t poff[SC_LUTF_MAX_PROFILES];
 } layout;
 
-/* Every format check (size, magic, version, CRC, ranges, layout); fills *L. */
-static int check_image(const uint8_t *b, size_t len, layout *L)
+/* Every format check (size, magic, version, CRC, ranges, layout); fills *L; the reason of a
+ * failure in *why (may be NULL). */
+static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *why)
 {
     if (!b || len < (size_t)SC_LUTF_HEADER_BYTES + SC_LUTF_CRC_BYTES)
-        return SC_CORR_E_SIZE;
+        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_SHORT);
     for (unsigned k = 0; k < SC_LUTF_MAGIC_LEN; ++k)
         if (b[k] != sc_lutf_magic[k])
-            return SC_CORR_E_MAGIC;
+            return fail(why, SC_CORR_E_MAGIC, SC_CORR_R_MAGIC);
     if (sc_lutf_get_u16(b + SC_LUTF_OFF_VERSION) != SC_LUTF_VERSION)
-        return SC_CORR_E_VERSION;
+        return fail(why, SC_CORR_E_VERSION, SC_CORR_R_VERSION);
     if ((uint64_t)sc_lutf_get_u32(b + SC_LUTF_OFF_FILE_BYTES) != (uint64_t)len)
-        return SC_CORR_E_SIZE;
+        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_FILE_BYTES);
     if (sc_corr_crc32(b, len - SC_LUTF_CRC_BYTES) != sc_lutf_get_u32(b + len - SC_LUTF_CRC_BYTES))
-        return SC_CORR_E_CRC;
+        return fail(why, SC_CORR_E_CRC, SC_CORR_R_CRC);
 
     /* Header fields. */
     unsigned nx = sc_lutf_get_u16(b + SC_LUTF_OFF_NX), ny = sc_lutf_get_u16(b + SC_LUTF_OFF_NY);
@@ -126,20 +139,22 @@ static int check_image(const uint8_t *b, size_t len, layout *L)
     double px = sc_lutf_get_f64(b + SC_LUTF_OFF_PX), py = sc_lutf_get_f64(b + SC_LUTF_OFF_PY);
     uint32_t gscale = sc_lutf_get_u32(b + SC_LUTF_OFF_GRID_SCALE), prov = sc_lutf_get_u32(b + SC_LUTF_OFF_PROV_BYTES);
     if (sc_lutf_get_u16(b + SC_LUTF_OFF_HEADER_BYTES) != SC_LUTF_HEADER_BYTES || sc_lutf_get_u16(b + SC_LUTF_OFF_RESERVED) != 0)
-        return SC_CORR_E_RANGE;
-    if (nx < 2 || ny < 2 || np > SC_LUTF_MAX_PROFILES)
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_HEADER);
+    if (nx < 2 || ny < 2)
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_GRID_N);
+    if (np > SC_LUTF_MAX_PROFILES)
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILES);
     if (genc != SC_LUTF_ENC_INT16 && genc != SC_LUTF_ENC_INT32)
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_GRID_ENC);
     if (!within(x0, SC_LUTF_MAX_ABS_MM) || !within(y0, SC_LUTF_MAX_ABS_MM))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_ORIGIN);
     if (!(px >= SC_LUTF_MIN_PITCH_MM) || !(py >= SC_LUTF_MIN_PITCH_MM))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PITCH);
     double x1 = x0 + px * (double)(nx - 1), y1 = y0 + py * (double)(ny - 1);
     if (!within(x1, SC_LUTF_MAX_ABS_MM) || !within(y1, SC_LUTF_MAX_ABS_MM))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_EXTENT);
     if (!scale_ok(gscale))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_GRID_SCALE);
 
     /* Layout: every block must lie inside the file, and the blocks must fill it exactly.
      * 64-bit offsets: nx * ny * 8 does not overflow them. */
@@ -148,28 +163,28 @@ static int check_image(const uint8_t *b, size_t len, layout *L)
     off += 2u * (uint64_t)nx * ny * sc_lutf_code_bytes(genc);
     for (unsigned k = 0; k < np; ++k) {
         if (off + SC_LUTF_PROFILE_HEADER_BYTES > body_end)
-            return SC_CORR_E_SIZE;
+            return fail(why, SC_CORR_E_SIZE, SC_CORR_R_BLOCKS_PAST_END);
         const uint8_t *h = b + (size_t)off;
-        int rc = check_profile_header(h);
+        int rc = check_profile_header(h, why);
         if (rc != SC_CORR_OK)
             return rc;
         L->poff[k] = off;
         off += SC_LUTF_PROFILE_HEADER_BYTES + (uint64_t)sc_lutf_get_u16(h + SC_LUTF_POFF_N) * sc_lutf_code_bytes(h[SC_LUTF_POFF_ENC]);
     }
     if (off + SC_LUTF_PROV_FIXED_BYTES > body_end || off + prov != body_end)
-        return SC_CORR_E_SIZE;
+        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_BLOCKS_FILL);
     /* Provenance: method a NUL-terminated string, sigma finite (negative = unknown), count <= 9,
      * reserved bytes zero, one SHA-256 per source. */
     const uint8_t *pv = b + (size_t)off;
     if (pv[SC_LUTF_METHOD_BYTES - 1] != 0)
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_METHOD);
     if (!within(sc_lutf_get_f64(pv + SC_LUTF_VOFF_SIGMA), DBL_MAX))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_SIGMA);
     unsigned nsrc = pv[SC_LUTF_VOFF_COUNT];
     if (nsrc > SC_LUTF_MAX_SOURCES || !all_zero(pv + SC_LUTF_VOFF_RESERVED, 7))
-        return SC_CORR_E_RANGE;
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_SOURCES);
     if (prov != SC_LUTF_PROV_FIXED_BYTES + nsrc * SC_LUTF_SHA256_BYTES)
-        return SC_CORR_E_SIZE;
+        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_PROV_SIZE);
     L->nx = nx;
     L->ny = ny;
     L->np = np;
@@ -184,10 +199,32 @@ static int check_image(const uint8_t *b, size_t len, layout *L)
     return SC_CORR_OK;
 }
 
+/* Whether a valid image L fits this build's capacity; the reason in *why (may be NULL). */
+static int check_capacity(const uint8_t *b, const layout *L, unsigned char *why)
+{
+    if (L->nx > SC_CORR_MAX_NX || L->ny > SC_CORR_MAX_NY)
+        return fail(why, SC_CORR_E_CAPACITY, SC_CORR_R_CAP_GRID);
+    if (L->np > SC_CORR_MAX_PROFILES)
+        return fail(why, SC_CORR_E_CAPACITY, SC_CORR_R_CAP_PROFILES);
+    for (unsigned k = 0; k < L->np; ++k)
+        if (sc_lutf_get_u16(b + (size_t)L->poff[k] + SC_LUTF_POFF_N) > SC_CORR_MAX_PROFILE_POINTS)
+            return fail(why, SC_CORR_E_CAPACITY, SC_CORR_R_CAP_POINTS);
+    return SC_CORR_OK;
+}
+
+unsigned sc_corr_check_reason(const void *buf, size_t len)
+{
+    layout L;
+    unsigned char why = SC_CORR_R_OK;
+    if (check_image((const uint8_t *)buf, len, &L, &why) == SC_CORR_OK)
+        check_capacity((const uint8_t *)buf, &L, &why);
+    return why;
+}
+
 int sc_corr_validate(const void *buf, size_t len)
 {
     layout L;
-    return check_image((const uint8_t *)buf, len, &L);
+    return check_image((const uint8_t *)buf, len, &L, NULL);
 }
 
 int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
@@ -197,7 +234,7 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
     t->loaded = 0;
     const uint8_t *b = (const uint8_t *)buf;
     layout L;
-    int rc = check_image(b, len, &L);
+    int rc = check_image(b, len, &L, NULL);
     if (rc != SC_CORR_OK)
         return rc;
     const unsigned nx = L.nx, ny = L.ny, np = L.np, genc = L.genc;
@@ -205,11 +242,8 @@ int sc_corr_load(sc_corr_table *t, const void *buf, size_t len)
     const uint64_t ncells = (uint64_t)nx * ny;
 
     /* Valid: does it fit this build? */
-    if (nx > SC_CORR_MAX_NX || ny > SC_CORR_MAX_NY || np > SC_CORR_MAX_PROFILES)
-        return SC_CORR_E_CAPACITY;
-    for (unsigned k = 0; k < np; ++k)
-        if (sc_lutf_get_u16(b + (size_t)poff[k] + SC_LUTF_POFF_N) > SC_CORR_MAX_PROFILE_POINTS)
-            return SC_CORR_E_CAPACITY;
+    if ((rc = check_capacity(b, &L, NULL)) != SC_CORR_OK)
+        return rc;
 
     /* Decode. */
     t->nx = (uint16_t)nx;

@@ -304,9 +304,9 @@ static void get_codes(const uint8_t *r, double *v, size_t n, unsigned enc, uint3
 sc_status sc_lut_decode(const uint8_t *buf, size_t len, sc_lut *lut, const char *name,
                         sc_error *err)
 {
-    int rc = sc_corr_validate(buf, len);
-    if (rc != SC_CORR_OK)
-        return sc_error_set(err, SC_E_INPUT, name, 0, "not a valid table: %s", sc_corr_strerror(rc));
+    if (sc_corr_validate(buf, len) != SC_CORR_OK)
+        return sc_error_set(err, SC_E_INPUT, name, 0, "not a valid table: %s",
+                            sc_corr_explain(buf, len));
     sc_lut_init(lut);
     int nx = sc_lutf_get_u16(buf + SC_LUTF_OFF_NX), ny = sc_lutf_get_u16(buf + SC_LUTF_OFF_NY);
     if (nx > SC_LUT_MAX_NX || ny > SC_LUT_MAX_NY)
@@ -424,13 +424,13 @@ sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_error *er
     if (st != SC_OK)
         return st;
     int rc = sc_corr_load(t, buf, len);
-    free(buf);
-    if (rc == SC_CORR_E_CAPACITY)
-        return sc_error_set(err, SC_E_INPUT, path, 0, "table larger than this build reads: %s",
-                            sc_corr_strerror(rc));
     if (rc != SC_CORR_OK)
-        return sc_error_set(err, SC_E_INPUT, path, 0, "not a valid table: %s", sc_corr_strerror(rc));
-    return SC_OK;
+        sc_error_set(err, SC_E_INPUT, path, 0, "%s: %s",
+                     rc == SC_CORR_E_CAPACITY ? "table larger than this build reads"
+                                              : "not a valid table",
+                     sc_corr_explain(buf, len));
+    free(buf);
+    return rc == SC_CORR_OK ? SC_OK : SC_E_INPUT;
 }
 
 /* Cell index and fraction along one axis for coordinate u in node units. */
