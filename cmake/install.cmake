@@ -9,7 +9,8 @@
 #                                           selfcal::selfcal_static
 #   P/share/man/man1/selfcal.1, man8/selfcald.8
 #   P/lib/systemd/system/selfcald.service   with P's paths filled in at install time (install_paths.cmake)
-#   P/share/doc/selfcal/                    README, docs, selfcald.conf.example, examples/
+#   P/share/doc/selfcal/                    README, docs/, selfcald.conf.example, examples/,
+#                                           python/README.md, runtime/selfcald.dbc (the links hold)
 # Adding something: an install() rule next to the target that makes it (programs: call
 # selfcal_install_program(TARGET) from the folder that defines TARGET).
 include(CMakePackageConfigHelpers)
@@ -55,8 +56,11 @@ endforeach()
 
 # ---- documentation and the example program ----
 install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
-install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}
+# the source tree's layout, so that the README's and the docs' relative links work installed too
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs
   FILES_MATCHING PATTERN "*.md")
+install(FILES ${PROJECT_SOURCE_DIR}/python/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/python)
+install(FILES ${PROJECT_SOURCE_DIR}/runtime/selfcald.dbc DESTINATION ${CMAKE_INSTALL_DOCDIR}/runtime)
 install(FILES ${PROJECT_SOURCE_DIR}/examples/grid_node.c ${PROJECT_SOURCE_DIR}/examples/Makefile
               ${PROJECT_SOURCE_DIR}/examples/CMakeLists.txt
   DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples)

@@ -60,9 +60,10 @@ static void warn_stderr(void *ctx, const char *msg)
     fprintf(stderr, "selfcal: warning: %s\n", msg);
 }
 
-/* The short summary on stdout (as `selfcal profile` prints one): key: value lines. */
+/* The short summary on stdout (as `selfcal profile` prints one): key: value lines. stated: the
+ * data stated their uncertainties (no --sigma-r-um), so that the σ figures are factors on them. */
 static void print_grid_summary(const char *method, const sc_grid_plan *p,
-                               const sc_grid_solution *s)
+                               const sc_grid_solution *s, int stated)
 {
     const sc_grid_result *r = &s->res;
     int nx = sc_grid_stage_nx(p);
@@ -82,10 +83,16 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
     if (!sc_grid_stage_is_plate(p))
         printf("stage: %d x %d nodes\n", nx, sc_grid_stage_ny(p));
     printf("views: %d\n", p->n_views);
-    printf("sigma_r_est_um: %.6g (from the least-squares residuals, dof %ld)\n", r->sigma_r_est_um,
-           r->dof);
-    if (isfinite(r->sigma_r_used_um))
-        printf("sigma_r_used_um: %.6g (for the uncertainties)\n", r->sigma_r_used_um);
+    if (stated) {
+        printf("sigma_r_est_um: %.6g (the data state their uncertainties: this is the residuals' "
+               "scale on them, 1 = as stated; dof %ld)\n", r->sigma_r_est_um, r->dof);
+        printf("sigma_r_used_um: %.6g (the stated uncertainties, unscaled)\n", r->sigma_r_used_um);
+    } else {
+        printf("sigma_r_est_um: %.6g (from the least-squares residuals, dof %ld)\n",
+               r->sigma_r_est_um, r->dof);
+        if (isfinite(r->sigma_r_used_um))
+            printf("sigma_r_used_um: %.6g (for the uncertainties)\n", r->sigma_r_used_um);
+    }
     printf("residual_rms_um: %.6g\nO: %.6g\nR: %.6g\n", r->residual_rms_um, r->O, r->R);
     printf("worst_node: %d,%d at (%g, %g) mm: |G| = %.6g um (gx %.6g, gy %.6g)", i, j,
            x_mm + p->origin_mm[0], y_mm + p->origin_mm[1], worst_um, r->gx_um[worst], r->gy_um[worst]);
@@ -241,7 +248,7 @@ int cmd_grid(int argc, char **argv)
     if (st == SC_OK)
         st = write_outputs(&g, &d.plan, &sol, &info, &err);
     if (st == SC_OK && !g.quiet)
-        print_grid_summary(g.method, &d.plan, &sol);
+        print_grid_summary(g.method, &d.plan, &sol, sol.res.weighted && !(g.opt.sigma_r_um > 0));
     sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
     if (st != SC_OK) {

@@ -34,8 +34,9 @@ static const char *USAGE =
     "or for a plan file one raster position per second in serpentine plate order).\n"
     "--design: propose a plan for an NX x NY stage and an N x N plate: rot-0 placements on a\n"
     "raster covering the stage plus a rot-90 and a shift +1,0 placement at the centre, with the\n"
-    "largest raster step (fewest placements) that identifies G; prints the analysis above for\n"
-    "it and writes its header to -o (a plan file for 'selfcal simulate grid --plan').\n";
+    "largest raster step (fewest placements) that identifies G; prints identifiable, free and the\n"
+    "sigma_c ratios for it with its views, and writes its header to -o (a plan file for\n"
+    "'selfcal simulate grid --plan'; 'selfcal plan PLAN.csv' gives the full analysis).\n";
 
 /* 1 if every mark the view would measure (all on the grid, or row c / cols c, c+1) is measured. */
 static int view_complete(const sc_grid_data *d, int has_data, int v, int partial)

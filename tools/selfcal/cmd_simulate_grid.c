@@ -13,7 +13,7 @@
 #include "selfcal/lut.h"
 
 static const char *USAGE =
-    "usage: selfcal simulate grid --plan {ye,double-shift,PLAN.csv} --out IN.csv --truth-map G_true.csv\n"
+    "usage: selfcal simulate grid --plan {ye,double-shift,stitch,PLAN.csv} --out IN.csv --truth-map G_true.csv\n"
     "                             [--n 25] [--pitch-mm 1] [--origin-mm X,Y]\n"
     "                             [--sigma-g-um 1] [--sigma-a-um 1] [--sigma-r-um 0.01]\n"
     "                             [--O 1e-5] [--R 1e-5] [--rho 0.9]\n"

@@ -139,6 +139,16 @@ def case_install():
                 "share/doc/selfcal/examples/grid_node.c",
                 "share/doc/selfcal/examples/python/calibrate_stage.py"):
         check(os.path.isfile(os.path.join(prefix, rel)), "installed %s" % rel)
+    # the installed README's and docs' links to documents (.md, the CAN database) and examples
+    # lead to installed files, as in the source tree
+    docdir = os.path.join(prefix, "share/doc/selfcal")
+    mds = [os.path.join(docdir, "README.md")] + glob.glob(os.path.join(docdir, "docs", "*.md"))
+    check(len(mds) > 10, "the docs are installed under share/doc/selfcal/docs: %r" % mds)
+    for md in mds:
+        for link in re.findall(r"\]\(([^)#:]+?)(?:#[^)]*)?\)", open(md).read()):
+            if link.endswith((".md", ".dbc")) or link.startswith("examples/"):
+                target = os.path.normpath(os.path.join(os.path.dirname(md), link))
+                check(os.path.exists(target), "%s links %s: installed" % (os.path.relpath(md, docdir), link))
     for rel in ("libselfcal.so", "libselfcal.a", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
                 "cmake/selfcal/selfcalConfigVersion.cmake"):
         check(os.path.exists(os.path.join(libdir, rel)), "installed <libdir>/%s" % rel)
