@@ -83,7 +83,12 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
     if (!sc_grid_stage_is_plate(p))
         printf("stage: %d x %d nodes\n", nx, sc_grid_stage_ny(p));
     printf("views: %d\n", p->n_views);
-    if (stated) {
+    if (r->view_noise_estimated) {
+        printf("sigma_r_est_um: %.6g (each view weighted by its estimated noise, view_sigma_um "
+               "below: the residuals' scale on it, 1 by construction; dof %ld)\n",
+               r->sigma_r_est_um, r->dof);
+        printf("sigma_r_used_um: %.6g (the views' estimated noise, unscaled)\n", r->sigma_r_used_um);
+    } else if (stated) {
         printf("sigma_r_est_um: %.6g (the data state their uncertainties: this is the residuals' "
                "scale on them, 1 = as stated; dof %ld)\n", r->sigma_r_est_um, r->dof);
         printf("sigma_r_used_um: %.6g (the stated uncertainties, unscaled)\n", r->sigma_r_used_um);

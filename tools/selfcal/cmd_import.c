@@ -124,10 +124,10 @@ static int parse_view(const char *spec, int n, sc_grid_view *v, char *sigma, siz
             have_shift = 1;
         } else if (!strcmp(tok, "sigma_um")) {
             double sg;
-            if (sc_parse_double(val, &sg) || !(sg > 0) || sg > SC_INPUT_MAX_ABS ||
-                strlen(val) >= sigma_len)
-                return cli_usage_error("import grid", "--view \"%s\": sigma_um must be a positive number",
-                                       spec);
+            if (sc_parse_double(val, &sg) || !(sg >= SC_GRID_MIN_SIGMA_UM) ||
+                sg > SC_INPUT_MAX_ABS || strlen(val) >= sigma_len)
+                return cli_usage_error("import grid", "--view \"%s\": sigma_um must be %g to %g um",
+                                       spec, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
             snprintf(sigma, sigma_len, "%s", val);
         } else if (!strcmp(tok, "rows") || !strcmp(tok, "cols")) {
             v->restricted = 1;
@@ -318,10 +318,12 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
     const double scale[4] = {g->unit_mm, g->unit_mm, g->unit_mm * 1e3, g->unit_mm * 1e3};
     sc_status st = sc_table_read(iv->file, nc, names, scale, &iv->t, err);
     for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
-        if (!(iv->t.value[q * 4 + 2] > 0 && iv->t.value[q * 4 + 3] > 0))
+        if (!(iv->t.value[q * 4 + 2] >= SC_GRID_MIN_SIGMA_UM &&
+              iv->t.value[q * 4 + 3] >= SC_GRID_MIN_SIGMA_UM &&
+              iv->t.value[q * 4 + 2] <= SC_INPUT_MAX_ABS && iv->t.value[q * 4 + 3] <= SC_INPUT_MAX_ABS))
             st = sc_error_set(err, SC_E_INPUT, iv->file, iv->t.line[q],
-                              "the uncertainties in '%s' and '%s' must be positive", g->uxcol,
-                              g->uycol);
+                              "the uncertainties in '%s' and '%s' must be %g to %g um", g->uxcol,
+                              g->uycol, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
     if (st != SC_OK)
         return st;
     long np = iv->t.n_rows, nn = (long)p->n * p->n;
@@ -494,8 +496,9 @@ static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
         return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
     if (!strcmp(o, "--step-mm") && x > 0) g->step = x;
     else if (!strcmp(o, "--step-tolerance") && x > 0 && x < 0.5) g->step_tol = x;
-    else if (!strcmp(o, "--sigma-disp-um") && x > 0) g->sigma_disp = x;
-    else if (!strcmp(o, "--sigma-angle-urad") && x > 0) g->sigma_angle = x;
+    /* the noise lines' range, as the profile reader takes them */
+    else if (!strcmp(o, "--sigma-disp-um") && x > 0 && x <= SC_INPUT_MAX_ABS) g->sigma_disp = x;
+    else if (!strcmp(o, "--sigma-angle-urad") && x > 0 && x <= SC_INPUT_MAX_ABS) g->sigma_angle = x;
     else
         return cli_usage_error(cmd, "unknown option '%s' or value '%s' out of range (see --help)",
                                o, v);

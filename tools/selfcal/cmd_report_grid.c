@@ -707,9 +707,11 @@ static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo
     rms_of(r->res.ugx_um, NG(r), &mux);
     rms_of(r->res.ugy_um, NG(r), &muy);
     fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d, pitch %g mm, "
-                "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated %.4g µm",
+                "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated ",
             r->method, r->d.plan.n, r->d.plan.pitch_mm, r->d.plan.n_views, r->info.n_rows,
-            r->identifiable ? "yes" : "no", r->lres.sigma_r_est_um);
+            r->identifiable ? "yes" : "no");
+    html_num_span(fp, NULL, "%.4g", r->lres.sigma_r_est_um);
+    fputs(" µm", fp);
     if (r->sigma_r_given > 0)
         fprintf(fp, " (given %.4g µm)", r->sigma_r_given);
     fputs(".", fp);

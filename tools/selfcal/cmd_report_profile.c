@@ -219,8 +219,11 @@ static void section_noise(FILE *fp, const sc_profile_solution *so)
     fputs("</tr>\n<tr><th class=\"l\">σ_angle given</th>", fp);
     html_num_cell(fp, "sigma_angle_urad", "%.4g µrad", so->noise_known ? so->sigma_angle_urad : NAN);
     fputs("</tr>\n<tr><th class=\"l\">σ(y1), σ(y2) used for u(f)</th>", fp);
-    fprintf(fp, "<td><span id=\"sigma_y1_um\">%.4g</span>, <span id=\"sigma_y2_um\">%.4g</span> µm</td></tr>\n",
-            so->sigma_y_um[0], so->sigma_y_um[1]);
+    fputs("<td>", fp);
+    html_num_span(fp, "sigma_y1_um", "%.4g", so->sigma_y_um[0]);
+    fputs(", ", fp);
+    html_num_span(fp, "sigma_y2_um", "%.4g", so->sigma_y_um[1]);
+    fputs(" µm</td></tr>\n", fp);
     fprintf(fp, "<tr><th class=\"l\">residual degrees of freedom N − d1 − d2</th><td id=\"dof\">%d</td></tr>\n",
             so->dof);
     double vf = isfinite(so->residual_ratio) ? so->residual_ratio * so->residual_ratio : NAN;

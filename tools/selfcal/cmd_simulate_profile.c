@@ -7,7 +7,9 @@
 #include "cli.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
+#include "selfcal/profile_lsq.h"
 #include "selfcal/profile_sim.h"
+#include "selfcal/stage_map.h"
 
 static const char *USAGE =
     "usage: selfcal simulate profile --out IN.csv --truth T.csv [options]\n"
@@ -120,11 +122,18 @@ static int check_args(const sc_profile_sim *p, const sim_profile_args *a)
 {
     if (!a->out || !a->truth)
         return cli_usage_error("simulate profile", "--out and --truth are required (see --help)");
-    if (!(p->s_mm > 0))
-        return cli_usage_error("simulate profile", "--s-mm must be positive");
+    /* the profile output's limits (its x_mm a map's pitch and within 1 km), as lut build and
+     * plot read them */
+    if (!(p->s_mm >= SC_STAGE_MAP_MIN_PITCH_MM) || !((p->n - 1) * p->s_mm <= SC_INPUT_MAX_ABS))
+        return cli_usage_error("simulate profile", "--s-mm must be at least %g mm and the profile "
+                               "(N - 1)·s at most %g mm", SC_STAGE_MAP_MIN_PITCH_MM,
+                               SC_INPUT_MAX_ABS);
     if (p->d1 >= p->n || p->d2 >= p->n)
         return cli_usage_error("simulate profile", "spacings d1 = %d, d2 = %d leave no sample for N = %d",
                                p->d1, p->d2, p->n);
+    sc_error why; /* data `selfcal profile` could not use: refused now, not after writing them */
+    if (!sc_profile_lsq_is_solvable(p->n, p->d1, p->d2, &why))
+        return cli_usage_error("simulate profile", "%s", why.msg);
     if (p->sigma_disp_um < 0 || p->sigma_angle_urad < 0 || a->amp < 0)
         return cli_usage_error("simulate profile", "noise levels and amplitudes must be non-negative");
     return CLI_OK;

@@ -316,7 +316,13 @@ static void suitesparse_huge_pages(void)
 static int run_command(const command *c, int argc, char **argv)
 {
     if (c->outputs) {
-        int rc = cli_check_output_paths(c->sub ? c->sub : c->name, c->outputs, argc, argv);
+        /* the command as typed: "report profile", "lut build", not "profile", "lut" */
+        const char *sub = c->sub                                  ? c->sub
+                          : !strcmp(c->name, "lut") && argc > 1 ? argv[1] /* its own verbs */
+                                                                 : NULL;
+        char full[64];
+        snprintf(full, sizeof full, "%s%s%.40s", c->name, sub ? " " : "", sub ? sub : "");
+        int rc = cli_check_output_paths(full, c->outputs, argc, argv);
         if (rc >= 0)
             return rc;
     }

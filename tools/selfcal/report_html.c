@@ -107,6 +107,19 @@ void html_num_cell(FILE *fp, const char *id, const char *fmt, double v)
     fputs("</td>", fp);
 }
 
+void html_num_span(FILE *fp, const char *id, const char *fmt, double v)
+{
+    fputs("<span", fp);
+    if (id)
+        fprintf(fp, " id=\"%s\"", id);
+    if (isfinite(v)) {
+        fprintf(fp, " data-v=\"%.17g\">", v);
+        fprintf(fp, fmt, v);
+    } else
+        fputs(">—", fp);
+    fputs("</span>", fp);
+}
+
 void html_u_row(FILE *fp, const char *name, const char *id, double v, double u, const char *fmt,
                 const char *unit)
 {

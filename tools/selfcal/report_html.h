@@ -31,6 +31,10 @@ sc_status html_figure(FILE *fp, html_draw_fn draw, const void *ctx, const char *
  * data-v so that a reader can compare it to the summary files; NaN prints "—". */
 void html_num_cell(FILE *fp, const char *id, const char *fmt, double v);
 
+/* The number v in running text: <span id data-v>fmt</span>, or "—" when v is not finite (no
+ * "nan" in a report). id may be NULL. */
+void html_num_span(FILE *fp, const char *id, const char *fmt, double v);
+
 /* A row "name | value | u (k = 1) | U (k = 2) | unit" (u NaN: "—"); id prefixes the cells' ids
  * (id, id-u, id-U2). */
 void html_u_row(FILE *fp, const char *name, const char *id, double v, double u, const char *fmt,

@@ -27,6 +27,11 @@ extern "C" {
 #define SC_GRID_MAX_VIEWS 32
 #define SC_GRID_MAX_N 513
 #define SC_GRID_MAX_STAGE 4097 /* largest NX or NY */
+/* The smallest pitch (1 nm: what a table can place) and the smallest stated standard
+ * uncertainty (1 pm) a grid file, a plan or an import takes: below them no measuring set-up
+ * exists, and the arithmetic (Σ x², 1/σ²) leaves the range of doubles. */
+#define SC_GRID_MIN_PITCH_MM 1e-6
+#define SC_GRID_MIN_SIGMA_UM 1e-6
 
 typedef struct sc_grid_view {
     int rot_deg;                        /* 0, 90, 180 or 270, counter-clockwise */

@@ -159,6 +159,11 @@ static sc_status check_lsq(const sc_grid_data *d, const sc_grid_file_info *info,
     if (o->drift && !(info ? info->has_t : has_times(d)))
         return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
                             "--drift linear needs the time of each measurement (column t_s)");
+    long nodes = sc_grid_stage_nodes(&d->plan); /* refused before the solve, not after it */
+    if (o->covariance && nodes > SC_GRID_LSQ_COV_MAX_NODES)
+        return sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
+                            "--covariance: %ld stage nodes exceed the limit of %d", nodes,
+                            SC_GRID_LSQ_COV_MAX_NODES);
     return SC_OK;
 }
 
@@ -873,12 +878,8 @@ static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const c
             for (size_t k = 0; k < nn; ++k)
                 d->dx_um[v][k] = keep[v * nn + k], d->dy_um[v][k] = keep[tot + v * nn + k];
     if (st == SC_OK && o->covariance) {
-        long m = 2 * s->n_nodes;
-        if (s->n_nodes > SC_GRID_LSQ_COV_MAX_NODES)
-            st = sc_error_set(err, SC_E_INPUT, path, line_of(info, 0, 0),
-                              "--covariance: %ld stage nodes exceed the limit of %d", s->n_nodes,
-                              SC_GRID_LSQ_COV_MAX_NODES);
-        else if (!(s->cov_um2 = malloc((size_t)m * m * sizeof(double))))
+        long m = 2 * s->n_nodes; /* at most SC_GRID_LSQ_COV_MAX_NODES (check_lsq) */
+        if (!(s->cov_um2 = malloc((size_t)m * m * sizeof(double))))
             st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (covariance)");
         else
             st = sc_grid_lsq_covariance(q, &s->res, s->cov_um2, err);

@@ -113,9 +113,9 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
                             "stage NX, NY must be odd and in 3..%d (got %d,%d)", SC_GRID_MAX_STAGE,
                             p->stage_nx, p->stage_ny);
     /* the readers' limits (a plan made in memory must write a file that reads back) */
-    if (!(p->pitch_mm > 0) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
+    if (!(p->pitch_mm >= SC_GRID_MIN_PITCH_MM) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "the pitch must be positive and at most %g mm, got %g",
+                            "the pitch must be %g to %g mm, got %g", SC_GRID_MIN_PITCH_MM,
                             SC_INPUT_MAX_ABS, p->pitch_mm);
     if (!(fabs(p->origin_mm[0]) <= SC_INPUT_MAX_ABS) || !(fabs(p->origin_mm[1]) <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be within +-%g mm",
@@ -125,10 +125,11 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
                             SC_GRID_MAX_VIEWS);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
-        if (!(w->sigma_um >= 0) || !isfinite(w->sigma_um)) /* 0: not stated */
+        if (!(w->sigma_um == 0 || (w->sigma_um >= SC_GRID_MIN_SIGMA_UM &&
+                                   w->sigma_um <= SC_INPUT_MAX_ABS))) /* 0: not stated */
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d: sigma_um must be positive (0: not stated), got %g", v,
-                                w->sigma_um);
+                                "view %d: sigma_um must be %g to %g um (0: not stated), got %g", v,
+                                SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, w->sigma_um);
         if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);

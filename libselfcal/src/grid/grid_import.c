@@ -26,10 +26,9 @@ sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err)
     if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "N must be odd and in 3..%d, got %d",
                             SC_GRID_MAX_N, p->n);
-    if (!(p->pitch_mm > 0) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "the pitch must be positive and at most %g mm, got %g",
-                            SC_INPUT_MAX_ABS, p->pitch_mm);
+    if (!(p->pitch_mm >= SC_GRID_MIN_PITCH_MM) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "the pitch must be %g to %g mm, got %g",
+                            SC_GRID_MIN_PITCH_MM, SC_INPUT_MAX_ABS, p->pitch_mm);
     if (!(fabs(p->origin_mm[0]) <= SC_INPUT_MAX_ABS && fabs(p->origin_mm[1]) <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin is beyond any stage");
     int nx = p->stage_nx, ny = p->stage_ny;

@@ -96,7 +96,7 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
                                     "view %ld: shift must be two whole numbers SX,SY", id);
         } else if (!strcmp(tok, "sigma_um")) {
             if (have_sigma++ || sc_parse_double(val, &vd->sigma_um) != 0 ||
-                !(vd->sigma_um > 0) || !(vd->sigma_um <= SC_INPUT_MAX_ABS))
+                !(vd->sigma_um >= SC_GRID_MIN_SIGMA_UM) || !(vd->sigma_um <= SC_INPUT_MAX_ABS))
                 return sc_error_set(err, SC_E_INPUT, path, line,
                                     "view %ld: sigma_um must be a positive number", id);
         } else if (!strcmp(tok, "rows")) {
@@ -154,7 +154,7 @@ typedef struct grid_hdr {
 
 static const sc_header_key HDR_KEYS[] = {
     {"N", SC_HEADER_LONG, offsetof(grid_hdr, n), 1, 3, SC_GRID_MAX_N, 0},
-    {"pitch_mm", SC_HEADER_DOUBLE, offsetof(grid_hdr, pitch_mm), 1, 0, 1e6, SC_HEADER_MIN_EXCLUSIVE},
+    {"pitch_mm", SC_HEADER_DOUBLE, offsetof(grid_hdr, pitch_mm), 1, SC_GRID_MIN_PITCH_MM, 1e6, 0},
     {"origin_mm", SC_HEADER_DOUBLE_PAIR, offsetof(grid_hdr, origin_mm), 0, -1e6, 1e6, 0},
     {"stage", SC_HEADER_LONG_PAIR, offsetof(grid_hdr, stage), 0, 3, SC_GRID_MAX_STAGE, 0},
 };
@@ -368,11 +368,11 @@ static sc_status row_uncertainties(read_state *s, sc_grid_data *d, int v, long v
             if (!(d->plan.view[v].sigma_um > 0))
                 return sc_error_set(err, SC_E_INPUT, s->path, ln,
                                     "%s is empty and view %ld states no sigma_um", name, vid);
-        } else if (sc_parse_double(f, &u) != 0 || !(u > 0) || !(u <= SC_INPUT_MAX_ABS)) {
+        } else if (sc_parse_double(f, &u) != 0 || !(u >= SC_GRID_MIN_SIGMA_UM) ||
+                   !(u <= SC_INPUT_MAX_ABS)) {
             return sc_error_set(err, SC_E_INPUT, s->path, ln,
-                                "%s must be a positive number (a standard uncertainty in um), "
-                                "got '%.40s'",
-                                name, f);
+                                "%s must be a standard uncertainty of %g to %g um, got '%.40s'",
+                                name, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, f);
         }
         (c ? d->uy_um : d->ux_um)[v][k] = u;
     }

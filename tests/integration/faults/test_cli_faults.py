@@ -250,6 +250,8 @@ for what, args, victim in (
     before = digest(p(victim))
     r = run(args)
     one_line_error(r, 2, what, "also an input")
+    cmd = " ".join(args[:2]) if args[0] in ("lut", "report") else args[0]
+    check(r.stderr.startswith(f"selfcal {cmd}: "), f"{what}: the message names the command: {r.stderr!r}")
     check(digest(p(victim)) == before, f"{what}: the input was changed")
 r = run(["grid", "--method", "ye", p("grid.csv"), "--map", p("same.csv"), "--artifact",
          os.path.join(work, ".", "same.csv")])
@@ -321,6 +323,44 @@ r = run(["lut", "build", "--map", p("decreasing.csv"), "-o", p("o.lut")])
 one_line_error(r, 2, "x_mm decreasing along j", "decreasing.csv:3: x_mm does not increase")
 for f in ("repeated_map.csv", "long_line.csv", "big.lut"):
     os.unlink(p(f))
+
+# ---- 5b. values beyond any measuring set-up: refused up front (exit 2), not an internal error,
+# a NaN output or a file the next command refuses (found by a fuzzing audit) ------------------
+src = open(p("grid.csv")).read()
+with open(p("tiny_pitch.csv"), "w") as f:  # pitch 1e-170 mm: the arithmetic underflows
+    f.write(src.replace("# pitch_mm = 1\n", "# pitch_mm = 1e-170\n"))
+check("# pitch_mm = 1e-170" in open(p("tiny_pitch.csv")).read(), "tiny_pitch.csv was made")
+for m in ("lsq", "ye"):
+    r = run(["grid", "--method", m, p("tiny_pitch.csv"), "--map", p("o_tiny.csv")])
+    one_line_error(r, 2, f"grid --method {m} on a 1e-170 mm pitch", "tiny_pitch.csv:")
+    check("pitch" in r.stderr, f"the pitch named: {r.stderr!r}")
+with open(p("tiny_sigma.csv"), "w") as f:  # sigma_um=1e-80: weights beyond the doubles' range
+    f.write(src.replace("shift=0,0\n", "shift=0,0 sigma_um=1e-80\n", 1))
+r = run(["grid", "--method", "lsq", p("tiny_sigma.csv"), "--map", p("o_tiny.csv")])
+one_line_error(r, 2, "sigma_um=1e-80", "sigma_um")
+for what, args, needle in (
+        ("simulate grid --pitch-mm 1e-200",
+         ["simulate", "grid", "--plan", "ye", "--n", "9", "--pitch-mm", "1e-200", "--out",
+          p("o_sim.csv"), "--truth-map", p("o_simt.csv")], "pitch"),
+        ("simulate profile --s-mm 1e-7",
+         ["simulate", "profile", "--s-mm", "1e-7", "--out", p("o_sim.csv"), "--truth",
+          p("o_simt.csv")], "--s-mm"),
+        ("simulate profile d1 = d2 = 2",
+         ["simulate", "profile", "--n", "40", "--d1", "2", "--d2", "2", "--out", p("o_sim.csv"),
+          "--truth", p("o_simt.csv")], "common divisor"),
+        ("import profile --sigma-angle-urad 1e7",
+         ["import", "profile", "--spacing-mm", "10", p("grid.csv"), "--spacing-mm", "11",
+          p("grid.csv"), "--sigma-angle-urad", "1e7", "-o", p("o_sim.csv")], "sigma-angle-urad")):
+    r = run(args)
+    one_line_error(r, 2, what, needle)
+    check(not os.path.exists(p("o_sim.csv")) and not os.path.exists(p("o_simt.csv")),
+          f"{what}: an output was written")
+with open(p("big_stage.csv"), "w") as f:  # the covariance limit before the solve
+    f.write("# selfcal-grid v1\n# N = 5\n# pitch_mm = 1\n# stage = 45,45\n"
+            "# view 0: rot=0 shift=0,0\nview,i,j,x_mm,y_mm\n0,0,0,-2,-2\n")
+r = run(["grid", "--method", "lsq", p("big_stage.csv"), "--map", p("o_cov.csv"), "--covariance",
+         p("o_cov.npy")])
+one_line_error(r, 2, "--covariance on 45 x 45 nodes", "--covariance: 2025 stage nodes")
 
 if failures:
     print(f"{len(failures)} failure(s)", file=sys.stderr)

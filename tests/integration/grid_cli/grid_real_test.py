@@ -411,10 +411,11 @@ def case_bad_input():
             f = l.rstrip("\n").split(",")[:5]
             out.append(",".join(f + ([ux, uy] if k == at else ["0.01", "0.01"])) + "\n")
         return out
-    cases.append(("u_zero", with_u("0", "0.01", 4), h + 6, "ux_um must be a positive number"))
-    cases.append(("u_negative", with_u("0.01", "-1", 4), h + 6, "uy_um must be a positive"))
-    cases.append(("u_nan", with_u("nan", "0.01", 7), h + 9, "ux_um must be a positive"))
-    cases.append(("u_text", with_u("abc", "0.01", 2), h + 4, "ux_um must be a positive"))
+    cases.append(("u_zero", with_u("0", "0.01", 4), h + 6, "ux_um must be a standard uncertainty of 1e-06 to 1e+06 um"))
+    cases.append(("u_negative", with_u("0.01", "-1", 4), h + 6, "uy_um must be a standard uncertainty"))
+    cases.append(("u_nan", with_u("nan", "0.01", 7), h + 9, "ux_um must be a standard uncertainty"))
+    cases.append(("u_text", with_u("abc", "0.01", 2), h + 4, "ux_um must be a standard uncertainty"))
+    cases.append(("u_tiny", with_u("1e-80", "0.01", 2), h + 4, "ux_um must be a standard uncertainty"))
     cases.append(("u_empty", with_u("", "0.01", 2), h + 4, "states no sigma_um"))
     ins = lambda extra: lines[:4] + [extra] + lines[4:]
     cases.append(("stage_even", ins("# stage = 8,7\n"), 5, "odd"))

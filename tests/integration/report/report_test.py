@@ -376,6 +376,17 @@ def case_numbers_profile():
         close(num(c, "Uf-max"), 2e3 * max(uf), "max U(f) nm", rel=1e-12)
         f = [float(p["f_um"]) for p in pr]
         close(num(c, "f-pv"), max(f) - min(f), "f peak to valley", rel=1e-12)
+    # no redundancy (N - d1 - d2 = 0) and no stated noise: what cannot be computed reads "—",
+    # never "nan"
+    n3 = os.path.join(d, "n3.csv")
+    with open(n3, "w") as f:
+        f.write("# selfcal-profile v1\n# N = 3\n# s_mm = 1\n# scan 1: d=1\n# scan 2: d=2\n"
+                "scan,n,m1_um,m2_um,m3_urad\n1,0,1,1,1\n1,1,1,1,1\n2,0,1,1,1\n")
+    out = os.path.join(d, "R_n3.html")
+    run("report", "profile", n3, "-o", out)
+    text = check_self_contained(out)
+    if re.search(r">\s*-?(nan|inf)\b", text, re.I):
+        fail("a report without redundancy prints nan: %r" % re.findall(r".{40}>\s*-?nan.{10}", text, re.I)[:3])
 
 
 def case_outliers():
