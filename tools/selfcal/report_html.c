@@ -94,9 +94,10 @@ sc_status html_figure(FILE *fp, html_draw_fn draw, const void *ctx, const char *
     return SC_OK;
 }
 
-void html_num_cell(FILE *fp, const char *id, const char *fmt, double v)
+/* <tag id data-v>fmt</tag>, or "—" when v is not finite. */
+static void num_element(FILE *fp, const char *tag, const char *id, const char *fmt, double v)
 {
-    fputs("<td", fp);
+    fprintf(fp, "<%s", tag);
     if (id)
         fprintf(fp, " id=\"%s\"", id);
     if (isfinite(v)) {
@@ -104,20 +105,17 @@ void html_num_cell(FILE *fp, const char *id, const char *fmt, double v)
         fprintf(fp, fmt, v);
     } else
         fputs(">—", fp);
-    fputs("</td>", fp);
+    fprintf(fp, "</%s>", tag);
+}
+
+void html_num_cell(FILE *fp, const char *id, const char *fmt, double v)
+{
+    num_element(fp, "td", id, fmt, v);
 }
 
 void html_num_span(FILE *fp, const char *id, const char *fmt, double v)
 {
-    fputs("<span", fp);
-    if (id)
-        fprintf(fp, " id=\"%s\"", id);
-    if (isfinite(v)) {
-        fprintf(fp, " data-v=\"%.17g\">", v);
-        fprintf(fp, fmt, v);
-    } else
-        fputs(">—", fp);
-    fputs("</span>", fp);
+    num_element(fp, "span", id, fmt, v);
 }
 
 void html_u_row(FILE *fp, const char *name, const char *id, double v, double u, const char *fmt,
