@@ -192,7 +192,7 @@ def case_bad_values():
         (["import", "grid", "--n", 3, "--pitch-mm", 1, "--x-col", "X", "--y-col", "Y", "--tolerance-mm", 0,
           "--view", "rot=0 shift=0,0", path("v0.csv"), "-o", path("imp.csv")], "tolerance must be positive"),
         (["import", "grid", "--n", 3, "--pitch-mm", 0, "--x-col", "X", "--y-col", "Y",
-          "--view", "rot=0 shift=0,0", path("v0.csv"), "-o", path("imp.csv")], "pitch must be positive"),
+          "--view", "rot=0 shift=0,0", path("v0.csv"), "-o", path("imp.csv")], "the pitch must be 1e-06 to 1e+06 mm"),
     ]
     # a plan that needs terabytes: refused before any work (it ran out of memory after minutes)
     rc, out, err = run("profile-plan", "--n", 100000000, "--s-mm", 1, "--sigma-disp-um", 0.01,
