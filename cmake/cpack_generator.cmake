@@ -8,3 +8,9 @@ if(CPACK_GENERATOR STREQUAL "TGZ")
   set(CPACK_PACKAGING_INSTALL_PREFIX "/usr/local")
   set(CPACK_INCLUDE_TOPLEVEL_DIRECTORY OFF)
 endif()
+
+# The .deb: man pages gzipped, as Debian policy asks (man reads both), by a script run on the
+# staging tree before it is packed (CPACK_PRE_BUILD_SCRIPTS).
+if(CPACK_GENERATOR STREQUAL "DEB")
+  set(CPACK_PRE_BUILD_SCRIPTS "${CMAKE_CURRENT_LIST_DIR}/cpack_gzip_man.cmake")
+endif()

@@ -58,7 +58,7 @@ endforeach()
 install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
 # the source tree's layout, so that the README's and the docs' relative links work installed too
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs
-  FILES_MATCHING PATTERN "*.md")
+  FILES_MATCHING PATTERN "*.md" PATTERN "man" EXCLUDE)
 install(FILES ${PROJECT_SOURCE_DIR}/python/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/python)
 install(FILES ${PROJECT_SOURCE_DIR}/runtime/selfcald.dbc DESTINATION ${CMAKE_INSTALL_DOCDIR}/runtime)
 install(FILES ${PROJECT_SOURCE_DIR}/examples/grid_node.c ${PROJECT_SOURCE_DIR}/examples/Makefile

@@ -267,9 +267,10 @@ def case_deb():
     check_programs(bindir, ".deb unpacked")
     contents = run(["dpkg-deb", "-c", debs[0]]).stdout
     for name in ("usr/include/selfcal/grid_lsq.h", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
-                 "libselfcal.so.", "libselfcal.a", "man1/selfcal.1", "man8/selfcald.8",
+                 "libselfcal.so.", "libselfcal.a", "man1/selfcal.1.gz", "man8/selfcald.8.gz",
                  "systemd/system/selfcald.service"):
         check(name in contents, ".deb contains %s" % name)
+    check("docs/man/" not in contents, ".deb has no empty docs/man folder")
     # the unit starts the program the package installs, with Debian's /etc
     units = glob.glob(os.path.join(root, "usr/lib/systemd/system/selfcald.service")) + \
         glob.glob(os.path.join(root, "lib/systemd/system/selfcald.service"))
