@@ -78,8 +78,8 @@ static int parse_pair(const char *v, double *a, double *b)
     return sc_parse_double(buf, a) || sc_parse_double(comma + 1, b) ? -1 : 0;
 }
 
-/* Stages of more nodes than this take a second or more per candidate raster: each is announced
- * on stderr. */
+/* Stages of more nodes than this take a second or more to analyse (per candidate raster of the
+ * designer): each analysis is announced on stderr. */
 #define DESIGN_ANNOUNCE_NODES 100000
 
 /* The designer: the largest raster step that identifies G. */
@@ -277,6 +277,11 @@ int cmd_plan(int argc, char **argv)
                      "--drift linear needs the time of each measurement (column t_s)");
         return cli_report(&err);
     }
+    long nodes = sc_grid_stage_nodes(&d.plan);
+    if (nodes > DESIGN_ANNOUNCE_NODES) /* seconds to minutes: say what is going on */
+        fprintf(stderr, "selfcal: plan: analysing a %d x %d stage (%ld unknowns)\n",
+                sc_grid_stage_nx(&d.plan), sc_grid_stage_ny(&d.plan),
+                2 * nodes + 3L * d.plan.n_views);
     st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &opts, &q, &err);
     if (st != SC_OK) {
         sc_grid_data_free(&d);
