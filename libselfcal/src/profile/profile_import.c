@@ -88,6 +88,82 @@ static sc_status median_step(const sc_table *t, const pos_row *o, double *step, 
     return SC_OK;
 }
 
+/* The sample index of each sorted position of scan 1, chained from its neighbour (each difference
+ * rounded to whole steps: a position's jitter never adds up along the scan), into n; then the
+ * least-squares line p = a + s·n through them: *s_fit (0 if it cannot be fitted). */
+static void chain_and_fit(const sc_table *t, const pos_row *o, double step, long *n, double *s_fit)
+{
+    n[0] = 0;
+    for (long q = 1; q < t->n_rows; ++q)
+        n[q] = n[q - 1] + lround((o[q].pos - o[q - 1].pos) / step);
+    double mn = 0, mp = 0, snn = 0, snp = 0;
+    for (long q = 0; q < t->n_rows; ++q)
+        mn += (double)n[q], mp += o[q].pos;
+    mn /= (double)t->n_rows, mp /= (double)t->n_rows;
+    for (long q = 0; q < t->n_rows; ++q) {
+        snn += ((double)n[q] - mn) * ((double)n[q] - mn);
+        snp += ((double)n[q] - mn) * (o[q].pos - mp);
+    }
+    *s_fit = snn > 0 ? snp / snn : 0;
+}
+
+/* The grid's origin p0: the median over scan 1 of p - n·step (robust to a jittered first
+ * sample); n: chain_and_fit's indices. */
+static sc_status median_origin(const sc_table *t, const pos_row *o, const long *n, double step,
+                               double *p0, sc_error *err)
+{
+    double *r = malloc((size_t)t->n_rows * sizeof(double));
+    if (!r)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (long q = 0; q < t->n_rows; ++q)
+        r[q] = o[q].pos - (double)n[q] * step;
+    qsort(r, (size_t)t->n_rows, sizeof(double), cmp_double);
+    *p0 = r[t->n_rows / 2];
+    free(r);
+    return SC_OK;
+}
+
+/* The step and the spacings in steps: the step given, or found from scan 1's positions (the
+ * median difference, refined by a line through them) and then made exactly D1/d1 — the spacing
+ * the user states is the truth the reconstruction uses (D_k = d_k·s). */
+static sc_status step_and_spacings(const sc_profile_import_params *p, const sc_table *t0,
+                                   const pos_row *o0, long *n0, double *step, int dk[2],
+                                   const char *const path[2], sc_error *err)
+{
+    sc_status st = SC_OK;
+    int given = p->step_mm > 0;
+    double s = p->step_mm, s_fit = 0;
+    if (!given && (st = median_step(t0, o0, &s, err)) != SC_OK)
+        return st;
+    chain_and_fit(t0, o0, s, n0, &s_fit);
+    if (!given && s_fit > 0)
+        s = s_fit;
+    for (int k = 0; k < 2; ++k) {
+        double fd = p->spacing_mm[k] / s;
+        dk[k] = fd < 1e8 ? (int)lround(fd) : 0;
+        /* a given step must divide the spacing exactly; a found one to the step tolerance */
+        double tol = given ? 1e-6 * fd : p->step_tolerance;
+        if (dk[k] < 1 || fabs(fd - dk[k]) > tol)
+            return sc_error_set(err, SC_E_INPUT, path[k], 0,
+                                "the sensor spacing %g mm is not a whole number of steps (step "
+                                "%.9g mm%s: %.6f steps)",
+                                p->spacing_mm[k], s, given ? "" : ", found from the positions",
+                                fd);
+    }
+    if (!given) {
+        s = p->spacing_mm[0] / dk[0];
+        if (fabs(p->spacing_mm[1] / dk[1] - s) > 1e-6 * s)
+            return sc_error_set(err, SC_E_INPUT, path[1], 0,
+                                "the sensor spacings %g and %g mm are not whole multiples of one "
+                                "step (%g / %d and %g / %d differ; give the step with --step-mm)",
+                                p->spacing_mm[0], p->spacing_mm[1], p->spacing_mm[0], dk[0],
+                                p->spacing_mm[1], dk[1]);
+        chain_and_fit(t0, o0, s, n0, &s_fit); /* the indices for the exact step */
+    }
+    *step = s;
+    return SC_OK;
+}
+
 sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
                             sc_profile_data *out, double *p0_mm, sc_error *err)
 {
@@ -113,22 +189,19 @@ sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *c
             o[k][q] = (pos_row){t->value[q * 4], q};
         qsort(o[k], (size_t)t->n_rows, sizeof(pos_row), cmp_pos);
     }
-    double step = p->step_mm, p0 = st == SC_OK ? o[0][0].pos : 0;
-    if (st == SC_OK && step == 0)
-        st = median_step(scan[0], o[0], &step, err);
+    double step = 0, p0 = 0;
     int dk[2] = {0, 0};
-    for (int k = 0; k < 2 && st == SC_OK; ++k) {
-        double fd = p->spacing_mm[k] / step;
-        dk[k] = fd < 1e8 ? (int)lround(fd) : 0;
-        if (dk[k] < 1 || fabs(fd - dk[k]) > 1e-6 * fd) {
-            st = sc_error_set(err, SC_E_INPUT, scan[k]->path, 0,
-                              "the sensor spacing %g mm is not a whole number of steps (step "
-                              "%.9g mm: %.6f steps)",
-                              p->spacing_mm[k], step, fd);
-            break;
-        }
+    long *n0 = st == SC_OK ? malloc((size_t)scan[0]->n_rows * sizeof(long)) : NULL;
+    if (st == SC_OK && !n0)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    const char *paths[2] = {scan[0]->path, scan[1]->path};
+    if (st == SC_OK)
+        st = step_and_spacings(p, scan[0], o[0], n0, &step, dk, paths, err);
+    if (st == SC_OK)
+        st = median_origin(scan[0], o[0], n0, step, &p0, err);
+    free(n0);
+    for (int k = 0; k < 2 && st == SC_OK; ++k)
         st = check_steps(scan[k], o[k], k, p0, step, p->step_tolerance, err);
-    }
     if (st == SC_OK) {
         long n1 = scan[0]->n_rows + dk[0], n2 = scan[1]->n_rows + dk[1];
         if (n1 != n2)

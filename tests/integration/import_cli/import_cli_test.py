@@ -452,6 +452,27 @@ def case_profile():
     short = dict(scans)
     short[2] = scans[2][:-1]
     bad(short, "b2.csv:113: scan 2 covers 119 points")
+    bad(scans, "the sensor spacings 3 and 3.54 mm are not whole multiples of one step",
+        spacings=(3, 3.54))
+
+    # a real scan's positions jitter (here up to 0.02 steps, the first sample 0.06 steps off
+    # and one 0.08): the step is found from all of them and made exactly D1/d1, the grid's origin
+    # is their median, so the default tolerance of 0.1 steps applies as documented
+    rnd = __import__("random").Random(5)
+    jit = {k: [(r[0] + s * (0.06 if (k, q) == (1, 0) else 0.08 if (k, q) == (1, 50) else
+                            rnd.uniform(-0.02, 0.02)),) + r[1:] for q, r in enumerate(scans[k])]
+           for k in (1, 2)}
+    for k in (1, 2):
+        write_scan(os.path.join(d, "j%d.csv" % k), jit[k])
+    jout = os.path.join(d, "jit.csv")
+    run(*(base + ["--spacing-mm", 3, os.path.join(d, "j1.csv"), "--spacing-mm", 3.5,
+                  os.path.join(d, "j2.csv"), "-o", jout]))
+    jhead, jdata = read_profile(jout)
+    for h in ("# N = 120", "# s_mm = 0.5", "# scan 1: d=6", "# scan 2: d=7"):
+        if h not in jhead:
+            fail("jittered positions: header lacks %r: %s" % (h, jhead))
+    if set(jdata) != set(data):
+        fail("jittered positions: the samples differ")
 
 
 def case_weights():
