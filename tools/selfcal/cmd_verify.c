@@ -167,6 +167,11 @@ int cmd_verify(int argc, char **argv)
         return cli_report(&err);
     }
     const verify_stats *b = &r.st_before, *a = &r.st_after;
+    if (r.n_unmeasured || r.n_unseen)
+        fprintf(stderr, "selfcal verify: left out of the statistics: %ld mark(s) the views place "
+                        "on the stage without a point in %s, %ld the calibration saw no error for "
+                        "(empty in %s)\n",
+                r.n_unmeasured, o.measurement, r.n_unseen, o.artifact ? o.artifact : "the plate error");
     printf("marks: %ld\n", a->count);
     printf("before_rms_um: %.6g\nbefore_max_um: %.6g\n", b->rms, b->max);
     printf("after_rms_um: %.6g\nafter_max_um: %.6g\n", a->rms, a->max);

@@ -144,10 +144,11 @@ static sc_status verify_work_alloc(size_t nn, size_t nres, verify_work *w, sc_er
 }
 
 /* View v's marks that the calibration saw: the error before and after the table (the plate's
- * own error, rotated into the view, taken off). Returns their count. */
+ * own error, rotated into the view, taken off). Returns their count; the marks left out are
+ * added to *unmeasured (no point in the file) and *unseen (no plate error). */
 static long verify_view_marks(const verify_opts *o, const verify_result *r,
                               const sc_stage_map *plate, const sc_corr_table *t, int v,
-                              verify_work *w)
+                              verify_work *w, long *unmeasured, long *unseen)
 {
     const sc_grid_plan *p = &r->d.plan;
     const int n = p->n;
@@ -157,11 +158,17 @@ static long verify_view_marks(const verify_opts *o, const verify_result *r,
             size_t k = (size_t)i * n + j;
             int ni, nj;
             double dx = r->d.dx_um[v][k], dy = r->d.dy_um[v][k];
-            if (!isfinite(dx) || !isfinite(dy) || !sc_grid_mark_node(p, v, i, j, &ni, &nj))
+            if (!sc_grid_mark_node(p, v, i, j, &ni, &nj))
                 continue;
+            if (!isfinite(dx) || !isfinite(dy)) {
+                *unmeasured += sc_grid_view_measures(p, v, i, j);
+                continue;
+            }
             double pax_um = plate->gx_um[k], pay_um = plate->gy_um[k];
-            if (!isfinite(pax_um) || !isfinite(pay_um))
-                continue; /* a mark the calibration could not see */
+            if (!isfinite(pax_um) || !isfinite(pay_um)) {
+                ++*unseen; /* a mark the calibration could not see */
+                continue;
+            }
             double rax, ray;
             sc_grid_rotate(p->view[v].rot_deg, pax_um, pay_um, &rax, &ray);
             double x, y;
@@ -197,7 +204,7 @@ static long verify_views(const verify_opts *o, verify_result *r, const sc_stage_
     const size_t nn = (size_t)p->n * p->n;
     long pm = 0;
     for (int v = 0; v < p->n_views; ++v) {
-        long m = verify_view_marks(o, r, plate, t, v, w);
+        long m = verify_view_marks(o, r, plate, t, v, w, &r->n_unmeasured, &r->n_unseen);
         double tx, ty, th;
         remove_misalignment(m, w->wx, w->wy, w->ebx, w->eby, &tx, &ty, &th);
         remove_misalignment(m, w->wx, w->wy, w->eax, w->eay, &r->tx_after[v], &r->ty_after[v],

@@ -44,6 +44,8 @@ typedef struct verify_result {
     double *bx, *by, *ax, *ay; /* per view and mark (n_views*n*n), NaN where not used */
     double tx_after[32], ty_after[32], th_after[32]; /* fitted misalignment per view (µm, µrad) */
     verify_stats st_before, st_after;
+    long n_unmeasured;         /* marks a view places on the stage without a point in the file */
+    long n_unseen;             /* measured marks the calibration saw no error for (plate NaN) */
     int pass;                  /* 1 pass, 0 fail, -1 no tolerance */
 } verify_result;
 

@@ -516,6 +516,19 @@ def case_verify():
         fail("wrong-sign table: %s" % bad.stdout)
     if not os.path.exists(p("res_neg.csv")):
         fail("a failed verification still writes its residual file")
+    if good.stderr:
+        fail("verify of a complete re-measurement says something on stderr: %r" % good.stderr)
+    # a mark missing from the re-measurement is left out, and said so
+    lines = open(p("V_good.csv")).read().splitlines(True)
+    data_at = next(k for k, l in enumerate(lines) if l[0].isdigit())
+    with open(p("V_gap.csv"), "w") as f:
+        f.writelines(lines[:data_at] + lines[data_at + 1:])
+    gap = run("verify", p("V_gap.csv"), "--table", p("good.lut"), "--artifact", p("A.csv"),
+              "--tolerance-um", tol)
+    kvg = dict(l.split(": ", 1) for l in gap.stdout.splitlines())
+    if int(kvg["marks"]) != n * n - 1 or "1 mark(s) the views place on the stage without a point" \
+            not in gap.stderr:
+        fail("verify with a mark missing: marks %s, stderr %r" % (kvg["marks"], gap.stderr))
     # raw readings: the table is applied here
     run("verify", p("V_raw.csv"), "--raw", "--table", p("good.lut"), "--artifact", p("A.csv"),
         "--tolerance-um", tol)
