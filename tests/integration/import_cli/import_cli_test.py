@@ -394,6 +394,18 @@ def read_profile(path):
     return head, data
 
 
+def imported_as_simulated(path, data, what):
+    """The imported file's header (N = 120, s = 0.5 mm, d = 6/7) and samples are the simulated
+    file's; returns its samples."""
+    head, got = read_profile(path)
+    for h in ("# N = 120", "# s_mm = 0.5", "# scan 1: d=6", "# scan 2: d=7"):
+        if h not in head:
+            fail("%s: the header lacks %r: %s" % (what, h, head))
+    if set(got) != set(data):
+        fail("%s: the samples differ" % what)
+    return got
+
+
 def case_profile():
     """Sensor logs (reversed order, nm and mrad, ';' and decimal commas, an offset start) ->
     selfcal-profile v1 equal to the simulated file; then the checks: gaps, repeats, step,
@@ -416,12 +428,7 @@ def case_profile():
     files = [os.path.join(d, "s1.csv"), os.path.join(d, "s2.csv")]
     args = base + ["--spacing-mm", 3, files[0], "--spacing-mm", 3.5, files[1]]
     run(*args, "-o", out)
-    ohead, odata = read_profile(out)
-    for h in ("# N = 120", "# s_mm = 0.5", "# scan 1: d=6", "# scan 2: d=7"):
-        if h not in ohead:
-            fail("profile header lacks %r: %s" % (h, ohead))
-    if set(odata) != set(data):
-        fail("profile samples differ")
+    odata = imported_as_simulated(out, data, "logs")
     worst = max(abs(a - b) for k in data for a, b in zip(odata[k], data[k]))
     if worst > 1e-12:
         fail("profile values differ by %g" % worst)
@@ -467,12 +474,7 @@ def case_profile():
     jout = os.path.join(d, "jit.csv")
     run(*(base + ["--spacing-mm", 3, os.path.join(d, "j1.csv"), "--spacing-mm", 3.5,
                   os.path.join(d, "j2.csv"), "-o", jout]))
-    jhead, jdata = read_profile(jout)
-    for h in ("# N = 120", "# s_mm = 0.5", "# scan 1: d=6", "# scan 2: d=7"):
-        if h not in jhead:
-            fail("jittered positions: header lacks %r: %s" % (h, jhead))
-    if set(jdata) != set(data):
-        fail("jittered positions: the samples differ")
+    imported_as_simulated(jout, data, "jittered positions")
 
 
 def case_weights():
