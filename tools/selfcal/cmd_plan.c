@@ -80,7 +80,16 @@ static int parse_pair(const char *v, double *a, double *b)
 
 /* Stages of more nodes than this take a second or more to analyse (per candidate raster of the
  * designer): each analysis is announced on stderr. */
-#define DESIGN_ANNOUNCE_NODES 100000
+#define ANNOUNCE_NODES 100000
+
+/* 1 if the least-squares analysis of plan p is long enough to announce (ANNOUNCE_NODES); then
+ * *unknowns: what it solves for (G at every node, 3 misalignments a view, 5 with drift). */
+static int worth_announcing(const sc_grid_plan *p, int drift, long *unknowns)
+{
+    long nodes = sc_grid_stage_nodes(p);
+    *unknowns = 2 * nodes + (drift ? 5L : 3L) * p->n_views;
+    return nodes > ANNOUNCE_NODES;
+}
 
 /* The designer: the largest raster step that identifies G. */
 static int design(int argc, char **argv)
@@ -125,9 +134,10 @@ static int design(int argc, char **argv)
         sc_grid_plan p;
         if (sc_grid_plan_stitch_step(n, (int)sx, (int)sy, step, pitch, ox, oy, &p, &err) != SC_OK)
             break;
-        if (sx * sy > DESIGN_ANNOUNCE_NODES) /* seconds to minutes each: say what is going on */
+        long unknowns;
+        if (worth_announcing(&p, 0, &unknowns)) /* seconds to minutes each */
             fprintf(stderr, "selfcal: plan --design: trying a raster step of %d (%d placements, "
-                            "%.0f unknowns)\n", step, p.n_views, 2 * sx * sy + 3.0 * p.n_views);
+                            "%ld unknowns)\n", step, p.n_views, unknowns);
         sc_grid_lsq_plan *q = NULL;
         sc_grid_lsq_opts only = {.node_sigma_only = 1, /* what is printed: no σ of O, R */
                                  .max_bytes = cli_memory_bytes()};
@@ -277,11 +287,10 @@ int cmd_plan(int argc, char **argv)
                      "--drift linear needs the time of each measurement (column t_s)");
         return cli_report(&err);
     }
-    long nodes = sc_grid_stage_nodes(&d.plan);
-    if (nodes > DESIGN_ANNOUNCE_NODES) /* seconds to minutes: say what is going on */
+    long unknowns;
+    if (worth_announcing(&d.plan, opts.drift, &unknowns)) /* seconds to minutes */
         fprintf(stderr, "selfcal: plan: analysing a %d x %d stage (%ld unknowns)\n",
-                sc_grid_stage_nx(&d.plan), sc_grid_stage_ny(&d.plan),
-                2 * nodes + 3L * d.plan.n_views);
+                sc_grid_stage_nx(&d.plan), sc_grid_stage_ny(&d.plan), unknowns);
     st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &opts, &q, &err);
     if (st != SC_OK) {
         sc_grid_data_free(&d);
