@@ -89,13 +89,18 @@ static sc_status median_step(const sc_table *t, const pos_row *o, double *step, 
 }
 
 /* The sample index of each sorted position of scan 1, chained from its neighbour (each difference
- * rounded to whole steps: a position's jitter never adds up along the scan), into n; then the
- * least-squares line p = a + s·n through them: *s_fit (0 if it cannot be fitted). */
-static void chain_and_fit(const sc_table *t, const pos_row *o, double step, long *n, double *s_fit)
+ * rounded to whole steps: a position's jitter never adds up along the scan), into n. */
+static void chain_indices(const sc_table *t, const pos_row *o, double step, long *n)
 {
     n[0] = 0;
     for (long q = 1; q < t->n_rows; ++q)
         n[q] = n[q - 1] + lround((o[q].pos - o[q - 1].pos) / step);
+}
+
+/* The slope of the least-squares line p = a + s·n through the positions and their indices (0 if
+ * it cannot be fitted: one index). */
+static double fit_step(const sc_table *t, const pos_row *o, const long *n)
+{
     double mn = 0, mp = 0, snn = 0, snp = 0;
     for (long q = 0; q < t->n_rows; ++q)
         mn += (double)n[q], mp += o[q].pos;
@@ -104,11 +109,11 @@ static void chain_and_fit(const sc_table *t, const pos_row *o, double step, long
         snn += ((double)n[q] - mn) * ((double)n[q] - mn);
         snp += ((double)n[q] - mn) * (o[q].pos - mp);
     }
-    *s_fit = snn > 0 ? snp / snn : 0;
+    return snn > 0 ? snp / snn : 0;
 }
 
 /* The grid's origin p0: the median over scan 1 of p - n·step (robust to a jittered first
- * sample); n: chain_and_fit's indices. */
+ * sample); n: chain_indices'. */
 static sc_status median_origin(const sc_table *t, const pos_row *o, const long *n, double step,
                                double *p0, sc_error *err)
 {
@@ -132,11 +137,12 @@ static sc_status step_and_spacings(const sc_profile_import_params *p, const sc_t
 {
     sc_status st = SC_OK;
     int given = p->step_mm > 0;
-    double s = p->step_mm, s_fit = 0;
+    double s = p->step_mm;
     if (!given && (st = median_step(t0, o0, &s, err)) != SC_OK)
         return st;
-    chain_and_fit(t0, o0, s, n0, &s_fit);
-    if (!given && s_fit > 0)
+    chain_indices(t0, o0, s, n0);
+    double s_fit = given ? 0 : fit_step(t0, o0, n0);
+    if (s_fit > 0)
         s = s_fit;
     for (int k = 0; k < 2; ++k) {
         double fd = p->spacing_mm[k] / s;
@@ -158,7 +164,7 @@ static sc_status step_and_spacings(const sc_profile_import_params *p, const sc_t
                                 "step (%g / %d and %g / %d differ; give the step with --step-mm)",
                                 p->spacing_mm[0], p->spacing_mm[1], p->spacing_mm[0], dk[0],
                                 p->spacing_mm[1], dk[1]);
-        chain_and_fit(t0, o0, s, n0, &s_fit); /* the indices for the exact step */
+        chain_indices(t0, o0, s, n0); /* the indices for the exact step */
     }
     *step = s;
     return SC_OK;
