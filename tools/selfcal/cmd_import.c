@@ -124,8 +124,7 @@ static int parse_view(const char *spec, int n, sc_grid_view *v, char *sigma, siz
             have_shift = 1;
         } else if (!strcmp(tok, "sigma_um")) {
             double sg;
-            if (sc_parse_double(val, &sg) || !(sg >= SC_GRID_MIN_SIGMA_UM) ||
-                sg > SC_INPUT_MAX_ABS || strlen(val) >= sigma_len)
+            if (sc_parse_double(val, &sg) || !sc_grid_sigma_valid(sg) || strlen(val) >= sigma_len)
                 return cli_usage_error("import grid", "--view \"%s\": sigma_um must be %g to %g um",
                                        spec, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
             snprintf(sigma, sigma_len, "%s", val);
@@ -318,9 +317,8 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
     const double scale[4] = {g->unit_mm, g->unit_mm, g->unit_mm * 1e3, g->unit_mm * 1e3};
     sc_status st = sc_table_read(iv->file, nc, names, scale, &iv->t, err);
     for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
-        if (!(iv->t.value[q * 4 + 2] >= SC_GRID_MIN_SIGMA_UM &&
-              iv->t.value[q * 4 + 3] >= SC_GRID_MIN_SIGMA_UM &&
-              iv->t.value[q * 4 + 2] <= SC_INPUT_MAX_ABS && iv->t.value[q * 4 + 3] <= SC_INPUT_MAX_ABS))
+        if (!sc_grid_sigma_valid(iv->t.value[q * 4 + 2]) ||
+            !sc_grid_sigma_valid(iv->t.value[q * 4 + 3]))
             st = sc_error_set(err, SC_E_INPUT, iv->file, iv->t.line[q],
                               "the uncertainties in '%s' and '%s' must be %g to %g um", g->uxcol,
                               g->uycol, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);

@@ -19,6 +19,7 @@
 #include <stdbool.h>
 #include "selfcal/api.h"
 #include "selfcal/error.h"
+#include "selfcal/stage_map.h" /* SC_STAGE_MAP_MIN_PITCH_MM */
 
 #ifdef __cplusplus
 extern "C" {
@@ -30,7 +31,7 @@ extern "C" {
 /* The smallest pitch (1 nm: what a table can place) and the smallest stated standard
  * uncertainty (1 pm) a grid file, a plan or an import takes: below them no measuring set-up
  * exists, and the arithmetic (Σ x², 1/σ²) leaves the range of doubles. */
-#define SC_GRID_MIN_PITCH_MM 1e-6
+#define SC_GRID_MIN_PITCH_MM SC_STAGE_MAP_MIN_PITCH_MM
 #define SC_GRID_MIN_SIGMA_UM 1e-6
 
 typedef struct sc_grid_view {
@@ -153,7 +154,12 @@ SC_API void sc_grid_rotate(int rot_deg, double ax, double ay, double *sx, double
 /* Index of the first view with this rot and shift, or -1. */
 SC_API int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift_y);
 
-/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, stage odd >= 3, pitch > 0,
+/* Whether u_um is a standard uncertainty a grid file, a plan or an import may state: 1e-6 µm
+ * (SC_GRID_MIN_SIGMA_UM) to 1e6 µm (the readers' limit); false for NaN and infinities. */
+SC_API bool sc_grid_sigma_valid(double u_um);
+
+/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, stage odd >= 3, pitch
+ * SC_GRID_MIN_PITCH_MM to 1e6 mm, origin within 1e6 mm, each view's sigma_um 0 or valid,
  * rotations, shifts, every view landing at least one mark on the stage). */
 SC_API sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);
 

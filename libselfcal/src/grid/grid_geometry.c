@@ -101,6 +101,11 @@ int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, int shift
     return -1;
 }
 
+bool sc_grid_sigma_valid(double u_um)
+{
+    return u_um >= SC_GRID_MIN_SIGMA_UM && u_um <= SC_INPUT_MAX_ABS;
+}
+
 sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
 {
     if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
@@ -125,8 +130,7 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
                             SC_GRID_MAX_VIEWS);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
-        if (!(w->sigma_um == 0 || (w->sigma_um >= SC_GRID_MIN_SIGMA_UM &&
-                                   w->sigma_um <= SC_INPUT_MAX_ABS))) /* 0: not stated */
+        if (!(w->sigma_um == 0 || sc_grid_sigma_valid(w->sigma_um))) /* 0: not stated */
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "view %d: sigma_um must be %g to %g um (0: not stated), got %g", v,
                                 SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, w->sigma_um);

@@ -96,9 +96,10 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
                                     "view %ld: shift must be two whole numbers SX,SY", id);
         } else if (!strcmp(tok, "sigma_um")) {
             if (have_sigma++ || sc_parse_double(val, &vd->sigma_um) != 0 ||
-                !(vd->sigma_um >= SC_GRID_MIN_SIGMA_UM) || !(vd->sigma_um <= SC_INPUT_MAX_ABS))
+                !sc_grid_sigma_valid(vd->sigma_um))
                 return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: sigma_um must be a positive number", id);
+                                    "view %ld: sigma_um must be %g to %g um", id,
+                                    SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
         } else if (!strcmp(tok, "rows")) {
             if (have_rows++ || parse_index_list(val, vd->rows, &vd->n_rows_sel) != 0)
                 return sc_error_set(err, SC_E_INPUT, path, line,
@@ -368,8 +369,7 @@ static sc_status row_uncertainties(read_state *s, sc_grid_data *d, int v, long v
             if (!(d->plan.view[v].sigma_um > 0))
                 return sc_error_set(err, SC_E_INPUT, s->path, ln,
                                     "%s is empty and view %ld states no sigma_um", name, vid);
-        } else if (sc_parse_double(f, &u) != 0 || !(u >= SC_GRID_MIN_SIGMA_UM) ||
-                   !(u <= SC_INPUT_MAX_ABS)) {
+        } else if (sc_parse_double(f, &u) != 0 || !sc_grid_sigma_valid(u)) {
             return sc_error_set(err, SC_E_INPUT, s->path, ln,
                                 "%s must be a standard uncertainty of %g to %g um, got '%.40s'",
                                 name, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, f);
