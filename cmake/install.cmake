@@ -10,7 +10,9 @@
 #   P/share/man/man1/selfcal.1, man8/selfcald.8
 #   P/lib/systemd/system/selfcald.service   with P's paths filled in at install time (install_paths.cmake)
 #   P/share/doc/selfcal/                    README, docs/, selfcald.conf.example, examples/,
-#                                           python/README.md, runtime/selfcald.dbc (the links hold)
+#                                           python/README.md, runtime/selfcald.dbc (the links hold),
+#                                           LICENSE and copyright (Debian's format: the notices of
+#                                           the code compiled in from fast_float and Dragonbox)
 # Adding something: an install() rule next to the target that makes it (programs: call
 # selfcal_install_program(TARGET) from the folder that defines TARGET).
 include(CMakePackageConfigHelpers)
@@ -55,7 +57,8 @@ foreach(page selfcal.1 selfcald.8)
 endforeach()
 
 # ---- documentation and the example program ----
-install(FILES ${PROJECT_SOURCE_DIR}/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/LICENSE
+              ${PROJECT_SOURCE_DIR}/packaging/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR})
 # the source tree's layout, so that the README's and the docs' relative links work installed too
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs
   FILES_MATCHING PATTERN "*.md" PATTERN "man" EXCLUDE)

@@ -11,6 +11,7 @@ set(CPACK_PACKAGE_DESCRIPTION "Grid plate self-calibration (Ye, double shift, le
 straightness by the two-set two-point method, a compact correction table and selfcald, a daemon \
 correcting live positions over Modbus TCP/RTU and SocketCAN.")
 set(CPACK_RESOURCE_FILE_README ${PROJECT_SOURCE_DIR}/README.md)
+set(CPACK_RESOURCE_FILE_LICENSE ${PROJECT_SOURCE_DIR}/LICENSE)
 set(CPACK_GENERATOR "DEB;TGZ")
 set(CPACK_SOURCE_GENERATOR "")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)

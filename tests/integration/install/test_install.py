@@ -137,7 +137,8 @@ def case_install():
                 "include/selfcal/api.h", "share/man/man1/selfcal.1", "share/man/man8/selfcald.8",
                 "lib/systemd/system/selfcald.service", "share/doc/selfcal/selfcald.conf.example",
                 "share/doc/selfcal/examples/grid_node.c",
-                "share/doc/selfcal/examples/python/calibrate_stage.py"):
+                "share/doc/selfcal/examples/python/calibrate_stage.py", "share/doc/selfcal/LICENSE",
+                "share/doc/selfcal/copyright"):
         check(os.path.isfile(os.path.join(prefix, rel)), "installed %s" % rel)
     # the installed README's and docs' links to documents (.md, the CAN database) and examples
     # lead to installed files, as in the source tree
@@ -268,7 +269,7 @@ def case_deb():
     contents = run(["dpkg-deb", "-c", debs[0]]).stdout
     for name in ("usr/include/selfcal/grid_lsq.h", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
                  "libselfcal.so.", "libselfcal.a", "man1/selfcal.1.gz", "man8/selfcald.8.gz",
-                 "systemd/system/selfcald.service"):
+                 "systemd/system/selfcald.service", "usr/share/doc/selfcal/copyright"):
         check(name in contents, ".deb contains %s" % name)
     check("docs/man/" not in contents, ".deb has no empty docs/man folder")
     # the unit starts the program the package installs, with Debian's /etc
