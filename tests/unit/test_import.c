@@ -136,6 +136,34 @@ static void test_table_errors(void **state)
     }
 }
 
+/* sc_table_read_max takes max_rows rows and refuses the next at its own line, nothing read past
+ * it; a limit outside 1..SC_TABLE_MAX_ROWS is refused before the file is opened. */
+static void test_table_max_rows(void **state)
+{
+    (void)state;
+    char path[512];
+    tmp_path(path, sizeof path, "rows.csv");
+    write_text(path, "# four rows\nx;y\n1;2\n3;4\n5;6\n7;8\nnot a row\n");
+    sc_table t;
+    sc_error err;
+    assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 3, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 6); /* the fourth row, not the bad line after it */
+    if (!strstr(err.msg, "more than 3 rows"))
+        fail_msg("'%s'", err.msg);
+    assert_null(t.value);
+    assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 4, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 7); /* four taken, the fifth line is not a number */
+    write_text(path, "x;y\n1;2\n3;4\n5;6\n");
+    assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 3, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 3);
+    assert_true(t.value[4] == 5 && t.value[5] == 6);
+    sc_table_free(&t);
+    assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 0, &t, &err), SC_E_INPUT);
+    assert_int_equal(sc_table_read_max(path, 2, XY, NULL, SC_TABLE_MAX_ROWS + 1, &t, &err), SC_E_INPUT);
+    assert_int_equal(sc_table_read_max(path, 2, XY, NULL, SC_TABLE_MAX_ROWS, &t, &err), SC_OK);
+    sc_table_free(&t);
+}
+
 /* A rot=90, shift=1,-1 view on a 9x11 stage, placed off by (0.1, -0.05) mm and 3 mrad, shuffled,
  * with a missing mark and a stray point: every point gets its mark, the placement is found. */
 static void test_assign(void **state)
@@ -214,6 +242,7 @@ int main(void)
         cmocka_unit_test(test_table_dialects),
         cmocka_unit_test(test_table_errors),
         cmocka_unit_test(test_table_preamble),
+        cmocka_unit_test(test_table_max_rows),
         cmocka_unit_test(test_assign),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

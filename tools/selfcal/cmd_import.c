@@ -315,7 +315,8 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
 {
     const char *names[4] = {g->xcol, g->ycol, g->uxcol, g->uycol};
     const double scale[4] = {g->unit_mm, g->unit_mm, g->unit_mm * 1e3, g->unit_mm * 1e3};
-    sc_status st = sc_table_read(iv->file, nc, names, scale, &iv->t, err);
+    sc_status st = sc_table_read_max(iv->file, nc, names, scale, SC_IMPORT_VIEW_MAX_POINTS, &iv->t,
+                                     err);
     for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
         if (!sc_grid_sigma_valid(iv->t.value[q * 4 + 2]) ||
             !sc_grid_sigma_valid(iv->t.value[q * 4 + 3]))

@@ -10,6 +10,7 @@
 #include "plots.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
+#include "selfcal/profile_file.h"
 #include "svg.h"
 
 static const char *USAGE =
@@ -17,9 +18,14 @@ static const char *USAGE =
     "                       [--title T] [--xlabel L] [--ylabel L]\n"
     "  A line chart of a CSV file with a header line: x from column COL (default the first), one\n"
     "  line with markers per --y column (default every other column); empty fields are gaps.\n"
-    "  --logx/--logy: logarithmic axes (values <= 0 are left out).\n";
+    "  --logx/--logy: logarithmic axes (values <= 0 are left out). At most 10^8 rows\n"
+    "  (the longest profile selfcal reads).\n";
 
 #define XY_MAX_SERIES 16
+/* the most rows read: the longest profile output selfcal writes (series are thinned to the
+ * figure's width when drawn); an endless pipe is refused there instead of read until memory
+ * runs out */
+#define XY_MAX_ROWS ((long)SC_PROFILE_MAX_N)
 
 typedef struct xy_data {
     int ncol;
@@ -57,6 +63,11 @@ static sc_status read_xy(const char *path, xy_data *t,
         if (r.nfields != t->ncol) {
             st = sc_error_set(err, SC_E_INPUT, path, r.line, "expected %d fields, got %d", t->ncol,
                               r.nfields);
+            goto fail;
+        }
+        if (t->nrows == XY_MAX_ROWS) {
+            st = sc_error_set(err, SC_E_INPUT, path, r.line,
+                              "more than %ld rows, the most a chart draws", XY_MAX_ROWS);
             goto fail;
         }
         if (t->nrows == t->cap) {

@@ -54,6 +54,19 @@ typedef struct sc_table {
 SC_API sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
                                const double *scale, sc_table *t, sc_error *err);
 
+/* The most rows sc_table_read takes: a scan of SC_PROFILE_MAX_N samples (a file or pipe with more
+ * is refused at the row beyond, SC_E_INPUT with file:line, instead of read until memory runs out). */
+#define SC_TABLE_MAX_ROWS ((long)SC_PROFILE_MAX_N)
+
+/* The most points `selfcal import grid` takes from one view's file: four for every mark of the
+ * largest plate (SC_GRID_MAX_N² marks), room for stray points and repeated features. */
+#define SC_IMPORT_VIEW_MAX_POINTS (4L * SC_GRID_MAX_N * SC_GRID_MAX_N)
+
+/* sc_table_read refusing a table of more than max_rows (1..SC_TABLE_MAX_ROWS) rows: SC_E_INPUT at
+ * the first row beyond, with file:line; nothing beyond it is read. */
+SC_API sc_status sc_table_read_max(const char *path, int n_cols, const char *const *names,
+                                   const double *scale, long max_rows, sc_table *t, sc_error *err);
+
 /* Free t's arrays; safe on a zeroed or freed table. */
 SC_API void sc_table_free(sc_table *t);
 

@@ -100,6 +100,7 @@ typedef struct table_reader {
     unsigned char quoted[MAX_TABLE_FIELDS]; /* the data line's fields that were in quotes */
     int col_of[16], n_header;
     long cap, mark_line;
+    long max_rows; /* refused beyond */
     char mark; /* the decimal mark seen so far, 0 if none */
 } table_reader;
 
@@ -187,9 +188,14 @@ static int looks_like_data(const char *text)
 static sc_status grow(table_reader *tr, sc_error *err)
 {
     sc_table *t = tr->t;
+    if (t->n_rows >= tr->max_rows)
+        return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                            "more than %ld rows, the most this import takes", tr->max_rows);
     if (t->n_rows < tr->cap)
         return SC_OK;
     long ncap = tr->cap ? 2 * tr->cap : 1024;
+    if (ncap > tr->max_rows)
+        ncap = tr->max_rows;
     double *nv = realloc(t->value, (size_t)ncap * (size_t)tr->n_cols * sizeof(double));
     if (nv)
         t->value = nv;
@@ -260,12 +266,21 @@ static sc_status read_data_line(table_reader *tr, sc_error *err)
 sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
                         const double *scale, sc_table *t, sc_error *err)
 {
+    return sc_table_read_max(path, n_cols, names, scale, SC_TABLE_MAX_ROWS, t, err);
+}
+
+sc_status sc_table_read_max(const char *path, int n_cols, const char *const *names,
+                            const double *scale, long max_rows, sc_table *t, sc_error *err)
+{
     memset(t, 0, sizeof *t);
     snprintf(t->path, sizeof t->path, "%s", path);
     t->n_cols = n_cols;
     if (n_cols < 1 || n_cols > 16 || !names)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read asks for 1..16 columns, got %d",
                             n_cols);
+    if (max_rows < 1 || max_rows > SC_TABLE_MAX_ROWS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read takes 1..%ld rows at most, "
+                            "not %ld", SC_TABLE_MAX_ROWS, max_rows);
     for (int a = 0; scale && a < n_cols; ++a)
         if (!isfinite(scale[a]) || scale[a] == 0)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -285,6 +300,7 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
     tr.n_cols = n_cols;
     tr.names = names;
     tr.scale = scale;
+    tr.max_rows = max_rows;
     sc_status st = sc_csv_open(&tr.r, path, err);
     if (st != SC_OK)
         return st;

@@ -11,6 +11,7 @@ import math
 import os
 import random
 import shlex
+import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -342,6 +343,17 @@ def case_bad_input():
         p = run(*a, "-o", out, expect=2)
         if len(p.stderr.strip().splitlines()) != 1 or os.path.exists(out):
             fail("usage error %s: %r" % (a, p.stderr))
+    # an endless pipe (a header, then the same point forever) is refused at the row beyond the
+    # most points a view takes, not read until memory runs out
+    a = import_args(views, ["/dev/stdin", files[1], files[2]], n=9)
+    with subprocess.Popen(["sh", "-c", "printf 'X;Y\\n'; exec yes '0,5;0,5'"],
+                          stdout=subprocess.PIPE) as gen:
+        p = subprocess.run([CLI] + [str(x) for x in a] + ["-o", out], stdin=gen.stdout,
+                           capture_output=True, text=True, timeout=clitest._timeout)
+        gen.kill()
+    want = "/dev/stdin:%d: more than %d rows" % (4 * 513 * 513 + 2, 4 * 513 * 513)
+    if p.returncode != 2 or want not in p.stderr or os.path.exists(out):
+        fail("endless pipe: exit %d, %r (want %r)" % (p.returncode, p.stderr, want))
     run(*good, "-o", out)  # and the good files do import
 
 
