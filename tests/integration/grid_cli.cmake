@@ -25,7 +25,7 @@ endif()
 # real measurements (SPEC §5, issue 10)
 if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   set(_grid_real_py ${CMAKE_CURRENT_SOURCE_DIR}/integration/grid_cli/grid_real_test.py)
-  foreach(_case damaged weights outliers outlier_test view_noise covariance drift plan bad_input)
+  foreach(_case damaged one_mark_view weights outliers outlier_test view_noise covariance drift plan bad_input)
     add_test(NAME grid_real_${_case} COMMAND ${SELFCAL_PYTHON3} ${_grid_real_py}
              $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp ${_case})
     set_tests_properties(grid_real_${_case} PROPERTIES TIMEOUT 300 LABELS "integration;grid")

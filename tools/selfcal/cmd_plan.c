@@ -225,11 +225,11 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
     }
     printf("equations: %ld\nunknowns: %ld\nconstraints: %ld\n", qi->n_equations, qi->n_unknowns,
            qi->n_constraints);
-    /* Equations minus the rank: the gauge, a view without marks (its misalignment) and a mark no
-     * view measures (its plate error) leave unknowns undetermined without costing equations. */
+    /* equations minus the rank: the gauge, a view without marks (its misalignment), a view with
+     * one mark (its rotation) and a mark no view measures (its plate error) leave unknowns
+     * undetermined without costing equations */
     if (qi->identifiable) {
-        printf("residual_dof: %ld\n", qi->n_equations + qi->n_constraints - qi->n_unknowns +
-                                           3 * empty_views);
+        printf("residual_dof: %ld\n", qi->residual_dof);
         print_reliability(qi);
     }
     if (empty_views || unseen_marks)

@@ -39,6 +39,8 @@ typedef struct sc_grid_lsq_info {
                                  of the default test (SC_GRID_OUTLIER_ALPHA over the testable
                                  equations) at redundancy_min, in units of the coordinate's σ */
     double mdb_ratio_mean_r;  /* the same at redundancy_mean */
+    long residual_dof;        /* equations minus the rank: the residuals' degrees of freedom
+                                 (identifying plans; the dof of sc_grid_lsq_execute's result) */
 } sc_grid_lsq_info;
 
 /* Model options. */

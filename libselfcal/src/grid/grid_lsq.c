@@ -123,7 +123,8 @@ static int small_nullity(double *a, int m, double tol)
             dmax = a[i * m + i];
     if (!(dmax > 0))
         return m;
-    int *piv = malloc(sizeof(int) * (size_t)m);
+    /* a view's misalignment fit (m <= 5) allocates nothing */
+    int small[16], *piv = m <= 16 ? small : malloc(sizeof(int) * (size_t)m);
     if (!piv)
         return -1;
     for (int i = 0; i < m; ++i)
@@ -150,7 +151,8 @@ static int small_nullity(double *a, int m, double tol)
             }
         }
     }
-    free(piv);
+    if (piv != small)
+        free(piv);
     return m - r;
 }
 
@@ -819,6 +821,7 @@ static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
         q->info.n_stage_unmeasured += !seen[k];
     free(seen);
     q->rank = q->info.n_unknowns - (4 + K + q->nullity_T);
+    q->info.residual_dof = q->neq - q->rank;
     q->misalignment_unique = q->nullity_T <= 3;
     for (int k = 0; k < q->ns; ++k)
         q->sgx[k] = q->sgy[k] = NAN;
@@ -1134,20 +1137,61 @@ static void gauge_solution(const sc_grid_lsq_plan *q, const sc_grid_data *d, con
     }
 }
 
-/* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns
- * (m: nm; NaN for a view whose columns are singular). */
-static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *g,
-                              const double *a, double *m)
+/* One view's misalignment fit from its normal equations nrm (nb x nb, row-major) and rh: the
+ * columns taken in order (tx, ty, φ, vx, vy), each kept when the system stays regular with it
+ * (Cholesky with diagonal pivoting, LSQ_SMALL_TOL), the kept ones solved, the others 0 — a
+ * particular least-squares solution, so the residuals are right whatever the view determines
+ * (a single mark: tx, ty fit it exactly, φ stays 0). m: nb values; returns 1 if every column was
+ * kept (the misalignments are determined), 0 if not, -1 for a view without equations (m NaN). */
+static int fit_view(const double *nrm, const double *rh, int nb, double *m)
 {
-    int nb = q->nb, ns = q->ns;
+    int keep[5], nk = 0;
+    for (int c = 0; c < nb; ++c)
+        m[c] = 0;
+    for (int c = 0; c < nb; ++c) {
+        double sub[25];
+        keep[nk] = c;
+        for (int i = 0; i <= nk; ++i)
+            for (int j = 0; j <= nk; ++j)
+                sub[i * (nk + 1) + j] = nrm[keep[i] * nb + keep[j]];
+        if (small_nullity(sub, nk + 1, LSQ_SMALL_TOL) == 0)
+            ++nk;
+    }
+    if (nk == 0) {
+        for (int c = 0; c < nb; ++c)
+            m[c] = NAN;
+        return -1;
+    }
+    double sub[25], r[5];
+    for (int i = 0; i < nk; ++i) {
+        r[i] = rh[keep[i]];
+        for (int j = 0; j < nk; ++j)
+            sub[i * nk + j] = nrm[keep[i] * nb + keep[j]];
+    }
+    small_solve(sub, r, nk);
+    for (int i = 0; i < nk; ++i)
+        m[keep[i]] = r[i];
+    return nk == nb;
+}
+
+/* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns,
+ * G as gx | gy (ns each), A's x and y of mark k at ax[k·as] and ay[k·as] (as: 2 for the solve's
+ * interleaved A, 1 for a result's). m: nm, a particular solution where a view does not determine
+ * its columns (fit_view); determined (may be NULL): per view, 1 if it does. */
+static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *gx,
+                              const double *gy, const double *ax, const double *ay, int as,
+                              double *m, int *determined)
+{
+    int nb = q->nb;
     double nrm[SC_GRID_MAX_VIEWS * 5 * 5] = {0}, rh[SC_GRID_MAX_VIEWS * 5] = {0};
     int idx[ROW_MAX];
     double val[ROW_MAX];
     for (long e = 0; e < q->neq; ++e) {
-        int v = q->eq_v[e], len = eq_row(q, e, idx, val);
+        int v = q->eq_v[e], len = eq_row(q, e, idx, val), node = q->eq_g[e] / 2,
+            k = q->eq_a[e] / 2;
         double w = q->eq_w[e], s = q->eq_s[e];
-        double r = eq_data(q, d, e) - g[(q->eq_g[e] % 2) * ns + q->eq_g[e] / 2] -
-                   s * a[q->eq_a[e]];
+        double r = eq_data(q, d, e) - (q->eq_g[e] % 2 ? gy : gx)[node] -
+                   s * (q->eq_a[e] % 2 ? ay : ax)[(size_t)k * as];
         for (int i = 1; i < len; ++i) {
             int bi = idx[i] - q->ng - nb * v;
             rh[v * nb + bi] += w * s * val[i] * r;
@@ -1156,9 +1200,9 @@ static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
         }
     }
     for (int v = 0; v < q->nv; ++v) {
-        small_solve(nrm + (size_t)v * nb * nb, rh + (size_t)v * nb, nb);
-        for (int t = 0; t < nb; ++t)
-            m[v * nb + t] = rh[v * nb + t];
+        int det = fit_view(nrm + (size_t)v * nb * nb, rh + (size_t)v * nb, nb, m + v * nb);
+        if (determined)
+            determined[v] = det == 1;
     }
 }
 
@@ -1419,7 +1463,8 @@ sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
     if (solve_reduced(q, d, x, r, b, r2) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (least-squares solve)");
     gauge_solution(q, d, x, g, g + ns, a);
-    fit_misalignments(q, d, g, a, m);
+    int determined[SC_GRID_MAX_VIEWS];
+    fit_misalignments(q, d, g, g + ns, a, a + 1, 2, m, determined);
     double rss = 0, wrss = 0;
     for (long e = 0; e < q->neq; ++e) {
         int c = q->eq_g[e] % 2, node = q->eq_g[e] / 2;
@@ -1428,6 +1473,9 @@ sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
         wrss += q->eq_w[e] * re * re;
     }
     double sigma0 = fill_result_noise(q, wrss, rss, sigma_r_um, res);
+    for (int v = 0; v < q->nv; ++v) /* reported only where the view determines them */
+        for (int c = 0; !determined[v] && c < q->nb; ++c)
+            m[v * q->nb + c] = NAN;
     fill_result_values(q, g, a, m, sigma0, res);
     return SC_OK;
 }
@@ -2038,16 +2086,10 @@ out:
     return st;
 }
 
-/* m := the plan's misalignment unknowns (nb per view, in the equations' units) from res. */
-static void misalignment_unknowns(const sc_grid_lsq_plan *q, const sc_grid_result *res, double *m)
+void sc_grid_lsq_fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                   const sc_grid_result *res, double *m)
 {
-    for (int v = 0; v < q->nv; ++v) {
-        double *mv = m + v * q->nb;
-        mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
-        mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
-        if (q->drift)
-            mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
-    }
+    fit_misalignments(q, d, res->gx_um, res->gy_um, res->ax_um, res->ay_um, 1, m, NULL);
 }
 
 sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d,
@@ -2062,7 +2104,7 @@ sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d
     if (!isfinite(res->sigma_r_used_um))
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
     double m[SC_GRID_MAX_VIEWS * 5], tscale = residual_scale(res);
-    misalignment_unknowns(q, res, m);
+    sc_grid_lsq_fit_misalignments(q, d, res, m);
     size_t tot = (size_t)q->nv * q->nn;
     double *outs[5] = {rx_um, ry_um, tx, ty, h_out};
     for (int o = 0; o < 5; ++o)
@@ -2099,7 +2141,7 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
     if (!res->gx_um || !res->gy_um || !res->ax_um || !res->ay_um)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "variance components need G and A");
     double m[SC_GRID_MAX_VIEWS * 5], cnt[SC_GRID_MAX_VIEWS];
-    misalignment_unknowns(q, res, m);
+    sc_grid_lsq_fit_misalignments(q, d, res, m);
     for (int v = 0; v < q->nv; ++v)
         wrss[v] = red[v] = u2[v] = cnt[v] = 0;
     for (long e = 0; e < q->neq; ++e) {
@@ -2189,8 +2231,9 @@ sc_status sc_grid_lsq_covariance(const sc_grid_lsq_plan *q, const sc_grid_result
     return SC_OK;
 }
 
-void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, int v, int i, int j,
-                         double t_s, double *dx_um, double *dy_um)
+void sc_grid_lsq_predict_with(const sc_grid_lsq_plan *q, const sc_grid_result *res,
+                              const double *m, int v, int i, int j, double t_s, double *dx_um,
+                              double *dy_um)
 {
     int ni, nj;
     *dx_um = *dy_um = NAN;
@@ -2198,15 +2241,30 @@ void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, i
         !res->ax_um || !sc_grid_mark_node(&q->plan, v, i, j, &ni, &nj))
         return;
     int node = ni * q->stage_nx + nj, k = i * q->n + j;
-    double x, y, rax, ray;
+    const double *mv = m + v * q->nb;
+    double x, y, rax, ray, phi = mv[2] / (q->L_mm * 1e-3); /* µrad */
     sc_grid_node_xy_mm(&q->plan, ni, nj, &x, &y);
     sc_grid_rotate(q->plan.view[v].rot_deg, res->ax_um[k], res->ay_um[k], &rax, &ray);
-    *dx_um = res->gx_um[node] + rax + res->tx_um[v] - res->theta_urad[v] * y * 1e-3;
-    *dy_um = res->gy_um[node] + ray + res->ty_um[v] + res->theta_urad[v] * x * 1e-3;
+    *dx_um = res->gx_um[node] + rax + mv[0] - phi * y * 1e-3;
+    *dy_um = res->gy_um[node] + ray + mv[1] + phi * x * 1e-3;
     if (q->drift) {
-        *dx_um += res->vx_um_s[v] * (t_s - q->drift_t0[v]);
-        *dy_um += res->vy_um_s[v] * (t_s - q->drift_t0[v]);
+        *dx_um += mv[3] / q->drift_T[v] * (t_s - q->drift_t0[v]);
+        *dy_um += mv[4] / q->drift_T[v] * (t_s - q->drift_t0[v]);
     }
+}
+
+void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, int v, int i, int j,
+                         double t_s, double *dx_um, double *dy_um)
+{
+    double m[SC_GRID_MAX_VIEWS * 5];
+    for (int w = 0; w < q->nv; ++w) {
+        double *mv = m + w * q->nb;
+        mv[0] = res->tx_um[w], mv[1] = res->ty_um[w];
+        mv[2] = res->theta_urad[w] * (q->L_mm * 1e-3);
+        if (q->drift)
+            mv[3] = res->vx_um_s[w] * q->drift_T[w], mv[4] = res->vy_um_s[w] * q->drift_T[w];
+    }
+    sc_grid_lsq_predict_with(q, res, m, v, i, j, t_s, dx_um, dy_um);
 }
 
 /* ---------------------------------------------------------------------------------------------

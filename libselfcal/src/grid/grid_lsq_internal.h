@@ -31,6 +31,20 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
                                       const sc_grid_result *res, double *wrss, double *red,
                                       double *u2, sc_error *err);
 
+/* m := the misalignment unknowns of a result of q on d, refitted from its G and A (nb per view,
+ * in the equations' units: tx, ty µm, φ·L µm, drift v·T µm): res's own where a view determines
+ * them, else the particular solution whose residuals are the least-squares ones (the columns
+ * a view cannot determine, e.g. φ of a view with one mark, at 0; NaN for a view without
+ * equations). */
+void sc_grid_lsq_fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d,
+                                   const sc_grid_result *res, double *m);
+
+/* sc_grid_lsq_predict with the misalignments m (as sc_grid_lsq_fit_misalignments gives them)
+ * instead of res's. */
+void sc_grid_lsq_predict_with(const sc_grid_lsq_plan *q, const sc_grid_result *res,
+                              const double *m, int v, int i, int j, double t_s, double *dx_um,
+                              double *dy_um);
+
 /* Šidák's share of a significance alpha over m tests: 1 − (1 − alpha)^(1/m), each test's own. */
 double sc_grid_sidak_share(double alpha, long m);
 

@@ -222,6 +222,7 @@ class PlanAnalysis:
     (degrees of freedom beyond the gauge left free), ``sigma_c_ratio_rms`` and
     ``sigma_c_ratio_max`` (predicted std(G)/σ_r, RMS over nodes and worst node; inf when not
     identifiable), ``sigma_ratio_gx``/``sigma_ratio_gy`` (per node, shape (NY, NX)), counts, and
+    ``residual_dof`` (the residuals' degrees of freedom; -1 when not identifiable), and
     Baarda's internal reliability of an identifying plan (NaN otherwise): ``n_testable``,
     ``n_untestable`` coordinate equations, ``redundancy_min``, ``redundancy_mean`` and the
     minimal detectable blunders ``mdb_ratio_max``, ``mdb_ratio_mean_r`` (in σ, 80 % power, the

@@ -910,7 +910,7 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
         raise_sc(&err);
         goto done;
     }
-    ret = Py_BuildValue("{s:O,s:l,s:d,s:d,s:l,s:l,s:l,s:l,s:O,s:O,s:N,s:l,s:l,s:d,s:d,s:d,s:d}",
+    ret = Py_BuildValue("{s:O,s:l,s:d,s:d,s:l,s:l,s:l,s:l,s:O,s:O,s:N,s:l,s:l,s:d,s:d,s:d,s:d,s:l}",
                         "identifiable",
                         qi.identifiable ? Py_True : Py_False, "free", qi.identifiable ? 0L : qi.free_dof,
                         "sigma_c_ratio_rms", qi.identifiable ? qi.sigma_c_ratio_rms : INFINITY,
@@ -921,7 +921,8 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
                         "plan", plan_to_dict(&d.plan), "n_testable", qi.n_testable,
                         "n_untestable", qi.n_untestable, "redundancy_min", qi.redundancy_min,
                         "redundancy_mean", qi.redundancy_mean, "mdb_ratio_max", qi.mdb_ratio_max,
-                        "mdb_ratio_mean_r", qi.mdb_ratio_mean_r);
+                        "mdb_ratio_mean_r", qi.mdb_ratio_mean_r, "residual_dof",
+                        qi.identifiable ? qi.residual_dof : -1L);
 done:
     Py_XDECREF(sgx);
     Py_XDECREF(sgy);

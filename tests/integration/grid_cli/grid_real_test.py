@@ -460,7 +460,83 @@ def case_bad_input():
         fail("--drift without t_s left a map")
 
 
-CASES = {"damaged": case_damaged, "weights": case_weights, "outliers": case_outliers,
+def case_one_mark_view():
+    """A view that measures a single mark (its rotation undetermined): its translation absorbs
+    both coordinates, so its residuals are 0 and the solution, the noise estimate, the dof and the
+    variance factor are those of the data without that view; `plan` counts the same dof. And
+    --reject-outliers that leaves a view with one mark keeps the removed row in R.csv."""
+    d = fresh_dir("one_mark")
+    head = "# selfcal-grid v1\n# N = 5\n# pitch_mm = 1\n"
+    views = ["rot=0 shift=0,0", "rot=90 shift=0,0", "rot=0 shift=1,0", "rot=0 shift=4,4"]
+    plan = os.path.join(d, "plan.csv")
+    open(plan, "w").write(head + "".join("# view %d: %s\n" % (k, v) for k, v in enumerate(views)))
+    s = simulate(d, "one", "--plan", plan, "--sigma-r-um", 0.01, "--seed", 4)
+    lines, h = data_lines(s["inp"])
+    if sum(1 for l in lines[h + 1:] if l.startswith("3,")) != 1:
+        fail("view 3 should measure one mark")
+    without = os.path.join(d, "without.csv")
+    open(without, "w").write("".join(l for l in lines if not l.startswith(("3,", "# view 3:"))))
+    weighted = os.path.join(d, "weighted.csv")
+    open(weighted, "w").write("".join(re.sub(r"^(# view \d+: .*)$", r"\1 sigma_um=0.01", l.rstrip("\n")) + "\n"
+                                      for l in lines))
+    weighted_wo = os.path.join(d, "weighted_without.csv")
+    open(weighted_wo, "w").write("".join(l for l in open(weighted) if not l.startswith(("3,", "# view 3:"))))
+    out = {}
+    for name, path in (("all", s["inp"]), ("without", without), ("w_all", weighted), ("w_without", weighted_wo)):
+        g, r, sm = (os.path.join(d, name + x) for x in ("_g.csv", "_r.csv", "_s.json"))
+        run("grid", "--method", "lsq", path, "--map", g, "--residuals", r, "--summary", sm)
+        pl = run("plan", path).stdout
+        dof_plan = int(re.search(r"^residual_dof: (\d+)$", pl, re.M).group(1))
+        out[name] = (rows(g), rows(r), json.load(open(sm)), dof_plan)
+    for a, b in (("all", "without"), ("w_all", "w_without")):
+        ga, ra, sa, pa = out[a]
+        gb, rb, sb, pb = out[b]
+        worst = max(abs(float(x[c]) - float(y[c])) for x, y in zip(ga, gb) for c in ("gx_um", "gy_um", "ugx_um", "ugy_um"))
+        if worst > 1e-9:
+            fail("%s: the map differs from the data without the one-mark view by %g um" % (a, worst))
+        for key in ("dof", "sigma_r_est_um", "residual_rms_um") + (("variance_factor",) if a == "w_all" else ()):
+            va, vb = float(sa[key]), float(sb[key])
+            if key == "residual_rms_um":  # an RMS over 2 more equations, both 0
+                vb *= math.sqrt(float(len(rb)) / len(ra))
+            if abs(va - vb) > 1e-9 * abs(vb):
+                fail("%s: %s %r, without the one-mark view %r" % (a, key, va, vb))
+        if pa != int(sa["dof"]) or pb != int(sb["dof"]):
+            fail("%s: plan residual_dof %d / %d, grid dof %s / %s" % (a, pa, pb, sa["dof"], sb["dof"]))
+        one = [x for x in ra if x["view"] == "3"]
+        if len(one) != 1 or abs(float(one[0]["rx_um"])) > 1e-9 or abs(float(one[0]["ry_um"])) > 1e-9 \
+                or one[0]["tx"] != "" or one[0]["ty"] != "":
+            fail("%s: the one-mark view's residual row %r" % (a, one))
+    if out["w_all"][2].get("chi2_test") != "pass":
+        fail("weighted: the chi^2 test: %r (variance factor %r)" % (out["w_all"][2].get("chi2_test"),
+                                                                    out["w_all"][2].get("variance_factor")))
+    # a two-mark view and two outliers: rejection takes one of the view's marks first
+    views[3] = "rot=0 shift=3,4"
+    open(plan, "w").write(head + "".join("# view %d: %s\n" % (k, v) for k, v in enumerate(views)))
+    s = simulate(d, "two", "--plan", plan, "--sigma-r-um", 0.01, "--seed", 4)
+    lines, h = data_lines(s["inp"])
+    for key, du in (("3,0,0,", 0.0005), ("0,2,2,", 0.0003)):  # mm: 0.5 and 0.3 um
+        k = next(k for k, l in enumerate(lines) if k > h and l.startswith(key))
+        f = lines[k].rstrip("\n").split(",")
+        f[3] = "%.15f" % (float(f[3]) + du)
+        lines[k] = ",".join(f) + "\n"
+    bad = os.path.join(d, "two_bad.csv")
+    open(bad, "w").write("".join(lines))
+    g, r = os.path.join(d, "two_g.csv"), os.path.join(d, "two_r.csv")
+    p = run("grid", "--method", "lsq", bad, "--map", g, "--residuals", r, "--reject-outliers")
+    R = rows(r)
+    n_in = len(lines) - h - 1
+    if len(R) != n_in:
+        fail("R.csv has %d rows for %d measurements: %s" % (len(R), n_in, p.stderr))
+    v3 = {(x["i"], x["j"]): x for x in R if x["view"] == "3"}
+    removed = [k for k, x in v3.items() if x["outlier"] == "1"]
+    kept = [x for x in v3.values() if x["outlier"] == "0"]
+    if len(removed) != 1 or len(kept) != 1 or abs(float(kept[0]["rx_um"])) > 1e-9 or \
+            abs(float(kept[0]["ry_um"])) > 1e-9 or not all(v3[removed[0]][c] for c in ("rx_um", "ry_um")):
+        fail("rejection in the two-mark view: %r\n%s" % (v3, p.stderr))
+    print("one_mark_view: ok")
+
+
+CASES = {"damaged": case_damaged, "one_mark_view": case_one_mark_view, "weights": case_weights, "outliers": case_outliers,
          "outlier_test": case_outlier_test, "view_noise": case_view_noise,
          "covariance": case_covariance, "drift": case_drift, "plan": case_plan_stitched,
          "bad_input": case_bad_input}
