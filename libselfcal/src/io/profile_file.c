@@ -266,12 +266,13 @@ static sc_status start_data(profile_reader *pr, sc_error *err)
     int nf = sc_csv_split(r, err);
     if (nf < 0)
         return err ? err->code : SC_E_INPUT;
-    int ok = nf >= 5;
+    int ok = nf == 5;
     for (int c = 0; ok && c < 5; ++c)
         ok = !strcmp(r->field[c], names[c]);
     if (!ok)
         return sc_error_set(err, SC_E_INPUT, r->path, r->line,
-                            "expected the column header 'scan,n,m1_um,m2_um,m3_urad'");
+                            "expected the column header 'scan,n,m1_um,m2_um,m3_urad' (5 columns, "
+                            "got %d)", nf);
     sc_status st = sc_profile_data_init(&pr->data, (int)pr->v.n, pr->v.s_mm, (int)pr->d[0],
                                         (int)pr->d[1], err);
     if (st != SC_OK) {
@@ -327,9 +328,10 @@ static sc_status store_row(profile_reader *pr, long k, long idx, const double v[
 static sc_status data_row(profile_reader *pr, sc_error *err)
 {
     sc_csv *r = &pr->csv;
-    if (r->nfields < 5)
+    if (r->nfields != 5) /* more: a decimal comma would otherwise shift a reading silently */
         return sc_error_set(err, SC_E_INPUT, r->path, r->line,
-                            "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got %d", r->nfields);
+                            "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got %d%s", r->nfields,
+                            r->nfields > 5 ? " (the decimal mark is '.')" : "");
     long k, idx;
     double v[3];
     sc_status st;

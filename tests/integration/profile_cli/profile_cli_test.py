@@ -118,6 +118,12 @@ def case_bad_input():
     g[s1 + 2] = "1,3,0.1,0.2,"
     cases.append(("empty_field", g, "dft", s1 + 3, "m3_urad"))
     g = good_lines()
+    g[s1 + 2] = "1,3,0.1,0.2,7,5"  # a decimal comma: read as 7 it would shift the data silently
+    cases.append(("decimal_comma", g, "lsq", s1 + 3, "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got 6"))
+    g = good_lines()
+    g[s1 - 2] += ",note"
+    cases.append(("extra_column", g, "dft", s1 - 1, "5 columns, got 6"))
+    g = good_lines()
     g[2] = "# s_mm = x"
     cases.append(("bad_header_value", g, "dft", 3, "s_mm"))
     for name, lines, method, line, what in cases:
