@@ -26,6 +26,13 @@ int cli_usage_error(const char *cmd, const char *fmt, ...)
  * (CLI_BAD_INPUT); else -1. */
 int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char **argv);
 
+/* A file a command names after an output option (export's OUT-x, simulate exports' DIR/viewK.csv)
+ * checked against the inputs of argv (outputs: the options whose values are not inputs), before
+ * anything is written: -1 if it names none, else the exit status of the usage error printed
+ * ("OPT: the file it names, PATH, is also an input ..."). */
+int cli_check_derived_output(const char *cmd, const char *outputs, const char *opt,
+                             const char *path, int argc, char **argv);
+
 /* The last component of a path (for titles: an absolute path says nothing and runs off). */
 const char *cli_basename(const char *path);
 

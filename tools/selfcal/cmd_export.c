@@ -558,6 +558,13 @@ int cmd_export(int argc, char **argv)
     static sc_export_report reps[MAX_FILES];
     static sc_export_options opts[MAX_FILES];
     int nfiles = plan_files(&a, f, &o, both_files, paths, opts);
+    for (int k = 0; k < nfiles; ++k) { /* OUT-x, OUT-y, OUT-cross-DIR: not one of the inputs */
+        rc = cli_check_derived_output("export", "-o --out", "-o", paths[k], argc, argv);
+        if (rc >= 0) {
+            free(lut);
+            return rc;
+        }
+    }
     sc_lut_fit_report fit;
     sc_status st = load_table(&a, lut, &fit, &err);
     if (st == SC_OK)

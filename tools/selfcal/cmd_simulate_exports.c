@@ -178,9 +178,25 @@ static void print_import_command(const sc_grid_plan *p, const char *dir, double 
     printf(" \\\n  -o IN.csv\n");
 }
 
+/* DIR/NAMEk.csv for k = first..first+count-1 against the input (argv): -1 if none is it, else the
+ * usage error's exit status. */
+static int check_names(const char *dir, const char *name, int first, int count, int argc,
+                       char **argv)
+{
+    for (int k = first; k < first + count; ++k) {
+        char path[1024];
+        snprintf(path, sizeof path, "%s/%s%d.csv", dir, name, k);
+        int rc = cli_check_derived_output("simulate exports", "--dir", "--dir", path, argc, argv);
+        if (rc >= 0)
+            return rc;
+    }
+    return -1;
+}
+
 static int grid_exports(const char *in, const char *dir, double unit_per_mm, const style *sty,
                         const missing_mark *miss, int n_miss, const missing_mark *disp,
-                        int n_disp, const int *stray, int n_stray, uint64_t seed)
+                        int n_disp, const int *stray, int n_stray, uint64_t seed, int argc,
+                        char **argv)
 {
     const damage dm = {miss, disp, n_miss, n_disp, stray, n_stray};
     sc_error err;
@@ -191,7 +207,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     if (st != SC_OK)
         return cli_report(&err);
     const sc_grid_plan *p = &d.plan;
-    int rc = check_damage(p, &dm);
+    int rc = check_names(dir, "view", 0, p->n_views, argc, argv);
+    rc = rc >= 0 ? rc : check_damage(p, &dm);
     if (rc == CLI_OK && make_dir(dir, &err))
         rc = cli_report(&err);
     if (rc != CLI_OK) {
@@ -224,8 +241,12 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     return st == SC_OK ? CLI_OK : cli_report(&err);
 }
 
-static int profile_exports(const char *in, const char *dir, const style *sty)
+static int profile_exports(const char *in, const char *dir, const style *sty, int argc,
+                           char **argv)
 {
+    int rc = check_names(dir, "scan", 1, 2, argc, argv);
+    if (rc >= 0)
+        return rc;
     sc_error err;
     sc_error_clear(&err);
     sc_profile_data d;
@@ -397,7 +418,7 @@ int cmd_simulate_exports(int argc, char **argv)
         first[0] = '\0';
     fclose(fp);
     if (!strncmp(first, "# selfcal-profile v1", 20))
-        return profile_exports(a.in, a.dir, &a.sty);
+        return profile_exports(a.in, a.dir, &a.sty, argc, argv);
     return grid_exports(a.in, a.dir, a.unit_per_mm, &a.sty, a.miss, a.n_miss, a.disp, a.n_disp,
-                        a.stray, a.n_stray, (uint64_t)a.seed);
+                        a.stray, a.n_stray, (uint64_t)a.seed, argc, argv);
 }

@@ -59,21 +59,22 @@ static int same_file(const named_file *a, const named_file *b)
            !strcmp(ba ? ba + 1 : a->arg, bb ? bb + 1 : b->arg);
 }
 
-int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char **argv)
+/* The outputs (values of the options in `outputs`) and inputs (every other argument naming an
+ * existing file) of argv; -1, or the usage error's exit status for an empty output path. */
+static int collect(const char *cmd, const char *outputs, int argc, char **argv, named_file *out,
+                   int *nout, struct stat *in, int *nin)
 {
-    named_file out[MAX_PATHS];
-    struct stat in[MAX_PATHS]; /* the inputs: existing files, compared by device and inode */
-    int nout = 0, nin = 0;
     char profile_path[PATH_MAX];
+    *nout = *nin = 0;
     for (int i = 1; i < argc; ++i) {
         if (is_output_option(outputs, argv[i]) && i + 1 < argc) {
             const char *v = argv[++i];
             if (!v[0])
                 return cli_usage_error(cmd, "%s: the path is empty", argv[i - 1]);
-            if (!strcmp(v, "-") || nout == MAX_PATHS) /* stdout */
+            if (!strcmp(v, "-") || *nout == MAX_PATHS) /* stdout */
                 continue;
-            out[nout] = (named_file){v, argv[i - 1], 0, 0, 0};
-            identify(&out[nout++]);
+            out[*nout] = (named_file){v, argv[i - 1], 0, 0, 0};
+            identify(&out[(*nout)++]);
             continue;
         }
         const char *a = argv[i];
@@ -83,20 +84,54 @@ int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char 
             cli_parse_profile_placed(a, &axis, &dir, profile_path, sizeof profile_path,
                                      &offset) == 0)
             a = profile_path;
-        if (nin < MAX_PATHS && stat(a, &in[nin]) == 0 && S_ISREG(in[nin].st_mode))
-            nin++;
+        if (*nin < MAX_PATHS && stat(a, &in[*nin]) == 0 && S_ISREG(in[*nin].st_mode))
+            (*nin)++;
     }
+    return -1;
+}
+
+/* The index of the input that out names, or -1. */
+static int input_named(const named_file *out, const struct stat *in, int nin)
+{
+    for (int k = 0; k < nin; ++k)
+        if (out->exists && out->dev == in[k].st_dev && out->ino == in[k].st_ino)
+            return k;
+    return -1;
+}
+
+int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char **argv)
+{
+    named_file out[MAX_PATHS];
+    struct stat in[MAX_PATHS]; /* the inputs: existing files, compared by device and inode */
+    int nout, nin, rc = collect(cmd, outputs, argc, argv, out, &nout, in, &nin);
+    if (rc >= 0)
+        return rc;
     for (int o = 0; o < nout; ++o) {
-        for (int k = 0; k < nin; ++k)
-            if (out[o].exists && out[o].dev == in[k].st_dev && out[o].ino == in[k].st_ino)
-                return cli_usage_error(cmd, "%s %s: that file is also an input of this command "
-                                            "(it would be replaced by the output)",
-                                       out[o].opt, out[o].arg);
+        if (input_named(&out[o], in, nin) >= 0)
+            return cli_usage_error(cmd, "%s %s: that file is also an input of this command "
+                                        "(it would be replaced by the output)",
+                                   out[o].opt, out[o].arg);
         for (int p = 0; p < o; ++p)
             if (same_file(&out[o], &out[p]))
                 return cli_usage_error(cmd, "%s and %s name the same file %s: each output needs "
                                             "its own",
                                        out[p].opt, out[o].opt, out[o].arg);
     }
+    return -1;
+}
+
+int cli_check_derived_output(const char *cmd, const char *outputs, const char *opt,
+                             const char *path, int argc, char **argv)
+{
+    named_file out[MAX_PATHS], derived = {path, opt, 0, 0, 0};
+    struct stat in[MAX_PATHS];
+    int nout, nin, rc = collect(cmd, outputs, argc, argv, out, &nout, in, &nin);
+    if (rc >= 0)
+        return rc;
+    identify(&derived);
+    if (input_named(&derived, in, nin) >= 0)
+        return cli_usage_error(cmd, "%s: the file it names, %s, is also an input of this command "
+                                    "(it would be replaced by the output)",
+                               opt, path);
     return -1;
 }

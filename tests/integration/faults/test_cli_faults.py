@@ -234,7 +234,15 @@ def digest(path):
         return zlib.crc32(f.read())
 
 
+# files a command names after its output option: export's OUT-x, simulate exports' DIR/viewK.csv
+shutil.copy(p("map_ref.csv"), p("plane-x.txt"))
+os.makedirs(p("exports_dir"), exist_ok=True)
+shutil.copy(p("grid.csv"), p("exports_dir/view1.csv"))
 for what, args, victim in (
+        ("export OUT-x is the map", ["export", "--format", "beckhoff", "--axis", "both", "--map",
+                                     p("plane-x.txt"), "-o", p("plane.txt")], "plane-x.txt"),
+        ("simulate exports DIR/view1.csv is IN", ["simulate", "exports", p("exports_dir/view1.csv"),
+                                                  "--dir", p("exports_dir")], "exports_dir/view1.csv"),
         ("grid --map IN", ["grid", "--method", "lsq", p("grid.csv"), "--map", p("grid.csv")],
          "grid.csv"),
         ("profile --out IN", ["profile", "--method", "lsq", p("prof.csv"), "--out", p("prof.csv")],
@@ -250,7 +258,7 @@ for what, args, victim in (
     before = digest(p(victim))
     r = run(args)
     one_line_error(r, 2, what, "also an input")
-    cmd = " ".join(args[:2]) if args[0] in ("lut", "report") else args[0]
+    cmd = " ".join(args[:2]) if args[0] in ("lut", "report", "simulate", "import", "plot") else args[0]
     check(r.stderr.startswith(f"selfcal {cmd}: "), f"{what}: the message names the command: {r.stderr!r}")
     check(digest(p(victim)) == before, f"{what}: the input was changed")
 r = run(["grid", "--method", "ye", p("grid.csv"), "--map", p("same.csv"), "--artifact",
