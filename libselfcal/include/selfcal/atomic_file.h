@@ -26,7 +26,8 @@ typedef struct sc_afile {
 
 /* Create the temporary file for path ("-" writes straight to stdout; so does an existing
  * character device or FIFO such as /dev/null, which a rename would replace; a directory or other
- * non-regular file is SC_E_INPUT). */
+ * non-regular file is SC_E_INPUT). The new file gets the permissions of the file it replaces, or
+ * 0666 less the umask, as any new file. */
 SC_API sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err);
 
 /* Flush, fsync, rename to the final name; on failure the temporary file is removed. */
@@ -53,7 +54,8 @@ SC_API sc_status sc_afile_finish(sc_afile *f, sc_status st, sc_error *err);
 SC_API sc_status sc_afile_finish_all(sc_afile *f, int n, sc_status st, sc_error *err);
 
 /* For programs (the CLI calls it first thing): on SIGINT, SIGTERM, SIGHUP and SIGQUIT remove
- * every temporary file still open, then die of the signal as before. A group committed with
+ * every temporary file still open, then die of the signal as before; SIGXFSZ is ignored, so a
+ * file beyond `ulimit -f` fails its write (EFBIG) like a full disk instead of killing. A group committed with
  * sc_afile_commit_all is renamed with those signals blocked, so a signal leaves either the old
  * set or the new set, never a mix. Signals the process ignores stay ignored. Process-wide (a
  * signal handler is); without this call nothing is installed. */

@@ -6,9 +6,12 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <stdatomic.h>
+#include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 /* Temporary files a signal must not leave behind. Only used once a program asked for it with
@@ -103,6 +106,9 @@ void sc_afile_cleanup_on_signals(void)
     for (size_t k = 0; k < sizeof sigs / sizeof sigs[0]; ++k)
         sigaddset(&sa.sa_mask, sigs[k]);
     g_tracking = 1;
+    /* a file beyond the size limit (ulimit -f): the write fails with EFBIG and is reported like
+     * a full disk, its temporary file removed, instead of SIGXFSZ killing the program with it */
+    signal(SIGXFSZ, SIG_IGN);
     for (size_t k = 0; k < sizeof sigs / sizeof sigs[0]; ++k) {
         struct sigaction old;
         /* leave a signal the caller's parent ignores ignored (nohup) */
@@ -110,6 +116,35 @@ void sc_afile_cleanup_on_signals(void)
             continue;
         sigaction(sigs[k], &sa, NULL);
     }
+}
+
+/* A new file "PATH.tmpXXXXXX" (six random letters and digits) opened for writing, created with
+ * mode 0666 so the umask applies as to any new file (mkstemp's is 0600); tmp: its name. The fd,
+ * or -1 with errno. */
+static int create_tmp(char *tmp, size_t cap, const char *path)
+{
+    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    uint64_t x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^ ((uint64_t)getpid() << 16) ^
+                 (uint64_t)(uintptr_t)tmp;
+    for (int attempt = 0; attempt < 100; ++attempt) {
+        char s[7];
+        for (int k = 0; k < 6; ++k) { /* splitmix64 steps */
+            x += 0x9E3779B97F4A7C15u;
+            uint64_t z = x;
+            z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
+            z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
+            s[k] = abc[(z ^ (z >> 31)) % (sizeof abc - 1)];
+        }
+        s[6] = '\0';
+        snprintf(tmp, cap, "%s.tmp%s", path, s);
+        int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        if (fd >= 0 || errno != EEXIST)
+            return fd;
+    }
+    errno = EEXIST;
+    return -1;
 }
 
 /* unlink the temporary file and forget it */
@@ -150,11 +185,11 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     if (strlen(path) + 16 >= sizeof f->tmp_path)
         return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
     snprintf(f->path, sizeof f->path, "%s", path);
-    snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmpXXXXXX", path);
+    int replacing = stat(path, &sb) == 0;
     sigset_t old;
     block_signals(&old); /* created and tracked as one step, in this thread and the others */
     defer_signals_begin();
-    int fd = mkstemp(f->tmp_path);
+    int fd = create_tmp(f->tmp_path, sizeof f->tmp_path, path);
     int e = errno;
     if (fd >= 0)
         track(f);
@@ -162,7 +197,8 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     defer_signals_end();
     if (fd < 0)
         return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
-    fchmod(fd, 0644);
+    if (replacing) /* the file it replaces keeps its permissions (not its set-id bits) */
+        fchmod(fd, sb.st_mode & 0777);
     f->fp = fdopen(fd, "wb");
     if (!f->fp) {
         e = errno;

@@ -215,6 +215,35 @@ for errno_name, errno_val in (("EIO", 5), ("ENOSPC", 28)):
     check(not tmp_files(fdir), f"fsync {errno_name}: temporaries left: {tmp_files(fdir)}")
     print(f"fsync {errno_name}: exit {r.returncode}: {r.stderr.strip()}")
 
+# the file size limit (ulimit -f): the write fails (EFBIG) like a full disk, SIGXFSZ does not
+# kill the command with its temporary file left
+ldir = p("fsize")
+os.makedirs(ldir, exist_ok=True)
+target = os.path.join(ldir, "out.csv")
+with open(target, "wb") as f:
+    f.write(old)
+r = run(["profile", "--method", "lsq", p("prof.csv"), "--out", target],
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (4096, resource.RLIM_INFINITY)))
+one_line_error(r, 1, "ulimit -f", "File too large")
+check(open(target, "rb").read() == old, "ulimit -f: the old file was changed")
+check(not tmp_files(ldir), f"ulimit -f: temporaries left: {tmp_files(ldir)}")
+
+# permissions: a new output gets 0666 less the umask, a replaced one keeps its own
+mdir = p("modes")
+os.makedirs(mdir, exist_ok=True)
+for name in ("new.lut", "kept.lut"):
+    if os.path.exists(os.path.join(mdir, name)):
+        os.remove(os.path.join(mdir, name))
+with open(os.path.join(mdir, "kept.lut"), "w") as f:
+    f.write("old\n")
+os.chmod(os.path.join(mdir, "kept.lut"), 0o640)
+for name, mask, want in (("new.lut", 0o077, 0o600), ("kept.lut", 0o022, 0o640)):
+    r = run(["lut", "build", "--map", p("map_ref.csv"), "-o", os.path.join(mdir, name)],
+            preexec_fn=lambda m=mask: os.umask(m))
+    check(r.returncode == 0, f"lut build -o {name}: {r.stderr}")
+    mode = os.stat(os.path.join(mdir, name)).st_mode & 0o777
+    check(mode == want, f"{name} under umask {mask:o}: mode {mode:o}, want {want:o}")
+
 # ---- 4. stdout cannot be written ------------------------------------------------------------
 must(["lut", "build", "--map", p("map_ref.csv"), "-o", p("t.lut")])
 with open(p("plan.csv"), "w") as f:
