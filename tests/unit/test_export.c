@@ -420,6 +420,25 @@ static void test_siemens(void **state)
     assert_true(rep.max_um <= 1.0e-3 + 1e-9); /* two 0.5 nm roundings */
     free(m);
 
+    /* MD32720 limits the sum of an axis's tables: Gy = 600 um at both far edges (x and y) adds
+     * up to 1200 um at the far corner (the x and the y table each within the 1000 um default):
+     * refused, the axis and the sum named; accepted with --limit-um 1300, nothing clipped. */
+    m = make_map(11, 11, 0.0, 0.0, 10.0, 10.0, 1);
+    for (int i = 0; i < m->ny; ++i)
+        for (int j = 0; j < m->nx; ++j)
+            m->gy_um[i * m->nx + j] = 600.0 * (j + i) / 10.0, m->gx_um[i * m->nx + j] = 0;
+    sc_export_options_init(&o, SC_EXPORT_SIEMENS_CEC);
+    o.axis = -1;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    if (!strstr(err.msg, "the Y tables of axis AX2 add up to 1200.000 um") || !strstr(err.msg, "MD32720"))
+        fail_msg("%s", err.msg);
+    o.limit_um = 1300;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    assert_int_equal(rep.clipped, 0);
+    o.limit_um = 1199.9;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    free(m);
+
     /* With interaction terms the residual is that part: recomputed independently. */
     m = make_map(21, 17, -50.0, 10.0, 5.0, 2.5, 0);
     sc_export_options_init(&o, SC_EXPORT_SIEMENS_CEC);

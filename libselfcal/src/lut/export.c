@@ -511,6 +511,55 @@ static sc_status siemens_profile_table(const sc_lut *lut, const sc_export_option
     return SC_OK;
 }
 
+/* The extremes over its range of the sum of the tables with output `out` and input `in`
+ * (piecewise linear, clamped: the extremes lie at their points); 0 if there are none. */
+static int cec_input_extremes(const cec_ctx *c, int out, int in, double *lo, double *hi)
+{
+    int any = 0;
+    *lo = INFINITY, *hi = -INFINITY;
+    for (int k = 0; k < c->ntab; ++k) {
+        const cec_table *at = &c->tab[k];
+        if (at->output != out || at->input != in)
+            continue;
+        any = 1;
+        for (int p = 0; p < at->n; ++p) {
+            double s_mm = at->min_mm + p * at->step_mm, sum = 0;
+            for (int q = 0; q < c->ntab; ++q) {
+                const cec_table *tb = &c->tab[q];
+                if (tb->output == out && tb->input == in)
+                    sum += sc_export_interp1(tb->value_um, tb->n, tb->min_mm, tb->step_mm, s_mm);
+            }
+            *lo = fmin(*lo, sum), *hi = fmax(*hi, sum);
+        }
+    }
+    return any;
+}
+
+/* MD32720 $MA_CEC_MAX_SUM limits the total of the tables acting on an axis, not each entry: the
+ * tables' sum at the worst point of the travel (each input axis at its own extreme: the inputs
+ * move independently) must stay within the limit, else the controller would cut it. */
+static sc_status cec_check_sum(const cec_ctx *c, const sc_export_options *o, double limit_um,
+                               sc_error *err)
+{
+    const char *name[3] = {o->siemens_x_name, o->siemens_y_name,
+                           o->siemens_z_name ? o->siemens_z_name : "AX3"};
+    for (int out = 0; out < 3; ++out) {
+        double lo = 0, hi = 0, a, b;
+        for (int in = 0; in < 3; ++in)
+            if (cec_input_extremes(c, out, in, &a, &b))
+                lo += a, hi += b;
+        double worst = fmax(hi, -lo);
+        if (worst > limit_um + 1e-6)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "siemens-cec: the %s tables of axis %s add up to %.3f um at the "
+                                "worst point of the travel, beyond the %.3f um that MD32720 "
+                                "$MA_CEC_MAX_SUM allows (--limit-um): the controller would cut "
+                                "the sum; raise MD32720 and give --limit-um to match",
+                                out == 0 ? "X" : out == 1 ? "Y" : "Z", name[out], worst, limit_um);
+    }
+    return SC_OK;
+}
+
 /* The comment block at the head of the CEC file. */
 static void siemens_write_header(sc_textbuf *t, const sc_export_options *o, const cec_ctx *c,
                                  const int *comps, int ncomp, double sign,
@@ -580,6 +629,8 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, s
         st = siemens_map_tables(lut, o, comps[ci], sign, &c, rep, err);
     for (int pk = 0; pk < lut->n_profiles && st == SC_OK; ++pk)
         st = siemens_profile_table(lut, o, pk, sign, &c, rep, err);
+    if (st == SC_OK)
+        st = cec_check_sum(&c, o, rep->limit_um, err);
     if (st == SC_OK && o->siemens_828d &&
         o->siemens_first_table + c.ntab > SC_EXPORT_SIEMENS_828D_TABLES)
         st = sc_error_set(err, SC_E_INPUT, NULL, 0,
