@@ -448,8 +448,8 @@ static void test_rejections(void **state)
     assert_null(p);
     assert_non_null(strstr(err.msg, "N = 10"));
     assert_int_equal(sc_grid_exact_plan_create(SC_GRID_DOUBLE_SHIFT, 12, &p, &err), SC_E_INPUT);
-    assert_int_equal(sc_grid_exact_plan_create(SC_GRID_DOUBLE_SHIFT, 7, &p, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "9 <= N"));
+    assert_int_equal(sc_grid_exact_plan_create(SC_GRID_DOUBLE_SHIFT, 5, &p, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "7 <= N"));
     assert_int_equal(sc_grid_exact_plan_create(SC_GRID_YE, 1, &p, &err), SC_E_INPUT);
     assert_int_equal(sc_grid_exact_plan_create((sc_grid_exact_method)7, 9, &p, &err), SC_E_INPUT);
     assert_int_equal(sc_grid_exact_plan_create(SC_GRID_DOUBLE_SHIFT, 9, &p, &err), SC_OK);

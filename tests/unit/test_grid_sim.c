@@ -295,7 +295,7 @@ static void test_bad_parameters(void **state)
     sp.sigma_r_um = -1;
     assert_int_equal(run(&s, &p, &sp), SC_E_INPUT);
     done(&s);
-    assert_int_equal(sc_grid_plan_double_shift(7, 1, 0, 0, &p, &err), SC_E_INPUT);
+    assert_int_equal(sc_grid_plan_double_shift(5, 1, 0, 0, &p, &err), SC_E_INPUT);
 }
 
 int main(void)

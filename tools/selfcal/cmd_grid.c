@@ -24,7 +24,7 @@ static const char *USAGE =
     "i,j,ax_um,ay_um), a JSON summary (--summary: O, R, misalignment per view, residual RMS, noise\n"
     "estimated and used) and an arrow plot (--plot).\n"
     "  ye            Ye et al.: views {rot 0}, {rot 90}, {shift +1,0}, all marks on the grid.\n"
-    "  double-shift  Petro: {rot 0}, {rot 90}, {shift +2,0}, {shift -3,0: row c, cols c, c+1}; N >= 9.\n"
+    "  double-shift  Petro: {rot 0}, {rot 90}, {shift +2,0}, {shift -3,0: row c, cols c, c+1}; N >= 7.\n"
     "  lsq           optimal least squares for any plan that identifies G (see selfcal plan);\n"
     "                uncertainties (k = 1) use --sigma-r-um if given, else the noise estimated from\n"
     "                the residuals. The exact methods give no uncertainties (columns left empty).\n"

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "selfcal/grid_exact.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -241,7 +242,7 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
     int plate_stage = sc_grid_stage_is_plate(p);
     printf("method ye: %s\n", plate_stage && supports(d, has_data, ye, 3) ? "yes" : "no");
     printf("method double-shift: %s\n",
-           plate_stage && n >= 9 && supports(d, has_data, ds, 4) ? "yes" : "no");
+           plate_stage && n >= sc_grid_exact_min_n(SC_GRID_DOUBLE_SHIFT) && supports(d, has_data, ds, 4) ? "yes" : "no");
     printf("method lsq: %s\n", qi->identifiable ? "yes" : "no");
 }
 

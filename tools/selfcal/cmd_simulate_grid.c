@@ -30,7 +30,7 @@ static const char *USAGE =
     "in the SPEC gauge: G (--truth-map, map format, no uncertainties), A (--truth-artifact) and a\n"
     "JSON summary (--truth-summary: O, R, misalignments, sigmas, seed).\n"
     "--plan ye: {rot 0}, {rot 90}, {shift +1,0}; double-shift: {rot 0}, {rot 90}, {shift +2,0},\n"
-    "{shift -3,0 rows=c cols=c,c+1} (N >= 9); a file: its header gives N, pitch, origin and views\n"
+    "{shift -3,0 rows=c cols=c,c+1} (N >= 7); a file: its header gives N, pitch, origin and views\n"
     "(then --n, --pitch-mm and --origin-mm must agree with it or be left out).\n"
     "--stage NX,NY: a stage grid larger than the plate (both odd); with --plan stitch the plate is\n"
     "placed at rot 0 on a raster covering the stage (steps of about N/2 pitches), plus a rot 90\n"

@@ -31,7 +31,7 @@ int sc_grid_exact_needs(sc_grid_exact_method m, sc_grid_view_need need[4])
 
 int sc_grid_exact_min_n(sc_grid_exact_method m)
 {
-    return m == SC_GRID_YE ? 3 : 9;
+    return m == SC_GRID_YE ? 3 : 7;
 }
 
 bool sc_grid_exact_uses_mark(sc_grid_exact_method m, int n, int r, int i, int j)
