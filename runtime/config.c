@@ -35,6 +35,8 @@ const char sc_config_usage[] =
     "  --busy-poll-us N              after a request, poll without sleeping for N us: lower\n"
     "                                latency for a core given to selfcald (0 = off, default)\n"
     "  --can-in-id ID --can-out-id ID --can-status-id ID --can-status-period-ms N\n"
+    "  --can-other-ids count|ignore  frames on ids not ours: counted as bad (default), or\n"
+    "                                filtered out by the kernel (a bus shared with other traffic)\n"
     "  --syslog                      log to syslog instead of stderr\n"
     "  --syslog-socket PATH          the syslog datagram socket (/dev/log)\n"
     "  --log-level error|warning|notice|info|debug  (default info)\n"
@@ -263,6 +265,17 @@ static sc_status set_can(sc_config *c, const char *value, sc_error *err)
     return SC_OK;
 }
 
+static sc_status set_can_other_ids(sc_config *c, const char *value, sc_error *err)
+{
+    if (strcmp(value, "count") == 0)
+        c->can.ignore_other_ids = 0;
+    else if (strcmp(value, "ignore") == 0)
+        c->can.ignore_other_ids = 1;
+    else
+        BAD("--can-other-ids: expected count or ignore, got '%s'", value);
+    return SC_OK;
+}
+
 static sc_status set_mode(sc_config *c, const char *value, sc_error *err)
 {
     if (strcmp(value, "measure") == 0)
@@ -336,6 +349,7 @@ static const struct {
     {"modbus-tcp", set_modbus_tcp},
     {"modbus-rtu", set_modbus_rtu},
     {"can", set_can},
+    {"can-other-ids", set_can_other_ids},
     {"mode", set_mode},
     {"unit-id", set_unit_id},
     {"word-order", set_word_order},

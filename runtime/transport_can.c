@@ -1,6 +1,7 @@
 /* runtime/transport_can.c — SocketCAN raw transport of selfcald (SPEC §4 "CAN").
  *
- * One raw CAN socket, non-blocking, with kernel filters for the configured ids and a subscription
+ * One raw CAN socket, non-blocking (kernel filters for the configured ids with --can-other-ids
+ * ignore; else every frame is read, another id counted as bad), with a subscription
  * to the error frames that tell the bus state. Received frames are read in batches (recvmmsg);
  * every answer and status frame goes through a small static transmit queue that is flushed with
  * sendmmsg. A send the kernel refuses because its queue is full (ENOBUFS/EAGAIN) is counted and
@@ -126,9 +127,10 @@ sc_can_rx_kind sc_can_classify(const sc_can_config *c, uint32_t can_id, uint8_t 
     if (can_id & CAN_ERR_FLAG)
         return SC_CAN_RX_ERROR;
     if (can_id & CAN_EFF_FLAG) {
-        /* an extended-format frame carrying one of our numbers: wrong format */
+        /* an extended-format frame: carrying one of our numbers, the wrong format; another, a
+         * bad id unless other ids are ignored */
         uint32_t id = can_id & CAN_EFF_MASK;
-        if (id == c->in_id || id == c->out_id || id == c->status_id)
+        if (id == c->in_id || id == c->out_id || id == c->status_id || !c->ignore_other_ids)
             return SC_CAN_RX_BAD;
         return SC_CAN_RX_IGNORE;
     }
@@ -140,7 +142,7 @@ sc_can_rx_kind sc_can_classify(const sc_can_config *c, uint32_t can_id, uint8_t 
     }
     if (id == c->out_id || id == c->status_id)
         return SC_CAN_RX_BAD; /* another node sends on our output ids */
-    return SC_CAN_RX_IGNORE;
+    return c->ignore_other_ids ? SC_CAN_RX_IGNORE : SC_CAN_RX_BAD;
 }
 
 /* ---------------------------------------------------------------- config */
@@ -225,8 +227,10 @@ static sc_status open_socket(sc_error *err)
         close(fd);
         return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: interface %s: %s", S.cfg.ifname, strerror(errno));
     }
-    /* Our input id (standard frames, data and remote: remote frames are counted as bad), the same
-     * number as an extended id (bad), and our output ids (another sender there is a conflict). */
+    /* With other ids ignored, the kernel passes only ours: our input id (standard frames, data
+     * and remote: remote frames are counted as bad), the same number as an extended id (bad), and
+     * our output ids (another sender there is a conflict). Else every frame is read (the default
+     * socket filter), a frame on another id being a bad one. */
     const uint32_t sff = CAN_SFF_MASK | CAN_EFF_FLAG;
     const uint32_t eff = CAN_EFF_MASK | CAN_EFF_FLAG;
     struct can_filter filt[6] = {
@@ -237,7 +241,8 @@ static sc_status open_socket(sc_error *err)
         {S.cfg.status_id, sff},
         {S.cfg.status_id | CAN_EFF_FLAG, eff},
     };
-    if (setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filt, sizeof filt) < 0) {
+    if (S.cfg.ignore_other_ids &&
+        setsockopt(fd, SOL_CAN_RAW, CAN_RAW_FILTER, filt, sizeof filt) < 0) {
         close(fd);
         return sc_error_set(err, SC_E_IO, NULL, 0, "CAN: CAN_RAW_FILTER: %s", strerror(errno));
     }

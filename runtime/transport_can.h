@@ -8,10 +8,12 @@
  *             (uint32 LE, bytes 4-7).
  * Status byte 0: bits 0-5 are the engine's status bits (as the Modbus status register); bit 6
  * (SC_CAN_ST_BUS_OFF) and bit 7 (SC_CAN_ST_LOST) are CAN-only extensions, see below.
- * A "bad" frame is one that passes the kernel filter but is not a valid position frame: an in_id
- * frame with a DLC other than 8, a remote frame, an extended-format frame carrying the number of
- * in_id, or a frame on out_id/status_id sent by another node (an id conflict). Bad frames are counted
- * and answered with nothing. Frames on other ids never reach the daemon (CAN_RAW_FILTER).
+ * A "bad" frame is any frame that is not a valid position frame: an in_id frame with a DLC other
+ * than 8, a remote frame, an extended-format frame, a frame on out_id/status_id sent by another
+ * node (an id conflict), and a frame on any other id (SPEC: "a bad DLC or id"). Bad frames are
+ * counted and answered with nothing. With ignore_other_ids (a bus shared with other traffic) the
+ * kernel filters (CAN_RAW_FILTER) pass only our three numbers: other ids are neither seen nor
+ * counted.
  * CAN FD frames are accepted on FD-capable interfaces: an FD in_id frame of length 8 is answered with
  * an FD out_id frame of length 8; any other length is bad.
  */
@@ -28,6 +30,7 @@ typedef struct sc_can_config {
     uint32_t out_id;           /* corrected position out, default 0x101 */
     uint32_t status_id;        /* status frame, default 0x102 */
     uint32_t status_period_ms; /* default 1000 */
+    int ignore_other_ids;      /* 1: frames on other ids filtered out, not counted as bad */
     /* Optional log sink (prio: syslog LOG_* level; msg without newline). NULL: the daemon's
      * log (runtime/log.h: stderr or syslog). */
     void (*log)(int prio, const char *msg);

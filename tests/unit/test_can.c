@@ -87,13 +87,24 @@ static void test_classify(void **state)
     assert_int_equal(sc_can_classify(&c, 0x100 | CAN_EFF_FLAG, 8), SC_CAN_RX_BAD);
     assert_int_equal(sc_can_classify(&c, 0x101, 8), SC_CAN_RX_BAD);
     assert_int_equal(sc_can_classify(&c, 0x102, 8), SC_CAN_RX_BAD);
+    /* other ids: bad by default (SPEC's "bad DLC or id"), not seen with ignore_other_ids */
+    assert_int_equal(c.ignore_other_ids, 0);
+    assert_int_equal(sc_can_classify(&c, 0x1f000100 | CAN_EFF_FLAG, 8), SC_CAN_RX_BAD);
+    assert_int_equal(sc_can_classify(&c, 0x103, 8), SC_CAN_RX_BAD);
+    assert_int_equal(sc_can_classify(&c, 0x000, 8), SC_CAN_RX_BAD);
+    assert_int_equal(sc_can_classify(&c, CAN_ERR_FLAG | CAN_ERR_BUSOFF, 8), SC_CAN_RX_ERROR);
+    c.ignore_other_ids = 1;
     assert_int_equal(sc_can_classify(&c, 0x1f000100 | CAN_EFF_FLAG, 8), SC_CAN_RX_IGNORE);
     assert_int_equal(sc_can_classify(&c, 0x103, 8), SC_CAN_RX_IGNORE);
     assert_int_equal(sc_can_classify(&c, 0x000, 8), SC_CAN_RX_IGNORE);
-    assert_int_equal(sc_can_classify(&c, CAN_ERR_FLAG | CAN_ERR_BUSOFF, 8), SC_CAN_RX_ERROR);
+    assert_int_equal(sc_can_classify(&c, 0x100 | CAN_EFF_FLAG, 8), SC_CAN_RX_BAD);
+    assert_int_equal(sc_can_classify(&c, 0x101, 8), SC_CAN_RX_BAD);
+    assert_int_equal(sc_can_classify(&c, 0x100, 7), SC_CAN_RX_BAD);
     c.in_id = 0x7ff;
     assert_int_equal(sc_can_classify(&c, 0x7ff, 8), SC_CAN_RX_POSITION);
     assert_int_equal(sc_can_classify(&c, 0x100, 8), SC_CAN_RX_IGNORE);
+    c.ignore_other_ids = 0;
+    assert_int_equal(sc_can_classify(&c, 0x100, 8), SC_CAN_RX_BAD);
 }
 
 static void test_config_check(void **state)
@@ -240,8 +251,8 @@ static void test_serve_answers_and_status(void **state)
             bus_send(&r, 0x100 | CAN_RTR_FLAG, 8, NULL); /* remote frame */
             bus_send(&r, 0x100 | CAN_EFF_FLAG, 8, d); /* extended id 0x100 */
             bus_send(&r, 0x101, 8, d); /* someone else on our output id */
-            bus_send(&r, 0x555, 8, d); /* not ours (the kernel filter would drop it) */
-            nbad += 4;
+            bus_send(&r, 0x555, 8, d); /* another id: bad too (by default) */
+            nbad += 5;
         }
         if (k % 7 == 0)
             loop_once(&r, 5000 + (uint64_t)k);
