@@ -791,8 +791,6 @@ int cmd_report_grid(int argc, char **argv)
         st = sc_afile_open(&f, out, &err);
     if (st == SC_OK) {
         st = write_report(f.fp, &r, &vo, &vr, argc, argv, &err);
-        if (st == SC_OK && ferror(f.fp))
-            st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
         st = sc_afile_finish(&f, st, &err);
     }
     verify_result_free(&vr);

@@ -429,8 +429,6 @@ int cmd_report_profile(int argc, char **argv)
         st = sc_afile_open(&f, out, &err);
         if (st == SC_OK) {
             st = write_report(f.fp, in, method_s, &d, &r, argc + 1, argv - 1, &err);
-            if (st == SC_OK && ferror(f.fp))
-                st = sc_error_set(&err, SC_E_IO, out, 0, "write failed");
             st = sc_afile_finish(&f, st, &err);
         }
     }

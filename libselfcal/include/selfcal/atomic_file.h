@@ -27,7 +27,8 @@ typedef struct sc_afile {
 /* Create the temporary file for path ("-" writes straight to stdout; so does an existing
  * character device or FIFO such as /dev/null, which a rename would replace; a directory or other
  * non-regular file is SC_E_INPUT). The new file gets the permissions of the file it replaces, or
- * 0666 less the umask, as any new file. */
+ * 0666 less the umask, as any new file. A symbolic link to a file is written through: the file
+ * it points to is replaced and the link kept (f->path is then that file). */
 SC_API sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err);
 
 /* Flush, fsync, rename to the final name; on failure the temporary file is removed. */

@@ -4,6 +4,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <signal.h>
 #include <stdatomic.h>
 #include <stdint.h>
@@ -182,6 +183,12 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
         snprintf(f->path, sizeof f->path, "%s", path);
         return SC_OK;
     }
+    /* a symbolic link to a file: the file it points to is replaced (the temporary beside it),
+     * the link kept, as `cp` writes through it (a link to nothing is replaced itself) */
+    char target[PATH_MAX];
+    struct stat lsb;
+    if (lstat(path, &lsb) == 0 && S_ISLNK(lsb.st_mode) && realpath(path, target))
+        path = target;
     if (strlen(path) + 16 >= sizeof f->tmp_path)
         return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
     snprintf(f->path, sizeof f->path, "%s", path);
@@ -230,8 +237,10 @@ static void fsync_parent_dir(const char *path)
 /* Flush, fsync and close the temporary file (fp becomes NULL); on failure it is removed. */
 static sc_status afile_sync(sc_afile *f, sc_error *err)
 {
+    /* a write that failed earlier left the stream's error flag and its errno (no call since
+     * succeeded in a way that sets it); EIO if there is none to tell */
     int bad = fflush(f->fp) != 0 || ferror(f->fp) || fsync(fileno(f->fp)) != 0;
-    int e = errno;
+    int e = errno ? errno : EIO;
     if (fclose(f->fp) != 0 && !bad) {
         bad = 1;
         e = errno;
@@ -264,10 +273,12 @@ static int is_stdout(const sc_afile *f) { return strcmp(f->path, "-") == 0; }
 static sc_status direct_commit(sc_afile *f, sc_error *err)
 {
     int bad = fflush(f->fp) != 0 || ferror(f->fp);
-    if (!is_stdout(f) && fclose(f->fp) != 0)
-        bad = 1;
+    int e = errno ? errno : EIO;
+    if (!is_stdout(f) && fclose(f->fp) != 0 && !bad)
+        bad = 1, e = errno;
     f->fp = NULL;
-    return bad ? sc_error_set(err, SC_E_IO, is_stdout(f) ? "stdout" : f->path, 0, "write error")
+    return bad ? sc_error_set(err, SC_E_IO, is_stdout(f) ? "stdout" : f->path, 0,
+                              "write error: %s", strerror(e))
                : SC_OK;
 }
 
@@ -373,8 +384,9 @@ sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, s
     if (st != SC_OK)
         return st;
     if (len && fwrite(data, 1, len, f.fp) != len) {
+        int e = errno ? errno : EIO;
         sc_afile_abort(&f);
-        return sc_error_set(err, SC_E_IO, path, 0, "write error");
+        return sc_error_set(err, SC_E_IO, path, 0, "write error: %s", strerror(e));
     }
     return sc_afile_commit(&f, err);
 }

@@ -66,11 +66,7 @@ sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
 
 sc_status sc_io_finish(sc_afile *f, sc_error *err)
 {
-    if (ferror(f->fp)) {
-        sc_afile_abort(f);
-        return sc_error_set(err, SC_E_IO, f->path, 0, "write error");
-    }
-    return sc_afile_commit(f, err);
+    return sc_afile_commit(f, err); /* a write that failed: "write error: <reason>" */
 }
 
 sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err)

@@ -228,6 +228,27 @@ one_line_error(r, 1, "ulimit -f", "File too large")
 check(open(target, "rb").read() == old, "ulimit -f: the old file was changed")
 check(not tmp_files(ldir), f"ulimit -f: temporaries left: {tmp_files(ldir)}")
 
+# a device that refuses the write (/dev/full): every writer gives the reason, not just "write error"
+for args in (["plot", "map", p("map_ref.csv")], ["plot", "xy", p("map_ref.csv")],
+             ["report", "grid", p("grid.csv")], ["export", "--format", "kmotion", "--map", p("map_ref.csv")],
+             ["export", "--format", "beckhoff", "--axis", "x", "--map", p("map_ref.csv")],
+             ["lut", "build", "--map", p("map_ref.csv")]):
+    r = run(args + ["-o", "/dev/full"])
+    one_line_error(r, 1, " ".join(args[:2]) + " -o /dev/full", "write error: No space left on device")
+
+# an output that is a symbolic link is written through: its file replaced, the link kept
+sdir = p("links")
+shutil.rmtree(sdir, ignore_errors=True)
+os.makedirs(os.path.join(sdir, "versions"))
+with open(os.path.join(sdir, "versions", "v1.lut"), "w") as f:
+    f.write("old\n")
+os.symlink("versions/v1.lut", os.path.join(sdir, "current.lut"))
+must(["lut", "build", "--map", p("map_ref.csv"), "-o", os.path.join(sdir, "current.lut")])
+check(os.path.islink(os.path.join(sdir, "current.lut")), "-o LINK: the link was replaced by a file")
+check(open(os.path.join(sdir, "versions", "v1.lut"), "rb").read(4) != b"old\n",
+      "-o LINK: the file it points to was not written")
+check(not tmp_files(sdir) and not tmp_files(os.path.join(sdir, "versions")), "-o LINK: temporaries left")
+
 # permissions: a new output gets 0666 less the umask, a replaced one keeps its own
 mdir = p("modes")
 os.makedirs(mdir, exist_ok=True)
