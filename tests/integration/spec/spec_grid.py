@@ -188,6 +188,7 @@ def test_recover():
     recover_case("ye N=5", "ye", 5, 1.0, (0.0, 0.0), YE(5), 11)
     recover_case("ye N=9 pitch 0.5 origin (10.5,-3.25)", "ye", 9, 0.5, (10.5, -3.25), YE(9), 12)
     recover_case("ye N=7 no origin line", "ye", 7, 2.0, (0.0, 0.0), YE(7), 13, origin_line=False)
+    recover_case("double-shift N=7", "double-shift", 7, 1.0, (0.0, 0.0), PETRO(7), 21)
     recover_case("double-shift N=9", "double-shift", 9, 1.0, (0.0, 0.0), PETRO(9), 14)
     recover_case("double-shift N=11 origin (1,2)", "double-shift", 11, 1.25, (1.0, 2.0), PETRO(11), 15)
     recover_case("lsq Ye N=7", "lsq", 7, 1.0, (0.0, 0.0), YE(7), 16)
