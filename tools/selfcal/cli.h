@@ -26,6 +26,11 @@ int cli_usage_error(const char *cmd, const char *fmt, ...)
  * (CLI_BAD_INPUT); else -1. */
 int cli_check_output_paths(const char *cmd, const char *outputs, int argc, char **argv);
 
+/* A profile calibrated with the noise stated as 0 (every u(f) 0) whose least-squares residuals
+ * are not: one warning on stderr naming the residuals' scale (cmd: "selfcal profile", ...). */
+struct sc_profile_solution;
+void cli_warn_zero_noise(const char *cmd, const struct sc_profile_solution *s);
+
 /* A file a command names after an output option (export's OUT-x, simulate exports' DIR/viewK.csv)
  * checked against the inputs of argv (outputs: the options whose values are not inputs), before
  * anything is written: -1 if it names none, else the exit status of the usage error printed

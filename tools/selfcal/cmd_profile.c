@@ -189,6 +189,20 @@ static void print_summary(const profile_args *pa, const sc_profile_data *d,
                pa->mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / n), mx);
 }
 
+void cli_warn_zero_noise(const char *cmd, const sc_profile_solution *s)
+{
+    /* 1 pm: noise-free simulations leave rounding residuals of ~1e-13 um */
+    if (!s->noise_known || !(s->sigma_y_um[0] == 0 && s->sigma_y_um[1] == 0) || s->dof <= 0 ||
+        !(s->wrss >= 0))
+        return;
+    double scale_um = sqrt(s->wrss / s->dof);
+    if (scale_um > 1e-6)
+        fprintf(stderr, "%s: warning: the noise is stated as 0 but the residuals' scale is %.3g nm "
+                        "(sqrt(RSS/dof), dof %d): every uf_um = 0 understates the uncertainty; "
+                        "leave the sigma lines and options out to estimate the noise\n",
+                cmd, scale_um * 1e3, s->dof);
+}
+
 /* Calibrate the data read with the plan (freed then: the writing reuses its memory), then write
  * the result, the plot and the summary. */
 static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_data *d,
@@ -204,6 +218,8 @@ static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_da
     if (!sol.have_uf && !pa->quiet)
         fprintf(stderr, "selfcal profile: no redundancy (N - d1 - d2 = %d): noise not estimable, "
                         "uf_um left empty\n", sol.dof);
+    if (!pa->quiet)
+        cli_warn_zero_noise("selfcal profile", &sol);
     st = sc_profile_write_result(pa->out, n, d->s_mm, sol.f_um, sol.have_uf ? sol.uf_um : NULL,
                                  sol.ey_um, n - d->d[0], err);
     if (st == SC_OK && pa->plot)

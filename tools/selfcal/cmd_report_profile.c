@@ -424,6 +424,8 @@ int cmd_report_profile(int argc, char **argv)
     profile_run r;
     memset(&r, 0, sizeof r);
     sc_status st = profile_run_compute(&d, method, sd, sa, &r, &err);
+    if (st == SC_OK)
+        cli_warn_zero_noise("selfcal report profile", &r.sol);
     if (st == SC_OK) {
         sc_afile f;
         st = sc_afile_open(&f, out, &err);

@@ -45,7 +45,13 @@ bool sc_profile_dft_is_usable(int n, int d1, int d2, sc_error *err)
     if (d1 < 1 || d2 < 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "sensor spacings must be >= 1 (d1 = %d, d2 = %d)", d1, d2),
                false;
-    if (d1 == d2 || gcd_l(d1, d2) != 1)
+    if (d1 == d2)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "d1 = d2 = %d: the DFT method combines two different spacings (the "
+                            "lsq method takes d1 = d2 = 1)",
+                            d1),
+               false;
+    if (gcd_l(d1, d2) != 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "d1 = %d and d2 = %d are not coprime (gcd = %ld): the harmonics that both "
                             "scans lose cannot be recovered",

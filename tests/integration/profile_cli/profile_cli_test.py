@@ -123,6 +123,7 @@ def case_bad_input():
     g = good_lines()
     g[s1 - 2] += ",note"
     cases.append(("extra_column", g, "dft", s1 - 1, "5 columns, got 6"))
+    cases.append(("dft_equal_spacings", good_lines(40, 1, 1), "dft", 5, "d1 = d2 = 1: the DFT method combines two different spacings"))
     g = good_lines()
     g[2] = "# s_mm = x"
     cases.append(("bad_header_value", g, "dft", 3, "s_mm"))
@@ -188,6 +189,18 @@ def case_noise():
     est = float(m.group(1))
     print(f"estimated sigma_y {est:.5f} um (simulated {math.sqrt(2) * 0.01:.5f})")
     assert abs(est / (math.sqrt(2) * 0.01) - 1) < 0.15
+    # the noise stated as 0 on noisy data: uf 0 as stated, and a warning giving the residuals'
+    # scale (about sigma_y, 14 nm); none on noise-free data stating 0
+    for cmd in (["profile", "--method", "lsq", inp2, "--out", path("zero.csv")],
+                ["report", "profile", inp2, "-o", path("zero.html")]):
+        p = run(*cmd, "--sigma-disp-um", 0, "--sigma-angle-urad", 0)
+        m = re.search(r"warning: the noise is stated as 0 but the residuals' scale is ([0-9.]+) nm", p.stderr)
+        assert m and abs(float(m.group(1)) / (math.sqrt(2) * 10) - 1) < 0.15, p.stderr
+    nf = path("noise_free.csv")
+    run("simulate", "profile", "--n", n, "--d1", d1, "--d2", d2, "--noise-free", "--seed", 12,
+        "--out", nf, "--truth", path("t3.csv"))
+    p = run("profile", "--method", "lsq", nf, "--out", path("nf_out.csv"))
+    assert "warning" not in p.stderr, p.stderr
 
 
 def case_plan():
