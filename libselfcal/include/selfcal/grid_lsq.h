@@ -132,7 +132,8 @@ SC_API sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_
                                        double *tx, double *ty, double *h_out, sc_error *err);
 
 /* The fitted dev (µm) of mark (i, j) in view v from a result of this plan (NaN where the
- * plate error is unknown, or v, i, j name no mark the view puts on the stage); t_s: its time,
+ * plate error is unknown, where the view's misalignment is undetermined (res reports it NaN:
+ * a view of one mark), or v, i, j name no mark the view puts on the stage); t_s: its time,
  * used with drift. For measurements left out of the plan (rejected outliers). */
 SC_API void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, int v, int i,
                                 int j, double t_s, double *dx_um, double *dy_um);

@@ -812,16 +812,19 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n, tot = (size_t)p->n_views * nn;
     const char *src = path ? path : "data";
-    /* the final solution's misalignments as fitted to the data it was solved on (a view the
-     * removals left with one mark: its particular solution, φ at 0) */
+    /* the final solution's misalignments as fitted to the data it was solved on; a view the
+     * removals left undetermined (one mark: its rotation free) cannot predict its removed
+     * marks, whose residuals are then not estimable (empty) */
     double mis[SC_GRID_MAX_VIEWS * 5];
-    sc_grid_lsq_fit_misalignments(q, d, &s->res, mis);
+    int determined[SC_GRID_MAX_VIEWS];
+    sc_grid_lsq_fit_misalignments(q, d, &s->res, mis, determined);
     for (size_t k = 0; k < tot; ++k) {
         int v = (int)(k / nn), m = (int)(k % nn);
         if (s->outlier[k]) { /* removed: residual against the final solution */
             double px, py, t = d->t_s[v] ? d->t_s[v][m] : NAN;
             sc_grid_lsq_predict_with(q, &s->res, mis, v, m / p->n, m % p->n, t, &px, &py);
-            s->rx_um[k] = keep[k] - px, s->ry_um[k] = keep[tot + k] - py;
+            s->rx_um[k] = determined[v] ? keep[k] - px : NAN;
+            s->ry_um[k] = determined[v] ? keep[tot + k] - py : NAN;
             s->tx[k] = s->ty[k] = NAN;
             d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
             s->n_flagged++;

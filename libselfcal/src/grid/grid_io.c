@@ -321,13 +321,15 @@ void sc_grid_fprint_residuals(FILE *fp, const sc_grid_plan *p, const int *view_i
     for (int v = 0; v < p->n_views; ++v)
         for (size_t k = 0; k < nn; ++k) {
             size_t at = (size_t)v * nn + k;
-            if (!isfinite(rx_um[at]))
+            /* a row: a measurement with a residual, or one removed as an outlier whose residual
+             * is not estimable (its view's misalignment undetermined without it): empty fields */
+            if (!isfinite(rx_um[at]) && !(outlier && outlier[at]))
                 continue;
             char *q = sc_io_put_long(line, view_id ? view_id[v] : v, ',');
             q = sc_io_put_long(q, (long)(k / n), ',');
             q = sc_io_put_long(q, (long)(k % n), ',');
-            q = sc_io_put_15g(q, rx_um[at], ',');
-            q = sc_io_put_15g(q, ry_um[at], ',');
+            q = sc_io_put_15g_opt(q, rx_um, at, ',');
+            q = sc_io_put_15g_opt(q, ry_um, at, ',');
             q = sc_io_put_15g_opt(q, tx, at, ',');
             q = sc_io_put_15g_opt(q, ty, at, ',');
             q = sc_io_put_long(q, outlier && outlier[at] ? 1 : 0, '\n');

@@ -84,7 +84,11 @@ struct sc_grid_lsq_plan {
     double *eq_h;           /* leverage of each equation */
     double var_O, var_R;    /* Var(O)/σ0², Var(R)/σ0² (NaN if not computed) */
     double *var_m;          /* nm: Var(misalignment unknown)/σ0² (NaN where not unique) */
-    int misalignment_unique;
+    int misalignment_unique;    /* every view's misalignment determined (nullity_T = 3) */
+    /* the misalignments free beyond the gauge are only views' own (a view of one mark: its
+     * rotation; of none: all): the others are estimable, with uncertainties */
+    int misalignment_estimable;
+    unsigned char view_free[SC_GRID_MAX_VIEWS]; /* a view that leaves its own columns free */
     double *work;           /* execute's workspace: 4 n_red + ng + 2 nn + nm doubles */
     size_t bytes;
 };
@@ -800,6 +804,32 @@ static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_gr
     }
 }
 
+/* Per view, how many of its own misalignment columns its equations leave free with G and A held
+ * (the columns of its block of the normal matrix, Cholesky with diagonal pivoting): a view of one
+ * mark leaves its rotation, a view of none all nb. Sets q->view_free; the total, or -1 if memory
+ * ran out. */
+static int views_own_nullity(sc_grid_lsq_plan *q)
+{
+    int nb = q->nb, total = 0, idx[ROW_MAX];
+    double val[ROW_MAX], *nrm = calloc((size_t)q->nv * nb * nb, sizeof(double));
+    if (!nrm)
+        return -1;
+    for (long e = 0; e < q->neq; ++e) {
+        int v = q->eq_v[e], len = eq_row(q, e, idx, val);
+        for (int i = 1; i < len; ++i)
+            for (int j = 1; j < len; ++j)
+                nrm[((size_t)v * nb + idx[i] - q->ng - nb * v) * nb + idx[j] - q->ng - nb * v] +=
+                    q->eq_w[e] * val[i] * val[j];
+    }
+    for (int v = 0; v < q->nv && total >= 0; ++v) {
+        int k = small_nullity(nrm + (size_t)v * nb * nb, nb, LSQ_SMALL_TOL);
+        q->view_free[v] = k > 0;
+        total = k < 0 ? -1 : total + k;
+    }
+    free(nrm);
+    return total;
+}
+
 /* Free degrees of freedom (K), identifiability, counts; stage nodes no equation touches. */
 static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
 {
@@ -823,6 +853,10 @@ static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
     q->rank = q->info.n_unknowns - (4 + K + q->nullity_T);
     q->info.residual_dof = q->neq - q->rank;
     q->misalignment_unique = q->nullity_T <= 3;
+    int own = views_own_nullity(q);
+    if (own < 0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    q->misalignment_estimable = q->nullity_T - own <= 3;
     for (int k = 0; k < q->ns; ++k)
         q->sgx[k] = q->sgy[k] = NAN;
     q->info.sigma_c_ratio_rms = q->info.sigma_c_ratio_max = NAN;
@@ -1799,7 +1833,7 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
      * values follow a convention and have no uncertainty. O and R depend on G only. */
     if (gauge_matrix(q, Minv_T) != 0)
         return SC_OK;
-    int nf = 2 + (q->misalignment_unique ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5];
+    int nf = 2 + (q->misalignment_estimable ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5];
     free_misalignments(q, NULL, slot);
     size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
     double *fm = calloc((size_t)q->nm, sizeof(double)), *fg = NULL;
@@ -2072,13 +2106,16 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     st = leverages(q, err);
     if (st == SC_OK)
         redundancy_info(q);
-    if (st == SC_OK && q->misalignment_unique && functionals) {
+    if (st == SC_OK && q->misalignment_estimable && functionals) {
         if (!(U = malloc(sizeof(double) * 4 * ng)))
             st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         else {
             gauge_basis(q, U, scale);
             st = functional_variances(q, 1, scale, U, D, NULL, part, err);
         }
+        for (int v = 0; v < q->nv; ++v) /* a view's own free columns: no uncertainty there */
+            for (int c = 0; q->view_free[v] && c < q->nb; ++c)
+                q->var_m[v * q->nb + c] = NAN;
     }
     sc_spsym_drop_inverse(q->f);
 out:
@@ -2087,9 +2124,9 @@ out:
 }
 
 void sc_grid_lsq_fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d,
-                                   const sc_grid_result *res, double *m)
+                                   const sc_grid_result *res, double *m, int *determined)
 {
-    fit_misalignments(q, d, res->gx_um, res->gy_um, res->ax_um, res->ay_um, 1, m, NULL);
+    fit_misalignments(q, d, res->gx_um, res->gy_um, res->ax_um, res->ay_um, 1, m, determined);
 }
 
 sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d,
@@ -2104,7 +2141,7 @@ sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d
     if (!isfinite(res->sigma_r_used_um))
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
     double m[SC_GRID_MAX_VIEWS * 5], tscale = residual_scale(res);
-    sc_grid_lsq_fit_misalignments(q, d, res, m);
+    sc_grid_lsq_fit_misalignments(q, d, res, m, NULL);
     size_t tot = (size_t)q->nv * q->nn;
     double *outs[5] = {rx_um, ry_um, tx, ty, h_out};
     for (int o = 0; o < 5; ++o)
@@ -2141,7 +2178,7 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
     if (!res->gx_um || !res->gy_um || !res->ax_um || !res->ay_um)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "variance components need G and A");
     double m[SC_GRID_MAX_VIEWS * 5], cnt[SC_GRID_MAX_VIEWS];
-    sc_grid_lsq_fit_misalignments(q, d, res, m);
+    sc_grid_lsq_fit_misalignments(q, d, res, m, NULL);
     for (int v = 0; v < q->nv; ++v)
         wrss[v] = red[v] = u2[v] = cnt[v] = 0;
     for (long e = 0; e < q->neq; ++e) {
@@ -2319,7 +2356,7 @@ static int reference_misalignments(const sc_grid_lsq_plan *q, double *var, doubl
     int n = q->n_red;
     for (int t = 0; t < q->nm; ++t)
         var[t] = NAN;
-    if (!q->misalignment_unique || gauge_matrix(q, Minv_T) != 0)
+    if (!q->misalignment_estimable || gauge_matrix(q, Minv_T) != 0)
         return 0;
     double *fm = calloc((size_t)q->nm, sizeof(double)), *ux = malloc(sizeof(double) * (size_t)n);
     double *rv = malloc(sizeof(double) * (size_t)n), *zero = calloc((size_t)n, sizeof(double));
@@ -2348,8 +2385,11 @@ int sc_grid_lsq_reference_misalignments(const sc_grid_lsq_plan *q, double *var_r
     long double *x = malloc(sizeof(long double) * (size_t)n);
     long double *r = malloc(sizeof(long double) * (size_t)n);
     int rc = b && x && r && q->var_m ? reference_misalignments(q, var_ref, b, x, r) : -1;
-    for (int t = 0; rc == 0 && t < q->nm; ++t)
+    for (int t = 0; rc == 0 && t < q->nm; ++t) {
         var_plan[t] = q->var_m[t];
+        if (q->view_free[t / q->nb])
+            var_ref[t] = NAN;
+    }
     free(b), free(x), free(r);
     return rc;
 }

@@ -35,9 +35,9 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
  * in the equations' units: tx, ty µm, φ·L µm, drift v·T µm): res's own where a view determines
  * them, else the particular solution whose residuals are the least-squares ones (the columns
  * a view cannot determine, e.g. φ of a view with one mark, at 0; NaN for a view without
- * equations). */
+ * equations). determined (may be NULL): per view, 1 where its misalignment is determined. */
 void sc_grid_lsq_fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d,
-                                   const sc_grid_result *res, double *m);
+                                   const sc_grid_result *res, double *m, int *determined);
 
 /* sc_grid_lsq_predict with the misalignments m (as sc_grid_lsq_fit_misalignments gives them)
  * instead of res's. */
