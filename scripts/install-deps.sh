@@ -18,6 +18,8 @@ DEB_PACKAGES=(
   linuxcnc-uspace linuxcnc-uspace-dev util-linux
   groff-base
   gcovr
+  # strace: the fault tests check the mode a temporary file is created with
+  strace
 )
 
 SUDO=""

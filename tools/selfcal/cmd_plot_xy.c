@@ -10,7 +10,6 @@
 #include "plots.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
-#include "selfcal/profile_file.h"
 #include "svg.h"
 
 static const char *USAGE =
@@ -18,14 +17,13 @@ static const char *USAGE =
     "                       [--title T] [--xlabel L] [--ylabel L]\n"
     "  A line chart of a CSV file with a header line: x from column COL (default the first), one\n"
     "  line with markers per --y column (default every other column); empty fields are gaps.\n"
-    "  --logx/--logy: logarithmic axes (values <= 0 are left out). At most 10^8 rows\n"
-    "  (the longest profile selfcal reads).\n";
+    "  --logx/--logy: logarithmic axes (values <= 0 are left out). At most 10^8 values\n"
+    "  (rows x columns).\n";
 
 #define XY_MAX_SERIES 16
-/* the most rows read: the longest profile output selfcal writes (series are thinned to the
- * figure's width when drawn); an endless pipe is refused there instead of read until memory
- * runs out */
-#define XY_MAX_ROWS ((long)SC_PROFILE_MAX_N)
+/* the most values read (rows x columns, 800 MB): an endless pipe is refused there instead of
+ * read until memory runs out; series are thinned to the figure's width when drawn */
+#define XY_MAX_VALUES 100000000L
 
 typedef struct xy_data {
     int ncol;
@@ -65,13 +63,17 @@ static sc_status read_xy(const char *path, xy_data *t,
                               r.nfields);
             goto fail;
         }
-        if (t->nrows == XY_MAX_ROWS) {
+        const long max_rows = XY_MAX_VALUES / t->ncol;
+        if (t->nrows == max_rows) {
             st = sc_error_set(err, SC_E_INPUT, path, r.line,
-                              "more than %ld rows, the most a chart draws", XY_MAX_ROWS);
+                              "more than %ld rows of %d columns, the most a chart reads (10^8 "
+                              "values)", max_rows, t->ncol);
             goto fail;
         }
         if (t->nrows == t->cap) {
             t->cap = t->cap ? 2 * t->cap : 64;
+            if (t->cap > max_rows)
+                t->cap = max_rows;
             double *nv = realloc(t->v, (size_t)t->cap * t->ncol * sizeof(double));
             if (!nv) {
                 st = sc_error_set(err, SC_E_NOMEM, path, r.line, "out of memory");

@@ -120,9 +120,9 @@ void sc_afile_cleanup_on_signals(void)
 }
 
 /* A new file "PATH.tmpXXXXXX" (six random letters and digits) opened for writing, created with
- * mode 0666 so the umask applies as to any new file (mkstemp's is 0600); tmp: its name. The fd,
- * or -1 with errno. */
-static int create_tmp(char *tmp, size_t cap, const char *path)
+ * mode (less the umask, as any new file; mkstemp's would be 0600); tmp: its name. The fd, or -1
+ * with errno. */
+static int create_tmp(char *tmp, size_t cap, const char *path, mode_t mode)
 {
     static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
     struct timespec ts;
@@ -140,12 +140,46 @@ static int create_tmp(char *tmp, size_t cap, const char *path)
         }
         s[6] = '\0';
         snprintf(tmp, cap, "%s.tmp%s", path, s);
-        int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+        int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, mode);
         if (fd >= 0 || errno != EEXIST)
             return fd;
     }
     errno = EEXIST;
     return -1;
+}
+
+/* Whether the kernel would follow the symbolic link path (lstat'ed as *lsb) when opening it:
+ * its protected_symlinks rule — a link in a sticky world-writable folder (/tmp) is followed only
+ * by its owner or when the folder's owner owns it too. */
+static int may_follow(const char *path, const struct stat *lsb)
+{
+    if (lsb->st_uid == geteuid())
+        return 1;
+    char dir[PATH_MAX];
+    const char *slash = strrchr(path, '/');
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else
+        snprintf(dir, sizeof dir, "%.*s", slash == path ? 1 : (int)(slash - path), path);
+    struct stat ds;
+    if (stat(dir, &ds) != 0)
+        return 0;
+    if (!((ds.st_mode & S_ISVTX) && (ds.st_mode & S_IWOTH)))
+        return 1;
+    return ds.st_uid == lsb->st_uid;
+}
+
+/* The reason a temporary file's stream has its error flag set though its last flush went
+ * through (the failed write's errno is gone by now): a one-byte write at its end, which the
+ * same condition (full disk, size limit, I/O error) fails again; EIO if it passes. Only for
+ * temporaries, which are discarded. */
+static int probe_write_errno(int fd)
+{
+    off_t end = lseek(fd, 0, SEEK_END);
+    char c = 0;
+    if (end < 0 || pwrite(fd, &c, 1, end) == 1)
+        return EIO;
+    return errno ? errno : EIO;
 }
 
 /* unlink the temporary file and forget it */
@@ -187,8 +221,13 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
      * the link kept, as `cp` writes through it (a link to nothing is replaced itself) */
     char target[PATH_MAX];
     struct stat lsb;
-    if (lstat(path, &lsb) == 0 && S_ISLNK(lsb.st_mode) && realpath(path, target))
+    if (lstat(path, &lsb) == 0 && S_ISLNK(lsb.st_mode) && realpath(path, target)) {
+        if (!may_follow(path, &lsb))
+            return sc_error_set(err, SC_E_IO, path, 0,
+                                "a symbolic link another user owns in a sticky world-writable "
+                                "folder: not followed (as the kernel's protected_symlinks)");
         path = target;
+    }
     if (strlen(path) + 16 >= sizeof f->tmp_path)
         return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
     snprintf(f->path, sizeof f->path, "%s", path);
@@ -196,7 +235,10 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     sigset_t old;
     block_signals(&old); /* created and tracked as one step, in this thread and the others */
     defer_signals_begin();
-    int fd = create_tmp(f->tmp_path, sizeof f->tmp_path, path);
+    /* created with the final permissions at once: a replaced 0600 file's new content is never
+     * readable by others, not even for a moment */
+    int fd = create_tmp(f->tmp_path, sizeof f->tmp_path, path,
+                        replacing ? (sb.st_mode & 0777) : 0666);
     int e = errno;
     if (fd >= 0)
         track(f);
@@ -204,7 +246,8 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     defer_signals_end();
     if (fd < 0)
         return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
-    if (replacing) /* the file it replaces keeps its permissions (not its set-id bits) */
+    if (replacing) /* the file it replaces keeps its permissions (not its set-id bits): the
+                      bits the umask took at creation given back (only ever widening) */
         fchmod(fd, sb.st_mode & 0777);
     f->fp = fdopen(fd, "wb");
     if (!f->fp) {
@@ -237,10 +280,13 @@ static void fsync_parent_dir(const char *path)
 /* Flush, fsync and close the temporary file (fp becomes NULL); on failure it is removed. */
 static sc_status afile_sync(sc_afile *f, sc_error *err)
 {
-    /* a write that failed earlier left the stream's error flag and its errno (no call since
-     * succeeded in a way that sets it); EIO if there is none to tell */
-    int bad = fflush(f->fp) != 0 || ferror(f->fp) || fsync(fileno(f->fp)) != 0;
-    int e = errno ? errno : EIO;
+    errno = 0;
+    int flush_failed = fflush(f->fp) != 0, e = errno;
+    int bad = flush_failed || ferror(f->fp);
+    if (bad && !flush_failed) /* an earlier write failed: its errno is gone */
+        e = probe_write_errno(fileno(f->fp));
+    if (!bad && fsync(fileno(f->fp)) != 0)
+        bad = 1, e = errno;
     if (fclose(f->fp) != 0 && !bad) {
         bad = 1;
         e = errno;
@@ -248,7 +294,7 @@ static sc_status afile_sync(sc_afile *f, sc_error *err)
     f->fp = NULL;
     if (bad) {
         remove_tmp(f);
-        return sc_error_set(err, SC_E_IO, f->path, 0, "write error: %s", strerror(e));
+        return sc_error_set(err, SC_E_IO, f->path, 0, "write error: %s", strerror(e ? e : EIO));
     }
     return SC_OK;
 }
@@ -272,8 +318,9 @@ static int is_stdout(const sc_afile *f) { return strcmp(f->path, "-") == 0; }
 /* Commit of a file written straight (stdout, a device, a FIFO): flush (and close). */
 static sc_status direct_commit(sc_afile *f, sc_error *err)
 {
-    int bad = fflush(f->fp) != 0 || ferror(f->fp);
-    int e = errno ? errno : EIO;
+    errno = 0;
+    int flush_failed = fflush(f->fp) != 0, e = flush_failed ? errno : EIO;
+    int bad = flush_failed || ferror(f->fp);
     if (!is_stdout(f) && fclose(f->fp) != 0 && !bad)
         bad = 1, e = errno;
     f->fp = NULL;
@@ -383,6 +430,7 @@ sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, s
     sc_status st = sc_afile_open(&f, path, err);
     if (st != SC_OK)
         return st;
+    errno = 0;
     if (len && fwrite(data, 1, len, f.fp) != len) {
         int e = errno ? errno : EIO;
         sc_afile_abort(&f);

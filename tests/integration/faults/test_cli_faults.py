@@ -249,6 +249,39 @@ check(open(os.path.join(sdir, "versions", "v1.lut"), "rb").read(4) != b"old\n",
       "-o LINK: the file it points to was not written")
 check(not tmp_files(sdir) and not tmp_files(os.path.join(sdir, "versions")), "-o LINK: temporaries left")
 
+# ... but not a link another user planted in a sticky world-writable folder (as the kernel's
+# protected_symlinks refuses to open it): the file it points to stays (root only: chown -h)
+if os.geteuid() == 0:
+    tdir = p("sticky")
+    shutil.rmtree(tdir, ignore_errors=True)
+    os.makedirs(tdir)
+    os.chmod(tdir, 0o1777)
+    with open(os.path.join(tdir, "victim.csv"), "w") as f:
+        f.write("secret\n")
+    os.symlink(os.path.join(tdir, "victim.csv"), os.path.join(tdir, "planted.csv"))
+    os.lchown(os.path.join(tdir, "planted.csv"), 65534, 65534)
+    r = run(["lut", "build", "--map", p("map_ref.csv"), "-o", os.path.join(tdir, "planted.csv")])
+    one_line_error(r, 1, "-o a planted link", "not followed")
+    check(open(os.path.join(tdir, "victim.csv")).read() == "secret\n", "-o a planted link: its target was replaced")
+    check(not tmp_files(tdir), "-o a planted link: temporaries left")
+
+# a replaced file's new content is never readable beyond its old permissions: the temporary is
+# created with them (strace shows the open's mode)
+strace = shutil.which("strace")
+check(strace is not None, "strace is not installed (scripts/install-deps.sh installs it)")
+if strace:
+    os.makedirs(p("modes"), exist_ok=True)
+    secret = os.path.join(p("modes"), "secret.lut")
+    with open(secret, "w") as f:
+        f.write("old\n")
+    os.chmod(secret, 0o600)
+    r = subprocess.run([strace, "-f", "-e", "trace=openat,open", cli, "lut", "build", "--map",
+                        p("map_ref.csv"), "-o", secret], capture_output=True, text=True, timeout=120)
+    opens = [l for l in r.stderr.splitlines() if "secret.lut.tmp" in l and "O_CREAT" in l]
+    check(len(opens) == 1 and opens[0].rstrip().split(",")[-1].split(")")[0].strip() == "0600",
+          f"the temporary of a 0600 file: {opens}")
+    check(os.stat(secret).st_mode & 0o777 == 0o600, "secret.lut lost its mode")
+
 # permissions: a new output gets 0666 less the umask, a replaced one keeps its own
 mdir = p("modes")
 os.makedirs(mdir, exist_ok=True)
