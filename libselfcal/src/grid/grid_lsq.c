@@ -215,6 +215,10 @@ static sc_status build_drift(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_e
                 q->eq_dt[e] -= mean;
                 T = fmax(T, fabs(q->eq_dt[e]));
             }
+        if (cnt == 0) { /* a view without measurements: nothing to scale (its columns free) */
+            q->drift_T[v] = 1;
+            continue;
+        }
         if (!(T > 0))
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "view %d: all its measurements have the same time, its drift "

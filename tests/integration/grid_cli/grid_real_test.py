@@ -546,6 +546,22 @@ def case_one_mark_view():
     if len(removed) != 1 or len(kept) != 1 or abs(float(kept[0]["rx_um"])) > 1e-9 or \
             abs(float(kept[0]["ry_um"])) > 1e-9 or any(v3[removed[0]][c] for c in ("rx_um", "ry_um")):
         fail("rejection in the two-mark view: %r\n%s" % (v3, p.stderr))
+    # with drift: a declared view without measurements changes nothing (it was refused: "all its
+    # measurements have the same time")
+    s = simulate(d, "drift", "--plan", "ye", "--n", 7, "--sigma-r-um", 0.001, "--dt-s", 1)
+    lines = open(s["inp"]).read().splitlines(True)
+    k = next(k for k, l in enumerate(lines) if l.startswith("# view 2:"))
+    empty = os.path.join(d, "drift_empty_view.csv")
+    open(empty, "w").write("".join(lines[:k + 1] + ["# view 3: rot=180 shift=0,0\n"] + lines[k + 1:]))
+    maps = []
+    for name, path in (("plain", s["inp"]), ("empty", empty)):
+        g, sm = os.path.join(d, name + "_dg.csv"), os.path.join(d, name + "_ds.json")
+        run("grid", "--method", "lsq", path, "--map", g, "--drift", "linear", "--summary", sm)
+        maps.append(rows(g))
+    worst = max(abs(float(x[c]) - float(y[c])) for x, y in zip(*maps) for c in ("gx_um", "ugx_um", "gy_um", "ugy_um"))
+    v3 = json.load(open(sm))["views"][3]
+    if worst > 1e-9 or v3["vx_um_s"] is not None or v3["tx_um"] is not None:
+        fail("drift with an empty declared view: map differs by %g um; view 3 %r" % (worst, v3))
     print("one_mark_view: ok")
 
 
