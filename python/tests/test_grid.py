@@ -161,8 +161,8 @@ def test_errors(cli, tmp_path):
     with pytest.raises(selfcal.Error) as e:
         selfcal.calibrate_grid(str(bad))
     p = cli("grid", "--method", "lsq", bad, "--map", tmp_path / "G.csv", check=False)
-    assert p.returncode == 2 and p.stderr.strip() == "selfcal: " + str(e.value)
-    assert str(e.value).startswith(f"{bad}:{len(lines)}: ")
+    assert p.returncode == 2 and p.stderr.strip() == str(e.value)
+    assert str(e.value).startswith(f"selfcal: {bad}:{len(lines)}: ")
     with pytest.raises(selfcal.Error, match="do not identify G"):
         selfcal.calibrate_grid(selfcal.simulate_grid(selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)]))[0])
     # bad input in memory is refused as the file reader refuses it (stop 27's audit)

@@ -89,8 +89,8 @@ def test_bad_file_message_equals_cli(cli, tmp_path):
     assert isinstance(e.value, ValueError)
     p = cli("profile", "--method", "lsq", bad, "--out", tmp_path / "P.csv", check=False)
     assert p.returncode == 2
-    assert p.stderr.strip() == "selfcal: " + str(e.value)
-    assert str(e.value).startswith(f"{bad}:{k + 1}: ")
+    assert p.stderr.strip() == str(e.value)
+    assert str(e.value).startswith(f"selfcal: {bad}:{k + 1}: ")
     assert not (tmp_path / "P.csv").exists()
 
 

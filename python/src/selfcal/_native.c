@@ -54,12 +54,12 @@ static void error_printf(const char *fmt, ...)
     PyErr_SetString(sc_py_error, msg);
 }
 
-/* Raise selfcal.Error with the library's one-line message ("file:line: reason"), the same text
- * the command line prints after "selfcal: ". Out-of-memory becomes MemoryError, I/O OSError. */
+/* Raise selfcal.Error with the command line's one-line message for the same error ("selfcal:
+ * FILE:LINE: reason"). Out-of-memory becomes MemoryError, I/O OSError. */
 static PyObject *raise_sc(const sc_error *err)
 {
-    char buf[1024];
-    sc_error_format(err, buf, sizeof buf);
+    char buf[1024] = "selfcal: ";
+    sc_error_format(err, buf + 9, sizeof buf - 9);
     if (err->code == SC_E_NOMEM)
         PyErr_SetString(PyExc_MemoryError, buf);
     else if (err->code == SC_E_IO)
