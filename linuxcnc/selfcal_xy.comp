@@ -30,7 +30,7 @@ pin in float x_in "X input, mm (commanded position in mode=position, feedback in
 pin in float y_in "Y input, mm";
 pin out float x_out "corrected X, mm";
 pin out float y_out "corrected Y, mm";
-pin out u32 status "bit 0: table loaded; bit 1: input outside the grid (correction held at the edge); bit 2: input NaN or infinite (passed through)";
+pin out u32 status = 1 "bit 0: table loaded (from loadrt on: a table that does not load fails loadrt); bit 1: input outside the grid (correction held at the edge); bit 2: input NaN or infinite (passed through)";
 
 function _ "correct x-in, y-in into x-out, y-out (no allocation, constant time)";
 

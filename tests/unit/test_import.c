@@ -143,7 +143,7 @@ static void test_table_max_rows(void **state)
     (void)state;
     char path[512];
     tmp_path(path, sizeof path, "rows.csv");
-    write_text(path, "# four rows\nx;y\n1;2\n3;4\n5;6\n7;8\nnot a row\n");
+    write_text(path, "# four rows\nx;y\n1;2\n3;4\n5;6\n7;8\n9;1.5.5\n");
     sc_table t;
     sc_error err;
     assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 3, &t, &err), SC_E_INPUT);
@@ -152,7 +152,7 @@ static void test_table_max_rows(void **state)
         fail_msg("'%s'", err.msg);
     assert_null(t.value);
     assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 4, &t, &err), SC_E_INPUT);
-    assert_int_equal(err.line, 7); /* four taken, the fifth line is not a number */
+    assert_int_equal(err.line, 7); /* four taken, the fifth row's number is malformed */
     write_text(path, "x;y\n1;2\n3;4\n5;6\n");
     assert_int_equal(sc_table_read_max(path, 2, XY, NULL, 3, &t, &err), SC_OK);
     assert_int_equal(t.n_rows, 3);

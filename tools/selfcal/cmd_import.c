@@ -184,12 +184,44 @@ static void fprint_view_line(FILE *fp, int k, const sc_grid_view *v, const char 
     fputc('\n', fp);
 }
 
+/* The lines of a machine's file that were skipped (sc_table_read), one stderr line each kind. */
+static void report_skipped(const char *cmd, const char *file, const sc_table *t)
+{
+    if (t->units_line)
+        fprintf(stderr, "%s: %s:%ld: a line of units under the header; skipped\n", cmd, file,
+                t->units_line);
+    if (t->n_header_repeats)
+        fprintf(stderr, "%s: %s:%ld: the header line again (%ld time%s, a page break?); skipped\n",
+                cmd, file, t->header_repeat_line, t->n_header_repeats,
+                t->n_header_repeats == 1 ? "" : "s");
+    if (t->n_no_values)
+        fprintf(stderr, "%s: %s:%ld: %ld row%s without any value in the wanted columns (features "
+                        "not measured?); skipped\n",
+                cmd, file, t->no_values_line, t->n_no_values, t->n_no_values == 1 ? "" : "s");
+    if (t->n_summary)
+        fprintf(stderr, "%s: %s:%ld: %ld summary row%s (Mean, Max, ...: no measurement); skipped\n",
+                cmd, file, t->summary_line, t->n_summary, t->n_summary == 1 ? "" : "s");
+    if (t->n_footer)
+        fprintf(stderr, "%s: %s:%ld: %ld line%s after the last row %s no row (a footer); "
+                        "skipped\n",
+                cmd, file, t->footer_line, t->n_footer, t->n_footer == 1 ? "" : "s",
+                t->n_footer == 1 ? "is" : "are");
+}
+
 static void report_view(const sc_grid_import_params *p, int k, const import_view *iv)
 {
+    report_skipped("selfcal import grid", iv->file, &iv->t);
     const long *point_mark = iv->point_mark;
     const sc_grid_import_fit *fit = &iv->fit;
     for (long q = 0; q < iv->t.n_rows; ++q)
-        if (point_mark[q] < 0)
+        if (point_mark[q] == -2)
+            fprintf(stderr,
+                    "selfcal import grid: %s:%ld: point (%.6f, %.6f) mm is more than 20 times as far "
+                    "from its mark as this view's points are (median %.3f um): left out (a summary "
+                    "row? a point on another feature?)\n",
+                    iv->file, iv->t.line[q], iv->t.value[iv->t.n_cols * q],
+                    iv->t.value[iv->t.n_cols * q + 1], fit->median_dist_um);
+        else if (point_mark[q] < 0)
             fprintf(stderr,
                     "selfcal import grid: %s:%ld: point (%.6f, %.6f) mm is farther than %g mm from "
                     "every mark of view %d; left out\n",
@@ -509,8 +541,11 @@ static sc_status import_profile_run(profile_args *g, sc_error *err)
 {
     sc_status st = SC_OK;
     const double scale[4] = {g->pos_unit, g->disp_unit, g->disp_unit, g->angle_unit};
-    for (int k = 0; k < 2 && st == SC_OK; ++k)
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
         st = sc_table_read(g->scans[k].file, 4, g->col, scale, &g->scans[k].t, err);
+        if (st == SC_OK)
+            report_skipped("selfcal import profile", g->scans[k].file, &g->scans[k].t);
+    }
     sc_profile_data d;
     memset(&d, 0, sizeof d);
     double p0 = 0;

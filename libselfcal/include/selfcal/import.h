@@ -41,6 +41,12 @@ typedef struct sc_table {
     long *line;        /* the file line of each row */
     char delimiter;    /* ',', ';' or '\t' */
     char decimal;      /* '.' or ','; '.' when no number had a fractional part */
+    /* lines after the header that machines write and that are skipped (0: none): */
+    long units_line;                    /* a line of unit names right under the header */
+    long n_header_repeats, header_repeat_line; /* the header line again (page breaks) */
+    long n_no_values, no_values_line;   /* rows without any of the wanted values (failed features) */
+    long n_summary, summary_line;       /* summary rows: another field names a statistic ("Mean") */
+    long n_footer, footer_line;         /* lines after the last row that are no rows (up to 20) */
 } sc_table;
 
 /* Read the columns names[0..n_cols-1] (matched case-insensitively, blanks and double quotes
@@ -50,7 +56,12 @@ typedef struct sc_table {
  * is ',' or '.' as the selected fields show; both in one file, a field with both, a missing column,
  * an empty or non-numeric field, or |value| > SC_INPUT_MAX_ABS (in the file's unit) -> SC_E_INPUT
  * with file:line. n_cols: 1..16 distinct names; scale (may be NULL: 1; finite, nonzero)
- * multiplies column k's values (unit conversion). */
+ * multiplies column k's values (unit conversion). Skipped and counted in t (the caller tells the
+ * user): a line of empty fields; the header line again; a line of unit names right under the
+ * header; a row with none of the wanted values; a summary row (a field no wanted column is read
+ * from names a statistic: Mean, Max, Mittelwert, ...); and up to 20 lines after the last row that are
+ * no rows (a footer: another field count or a wanted field that is text) — a row after them
+ * makes the first of them the error it is. */
 SC_API sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
                                const double *scale, sc_table *t, sc_error *err);
 
@@ -89,6 +100,9 @@ typedef struct sc_grid_import_fit {
     long n_left_out;       /* points farther than T from every mark */
     double max_dist_um;    /* largest distance of an assigned point to its fitted mark position */
     int iterations;        /* refits until the matching stopped changing */
+    long n_far;            /* points left out as far beyond the others (counted in n_left_out too):
+                              more than 20 times the median distance and 20 um from their mark */
+    double median_dist_um; /* the median distance of the matched points to their marks */
 } sc_grid_import_fit;
 
 /* Defaults: T = P/4, min_share 0.5, stage N x N, origin 0. */
@@ -106,7 +120,8 @@ SC_API bool sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_gr
                                      int *ni, int *nj);
 
 /* Assign the points (x_mm, y_mm: stage frame) of one view v. Fills point_mark[k] (the mark
- * i*n + j of point k, or -1 if left out; n_points values) and mark_point[m] (the point of mark m
+ * i*n + j of point k, -1 if left out as farther than T from every mark, -2 as far beyond the
+ * view's other points from its mark: a summary row, a point on the wrong feature; n_points values) and mark_point[m] (the point of mark m
  * or -1; n*n values) and fit. lines[k] is point k's file line and path/header_line the file, for
  * errors (SC_E_INPUT: two points for one mark, too few marks matched). work:
  * sc_grid_import_work_doubles(n_points) doubles. */

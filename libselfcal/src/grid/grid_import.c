@@ -47,7 +47,7 @@ sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err)
 
 size_t sc_grid_import_work_doubles(long n_points)
 {
-    return (size_t)(n_points > 0 ? n_points : 1);
+    return (size_t)(n_points > 0 ? 2 * n_points : 1); /* the distances, and a median's copy */
 }
 
 bool sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
@@ -225,6 +225,34 @@ static void median_translation(const sc_grid_import_params *p, const sc_grid_vie
     }
 }
 
+#define FAR_FACTOR 20.0   /* a point this many times the median distance from its mark ... */
+#define FAR_FLOOR_MM 0.02 /* ... and at least 20 um from it is no measurement of that mark */
+
+/* After the final matching: a point whose distance to its mark is more than FAR_FACTOR times the
+ * median distance of the view's points (and FAR_FLOOR_MM) is left out (point_mark -2, its mark
+ * without a point): a machine's summary row ("Mean"), a point measured on the wrong feature. A
+ * plate's own errors and the stage's are alike from mark to mark; such a point is not. Needs 5
+ * matched points for the median; tmp: n_points doubles. */
+static void leave_out_far(long n_points, long *point_mark, long *mark_point, const double *dist,
+                          double *tmp, sc_grid_import_fit *fit)
+{
+    long n = 0;
+    for (long k = 0; k < n_points; ++k)
+        if (point_mark[k] >= 0)
+            tmp[n++] = dist[k];
+    if (n < 5)
+        return;
+    double med = median(tmp, n), gate = fmax(FAR_FACTOR * med, FAR_FLOOR_MM);
+    for (long k = 0; k < n_points; ++k)
+        if (point_mark[k] >= 0 && dist[k] > gate) {
+            if (mark_point[point_mark[k]] == k)
+                mark_point[point_mark[k]] = -1;
+            point_mark[k] = -2;
+            fit->n_far++;
+        }
+    fit->median_dist_um = med * 1e3;
+}
+
 /* Step 3, after the final matching at T: a mark claimed by two points is bad input (the later
  * line is named); the others are counted as assigned or left out. */
 static sc_status count_assignment(const sc_grid_import_params *p, long n_points,
@@ -289,8 +317,9 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
         gate = p->tolerance_mm;
     }
     fit->iterations = it;
-    /* 3. final matching at T */
+    /* 3. final matching at T, then the points far beyond the others left out */
     match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    leave_out_far(n_points, point_mark, mark_point, dist, work + n_points, fit);
     st = count_assignment(p, n_points, lines, path, point_mark, mark_point, dist, fit, err);
     if (st != SC_OK)
         return st;

@@ -102,7 +102,12 @@ typedef struct table_reader {
     long cap, mark_line;
     long max_rows; /* refused beyond */
     char mark; /* the decimal mark seen so far, 0 if none */
+    long after_header; /* lines read since the header */
+    sc_error footer_err; /* the first line after the rows that is not a row (its error), while
+                            the lines after it are footer too */
 } table_reader;
+
+#define FOOTER_MAX 20 /* lines after the last row that are not rows, taken for a footer */
 
 /* The delimiter of a line: a tab if it has one, else ';' if it has one, else ','. */
 static char delimiter_of(const char *text)
@@ -241,17 +246,149 @@ static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err
     return SC_OK;
 }
 
-/* One data line: as many fields as the header, every wanted value, scaled. */
+static sc_status read_row(table_reader *tr, int nf, sc_error *err);
+
+/* Whether field s is empty, or text without a digit ("MM", "Mittelwert": no number at all,
+ * where "1.5.5" is a malformed one). */
+static int not_a_number(const char *s)
+{
+    for (; *s; ++s)
+        if (isdigit((unsigned char)*s))
+            return 0;
+    return 1;
+}
+
+/* Whether text (a field no wanted column is read from) names a statistic, as the summary rows
+ * machines add under a table do ("Mean", "Mittelwert", "Max.", "Std dev:"): such a row's numbers
+ * are no measurement, though they may well fall near a mark (the mean of a plate's points lies
+ * on its centre mark). */
+static int names_statistic(const char *text)
+{
+    static const char *const words[] = {
+        "mean", "average", "avg", "min", "max", "minimum", "maximum", "std", "stdev", "stddev",
+        "std dev", "std. dev", "sigma", "range", "sum", "total", "statistics", "mittelwert",
+        "durchschnitt", "streuung", "standardabweichung", "spannweite", "summe", "moyenne",
+        "ecart type", "media", "promedio", "media aritmetica"};
+    char w[32];
+    size_t n = strlen(text);
+    while (n > 0 && (text[n - 1] == ':' || text[n - 1] == '.' || text[n - 1] == ' '))
+        --n;
+    if (n == 0 || n >= sizeof w)
+        return 0;
+    memcpy(w, text, n);
+    w[n] = '\0';
+    for (size_t k = 0; k < sizeof words / sizeof words[0]; ++k)
+        if (name_equal(w, words[k]))
+            return 1;
+    return 0;
+}
+
+/* The lines after the header that are not rows, but what machines write between and after
+ * them (nf fields split at tr->field): a line of empty fields (a spreadsheet's ";;;;"): 1; the
+ * header again (a page break): 2; a line of unit names right under the header ("MM","MM"): 3; a
+ * row without any of the wanted values (a feature the machine failed to measure): 4; a summary
+ * row (another field names a statistic: "Mean;12.5;3.1"): 5; else 0. */
+static int skipped_kind(const table_reader *tr, int nf)
+{
+    int empty = 1, header = nf == tr->n_header, texts = nf == tr->n_header, blanks = header;
+    for (int f = 0; f < nf; ++f)
+        empty &= !tr->field[f][0];
+    if (empty)
+        return 1;
+    for (int k = 0; k < tr->n_cols && header; ++k) {
+        const char *s = tr->field[tr->col_of[k]];
+        header &= name_equal(s, tr->names[k]);
+        texts &= s[0] && not_a_number(s);
+        blanks &= !s[0];
+    }
+    if (header)
+        return 2;
+    if (texts && tr->after_header == 1)
+        return 3;
+    if (blanks)
+        return 4;
+    for (int f = 0; f < nf; ++f) {
+        int wanted = 0;
+        for (int k = 0; k < tr->n_cols; ++k)
+            wanted |= tr->col_of[k] == f;
+        if (!wanted && names_statistic(tr->field[f]))
+            return 5;
+    }
+    return 0;
+}
+
+/* Whether the current line (nf fields at tr->field) is no row at all: another field count, or a
+ * wanted field that is no number — a footer's line if no row follows. */
+static int not_a_row(const table_reader *tr, int nf)
+{
+    if (nf != tr->n_header)
+        return 1;
+    for (int k = 0; k < tr->n_cols; ++k)
+        if (not_a_number(tr->field[tr->col_of[k]]))
+            return 1;
+    return 0;
+}
+
+/* One line after the header: a row (as many fields as the header, every wanted value, scaled),
+ * a line machines write that is skipped and counted (skipped_kind), or, after some rows, the
+ * start of a footer: its error kept and reported only if a row follows. */
 static sc_status read_data_line(table_reader *tr, sc_error *err)
 {
     sc_table *t = tr->t;
+    tr->after_header++;
     int nf = split_fields(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
+    if (tr->footer_err.code) { /* in a footer: a row after it makes its first line an error */
+        if (nf >= 0 && !not_a_row(tr, nf) && skipped_kind(tr, nf) == 0) {
+            if (err)
+                *err = tr->footer_err;
+            return tr->footer_err.code;
+        }
+        if (++t->n_footer > FOOTER_MAX) {
+            if (err)
+                *err = tr->footer_err;
+            return tr->footer_err.code;
+        }
+        return SC_OK;
+    }
+    int kind = nf >= 0 ? skipped_kind(tr, nf) : 0;
+    if (kind == 1)
+        return SC_OK;
+    if (kind == 2 && !t->n_header_repeats++)
+        t->header_repeat_line = tr->r.line;
+    if (kind == 3)
+        t->units_line = tr->r.line;
+    if (kind == 4 && !t->n_no_values++)
+        t->no_values_line = tr->r.line;
+    if (kind == 5 && !t->n_summary++)
+        t->summary_line = tr->r.line;
+    if (kind)
+        return SC_OK;
+    sc_error e;
+    sc_error_clear(&e);
+    sc_status st = read_row(tr, nf, &e);
+    if (st == SC_E_INPUT && t->n_rows > 0 && (nf < 0 || not_a_row(tr, nf))) {
+        tr->footer_err = e; /* perhaps a footer: decided by what follows */
+        t->footer_line = tr->r.line;
+        t->n_footer = 1;
+        return SC_OK;
+    }
+    if (st != SC_OK && err)
+        *err = e;
+    return st;
+}
+
+/* One row: as many fields as the header, every wanted value, scaled. */
+static sc_status read_row(table_reader *tr, int nf, sc_error *err)
+{
+    sc_table *t = tr->t;
     if (nf != tr->n_header)
         return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
                             "%d fields, the header line (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,
                             t->header_line, tr->n_header,
                             t->delimiter == ',' ? " (decimal commas need ';' or tab as delimiter)" : "");
     sc_status st = grow(tr, err);
+    if (st != SC_OK)
+        return st;
     for (int k = 0; k < tr->n_cols && st == SC_OK; ++k) {
         double v;
         st = parse_value(tr, k, &v, err);

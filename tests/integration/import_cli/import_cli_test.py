@@ -188,6 +188,46 @@ def case_formats():
             expect=2)
     if ":4: no column named 'xx'" not in p.stderr or os.path.exists(out2 + "2"):
         fail("misspelt column after a preamble: %r" % p.stderr)
+    # what machines write around the rows: a units line under the header, the header again at a
+    # page break, a spreadsheet's empty line, a failed feature, a summary row whose mean lies on
+    # the centre mark (so the centre is left out of that view first), a text footer: the same
+    # grid, each kind named on stderr; a row after a footer-like line is still an error
+    f0 = files[0]  # the ';' + ',' style, in mm
+    lines = open(f0).read().splitlines()
+    hdr, body = lines[0], [l for l in lines[1:] if l]
+    cx = "%s;0;0;0" % "Mean"
+    noisy = [hdr, ";".join(["", "MM", "MM", "MM"])] + body[:20] + [hdr] + body[20:40] + [";;;", "17a;;;"] + \
+        body[40:] + [cx, "*** End of report ***", "Operator: A. B."]
+    f_noisy = f0.replace(".csv", "_noisy.csv")
+    open(f_noisy, "w").write("\n".join(noisy) + "\n")
+    out3 = os.path.join(d, "out_noisy.csv")
+    p = run(*[f_noisy if x == f0 else x for x in a], "-o", out3)
+    if read_grid(out3)[1] != irows:
+        fail("the lines around the rows changed the import")
+    for want in (":2: a line of units under the header; skipped", ":23: the header line again (1 time",
+                 ":45: 1 row without any value", "1 summary row (Mean", "2 lines after the last row are no row (a footer)"):
+        if want not in p.stderr:
+            fail("noisy export: stderr lacks %r: %s" % (want, p.stderr))
+    # a point 0.11 mm from the centre mark (which this view's file otherwise lacks), where the
+    # others lie within a few um of theirs: left out and named, the centre mark absent
+    f1 = files[1]
+    lines = open(f1).read().splitlines()
+    def at_centre(l):
+        f = l.split(";")
+        return len(f) > 2 and abs(float(f[1].replace(",", "."))) < 0.2 and abs(float(f[2].replace(",", "."))) < 0.2
+    far = [lines[0]] + [l for l in lines[1:] if l and not at_centre(l)] + ["99;0,1;0,05;0"]
+    f_far = f1.replace(".csv", "_far.csv")
+    open(f_far, "w").write("\n".join(far) + "\n")
+    out4 = os.path.join(d, "out_far.csv")
+    p = run(*[f_far if x == f1 else x for x in a], "-o", out4)
+    if "_far.csv:%d: point (0.100000, 0.050000) mm is more than 20 times as far" % len(far) not in p.stderr \
+            or "view 1: no point for mark (4,4); absent" not in p.stderr:
+        fail("a point far beyond the others: %s" % p.stderr)
+    noisy_bad = noisy[:30] + ["*** page 2 ***"] + noisy[30:]
+    open(f_noisy, "w").write("\n".join(noisy_bad) + "\n")
+    p = run(*[f_noisy if x == f0 else x for x in a], "-o", out3 + "2", expect=2)
+    if "_noisy.csv:31: 1 fields, the header line (line 1) has 4" not in p.stderr:
+        fail("a non-row between rows: %r" % p.stderr)
 
 
 def case_placement():

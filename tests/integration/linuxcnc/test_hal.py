@@ -206,6 +206,10 @@ def hal_outputs(mode):
 
 nan_checked = {}
 
+# the status pin says "table loaded" from loadrt on, before the function has run
+rc, out, err = halrun([f"loadrt selfcal_xy table={table}", "getp selfcal-xy.0.status"], "status_at_load")
+check(rc == 0 and out.split()[-1:] == ["1"], f"status right after loadrt: {out!r} {err!r}, want 1")
+
 
 def sig7(v):
     """Half a unit of the 7th significant digit of v (the resolution of halcmd getp)."""
