@@ -210,6 +210,7 @@ static void report_skipped(const char *cmd, const char *file, const sc_table *t)
 
 static void report_view(const sc_grid_import_params *p, int k, const import_view *iv)
 {
+    long unselected = 0;
     report_skipped("selfcal import grid", iv->file, &iv->t);
     const long *point_mark = iv->point_mark;
     const sc_grid_import_fit *fit = &iv->fit;
@@ -221,6 +222,8 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
                     "row? a point on another feature?)\n",
                     iv->file, iv->t.line[q], iv->t.value[iv->t.n_cols * q],
                     iv->t.value[iv->t.n_cols * q + 1], fit->median_dist_um);
+        else if (point_mark[q] == -3)
+            ++unselected;
         else if (point_mark[q] < 0)
             fprintf(stderr,
                     "selfcal import grid: %s:%ld: point (%.6f, %.6f) mm is farther than %g mm from "
@@ -228,6 +231,10 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
                     iv->file, iv->t.line[q], iv->t.value[iv->t.n_cols * q],
                     iv->t.value[iv->t.n_cols * q + 1],
                     p->tolerance_mm, k);
+    if (unselected)
+        fprintf(stderr, "selfcal import grid: %s: view %d: %ld point%s on marks its rows=/cols= "
+                        "leave out; left out\n",
+                iv->file, k, unselected, unselected == 1 ? "" : "s");
     long missing = 0;
     for (int i = 0; i < p->n; ++i)
         for (int j = 0; j < p->n; ++j) {

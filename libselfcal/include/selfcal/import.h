@@ -103,6 +103,8 @@ typedef struct sc_grid_import_fit {
     long n_far;            /* points left out as far beyond the others (counted in n_left_out too):
                               more than 20 times the median distance and 20 um from their mark */
     double median_dist_um; /* the median distance of the matched points to their marks */
+    long n_unselected;     /* points left out (counted in n_left_out) on marks the view's rows=/cols=
+                              leave out (they count as matched for the share test) */
 } sc_grid_import_fit;
 
 /* Defaults: T = P/4, min_share 0.5, stage N x N, origin 0. */
@@ -121,7 +123,8 @@ SC_API bool sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_gr
 
 /* Assign the points (x_mm, y_mm: stage frame) of one view v. Fills point_mark[k] (the mark
  * i*n + j of point k, -1 if left out as farther than T from every mark, -2 as far beyond the
- * view's other points from its mark: a summary row, a point on the wrong feature; n_points values) and mark_point[m] (the point of mark m
+ * view's other points from its mark: a summary row, a point on the wrong feature, -3 as on a
+ * mark the view's rows=/cols= leave out; n_points values) and mark_point[m] (the point of mark m
  * or -1; n*n values) and fit. lines[k] is point k's file line and path/header_line the file, for
  * errors (SC_E_INPUT: two points for one mark, too few marks matched). work:
  * sc_grid_import_work_doubles(n_points) doubles. */

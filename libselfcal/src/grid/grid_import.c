@@ -320,6 +320,18 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     /* 3. final matching at T, then the points far beyond the others left out */
     match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
     leave_out_far(n_points, point_mark, mark_point, dist, work + n_points, fit);
+    if (v->restricted) { /* points on marks the view's rows=/cols= leave out: -3, not strays */
+        sc_grid_view all = *v;
+        all.restricted = 0;
+        for (long k = 0; k < n_points; ++k) {
+            double d;
+            if (point_mark[k] == -1 && nearest_mark(p, &all, &a, x_mm[k], y_mm[k], &d) >= 0 &&
+                d <= p->tolerance_mm) {
+                point_mark[k] = -3;
+                fit->n_unselected++;
+            }
+        }
+    }
     st = count_assignment(p, n_points, lines, path, point_mark, mark_point, dist, fit, err);
     if (st != SC_OK)
         return st;
@@ -329,7 +341,8 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     /* A view may measure few of its marks (a partial view, a damaged plate: SPEC §10, marks
      * without a point are absent); a file whose points mostly fall on no mark is the wrong
      * file, view, units or columns. */
-    if (fit->n_assigned == 0 || (double)fit->n_assigned < p->min_share * (double)n_points)
+    if (fit->n_assigned == 0 ||
+        (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points)
         return sc_error_set(err, SC_E_INPUT, path, header_line,
                             "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
                             "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "

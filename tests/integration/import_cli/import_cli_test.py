@@ -635,6 +635,26 @@ def case_partial():
         err = max(max(abs(e[k][0] - t[k][0]), abs(e[k][1] - t[k][1])) for k in t)
         if not err <= 1e-9:
             fail("%s from the partial import: G error %g um" % (method, err))
+    # view 3 measured whole (every mark it puts on the stage) but imported with rows=/cols= as
+    # documented: the points on the marks they leave out are counted, not taken for strays
+    # (the share test refused the view: "only 22 of the 54 points lie within ...")
+    d2 = os.path.join(d, "whole3")
+    os.makedirs(d2, exist_ok=True)
+    plan = os.path.join(d2, "plan.csv")
+    open(plan, "w").write("# selfcal-grid v1\n# N = 9\n# pitch_mm = 1\n" +
+                          "".join("# view %d: %s\n" % (k, s) for k, s in plain))
+    run("simulate", "grid", "--plan", plan, "--pitch-mm", 1, "--sigma-r-um", 0, "--seed", 7,
+        "--out", os.path.join(d2, "in.csv"), "--truth-map", os.path.join(d2, "G.csv"))
+    _, whole = read_grid(os.path.join(d2, "in.csv"))
+    wfile = os.path.join(d2, "v3.csv")
+    write_export(wfile, [xy for (v, i, j), xy in sorted(whole.items()) if v == 3])
+    p = run(*import_args(views, files[:3] + [wfile], n=9), "-o", os.path.join(d2, "out.csv"))
+    if "view 3: 32 points on marks its rows=/cols= leave out; left out" not in p.stderr or \
+            "farther than" in p.stderr:
+        fail("view 3 measured whole, imported with rows=/cols=: %s" % p.stderr)
+    _, wi = read_grid(os.path.join(d2, "out.csv"))
+    if sorted(k for k in wi if k[0] == 3) != sorted(k for k in rows if k[0] == 3):
+        fail("view 3 measured whole: the imported marks are not those rows=/cols= select")
     # a damaged plate: view 2 (shift 2,0: 63 marks on the stage) keeps 2 in 5 of them
     v2 = [xy for (v, i, j), xy in sorted(rows.items()) if v == 2]
     kept = [xy for n, xy in enumerate(v2) if n % 5 < 2]
