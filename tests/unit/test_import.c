@@ -202,8 +202,8 @@ static void test_assign(void **state)
     for (long k = 0; k < n; ++k)
         lines[k] = k + 2;
     long point_mark[64], mark_point[49];
-    double work[64];
-    assert_true(sc_grid_import_work_doubles(n) <= 64);
+    double work[128];
+    assert_true(sc_grid_import_work_doubles(n) <= 128);
     sc_grid_import_fit fit;
     sc_error err;
     assert_int_equal(sc_grid_import_assign(&p, &v, n, x, y, lines, "t.csv", 1, point_mark,

@@ -39,7 +39,7 @@ typedef struct sc_table {
     long n_rows;       /* data lines read */
     double *value;     /* n_rows * n_cols, row-major, each multiplied by its column's scale */
     long *line;        /* the file line of each row */
-    char delimiter;    /* ',', ';' or '\t' */
+    char delimiter;    /* ',', ';', '\t', or ' ' (columns aligned by runs of blanks) */
     char decimal;      /* '.' or ','; '.' when no number had a fractional part */
     /* lines after the header that machines write and that are skipped (0: none): */
     long units_line;                    /* a line of unit names right under the header */
@@ -52,7 +52,8 @@ typedef struct sc_table {
 /* Read the columns names[0..n_cols-1] (matched case-insensitively, blanks and double quotes
  * around names ignored) of a table: lines starting with '#' and blank lines are skipped, the first
  * other line names the columns, every further line is one row with as many fields as the header.
- * The delimiter is a tab if the header has one, else ';' if it has one, else ','. The decimal mark
+ * The delimiter is a tab if the header has one, else ';' if it has one, else ',' if it has one,
+ * else runs of blanks (columns aligned by spaces). The decimal mark
  * is ',' or '.' as the selected fields show; both in one file, a field with both, a missing column,
  * an empty or non-numeric field, or |value| > SC_INPUT_MAX_ABS (in the file's unit) -> SC_E_INPUT
  * with file:line. n_cols: 1..16 distinct names; scale (may be NULL: 1; finite, nonzero)

@@ -342,12 +342,28 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
      * without a point are absent); a file whose points mostly fall on no mark is the wrong
      * file, view, units or columns. */
     if (fit->n_assigned == 0 ||
-        (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points)
+        (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points) {
+        /* where the points are against where the view's marks should be: a frame or unit
+         * mistake shows there */
+        double px = 0, py = 0, mx = 0, my = 0;
+        for (long k = 0; k < n_points; ++k)
+            px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
+        for (int i = 0; i < p->n; ++i)
+            for (int j = 0; j < p->n; ++j) {
+                int ni, nj;
+                double nx, ny;
+                if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                mark_nominal(p, v, i, j, &nx, &ny);
+                mx += nx / (double)fit->n_marks, my += ny / (double)fit->n_marks;
+            }
         return sc_error_set(err, SC_E_INPUT, path, header_line,
                             "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
                             "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "
-                            "columns?",
+                            "columns? The points' centre is at (%.4g, %.4g) mm, the view's marks' "
+                            "at (%.4g, %.4g) mm (another frame? --origin-mm)",
                             fit->n_assigned, n_points, p->tolerance_mm, v->rot_deg, v->shift_x,
-                            v->shift_y, p->min_share * 100);
+                            v->shift_y, p->min_share * 100, px, py, mx, my);
+    }
     return SC_OK;
 }

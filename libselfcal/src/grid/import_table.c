@@ -21,6 +21,11 @@ static int split_fields(char *s, char delim, char **field, unsigned char *quoted
 {
     int n = 0;
     char *p = s;
+    if (delim == ' ') { /* columns aligned by blanks: runs of them part fields, none ends a line */
+        size_t len = strlen(s);
+        while (len > 0 && (s[len - 1] == ' ' || s[len - 1] == '\t'))
+            s[--len] = '\0';
+    }
     for (;;) {
         if (n == max)
             return -1;
@@ -109,10 +114,20 @@ typedef struct table_reader {
 
 #define FOOTER_MAX 20 /* lines after the last row that are not rows, taken for a footer */
 
-/* The delimiter of a line: a tab if it has one, else ';' if it has one, else ','. */
+/* The delimiter of a line: a tab if it has one, else ';' if it has one, else ',' if it has one,
+ * else blanks (columns aligned by spaces, as some machines print their tables). */
 static char delimiter_of(const char *text)
 {
-    return strchr(text, '\t') ? '\t' : strchr(text, ';') ? ';' : ',';
+    if (strchr(text, '\t'))
+        return '\t';
+    if (strchr(text, ';'))
+        return ';';
+    if (strchr(text, ','))
+        return ',';
+    const char *p = text;
+    while (*p == ' ')
+        ++p;
+    return strchr(p, ' ') ? ' ' : ',';
 }
 
 /* text (not modified) copied into buf (PREAMBLE_LINE bytes) and split there at its delimiter
@@ -150,7 +165,11 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
         if (tr->col_of[k] < 0)
             return sc_error_set(err, SC_E_INPUT, tr->path, ln,
                                 "no column named '%s' in this header line (delimiter '%s')",
-                                tr->names[k], t->delimiter == '\t' ? "tab" : t->delimiter == ';' ? ";" : ",");
+                                tr->names[k],
+                                t->delimiter == '\t'  ? "tab"
+                                : t->delimiter == ';' ? ";"
+                                : t->delimiter == ' ' ? "blanks"
+                                                      : ",");
     }
     return SC_OK;
 }

@@ -208,6 +208,16 @@ def case_formats():
                  ":45: 1 row without any value", "1 summary row (Mean", "2 lines after the last row are no row (a footer)"):
         if want not in p.stderr:
             fail("noisy export: stderr lacks %r: %s" % (want, p.stderr))
+    # columns aligned by blanks under a preamble (as some machines print their tables)
+    lines = open(f0).read().splitlines()
+    blank = ["GEOPAK  Protocol  plate 9x9", "", "Element      X            Y            Z   "] + \
+        ["CIR-%-6s %18s %18s %8s" % tuple(f.replace(",", ".") for f in l.split(";")) for l in lines[1:] if l]
+    f_blank = f0.replace(".csv", "_blank.txt")
+    open(f_blank, "w").write("\n".join(blank) + "\n")
+    out5 = os.path.join(d, "out_blank.csv")
+    run(*[f_blank if x == f0 else x for x in a], "-o", out5)
+    if read_grid(out5)[1] != irows:
+        fail("a blank-aligned table read differently")
     # a point 0.11 mm from the centre mark (which this view's file otherwise lacks), where the
     # others lie within a few um of theirs: left out and named, the centre mark absent
     f1 = files[1]
