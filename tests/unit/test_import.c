@@ -136,6 +136,56 @@ static void test_table_errors(void **state)
     }
 }
 
+static const char *const XY2[2] = {"2", "3"};
+
+/* What machines write: a '#' header (the point number's column) with '#' rows; columns given
+ * by number where two share a name; columns aligned by blanks; and the lines around the rows
+ * that are skipped and counted (units, the header again, ";;;", a failed feature, a summary
+ * row, a footer), each kind at its first line. */
+static void test_table_machine_lines(void **state)
+{
+    (void)state;
+    char path[512];
+    tmp_path(path, sizeof path, "machine.csv");
+    sc_table t;
+    sc_error err;
+    write_text(path, "#;x;y\n#1;1;2\n#2;3;4\n# not a comment now;5;6\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 3);
+    assert_true(t.value[4] == 5 && t.value[5] == 6);
+    sc_table_free(&t);
+    write_text(path, "Name;x;y;x;y\nA;1;2;3;4\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT);
+    if (!strstr(err.msg, "two columns are named 'x' (columns 2 and 4: give the column by its number)"))
+        fail_msg("%s", err.msg);
+    assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_OK);
+    assert_true(t.n_rows == 1 && t.value[0] == 1 && t.value[1] == 2);
+    sc_table_free(&t);
+    write_text(path, "Protocol  plate 5\n\nNr     x       y    \n1    1.5     2\n2  -3,25   4e1\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT); /* mixed marks */
+    write_text(path, "Protocol  plate 5\n\nNr     x       y    \n1    1.5     2\n2  -3.25   4e1\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_int_equal(t.delimiter, ' ');
+    assert_int_equal(t.header_line, 3);
+    assert_true(t.n_rows == 2 && t.value[2] == -3.25 && t.value[3] == 40);
+    sc_table_free(&t);
+    write_text(path, "Nr;x;y;z\n;MM;MM;MM\n1;1;2;0\nNr;x;y;z\n;;;\n2;3;4;0\n3a;;;\nNr;x;y;z\n"
+                     "4;5;6;0\nMean:;3;4;0\n*** end ***\nOperator\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 3);
+    assert_true(t.value[4] == 5 && t.value[5] == 6);
+    assert_int_equal(t.units_line, 2);
+    assert_true(t.n_header_repeats == 2 && t.header_repeat_line == 4);
+    assert_true(t.n_no_values == 1 && t.no_values_line == 7);
+    assert_true(t.n_summary == 1 && t.summary_line == 10);
+    assert_true(t.n_footer == 2 && t.footer_line == 11);
+    sc_table_free(&t);
+    /* a row after a footer-like line: that line is the error */
+    write_text(path, "Nr;x;y\n1;1;2\n*** page 2 ***\n2;3;4\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 3);
+}
+
 /* sc_table_read_max takes max_rows rows and refuses the next at its own line, nothing read past
  * it; a limit outside 1..SC_TABLE_MAX_ROWS is refused before the file is opened. */
 static void test_table_max_rows(void **state)
@@ -243,6 +293,7 @@ int main(void)
         cmocka_unit_test(test_table_errors),
         cmocka_unit_test(test_table_preamble),
         cmocka_unit_test(test_table_max_rows),
+        cmocka_unit_test(test_table_machine_lines),
         cmocka_unit_test(test_assign),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

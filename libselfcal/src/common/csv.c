@@ -139,7 +139,7 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     size_t len = nl ? (size_t)(nl - s) : r->buf_len - r->buf_pos;
     long long start = r->buf_off + (long long)r->buf_pos;
     if (memchr(s, '\0', len < scan ? len : scan)) {
-        sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file");
+        sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file (UTF-16? save it as UTF-8)");
         return -1;
     }
     if (len >= SC_CSV_MAX_LINE) {

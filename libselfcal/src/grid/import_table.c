@@ -65,6 +65,20 @@ static int name_equal(const char *a, const char *b)
     return *a == *b;
 }
 
+/* A column given by its number ("2": the second), or 0 if name is not a whole number. */
+static long column_number(const char *name)
+{
+    long v = 0;
+    if (!*name)
+        return 0;
+    for (const char *s = name; *s; ++s) {
+        if (!isdigit((unsigned char)*s) || v > 100000)
+            return 0;
+        v = 10 * v + (*s - '0');
+    }
+    return v;
+}
+
 void sc_table_free(sc_table *t)
 {
     free(t->value);
@@ -143,7 +157,7 @@ static int split_copy(const char *text, char *buf, char **field)
 }
 
 /* The header line, text (split in place) at line ln: the delimiter, and where each wanted
- * column is (exactly once). */
+ * column is (exactly once; a name no column has that is a whole number N is the N-th column). */
 static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_error *err)
 {
     sc_table *t = tr->t;
@@ -159,9 +173,14 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
             if (name_equal(tr->field[f], tr->names[k])) {
                 if (tr->col_of[k] >= 0)
                     return sc_error_set(err, SC_E_INPUT, tr->path, ln,
-                                        "two columns are named '%s'", tr->names[k]);
+                                        "two columns are named '%s' (columns %d and %d: give the "
+                                        "column by its number)",
+                                        tr->names[k], tr->col_of[k] + 1, f + 1);
                 tr->col_of[k] = f;
             }
+        long num = column_number(tr->names[k]); /* no column of that name: its number (1-based) */
+        if (tr->col_of[k] < 0 && num >= 1 && num <= tr->n_header)
+            tr->col_of[k] = (int)(num - 1);
         if (tr->col_of[k] < 0)
             return sc_error_set(err, SC_E_INPUT, tr->path, ln,
                                 "no column named '%s' in this header line (delimiter '%s')",
@@ -185,7 +204,8 @@ static int names_count(const table_reader *tr, const char *text)
         int found = 0;
         for (int f = 0; f < n && !found; ++f)
             found = name_equal(field[f], tr->names[k]);
-        named += found;
+        long num = column_number(tr->names[k]); /* a column by number: a line that long */
+        named += found || (num >= 1 && num <= n);
     }
     return named;
 }
@@ -468,9 +488,16 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
     char *first = NULL; /* that line, and its number */
     long first_line = 0, preamble = 0;
     int first_named = 0;
+    int hash_rows = 0; /* the header began with '#' ("#,X,Y": the point number's column), so rows
+                          may too ("#12;..."): not comments then */
     while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
-        if (sc_csv_is_blank(&tr.r) || tr.r.text[0] == '#')
+        if (sc_csv_is_blank(&tr.r))
             continue;
+        if (tr.r.text[0] == '#' && !hash_rows) {
+            if (t->header_line || names_count(&tr, tr.r.text) < n_cols)
+                continue; /* a comment */
+            hash_rows = 1;
+        }
         if (t->header_line) {
             st = read_data_line(&tr, err);
             continue;
