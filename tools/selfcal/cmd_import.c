@@ -238,6 +238,14 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
         fprintf(stderr, "selfcal import grid: %s: view %d: %ld point%s on marks its rows=/cols= "
                         "leave out; left out\n",
                 iv->file, k, unselected, unselected == 1 ? "" : "s");
+    /* a row or column of left-out points on the mark lattice: marks the view does not have,
+     * so the file is in the plate's frame (or shift= is wrong) and the numbering is off */
+    if (fit->n_on_lattice >= 3 && 2 * fit->n_on_lattice >= p->n)
+        fprintf(stderr, "selfcal import grid: %s: view %d: warning: %ld of the points left out lie "
+                        "on the mark lattice where this view has no mark: are the positions in the "
+                        "plate's frame instead of the stage's, or is shift= wrong? (the numbering "
+                        "is then off by the shift)\n",
+                iv->file, k, fit->n_on_lattice);
     long missing = 0;
     for (int i = 0; i < p->n; ++i)
         for (int j = 0; j < p->n; ++j) {

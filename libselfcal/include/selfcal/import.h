@@ -106,6 +106,12 @@ typedef struct sc_grid_import_fit {
     double median_dist_um; /* the median distance of the matched points to their marks */
     long n_unselected;     /* points left out (counted in n_left_out) on marks the view's rows=/cols=
                               leave out (they count as matched for the share test) */
+    double points_centre_mm[2]; /* the mean of the view's points */
+    double marks_centre_mm[2];  /* the mean nominal position of the marks the view measures */
+    long n_on_lattice;     /* points left out (beyond T of the view's marks) that lie within T of
+                              the mark lattice all the same: a row or column of them says the
+                              file is in the plate's frame (a shifted view seen unshifted) or
+                              shift= is wrong, not dust */
 } sc_grid_import_fit;
 
 /* Defaults: T = P/4, min_share 0.5, stage N x N, origin 0. */

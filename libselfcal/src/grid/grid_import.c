@@ -87,10 +87,10 @@ static void mark_nominal(const sc_grid_import_params *p, const sc_grid_view *v, 
     *y += v->shift_y * P;
 }
 
-/* The mark nearest to point (x, y) (absolute, mm) under placement a, its distance (mm), or -1 if
- * the nearest lattice position is not a mark the view measures. */
-static long nearest_mark(const sc_grid_import_params *p, const sc_grid_view *v,
-                         const placement *a, double x, double y, double *dist)
+/* Point (x, y) (absolute, mm) in plate coordinates (fractional mark row fi, column fj) under
+ * placement a of view v. */
+static void plate_coords(const sc_grid_import_params *p, const sc_grid_view *v, const placement *a,
+                         double x, double y, double *fi, double *fj)
 {
     double rx = x - p->origin_mm[0] - a->tx, ry = y - p->origin_mm[1] - a->ty;
     double sx = a->c * rx + a->s * ry, sy = -a->s * rx + a->c * ry; /* undo theta */
@@ -99,7 +99,28 @@ static long nearest_mark(const sc_grid_import_params *p, const sc_grid_view *v,
     double px, py;
     sc_grid_rotate((360 - v->rot_deg) % 360, sx, sy, &px, &py); /* undo rot */
     double c = (p->n - 1) / 2.0;
-    double fj = px / p->pitch_mm + c, fi = py / p->pitch_mm + c;
+    *fj = px / p->pitch_mm + c, *fi = py / p->pitch_mm + c;
+}
+
+/* Whether point (x, y) lies within T of a position of the view's mark lattice (whole plate
+ * coordinates, on the plate or beyond it): a point left out there is no dust but a mark the view
+ * does not have, as a file in the plate's frame gives them (a shifted view seen unshifted). */
+static bool on_the_lattice(const sc_grid_import_params *p, const sc_grid_view *v,
+                           const placement *a, double x, double y)
+{
+    double fi, fj;
+    plate_coords(p, v, a, x, y, &fi, &fj);
+    return fabs(fj) < 1e9 && fabs(fi) < 1e9 &&
+           hypot(fj - round(fj), fi - round(fi)) * p->pitch_mm <= p->tolerance_mm;
+}
+
+/* The mark nearest to point (x, y) (absolute, mm) under placement a, its distance (mm), or -1 if
+ * the nearest lattice position is not a mark the view measures. */
+static long nearest_mark(const sc_grid_import_params *p, const sc_grid_view *v,
+                         const placement *a, double x, double y, double *dist)
+{
+    double fi, fj;
+    plate_coords(p, v, a, x, y, &fi, &fj);
     if (!(fabs(fj) < 1e9 && fabs(fi) < 1e9))
         return -1;
     long j = lround(fj), i = lround(fi);
@@ -320,6 +341,9 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     /* 3. final matching at T, then the points far beyond the others left out */
     match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
     leave_out_far(n_points, point_mark, mark_point, dist, work + n_points, fit);
+    for (long k = 0; k < n_points; ++k) /* left out, yet on the lattice */
+        if (point_mark[k] == -1 && on_the_lattice(p, v, &a, x_mm[k], y_mm[k]))
+            fit->n_on_lattice++;
     if (v->restricted) { /* points on marks the view's rows=/cols= leave out: -3, not strays */
         sc_grid_view all = *v;
         all.restricted = 0;
@@ -341,22 +365,24 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     /* A view may measure few of its marks (a partial view, a damaged plate: SPEC §10, marks
      * without a point are absent); a file whose points mostly fall on no mark is the wrong
      * file, view, units or columns. */
+    /* where the points are against where the view's marks should be: a frame or unit mistake
+     * shows there (a whole-pitch shift even when every point found a mark) */
+    double px = 0, py = 0, mx = 0, my = 0;
+    for (long k = 0; k < n_points; ++k)
+        px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int ni, nj;
+            double nx, ny;
+            if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
+                continue;
+            mark_nominal(p, v, i, j, &nx, &ny);
+            mx += nx / (double)fit->n_marks, my += ny / (double)fit->n_marks;
+        }
+    fit->points_centre_mm[0] = px, fit->points_centre_mm[1] = py;
+    fit->marks_centre_mm[0] = mx, fit->marks_centre_mm[1] = my;
     if (fit->n_assigned == 0 ||
         (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points) {
-        /* where the points are against where the view's marks should be: a frame or unit
-         * mistake shows there */
-        double px = 0, py = 0, mx = 0, my = 0;
-        for (long k = 0; k < n_points; ++k)
-            px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
-        for (int i = 0; i < p->n; ++i)
-            for (int j = 0; j < p->n; ++j) {
-                int ni, nj;
-                double nx, ny;
-                if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
-                    continue;
-                mark_nominal(p, v, i, j, &nx, &ny);
-                mx += nx / (double)fit->n_marks, my += ny / (double)fit->n_marks;
-            }
         return sc_error_set(err, SC_E_INPUT, path, header_line,
                             "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
                             "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "

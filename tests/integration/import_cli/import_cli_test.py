@@ -665,6 +665,17 @@ def case_partial():
     _, wi = read_grid(os.path.join(d2, "out.csv"))
     if sorted(k for k in wi if k[0] == 3) != sorted(k for k in rows if k[0] == 3):
         fail("view 3 measured whole: the imported marks are not those rows=/cols= select")
+    # view 2 (shift 2,0) written in the plate's frame (the machine aligned on the plate): its
+    # points sit two pitches left of where the view's marks are; they are numbered two marks off,
+    # and the two columns beyond the view's first mark are left out on the lattice: warned about
+    plate_frame = os.path.join(d, "v2_plate_frame.csv")
+    write_export(plate_frame, [(x - 2.0, y) for (v, i, j), (x, y) in sorted(rows.items()) if v == 2])
+    p = run(*import_args(views, files[:2] + [plate_frame] + files[3:], n=9), "-o", os.path.join(d, "pf.csv"))
+    if "view 2: warning: 18 of the points left out lie on the mark lattice where this view has no mark" \
+            not in p.stderr:
+        fail("a view in the plate's frame: no warning: %s" % p.stderr)
+    if "warning" in run(*import_args(views, files, n=9), "-o", os.path.join(d, "pf2.csv")).stderr:
+        fail("the same views in the stage frame were warned about")
     # a damaged plate: view 2 (shift 2,0: 63 marks on the stage) keeps 2 in 5 of them
     v2 = [xy for (v, i, j), xy in sorted(rows.items()) if v == 2]
     kept = [xy for n, xy in enumerate(v2) if n % 5 < 2]
