@@ -149,10 +149,16 @@ static void test_table_machine_lines(void **state)
     tmp_path(path, sizeof path, "machine.csv");
     sc_table t;
     sc_error err;
-    write_text(path, "#;x;y\n#1;1;2\n#2;3;4\n# not a comment now;5;6\n");
+    write_text(path, "# x y (a comment, not the header)\n#;x;y\n# units mm\n#1;1;2\n#2;3;4\n17;5;6\n");
     assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_int_equal(t.header_line, 2);
     assert_int_equal(t.n_rows, 3);
     assert_true(t.value[4] == 5 && t.value[5] == 6);
+    sc_table_free(&t);
+    /* a comment spelling the columns above the real header stays a comment */
+    write_text(path, "# x y\nx;y\n1;2\n3;4\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_true(t.header_line == 2 && t.n_rows == 2);
     sc_table_free(&t);
     write_text(path, "Name;x;y;x;y\nA;1;2;3;4\n");
     assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT);
@@ -160,6 +166,19 @@ static void test_table_machine_lines(void **state)
         fail_msg("%s", err.msg);
     assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_OK);
     assert_true(t.n_rows == 1 && t.value[0] == 1 && t.value[1] == 2);
+    sc_table_free(&t);
+    /* by number: the header is the line right before the first row, whatever the preamble */
+    write_text(path, "# Created by CMM software\nMachine: Zeiss Prismo 7\nMerkmal;Ist;;Soll;\n"
+                     "Name;X;Y;X;Y\n1;1;2;3;4\n2;5;6;7;8\n");
+    assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_OK);
+    assert_true(t.header_line == 4 && t.n_rows == 2 && t.value[2] == 5 && t.value[3] == 6);
+    sc_table_free(&t);
+    write_text(path, "1;1;2\n2;3;4\n"); /* no header at all: refused, no row dropped */
+    assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 1);
+    write_text(path, "Protocol 4711\n17 05 2024\n20.1 20.3\nNr;x;y\n1;1;2\n"); /* blank numbers: preamble */
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_true(t.header_line == 4 && t.n_rows == 1);
     sc_table_free(&t);
     write_text(path, "Protocol  plate 5\n\nNr     x       y    \n1    1.5     2\n2  -3,25   4e1\n");
     assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT); /* mixed marks */
@@ -184,6 +203,31 @@ static void test_table_machine_lines(void **state)
     write_text(path, "Nr;x;y\n1;1;2\n*** page 2 ***\n2;3;4\n");
     assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_E_INPUT);
     assert_int_equal(err.line, 3);
+    /* a damaged last row is an error, not a footer; so is a row missing one value, whatever the
+     * column order; a statistic word in a row followed by rows is a row's label */
+    static const char *const YX[2] = {"y", "x"};
+    static const struct {
+        const char *text;
+        long line;
+    } bad[] = {{"Nr;x;y\n1;1.0;2.0\n2;1.5\n", 3},     {"Nr;x;y\n1;1;2\n2;abc;3\n", 3},
+               {"Nr;x;y\n1;1;2\n2;nan;3\n", 3},       {"Nr;x;y\nP1;1;2\nP2;1.5\n", 3},
+               {"Nr;x;y\n1;1.0;2.0\n2;;3\n3;1;2\n", 3}, {"Nr;x;y\n1;1;2\nP1;n/a;2.0\n", 3}};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k)
+        for (int order = 0; order < 2; ++order) {
+            write_text(path, bad[k].text);
+            if (sc_table_read(path, 2, order ? YX : XY, NULL, &t, &err) != SC_E_INPUT ||
+                err.line != bad[k].line)
+                fail_msg("case %zu order %d: accepted or wrong line (%ld): %s", k, order, err.line,
+                         err.msg);
+        }
+    write_text(path, "Nr;Type;x;y\n1;Circle;1;2\n2;Max;3;4\n3;Circle;5;6\n");
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_true(t.n_rows == 3 && t.n_summary == 0);
+    sc_table_free(&t);
+    write_text(path, "Nr;x;y\n;mm;mm\n1;1;2\nNr;x;y\n;mm;mm\n2;1;2\n"); /* units again at a page break */
+    assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 2);
+    sc_table_free(&t);
 }
 
 /* sc_table_read_max takes max_rows rows and refuses the next at its own line, nothing read past
@@ -252,8 +296,8 @@ static void test_assign(void **state)
     for (long k = 0; k < n; ++k)
         lines[k] = k + 2;
     long point_mark[64], mark_point[49];
-    double work[128];
-    assert_true(sc_grid_import_work_doubles(n) <= 128);
+    double work[160];
+    assert_true(sc_grid_import_work_doubles(n) <= 160);
     sc_grid_import_fit fit;
     sc_error err;
     assert_int_equal(sc_grid_import_assign(&p, &v, n, x, y, lines, "t.csv", 1, point_mark,

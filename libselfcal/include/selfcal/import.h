@@ -50,8 +50,11 @@ typedef struct sc_table {
 } sc_table;
 
 /* Read the columns names[0..n_cols-1] (matched case-insensitively, blanks and double quotes
- * around names ignored) of a table: lines starting with '#' and blank lines are skipped, the first
- * other line names the columns, every further line is one row with as many fields as the header.
+ * around names ignored; a whole number no column is named: that column, 1-based) of a table:
+ * lines starting with '#' (unless the header is "#;..." and the line "#<digit>...") and blank
+ * lines are skipped, the first other line naming every column is the header (with every column
+ * by number: the line before the first row), every further line is one row with as many fields
+ * as the header.
  * The delimiter is a tab if the header has one, else ';' if it has one, else ',' if it has one,
  * else runs of blanks (columns aligned by spaces). The decimal mark
  * is ',' or '.' as the selected fields show; both in one file, a field with both, a missing column,
@@ -59,10 +62,11 @@ typedef struct sc_table {
  * with file:line. n_cols: 1..16 distinct names; scale (may be NULL: 1; finite, nonzero)
  * multiplies column k's values (unit conversion). Skipped and counted in t (the caller tells the
  * user): a line of empty fields; the header line again; a line of unit names right under the
- * header; a row with none of the wanted values; a summary row (a field no wanted column is read
- * from names a statistic: Mean, Max, Mittelwert, ...); and up to 20 lines after the last row that are
- * no rows (a footer: another field count or a wanted field that is text) — a row after them
- * makes the first of them the error it is. */
+ * header (or its repetition); a row with every wanted field empty; summary rows after the last
+ * row (a field no wanted column is read from names a statistic: Mean, Max, Mittelwert, ...); and
+ * up to 20 lines after the last row that are no rows (a footer: another field count or a wanted
+ * field that is text, neither the first field nor a wanted one a number) — a row after them makes
+ * the first of them the error it is. */
 SC_API sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
                                const double *scale, sc_table *t, sc_error *err);
 
@@ -102,7 +106,7 @@ typedef struct sc_grid_import_fit {
     double max_dist_um;    /* largest distance of an assigned point to its fitted mark position */
     int iterations;        /* refits until the matching stopped changing */
     long n_far;            /* points left out as far beyond the others (counted in n_left_out too):
-                              more than 20 times the median distance and 20 um from their mark */
+                              more than 20 times the median distance and T/5 from their mark */
     double median_dist_um; /* the median distance of the matched points to their marks */
     long n_unselected;     /* points left out (counted in n_left_out) on marks the view's rows=/cols=
                               leave out (they count as matched for the share test) */

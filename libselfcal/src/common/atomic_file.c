@@ -169,6 +169,32 @@ static int may_follow(const char *path, const struct stat *lsb)
     return ds.st_uid == lsb->st_uid;
 }
 
+/* may_follow for every link of the chain from path (at most 40 hops, as the kernel's limit). */
+static int may_follow_chain(const char *path)
+{
+    char cur[PATH_MAX], next[PATH_MAX], link[PATH_MAX];
+    snprintf(cur, sizeof cur, "%s", path);
+    for (int hop = 0; hop < 40; ++hop) {
+        struct stat lsb;
+        if (lstat(cur, &lsb) != 0 || !S_ISLNK(lsb.st_mode))
+            return 1;
+        if (!may_follow(cur, &lsb))
+            return 0;
+        ssize_t n = readlink(cur, link, sizeof link - 1);
+        if (n < 0)
+            return 1;
+        link[n] = '\0';
+        const char *slash = strrchr(cur, '/');
+        size_t dir = link[0] == '/' || !slash ? 0 : (size_t)(slash - cur) + 1, len = strlen(link);
+        if (dir + len >= sizeof next)
+            return 0; /* longer than a path can be */
+        memcpy(next, cur, dir);
+        memcpy(next + dir, link, len + 1);
+        memcpy(cur, next, sizeof cur);
+    }
+    return 0;
+}
+
 /* The reason a temporary file's stream has its error flag set though its last flush went
  * through (the failed write's errno is gone by now): a one-byte write at its end, which the
  * same condition (full disk, size limit, I/O error) fails again; EIO if it passes. Only for
@@ -222,7 +248,7 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     char target[PATH_MAX];
     struct stat lsb;
     if (lstat(path, &lsb) == 0 && S_ISLNK(lsb.st_mode) && realpath(path, target)) {
-        if (!may_follow(path, &lsb))
+        if (!may_follow_chain(path))
             return sc_error_set(err, SC_E_IO, path, 0,
                                 "a symbolic link another user owns in a sticky world-writable "
                                 "folder: not followed (as the kernel's protected_symlinks)");

@@ -47,7 +47,8 @@ sc_status sc_grid_import_check(const sc_grid_import_params *p, sc_error *err)
 
 size_t sc_grid_import_work_doubles(long n_points)
 {
-    return (size_t)(n_points > 0 ? 2 * n_points : 1); /* the distances, and a median's copy */
+    /* the distances, a median's copy, the points left out as far */
+    return (size_t)(n_points > 0 ? 3 * n_points : 1);
 }
 
 bool sc_grid_import_mark_node(const sc_grid_import_params *p, const sc_grid_view *v, int i, int j,
@@ -246,32 +247,35 @@ static void median_translation(const sc_grid_import_params *p, const sc_grid_vie
     }
 }
 
-#define FAR_FACTOR 20.0   /* a point this many times the median distance from its mark ... */
-#define FAR_FLOOR_MM 0.02 /* ... and at least 20 um from it is no measurement of that mark */
+#define FAR_FACTOR 20.0  /* a point this many times the median distance from its mark ... */
+#define FAR_FLOOR_T 0.2  /* ... and at least this share of the tolerance T from it is no
+                            measurement of that mark */
 
 /* After the final matching: a point whose distance to its mark is more than FAR_FACTOR times the
- * median distance of the view's points (and FAR_FLOOR_MM) is left out (point_mark -2, its mark
- * without a point): a machine's summary row ("Mean"), a point measured on the wrong feature. A
- * plate's own errors and the stage's are alike from mark to mark; such a point is not. Needs 5
- * matched points for the median; tmp: n_points doubles. */
-static void leave_out_far(long n_points, long *point_mark, long *mark_point, const double *dist,
-                          double *tmp, sc_grid_import_fit *fit)
+ * median distance of the view's points (and FAR_FLOOR_T of T) is left out (point_mark -2, its
+ * mark without a point): a point measured on the wrong feature, a summary row not recognised as
+ * one. A plate's own errors and the stage's are alike from mark to mark; such a point is not.
+ * Needs 5 matched points for the median; tmp: n_points doubles. Returns how many it left out. */
+static long leave_out_far(const sc_grid_import_params *p, long n_points, long *point_mark,
+                          long *mark_point, const double *dist, double *tmp,
+                          sc_grid_import_fit *fit)
 {
-    long n = 0;
+    long n = 0, far = 0;
     for (long k = 0; k < n_points; ++k)
         if (point_mark[k] >= 0)
             tmp[n++] = dist[k];
     if (n < 5)
-        return;
-    double med = median(tmp, n), gate = fmax(FAR_FACTOR * med, FAR_FLOOR_MM);
+        return 0;
+    double med = median(tmp, n), gate = fmax(FAR_FACTOR * med, FAR_FLOOR_T * p->tolerance_mm);
     for (long k = 0; k < n_points; ++k)
         if (point_mark[k] >= 0 && dist[k] > gate) {
             if (mark_point[point_mark[k]] == k)
                 mark_point[point_mark[k]] = -1;
             point_mark[k] = -2;
-            fit->n_far++;
+            ++far;
         }
     fit->median_dist_um = med * 1e3;
+    return far;
 }
 
 /* Step 3, after the final matching at T: a mark claimed by two points is bad input (the later
@@ -288,6 +292,10 @@ static sc_status count_assignment(const sc_grid_import_params *p, long n_points,
             continue;
         }
         long other = mark_point[m];
+        if (other < 0) { /* its mark went to no one (a far point held it): left out */
+            ++fit->n_left_out;
+            continue;
+        }
         if (other != k) {
             long first = lines[k] < lines[other] ? k : other, second = first == k ? other : k;
             return sc_error_set(err, SC_E_INPUT, path, lines[second],
@@ -340,7 +348,33 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     fit->iterations = it;
     /* 3. final matching at T, then the points far beyond the others left out */
     match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
-    leave_out_far(n_points, point_mark, mark_point, dist, work + n_points, fit);
+    /* the far points out, the placement fitted again without them (they pulled it), until
+     * no more go */
+    double *far_out = work + 2 * n_points; /* 1: left out as far (stays out) */
+    for (long k = 0; k < n_points; ++k)
+        far_out[k] = 0;
+    for (int round = 0; round < 5; ++round) {
+        long far = leave_out_far(p, n_points, point_mark, mark_point, dist, work + n_points, fit);
+        if (far == 0)
+            break;
+        fit->n_far += far;
+        for (long k = 0; k < n_points; ++k)
+            if (point_mark[k] == -2)
+                far_out[k] = 1;
+        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, &a);
+        match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+        for (long k = 0; k < n_points; ++k) /* those left out stay out */
+            if (far_out[k] != 0) {
+                if (point_mark[k] >= 0 && mark_point[point_mark[k]] == k)
+                    mark_point[point_mark[k]] = -1;
+                point_mark[k] = -2;
+            }
+        for (long k = 0; k < n_points; ++k) { /* a mark a far point held: its nearest other */
+            long m = point_mark[k];
+            if (m >= 0 && (mark_point[m] < 0 || dist[k] < dist[mark_point[m]]))
+                mark_point[m] = k;
+        }
+    }
     for (long k = 0; k < n_points; ++k) /* left out, yet on the lattice */
         if (point_mark[k] == -1 && on_the_lattice(p, v, &a, x_mm[k], y_mm[k]))
             fit->n_on_lattice++;
@@ -376,8 +410,9 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
             double nx, ny;
             if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
                 continue;
-            mark_nominal(p, v, i, j, &nx, &ny);
-            mx += nx / (double)fit->n_marks, my += ny / (double)fit->n_marks;
+            mark_nominal(p, v, i, j, &nx, &ny); /* relative to the origin */
+            mx += (nx + p->origin_mm[0]) / (double)fit->n_marks;
+            my += (ny + p->origin_mm[1]) / (double)fit->n_marks;
         }
     fit->points_centre_mm[0] = px, fit->points_centre_mm[1] = py;
     fit->marks_centre_mm[0] = mx, fit->marks_centre_mm[1] = my;
@@ -386,10 +421,10 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
         return sc_error_set(err, SC_E_INPUT, path, header_line,
                             "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
                             "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "
-                            "columns? The points' centre is at (%.4g, %.4g) mm, the view's marks' "
-                            "at (%.4g, %.4g) mm (another frame? --origin-mm)",
-                            fit->n_assigned, n_points, p->tolerance_mm, v->rot_deg, v->shift_x,
-                            v->shift_y, p->min_share * 100, px, py, mx, my);
+                            "columns? The points' centre is at (%.4f, %.4f) mm, the view's marks' "
+                            "at (%.4f, %.4f) mm (another frame? --origin-mm)",
+                            fit->n_assigned + fit->n_unselected, n_points, p->tolerance_mm,
+                            v->rot_deg, v->shift_x, v->shift_y, p->min_share * 100, px, py, mx, my);
     }
     return SC_OK;
 }

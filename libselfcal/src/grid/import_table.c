@@ -121,7 +121,10 @@ typedef struct table_reader {
     long cap, mark_line;
     long max_rows; /* refused beyond */
     char mark; /* the decimal mark seen so far, 0 if none */
-    long after_header; /* lines read since the header */
+    long after_header; /* lines read since the header (or its repetition) */
+    long provisional, provisional_line; /* the last rows read, summary rows ("Mean;..."), and the
+                                           first one's line: dropped if nothing but summaries
+                                           and a footer follows them */
     sc_error footer_err; /* the first line after the rows that is not a row (its error), while
                             the lines after it are footer too */
 } table_reader;
@@ -200,20 +203,65 @@ static int names_count(const table_reader *tr, const char *text)
     int n = split_copy(text, buf, field), named = 0;
     if (n == -2)
         return tr->n_cols; /* read_header_line decides */
+    int by_number = 0;
     for (int k = 0; k < tr->n_cols; ++k) {
         int found = 0;
         for (int f = 0; f < n && !found; ++f)
             found = name_equal(field[f], tr->names[k]);
         long num = column_number(tr->names[k]); /* a column by number: a line that long */
-        named += found || (num >= 1 && num <= n);
+        named += found;
+        by_number += !found && num >= 1 && num <= n;
     }
-    return named;
+    return named > 0 ? named + by_number : 0; /* numbers count beside a name only */
+}
+
+/* Whether every wanted column is given by number: the header is then the line before the data. */
+static int all_by_number(const table_reader *tr)
+{
+    for (int k = 0; k < tr->n_cols; ++k)
+        if (column_number(tr->names[k]) < 1)
+            return 0;
+    return 1;
+}
+
+/* With every column by number: whether text (not modified) is a row, every numbered field there
+ * and a number ("A;1;2;3;4" for columns 2 and 3). */
+static int row_by_number(const table_reader *tr, const char *text)
+{
+    char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
+    int n = split_copy(text, buf, field);
+    if (n == -2)
+        return 1;
+    for (int k = 0; k < tr->n_cols; ++k) {
+        long num = column_number(tr->names[k]);
+        double v;
+        char mark;
+        if (num > n || parse_number(field[num - 1], &v, &mark) != 0)
+            return 0;
+    }
+    return 1;
+}
+
+/* Whether a line starting with '#' is a header whose first column is the point number's, "#":
+ * '#' a field of its own at a delimiter (not blanks: "# x y" is a comment) and every wanted
+ * column named. */
+static int hash_header(const table_reader *tr, const char *text)
+{
+    char d = delimiter_of(text), *q = strchr(text, d);
+    if (d == ' ' || !q)
+        return 0;
+    const char *s = text + 1;
+    while (s < q && (*s == ' ' || *s == '"'))
+        ++s;
+    return s == q && names_count(tr, text) >= tr->n_cols;
 }
 
 /* Whether text (not modified) is a row of numbers: a data line, so no header comes before it. */
 static int looks_like_data(const char *text)
 {
     char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
+    if (delimiter_of(text) == ' ')
+        return 0; /* "17 05 2024" in a preamble is no row: blank-aligned rows need a header */
     int n = split_copy(text, buf, field);
     if (n == -2)
         return 1; /* no preamble line is that long */
@@ -329,16 +377,16 @@ static int names_statistic(const char *text)
  * row (another field names a statistic: "Mean;12.5;3.1"): 5; else 0. */
 static int skipped_kind(const table_reader *tr, int nf)
 {
-    int empty = 1, header = nf == tr->n_header, texts = nf == tr->n_header, blanks = header;
+    int empty = 1, same = nf == tr->n_header, header = same, texts = same, blanks = same;
     for (int f = 0; f < nf; ++f)
         empty &= !tr->field[f][0];
     if (empty)
         return 1;
-    for (int k = 0; k < tr->n_cols && header; ++k) {
+    for (int k = 0; k < tr->n_cols && same; ++k) { /* every wanted field, each test its own */
         const char *s = tr->field[tr->col_of[k]];
-        header &= name_equal(s, tr->names[k]);
-        texts &= s[0] && not_a_number(s);
-        blanks &= !s[0];
+        header = header && name_equal(s, tr->names[k]);
+        texts = texts && s[0] && not_a_number(s);
+        blanks = blanks && !s[0];
     }
     if (header)
         return 2;
@@ -353,6 +401,21 @@ static int skipped_kind(const table_reader *tr, int nf)
         if (!wanted && names_statistic(tr->field[f]))
             return 5;
     }
+    return 0;
+}
+
+/* Whether the current line (nf fields at tr->field), which failed as a row, is a damaged row
+ * rather than a footer's text: its first field is a number (a point number), or a wanted field
+ * it has is one (a truncated or garbled row: "2;1.5", "2;nan;3", "P12;1.5"). */
+static int damaged_row(const table_reader *tr, int nf)
+{
+    double v;
+    char mark;
+    if (nf >= 1 && parse_number(tr->field[0], &v, &mark) == 0)
+        return 1;
+    for (int k = 0; k < tr->n_cols; ++k)
+        if (tr->col_of[k] < nf && parse_number(tr->field[tr->col_of[k]], &v, &mark) == 0)
+            return 1;
     return 0;
 }
 
@@ -392,20 +455,29 @@ static sc_status read_data_line(table_reader *tr, sc_error *err)
     int kind = nf >= 0 ? skipped_kind(tr, nf) : 0;
     if (kind == 1)
         return SC_OK;
-    if (kind == 2 && !t->n_header_repeats++)
-        t->header_repeat_line = tr->r.line;
-    if (kind == 3)
+    if (kind == 2) { /* a units line may follow it again */
+        if (!t->n_header_repeats++)
+            t->header_repeat_line = tr->r.line;
+        tr->after_header = 0;
+        return SC_OK;
+    }
+    if (kind == 3 && !t->units_line)
         t->units_line = tr->r.line;
     if (kind == 4 && !t->n_no_values++)
         t->no_values_line = tr->r.line;
-    if (kind == 5 && !t->n_summary++)
-        t->summary_line = tr->r.line;
-    if (kind)
+    if (kind == 3 || kind == 4)
         return SC_OK;
     sc_error e;
     sc_error_clear(&e);
     sc_status st = read_row(tr, nf, &e);
-    if (st == SC_E_INPUT && t->n_rows > 0 && (nf < 0 || not_a_row(tr, nf))) {
+    if (st == SC_OK) { /* a summary row is a row until only summaries and a footer follow it */
+        if (kind == 5 && !tr->provisional++)
+            tr->provisional_line = tr->r.line;
+        if (kind != 5)
+            tr->provisional = 0;
+        return SC_OK;
+    }
+    if (st == SC_E_INPUT && t->n_rows > 0 && (nf < 0 || (not_a_row(tr, nf) && !damaged_row(tr, nf)))) {
         tr->footer_err = e; /* perhaps a footer: decided by what follows */
         t->footer_line = tr->r.line;
         t->n_footer = 1;
@@ -488,18 +560,47 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
     char *first = NULL; /* that line, and its number */
     long first_line = 0, preamble = 0;
     int first_named = 0;
-    int hash_rows = 0; /* the header began with '#' ("#,X,Y": the point number's column), so rows
-                          may too ("#12;..."): not comments then */
+    int hash_rows = 0; /* the header began with '#' ("#;X;Y": the point number's column), so rows
+                          starting "#<digit>" are rows, not comments */
+    int numbers = all_by_number(&tr);
+    char *prev = NULL; /* with columns by number: the last line before the data, its number */
+    long prev_line = 0;
     while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
         if (sc_csv_is_blank(&tr.r))
             continue;
-        if (tr.r.text[0] == '#' && !hash_rows) {
-            if (t->header_line || names_count(&tr, tr.r.text) < n_cols)
+        if (tr.r.text[0] == '#') {
+            if (hash_rows ? !isdigit((unsigned char)tr.r.text[1])
+                          : (t->header_line || numbers || !hash_header(&tr, tr.r.text)))
                 continue; /* a comment */
             hash_rows = 1;
         }
         if (t->header_line) {
             st = read_data_line(&tr, err);
+            continue;
+        }
+        if (numbers) { /* the header: the line before the first row */
+            if (!row_by_number(&tr, tr.r.text)) {
+                free(prev);
+                prev = strdup(tr.r.text);
+                prev_line = tr.r.line;
+                if (!prev)
+                    st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+                else if (++preamble > PREAMBLE_MAX + 1)
+                    break;
+                continue;
+            }
+            if (!prev) {
+                st = sc_error_set(err, SC_E_INPUT, path, tr.r.line,
+                                  "no header line before the first row (columns given by number "
+                                  "need one)");
+                break;
+            }
+            char *h = prev;
+            prev = NULL;
+            st = read_header_line(&tr, h, prev_line, err);
+            free(h);
+            if (st == SC_OK)
+                st = read_data_line(&tr, err);
             continue;
         }
         int named = names_count(&tr, tr.r.text);
@@ -525,6 +626,12 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
     else if (st == SC_OK && !t->header_line)
         st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no header line naming the columns");
     free(first);
+    free(prev);
+    if (st == SC_OK && tr.provisional > 0) { /* trailing summary rows: no measurements */
+        t->n_rows -= tr.provisional;
+        t->n_summary = tr.provisional;
+        t->summary_line = tr.provisional_line;
+    }
     if (st == SC_OK && !t->header_line) /* cannot happen: read_header_line failed or set it */
         st = sc_error_set(err, SC_E_INTERNAL, path, tr.r.line, "no header line");
     else if (st == SC_OK && t->n_rows == 0)
