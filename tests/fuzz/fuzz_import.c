@@ -127,9 +127,14 @@ static void fuzz_grid(uint8_t c0, uint8_t c1, const char *path)
             FUZZ_CHECK(hypot(x[k] - fx, y[k] - fy) <= p.tolerance_mm + EPS_MM(x[k], y[k]));
         }
         FUZZ_CHECK(assigned == fit.n_assigned);
-        for (long k = 0; k < np; ++k)
-            FUZZ_CHECK(point_mark[k] >= -1 && point_mark[k] < nn &&
+        /* -1 beyond T, -2 far beyond the others, -3 on a mark rows=/cols= leave out */
+        long left_out = 0;
+        for (long k = 0; k < np; ++k) {
+            FUZZ_CHECK(point_mark[k] >= -3 && point_mark[k] < nn &&
                        (point_mark[k] < 0 || mark_point[point_mark[k]] == k));
+            left_out += point_mark[k] < 0;
+        }
+        FUZZ_CHECK(left_out == fit.n_left_out && fit.n_assigned + left_out == np);
     }
     free(x);
     free(y);
