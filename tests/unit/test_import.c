@@ -173,6 +173,13 @@ static void test_table_machine_lines(void **state)
     assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_OK);
     assert_true(t.header_line == 4 && t.n_rows == 2 && t.value[2] == 5 && t.value[3] == 6);
     sc_table_free(&t);
+    /* a damaged row before the first good one is its error, not preamble */
+    write_text(path, "Name;x;y;x;y\nP1;2000,87.6;1;0;0\nP2;1;2;0;0\n");
+    assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 2);
+    write_text(path, "Name;x;y;x;y\nP1;;1;0;0\nP2;1;2;0;0\n");
+    assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 2);
     write_text(path, "1;1;2\n2;3;4\n"); /* no header at all: refused, no row dropped */
     assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
     assert_int_equal(err.line, 1);

@@ -559,11 +559,8 @@ static sc_status import_profile_run(profile_args *g, sc_error *err)
 {
     sc_status st = SC_OK;
     const double scale[4] = {g->pos_unit, g->disp_unit, g->disp_unit, g->angle_unit};
-    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+    for (int k = 0; k < 2 && st == SC_OK; ++k)
         st = sc_table_read(g->scans[k].file, 4, g->col, scale, &g->scans[k].t, err);
-        if (st == SC_OK)
-            report_skipped("selfcal import profile", g->scans[k].file, &g->scans[k].t);
-    }
     sc_profile_data d;
     memset(&d, 0, sizeof d);
     double p0 = 0;
@@ -587,6 +584,8 @@ static sc_status import_profile_run(profile_args *g, sc_error *err)
             d.sigma_angle_urad = g->sigma_angle;
         }
         st = sc_profile_write(g->out, &d, err);
+        for (int k = 0; k < 2 && st == SC_OK; ++k) /* the notes once it worked: else one line */
+            report_skipped("selfcal import profile", g->scans[k].file, &g->scans[k].t);
         if (st == SC_OK)
             fprintf(stderr,
                     "selfcal import profile: N = %d points, step %.9g mm from %.6f mm, d1 = %d, "

@@ -224,12 +224,24 @@ static int all_by_number(const table_reader *tr)
     return 1;
 }
 
+/* Whether field s is empty, or text without a digit ("MM", "Mittelwert": no number at all,
+ * where "1.5.5" is a malformed one). */
+static int not_a_number(const char *s)
+{
+    for (; *s; ++s)
+        if (isdigit((unsigned char)*s))
+            return 0;
+    return 1;
+}
+
 /* With every column by number: whether text (not modified) is a row, every numbered field there
- * and a number ("A;1;2;3;4" for columns 2 and 3). */
+ * and a number ("A;1;2;3;4" for columns 2 and 3): 1; a damaged row (a numbered field has a
+ * digit, yet the line is no row: "P1;2000,87.6;1,67", "P1;;1,67"): -1; else (a header or
+ * preamble line, no digit in the numbered fields): 0. */
 static int row_by_number(const table_reader *tr, const char *text)
 {
     char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
-    int n = split_copy(text, buf, field);
+    int n = split_copy(text, buf, field), ok = 1, digits = 0;
     if (n == -2)
         return 1;
     for (int k = 0; k < tr->n_cols; ++k) {
@@ -237,9 +249,10 @@ static int row_by_number(const table_reader *tr, const char *text)
         double v;
         char mark;
         if (num > n || parse_number(field[num - 1], &v, &mark) != 0)
-            return 0;
+            ok = 0;
+        digits |= num <= n && !not_a_number(field[num - 1]);
     }
-    return 1;
+    return ok ? 1 : digits ? -1 : 0;
 }
 
 /* Whether a line starting with '#' is a header whose first column is the point number's, "#":
@@ -335,15 +348,6 @@ static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err
 
 static sc_status read_row(table_reader *tr, int nf, sc_error *err);
 
-/* Whether field s is empty, or text without a digit ("MM", "Mittelwert": no number at all,
- * where "1.5.5" is a malformed one). */
-static int not_a_number(const char *s)
-{
-    for (; *s; ++s)
-        if (isdigit((unsigned char)*s))
-            return 0;
-    return 1;
-}
 
 /* Whether text (a field no wanted column is read from) names a statistic, as the summary rows
  * machines add under a table do ("Mean", "Mittelwert", "Max.", "Std dev:"): such a row's numbers
@@ -378,6 +382,7 @@ static int names_statistic(const char *text)
 static int skipped_kind(const table_reader *tr, int nf)
 {
     int empty = 1, same = nf == tr->n_header, header = same, texts = same, blanks = same;
+    int some_text = 0;
     for (int f = 0; f < nf; ++f)
         empty &= !tr->field[f][0];
     if (empty)
@@ -385,9 +390,11 @@ static int skipped_kind(const table_reader *tr, int nf)
     for (int k = 0; k < tr->n_cols && same; ++k) { /* every wanted field, each test its own */
         const char *s = tr->field[tr->col_of[k]];
         header = header && name_equal(s, tr->names[k]);
-        texts = texts && s[0] && not_a_number(s);
+        texts = texts && not_a_number(s); /* unit names or empty (";nm;nm": no unit for n) */
+        some_text |= s[0] != 0;
         blanks = blanks && !s[0];
     }
+    texts = texts && some_text;
     if (header)
         return 2;
     if (texts && tr->after_header == 1)
@@ -579,7 +586,26 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
             continue;
         }
         if (numbers) { /* the header: the line before the first row */
-            if (!row_by_number(&tr, tr.r.text)) {
+            int row = row_by_number(&tr, tr.r.text);
+            if (row < 0 && prev) { /* a damaged row before the first good one: its error */
+                char *h = prev;
+                prev = NULL;
+                st = read_header_line(&tr, h, prev_line, err);
+                free(h);
+                if (st == SC_OK) {
+                    sc_error e;
+                    sc_error_clear(&e);
+                    int nf = split_fields(tr.r.text, t->delimiter, tr.field, tr.quoted,
+                                          MAX_TABLE_FIELDS);
+                    st = read_row(&tr, nf, &e);
+                    if (st == SC_OK) /* cannot be: it failed as a row above */
+                        st = sc_error_set(&e, SC_E_INPUT, path, tr.r.line, "not a row");
+                    if (err)
+                        *err = e;
+                }
+                break;
+            }
+            if (row <= 0) {
                 free(prev);
                 prev = strdup(tr.r.text);
                 prev_line = tr.r.line;

@@ -3,6 +3,7 @@
  * start, whole-step spacings and equal coverage, and turned into a selfcal-profile v1 data set. */
 #include "selfcal/import.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -88,24 +89,43 @@ static sc_status median_step(const sc_table *t, const pos_row *o, double *step, 
     return SC_OK;
 }
 
-/* The sample index of each sorted position of scan 1, chained from its neighbour (each difference
- * rounded to whole steps: a position's jitter never adds up along the scan), into n. */
-static void chain_indices(const sc_table *t, const pos_row *o, double step, long *n)
+#define OFF_GRID LONG_MIN /* a sample chain_indices could not number */
+
+/* The sample index of each sorted position of scan 1, chained from the last sample it numbered
+ * (each difference rounded to whole steps: a position's jitter never adds up along the scan),
+ * into n; a sample more than tol steps off the whole steps from it gets OFF_GRID and is left out
+ * of the chain (check_steps then names it), so one bad position cannot shift every index after
+ * it and skew the step fitted from them. */
+static void chain_indices(const sc_table *t, const pos_row *o, double step, double tol, long *n)
 {
+    long good = 0;
     n[0] = 0;
-    for (long q = 1; q < t->n_rows; ++q)
-        n[q] = n[q - 1] + lround((o[q].pos - o[q - 1].pos) / step);
+    for (long q = 1; q < t->n_rows; ++q) {
+        double f = (o[q].pos - o[good].pos) / step;
+        long r = lround(f);
+        if (fabs(f - (double)r) > tol) {
+            n[q] = OFF_GRID;
+            continue;
+        }
+        n[q] = n[good] + r;
+        good = q;
+    }
 }
 
 /* The slope of the least-squares line p = a + s·n through the positions and their indices (0 if
  * it cannot be fitted: one index). */
 static double fit_step(const sc_table *t, const pos_row *o, const long *n)
 {
-    double mn = 0, mp = 0, snn = 0, snp = 0;
+    double mn = 0, mp = 0, snn = 0, snp = 0, cnt = 0;
     for (long q = 0; q < t->n_rows; ++q)
-        mn += (double)n[q], mp += o[q].pos;
-    mn /= (double)t->n_rows, mp /= (double)t->n_rows;
+        if (n[q] != OFF_GRID)
+            mn += (double)n[q], mp += o[q].pos, cnt += 1;
+    if (cnt < 2)
+        return 0;
+    mn /= cnt, mp /= cnt;
     for (long q = 0; q < t->n_rows; ++q) {
+        if (n[q] == OFF_GRID)
+            continue;
         snn += ((double)n[q] - mn) * ((double)n[q] - mn);
         snp += ((double)n[q] - mn) * (o[q].pos - mp);
     }
@@ -120,10 +140,12 @@ static sc_status median_origin(const sc_table *t, const pos_row *o, const long *
     double *r = malloc((size_t)t->n_rows * sizeof(double));
     if (!r)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    long m = 0;
     for (long q = 0; q < t->n_rows; ++q)
-        r[q] = o[q].pos - (double)n[q] * step;
-    qsort(r, (size_t)t->n_rows, sizeof(double), cmp_double);
-    *p0 = r[t->n_rows / 2];
+        if (n[q] != OFF_GRID)
+            r[m++] = o[q].pos - (double)n[q] * step;
+    qsort(r, (size_t)m, sizeof(double), cmp_double);
+    *p0 = r[m / 2]; /* m >= 1: the first sample is always numbered */
     free(r);
     return SC_OK;
 }
@@ -140,7 +162,7 @@ static sc_status step_and_spacings(const sc_profile_import_params *p, const sc_t
     double s = p->step_mm;
     if (!given && (st = median_step(t0, o0, &s, err)) != SC_OK)
         return st;
-    chain_indices(t0, o0, s, n0);
+    chain_indices(t0, o0, s, p->step_tolerance, n0);
     double s_fit = given ? 0 : fit_step(t0, o0, n0);
     if (s_fit > 0)
         s = s_fit;
@@ -164,7 +186,7 @@ static sc_status step_and_spacings(const sc_profile_import_params *p, const sc_t
                                 "step (%g / %d and %g / %d differ; give the step with --step-mm)",
                                 p->spacing_mm[0], p->spacing_mm[1], p->spacing_mm[0], dk[0],
                                 p->spacing_mm[1], dk[1]);
-        chain_indices(t0, o0, s, n0); /* the indices for the exact step */
+        chain_indices(t0, o0, s, p->step_tolerance, n0); /* the indices for the exact step */
     }
     *step = s;
     return SC_OK;

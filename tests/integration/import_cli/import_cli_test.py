@@ -514,6 +514,23 @@ def case_profile():
     r[0] += 0.2
     step[1] = scans[1][:30] + [tuple(r)] + scans[1][31:]
     bad(step, "b1.csv:32: position 115.450000 mm is 0.400 steps off the sampling grid")
+    # a sample half a step off the grid, inserted: named at its line (it skewed the step fitted
+    # from the positions, which was then refused as "not a whole number of steps")
+    half = dict(scans)
+    r = list(scans[1][30])
+    r[0] += 0.5 * s
+    half[1] = scans[1][:31] + [tuple(r)] + scans[1][31:]
+    bad(half, "b1.csv:33: position 115.500000 mm is 0.500 steps off the sampling grid")
+    # a scan log whose units line was skipped but which is refused later: the error line alone
+    # (the notes come only with a result)
+    with open(os.path.join(d, "b1.csv"), "w") as f:
+        f.write("pos [mm];A;B;phi\n;nm;nm;mrad\n")
+        for q in range(len(scans[1])):
+            rr = scans[1][q if q != 10 else 9]
+            f.write(";".join(("%.17g" % v).replace(".", ",") for v in rr) + "\n")
+    write_scan(os.path.join(d, "b2.csv"), scans[2])
+    check_bad(base + ["--spacing-mm", 3, os.path.join(d, "b1.csv"), "--spacing-mm", 3.5,
+                      os.path.join(d, "b2.csv")], d, os.path.join(d, "bad_out.csv"), "sampled twice")
     bad(scans, "the sensor spacing 3.2 mm is not a whole number of steps", spacings=(3, 3.2))
     late = dict(scans)
     late[2] = scans[2][1:] + [(scans[2][-1][0] + s,) + scans[2][-1][1:]]
