@@ -180,6 +180,9 @@ static void test_table_machine_lines(void **state)
     write_text(path, "Name;x;y;x;y\nP1;;1;0;0\nP2;1;2;0;0\n");
     assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
     assert_int_equal(err.line, 2);
+    write_text(path, "1;2000,87.6;2\n2;3;4\n"); /* a damaged first row, no header: refused */
+    assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 1);
     write_text(path, "1;1;2\n2;3;4\n"); /* no header at all: refused, no row dropped */
     assert_int_equal(sc_table_read(path, 2, XY2, NULL, &t, &err), SC_E_INPUT);
     assert_int_equal(err.line, 1);

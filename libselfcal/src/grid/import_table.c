@@ -605,7 +605,13 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
                 }
                 break;
             }
-            if (row <= 0) {
+            if (row < 0) { /* a damaged row with no header before it */
+                st = sc_error_set(err, SC_E_INPUT, path, tr.r.line,
+                                  "not a row, and no header line before it (columns given by "
+                                  "number need one)");
+                break;
+            }
+            if (row == 0) {
                 free(prev);
                 prev = strdup(tr.r.text);
                 prev_line = tr.r.line;
