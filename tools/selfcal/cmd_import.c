@@ -213,7 +213,6 @@ static void report_skipped(const char *cmd, const char *file, const sc_table *t)
 
 static void report_view(const sc_grid_import_params *p, int k, const import_view *iv)
 {
-    long unselected = 0;
     report_skipped("selfcal import grid", iv->file, &iv->t);
     const long *point_mark = iv->point_mark;
     const sc_grid_import_fit *fit = &iv->fit;
@@ -225,19 +224,17 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
                     "row? a point on another feature?)\n",
                     iv->file, iv->t.line[q], iv->t.value[iv->t.n_cols * q],
                     iv->t.value[iv->t.n_cols * q + 1], fit->median_dist_um);
-        else if (point_mark[q] == -3)
-            ++unselected;
-        else if (point_mark[q] < 0)
+        else if (point_mark[q] == -1)
             fprintf(stderr,
                     "selfcal import grid: %s:%ld: point (%.6f, %.6f) mm is farther than %g mm from "
                     "every mark of view %d; left out\n",
                     iv->file, iv->t.line[q], iv->t.value[iv->t.n_cols * q],
                     iv->t.value[iv->t.n_cols * q + 1],
                     p->tolerance_mm, k);
-    if (unselected)
+    if (fit->n_unselected) /* point_mark -3, counted by the fit */
         fprintf(stderr, "selfcal import grid: %s: view %d: %ld point%s on marks its rows=/cols= "
                         "leave out; left out\n",
-                iv->file, k, unselected, unselected == 1 ? "" : "s");
+                iv->file, k, fit->n_unselected, fit->n_unselected == 1 ? "" : "s");
     /* a row or column of left-out points on the mark lattice: marks the view does not have,
      * so the file is in the plate's frame (or shift= is wrong) and the numbering is off */
     if (fit->n_on_lattice >= 3 && 2 * fit->n_on_lattice >= p->n)

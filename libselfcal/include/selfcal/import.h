@@ -110,8 +110,6 @@ typedef struct sc_grid_import_fit {
     double median_dist_um; /* the median distance of the matched points to their marks */
     long n_unselected;     /* points left out (counted in n_left_out) on marks the view's rows=/cols=
                               leave out (they count as matched for the share test) */
-    double points_centre_mm[2]; /* the mean of the view's points */
-    double marks_centre_mm[2];  /* the mean nominal position of the marks the view measures */
     long n_on_lattice;     /* points left out (beyond T of the view's marks) that lie within T of
                               the mark lattice all the same: a row or column of them says the
                               file is in the plate's frame (a shifted view seen unshifted) or

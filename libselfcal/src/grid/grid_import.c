@@ -399,25 +399,23 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
     /* A view may measure few of its marks (a partial view, a damaged plate: SPEC §10, marks
      * without a point are absent); a file whose points mostly fall on no mark is the wrong
      * file, view, units or columns. */
-    /* where the points are against where the view's marks should be: a frame or unit mistake
-     * shows there (a whole-pitch shift even when every point found a mark) */
-    double px = 0, py = 0, mx = 0, my = 0;
-    for (long k = 0; k < n_points; ++k)
-        px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
-    for (int i = 0; i < p->n; ++i)
-        for (int j = 0; j < p->n; ++j) {
-            int ni, nj;
-            double nx, ny;
-            if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
-                continue;
-            mark_nominal(p, v, i, j, &nx, &ny); /* relative to the origin */
-            mx += (nx + p->origin_mm[0]) / (double)fit->n_marks;
-            my += (ny + p->origin_mm[1]) / (double)fit->n_marks;
-        }
-    fit->points_centre_mm[0] = px, fit->points_centre_mm[1] = py;
-    fit->marks_centre_mm[0] = mx, fit->marks_centre_mm[1] = my;
     if (fit->n_assigned == 0 ||
         (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points) {
+        /* where the points are against where the view's marks should be: a frame or unit
+         * mistake shows there */
+        double px = 0, py = 0, mx = 0, my = 0;
+        for (long k = 0; k < n_points; ++k)
+            px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
+        for (int i = 0; i < p->n; ++i)
+            for (int j = 0; j < p->n; ++j) {
+                int ni, nj;
+                double nx, ny;
+                if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
+                    continue;
+                mark_nominal(p, v, i, j, &nx, &ny); /* relative to the origin */
+                mx += (nx + p->origin_mm[0]) / (double)fit->n_marks;
+                my += (ny + p->origin_mm[1]) / (double)fit->n_marks;
+            }
         return sc_error_set(err, SC_E_INPUT, path, header_line,
                             "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
                             "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "
