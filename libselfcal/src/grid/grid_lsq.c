@@ -808,29 +808,34 @@ static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_gr
     }
 }
 
+/* Equation e's part (its row idx, val, len: eq_row's) of its view's block of the misalignment
+ * normal matrix, G and A held (nrm: nb x nb per view). */
+static void view_normal_add(const sc_grid_lsq_plan *q, long e, const int *idx, const double *val,
+                            int len, double *nrm)
+{
+    int nb = q->nb, v = q->eq_v[e], base = q->ng + nb * v;
+    double *b = nrm + (size_t)v * nb * nb;
+    for (int i = 1; i < len; ++i)
+        for (int j = 1; j < len; ++j)
+            b[(idx[i] - base) * nb + idx[j] - base] += q->eq_w[e] * val[i] * val[j];
+}
+
+static int fit_view(const double *nrm, const double *rh, int nb, double *m);
+
 /* Per view, how many of its own misalignment columns its equations leave free with G and A held
- * (the columns of its block of the normal matrix, Cholesky with diagonal pivoting): a view of one
- * mark leaves its rotation, a view of none all nb. Sets q->view_free; the total, or -1 if memory
- * ran out. */
+ * (those fit_view does not keep: the view's fit and this count use one criterion): a view of one
+ * mark leaves its rotation, a view of none all nb. Sets q->view_free; returns the total. */
 static int views_own_nullity(sc_grid_lsq_plan *q)
 {
     int nb = q->nb, total = 0, idx[ROW_MAX];
-    double val[ROW_MAX], *nrm = calloc((size_t)q->nv * nb * nb, sizeof(double));
-    if (!nrm)
-        return -1;
-    for (long e = 0; e < q->neq; ++e) {
-        int v = q->eq_v[e], len = eq_row(q, e, idx, val);
-        for (int i = 1; i < len; ++i)
-            for (int j = 1; j < len; ++j)
-                nrm[((size_t)v * nb + idx[i] - q->ng - nb * v) * nb + idx[j] - q->ng - nb * v] +=
-                    q->eq_w[e] * val[i] * val[j];
+    double val[ROW_MAX], nrm[SC_GRID_MAX_VIEWS * 5 * 5] = {0}, zero[5] = {0}, m[5];
+    for (long e = 0; e < q->neq; ++e)
+        view_normal_add(q, e, idx, val, eq_row(q, e, idx, val), nrm);
+    for (int v = 0; v < q->nv; ++v) {
+        int kept = fit_view(nrm + (size_t)v * nb * nb, zero, nb, m);
+        q->view_free[v] = kept < nb;
+        total += nb - kept;
     }
-    for (int v = 0; v < q->nv && total >= 0; ++v) {
-        int k = small_nullity(nrm + (size_t)v * nb * nb, nb, LSQ_SMALL_TOL);
-        q->view_free[v] = k > 0;
-        total = k < 0 ? -1 : total + k;
-    }
-    free(nrm);
     return total;
 }
 
@@ -857,10 +862,7 @@ static sc_status analyse_identifiability(sc_grid_lsq_plan *q, sc_error *err)
     q->rank = q->info.n_unknowns - (4 + K + q->nullity_T);
     q->info.residual_dof = q->neq - q->rank;
     q->misalignment_unique = q->nullity_T <= 3;
-    int own = views_own_nullity(q);
-    if (own < 0)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    q->misalignment_estimable = q->nullity_T - own <= 3;
+    q->misalignment_estimable = q->nullity_T - views_own_nullity(q) <= 3;
     for (int k = 0; k < q->ns; ++k)
         q->sgx[k] = q->sgy[k] = NAN;
     q->info.sigma_c_ratio_rms = q->info.sigma_c_ratio_max = NAN;
@@ -1179,8 +1181,8 @@ static void gauge_solution(const sc_grid_lsq_plan *q, const sc_grid_data *d, con
  * columns taken in order (tx, ty, φ, vx, vy), each kept when the system stays regular with it
  * (Cholesky with diagonal pivoting, LSQ_SMALL_TOL), the kept ones solved, the others 0 — a
  * particular least-squares solution, so the residuals are right whatever the view determines
- * (a single mark: tx, ty fit it exactly, φ stays 0). m: nb values; returns 1 if every column was
- * kept (the misalignments are determined), 0 if not, -1 for a view without equations (m NaN). */
+ * (a single mark: tx, ty fit it exactly, φ stays 0). m: nb values (NaN for a view without
+ * equations); returns how many columns were kept (nb: the misalignments are determined). */
 static int fit_view(const double *nrm, const double *rh, int nb, double *m)
 {
     int keep[5], nk = 0;
@@ -1198,7 +1200,7 @@ static int fit_view(const double *nrm, const double *rh, int nb, double *m)
     if (nk == 0) {
         for (int c = 0; c < nb; ++c)
             m[c] = NAN;
-        return -1;
+        return 0;
     }
     double sub[25], r[5];
     for (int i = 0; i < nk; ++i) {
@@ -1209,16 +1211,16 @@ static int fit_view(const double *nrm, const double *rh, int nb, double *m)
     small_solve(sub, r, nk);
     for (int i = 0; i < nk; ++i)
         m[keep[i]] = r[i];
-    return nk == nb;
+    return nk;
 }
 
 /* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns,
  * G as gx | gy (ns each), A's x and y of mark k at ax[k·as] and ay[k·as] (as: 2 for the solve's
  * interleaved A, 1 for a result's). m: nm, a particular solution where a view does not determine
- * its columns (fit_view); determined (may be NULL): per view, 1 if it does. */
+ * its columns (fit_view; q->view_free says which). */
 static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *gx,
                               const double *gy, const double *ax, const double *ay, int as,
-                              double *m, int *determined)
+                              double *m)
 {
     int nb = q->nb;
     double nrm[SC_GRID_MAX_VIEWS * 5 * 5] = {0}, rh[SC_GRID_MAX_VIEWS * 5] = {0};
@@ -1230,18 +1232,12 @@ static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
         double w = q->eq_w[e], s = q->eq_s[e];
         double r = eq_data(q, d, e) - (q->eq_g[e] % 2 ? gy : gx)[node] -
                    s * (q->eq_a[e] % 2 ? ay : ax)[(size_t)k * as];
-        for (int i = 1; i < len; ++i) {
-            int bi = idx[i] - q->ng - nb * v;
-            rh[v * nb + bi] += w * s * val[i] * r;
-            for (int j = 1; j < len; ++j)
-                nrm[(v * nb + bi) * nb + idx[j] - q->ng - nb * v] += w * val[i] * val[j];
-        }
+        for (int i = 1; i < len; ++i)
+            rh[v * nb + idx[i] - q->ng - nb * v] += w * s * val[i] * r;
+        view_normal_add(q, e, idx, val, len, nrm);
     }
-    for (int v = 0; v < q->nv; ++v) {
-        int det = fit_view(nrm + (size_t)v * nb * nb, rh + (size_t)v * nb, nb, m + v * nb);
-        if (determined)
-            determined[v] = det == 1;
-    }
+    for (int v = 0; v < q->nv; ++v)
+        fit_view(nrm + (size_t)v * nb * nb, rh + (size_t)v * nb, nb, m + v * nb);
 }
 
 /* Upper quantile helpers: the regularized lower incomplete gamma P(a, x). */
@@ -1501,8 +1497,7 @@ sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
     if (solve_reduced(q, d, x, r, b, r2) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (least-squares solve)");
     gauge_solution(q, d, x, g, g + ns, a);
-    int determined[SC_GRID_MAX_VIEWS];
-    fit_misalignments(q, d, g, g + ns, a, a + 1, 2, m, determined);
+    fit_misalignments(q, d, g, g + ns, a, a + 1, 2, m);
     double rss = 0, wrss = 0;
     for (long e = 0; e < q->neq; ++e) {
         int c = q->eq_g[e] % 2, node = q->eq_g[e] / 2;
@@ -1512,7 +1507,7 @@ sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
     }
     double sigma0 = fill_result_noise(q, wrss, rss, sigma_r_um, res);
     for (int v = 0; v < q->nv; ++v) /* reported only where the view determines them */
-        for (int c = 0; !determined[v] && c < q->nb; ++c)
+        for (int c = 0; q->view_free[v] && c < q->nb; ++c)
             m[v * q->nb + c] = NAN;
     fill_result_values(q, g, a, m, sigma0, res);
     return SC_OK;
@@ -2130,7 +2125,9 @@ out:
 void sc_grid_lsq_fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d,
                                    const sc_grid_result *res, double *m, int *determined)
 {
-    fit_misalignments(q, d, res->gx_um, res->gy_um, res->ax_um, res->ay_um, 1, m, determined);
+    fit_misalignments(q, d, res->gx_um, res->gy_um, res->ax_um, res->ay_um, 1, m);
+    for (int v = 0; determined && v < q->nv; ++v)
+        determined[v] = !q->view_free[v];
 }
 
 sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d,
