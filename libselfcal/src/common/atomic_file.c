@@ -1,6 +1,7 @@
 /* atomic_file.c — owns writing files so that a crash never leaves half of one under its name
  * (temporary file, fsync, rename, directory fsync; groups of files committed together). */
 #include "selfcal/atomic_file.h"
+#include "selfcal/rng.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -127,17 +128,13 @@ static int create_tmp(char *tmp, size_t cap, const char *path, mode_t mode)
     static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
     struct timespec ts;
     clock_gettime(CLOCK_REALTIME, &ts);
-    uint64_t x = (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^ ((uint64_t)getpid() << 16) ^
-                 (uint64_t)(uintptr_t)tmp;
+    sc_rng rng; /* the project's generator, seeded by the moment, the process and the caller */
+    sc_rng_seed(&rng, (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
+                          ((uint64_t)getpid() << 16) ^ (uint64_t)(uintptr_t)tmp);
     for (int attempt = 0; attempt < 100; ++attempt) {
         char s[7];
-        for (int k = 0; k < 6; ++k) { /* splitmix64 steps */
-            x += 0x9E3779B97F4A7C15u;
-            uint64_t z = x;
-            z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9u;
-            z = (z ^ (z >> 27)) * 0x94D049BB133111EBu;
-            s[k] = abc[(z ^ (z >> 31)) % (sizeof abc - 1)];
-        }
+        for (int k = 0; k < 6; ++k)
+            s[k] = abc[sc_rng_u64(&rng) % (sizeof abc - 1)];
         s[6] = '\0';
         snprintf(tmp, cap, "%s.tmp%s", path, s);
         int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, mode);
