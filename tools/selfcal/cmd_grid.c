@@ -253,7 +253,7 @@ int cmd_grid(int argc, char **argv)
     if (st == SC_OK)
         st = write_outputs(&g, &d.plan, &sol, &info, &err);
     if (st == SC_OK && !g.quiet)
-        print_grid_summary(g.method, &d.plan, &sol, sol.res.weighted && !(g.opt.sigma_r_um > 0));
+        print_grid_summary(g.method, &d.plan, &sol, sol.res.stated_u);
     sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
     if (st != SC_OK) {

@@ -257,12 +257,26 @@ static void section_noise(FILE *fp, const grid_report *r, int *chi2_pass)
 {
     const sc_grid_result *l = &r->lres;
     fputs("<section id=\"noise\">\n<h2>3. Measurement noise</h2>\n<table>\n", fp);
-    fputs("<tr><th class=\"l\">σ_r given (--sigma-r-um)</th>", fp);
-    html_num_cell(fp, "sigma_r_given_um", "%.4g µm", r->sigma_r_given > 0 ? r->sigma_r_given : NAN);
-    fputs("</tr>\n<tr><th class=\"l\">σ_r estimated from the residuals, √(RSS/dof)</th>", fp);
-    html_num_cell(fp, "sigma_r_est_um", "%.4g µm", l->sigma_r_est_um);
-    fputs("</tr>\n<tr><th class=\"l\">σ_r used for the uncertainties</th>", fp);
-    html_num_cell(fp, "sigma_r_used_um", "%.4g µm", r->res.sigma_r_used_um);
+    if (l->stated_u) { /* the file's own uncertainties: σ figures are factors on them */
+        fputs("<tr><th class=\"l\">σ_r given (--sigma-r-um)</th>", fp);
+        html_num_cell(fp, "sigma_r_given_um", r->sigma_r_given > 0 ? "%.4g µm, unused: the file "
+                      "states its uncertainties" : "%.4g", r->sigma_r_given > 0 ? r->sigma_r_given
+                                                                               : NAN);
+        fputs("</tr>\n<tr><th class=\"l\">the residuals' scale on the file's stated uncertainties, "
+              "√(weighted RSS/dof) (1 = as stated)</th>", fp);
+        html_num_cell(fp, "sigma_r_est_um", "%.4g", l->sigma_r_est_um);
+        fputs("</tr>\n<tr><th class=\"l\">used for the uncertainties</th>", fp);
+        html_num_cell(fp, "sigma_r_used_um", "%.4g × the stated uncertainties",
+                      r->res.sigma_r_used_um);
+    } else {
+        fputs("<tr><th class=\"l\">σ_r given (--sigma-r-um)</th>", fp);
+        html_num_cell(fp, "sigma_r_given_um", "%.4g µm",
+                      r->sigma_r_given > 0 ? r->sigma_r_given : NAN);
+        fputs("</tr>\n<tr><th class=\"l\">σ_r estimated from the residuals, √(RSS/dof)</th>", fp);
+        html_num_cell(fp, "sigma_r_est_um", "%.4g µm", l->sigma_r_est_um);
+        fputs("</tr>\n<tr><th class=\"l\">σ_r used for the uncertainties</th>", fp);
+        html_num_cell(fp, "sigma_r_used_um", "%.4g µm", r->res.sigma_r_used_um);
+    }
     fputs("</tr>\n<tr><th class=\"l\">residual RMS</th>", fp);
     html_num_cell(fp, "residual_rms_um", "%.4g µm", l->residual_rms_um);
     fprintf(fp, "</tr>\n<tr><th class=\"l\">scalar measurements / residual degrees of freedom</th>"
@@ -707,13 +721,17 @@ static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo
     rms_of(r->res.ugx_um, NG(r), &mux);
     rms_of(r->res.ugy_um, NG(r), &muy);
     fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d, pitch %g mm, "
-                "%d views, %ld measured marks. G identified: <b>%s</b>. σ_r estimated ",
+                "%d views, %ld measured marks. G identified: <b>%s</b>. %s",
             r->method, r->d.plan.n, r->d.plan.pitch_mm, r->d.plan.n_views, r->info.n_rows,
-            r->identifiable ? "yes" : "no");
+            r->identifiable ? "yes" : "no",
+            r->lres.stated_u ? "The residuals' scale on the file's stated uncertainties "
+                             : "σ_r estimated ");
     html_num_span(fp, NULL, "%.4g", r->lres.sigma_r_est_um);
-    fputs(" µm", fp);
-    if (r->sigma_r_given > 0)
-        fprintf(fp, " (given %.4g µm)", r->sigma_r_given);
+    if (!r->lres.stated_u) {
+        fputs(" µm", fp);
+        if (r->sigma_r_given > 0)
+            fprintf(fp, " (given %.4g µm)", r->sigma_r_given);
+    }
     fputs(".", fp);
     if (isfinite(mux))
         fprintf(fp, " Largest u(G): %.4g µm (k = 1), U = %.4g µm (k = 2).", fmax(mux, muy),

@@ -112,6 +112,8 @@ typedef struct sc_grid_result {
     double view_sigma_u_um[SC_GRID_MAX_VIEWS];   /* the standard uncertainty of view_sigma_um
                                                     (REML's 2F⁻¹, F by random probes; NaN if
                                                     it could not be had) */
+    int stated_u;             /* 1: the data stated their own uncertainties (ux_um,uy_um or
+                                 sigma_um=): σ figures are factors on them, a given σ_r unused */
 } sc_grid_result;
 
 /* ---- geometry (grid_geometry.c) ---- */

@@ -238,6 +238,7 @@ static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
         r->view_sigma_um[v] = r->view_noise_factor[v] = r->view_sigma_u_um[v] = NAN;
     r->misalignment_unique = 1;
+    r->stated_u = 0;
     for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
         r->tx_um[v] = r->ty_um[v] = r->theta_urad[v] = r->utx_um[v] = r->uty_um[v] =
             r->utheta_urad[v] = NAN;

@@ -269,7 +269,8 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
     json_num(fp, res->sigma_r_est_um);
     fputs(",\n  \"sigma_r_used_um\": ", fp);
     json_num(fp, res->sigma_r_used_um);
-    fprintf(fp, ",\n  \"weighted\": %s,\n  \"variance_factor\": ", res->weighted ? "true" : "false");
+    fprintf(fp, ",\n  \"weighted\": %s,\n  \"stated_uncertainties\": %s,\n  \"variance_factor\": ",
+            res->weighted ? "true" : "false", res->stated_u ? "true" : "false");
     json_num(fp, res->variance_factor);
     fputs(",\n  \"chi2_95_interval\": [", fp);
     json_num(fp, res->chi2_lo);

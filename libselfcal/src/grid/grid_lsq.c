@@ -1355,6 +1355,7 @@ static double fill_result_noise(const sc_grid_lsq_plan *q, double wrss, double r
     res->dof = dof;
     res->residual_rms_um = q->neq > 0 ? sqrt(rss / (double)q->neq) : NAN;
     res->weighted = q->weighted || sigma_r_um > 0;
+    res->stated_u = q->weighted;
     res->variance_factor = res->chi2_lo = res->chi2_hi = NAN;
     res->chi2_pass = 1;
     if (q->weighted) {

@@ -148,6 +148,14 @@ def case_weights():
     p = run("grid", "--method", "lsq", p2, "--map", g, "--summary", sm2, "--sigma-r-um", 0.5)
     if "is ignored" not in p.stderr or abs(json.load(open(sm2))["variance_factor"] - vf) > 1e-9 * vf:
         fail("--sigma-r-um on weighted data: %r" % p.stderr)
+    # ... and the summaries say the stated uncertainties were used, not the ignored sigma
+    S2 = json.load(open(sm2))
+    if S2["stated_uncertainties"] is not True or S2["sigma_r_used_um"] != 1:
+        fail("--sigma-r-um on weighted data, summary: %r" % S2)
+    if "the data state their uncertainties" not in p.stdout or "from the least-squares" in p.stdout:
+        fail("--sigma-r-um on weighted data, stdout summary: %r" % p.stdout)
+    if json.load(open(sm))["stated_uncertainties"] is not False:
+        fail("unweighted data said to state their uncertainties")
     print("weights: ok")
 
 
