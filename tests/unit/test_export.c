@@ -238,19 +238,33 @@ static void test_beckhoff(void **state)
     }
     free(m);
 
-    /* Rectangular pitch, offset origin: one interval for both axes (the smaller pitch). */
+    /* Rectangular pitch, offset origin: one interval for both axes, the largest that divides
+     * both pitches (2 and 3 mm: 1 mm), so every map node is a table point: exact but for the
+     * 0.1 um quantization. */
     m = make_map(9, 7, 3.3, -20.05, 2.0, 3.0, 0);
     sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
     o.axis = 1;
     o.negate = 1;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
     parse_beckhoff(path, &b);
-    assert_int_equal(b.interval, 20000);
-    assert_true(b.start1 <= 33000 && b.start2 <= -200500);
-    assert_true(b.start1 + b.last1 * b.interval >= 3.3e4 + 8 * 2e4);
-    assert_true(b.start2 + b.last2 * b.interval >= -200500 + 6 * 3e4);
+    assert_int_equal(b.interval, 10000);
+    assert_true(b.start1 == 33000 && b.start2 == -200500);
+    assert_true(b.last1 == 16 && b.last2 == 18);
     int comps[1] = {1};
     check_residual(m, &rep, bk_ctrl, &b, comps, 1, 1.0); /* negated: +G */
+    assert_true(rep.max_um <= 0.05 + 1e-9);
+    free(b.tab);
+    free(m);
+    /* Where the common interval needs more than 101 points (2 and 2.5 mm: 0.5 mm over 100 mm),
+     * the smaller pitch, the other axis resampled. */
+    m = make_map(51, 41, 0.0, 0.0, 2.0, 2.5, 0);
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    o.axis = 0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_beckhoff(path, &b);
+    assert_int_equal(b.interval, 20000);
+    comps[0] = 0;
+    check_residual(m, &rep, bk_ctrl, &b, comps, 1, -1.0);
     assert_true(rep.max_um < 0.2); /* resampled along y: smooth map, small loss */
     free(b.tab);
     free(m);

@@ -219,6 +219,36 @@ static double beckhoff_eval(const void *vctx, int comp, double x, double y)
     return 0.1 * val;
 }
 
+static long long gcd_ll(long long a, long long b)
+{
+    while (b) {
+        long long t = a % b;
+        a = b;
+        b = t;
+    }
+    return a;
+}
+
+/* With unequal pitches, the largest interval (0.1 µm) that divides both, where the map's nodes
+ * lie on the table's (whole 0.1 µm pitches and first node) and it needs at most 101 points per
+ * master; 0 where there is none (equal pitches too: the default is then the pitch). */
+static long long common_interval(const sc_lut *lut, const long long start[2], double x1, double y1)
+{
+    double a = lut->px_mm * 1e4, b = lut->py_mm * 1e4;
+    long long ia = llround(a), ib = llround(b);
+    if (ia == ib || ia < 1 || ib < 1 || fabs(a - (double)ia) > 1e-6 || fabs(b - (double)ib) > 1e-6 ||
+        fabs(lut->x0_mm * 1e4 - (double)start[0]) > 1e-6 ||
+        fabs(lut->y0_mm * 1e4 - (double)start[1]) > 1e-6)
+        return 0;
+    long long g = gcd_ll(ia, ib);
+    for (int k = 0; k < 2; ++k) {
+        double span = (k == 0 ? x1 : y1) * 1e4 - (double)start[k];
+        if (cover_points(0.0, span, (double)g) > SC_EXPORT_BECKHOFF_MAX_POINTS)
+            return 0;
+    }
+    return g;
+}
+
 /* The plane table's grid: start positions and one interval (0.1 µm) for both masters, the
  * table starting at or before the map and covering it, at most 101 points along each. */
 static sc_status beckhoff_grid(const sc_lut *lut, const sc_export_options *o, beckhoff_ctx *ctx,
@@ -234,6 +264,9 @@ static sc_status beckhoff_grid(const sc_lut *lut, const sc_export_options *o, be
         if (c.interval < 1)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "beckhoff: interval %g mm is below 0.1 um", o->interval_mm);
+    } else if ((c.interval = common_interval(lut, c.start, x1, y1)) > 0) {
+        /* unequal pitches: the table's nodes take in every map node, so its bilinear
+         * interpolation is the map's own (no resampling loss) */
     } else {
         c.interval = llround(fmin(lut->px_mm, lut->py_mm) * 1e4);
         if (c.interval < 1)
