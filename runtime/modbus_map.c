@@ -135,12 +135,13 @@ static int read_regs(uint8_t *rsp, unsigned fn, const uint16_t *table, unsigned 
 }
 
 /* One handler per served function code: the PDU in, the response PDU out, its length as the
- * result. Length and value checks first (exception 03), then addresses (02); nothing changes
+ * result. Length and value checks first (exception 03: a PDU longer or shorter than its function
+ * and counts say, as a trailing byte after a read), then addresses (02); nothing changes
  * until the whole request is known to be good. */
 static int answer_read(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
                        sc_engine *e, uint8_t *rsp)
 {
-    if (plen < 5)
+    if (plen != 5)
         return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
     unsigned addr = be16(pdu + 1), n = be16(pdu + 3);
     unsigned size = fn == FC_READ_HOLDING ? SC_MB_HOLDING_COUNT : SC_MB_INPUT_COUNT;
@@ -155,7 +156,7 @@ static int answer_read(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int p
 static int answer_write_single(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
                                sc_engine *e, uint8_t *rsp)
 {
-    if (plen < 5)
+    if (plen != 5)
         return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
     unsigned addr = be16(pdu + 1);
     if (!write_range_ok(addr, 1))
@@ -169,7 +170,7 @@ static int answer_write_single(sc_modbus_map *mm, unsigned fn, const uint8_t *pd
 static int answer_mask_write(sc_modbus_map *mm, unsigned fn, const uint8_t *pdu, int plen,
                              sc_engine *e, uint8_t *rsp)
 {
-    if (plen < 7)
+    if (plen != 7)
         return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
     unsigned addr = be16(pdu + 1);
     if (!write_range_ok(addr, 1))
@@ -188,7 +189,7 @@ static int answer_write_multiple(sc_modbus_map *mm, unsigned fn, const uint8_t *
     if (plen < 6)
         return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
     unsigned addr = be16(pdu + 1), n = be16(pdu + 3), bc = pdu[5];
-    if (n < 1 || n > MB_MAX_WRITE || bc != 2 * n || plen < 6 + (int)bc)
+    if (n < 1 || n > MB_MAX_WRITE || bc != 2 * n || plen != 6 + (int)bc)
         return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
     if (!write_range_ok(addr, n))
         return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
@@ -208,7 +209,7 @@ static int answer_write_and_read(sc_modbus_map *mm, unsigned fn, const uint8_t *
     unsigned addr = be16(pdu + 1), nr = be16(pdu + 3), wa = be16(pdu + 5), nw = be16(pdu + 7);
     unsigned bc = pdu[9];
     if (nr < 1 || nr > MB_MAX_WR_READ || nw < 1 || nw > MB_MAX_WR_WRITE || bc != 2 * nw ||
-        plen < 10 + (int)bc)
+        plen != 10 + (int)bc)
         return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
     if (addr + nr > SC_MB_HOLDING_COUNT || !write_range_ok(wa, nw))
         return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
@@ -241,11 +242,11 @@ int sc_modbus_map_answer(sc_modbus_map *mm, uint8_t unit_id, const uint8_t *pdu,
     case FC_READ_COILS:
     case FC_READ_DISCRETE_INPUTS:
     case FC_WRITE_SINGLE_COIL:
-        if (plen < 5)
+        if (plen != 5)
             return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
         return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp); /* no coils/inputs */
     case FC_WRITE_MULTIPLE_COILS:
-        if (plen < 6)
+        if (plen < 6 || plen != 6 + pdu[5])
             return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
         return except(mm, fn, SC_MB_EX_ILLEGAL_ADDRESS, rsp);
     case FC_READ_HOLDING:
@@ -260,6 +261,8 @@ int sc_modbus_map_answer(sc_modbus_map *mm, uint8_t unit_id, const uint8_t *pdu,
     case FC_WRITE_AND_READ_REGISTERS:
         return answer_write_and_read(mm, fn, pdu, plen, e, rsp);
     case FC_REPORT_SERVER_ID:
+        if (plen != 1)
+            return except(mm, fn, SC_MB_EX_ILLEGAL_VALUE, rsp);
         return answer_server_id(fn, unit_id, rsp);
     default:
         return except(mm, fn, SC_MB_EX_ILLEGAL_FUNCTION, rsp);

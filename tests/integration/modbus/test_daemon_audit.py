@@ -192,6 +192,21 @@ try:
     for fn in (0x80, 0x85, 0xAB, 0xFF, 0x2B, 0x08):
         r = transact(s, 2, bytes([fn, 0, 0, 0, 1]), unit=7)
         check(r == bytes([fn | 0x80, 1]), f"fn {fn:#x}: reply {r!r}, expected exception 01")
+    # A PDU longer or shorter than its function and counts say: exception 03, nothing changed
+    # (the MBAP length carries the extra byte, so the framing itself stays in step).
+    odd = [bytes([0x03, 0, 0, 0, 2, 0]), bytes([0x04, 0, 0, 0, 2, 0xAA]), bytes([0x04, 0, 0, 0]),
+           bytes([0x11, 0]), bytes([0x11, 1, 2, 3]), bytes([0x06, 0, 0, 0, 5, 9]),
+           bytes([0x16, 0, 0, 0xFF, 0xFF, 0, 0, 1]),
+           struct.pack(">BHHB", 16, 0, 1, 2) + b"\0\1\2",
+           struct.pack(">BHHHHB", 23, 4, 6, 0, 4, 8) + bytes(9),
+           bytes([0x01, 0, 0, 0, 1, 0]), bytes([0x0F, 0, 0, 0, 8, 1, 0xFF, 0])]
+    before = transact(s, 4, struct.pack(">BHH", 3, 0, 10), unit=7)
+    for k, pdu in enumerate(odd):
+        r = transact(s, 10 + k, pdu, unit=7)
+        check(r == bytes([pdu[0] | 0x80, 3]), f"fn {pdu[0]:#x} with {len(pdu)} bytes: reply {r!r}, "
+              f"expected exception 03")
+    check(transact(s, 5, struct.pack(">BHH", 3, 0, 10), unit=7) == before,
+          "a malformed request changed registers")
     check(correct(s, 3, 0, 0, unit=7)[2] & 1, "still serving after the odd requests")
 finally:
     d.stop()
