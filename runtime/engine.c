@@ -82,8 +82,8 @@ sc_status sc_engine_load_file(sc_engine *e, const char *path, sc_error *err)
         e->status |= SC_ENGINE_ST_RELOAD_FAILED;
         return st;
     }
+    e->reload_ok += e->table != NULL; /* the first load is not a reload */
     e->table = spare;
-    e->reload_ok++;
     e->status = (uint16_t)((e->status & ~SC_ENGINE_ST_RELOAD_FAILED) | SC_CORR_ST_LOADED);
     return SC_OK;
 }

@@ -24,7 +24,7 @@ typedef struct sc_engine {
     sc_corr_mode mode;
     uint16_t status;            /* SC_CORR_ST_* bits of the last correction, plus LOADED */
     uint32_t corrections;       /* corrections since start */
-    uint32_t reload_ok, reload_failed;
+    uint32_t reload_ok, reload_failed; /* reloads (SIGHUP) that swapped tables in / were refused */
     int32_t last_in_x_nm, last_in_y_nm;   /* input of the last correction */
     int32_t last_out_x_nm, last_out_y_nm; /* its result */
 } sc_engine;

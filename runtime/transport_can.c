@@ -59,6 +59,7 @@ typedef struct can_state {
     uint64_t last_qfull_log_ms, last_ovfl_log_ms, last_rxovfl_log_ms;
     int reopen_failed_logged;
     uint32_t rx_ovfl_seen; /* the kernel's cumulative drop count, last value seen */
+    uint64_t rx_ovfl_logged; /* S.st.rx_overflow when it was last logged */
     uint8_t flags_since_status; /* SC_CAN_ST_* seen since the last status frame */
     sc_can_stats st;
     /* transmit queue */
@@ -462,6 +463,18 @@ static void on_frame(const struct canfd_frame *f, int is_fd, sc_engine *e, uint6
         sc_can_encode_position(d, cx, cy);
 }
 
+/* The kernel's input drops so far, in a line (rate-limited by the callers: at the first drop,
+ * then at most once per RATE_LOG_MS while more come, and at the close). */
+static void log_rx_overflow(void)
+{
+    can_log(LOG_WARNING,
+            "CAN %s: the kernel dropped %llu input frames so far (receive queue full: the daemon "
+            "is too slow, or raise net.core.rmem_max)",
+            S.cfg.ifname, (unsigned long long)S.st.rx_overflow);
+    S.last_rxovfl_log_ms = S.now_ms ? S.now_ms : 1;
+    S.rx_ovfl_logged = S.st.rx_overflow;
+}
+
 static void account_overflow(const struct msghdr *h)
 {
     for (struct cmsghdr *c = CMSG_FIRSTHDR(h); c; c = CMSG_NXTHDR((struct msghdr *)h, c)) {
@@ -473,13 +486,8 @@ static void account_overflow(const struct msghdr *h)
                 S.st.rx_overflow += delta;
                 S.rx_ovfl_seen = drops;
                 S.flags_since_status |= SC_CAN_ST_LOST;
-                if (S.now_ms >= S.last_rxovfl_log_ms + RATE_LOG_MS || S.last_rxovfl_log_ms == 0) {
-                    can_log(LOG_WARNING,
-                            "CAN %s: the kernel dropped %u input frames so far (receive queue "
-                            "full: the daemon is too slow, or raise net.core.rmem_max)",
-                            S.cfg.ifname, (unsigned)S.st.rx_overflow);
-                    S.last_rxovfl_log_ms = S.now_ms ? S.now_ms : 1;
-                }
+                if (S.now_ms >= S.last_rxovfl_log_ms + RATE_LOG_MS || S.last_rxovfl_log_ms == 0)
+                    log_rx_overflow();
             }
         }
     }
@@ -583,6 +591,11 @@ static void can_tick(void *state, sc_engine *e, uint64_t now_ms)
             S.next_reopen_ms = now_ms + REOPEN_MS;
         }
     }
+    /* drops that came after the last (rate-limited) line: said once the limit allows */
+    if (S.st.rx_overflow != S.rx_ovfl_logged && now_ms >= S.last_rxovfl_log_ms + RATE_LOG_MS) {
+        S.now_ms = now_ms;
+        log_rx_overflow();
+    }
     if (S.fd < 0)
         return;
     if (!S.status_started || now_ms >= S.next_status_ms) { /* the first frame at once */
@@ -599,6 +612,8 @@ static void can_tick(void *state, sc_engine *e, uint64_t now_ms)
 static void can_close(void *state)
 {
     (void)state;
+    if (S.st.rx_overflow != S.rx_ovfl_logged) /* the total, however recent the last drops */
+        log_rx_overflow();
     close_socket();
     S.tx_count = 0;
 }

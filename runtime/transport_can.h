@@ -55,7 +55,7 @@ typedef struct sc_can_stats {
     uint32_t tx_frames;     /* frames handed to the kernel */
     uint32_t tx_queue_full; /* sends refused with ENOBUFS/EAGAIN (the frame stays queued, retried) */
     uint32_t tx_dropped;    /* output frames given up: retry queue full or a hard send error */
-    uint32_t rx_overflow;   /* input frames the kernel dropped because the socket was full */
+    uint64_t rx_overflow;   /* input frames the kernel dropped because the socket was full */
     uint32_t error_frames;  /* CAN error frames received */
     uint32_t bus_off;       /* bus-off events */
     uint32_t reopened;      /* times the socket was reopened (interface removed and back) */

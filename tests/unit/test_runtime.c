@@ -232,6 +232,7 @@ static void test_engine_reload(void **state)
     assert_int_equal(sc_engine_load_file(&e, g_path_b, &why), SC_OK);
     assert_ptr_not_equal(e.table, first);
     assert_int_equal(e.status & SC_ENGINE_ST_RELOAD_FAILED, 0);
+    assert_int_equal(e.reload_ok, 1); /* the first load was no reload */
     sc_engine_correct(&e, 700000, -300000, &bx, &by);
     /* table b = -2 x table a: the correction changed sign and doubled (to quantization). */
     assert_true(fabs((bx - 700000) + 2.0 * (ax - 700000)) <= 2.0);
