@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include "cli.h"
+#include "input_once.h"
 #include "selfcal/correct.h"
 #include "selfcal/csv.h"
 #include "selfcal/lut.h"
@@ -125,18 +126,28 @@ static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report
                              sc_error *err)
 {
     sc_lut_init(lut);
-    sc_status st = cli_read_map(b->map, b->max_nodes, lut, fit, err);
+    /* each source read once (a pipe into memory, hashed on the way), then hashed as
+     * provenance, as `sha256sum` prints it */
+    static cli_input src[1 + SC_LUT_MAX_PROFILES];
+    int opened = 0;
+    sc_status st = SC_OK;
+    for (; opened < 1 + b->np && st == SC_OK; ++opened)
+        st = cli_input_open(&src[opened], opened ? b->pa[opened - 1].path : b->map, err);
+    if (st == SC_OK)
+        st = cli_read_map(src[0].path, b->max_nodes, lut, fit, err);
     for (int k = 0; st == SC_OK && k < b->np; ++k) {
         const profile_arg *pa = &b->pa[k];
-        st = sc_lut_read_profile(pa->path, pa->axis, pa->dir, &lut->profile[k], err);
+        st = sc_lut_read_profile(src[k + 1].path, pa->axis, pa->dir, &lut->profile[k], err);
         lut->profile[k].start_mm += pa->offset_mm;
         lut->n_profiles = k + 1;
     }
-    /* Provenance: the hash of each source file, as `sha256sum` prints it. */
-    if (st == SC_OK)
-        st = sc_sha256_file(b->map, lut->prov.sha256[0], err);
-    for (int k = 0; st == SC_OK && k < b->np; ++k)
-        st = sc_sha256_file(b->pa[k].path, lut->prov.sha256[k + 1], err);
+    long long size;
+    for (int k = 0; st == SC_OK && k < 1 + b->np; ++k)
+        st = cli_input_sha256(&src[k], lut->prov.sha256[k], &size, err);
+    if (st != SC_OK)
+        cli_input_rename_in_error(err);
+    for (int k = 0; k < opened; ++k)
+        cli_input_close(&src[k]);
     if (st != SC_OK)
         return st;
     lut->prov.n_sources = 1 + b->np;

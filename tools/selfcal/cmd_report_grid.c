@@ -41,6 +41,7 @@ static const char *USAGE =
 /* Everything the report shows, computed once. */
 typedef struct grid_report {
     const char *in, *method;
+    const cli_input *src; /* in as read (a pipe from its in-memory copy) */
     double sigma_r_given; /* 0: not given */
     sc_grid_options test; /* the fit's options: outlier_alpha, _each, estimate_view_noise */
     sc_grid_data d;
@@ -76,7 +77,7 @@ static void make_maps(grid_report *r)
  * noise (the same calibration as `selfcal grid`, sc_grid_calibrate). */
 static sc_status run(grid_report *r, sc_error *err)
 {
-    sc_status st = sc_grid_read(r->in, &r->d, &r->info, err);
+    sc_status st = sc_grid_read(r->src ? r->src->path : r->in, &r->d, &r->info, err);
     if (st != SC_OK)
         return st;
     sc_grid_options o;
@@ -757,7 +758,7 @@ static sc_status write_report(FILE *fp, const grid_report *r, const verify_opts 
         st = section_results(fp, r, err);
     if (st == SC_OK && vo->measurement)
         st = verify_html_section(fp, vo, vr, "6. Verification of the compensated machine", err);
-    const char *inputs[3] = {r->in, vo->measurement, vo->table};
+    const cli_input *inputs[3] = {r->src, vo->src[0], vo->src[1]};
     const char *roles[3] = {"measurement (selfcal-grid v1)", "re-measurement (verify)",
                             "lookup table (verify)"};
     if (st == SC_OK)
@@ -796,7 +797,17 @@ int cmd_report_grid(int argc, char **argv)
         return cli_usage_error(cmd, "--verify and --table go together (see --help)");
     sc_error err;
     sc_error_clear(&err);
-    sc_status st = run(&r, &err);
+    cli_input src[3]; /* pipes read once, into memory, hashed on the way */
+    const char *names[3] = {r.in, vo.measurement, vo.table};
+    int opened = 0;
+    sc_status st = SC_OK;
+    for (; opened < (vo.measurement ? 3 : 1) && st == SC_OK; ++opened)
+        st = cli_input_open(&src[opened], names[opened], &err);
+    r.src = &src[0];
+    if (vo.measurement)
+        vo.src[0] = &src[1], vo.src[1] = &src[2];
+    if (st == SC_OK)
+        st = run(&r, &err);
     verify_result vr;
     memset(&vr, 0, sizeof vr);
     if (st == SC_OK && vo.measurement) {
@@ -813,10 +824,13 @@ int cmd_report_grid(int argc, char **argv)
     }
     verify_result_free(&vr);
     free_report(&r);
+    int rc = CLI_OK;
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE))
             snprintf(err.file, sizeof err.file, "%s", r.in);
-        return cli_report(&err);
+        rc = cli_report(&err);
     }
-    return CLI_OK;
+    for (int k = 0; k < opened; ++k)
+        cli_input_close(&src[k]);
+    return rc;
 }

@@ -343,13 +343,13 @@ static void report_appendix(FILE *fp, int n, const double *x, const profile_run 
     fputs("</table>\n</details>\n", fp);
 }
 
-static sc_status write_report(FILE *fp, const char *in, const char *method_s,
+static sc_status write_report(FILE *fp, const cli_input *src, const char *method_s,
                               const sc_profile_data *d, const profile_run *r, int argc,
                               char **argv, sc_error *err)
 {
     const int n = d->n;
     profile_figures g = figures_of(d, r);
-    report_summary(fp, in, method_s, d, &g);
+    report_summary(fp, src->orig, method_s, d, &g);
     section_setup_method(fp, method_s, d);
     section_noise(fp, &r->sol);
     sc_status st = section_residuals(fp, d, r, err);
@@ -361,7 +361,7 @@ static sc_status write_report(FILE *fp, const char *in, const char *method_s,
     for (int i = 0; i < n; ++i)
         x[i] = i * d->s_mm;
     st = section_results(fp, method_s, d, r, &g, x, err);
-    const char *inputs[1] = {in};
+    const cli_input *inputs[1] = {src};
     const char *roles[1] = {"measurement (selfcal-profile v1)"};
     if (st == SC_OK)
         st = html_provenance(fp, argc, argv, inputs, roles, 1, err);
@@ -419,8 +419,14 @@ int cmd_report_profile(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     sc_profile_data d;
-    if (sc_profile_read(in, &d, &err) != SC_OK)
+    cli_input src; /* a pipe is read once: into memory, hashed on the way */
+    if (cli_input_open(&src, in, &err) != SC_OK)
         return cli_report(&err);
+    if (sc_profile_read(src.path, &d, &err) != SC_OK) {
+        int rc = cli_report(&err);
+        cli_input_close(&src);
+        return rc;
+    }
     profile_run r;
     memset(&r, 0, sizeof r);
     sc_status st = profile_run_compute(&d, method, sd, sa, &r, &err);
@@ -430,11 +436,13 @@ int cmd_report_profile(int argc, char **argv)
         sc_afile f;
         st = sc_afile_open(&f, out, &err);
         if (st == SC_OK) {
-            st = write_report(f.fp, in, method_s, &d, &r, argc + 1, argv - 1, &err);
+            st = write_report(f.fp, &src, method_s, &d, &r, argc + 1, argv - 1, &err);
             st = sc_afile_finish(&f, st, &err);
         }
     }
     profile_run_free(&r);
     sc_profile_data_free(&d);
-    return st == SC_OK ? CLI_OK : cli_report(&err);
+    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    cli_input_close(&src);
+    return rc;
 }

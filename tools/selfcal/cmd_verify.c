@@ -104,7 +104,7 @@ static sc_status write_html(FILE *fp, const verify_opts *o, const verify_result 
     html_begin(fp, "Verification of a compensated stage");
     fputs("<h1>Verification of a compensated stage</h1>\n", fp);
     sc_status st = verify_html_section(fp, o, r, "Re-measurement after compensation", err);
-    const char *inputs[3] = {o->measurement, o->table, o->artifact};
+    const cli_input *inputs[3] = {o->src[0], o->src[1], o->src[2]};
     const char *roles[3] = {"re-measurement (selfcal-grid v1)", "lookup table",
                             "plate error of the calibration"};
     if (st == SC_OK)
@@ -159,13 +159,28 @@ int cmd_verify(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     verify_result r;
-    sc_status st = verify_run(&o, &r, &err);
+    memset(&r, 0, sizeof r);
+    cli_input src[3]; /* pipes read once, into memory, hashed on the way */
+    const char *names[3] = {o.measurement, o.table, o.artifact};
+    int opened = 0;
+    sc_status st = SC_OK;
+    for (; opened < 3 && st == SC_OK; ++opened) {
+        st = cli_input_open(&src[opened], names[opened], &err);
+        o.src[opened] = &src[opened];
+    }
+    if (st == SC_OK)
+        st = verify_run(&o, &r, &err);
     if (st == SC_OK)
         st = write_outputs(&out, &o, &r, argc, argv, &err);
     if (st != SC_OK) {
         verify_result_free(&r);
-        return cli_report(&err);
+        int rc = cli_report(&err);
+        for (int k = 0; k < opened; ++k)
+            cli_input_close(&src[k]);
+        return rc;
     }
+    for (int k = 0; k < opened; ++k)
+        cli_input_close(&src[k]);
     const verify_stats *b = &r.st_before, *a = &r.st_after;
     if (r.n_unmeasured || r.n_unseen)
         fprintf(stderr, "selfcal verify: left out of the statistics: %ld mark(s) the views place "

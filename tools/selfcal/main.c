@@ -10,15 +10,18 @@
 
 #include "../../libselfcal/src/common/big_alloc.h"
 #include "cli.h"
+#include "input_once.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_calibrate.h"
 #include "selfcal/lut.h"
 #include "selfcal/version.h"
 
-int cli_report(const sc_error *err)
+int cli_report(const sc_error *err_in)
 {
     char buf[1024];
+    sc_error e = *err_in, *err = &e;
+    cli_input_rename_in_error(err); /* an input read from its in-memory copy: the name given */
     sc_error_format(err, buf, sizeof buf);
     fprintf(stderr, "selfcal: %s\n", buf);
     return (err->code == SC_E_INPUT || err->code == SC_E_UNSOLVABLE) ? CLI_BAD_INPUT : CLI_FAIL;

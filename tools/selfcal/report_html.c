@@ -145,7 +145,7 @@ int html_chi2_interval(double vf, long dof, double *lo, double *hi)
     return vf >= *lo && vf <= *hi;
 }
 
-sc_status html_provenance(FILE *fp, int argc, char **argv, const char *const *inputs,
+sc_status html_provenance(FILE *fp, int argc, char **argv, const cli_input *const *inputs,
                           const char *const *roles, int n_inputs, sc_error *err)
 {
     time_t now = time(NULL);
@@ -191,21 +191,20 @@ sc_status html_provenance(FILE *fp, int argc, char **argv, const char *const *in
     for (int k = 0; k < n_inputs; ++k) {
         uint8_t dig[SC_SHA256_BYTES];
         char hex[2 * SC_SHA256_BYTES + 1];
-        sc_status st = sc_sha256_file(inputs[k], dig, err);
+        long long size;
+        sc_status st = cli_input_sha256(inputs[k], dig, &size, err);
         if (st != SC_OK) {
             if (err) {
                 err->code = SC_E_INPUT;
-                snprintf(err->file, sizeof err->file, "%s", inputs[k]);
+                snprintf(err->file, sizeof err->file, "%s", inputs[k]->orig);
             }
             return SC_E_INPUT;
         }
         sc_sha256_hex(dig, hex);
-        struct stat sb;
-        long long size = stat(inputs[k], &sb) == 0 ? (long long)sb.st_size : -1;
         fputs("<tr><td class=\"l\">", fp);
         html_esc(fp, roles[k]);
         fputs("</td><td class=\"l mono\">", fp);
-        html_esc(fp, inputs[k]);
+        html_esc(fp, inputs[k]->orig);
         fprintf(fp, "</td><td>%lld</td><td class=\"l mono sha256\">%s</td></tr>\n", size, hex);
     }
     fputs("</table>\n<p>Check an input with <code>sha256sum FILE</code>. Uncertainties are standard "

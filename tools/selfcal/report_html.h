@@ -6,6 +6,7 @@
 #include <stdio.h>
 
 #include "selfcal/error.h"
+#include "input_once.h"
 
 /* Start the page (doctype, inline CSS with @media print) with a title; end it. */
 void html_begin(FILE *fp, const char *title);
@@ -42,7 +43,7 @@ void html_u_row(FILE *fp, const char *name, const char *id, double v, double u, 
 
 /* The provenance section: tool version, creation time (UTC; SOURCE_DATE_EPOCH if set), command
  * line, and the size and SHA-256 of every input (SC_E_INPUT naming the file if one is unreadable). */
-sc_status html_provenance(FILE *fp, int argc, char **argv, const char *const *inputs,
+sc_status html_provenance(FILE *fp, int argc, char **argv, const cli_input *const *inputs,
                           const char *const *roles, int n_inputs, sc_error *err);
 
 /* The χ² test of a variance factor vf with dof degrees of freedom at 95 % (two-sided): writes

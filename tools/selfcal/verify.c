@@ -80,12 +80,18 @@ static verify_stats stats_of(long m, const double *ex, const double *ey, const d
     return s;
 }
 
+/* Where input k (0 measurement, 1 table, 2 artifact) is read from. */
+static const char *read_path(const verify_opts *o, int k, const char *name)
+{
+    return o->src[k] ? o->src[k]->path : name;
+}
+
 /* The re-measurement, the plate error (given, or read from o->artifact into own_plate) and the
  * table; *plate points at the one in use. */
 static sc_status verify_load(const verify_opts *o, verify_result *r, sc_stage_map *own_plate,
                              const sc_stage_map **plate, sc_corr_table *t, sc_error *err)
 {
-    sc_status st = sc_grid_read(o->measurement, &r->d, &r->info, err);
+    sc_status st = sc_grid_read(read_path(o, 0, o->measurement), &r->d, &r->info, err);
     if (st != SC_OK)
         return st;
     const sc_grid_plan *p = &r->d.plan;
@@ -94,7 +100,7 @@ static sc_status verify_load(const verify_opts *o, verify_result *r, sc_stage_ma
                             "no data rows: verify needs the re-measured plate");
     *plate = o->plate;
     if (!*plate) {
-        st = sc_grid_read_artifact(o->artifact, p->pitch_mm, own_plate, err);
+        st = sc_grid_read_artifact(read_path(o, 2, o->artifact), p->pitch_mm, own_plate, err);
         if (st != SC_OK)
             return st;
         *plate = own_plate;
@@ -103,7 +109,7 @@ static sc_status verify_load(const verify_opts *o, verify_result *r, sc_stage_ma
         return sc_error_set(err, SC_E_INPUT, o->measurement, r->info.n_line,
                             "N = %d, but the plate error of the calibration has N = %d", p->n,
                             (*plate)->nx);
-    return sc_lut_load_corr_file(o->table, t, err);
+    return sc_lut_load_corr_file(read_path(o, 1, o->table), t, err);
 }
 
 /* Work arrays: one view's marks (centred and absolute positions, errors before and after, node

@@ -20,12 +20,15 @@
 
 #include "selfcal/grid_io.h"
 #include "selfcal/stage_map.h"
+#include "input_once.h"
 
 typedef struct verify_opts {
     const char *measurement; /* V.csv */
     const char *table;       /* T.lut */
     const char *artifact;    /* A.csv (plate error), unless plate is set */
     const sc_stage_map *plate; /* the plate error already at hand (report), plate frame */
+    const cli_input *src[3]; /* measurement, table, artifact as read (cli_input_open: a pipe
+                                from memory); NULL: read by the names above */
     double tolerance_um;     /* NaN: no verdict */
     int raw;                 /* 1: the file holds uncompensated readings */
 } verify_opts;

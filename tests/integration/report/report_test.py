@@ -462,6 +462,80 @@ def write_neg_map(src, dst):
             f.write(",".join(r) + "\n")
 
 
+def piped(args, data, timeout=60):
+    """Run selfcal with data on its stdin (a pipe)."""
+    return subprocess.run([CLI] + [str(a) for a in args], input=data, capture_output=True,
+                          timeout=timeout)
+
+
+def provenance(html_path):
+    """{file: (bytes, sha256)} of a report's provenance table."""
+    text = open(html_path, encoding="utf-8").read()
+    rows = re.findall(r'<td class="l mono">([^<]*)</td><td>(-?\d+)</td><td class="l mono sha256">'
+                      r'([0-9a-f]{64})</td>', text)
+    return {f: (int(b), h) for f, b, h in rows}
+
+
+def case_pipes():
+    """Inputs through a pipe or a FIFO are read once: the reports, verify and lut build record
+    the SHA-256 and size of the bytes that came (not of an empty re-read), a FIFO does not hang,
+    and a message about piped input names it as given."""
+    import hashlib
+    d = fresh_dir("pipes")
+    p = lambda x: os.path.join(d, x)  # noqa: E731
+    inp, _, _ = simulate_grid(d, n=9, plan="double-shift", seed=4)
+    data = open(inp, "rb").read()
+    want = (len(data), hashlib.sha256(data).hexdigest())
+    r = piped(["report", "grid", "/dev/stdin", "-o", p("R1.html")], data)
+    if r.returncode != 0 or provenance(p("R1.html")).get("/dev/stdin") != want:
+        fail("report grid from a pipe: %r %r" % (r.stderr, provenance(p("R1.html"))))
+    fifo = p("fifo")
+    for rep in range(2):  # the report, then lut build, each from a FIFO a writer fills
+        if os.path.exists(fifo):
+            os.remove(fifo)
+        os.mkfifo(fifo)
+        src = data
+        if rep == 1:
+            run("grid", "--method", "lsq", inp, "--map", p("G.csv"))
+            src = open(p("G.csv"), "rb").read()
+        writer = subprocess.Popen(["sh", "-c", 'cat > "$1"', "sh", fifo], stdin=subprocess.PIPE)
+        writer.stdin.write(src)
+        writer.stdin.close()
+        args = (["report", "grid", fifo, "-o", p("R2.html")] if rep == 0 else
+                ["lut", "build", "--map", fifo, "-o", p("t.lut")])
+        r = subprocess.run([CLI] + args, capture_output=True, text=True, timeout=60)
+        writer.wait(timeout=60)
+        if r.returncode != 0:
+            fail("%s from a FIFO: %s" % (args[0], r.stderr))
+        if rep == 0 and provenance(p("R2.html")).get(fifo) != want:
+            fail("report grid from a FIFO: %r" % provenance(p("R2.html")))
+        if rep == 1:
+            info = run("lut", "info", p("t.lut")).stdout
+            if hashlib.sha256(src).hexdigest() + " (map)" not in info:
+                fail("lut build from a FIFO: %s" % info)
+    # report profile and verify's re-measurement, piped
+    run("simulate", "profile", "--n", 330, "--out", p("P.csv"), "--truth", p("T.csv"))
+    pdata = open(p("P.csv"), "rb").read()
+    r = piped(["report", "profile", "/dev/stdin", "-o", p("R3.html")], pdata)
+    if r.returncode != 0 or provenance(p("R3.html")).get("/dev/stdin") != (
+            len(pdata), hashlib.sha256(pdata).hexdigest()):
+        fail("report profile from a pipe: %r %r" % (r.stderr, provenance(p("R3.html"))))
+    run("grid", "--method", "lsq", inp, "--map", p("G.csv"), "--artifact", p("A.csv"))
+    run("lut", "build", "--map", p("G.csv"), "-o", p("good.lut"))
+    r = piped(["verify", "/dev/stdin", "--table", p("good.lut"), "--artifact", p("A.csv"),
+               "--tolerance-um", 100, "--html", p("v.html")], data)
+    if r.returncode != 0 or provenance(p("v.html")).get("/dev/stdin") != want:
+        fail("verify from a pipe: %r %r" % (r.stderr, provenance(p("v.html"))))
+    # a bad piped input: the message names it as given, exit 2, no report
+    bad = data.replace(b"# N = 9", b"# N = x", 1)
+    r = piped(["report", "grid", "/dev/stdin", "-o", p("R4.html")], bad)
+    err = r.stderr.decode()
+    if r.returncode != 2 or not err.startswith("selfcal: /dev/stdin:") or "/proc/" in err \
+            or os.path.exists(p("R4.html")):
+        fail("bad piped input: exit %d, %r" % (r.returncode, err))
+    print("pipes: ok")
+
+
 def case_verify():
     d = fresh_dir("verify")
     n, seed = 11, 7
@@ -744,5 +818,6 @@ def case_figs_grid():
 
 {"figs_grid": case_figs_grid, "outliers": case_outliers, "stage": case_stage, "render_grid": case_render_grid, "render_profile": case_render_profile,
  "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
- "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots}[CASE]()
+ "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots,
+ "pipes": case_pipes}[CASE]()
 print("ok")
