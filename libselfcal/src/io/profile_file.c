@@ -108,7 +108,11 @@ typedef struct profile_reader {
     long stored[2];     /* rows this thread stored, per scan */
     long long stop_at;  /* fast, first half: the offset of the second half's first line (-1: none) */
     sc_profile_data data;
+    struct header_hook *hook; /* told of the header once hook_after rows are stored (or NULL) */
+    long hook_after;
 } profile_reader;
+
+static void tell_hook(profile_reader *pr);
 
 /* "# scan K: d=V" -> 1 and K, V; 0 if the line is not a scan line; -1 if malformed. */
 static int parse_scan_line(const char *line, long *k, long *dv)
@@ -402,6 +406,8 @@ static sc_status read_rows(profile_reader *pr, sc_error *err)
             st = data_row(pr, err);
         if (st != SC_OK)
             return st;
+        if (pr->hook && pr->stored[0] + pr->stored[1] >= pr->hook_after)
+            tell_hook(pr);
     }
     if (rc < 0)
         return err ? err->code : SC_E_INPUT;
@@ -459,6 +465,7 @@ static sc_status read_rows_fast(profile_reader *pr, long long parallel_from, int
         memset(&job->r.csv, 0, sizeof job->r.csv);
         job->r.stored[0] = job->r.stored[1] = 0;
         job->r.stop_at = -1;
+        job->r.hook = NULL; /* the first half's reader tells it */
         job->r.seen[0] = job->r.seen[1] = NULL;
         sc_status st = alloc_row_marks(&job->r, err);
         if (st != SC_OK || sc_csv_open_at(&job->r.csv, &pr->csv, split, NULL) != SC_OK ||
@@ -515,6 +522,23 @@ typedef struct header_hook {
     int called;
 } header_hook;
 
+/* The header to the hook (once): after the first 1/32 of the rows were stored, so that a file
+ * whose header promises a large N but whose rows soon go wrong (or end) is refused before any
+ * work the size of N starts (a plan of 10 GB for a header line and two rows). */
+static void tell_hook(profile_reader *pr)
+{
+    header_hook *hook = pr->hook;
+    pr->hook = NULL;
+    if (hook->called)
+        return;
+    sc_profile_data hdr = pr->data;
+    for (int k = 0; k < 2; ++k)
+        hdr.m1_um[k] = hdr.m2_um[k] = hdr.m3_urad[k] = NULL;
+    header_fields(pr, &hdr);
+    hook->called = 1;
+    hook->fn(hook->ctx, &hdr);
+}
+
 /* One pass over the file (exact or fast, as above). */
 static sc_status read_pass(const char *path, int exact, long long parallel_from, int *threads,
                            header_hook *hook, sc_profile_data *out, sc_error *err)
@@ -530,12 +554,9 @@ static sc_status read_pass(const char *path, int exact, long long parallel_from,
     if ((st = read_magic(&pr, err)) == SC_OK && (st = read_header(&pr, err)) == SC_OK &&
         (st = start_data(&pr, err)) == SC_OK) {
         if (hook && hook->fn && !hook->called) {
-            sc_profile_data hdr = pr.data;
-            for (int k = 0; k < 2; ++k)
-                hdr.m1_um[k] = hdr.m2_um[k] = hdr.m3_urad[k] = NULL;
-            header_fields(&pr, &hdr);
-            hook->called = 1;
-            hook->fn(hook->ctx, &hdr);
+            long rows = 2 * pr.v.n - pr.d[0] - pr.d[1];
+            pr.hook = hook;
+            pr.hook_after = rows / 32 > 1 ? rows / 32 : 1;
         }
         st = exact ? read_rows(&pr, err) : read_rows_fast(&pr, parallel_from, threads, err);
     }

@@ -142,6 +142,22 @@ def case_bad_input():
         if leftovers:
             sys.exit(f"FAIL: {name}: temporary files left: {leftovers}")
         print(f"{name}: {err}")
+    # A header that promises N = 2e7 and two rows, through a pipe (no file size to check N
+    # against): refused for its gap before any work the size of N (the plan made while the rows
+    # are read starts only once 1/32 of them came good; it took 4 GB before)
+    import resource
+    huge = ("# selfcal-profile v1\n# N = 20000000\n# s_mm = 0.001\n# scan 1: d=10\n# scan 2: d=11\n"
+            "scan,n,m1_um,m2_um,m3_urad\n1,0,1,2,3\n2,0,1,2,3\n")
+    for method in ("lsq", "dft"):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        p = subprocess.run([CLI, "profile", "--method", method, "/dev/stdin", "--out", path("h.csv")],
+                           input=huge, capture_output=True, text=True, timeout=100)
+        rss_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+        if p.returncode != 2 or "/dev/stdin:8: gap in scan 1" not in p.stderr:
+            sys.exit(f"FAIL: huge N through a pipe ({method}): exit {p.returncode}: {p.stderr}")
+        if rss_mb > 400 and rss_mb > before / 1024:
+            sys.exit(f"FAIL: huge N through a pipe ({method}): {rss_mb:.0f} MB before the refusal")
+        print(f"huge N through a pipe ({method}): refused, peak {rss_mb:.0f} MB")
     # usage errors exit 2 too
     run("profile", "--method", "fourier", path("gap.csv"), "--out", path("x.csv"), expect=2)
     run("profile", path("gap.csv"), expect=2)
