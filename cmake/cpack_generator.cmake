@@ -6,6 +6,9 @@
 if(CPACK_GENERATOR STREQUAL "TGZ")
   set(CPACK_SET_DESTDIR ON)
   set(CPACK_PACKAGING_INSTALL_PREFIX "/usr/local")
+  # with CPACK_SET_DESTDIR cpack installs to CPACK_INSTALL_PREFIX, else to the prefix the build
+  # was configured with (a -DCMAKE_INSTALL_PREFIX=/opt/x build made an opt/x tree)
+  set(CPACK_INSTALL_PREFIX "/usr/local")
   set(CPACK_INCLUDE_TOPLEVEL_DIRECTORY OFF)
 endif()
 
