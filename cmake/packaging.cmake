@@ -17,11 +17,12 @@ set(CPACK_SOURCE_GENERATOR "")
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 # The shared libraries the programs and libselfcal.so link, with the versions they need, from
-# dpkg-shlibdeps (dpkg-dev); libcholmod3 is loaded at run time (dlopen), so it is named here.
+# dpkg-shlibdeps (dpkg-dev); CHOLMOD is loaded at run time (dlopen, libcholmod.so.<major> of the
+# headers built with: libcholmod3 on Debian 12), so it is named here.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON) # a shlibs file for libselfcal.so.<major>: a
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS_POLICY ">=") # package linking it needs this version or later
-set(CPACK_DEBIAN_PACKAGE_DEPENDS "libcholmod3")
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "libcholmod${SELFCAL_CHOLMOD_MAJOR}")
 set(CPACK_PROJECT_CONFIG_FILE ${CMAKE_CURRENT_LIST_DIR}/cpack_generator.cmake)
 # linuxcnc-uspace: the HAL component selfcal_xy (in /usr/lib/linuxcnc/modules, when built) runs
 # only inside LinuxCNC, built against the LinuxCNC version of the build machine.

@@ -64,12 +64,17 @@ typedef struct cholmod_api {
     int ok;
 } cholmod_api;
 
+#define SC_STR_(x) #x
+#define SC_STR(x) SC_STR_(x)
+
 static cholmod_api g_api;
 static pthread_once_t g_api_once = PTHREAD_ONCE_INIT;
 
 static void load_api(void)
 {
-    void *h = dlopen("libcholmod.so.3", RTLD_NOW | RTLD_LOCAL);
+    /* the CHOLMOD whose headers this was compiled with: its structures (cholmod_common,
+     * cholmod_factor) change between major versions, so no other may be taken */
+    void *h = dlopen("libcholmod.so." SC_STR(CHOLMOD_MAIN_VERSION), RTLD_NOW | RTLD_LOCAL);
     if (!h)
         return;
     enum { NSYM = 14 };
