@@ -272,6 +272,21 @@ def case_deb():
                  "systemd/system/selfcald.service", "usr/share/doc/selfcal/copyright"):
         check(name in contents, ".deb contains %s" % name)
     check("docs/man/" not in contents, ".deb has no empty docs/man folder")
+    # Debian policy: stripped objects (no symbol table, no debug information with the build's
+    # paths), the native package's changelog, the ldconfig trigger for libselfcal.so.0
+    check("usr/share/doc/selfcal/changelog.gz" in contents, ".deb has its changelog.gz")
+    ctrl = fresh(os.path.join(WORK, "deb-control"))
+    run(["dpkg-deb", "-e", debs[0], ctrl])
+    trig = os.path.join(ctrl, "triggers")
+    check(os.path.exists(trig) and "activate-noawait ldconfig" in open(trig).read(),
+          ".deb activates the ldconfig trigger")
+    objs = glob.glob(os.path.join(root, "usr/bin/*")) + glob.glob(os.path.join(root, "usr/lib/**/*.so*"),
+                                                                  recursive=True)
+    for obj in objs:
+        if os.path.islink(obj) or not open(obj, "rb").read(4) == b"\x7fELF":
+            continue
+        secs = run(["readelf", "-S", "-W", obj]).stdout
+        check(".symtab" not in secs and ".debug_info" not in secs, ".deb object stripped: %s" % obj)
     # the unit starts the program the package installs, with Debian's /etc
     units = glob.glob(os.path.join(root, "usr/lib/systemd/system/selfcald.service")) + \
         glob.glob(os.path.join(root, "lib/systemd/system/selfcald.service"))
