@@ -36,8 +36,10 @@ r = selfcal.calibrate_grid(meas, method="lsq")
 err = np.hypot(r.gx_um - truth["gx_um"], r.gy_um - truth["gy_um"])
 print(f"sigma_r estimated {r.sigma_r_est_um * 1e3:.2f} nm; O = {r.O:.3g} +- {r.uO:.2g}, "
       f"R = {r.R:.3g} +- {r.uR:.2g}")
+# the error is a 2-D vector: compare its RMS with the RMS of the vector's predicted standard
+# deviation, sqrt(u(gx)^2 + u(gy)^2), not with one component's u
 print(f"|G - truth|: RMS {np.sqrt(np.mean(err ** 2)) * 1e3:.2f} nm, max {err.max() * 1e3:.2f} nm; "
-      f"u(G) (k = 1) RMS {np.sqrt(np.mean(r.ugx_um ** 2)) * 1e3:.2f} nm")
+      f"predicted (k = 1) RMS {np.sqrt(np.mean(r.ugx_um ** 2 + r.ugy_um ** 2)) * 1e3:.2f} nm")
 
 # 4. a correction table from the arrays, and positions corrected through it (as selfcald does)
 with tempfile.TemporaryDirectory() as d:

@@ -122,10 +122,18 @@ def test_bad_positions_raise_selfcal_error(table):
     t = selfcal.Table(table[0])
     with pytest.raises(selfcal.Error, match="do not broadcast"):
         t.apply(np.ones(3), np.ones(2))
-    with pytest.raises(selfcal.Error, match="x_mm: not numbers"):
+    with pytest.raises(selfcal.Error, match="x_mm: not real numbers"):
         t.apply("a", "b")
-    with pytest.raises(selfcal.Error, match="z_mm: not numbers"):
+    with pytest.raises(selfcal.Error, match="z_mm: not real numbers"):
         t.apply(1.0, 2.0, z_mm=[1.0, "c"])
+    # what numpy would quietly turn into numbers: None (NaN), complex (real part), numeric text
+    for bad in (None, [1.0, None], 1 + 2j, np.array([1.0, 2.0], complex), "1.5", [True, False]):
+        with pytest.raises(selfcal.Error, match="x_mm: not real numbers"):
+            t.apply(bad, 2.0)
+        with pytest.raises(selfcal.Error, match="y_mm: not real numbers"):
+            t.apply(2.0, bad)
+    # integers are numbers
+    assert t.apply(np.arange(3), 0)[2].shape == (3,)
     with pytest.raises(selfcal.Error, match="out must hold 3"):
         t.apply(1.0, 2.0, out=(np.empty(()),))
     x = np.zeros((3, 4))

@@ -1,7 +1,7 @@
 """selfcal: self-calibration of precision XY stages, from Python.
 
 Everything here calls libselfcal, the C library behind the ``selfcal`` command line (the
-extension module ``selfcal._native`` links the shared library shipped next to it): the same
+extension module ``selfcal._native`` has the library linked in): the same
 estimators, the same file readers, the same error messages. Units are in the names: ``_mm``
 millimetres, ``_um`` micrometres, ``_urad`` microradians.
 
@@ -82,10 +82,12 @@ class Table:
         names = ("x_mm", "y_mm", "z_mm")
         conv = []
         for name, a in zip(names, arrays):
-            try:
-                conv.append(_np.asarray(a, dtype=_np.float64))
-            except (TypeError, ValueError) as e:
-                raise Error(f"{name}: not numbers ({e})") from None
+            # real numbers only: numpy would take None as NaN, a complex number by dropping its
+            # imaginary part, text by parsing it
+            kind = _np.asarray(a).dtype.kind
+            if kind not in "iuf":
+                raise Error(f"{name}: not real numbers (numpy dtype kind {kind!r})")
+            conv.append(_np.asarray(a, dtype=_np.float64))
         try:
             b = _np.broadcast_arrays(*conv)
         except ValueError:
