@@ -47,6 +47,19 @@ endif()
 string(REGEX REPLACE "[^/]+" ".." SELFCAL_PC_UP "${CMAKE_INSTALL_LIBDIR}/pkgconfig")
 configure_file(${CMAKE_CURRENT_LIST_DIR}/selfcal.pc.in ${PROJECT_BINARY_DIR}/selfcal.pc @ONLY)
 install(FILES ${PROJECT_BINARY_DIR}/selfcal.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
+# Installed under /usr (the .deb, a distribution's prefix), the prefix is written out: pkg-config
+# leaves out its system folders (-I/usr/include, -L/usr/lib) only when they are spelled so, not
+# as /usr/lib/pkgconfig/../../include. Elsewhere the file stays relocatable.
+install(CODE "
+  if(CMAKE_INSTALL_PREFIX MATCHES \"^/usr/?$\")
+    set(_pc \"\$ENV{DESTDIR}\${CMAKE_INSTALL_PREFIX}/${CMAKE_INSTALL_LIBDIR}/pkgconfig/selfcal.pc\")
+    file(READ \"\${_pc}\" _text)
+    string(REGEX REPLACE \"\nprefix=[^\n]*\" \"\nprefix=/usr\" _text \"\${_text}\")
+    string(REPLACE \"Relocatable: the prefix is\n# found from this file's own folder, so a moved install tree still works.\"
+           \"Installed under /usr: the\n# prefix written out, as pkg-config recognises its system folders.\" _text \"\${_text}\")
+    file(WRITE \"\${_pc}\" \"\${_text}\")
+  endif()
+")
 
 # ---- man pages (roff sources in docs/man/, the version filled in) ----
 # (selfcald.8 names installed paths: filled in for the prefix it is installed to)

@@ -275,6 +275,10 @@ def case_deb():
     # Debian policy: stripped objects (no symbol table, no debug information with the build's
     # paths), the native package's changelog, the ldconfig trigger for libselfcal.so.0
     check("usr/share/doc/selfcal/changelog.gz" in contents, ".deb has its changelog.gz")
+    # under /usr the pkg-config prefix is written out (pkg-config then drops -I/usr/include)
+    pcs = glob.glob(os.path.join(root, "usr/lib/**/selfcal.pc"), recursive=True)
+    check(len(pcs) == 1 and re.search(r"^prefix=/usr$", open(pcs[0]).read(), re.M),
+          ".deb selfcal.pc names prefix=/usr: %r" % pcs)
     ctrl = fresh(os.path.join(WORK, "deb-control"))
     run(["dpkg-deb", "-e", debs[0], ctrl])
     trig = os.path.join(ctrl, "triggers")
