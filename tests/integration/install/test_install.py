@@ -171,7 +171,13 @@ def case_install():
     # the man pages carry the version; the unit and the man page name real installed paths
     check(("selfcal %s" % version) in open(os.path.join(prefix, "share/man/man1/selfcal.1")).read(),
           "selfcal.1 carries the version")
-    for page in ("man1/selfcal.1", "man8/selfcald.8"):  # well-formed roff: groff has nothing to say
+    pages = ["man1/selfcal.1", "man8/selfcald.8"]
+    if shutil.which("halcompile"):  # the HAL component's page, selfcal_xy(9), made by halcompile
+        pages.append("man9/selfcal_xy.9")
+        check(os.path.isfile(os.path.join(prefix, "share/man/man9/selfcal_xy.9")), "installed selfcal_xy.9")
+    for page in pages:  # well-formed roff: groff has nothing to say
+        if not os.path.isfile(os.path.join(prefix, "share/man", page)):
+            continue
         p = run(["groff", "-man", "-ww", "-z", os.path.join(prefix, "share/man", page)], ok=False)
         check(p.returncode == 0 and p.stderr == "", "groff -man -ww %s: %r" % (page, p.stderr))
     man1 = open(os.path.join(prefix, "share/man/man1/selfcal.1")).read()
