@@ -53,6 +53,13 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
             return -1;
         *offset_mm = off;
         *at = '\0';
+    } else if (at && at != path && access(path, F_OK) != 0) {
+        /* "P.csv@abc" naming no file while P.csv is one: a mistyped offset, not a file name */
+        *at = '\0';
+        int prefix_exists = access(path, F_OK) == 0;
+        *at = '@';
+        if (prefix_exists)
+            return -1;
     }
     return 0;
 }
