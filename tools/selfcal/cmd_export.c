@@ -24,11 +24,13 @@ static void export_usage(FILE *to)
             "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
             "                      [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] [--travel [AXIS:]MIN,MAX]\n"
             "                      [--profile-interval MM] [--max-nodes N]\n"
-            "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y;\n"
-            "               both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual - setpoint (-G)\n"
+            "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y,\n"
+            "               default x; both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual -\n"
+            "               setpoint (-G)\n"
             "  siemens-cec  SINUMERIK $AN_CEC part program: tables X->X, Y->X (Gx) and X->Y, Y->Y (Gy)\n"
             "               (--axis both, the default here), values in mm, <= 2000 points (828D: 200)\n"
-            "  linuxcnc     joint compensation file of one axis (--axis x|y; both: OUT-x and OUT-y):\n"
+            "  linuxcnc     joint compensation file of one axis (--axis x|y, default x; both: OUT-x\n"
+            "               and OUT-y):\n"
             "               'nominal trim trim' in mm, <= 256 entries; needs COMP_FILE_TYPE = 1\n"
             "  klipper      SET_SKEW XY=AC,BD,AD (skew_correction) from the map's O and R\n"
             "  marlin       M852 I (skew factor) and M92 scale from the map's O and R\n"
@@ -578,6 +580,9 @@ int cmd_export(int argc, char **argv)
         cli_print_fit(a.map, lut, &fit);
     for (int k = 0; k < nfiles; ++k)
         print_report(lut, a.fmt, f, paths[k], &opts[k], &reps[k]);
+    if (!a.axis && (f == SC_EXPORT_BECKHOFF || f == SC_EXPORT_LINUXCNC)) /* one axis a file */
+        printf("note: no --axis: the x axis's table only (--axis y for y, --axis both for OUT-x "
+               "and OUT-y)\n");
     free(lut);
     return CLI_OK;
 }

@@ -72,6 +72,14 @@ for axis, name, n_other in ((0, "J-x.comp", 9), (1, "J-y.comp", 11)):
         check(abs(r[0] - nominal) < 1e-9 and abs(1e3 * r[1] - mean) <= 0.5e-3 + 1e-9,
               f"{name} row {k}: {r} (nominal {nominal}, trim {mean} um)")
 
+# Without --axis, the one-axis formats write x and say so; with it, no note.
+for fmt in ("beckhoff", "linuxcnc"):
+    rc, out, err = run("--format", fmt, "--map", path("M.csv"), "-o", path("noaxis." + fmt))
+    check(rc == 0 and "note: no --axis: the x axis's table only" in out and err == "",
+          f"{fmt} without --axis: {rc} {out!r} {err!r}")
+    rc, out, err = run("--format", fmt, "--map", path("M.csv"), "--axis", "x", "-o", path("axis." + fmt))
+    check(rc == 0 and "note:" not in out, f"{fmt} --axis x: {out!r}")
+
 # Both or none: x fits 256 entries, y does not -> no file at all.
 write_map("L.csv", 11, 101, 0.0, 0.0, 1.0, 5.0)
 for f in ("L-x.comp", "L-y.comp"):
