@@ -63,6 +63,33 @@ def test_plan_analysis_matches_cli(cli, tmp_path):
     for key in ("redundancy_min", "redundancy_mean", "mdb_ratio_max", "mdb_ratio_mean_r"):
         assert float(lines[key]) == pytest.approx(getattr(b, key), rel=1e-5)
     assert np.isnan(a.redundancy_min) and a.n_testable == 0  # not identifiable: no figures
+    assert np.isnan(b.sigma_c_rms_um) and "sigma_c_rms_um" not in lines  # nothing stated
+
+
+def test_plan_with_stated_uncertainties(cli, tmp_path):
+    """Views stating sigma_um: the ratios stay the geometry's (equal weights), std(G) in µm is
+    given apart, and equals ratio x sigma when every view states the same sigma."""
+    text = ("# selfcal-grid v1\n# N = 9\n# pitch_mm = 1\n"
+            "# view 0: rot=0 shift=0,0 sigma_um=%s\n# view 1: rot=90 shift=0,0 sigma_um=%s\n"
+            "# view 2: rot=0 shift=1,0 sigma_um=%s\n")
+    plain = tmp_path / "plain.csv"
+    plain.write_text("".join(l + "\n" for l in (text % (1, 1, 1)).splitlines()
+                             if True).replace(" sigma_um=1", ""))
+    base = selfcal.plan(str(plain))
+    for sig, name in (((0.01, 0.01, 0.01), "same.csv"), ((0.01, 0.01, 0.03), "mixed.csv")):
+        f = tmp_path / name
+        f.write_text(text % sig)
+        a = selfcal.plan(str(f))
+        lines = dict(l.split(": ", 1) for l in cli("plan", f).stdout.splitlines() if ": " in l)
+        assert a.sigma_c_ratio_rms == pytest.approx(base.sigma_c_ratio_rms, rel=1e-12)
+        assert float(lines["sigma_c_ratio_rms"]) == pytest.approx(base.sigma_c_ratio_rms, rel=1e-5)
+        assert float(lines["sigma_c_rms_um"]) == pytest.approx(a.sigma_c_rms_um, rel=1e-5)
+        assert float(lines["sigma_c_max_um"]) == pytest.approx(a.sigma_c_max_um, rel=1e-5)
+        if sig[2] == sig[0]:
+            assert a.sigma_c_rms_um == pytest.approx(0.01 * base.sigma_c_ratio_rms, rel=1e-9)
+            assert a.sigma_c_max_um == pytest.approx(0.01 * base.sigma_c_ratio_max, rel=1e-9)
+        else:  # a noisier view: worse than all at 0.01, better than all at 0.03
+            assert 0.01 * base.sigma_c_ratio_rms < a.sigma_c_rms_um < 0.03 * base.sigma_c_ratio_rms
 
 
 @pytest.mark.parametrize("method", ["lsq", "double-shift"])

@@ -21,6 +21,8 @@ static const char *USAGE =
     "  free: K                   independent G patterns beyond the gauge left free (0 if yes)\n"
     "  sigma_c_ratio_rms: X      predicted RMS over nodes of std(G)/sigma_r (least squares)\n"
     "  sigma_c_ratio_max: Y      the worst node component\n"
+    "  (views or data stating uncertainties: the ratios are the plan's with equal weights, and\n"
+    "   sigma_c_rms_um / sigma_c_max_um give std(G) with the stated ones)\n"
     "For a plan that does not identify G both ratios are printed as 'inf'.\n"
     "Then: N, pitch, the views with the marks each measures, equations, unknowns, constraints\n"
     "and which closed-form methods (ye, double-shift) the plan supports. For an identifying\n"
@@ -188,15 +190,18 @@ static void print_reliability(const sc_grid_lsq_info *qi)
 
 /* The analysis lines of a plan or data file (see the usage text). */
 static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, int has_data,
-                           const sc_grid_lsq_info *qi)
+                           const sc_grid_lsq_info *qi, const sc_grid_lsq_info *unit)
 {
     const sc_grid_plan *p = &d->plan;
     int n = p->n;
     printf("identifiable: %s\n", qi->identifiable ? "yes" : "no");
     printf("free: %ld\n", qi->identifiable ? 0L : qi->free_dof);
-    if (qi->identifiable) {
-        printf("sigma_c_ratio_rms: %.6g\n", qi->sigma_c_ratio_rms);
-        printf("sigma_c_ratio_max: %.6g\n", qi->sigma_c_ratio_max);
+    if (qi->identifiable) { /* ratios of the geometry (equal weights); stated σ: also in µm */
+        printf("sigma_c_ratio_rms: %.6g\n", unit->sigma_c_ratio_rms);
+        printf("sigma_c_ratio_max: %.6g\n", unit->sigma_c_ratio_max);
+        if (qi->weighted)
+            printf("sigma_c_rms_um: %.6g\nsigma_c_max_um: %.6g\n",
+                   qi->sigma_c_ratio_rms, qi->sigma_c_ratio_max);
     } else {
         printf("sigma_c_ratio_rms: inf\nsigma_c_ratio_max: inf\n");
     }
@@ -301,9 +306,24 @@ int cmd_plan(int argc, char **argv)
         }
         return cli_report(&err);
     }
-    sc_grid_lsq_info qi;
+    sc_grid_lsq_info qi, unit;
     sc_grid_lsq_get_info(q, &qi);
-    print_analysis(&d, &fi, has_data, &qi);
+    unit = qi;
+    if (qi.weighted && qi.identifiable) { /* the σ_C ratios per unit σ_r: the same plan unweighted */
+        sc_grid_lsq_plan *qu = NULL;
+        sc_grid_lsq_opts uo = opts;
+        uo.unit_weights = 1;
+        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &uo, &qu, &err);
+        if (st == SC_OK)
+            sc_grid_lsq_get_info(qu, &unit);
+        sc_grid_lsq_plan_destroy(qu);
+        if (st != SC_OK) {
+            sc_grid_lsq_plan_destroy(q);
+            sc_grid_data_free(&d);
+            return cli_report(&err);
+        }
+    }
+    print_analysis(&d, &fi, has_data, &qi, &unit);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
     return CLI_OK;

@@ -25,7 +25,8 @@ typedef struct sc_grid_lsq_info {
     long n_unknowns;          /* G, A and misalignment unknowns */
     long n_equations;         /* scalar measurement equations (2 per measured mark) */
     long n_constraints;       /* gauge constraints */
-    double sigma_c_ratio_rms; /* predicted RMS over nodes and both components of std(G)/σ_r */
+    double sigma_c_ratio_rms; /* predicted RMS over nodes and both components of std(G)/σ_r;
+                                 with stated uncertainties (weighted), std(G) itself in µm */
     double sigma_c_ratio_max; /* the worst node component */
     long n_stage_unmeasured;  /* stage nodes no measurement touches (each leaves G free there) */
     /* internal reliability (Baarda), identifying plans only (else NaN and 0): the redundancy
@@ -41,6 +42,8 @@ typedef struct sc_grid_lsq_info {
     double mdb_ratio_mean_r;  /* the same at redundancy_mean */
     long residual_dof;        /* equations minus the rank: the residuals' degrees of freedom
                                  (identifying plans; the dof of sc_grid_lsq_execute's result) */
+    int weighted;             /* 1: the plan's views or data state uncertainties, which weight
+                                 it (sigma_c_ratio_* are then in µm; unit_weights for ratios) */
 } sc_grid_lsq_info;
 
 /* Model options. */
@@ -54,6 +57,8 @@ typedef struct sc_grid_lsq_opts {
     double max_bytes;         /* > 0: refuse (SC_E_NOMEM, saying how much it needs) a plan whose
                                  peak memory, estimated from the factor's analysis (about 4x the
                                  factor), exceeds it, before factoring; 0: no limit */
+    int unit_weights;         /* 1: every equation weight 1, stated uncertainties ignored: the
+                                 plan's geometry alone (its σ_C ratios per unit σ_r) */
 } sc_grid_lsq_opts;
 
 /* The outlier test, Baarda's data snooping (docs/grid-lsq.md): on clean data each standardized

@@ -52,6 +52,7 @@ struct sc_grid_lsq_plan {
     int node_sigma_only;    /* no σ of O, R and the misalignments (sc_grid_lsq_opts) */
     double max_bytes;       /* > 0: refuse a plan estimated to need more (sc_grid_lsq_opts) */
     int weighted;           /* weights were stated (1/u²); else all 1 */
+    int unit_weights;       /* sc_grid_lsq_opts.unit_weights: stated weights ignored */
     double *eq_w;           /* weight of each scalar equation */
     double *eq_dt;          /* drift column: (t - mean t of the view) / T_v */
     double drift_T[SC_GRID_MAX_VIEWS]; /* T_v: the scale of each view's drift column, s */
@@ -183,6 +184,8 @@ static int eq_row(const sc_grid_lsq_plan *q, long e, int *idx, double *val)
 /* Weight of equation e's coordinate from the mask's stated uncertainties (1 when none). */
 static double mask_weight(const sc_grid_lsq_plan *q, const sc_grid_data *mask, int v, int k, int c)
 {
+    if (q->unit_weights)
+        return 1.0;
     double u = mask ? sc_grid_data_u_um(mask, v, k, c) : q->plan.view[v].sigma_um;
     return u > 0 ? 1.0 / (u * u) : 1.0;
 }
@@ -291,7 +294,7 @@ static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, 
 {
     const sc_grid_plan *p = &q->plan;
     int n = q->n, nn = q->nn, nv = q->nv;
-    q->weighted = stated_weights(q, mask);
+    q->weighted = !q->unit_weights && stated_weights(q, mask);
     sc_status st = measured_marks(q, mask, err);
     if (st != SC_OK)
         return st;
@@ -793,6 +796,7 @@ static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_gr
     q->ns = q->stage_nx * q->stage_ny;
     q->drift = opts && opts->drift;
     q->node_sigma_only = opts && opts->node_sigma_only;
+    q->unit_weights = opts && opts->unit_weights;
     q->max_bytes = opts && opts->max_bytes > 0 ? opts->max_bytes : 0;
     q->nb = q->drift ? 5 : 3;
     q->L_mm = (plan->n - 1) / 2 * plan->pitch_mm;
@@ -911,6 +915,7 @@ sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *
     st = build_equations(q, mask, err);
     if (st != SC_OK)
         goto fail;
+    q->info.weighted = q->weighted;
     q->pinned = calloc((size_t)q->n_red, 1);
     q->sgx = malloc(sizeof(double) * (size_t)q->ns);
     q->sgy = malloc(sizeof(double) * (size_t)q->ns);

@@ -223,7 +223,9 @@ class PlanAnalysis:
     """What ``selfcal plan`` says of a plan: ``identifiable`` (does it determine G?), ``free``
     (degrees of freedom beyond the gauge left free), ``sigma_c_ratio_rms`` and
     ``sigma_c_ratio_max`` (predicted std(G)/σ_r, RMS over nodes and worst node; inf when not
-    identifiable), ``sigma_ratio_gx``/``sigma_ratio_gy`` (per node, shape (NY, NX)), counts, and
+    identifiable; the plan's geometry, with equal weights), ``sigma_c_rms_um`` and
+    ``sigma_c_max_um`` (std(G) in µm with the uncertainties the views or data state; NaN when
+    they state none), ``sigma_ratio_gx``/``sigma_ratio_gy`` (per node, shape (NY, NX)), counts, and
     ``residual_dof`` (the residuals' degrees of freedom; -1 when not identifiable), and
     Baarda's internal reliability of an identifying plan (NaN otherwise): ``n_testable``,
     ``n_untestable`` coordinate equations, ``redundancy_min``, ``redundancy_mean`` and the

@@ -897,8 +897,28 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
         raise_sc(&err);
         goto done;
     }
-    sc_grid_lsq_info qi;
+    sc_grid_lsq_info qi, unit;
     sc_grid_lsq_get_info(q, &qi);
+    unit = qi;
+    double c_rms_um = NAN, c_max_um = NAN;
+    if (qi.weighted && qi.identifiable) {
+        /* stated uncertainties: std(G) in µm from this plan, the ratios per unit σ_r from the
+         * same plan with equal weights (as `selfcal plan`) */
+        c_rms_um = qi.sigma_c_ratio_rms;
+        c_max_um = qi.sigma_c_ratio_max;
+        sc_grid_lsq_opts uo = {.unit_weights = 1};
+        sc_grid_lsq_plan *qu = NULL;
+        Py_BEGIN_ALLOW_THREADS
+        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &uo, &qu, &err);
+        Py_END_ALLOW_THREADS
+        if (st != SC_OK) {
+            raise_sc(&err);
+            goto done;
+        }
+        sc_grid_lsq_get_info(qu, &unit);
+        sc_grid_lsq_plan_destroy(q);
+        q = qu; /* the per-node ratios below are the unweighted plan's */
+    }
     npy_intp shape[2] = {sc_grid_stage_ny(&d.plan), sc_grid_stage_nx(&d.plan)};
     sgx = arr_from(NULL, 2, shape);
     sgy = arr_from(NULL, 2, shape);
@@ -910,11 +930,12 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
         raise_sc(&err);
         goto done;
     }
-    ret = Py_BuildValue("{s:O,s:l,s:d,s:d,s:l,s:l,s:l,s:l,s:O,s:O,s:N,s:l,s:l,s:d,s:d,s:d,s:d,s:l}",
+    ret = Py_BuildValue("{s:O,s:l,s:d,s:d,s:d,s:d,s:l,s:l,s:l,s:l,s:O,s:O,s:N,s:l,s:l,s:d,s:d,s:d,s:d,s:l}",
                         "identifiable",
                         qi.identifiable ? Py_True : Py_False, "free", qi.identifiable ? 0L : qi.free_dof,
-                        "sigma_c_ratio_rms", qi.identifiable ? qi.sigma_c_ratio_rms : INFINITY,
-                        "sigma_c_ratio_max", qi.identifiable ? qi.sigma_c_ratio_max : INFINITY,
+                        "sigma_c_ratio_rms", qi.identifiable ? unit.sigma_c_ratio_rms : INFINITY,
+                        "sigma_c_ratio_max", qi.identifiable ? unit.sigma_c_ratio_max : INFINITY,
+                        "sigma_c_rms_um", c_rms_um, "sigma_c_max_um", c_max_um,
                         "n_unknowns", qi.n_unknowns, "n_equations", qi.n_equations,
                         "n_constraints", qi.n_constraints, "n_stage_unmeasured",
                         qi.n_stage_unmeasured, "sigma_ratio_gx", sgx, "sigma_ratio_gy", sgy,
