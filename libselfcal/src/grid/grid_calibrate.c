@@ -255,22 +255,29 @@ void sc_grid_solution_free(sc_grid_solution *s)
 
 /* The measurement noise behind data solved by a closed form: the closed forms are not
  * least-squares fits, so their residuals do not estimate σ_r without bias; the least-squares
- * residuals of the same data and model do (sqrt(RSS/dof)). NaN if the data leave no
- * redundancy or do not identify the model. */
-static double exact_noise_estimate(const sc_grid_plan *p, const sc_grid_data *d)
+ * residuals of the same data and model do (sqrt(RSS/dof)), with every measurement weighted
+ * equally as the closed forms weigh them (stated uncertainties would make it a factor on them,
+ * not a noise in µm), over all the data (extra views too). Into res: sigma_r_est_um and that
+ * fit's n_measurements and dof; NaN (and the closed form's own counts kept) if the data leave
+ * no redundancy or do not identify the model. */
+static void exact_noise_estimate(const sc_grid_plan *p, const sc_grid_data *d, sc_grid_result *res)
 {
     sc_grid_lsq_plan *q = NULL;
+    sc_grid_lsq_opts uo = {.unit_weights = 1, .node_sigma_only = 1};
     sc_grid_result r;
     memset(&r, 0, sizeof r); /* no arrays: only the scalars are wanted */
-    r.sigma_r_est_um = NAN;
+    res->sigma_r_est_um = NAN;
     sc_grid_lsq_info qi;
-    if (sc_grid_lsq_plan_create(p, d, NULL, &q, NULL) == SC_OK) {
+    if (sc_grid_lsq_plan_create(p, d, &uo, &q, NULL) == SC_OK) {
         sc_grid_lsq_get_info(q, &qi);
-        if (!qi.identifiable || sc_grid_lsq_execute(q, d, 0.0, &r, NULL) != SC_OK)
-            r.sigma_r_est_um = NAN;
+        if (qi.identifiable && sc_grid_lsq_execute(q, d, 0.0, &r, NULL) == SC_OK &&
+            isfinite(r.sigma_r_est_um)) {
+            res->sigma_r_est_um = r.sigma_r_est_um;
+            res->n_measurements = r.n_measurements;
+            res->dof = r.dof;
+        }
     }
     sc_grid_lsq_plan_destroy(q);
-    return r.sigma_r_est_um;
 }
 
 static sc_status run_exact(sc_grid_data *d, const sc_grid_options *o, sc_grid_solution *s,
@@ -288,7 +295,7 @@ static sc_status run_exact(sc_grid_data *d, const sc_grid_options *o, sc_grid_so
     for (long k = 0; k < s->n_nodes; ++k)
         s->res.ugx_um[k] = s->res.ugy_um[k] = NAN;
     s->res.sigma_r_used_um = NAN;
-    s->res.sigma_r_est_um = exact_noise_estimate(&d->plan, d);
+    exact_noise_estimate(&d->plan, d, &s->res);
     return SC_OK;
 }
 

@@ -118,8 +118,21 @@ def case_weights():
     m = rows(g)
     if not all(r["ugx_um"] != "" for r in m):
         fail("uncertainties missing")
-    # the same data with the columns ux_um,uy_um (values from sigma_um) read the same
+    # the closed form on the same weighted file: its noise estimate is the equal-weight least
+    # squares' sigma_r in um (the data are the unweighted file's), with that fit's dof
     lines, h = data_lines(s["inp"])
+    bare = os.path.join(d, "bare.csv")
+    open(bare, "w").write("".join(re.sub(r" sigma_um=\S+", "", l) if l.startswith("# view") else l
+                                  for l in lines))
+    sy, sb = os.path.join(d, "sy.json"), os.path.join(d, "sb.json")
+    run("grid", "--method", "ye", s["inp"], "--map", g, "--summary", sy)
+    run("grid", "--method", "lsq", bare, "--map", g, "--summary", sb)
+    Y, B = json.load(open(sy)), json.load(open(sb))
+    if abs(Y["sigma_r_est_um"] - B["sigma_r_est_um"]) > 1e-12 * B["sigma_r_est_um"] or \
+            Y["dof"] != B["dof"] or not 0.005 < Y["sigma_r_est_um"] < 0.05:
+        fail("ye on weighted data: sigma_r_est_um %r dof %r, lsq unweighted %r dof %r"
+             % (Y["sigma_r_est_um"], Y["dof"], B["sigma_r_est_um"], B["dof"]))
+    # the same data with the columns ux_um,uy_um (values from sigma_um) read the same
     sig = {}
     for l in lines[:h]:
         if l.startswith("# view"):
