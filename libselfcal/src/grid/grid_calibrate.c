@@ -855,11 +855,15 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
     }
     if (!s->res.chi2_pass)
         warnf(o, "%s: the residuals disagree with the %s noise: variance factor %.4g outside the "
-                 "chi^2 95 %% interval [%.4g, %.4g]%s",
+                 "chi^2 95 %% interval [%.4g, %.4g]%s%s",
               src, given_sigma_r(d, info, o) > 0 ? "given" : "stated", s->res.variance_factor,
               s->res.chi2_lo, s->res.chi2_hi,
               given_sigma_r(d, info, o) > 0
                   ? " (compare sigma_r_est_um in the summary with --sigma-r-um)"
+                  : "",
+              s->res.variance_factor > s->res.chi2_hi
+                  ? "; the outlier test's standardized residuals use that noise scaled by "
+                    "sqrt(variance factor), so that it does not flag everything"
                   : "");
 }
 
