@@ -57,6 +57,11 @@ double cli_memory_bytes(void);
 
 int cli_parse_seed(const char *cmd, const char *v, uint64_t *out);
 
+/* A noise option (--sigma-disp-um, --sigma-angle-urad) of value v: a number from min_val (0 or
+ * "more than 0" with positive = 1) to SC_INPUT_MAX_ABS into *out: CLI_OK, or the usage error
+ * naming the option and the range (the same words in every command). */
+int cli_parse_noise(const char *cmd, const char *opt, const char *v, int positive, double *out);
+
 /* --max-nodes N (2..SC_LUT_MAX_NX) of lut build and export into *out: CLI_OK, or the usage error. */
 int cli_parse_max_nodes(const char *cmd, const char *v, int *out);
 

@@ -538,13 +538,13 @@ static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
     int rc = parse_profile_units(g, o, v);
     if (rc != NOT_UNITS)
         return rc;
+    if (!strcmp(o, "--sigma-disp-um") || !strcmp(o, "--sigma-angle-urad")) /* as the reader's range */
+        return cli_parse_noise(cmd, o, v, 1, !strcmp(o, "--sigma-disp-um") ? &g->sigma_disp
+                                                                            : &g->sigma_angle);
     if (sc_parse_double(v, &x))
         return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
     if (!strcmp(o, "--step-mm") && x > 0) g->step = x;
     else if (!strcmp(o, "--step-tolerance") && x > 0 && x < 0.5) g->step_tol = x;
-    /* the noise lines' range, as the profile reader takes them */
-    else if (!strcmp(o, "--sigma-disp-um") && x > 0 && x <= SC_INPUT_MAX_ABS) g->sigma_disp = x;
-    else if (!strcmp(o, "--sigma-angle-urad") && x > 0 && x <= SC_INPUT_MAX_ABS) g->sigma_angle = x;
     else
         return cli_usage_error(cmd, "unknown option '%s' or value '%s' out of range (see --help)",
                                o, v);

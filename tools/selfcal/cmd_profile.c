@@ -34,13 +34,6 @@ static void progress_cb(void *ctx, long done, long total)
     fflush(stderr);
 }
 
-static int parse_pos_double(const char *cmd, const char *opt, const char *s, double *out)
-{
-    if (sc_parse_double(s, out) != 0 || *out < 0)
-        return cli_usage_error(cmd, "%s: '%s' is not a non-negative number", opt, s);
-    return 0;
-}
-
 /* The command line. */
 typedef struct profile_args {
     const char *in, *out, *method_s, *plot;
@@ -71,10 +64,10 @@ static int parse_option(profile_args *pa, int argc, char **argv, int *i)
     else if (!strcmp(a, "--plot") && has_val)
         pa->plot = val;
     else if (!strcmp(a, "--sigma-disp-um") && has_val) {
-        if (parse_pos_double(cmd, a, val, &pa->sigma_disp_um))
+        if (cli_parse_noise(cmd, a, val, 0, &pa->sigma_disp_um) != CLI_OK)
             return CLI_BAD_INPUT;
     } else if (!strcmp(a, "--sigma-angle-urad") && has_val) {
-        if (parse_pos_double(cmd, a, val, &pa->sigma_angle_urad))
+        if (cli_parse_noise(cmd, a, val, 0, &pa->sigma_angle_urad) != CLI_OK)
             return CLI_BAD_INPUT;
     } else if (!strcmp(a, "--mc") && has_val) {
         char *e;

@@ -398,8 +398,8 @@ int cmd_report_profile(int argc, char **argv)
             method_s = v;
         else if (!strcmp(o, "--sigma-disp-um") || !strcmp(o, "--sigma-angle-urad")) {
             double x;
-            if (sc_parse_double(v, &x) || x < 0 || !(x <= SC_INPUT_MAX_ABS))
-                return cli_usage_error(cmd, "%s: '%s' is not a non-negative number", o, v);
+            if (cli_parse_noise(cmd, o, v, 0, &x) != CLI_OK)
+                return CLI_BAD_INPUT;
             if (o[8] == 'd')
                 sd = x;
             else

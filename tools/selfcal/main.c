@@ -64,6 +64,17 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
     return 0;
 }
 
+int cli_parse_noise(const char *cmd, const char *opt, const char *v, int positive, double *out)
+{
+    double x;
+    const char *unit = strstr(opt, "urad") ? "urad" : "um";
+    if (sc_parse_double(v, &x) != 0 || !(positive ? x > 0 : x >= 0) || !(x <= SC_INPUT_MAX_ABS))
+        return cli_usage_error(cmd, "%s: '%s' is not a noise: a number %s 0 to %g %s", opt, v,
+                               positive ? "above" : "from", SC_INPUT_MAX_ABS, unit);
+    *out = x;
+    return CLI_OK;
+}
+
 int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
 {
     long n;

@@ -158,6 +158,18 @@ def case_bad_input():
         if rss_mb > 400 and rss_mb > before / 1024:
             sys.exit(f"FAIL: huge N through a pipe ({method}): {rss_mb:.0f} MB before the refusal")
         print(f"huge N through a pipe ({method}): refused, peak {rss_mb:.0f} MB")
+    # a noise option out of range: the same words in every command that takes it
+    good = path("good_noise.csv")
+    write_lines(good, good_lines())
+    for args in (["profile", "--method", "lsq", good, "--out", path("x.csv"), "--sigma-disp-um", "1e7"],
+                 ["report", "profile", good, "-o", path("x.html"), "--sigma-disp-um", "1e300"],
+                 ["profile", "--method", "dft", good, "--out", path("x.csv"), "--sigma-angle-urad", "-1"],
+                 ["import", "profile", "--spacing-mm", "1", good, "--spacing-mm", "1.1", good,
+                  "-o", path("x.csv"), "--sigma-disp-um", "0"]):
+        p = run(*args, expect=2)
+        err = p.stderr.strip()
+        if "is not a noise: a number" not in err or args[-2] not in err or len(err.splitlines()) != 1:
+            sys.exit(f"FAIL: noise option message for {args[:2]}: {err}")
     # usage errors exit 2 too
     run("profile", "--method", "fourier", path("gap.csv"), "--out", path("x.csv"), expect=2)
     run("profile", path("gap.csv"), expect=2)
