@@ -333,8 +333,13 @@ int cmd_plot_profile(int argc, char **argv)
         rc = report_length_mismatch(&err, tpath, t.n, a.n, in);
     else if (cpath && c.n != a.n)
         rc = report_length_mismatch(&err, cpath, c.n, a.n, in);
-    else if (profile_plot_write(out, &a, tpath ? &t : NULL, cpath ? &c : NULL, &o, &err) != SC_OK)
+    else if (profile_plot_write(out, &a, tpath ? &t : NULL, cpath ? &c : NULL, &o, &err) != SC_OK) {
+        if (err.code == SC_E_INPUT && !err.file[0]) { /* about the data: the input file's */
+            snprintf(err.file, sizeof err.file, "%s", in);
+            err.line = a.header_line;
+        }
         rc = cli_report(&err);
+    }
     sc_profile_result_free(&a);
     sc_profile_result_free(&t);
     sc_profile_result_free(&c);

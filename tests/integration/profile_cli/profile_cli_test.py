@@ -268,6 +268,14 @@ def case_plot():
             s = fh.read()
         assert s.startswith("<?xml") and s.rstrip().endswith("</svg>") and s.count("<polyline") >= 3, f
     run("plot", "profile", path("missing.csv"), "-o", path("x.svg"), expect=2)
+    # --uncertainty-only of a result whose uf_um is empty: exit 2 naming the file
+    rows = open(path("q.csv")).read().splitlines()
+    with open(path("q_nou.csv"), "w") as fh:
+        fh.write(rows[0] + "\n" + "".join(",".join(c if k != 3 else "" for k, c in enumerate(r.split(",")))
+                                       + "\n" for r in rows[1:]))
+    p = run("plot", "profile", path("q_nou.csv"), "-o", path("u.svg"), "--uncertainty-only", expect=2)
+    if not p.stderr.startswith("selfcal: " + path("q_nou.csv") + ":1: nothing to plot"):
+        sys.exit(f"FAIL: --uncertainty-only without uf: {p.stderr}")
     case_plot_long()
 
 
