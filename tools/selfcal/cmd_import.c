@@ -276,6 +276,13 @@ typedef struct {
     int n_views;
 } grid_args;
 
+/* The word after an option's value that should be a FILE but is an option (-o, --anything): the
+ * FILE was forgotten (a file named so is given as ./-o). */
+static int looks_like_option(const char *s)
+{
+    return (s[0] == '-' && s[1] == '-') || !strcmp(s, "-o");
+}
+
 /* One option of import grid; argv[*a] is the option, its value(s) follow. */
 static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
 {
@@ -288,6 +295,9 @@ static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
             return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
         if (g->n_views == SC_GRID_MAX_VIEWS)
             return cli_usage_error(cmd, "at most %d views", SC_GRID_MAX_VIEWS);
+        if (looks_like_option(argv[*a + 1]))
+            return cli_usage_error(cmd, "--view \"%s\" must be followed by its FILE, not by the "
+                                        "option '%s'", v, argv[*a + 1]);
         g->view_spec[g->n_views] = v;
         g->views[g->n_views++].file = argv[++*a];
     } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
@@ -527,6 +537,9 @@ static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
             return cli_usage_error(cmd, "two scans: --spacing-mm D1 FILE1 --spacing-mm D2 FILE2");
         if (sc_parse_double(v, &x) || !(x > 0) || x > SC_INPUT_MAX_ABS)
             return cli_usage_error(cmd, "--spacing-mm needs a positive number, got '%s'", v);
+        if (looks_like_option(argv[*a + 1]))
+            return cli_usage_error(cmd, "--spacing-mm %s must be followed by its FILE, not by "
+                                        "the option '%s'", v, argv[*a + 1]);
         g->scans[g->n_scans].spacing_mm = x;
         g->scans[g->n_scans++].file = argv[++*a];
         return CLI_OK;

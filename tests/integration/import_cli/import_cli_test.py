@@ -393,6 +393,10 @@ def case_bad_input():
         p = run(*a, "-o", out, expect=2)
         if len(p.stderr.strip().splitlines()) != 1 or os.path.exists(out):
             fail("usage error %s: %r" % (a, p.stderr))
+    # a view's FILE forgotten: said so, not "unknown option 'out.csv'"
+    p = run("import", "grid", "--n", 9, "--pitch-mm", 1, "--view", "rot=0 shift=0,0", "-o", out, expect=2)
+    if "must be followed by its FILE, not by the option '-o'" not in p.stderr or os.path.exists(out):
+        fail("forgotten view file: %r" % p.stderr)
     # an endless pipe (a header, then the same point forever) is refused at the row beyond the
     # most points a view takes, not read until memory runs out
     a = import_args(views, ["/dev/stdin", files[1], files[2]], n=9)
