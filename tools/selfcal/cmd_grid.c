@@ -190,6 +190,9 @@ static int parse_args(int argc, char **argv, grid_args *g)
         return cli_usage_error("grid", "--method must be ye, double-shift or lsq (got '%s')",
                                g->method);
     g->opt.method = (sc_grid_method)m;
+    if (g->opt.estimate_view_noise && g->opt.sigma_r_um > 0) /* options, not the file's lines */
+        return cli_usage_error("grid", "--sigma-r-um and --view-noise estimate exclude each other "
+                                       "(a given noise, or each view's estimated)");
     g->opt.covariance = g->covariance != NULL;
     /* the σ of O, R and the misalignments goes to the summary file only: not computed without it
      * (every node's σ and the outlier test are the same either way) */

@@ -795,6 +795,9 @@ int cmd_report_grid(int argc, char **argv)
         return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
     if (!vo.measurement != !vo.table)
         return cli_usage_error(cmd, "--verify and --table go together (see --help)");
+    if (r.test.estimate_view_noise && r.sigma_r_given > 0)
+        return cli_usage_error(cmd, "--sigma-r-um and --view-noise estimate exclude each other "
+                                    "(a given noise, or each view's estimated)");
     sc_error err;
     sc_error_clear(&err);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */

@@ -327,6 +327,8 @@ def case_view_noise():
         p = run("grid", *meth, s0["inp"], "--map", g, *args, expect=2)
         if os.path.exists(g) or len(p.stderr.strip().splitlines()) != 1:
             fail("%r: %r" % (args, p.stderr))
+        if "--sigma-r-um" in args and not p.stderr.startswith("selfcal grid: --sigma-r-um and"):
+            fail("conflicting options said as a file's problem: %r" % p.stderr)
     print("view_noise: ok (estimates within %.0f %% of the simulated noise)"
           % (100 * max(abs(e / t - 1) for e, t in zip(est, sig))))
 
