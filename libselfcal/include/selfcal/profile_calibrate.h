@@ -28,7 +28,9 @@ typedef struct sc_profile_options {
     void *progress_ctx;
     int residual_check;      /* 1 (default): with the noise given, also the residual ratio, which
                                 for the DFT method costs an extra least-squares solve; 0: skip
-                                that solve (wrss and residual_ratio NaN for DFT with given noise) */
+                                that solve (wrss and residual_ratio NaN for DFT with given noise,
+                                unless that noise is 0: then the residuals are always had, so
+                                that a caller can tell noise-free data from a wrong 0) */
 } sc_profile_options;
 
 /* What came out. The arrays are the caller's, distinct, each of the data's N values (NULL: not
@@ -45,7 +47,7 @@ typedef struct sc_profile_solution {
     double sigma_angle_urad;
     double sigma_y_um[2];    /* standard deviation of y1, y2 used for the uncertainties (NaN if none) */
     double wrss;             /* weighted residual sum of squares of the least-squares fit (NaN
-                                for DFT with the noise given and residual_check 0) */
+                                for DFT with a nonzero noise given and residual_check 0) */
     int dof;                 /* its degrees of freedom, N - d1 - d2 */
     double residual_ratio;   /* sqrt(wrss/dof) when the noise is given and wrss known (1
                                 expected), else NaN */

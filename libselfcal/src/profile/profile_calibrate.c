@@ -210,7 +210,9 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     sc_profile_combine(d, 1, y2);
     sc_status st = solve_cb(&c->ctx, y1, y2, f, err);
     if (st == SC_OK)
-        st = residuals(d, &c->ctx, y1, y2, f, w, tmp, o->residual_check, s, err);
+        /* a noise stated as 0 is checked against the residuals (the caller warns if they are
+         * not 0): the DFT's extra least-squares solve is paid then too */
+        st = residuals(d, &c->ctx, y1, y2, f, w, tmp, o->residual_check || c->zero_noise, s, err);
     if (st != SC_OK)
         goto done;
     double scale = 1.0; /* multiplies the plan's unit uncertainties */

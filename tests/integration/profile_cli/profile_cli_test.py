@@ -220,7 +220,9 @@ def case_noise():
     # the noise stated as 0 on noisy data: uf 0 as stated, and a warning giving the residuals'
     # scale (about sigma_y, 14 nm); none on noise-free data stating 0
     for cmd in (["profile", "--method", "lsq", inp2, "--out", path("zero.csv")],
-                ["report", "profile", inp2, "-o", path("zero.html")]):
+                ["profile", "--method", "dft", inp2, "--out", path("zero_dft.csv")],
+                ["report", "profile", inp2, "-o", path("zero.html")],
+                ["report", "profile", inp2, "--method", "dft", "-o", path("zero_dft.html")]):
         p = run(*cmd, "--sigma-disp-um", 0, "--sigma-angle-urad", 0)
         m = re.search(r"warning: the noise is stated as 0 but the residuals' scale is ([0-9.]+) nm", p.stderr)
         assert m and abs(float(m.group(1)) / (math.sqrt(2) * 10) - 1) < 0.15, p.stderr
