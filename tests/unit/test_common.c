@@ -126,6 +126,46 @@ static void test_csv_lines_and_errors(void **state)
     sc_csv_close(&r);
 }
 
+/* An endless run of comment or blank lines (a pipe from `yes '#'`) is refused after
+ * SC_CSV_MAX_SKIP_RUN of them in a row; as many, then data, reads; data in between restarts the
+ * count. */
+static void test_csv_skip_run_limit(void **state)
+{
+    (void)state;
+    const char *path = SELFCAL_TEST_TMP "/skiprun.csv";
+    const long n = SC_CSV_MAX_SKIP_RUN;
+    for (int variant = 0; variant < 3; ++variant) {
+        FILE *f = fopen(path, "wb");
+        assert_non_null(f);
+        for (long k = 0; k < n; ++k) {
+            if (variant == 2 && k == n / 2)
+                fputs("1,2\n", f); /* data in between: two runs below the limit */
+            fputs(k % 3 == 0 ? "# c\n" : k % 3 == 1 ? "\n" : " \t\n", f);
+        }
+        fputs(variant == 1 ? "#\n" : "1,2\n", f); /* variant 1: one comment more */
+        fclose(f);
+        sc_csv r;
+        sc_error err;
+        sc_error_clear(&err);
+        assert_int_equal(sc_csv_open(&r, path, &err), SC_OK);
+        int rc;
+        long lines = 0;
+        while ((rc = sc_csv_next_line(&r, &err)) == 1)
+            ++lines;
+        if (variant == 1) {
+            assert_int_equal(rc, -1);
+            assert_int_equal(err.code, SC_E_INPUT);
+            assert_int_equal(err.line, n + 1);
+            assert_non_null(strstr(err.msg, "comment or blank lines in a row"));
+        } else {
+            assert_int_equal(rc, 0);
+            assert_int_equal(lines, n + 1 + (variant == 2));
+        }
+        sc_csv_close(&r);
+    }
+    remove(path);
+}
+
 static void test_atomic_file(void **state)
 {
     (void)state;
@@ -414,6 +454,7 @@ int main(void)
         cmocka_unit_test(test_parse_numbers),
         cmocka_unit_test(test_error_messages_stay_one_printable_line),
         cmocka_unit_test(test_csv_lines_and_errors),
+        cmocka_unit_test(test_csv_skip_run_limit),
         cmocka_unit_test(test_csv_plain_row),
         cmocka_unit_test(test_csv_long_line_with_nul),
         cmocka_unit_test(test_atomic_file),

@@ -26,6 +26,9 @@ extern "C" {
  * as bad input at their line. */
 #define SC_INPUT_MAX_ABS 1.0e6
 #define SC_CSV_MAX_LINE 65536
+/* More comment ('#') or blank lines in a row than this is refused (an endless input of them, a
+ * pipe from `yes '#'`, would otherwise be read forever): no measurement file has a million. */
+#define SC_CSV_MAX_SKIP_RUN 1000000L
 
 typedef struct sc_csv {
     FILE *fp;
@@ -40,6 +43,7 @@ typedef struct sc_csv {
     size_t buf_len, buf_pos;
     long long buf_off;               /* offset in the file of buf[0] */
     int eof;
+    long skip_run;                   /* comment or blank lines just read in a row */
 } sc_csv;
 
 /* The status of a failed open with errno errnum: a path that names nothing (or a directory) is

@@ -160,6 +160,19 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     r->len = len;
     r->line++;
     r->nfields = 0;
+    const char *c = s; /* a comment or blank line? (data rows start with a digit: one test) */
+    while (*c == ' ' || *c == '\t')
+        ++c;
+    if (*c == '#' || *c == '\0') {
+        if (++r->skip_run > SC_CSV_MAX_SKIP_RUN) {
+            sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                         "more than %ld comment or blank lines in a row: not a data file (an "
+                         "endless input?)", SC_CSV_MAX_SKIP_RUN);
+            return -1;
+        }
+    } else {
+        r->skip_run = 0;
+    }
     return 1;
 }
 
