@@ -140,7 +140,7 @@ static void test_csv_skip_run_limit(void **state)
         for (long k = 0; k < n; ++k) {
             if (variant == 2 && k == n / 2)
                 fputs("1,2\n", f); /* data in between: two runs below the limit */
-            fputs(k % 3 == 0 ? "# c\n" : k % 3 == 1 ? "\n" : " \t\n", f);
+            fputs(k % 4 == 0 ? "# c\n" : k % 4 == 1 ? "\n" : k % 4 == 2 ? " \t\n" : "\f\v \n", f);
         }
         fputs(variant == 1 ? "#\n" : "1,2\n", f); /* variant 1: one comment more */
         fclose(f);

@@ -12,6 +12,7 @@
 
 #include <cmocka.h>
 
+#include "selfcal/csv.h"
 #include "selfcal/import.h"
 
 static void tmp_path(char *buf, size_t n, const char *name)
@@ -155,6 +156,19 @@ static void test_table_machine_lines(void **state)
     assert_int_equal(t.n_rows, 3);
     assert_true(t.value[4] == 5 && t.value[5] == 6);
     sc_table_free(&t);
+    /* "#<digit>" rows are rows, not comments: more of them than the CSV reader's limit on
+     * comment lines in a row (SC_CSV_MAX_SKIP_RUN) read */
+    {
+        FILE *f = fopen(path, "w");
+        assert_non_null(f);
+        fputs("#;x;y\n", f);
+        for (long k = 1; k <= SC_CSV_MAX_SKIP_RUN + 5; ++k)
+            fprintf(f, "#%ld;%ld;1\n", k, k % 1000);
+        fclose(f);
+        assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);
+        assert_int_equal(t.n_rows, SC_CSV_MAX_SKIP_RUN + 5);
+        sc_table_free(&t);
+    }
     /* a comment spelling the columns above the real header stays a comment */
     write_text(path, "# x y\nx;y\n1;2\n3;4\n");
     assert_int_equal(sc_table_read(path, 2, XY, NULL, &t, &err), SC_OK);

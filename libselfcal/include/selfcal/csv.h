@@ -43,7 +43,8 @@ typedef struct sc_csv {
     size_t buf_len, buf_pos;
     long long buf_off;               /* offset in the file of buf[0] */
     int eof;
-    long skip_run;                   /* comment or blank lines just read in a row */
+    long skip_run;                   /* comment or blank lines just read in a row (a reader
+                                        that takes a '#' line as data sets it to 0) */
 } sc_csv;
 
 /* The status of a failed open with errno errnum: a path that names nothing (or a directory) is

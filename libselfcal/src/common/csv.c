@@ -160,8 +160,9 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     r->len = len;
     r->line++;
     r->nfields = 0;
-    const char *c = s; /* a comment or blank line? (data rows start with a digit: one test) */
-    while (*c == ' ' || *c == '\t')
+    const char *c = s; /* a comment or blank line, as the readers skip them (sc_csv_is_blank's
+                          isspace)? Data rows start with a digit: one test */
+    while (isspace((unsigned char)*c))
         ++c;
     if (*c == '#' || *c == '\0') {
         if (++r->skip_run > SC_CSV_MAX_SKIP_RUN) {

@@ -580,6 +580,7 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
                           : (t->header_line || numbers || !hash_header(&tr, tr.r.text)))
                 continue; /* a comment */
             hash_rows = 1;
+            tr.r.skip_run = 0; /* a row (or the "#;X;Y" header), not a comment */
         }
         if (t->header_line) {
             st = read_data_line(&tr, err);
