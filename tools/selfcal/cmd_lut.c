@@ -134,7 +134,7 @@ static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report
     int opened = 0;
     sc_status st = SC_OK;
     for (; opened < 1 + b->np && st == SC_OK; ++opened)
-        st = cli_input_open(&src[opened], opened ? b->pa[opened - 1].path : b->map, err);
+        st = cli_input_open(&src[opened], opened ? b->pa[opened - 1].path : b->map, 1, err);
     if (st == SC_OK)
         st = cli_read_map(src[0].path, b->max_nodes, lut, fit, err);
     for (int k = 0; st == SC_OK && k < b->np; ++k) {

@@ -805,7 +805,7 @@ int cmd_report_grid(int argc, char **argv)
     int opened = 0;
     sc_status st = SC_OK;
     for (; opened < (vo.measurement ? 3 : 1) && st == SC_OK; ++opened)
-        st = cli_input_open(&src[opened], names[opened], &err);
+        st = cli_input_open(&src[opened], names[opened], opened != 2, &err); /* 2: the table */
     r.src = &src[0];
     if (vo.measurement)
         vo.src[0] = &src[1], vo.src[1] = &src[2];

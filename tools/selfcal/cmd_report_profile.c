@@ -420,7 +420,7 @@ int cmd_report_profile(int argc, char **argv)
     sc_error_clear(&err);
     sc_profile_data d;
     cli_input src; /* a pipe is read once: into memory, hashed on the way */
-    if (cli_input_open(&src, in, &err) != SC_OK)
+    if (cli_input_open(&src, in, 1, &err) != SC_OK)
         return cli_report(&err);
     if (sc_profile_read(src.path, &d, &err) != SC_OK) {
         int rc = cli_report(&err);

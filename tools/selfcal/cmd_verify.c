@@ -165,7 +165,7 @@ int cmd_verify(int argc, char **argv)
     int opened = 0;
     sc_status st = SC_OK;
     for (; opened < 3 && st == SC_OK; ++opened) {
-        st = cli_input_open(&src[opened], names[opened], &err);
+        st = cli_input_open(&src[opened], names[opened], opened != 1, &err); /* 1: the table */
         o.src[opened] = &src[opened];
     }
     if (st == SC_OK)

@@ -7,6 +7,7 @@
 #define _GNU_SOURCE
 #include "input_once.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <stdio.h>
@@ -36,8 +37,9 @@ static void live_remove(const cli_input *in)
             g_live[k] = NULL;
 }
 
-/* Copy fd's bytes into a memfd, hashing them; the memfd or -1 (err set). */
-static int spool(int fd, const char *path, cli_input *in, sc_error *err)
+/* Copy fd's bytes into a memfd, hashing them; the memfd or -1 (err set). A text input is
+ * refused at its first NUL byte (what its reader would say; /dev/zero is not read for 2 GiB). */
+static int spool(int fd, const char *path, int text, cli_input *in, sc_error *err)
 {
     int mfd = memfd_create("selfcal-input", MFD_CLOEXEC);
     if (mfd < 0) {
@@ -69,6 +71,11 @@ static int spool(int fd, const char *path, cli_input *in, sc_error *err)
                          (long long)CLI_INPUT_MAX_SPOOL >> 20);
             break;
         }
+        if (text && memchr(buf, '\0', (size_t)r)) {
+            sc_error_set(err, SC_E_INPUT, path, 0, "NUL byte in a text file (UTF-16? save it as "
+                                                   "UTF-8)");
+            break;
+        }
         sc_sha256_update(&h, buf, (size_t)r);
         for (ssize_t off = 0; off < r;) {
             ssize_t w = write(mfd, buf + off, (size_t)(r - off));
@@ -88,20 +95,26 @@ static int spool(int fd, const char *path, cli_input *in, sc_error *err)
     return -1;
 }
 
-sc_status cli_input_open(cli_input *in, const char *path, sc_error *err)
+sc_status cli_input_open(cli_input *in, const char *path, int text, sc_error *err)
 {
     memset(in, 0, sizeof *in);
     in->orig = path;
     in->path = path;
     in->fd = -1;
+    int stdin_dash = path && !strcmp(path, "-"); /* the readers' name for standard input */
     struct stat sb;
-    if (!path || stat(path, &sb) != 0 || S_ISREG(sb.st_mode) || S_ISDIR(sb.st_mode))
+    if (!path || (!stdin_dash && (stat(path, &sb) != 0 || S_ISREG(sb.st_mode) ||
+                                  S_ISDIR(sb.st_mode))))
         return SC_OK; /* a file (hashed where it is), or what the reader will say is wrong */
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (stdin_dash && fstat(STDIN_FILENO, &sb) == 0 && S_ISREG(sb.st_mode) &&
+        lseek(STDIN_FILENO, 0, SEEK_CUR) == 0)
+        return SC_OK; /* stdin a file from its start (< f): read and hashed as it is */
+    int fd = stdin_dash ? STDIN_FILENO : open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0)
         return SC_OK; /* the reader names the problem */
-    in->fd = spool(fd, path, in, err);
-    close(fd);
+    in->fd = spool(fd, path, text, in, err);
+    if (!stdin_dash)
+        close(fd);
     if (in->fd < 0)
         return err ? err->code : SC_E_IO;
     snprintf(in->proc_path, sizeof in->proc_path, "/proc/self/fd/%d", in->fd);
@@ -118,6 +131,14 @@ sc_status cli_input_sha256(const cli_input *in, uint8_t digest[SC_SHA256_BYTES],
         memcpy(digest, in->sha256, SC_SHA256_BYTES);
         *size = in->size;
         return SC_OK;
+    }
+    if (!strcmp(in->path, "-")) { /* stdin a regular file (above): hashed by its descriptor */
+        char fdpath[32];
+        snprintf(fdpath, sizeof fdpath, "/proc/self/fd/%d", STDIN_FILENO);
+        sc_status st = sc_sha256_file(fdpath, digest, err);
+        struct stat sb;
+        *size = st == SC_OK && fstat(STDIN_FILENO, &sb) == 0 ? (long long)sb.st_size : -1;
+        return st;
     }
     sc_status st = sc_sha256_file(in->path, digest, err);
     if (st != SC_OK)
@@ -137,14 +158,15 @@ void cli_input_close(cli_input *in)
     in->path = in->orig;
 }
 
-/* Replace every occurrence of from by to in s (cap bytes). */
+/* Replace every occurrence of from by to in s (cap bytes); an occurrence followed by a digit is
+ * another name (/proc/self/fd/3 is not /proc/self/fd/31). */
 static void replace_all(char *s, size_t cap, const char *from, const char *to)
 {
     size_t lf = strlen(from), lt = strlen(to);
     char out[1024];
     size_t o = 0;
     for (const char *p = s; *p && o + 1 < sizeof out;) {
-        if (!strncmp(p, from, lf)) {
+        if (!strncmp(p, from, lf) && !isdigit((unsigned char)p[lf])) {
             size_t n = lt < sizeof out - 1 - o ? lt : sizeof out - 1 - o;
             memcpy(out + o, to, n);
             o += n;

@@ -21,9 +21,10 @@ typedef struct cli_input {
 } cli_input;
 
 /* in for path: a regular file (or a name that does not exist: the reader will say so) is left
- * where it is; anything else is copied into memory while hashed (at most CLI_INPUT_MAX_SPOOL
- * bytes, else SC_E_INPUT). in must stay at its address until cli_input_close. */
-sc_status cli_input_open(cli_input *in, const char *path, sc_error *err);
+ * where it is; anything else ("-", standard input, too) is copied into memory while hashed (at
+ * most CLI_INPUT_MAX_SPOOL bytes, else SC_E_INPUT; text: refused at a NUL byte, as its reader
+ * would). in must stay at its address until cli_input_close. */
+sc_status cli_input_open(cli_input *in, const char *path, int text, sc_error *err);
 
 /* The input's SHA-256 and size in bytes: the copy's, or read from the file now. */
 sc_status cli_input_sha256(const cli_input *in, uint8_t digest[SC_SHA256_BYTES], long long *size,

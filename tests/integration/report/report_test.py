@@ -526,6 +526,24 @@ def case_pipes():
                "--tolerance-um", 100, "--html", p("v.html")], data)
     if r.returncode != 0 or provenance(p("v.html")).get("/dev/stdin") != want:
         fail("verify from a pipe: %r %r" % (r.stderr, provenance(p("v.html"))))
+    # "-" (standard input) piped, and redirected from a file: the bytes' hash either way
+    r = piped(["report", "profile", "-", "-o", p("R5.html")], pdata)
+    if r.returncode != 0 or provenance(p("R5.html")).get("-") != (len(pdata), hashlib.sha256(pdata).hexdigest()):
+        fail("report profile -: %r %r" % (r.stderr, provenance(p("R5.html"))))
+    with open(p("P.csv"), "rb") as fh:
+        r = subprocess.run([CLI, "report", "profile", "-", "-o", p("R6.html")], stdin=fh,
+                           capture_output=True, timeout=60)
+    if r.returncode != 0 or provenance(p("R6.html")).get("-") != (len(pdata), hashlib.sha256(pdata).hexdigest()):
+        fail("report profile - < file: %r %r" % (r.stderr, provenance(p("R6.html"))))
+    gdata = open(p("G.csv"), "rb").read()
+    r = piped(["lut", "build", "--map", "-", "-o", p("t2.lut")], gdata)
+    if r.returncode != 0 or hashlib.sha256(gdata).hexdigest() + " (map)" not in run("lut", "info", p("t2.lut")).stdout:
+        fail("lut build --map -: %r" % r.stderr)
+    # a device of NUL bytes is refused at once (not read for 2 GiB first)
+    r = subprocess.run([CLI, "report", "profile", "/dev/zero", "-o", p("R7.html")],
+                       capture_output=True, text=True, timeout=60)
+    if r.returncode != 2 or "NUL byte" not in r.stderr or os.path.exists(p("R7.html")):
+        fail("/dev/zero: %d %r" % (r.returncode, r.stderr))
     # a bad piped input: the message names it as given, exit 2, no report
     bad = data.replace(b"# N = 9", b"# N = x", 1)
     r = piped(["report", "grid", "/dev/stdin", "-o", p("R4.html")], bad)
