@@ -115,8 +115,10 @@ static int parse_build_option(build_args *b, const char *a, const char *v)
             return cli_usage_error("lut build", "at most %d profiles", SC_LUT_MAX_PROFILES);
         if (parse_profile_arg(v, &b->pa[b->np]) != 0)
             return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
-        if (b->pa[b->np].axis == b->pa[b->np].dir) /* as export says it */
-            return cli_usage_error("lut build", "--profile: a straightness profile has DIR != AXIS, not '%s'", v);
+        if (b->pa[b->np].axis == b->pa[b->np].dir) /* allowed (SPEC §3), but rarely meant */
+            fprintf(stderr, "selfcal lut build: warning: --profile %s: DIR = AXIS makes it an "
+                            "error along its own axis (a scale error), not a straightness; the "
+                            "controller exports refuse it\n", v);
         ++b->np;
     } else
         return cli_usage_error("lut build", "unknown option '%s' (see --help)", a);

@@ -173,10 +173,6 @@ static sc_status check_encodable(const sc_lut *lut, sc_error *err)
         const sc_lut_profile *p = &lut->profile[k];
         if (p->axis < 0 || p->axis > 2 || p->dir < 0 || p->dir > 2)
             return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: axis/dir must be x, y or z", k);
-        if (p->axis == p->dir) /* SPEC §3: the stage's straightness, an error across its axis */
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "profile %d: a straightness profile is an error across its axis: "
-                                "dir must differ from axis (%s)", k, sc_lut_axis_name(p->axis));
         if (p->n < 2 || p->n > SC_LUT_MAX_PROFILE_POINTS)
             return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: %d points, need 2..%d", k,
                                 p->n, SC_LUT_MAX_PROFILE_POINTS);

@@ -37,10 +37,6 @@ sc_status sc_lut_read_profile(const char *path, int axis, int dir, sc_lut_profil
 {
     if (axis < 0 || axis > 2 || dir < 0 || dir > 2)
         return sc_error_set(err, SC_E_INPUT, path, 0, "profile axis/dir must be x, y or z");
-    if (axis == dir)
-        return sc_error_set(err, SC_E_INPUT, path, 0,
-                            "a straightness profile is an error across its axis: DIR must differ "
-                            "from AXIS (%s:%s)", sc_lut_axis_name(axis), sc_lut_axis_name(dir));
     sc_profile_result res;
     sc_status st = sc_profile_read_result(path, &res, err);
     if (st != SC_OK)
