@@ -308,6 +308,7 @@ int cmd_plan(int argc, char **argv)
     }
     sc_grid_lsq_info qi, unit;
     sc_grid_lsq_get_info(q, &qi);
+    sc_grid_lsq_plan_destroy(q); /* its figures kept: one plan in memory at a time */
     unit = qi;
     if (qi.weighted && qi.identifiable) { /* the σ_C ratios per unit σ_r: the same plan unweighted */
         sc_grid_lsq_plan *qu = NULL;
@@ -318,13 +319,15 @@ int cmd_plan(int argc, char **argv)
             sc_grid_lsq_get_info(qu, &unit);
         sc_grid_lsq_plan_destroy(qu);
         if (st != SC_OK) {
-            sc_grid_lsq_plan_destroy(q);
             sc_grid_data_free(&d);
+            if (!err.file[0]) {
+                snprintf(err.file, sizeof err.file, "%s", in);
+                err.line = fi.header_end_line;
+            }
             return cli_report(&err);
         }
     }
     print_analysis(&d, &fi, has_data, &qi, &unit);
-    sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
     return CLI_OK;
 }

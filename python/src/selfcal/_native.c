@@ -906,18 +906,21 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
          * same plan with equal weights (as `selfcal plan`) */
         c_rms_um = qi.sigma_c_ratio_rms;
         c_max_um = qi.sigma_c_ratio_max;
+        sc_grid_lsq_plan_destroy(q); /* its figures kept: one plan in memory at a time */
+        q = NULL;
         sc_grid_lsq_opts uo = {.unit_weights = 1};
-        sc_grid_lsq_plan *qu = NULL;
         Py_BEGIN_ALLOW_THREADS
-        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &uo, &qu, &err);
+        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &uo, &q, &err);
         Py_END_ALLOW_THREADS
         if (st != SC_OK) {
+            if (!err.file[0] && path) {
+                snprintf(err.file, sizeof err.file, "%s", PyBytes_AS_STRING(path));
+                err.line = info.header_end_line;
+            }
             raise_sc(&err);
             goto done;
         }
-        sc_grid_lsq_get_info(qu, &unit);
-        sc_grid_lsq_plan_destroy(q);
-        q = qu; /* the per-node ratios below are the unweighted plan's */
+        sc_grid_lsq_get_info(q, &unit); /* the per-node ratios below are this plan's */
     }
     npy_intp shape[2] = {sc_grid_stage_ny(&d.plan), sc_grid_stage_nx(&d.plan)};
     sgx = arr_from(NULL, 2, shape);
