@@ -34,8 +34,14 @@ install(EXPORT selfcalTargets NAMESPACE selfcal:: DESTINATION ${SELFCAL_CMAKE_PA
 configure_package_config_file(${CMAKE_CURRENT_LIST_DIR}/selfcalConfig.cmake.in
   ${PROJECT_BINARY_DIR}/cmake/selfcalConfig.cmake
   INSTALL_DESTINATION ${SELFCAL_CMAKE_PACKAGE_DIR})
+# as the soname (libselfcal/CMakeLists.txt): 0.x versions are compatible within their minor only
+if(PROJECT_VERSION_MAJOR EQUAL 0)
+  set(_selfcal_compat SameMinorVersion)
+else()
+  set(_selfcal_compat SameMajorVersion)
+endif()
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/cmake/selfcalConfigVersion.cmake
-  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMajorVersion)
+  VERSION ${PROJECT_VERSION} COMPATIBILITY ${_selfcal_compat})
 install(FILES ${PROJECT_BINARY_DIR}/cmake/selfcalConfig.cmake
               ${PROJECT_BINARY_DIR}/cmake/selfcalConfigVersion.cmake
   DESTINATION ${SELFCAL_CMAKE_PACKAGE_DIR})

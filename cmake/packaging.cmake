@@ -30,7 +30,7 @@ set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS ON) # a shlibs file for libselfcal.so.<
 set(CPACK_DEBIAN_PACKAGE_GENERATE_SHLIBS_POLICY ">=") # package linking it needs this version or later
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "libcholmod${SELFCAL_CHOLMOD_MAJOR}")
 set(CPACK_PROJECT_CONFIG_FILE ${CMAKE_CURRENT_LIST_DIR}/cpack_generator.cmake)
-# libselfcal.so.0: the dynamic linker's cache refreshed by dpkg's ldconfig trigger (policy 8.1.1)
+# libselfcal.so.0.<minor>: the dynamic linker's cache refreshed by dpkg's ldconfig trigger (policy 8.1.1)
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA ${CMAKE_CURRENT_LIST_DIR}/deb/triggers)
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 # linuxcnc-uspace: the HAL component selfcal_xy (in /usr/lib/linuxcnc/modules, when built) runs
