@@ -52,7 +52,8 @@ typedef void (*sc_profile_header_fn)(void *ctx, const sc_profile_data *hdr);
 /* sc_profile_read, calling on_header(ctx, hdr) once when the header has been read and found valid
  * and the first 1/32 of the rows it promises were read without fault (once whatever passes the
  * reader makes over the file; never for a file whose header is wrong, nor for one whose rows go
- * wrong or end before: a header of N = 10^8 and two rows starts no work of that size),
+ * wrong or end before: a header of N = 10^8 and two rows starts no work of that size; and only
+ * for a regular file, whose size bounds its N: never for a pipe),
  * so that work depending on the header alone (sc_profile_calibration_create) can overlap the
  * reading of the rows. The rows may still be found wrong after it was called. */
 SC_API sc_status sc_profile_read_hooked(const char *path, sc_profile_header_fn on_header,

@@ -587,10 +587,14 @@ static sc_status read_file(const char *path, long long parallel_from, int *threa
     memset(out, 0, sizeof *out);
     sc_status st = SC_E_INPUT;
     int fast = is_regular_file(path);
+    /* the hook's work (a plan the size of N) only for a regular file, whose size bounds the N
+     * its header may claim; a pipe's N is known good only once every row came (the caller then
+     * makes the plan after the reading) */
+    header_hook *h = fast ? hook : NULL;
     if (fast)
-        st = read_pass(path, 0, parallel_from, &used, hook, out, err);
+        st = read_pass(path, 0, parallel_from, &used, h, out, err);
     if (!fast || (st != SC_OK && st != SC_E_NOMEM)) /* out of memory stays out of memory */
-        used = 1, st = read_pass(path, 1, 0, &used, hook, out, err);
+        used = 1, st = read_pass(path, 1, 0, &used, h, out, err);
     if (threads)
         *threads = st == SC_OK ? used : 0;
     return st;
