@@ -73,8 +73,7 @@ def test_plan_with_stated_uncertainties(cli, tmp_path):
             "# view 0: rot=0 shift=0,0 sigma_um=%s\n# view 1: rot=90 shift=0,0 sigma_um=%s\n"
             "# view 2: rot=0 shift=1,0 sigma_um=%s\n")
     plain = tmp_path / "plain.csv"
-    plain.write_text("".join(l + "\n" for l in (text % (1, 1, 1)).splitlines()
-                             if True).replace(" sigma_um=1", ""))
+    plain.write_text((text % (1, 1, 1)).replace(" sigma_um=1", ""))
     base = selfcal.plan(str(plain))
     for sig, name in (((0.01, 0.01, 0.01), "same.csv"), ((0.01, 0.01, 0.03), "mixed.csv")):
         f = tmp_path / name
