@@ -624,9 +624,14 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
     int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
     sc_spsym_hint hint = {1, q->ng, last, n_last};
     int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
+    if (arc == -3)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0,
+                            "out of memory: the address space limit (ulimit -v) leaves less than "
+                            "768 MiB for the sparse solver (CHOLMOD and OpenBLAS, which would hang "
+                            "rather than fail below that)");
     if (arc == -2)
         return sc_error_set(err, SC_E_IO, NULL, 0,
-                            "the sparse solver library libcholmod.so.3 (SuiteSparse CHOLMOD) "
+                            "the sparse solver library libcholmod.so (SuiteSparse CHOLMOD) "
                             "cannot be loaded");
     if (arc != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);

@@ -24,6 +24,9 @@
 #include "sparse_sym.h"
 
 #include <dlfcn.h>
+#include <stdio.h>
+#include <sys/resource.h>
+#include <unistd.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdlib.h>
@@ -97,6 +100,28 @@ static void load_api(void)
     for (int k = 0; k < NSYM; ++k)
         memcpy(slot[k], &sym[k], sizeof sym[k]);
     g_api.ok = 1;
+}
+
+/* OpenBLAS (loaded with CHOLMOD) reserves a buffer of 32-128 MiB per thread at its first call
+ * and, when the address space limit (ulimit -v) refuses it, retries forever, then waits on its
+ * workers at exit: a hang, not an error. Under a limit leaving less than this much room, the
+ * solver is not loaded and the caller is told it lacks memory. */
+#define SPSYM_MIN_HEADROOM ((double)768 * 1024 * 1024)
+
+int sc_spsym_memory_headroom_ok(void)
+{
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_AS, &rl) != 0 || rl.rlim_cur == RLIM_INFINITY)
+        return 1;
+    long pages = 0, page = sysconf(_SC_PAGESIZE);
+    FILE *f = fopen("/proc/self/statm", "r");
+    if (f) {
+        if (fscanf(f, "%ld", &pages) != 1)
+            pages = 0;
+        fclose(f);
+    }
+    double used = (double)pages * (double)(page > 0 ? page : 4096);
+    return (double)rl.rlim_cur - used >= SPSYM_MIN_HEADROOM;
 }
 
 static const cholmod_api *api(void)
@@ -307,6 +332,10 @@ int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *
     s->n = n;
     s->Ap = Ap;
     s->Ai = Ai;
+    if (!sc_spsym_memory_headroom_ok()) {
+        free(s);
+        return -3;
+    }
     s->api = api();
     if (!s->api) {
         free(s);

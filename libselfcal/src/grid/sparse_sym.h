@@ -48,12 +48,17 @@ typedef struct sc_spsym_hint {
     int n_last;
 } sc_spsym_hint;
 
+/* 1 unless an address space limit (RLIMIT_AS, ulimit -v) leaves less than 768 MiB beyond what the
+ * process maps: OpenBLAS, which CHOLMOD loads, hangs rather than fails below that. */
+int sc_spsym_memory_headroom_ok(void);
+
 #define SC_SPSYM_ORDER_HINTED_AMD 1000 /* ordering code of a hinted analysis */
 
 /* Analyze the n x n pattern (upper CSC Ap[n+1], Ai[Ap[n]]; borrowed: it must stay unchanged
  * until sc_spsym_destroy): one fill-reducing order, chosen here once: CHOLMOD's own choice when
  * hint is NULL, else AMD of the hint's graph with its last unknowns last.
- * Returns 0, -1 if memory ran out (or a bad hint), -2 if CHOLMOD cannot be loaded. */
+ * Returns 0, -1 if memory ran out (or a bad hint), -2 if CHOLMOD cannot be loaded, -3 if the
+ * address space limit leaves too little room to load it (sc_spsym_memory_headroom_ok). */
 int sc_spsym_analyze(int n, const long *Ap, const int *Ai, const sc_spsym_hint *hint,
                      sc_spsym **out);
 

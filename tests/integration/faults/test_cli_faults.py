@@ -453,6 +453,24 @@ r = run(["grid", "--method", "lsq", p("big_stage.csv"), "--map", p("o_cov.csv"),
          p("o_cov.npy")])
 one_line_error(r, 2, "--covariance on 45 x 45 nodes", "--covariance: 2025 stage nodes")
 
+# 6. An address space limit (ulimit -v) too small for the sparse solver: OpenBLAS, loaded with
+# CHOLMOD, retried its buffer forever and hung at exit; the least squares must say it lacks
+# memory (exit 1, one line) instead. Not under AddressSanitizer, which cannot start in it.
+asan = b"__asan_init" in subprocess.run(["nm", "-D", cli], capture_output=True).stdout
+if not asan:
+    must(["simulate", "grid", "--plan", "ye", "--n", "9", "--out", p("uv.csv"), "--truth-map",
+          p("uv_t.csv")])
+    for limit_kb in (150000, 300000):
+        for method in ("lsq", "ye"):
+            r = subprocess.run(["sh", "-c", 'ulimit -v "$1" && exec "$2" grid --method "$3" "$4" --map "$5"',
+                                "sh", str(limit_kb), cli, method, p("uv.csv"), p("uv_m.csv")],
+                               capture_output=True, text=True, timeout=120)
+            one_line_error(r, 1, f"grid --method {method} under ulimit -v {limit_kb}",
+                           "out of memory: the address space limit")
+    print("ulimit -v: the grid solver refuses, no hang")
+else:
+    print("ulimit -v: not tried under AddressSanitizer")
+
 if failures:
     print(f"{len(failures)} failure(s)", file=sys.stderr)
     sys.exit(1)
