@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "input_once.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_io.h"
@@ -366,13 +367,16 @@ void plot_histogram_svg(FILE *fp, const double *v, long n, double sigma, const c
     svg_end(fp);
 }
 
-/* 1 if the first non-comment, non-blank line of path is the plate error header. */
+/* 1 if the first non-comment, non-blank line of path is the plate error header (looked for in
+ * the first SC_CSV_MAX_SKIP_RUN lines: the reader refuses more comments than that). path is read
+ * again by the reader: a pipe must come as its in-memory copy (cli_input_open). */
 static int is_artifact_file(const char *path)
 {
     FILE *fp = fopen(path, "rb");
     char line[256];
     int art = 0;
-    while (fp && fgets(line, sizeof line, fp)) {
+    long lines = 0;
+    while (fp && fgets(line, sizeof line, fp) && ++lines <= SC_CSV_MAX_SKIP_RUN) {
         if (line[0] == '#' || line[0] == '\n' || line[0] == '\r')
             continue;
         art = !strncmp(line, "i,j,ax_um,ay_um", 15);
@@ -419,11 +423,17 @@ int cmd_plot_map(int argc, char **argv)
     sc_error_clear(&err);
     sc_stage_map m, t;
     memset(&t, 0, sizeof t);
-    int plate = is_artifact_file(in);
-    sc_status st = plate ? sc_grid_read_artifact(in, pitch > 0 ? pitch : 1.0, &m, &err)
-                         : sc_stage_map_read(in, &m, &err);
-    if (st != SC_OK)
+    cli_input src; /* looked at, then read: a pipe from its in-memory copy */
+    if (cli_input_open(&src, in, 1, &err) != SC_OK)
         return cli_report(&err);
+    int plate = is_artifact_file(src.path);
+    sc_status st = plate ? sc_grid_read_artifact(src.path, pitch > 0 ? pitch : 1.0, &m, &err)
+                         : sc_stage_map_read(src.path, &m, &err);
+    if (st != SC_OK) {
+        int rc = cli_report(&err);
+        cli_input_close(&src);
+        return rc;
+    }
     if (truth_path) {
         st = plate ? sc_grid_read_artifact(truth_path, m.px_mm, &t, &err)
                    : sc_stage_map_read(truth_path, &t, &err);
@@ -445,5 +455,7 @@ int cmd_plot_map(int argc, char **argv)
     }
     sc_stage_map_free(&m);
     sc_stage_map_free(&t);
-    return st == SC_OK ? CLI_OK : cli_report(&err);
+    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    cli_input_close(&src);
+    return rc;
 }

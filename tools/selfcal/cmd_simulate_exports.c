@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include "cli.h"
+#include "input_once.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_io.h"
@@ -410,15 +411,23 @@ int cmd_simulate_exports(int argc, char **argv)
     /* which format: the first line says */
     sc_error err;
     sc_error_clear(&err);
-    FILE *fp = sc_open_input(a.in, &err);
-    if (!fp)
+    cli_input src; /* looked at, then read: a pipe from its in-memory copy */
+    if (cli_input_open(&src, a.in, 1, &err) != SC_OK)
         return cli_report(&err);
+    FILE *fp = sc_open_input(src.path, &err);
+    if (!fp) {
+        int rc = cli_report(&err);
+        cli_input_close(&src);
+        return rc;
+    }
     char first[64] = "";
     if (!fgets(first, sizeof first, fp))
         first[0] = '\0';
     fclose(fp);
-    if (!strncmp(first, "# selfcal-profile v1", 20))
-        return profile_exports(a.in, a.dir, &a.sty, argc, argv);
-    return grid_exports(a.in, a.dir, a.unit_per_mm, &a.sty, a.miss, a.n_miss, a.disp, a.n_disp,
-                        a.stray, a.n_stray, (uint64_t)a.seed, argc, argv);
+    int rc = !strncmp(first, "# selfcal-profile v1", 20)
+                 ? profile_exports(src.path, a.dir, &a.sty, argc, argv)
+                 : grid_exports(src.path, a.dir, a.unit_per_mm, &a.sty, a.miss, a.n_miss, a.disp,
+                                a.n_disp, a.stray, a.n_stray, (uint64_t)a.seed, argc, argv);
+    cli_input_close(&src);
+    return rc;
 }

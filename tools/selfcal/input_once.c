@@ -16,6 +16,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "selfcal/csv.h"
 #include "selfcal/error.h"
 
 /* The snapshots alive, for cli_report's renaming (a program's table, not the library's). */
@@ -37,10 +38,46 @@ static void live_remove(const cli_input *in)
             g_live[k] = NULL;
 }
 
+/* A text input's lines as they come: what the CSV reader refuses (a NUL byte, a line longer than
+ * SC_CSV_MAX_LINE, more than SC_CSV_MAX_SKIP_RUN comment or blank lines in a row) is refused
+ * while copying, at its line, not after 2 GiB of an endless pipe. */
+typedef struct text_check {
+    long line, len, run; /* lines ended, the current one's length, comment/blank run */
+    int seen, hash;      /* the current line has a non-space byte; it is '#' */
+} text_check;
+
+static sc_status check_text(text_check *c, const char *buf, size_t n, const char *path,
+                            sc_error *err)
+{
+    if (memchr(buf, '\0', n))
+        return sc_error_set(err, SC_E_INPUT, path, c->line + 1,
+                            "NUL byte in a text file (UTF-16? save it as UTF-8)");
+    for (size_t k = 0; k < n; ++k) {
+        unsigned char ch = (unsigned char)buf[k];
+        if (ch == '\n') {
+            ++c->line;
+            c->run = !c->seen || c->hash ? c->run + 1 : 0;
+            if (c->run > SC_CSV_MAX_SKIP_RUN)
+                return sc_error_set(err, SC_E_INPUT, path, c->line,
+                                    "more than %ld comment or blank lines in a row: not a data "
+                                    "file (an endless input?)", SC_CSV_MAX_SKIP_RUN);
+            c->len = 0, c->seen = 0, c->hash = 0;
+            continue;
+        }
+        if (++c->len >= SC_CSV_MAX_LINE)
+            return sc_error_set(err, SC_E_INPUT, path, c->line + 1, "line longer than %d bytes",
+                                SC_CSV_MAX_LINE);
+        if (!c->seen && !isspace(ch))
+            c->seen = 1, c->hash = ch == '#';
+    }
+    return SC_OK;
+}
+
 /* Copy fd's bytes into a memfd, hashing them; the memfd or -1 (err set). A text input is
- * refused at its first NUL byte (what its reader would say; /dev/zero is not read for 2 GiB). */
+ * checked as it comes (check_text). */
 static int spool(int fd, const char *path, int text, cli_input *in, sc_error *err)
 {
+    text_check tc = {0, 0, 0, 0, 0};
     int mfd = memfd_create("selfcal-input", MFD_CLOEXEC);
     if (mfd < 0) {
         sc_error_set(err, SC_E_IO, path, 0, "cannot keep a copy of the input: %s",
@@ -71,11 +108,8 @@ static int spool(int fd, const char *path, int text, cli_input *in, sc_error *er
                          (long long)CLI_INPUT_MAX_SPOOL >> 20);
             break;
         }
-        if (text && memchr(buf, '\0', (size_t)r)) {
-            sc_error_set(err, SC_E_INPUT, path, 0, "NUL byte in a text file (UTF-16? save it as "
-                                                   "UTF-8)");
+        if (text && check_text(&tc, buf, (size_t)r, path, err) != SC_OK)
             break;
-        }
         sc_sha256_update(&h, buf, (size_t)r);
         for (ssize_t off = 0; off < r;) {
             ssize_t w = write(mfd, buf + off, (size_t)(r - off));

@@ -7,7 +7,7 @@
 
 #include "selfcal/sha256.h"
 
-#define CLI_INPUT_MAX_LIVE 8                          /* snapshots alive at once */
+#define CLI_INPUT_MAX_LIVE 16                         /* snapshots alive at once (lut build: 9) */
 #define CLI_INPUT_MAX_SPOOL ((long long)2 << 30)      /* bytes a pipe may bring: 2 GiB */
 
 typedef struct cli_input {

@@ -539,6 +539,18 @@ def case_pipes():
     r = piped(["lut", "build", "--map", "-", "-o", p("t2.lut")], gdata)
     if r.returncode != 0 or hashlib.sha256(gdata).hexdigest() + " (map)" not in run("lut", "info", p("t2.lut")).stdout:
         fail("lut build --map -: %r" % r.stderr)
+    # the commands that look at their input before reading it take a pipe too
+    r = piped(["plot", "map", "/dev/stdin", "-o", p("m.svg")], gdata)
+    if r.returncode != 0 or not os.path.exists(p("m.svg")):
+        fail("plot map from a pipe: %r" % r.stderr)
+    r = piped(["simulate", "exports", "/dev/stdin", "--dir", p("exp")], data)
+    if r.returncode != 0 or not os.path.exists(os.path.join(p("exp"), "view0.csv")):
+        fail("simulate exports from a pipe: %r" % r.stderr)
+    # an endless pipe of comments is refused while it is copied, at its line
+    r = subprocess.run(["sh", "-c", 'yes "# c" | "$1" report grid - -o "$2"', "sh", CLI, p("R8.html")],
+                       capture_output=True, text=True, timeout=120)
+    if r.returncode != 2 or "-:1000001: more than 1000000 comment" not in r.stderr:
+        fail("endless comments through a pipe: %d %r" % (r.returncode, r.stderr))
     # a device of NUL bytes is refused at once (not read for 2 GiB first)
     r = subprocess.run([CLI, "report", "profile", "/dev/zero", "-o", p("R7.html")],
                        capture_output=True, text=True, timeout=60)
