@@ -35,10 +35,17 @@ static int is_output_option(const char *outputs, const char *a)
     return 0;
 }
 
+/* A file an output can clash with an input on: a regular file, or a pipe (FIFO, /dev/stdin
+ * from a pipe, a socket): not a device (/dev/null, a terminal) that is rightly both. */
+static int clash_kind(const struct stat *st)
+{
+    return S_ISREG(st->st_mode) || S_ISFIFO(st->st_mode) || S_ISSOCK(st->st_mode);
+}
+
 static void identify(named_file *f)
 {
     struct stat st;
-    f->exists = stat(f->arg, &st) == 0 && S_ISREG(st.st_mode);
+    f->exists = stat(f->arg, &st) == 0 && clash_kind(&st);
     f->dev = f->exists ? st.st_dev : 0;
     f->ino = f->exists ? st.st_ino : 0;
 }
@@ -84,7 +91,7 @@ static int collect(const char *cmd, const char *outputs, int argc, char **argv, 
             cli_parse_profile_placed(a, &axis, &dir, profile_path, sizeof profile_path,
                                      &offset) == 0)
             a = profile_path;
-        if (*nin < MAX_PATHS && stat(a, &in[*nin]) == 0 && S_ISREG(in[*nin].st_mode))
+        if (*nin < MAX_PATHS && stat(a, &in[*nin]) == 0 && clash_kind(&in[*nin]))
             (*nin)++;
     }
     return -1;

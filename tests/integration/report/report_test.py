@@ -539,6 +539,10 @@ def case_pipes():
     r = piped(["lut", "build", "--map", "-", "-o", p("t2.lut")], gdata)
     if r.returncode != 0 or hashlib.sha256(gdata).hexdigest() + " (map)" not in run("lut", "info", p("t2.lut")).stdout:
         fail("lut build --map -: %r" % r.stderr)
+    # an output naming the pipe an input comes through is refused before anything is read
+    r = piped(["grid", "--method", "lsq", "/dev/stdin", "--map", "/dev/stdin"], data)
+    if r.returncode != 2 or "also an input" not in r.stderr.decode():
+        fail("output = piped input: %d %r" % (r.returncode, r.stderr))
     # the commands that look at their input before reading it take a pipe too
     r = piped(["plot", "map", "/dev/stdin", "-o", p("m.svg")], gdata)
     if r.returncode != 0 or not os.path.exists(p("m.svg")):
