@@ -10,6 +10,7 @@
 
 #include "cli.h"
 #include "../../libselfcal/src/common/big_alloc.h"
+#include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
@@ -132,8 +133,8 @@ static void calibrate_options(const profile_args *pa, sc_profile_options *opt)
     opt->progress = pa->mc > 0 && isatty(STDERR_FILENO) && !pa->quiet ? progress_cb : NULL;
 }
 
-/* --plot: the profile with its uncertainty band as SVG. */
-static sc_status write_plot(const profile_args *pa, const sc_profile_data *d,
+/* --plot: the profile with its uncertainty band as SVG, into fp. */
+static sc_status write_plot(FILE *fp, const profile_args *pa, const sc_profile_data *d,
                             const sc_profile_solution *sol, sc_error *err)
 {
     const int n = d->n;
@@ -148,7 +149,7 @@ static sc_status write_plot(const profile_args *pa, const sc_profile_data *d,
     snprintf(title, sizeof title, "%s method, N = %d, d = %d/%d", pa->method_s, n, d->d[0],
              d->d[1]);
     profile_plot_opts o = {title, pa->method_s, NULL, 0};
-    sc_status st = profile_plot_write(pa->plot, &r, NULL, NULL, &o, err);
+    sc_status st = profile_plot_svg(fp, &r, NULL, NULL, &o, err);
     free(x);
     return st;
 }
@@ -213,10 +214,18 @@ static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_da
                         "uf_um left empty\n", sol.dof);
     if (!pa->quiet)
         cli_warn_zero_noise("selfcal profile", &sol);
-    st = sc_profile_write_result(pa->out, n, d->s_mm, sol.f_um, sol.have_uf ? sol.uf_um : NULL,
-                                 sol.ey_um, n - d->d[0], err);
+    /* the result and the plot: both written or neither (one commit for the two) */
+    sc_afile f[2];
+    memset(f, 0, sizeof f);
+    st = sc_afile_open(&f[0], pa->out, err);
     if (st == SC_OK && pa->plot)
-        st = write_plot(pa, d, &sol, err);
+        st = sc_afile_open(&f[1], pa->plot, err);
+    if (st == SC_OK)
+        st = sc_profile_write_result_to(&f[0], n, d->s_mm, sol.f_um,
+                                        sol.have_uf ? sol.uf_um : NULL, sol.ey_um, n - d->d[0], err);
+    if (st == SC_OK && pa->plot)
+        st = write_plot(f[1].fp, pa, d, &sol, err);
+    st = sc_afile_finish_all(f, 2, st, err);
     if (st == SC_OK && !pa->quiet)
         print_summary(pa, d, &sol);
     return st;

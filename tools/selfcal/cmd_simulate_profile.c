@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli.h"
+#include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_lsq.h"
@@ -159,11 +160,18 @@ static sc_status simulate_and_write(const sc_profile_sim *p, const sim_profile_a
         st = sc_profile_simulate(p, f, &d, ey, err);
     if (st == SC_OK) {
         sc_profile_remove_line(n - p->d1, ey);
-        /* both files are computed; write the data, then the truth (each atomically) */
-        st = sc_profile_write(a->out, &d, err);
+        /* both files are computed; the data and the truth: both written or neither */
+        sc_afile af[2];
+        memset(af, 0, sizeof af);
+        st = sc_afile_open(&af[0], a->out, err);
+        if (st == SC_OK)
+            st = sc_afile_open(&af[1], a->truth, err);
+        if (st == SC_OK)
+            st = sc_profile_write_to(&af[0], &d, err);
+        if (st == SC_OK)
+            st = sc_profile_write_result_to(&af[1], n, p->s_mm, f, NULL, ey, n - p->d1, err);
+        st = sc_afile_finish_all(af, 2, st, err);
     }
-    if (st == SC_OK)
-        st = sc_profile_write_result(a->truth, n, p->s_mm, f, NULL, ey, n - p->d1, err);
     if (st == SC_OK)
         printf("%s\n", info);
     sc_profile_data_free(&d);

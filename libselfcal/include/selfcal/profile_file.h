@@ -6,6 +6,7 @@
 #define SELFCAL_PROFILE_FILE_H
 
 #include "selfcal/api.h"
+#include "selfcal/atomic_file.h"
 #include "selfcal/error.h"
 
 #ifdef __cplusplus
@@ -68,6 +69,14 @@ SC_API sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc
 SC_API sc_status sc_profile_write_result(const char *path, int n, double s_mm, const double *f_um,
                                          const double *uf_um, const double *ey_um, int n_ey,
                                          sc_error *err);
+
+/* The same into f, an atomic file the caller opened (sc_afile_open) and ends — sc_afile_finish,
+ * or sc_afile_finish_all with the command's other outputs, so that all are written or none:
+ * nothing is committed or aborted here. */
+SC_API sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_error *err);
+SC_API sc_status sc_profile_write_result_to(sc_afile *f, int n, double s_mm, const double *f_um,
+                                            const double *uf_um, const double *ey_um, int n_ey,
+                                            sc_error *err);
 
 /* A profile result (or truth) file read back. */
 typedef struct sc_profile_result {

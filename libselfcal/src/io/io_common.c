@@ -98,6 +98,31 @@ void sc_io_out_flush(sc_io_out *o)
     o->p = o->buf;
 }
 
+sc_status sc_io_out_attach(sc_io_out *o, const sc_afile *f, sc_error *err)
+{
+    o->f = *f; /* the same FILE and paths: the caller's entry ends it */
+    o->nomem = 0;
+    o->write_errno = 0;
+    o->buf = o->p = malloc(SC_IO_BLOCK);
+    if (!o->buf)
+        return sc_error_set(err, SC_E_NOMEM, f->path, 0, "out of memory");
+    return SC_OK;
+}
+
+sc_status sc_io_out_drain(sc_io_out *o, sc_error *err)
+{
+    if (!o->nomem)
+        sc_io_out_flush(o);
+    free(o->buf);
+    o->buf = o->p = NULL;
+    if (o->nomem)
+        return sc_error_set(err, SC_E_NOMEM, o->f.path, 0, "out of memory");
+    if (o->write_errno)
+        return sc_error_set(err, SC_E_IO, o->f.path, 0, "write error: %s",
+                            strerror(o->write_errno));
+    return SC_OK;
+}
+
 sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
 {
     if (!o->nomem)

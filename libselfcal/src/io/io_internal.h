@@ -71,6 +71,11 @@ typedef struct sc_io_out {
 /* Open path's atomic file and the block. */
 sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err);
 
+/* The block for rows into f, an atomic file the caller opened and will end (with others: all
+ * or none); sc_io_out_drain writes the rest and frees the block without ending f. */
+sc_status sc_io_out_attach(sc_io_out *o, const sc_afile *f, sc_error *err);
+sc_status sc_io_out_drain(sc_io_out *o, sc_error *err);
+
 /* Write the block out (to f.fp) and start it again. */
 void sc_io_out_flush(sc_io_out *o);
 

@@ -637,10 +637,9 @@ static char *measurement_row(const void *ctx, long i, char *p)
     return sc_io_put_shortest(p, &m[2], '\n');
 }
 
-sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
+/* Every sample a finite number: only what the reader reads back is written. */
+static sc_status check_writable(const sc_profile_data *d, sc_error *err)
 {
-    /* only what the reader reads back: every sample a finite number (checked before the file
-     * is opened: nothing is written otherwise) */
     static const char *const sensor[3] = {"m1_um", "m2_um", "m3_urad"};
     for (int k = 0; k < 2; ++k) {
         const double *v[3] = {d->m1_um[k], d->m2_um[k], d->m3_urad[k]};
@@ -652,11 +651,13 @@ sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error 
                                         "(|value| <= %g)", k + 1, j, sensor[s], v[s][j],
                                         SC_INPUT_MAX_ABS);
     }
-    sc_io_out o;
-    sc_status st = sc_io_out_open(&o, path, err);
-    if (st != SC_OK)
-        return st;
-    FILE *fp = o.f.fp;
+    return SC_OK;
+}
+
+/* The header and rows of d into o. */
+static void write_data(sc_io_out *o, const sc_profile_data *d)
+{
+    FILE *fp = o->f.fp;
     fprintf(fp, "# selfcal-profile v1\n# N = %d\n# s_mm = %.17g\n# scan 1: d=%d\n# scan 2: d=%d\n",
             d->n, d->s_mm, d->d[0], d->d[1]);
     if (d->has_sigma_disp)
@@ -664,6 +665,29 @@ sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error 
     if (d->has_sigma_angle)
         fprintf(fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
     fputs("scan,n,m1_um,m2_um,m3_urad\n", fp);
-    sc_io_out_rows(&o, 2L * d->n - d->d[0] - d->d[1], measurement_row, d);
+    sc_io_out_rows(o, 2L * d->n - d->d[0] - d->d[1], measurement_row, d);
+}
+
+sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
+{
+    sc_status st = check_writable(d, err); /* before the file is opened: nothing written */
+    if (st != SC_OK)
+        return st;
+    sc_io_out o;
+    if ((st = sc_io_out_open(&o, path, err)) != SC_OK)
+        return st;
+    write_data(&o, d);
     return sc_io_out_finish(&o, err);
+}
+
+sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_error *err)
+{
+    sc_status st = check_writable(d, err);
+    if (st != SC_OK)
+        return st;
+    sc_io_out o;
+    if ((st = sc_io_out_attach(&o, f, err)) != SC_OK)
+        return st;
+    write_data(&o, d);
+    return sc_io_out_drain(&o, err);
 }

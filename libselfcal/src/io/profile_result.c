@@ -42,6 +42,20 @@ static char *result_row(const void *ctx, long i, char *p)
     return p;
 }
 
+sc_status sc_profile_write_result_to(sc_afile *f, int n, double s_mm, const double *f_um,
+                                     const double *uf_um, const double *ey_um, int n_ey,
+                                     sc_error *err)
+{
+    sc_io_out o;
+    sc_status st = sc_io_out_attach(&o, f, err);
+    if (st != SC_OK)
+        return st;
+    fputs("n,x_mm,f_um,uf_um,ey_um\n", o.f.fp);
+    result_rows t = {s_mm, f_um, uf_um, ey_um, n_ey};
+    sc_io_out_rows(&o, n, result_row, &t);
+    return sc_io_out_drain(&o, err);
+}
+
 sc_status sc_profile_write_result(const char *path, int n, double s_mm, const double *f_um,
                                   const double *uf_um, const double *ey_um, int n_ey,
                                   sc_error *err)

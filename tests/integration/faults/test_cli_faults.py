@@ -235,6 +235,16 @@ for args in (["plot", "map", p("map_ref.csv")], ["plot", "xy", p("map_ref.csv")]
              ["lut", "build", "--map", p("map_ref.csv")]):
     r = run(args + ["-o", "/dev/full"])
     one_line_error(r, 1, " ".join(args[:2]) + " -o /dev/full", "write error: No space left on device")
+# two outputs, the second refused: the first is not written either (all or none)
+must(["simulate", "profile", "--n", "330", "--out", p("pa.csv"), "--truth", p("pa_t.csv")])
+with open(p("pa_out.csv"), "w") as fh:
+    fh.write("old\n")
+r = run(["profile", "--method", "lsq", p("pa.csv"), "--out", p("pa_out.csv"), "--plot", "/dev/full", "--quiet"])
+one_line_error(r, 1, "profile --plot /dev/full", "write error")
+check(open(p("pa_out.csv")).read() == "old\n", "profile --plot /dev/full: --out was replaced")
+r = run(["simulate", "profile", "--n", "330", "--out", p("pa_new.csv"), "--truth", "/dev/full"])
+one_line_error(r, 1, "simulate profile --truth /dev/full", "write error")
+check(not os.path.exists(p("pa_new.csv")), "simulate profile --truth /dev/full: --out was written")
 
 # an output that is a symbolic link is written through: its file replaced, the link kept
 sdir = p("links")
