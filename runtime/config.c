@@ -386,6 +386,10 @@ static char *trim(char *s)
     return s;
 }
 
+/* A configuration is a few dozen lines; more than this is not one (and an endless input must
+ * end somewhere, before the line counter would overflow). */
+#define SC_CONFIG_MAX_LINES 100000
+
 sc_status sc_config_load_file(sc_config *c, const char *path, sc_error *err)
 {
     FILE *f = fopen(path, "r");
@@ -400,7 +404,12 @@ sc_status sc_config_load_file(sc_config *c, const char *path, sc_error *err)
     char line[1024];
     int lineno = 0;
     while (fgets(line, sizeof line, f) != NULL) {
-        lineno++;
+        if (++lineno > SC_CONFIG_MAX_LINES) { /* an endless input (a pipe of blank lines) */
+            fclose(f);
+            return sc_error_set(err, SC_E_INPUT, path, lineno,
+                                "more than %d lines: not a selfcald configuration",
+                                SC_CONFIG_MAX_LINES);
+        }
         if (strchr(line, '\n') == NULL && !feof(f)) {
             int nul = strlen(line) < sizeof line - 1; /* fgets stopped at the line end after it */
             fclose(f);

@@ -110,6 +110,10 @@ check(rc == 2 and "is a directory" in err, f"config is a directory: {rc} {err}")
 open(conf, "wb").write(b"# ok\nta\0ble = x.lut\n")
 rc, err = status(["--config", conf])
 check(rc == 2 and "bad.conf:2: NUL byte" in err, f"config with a NUL byte: {rc} {err}")
+# an endless configuration (a pipe of blank lines) ends: refused past 100 000 lines
+r = subprocess.run(["sh", "-c", 'yes "" | "$1" --config /dev/stdin', "sh", selfcald],
+                   capture_output=True, text=True, timeout=60)
+check(r.returncode == 2 and "more than 100000 lines" in r.stderr, f"endless config: {r.returncode} {r.stderr}")
 # --help and --version must reach stdout (exit 1 with /dev/full, as selfcal does)
 for opt in ("--help", "--version"):
     with open("/dev/full", "w") as full:
