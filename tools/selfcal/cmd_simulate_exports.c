@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "input_once.h"
@@ -49,13 +50,23 @@ static void put_num(FILE *fp, double v, const char *fmt, const style *s)
     fputs(buf, fp);
 }
 
-static int make_dir(const char *dir, sc_error *err)
+/* dir made if it is not there (*created: 1 if made here, for undo_dir); 0, or -1 with err. */
+static int make_dir(const char *dir, int *created, sc_error *err)
 {
-    if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+    *created = mkdir(dir, 0777) == 0;
+    if (!*created && errno != EEXIST) {
         sc_error_set(err, SC_E_IO, dir, 0, "cannot create the directory: %s", strerror(errno));
         return -1;
     }
     return 0;
+}
+
+/* The directory made for outputs that were not written: removed again (it is empty: every
+ * temporary file was removed). */
+static void undo_dir(const char *dir, int created, sc_status st)
+{
+    if (created && st != SC_OK)
+        rmdir(dir);
 }
 
 typedef struct missing_mark {
@@ -210,7 +221,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     const sc_grid_plan *p = &d.plan;
     int rc = check_names(dir, "view", 0, p->n_views, argc, argv);
     rc = rc >= 0 ? rc : check_damage(p, &dm);
-    if (rc == CLI_OK && make_dir(dir, &err))
+    int created = 0;
+    if (rc == CLI_OK && make_dir(dir, &created, &err))
         rc = cli_report(&err);
     if (rc != CLI_OK) {
         sc_grid_data_free(&d);
@@ -235,6 +247,7 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
         print_view_file(f[v].fp, pts, np, unit_per_mm, sty);
     }
     st = sc_afile_finish_all(f, opened, st, &err);
+    undo_dir(dir, created, st);
     if (st == SC_OK)
         print_import_command(p, dir, unit_per_mm);
     free(pts);
@@ -255,7 +268,8 @@ static int profile_exports(const char *in, const char *dir, const style *sty, in
     sc_status st = sc_profile_read(in, &d, &err);
     if (st != SC_OK)
         return cli_report(&err);
-    if (make_dir(dir, &err)) {
+    int created = 0;
+    if (make_dir(dir, &created, &err)) {
         sc_profile_data_free(&d);
         return cli_report(&err);
     }
@@ -283,6 +297,7 @@ static int profile_exports(const char *in, const char *dir, const style *sty, in
         }
     }
     st = sc_afile_finish_all(f, opened, st, &err);
+    undo_dir(dir, created, st);
     if (st == SC_OK)
         printf("selfcal import profile --spacing-mm %.17g %s/scan1.csv --spacing-mm %.17g %s/scan2.csv \\\n"
                "  --pos-col Position --m1-col SensorA --m2-col SensorB --m3-col Angle -o IN.csv\n",

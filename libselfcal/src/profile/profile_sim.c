@@ -236,6 +236,8 @@ static sc_status dabam_data_line(const char *path, long ln, const char *line, co
     return SC_OK;
 }
 
+#define SC_DABAM_MAX_HEADER_LINES 1000000L /* FILE_HEADER_LINES beyond this: not DABAM */
+
 static sc_status dabam_read_points(const char *path, const dabam_meta *m, dabam_points *d,
                                    sc_error *err)
 {
@@ -243,15 +245,24 @@ static sc_status dabam_read_points(const char *path, const dabam_meta *m, dabam_
     if (!fp)
         return err ? err->code : SC_E_INPUT;
     char line[4096];
-    long ln = 0;
+    long ln = 0, skipped = 0; /* comment or blank lines in a row */
     sc_status st = SC_OK;
     while (st == SC_OK && fgets(line, sizeof line, fp)) {
         ++ln;
+        const char *c = line;
+        while (isspace((unsigned char)*c))
+            ++c;
+        skipped = !*c || *c == '#' ? skipped + 1 : 0;
         if (!strchr(line, '\n') && !feof(fp))
             st = sc_error_set(err, SC_E_INPUT, path, ln, "line longer than %zu bytes",
                               sizeof line - 2);
+        else if (skipped > SC_CSV_MAX_SKIP_RUN) /* an endless input, as the CSV reader says */
+            st = sc_error_set(err, SC_E_INPUT, path, ln, "more than %ld comment or blank lines "
+                              "in a row: not a data file (an endless input?)", SC_CSV_MAX_SKIP_RUN);
         else if (ln > m->header_lines)
             st = dabam_data_line(path, ln, line, m, d, err);
+        else if (ln > SC_DABAM_MAX_HEADER_LINES)
+            st = sc_error_set(err, SC_E_INPUT, path, ln, "more header lines than any DABAM file");
     }
     fclose(fp);
     if (st == SC_OK && d->count < 4)

@@ -235,6 +235,11 @@ for args in (["plot", "map", p("map_ref.csv")], ["plot", "xy", p("map_ref.csv")]
              ["lut", "build", "--map", p("map_ref.csv")]):
     r = run(args + ["-o", "/dev/full"])
     one_line_error(r, 1, " ".join(args[:2]) + " -o /dev/full", "write error: No space left on device")
+# simulate exports into a new folder whose files cannot be written: the folder is not left
+r = subprocess.run(["sh", "-c", 'ulimit -f 1 && exec "$1" simulate exports "$2" --dir "$3"', "sh", cli,
+                    p("grid.csv"), p("exports_new")], capture_output=True, text=True, timeout=120)
+one_line_error(r, 1, "simulate exports under ulimit -f", "write error")
+check(not os.path.exists(p("exports_new")), "simulate exports: the new folder was left behind")
 # two outputs, the second refused: the first is not written either (all or none)
 must(["simulate", "profile", "--n", "330", "--out", p("pa.csv"), "--truth", p("pa_t.csv")])
 with open(p("pa_out.csv"), "w") as fh:
