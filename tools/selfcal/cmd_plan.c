@@ -297,27 +297,14 @@ int cmd_plan(int argc, char **argv)
     if (worth_announcing(&d.plan, opts.drift, &unknowns)) /* seconds to minutes */
         fprintf(stderr, "selfcal: plan: analysing a %d x %d stage (%ld unknowns)\n",
                 sc_grid_stage_nx(&d.plan), sc_grid_stage_ny(&d.plan), unknowns);
-    st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &opts, &q, &err);
-    if (st != SC_OK) {
-        sc_grid_data_free(&d);
-        if (!err.file[0]) {
-            snprintf(err.file, sizeof err.file, "%s", in);
-            err.line = fi.header_end_line;
-        }
-        return cli_report(&err);
-    }
+    /* pass 0: the plan as it states its uncertainties; pass 1, where it states some: the same
+     * with equal weights, for the σ_C ratios per unit σ_r. Its figures kept, each plan is freed
+     * before the next: one in memory at a time. */
     sc_grid_lsq_info qi, unit;
-    sc_grid_lsq_get_info(q, &qi);
-    sc_grid_lsq_plan_destroy(q); /* its figures kept: one plan in memory at a time */
-    unit = qi;
-    if (qi.weighted && qi.identifiable) { /* the σ_C ratios per unit σ_r: the same plan unweighted */
-        sc_grid_lsq_plan *qu = NULL;
-        sc_grid_lsq_opts uo = opts;
-        uo.unit_weights = 1;
-        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &uo, &qu, &err);
-        if (st == SC_OK)
-            sc_grid_lsq_get_info(qu, &unit);
-        sc_grid_lsq_plan_destroy(qu);
+    for (int pass = 0; pass < 2; ++pass) {
+        sc_grid_lsq_opts po = opts;
+        po.unit_weights = pass;
+        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &po, &q, &err);
         if (st != SC_OK) {
             sc_grid_data_free(&d);
             if (!err.file[0]) {
@@ -326,6 +313,13 @@ int cmd_plan(int argc, char **argv)
             }
             return cli_report(&err);
         }
+        sc_grid_lsq_get_info(q, pass ? &unit : &qi);
+        sc_grid_lsq_plan_destroy(q);
+        q = NULL;
+        if (pass == 0)
+            unit = qi;
+        if (!(qi.weighted && qi.identifiable))
+            break;
     }
     print_analysis(&d, &fi, has_data, &qi, &unit);
     sc_grid_data_free(&d);

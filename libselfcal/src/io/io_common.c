@@ -125,19 +125,11 @@ sc_status sc_io_out_drain(sc_io_out *o, sc_error *err)
 
 sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
 {
-    if (!o->nomem)
-        sc_io_out_flush(o);
-    free(o->buf);
-    o->buf = o->p = NULL;
-    if (o->nomem) {
-        sc_error_set(err, SC_E_NOMEM, o->f.path, 0, "out of memory");
+    sc_status st = sc_io_out_drain(o, err); /* out of memory, or a write's reason, which ferror
+                                               alone no longer knows */
+    if (st != SC_OK) {
         sc_afile_abort(&o->f);
-        return SC_E_NOMEM;
-    }
-    if (o->write_errno) { /* the reason, which ferror alone no longer knows */
-        sc_afile_abort(&o->f);
-        return sc_error_set(err, SC_E_IO, o->f.path, 0, "write error: %s",
-                            strerror(o->write_errno));
+        return st;
     }
     return sc_io_finish(&o->f, err);
 }

@@ -668,18 +668,6 @@ static void write_data(sc_io_out *o, const sc_profile_data *d)
     sc_io_out_rows(o, 2L * d->n - d->d[0] - d->d[1], measurement_row, d);
 }
 
-sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
-{
-    sc_status st = check_writable(d, err); /* before the file is opened: nothing written */
-    if (st != SC_OK)
-        return st;
-    sc_io_out o;
-    if ((st = sc_io_out_open(&o, path, err)) != SC_OK)
-        return st;
-    write_data(&o, d);
-    return sc_io_out_finish(&o, err);
-}
-
 sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_error *err)
 {
     sc_status st = check_writable(d, err);
@@ -690,4 +678,15 @@ sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_error *e
         return st;
     write_data(&o, d);
     return sc_io_out_drain(&o, err);
+}
+
+sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
+{
+    sc_status st = check_writable(d, err); /* before the file is opened: nothing written */
+    if (st != SC_OK)
+        return st;
+    sc_afile f;
+    if ((st = sc_afile_open(&f, path, err)) != SC_OK)
+        return st;
+    return sc_afile_finish(&f, sc_profile_write_to(&f, d, err), err);
 }

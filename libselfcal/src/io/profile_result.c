@@ -60,14 +60,12 @@ sc_status sc_profile_write_result(const char *path, int n, double s_mm, const do
                                   const double *uf_um, const double *ey_um, int n_ey,
                                   sc_error *err)
 {
-    sc_io_out o;
-    sc_status st = sc_io_out_open(&o, path, err);
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
     if (st != SC_OK)
         return st;
-    fputs("n,x_mm,f_um,uf_um,ey_um\n", o.f.fp);
-    result_rows t = {s_mm, f_um, uf_um, ey_um, n_ey};
-    sc_io_out_rows(&o, n, result_row, &t);
-    return sc_io_out_finish(&o, err);
+    st = sc_profile_write_result_to(&f, n, s_mm, f_um, uf_um, ey_um, n_ey, err);
+    return sc_afile_finish(&f, st, err);
 }
 
 void sc_profile_result_free(sc_profile_result *r)

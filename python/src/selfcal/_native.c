@@ -886,31 +886,15 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
     sc_grid_lsq_plan *q = NULL;
     PyObject *ret = NULL, *sgx = NULL, *sgy = NULL;
     sc_status st;
-    Py_BEGIN_ALLOW_THREADS
-    st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, NULL, &q, &err);
-    Py_END_ALLOW_THREADS
-    if (st != SC_OK) {
-        if (!err.file[0] && path) {
-            snprintf(err.file, sizeof err.file, "%s", PyBytes_AS_STRING(path));
-            err.line = info.header_end_line;
-        }
-        raise_sc(&err);
-        goto done;
-    }
+    /* pass 0: the plan as it states its uncertainties; pass 1, where it states some: std(G) in
+     * µm kept from pass 0, the ratios per unit σ_r from the same plan with equal weights (as
+     * `selfcal plan`); one plan in memory at a time, the last one's per-node ratios below */
     sc_grid_lsq_info qi, unit;
-    sc_grid_lsq_get_info(q, &qi);
-    unit = qi;
     double c_rms_um = NAN, c_max_um = NAN;
-    if (qi.weighted && qi.identifiable) {
-        /* stated uncertainties: std(G) in µm from this plan, the ratios per unit σ_r from the
-         * same plan with equal weights (as `selfcal plan`) */
-        c_rms_um = qi.sigma_c_ratio_rms;
-        c_max_um = qi.sigma_c_ratio_max;
-        sc_grid_lsq_plan_destroy(q); /* its figures kept: one plan in memory at a time */
-        q = NULL;
-        sc_grid_lsq_opts uo = {.unit_weights = 1};
+    for (int pass = 0; pass < 2; ++pass) {
+        sc_grid_lsq_opts po = {.unit_weights = pass};
         Py_BEGIN_ALLOW_THREADS
-        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &uo, &q, &err);
+        st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &po, &q, &err);
         Py_END_ALLOW_THREADS
         if (st != SC_OK) {
             if (!err.file[0] && path) {
@@ -920,7 +904,17 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
             raise_sc(&err);
             goto done;
         }
-        sc_grid_lsq_get_info(q, &unit); /* the per-node ratios below are this plan's */
+        sc_grid_lsq_get_info(q, pass ? &unit : &qi);
+        if (pass == 0)
+            unit = qi;
+        if (!(qi.weighted && qi.identifiable))
+            break;
+        if (pass == 0) {
+            c_rms_um = qi.sigma_c_ratio_rms;
+            c_max_um = qi.sigma_c_ratio_max;
+            sc_grid_lsq_plan_destroy(q);
+            q = NULL;
+        }
     }
     npy_intp shape[2] = {sc_grid_stage_ny(&d.plan), sc_grid_stage_nx(&d.plan)};
     sgx = arr_from(NULL, 2, shape);
