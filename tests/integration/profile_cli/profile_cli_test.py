@@ -168,6 +168,21 @@ def case_bad_input():
             if rss_mb > limit_mb:
                 sys.exit(f"FAIL: {name} through a pipe ({method}): {rss_mb:.0f} MB before the refusal")
             print(f"{name} through a pipe ({method}): refused, peak {rss_mb:.0f} MB")
+    # a DABAM profile that is an endless run of comments (a FIFO fed by `yes '#'`) is refused
+    import shutil
+    shutil.copy(os.path.join(DATA, "dabam", "dabam-001.txt"), path("endless.txt"))
+    if os.path.exists(path("endless.dat")):
+        os.remove(path("endless.dat"))
+    os.mkfifo(path("endless.dat"))
+    feeder = subprocess.Popen(["sh", "-c", 'yes "#" > "$1"', "sh", path("endless.dat")],
+                              stderr=subprocess.DEVNULL)
+    p = subprocess.run([CLI, "simulate", "profile", "--profile", path("endless.dat"), "--out",
+                        path("e_in.csv"), "--truth", path("e_t.csv")], capture_output=True, text=True,
+                       timeout=100)
+    feeder.kill()
+    feeder.wait()
+    if p.returncode != 2 or "comment or blank lines in a row" not in p.stderr:
+        sys.exit(f"FAIL: endless DABAM comments: exit {p.returncode}: {p.stderr}")
     # a noise option out of range: the same words in every command that takes it
     good = path("good_noise.csv")
     write_lines(good, good_lines())
