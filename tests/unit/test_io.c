@@ -388,12 +388,14 @@ static char *slurp(const char *path, long *len)
 
 static void write_numbered(const char *path, long n, const double *v, long parallel_from)
 {
+    sc_afile f;
     sc_io_out o;
     sc_error err;
-    assert_int_equal(sc_io_out_open(&o, path, &err), SC_OK);
+    assert_int_equal(sc_afile_open(&f, path, &err), SC_OK);
+    assert_int_equal(sc_io_out_attach(&o, &f, &err), SC_OK);
     fputs("i,v\n", o.f.fp); /* text before the rows, as the writers' column headers */
     sc_io_out_rows_tuned(&o, n, numbered_row, v, parallel_from);
-    assert_int_equal(sc_io_out_finish(&o, &err), SC_OK);
+    assert_int_equal(sc_afile_finish(&f, sc_io_out_drain(&o, &err), &err), SC_OK);
 }
 
 static void test_rows_two_threads(void **state)

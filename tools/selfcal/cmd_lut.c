@@ -133,10 +133,11 @@ static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report
     /* each source read once (a pipe into memory, hashed on the way), then hashed as
      * provenance, as `sha256sum` prints it */
     static cli_input src[1 + SC_LUT_MAX_PROFILES];
-    int opened = 0;
-    sc_status st = SC_OK;
-    for (; opened < 1 + b->np && st == SC_OK; ++opened)
-        st = cli_input_open(&src[opened], opened ? b->pa[opened - 1].path : b->map, 1, err);
+    const char *paths[1 + SC_LUT_MAX_PROFILES] = {b->map};
+    for (int k = 0; k < b->np; ++k)
+        paths[k + 1] = b->pa[k].path;
+    int opened;
+    sc_status st = cli_input_open_all(src, paths, 1 + b->np, 0, &opened, err);
     if (st == SC_OK)
         st = cli_read_map(src[0].path, b->max_nodes, lut, fit, err);
     for (int k = 0; st == SC_OK && k < b->np; ++k) {
@@ -150,8 +151,7 @@ static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report
         st = cli_input_sha256(&src[k], lut->prov.sha256[k], &size, err);
     if (st != SC_OK)
         cli_input_rename_in_error(err);
-    for (int k = 0; k < opened; ++k)
-        cli_input_close(&src[k]);
+    cli_input_close_all(src, opened);
     if (st != SC_OK)
         return st;
     lut->prov.n_sources = 1 + b->np;

@@ -802,10 +802,9 @@ int cmd_report_grid(int argc, char **argv)
     sc_error_clear(&err);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
     const char *names[3] = {r.in, vo.measurement, vo.table};
-    int opened = 0;
-    sc_status st = SC_OK;
-    for (; opened < (vo.measurement ? 3 : 1) && st == SC_OK; ++opened)
-        st = cli_input_open(&src[opened], names[opened], opened != 2, &err); /* 2: the table */
+    int opened;
+    sc_status st = cli_input_open_all(src, names, vo.measurement ? 3 : 1, 1u << 2 /* the table */,
+                                      &opened, &err);
     r.src = &src[0];
     if (vo.measurement)
         vo.src[0] = &src[1], vo.src[1] = &src[2];
@@ -833,7 +832,6 @@ int cmd_report_grid(int argc, char **argv)
             snprintf(err.file, sizeof err.file, "%s", r.in);
         rc = cli_report(&err);
     }
-    for (int k = 0; k < opened; ++k)
-        cli_input_close(&src[k]);
+    cli_input_close_all(src, opened);
     return rc;
 }

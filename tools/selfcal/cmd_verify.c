@@ -162,25 +162,20 @@ int cmd_verify(int argc, char **argv)
     memset(&r, 0, sizeof r);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
     const char *names[3] = {o.measurement, o.table, o.artifact};
-    int opened = 0;
-    sc_status st = SC_OK;
-    for (; opened < 3 && st == SC_OK; ++opened) {
-        st = cli_input_open(&src[opened], names[opened], opened != 1, &err); /* 1: the table */
-        o.src[opened] = &src[opened];
-    }
+    int opened;
+    sc_status st = cli_input_open_all(src, names, 3, 1u << 1 /* the table */, &opened, &err);
+    for (int k = 0; k < 3; ++k)
+        o.src[k] = &src[k];
     if (st == SC_OK)
         st = verify_run(&o, &r, &err);
     if (st == SC_OK)
         st = write_outputs(&out, &o, &r, argc, argv, &err);
+    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    cli_input_close_all(src, opened);
     if (st != SC_OK) {
         verify_result_free(&r);
-        int rc = cli_report(&err);
-        for (int k = 0; k < opened; ++k)
-            cli_input_close(&src[k]);
         return rc;
     }
-    for (int k = 0; k < opened; ++k)
-        cli_input_close(&src[k]);
     const verify_stats *b = &r.st_before, *a = &r.st_after;
     if (r.n_unmeasured || r.n_unseen)
         fprintf(stderr, "selfcal verify: left out of the statistics: %ld mark(s) the views place "

@@ -50,17 +50,15 @@ static sc_status check_text(text_check *c, const char *buf, size_t n, const char
                             sc_error *err)
 {
     if (memchr(buf, '\0', n))
-        return sc_error_set(err, SC_E_INPUT, path, c->line + 1,
-                            "NUL byte in a text file (UTF-16? save it as UTF-8)");
+        return sc_error_set(err, SC_E_INPUT, path, c->line + 1, SC_CSV_NUL_MSG);
     for (size_t k = 0; k < n; ++k) {
         unsigned char ch = (unsigned char)buf[k];
         if (ch == '\n') {
             ++c->line;
             c->run = !c->seen || c->hash ? c->run + 1 : 0;
             if (c->run > SC_CSV_MAX_SKIP_RUN)
-                return sc_error_set(err, SC_E_INPUT, path, c->line,
-                                    "more than %ld comment or blank lines in a row: not a data "
-                                    "file (an endless input?)", SC_CSV_MAX_SKIP_RUN);
+                return sc_error_set(err, SC_E_INPUT, path, c->line, SC_CSV_SKIP_RUN_MSG,
+                                    SC_CSV_MAX_SKIP_RUN);
             c->len = 0, c->seen = 0, c->hash = 0;
             continue;
         }
@@ -190,6 +188,21 @@ void cli_input_close(cli_input *in)
     }
     in->fd = -1;
     in->path = in->orig;
+}
+
+sc_status cli_input_open_all(cli_input *in, const char *const *paths, int n, unsigned binary,
+                             int *opened, sc_error *err)
+{
+    sc_status st = SC_OK;
+    for (*opened = 0; *opened < n && st == SC_OK; ++*opened)
+        st = cli_input_open(&in[*opened], paths[*opened], !(binary >> *opened & 1u), err);
+    return st;
+}
+
+void cli_input_close_all(cli_input *in, int n)
+{
+    for (int k = 0; k < n; ++k)
+        cli_input_close(&in[k]);
 }
 
 /* Replace every occurrence of from by to in s (cap bytes); an occurrence followed by a digit is

@@ -33,6 +33,12 @@ sc_status cli_input_sha256(const cli_input *in, uint8_t digest[SC_SHA256_BYTES],
 /* Free the copy (path is orig again). */
 void cli_input_close(cli_input *in);
 
+/* cli_input_open of paths[0..n-1] into in[], in order, input k binary (not text) where bit k of
+ * binary is set; stops at the first failure. *opened: the entries to cli_input_close_all. */
+sc_status cli_input_open_all(cli_input *in, const char *const *paths, int n, unsigned binary,
+                             int *opened, sc_error *err);
+void cli_input_close_all(cli_input *in, int n);
+
 /* In a message about a copy, its name as the user gave it (cli_report calls this). */
 void cli_input_rename_in_error(sc_error *err);
 

@@ -29,6 +29,12 @@ extern "C" {
 /* More comment ('#') or blank lines in a row than this is refused (an endless input of them, a
  * pipe from `yes '#'`, would otherwise be read forever): no measurement file has a million. */
 #define SC_CSV_MAX_SKIP_RUN 1000000L
+/* The reader's words for a NUL byte and for such a run (the run's with SC_CSV_MAX_SKIP_RUN as
+ * its %ld), for the readers of the same text outside it (the DABAM reader, the CLI's copy of a
+ * pipe), so that every one says it alike. */
+#define SC_CSV_NUL_MSG "NUL byte in a text file (UTF-16? save it as UTF-8)"
+#define SC_CSV_SKIP_RUN_MSG \
+    "more than %ld comment or blank lines in a row: not a data file (an endless input?)"
 
 typedef struct sc_csv {
     FILE *fp;

@@ -139,7 +139,7 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     size_t len = nl ? (size_t)(nl - s) : r->buf_len - r->buf_pos;
     long long start = r->buf_off + (long long)r->buf_pos;
     if (memchr(s, '\0', len < scan ? len : scan)) {
-        sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, "NUL byte in a text file (UTF-16? save it as UTF-8)");
+        sc_error_set(err, SC_E_INPUT, r->path, r->line + 1, SC_CSV_NUL_MSG);
         return -1;
     }
     if (len >= SC_CSV_MAX_LINE) {
@@ -160,21 +160,20 @@ int sc_csv_next_line(sc_csv *r, sc_error *err)
     r->len = len;
     r->line++;
     r->nfields = 0;
-    const char *c = s; /* a comment or blank line, as the readers skip them (sc_csv_is_blank's
-                          isspace)? Data rows start with a digit: one test */
-    while (isspace((unsigned char)*c))
-        ++c;
-    if (*c == '#' || *c == '\0') {
-        if (++r->skip_run > SC_CSV_MAX_SKIP_RUN) {
-            sc_error_set(err, SC_E_INPUT, r->path, r->line,
-                         "more than %ld comment or blank lines in a row: not a data file (an "
-                         "endless input?)", SC_CSV_MAX_SKIP_RUN);
-            return -1;
-        }
-    } else {
+    if (!sc_csv_text_skippable(s)) {
         r->skip_run = 0;
+    } else if (++r->skip_run > SC_CSV_MAX_SKIP_RUN) {
+        sc_error_set(err, SC_E_INPUT, r->path, r->line, SC_CSV_SKIP_RUN_MSG, SC_CSV_MAX_SKIP_RUN);
+        return -1;
     }
     return 1;
+}
+
+int sc_csv_text_skippable(const char *s)
+{
+    while (isspace((unsigned char)*s)) /* as sc_csv_is_blank; data rows start with a digit */
+        ++s;
+    return *s == '#' || *s == '\0';
 }
 
 long long sc_csv_line_offset(const sc_csv *r)

@@ -5,6 +5,10 @@
 
 #include "selfcal/csv.h"
 
+/* 1 if the text of a line is one the readers skip: blank (isspace only) or a comment ('#' after
+ * leading blanks). What SC_CSV_MAX_SKIP_RUN counts. */
+int sc_csv_text_skippable(const char *s);
+
 /* The byte offset in the file of the current line's first byte. */
 long long sc_csv_line_offset(const sc_csv *r);
 

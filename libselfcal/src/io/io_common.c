@@ -64,27 +64,6 @@ sc_status sc_io_read_table(const char *path, sc_csv *csv, sc_io_rows *rows,
     return st;
 }
 
-sc_status sc_io_finish(sc_afile *f, sc_error *err)
-{
-    return sc_afile_commit(f, err); /* a write that failed: "write error: <reason>" */
-}
-
-sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err)
-{
-    o->buf = o->p = NULL;
-    o->nomem = 0;
-    o->write_errno = 0;
-    sc_status st = sc_afile_open(&o->f, path, err);
-    if (st != SC_OK)
-        return st;
-    o->buf = o->p = malloc(SC_IO_BLOCK);
-    if (!o->buf) {
-        sc_afile_abort(&o->f);
-        return sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
-    }
-    return SC_OK;
-}
-
 void sc_io_out_write(sc_io_out *o, const char *data, size_t len)
 {
     errno = 0;
@@ -121,17 +100,6 @@ sc_status sc_io_out_drain(sc_io_out *o, sc_error *err)
         return sc_error_set(err, SC_E_IO, o->f.path, 0, "write error: %s",
                             strerror(o->write_errno));
     return SC_OK;
-}
-
-sc_status sc_io_out_finish(sc_io_out *o, sc_error *err)
-{
-    sc_status st = sc_io_out_drain(o, err); /* out of memory, or a write's reason, which ferror
-                                               alone no longer knows */
-    if (st != SC_OK) {
-        sc_afile_abort(&o->f);
-        return st;
-    }
-    return sc_io_finish(&o->f, err);
 }
 
 /* The deviating points of v against a + b·k (beyond tol): how many; *bad the one of smallest

@@ -62,14 +62,11 @@ char *sc_io_put_long(char *p, long v, char sep);
 #define SC_IO_BLOCK (256 * 1024)
 #define SC_IO_ROW_MAX 1024 /* the room kept for one row */
 typedef struct sc_io_out {
-    sc_afile f; /* open between sc_io_out_open and sc_io_out_finish */
+    sc_afile f; /* the caller's atomic file (sc_io_out_attach), which it ends */
     char *buf, *p;
-    int nomem;  /* sc_io_out_rows ran out of memory: sc_io_out_finish aborts the file */
+    int nomem;  /* sc_io_out_rows ran out of memory: sc_io_out_drain says it */
     int write_errno; /* errno of the first failed write (0: none): the error's reason */
 } sc_io_out;
-
-/* Open path's atomic file and the block. */
-sc_status sc_io_out_open(sc_io_out *o, const char *path, sc_error *err);
 
 /* The block for rows into f, an atomic file the caller opened and will end (with others: all
  * or none); sc_io_out_drain writes the rest and frees the block without ending f. */
@@ -79,7 +76,7 @@ sc_status sc_io_out_drain(sc_io_out *o, sc_error *err);
 /* Write the block out (to f.fp) and start it again. */
 void sc_io_out_flush(sc_io_out *o);
 
-/* fwrite to the file, keeping the errno of the first failure for sc_io_out_finish's message. */
+/* fwrite to the file, keeping the errno of the first failure for sc_io_out_drain's message. */
 void sc_io_out_write(sc_io_out *o, const char *data, size_t len);
 
 /* After a row: write the block out once less than SC_IO_ROW_MAX bytes are left in it. */
@@ -103,19 +100,12 @@ typedef char *(*sc_io_format_row)(const void *ctx, long i, char *p);
  * second core is free: both threads take chunks of 2048 rows to format as they come free, and
  * this one writes every chunk in order (row_writer.c);
  * the text is the same either way. format must be safe to call from two threads at once. Out of
- * memory for the chunks: nothing written, o->nomem set (sc_io_out_finish says it). */
+ * memory for the chunks: nothing written, o->nomem set (sc_io_out_drain says it). */
 void sc_io_out_rows(sc_io_out *o, long n, sc_io_format_row format, const void *ctx);
 
 /* sc_io_out_rows with the row count from which two threads format (for the tests). */
 void sc_io_out_rows_tuned(sc_io_out *o, long n, sc_io_format_row format, const void *ctx,
                           long parallel_from);
-
-/* Write the rest, free the block, commit (sc_io_finish); SC_E_NOMEM and the file aborted after
- * sc_io_out_rows ran out of memory. */
-sc_status sc_io_out_finish(sc_io_out *o, sc_error *err);
-
-/* Commit an atomic file, or abort it (SC_E_IO) if a write failed. */
-sc_status sc_io_finish(sc_afile *f, sc_error *err);
 
 /* Fit v = a + b·k to points (k, v) in any order (k whole numbers, each index at least once),
  * lines[m] the file line of point m, and judge its regularity. The reference line goes through

@@ -170,5 +170,5 @@ sc_status sc_plate_map_write(const char *path, const sc_plate_map *m, sc_error *
     if (st != SC_OK)
         return st;
     sc_plate_map_fprint(f.fp, m);
-    return sc_io_finish(&f, err);
+    return sc_afile_commit(&f, err); /* a write that failed: "write error: <reason>" */
 }

@@ -668,16 +668,21 @@ static void write_data(sc_io_out *o, const sc_profile_data *d)
     sc_io_out_rows(o, 2L * d->n - d->d[0] - d->d[1], measurement_row, d);
 }
 
-sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_error *err)
+/* The header and rows of d (checked) into f. */
+static sc_status write_checked_to(sc_afile *f, const sc_profile_data *d, sc_error *err)
 {
-    sc_status st = check_writable(d, err);
-    if (st != SC_OK)
-        return st;
     sc_io_out o;
-    if ((st = sc_io_out_attach(&o, f, err)) != SC_OK)
+    sc_status st = sc_io_out_attach(&o, f, err);
+    if (st != SC_OK)
         return st;
     write_data(&o, d);
     return sc_io_out_drain(&o, err);
+}
+
+sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_error *err)
+{
+    sc_status st = check_writable(d, err);
+    return st == SC_OK ? write_checked_to(f, d, err) : st;
 }
 
 sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err)
@@ -688,5 +693,5 @@ sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error 
     sc_afile f;
     if ((st = sc_afile_open(&f, path, err)) != SC_OK)
         return st;
-    return sc_afile_finish(&f, sc_profile_write_to(&f, d, err), err);
+    return sc_afile_finish(&f, write_checked_to(&f, d, err), err);
 }

@@ -103,7 +103,7 @@ static void write_chunks(row_pipeline *q, sc_io_out *o)
         long c;
         if (s->ready) {
             pthread_mutex_unlock(&q->lock);
-            sc_io_out_write(o, s->buf, s->len); /* a failure's errno: sc_io_out_finish */
+            sc_io_out_write(o, s->buf, s->len); /* a failure's errno: sc_io_out_drain */
             start_writeback(fp, &written_back);
             pthread_mutex_lock(&q->lock);
             s->ready = 0;

@@ -293,5 +293,5 @@ sc_status sc_stage_map_write(const char *path, const sc_stage_map *m, sc_error *
     if (st != SC_OK)
         return st;
     sc_stage_map_fprint(f.fp, m);
-    return sc_io_finish(&f, err);
+    return sc_afile_commit(&f, err); /* a write that failed: "write error: <reason>" */
 }

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "selfcal/csv.h"
+#include "../common/csv_internal.h"
 #include "selfcal/profile_sim.h"
 
 void sc_profile_sim_defaults(sc_profile_sim *p)
@@ -249,16 +250,12 @@ static sc_status dabam_read_points(const char *path, const dabam_meta *m, dabam_
     sc_status st = SC_OK;
     while (st == SC_OK && fgets(line, sizeof line, fp)) {
         ++ln;
-        const char *c = line;
-        while (isspace((unsigned char)*c))
-            ++c;
-        skipped = !*c || *c == '#' ? skipped + 1 : 0;
+        skipped = sc_csv_text_skippable(line) ? skipped + 1 : 0;
         if (!strchr(line, '\n') && !feof(fp))
             st = sc_error_set(err, SC_E_INPUT, path, ln, "line longer than %zu bytes",
                               sizeof line - 2);
         else if (skipped > SC_CSV_MAX_SKIP_RUN) /* an endless input, as the CSV reader says */
-            st = sc_error_set(err, SC_E_INPUT, path, ln, "more than %ld comment or blank lines "
-                              "in a row: not a data file (an endless input?)", SC_CSV_MAX_SKIP_RUN);
+            st = sc_error_set(err, SC_E_INPUT, path, ln, SC_CSV_SKIP_RUN_MSG, SC_CSV_MAX_SKIP_RUN);
         else if (ln > m->header_lines)
             st = dabam_data_line(path, ln, line, m, d, err);
         else if (ln > SC_DABAM_MAX_HEADER_LINES)
