@@ -13,7 +13,9 @@ if(CPACK_GENERATOR STREQUAL "TGZ")
 endif()
 
 # The .deb: man pages gzipped, as Debian policy asks (man reads both), by a script run on the
-# staging tree before it is packed (CPACK_PRE_BUILD_SCRIPTS).
+# staging tree before it is packed (CPACK_PRE_BUILD_SCRIPTS); CPack's ldconfig scripts taken out
+# of the library's package after (CPACK_POST_BUILD_SCRIPTS: the ldconfig trigger does that work).
 if(CPACK_GENERATOR STREQUAL "DEB")
   set(CPACK_PRE_BUILD_SCRIPTS "${CMAKE_CURRENT_LIST_DIR}/cpack_gzip_man.cmake")
+  set(CPACK_POST_BUILD_SCRIPTS "${CMAKE_CURRENT_LIST_DIR}/deb/drop_ldconfig_scripts.cmake")
 endif()

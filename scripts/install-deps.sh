@@ -20,6 +20,9 @@ DEB_PACKAGES=(
   gcovr
   # strace: the fault tests check the mode a temporary file is created with
   strace
+  # the packages' test: dpkg-shlibdeps and dpkg-architecture (dpkg-dev), lintian, and
+  # systemd-analyze verify on the installed unit (systemd; procps: its ExecReload /bin/kill)
+  dpkg-dev lintian systemd procps
 )
 
 SUDO=""

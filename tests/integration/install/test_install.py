@@ -10,11 +10,16 @@ usage: test_install.py CASE BUILD_DIR SOURCE_DIR WORK_DIR VERSION [CFLAGS...]
            (pkg-config) and with its CMakeLists (find_package(selfcal)), shared and static, and run
            them on a measurement made by the installed CLI: the node and its uncertainty must be
            those of the CLI's map.
-  deb      `cpack -G DEB;TGZ` from the build, unpack the .deb with dpkg-deb -x into a temporary
-           folder and run the CLI and the daemon from it; the .tar.gz holds the same programs.
+           The daemon's components at a custom prefix pass systemd-analyze verify.
+  deb      `cpack -G DEB;TGZ` from the build: one package per component (libselfcal0.<minor>,
+           libselfcal-dev, selfcal, selfcald, selfcal-linuxcnc), each checked for its contents,
+           dependencies and control files; all unpacked with dpkg-deb -x into one scratch root,
+           where the CLI and the daemon run; lintian on every package, with nothing left but the
+           overrides each package explains; the .tar.gz holds the same programs.
 CFLAGS: extra compiler/linker flags for the examples (the sanitizers of a sanitized build).
 """
 import glob
+import json
 import os
 import re
 import shutil
@@ -121,6 +126,29 @@ def sc_api_names(incdir):
     return names, unmarked
 
 
+def check_unit_verifies():
+    """The daemon's components installed at a custom prefix (not moved): systemd-analyze verify
+    accepts the unit (its man page named as a file there), and installing again keeps the
+    configuration an administrator edited."""
+    prefix = fresh(os.path.join(WORK, "unit-prefix"))
+    for component in ("lib", "daemon"):
+        run(["cmake", "--install", BUILD, "--prefix", prefix, "--component", component])
+    conf = os.path.join(prefix, "etc/selfcal/selfcald.conf")
+    with open(conf, "a") as f:
+        f.write("# edited by the administrator\n")
+    run(["cmake", "--install", BUILD, "--prefix", prefix, "--component", "daemon"])
+    check(open(conf).read().endswith("# edited by the administrator\n"),
+          "installing again keeps an edited etc/selfcal/selfcald.conf")
+    unit = os.path.join(prefix, "lib/systemd/system/selfcald.service")
+    check("Documentation=file:%s/share/man/man8/selfcald.8 " % prefix in open(unit).read(),
+          "the unit at a custom prefix names its man page as a file")
+    if not check(shutil.which("systemd-analyze") is not None, "systemd-analyze is installed (scripts/install-deps.sh)"):
+        return
+    p = run(["systemd-analyze", "verify", unit], ok=False)
+    print("systemd-analyze verify %s: exit %d %s" % (unit, p.returncode, p.stderr.strip()))
+    check(p.returncode == 0 and "selfcald" not in p.stderr, "systemd-analyze verify passes: %r" % p.stderr)
+
+
 def case_install():
     stage = fresh(os.path.join(WORK, "stage"))
     run(["cmake", "--install", BUILD, "--prefix", stage])
@@ -190,6 +218,8 @@ def case_install():
     check(re.search(r"^ExecStart=%s/bin/selfcald --config %s/etc/selfcal/selfcald.conf$" % (re.escape(stage), re.escape(stage)), unit,
                     re.M) and "@" not in re.sub(r"^SystemCallFilter=.*$", "", unit, flags=re.M),
           "selfcald.service names the installed paths under %s: %r" % (stage, re.findall(r"^ExecStart=.*$", unit, re.M)))
+    check(os.path.isfile(os.path.join(prefix, "etc/selfcal/selfcald.conf")), "installed etc/selfcal/selfcald.conf")
+    check_unit_verifies()
     man8 = open(os.path.join(prefix, "share/man/man8/selfcald.8")).read()
     check("%s/bin/selfcald" % stage in man8 and "@CMAKE" not in man8,
           "selfcald.8 names %s/bin/selfcald" % stage)
@@ -256,41 +286,135 @@ def case_install():
           "the CMake example uses the installed libselfcal.so: %s" % ldd)
 
 
+PLACEHOLDER_CONTACT = "selfcal@localhost"  # cmake/packaging.cmake's default Maintainer address
+
+
+def deb_field(deb, field):
+    return run(["dpkg-deb", "-f", deb, field]).stdout.strip()
+
+
+def check_lintian(debs, contact):
+    """lintian on every package: nothing but the tags each package overrides with its reason
+    (cmake/deb/lintian/), and, while the Maintainer is the placeholder address, its two tags."""
+    if not shutil.which("lintian"):
+        check(False, "lintian is installed (scripts/install-deps.sh)")
+        return
+    cmd = ["lintian", "--display-info", "--show-overrides", "--tag-display-limit", "0"]
+    if PLACEHOLDER_CONTACT in contact:
+        print("lintian: bogus-mail-host and bogus-mail-host-in-debian-changelog suppressed: the "
+              "Maintainer is the placeholder %s (-DSELFCAL_PACKAGE_CONTACT sets a real one)" % PLACEHOLDER_CONTACT)
+        cmd += ["--suppress-tags", "bogus-mail-host,bogus-mail-host-in-debian-changelog"]
+    cache = open(os.path.join(BUILD, "CMakeCache.txt")).read()
+    if re.search(r"^SELFCAL_(SANITIZE|TSAN):BOOL=ON$", cache, re.M):
+        print("lintian: hardening-no-bindnow and hardening-no-fortify-functions suppressed: this build is "
+              "under sanitizers, which the hardening flags are left out of (CMakeLists.txt)")
+        cmd += ["--suppress-tags", "hardening-no-bindnow,hardening-no-fortify-functions"]
+    p = run(cmd + debs, ok=False)
+    print("lintian output (O: = overridden, each reason in /usr/share/lintian/overrides/<package>):")
+    print(p.stdout + p.stderr)
+    tags = [l for l in p.stdout.splitlines() if re.match(r"^[EWIXP]: ", l)]
+    check(p.returncode == 0 and not tags, "lintian: no tag that is not overridden with a reason: %r" % tags)
+    overridden = [l for l in p.stdout.splitlines() if l.startswith("O: ")]
+    for line in overridden:
+        pkg = line.split(":")[1].strip()
+        root = fresh(os.path.join(WORK, "lintian-" + pkg))
+        run(["dpkg-deb", "-x", [d for d in debs if os.path.basename(d).startswith(pkg + "_")][0], root])
+        text = open(os.path.join(root, "usr/share/lintian/overrides", pkg)).read()
+        tag = line.split()[2]
+        check(re.search(r"^#.+\n(?:#.*\n|[^#\n].*\n)*?%s: %s" % (re.escape(pkg), re.escape(tag)), text, re.M),
+              "the override of %s in %s is explained by a comment" % (tag, pkg))
+
+
 def case_deb():
     out = fresh(os.path.join(WORK, "packages"))
     run(["cpack", "--config", os.path.join(BUILD, "CPackConfig.cmake"), "-G", "DEB;TGZ", "-B", out])
-    debs = glob.glob(os.path.join(out, "*.deb"))
+    debs = sorted(glob.glob(os.path.join(out, "*.deb")))
     tgzs = glob.glob(os.path.join(out, "*.tar.gz"))
-    if not check(len(debs) == 1 and len(tgzs) == 1, "one .deb and one .tar.gz (%r %r)" % (debs, tgzs)):
+    parts = VERSION.split(".")
+    libpkg = "libselfcal" + (parts[0] if parts[0] != "0" else "0." + parts[1])
+    want = {libpkg, "libselfcal-dev", "selfcal", "selfcald"}
+    if shutil.which("halcompile"):
+        want.add("selfcal-linuxcnc")
+    names = {deb_field(d, "Package"): d for d in debs}
+    if not check(set(names) == want and len(tgzs) == 1,
+                 "the packages %s and one .tar.gz (%r %r)" % (sorted(want), sorted(names), tgzs)):
         return
-    info = run(["dpkg-deb", "-f", debs[0]]).stdout
-    check(re.search(r"^Package: selfcal$", info, re.M), "deb Package: selfcal")
-    check(re.search(r"^Depends: .*libfftw3-double3 \(>= [0-9.]+\)", info, re.M) and
-          re.search(r"^Depends: .*libcholmod3", info, re.M) and
-          re.search(r"^Depends: .*libc6 \(>= 2\.[0-9]+\)", info, re.M),
-          "deb depends on FFTW, libc (versioned) and CHOLMOD: %r" % re.findall(r"^Depends:.*$", info, re.M))
+    for pkg, d in sorted(names.items()):
+        check(os.path.basename(d) == "%s_%s_%s.deb" % (pkg, VERSION, deb_field(d, "Architecture")),
+              "file name of %s: %s" % (pkg, os.path.basename(d)))
+    depends = {pkg: deb_field(d, "Depends") for pkg, d in names.items()}
+    print("Depends:", json.dumps(depends, indent=1))
+    check(re.search(r"libfftw3-double3 \(>= [0-9.]+\)", depends[libpkg]) and "libcholmod3" in depends[libpkg] and
+          re.search(r"libc6 \(>= 2\.[0-9]+\)", depends[libpkg]),
+          "%s depends on FFTW, libc (versioned) and CHOLMOD: %r" % (libpkg, depends[libpkg]))
+    for pkg in ("libselfcal-dev", "selfcal", "selfcald"):
+        check("%s (= %s)" % (libpkg, VERSION) in depends[pkg], "%s depends on %s (= %s): %r" % (pkg, libpkg, VERSION, depends[pkg]))
+    check("libmodbus" in depends["selfcald"], "selfcald depends on libmodbus: %r" % depends["selfcald"])
+    check("libfftw3-dev" in depends["libselfcal-dev"], "libselfcal-dev depends on libfftw3-dev")
+    if "selfcal-linuxcnc" in names:
+        check("linuxcnc-uspace" in depends["selfcal-linuxcnc"] and libpkg not in depends["selfcal-linuxcnc"],
+              "selfcal-linuxcnc depends on LinuxCNC, not on the library (the core is compiled in)")
+    sections = {pkg: deb_field(d, "Section") for pkg, d in names.items()}
+    check(sections[libpkg] == "libs" and sections["libselfcal-dev"] == "libdevel", "sections: %r" % sections)
+
+    contents = {pkg: run(["dpkg-deb", "-c", d]).stdout for pkg, d in names.items()}
+    where = {libpkg: ["libselfcal.so.%s" % VERSION, "usr/share/doc/%s/copyright" % libpkg],
+             "libselfcal-dev": ["usr/include/selfcal/grid_lsq.h", "usr/lib/%s/pkgconfig/selfcal.pc",
+                                "usr/lib/%s/cmake/selfcal/selfcalConfig.cmake", "usr/lib/%s/libselfcal.a",
+                                "usr/lib/%s/libselfcal.so "],
+             "selfcal": ["usr/bin/selfcal", "man1/selfcal.1.gz", "usr/share/doc/selfcal/README.md"],
+             "selfcald": ["usr/bin/selfcald", "man8/selfcald.8.gz", "systemd/system/selfcald.service",
+                          "./etc/selfcal/selfcald.conf"],
+             "selfcal-linuxcnc": ["modules/selfcal_xy.so", "man9/selfcal_xy.9.gz"]}
+    multiarch = run(["dpkg-architecture", "-qDEB_HOST_MULTIARCH"], ok=False).stdout.strip() or "x86_64-linux-gnu"
+    for pkg in names:
+        for name in where[pkg] + ["usr/share/doc/%s/copyright" % pkg, "usr/share/doc/%s/changelog.gz" % pkg]:
+            name = name.replace("%s", multiarch)
+            check(name in contents[pkg], "%s contains %s" % (pkg, name))
+        for other in names:
+            if other != pkg:
+                for name in where[other][:1]:  # a whole path, at the end of dpkg-deb -c's line
+                    check(not re.search(r"\b%s$" % re.escape(name.replace("%s", multiarch)), contents[pkg], re.M),
+                          "%s does not carry %s's %s" % (pkg, other, name))
+        check("docs/man/" not in contents[pkg], "%s has no empty docs/man folder" % pkg)
+        check("/LICENSE" not in contents[pkg], "%s: the licence is in copyright, no LICENSE file" % pkg)
+    check(" -> libselfcal.so.%s" % VERSION.split(".")[0] in contents[libpkg] or
+          re.search(r"libselfcal\.so\.0\.[0-9]+ -> libselfcal\.so\.%s" % re.escape(VERSION), contents[libpkg]),
+          "%s holds the soname link" % libpkg)
+
+    # control files: the library's ldconfig trigger (and no maintainer scripts calling ldconfig),
+    # its shlibs file; the daemon's configuration is a conffile
+    ctrl = {}
+    for pkg, d in names.items():
+        ctrl[pkg] = fresh(os.path.join(WORK, "control-" + pkg))
+        run(["dpkg-deb", "-e", d, ctrl[pkg]])
+    trig = os.path.join(ctrl[libpkg], "triggers")
+    check(os.path.exists(trig) and "activate-noawait ldconfig" in open(trig).read(),
+          "%s activates the ldconfig trigger" % libpkg)
+    for script in ("postinst", "postrm"):
+        check(not os.path.exists(os.path.join(ctrl[libpkg], script)), "%s has no %s (the trigger calls ldconfig)" % (libpkg, script))
+    shlibs = os.path.join(ctrl[libpkg], "shlibs")
+    check(os.path.exists(shlibs) and re.search(r"^libselfcal 0\.[0-9]+ %s \(>= %s\)$" % (re.escape(libpkg), re.escape(VERSION)),
+                                               open(shlibs).read(), re.M), "%s has its shlibs file" % libpkg)
+    conff = os.path.join(ctrl["selfcald"], "conffiles")
+    check(os.path.exists(conff) and open(conff).read().split() == ["/etc/selfcal/selfcald.conf"],
+          "selfcald: /etc/selfcal/selfcald.conf is a conffile")
+
+    # every package unpacked into one scratch root (dpkg-deb -x): the programs run from it
     root = fresh(os.path.join(WORK, "deb-root"))
-    run(["dpkg-deb", "-x", debs[0], root])
+    for d in debs:
+        run(["dpkg-deb", "-x", d, root])
     bindir = os.path.join(root, "usr", "bin")
     check_programs(bindir, ".deb unpacked")
-    contents = run(["dpkg-deb", "-c", debs[0]]).stdout
-    for name in ("usr/include/selfcal/grid_lsq.h", "pkgconfig/selfcal.pc", "cmake/selfcal/selfcalConfig.cmake",
-                 "libselfcal.so.", "libselfcal.a", "man1/selfcal.1.gz", "man8/selfcald.8.gz",
-                 "systemd/system/selfcald.service", "usr/share/doc/selfcal/copyright"):
-        check(name in contents, ".deb contains %s" % name)
-    check("docs/man/" not in contents, ".deb has no empty docs/man folder")
-    # Debian policy: stripped objects (no symbol table, no debug information with the build's
-    # paths), the native package's changelog, the ldconfig trigger for libselfcal.so.0
-    check("usr/share/doc/selfcal/changelog.gz" in contents, ".deb has its changelog.gz")
-    # under /usr the pkg-config prefix is written out (pkg-config then drops -I/usr/include)
+    # under /usr the pkg-config prefix is written out (pkg-config then drops -I/usr/include), in the
+    # multiarch folder
     pcs = glob.glob(os.path.join(root, "usr/lib/**/selfcal.pc"), recursive=True)
-    check(len(pcs) == 1 and re.search(r"^prefix=/usr$", open(pcs[0]).read(), re.M),
-          ".deb selfcal.pc names prefix=/usr: %r" % pcs)
-    ctrl = fresh(os.path.join(WORK, "deb-control"))
-    run(["dpkg-deb", "-e", debs[0], ctrl])
-    trig = os.path.join(ctrl, "triggers")
-    check(os.path.exists(trig) and "activate-noawait ldconfig" in open(trig).read(),
-          ".deb activates the ldconfig trigger")
+    check(len(pcs) == 1 and "/usr/lib/%s/pkgconfig/selfcal.pc" % multiarch in pcs[0] and
+          re.search(r"^prefix=/usr$", open(pcs[0]).read(), re.M),
+          ".deb selfcal.pc in the multiarch folder, names prefix=/usr: %r" % pcs)
+    conf = open(os.path.join(root, "etc/selfcal/selfcald.conf")).read()
+    check(conf == open(os.path.join(SRC, "runtime/selfcald.conf.example")).read(),
+          "/etc/selfcal/selfcald.conf is the example configuration")
     cache = open(os.path.join(BUILD, "CMakeCache.txt")).read()
     sanitized = re.search(r"^SELFCAL_(SANITIZE|TSAN):BOOL=ON$", cache, re.M) is not None
     objs = glob.glob(os.path.join(root, "usr/bin/*")) + glob.glob(os.path.join(root, "usr/lib/**/*.so*"),
@@ -299,26 +423,31 @@ def case_deb():
         if os.path.islink(obj) or not open(obj, "rb").read(4) == b"\x7fELF":
             continue
         secs = run(["readelf", "-S", "-W", obj]).stdout
-        check(".symtab" not in secs and ".debug_info" not in secs, ".deb object stripped: %s" % obj)
+        check(".symtab" not in secs and ".debug_info" not in secs and " .comment" not in secs,
+              ".deb object stripped: %s" % obj)
         if "linuxcnc" not in obj and not sanitized:  # ours, hardened unless under sanitizers
             dyn = run(["readelf", "-d", "-W", obj]).stdout
             check("BIND_NOW" in dyn or re.search(r"FLAGS_1.*\bNOW\b", dyn),
                   ".deb object hardened (bind now): %s" % obj)
+    if "selfcal-linuxcnc" in names:
+        page = run(["sh", "-c", "gzip -dc '%s'" % os.path.join(root, "usr/share/man/man9/selfcal_xy.9.gz")]).stdout
+        check(re.search(r"^\.B loadrt selfcal_xy table=", page, re.M), "selfcal_xy(9)'s synopsis names table=")
     # the unit starts the program the package installs, with Debian's /etc
     units = glob.glob(os.path.join(root, "usr/lib/systemd/system/selfcald.service")) + \
         glob.glob(os.path.join(root, "lib/systemd/system/selfcald.service"))
     if check(len(units) == 1, ".deb unit found (%r)" % units):
         unit = open(units[0]).read()
         check(re.search(r"^ExecStart=/usr/bin/selfcald --config /etc/selfcal/selfcald.conf$", unit, re.M) and
-              re.search(r"^ReadOnlyPaths=/etc/selfcal$", unit, re.M),
-              ".deb unit names /usr/bin/selfcald and /etc/selfcal: %r" % re.findall(r"^(?:ExecStart|ReadOnlyPaths)=.*$",
-                                                                                   unit, re.M))
-        check(os.path.isfile(os.path.join(root, "usr/bin/selfcald")), ".deb installs /usr/bin/selfcald")
-    # the CLI from the unpacked package does real work
+              re.search(r"^ReadOnlyPaths=/etc/selfcal$", unit, re.M) and
+              re.search(r"^Documentation=man:selfcald\(8\) ", unit, re.M),
+              ".deb unit names /usr/bin/selfcald, /etc/selfcal and man:selfcald(8): %r" %
+              re.findall(r"^(?:ExecStart|ReadOnlyPaths|Documentation)=.*$", unit, re.M))
+    # the CLI from the unpacked packages does real work
     work = fresh(os.path.join(WORK, "deb-run"))
     make_measurement(bindir, work)
     p = run([os.path.join(bindir, "selfcal"), "plan", os.path.join(work, "in.csv")], env=clean_env())
     check(p.stdout.startswith("identifiable: yes"), "plan from the .deb: %r" % p.stdout[:80])
+    check_lintian(debs, deb_field(debs[0], "Maintainer"))
     with tarfile.open(tgzs[0]) as t:
         names = t.getnames()
         units = [n for n in names if n.endswith("/selfcald.service")]

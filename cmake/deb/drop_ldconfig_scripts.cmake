@@ -1,0 +1,37 @@
+# Run by cpack after it made the .deb files (CPACK_POST_BUILD_SCRIPTS, cmake/cpack_generator.cmake).
+# CPack (3.25) writes a postinst and a postrm that call ldconfig into every package holding a
+# shared library under /usr/lib; the library's package activates dpkg's ldconfig trigger instead
+# (deb/triggers, Debian policy 8.1.1; lintian: maintscript-calls-ldconfig), so those two scripts
+# are taken out again, and only when they are exactly CPack's (anything else is left alone).
+find_program(_dpkg_deb dpkg-deb REQUIRED)
+foreach(_deb IN LISTS CPACK_PACKAGE_FILES)
+  if(NOT _deb MATCHES "\\.deb$")
+    continue()
+  endif()
+  set(_dir "${_deb}.repack")
+  file(REMOVE_RECURSE "${_dir}")
+  execute_process(COMMAND ${_dpkg_deb} -R "${_deb}" "${_dir}" RESULT_VARIABLE _rc)
+  if(NOT _rc EQUAL 0)
+    message(FATAL_ERROR "dpkg-deb -R ${_deb} failed (${_rc})")
+  endif()
+  set(_dropped 0)
+  foreach(_script postinst postrm)
+    set(_f "${_dir}/DEBIAN/${_script}")
+    if(EXISTS "${_f}")
+      file(READ "${_f}" _text)
+      string(REGEX REPLACE "[ \t\n]+" " " _text "${_text}")
+      if(_text MATCHES "^#!/bin/sh set -e if \\[ \"\\$1\" = \"(configure|remove)\" \\]; then ldconfig fi ?$")
+        file(REMOVE "${_f}")
+        set(_dropped 1)
+      endif()
+    endif()
+  endforeach()
+  if(_dropped)
+    execute_process(COMMAND ${_dpkg_deb} --root-owner-group -Zxz -b "${_dir}" "${_deb}"
+                    OUTPUT_QUIET RESULT_VARIABLE _rc)
+    if(NOT _rc EQUAL 0)
+      message(FATAL_ERROR "dpkg-deb -b ${_deb} failed (${_rc})")
+    endif()
+  endif()
+  file(REMOVE_RECURSE "${_dir}")
+endforeach()
