@@ -8,3 +8,9 @@ add_test(NAME python_package
           ${CMAKE_CURRENT_BINARY_DIR}/tmp/pyvenv $<TARGET_FILE:selfcal_cli>)
 # pip builds the library once more (Release, no sanitizer): about a minute on two busy cores.
 set_tests_properties(python_package PROPERTIES TIMEOUT 1200 LABELS "integration;python")
+# The portable wheel (scripts/build-wheel.sh: manylinux, FFTW and the run-time solver bundled), run
+# with the system's copies of its libraries hidden in a mount namespace (needs root: unshare -m).
+add_test(NAME python_wheel
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/integration/python/test_wheel.sh ${PROJECT_SOURCE_DIR}
+          ${CMAKE_CURRENT_BINARY_DIR}/tmp/pywheel)
+set_tests_properties(python_wheel PROPERTIES TIMEOUT 1200 LABELS "integration;python")
