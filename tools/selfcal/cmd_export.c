@@ -37,6 +37,10 @@ static void export_usage(FILE *to)
             "  reprap       RepRapFirmware M556 S X and M92 scale from the map's O and R\n"
             "  kmotion      Dynomotion KMotionCNC geometric correction table: the whole 2-D map\n"
             "               (X and Y at once, inches, ideal + G)\n"
+            "  aerotech-a1  Aerotech Automation1 2-D axis calibration file (:START2D): X and Y\n"
+            "               corrections from the X and Y positions, um, +G (assumed; --negate)\n"
+            "  powerpmac    Power PMAC CompTable[] setup and data: two 2-D tables (x and y\n"
+            "               motors' CompPos), motor units, +G (assumed; --negate)\n"
             "  --interval   table spacing in mm (default: the map's pitch)\n"
             "  --max-nodes N  a map with more than N (2..101) nodes along an axis is first fitted\n"
             "               by a table of N nodes there, as in lut build (its error is printed)\n"
@@ -47,9 +51,12 @@ static void export_usage(FILE *to)
             "  --negate     write the opposite of the format's default sign\n"
             "  --offset DX,DY  the machine (homed) coordinates of the map's x = 0, y = 0, added to\n"
             "               every table position\n"
-            "  --axis-numbers  beckhoff logical axis numbers of x, y (and z) (default 1,2,3)\n"
+            "  --axis-numbers  beckhoff logical axis numbers of x, y (and z) (default 1,2,3);\n"
+            "               aerotech-a1: one-based axis indices of x, y; powerpmac: motor numbers\n"
             "  --axis-names    siemens axis names of x and y (default AX1,AX2)\n"
             "  --target 828d   siemens: the 828D's fixed 8 tables x 200 points\n"
+            "  --first-table T siemens: the first table's index; powerpmac: x's CompTable index\n"
+            "               (y's is T + 1)\n"
             "  --profile AXIS:DIR:P.csv[@OFFSET_MM]  a straightness profile (the ey_um column of a\n"
             "               profile output: the error of DIR along AXIS, placed as in lut build)\n"
             "               siemens: one more table, input AXIS, output DIR (z: AX3);\n"
@@ -61,7 +68,8 @@ static void export_usage(FILE *to)
             "               coordinates): the list gets its end values at MIN and MAX (without\n"
             "               it the list spans the profile and ISG's behaviour beyond is unknown);\n"
             "               AXIS: for the profiles with that master axis (repeatable), else all\n"
-            "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale\n"
+            "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale;\n"
+            "               powerpmac: X,Y motor units per mm (default 1: motors scaled in mm)\n"
             "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n");
 }
 
@@ -144,6 +152,19 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
     else if (f == SC_EXPORT_KMOTION)
         printf(", %d x %d points (the map plus a ring of edge values), inches, %s\n",
                rep->points[0], rep->points[1], o->negate ? "ideal - G (negated)" : "ideal + G");
+    else if (f == SC_EXPORT_AEROTECH_A1)
+        printf(", 2-D table of %d x %d points (rows y = axis %d, columns x = axis %d; no size "
+               "limit in the pages read), corrections in um (unit %.4g um), %s, nearest end "
+               "point beyond it\n",
+               rep->points[0], rep->points[1], o->beckhoff_y_axis_nr, o->beckhoff_x_axis_nr,
+               rep->unit_um, o->negate ? "-G (negated)" : "+G (assumed: added to the command)");
+    else if (f == SC_EXPORT_POWERPMAC)
+        printf(", CompTable[%d] (x) and [%d] (y), %d x %d entries each over motors %d and %d (no "
+               "size limit in the pages read), motor units (unit %.3g um), %s, end entries held "
+               "beyond (Ctrl=3, assumed)\n",
+               o->siemens_first_table, o->siemens_first_table + 1, rep->points[0], rep->points[1],
+               o->beckhoff_x_axis_nr, o->beckhoff_y_axis_nr, rep->unit_um,
+               o->negate ? "-G (negated)" : "+G (assumed: CompPos adds to the command)");
     else
         printf(", O = %.6g, R = %.6g, XY skew %.9g, scale x %.9f y %.9f\n", rep->O, rep->R,
                rep->skew, rep->scale[0], rep->scale[1]);
@@ -374,7 +395,8 @@ static int resolve_axis(const export_args *a, int f, sc_export_options *o, int *
     const char *axis = a->axis;
     if (!axis)
         return CLI_OK;
-    if (is_firmware(f) || f == SC_EXPORT_KMOTION)
+    if (is_firmware(f) || f == SC_EXPORT_KMOTION || f == SC_EXPORT_AEROTECH_A1 ||
+        f == SC_EXPORT_POWERPMAC)
         return cli_usage_error("export", "--axis does not apply to --format %s (X and Y at once)",
                                a->fmt);
     if (!strcmp(axis, "x") || !strcmp(axis, "X"))
@@ -428,8 +450,9 @@ static int check_applicability(const export_args *a, int f)
         return rc;
     if (a->target_828d && f != SC_EXPORT_SIEMENS_CEC)
         return cli_usage_error("export", "--target applies to --format siemens-cec only");
-    if (a->steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP)
-        return cli_usage_error("export", "--steps-per-mm applies to --format marlin or reprap only");
+    if (a->steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP && f != SC_EXPORT_POWERPMAC)
+        return cli_usage_error("export",
+                               "--steps-per-mm applies to --format marlin, reprap or powerpmac only");
     if (a->rdist[0] > 0 && f != SC_EXPORT_KLIPPER)
         return cli_usage_error("export", "--rotation-distance applies to --format klipper only");
     if (is_firmware(f) && (a->negate || a->interval > 0 || a->limit > 0))

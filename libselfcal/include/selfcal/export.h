@@ -31,7 +31,9 @@ typedef enum sc_export_format {
     SC_EXPORT_KLIPPER = 3,     /* Klipper skew_correction: SET_SKEW XY=AC,BD,AD */
     SC_EXPORT_MARLIN = 4,      /* Marlin M852 I (XY skew factor) */
     SC_EXPORT_REPRAP = 5,      /* RepRapFirmware M556 S X (XY axis compensation) */
-    SC_EXPORT_KMOTION = 6      /* Dynomotion KMotionCNC geometric correction table (2-D) */
+    SC_EXPORT_KMOTION = 6,     /* Dynomotion KMotionCNC geometric correction table (2-D) */
+    SC_EXPORT_AEROTECH_A1 = 7, /* Aerotech Automation1 2-D axis calibration file (:START2D) */
+    SC_EXPORT_POWERPMAC = 8    /* Power PMAC CompTable[] setup and data: two 2-D tables */
 } sc_export_format;
 
 /* Controller limits (see docs/exporters.md). */
@@ -42,6 +44,7 @@ typedef enum sc_export_format {
 #define SC_EXPORT_SIEMENS_828D_TABLES 8   /* SINUMERIK 828D: 8 tables ... */
 #define SC_EXPORT_SIEMENS_828D_POINTS 200 /* ... of 200 points, fixed */
 #define SC_EXPORT_MARLIN_MAX_SKEW 1.0     /* Marlin SKEW_FACTOR_MIN/MAX: |I| <= 1 */
+#define SC_EXPORT_AEROTECH_UNIT_UM 1e-4   /* Automation1 corrections written in um, 4 decimals */
 
 typedef struct sc_export_options {
     sc_export_format format;
@@ -52,7 +55,9 @@ typedef struct sc_export_options {
     double limit_um;    /* |value| above this is clipped to it and counted; 0 = the format's default */
     int negate;         /* write -G */
     /* Beckhoff: logical axis numbers of the x and y axes (masters; the slave is the compensated
-     * one). Siemens: machine axis names of x and y ("AX1", "AX2") and the first table index. */
+     * one); Automation1: their one-based axis indices; Power PMAC: their motor numbers.
+     * Siemens: machine axis names of x and y ("AX1", "AX2") and the first table index (Power
+     * PMAC: the CompTable index of x's table; y's is the next). */
     int beckhoff_x_axis_nr, beckhoff_y_axis_nr;
     int beckhoff_z_axis_nr; /* z's logical axis number, for a profile with z (default 3) */
     /* Beckhoff: -1 = the plane compensation list of `axis` (the map); k >= 0 = the cross
@@ -73,7 +78,8 @@ typedef struct sc_export_options {
     int siemens_828d;   /* Siemens: the 828D's fixed 8 tables x 200 points instead of 840D limits */
     /* Firmware formats: the machine's present steps/mm (Marlin, RepRapFirmware) or
      * rotation_distance (Klipper) of x and y, to write the scale-corrected values; 0 = unknown
-     * (the file then gives the factors to multiply them by). */
+     * (the file then gives the factors to multiply them by). Power PMAC: the motor units per mm
+     * of x and y (0 = 1: motors scaled in mm). */
     double steps_per_mm[2];
     double rotation_distance_mm[2];
 } sc_export_options;
@@ -106,8 +112,8 @@ typedef struct sc_export_report {
  * the plane list (no cross profile), no travel. */
 SC_API void sc_export_options_init(sc_export_options *o, sc_export_format format);
 
-/* "beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin", "reprap", "kmotion" -> format;
- * -1 if unknown. */
+/* "beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin", "reprap", "kmotion",
+ * "aerotech-a1", "powerpmac" -> format; -1 if unknown. */
 SC_API int sc_export_format_from_name(const char *name);
 
 /* Resample lut's grid for the controller (and, for Siemens CEC, each of lut's straightness

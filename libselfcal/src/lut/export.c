@@ -23,38 +23,6 @@
 #include "selfcal/atomic_file.h"
 #include "selfcal/export.h"
 
-/* ---- a growing text buffer ---- */
-
-void sc_tb_printf(sc_textbuf *t, const char *fmt, ...)
-{
-    if (t->failed)
-        return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int n = vsnprintf(t->s ? t->s + t->len : NULL, t->s ? t->cap - t->len : 0, fmt, ap);
-        va_end(ap);
-        if (n < 0) {
-            t->failed = 1;
-            return;
-        }
-        if (t->s && t->len + (size_t)n < t->cap) {
-            t->len += (size_t)n;
-            return;
-        }
-        size_t ncap = t->cap ? t->cap * 2 : 65536;
-        while (ncap < t->len + (size_t)n + 1)
-            ncap *= 2;
-        char *p = realloc(t->s, ncap);
-        if (!p) {
-            t->failed = 1;
-            return;
-        }
-        t->s = p;
-        t->cap = ncap;
-    }
-}
-
 /* ---- common ---- */
 
 void sc_export_options_init(sc_export_options *o, sc_export_format format)
@@ -87,15 +55,17 @@ int sc_export_format_from_name(const char *name)
         return SC_EXPORT_REPRAP;
     if (!strcmp(name, "kmotion"))
         return SC_EXPORT_KMOTION;
+    if (!strcmp(name, "aerotech-a1"))
+        return SC_EXPORT_AEROTECH_A1;
+    if (!strcmp(name, "powerpmac"))
+        return SC_EXPORT_POWERPMAC;
     return -1;
 }
 
 /* Component comp (0 = Gx, 1 = Gy) of the bilinear map at (x, y), um. */
 static double map_g(const sc_lut *lut, int comp, double x, double y)
 {
-    double gx, gy;
-    sc_lut_grid_eval(lut, x, y, &gx, &gy);
-    return comp == 0 ? gx : gy;
+    return sc_export_map_g(lut, comp, x, y);
 }
 
 static double map_x(const sc_lut *lut, int j)
@@ -106,84 +76,6 @@ static double map_x(const sc_lut *lut, int j)
 static double map_y(const sc_lut *lut, int i)
 {
     return lut->y0_mm + i * lut->py_mm;
-}
-
-long long sc_export_quantize(double v_um, double unit_um, double limit_um, long *clipped)
-{
-    if (limit_um > 0 && fabs(v_um) > limit_um) {
-        v_um = v_um > 0 ? limit_um : -limit_um;
-        ++*clipped;
-    }
-    return llround(v_um / unit_um);
-}
-
-double sc_export_interp1(const double *v, int n, double start, double step, double s)
-{
-    double u = (s - start) / step;
-    if (u <= 0)
-        return v[0];
-    if (u >= n - 1)
-        return v[n - 1];
-    int k = (int)u;
-    if (k > n - 2)
-        k = n - 2;
-    double f = u - k;
-    return v[k] * (1 - f) + v[k + 1] * f;
-}
-
-sc_status sc_export_profile_meets_map(const sc_lut *lut, int k, const char *fmt, sc_error *err)
-{
-    const sc_lut_profile *p = &lut->profile[k];
-    if (p->axis > 1)
-        return SC_OK; /* the map has no extent along z */
-    const double lo = p->axis == 0 ? lut->x0_mm : lut->y0_mm;
-    const double hi = lo + (p->axis == 0 ? (lut->nx - 1) * lut->px_mm : (lut->ny - 1) * lut->py_mm);
-    const double a = p->start_mm, b = p->start_mm + (p->n - 1) * p->step_mm;
-    if (b < lo || a > hi)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "%s: profile %d (%s -> %s) covers %s = %g..%g mm, the map %g..%g mm: "
-                            "they do not overlap (place it with AXIS:DIR:P.csv@OFFSET_MM)",
-                            fmt, k, sc_lut_axis_name(p->axis), sc_lut_axis_name(p->dir),
-                            sc_lut_axis_name(p->axis), a, b, lo, hi);
-    return SC_OK;
-}
-
-/* The controller's value of component comp at (x, y), um (sign included). */
-typedef double (*ctrl_fn)(const void *ctx, int comp, double x, double y);
-
-/* Residual of the controller against sign * map over nodes and 4 x 4 sub-points per cell. */
-static void residual(const sc_lut *lut, const int *comps, int ncomp, double sign, ctrl_fn f,
-                     const void *ctx, sc_export_report *rep)
-{
-    const int sub = 4;
-    double ss = 0, mx = -1;
-    long n = 0;
-    for (int a = 0; a <= sub * (lut->ny - 1); ++a)
-        for (int b = 0; b <= sub * (lut->nx - 1); ++b) {
-            double x = lut->x0_mm + lut->px_mm * b / sub, y = lut->y0_mm + lut->py_mm * a / sub;
-            for (int c = 0; c < ncomp; ++c) {
-                double r = f(ctx, comps[c], x, y) - sign * map_g(lut, comps[c], x, y);
-                ss += r * r;
-                ++n;
-                if (fabs(r) > mx) {
-                    mx = fabs(r);
-                    rep->max_at_mm[0] = x;
-                    rep->max_at_mm[1] = y;
-                }
-            }
-        }
-    rep->samples = n;
-    rep->rms_um = sqrt(ss / (double)n);
-    rep->max_um = mx;
-}
-
-/* Number of points and end of a 1-D table covering [lo, hi] with spacing step. */
-/* Points of a table from lo to at least hi at this step; saturates at INT_MAX (every caller
- * then refuses it against its controller's limit) instead of overflowing. */
-static int cover_points(double lo, double hi, double step)
-{
-    double q = ceil((hi - lo) / step - 1e-9);
-    return q < (double)INT_MAX - 1.0 ? 1 + (int)q : INT_MAX;
 }
 
 static const char *axis_upper(int axis)
@@ -243,7 +135,7 @@ static long long common_interval(const sc_lut *lut, const long long start[2], do
     long long g = gcd_ll(ia, ib);
     for (int k = 0; k < 2; ++k) {
         double span = (k == 0 ? x1 : y1) * 1e4 - (double)start[k];
-        if (cover_points(0.0, span, (double)g) > SC_EXPORT_BECKHOFF_MAX_POINTS)
+        if (sc_export_cover_points(0.0, span, (double)g) > SC_EXPORT_BECKHOFF_MAX_POINTS)
             return 0;
     }
     return g;
@@ -281,7 +173,7 @@ static sc_status beckhoff_grid(const sc_lut *lut, const sc_export_options *o, be
     }
     for (int a = 0; a < 2; ++a) {
         double span = (a == 0 ? x1 : y1) * 1e4 - (double)c.start[a];
-        c.n[a] = cover_points(0.0, span, (double)c.interval);
+        c.n[a] = sc_export_cover_points(0.0, span, (double)c.interval);
         if (c.n[a] < 2)
             c.n[a] = 2;
         if (c.n[a] > SC_EXPORT_BECKHOFF_MAX_POINTS)
@@ -359,7 +251,7 @@ static sc_status export_beckhoff(const sc_lut *lut, const sc_export_options *o, 
                 sign * map_g(lut, o->axis, x, y), 0.1, rep->limit_um, &rep->clipped);
         }
     int comps[1] = {o->axis};
-    residual(lut, comps, 1, sign, beckhoff_eval, &c, rep);
+    sc_export_residual(lut, comps, 1, sign, beckhoff_eval, &c, rep);
     rep->tables = 1;
     rep->points[0] = c.n[0];
     rep->points[1] = c.n[1];
@@ -433,7 +325,7 @@ static sc_status cec_new_table(cec_ctx *c, const sc_export_options *o, double lo
 {
     cec_table *tb = &c->tab[c->ntab];
     tb->step_mm = step;
-    tb->n = cover_points(lo, hi, step);
+    tb->n = sc_export_cover_points(lo, hi, step);
     tb->min_mm = lo;
     const int maxp = o->siemens_828d ? SC_EXPORT_SIEMENS_828D_POINTS : SC_EXPORT_SIEMENS_MAX_POINTS;
     if (tb->n > maxp)
@@ -674,7 +566,7 @@ static sc_status export_siemens(const sc_lut *lut, const sc_export_options *o, s
         free_cec(&c);
         return st;
     }
-    residual(lut, comps, ncomp, sign, cec_eval, &c, rep);
+    sc_export_residual(lut, comps, ncomp, sign, cec_eval, &c, rep);
     rep->tables = c.ntab;
     for (int k = 0; k < c.ntab && k < 4; ++k)
         rep->points[k] = c.tab[k].n;
@@ -785,7 +677,7 @@ static sc_status export_kmotion(const sc_lut *lut, const sc_export_options *o, s
              KMO_DECIMALS, k.ox, KMO_DECIMALS, k.oy);
     sscanf(hdr, "%lf %lf %lf %lf", &k.sx, &k.sy, &k.ox, &k.oy);
     int comps[2] = {0, 1};
-    residual(lut, comps, 2, sign, kmo_eval, &k, rep);
+    sc_export_residual(lut, comps, 2, sign, kmo_eval, &k, rep);
     rep->tables = 1;
     rep->points[0] = k.ncols;
     rep->points[1] = k.nrows;
@@ -833,7 +725,7 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
     const double lo = o->axis == 0 ? lut->x0_mm : lut->y0_mm;
     const double hi = o->axis == 0 ? map_x(lut, lut->nx - 1) : map_y(lut, lut->ny - 1);
     c.step_mm = o->interval_mm > 0 ? o->interval_mm : (o->axis == 0 ? lut->px_mm : lut->py_mm);
-    c.n = cover_points(lo, hi, c.step_mm);
+    c.n = sc_export_cover_points(lo, hi, c.step_mm);
     c.start_mm = lo;
     if (c.n + 1 > SC_EXPORT_LINUXCNC_MAX_POINTS) /* + the guard entry below the map */
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -859,7 +751,7 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
         c.value_um[k] = 1e-3 * (double)code[k];
     }
     int comps[1] = {o->axis};
-    residual(lut, comps, 1, sign, lcnc_eval, &c, rep);
+    sc_export_residual(lut, comps, 1, sign, lcnc_eval, &c, rep);
     rep->tables = 1;
     rep->points[0] = c.n + 1;
     rep->interval_mm = c.step_mm;
@@ -929,6 +821,12 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
         break;
     case SC_EXPORT_KMOTION:
         st = export_kmotion(lut, o, &t, rep, err);
+        break;
+    case SC_EXPORT_AEROTECH_A1:
+        st = sc_export_aerotech(lut, o, &t, rep, err);
+        break;
+    case SC_EXPORT_POWERPMAC:
+        st = sc_export_powerpmac(lut, o, &t, rep, err);
         break;
     case SC_EXPORT_KLIPPER:
     case SC_EXPORT_MARLIN:
