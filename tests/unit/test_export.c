@@ -528,10 +528,11 @@ static double lc_ctrl(const void *vctx, int comp, double x, double y)
     const lc_ctx *c = vctx;
     const lc *l = c->l;
     double s = c->axis == 0 ? x : y;
-    /* LinuxCNC's table: a sentinel at -DBL_MAX with trim 0 and no slope to the first entry, so
-     * 0 below it (motion/command.c, SET_JOINT_COMP); the last trim held above the last */
+    /* LinuxCNC's table: a sentinel at -DBL_MAX that takes the first trim with no slope when the
+     * first entry is loaded (motion/command.c, SET_JOINT_COMP), so the first trim is held below
+     * the first entry; the last trim held above the last */
     if (s < l->nom[0])
-        return 0.0;
+        return 1e3 * l->fwd[0];
     if (s >= l->nom[l->n - 1])
         return 1e3 * l->fwd[l->n - 1];
     int k = 0;
@@ -556,17 +557,17 @@ static void test_linuxcnc(void **state)
         o.axis = axis;
         assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
         parse_linuxcnc(path, l);
-        assert_int_equal(l->n, (axis == 0 ? 31 : 11) + 1);
+        assert_int_equal(l->n, axis == 0 ? 31 : 11);
         assert_int_equal(rep.points[0], l->n);
-        /* the guard entry far below the map holds the first trim there */
-        assert_true(l->nom[0] <= l->nom[1] - 1e5 && l->fwd[0] == l->fwd[1] && l->rev[0] == l->rev[1]);
-        for (int k = 1; k < l->n; ++k) {
+        /* no entry beyond the map: the first is the map's first node */
+        assert_true(fabs(l->nom[0] - (axis == 0 ? m->x0_mm : m->y0_mm)) < 1e-9);
+        for (int k = 0; k < l->n; ++k) {
             assert_true(l->fwd[k] == l->rev[k]);
             /* the trim is the mean of G over the other coordinate's nodes */
             double mean = 0;
             int other = axis == 0 ? m->ny : m->nx;
             for (int q = 0; q < other; ++q)
-                mean += axis == 0 ? m->gx_um[q * m->nx + k - 1] : m->gy_um[(k - 1) * m->nx + q];
+                mean += axis == 0 ? m->gx_um[q * m->nx + k] : m->gy_um[k * m->nx + q];
             mean /= other;
             assert_true(fabs(1e3 * l->fwd[k] - mean) <= 0.5e-3 + 1e-9);
         }
@@ -576,7 +577,7 @@ static void test_linuxcnc(void **state)
         /* outside the map LinuxCNC applies the edge trims, as selfcald clamps */
         double below = (axis == 0 ? m->x0_mm : m->y0_mm) - 7.5;
         double above = (axis == 0 ? m->x0_mm + (m->nx - 1) * m->px_mm : m->y0_mm + (m->ny - 1) * m->py_mm) + 7.5;
-        assert_true(lc_ctrl(&ctx, axis, axis == 0 ? below : 0, axis == 0 ? 0 : below) == 1e3 * l->fwd[1]);
+        assert_true(lc_ctrl(&ctx, axis, axis == 0 ? below : 0, axis == 0 ? 0 : below) == 1e3 * l->fwd[0]);
         assert_true(lc_ctrl(&ctx, axis, axis == 0 ? above : 0, axis == 0 ? 0 : above) == 1e3 * l->fwd[l->n - 1]);
     }
     /* Along one line: equal to the map on that line within 1 nm rounding. */
@@ -586,13 +587,18 @@ static void test_linuxcnc(void **state)
     o.interval_mm = 0.25;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
     parse_linuxcnc(path, l);
-    assert_int_equal(l->n, 121 + 1);
-    for (int k = 1; k < l->n; ++k)
+    assert_int_equal(l->n, 121);
+    for (int k = 0; k < l->n; ++k)
         assert_true(fabs(1e3 * l->fwd[k] - map_ref(m, 0, l->nom[k], 6.0)) <= 0.5e-3 + 1e-9);
     lc_ctx ctx = {l, 0};
     int comps[1] = {0};
     check_residual(m, &rep, lc_ctrl, &ctx, comps, 1, 1.0);
-    /* 256 entries per joint. */
+    /* 256 entries per joint, every one along the map (no guard entry beyond it). */
+    o.interval_mm = 30.0 / 255.0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_linuxcnc(path, l);
+    assert_int_equal(l->n, 256);
+    assert_int_equal(rep.points[0], 256);
     o.interval_mm = 0.1;
     unlink(path);
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);

@@ -146,9 +146,9 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
                rep->points[0], rep->points[1],
                o->negate ? "+G (negated)" : "-G (Siemens: a positive value moves the axis negative)");
     else if (f == SC_EXPORT_LINUXCNC)
-        printf(", axis %s, %d entries (%d along the map, step %.6f mm, and a guard far below it "
-               "holding the first trim), trims in mm (1 nm)\n",
-               o->axis == 0 ? "x" : "y", rep->points[0], rep->points[0] - 1, rep->interval_mm);
+        printf(", axis %s, %d entries (step %.6f mm; LinuxCNC holds the end trims beyond them), "
+               "trims in mm (1 nm)\n",
+               o->axis == 0 ? "x" : "y", rep->points[0], rep->interval_mm);
     else if (f == SC_EXPORT_KMOTION)
         printf(", %d x %d points (the map plus a ring of edge values), inches, %s\n",
                rep->points[0], rep->points[1], o->negate ? "ideal - G (negated)" : "ideal + G");

@@ -703,8 +703,6 @@ static double lcnc_eval(const void *vctx, int comp, double x, double y)
     return sc_export_interp1(c->value_um, c->n, c->start_mm, c->step_mm, c->axis == 0 ? x : y);
 }
 
-#define LINUXCNC_GUARD_MM 1e6 /* the guard entry's distance below the map: beyond any travel */
-
 static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                  sc_export_report *rep, sc_error *err)
 {
@@ -727,11 +725,10 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
     c.step_mm = o->interval_mm > 0 ? o->interval_mm : (o->axis == 0 ? lut->px_mm : lut->py_mm);
     c.n = sc_export_cover_points(lo, hi, c.step_mm);
     c.start_mm = lo;
-    if (c.n + 1 > SC_EXPORT_LINUXCNC_MAX_POINTS) /* + the guard entry below the map */
+    if (c.n > SC_EXPORT_LINUXCNC_MAX_POINTS)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "linuxcnc: step %.6f mm needs %d entries (with the guard entry below "
-                            "the map); a joint holds %d",
-                            c.step_mm, c.n + 1, SC_EXPORT_LINUXCNC_MAX_POINTS);
+                            "linuxcnc: step %.6f mm needs %d entries; a joint holds %d",
+                            c.step_mm, c.n, SC_EXPORT_LINUXCNC_MAX_POINTS);
     c.value_um = malloc(sizeof *c.value_um * (size_t)c.n);
     long long *code = malloc(sizeof *code * (size_t)c.n);
     if (!c.value_um || !code) {
@@ -753,24 +750,22 @@ static sc_status export_linuxcnc(const sc_lut *lut, const sc_export_options *o, 
     int comps[1] = {o->axis};
     sc_export_residual(lut, comps, 1, sign, lcnc_eval, &c, rep);
     rep->tables = 1;
-    rep->points[0] = c.n + 1;
+    rep->points[0] = c.n;
     rep->interval_mm = c.step_mm;
     rep->unit_um = 1e-3;
     /* "nominal forward-trim reverse-trim" lines, ascending, then ONE comment line: LinuxCNC's
      * loader reads triplets until the first line that is not one, so a trailing comment is
-     * ignored while a leading one would make it load nothing, silently. LinuxCNC's table starts
-     * with a sentinel at -DBL_MAX of trim 0 and no slope to the first entry (motion/command.c,
-     * SET_JOINT_COMP): below the first entry it applies 0, then steps to the first trim. So the
-     * first line is a guard entry LINUXCNC_GUARD_MM below the map carrying the first trim: the
-     * edge value is held below the map, as above it (LinuxCNC holds the last trim) and as
-     * selfcald does. */
-    for (int k = -1; k < c.n; ++k) {
-        long long v = code[k < 0 ? 0 : k];
+     * ignored while a leading one would make it load nothing, silently. Beyond the table
+     * LinuxCNC holds the end trims: its table starts with a sentinel at -DBL_MAX that takes the
+     * first trim with no slope when the first entry is loaded (motion/command.c,
+     * SET_JOINT_COMP), and the last entry keeps no slope to the sentinel at +DBL_MAX; that is
+     * selfcald's clamping, so no entry beyond the map is needed. */
+    for (int k = 0; k < c.n; ++k) {
+        long long v = code[k];
         char trim[48];
         snprintf(trim, sizeof trim, "%s%lld.%06lld", v < 0 ? "-" : "", llabs(v) / 1000000,
                  llabs(v) % 1000000);
-        sc_tb_printf(t, "%.6f %s %s\n", k < 0 ? lo - LINUXCNC_GUARD_MM : lo + k * c.step_mm, trim,
-                     trim);
+        sc_tb_printf(t, "%.6f %s %s\n", lo + k * c.step_mm, trim, trim);
     }
     sc_tb_printf(t, "# selfcal export: %s trims (%sG%s, mm; a machine in inches needs them / 25.4) - "
                  "needs COMP_FILE_TYPE = 1 in [JOINT_n]: LinuxCNC's default 0 reads them as "

@@ -55,12 +55,9 @@ for axis, name, n_other in ((0, "J-x.comp", 9), (1, "J-y.comp", 11)):
     lines = open(path(name)).read().splitlines()
     check(lines[-1].startswith("#") and "COMP_FILE_TYPE = 1" in lines[-1]
           and not any(ln.startswith("#") for ln in lines[:-1]), f"{name}: one trailing comment")
+    # Nominals in machine coordinates: the map's plus the offset; no entry beyond the map
+    # (LinuxCNC holds the first trim below the first entry: motion/command.c, SET_JOINT_COMP).
     rows = [list(map(float, ln.split())) for ln in lines[:-1]]
-    # The first entry is a guard far below the map with the first trim (LinuxCNC applies 0
-    # below its first entry); then nominals in machine coordinates: the map's plus the offset.
-    check(len(rows) >= 2 and rows[0][0] <= rows[1][0] - 1e5 and rows[0][1:] == rows[1][1:],
-          f"{name}: guard entry {rows[:2]}")
-    rows = rows[1:]
     check(len(rows) == (11 if axis == 0 else 9), f"{name}: {len(rows)} map entries")
     for k, r in enumerate(rows):
         if axis == 0:
