@@ -23,3 +23,12 @@ if(SELFCAL_PYTHON3)
             ${CMAKE_CURRENT_SOURCE_DIR}/data/dabam/dabam-002.dat)
   set_tests_properties(export_cross_signs PROPERTIES TIMEOUT 180 LABELS "integration;lut;export")
 endif()
+# The precision-stage controllers (Aerotech Automation1, Power PMAC): the written files read and
+# applied by the vendors' documented rules, on the demo's map and a stitched rectangular stage,
+# against selfcald's map (lut build + lut dump); the wrong sign doubles the error.
+if(SELFCAL_PYTHON3)
+  add_test(NAME export_precision
+    COMMAND ${SELFCAL_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/integration/export_fw/test_precision.py
+            $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/export_precision)
+  set_tests_properties(export_precision PROPERTIES TIMEOUT 300 LABELS "integration;lut;export")
+endif()
