@@ -6,9 +6,10 @@
  *   marlin   M852 I<factor>, planner skew(): x - y * skew_factor.xy, |factor| <= 1;
  *   reprap   M556 S<length> X<deviation>, Move::AxisTransform: x + tanXY * y, tanXY = X / S.
  * Scale goes to the axes' steps/mm (M92) or rotation_distance. The residual is evaluated like
- * the table formats' (nodes and 4 x 4 sub-points per cell): the map minus the firmware's
- * correction, computed from the values as written, after removing the translation, rotation and
- * magnification that a self-calibrated map leaves undefined (its gauge).
+ * the table formats' (nodes and 4 x 4 sub-points per cell): the map where the firmware moves the
+ * axes, G(t + c(t)), minus the firmware's correction c(t), computed from the values as written,
+ * after removing the translation, rotation and magnification that a self-calibrated map leaves
+ * undefined (its gauge).
  * No library does these conversions; they are a few lines each. */
 #include <math.h>
 #include <stdarg.h>
@@ -58,8 +59,9 @@ static void fw_correction_um(const fw_model *m, double x, double y, double c_um[
     c_um[1] = (m->k[1] * y - y) * 1e3;
 }
 
-/* Residual of the map against the firmware's correction, over nodes and 4 x 4 sub-points per
- * cell, with the gauge freedoms (translation, rotation, magnification) fitted and removed. */
+/* Residual of the map at the moved position against the firmware's correction, over nodes and
+ * 4 x 4 sub-points per cell, with the gauge freedoms (translation, rotation, magnification)
+ * fitted and removed. */
 static void fw_residual(const sc_lut *lut, const fw_model *m, sc_export_report *rep)
 {
     const int sub = 4, na = sub * (lut->ny - 1) + 1, nb = sub * (lut->nx - 1) + 1;
@@ -78,8 +80,11 @@ static void fw_residual(const sc_lut *lut, const fw_model *m, sc_export_report *
                 const double x = lut->x0_mm + lut->px_mm * bb / sub;
                 const double y = lut->y0_mm + lut->py_mm * a / sub;
                 double gx, gy, c[2];
-                sc_lut_grid_eval(lut, x, y, &gx, &gy);
+                /* The firmware sends the motors to t + c(t): the stage then stands G(t + c)
+                 * short of that, so the error left is c(t) - G(t + c(t)) (the map where the
+                 * firmware moves, clamped beyond it as selfcald does), not c(t) - G(t). */
                 fw_correction_um(m, x, y, c);
+                sc_lut_grid_eval(lut, x + 1e-3 * c[0], y + 1e-3 * c[1], &gx, &gy);
                 const double rx = gx - c[0], ry = gy - c[1], u = x - xc, v = y - yc;
                 if (pass == 0) {
                     srx += rx;
