@@ -18,11 +18,14 @@ component selfcal_xy "Correct X and Y positions with a selfcal error-map table (
 description """
 Loads a selfcal table (\\fBselfcal lut build\\fR) once at \\fBloadrt\\fR and corrects X and Y every
 period exactly as the selfcald daemon does (SPEC §4).
-\\fBloadrt selfcal_xy table=\\fIPATH\\fB [mode=position|measure]\\fR.
+\\fBloadrt selfcal_xy table=\\fIPATH\\fB [mode=position|measure|measure-exact]\\fR.
 mode=position (default): the inputs are commanded positions, the outputs are pre-compensated
 targets (target + G(target) + profile offsets) to send to the drives.
 mode=measure: the inputs are indicated (feedback) positions, the outputs are true positions
-(p - G(p) - profile offsets).
+(p - G(p) - profile offsets), to first order.
+mode=measure-exact: as measure, but the exact inverse of position mode (the q with q + G(q) +
+offsets = p, by 3 fixed-point steps: constant time, about three times measure's cost); it
+removes measure's first-order error, G times the slope of G (picometres to a nanometre on real stages).
 A missing or invalid table, or an unknown mode, makes loadrt fail with the reason in the log.
 """;
 
@@ -65,7 +68,7 @@ static char *table = 0;
 RTAPI_MP_STRING(table, "path of the selfcal table file (selfcal lut build)");
 #define SELFCAL_XY_MAX_MODES 16
 static char *mode[SELFCAL_XY_MAX_MODES] = {0};
-RTAPI_MP_ARRAY_STRING(mode, SELFCAL_XY_MAX_MODES, "per instance: position (default: commanded positions in, pre-compensated out) or measure (feedback in, true positions out)");
+RTAPI_MP_ARRAY_STRING(mode, SELFCAL_XY_MAX_MODES, "per instance: position (default: commanded positions in, pre-compensated out), measure (feedback in, true positions out, first order) or measure-exact (the exact inverse of position)");
 
 static sc_corr_table selfcal_table; /* decoded once at loadrt, only read afterwards */
 static int selfcal_loaded = 0;
@@ -118,14 +121,16 @@ EXTRA_SETUP()
         corr_mode = SC_CORR_POSITION;
     } else if (strcmp(m, "measure") == 0) {
         corr_mode = SC_CORR_MEASURE;
+    } else if (strcmp(m, "measure-exact") == 0) {
+        corr_mode = SC_CORR_MEASURE_EXACT;
     } else {
-        rtapi_print_msg(RTAPI_MSG_ERR, "selfcal_xy: mode=%s: unknown mode (position or measure)\n",
-                        m);
+        rtapi_print_msg(RTAPI_MSG_ERR, "selfcal_xy: mode=%s: unknown mode (position, measure or "
+                        "measure-exact)\n", m);
         return -EINVAL;
     }
     if (!selfcal_loaded) {
         if (!table || !table[0]) {
-            rtapi_print_msg(RTAPI_MSG_ERR, "selfcal_xy: no table: loadrt selfcal_xy table=PATH [mode=position|measure]\n");
+            rtapi_print_msg(RTAPI_MSG_ERR, "selfcal_xy: no table: loadrt selfcal_xy table=PATH [mode=position|measure|measure-exact]\n");
             return -EINVAL;
         }
         int rc = selfcal_xy_load(table);
@@ -137,7 +142,9 @@ EXTRA_SETUP()
                         (unsigned)selfcal_table.n_profiles);
     }
     rtapi_print_msg(RTAPI_MSG_INFO, "selfcal_xy: %s: mode=%s\n", prefix,
-                    corr_mode == SC_CORR_POSITION ? "position" : "measure");
+                    corr_mode == SC_CORR_POSITION  ? "position"
+                    : corr_mode == SC_CORR_MEASURE ? "measure"
+                                                   : "measure-exact");
     return 0;
 }
 

@@ -22,8 +22,9 @@ const char sc_config_usage[] =
     "  --can IFACE                   SocketCAN raw (ids 0x100 in, 0x101 out, 0x102 status)\n"
     "options:\n"
     "  --config FILE                 read 'key = value' lines (keys = these long options)\n"
-    "  --mode measure|position       measure: p - G(p) - profile offsets (default);\n"
-    "                                position: t + G(t) + profile offsets\n"
+    "  --mode measure|position|measure-exact  measure: p - G(p) - profile offsets (default);\n"
+    "                                position: t + G(t) + profile offsets; measure-exact: the q\n"
+    "                                with q + G(q) + offsets = p (3 fixed-point steps)\n"
     "  --unit-id N                   Modbus unit id (default 1)\n"
     "  --word-order high-first|low-first   32-bit word order (default high-first)\n"
     "  --max-connections N           Modbus TCP connection cap (default 64); at the cap a new\n"
@@ -282,8 +283,10 @@ static sc_status set_mode(sc_config *c, const char *value, sc_error *err)
         c->mode = SC_CORR_MEASURE;
     else if (strcmp(value, "position") == 0)
         c->mode = SC_CORR_POSITION;
+    else if (strcmp(value, "measure-exact") == 0)
+        c->mode = SC_CORR_MEASURE_EXACT;
     else
-        BAD("--mode: expected measure or position, got '%s'", value);
+        BAD("--mode: expected measure, position or measure-exact, got '%s'", value);
     return SC_OK;
 }
 

@@ -58,7 +58,9 @@ sc_status sc_daemon_start(sc_daemon *d, sc_error *err)
     const sc_corr_table *tb = d->engine.table;
     sc_log(SC_LOG_NOTICE, "table %s loaded: %ux%u nodes, pitch %g x %g mm, %u profile(s), %s mode",
            d->table_path, (unsigned)tb->nx, (unsigned)tb->ny, tb->px_mm, tb->py_mm,
-           (unsigned)tb->n_profiles, d->engine.mode == SC_CORR_MEASURE ? "measure" : "position");
+           (unsigned)tb->n_profiles, d->engine.mode == SC_CORR_MEASURE    ? "measure"
+           : d->engine.mode == SC_CORR_POSITION ? "position"
+                                                : "measure-exact");
     for (int i = 0; i < d->nt; i++) {
         sc_status st = d->t[i].open(d->t[i].state, err);
         if (st != SC_OK) {

@@ -618,6 +618,66 @@ static void test_inverse_iteration(void **state)
     assert_int_equal(sc_corr_apply_inverse(&T, p, q, 3), SC_CORR_ST_LOADED | SC_CORR_ST_OUTSIDE);
 }
 
+/* SC_CORR_MEASURE_EXACT: sc_corr_apply_inverse with SC_CORR_EXACT_ITERATIONS steps, bit for bit,
+ * within the documented bound L^k |C| of the true inverse (L: the grid's largest slope sum, um
+ * per um; |C|: its largest value), and far better than measure mode where that is visibly off. */
+static void test_measure_exact_mode(void **state)
+{
+    (void)state;
+    make_grid(7, 5, 1, 1000, 20000); /* +-20 um over 5 x 4 mm cells: slopes up to 1e-2 */
+    S.px = 5.0;
+    S.py = 4.0;
+    load_ok();
+    double lx = 0, ly = 0, cmax = 0;
+    for (int i = 0; i < S.ny; ++i)
+        for (int j = 0; j < S.nx; ++j)
+            for (int c = 0; c < 2; ++c) {
+                const int32_t *a = c == 0 ? S.gx : S.gy;
+                const double v = node_um(a[i * S.nx + j], S.gscale_pm);
+                cmax = dabs(v) > cmax ? dabs(v) : cmax;
+                if (j + 1 < S.nx) {
+                    double d = dabs(node_um(a[i * S.nx + j + 1], S.gscale_pm) - v) / (S.px * 1e3);
+                    lx = d > lx ? d : lx;
+                }
+                if (i + 1 < S.ny) {
+                    double d = dabs(node_um(a[(i + 1) * S.nx + j], S.gscale_pm) - v) / (S.py * 1e3);
+                    ly = d > ly ? d : ly;
+                }
+            }
+    const double L = lx + ly; /* the step q -> p - C(q) contracts by L in the max norm */
+    double bound_mm = cmax * 1e-3;
+    for (int k = 0; k < SC_CORR_EXACT_ITERATIONS; ++k)
+        bound_mm *= L;
+    double x1 = S.x0 + (S.nx - 1) * S.px, y1 = S.y0 + (S.ny - 1) * S.py;
+    double worst_exact = 0, worst_measure = 0;
+    for (int k = 0; k < 400; ++k) {
+        double p[3] = {rnd_uniform(S.x0 + 0.5, x1 - 0.5), rnd_uniform(S.y0 + 0.5, y1 - 0.5), 0.0};
+        double q[3], i3[3], t[3], m[3];
+        assert_int_equal(sc_corr_apply(&T, SC_CORR_MEASURE_EXACT, p, q), SC_CORR_ST_LOADED);
+        assert_int_equal(sc_corr_apply_inverse(&T, p, i3, SC_CORR_EXACT_ITERATIONS),
+                         SC_CORR_ST_LOADED);
+        assert_true(q[0] == i3[0] && q[1] == i3[1] && q[2] == i3[2]);
+        /* the true position, by many more steps */
+        assert_int_equal(sc_corr_apply_inverse(&T, p, t, 16), SC_CORR_ST_LOADED);
+        sc_corr_apply(&T, SC_CORR_MEASURE, p, m);
+        double e = dabs(q[0] - t[0]) > dabs(q[1] - t[1]) ? dabs(q[0] - t[0]) : dabs(q[1] - t[1]);
+        double em = dabs(m[0] - t[0]) > dabs(m[1] - t[1]) ? dabs(m[0] - t[0]) : dabs(m[1] - t[1]);
+        worst_exact = e > worst_exact ? e : worst_exact;
+        worst_measure = em > worst_measure ? em : worst_measure;
+    }
+    assert_true(L > 1e-3 && L < 0.5);
+    assert_true(worst_exact <= bound_mm + 1e-12);
+    assert_true(worst_measure > 1e-6);             /* measure mode is visibly off here ... */
+    assert_true(worst_exact < 1e-3 * worst_measure); /* ... and the exact mode is not */
+    /* NaN input passes through; outside the grid the status says so. */
+    double bad[3] = {0.0 / 0.0, 1, 2}, o[3];
+    assert_int_equal(sc_corr_apply(&T, SC_CORR_MEASURE_EXACT, bad, o),
+                     SC_CORR_ST_LOADED | SC_CORR_ST_INVALID);
+    double far[3] = {x1 + 10, S.y0, 0};
+    assert_int_equal(sc_corr_apply(&T, SC_CORR_MEASURE_EXACT, far, o),
+                     SC_CORR_ST_LOADED | SC_CORR_ST_OUTSIDE);
+}
+
 /* Expected reason for a flip of one bit at byte b of a valid image. */
 static int flip_reason(size_t b)
 {
@@ -820,6 +880,7 @@ int main(void)
         cmocka_unit_test(test_invalid_input),
         cmocka_unit_test(test_not_loaded_passes_through),
         cmocka_unit_test(test_inverse_iteration),
+        cmocka_unit_test(test_measure_exact_mode),
         cmocka_unit_test(test_every_bit_flip_and_truncation),
         cmocka_unit_test(test_semantic_errors),
         cmocka_unit_test(test_fuzz_valid_crc),

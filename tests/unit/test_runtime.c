@@ -146,6 +146,17 @@ static void test_engine_correct(void **state)
     e.mode = SC_CORR_POSITION;
     for (int k = 0; k < 100; k++)
         check_point(&e, (int32_t)(-2000000 + 41234 * k), (int32_t)(-1500000 + 30011 * k));
+    /* measure-exact: the output q is what position mode takes back to the input, q + G(q) = p,
+     * within the output's rounding to a nanometre. */
+    e.mode = SC_CORR_MEASURE_EXACT;
+    for (int k = 0; k < 100; k++) {
+        const int32_t x = (int32_t)(-2500000 + 47111 * k), y = (int32_t)(-1800000 + 33013 * k);
+        assert_true(sc_engine_correct(&e, x, y, &ox, &oy) & SC_CORR_ST_LOADED);
+        double qx, qy;
+        ref_g(ox * 1e-6, oy * 1e-6, &qx, &qy);
+        assert_true(fabs(ox + qx * 1e3 - x) <= 0.51);
+        assert_true(fabs(oy + qy * 1e3 - y) <= 0.51);
+    }
     /* Far outside: clamped, flagged; extreme inputs saturate and are flagged invalid. */
     e.mode = SC_CORR_MEASURE;
     check_point(&e, 100000000, -100000000);
@@ -286,6 +297,17 @@ static void test_config(void **state)
     assert_int_equal(c.tcp.port, 1700);
     assert_int_equal(c.mode, SC_CORR_POSITION);
     assert_int_equal(c.tcp.unit_id, 9); /* the flag wins over the file */
+    {
+        static sc_config c2;
+        char *argv2[] = {"selfcald", "--table", "/tmp/x.lut", "--mode", "measure-exact", NULL};
+        sc_config_defaults(&c2);
+        assert_int_equal(sc_config_parse_args(&c2, 5, argv2, &help, &version, &why), SC_OK);
+        assert_int_equal(c2.mode, SC_CORR_MEASURE_EXACT);
+        char *argv3[] = {"selfcald", "--table", "/tmp/x.lut", "--mode", "exact", NULL};
+        sc_config_defaults(&c2);
+        assert_int_equal(sc_config_parse_args(&c2, 5, argv3, &help, &version, &why), SC_E_INPUT);
+        assert_non_null(strstr(why.msg, "measure-exact"));
+    }
     assert_int_equal(c.word_order, SC_WORD_LOW_FIRST);
     assert_int_equal(c.use_modbus_rtu, 1);
     assert_string_equal(c.rtu.device, "/dev/ttyS1");

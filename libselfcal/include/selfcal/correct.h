@@ -69,9 +69,18 @@ typedef double sc_corr_value;
 #define SC_CORR_ST_INVALID 0x04u /* the input was NaN or infinite: returned unchanged */
 
 typedef enum sc_corr_mode {
-    SC_CORR_MEASURE = 0, /* input: indicated position p; output p - G(p) - profile offsets */
-    SC_CORR_POSITION = 1 /* input: target; output target + G(target) + profile offsets */
+    SC_CORR_MEASURE = 0,      /* input: indicated position p; output p - G(p) - profile offsets */
+    SC_CORR_POSITION = 1,     /* input: target; output target + G(target) + profile offsets */
+    SC_CORR_MEASURE_EXACT = 2 /* input: indicated p; output q with q + C(q) = p (C = G + offsets),
+                                 by SC_CORR_EXACT_ITERATIONS fixed-point steps: the inverse of
+                                 position mode; measure mode is its first step */
 } sc_corr_mode;
+
+/* Fixed-point steps of SC_CORR_MEASURE_EXACT. After k steps from q = p the error is at most
+ * L^k |C| (L: the largest slope of C, um per um; |C|: the largest correction): measure mode's
+ * first-order error L |C| (G·grad G) becomes L^3 |C|, 1e-10 um for L = 1e-4 and |C| = 100 um,
+ * below the float rounding of the stored values (docs/lut-format.md). */
+#define SC_CORR_EXACT_ITERATIONS 3
 
 /* Axis / direction codes for profiles. */
 enum { SC_CORR_AXIS_X = 0, SC_CORR_AXIS_Y = 1, SC_CORR_AXIS_Z = 2 };

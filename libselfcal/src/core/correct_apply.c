@@ -1,6 +1,6 @@
 /* correct_apply.c — SPEC §4 runtime correction: bilinear grid G, clamped outside with a status
  * bit, linear profile offsets, measure / position modes, and the exact inverse by fixed-point
- * iteration.
+ * iteration (sc_corr_apply_inverse; SC_CORR_MEASURE_EXACT: SC_CORR_EXACT_ITERATIONS steps).
  *
  * Freestanding: no libm (floor by a cast after clamping to the non-negative table range, the
  * finiteness test by x - x == 0). Positions and the interpolation are doubles (mm: 1e-16
@@ -215,6 +215,8 @@ static unsigned pass_through(const sc_corr_table *t, const double in[3], double 
 unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],
                        double out_mm[3])
 {
+    if (mode == SC_CORR_MEASURE_EXACT) /* a fixed number of steps: constant time */
+        return sc_corr_apply_inverse(t, in_mm, out_mm, SC_CORR_EXACT_ITERATIONS);
     const double sign_mm = mode == SC_CORR_POSITION ? 1e-3 : -1e-3;
 #if SC_CORR_PAIRS
     const v2d xy = load2u(in_mm);

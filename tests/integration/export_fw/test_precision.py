@@ -13,8 +13,8 @@ again from the vendors' documentation (not from the exporter):
   motor's CompPos, Sf[0] its scale, Data[] dimension 0 fastest; bilinear inside; beyond the table
   the end entries (Ctrl=3: no rollover, the assumption the exporter states).
 
-Both are exported from the demo's map (`simulate grid --n 25 --pitch-mm 4 --seed 1`, `grid
---method lsq`) and from a stitched rectangular stage (41 x 31 nodes at 2 mm, 15 x 15 plate), and
+Both are exported from the demo's map (scripts/demo.sh: `simulate grid --n 25 --pitch-mm 1
+--seed 1`, sigmas 1, 1, 0.01 um; `grid --method lsq`) and from a stitched rectangular stage (41 x 31 nodes at 2 mm, 15 x 15 plate), and
 compared with the map as selfcald applies it (`lut build` + `lut dump`: bilinear, clamped, SPEC §4)
 on a dense sampling inside and 10 mm beyond the map. The machine is simulated: a stage with error
 map G stands at p - G(p) when its encoder reads p; the controller commands t + c(t). With the
@@ -225,7 +225,8 @@ def printed_residual(out):
 
 # The maps: the demo's and a stitched rectangular stage.
 selfcal("simulate", "grid", "--plan", "double-shift", "--out", path("demo_in.csv"),
-        "--truth-map", path("demo_truth.csv"), "--n", "25", "--pitch-mm", "4", "--seed", "1")
+        "--truth-map", path("demo_truth.csv"), "--n", "25", "--pitch-mm", "1", "--seed", "1",
+        "--sigma-g-um", "1", "--sigma-a-um", "1", "--sigma-r-um", "0.01")  # scripts/demo.sh
 selfcal("grid", "--method", "lsq", path("demo_in.csv"), "--map", path("demo.csv"))
 selfcal("simulate", "grid", "--plan", "stitch", "--stage", "41,31", "--n", "15", "--pitch-mm", "2",
         "--out", path("stitch_in.csv"), "--truth-map", path("stitch_truth.csv"), "--seed", "2")
@@ -318,6 +319,22 @@ for mname, G in maps.items():
         check(abs(ratio - 2.0) < 0.02, f"powerpmac {mname}: the wrong sign doubles the error ({ratio})")
         check(got[False]["left_rms"] < 0.01 * got[False]["raw_rms"],
               f"powerpmac {mname}: the right sign removes it ({got[False]['left_rms']})")
+
+# Measure mode's first-order inverse, p - G(p), against the exact one (q + G(q) = p, iterated to
+# convergence here): its error is G·grad G. The size on the demo's map, and that it is there.
+for mname, G in maps.items():
+    errs = []
+    for (x, y) in G.samples(margin=0.0, sub=4):
+        gx, gy = G.g(x, y)
+        qx, qy = x, y
+        for _ in range(30):
+            hx, hy = G.g(qx, qy)
+            qx, qy = x - hx * 1e-3, y - hy * 1e-3
+        errs += [(x - gx * 1e-3 - qx) * 1e6, (y - gy * 1e-3 - qy) * 1e6]
+    rms = math.sqrt(sum(e * e for e in errs) / len(errs))
+    print(f"{mname}: measure mode's first-order error G·grad G: rms {rms:.3f} nm, max "
+          f"{max(abs(e) for e in errs):.3f} nm (measure-exact removes it)")
+    check(0.05 < rms < 100, f"{mname}: G·grad G {rms} nm is of the size expected")
 
 # Options that do not apply, bad values: exit 2, one line, no file.
 for fmt, extra, what in (("aerotech-a1", ["--axis", "x"], "--axis"),

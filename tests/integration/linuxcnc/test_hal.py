@@ -238,7 +238,7 @@ def daemon_answers(mode):
 
 
 worst_py = worst_d = 0.0
-for mode in (None, "position", "measure"):
+for mode in (None, "position", "measure", "measure-exact"):
     eff = mode or "position"  # SPEC §7: position by default
     hal = hal_outputs(mode)
     dmn = daemon_answers(eff)
@@ -270,7 +270,7 @@ for mode in (None, "position", "measure"):
                   f"({dx}, {dy}) nm")
             check(dst & 0x3 == st & 0x3, f"mode={eff} ({x},{y}): status {st} vs selfcald {dst}")
 print(f"component vs independent evaluation: max |dc| = {worst_py * 1e6:.3f} pm over "
-      f"{3 * len(points)} points; vs selfcald: max {worst_d:.4f} nm"
+      f"{4 * len(points)} points; vs selfcald: max {worst_d:.4f} nm"
       + ("" if selfcald else " (selfcald not built: not compared)"))
 
 

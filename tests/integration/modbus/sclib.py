@@ -90,7 +90,16 @@ class Table:
         return off
 
     def correct_nm(self, x_nm, y_nm, mode="measure"):
-        """Expected corrected position (float nm) and the expected outside flag."""
+        """Expected corrected position (float nm) and the expected outside flag. measure-exact:
+        the q with q + C(q) = p, solved here by iterating to convergence (40 steps)."""
+        if mode == "measure-exact":
+            px, py = x_nm * 1e-6, y_nm * 1e-6
+            qx, qy, out_p = px, py, self.g_um(px, py)[2]
+            for _ in range(40):
+                gx, gy, out = self.g_um(qx, qy)
+                off = self.profile_um((qx, qy, 0.0))
+                qx, qy = px - (gx + off[0]) * 1e-3, py - (gy + off[1]) * 1e-3
+            return qx * 1e6, qy * 1e6, out_p or out
         gx, gy, out = self.g_um(x_nm * 1e-6, y_nm * 1e-6)
         off = self.profile_um((x_nm * 1e-6, y_nm * 1e-6, 0.0))
         gx += off[0]
