@@ -2,7 +2,7 @@
  * (`selfcal export --format aerotech-a1`, docs/exporters.md).
  *
  * Followed: Automation1 help, "Axis Calibration" (help.aerotech.com/automation1/Content/
- * Axis-Calibration.htm), its opening and "2D Axis Calibration": a calibration file holds tables
+ * Axis-Calibration.htm), the part we could read (its opening): a calibration file holds tables
  * of one kind, UTF-8; a 2-D table corrects two output axes from the positions of two reference
  * axes; tables add up; between reference positions linear interpolation, and "if the position of
  * the reference axis is not within the values in the table ... the nearest end point of the table
@@ -17,12 +17,16 @@
  *   :START2D POSUNIT=PRIMARY CORUNIT=PRIMARY/1000 OFFSETROW=.. OFFSETCOL=..
  *   ... rows ...
  *   :END
- * Open points (the stored copy of the help page we could read stops after its opening sections;
- * the keyword layout above is the A3200/Automation1 one as we know it): the sign of the value
- * (taken as what is added to the commanded position, +G; --negate writes -G), the axis binding
- * (--axis-numbers NX,NY give the one-based indices of x and y), the units (primary units taken as
- * mm, corrections in PRIMARY/1000 = um) and OFFSETROW/OFFSETCOL taken as the reference axes'
- * positions of the first row and column (--offset moves them into machine coordinates). */
+ * The stored copy of the help page we could read stops after its opening sections; the keyword
+ * layout above, CORUNIT=PRIMARY/1000, NEGCOR and the OFFSET convention are those of public
+ * calibration scripts written for A3200 and Automation1 controllers (one of them Aerotech's own
+ * factory tool for 1-D files, whose corrections are the negated measured error, commanded -
+ * measured). Open points, said in the file and in docs/exporters.md: the sign (taken as what is
+ * added to the commanded position, +G; --negate writes -G, as NEGCOR would), the axis binding
+ * (--axis-numbers NX,NY give the one-based indices of x and y), the units (primary units taken
+ * as mm, corrections PRIMARY/1000 = um) and OFFSETROW/OFFSETCOL, written as the NEGATIVE of the
+ * first row's and column's positions (those scripts' convention: table index = (position +
+ * OFFSET) / SampleDist); --offset moves the map into machine coordinates. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -103,13 +107,15 @@ sc_status sc_export_aerotech(const sc_lut *lut, const sc_export_options *o, sc_t
                                          "position (the table follows the encoder's sign)"
                                        : "NEGATED: -G, the opposite of the default");
     sc_tb_printf(t, "; rows: y (axis %d) from %.6f mm step %.6f mm; columns: x (axis %d) from "
-                    "%.6f mm step %.6f mm; beyond the table Automation1 holds its nearest end "
-                    "point\n", ay, c.y0, c.dy, ax, c.x0, c.dx);
+                    "%.6f mm step %.6f mm (OFFSETROW/OFFSETCOL: minus those first positions); "
+                    "beyond the table Automation1 holds its nearest end point\n",
+                 ay, c.y0, c.dy, ax, c.x0, c.dx);
     sc_tb_printf(t, "; residual (table - map): rms %.5f um, max %.5f um; clipped points: %ld\n",
                  rep->rms_um, rep->max_um, rep->clipped);
     sc_tb_printf(t, ":START2D %d %d %d %d %.6f %.6f %d\n", ay, ax, ax, ay, c.dy, c.dx, c.ncols);
+    /* OFFSET = -(the first row's / column's position): index = (position + OFFSET) / step */
     sc_tb_printf(t, ":START2D POSUNIT=PRIMARY CORUNIT=PRIMARY/1000 OFFSETROW=%.6f OFFSETCOL=%.6f\n",
-                 c.y0, c.x0);
+                 c.y0 == 0 ? 0.0 : -c.y0, c.x0 == 0 ? 0.0 : -c.x0);
     char a[40], b[40];
     for (int r = 0; r < c.nrows; ++r) {
         for (int k = 0; k < c.ncols; ++k) {

@@ -3,7 +3,7 @@
  * tables (m = T: the x motor's correction, m = T + 1: the y motor's), both over the x and y
  * motors' positions.
  *
- * Followed: Power PMAC Software Reference Manual (Delta Tau / Omron, 050-PRPMAC-0S0), the
+ * Source: Power PMAC Software Reference Manual (Delta Tau / Omron, 050-PRPMAC-0S0), the
  * CompTable[m] data structure: Source[i] (the motor whose position is dimension i's input),
  * Nx[i] (the zones along dimension i), X0[i] (the first entry's position), Dx[i] (the table's span
  * along dimension i), Target[k] (the address the output goes to: Motor[n].CompPos.a), Sf[k] (the

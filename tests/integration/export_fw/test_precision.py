@@ -6,8 +6,9 @@ again from the vendors' documentation (not from the exporter):
   the corrections of two output axes from the positions of two reference axes (one-based axis
   indices in the file), linear interpolation between the table's reference positions, "the nearest
   end point of the table" beyond them. File: `:START2D RowAxis ColumnAxis OutputAxis1 OutputAxis2
-  SampleDistRow SampleDistCol NumCols`, `:START2D POSUNIT=.. CORUNIT=.. OFFSETROW=.. OFFSETCOL=..`,
-  one line per row of NumCols pairs, `:END`.
+  SampleDistRow SampleDistCol NumCols`, `:START2D POSUNIT=.. CORUNIT=.. OFFSETROW=.. OFFSETCOL=..
+  [NEGCOR]`, one line per row of NumCols pairs, `:END`; the table's index along an axis is
+  (position + OFFSET) / SampleDist (the convention of the public calibration scripts).
 - Power PMAC (`--format powerpmac`), Software Reference, CompTable[m]: Source[0], Source[1] (the
   motors of dimensions 0 and 1), Nx[i] zones, X0[i] first position, Dx[i] span, Target[0] the
   motor's CompPos, Sf[0] its scale, Data[] dimension 0 fastest; bilinear inside; beyond the table
@@ -124,7 +125,10 @@ def read_a1(name):
     opts = dict(kv.split("=") for kv in lines[1].split()[1:])
     units = {"PRIMARY": 1.0, "PRIMARY/1000": 1e-3}
     pos_mm, cor_um = units[opts["POSUNIT"]], units[opts["CORUNIT"]] * 1e3
-    off_row, off_col = float(opts["OFFSETROW"]) * pos_mm, float(opts["OFFSETCOL"]) * pos_mm
+    # table index = (reference position + OFFSET) / SampleDist: the first row stands at -OFFSETROW
+    off_row, off_col = -float(opts["OFFSETROW"]) * pos_mm, -float(opts["OFFSETCOL"]) * pos_mm
+    if "NEGCOR" in lines[1].split():
+        cor_um = -cor_um
     data = [list(map(float, ln.split())) for ln in lines[2:-1]]
     check(all(len(r) == 2 * ncols for r in data), f"{name}: every row has NumCols pairs")
     nrows = len(data)
