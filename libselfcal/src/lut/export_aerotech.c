@@ -64,8 +64,8 @@ static void a1_value(char *buf, size_t cap, long long v)
     snprintf(buf, cap, "%s%lld.%04lld", v < 0 ? "-" : "", llabs(v) / 10000, llabs(v) % 10000);
 }
 
-sc_status sc_export_aerotech(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
-                             sc_export_report *rep, sc_error *err)
+static sc_status export_aerotech(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
+                               sc_export_report *rep, sc_error *err)
 {
     if (o->interval_mm > 0 || o->use_line)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -130,3 +130,5 @@ sc_status sc_export_aerotech(const sc_lut *lut, const sc_export_options *o, sc_t
     free(c.code);
     return SC_OK;
 }
+
+const sc_export_backend sc_export_backend_aerotech = {SC_EXPORT_AEROTECH_A1, "aerotech-a1", export_aerotech};

@@ -120,3 +120,22 @@ int sc_export_cover_points(double lo, double hi, double step)
     double q = ceil((hi - lo) / step - 1e-9);
     return q < (double)INT_MAX - 1.0 ? 1 + (int)q : INT_MAX;
 }
+
+/* Mean of component comp over the other coordinate's nodes, at position s along `along`. */
+double sc_export_mean_along(const sc_lut *lut, int comp, int along, double s)
+{
+    double sum = 0;
+    int n = along == 0 ? lut->ny : lut->nx;
+    for (int k = 0; k < n; ++k)
+        sum += along == 0 ? sc_export_map_g(lut, comp, s, sc_export_node_y(lut, k)) : sc_export_map_g(lut, comp, sc_export_node_x(lut, k), s);
+    return sum / n;
+}
+
+double sc_export_grand_mean(const sc_lut *lut, int comp)
+{
+    const double *g = comp == 0 ? lut->gx_um : lut->gy_um;
+    double sum = 0;
+    for (int k = 0; k < lut->nx * lut->ny; ++k)
+        sum += g[k];
+    return sum / (lut->nx * lut->ny);
+}

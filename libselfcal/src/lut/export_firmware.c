@@ -266,8 +266,10 @@ static void fw_write_reprap(outbuf *ob, const sc_export_options *o, double want,
     scale_lines(ob, cmt, "steps/mm (M92)", o->steps_per_mm, rep->scale, "M92");
 }
 
-sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char *buf,
-                             size_t cap, size_t *len, sc_export_report *rep, sc_error *err)
+/* Klipper, Marlin or RepRapFirmware text for lut's first order into buf (cap bytes, *len
+ * written), report filled. SC_E_INPUT for maps beyond the firmware's limits. */
+static sc_status firmware_text(const sc_lut *lut, const sc_export_options *o, char *buf,
+                               size_t cap, size_t *len, sc_export_report *rep, sc_error *err)
 {
     sc_status st = fw_check_options(o, err);
     if (st != SC_OK)
@@ -318,3 +320,17 @@ sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char
     *len = ob.len;
     return SC_OK;
 }
+
+/* The back-ends: a few lines of text, formatted into one fixed buffer. */
+static sc_status firmware_write(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
+                                sc_export_report *rep, sc_error *err)
+{
+    t->cap = 8192;
+    t->s = malloc(t->cap);
+    return t->s ? firmware_text(lut, o, t->s, t->cap, &t->len, rep, err)
+                : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+}
+
+const sc_export_backend sc_export_backend_klipper = {SC_EXPORT_KLIPPER, "klipper", firmware_write};
+const sc_export_backend sc_export_backend_marlin = {SC_EXPORT_MARLIN, "marlin", firmware_write};
+const sc_export_backend sc_export_backend_reprap = {SC_EXPORT_REPRAP, "reprap", firmware_write};

@@ -1,8 +1,8 @@
-/* export_internal.h — what the exporter back-ends share: export_common.c (helpers), export.c (the
- * table of back-ends, the dispatch, and the Beckhoff, Siemens, LinuxCNC and KMotion tables),
- * export_firmware.c (Klipper, Marlin, RepRapFirmware), export_cross.c (ISG cross compensation of
- * a straightness profile), export_aerotech.c (Automation1) and export_pmac.c (Power PMAC).
- * Internal: not installed. */
+/* export_internal.h — the exporter back-ends' interface and what they share. export.c holds the
+ * table of back-ends and the dispatch; each back-end lives in its own file and defines one
+ * sc_export_backend (export_beckhoff.c with export_cross.c, export_siemens.c, export_linuxcnc.c,
+ * export_kmotion.c, export_firmware.c, export_aerotech.c, export_pmac.c); the helpers are in
+ * export_common.c, which calls no back-end. Internal: not installed. */
 #ifndef SELFCAL_EXPORT_INTERNAL_H
 #define SELFCAL_EXPORT_INTERNAL_H
 
@@ -30,6 +30,27 @@ long long sc_export_quantize(double v_um, double unit_um, double limit_um, long 
 /* Component comp (0 = Gx, 1 = Gy) of lut's bilinear map at (x, y), um (clamped beyond it). */
 double sc_export_map_g(const sc_lut *lut, int comp, double x, double y);
 
+/* Position of map node column j (x) and row i (y), mm; "X" or "Y" for axis 0 or 1. */
+static inline double sc_export_node_x(const sc_lut *lut, int j)
+{
+    return lut->x0_mm + j * lut->px_mm;
+}
+
+static inline double sc_export_node_y(const sc_lut *lut, int i)
+{
+    return lut->y0_mm + i * lut->py_mm;
+}
+
+static inline const char *sc_export_axis_upper(int axis)
+{
+    return axis == 0 ? "X" : "Y";
+}
+
+/* Mean of component comp over the other coordinate's nodes at position s along `along` (the
+ * least-squares 1-D fit of the map along that axis), and over all nodes; um. */
+double sc_export_mean_along(const sc_lut *lut, int comp, int along, double s);
+double sc_export_grand_mean(const sc_lut *lut, int comp);
+
 /* Points of a table from lo to at least hi at this step; saturates at INT_MAX (every caller then
  * refuses it against its controller's limit) instead of overflowing. */
 int sc_export_cover_points(double lo, double hi, double step);
@@ -49,22 +70,29 @@ double sc_export_interp1(const double *v, int n, double start, double step, doub
 /* SC_E_INPUT naming the profile unless profile p overlaps the map along its axis (z: always). */
 sc_status sc_export_profile_meets_map(const sc_lut *lut, int k, const char *fmt, sc_error *err);
 
-/* Klipper, Marlin or RepRapFirmware text for lut's first order into buf (cap bytes, *len
- * written), report filled. SC_E_INPUT for maps beyond the firmware's limits. */
-sc_status sc_export_firmware(const sc_lut *lut, const sc_export_options *o, char *buf,
-                             size_t cap, size_t *len, sc_export_report *rep, sc_error *err);
 
 /* The Beckhoff/ISG cross compensation list (kw.crosscomp.*) of lut's profile o->cross_profile
  * into t, report filled (docs/exporters.md). SC_E_INPUT for what the list cannot hold. */
 sc_status sc_export_beckhoff_cross(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                    sc_export_report *rep, sc_error *err);
 
-/* Aerotech Automation1 2-D axis calibration file (export_aerotech.c) of lut's map into t. */
-sc_status sc_export_aerotech(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
-                             sc_export_report *rep, sc_error *err);
+/* A back-end: its format, its --format name, and the function that writes lut for it into t (the
+ * caller frees t->s), filling rep; SC_E_INPUT for what the format cannot hold. */
+typedef struct sc_export_backend {
+    sc_export_format format;
+    const char *name;
+    sc_status (*write)(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
+                       sc_export_report *rep, sc_error *err);
+} sc_export_backend;
 
-/* Power PMAC CompTable[] setup and data of lut's map, two 2-D tables (export_pmac.c), into t. */
-sc_status sc_export_powerpmac(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
-                              sc_export_report *rep, sc_error *err);
+extern const sc_export_backend sc_export_backend_beckhoff;  /* export_beckhoff.c */
+extern const sc_export_backend sc_export_backend_siemens;   /* export_siemens.c */
+extern const sc_export_backend sc_export_backend_linuxcnc;  /* export_linuxcnc.c */
+extern const sc_export_backend sc_export_backend_kmotion;   /* export_kmotion.c */
+extern const sc_export_backend sc_export_backend_klipper;   /* export_firmware.c */
+extern const sc_export_backend sc_export_backend_marlin;    /* export_firmware.c */
+extern const sc_export_backend sc_export_backend_reprap;    /* export_firmware.c */
+extern const sc_export_backend sc_export_backend_aerotech;  /* export_aerotech.c */
+extern const sc_export_backend sc_export_backend_powerpmac; /* export_pmac.c */
 
 #endif

@@ -90,8 +90,8 @@ static void pmac_table(sc_textbuf *t, const sc_export_options *o, const pmac_ctx
     }
 }
 
-sc_status sc_export_powerpmac(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
-                              sc_export_report *rep, sc_error *err)
+static sc_status export_powerpmac(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
+                                sc_export_report *rep, sc_error *err)
 {
     if (o->interval_mm > 0 || o->use_line)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -155,3 +155,5 @@ sc_status sc_export_powerpmac(const sc_lut *lut, const sc_export_options *o, sc_
     free(c.code[1]);
     return SC_OK;
 }
+
+const sc_export_backend sc_export_backend_powerpmac = {SC_EXPORT_POWERPMAC, "powerpmac", export_powerpmac};
