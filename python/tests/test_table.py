@@ -102,6 +102,22 @@ def test_position_then_measure_is_near_identity(table):
     assert np.max(np.abs(xm - x)) < 0.01 * corr and np.max(np.abs(ym - x[::-1])) < 0.01 * corr
 
 
+def test_measure_exact_inverts_position(table):
+    t = selfcal.Table(table[0])
+    x = np.linspace(-9, 9, 101)
+    xp, yp, _ = t.apply(x, x[::-1], mode="position")
+    xe, ye, st = t.apply(xp, yp, mode="measure-exact")
+    xm, ym, _ = t.apply(xp, yp, mode="measure")
+    assert np.all(st & 1)
+    # the exact inverse takes position mode back to its input (the float-rounded table aside);
+    # measure mode's first order leaves G·grad G, far more
+    exact = max(np.max(np.abs(xe - x)), np.max(np.abs(ye - x[::-1])))
+    first = max(np.max(np.abs(xm - x)), np.max(np.abs(ym - x[::-1])))
+    assert exact < 1e-9 and first > 100 * exact
+    with pytest.raises(selfcal.Error, match="measure-exact"):
+        t.apply(x, x, mode="exact")
+
+
 def test_errors(tmp_path):
     with pytest.raises(selfcal.Error, match="nope.lut"):
         selfcal.Table(tmp_path / "nope.lut")

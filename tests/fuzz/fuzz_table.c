@@ -37,7 +37,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (rc == SC_CORR_OK) {
         static const double pts[][3] = {{0, 0, 0}, {1e3, -1e3, 0}, {-5.5, 7.25, 1}, {1e9, 1e9, 1e9}};
         for (size_t k = 0; k < sizeof pts / sizeof pts[0]; k++) {
-            for (int mode = 0; mode < 2; mode++) {
+            for (int mode = 0; mode < 3; mode++) { /* measure, position, measure-exact */
                 double out[3];
                 unsigned st = sc_corr_apply(&g_t, (sc_corr_mode)mode, pts[k], out);
                 FUZZ_CHECK((isfinite(out[0]) && isfinite(out[1]) && isfinite(out[2])) ||

@@ -142,6 +142,10 @@ static void beckhoff_write(sc_textbuf *t, const sc_export_options *o, const beck
     sc_tb_printf(t, "kw.crosscomp2.n_cycles                  10\n");
     sc_tb_printf(t, "kw.crosscomp2.master1_ax_nr             %d\n", o->beckhoff_x_axis_nr);
     sc_tb_printf(t, "kw.crosscomp2.master2_ax_nr             %d\n", o->beckhoff_y_axis_nr);
+    /* table[j][i]: "the first index j refers to the second master axis" (ISG, P-COMP-00016), so
+     * j runs along y (master 2) and i along x (master 1). The inline "/ * .. * /" comments above
+     * follow a value after a space, which ISG's list reader takes ("Comments in the ASCII
+     * file"; its own plane compensation example writes "interval 100000 / * 10 mm * /"). */
     for (int j = 0; j < c.n[1]; ++j)
         for (int i = 0; i < c.n[0]; ++i)
             sc_tb_printf(t, "kw.crosscomp2.table[%3d][%3d].correction %lld\n", j, i,

@@ -24,7 +24,7 @@ __all__ = [
 ]
 __version__ = _native.version()
 
-_MODES = {"measure": 0, "position": 1}
+_MODES = {"measure": 0, "position": 1, "measure-exact": 2}
 
 
 def version() -> str:
@@ -36,7 +36,7 @@ def _mode_code(mode: str) -> int:
     try:
         return _MODES[mode]
     except (KeyError, TypeError):
-        raise Error(f"mode must be 'measure' or 'position', not {mode!r}") from None
+        raise Error(f"mode must be 'measure', 'position' or 'measure-exact', not {mode!r}") from None
 
 
 class Table:
@@ -68,7 +68,9 @@ class Table:
 
         ``mode="measure"``: the inputs are indicated positions p; returns p − G(p) − profile
         offsets. ``mode="position"``: the inputs are targets; returns target + G(target) +
-        profile offsets (pre-compensation). G is bilinear on the table's grid, clamped at its
+        profile offsets (pre-compensation). ``mode="measure-exact"``: the inputs are indicated
+        positions p; returns the q with q + G(q) + offsets = p, the exact inverse of position mode
+        (three fixed-point steps; measure mode is the first, off by G·∇G). G is bilinear on the table's grid, clamped at its
         edges. Inputs of any shape (broadcast together); returns ``(x_mm, y_mm, status)`` of that
         shape (and ``z_mm`` as a third array, before status, when given). status: bit 0 table
         loaded, bit 1 outside the grid (clamped), bit 2 input not finite (returned unchanged).

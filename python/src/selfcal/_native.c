@@ -1323,7 +1323,7 @@ typedef double xy_pair __attribute__((vector_size(16), may_alias));
 #endif
 
 /* apply(x, y, z, mode, x_out, y_out, z_out, status) — x, y: C-contiguous float64 arrays of one
- * length (mm), z likewise or None (0); mode 0 measure, 1 position; the outputs are the caller's
+ * length (mm), z likewise or None (0); mode 0 measure, 1 position, 2 measure-exact; the outputs are the caller's
  * arrays of that length (float64; z_out may be None; status uint32), filled in place: no
  * allocation, so a caller that reuses them pays no page faults. */
 static PyObject *Table_apply(TableObject *self, PyObject *args)
@@ -1336,8 +1336,8 @@ static PyObject *Table_apply(TableObject *self, PyObject *args)
         PyErr_SetString(sc_py_error, "table not loaded");
         return NULL;
     }
-    if (mode != SC_CORR_MEASURE && mode != SC_CORR_POSITION) {
-        PyErr_SetString(sc_py_error, "mode must be measure or position");
+    if (mode != SC_CORR_MEASURE && mode != SC_CORR_POSITION && mode != SC_CORR_MEASURE_EXACT) {
+        PyErr_SetString(sc_py_error, "mode must be measure, position or measure-exact");
         return NULL;
     }
     const int req = NPY_ARRAY_IN_ARRAY;
