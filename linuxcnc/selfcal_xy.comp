@@ -24,7 +24,8 @@ targets (target + G(target) + profile offsets) to send to the drives.
 mode=measure: the inputs are indicated (feedback) positions, the outputs are true positions
 (p - G(p) - profile offsets), to first order.
 mode=measure-exact: as measure, but the exact inverse of position mode (the q with q + G(q) +
-offsets = p, by 3 fixed-point steps: constant time, about three times measure's cost); it
+offsets = p, by 3 fixed-point steps: constant time, about four times measure's cost in
+bench_core_apply); it
 removes measure's first-order error, G times the slope of G (picometres to a nanometre on real stages).
 A missing or invalid table, or an unknown mode, makes loadrt fail with the reason in the log.
 """;
