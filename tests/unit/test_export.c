@@ -756,6 +756,69 @@ static void test_beckhoff_cross(void **state)
     free(m);
 }
 
+/* ---- the table of back-ends; Automation1 and Power PMAC through the library ---- */
+
+static void test_backends(void **state)
+{
+    (void)state;
+    static const char *const names[] = {"beckhoff", "siemens-cec", "linuxcnc", "klipper", "marlin",
+                                        "reprap", "kmotion", "aerotech-a1", "powerpmac"};
+    int seen = 0;
+    for (size_t k = 0; k < sizeof names / sizeof names[0]; ++k) {
+        const int f = sc_export_format_from_name(names[k]);
+        assert_true(f >= 0 && f < 31);
+        assert_int_equal(seen & (1 << f), 0); /* one format per name */
+        seen |= 1 << f;
+    }
+    assert_int_equal(sc_export_format_from_name("acs"), -1);
+    assert_int_equal(sc_export_format_from_name("Beckhoff"), -1);
+    sc_lut *m = make_map(13, 9, -12.0, 4.0, 2.0, 2.5, 0);
+    sc_export_options o;
+    sc_export_report rep;
+    sc_error err;
+    sc_export_options_init(&o, (sc_export_format)99);
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "unknown export format"));
+    /* Automation1 and Power PMAC: the map's own nodes, so only their units remain; a dry run. */
+    for (int f = 0; f < 2; ++f) {
+        const sc_export_format fmt = f == 0 ? SC_EXPORT_AEROTECH_A1 : SC_EXPORT_POWERPMAC;
+        const double unit_um = f == 0 ? SC_EXPORT_AEROTECH_UNIT_UM : 1e-6;
+        for (int negate = 0; negate < 2; ++negate) {
+            sc_export_options_init(&o, fmt);
+            o.negate = negate;
+            assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+            assert_int_equal(rep.tables, f == 0 ? 1 : 2);
+            assert_int_equal(rep.points[0], 13);
+            assert_int_equal(rep.points[1], 9);
+            assert_true(rep.max_um <= 0.5 * unit_um + 1e-12);
+            assert_true(rep.samples == 2L * (4 * 12 + 1) * (4 * 8 + 1));
+            assert_int_equal(rep.clipped, 0);
+        }
+        /* a limit clips and counts; an interval is refused (the table is the map's nodes) */
+        sc_export_options_init(&o, fmt);
+        o.limit_um = 0.5;
+        assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+        long over = 0;
+        for (int k = 0; k < m->nx * m->ny; ++k)
+            over += (fabs(m->gx_um[k]) > 0.5) + (fabs(m->gy_um[k]) > 0.5);
+        assert_true(over > 0);
+        assert_int_equal(rep.clipped, over);
+        assert_true(rep.max_um > 0.1);
+        o.limit_um = 0;
+        o.interval_mm = 1.0;
+        assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_E_INPUT);
+    }
+    /* Power PMAC: motor units per mm scale the values, not the residual */
+    sc_export_options_init(&o, SC_EXPORT_POWERPMAC);
+    o.steps_per_mm[0] = 10000;
+    o.steps_per_mm[1] = 20000;
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+    assert_true(rep.max_um <= 0.5e-6 / 10000 + 1e-12);
+    o.steps_per_mm[0] = -1;
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_E_INPUT);
+    free(m);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -763,6 +826,7 @@ int main(void)
         cmocka_unit_test(test_siemens),
         cmocka_unit_test(test_linuxcnc),
         cmocka_unit_test(test_beckhoff_cross),
+        cmocka_unit_test(test_backends),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
