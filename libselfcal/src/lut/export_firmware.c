@@ -310,8 +310,8 @@ static sc_status firmware_text(const sc_lut *lut, const sc_export_options *o, ch
     if (ob.overflow)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "firmware export: text buffer too small");
     fw_residual(lut, &m, rep);
-    out(&ob, "%s residual (map - firmware correction, up to translation, rotation, "
-             "magnification): rms %.4f um, max %.4f um\n",
+    out(&ob, "%s residual (map where the firmware moves - firmware correction, up to "
+             "translation, rotation, magnification): rms %.4f um, max %.4f um\n",
         cmt, rep->rms_um, rep->max_um);
     if (ob.overflow)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "firmware export: text buffer too small");
