@@ -70,11 +70,12 @@ static void petro_plan(sc_grid_plan *p, int n)
     p->pitch_mm = 1.0;
     int c = (n - 1) / 2;
     const int rot[] = {0, 90, 0, 0}, sx[] = {0, 0, 2, -3};
+    if (sc_grid_plan_views(p, 4, NULL) != SC_OK)
+        exit(1);
     for (int v = 0; v < 4; ++v) {
         p->view[v].rot_deg = rot[v];
         p->view[v].shift_x = sx[v];
     }
-    p->n_views = 4;
     p->view[3].restricted = 1;
     p->view[3].row_sel[c] = p->view[3].col_sel[c] = p->view[3].col_sel[c + 1] = 1;
 }

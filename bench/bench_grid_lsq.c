@@ -10,6 +10,7 @@
 #include <sys/resource.h>
 #include <time.h>
 
+#include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 #include "selfcal/rng.h"
 
@@ -20,8 +21,9 @@ static const char *plan_name[] = {"Ye {0,90,+1x}", "Petro {0,90,+2x,-3x part}",
 
 static void add_view(sc_grid_plan *p, int rot, int sx, int sy)
 {
-    sc_grid_view *w = &p->view[p->n_views++];
-    memset(w, 0, sizeof *w);
+    if (sc_grid_plan_views(p, p->n_views + 1, NULL) != SC_OK)
+        exit(1);
+    sc_grid_view *w = &p->view[p->n_views - 1];
     w->rot_deg = rot, w->shift_x = sx, w->shift_y = sy;
 }
 
@@ -87,12 +89,15 @@ static void run(int n, int kind)
         ay[k] = sc_rng_normal(&r);
     sc_grid_gauge_stage(&p, gx, gy);
     sc_grid_gauge_plate(&p, ax, ay);
-    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], th[SC_GRID_MAX_VIEWS];
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+    double tx[32], ty[32], th[32]; /* the random stream of the old fixed view count */
+    for (int v = 0; v < 32; ++v)
         tx[v] = sc_rng_normal(&r), ty[v] = sc_rng_normal(&r), th[v] = 20 * sc_rng_normal(&r);
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    d.plan = p;
+    if (sc_grid_plan_copy(&d.plan, &p, NULL) != SC_OK || sc_grid_data_views(&d, NULL) != SC_OK)
+        exit(1);
+    if (sc_grid_result_views(&res, p.n_views, NULL) != SC_OK)
+        exit(1);
     for (int v = 0; v < p.n_views; ++v) {
         d.dx_um[v] = malloc(sizeof(double) * nn);
         d.dy_um[v] = malloc(sizeof(double) * nn);
@@ -124,8 +129,9 @@ static void run(int n, int kind)
            info.sigma_c_ratio_max, sst.min_kept_pivot_ratio);
     fflush(stdout);
     sc_grid_lsq_plan_destroy(q);
-    for (int v = 0; v < p.n_views; ++v)
-        free(d.dx_um[v]), free(d.dy_um[v]);
+    sc_grid_data_free(&d);
+    sc_grid_result_free_views(&res);
+    sc_grid_plan_free(&p);
     free(buf);
 }
 
@@ -143,6 +149,7 @@ static void plans_table(void)
             sc_error err;
             if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK) {
                 printf("%-28s %4d create failed: %s\n", plan_name[kind], ns[i], err.msg);
+                sc_grid_plan_free(&p);
                 continue;
             }
             sc_grid_lsq_info info;
@@ -153,6 +160,7 @@ static void plans_table(void)
                    info.identifiable ? "yes" : "no", info.free_dof, info.sigma_c_ratio_rms,
                    info.sigma_c_ratio_max, st.min_kept_pivot_ratio, st.max_null_pivot_ratio);
             sc_grid_lsq_plan_destroy(q);
+            sc_grid_plan_free(&p);
         }
 }
 

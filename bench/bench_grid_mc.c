@@ -67,6 +67,7 @@ static void est_free(estimator *e)
 {
     sc_grid_exact_plan_destroy(e->xp);
     sc_grid_lsq_plan_destroy(e->q);
+    sc_grid_plan_free(&e->plan);
 }
 
 /* One simulation + estimate; returns σ_C (µm). */
@@ -76,10 +77,13 @@ static double trial(estimator *e, const sc_grid_sim_params *sp)
     sc_error err;
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    d.plan = e->plan;
-    if (sc_grid_data_alloc(&d, &err) != SC_OK)
+    if (sc_grid_plan_copy(&d.plan, &e->plan, &err) != SC_OK ||
+        sc_grid_data_alloc(&d, &err) != SC_OK)
         die("alloc", &err);
-    double *buf = malloc((size_t)(10 * nn) * sizeof(double));
+    int nv = d.plan.n_views;
+    /* G, A, workspace, result; then the truth's and the result's per-view arrays */
+    double *buf = malloc((size_t)(10 * nn + (3 + SC_GRID_RESULT_VIEW_ARRAYS) * nv) *
+                         sizeof(double));
     if (!buf) {
         fprintf(stderr, "out of memory\n");
         exit(1);
@@ -87,11 +91,13 @@ static double trial(estimator *e, const sc_grid_sim_params *sp)
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = buf, t.gy_um = buf + nn, t.ax_um = buf + 2 * nn, t.ay_um = buf + 3 * nn;
+    t.tx_um = buf + 10 * nn, t.ty_um = t.tx_um + nv, t.theta_urad = t.ty_um + nv;
     if (sc_grid_sim_run(&d.plan, sp, &t, &d, buf + 4 * nn, &err) != SC_OK)
         die("simulate", &err);
     sc_grid_result r;
     memset(&r, 0, sizeof r);
     r.gx_um = buf + 6 * nn, r.gy_um = buf + 7 * nn, r.ax_um = buf + 8 * nn, r.ay_um = buf + 9 * nn;
+    r.tx_um = t.theta_urad + nv, r.ty_um = r.tx_um + nv, r.theta_urad = r.ty_um + nv;
     sc_status st = e->xp ? sc_grid_exact_execute(e->xp, &d, &r, &err)
                          : sc_grid_lsq_execute(e->q, &d, sp->sigma_r_um, &r, &err);
     if (st != SC_OK)

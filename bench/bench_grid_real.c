@@ -33,7 +33,7 @@ static double now_s(void)
 }
 
 typedef struct setup {
-    sc_grid_plan p;
+    sc_grid_plan p;         /* a copy of the plan (setup_free) */
     sc_grid_data clean, d;  /* noise-free data and a work copy */
     double *gx, *gy;        /* truth */
     sc_grid_result r;
@@ -44,26 +44,39 @@ typedef struct setup {
 static void setup_make(setup *s, const sc_grid_plan *p, uint64_t seed)
 {
     memset(s, 0, sizeof *s);
-    s->p = *p;
+    sc_grid_plan_copy(&s->p, p, NULL);
     s->ns = sc_grid_stage_nodes(p), s->nn = (long)p->n * p->n;
+    long nv = p->n_views;
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.sigma_r_um = 0;
     sp.seed = seed;
-    s->clean.plan = s->d.plan = *p;
+    sc_grid_plan_copy(&s->clean.plan, p, NULL);
+    sc_grid_plan_copy(&s->d.plan, p, NULL);
     for (int v = 0; v < p->n_views; ++v)
         s->clean.plan.view[v].sigma_um = 0; /* no noise: the views' sigma_um are the weights */
     sc_grid_data_alloc(&s->clean, NULL);
     sc_grid_data_alloc(&s->d, NULL);
-    s->buf = malloc(sizeof(double) * (8 * s->ns + 4 * s->nn + sc_grid_sim_work_doubles_plan(p)));
+    s->buf = malloc(sizeof(double) *
+                    (8 * s->ns + 4 * s->nn + 3 * nv + sc_grid_sim_work_doubles_plan(p)));
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     s->gx = s->buf, s->gy = s->buf + s->ns;
     t.gx_um = s->gx, t.gy_um = s->gy, t.ax_um = s->buf + 2 * s->ns, t.ay_um = t.ax_um + s->nn;
-    sc_grid_sim_run(&s->clean.plan, &sp, &t, &s->clean, t.ay_um + s->nn, NULL);
-    double *o = t.ay_um + s->nn + sc_grid_sim_work_doubles_plan(p);
+    t.tx_um = t.ay_um + s->nn, t.ty_um = t.tx_um + nv, t.theta_urad = t.ty_um + nv;
+    sc_grid_sim_run(&s->clean.plan, &sp, &t, &s->clean, t.theta_urad + nv, NULL);
+    double *o = t.theta_urad + nv + sc_grid_sim_work_doubles_plan(p);
+    sc_grid_result_views(&s->r, p->n_views, NULL);
     s->r.gx_um = o, s->r.gy_um = o + s->ns, s->r.ugx_um = o + 2 * s->ns, s->r.ugy_um = o + 3 * s->ns;
     s->r.ax_um = o + 4 * s->ns, s->r.ay_um = o + 4 * s->ns + s->nn;
+}
+
+static void setup_free(setup *s)
+{
+    free(s->buf);
+    sc_grid_data_free(&s->clean), sc_grid_data_free(&s->d);
+    sc_grid_result_free_views(&s->r);
+    sc_grid_plan_free(&s->p);
 }
 
 /* d = clean + noise (each view its own σ) + optional outlier; returns nothing. */
@@ -86,8 +99,9 @@ static void monte_carlo(int trials)
         p.view[v].sigma_um = sig[v];
     setup s;
     setup_make(&s, &p, 7);
-    s.d.plan = p; /* weights from the views' sigma_um */
-    sc_grid_plan pu = p;
+    sc_grid_plan_copy(&s.d.plan, &p, NULL); /* weights from the views' sigma_um */
+    sc_grid_plan pu = {0};
+    sc_grid_plan_copy(&pu, &p, NULL);
     for (int v = 0; v < 3; ++v)
         pu.view[v].sigma_um = 0;
     sc_grid_lsq_plan *qw = NULL, *qu = NULL;
@@ -95,7 +109,7 @@ static void monte_carlo(int trials)
     sc_rng_seed(&rng, 2026);
     noisy(&s, &rng, sig); /* the mask: which marks are measured */
     sc_grid_lsq_plan_create(&p, &s.d, NULL, &qw, NULL);
-    sc_grid_data du = s.d;
+    sc_grid_data du = s.d; /* s.d's arrays, pu's views: borrowed, not freed */
     du.plan = pu;
     sc_grid_lsq_plan_create(&pu, &du, NULL, &qu, NULL);
     long ns = s.ns, tot = (long)p.n_views * s.nn;
@@ -200,8 +214,10 @@ static void monte_carlo(int trials)
     }
     sc_grid_lsq_plan_destroy(qw), sc_grid_lsq_plan_destroy(qu);
     free(se_w), free(se_u), free(rx), free(ry), free(tx), free(ty), free(h), free(ugx), free(ugy);
-    free(ubuf), free(s.buf);
-    sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
+    free(ubuf);
+    setup_free(&s);
+    sc_grid_plan_free(&pu);
+    sc_grid_plan_free(&p);
 }
 
 static void big_stitched(void)
@@ -230,8 +246,8 @@ static void big_stitched(void)
            "   sigma_c_ratio rms %.4f max %.4f; noise-free error %.2e um\n",
            s.ns, t1 - t0, c1 - c0, t2 - t1, c2 - c1, qi.sigma_c_ratio_rms, qi.sigma_c_ratio_max, e);
     sc_grid_lsq_plan_destroy(q);
-    free(s.buf);
-    sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
+    setup_free(&s);
+    sc_grid_plan_free(&p);
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -257,7 +273,7 @@ static void view_noise_mc(const char *name, const sc_grid_plan *plan, const doub
     setup_make(&s, plan, 11);
     sc_rng rng;
     sc_rng_seed(&rng, 77);
-    double m1[SC_GRID_MAX_VIEWS] = {0}, m2[SC_GRID_MAX_VIEWS] = {0};
+    double *m1 = calloc(2 * (size_t)nv, sizeof(double)), *m2 = m1 + nv;
     double *pu = malloc(sizeof(double) * (size_t)trials * nv); /* stated relative u, per trial */
     double e2[3] = {0}, u2[3] = {0}; /* estimated, true stated, unweighted */
     long its = 0, fails = 0, n = 0, why[2] = {0, 0};
@@ -330,9 +346,8 @@ static void view_noise_mc(const char *name, const sc_grid_plan *plan, const doub
     for (int mode = 0; mode < 3; ++mode)
         printf("   %-20s %.5f um / %.5f um\n", lab[mode], sqrt(e2[mode] / (2.0 * s.ns * trials)),
                sqrt(u2[mode] / (2.0 * s.ns * trials)));
-    free(pu);
-    free(s.buf);
-    sc_grid_data_free(&s.clean), sc_grid_data_free(&s.d);
+    free(pu), free(m1);
+    setup_free(&s);
 }
 
 static void view_noise_bench(int trials)
@@ -342,11 +357,13 @@ static void view_noise_bench(int trials)
     const double sig_ye[3] = {0.01, 0.03, 0.02};
     view_noise_mc("Ye N = 15", &ye, sig_ye, trials / 4 > 10 ? trials / 4 : 10);
     sc_grid_plan_stitch(15, 41, 31, 1.0, 0, 0, &st, NULL);
-    double sig_st[SC_GRID_MAX_VIEWS];
+    double *sig_st = malloc(sizeof(double) * (size_t)st.n_views);
     for (int v = 0; v < st.n_views; ++v)
         sig_st[v] = v == 1 ? 0.02 : v == 3 ? 0.03 : v == 20 ? 0.05 : 0.01;
     view_noise_mc("stitched 41 x 31 stage, 15 x 15 plate", &st, sig_st,
                   trials / 10 > 5 ? trials / 10 : 5);
+    free(sig_st);
+    sc_grid_plan_free(&ye), sc_grid_plan_free(&st);
 }
 
 int main(int argc, char **argv)

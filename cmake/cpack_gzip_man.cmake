@@ -74,8 +74,9 @@ foreach(_root IN LISTS _roots)
   # the package's explained lintian overrides (cmake/deb/lintian/<component>)
   if(EXISTS "${CPACK_SELFCAL_LINTIAN_DIR}/${_component}")
     file(MAKE_DIRECTORY "${_root}/usr/share/lintian/overrides")
+    set(PACKAGE "${_package}") # each line's "@PACKAGE@:", the package's own name
     configure_file("${CPACK_SELFCAL_LINTIAN_DIR}/${_component}"
-                   "${_root}/usr/share/lintian/overrides/${_package}" COPYONLY)
+                   "${_root}/usr/share/lintian/overrides/${_package}" @ONLY)
   endif()
   file(MAKE_DIRECTORY "${_docdir}")
   if(NOT EXISTS "${_docdir}/copyright")

@@ -1,7 +1,7 @@
 # Packages with CPack, from a configured build:
 #   cmake --build BUILD && (cd BUILD && cpack -G "DEB;TGZ")
 # DEB: one package per component, as Debian packages a C library with its tools:
-#   libselfcal<soversion>  the shared library (libselfcal0.2 for libselfcal.so.0.2), with the ldconfig trigger
+#   libselfcal<soversion>  the shared library (libselfcal0.3 for libselfcal.so.0.3), with the ldconfig trigger
 #   libselfcal-dev         headers, libselfcal.a, the libselfcal.so link, selfcal.pc, the CMake package
 #   selfcal                the command line, selfcal(1), the documentation and examples
 #   selfcald               the daemon, selfcald(8), its systemd unit and /etc/selfcal/selfcald.conf (a conffile)
@@ -42,7 +42,7 @@ set(CPACK_SELFCAL_COPYRIGHT ${PROJECT_SOURCE_DIR}/packaging/copyright)
 set(CPACK_SELFCAL_LINTIAN_DIR ${CMAKE_CURRENT_LIST_DIR}/deb/lintian)
 
 set(CPACK_DEB_COMPONENT_INSTALL ON)
-set(CPACK_DEBIAN_ENABLE_COMPONENT_DEPENDS ON) # Depends: libselfcal0.2 (= version) from _DEPENDS below
+set(CPACK_DEBIAN_ENABLE_COMPONENT_DEPENDS ON) # Depends: libselfcal0.<minor> (= version) from _DEPENDS below
 set(CPACK_COMPONENTS_ALL lib dev cli daemon)
 if(SELFCAL_HAL_MODULE)
   list(APPEND CPACK_COMPONENTS_ALL linuxcnc)

@@ -44,6 +44,22 @@ def test_stitched_stage_and_missing_mark_in_memory():
     assert not b.identifiable and b.free > 0
 
 
+def test_hundreds_of_views(tmp_path):
+    """363 placements (no fixed cap on views): simulated, written, read, analysed, calibrated."""
+    m, truth = selfcal.simulate_grid("stitch", n=3, stage=(21, 21), sigma_r_um=0.0, seed=4)
+    assert len(m.plan.views) == 363 and m.x_mm.shape == (363, 3, 3)
+    f = tmp_path / "many.csv"
+    m.write(f)
+    back = selfcal.read_grid(str(f))
+    assert len(back.plan.views) == 363
+    assert np.allclose(back.x_mm, m.x_mm, atol=1e-12, equal_nan=True)
+    assert selfcal.plan(back).identifiable
+    r = selfcal.calibrate_grid(back)
+    assert np.max(np.abs(r.gx_um - truth["gx_um"])) < 1e-9
+    assert len(r.tx_um) == 363
+    assert np.max(np.abs(np.asarray(r.tx_um) - truth["tx_um"])) < 1e-9
+
+
 def test_plan_analysis_matches_cli(cli, tmp_path):
     p = selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)])
     a = selfcal.plan(p)

@@ -17,6 +17,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (st == SC_OK) {
         FUZZ_CHECK(d.plan.n >= 1);
         sc_grid_data_free(&d);
+        sc_grid_file_info_free(&info);
     }
     return 0;
 }

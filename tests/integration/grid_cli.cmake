@@ -21,6 +21,7 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   grid_cli_test(grid_cli_e2e_lsq_shift2 end_to_end lsq "views:rot=0 shift=0,0|rot=90 shift=0,0|rot=0 shift=2,0" 9,25)
   grid_cli_test(grid_cli_lsq_noise lsq_noise)
   grid_cli_test(grid_cli_fuzz fuzz 150)
+  grid_cli_test(grid_cli_many_views many_views)  # 363 views: a few s, 20 s under ASan and load
 endif()
 # real measurements (SPEC §5, issue 10)
 if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)

@@ -199,7 +199,7 @@ static sc_status lut_from_files(void *ctx, sc_error *err)
 
 typedef struct grid_ctx {
     sc_grid_data d;
-    double *out; /* 6 n*n arrays for the result */
+    double *out; /* 6 n*n arrays for the result, then its per-view arrays */
 } grid_ctx;
 
 static void result_arrays(grid_ctx *g, sc_grid_result *res)
@@ -212,6 +212,13 @@ static void result_arrays(grid_ctx *g, sc_grid_result *res)
     res->ugy_um = g->out + 3 * nn;
     res->ax_um = g->out + 4 * nn;
     res->ay_um = g->out + 5 * nn;
+    size_t nv = (size_t)g->d.plan.n_views; /* per view: the caller's arrays, allocated here */
+    double **pv[SC_GRID_RESULT_VIEW_ARRAYS] = {
+        &res->tx_um, &res->ty_um, &res->theta_urad, &res->utx_um, &res->uty_um,
+        &res->utheta_urad, &res->vx_um_s, &res->vy_um_s, &res->uvx_um_s, &res->uvy_um_s,
+        &res->view_sigma_um, &res->view_noise_factor, &res->view_sigma_u_um};
+    for (int a = 0; a < SC_GRID_RESULT_VIEW_ARRAYS; ++a)
+        *pv[a] = g->out + 6 * nn + (size_t)a * nv;
 }
 
 static sc_status grid_lsq(void *ctx, sc_error *err)
@@ -322,15 +329,18 @@ static void test_grid(void **state)
     assert_int_equal(sc_grid_plan_double_shift(9, 1.0, 0, 0, &g.d.plan, &err), SC_OK);
     assert_int_equal(sc_grid_data_alloc(&g.d, &err), SC_OK);
     size_t nn = 81;
-    double *tr = __real_malloc((4 * nn + sc_grid_sim_work_doubles(9)) * sizeof(double));
+    size_t nv = (size_t)g.d.plan.n_views;
+    double *tr = __real_malloc((4 * nn + 3 * nv + sc_grid_sim_work_doubles(9)) * sizeof(double));
     assert_non_null(tr);
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = tr, t.gy_um = tr + nn, t.ax_um = tr + 2 * nn, t.ay_um = tr + 3 * nn;
-    assert_int_equal(sc_grid_sim_run(&g.d.plan, &sp, &t, &g.d, tr + 4 * nn, &err), SC_OK);
+    t.tx_um = tr + 4 * nn, t.ty_um = t.tx_um + nv, t.theta_urad = t.ty_um + nv;
+    assert_int_equal(sc_grid_sim_run(&g.d.plan, &sp, &t, &g.d, tr + 4 * nn + 3 * nv, &err),
+                     SC_OK);
     free(tr);
     assert_int_equal(sc_grid_write_input(TMP "grid.csv", &g.d, &err), SC_OK);
-    g.out = __real_malloc(6 * 81 * sizeof(double));
+    g.out = __real_malloc((6 * 81 + SC_GRID_RESULT_VIEW_ARRAYS * nv) * sizeof(double));
     assert_non_null(g.out);
     every_allocation("sc_grid_read", read_grid, TMP "grid.csv");
     every_allocation("sc_grid_lsq_plan create + solve", grid_lsq, &g);

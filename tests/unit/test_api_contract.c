@@ -128,14 +128,23 @@ static void test_stage_sizes_and_required_arrays(void **state)
     free(work);
 
     /* a NaN origin or a view noise that is neither 0 (not stated) nor positive */
-    sc_grid_plan bad = p;
+    sc_grid_plan bad = {0};
+    assert_int_equal(sc_grid_plan_copy(&bad, &p, &err), SC_OK);
     bad.origin_mm[0] = NAN;
     assert_int_equal(sc_grid_plan_check(&bad, &err), SC_E_INPUT);
-    bad = p;
+    assert_int_equal(sc_grid_plan_copy(&bad, &p, &err), SC_OK);
     bad.view[1].sigma_um = -1;
     assert_int_equal(sc_grid_plan_check(&bad, &err), SC_E_INPUT);
     bad.view[1].sigma_um = NAN;
     assert_int_equal(sc_grid_plan_check(&bad, &err), SC_E_INPUT);
+    /* a plan without its views is refused, not read through NULL */
+    assert_int_equal(sc_grid_plan_check(&p, &err), SC_OK);
+    sc_grid_view *keep = p.view;
+    p.view = NULL;
+    assert_int_equal(sc_grid_plan_check(&p, &err), SC_E_INPUT);
+    p.view = keep;
+    sc_grid_plan_free(&p);
+    sc_grid_plan_free(&bad);
 }
 
 /* sc_table_read's parameters: SC_E_INPUT (it said SC_E_INTERNAL), a NaN scale refused. */

@@ -182,12 +182,14 @@ static void test_golden_summary(void **state)
     p.pitch_mm = 1.5;
     p.origin_mm[0] = 120.25;
     p.origin_mm[1] = -37.5;
-    p.n_views = 4;
+    assert_int_equal(sc_grid_plan_views(&p, 4, NULL), SC_OK);
     p.view[1].rot_deg = 90;
     p.view[2].shift_x = 2;
     p.view[3].shift_x = -3;
     sc_grid_result res;
     memset(&res, 0, sizeof res);
+    assert_int_equal(sc_grid_result_views(&res, 4, NULL), SC_OK);
+    memset(res.view_block, 0, sizeof(double) * 4 * SC_GRID_RESULT_VIEW_ARRAYS); /* as before: 0 */
     res.O = 1.25e-6;
     res.R = -2.5e-7;
     for (int v = 0; v < 4; ++v) {
@@ -219,6 +221,8 @@ static void test_golden_summary(void **state)
     assert_int_equal(sc_grid_write_summary(TMP "summary.json", "double-shift", &p, &res, &err),
                      SC_OK);
     same_bytes(TMP "summary.json", GOLDEN "summary.json");
+    sc_grid_result_free_views(&res);
+    sc_grid_plan_free(&p);
 }
 
 /* The table: built from the golden map and profile with fixed provenance; the bytes must equal

@@ -18,6 +18,7 @@
 #include <string.h>
 
 #include "selfcal/grid.h"
+#include "selfcal/grid_io.h"
 #include "selfcal/grid_exact.h"
 #include "selfcal/rng.h"
 
@@ -26,11 +27,13 @@ typedef struct view_spec {
     int partial; /* 1: Petrò's view 3 (row c, columns c and c+1) */
 } view_spec;
 
+#define SIM_VIEWS 16 /* views of a test plan at most (the result's per-view arrays) */
+
 typedef struct sim {
     sc_grid_plan plan;
     sc_grid_data data;
     double *gx, *gy, *ax, *ay;          /* truth */
-    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], th[SC_GRID_MAX_VIEWS];
+    double tx[SIM_VIEWS], ty[SIM_VIEWS], th[SIM_VIEWS];
     double *egx, *egy, *eax, *eay;      /* truth in the gauge */
     double *rgx, *rgy, *rax, *ray;      /* result arrays */
     sc_grid_result res;
@@ -43,7 +46,7 @@ static void make_plan(sc_grid_plan *p, int n, double pitch, const view_spec *vs,
     p->pitch_mm = pitch;
     p->origin_mm[0] = 10.0;
     p->origin_mm[1] = -5.0;
-    p->n_views = nv;
+    assert_int_equal(sc_grid_plan_views(p, nv, NULL), SC_OK);
     int c = (n - 1) / 2;
     for (int v = 0; v < nv; ++v) {
         p->view[v].rot_deg = vs[v].rot;
@@ -72,7 +75,9 @@ static void sim_init_scaled(sim *s, int n, double pitch, const view_spec *vs, in
 {
     memset(s, 0, sizeof *s);
     make_plan(&s->plan, n, pitch, vs, nv);
-    s->data.plan = s->plan;
+    assert_int_equal(sc_grid_plan_copy(&s->data.plan, &s->plan, NULL), SC_OK);
+    assert_int_equal(sc_grid_data_views(&s->data, NULL), SC_OK);
+    assert_int_equal(sc_grid_result_views(&s->res, SIM_VIEWS, NULL), SC_OK);
     double **arr[] = {&s->gx, &s->gy, &s->ax, &s->ay, &s->egx, &s->egy, &s->eax, &s->eay,
                       &s->rgx, &s->rgy, &s->rax, &s->ray};
     for (size_t k = 0; k < sizeof arr / sizeof arr[0]; ++k)
@@ -149,10 +154,9 @@ static void sim_free(sim *s)
                      s->rgx, s->rgy, s->rax, s->ray};
     for (size_t k = 0; k < sizeof arr / sizeof arr[0]; ++k)
         free(arr[k]);
-    for (int v = 0; v < s->plan.n_views; ++v) {
-        free(s->data.dx_um[v]);
-        free(s->data.dy_um[v]);
-    }
+    sc_grid_data_free(&s->data); /* its arrays and plan */
+    sc_grid_plan_free(&s->plan);
+    sc_grid_result_free_views(&s->res);
 }
 
 static void add_noise(sim *s, double sigma, uint64_t seed)
@@ -271,7 +275,7 @@ static void test_misalignment_recovered(void **state)
             assert_true(fabs(s.res.ty_um[v] - s.ty[v]) < 1e-10);
             assert_true(fabs(s.res.theta_urad[v] - s.th[v]) < 1e-7);
         }
-        for (int v = nv; v < SC_GRID_MAX_VIEWS; ++v)
+        for (int v = nv; v < SIM_VIEWS; ++v)
             assert_true(isnan(s.res.tx_um[v]));
         sim_free(&s);
     }

@@ -24,8 +24,8 @@ static sc_grid_plan make_plan(int n, double pitch)
 
 static void add_view(sc_grid_plan *p, int rot, int sx, int sy)
 {
-    sc_grid_view *v = &p->view[p->n_views++];
-    memset(v, 0, sizeof *v);
+    assert_int_equal(sc_grid_plan_views(p, p->n_views + 1, NULL), SC_OK);
+    sc_grid_view *v = &p->view[p->n_views - 1];
     v->rot_deg = rot;
     v->shift_x = sx;
     v->shift_y = sy;
@@ -63,6 +63,7 @@ static void test_mark_node_matches_rotation_matrix(void **state)
         assert_true(fabs(sx - (cos(a) * 0.3 + sin(a) * 0.7)) < 1e-12);
         assert_true(fabs(sy - (sin(a) * 0.3 - cos(a) * 0.7)) < 1e-12);
     }
+    sc_grid_plan_free(&p);
 }
 
 static void test_restricted_view(void **state)
@@ -79,6 +80,7 @@ static void test_restricted_view(void **state)
             count += sc_grid_view_measures(&p, 0, i, j);
     /* row 4: columns 3..8 land on the grid (j-3 >= 0) -> 6; columns 4, 5: 9 rows each minus row 4 */
     assert_int_equal(count, 6 + 2 * 8);
+    sc_grid_plan_free(&p);
 }
 
 static void test_gauge_projection(void **state)
@@ -124,6 +126,7 @@ static void test_gauge_projection(void **state)
     double O, R;
     sc_grid_first_order(&p, gx, gy, &O, &R);
     assert_true(fabs(O - 2e-5) < 1e-18 && fabs(R - 3e-5) < 1e-18); /* dimensionless */
+    sc_grid_plan_free(&p);
 }
 
 static void test_synthesize_model(void **state)
@@ -142,7 +145,10 @@ static void test_synthesize_model(void **state)
     double tx[2] = {0.5, -0.25}, ty[2] = {0.125, 2}, th[2] = {1000, -500};
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    d.plan = p;
+    double *tables[10] = {0}; /* the caller's own per-view tables (5 kinds x 2 views) */
+    d.plan = p; /* borrowed: d is not freed */
+    d.dx_um = tables, d.dy_um = tables + 2, d.ux_um = tables + 4, d.uy_um = tables + 6;
+    d.t_s = tables + 8;
     d.dx_um[0] = dx0;
     d.dy_um[0] = dy0;
     d.dx_um[1] = dx1;
@@ -159,6 +165,7 @@ static void test_synthesize_model(void **state)
     q = 1 * 5 + 2;
     assert_true(fabs(dx1[k] - (gx[q] + ax[k] - 0.25 - (-500) * (-1.0) * 1e-3)) < 1e-12);
     assert_true(fabs(dy1[k] - (gy[q] + ay[k] + 2 + (-500) * 0.0)) < 1e-12);
+    sc_grid_plan_free(&p);
 }
 
 int main(void)

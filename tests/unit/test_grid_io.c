@@ -39,10 +39,11 @@ static void test_input_round_trip(void **state)
     assert_int_equal(sc_grid_plan_double_shift(9, 1.5, 120.25, -37.5, &d.plan, &err), SC_OK);
     assert_int_equal(sc_grid_data_alloc(&d, &err), SC_OK);
     int n = 9, nn = 81;
-    double g[4 * 81], work[2 * 81];
+    double g[4 * 81 + 3 * 4], work[2 * 81];
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = g, t.gy_um = g + nn, t.ax_um = g + 2 * nn, t.ay_um = g + 3 * nn;
+    t.tx_um = g + 4 * nn, t.ty_um = t.tx_um + 4, t.theta_urad = t.ty_um + 4; /* 4 views */
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.sigma_r_um = 0.05;
@@ -81,6 +82,7 @@ static void test_input_round_trip(void **state)
     /* Petrò's view 3 for N = 9 measures row 4 and columns 4, 5 where they land: 9 - 3 + 2*9 - ... */
     assert_int_equal(info.view_rows[3], 6 + 9 + 9 - 2);
     sc_grid_data_free(&r);
+    sc_grid_file_info_free(&info);
 
     /* Map round trip through the one stage-map reader (io/). */
     double u[2 * 81];
@@ -149,6 +151,7 @@ static void test_hand_written_values(void **state)
     assert_true(isnan(d.dx_um[0][0]));
     assert_int_equal(info.n_rows, 2);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&info);
 
     /* A plan file: header only. */
     write_text(path, "# selfcal-grid v1\n# N = 5\n# pitch_mm = 1\n# view 0: rot=0 shift=0,0\n");
@@ -156,6 +159,7 @@ static void test_hand_written_values(void **state)
     assert_int_equal(info.n_rows, 0);
     assert_int_equal(d.plan.n, 5);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&info);
 }
 
 typedef struct bad_case {
@@ -220,8 +224,8 @@ static void test_parser_errors(void **state)
             strcmp(err.file, path) != 0)
             fail_msg("case %zu: status %d line %ld (want %ld) msg '%s' (want '%s') file '%s'", k,
                      st, err.line, bad[k].line, err.msg, bad[k].needle, err.file);
-        for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-            assert_null(d.dx_um[v]);
+        assert_null(d.dx_um); /* nothing held after a failure */
+        assert_null(d.plan.view);
     }
     sc_grid_data d;
     sc_error err;
@@ -237,6 +241,7 @@ static void test_summary(void **state)
     assert_int_equal(sc_grid_plan_ye(5, 1, 0, 0, &p, &err), SC_OK);
     sc_grid_result r;
     memset(&r, 0, sizeof r);
+    assert_int_equal(sc_grid_result_views(&r, p.n_views, NULL), SC_OK);
     r.O = 1.25e-5;
     r.R = NAN;
     r.tx_um[1] = 0.5;
@@ -261,6 +266,8 @@ static void test_summary(void **state)
     assert_non_null(strstr(buf, "\"sigma_r_est_um\": null"));
     assert_non_null(strstr(buf, "\"n_measurements\": 150"));
     assert_non_null(strstr(buf, "\"dof\": 12"));
+    sc_grid_result_free_views(&r);
+    sc_grid_plan_free(&p);
 }
 
 int main(void)

@@ -64,6 +64,7 @@ static void check_recovery(int n, int kind, uint64_t seed)
     sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
+    sc_grid_plan_free(&p);
 }
 
 static const int sizes[] = {5, 7, 9, 11, 25, 41};
@@ -127,7 +128,7 @@ static void test_reference_accuracy(void **s)
             assert_true(fabs(splan[k] - sref[k]) <= 1e-10 * sref[k]);
             assert_true(fabs(hplan[k] - href[k]) <= 1e-10 * href[k]);
         }
-        double vref[SC_GRID_MAX_VIEWS * 5], vplan[SC_GRID_MAX_VIEWS * 5];
+        double vref[5 * TU_RES_VIEWS], vplan[5 * TU_RES_VIEWS];
         assert_int_equal(sc_grid_lsq_reference_misalignments(q, vref, vplan), 0);
         int compared = 0;
         for (int t = 0; t < 3 * p.n_views; ++t)
@@ -137,6 +138,7 @@ static void test_reference_accuracy(void **s)
             }
         assert_true(compared >= 3 * (p.n_views - 1)); /* the pinned view's may be 0 */
         sc_grid_lsq_plan_destroy(q);
+        sc_grid_plan_free(&p);
     }
 }
 
@@ -162,6 +164,7 @@ static long plan_free_dof(int n, int kind, int *identifiable)
         assert_int_equal(sc_grid_lsq_sigma_ratio(q, NULL, NULL, &err), SC_E_UNSOLVABLE);
     }
     sc_grid_lsq_plan_destroy(q);
+    sc_grid_plan_free(&p);
     return info.free_dof;
 }
 
@@ -230,6 +233,7 @@ static void test_sigma_estimate(void **s)
         sc_grid_lsq_plan_destroy(q);
         tu_data_free(&d);
         tu_truth_free(&t);
+        sc_grid_plan_free(&p);
     }
 }
 
@@ -256,6 +260,7 @@ static void test_memory_limit(void **s)
     sc_grid_lsq_opts room = {.node_sigma_only = 1, .max_bytes = 2.0 * (double)st.bytes};
     assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &room, &q, &err), SC_OK);
     sc_grid_lsq_plan_destroy(q);
+    sc_grid_plan_free(&p);
 }
 
 /* node_sigma_only: the same estimate, node σ and leverages to the last bit (W is solved alone in
@@ -303,6 +308,7 @@ static void test_node_sigma_only(void **s)
         }
         tu_data_free(&d);
         tu_truth_free(&t);
+        sc_grid_plan_free(&p);
     }
 }
 
@@ -369,6 +375,7 @@ static void test_monte_carlo(void **s)
         tu_data_free(&d);
         free(sgx), free(sgy), free(acc);
         sc_grid_lsq_plan_destroy(q);
+        sc_grid_plan_free(&p);
     }
 }
 
@@ -452,6 +459,7 @@ static void test_mask_subset(void **s)
     sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
+    sc_grid_plan_free(&p);
 }
 
 static void test_bad_input(void **s)
@@ -493,12 +501,14 @@ static void test_bad_input(void **s)
     d.plan.view[2].shift_x = 1;
     assert_int_equal(sc_grid_lsq_execute(q, &d, 0, &res.r, &err), SC_OK);
     /* bad plans */
-    sc_grid_plan bad = p;
+    sc_grid_plan bad = {0};
+    assert_int_equal(sc_grid_plan_copy(&bad, &p, NULL), SC_OK);
     bad.n = 8;
     assert_int_equal(sc_grid_lsq_plan_create(&bad, NULL, NULL, &q2, &err), SC_E_INPUT);
-    bad = p;
+    assert_int_equal(sc_grid_plan_copy(&bad, &p, NULL), SC_OK);
     bad.view[1].rot_deg = 45;
     assert_int_equal(sc_grid_lsq_plan_create(&bad, NULL, NULL, &q2, &err), SC_E_INPUT);
+    sc_grid_plan_free(&bad);
     sc_grid_lsq_plan_destroy(q);
     /* a plan that does not identify G: made, but solve refuses */
     sc_grid_plan p2;
@@ -514,6 +524,8 @@ static void test_bad_input(void **s)
     tu_res_free(&res);
     tu_data_free(&d);
     tu_truth_free(&t);
+    sc_grid_plan_free(&p);
+    sc_grid_plan_free(&p2);
 }
 
 /* A plan with a never-measured stage node leaves that node's G free (2 patterns). */
@@ -541,6 +553,7 @@ static void test_unmeasured_node(void **s)
     assert_int_equal(info.free_dof, 2);
     sc_grid_lsq_plan_destroy(q);
     tu_data_free(&m);
+    sc_grid_plan_free(&p);
 }
 
 /* A view measuring a single mark: its misalignment is not determined (3 unknowns, 2 equations),
@@ -595,6 +608,8 @@ static void test_undetermined_view(void **s)
     sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
+    sc_grid_plan_free(&p);
+    sc_grid_plan_free(&pye);
 }
 
 int main(void)

@@ -252,7 +252,7 @@ static void compare(int n, int kind, int use_mask, uint64_t seed)
     free(x), free(var);
     dense_free(&D);
     tu_data_free(&d);
-    tu_truth_free(&t);
+    tu_truth_free(&t);    sc_grid_plan_free(&p);
 }
 
 static void test_fast_vs_dense(void **s)
@@ -293,6 +293,7 @@ static void test_free_dof_vs_dense(void **s)
             assert_int_equal(info.identifiable, kd == 0);
             sc_grid_lsq_plan_destroy(q);
             dense_free(&D);
+            sc_grid_plan_free(&p);
         }
 }
 

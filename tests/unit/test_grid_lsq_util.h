@@ -7,14 +7,21 @@
 #include <string.h>
 
 #include "selfcal/grid.h"
+#include "selfcal/grid_io.h"
 #include "selfcal/rng.h"
+
+/* Misalignments drawn per truth (the old fixed view count: the same random stream as before)
+ * and the per-view arrays of a tu_res (the plans here have a few views). */
+#define TU_TRUTH_VIEWS 32
+#define TU_RES_VIEWS 64
 
 enum { PLAN_YE, PLAN_PETRO, PLAN_RICH, PLAN_0_90, PLAN_0_180_1X, PLAN_0_90_2X, PLAN_SHIFTS };
 
 static void tu_add_view(sc_grid_plan *p, int rot, int sx, int sy)
 {
-    sc_grid_view *w = &p->view[p->n_views++];
-    memset(w, 0, sizeof *w);
+    if (sc_grid_plan_views(p, p->n_views + 1, NULL) != SC_OK)
+        abort();
+    sc_grid_view *w = &p->view[p->n_views - 1];
     w->rot_deg = rot;
     w->shift_x = sx;
     w->shift_y = sy;
@@ -62,7 +69,7 @@ static void tu_plan(sc_grid_plan *p, int n, int kind)
 typedef struct tu_truth {
     int nn;
     double *gx, *gy, *ax, *ay;
-    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], th[SC_GRID_MAX_VIEWS];
+    double *tx, *ty, *th; /* max(TU_TRUTH_VIEWS, n_views) each, one block at tx */
 } tu_truth;
 
 /* Random truth in the SPEC gauge: G, A ~ N(0, 1 µm), misalignment ~ 2 µm, 30 µrad. */
@@ -78,7 +85,9 @@ static void tu_truth_make(tu_truth *t, const sc_grid_plan *p, sc_rng *r)
     }
     sc_grid_gauge_stage(p, t->gx, t->gy);
     sc_grid_gauge_plate(p, t->ax, t->ay);
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+    int nv = p->n_views > TU_TRUTH_VIEWS ? p->n_views : TU_TRUTH_VIEWS;
+    t->tx = malloc(sizeof(double) * 3 * (size_t)nv), t->ty = t->tx + nv, t->th = t->ty + nv;
+    for (int v = 0; v < nv; ++v) {
         t->tx[v] = 2 * sc_rng_normal(r);
         t->ty[v] = 2 * sc_rng_normal(r);
         t->th[v] = 30 * sc_rng_normal(r);
@@ -87,13 +96,14 @@ static void tu_truth_make(tu_truth *t, const sc_grid_plan *p, sc_rng *r)
 
 static void tu_truth_free(tu_truth *t)
 {
-    free(t->gx), free(t->gy), free(t->ax), free(t->ay);
+    free(t->gx), free(t->gy), free(t->ax), free(t->ay), free(t->tx);
 }
 
 static void tu_data_alloc(sc_grid_data *d, const sc_grid_plan *p)
 {
     memset(d, 0, sizeof *d);
-    d->plan = *p;
+    if (sc_grid_plan_copy(&d->plan, p, NULL) != SC_OK || sc_grid_data_views(d, NULL) != SC_OK)
+        abort();
     int nn = p->n * p->n;
     for (int v = 0; v < p->n_views; ++v) {
         d->dx_um[v] = malloc(sizeof(double) * nn);
@@ -111,8 +121,7 @@ static void tu_truth_data(const sc_grid_plan *p, sc_rng *r, tu_truth *t, sc_grid
 
 static void tu_data_free(sc_grid_data *d)
 {
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        free(d->dx_um[v]), free(d->dy_um[v]);
+    sc_grid_data_free(d); /* its arrays, tables and plan */
 }
 
 /* Add N(0, sigma) to every finite value. */
@@ -149,11 +158,14 @@ static void tu_res_alloc(tu_res *t, int nn)
     t->buf = malloc(sizeof(double) * 6 * nn);
     t->r.gx_um = t->buf, t->r.gy_um = t->buf + nn, t->r.ugx_um = t->buf + 2 * nn;
     t->r.ugy_um = t->buf + 3 * nn, t->r.ax_um = t->buf + 4 * nn, t->r.ay_um = t->buf + 5 * nn;
+    if (sc_grid_result_views(&t->r, TU_RES_VIEWS, NULL) != SC_OK)
+        abort();
 }
 
 static void tu_res_free(tu_res *t)
 {
     free(t->buf);
+    sc_grid_result_free_views(&t->r);
 }
 
 #endif

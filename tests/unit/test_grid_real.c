@@ -21,9 +21,11 @@
 #include "selfcal/grid_sim.h"
 #include "selfcal/rng.h"
 
+#define TRUTH_VIEWS 32 /* misalignments drawn at least (the random stream of the old cap) */
+
 typedef struct truth {
     double *gx, *gy, *ax, *ay;
-    double tx[SC_GRID_MAX_VIEWS], ty[SC_GRID_MAX_VIEWS], th[SC_GRID_MAX_VIEWS];
+    double *tx, *ty, *th; /* max(TRUTH_VIEWS, n_views) each, one block at tx */
 } truth;
 
 static void truth_make(truth *t, const sc_grid_plan *p, sc_rng *r)
@@ -37,12 +39,17 @@ static void truth_make(truth *t, const sc_grid_plan *p, sc_rng *r)
         t->ax[k] = sc_rng_normal(r), t->ay[k] = sc_rng_normal(r);
     sc_grid_gauge_stage(p, t->gx, t->gy);
     sc_grid_gauge_plate(p, t->ax, t->ay);
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
+    int nv = p->n_views > TRUTH_VIEWS ? p->n_views : TRUTH_VIEWS;
+    t->tx = malloc(sizeof(double) * 3 * (size_t)nv), t->ty = t->tx + nv, t->th = t->ty + nv;
+    for (int v = 0; v < nv; ++v)
         t->tx[v] = 2 * sc_rng_normal(r), t->ty[v] = 2 * sc_rng_normal(r),
         t->th[v] = 30 * sc_rng_normal(r);
 }
 
-static void truth_free(truth *t) { free(t->gx), free(t->gy), free(t->ax), free(t->ay); }
+static void truth_free(truth *t)
+{
+    free(t->gx), free(t->gy), free(t->ax), free(t->ay), free(t->tx);
+}
 
 /* Data of the truth, with marks removed: mark `dead` in every view (-1: none) and each other
  * (view, mark) with probability p_miss; weights u in [0.5, 2] µm per coordinate if weighted. */
@@ -50,7 +57,7 @@ static void make_data(sc_grid_data *d, const sc_grid_plan *p, const truth *t, in
                       double p_miss, int weighted, sc_rng *r)
 {
     memset(d, 0, sizeof *d);
-    d->plan = *p;
+    assert_int_equal(sc_grid_plan_copy(&d->plan, p, NULL), SC_OK);
     assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
     assert_int_equal(sc_grid_data_alloc_extra(d, weighted, 0, NULL), SC_OK);
     sc_grid_synthesize(p, t->gx, t->gy, t->ax, t->ay, t->tx, t->ty, t->th, d);
@@ -89,6 +96,13 @@ static void out_alloc(out *o, const sc_grid_plan *p)
     o->buf = malloc(sizeof(double) * (4 * ns + 2 * nn));
     o->r.gx_um = o->buf, o->r.gy_um = o->buf + ns, o->r.ugx_um = o->buf + 2 * ns;
     o->r.ugy_um = o->buf + 3 * ns, o->r.ax_um = o->buf + 4 * ns, o->r.ay_um = o->buf + 4 * ns + nn;
+    assert_int_equal(sc_grid_result_views(&o->r, p->n_views, NULL), SC_OK);
+}
+
+static void out_free(out *o)
+{
+    free(o->buf);
+    sc_grid_result_free_views(&o->r);
 }
 
 /* Solve noise-free data and compare everything with the truth. */
@@ -135,7 +149,7 @@ static void check_recovery(const sc_grid_plan *p, int dead, double p_miss, int w
     if (dead >= 0)
         assert_true(!isfinite(o.r.ax_um[dead]));
     assert_true(o.r.weighted == weighted);
-    free(ax), free(ay), free(o.buf), truth_free(&t);
+    free(ax), free(ay), out_free(&o), truth_free(&t);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
 }
@@ -148,6 +162,7 @@ static void test_recovery_stitched(void **s)
     check_recovery(&p, -1, 0, 0, 1);
     check_recovery(&p, 24, 0, 0, 2);     /* the centre mark damaged in every view */
     check_recovery(&p, 24, 0.05, 1, 3);  /* + 5 % missing, weights */
+    sc_grid_plan_free(&p);
 }
 
 static void test_recovery_rectangular(void **s)
@@ -157,12 +172,15 @@ static void test_recovery_rectangular(void **s)
     assert_int_equal(sc_grid_plan_stitch(7, 17, 9, 1.0, 0, 0, &p, NULL), SC_OK);
     check_recovery(&p, -1, 0, 0, 4);
     check_recovery(&p, 24, 0.03, 1, 5);
+    sc_grid_plan_free(&p);
     /* a stage narrower than the plate in y: shifted views leave rows off the stage */
     assert_int_equal(sc_grid_plan_stitch(7, 15, 5, 1.0, 0, 0, &p, NULL), SC_OK);
     check_recovery(&p, -1, 0, 1, 6);
+    sc_grid_plan_free(&p);
     /* Ye's plan on the plate-sized stage with mark (0,0) deleted (the reproduction) */
     assert_int_equal(sc_grid_plan_ye(9, 1.0, 0, 0, &p, NULL), SC_OK);
     check_recovery(&p, 0, 0, 0, 7);
+    sc_grid_plan_free(&p);
 }
 
 /* ---- dense reference ---- */
@@ -295,6 +313,7 @@ static void test_free_vs_svd(void **s)
     assert_true(K > 0 && !ident);
     dense_free(&D);
     /* a corner placement removed: unmeasured stage nodes (2 free per node, and more) */
+    sc_grid_plan_free(&p);
     assert_int_equal(sc_grid_plan_stitch(5, 9, 7, 1.0, 0, 0, &p, NULL), SC_OK);
     p.view[0] = p.view[p.n_views - 1];
     p.n_views--;
@@ -304,13 +323,16 @@ static void test_free_vs_svd(void **s)
     assert_true(K >= 2 && !ident);
     dense_free(&D);
     /* two placements overlapping by one column only, and a rot-90 one */
+    sc_grid_plan_free(&p);
     memset(&p, 0, sizeof p);
-    p.n = 5, p.pitch_mm = 1, p.stage_nx = 9, p.stage_ny = 5, p.n_views = 3;
+    p.n = 5, p.pitch_mm = 1, p.stage_nx = 9, p.stage_ny = 5;
+    assert_int_equal(sc_grid_plan_views(&p, 3, NULL), SC_OK);
     p.view[0].shift_x = -2, p.view[1].shift_x = 2, p.view[2].rot_deg = 90;
     dense_build(&D, &p, NULL);
     K = plan_free(&p, NULL, &ident);
     assert_int_equal(K, dense_free_dof(&D));
     dense_free(&D);
+    sc_grid_plan_free(&p);
 }
 
 /* Leverage of every measurement against the dense hat matrix (whitened J: H = U Uᵀ). */
@@ -355,10 +377,11 @@ static void test_leverage_vs_dense(void **s)
     }
     assert_true(worst < 1e-9);
     assert_true(fabs(sum1h - (double)o.r.dof) < 1e-6);
-    free(U), free(h), free(tx), free(rx), free(o.buf), truth_free(&t);
+    free(U), free(h), free(tx), free(rx), out_free(&o), truth_free(&t);
     dense_free(&D);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
+    sc_grid_plan_free(&p);
 }
 
 /* Uncertainties of O, R, misalignments: the estimator is linear in the data, so its response to
@@ -383,7 +406,7 @@ static void test_uncertainties_by_linearity(void **s)
     /* zero data */
     sc_grid_data z;
     memset(&z, 0, sizeof z);
-    z.plan = p;
+    assert_int_equal(sc_grid_plan_copy(&z.plan, &p, NULL), SC_OK);
     assert_int_equal(sc_grid_data_alloc(&z, NULL), SC_OK);
     int nq = 2 + 3 * nv;
     double *var = calloc(nq, sizeof(double));
@@ -398,7 +421,8 @@ static void test_uncertainties_by_linearity(void **s)
                 a[k] = 1;
                 assert_int_equal(sc_grid_lsq_execute(q, &z, 0, &o1.r, NULL), SC_OK);
                 a[k] = 0;
-                double u = sc_grid_data_u_um(&d, v, k, c), g[2 + 3 * SC_GRID_MAX_VIEWS];
+                double u = sc_grid_data_u_um(&d, v, k, c), g[2 + 3 * 16];
+                assert_true(nv <= 16);
                 g[0] = o1.r.O, g[1] = o1.r.R;
                 for (int w = 0; w < nv; ++w)
                     g[2 + 3 * w] = o1.r.tx_um[w], g[3 + 3 * w] = o1.r.ty_um[w],
@@ -406,16 +430,17 @@ static void test_uncertainties_by_linearity(void **s)
                 for (int i = 0; i < nq; ++i)
                     var[i] += g[i] * g[i] * u * u;
             }
-    double want[2 + 3 * SC_GRID_MAX_VIEWS];
+    double want[2 + 3 * 16];
     want[0] = o.r.uO, want[1] = o.r.uR;
     for (int w = 0; w < nv; ++w)
         want[2 + 3 * w] = o.r.utx_um[w], want[3 + 3 * w] = o.r.uty_um[w],
                      want[4 + 3 * w] = o.r.utheta_urad[w];
     for (int i = 0; i < nq; ++i)
         assert_true(fabs(want[i] - sqrt(var[i])) <= 1e-7 * sqrt(var[i]) + 1e-15);
-    free(var), free(o.buf), free(o1.buf), truth_free(&t);
+    free(var), out_free(&o), out_free(&o1), truth_free(&t);
     sc_grid_data_free(&z), sc_grid_data_free(&d);
     sc_grid_lsq_plan_destroy(q);
+    sc_grid_plan_free(&p);
 }
 
 /* The covariance of G: symmetric, its diagonal equals the per-node uncertainties computed by
@@ -450,9 +475,10 @@ static void test_covariance(void **s)
     for (int j = 0; j < ng; j += 2)
         sx += C[j];
     assert_true(fabs(sx) < 1e-10);
-    free(C), free(o.buf), truth_free(&t);
+    free(C), out_free(&o), truth_free(&t);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
+    sc_grid_plan_free(&p);
 }
 
 /* Drift: a linear drift during each view biases the estimate without the model and is removed
@@ -469,15 +495,16 @@ static void test_drift(void **s)
     sp.drift_vx_um_s = 2e-4, sp.drift_vy_um_s = -1e-4;
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    d.plan = p;
+    assert_int_equal(sc_grid_plan_copy(&d.plan, &p, NULL), SC_OK);
     assert_int_equal(sc_grid_data_alloc(&d, NULL), SC_OK);
     assert_int_equal(sc_grid_data_alloc_extra(&d, 0, 1, NULL), SC_OK);
-    int ns = 81;
-    double *buf = malloc(sizeof(double) * (4 * ns + sc_grid_sim_work_doubles_plan(&p)));
+    int ns = 81, nv = p.n_views;
+    double *buf = malloc(sizeof(double) * (4 * ns + 3 * nv + sc_grid_sim_work_doubles_plan(&p)));
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 3 * ns;
-    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 4 * ns, NULL), SC_OK);
+    t.tx_um = buf + 4 * ns, t.ty_um = t.tx_um + nv, t.theta_urad = t.ty_um + nv;
+    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 4 * ns + 3 * nv, NULL), SC_OK);
     for (int drift = 0; drift < 2; ++drift) {
         sc_grid_lsq_opts opts = {.drift = drift};
         sc_grid_lsq_plan *q = NULL;
@@ -508,11 +535,12 @@ static void test_drift(void **s)
         } else {
             assert_true(e > 1e-3); /* biased by the drift */
         }
-        free(o.buf);
+        out_free(&o);
         sc_grid_lsq_plan_destroy(q);
     }
     free(buf);
     sc_grid_data_free(&d);
+    sc_grid_plan_free(&p);
 }
 
 static void test_chi2_quantile(void **s)
@@ -633,9 +661,10 @@ static void test_minimal_detectable_bias(void **s)
     assert_true(isnan(sc_grid_mdb_ratio(crit, 1.0, 0.5)));
     assert_true(sc_grid_mdb_ratio(crit, 0.5, 0.25) == 2 * crit);
     assert_true(sc_grid_mdb_ratio(crit, 0.2, 1) < crit);
-    free(clean), free(buf), free(o.buf), truth_free(&t);
+    free(clean), free(buf), out_free(&o), truth_free(&t);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
+    sc_grid_plan_free(&p);
 }
 
 /* A plan simulated with each view's own noise sig[v] (µm), the data then stating none (d filled;
@@ -643,21 +672,25 @@ static void test_minimal_detectable_bias(void **s)
 static double *unequal_views(sc_grid_data *d, const sc_grid_plan *plan, const double *sig,
                              uint64_t seed)
 {
-    sc_grid_plan p = *plan;
-    for (int v = 0; v < p.n_views; ++v)
-        p.view[v].sigma_um = sig[v];
     memset(d, 0, sizeof *d);
-    d->plan = p;
+    assert_int_equal(sc_grid_plan_copy(&d->plan, plan, NULL), SC_OK);
+    const sc_grid_plan *p = &d->plan;
+    for (int v = 0; v < p->n_views; ++v)
+        d->plan.view[v].sigma_um = sig[v];
     assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
-    long ns = sc_grid_stage_nodes(&p), nn = (long)p.n * p.n;
-    double *buf = malloc(sizeof(double) * (2 * ns + 2 * nn + sc_grid_sim_work_doubles_plan(&p)));
+    long ns = sc_grid_stage_nodes(p), nn = (long)p->n * p->n, nv = p->n_views;
+    double *buf = malloc(sizeof(double) *
+                         (2 * ns + 2 * nn + 3 * nv + sc_grid_sim_work_doubles_plan(p)));
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.seed = seed;
     sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
-                           .ay_um = buf + 2 * ns + nn};
-    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, d, buf + 2 * ns + 2 * nn, NULL), SC_OK);
-    for (int v = 0; v < p.n_views; ++v)
+                           .ay_um = buf + 2 * ns + nn, .tx_um = buf + 2 * ns + 2 * nn,
+                           .ty_um = buf + 2 * ns + 2 * nn + nv,
+                           .theta_urad = buf + 2 * ns + 2 * nn + 2 * nv};
+    assert_int_equal(sc_grid_sim_run(p, &sp, &t, d, buf + 2 * ns + 2 * nn + 3 * nv, NULL),
+                     SC_OK);
+    for (int v = 0; v < p->n_views; ++v)
         d->plan.view[v].sigma_um = 0; /* as if the file stated nothing */
     return buf;
 }
@@ -773,12 +806,13 @@ static void test_view_noise(void **s)
     double *truth = unequal_views(&d, &ye, sig_ye, 1);
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
-    sc_grid_plan p = d.plan;
+    const sc_grid_plan *p = &d.plan;
     sp.sigma_r_um = 0;
-    double *buf = malloc(sizeof(double) * (900 + sc_grid_sim_work_doubles_plan(&p)));
+    double *buf = malloc(sizeof(double) * (909 + sc_grid_sim_work_doubles_plan(p)));
     sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + 225, .ax_um = buf + 450,
-                           .ay_um = buf + 675};
-    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 900, NULL), SC_OK);
+                           .ay_um = buf + 675, .tx_um = buf + 900, .ty_um = buf + 903,
+                           .theta_urad = buf + 906}; /* Ye's 3 views */
+    assert_int_equal(sc_grid_sim_run(p, &sp, &t, &d, buf + 909, NULL), SC_OK);
     free(buf);
     sc_grid_options o;
     sc_grid_options_default(&o);
@@ -797,24 +831,26 @@ static void test_view_noise(void **s)
     expect_refused(&d, &o, "need least squares");
     free(truth);
     sc_grid_data_free(&d);
+    sc_grid_plan_free(&st);
+    sc_grid_plan_free(&ye);
 }
 
 /* Petrò's plan, N = 25, simulated with seed: d filled (free with sc_grid_data_free). */
 static void petro_data(sc_grid_data *d, uint64_t seed)
 {
-    sc_grid_plan p;
-    assert_int_equal(sc_grid_plan_double_shift(25, 1.0, 0, 0, &p, NULL), SC_OK);
     memset(d, 0, sizeof *d);
-    d->plan = p;
+    assert_int_equal(sc_grid_plan_double_shift(25, 1.0, 0, 0, &d->plan, NULL), SC_OK);
+    const sc_grid_plan *p = &d->plan; /* d owns it */
     assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
-    long ns = sc_grid_stage_nodes(&p), nn = 25 * 25;
-    double *buf = malloc(sizeof(double) * (4 * ns + sc_grid_sim_work_doubles_plan(&p)));
+    long ns = sc_grid_stage_nodes(p), nn = 25 * 25, nv = p->n_views;
+    double *buf = malloc(sizeof(double) * (4 * ns + 3 * nv + sc_grid_sim_work_doubles_plan(p)));
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.seed = seed;
     sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
-                           .ay_um = buf + 2 * ns + nn};
-    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, d, buf + 4 * ns, NULL), SC_OK);
+                           .ay_um = buf + 2 * ns + nn, .tx_um = buf + 4 * ns,
+                           .ty_um = buf + 4 * ns + nv, .theta_urad = buf + 4 * ns + 2 * nv};
+    assert_int_equal(sc_grid_sim_run(p, &sp, &t, d, buf + 4 * ns + 3 * nv, NULL), SC_OK);
     free(buf);
 }
 

@@ -23,15 +23,17 @@ typedef struct sim {
 
 static sc_status run(sim *s, const sc_grid_plan *p, const sc_grid_sim_params *sp)
 {
-    int nn = p->n * p->n;
+    int nn = p->n * p->n, nv = p->n_views;
     memset(s, 0, sizeof *s);
-    s->d.plan = *p;
     sc_error err;
+    assert_int_equal(sc_grid_plan_copy(&s->d.plan, p, &err), SC_OK);
     assert_int_equal(sc_grid_data_alloc(&s->d, &err), SC_OK);
-    s->buf = calloc(6 * (size_t)nn, sizeof(double));
+    /* G and A (4 nn), the workspace (2 nn), the misalignments (3 nv) */
+    s->buf = calloc(6 * (size_t)nn + 3 * (size_t)nv, sizeof(double));
     assert_non_null(s->buf);
     s->t.gx_um = s->buf, s->t.gy_um = s->buf + nn, s->t.ax_um = s->buf + 2 * nn,
     s->t.ay_um = s->buf + 3 * nn;
+    s->t.tx_um = s->buf + 6 * nn, s->t.ty_um = s->t.tx_um + nv, s->t.theta_urad = s->t.ty_um + nv;
     return sc_grid_sim_run(&s->d.plan, sp, &s->t, &s->d, s->buf + 4 * nn, &err);
 }
 
@@ -65,6 +67,7 @@ static void test_reproducible(void **state)
         }
     assert_true(memcmp(a.buf, c.buf, 4 * nn * sizeof(double)) != 0);
     done(&a), done(&b), done(&c);
+    sc_grid_plan_free(&p);
 }
 
 static void test_sigma_g_gauge_forward_model(void **state)
@@ -140,6 +143,7 @@ static void test_sigma_g_gauge_forward_model(void **state)
                 }
         }
         done(&s);
+        sc_grid_plan_free(&p);
     }
 }
 
@@ -169,6 +173,7 @@ static void test_noise(void **state)
     assert_true(fabs(sd / 0.3 - 1) < 0.05); /* ~3600 values: 5 % is > 4 standard errors */
     assert_true(fabs(m / cnt) < 0.03);
     done(&a), done(&b);
+    sc_grid_plan_free(&p);
 }
 
 /* L f = f − ρ W f with W the row-standardised 4-neighbour adjacency. */
@@ -274,6 +279,7 @@ static void test_sar_field(void **state)
     assert_true(sxy / sxx > 0.5);
     free(eps), free(f), free(lf), free(pat), free(lp);
     done(&s);
+    sc_grid_plan_free(&p);
 }
 
 static void test_bad_parameters(void **state)
@@ -295,7 +301,9 @@ static void test_bad_parameters(void **state)
     sp.sigma_r_um = -1;
     assert_int_equal(run(&s, &p, &sp), SC_E_INPUT);
     done(&s);
+    sc_grid_plan_free(&p);
     assert_int_equal(sc_grid_plan_double_shift(5, 1, 0, 0, &p, &err), SC_E_INPUT);
+    assert_null(p.view); /* a plan that failed holds nothing */
 }
 
 int main(void)

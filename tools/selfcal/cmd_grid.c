@@ -259,6 +259,7 @@ int cmd_grid(int argc, char **argv)
         print_grid_summary(g.method, &d.plan, &sol, sol.res.stated_u);
     sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&info);
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
             snprintf(err.file, sizeof err.file, "%s", g.in);

@@ -271,9 +271,9 @@ typedef struct {
     const char *out, *xcol, *ycol, *uxcol, *uycol;
     double n_d, pitch, unit_mm, tol, share, ox, oy;
     long snx, sny;
-    import_view views[SC_GRID_MAX_VIEWS];
-    const char *view_spec[SC_GRID_MAX_VIEWS];
-    int n_views;
+    import_view *views;      /* max_views entries (one per --view the command line can hold) */
+    const char **view_spec;
+    int n_views, max_views;
 } grid_args;
 
 /* The word after an option's value that should be a FILE but is an option (-o, --anything): the
@@ -293,8 +293,8 @@ static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
     if (!strcmp(o, "--view")) {
         if (*a + 1 >= argc)
             return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
-        if (g->n_views == SC_GRID_MAX_VIEWS)
-            return cli_usage_error(cmd, "at most %d views", SC_GRID_MAX_VIEWS);
+        if (g->n_views == g->max_views || g->n_views == SC_GRID_VIEW_LIMIT)
+            return cli_usage_error(cmd, "at most %d views", SC_GRID_VIEW_LIMIT);
         if (looks_like_option(argv[*a + 1]))
             return cli_usage_error(cmd, "--view \"%s\" must be followed by its FILE, not by the "
                                         "option '%s'", v, argv[*a + 1]);
@@ -434,10 +434,28 @@ static sc_status write_grid_file(const grid_args *g, const sc_grid_import_params
     return sc_afile_commit(&f, err);
 }
 
+static int import_grid_run(int argc, char **argv, grid_args *gp);
+
 static int import_grid(int argc, char **argv)
 {
     static grid_args g;
     memset(&g, 0, sizeof g);
+    /* a --view takes three words: the command line holds at most argc / 3 of them */
+    g.max_views = argc / 3 + 1;
+    g.views = calloc((size_t)g.max_views, sizeof *g.views);
+    g.view_spec = calloc((size_t)g.max_views, sizeof *g.view_spec);
+    sc_error err;
+    sc_error_clear(&err);
+    int rc = g.views && g.view_spec
+                 ? import_grid_run(argc, argv, &g)
+                 : cli_report((sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory"), &err));
+    free(g.views), free(g.view_spec);
+    return rc;
+}
+
+static int import_grid_run(int argc, char **argv, grid_args *gp)
+{
+    grid_args g = *gp; /* the arrays are the caller's */
     g.xcol = "x";
     g.ycol = "y";
     g.unit_mm = 1;

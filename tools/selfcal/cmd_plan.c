@@ -95,6 +95,9 @@ static int worth_announcing(const sc_grid_plan *p, int drift, long *unknowns)
 }
 
 /* The designer: the largest raster step that identifies G. */
+static int design_print(const sc_grid_plan *bp, const sc_grid_lsq_info *bip, int n, int sx_i,
+                        int sy_i, double pitch, const char *out);
+
 static int design(int argc, char **argv)
 {
     double sx = 0, sy = 0, n_d = 0, pitch = 1, ox = 0, oy = 0;
@@ -130,7 +133,7 @@ static int design(int argc, char **argv)
     int n = (int)n_d;
     sc_error err;
     sc_error_clear(&err);
-    sc_grid_plan best;
+    sc_grid_plan best = {0};
     sc_grid_lsq_info bi;
     int found = 0;
     for (int step = n - 1; step >= 1 && !found; step = step > 1 ? step * 2 / 3 : 0) {
@@ -144,19 +147,37 @@ static int design(int argc, char **argv)
         sc_grid_lsq_plan *q = NULL;
         sc_grid_lsq_opts only = {.node_sigma_only = 1, /* what is printed: no σ of O, R */
                                  .max_bytes = cli_memory_bytes()};
-        if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK)
+        if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK) {
+            sc_grid_plan_free(&p);
             return cli_report(&err);
+        }
         sc_grid_lsq_get_info(q, &bi);
         sc_grid_lsq_plan_destroy(q);
         if (bi.identifiable)
-            best = p, found = 1;
+            best = p, found = 1; /* best owns p's views now */
+        else
+            sc_grid_plan_free(&p);
     }
     if (!found) {
-        fprintf(stderr, "selfcal: plan --design: no raster of at most %d placements identifies G "
-                        "on a %dx%d stage with an N = %d plate\n",
-                SC_GRID_MAX_VIEWS, (int)sx, (int)sy, n);
+        fprintf(stderr, "selfcal: plan --design: no raster of placements identifies G on a %dx%d "
+                        "stage with an N = %d plate\n",
+                (int)sx, (int)sy, n);
         return CLI_FAIL;
     }
+    int rc = design_print(&best, &bi, n, (int)sx, (int)sy, pitch, out);
+    sc_grid_plan_free(&best);
+    return rc;
+}
+
+/* plan --design's output: the analysis, the views, the plan file (-o). */
+static int design_print(const sc_grid_plan *bp, const sc_grid_lsq_info *bip, int n, int sx_i,
+                        int sy_i, double pitch, const char *out)
+{
+    sc_error err;
+    sc_error_clear(&err);
+    const sc_grid_plan best = *bp; /* borrowed */
+    const sc_grid_lsq_info bi = *bip;
+    double sx = sx_i, sy = sy_i;
     printf("identifiable: yes\nfree: 0\nsigma_c_ratio_rms: %.6g\nsigma_c_ratio_max: %.6g\n",
            bi.sigma_c_ratio_rms, bi.sigma_c_ratio_max);
     printf("N: %d\nstage: %d,%d\npitch_mm: %g\nviews: %d\n", n, (int)sx, (int)sy, pitch,
@@ -289,6 +310,7 @@ int cmd_plan(int argc, char **argv)
     sc_grid_lsq_plan *q = NULL;
     if (opts.drift && has_data && !fi.has_t) {
         sc_grid_data_free(&d);
+        sc_grid_file_info_free(&fi);
         sc_error_set(&err, SC_E_INPUT, in, fi.header_end_line,
                      "--drift linear needs the time of each measurement (column t_s)");
         return cli_report(&err);
@@ -307,6 +329,7 @@ int cmd_plan(int argc, char **argv)
         st = sc_grid_lsq_plan_create(&d.plan, has_data ? &d : NULL, &po, &q, &err);
         if (st != SC_OK) {
             sc_grid_data_free(&d);
+            sc_grid_file_info_free(&fi);
             if (!err.file[0]) {
                 snprintf(err.file, sizeof err.file, "%s", in);
                 err.line = fi.header_end_line;
@@ -323,5 +346,6 @@ int cmd_plan(int argc, char **argv)
     }
     print_analysis(&d, &fi, has_data, &qi, &unit);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&fi);
     return CLI_OK;
 }

@@ -115,6 +115,7 @@ static void free_report(grid_report *r)
     sc_grid_solution_free(&r->sol);
     sc_grid_solution_free(&r->lsol);
     sc_grid_data_free(&r->d);
+    sc_grid_file_info_free(&r->info);
 }
 
 /* ---- figures ---- */

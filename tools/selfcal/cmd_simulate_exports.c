@@ -231,10 +231,9 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     sc_rng rng;
     sc_rng_seed(&rng, seed);
     double *pts = malloc((size_t)((long)p->n * p->n + n_stray) * 2 * sizeof(double));
-    sc_afile f[SC_GRID_MAX_VIEWS];
-    memset(f, 0, sizeof f);
+    sc_afile *f = calloc((size_t)p->n_views, sizeof *f); /* entries not opened stay closed */
     int opened = 0;
-    if (!pts)
+    if (!pts || !f)
         st = sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
     for (int v = 0; v < p->n_views && st == SC_OK; ++v) {
         long np = view_points(&d, v, &dm, &rng, pts);
@@ -246,10 +245,12 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
         opened = v + 1;
         print_view_file(f[v].fp, pts, np, unit_per_mm, sty);
     }
-    st = sc_afile_finish_all(f, opened, st, &err);
+    if (f)
+        st = sc_afile_finish_all(f, opened, st, &err);
     undo_dir(dir, created, st);
     if (st == SC_OK)
         print_import_command(p, dir, unit_per_mm);
+    free(f);
     free(pts);
     sc_grid_data_free(&d);
     return st == SC_OK ? CLI_OK : cli_report(&err);

@@ -113,7 +113,7 @@ typedef struct {
     double n_d, pitch, ox, oy;
     int n_given, pitch_given, origin_given, n_vs;
     long stage_x, stage_y;
-    double view_sigma[SC_GRID_MAX_VIEWS];
+    double *view_sigma;     /* n_vs values (--view-sigma-r-um), freed by cmd_simulate_grid */
     sc_grid_sim_params sp;
 } sim_args;
 
@@ -151,16 +151,28 @@ static int parse_stage(sim_args *a, const char *v)
 
 static int parse_view_sigmas(sim_args *a, const char *v)
 {
-    char buf[1024];
-    snprintf(buf, sizeof buf, "%s", v);
-    a->n_vs = 0;
-    for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
-        if (a->n_vs == SC_GRID_MAX_VIEWS || sc_parse_double(t, &a->view_sigma[a->n_vs]) ||
-            !(a->view_sigma[a->n_vs] > 0) || a->view_sigma[a->n_vs] > 1e6)
-            return cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
-        ++a->n_vs;
+    size_t len = strlen(v), cap = 1;
+    for (const char *c = v; *c; ++c)
+        cap += *c == ',';
+    char *buf = malloc(len + 1);
+    free(a->view_sigma);
+    a->view_sigma = malloc(cap * sizeof *a->view_sigma);
+    if (!buf || !a->view_sigma) {
+        free(buf);
+        return cli_usage_error("simulate grid", "--view-sigma-r-um: out of memory");
     }
-    return CLI_OK;
+    memcpy(buf, v, len + 1);
+    a->n_vs = 0;
+    int rc = CLI_OK;
+    for (char *t = strtok(buf, ","); t && rc == CLI_OK; t = strtok(NULL, ",")) {
+        if ((size_t)a->n_vs == cap || sc_parse_double(t, &a->view_sigma[a->n_vs]) ||
+            !(a->view_sigma[a->n_vs] > 0) || a->view_sigma[a->n_vs] > 1e6)
+            rc = cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
+        else
+            ++a->n_vs;
+    }
+    free(buf);
+    return rc;
 }
 
 static int parse_drift(sim_args *a, const char *v)
@@ -274,8 +286,11 @@ static sc_status build_plan(const sim_args *a, sc_grid_plan *plan, int *usage_rc
         st = sc_grid_read(a->plan_arg, &pf, &info, err);
         if (st != SC_OK)
             return st;
-        *plan = pf.plan;
+        st = sc_grid_plan_copy(plan, &pf.plan, err);
         sc_grid_data_free(&pf);
+        sc_grid_file_info_free(&info);
+        if (st != SC_OK)
+            return st;
         if ((a->n_given && n != plan->n) || (a->pitch_given && a->pitch != plan->pitch_mm) ||
             (a->origin_given && (a->ox != plan->origin_mm[0] || a->oy != plan->origin_mm[1]))) {
             *usage_rc = cli_usage_error("simulate grid",
@@ -328,30 +343,44 @@ static sc_status write_outputs(const sim_args *a, const sc_grid_data *d,
     return sc_afile_finish_all(f, opened, st, err);
 }
 
+static int simulate_grid(sim_args *a);
+
 int cmd_simulate_grid(int argc, char **argv)
 {
     sim_args a;
     int help;
+    memset(&a, 0, sizeof a);
     int rc = parse_args(argc, argv, &a, &help);
-    if (rc != CLI_OK || help) {
-        if (help)
-            fputs(USAGE, stdout);
-        return rc;
-    }
+    if (rc == CLI_OK && !help)
+        rc = simulate_grid(&a);
+    else if (help)
+        fputs(USAGE, stdout);
+    free(a.view_sigma);
+    return rc;
+}
+
+static int simulate_grid(sim_args *ap)
+{
+    const sim_args a = *ap;
+    int rc = CLI_OK;
     sc_error err;
     sc_error_clear(&err);
     sc_grid_data d;
     memset(&d, 0, sizeof d);
     sc_status st = build_plan(&a, &d.plan, &rc, &err);
-    if (rc != CLI_OK)
-        return rc;
-    if (st != SC_OK)
-        return cli_report(&err);
+    if (rc != CLI_OK || st != SC_OK) {
+        sc_grid_plan_free(&d.plan);
+        return rc != CLI_OK ? rc : cli_report(&err);
+    }
     size_t nn = (size_t)d.plan.n * d.plan.n, ns = (size_t)sc_grid_stage_nodes(&d.plan);
+    size_t nv = (size_t)d.plan.n_views;
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
-    double *buf = malloc((4 * ns + 2 * nn + sc_grid_sim_work_doubles_plan(&d.plan)) * sizeof(double));
+    /* truth G, A and misalignments, then the simulator's workspace */
+    double *buf = malloc((4 * ns + 2 * nn + 3 * nv + sc_grid_sim_work_doubles_plan(&d.plan)) *
+                         sizeof(double));
     if (!buf) {
+        sc_grid_plan_free(&d.plan);
         sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory");
         return cli_report(&err);
     }
@@ -359,11 +388,14 @@ int cmd_simulate_grid(int argc, char **argv)
     t.gy_um = buf + ns;
     t.ax_um = buf + 2 * ns;
     t.ay_um = buf + 2 * ns + nn;
+    t.tx_um = buf + 2 * ns + 2 * nn;
+    t.ty_um = t.tx_um + nv;
+    t.theta_urad = t.ty_um + nv;
     st = sc_grid_data_alloc(&d, &err);
     if (st == SC_OK)
         st = sc_grid_data_alloc_extra(&d, 0, a.sp.dt_s > 0, &err);
     if (st == SC_OK)
-        st = sc_grid_sim_run(&d.plan, &a.sp, &t, &d, buf + 2 * ns + 2 * nn, &err);
+        st = sc_grid_sim_run(&d.plan, &a.sp, &t, &d, buf + 2 * ns + 2 * nn + 3 * nv, &err);
     if (st == SC_OK && a.comp_table)
         st = compensate(&d, a.comp_table, &err);
     /* Everything is computed: write all files, commit them together. */

@@ -23,6 +23,7 @@ void verify_result_free(verify_result *r)
 {
     free(r->buf);
     sc_grid_data_free(&r->d);
+    sc_grid_file_info_free(&r->info);
     memset(r, 0, sizeof *r);
 }
 

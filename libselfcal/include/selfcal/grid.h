@@ -25,7 +25,9 @@
 extern "C" {
 #endif
 
-#define SC_GRID_MAX_VIEWS 32
+/* Views are sized at run time (no cap in any struct). SC_GRID_VIEW_LIMIT is only the readers' and
+ * plan check's sanity limit (a view costs about 1 KiB of plan and 2·N² doubles of data). */
+#define SC_GRID_VIEW_LIMIT 100000
 #define SC_GRID_MAX_N 513
 #define SC_GRID_MAX_STAGE 4097 /* largest NX or NY */
 /* The smallest pitch (1 nm: what a table can place) and the smallest stated standard
@@ -49,7 +51,8 @@ typedef struct sc_grid_plan {
     double pitch_mm;      /* P */
     double origin_mm[2];  /* stage position of the grid centre */
     int n_views;
-    sc_grid_view view[SC_GRID_MAX_VIEWS];
+    sc_grid_view *view;   /* n_views entries, owned by the plan (sc_grid_plan_views sizes them,
+                             sc_grid_plan_copy copies them, sc_grid_plan_free frees them) */
     int stage_nx, stage_ny; /* stage grid (SPEC §5 `# stage = NX,NY`, odd >= 3); 0: N x N */
 } sc_grid_plan;
 
@@ -57,26 +60,30 @@ typedef struct sc_grid_plan {
  * NaN where the mark was not measured. Arrays are n*n (plate marks), owned by whoever filled them.
  * ux/uy (SPEC §5 columns ux_um, uy_um): NULL when the file has no such columns, else the stated
  * standard uncertainty of each row's x and y (µm; NaN: the view's sigma_um applies).
- * t_s: NULL without the column t_s, else the time of each measurement (s). */
+ * t_s: NULL without the column t_s, else the time of each measurement (s).
+ * The data own their plan (a deep copy: sc_grid_plan_copy) and the per-view tables below
+ * (plan.n_views pointers each, made by sc_grid_data_views or sc_grid_data_alloc in grid_io.h;
+ * sc_grid_data_free frees the plan, the tables and every array they point to). */
 typedef struct sc_grid_data {
     sc_grid_plan plan;
-    double *dx_um[SC_GRID_MAX_VIEWS];
-    double *dy_um[SC_GRID_MAX_VIEWS];
-    double *ux_um[SC_GRID_MAX_VIEWS];
-    double *uy_um[SC_GRID_MAX_VIEWS];
-    double *t_s[SC_GRID_MAX_VIEWS];
+    double **dx_um;
+    double **dy_um;
+    double **ux_um;
+    double **uy_um;
+    double **t_s;
 } sc_grid_data;
 
 /* What a method reports. The caller allocates every array it wants filled and sets the pointer
- * (G arrays: one per stage node, NX*NY = sc_grid_stage_nodes; A arrays: n*n); a NULL array is
- * skipped. Uncertainties are NaN where the method gives none. */
+ * (G arrays: one per stage node, NX*NY = sc_grid_stage_nodes; A arrays: n*n; per-view arrays:
+ * n_views each, all of them at once with sc_grid_result_views); a NULL array is skipped.
+ * Uncertainties are NaN where the method gives none. */
 typedef struct sc_grid_result {
     double *gx_um, *gy_um;    /* stage error at node (i, j), index i*NX + j */
     double *ugx_um, *ugy_um;  /* standard uncertainty (k = 1) of gx, gy */
     double *ax_um, *ay_um;    /* plate error of mark (i, j), plate frame; NaN where unmeasured */
     double O, R;              /* non-orthogonality and scale, dimensionless */
-    double tx_um[SC_GRID_MAX_VIEWS], ty_um[SC_GRID_MAX_VIEWS]; /* per view misalignment */
-    double theta_urad[SC_GRID_MAX_VIEWS];
+    double *tx_um, *ty_um;    /* per view misalignment (n_views each) */
+    double *theta_urad;
     double residual_rms_um;   /* RMS of the measurement residuals (NaN if not defined) */
     double sigma_r_est_um;    /* noise estimated from the residuals (NaN if no redundancy) */
     double sigma_r_used_um;   /* the σ_r the uncertainties were computed with */
@@ -84,13 +91,13 @@ typedef struct sc_grid_result {
     long dof;                 /* residual degrees of freedom */
     /* least squares only (NaN otherwise): */
     double uO, uR;            /* standard uncertainties of O and R */
-    double utx_um[SC_GRID_MAX_VIEWS], uty_um[SC_GRID_MAX_VIEWS], utheta_urad[SC_GRID_MAX_VIEWS];
+    double *utx_um, *uty_um, *utheta_urad; /* per view */
     int drift;                /* 1: per-view translation drift rates were estimated */
     int misalignment_unique;  /* 0: misalignments/drift rates are not determined by the data
                                  (e.g. a drift common to all views in the plate frame equals a
                                  plate error): values by convention, uncertainties NaN */
-    double vx_um_s[SC_GRID_MAX_VIEWS], vy_um_s[SC_GRID_MAX_VIEWS];   /* drift rates, µm/s */
-    double uvx_um_s[SC_GRID_MAX_VIEWS], uvy_um_s[SC_GRID_MAX_VIEWS]; /* their uncertainties */
+    double *vx_um_s, *vy_um_s;   /* per view drift rates, µm/s */
+    double *uvx_um_s, *uvy_um_s; /* their uncertainties */
     int weighted;             /* 1: the data stated uncertainties (or σ_r was given) */
     double variance_factor;   /* weighted RSS / dof (σ̂²/σ² of the stated noise); NaN if not weighted */
     double chi2_lo, chi2_hi;  /* the 95 % acceptance interval of variance_factor (two-sided) */
@@ -105,16 +112,40 @@ typedef struct sc_grid_result {
     /* each view's noise estimated (sc_grid_options.estimate_view_noise; 0 and NaN otherwise): */
     int view_noise_estimated; /* 1: the weights are the estimated ones */
     int view_noise_iterations; /* the re-weighted solves it took */
-    double view_sigma_um[SC_GRID_MAX_VIEWS];     /* RMS standard deviation of a coordinate of the
-                                                    view, as estimated */
-    double view_noise_factor[SC_GRID_MAX_VIEWS]; /* the factor on the view's stated
-                                                    uncertainties (NaN if it stated none) */
-    double view_sigma_u_um[SC_GRID_MAX_VIEWS];   /* the standard uncertainty of view_sigma_um
-                                                    (REML's 2F⁻¹, F by random probes; NaN if
-                                                    it could not be had) */
+    double *view_sigma_um;     /* per view: RMS standard deviation of a coordinate of the
+                                  view, as estimated */
+    double *view_noise_factor; /* per view: the factor on the view's stated uncertainties (NaN
+                                  if it stated none) */
+    double *view_sigma_u_um;   /* per view: the standard uncertainty of view_sigma_um (REML's
+                                  2F⁻¹, F by random probes; NaN if it could not be had) */
     int stated_u;             /* 1: the data stated their own uncertainties (ux_um,uy_um or
                                  sigma_um=): σ figures are factors on them, a given σ_r unused */
+    double *view_block;       /* the one block sc_grid_result_views made for the per-view arrays
+                                 (NULL if the caller set them itself) */
 } sc_grid_result;
+
+/* The number of per-view arrays of sc_grid_result (tx_um ... view_sigma_u_um). */
+#define SC_GRID_RESULT_VIEW_ARRAYS 13
+
+/* ---- run-time sized per-view storage (grid_geometry.c) ---- */
+
+/* Size p's views to n_views (1..SC_GRID_VIEW_LIMIT): the entries kept keep their content, new
+ * ones are zero (rot 0, shift 0,0, not restricted, sigma_um not stated). p must be zeroed or
+ * hold views of its own. SC_E_NOMEM, SC_E_INPUT (a count out of range); p unchanged then. */
+SC_API sc_status sc_grid_plan_views(sc_grid_plan *p, int n_views, sc_error *err);
+
+/* Deep copy of src into dst (dst's own views are freed first; dst may be zeroed). */
+SC_API sc_status sc_grid_plan_copy(sc_grid_plan *dst, const sc_grid_plan *src, sc_error *err);
+
+/* Free p's views (n_views = 0, view = NULL; the other fields kept; safe on a zeroed plan). */
+SC_API void sc_grid_plan_free(sc_grid_plan *p);
+
+/* Allocate every per-view array of res (SC_GRID_RESULT_VIEW_ARRAYS arrays of n_views doubles,
+ * NaN-filled) in one block (res->view_block); sc_grid_result_free_views frees it. */
+SC_API sc_status sc_grid_result_views(sc_grid_result *res, int n_views, sc_error *err);
+
+/* Free the block of sc_grid_result_views and clear the per-view pointers (safe on a zeroed res). */
+SC_API void sc_grid_result_free_views(sc_grid_result *res);
 
 /* ---- geometry (grid_geometry.c) ---- */
 
@@ -160,7 +191,7 @@ SC_API int sc_grid_find_view(const sc_grid_plan *p, int rot_deg, int shift_x, in
  * (SC_GRID_MIN_SIGMA_UM) to 1e6 µm (the readers' limit); false for NaN and infinities. */
 SC_API bool sc_grid_sigma_valid(double u_um);
 
-/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, stage odd >= 3, pitch
+/* Check a plan's parameters (n odd, 3 <= n <= SC_GRID_MAX_N, 1 to SC_GRID_VIEW_LIMIT views, stage odd >= 3, pitch
  * SC_GRID_MIN_PITCH_MM to 1e6 mm, origin within 1e6 mm, each view's sigma_um 0 or valid,
  * rotations, shifts, every view landing at least one mark on the stage). */
 SC_API sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);

@@ -23,21 +23,32 @@ typedef struct sc_grid_file_info {
     long first_line;                     /* the "# selfcal-grid v1" line (1) */
     long n_line;                         /* the "# N = ..." line */
     long header_end_line;                /* last header line (the column header if present) */
-    long view_line[SC_GRID_MAX_VIEWS];   /* the "# view K: ..." line of each view (plan index) */
-    int view_id[SC_GRID_MAX_VIEWS];      /* K as written in the file for each view */
+    long *view_line;                     /* the "# view K: ..." line of each view (plan index) */
+    int *view_id;                        /* K as written in the file for each view */
     long n_rows;                         /* data rows read (0 for a plan file) */
-    long view_rows[SC_GRID_MAX_VIEWS];   /* data rows per view */
+    long *view_rows;                     /* data rows per view */
     int has_u;                           /* the columns ux_um,uy_um are present */
     int has_t;                           /* the column t_s is present and filled */
 } sc_grid_file_info;
+/* (view_line, view_id, view_rows: n_views entries each, made by sc_grid_read and freed by
+ * sc_grid_file_info_free.) */
 
-/* Allocate d->dx_um/dy_um (n*n each, NaN-filled) for every view of d->plan. */
+/* Free the per-view arrays of info (safe on a zeroed or already freed info). */
+SC_API void sc_grid_file_info_free(sc_grid_file_info *info);
+
+/* Make d's per-view tables (dx_um ... t_s: d->plan.n_views NULL pointers each, one block that
+ * starts at d->dx_um) if it has none. */
+SC_API sc_status sc_grid_data_views(sc_grid_data *d, sc_error *err);
+
+/* Make d's per-view tables (sc_grid_data_views) and allocate d->dx_um/dy_um (n*n each,
+ * NaN-filled) for every view of d->plan. */
 SC_API sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err);
 
 /* Allocate (NaN-filled, n*n) d->ux_um/uy_um when weights, d->t_s when times, for every view. */
 SC_API sc_status sc_grid_data_alloc_extra(sc_grid_data *d, int weights, int times, sc_error *err);
 
-/* Free the arrays of d (safe on a zeroed or already freed d). */
+/* Free the arrays of d, its per-view tables and its plan's views (safe on a zeroed or already
+ * freed d). */
 SC_API void sc_grid_data_free(sc_grid_data *d);
 
 /* Read a selfcal-grid v1 file (plan header, then optional column header and data rows).

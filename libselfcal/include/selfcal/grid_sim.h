@@ -47,13 +47,13 @@ typedef struct sc_grid_sim_params {
     double drift_vx_um_s, drift_vy_um_s; /* translation drift during each view, µm/s (dt_s > 0) */
 } sc_grid_sim_params;
 
-/* The truth of a simulation. Arrays (G: NX*NY stage nodes, A: n*n marks) are the caller's; a NULL array is not filled except
- * gx_um/gy_um/ax_um/ay_um, which are required. */
+/* The truth of a simulation. Arrays (G: NX*NY stage nodes, A: n*n marks, misalignments: one per
+ * view) are the caller's, all of them required. */
 typedef struct sc_grid_sim_truth {
     double *gx_um, *gy_um;  /* stage error at each node, SPEC gauge */
     double *ax_um, *ay_um;  /* plate error at each mark, plate frame, SPEC gauge */
     double O, R;            /* first-order terms of G (as requested) */
-    double tx_um[SC_GRID_MAX_VIEWS], ty_um[SC_GRID_MAX_VIEWS], theta_urad[SC_GRID_MAX_VIEWS];
+    double *tx_um, *ty_um, *theta_urad; /* per view misalignment (n_views each) */
     double sar_scale;       /* s: the factor applied to the unit-variance SAR field */
     int sar_iterations;     /* Gauss-Seidel sweeps used */
 } sc_grid_sim_truth;
@@ -83,14 +83,16 @@ SC_API sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double origin
 /* Stitching plan for an NX x NY stage and an N x N plate: rot-0 placements on a raster covering
  * the stage (plate centres at most `step` pitches apart, evenly spread), then a rot-90 and a
  * shift +1,0 placement at the centre. sc_grid_plan_stitch uses step (N-1)/2. SC_E_INPUT if
- * more than SC_GRID_MAX_VIEWS views would be needed. */
+ * more than SC_GRID_VIEW_LIMIT views would be needed.
+ * The plan makers overwrite *p (views it held are not freed) and give it views of its own
+ * (sc_grid_plan_free), none when they fail. */
 SC_API sc_status sc_grid_plan_stitch_step(int n, int nx, int ny, int step, double pitch_mm, double ox,
                                           double oy, sc_grid_plan *p, sc_error *err);
 SC_API sc_status sc_grid_plan_stitch(int n, int nx, int ny, double pitch_mm, double ox, double oy,
                                      sc_grid_plan *p, sc_error *err);
 
-/* Simulate: fill truth and d (d->plan must equal *plan's content and d's arrays be allocated,
- * e.g. with sc_grid_data_alloc). work: sc_grid_sim_work_doubles_plan(plan) doubles.
+/* Simulate: fill truth and d (d->plan must be a copy of *plan, or plan be &d->plan, and d's
+ * arrays be allocated, e.g. with sc_grid_data_alloc). work: sc_grid_sim_work_doubles_plan(plan) doubles.
  * SC_E_INPUT for invalid parameters (|ρ| >= 1, negative σ, or σ_G too small to hold the
  * requested O and R). */
 SC_API sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,

@@ -367,12 +367,17 @@ static sc_status commit_group(sc_afile *f, int n, int *synced, sc_error *err);
 sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err)
 {
     sc_status st = SC_OK;
-    int synced[64] = {0};
-    if (n > 64)
-        return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "too many files in one group");
+    int small[64] = {0}; /* a group of any size (one file per view of a large plan) */
+    int *synced = n <= 64 ? small : calloc((size_t)n, sizeof *synced);
+    if (!synced) {
+        sc_afile_abort_all(f, n);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (a group of %d files)", n);
+    }
     defer_signals_begin();
     st = commit_group(f, n, synced, err);
     defer_signals_end(); /* a signal that came meanwhile: die of it now, the group whole */
+    if (synced != small)
+        free(synced);
     return st;
 }
 

@@ -235,19 +235,15 @@ static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
     r->uO = r->uR = r->variance_factor = r->chi2_lo = r->chi2_hi = NAN;
     r->chi2_pass = 1;
     r->outlier_alpha = r->outlier_alpha_coord = r->outlier_crit = NAN;
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        r->view_sigma_um[v] = r->view_noise_factor[v] = r->view_sigma_u_um[v] = NAN;
     r->misalignment_unique = 1;
     r->stated_u = 0;
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        r->tx_um[v] = r->ty_um[v] = r->theta_urad[v] = r->utx_um[v] = r->uty_um[v] =
-            r->utheta_urad[v] = NAN;
-    return SC_OK;
+    return sc_grid_result_views(r, p->n_views, err); /* every per-view value NaN */
 }
 
 void sc_grid_solution_free(sc_grid_solution *s)
 {
     free(s->res.gx_um); /* the block of every double array but the covariance */
+    sc_grid_result_free_views(&s->res);
     free(s->outlier);
     free(s->cov_um2);
     memset(s, 0, sizeof *s);
@@ -362,9 +358,10 @@ static sc_grid_lsq_opts lsq_opts(const sc_grid_options *o)
 
 /* The uncertainties the data came with (restored on return), and the factors applied on them. */
 typedef struct view_noise {
-    double sigma_um[SC_GRID_MAX_VIEWS]; /* each view's sigma_um as read (0: none) */
+    double *sigma_um;                   /* each view's sigma_um as read (0: none) */
     double *u;                          /* the rows' ux then uy as read, per view (NULL: none) */
-    double f[SC_GRID_MAX_VIEWS];        /* the factors now in d */
+    double *f;                          /* the factors now in d (per view; with sigma_um one
+                                           block of 2 n_views) */
     int active;                         /* 1: saved, to be restored */
 } view_noise;
 
@@ -377,6 +374,9 @@ static sc_status view_noise_save(const sc_grid_data *d, int estimate, view_noise
     memset(vn, 0, sizeof *vn);
     if (!estimate)
         return SC_OK;
+    if (!(vn->sigma_um = malloc(2 * (size_t)p->n_views * sizeof(double))))
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    vn->f = vn->sigma_um + p->n_views;
     vn->active = 1;
     int rows = 0;
     for (int v = 0; v < p->n_views; ++v) {
@@ -417,7 +417,7 @@ static void view_noise_apply(sc_grid_data *d, const view_noise *vn, const double
 /* d's uncertainties as read and vn's factors back to 1 (vn kept). */
 static void view_noise_as_read(sc_grid_data *d, view_noise *vn)
 {
-    for (int v = 0; v < d->plan.n_views; ++v)
+    for (int v = 0; vn->active && v < d->plan.n_views; ++v)
         vn->f[v] = 1;
     view_noise_apply(d, vn, NULL);
 }
@@ -427,7 +427,8 @@ static void view_noise_restore(sc_grid_data *d, view_noise *vn)
 {
     view_noise_apply(d, vn, NULL);
     free(vn->u);
-    vn->u = NULL;
+    free(vn->sigma_um);
+    vn->u = vn->sigma_um = vn->f = NULL;
     vn->active = 0;
 }
 
@@ -447,8 +448,8 @@ static void vce_factors(int nv, const double *wrss, const double *red, double *k
 }
 
 /* a (n x n, row stride lda, lower triangle read) := its Cholesky factor L in the lower triangle;
- * 0 if a is not positive definite. n is at most SC_GRID_MAX_VIEWS here: by hand, as the library
- * links no LAPACK for a few dozen flops. */
+ * 0 if a is not positive definite. n is a number of view groups (n³/6 flops, small next to the
+ * probes' solves): by hand, as the library links no LAPACK. */
 static int chol_small(int n, double *a, int lda)
 {
     for (int i = 0; i < n; ++i)
@@ -473,23 +474,38 @@ static int chol_small(int n, double *a, int lda)
 #define VCE_HIST 5
 typedef struct vce_accel {
     int nv, nh;                               /* views, steps in the history */
-    double px[SC_GRID_MAX_VIEWS], pg[SC_GRID_MAX_VIEWS]; /* the last x and its g = ½ log k */
-    double dx[VCE_HIST][SC_GRID_MAX_VIEWS], dg[VCE_HIST][SC_GRID_MAX_VIEWS];
+    double *px, *pg;                          /* the last x and its g = ½ log k (nv each) */
+    double *dx[VCE_HIST], *dg[VCE_HIST];      /* the history (nv each) */
+    double *x, *g;                            /* a step's own x and g (nv each) */
+    double *block;                            /* all of them: (4 + 2 VCE_HIST) nv doubles */
     double last_norm;                         /* |g| of the last step (-1: none yet) */
 } vce_accel;
 
-static void vce_accel_init(vce_accel *a, int nv)
+static sc_status vce_accel_init(vce_accel *a, int nv, sc_error *err)
 {
     memset(a, 0, sizeof *a);
     a->nv = nv;
     a->last_norm = -1;
+    size_t n = (size_t)nv;
+    if (!(a->block = calloc((4 + 2 * VCE_HIST) * n, sizeof(double))))
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    a->px = a->block, a->pg = a->block + n, a->x = a->block + 2 * n, a->g = a->block + 3 * n;
+    for (int h = 0; h < VCE_HIST; ++h)
+        a->dx[h] = a->block + (4 + 2 * (size_t)h) * n, a->dg[h] = a->dx[h] + n;
+    return SC_OK;
+}
+
+static void vce_accel_free(vce_accel *a)
+{
+    free(a->block);
+    a->block = NULL;
 }
 
 /* f := the next factors from the current f and its k (k_v = 1 at the fixed point). */
 static void vce_accel_step(vce_accel *a, double *f, const double *k)
 {
     int nv = a->nv;
-    double x[SC_GRID_MAX_VIEWS], g[SC_GRID_MAX_VIEWS], norm = 0;
+    double *x = a->x, *g = a->g, norm = 0;
     for (int v = 0; v < nv; ++v) {
         x[v] = log(f[v]), g[v] = 0.5 * log(k[v]);
         norm += g[v] * g[v];
@@ -497,17 +513,19 @@ static void vce_accel_step(vce_accel *a, double *f, const double *k)
     if (a->last_norm >= 0 && norm > a->last_norm)
         a->nh = 0; /* worse than before: start again from the plain step */
     else if (a->last_norm >= 0) { /* the newest difference into the history */
-        if (a->nh == VCE_HIST) {
-            memmove(a->dx[0], a->dx[1], sizeof a->dx[0] * (VCE_HIST - 1));
-            memmove(a->dg[0], a->dg[1], sizeof a->dg[0] * (VCE_HIST - 1));
+        if (a->nh == VCE_HIST) { /* the oldest out: rotate the rows' pointers */
+            double *ox = a->dx[0], *og = a->dg[0];
+            memmove(a->dx, a->dx + 1, sizeof a->dx[0] * (VCE_HIST - 1));
+            memmove(a->dg, a->dg + 1, sizeof a->dg[0] * (VCE_HIST - 1));
+            a->dx[VCE_HIST - 1] = ox, a->dg[VCE_HIST - 1] = og;
             a->nh--;
         }
         for (int v = 0; v < nv; ++v)
             a->dx[a->nh][v] = x[v] - a->px[v], a->dg[a->nh][v] = g[v] - a->pg[v];
         a->nh++;
     }
-    memcpy(a->px, x, sizeof x);
-    memcpy(a->pg, g, sizeof g);
+    memcpy(a->px, x, sizeof *x * (size_t)nv);
+    memcpy(a->pg, g, sizeof *g * (size_t)nv);
     a->last_norm = norm;
     /* γ = argmin |g − ΔG γ| by the normal equations (m ≤ VCE_HIST, Cholesky with a tiny ridge);
      * x += g − (ΔX + ΔG) γ */
@@ -581,8 +599,18 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
                                    double *rel_sd, sc_error *err)
 {
     const sc_grid_plan *p = &d->plan;
-    int nv = p->n_views, nn = p->n * p->n, ng = 0, grp[SC_GRID_MAX_VIEWS], low = -1;
+    int nv = p->n_views, nn = p->n * p->n, ng = 0, low = -1;
     long ns = sc_grid_stage_nodes(p);
+    /* per view: its group, the components; F (ng x ng, ng <= nv: dense, as Cov(θ̂) = 2F⁻¹ is) */
+    size_t nvz = (size_t)nv;
+    double *vbuf = calloc(nvz * nvz + 5 * nvz, sizeof(double));
+    int *grp = malloc(nvz * sizeof *grp);
+    if (!vbuf || !grp) {
+        free(vbuf), free(grp);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    double *F = vbuf, *wrss = F + nvz * nvz, *rd = wrss + nvz, *u2 = rd + nvz;
+    double *inv_diag = u2 + nvz, *y = inv_diag + nvz;
     for (int v = 0; v < nv; ++v) {
         rel_sd[v] = NAN;
         if (red[v] >= VCE_MIN_RED)
@@ -592,8 +620,10 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     }
     size_t tot = (size_t)nv * nn;
     double *buf = malloc(sizeof(double) * (2 * tot + 4 * (size_t)ns + 2 * (size_t)nn));
-    if (!buf)
+    if (!buf) {
+        free(vbuf), free(grp);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
     double *save = buf, *o = buf + 2 * tot;
     for (int v = 0; v < nv; ++v)
         for (int k = 0; k < nn; ++k)
@@ -601,11 +631,9 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     sc_grid_result res = {0};
     res.gx_um = o, res.gy_um = o + ns, res.ugx_um = o + 2 * ns, res.ugy_um = o + 3 * ns;
     res.ax_um = o + 4 * ns, res.ay_um = o + 4 * ns + nn;
-    double F[SC_GRID_MAX_VIEWS][SC_GRID_MAX_VIEWS] = {{0}};
-    double wrss[SC_GRID_MAX_VIEWS], rd[SC_GRID_MAX_VIEWS], u2[SC_GRID_MAX_VIEWS];
+    sc_status st = sc_grid_result_views(&res, nv, err);
     sc_rng rng;
     sc_rng_seed(&rng, 20261127); /* the same probes every run: reproducible figures */
-    sc_status st = SC_OK;
     for (int v = 0; v < nv && st == SC_OK; ++v)
         for (int t = 0; t < VCE_PROBES && st == SC_OK; ++t) {
             for (int w = 0; w < nv; ++w)
@@ -621,53 +649,80 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
             if (st == SC_OK)
                 st = sc_grid_lsq_view_components(q, d, &res, wrss, rd, u2, err);
             for (int u = 0; u < nv && st == SC_OK; ++u)
-                F[grp[u]][grp[v]] += wrss[u] / VCE_PROBES;
+                F[(size_t)grp[u] * nvz + (size_t)grp[v]] += wrss[u] / VCE_PROBES;
         }
     for (int v = 0; v < nv; ++v)
         for (int k = 0; k < nn; ++k)
             d->dx_um[v][k] = save[v * nn + k], d->dy_um[v][k] = save[tot + v * nn + k];
     free(buf);
-    if (st != SC_OK)
-        return st;
-    /* (F⁻¹)_gg by Cholesky of the symmetrized F (its two estimates of F_uv averaged) */
-    double L[SC_GRID_MAX_VIEWS][SC_GRID_MAX_VIEWS], inv_diag[SC_GRID_MAX_VIEWS];
-    for (int i = 0; i < ng; ++i)
-        for (int j = 0; j <= i; ++j)
-            L[i][j] = 0.5 * (F[i][j] + F[j][i]);
-    if (!chol_small(ng, &L[0][0], SC_GRID_MAX_VIEWS))
-        return SC_OK; /* not positive definite: NaN */
-    for (int g = 0; g < ng; ++g) { /* column g of L⁻¹: (F⁻¹)_gg = Σ_i (L⁻¹)_ig² */
-        double y[SC_GRID_MAX_VIEWS] = {0}, sum = 0;
-        for (int i = g; i < ng; ++i) {
-            double t = i == g ? 1.0 : 0.0;
-            for (int k = g; k < i; ++k)
-                t -= L[i][k] * y[k];
-            y[i] = t / L[i][i];
-            sum += y[i] * y[i];
+    sc_grid_result_free_views(&res);
+    /* (F⁻¹)_gg by Cholesky of the symmetrized F (its two estimates of F_uv averaged), in place:
+     * the lower triangle becomes L */
+    double *L = F;
+    for (int i = 0; st == SC_OK && i < ng; ++i)
+        for (int j = 0; j < i; ++j)
+            L[(size_t)i * nvz + j] = 0.5 * (F[(size_t)i * nvz + j] + F[(size_t)j * nvz + i]);
+    if (st == SC_OK && chol_small(ng, L, nv)) { /* else not positive definite: NaN */
+        for (int g = 0; g < ng; ++g) { /* column g of L⁻¹: (F⁻¹)_gg = Σ_i (L⁻¹)_ig² */
+            double sum = 0;
+            for (int i = g; i < ng; ++i) {
+                double t = i == g ? 1.0 : 0.0;
+                for (int k = g; k < i; ++k)
+                    t -= L[(size_t)i * nvz + k] * y[k];
+                y[i] = t / L[(size_t)i * nvz + i];
+                sum += y[i] * y[i];
+            }
+            inv_diag[g] = sum;
         }
-        inv_diag[g] = sum;
+        for (int v = 0; v < nv; ++v)
+            rel_sd[v] = sqrt(inv_diag[grp[v]] / 2);
     }
-    for (int v = 0; v < nv; ++v)
-        rel_sd[v] = sqrt(inv_diag[grp[v]] / 2);
-    return SC_OK;
+    free(vbuf), free(grp);
+    return st;
 }
 
 /* Re-weight the views by their estimated noise and solve again until it settles; *qp and s->res
  * are then the fit with the estimated weights. When it cannot settle in VCE_MAX_IT solves, runs
  * to zero for a view, or the residuals are at the rounding level (noise-free data), the weights
  * as read are kept (and fitted), with a warning. */
+static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_info *info,
+                                          const sc_grid_options *o, view_noise *vn,
+                                          sc_grid_solution *s, sc_grid_lsq_plan **qp,
+                                          const char *src, vce_accel *acc, double *wrss,
+                                          double *red, double *u2, double *k, double *rel_sd,
+                                          sc_error *err);
+
 static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *info,
                                      const sc_grid_options *o, view_noise *vn,
                                      sc_grid_solution *s, sc_grid_lsq_plan **qp, const char *src,
                                      sc_error *err)
 {
+    int nv = d->plan.n_views;
+    double *wrss = malloc(5 * (size_t)nv * sizeof(double));
+    if (!wrss)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    double *red = wrss + nv, *u2 = red + nv, *k = u2 + nv, *rel_sd = k + nv;
+    vce_accel acc;
+    sc_status st = vce_accel_init(&acc, nv, err);
+    if (st == SC_OK)
+        st = estimate_view_noise_loop(d, info, o, vn, s, qp, src, &acc, wrss, red, u2, k, rel_sd,
+                                      err);
+    vce_accel_free(&acc);
+    free(wrss);
+    return st;
+}
+
+/* estimate_view_noise's iteration and outcome, with its per-view arrays (nv each). */
+static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_info *info,
+                                          const sc_grid_options *o, view_noise *vn,
+                                          sc_grid_solution *s, sc_grid_lsq_plan **qp,
+                                          const char *src, vce_accel *acc, double *wrss,
+                                          double *red, double *u2, double *k, double *rel_sd,
+                                          sc_error *err)
+{
     const sc_grid_plan *p = &d->plan;
     int nv = p->n_views, it = 0;
     sc_grid_lsq_opts opts = lsq_opts(o);
-    double wrss[SC_GRID_MAX_VIEWS], red[SC_GRID_MAX_VIEWS], u2[SC_GRID_MAX_VIEWS];
-    double k[SC_GRID_MAX_VIEWS];
-    vce_accel acc;
-    vce_accel_init(&acc, nv);
     for (;; ++it) {
         sc_status st = sc_grid_lsq_view_components(*qp, d, &s->res, wrss, red, u2, err);
         if (st != SC_OK)
@@ -707,7 +762,7 @@ static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *i
                   src, VCE_MAX_IT, worst);
             return view_noise_reset(d, o, vn, s, qp, err);
         }
-        vce_accel_step(&acc, vn->f, k);
+        vce_accel_step(acc, vn->f, k);
         view_noise_apply(d, vn, vn->f);
         sc_grid_lsq_plan_destroy(*qp);
         *qp = NULL;
@@ -717,7 +772,6 @@ static sc_status estimate_view_noise(sc_grid_data *d, const sc_grid_file_info *i
         if (st != SC_OK)
             return st;
     }
-    double rel_sd[SC_GRID_MAX_VIEWS];
     sc_status st = view_noise_spread(d, *qp, red, rel_sd, err);
     if (st != SC_OK)
         return st;
@@ -823,16 +877,23 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
     /* the final solution's misalignments as fitted to the data it was solved on; a view the
      * removals left undetermined (one mark: its rotation free) cannot predict its removed
      * marks, whose residuals are then not estimable (empty) */
-    double mis[SC_GRID_MAX_VIEWS * 5];
-    int determined[SC_GRID_MAX_VIEWS];
-    sc_grid_lsq_fit_misalignments(q, d, &s->res, mis, determined);
+    double *mis = malloc((size_t)p->n_views * SC_GRID_LSQ_MAX_NB * sizeof *mis);
+    int *determined = malloc((size_t)p->n_views * sizeof *determined);
+    if (!mis || !determined) { /* no memory left for them: removed marks' residuals empty */
+        free(mis), free(determined);
+        mis = NULL, determined = NULL;
+    } else {
+        sc_grid_lsq_fit_misalignments(q, d, &s->res, mis, determined);
+    }
     for (size_t k = 0; k < tot; ++k) {
         int v = (int)(k / nn), m = (int)(k % nn);
         if (s->outlier[k]) { /* removed: residual against the final solution */
             double px, py, t = d->t_s[v] ? d->t_s[v][m] : NAN;
-            sc_grid_lsq_predict_with(q, &s->res, mis, v, m / p->n, m % p->n, t, &px, &py);
-            s->rx_um[k] = determined[v] ? keep[k] - px : NAN;
-            s->ry_um[k] = determined[v] ? keep[tot + k] - py : NAN;
+            px = py = NAN;
+            if (mis)
+                sc_grid_lsq_predict_with(q, &s->res, mis, v, m / p->n, m % p->n, t, &px, &py);
+            s->rx_um[k] = mis && determined[v] ? keep[k] - px : NAN;
+            s->ry_um[k] = mis && determined[v] ? keep[tot + k] - py : NAN;
             s->tx[k] = s->ty[k] = NAN;
             d->dx_um[v][m] = keep[k], d->dy_um[v][m] = keep[tot + k];
             s->n_flagged++;
@@ -865,6 +926,7 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
                   ? "; the outlier test's standardized residuals use that noise scaled by "
                     "sqrt(variance factor), so that it does not flag everything"
                   : "");
+    free(mis), free(determined);
 }
 
 static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const char *path,

@@ -496,10 +496,8 @@ static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_g
     size_t nn = (size_t)n * n;
     finish_g_and_a(p, x, pl);
     /* misalignment of every view with data (used or not; used views over the marks used) */
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+    for (int v = 0; v < pl->n_views; ++v) {
         res->tx_um[v] = res->ty_um[v] = res->theta_urad[v] = NAN;
-        if (v >= pl->n_views)
-            continue;
         int role = -1;
         for (int r = 0; r < nroles; ++r)
             if (views[r] == v)
@@ -532,8 +530,12 @@ static void finish(sc_grid_exact_plan *p, const sc_grid_exact_run *x, const sc_g
 sc_status sc_grid_exact_execute(sc_grid_exact_plan *p, const sc_grid_data *d, sc_grid_result *res,
                                 sc_error *err)
 {
-    if (!p || !d || !res)
+    if (!p || !d || !res || !d->dx_um)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "exact grid method: missing argument");
+    if (!res->tx_um || !res->ty_um || !res->theta_urad)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "exact grid method: the result's tx_um, ty_um and theta_urad (one "
+                            "per view) are required (sc_grid_result_views)");
     sc_status st = sc_grid_plan_check(&d->plan, err);
     if (st != SC_OK)
         return st;

@@ -27,7 +27,7 @@ void sc_grid_mark_xy_mm(const sc_grid_plan *p, int i, int j, double *x_mm, doubl
 
 double sc_grid_data_u_um(const sc_grid_data *d, int v, long k, int c)
 {
-    const double *u = c ? d->uy_um[v] : d->ux_um[v];
+    const double *u = !d->ux_um ? NULL : c ? d->uy_um[v] : d->ux_um[v];
     if (u && isfinite(u[k]))
         return u[k];
     return d->plan.view[v].sigma_um > 0 ? d->plan.view[v].sigma_um : NAN;
@@ -125,9 +125,9 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
     if (!(fabs(p->origin_mm[0]) <= SC_INPUT_MAX_ABS) || !(fabs(p->origin_mm[1]) <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be within +-%g mm",
                             SC_INPUT_MAX_ABS);
-    if (p->n_views < 1 || p->n_views > SC_GRID_MAX_VIEWS)
+    if (p->n_views < 1 || p->n_views > SC_GRID_VIEW_LIMIT || !p->view)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d",
-                            SC_GRID_MAX_VIEWS);
+                            SC_GRID_VIEW_LIMIT);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
         if (!(w->sigma_um == 0 || sc_grid_sigma_valid(w->sigma_um))) /* 0: not stated */

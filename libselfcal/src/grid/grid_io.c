@@ -17,16 +17,20 @@
 
 #define COLUMN_HEADER "view,i,j,x_mm,y_mm"
 
+static void data_free_arrays(sc_grid_data *d);
+
 sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err)
 {
     size_t nn = (size_t)d->plan.n * (size_t)d->plan.n;
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        d->dx_um[v] = d->dy_um[v] = d->ux_um[v] = d->uy_um[v] = d->t_s[v] = NULL;
+    d->dx_um = NULL; /* whatever it held is not d's (a fresh d) */
+    sc_status st = sc_grid_data_views(d, err);
+    if (st != SC_OK)
+        return st;
     for (int v = 0; v < d->plan.n_views; ++v) {
         d->dx_um[v] = malloc(nn * sizeof(double));
         d->dy_um[v] = malloc(nn * sizeof(double));
         if (!d->dx_um[v] || !d->dy_um[v]) {
-            sc_grid_data_free(d);
+            data_free_arrays(d);
             return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (grid data, N = %d)",
                                 d->plan.n);
         }
@@ -39,6 +43,9 @@ sc_status sc_grid_data_alloc(sc_grid_data *d, sc_error *err)
 sc_status sc_grid_data_alloc_extra(sc_grid_data *d, int weights, int times, sc_error *err)
 {
     size_t nn = (size_t)d->plan.n * (size_t)d->plan.n;
+    sc_status st = sc_grid_data_views(d, err);
+    if (st != SC_OK)
+        return st;
     for (int v = 0; v < d->plan.n_views; ++v) {
         double **a[3] = {&d->ux_um[v], &d->uy_um[v], &d->t_s[v]};
         for (int t = 0; t < 3; ++t) {
@@ -54,16 +61,33 @@ sc_status sc_grid_data_alloc_extra(sc_grid_data *d, int weights, int times, sc_e
     return SC_OK;
 }
 
+/* Free d's arrays and per-view tables, not its plan. */
+static void data_free_arrays(sc_grid_data *d)
+{
+    if (d->dx_um)
+        for (int v = 0; v < d->plan.n_views; ++v) {
+            free(d->dx_um[v]);
+            free(d->dy_um[v]);
+            free(d->ux_um[v]);
+            free(d->uy_um[v]);
+            free(d->t_s[v]);
+        }
+    free(d->dx_um); /* the one block of the five tables */
+    d->dx_um = d->dy_um = d->ux_um = d->uy_um = d->t_s = NULL;
+}
+
 void sc_grid_data_free(sc_grid_data *d)
 {
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
-        free(d->dx_um[v]);
-        free(d->dy_um[v]);
-        free(d->ux_um[v]);
-        free(d->uy_um[v]);
-        free(d->t_s[v]);
-        d->dx_um[v] = d->dy_um[v] = d->ux_um[v] = d->uy_um[v] = d->t_s[v] = NULL;
-    }
+    data_free_arrays(d);
+    sc_grid_plan_free(&d->plan);
+}
+
+void sc_grid_file_info_free(sc_grid_file_info *info)
+{
+    if (!info)
+        return;
+    free(info->view_line), free(info->view_id), free(info->view_rows);
+    info->view_line = NULL, info->view_id = NULL, info->view_rows = NULL;
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -244,23 +268,25 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
         const sc_grid_view *w = &p->view[v];
         fprintf(fp, "    {\"view\": %d, \"rot\": %d, \"shift\": [%d, %d]", v, w->rot_deg,
                 w->shift_x, w->shift_y);
-        json_kv(fp, "tx_um", res->tx_um[v]);
-        json_kv(fp, "ty_um", res->ty_um[v]);
-        json_kv(fp, "theta_urad", res->theta_urad[v]);
-        json_kv(fp, "utx_um", res->utx_um[v]);
-        json_kv(fp, "uty_um", res->uty_um[v]);
-        json_kv(fp, "utheta_urad", res->utheta_urad[v]);
+#define VIEW_VALUE(arr) (res->arr ? res->arr[v] : NAN) /* an array not given: null */
+        json_kv(fp, "tx_um", VIEW_VALUE(tx_um));
+        json_kv(fp, "ty_um", VIEW_VALUE(ty_um));
+        json_kv(fp, "theta_urad", VIEW_VALUE(theta_urad));
+        json_kv(fp, "utx_um", VIEW_VALUE(utx_um));
+        json_kv(fp, "uty_um", VIEW_VALUE(uty_um));
+        json_kv(fp, "utheta_urad", VIEW_VALUE(utheta_urad));
         if (res->view_noise_estimated) {
-            json_kv(fp, "sigma_um_est", res->view_sigma_um[v]);
-            json_kv(fp, "u_sigma_um_est", res->view_sigma_u_um[v]);
-            json_kv(fp, "noise_factor", res->view_noise_factor[v]);
+            json_kv(fp, "sigma_um_est", VIEW_VALUE(view_sigma_um));
+            json_kv(fp, "u_sigma_um_est", VIEW_VALUE(view_sigma_u_um));
+            json_kv(fp, "noise_factor", VIEW_VALUE(view_noise_factor));
         }
         if (res->drift) {
-            json_kv(fp, "vx_um_s", res->vx_um_s[v]);
-            json_kv(fp, "vy_um_s", res->vy_um_s[v]);
-            json_kv(fp, "uvx_um_s", res->uvx_um_s[v]);
-            json_kv(fp, "uvy_um_s", res->uvy_um_s[v]);
+            json_kv(fp, "vx_um_s", VIEW_VALUE(vx_um_s));
+            json_kv(fp, "vy_um_s", VIEW_VALUE(vy_um_s));
+            json_kv(fp, "uvx_um_s", VIEW_VALUE(uvx_um_s));
+            json_kv(fp, "uvy_um_s", VIEW_VALUE(uvy_um_s));
         }
+#undef VIEW_VALUE
         fprintf(fp, "}%s\n", v + 1 < p->n_views ? "," : "");
     }
     fputs("  ],\n  \"residual_rms_um\": ", fp);

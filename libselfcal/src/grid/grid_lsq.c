@@ -55,8 +55,15 @@ struct sc_grid_lsq_plan {
     int unit_weights;       /* sc_grid_lsq_opts.unit_weights: stated weights ignored */
     double *eq_w;           /* weight of each scalar equation */
     double *eq_dt;          /* drift column: (t - mean t of the view) / T_v */
-    double drift_T[SC_GRID_MAX_VIEWS]; /* T_v: the scale of each view's drift column, s */
-    double drift_t0[SC_GRID_MAX_VIEWS]; /* mean time of each view's measurements, s */
+    /* per view (nv each, one block: view_block; plan_init) */
+    double *drift_T;        /* T_v: the scale of each view's drift column, s */
+    double *drift_t0;       /* mean time of each view's measurements, s */
+    unsigned char *view_free; /* a view that leaves its own columns free */
+    double *view_block;
+    double *fit_work;       /* fit_misalignments' nb x nb normal matrix and nb right-hand side
+                               per view: nv (nb² + nb) doubles, then mis_work */
+    double *mis_work;       /* residuals' and view components' misalignments and counts:
+                               nm + nv doubles (so that they allocate nothing) */
     double L_mm;            /* rotation scale c·P */
     double r2_mm2;          /* Σ x² + y² over the stage nodes (gauge basis, O and R functionals) */
     unsigned char *meas;    /* nv*nn: view v measures mark k */
@@ -89,7 +96,6 @@ struct sc_grid_lsq_plan {
     /* the misalignments free beyond the gauge are only views' own (a view of one mark: its
      * rotation; of none: all): the others are estimable, with uncertainties */
     int misalignment_estimable;
-    unsigned char view_free[SC_GRID_MAX_VIEWS]; /* a view that leaves its own columns free */
     double *work;           /* execute's workspace: 4 n_red + ng + 2 nn + nm doubles */
     size_t bytes;
 };
@@ -114,6 +120,8 @@ void sc_grid_lsq_plan_destroy(sc_grid_lsq_plan *q)
     free(q->grp_eq), free(q->Ap), free(q->Ai), free(q->Ax);
     free(q->pinned), free(q->sgx), free(q->sgy), free(q->work), free(q->eq_h), free(q->var_m);
     free(q->eq_w), free(q->eq_dt);
+    free(q->view_block), free(q->fit_work);
+    sc_grid_plan_free(&q->plan);
     sc_spsym_destroy(q->f);
     free(q);
 }
@@ -621,9 +629,13 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
      * columns of Σ come from the selected inverse. AMD orders the G unknowns one by one: a node's
      * two components as one vertex (its couplings are not the same for x and y: a rotated view
      * swaps them) needed 17-40 % more flops (docs/grid-lsq.md) */
-    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
+    int *last = malloc(sizeof(int) * ((size_t)q->nm + 1));
+    if (!last)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
+    int n_last = free_misalignments(q, last, NULL);
     sc_spsym_hint hint = {1, q->ng, last, n_last};
     int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
+    free(last);
     if (arc == -3)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0,
                             "out of memory: the address space limit (ulimit -v) leaves less than "
@@ -789,10 +801,14 @@ static void sigma_ratios_finish(sc_grid_lsq_plan *q)
 
 static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err);
 
-/* The plan's sizes from the view plan and options; nothing allocated. */
-static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_grid_lsq_opts *opts)
+/* The plan's sizes from the view plan and options, its copy of the plan and its per-view
+ * arrays. */
+static sc_status plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan,
+                           const sc_grid_lsq_opts *opts, sc_error *err)
 {
-    q->plan = *plan;
+    sc_status st = sc_grid_plan_copy(&q->plan, plan, err);
+    if (st != SC_OK)
+        return st;
     q->n = plan->n;
     q->nn = plan->n * plan->n;
     q->nv = plan->n_views;
@@ -815,6 +831,16 @@ static void plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan, const sc_gr
         sc_grid_node_xy_mm(plan, k / q->stage_nx, k % q->stage_nx, &x, &y);
         q->r2_mm2 += x * x + y * y;
     }
+    size_t nv = (size_t)q->nv, nb = (size_t)q->nb;
+    q->view_block = calloc(2 * nv + (nv + sizeof(double) - 1) / sizeof(double), sizeof(double));
+    q->fit_work = malloc((nv * (nb * nb + nb) + (size_t)q->nm + nv) * sizeof(double));
+    if (!q->view_block || !q->fit_work)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (%d views)", q->nv);
+    q->mis_work = q->fit_work + nv * (nb * nb + nb);
+    q->drift_T = q->view_block, q->drift_t0 = q->view_block + nv;
+    q->view_free = (unsigned char *)(q->view_block + 2 * nv);
+    q->bytes += (3 * nv + nv * (nb * nb + nb) + (size_t)q->nm) * sizeof(double) + nv;
+    return SC_OK;
 }
 
 /* Equation e's part (its row idx, val, len: eq_row's) of its view's block of the misalignment
@@ -837,7 +863,9 @@ static int fit_view(const double *nrm, const double *rh, int nb, double *m);
 static int views_own_nullity(sc_grid_lsq_plan *q)
 {
     int nb = q->nb, total = 0, idx[ROW_MAX];
-    double val[ROW_MAX], nrm[SC_GRID_MAX_VIEWS * 5 * 5] = {0}, zero[5] = {0}, m[5];
+    double val[ROW_MAX], *nrm = q->fit_work, zero[SC_GRID_LSQ_MAX_NB] = {0};
+    double m[SC_GRID_LSQ_MAX_NB];
+    memset(nrm, 0, sizeof(double) * (size_t)q->nv * nb * nb);
     for (long e = 0; e < q->neq; ++e)
         view_normal_add(q, e, idx, val, eq_row(q, e, idx, val), nrm);
     for (int v = 0; v < q->nv; ++v) {
@@ -916,8 +944,9 @@ sc_status sc_grid_lsq_plan_create(const sc_grid_plan *plan, const sc_grid_data *
     sc_grid_lsq_plan *q = calloc(1, sizeof *q);
     if (!q)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    plan_init(q, plan, opts);
-    st = build_equations(q, mask, err);
+    st = plan_init(q, plan, opts, err);
+    if (st == SC_OK)
+        st = build_equations(q, mask, err);
     if (st != SC_OK)
         goto fail;
     q->info.weighted = q->weighted;
@@ -1195,11 +1224,11 @@ static void gauge_solution(const sc_grid_lsq_plan *q, const sc_grid_data *d, con
  * equations); returns how many columns were kept (nb: the misalignments are determined). */
 static int fit_view(const double *nrm, const double *rh, int nb, double *m)
 {
-    int keep[5], nk = 0;
+    int keep[SC_GRID_LSQ_MAX_NB], nk = 0;
     for (int c = 0; c < nb; ++c)
         m[c] = 0;
     for (int c = 0; c < nb; ++c) {
-        double sub[25];
+        double sub[SC_GRID_LSQ_MAX_NB * SC_GRID_LSQ_MAX_NB];
         keep[nk] = c;
         for (int i = 0; i <= nk; ++i)
             for (int j = 0; j <= nk; ++j)
@@ -1212,7 +1241,7 @@ static int fit_view(const double *nrm, const double *rh, int nb, double *m)
             m[c] = NAN;
         return 0;
     }
-    double sub[25], r[5];
+    double sub[SC_GRID_LSQ_MAX_NB * SC_GRID_LSQ_MAX_NB], r[SC_GRID_LSQ_MAX_NB];
     for (int i = 0; i < nk; ++i) {
         r[i] = rh[keep[i]];
         for (int j = 0; j < nk; ++j)
@@ -1227,13 +1256,14 @@ static int fit_view(const double *nrm, const double *rh, int nb, double *m)
 /* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns,
  * G as gx | gy (ns each), A's x and y of mark k at ax[k·as] and ay[k·as] (as: 2 for the solve's
  * interleaved A, 1 for a result's). m: nm, a particular solution where a view does not determine
- * its columns (fit_view; q->view_free says which). */
+ * its columns (fit_view; q->view_free says which). Uses q->fit_work (one plan, one thread). */
 static void fit_misalignments(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *gx,
                               const double *gy, const double *ax, const double *ay, int as,
                               double *m)
 {
     int nb = q->nb;
-    double nrm[SC_GRID_MAX_VIEWS * 5 * 5] = {0}, rh[SC_GRID_MAX_VIEWS * 5] = {0};
+    double *nrm = q->fit_work, *rh = nrm + (size_t)q->nv * nb * nb;
+    memset(nrm, 0, sizeof(double) * (size_t)q->nv * (nb * nb + nb));
     int idx[ROW_MAX];
     double val[ROW_MAX];
     for (long e = 0; e < q->neq; ++e) {
@@ -1461,21 +1491,22 @@ static void fill_result_values(const sc_grid_lsq_plan *q, const double *g, const
     res->misalignment_unique = q->misalignment_unique;
     res->uO = sigma0 * sqrt(q->var_O);
     res->uR = sigma0 * sqrt(q->var_R);
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
-        int in = v < q->nv;
-        const double *um = in ? q->var_m + v * nb : NULL;
+#define PUT_VIEW(arr, v, val) do { if (res->arr) res->arr[v] = (val); } while (0)
+    for (int v = 0; v < q->nv; ++v) { /* the per-view arrays the caller gave */
+        const double *um = q->var_m + v * nb;
         double L = q->L_mm * 1e-3;
-        res->tx_um[v] = in ? m[v * nb] : NAN;
-        res->ty_um[v] = in ? m[v * nb + 1] : NAN;
-        res->theta_urad[v] = in ? m[v * nb + 2] / L : NAN;
-        res->vx_um_s[v] = in && q->drift ? m[v * nb + 3] / q->drift_T[v] : NAN;
-        res->vy_um_s[v] = in && q->drift ? m[v * nb + 4] / q->drift_T[v] : NAN;
-        res->utx_um[v] = in ? sigma0 * sqrt(um[0]) : NAN;
-        res->uty_um[v] = in ? sigma0 * sqrt(um[1]) : NAN;
-        res->utheta_urad[v] = in ? sigma0 * sqrt(um[2]) / L : NAN;
-        res->uvx_um_s[v] = in && q->drift ? sigma0 * sqrt(um[3]) / q->drift_T[v] : NAN;
-        res->uvy_um_s[v] = in && q->drift ? sigma0 * sqrt(um[4]) / q->drift_T[v] : NAN;
+        PUT_VIEW(tx_um, v, m[v * nb]);
+        PUT_VIEW(ty_um, v, m[v * nb + 1]);
+        PUT_VIEW(theta_urad, v, m[v * nb + 2] / L);
+        PUT_VIEW(vx_um_s, v, q->drift ? m[v * nb + 3] / q->drift_T[v] : NAN);
+        PUT_VIEW(vy_um_s, v, q->drift ? m[v * nb + 4] / q->drift_T[v] : NAN);
+        PUT_VIEW(utx_um, v, sigma0 * sqrt(um[0]));
+        PUT_VIEW(uty_um, v, sigma0 * sqrt(um[1]));
+        PUT_VIEW(utheta_urad, v, sigma0 * sqrt(um[2]) / L);
+        PUT_VIEW(uvx_um_s, v, q->drift ? sigma0 * sqrt(um[3]) / q->drift_T[v] : NAN);
+        PUT_VIEW(uvy_um_s, v, q->drift ? sigma0 * sqrt(um[4]) / q->drift_T[v] : NAN);
     }
+#undef PUT_VIEW
     sc_grid_first_order(&q->plan, gx, gy, &res->O, &res->R);
     for (int k = 0; k < ns; ++k) {
         if (res->gx_um)
@@ -1843,15 +1874,16 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
      * values follow a convention and have no uncertainty. O and R depend on G only. */
     if (gauge_matrix(q, Minv_T) != 0)
         return SC_OK;
-    int nf = 2 + (q->misalignment_estimable ? q->nm : 0), slot[SC_GRID_MAX_VIEWS * 5];
-    free_misalignments(q, NULL, slot);
+    int nf = 2 + (q->misalignment_estimable ? q->nm : 0);
+    int *slot = malloc(sizeof(int) * ((size_t)q->nm + 1));
     size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
     double *fm = calloc((size_t)q->nm, sizeof(double)), *fg = NULL;
     double *col = malloc(sizeof(double) * n), *z = col; /* phase 0: z0; phase 1: the column */
-    if (!fm || !col || (phase == 0 && !(fg = malloc(sizeof(double) * ng)))) {
-        free(fm), free(fg), free(col);
+    if (!slot || !fm || !col || (phase == 0 && !(fg = malloc(sizeof(double) * ng)))) {
+        free(slot), free(fm), free(fg), free(col);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     }
+    free_misalignments(q, NULL, slot);
     double C[3][3];
     if (phase == 0)
         a_gauge_gram(q, C);
@@ -1905,7 +1937,7 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
         else
             *(f == 0 ? &q->var_O : &q->var_R) = var > 0 ? var : 0.0;
     }
-    free(fm), free(fg), free(col);
+    free(fm), free(fg), free(col), free(slot);
     return SC_OK;
 }
 
@@ -2025,7 +2057,10 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const dou
 /* q->eq_h: the leverage of every equation (after the selected inverse). */
 static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
 {
-    int maxg = 0, slot[SC_GRID_MAX_VIEWS * 5], nm = q->nm;
+    int maxg = 0, nm = q->nm;
+    int *slot = malloc(sizeof(int) * ((size_t)nm + 1));
+    if (!slot)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
     int k = free_misalignments(q, NULL, slot);
     for (int a = 0; a < 2 * q->nn; ++a)
         if (q->grp_ptr[a + 1] - q->grp_ptr[a] > maxg)
@@ -2048,7 +2083,7 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
             if (q->grp_ptr[a + 1] > q->grp_ptr[a])
                 group_leverage(q, slot, mrow, a, u, vec, sub, grow, q->eq_h);
     }
-    free(u), free(vec), free(sub), free(grow), free(mrow), free(tmp);
+    free(u), free(vec), free(sub), free(grow), free(mrow), free(tmp), free(slot);
     return st;
 }
 
@@ -2069,15 +2104,17 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     double *U = malloc(sizeof(double) * 4 * ng);
     double *WB = sc_big_alloc((functionals ? 9 : 4) * n, sizeof(double), 0); /* W: 0-3, B: 4-8 */
     double *D = NULL, *fg = NULL, *uA = NULL;
-    double part[SC_GRID_MAX_VIEWS * 5], scale[4], *W = NULL, *B = NULL;
-    int last[SC_GRID_MAX_VIEWS * 5], n_last = free_misalignments(q, last, NULL);
+    double scale[4], *W = NULL, *B = NULL;
+    double *part = malloc(sizeof(double) * ((size_t)q->nm + 1));
+    int *last = malloc(sizeof(int) * ((size_t)q->nm + 1));
+    int n_last = last ? free_misalignments(q, last, NULL) : 0;
     q->var_m = malloc(sizeof(double) * (size_t)q->nm);
     sc_status st = SC_OK;
     if (functionals) {
         D = malloc(sizeof(double) * 3 * n), fg = malloc(sizeof(double) * ng);
         uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
     }
-    if (!U || !WB || (functionals && (!D || !fg || !uA)) || !q->var_m) {
+    if (!U || !WB || (functionals && (!D || !fg || !uA)) || !q->var_m || !part || !last) {
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         goto out;
     }
@@ -2129,7 +2166,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     }
     sc_spsym_drop_inverse(q->f);
 out:
-    free(U), free(WB), free(D), free(fg), free(uA);
+    free(U), free(WB), free(D), free(fg), free(uA), free(part), free(last);
     return st;
 }
 
@@ -2152,7 +2189,7 @@ sc_status sc_grid_lsq_residuals(const sc_grid_lsq_plan *q, const sc_grid_data *d
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "residuals need the result's G and A");
     if (!isfinite(res->sigma_r_used_um))
         return sc_error_set(err, SC_E_INTERNAL, NULL, 0, "residuals asked before a solve");
-    double m[SC_GRID_MAX_VIEWS * 5], tscale = residual_scale(res);
+    double tscale = residual_scale(res), *m = q->mis_work;
     sc_grid_lsq_fit_misalignments(q, d, res, m, NULL);
     size_t tot = (size_t)q->nv * q->nn;
     double *outs[5] = {rx_um, ry_um, tx, ty, h_out};
@@ -2189,7 +2226,7 @@ sc_status sc_grid_lsq_view_components(const sc_grid_lsq_plan *q, const sc_grid_d
         return st;
     if (!res->gx_um || !res->gy_um || !res->ax_um || !res->ay_um)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "variance components need G and A");
-    double m[SC_GRID_MAX_VIEWS * 5], cnt[SC_GRID_MAX_VIEWS];
+    double *m = q->mis_work, *cnt = m + q->nm;
     sc_grid_lsq_fit_misalignments(q, d, res, m, NULL);
     for (int v = 0; v < q->nv; ++v)
         wrss[v] = red[v] = u2[v] = cnt[v] = 0;
@@ -2280,9 +2317,9 @@ sc_status sc_grid_lsq_covariance(const sc_grid_lsq_plan *q, const sc_grid_result
     return SC_OK;
 }
 
-void sc_grid_lsq_predict_with(const sc_grid_lsq_plan *q, const sc_grid_result *res,
-                              const double *m, int v, int i, int j, double t_s, double *dx_um,
-                              double *dy_um)
+/* The prediction of mark (i, j) in view v from its misalignment unknowns mv (nb). */
+static void predict_view(const sc_grid_lsq_plan *q, const sc_grid_result *res, const double *mv,
+                         int v, int i, int j, double t_s, double *dx_um, double *dy_um)
 {
     int ni, nj;
     *dx_um = *dy_um = NAN;
@@ -2290,7 +2327,6 @@ void sc_grid_lsq_predict_with(const sc_grid_lsq_plan *q, const sc_grid_result *r
         !res->ax_um || !sc_grid_mark_node(&q->plan, v, i, j, &ni, &nj))
         return;
     int node = ni * q->stage_nx + nj, k = i * q->n + j;
-    const double *mv = m + v * q->nb;
     double x, y, rax, ray, phi = mv[2] / (q->L_mm * 1e-3); /* µrad */
     sc_grid_node_xy_mm(&q->plan, ni, nj, &x, &y);
     sc_grid_rotate(q->plan.view[v].rot_deg, res->ax_um[k], res->ay_um[k], &rax, &ray);
@@ -2302,18 +2338,28 @@ void sc_grid_lsq_predict_with(const sc_grid_lsq_plan *q, const sc_grid_result *r
     }
 }
 
+void sc_grid_lsq_predict_with(const sc_grid_lsq_plan *q, const sc_grid_result *res,
+                              const double *m, int v, int i, int j, double t_s, double *dx_um,
+                              double *dy_um)
+{
+    *dx_um = *dy_um = NAN;
+    if (v >= 0 && v < q->nv)
+        predict_view(q, res, m + (size_t)v * q->nb, v, i, j, t_s, dx_um, dy_um);
+}
+
 void sc_grid_lsq_predict(const sc_grid_lsq_plan *q, const sc_grid_result *res, int v, int i, int j,
                          double t_s, double *dx_um, double *dy_um)
 {
-    double m[SC_GRID_MAX_VIEWS * 5];
-    for (int w = 0; w < q->nv; ++w) {
-        double *mv = m + w * q->nb;
-        mv[0] = res->tx_um[w], mv[1] = res->ty_um[w];
-        mv[2] = res->theta_urad[w] * (q->L_mm * 1e-3);
-        if (q->drift)
-            mv[3] = res->vx_um_s[w] * q->drift_T[w], mv[4] = res->vy_um_s[w] * q->drift_T[w];
-    }
-    sc_grid_lsq_predict_with(q, res, m, v, i, j, t_s, dx_um, dy_um);
+    double mv[SC_GRID_LSQ_MAX_NB] = {0};
+    *dx_um = *dy_um = NAN;
+    if (v < 0 || v >= q->nv || !res->tx_um || !res->ty_um || !res->theta_urad ||
+        (q->drift && (!res->vx_um_s || !res->vy_um_s)))
+        return; /* no misalignments in res: nothing to predict with */
+    mv[0] = res->tx_um[v], mv[1] = res->ty_um[v];
+    mv[2] = res->theta_urad[v] * (q->L_mm * 1e-3);
+    if (q->drift)
+        mv[3] = res->vx_um_s[v] * q->drift_T[v], mv[4] = res->vy_um_s[v] * q->drift_T[v];
+    predict_view(q, res, mv, v, i, j, t_s, dx_um, dy_um);
 }
 
 /* ---------------------------------------------------------------------------------------------

@@ -6,6 +6,9 @@
 
 #include "selfcal/grid_lsq.h"
 
+/* Unknowns per view at most (tx, ty, φ, vx, vy): the size of a view's own small blocks. */
+#define SC_GRID_LSQ_MAX_NB 5
+
 /* The matrix of q: n x n, upper triangle in compressed columns (borrowed from q). */
 void sc_grid_lsq_matrix(const sc_grid_lsq_plan *q, int *n, const long **Ap, const int **Ai,
                         const double **Ax);

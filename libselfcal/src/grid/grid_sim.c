@@ -3,6 +3,7 @@
 #include "selfcal/grid_sim.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "selfcal/csv.h" /* SC_INPUT_MAX_ABS: the readers' limit */
@@ -37,6 +38,15 @@ size_t sc_grid_sim_work_doubles_plan(const sc_grid_plan *p)
     return a > b ? a : b;
 }
 
+/* Finish a plan made here: its check, and no views kept when it fails. */
+static sc_status plan_done(sc_grid_plan *p, sc_error *err)
+{
+    sc_status st = sc_grid_plan_check(p, err);
+    if (st != SC_OK)
+        sc_grid_plan_free(p);
+    return st;
+}
+
 /* The plan's geometry; pitch and origin are judged by sc_grid_plan_check, which every plan made
  * here ends with (the views' layout below uses neither). */
 static void plan_base(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p)
@@ -59,7 +69,9 @@ static sc_status plan_exact(sc_grid_exact_method m, int n, double pitch_mm, doub
                             sc_grid_exact_min_n(m), n);
     sc_grid_view_need need[4];
     int c = (n - 1) / 2;
-    p->n_views = sc_grid_exact_needs(m, need);
+    sc_status st = sc_grid_plan_views(p, sc_grid_exact_needs(m, need), err);
+    if (st != SC_OK)
+        return st;
     for (int v = 0; v < p->n_views; ++v) {
         sc_grid_view *w = &p->view[v];
         w->rot_deg = need[v].rot_deg;
@@ -69,7 +81,7 @@ static sc_status plan_exact(sc_grid_exact_method m, int n, double pitch_mm, doub
         if (need[v].partial)
             w->row_sel[c] = w->col_sel[c] = w->col_sel[c + 1] = 1;
     }
-    return sc_grid_plan_check(p, err);
+    return plan_done(p, err);
 }
 
 sc_status sc_grid_plan_ye(int n, double pitch_mm, double ox, double oy, sc_grid_plan *p,
@@ -84,21 +96,19 @@ sc_status sc_grid_plan_double_shift(int n, double pitch_mm, double ox, double oy
     return plan_exact(SC_GRID_DOUBLE_SHIFT, n, pitch_mm, ox, oy, p, err);
 }
 
-/* Placement offsets along one axis: the plate centre's offset from the stage centre, in pitches,
+/* Number of placements along one axis (stitch_offset). */
+static long stitch_count(int ns, int n, int step)
+{
+    long reach = (ns - 1) / 2 - (n - 1) / 2;
+    return reach <= 0 ? 1 : (2 * reach + step - 1) / step + 1;
+}
+
+/* Placement t of k along one axis: the plate centre's offset from the stage centre, in pitches,
  * evenly spaced at most `step` apart from -(cs - c) to cs - c (just 0 when the plate covers it). */
-static int stitch_offsets(int ns, int n, int step, int *off)
+static int stitch_offset(int ns, int n, long k, long t)
 {
     int reach = (ns - 1) / 2 - (n - 1) / 2;
-    if (reach <= 0) {
-        off[0] = 0;
-        return 1;
-    }
-    int k = (2 * reach + step - 1) / step + 1;
-    if (k > SC_GRID_MAX_VIEWS)
-        return -1;
-    for (int t = 0; t < k; ++t)
-        off[t] = -reach + (int)lround((double)t * 2 * reach / (k - 1));
-    return k;
+    return k <= 1 ? 0 : -reach + (int)lround((double)t * 2 * reach / (double)(k - 1));
 }
 
 sc_status sc_grid_plan_stitch_step(int n, int nx, int ny, int step, double pitch_mm, double ox,
@@ -110,23 +120,25 @@ sc_status sc_grid_plan_stitch_step(int n, int nx, int ny, int step, double pitch
     if (n < 3 || n % 2 == 0 || nx < 3 || ny < 3 || nx % 2 == 0 || ny % 2 == 0 || step < 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "stitching needs N, NX, NY odd and >= 3 and a step >= 1");
-    int offx[SC_GRID_MAX_VIEWS], offy[SC_GRID_MAX_VIEWS];
-    int kx = stitch_offsets(nx, n, step, offx), ky = stitch_offsets(ny, n, step, offy);
-    if (kx < 0 || ky < 0 || kx * ky + 2 > SC_GRID_MAX_VIEWS)
+    long kx = stitch_count(nx, n, step), ky = stitch_count(ny, n, step);
+    if (kx * ky + 2 > SC_GRID_VIEW_LIMIT)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "a %dx%d stage needs more than %d placements of an N = %d plate at "
-                            "step %d",
-                            nx, ny, SC_GRID_MAX_VIEWS, n, step);
-    p->n_views = 0;
-    for (int a = 0; a < ky; ++a)
-        for (int b = 0; b < kx; ++b) {
-            sc_grid_view *w = &p->view[p->n_views++];
-            w->shift_x = offx[b];
-            w->shift_y = offy[a];
+                            "a %dx%d stage needs %ld placements of an N = %d plate at step %d, "
+                            "more than %d",
+                            nx, ny, kx * ky + 2, n, step, SC_GRID_VIEW_LIMIT);
+    sc_status st = sc_grid_plan_views(p, (int)(kx * ky + 2), err);
+    if (st != SC_OK)
+        return st;
+    int v = 0;
+    for (long a = 0; a < ky; ++a)
+        for (long b = 0; b < kx; ++b) {
+            sc_grid_view *w = &p->view[v++];
+            w->shift_x = stitch_offset(nx, n, kx, b);
+            w->shift_y = stitch_offset(ny, n, ky, a);
         }
-    p->view[p->n_views++].rot_deg = 90;
-    p->view[p->n_views++].shift_x = 1;
-    return sc_grid_plan_check(p, err);
+    p->view[v++].rot_deg = 90;
+    p->view[v++].shift_x = 1;
+    return plan_done(p, err);
 }
 
 sc_status sc_grid_plan_stitch(int n, int nx, int ny, double pitch_mm, double ox, double oy,
@@ -313,8 +325,6 @@ static void plate_and_misalignment(const sc_grid_plan *plan, const sc_grid_sim_p
     for (size_t k = 0; k < nn; ++k)
         truth->ay_um[k] = sp->sigma_a_um * sc_rng_normal(rng);
     sc_grid_gauge_plate(plan, truth->ax_um, truth->ay_um);
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        truth->tx_um[v] = truth->ty_um[v] = truth->theta_urad[v] = 0;
     for (int v = 0; v < plan->n_views; ++v) {
         truth->tx_um[v] = sp->sigma_t_um * sc_rng_normal(rng);
         truth->ty_um[v] = sp->sigma_t_um * sc_rng_normal(rng);
@@ -327,8 +337,6 @@ static void measure(const sc_grid_plan *plan, const sc_grid_sim_params *sp, sc_r
                     const sc_grid_sim_truth *truth, sc_grid_data *d)
 {
     size_t nn = (size_t)plan->n * plan->n;
-    if (&d->plan != plan)
-        d->plan = *plan;
     sc_grid_synthesize(plan, truth->gx_um, truth->gy_um, truth->ax_um, truth->ay_um, truth->tx_um,
                        truth->ty_um, truth->theta_urad, d);
     for (int v = 0; v < plan->n_views; ++v) {
@@ -345,9 +353,14 @@ static void measure(const sc_grid_plan *plan, const sc_grid_sim_params *sp, sc_r
 sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
                           sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err)
 {
-    if (!truth->gx_um || !truth->gy_um || !truth->ax_um || !truth->ay_um || !work)
+    if (!truth->gx_um || !truth->gy_um || !truth->ax_um || !truth->ay_um || !truth->tx_um ||
+        !truth->ty_um || !truth->theta_urad || !work)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "the truth's gx_um, gy_um, ax_um, ay_um and the workspace are required");
+                            "the truth's gx_um, gy_um, ax_um, ay_um, tx_um, ty_um, theta_urad "
+                            "and the workspace are required");
+    if (!d->dx_um || d->plan.n_views != plan->n_views || d->plan.n != plan->n)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the data's plan and arrays must be the plan's (sc_grid_data_alloc)");
     sc_status st = sc_grid_plan_check(plan, err);
     if (st == SC_OK)
         st = check_params(sp, err);

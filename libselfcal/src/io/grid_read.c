@@ -34,25 +34,29 @@ typedef struct view_decl {
     long rot, sx, sy;
     double sigma_um;
     int n_rows_sel, n_cols_sel;
-    long rows[SC_GRID_MAX_N], cols[SC_GRID_MAX_N];
+    long *rows, *cols;  /* the rows=/cols= lists (NULL when not given; freed with the decls) */
 } view_decl;
 
-/* Parse a comma list of indices into out (at most SC_GRID_MAX_N). */
-static int parse_index_list(char *s, long *out, int *count)
+/* Parse a comma list of indices (at most SC_GRID_MAX_N) into *out, allocated here. */
+static int parse_index_list(char *s, long **out, int *count)
 {
+    long buf[SC_GRID_MAX_N];
     int n = 0;
     char *p = s;
     for (;;) {
         char *comma = strchr(p, ',');
         if (comma)
             *comma = '\0';
-        if (n == SC_GRID_MAX_N || sc_parse_long(sc_str_trim(p), &out[n]) != 0)
+        if (n == SC_GRID_MAX_N || sc_parse_long(sc_str_trim(p), &buf[n]) != 0)
             return -1;
         ++n;
         if (!comma)
             break;
         p = comma + 1;
     }
+    if (!(*out = malloc((size_t)n * sizeof **out)))
+        return -2;
+    memcpy(*out, buf, (size_t)n * sizeof **out);
     *count = n;
     return 0;
 }
@@ -100,14 +104,19 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
                 return sc_error_set(err, SC_E_INPUT, path, line,
                                     "view %ld: sigma_um must be %g to %g um", id,
                                     SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
-        } else if (!strcmp(tok, "rows")) {
-            if (have_rows++ || parse_index_list(val, vd->rows, &vd->n_rows_sel) != 0)
+        } else if (!strcmp(tok, "rows") || !strcmp(tok, "cols")) {
+            int rows = tok[0] == 'r';
+            int rc = (rows ? have_rows++ : have_cols++)
+                         ? -1
+                         : parse_index_list(val, rows ? &vd->rows : &vd->cols,
+                                            rows ? &vd->n_rows_sel : &vd->n_cols_sel);
+            if (rc == -2)
+                return sc_error_set(err, SC_E_NOMEM, path, line, "out of memory");
+            if (rc != 0)
                 return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: rows must be a comma list of plate rows", id);
-        } else if (!strcmp(tok, "cols")) {
-            if (have_cols++ || parse_index_list(val, vd->cols, &vd->n_cols_sel) != 0)
-                return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: cols must be a comma list of plate columns", id);
+                                    rows ? "view %ld: rows must be a comma list of plate rows"
+                                         : "view %ld: cols must be a comma list of plate columns",
+                                    id);
         } else {
             return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: unknown attribute '%.40s'",
                                 id, tok);
@@ -165,20 +174,26 @@ typedef struct read_state {
     sc_csv csv;
     sc_header hdr;
     grid_hdr h;
-    view_decl *decl;     /* SC_GRID_MAX_VIEWS entries */
-    int n_decl;
+    view_decl *decl;     /* cap_decl entries, grown as view lines come */
+    int n_decl, cap_decl;
+    int max_id;          /* the largest view number declared so far (-1: none) */
+    int last_v;          /* the view of the last data row (rows come grouped by view) */
     int n_fields, has_u, has_t, have_columns;
     int t_state;         /* t_s column: 0 no row yet, 1 rows carry times, -1 rows leave it empty */
-    long *mark_line[SC_GRID_MAX_VIEWS];
+    long **mark_line;    /* per view (n_decl), each made at its first row */
     sc_grid_file_info *info;
 } read_state;
 
 static void read_state_free(read_state *s)
 {
     sc_csv_close(&s->csv);
+    for (int v = 0; v < s->n_decl; ++v) {
+        free(s->decl[v].rows), free(s->decl[v].cols);
+        if (s->mark_line)
+            free(s->mark_line[v]);
+    }
     free(s->decl);
-    for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v)
-        free(s->mark_line[v]);
+    free(s->mark_line);
 }
 
 static sc_status csv_failure(sc_error *err) { return err && err->code ? err->code : SC_E_INPUT; }
@@ -208,18 +223,30 @@ static sc_status read_tag(read_state *s, sc_error *err)
 /* A `# view K: ...` line. */
 static sc_status header_view(read_state *s, long ln, char *body, sc_error *err)
 {
-    if (s->n_decl == SC_GRID_MAX_VIEWS)
-        return sc_error_set(err, SC_E_INPUT, s->path, ln, "more than %d views", SC_GRID_MAX_VIEWS);
+    if (s->n_decl == SC_GRID_VIEW_LIMIT)
+        return sc_error_set(err, SC_E_INPUT, s->path, ln, "more than %d views", SC_GRID_VIEW_LIMIT);
+    if (s->n_decl == s->cap_decl) {
+        int cap = s->cap_decl ? 2 * s->cap_decl : 64;
+        view_decl *g = realloc(s->decl, (size_t)cap * sizeof *g);
+        if (!g)
+            return sc_error_set(err, SC_E_NOMEM, s->path, ln, "out of memory");
+        s->decl = g, s->cap_decl = cap;
+    }
     view_decl *vd = &s->decl[s->n_decl];
     sc_status st = parse_view_line(s->path, ln, body, vd, err);
-    if (st != SC_OK)
+    if (st != SC_OK) {
+        free(vd->rows), free(vd->cols);
         return st;
-    for (int k = 0; k < s->n_decl; ++k)
+    }
+    s->n_decl++; /* its lists are the decls' now */
+    /* views numbered upwards (as written here) cannot repeat one: only others are looked up */
+    for (int k = 0; vd->id <= s->max_id && k < s->n_decl - 1; ++k)
         if (s->decl[k].id == vd->id)
             return sc_error_set(err, SC_E_INPUT, s->path, ln,
                                 "view %d is declared twice (first on line %ld)", vd->id,
                                 s->decl[k].line);
-    s->n_decl++;
+    if (vd->id > s->max_id)
+        s->max_id = vd->id;
     s->info->header_end_line = ln;
     return SC_OK;
 }
@@ -346,7 +373,15 @@ static sc_status build_plan(read_state *s, sc_grid_plan *p, sc_error *err)
     p->origin_mm[1] = s->h.origin_mm[1];
     p->stage_nx = (int)s->h.stage[0];
     p->stage_ny = (int)s->h.stage[1];
-    p->n_views = s->n_decl;
+    if ((st = sc_grid_plan_views(p, s->n_decl, err)) != SC_OK)
+        return st;
+    s->info->view_line = calloc((size_t)s->n_decl, sizeof *s->info->view_line);
+    s->info->view_id = calloc((size_t)s->n_decl, sizeof *s->info->view_id);
+    s->info->view_rows = calloc((size_t)s->n_decl, sizeof *s->info->view_rows);
+    s->mark_line = calloc((size_t)s->n_decl, sizeof *s->mark_line);
+    if (!s->info->view_line || !s->info->view_id || !s->info->view_rows || !s->mark_line)
+        return sc_error_set(err, SC_E_NOMEM, s->path, where, "out of memory (%d views)",
+                            s->n_decl);
     for (int v = 0; v < s->n_decl; ++v)
         if ((st = build_view(s, p, v, err)) != SC_OK)
             return st;
@@ -407,9 +442,14 @@ static sc_status row_locate(read_state *s, const sc_grid_plan *p, long vid, long
 {
     int n = p->n;
     *v = -1;
-    for (int t = 0; t < s->n_decl; ++t)
-        if (s->decl[t].id == vid)
-            *v = t;
+    if (s->last_v < s->n_decl && s->decl[s->last_v].id == vid)
+        *v = s->last_v;
+    else if (vid >= 0 && vid < s->n_decl && s->decl[vid].id == vid)
+        *v = (int)vid;
+    else
+        for (int t = 0; t < s->n_decl && *v < 0; ++t)
+            if (s->decl[t].id == vid)
+                *v = t;
     if (*v < 0)
         return sc_error_set(err, SC_E_INPUT, s->path, ln, "view %ld is not declared in the header",
                             vid);
@@ -427,6 +467,7 @@ static sc_status row_locate(read_state *s, const sc_grid_plan *p, long vid, long
                             "mark (%ld,%ld) is not selected by view %ld's rows=/cols=", i, j, vid);
     if (!s->mark_line[*v] && !(s->mark_line[*v] = calloc((size_t)n * n, sizeof(long))))
         return sc_error_set(err, SC_E_NOMEM, s->path, ln, "out of memory");
+    s->last_v = *v;
     *k = (size_t)i * n + (size_t)j;
     if (s->mark_line[*v][*k])
         return sc_error_set(err, SC_E_INPUT, s->path, ln,
@@ -562,11 +603,8 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
     sc_status st = sc_csv_open(&s.csv, path, err);
     if (st != SC_OK)
         return st;
-    s.decl = calloc(SC_GRID_MAX_VIEWS, sizeof *s.decl);
-    if (!s.decl)
-        st = sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
-    if (st == SC_OK)
-        st = read_tag(&s, err);
+    s.max_id = -1;
+    st = read_tag(&s, err);
     if (st == SC_OK)
         st = read_header(&s, err);
     if (st == SC_OK)
@@ -582,10 +620,13 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
     read_state_free(&s);
     if (st != SC_OK) {
         sc_grid_data_free(d);
+        sc_grid_file_info_free(info);
         return st;
     }
+    if (info == &local_info)
+        sc_grid_file_info_free(info);
     if (s.t_state < 0) /* the column is there but empty on every row: no times */
-        for (int v = 0; v < SC_GRID_MAX_VIEWS; ++v) {
+        for (int v = 0; v < d->plan.n_views; ++v) {
             free(d->t_s[v]);
             d->t_s[v] = NULL;
         }

@@ -546,11 +546,21 @@ static int index_list(PyObject *o, unsigned char *sel, int n, const char *what)
     return 0;
 }
 
+static int plan_from_dict_in(PyObject *dict, sc_grid_plan *p);
+
 /* A plan from a dict as plan_to_dict makes (stage and views' rows/cols/sigma_um optional);
- * checked by the library. -1 with an exception. */
+ * checked by the library. -1 with an exception (p then holds no views). */
 static int plan_from_dict(PyObject *dict, sc_grid_plan *p)
 {
     memset(p, 0, sizeof *p);
+    int rc = plan_from_dict_in(dict, p);
+    if (rc)
+        sc_grid_plan_free(p);
+    return rc;
+}
+
+static int plan_from_dict_in(PyObject *dict, sc_grid_plan *p)
+{
     if (!PyDict_Check(dict)) {
         PyErr_SetString(sc_py_error, "a grid plan is needed (use selfcal.GridPlan)");
         return -1;
@@ -581,12 +591,18 @@ static int plan_from_dict(PyObject *dict, sc_grid_plan *p)
     if (!views)
         return -1;
     Py_ssize_t nv = PySequence_Fast_GET_SIZE(views);
-    if (nv < 1 || nv > SC_GRID_MAX_VIEWS) {
+    if (nv < 1 || nv > SC_GRID_VIEW_LIMIT) {
         Py_DECREF(views);
-        PyErr_Format(sc_py_error, "a plan has 1 to %d views, not %zd", SC_GRID_MAX_VIEWS, nv);
+        PyErr_Format(sc_py_error, "a plan has 1 to %d views, not %zd", SC_GRID_VIEW_LIMIT, nv);
         return -1;
     }
-    p->n_views = (int)nv;
+    sc_error verr;
+    sc_error_clear(&verr);
+    if (sc_grid_plan_views(p, (int)nv, &verr) != SC_OK) {
+        Py_DECREF(views);
+        raise_sc(&verr);
+        return -1;
+    }
     for (int v = 0; v < p->n_views; ++v) {
         PyObject *w = PySequence_Fast_GET_ITEM(views, v);
         sc_grid_view *g = &p->view[v];
@@ -655,7 +671,7 @@ static PyObject *data_to_dict(const sc_grid_data *d)
     double *const *src[3] = {d->ux_um, d->uy_um, d->t_s};
     for (int q = 0; q < 3; ++q) {
         int any = 0;
-        for (int v = 0; v < nv; ++v)
+        for (int v = 0; src[q] && v < nv; ++v)
             any |= src[q][v] != NULL;
         if (!any)
             continue;
@@ -835,6 +851,7 @@ static PyObject *py_grid_read(PyObject *self, PyObject *args)
     if (grid_source(src, &d, &info, &path))
         return NULL;
     Py_XDECREF(path);
+    sc_grid_file_info_free(&info);
     PyObject *r = data_to_dict(&d);
     sc_grid_data_free(&d);
     return r;
@@ -872,6 +889,7 @@ static PyObject *py_grid_plan(PyObject *self, PyObject *args)
     sc_grid_file_info info;
     int has_data;
     memset(&d, 0, sizeof d);
+    memset(&info, 0, sizeof info);
     if (PyDict_Check(src) && !PyDict_GetItemString(src, "plan")) { /* a bare plan */
         if (plan_from_dict(src, &d.plan))
             return NULL;
@@ -947,6 +965,7 @@ done:
     Py_XDECREF(path);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&info);
     return ret;
 }
 
@@ -1074,6 +1093,7 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
 done:
     sc_grid_solution_free(&s);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&info);
     Py_XDECREF(path);
     Py_XDECREF(warnings);
     return ret;
@@ -1102,7 +1122,9 @@ static PyObject *py_grid_standard_plan(PyObject *self, PyObject *args)
         return PyErr_Format(sc_py_error, "plan must be 'ye', 'double-shift' or 'stitch', not '%s'", name);
     if (st != SC_OK)
         return raise_sc(&err);
-    return plan_to_dict(&p);
+    PyObject *r = plan_to_dict(&p);
+    sc_grid_plan_free(&p);
+    return r;
 }
 
 /* grid_simulate(plan dict, params dict) -> (measurement dict, truth dict) */
@@ -1124,26 +1146,26 @@ static PyObject *py_grid_simulate(PyObject *self, PyObject *args)
         {"sigma_theta_urad", &sp.sigma_theta_urad}, {"sigma_r_um", &sp.sigma_r_um},
         {"dt_s", &sp.dt_s}, {"drift_vx_um_s", &sp.drift_vx_um_s},
         {"drift_vy_um_s", &sp.drift_vy_um_s}};
-    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k) {
-        PyObject *v = PyDict_GetItemString(params, keys[k].key);
-        if (v && opt_double(v, keys[k].dst))
-            return NULL;
-    }
-    PyObject *vs = PyDict_GetItemString(params, "seed");
-    if (vs && ((sp.seed = PyLong_AsUnsignedLongLong(vs)), PyErr_Occurred()))
-        return NULL;
     const sc_grid_plan *p = &d.plan;
-    long ns = sc_grid_stage_nodes(p), nm = (long)p->n * p->n;
+    long ns = sc_grid_stage_nodes(p), nm = (long)p->n * p->n, nv = p->n_views;
     sc_error err;
     sc_error_clear(&err);
     PyObject *ret = NULL;
     double *buf = NULL, *work = NULL;
+    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k) {
+        PyObject *v = PyDict_GetItemString(params, keys[k].key);
+        if (v && opt_double(v, keys[k].dst))
+            goto done;
+    }
+    PyObject *vs = PyDict_GetItemString(params, "seed");
+    if (vs && ((sp.seed = PyLong_AsUnsignedLongLong(vs)), PyErr_Occurred()))
+        goto done;
     if (sc_grid_data_alloc(&d, &err) != SC_OK ||
         (sp.dt_s > 0 && sc_grid_data_alloc_extra(&d, 0, 1, &err) != SC_OK)) {
         raise_sc(&err);
         goto done;
     }
-    buf = malloc((2 * (size_t)ns + 2 * (size_t)nm) * sizeof(double));
+    buf = malloc((2 * (size_t)ns + 2 * (size_t)nm + 3 * (size_t)nv) * sizeof(double));
     work = malloc(sc_grid_sim_work_doubles_plan(p) * sizeof(double) + 1);
     if (!buf || !work) {
         PyErr_NoMemory();
@@ -1152,6 +1174,7 @@ static PyObject *py_grid_simulate(PyObject *self, PyObject *args)
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 2 * ns + nm;
+    t.tx_um = buf + 2 * ns + 2 * nm, t.ty_um = t.tx_um + nv, t.theta_urad = t.ty_um + nv;
     sc_status st;
     Py_BEGIN_ALLOW_THREADS
     st = sc_grid_sim_run(p, &sp, &t, &d, work, &err);

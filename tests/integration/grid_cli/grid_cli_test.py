@@ -507,7 +507,77 @@ def case_fuzz():
     print("fuzz: exit codes %s" % counts)
 
 
+def case_many_views():
+    """Hundreds of views (no fixed cap): a 363-placement stitched plan (N = 3 plate on a 21 x 21
+    stage, step 1) through simulate, the file, grid (lsq), plan, plan --design, report, simulate
+    exports and import; noise-free G, A and every misalignment equal the truth."""
+    d = fresh_dir("many_views")
+    n, stage = 3, "21,21"
+    sim = simulate(d, "s", "stitch", n, "--stage", stage, "--sigma-r-um", 0, "--seed", 5,
+                   "--origin-mm", "12.5,-3")
+    views = [l for l in open(sim["inp"]) if l.startswith("# view ")]
+    if len(views) != 363 or not views[-1].startswith("# view 362: rot=0 shift=1,0"):
+        fail("stitched plan: %d view lines, last %r" % (len(views), views[-1:]))
+    out = {k: os.path.join(d, "est_" + k) for k in ("G.csv", "A.csv", "S.json", "R.csv")}
+    run("grid", "--method", "lsq", sim["inp"], "--map", out["G.csv"], "--artifact", out["A.csv"],
+        "--summary", out["S.json"], "--residuals", out["R.csv"], "--quiet")
+    g, gt = read_map(out["G.csv"]), read_map(sim["g"])
+    if len(g) != 21 * 21 or set(g) != set(gt):
+        fail("map has %d nodes" % len(g))
+    worst = max(max(abs(float(r[4]) - float(gt[k][4])), abs(float(r[5]) - float(gt[k][5])))
+                for k, r in g.items())
+    a, at = read_art(out["A.csv"]), read_art(sim["a"])
+    worst_a = max(max(abs(a[k][0] - at[k][0]), abs(a[k][1] - at[k][1])) for k in at)
+    s, tr = json.load(open(out["S.json"])), json.load(open(sim["t"]))
+    if len(s["views"]) != 363 or len(tr["views"]) != 363:
+        fail("summary views %d, truth views %d" % (len(s["views"]), len(tr["views"])))
+    worst_m = max(max(abs(sv["tx_um"] - tv["tx_um"]), abs(sv["ty_um"] - tv["ty_um"]),
+                      1e-3 * abs(sv["theta_urad"] - tv["theta_urad"]))
+                  for sv, tv in zip(s["views"], tr["views"]))
+    print("363 views: max |G-G_true| %.3g um, |A-A_true| %.3g um, misalignment %.3g um"
+          % (worst, worst_a, worst_m))
+    if not (worst <= 1e-9 and worst_a <= 1e-9 and worst_m <= 1e-8):
+        fail("363 views: G %g, A %g, misalignment %g beyond 1e-9 / 1e-8" % (worst, worst_a, worst_m))
+    rows = sum(1 for l in open(out["R.csv"]) if l[:1].isdigit())
+    if rows != sum(1 for l in open(sim["inp"]) if l[:1].isdigit()):
+        fail("residuals: %d rows" % rows)
+    # plan: the file's 363 views analysed; plan --design proposes the same raster at this size
+    p = run("plan", sim["inp"])
+    if "identifiable: yes" not in p.stdout or "views: 363" not in p.stdout:
+        fail("plan: %s" % p.stdout[:300])
+    p = run("plan", "--design", "--n", n, "--stage", stage, "-o", os.path.join(d, "design.csv"))
+    if "identifiable: yes" not in p.stdout:
+        fail("plan --design: %s" % p.stdout[:300])
+    run("report", "grid", sim["inp"], "-o", os.path.join(d, "r.html"))
+    if open(os.path.join(d, "r.html")).read().count("<tr><td>362</td>") < 1:
+        fail("report: view 362 not in its tables")
+    # each view its own noise: 363 values on the command line, written back per view
+    sig = ",".join("%g" % (0.01 + 0.001 * (v % 7)) for v in range(363))
+    sim2 = simulate(d, "w", "stitch", n, "--stage", stage, "--view-sigma-r-um", sig)
+    lines = [l for l in open(sim2["inp"]) if l.startswith("# view ")]
+    if len(lines) != 363 or "sigma_um=0.016" not in lines[6] or "sigma_um=0.01" not in lines[362]:
+        fail("--view-sigma-r-um: %r ... %r" % (lines[6:7], lines[362:]))
+    # the measuring machine's files of every view and the import back
+    ex = os.path.join(d, "exports")
+    p = run("simulate", "exports", sim["inp"], "--dir", ex, "--units", "mm")
+    cmd = p.stdout.replace("\\\n", " ")
+    import shlex
+    args = shlex.split(cmd)[1:]
+    imported = os.path.join(d, "imported.csv")
+    args[args.index("IN.csv")] = imported
+    run(*args)
+    run("grid", "--method", "lsq", imported, "--map", os.path.join(d, "imp_G.csv"), "--quiet")
+    gi = read_map(os.path.join(d, "imp_G.csv"))
+    wi = max(max(abs(float(r[4]) - float(gt[k][4])), abs(float(r[5]) - float(gt[k][5])))
+             for k, r in gi.items())
+    # the exported points carry 1e-6 mm of rounding: G within a few nm
+    if not wi <= 5e-3:
+        fail("imported 363 views: max |G-G_true| %g um" % wi)
+    print("import of 363 view files: max |G-G_true| %.3g um" % wi)
+
+
 CASES = {"fuzz": case_fuzz, "end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
-         "plot": case_plot, "simulate": case_simulate, "bad_input": case_bad_input}
+         "plot": case_plot, "simulate": case_simulate, "bad_input": case_bad_input,
+         "many_views": case_many_views}
 CASES[CASE]()
 print("PASS " + CASE + " " + " ".join(ARGS))
