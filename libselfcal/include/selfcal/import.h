@@ -83,6 +83,55 @@ SC_API sc_status sc_table_read(const char *path, int n_cols, const char *const *
 SC_API sc_status sc_table_read_max(const char *path, int n_cols, const char *const *names,
                                    const double *scale, long max_rows, sc_table *t, sc_error *err);
 
+/* Layouts beyond one row per point (SPEC §10a); a zeroed struct reads as sc_table_read. */
+#define SC_TABLE_MAX_WHERE 8   /* row filters */
+#define SC_TABLE_MAX_MISSING 8 /* placeholder tokens */
+typedef enum sc_table_encoding {
+    SC_ENC_UTF8 = 0, /* (ASCII is UTF-8) */
+    SC_ENC_CP1252,   /* Windows Western European, as Excel and many Windows programs save */
+    SC_ENC_LATIN1,   /* ISO 8859-1 */
+    SC_ENC_SHIFT_JIS /* Japanese Windows (CP932) */
+} sc_table_encoding;
+
+typedef struct sc_table_layout {
+    /* One row per axis (all three or none): rows with the same id_col value form one point; the
+     * axis_col value (matched ignoring case) names which of names[] the row's value_col holds;
+     * rows of other axes are ignored. With nominal_col, each row's nominal too: the table then
+     * has 2 * n_cols columns (the values, then the nominals, scale[] covering both). */
+    const char *id_col, *axis_col, *value_col, *nominal_col;
+    int n_where; /* only rows whose where_col[k] holds where_value[k] (ignoring case) are read */
+    const char *where_col[SC_TABLE_MAX_WHERE], *where_value[SC_TABLE_MAX_WHERE];
+    int n_missing; /* a wanted field holding one of these is empty (a mark not measured) */
+    const char *missing[SC_TABLE_MAX_MISSING];
+    bool no_header;  /* no header line: every column given by number, every line a row */
+    bool transpose;  /* items in columns: names[] (or numbers) are the rows' labels (first field),
+                        each further column one point */
+    sc_table_encoding encoding; /* of the file's text (names); numbers are ASCII in all */
+} sc_table_layout;
+
+/* What a read with a layout passed over, for the caller to tell the user (sc_table_read_layout). */
+typedef struct sc_table_notes {
+    long n_filtered, filtered_line;       /* rows the where filters left out, the first's line */
+    long n_placeholder, placeholder_line; /* wanted fields holding a missing token */
+    long n_incomplete, incomplete_line;   /* one row per axis: points with only some coordinates
+                                             (left out), the first's line */
+    long n_other_axis;                    /* one row per axis: rows of other axes (Z, D, ...) */
+    long n_ragged, ragged_line;           /* rows whose unlabelled trailing fields were ignored */
+    int header_fields, named_fields;      /* the header's fields, those up to its last name */
+    int ragged_fields;                    /* the first such row's field count */
+    int decimals;                         /* most digits after the decimal mark in a value read */
+} sc_table_notes;
+
+/* sc_table_read_max with a layout (NULL: none) and notes (may be NULL). The header's trailing
+ * empty fields, and unlabelled trailing fields of rows that hold no number, are ignored (counted
+ * in notes). Errors name the likely cause where one shows: a data row taken for the header
+ * because a value matched a column's name (one row per axis), a header that is not UTF-8 (give
+ * the encoding), more than 256 columns (items in columns: transpose). */
+SC_API sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *names,
+                                      const double *scale, long max_rows,
+                                      const sc_table_layout *layout, sc_table_notes *notes,
+                                      sc_table *t, sc_error *err);
+
 /* Free t's arrays; safe on a zeroed or freed table. */
 SC_API void sc_table_free(sc_table *t);
 

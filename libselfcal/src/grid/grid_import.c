@@ -5,6 +5,7 @@
 
 #include <math.h>
 #include <stdbool.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -280,9 +281,36 @@ static long leave_out_far(const sc_grid_import_params *p, long n_points, long *p
 
 /* Step 3, after the final matching at T: a mark claimed by two points is bad input (the later
  * line is named); the others are counted as assigned or left out. */
+/* The likely cause of two points on one mark, as a clause for the message ("" if none shows):
+ * points spread over less than a pitch are deviations, not positions (they all fall on the
+ * mark at the origin); half as many points again as the view has marks are two views in one
+ * file. */
+static const char *collision_cause(const sc_grid_import_params *p, long n_points,
+                                   const double *x_mm, const double *y_mm, long n_marks,
+                                   char *buf, size_t cap)
+{
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (long k = 0; k < n_points; ++k) {
+        lo[0] = fmin(lo[0], x_mm[k]);
+        hi[0] = fmax(hi[0], x_mm[k]);
+        lo[1] = fmin(lo[1], y_mm[k]);
+        hi[1] = fmax(hi[1], y_mm[k]);
+    }
+    buf[0] = '\0';
+    if (n_points >= 3 && hi[0] - lo[0] < p->pitch_mm && hi[1] - lo[1] < p->pitch_mm)
+        snprintf(buf, cap, "; the %ld points spread over only %.4g x %.4g mm, less than a pitch: "
+                           "deviations rather than positions? (--deviations with the nominal "
+                           "columns)", n_points, hi[0] - lo[0], hi[1] - lo[1]);
+    else if (2 * n_points >= 3 * n_marks) /* two views: about twice as many */
+        snprintf(buf, cap, "; the file has %ld points for the view's %ld marks: two views in one "
+                           "file? (--where COL=VALUE reads one)", n_points, n_marks);
+    return buf;
+}
+
 static sc_status count_assignment(const sc_grid_import_params *p, long n_points,
                                   const long *lines, const char *path, const long *point_mark,
                                   const long *mark_point, const double *dist,
+                                  const double *x_mm, const double *y_mm,
                                   sc_grid_import_fit *fit, sc_error *err)
 {
     for (long k = 0; k < n_points; ++k) {
@@ -298,10 +326,13 @@ static sc_status count_assignment(const sc_grid_import_params *p, long n_points,
         }
         if (other != k) {
             long first = lines[k] < lines[other] ? k : other, second = first == k ? other : k;
+            char cause[256];
+            collision_cause(p, n_points, x_mm, y_mm, fit->n_marks, cause, sizeof cause);
             return sc_error_set(err, SC_E_INPUT, path, lines[second],
                                 "this point and the point on line %ld both fall on mark (%ld,%ld) "
-                                "(within %g mm): a stray point or a mark measured twice",
-                                lines[first], m / p->n, m % p->n, p->tolerance_mm);
+                                "(within %g mm): %s", lines[first], m / p->n, m % p->n,
+                                p->tolerance_mm, cause[0] ? cause + 2
+                                : "a stray point or a mark measured twice");
         }
         ++fit->n_assigned;
         if (dist[k] * 1e3 > fit->max_dist_um)
@@ -390,7 +421,8 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
             }
         }
     }
-    st = count_assignment(p, n_points, lines, path, point_mark, mark_point, dist, fit, err);
+    st = count_assignment(p, n_points, lines, path, point_mark, mark_point, dist, x_mm, y_mm, fit,
+                          err);
     if (st != SC_OK)
         return st;
     fit->tx_um = a.tx * 1e3;

@@ -5,19 +5,21 @@
 #include "selfcal/import.h"
 
 #include <ctype.h>
+#include <iconv.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "import_table_internal.h"
 #include "selfcal/csv.h"
 
-#define MAX_TABLE_FIELDS 256
-#define PREAMBLE_MAX 100 /* lines before the header line that name no columns */
+#define MAX_TABLE_FIELDS SC_IMP_MAX_FIELDS
+#define PREAMBLE_MAX SC_IMP_PREAMBLE_MAX
 
 /* Split line s at delim in place (double-quoted fields may hold the delimiter; the quotes are
  * removed), trimming blanks; returns the field count or -1 if there are too many. quoted (may be
  * NULL): 1 for each field that was in quotes. */
-static int split_fields(char *s, char delim, char **field, unsigned char *quoted, int max)
+int sc_imp_split_fields(char *s, char delim, char **field, unsigned char *quoted, int max)
 {
     int n = 0;
     char *p = s;
@@ -57,7 +59,7 @@ static int split_fields(char *s, char delim, char **field, unsigned char *quoted
     }
 }
 
-static int name_equal(const char *a, const char *b)
+int sc_imp_name_equal(const char *a, const char *b)
 {
     for (; *a && *b; ++a, ++b)
         if (tolower((unsigned char)*a) != tolower((unsigned char)*b))
@@ -66,7 +68,7 @@ static int name_equal(const char *a, const char *b)
 }
 
 /* A column given by its number ("2": the second), or 0 if name is not a whole number. */
-static long column_number(const char *name)
+long sc_imp_column_number(const char *name)
 {
     long v = 0;
     if (!*name)
@@ -89,7 +91,7 @@ void sc_table_free(sc_table *t)
 }
 
 /* Parse a field with the file's decimal mark. *mark_seen gets '.', ',' or 0 (no fraction). */
-static int parse_number(const char *s, double *out, char *mark_seen)
+int sc_imp_parse_number(const char *s, double *out, char *mark_seen)
 {
     char buf[128];
     size_t len = strlen(s);
@@ -107,6 +109,105 @@ static int parse_number(const char *s, double *out, char *mark_seen)
     return sc_parse_double(buf, out);
 }
 
+int sc_imp_decimals(const char *s)
+{
+    const char *m = strpbrk(s, ".,");
+    int n = 0;
+    if (m)
+        for (++m; isdigit((unsigned char)*m); ++m)
+            ++n;
+    return n;
+}
+
+bool sc_imp_utf8_valid(const char *s)
+{
+    const unsigned char *p = (const unsigned char *)s;
+    while (*p) {
+        int more = *p < 0x80 ? 0 : (*p & 0xE0) == 0xC0 ? 1 : (*p & 0xF0) == 0xE0 ? 2
+                 : (*p & 0xF8) == 0xF0 ? 3 : -1;
+        if (more < 0 || (more == 1 && *p < 0xC2))
+            return false;
+        ++p;
+        for (int k = 0; k < more; ++k, ++p)
+            if ((*p & 0xC0) != 0x80)
+                return false;
+    }
+    return true;
+}
+
+bool sc_imp_is_placeholder(const sc_table_layout *lay, const char *s)
+{
+    for (int k = 0; lay && k < lay->n_missing; ++k)
+        if (!strcmp(s, lay->missing[k]))
+            return true;
+    return false;
+}
+
+sc_status sc_imp_conv_open(sc_imp_conv *c, sc_table_encoding enc, const char *path, sc_error *err)
+{
+    static const char *const names[] = {"UTF-8", "CP1252", "ISO-8859-1", "CP932"};
+    static const char *const shown[] = {"utf-8", "cp1252", "latin-1", "shift-jis"};
+    memset(c, 0, sizeof *c);
+    if ((int)enc < 0 || (int)enc > SC_ENC_SHIFT_JIS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown text encoding %d", (int)enc);
+    c->name = shown[enc];
+    if (enc == SC_ENC_UTF8)
+        return SC_OK;
+    iconv_t cd = iconv_open("UTF-8", names[enc]);
+    if (cd == (iconv_t)-1)
+        return sc_error_set(err, SC_E_IO, path, 0, "the %s converter is not available", c->name);
+    c->buf = malloc(3 * (size_t)SC_CSV_MAX_LINE + 1); /* every byte may become 3 */
+    if (!c->buf) {
+        iconv_close(cd);
+        return sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
+    }
+    c->cd = cd;
+    return SC_OK;
+}
+
+sc_status sc_imp_conv_line(sc_imp_conv *c, sc_csv *r, sc_error *err)
+{
+    if (!c->cd)
+        return SC_OK;
+    char *in = r->text, *out = c->buf;
+    size_t inleft = r->len, outleft = 3 * (size_t)SC_CSV_MAX_LINE;
+    iconv((iconv_t)c->cd, NULL, NULL, NULL, NULL);
+    if (iconv((iconv_t)c->cd, &in, &inleft, &out, &outleft) == (size_t)-1)
+        return sc_error_set(err, SC_E_INPUT, r->path, r->line,
+                            "byte %ld of this line is not %s text (another --encoding?)",
+                            (long)(in - r->text) + 1, c->name);
+    *out = '\0';
+    r->text = c->buf;
+    r->len = (size_t)(out - c->buf);
+    return SC_OK;
+}
+
+void sc_imp_conv_close(sc_imp_conv *c)
+{
+    if (c->cd)
+        iconv_close((iconv_t)c->cd);
+    free(c->buf);
+    memset(c, 0, sizeof *c);
+}
+
+const char *sc_imp_encoding_hint(const sc_table_layout *lay, const char *header_text)
+{
+    if ((lay && lay->encoding != SC_ENC_UTF8) || sc_imp_utf8_valid(header_text))
+        return "";
+    return " (this header line is not UTF-8 text: give the file's encoding, --encoding "
+           "cp1252|latin-1|shift-jis)";
+}
+
+/* Append hint to err's message (as much as fits). */
+static void append_hint(sc_error *err, const char *hint)
+{
+    if (!err || !hint[0])
+        return;
+    size_t n = strlen(err->msg);
+    snprintf(err->msg + n, sizeof err->msg - n, "%s", hint);
+}
+
+#define PREAMBLE_LINE_MAX 4096
 /* The state of one sc_table_read. */
 typedef struct table_reader {
     sc_csv r;
@@ -118,22 +219,29 @@ typedef struct table_reader {
     char *field[MAX_TABLE_FIELDS];
     unsigned char quoted[MAX_TABLE_FIELDS]; /* the data line's fields that were in quotes */
     int col_of[16], n_header;
-    long cap, mark_line;
+    long cap;
     long max_rows; /* refused beyond */
-    char mark; /* the decimal mark seen so far, 0 if none */
+    sc_imp_marks marks; /* the decimal mark seen so far (0 if none), its line, decimals */
     long after_header; /* lines read since the header (or its repetition) */
     long provisional, provisional_line; /* the last rows read, summary rows ("Mean;..."), and the
                                            first one's line: dropped if nothing but summaries
                                            and a footer follows them */
     sc_error footer_err; /* the first line after the rows that is not a row (its error), while
                             the lines after it are footer too */
+    const sc_table_layout *lay; /* NULL: none */
+    sc_table_notes *notes;      /* never NULL (a local one if the caller gives none) */
+    int n_named;                /* the header's fields up to its last non-empty one */
+    int where_of[SC_TABLE_MAX_WHERE]; /* the where filters' columns */
+    int in_rows;                /* the header (or, without one, the first row) was found */
+    long first_row_line;        /* without a header line: the first row's line */
+    char header_text[PREAMBLE_LINE_MAX]; /* the header line as read (for hints) */
 } table_reader;
 
 #define FOOTER_MAX 20 /* lines after the last row that are not rows, taken for a footer */
 
 /* The delimiter of a line: a tab if it has one, else ';' if it has one, else ',' if it has one,
  * else blanks (columns aligned by spaces, as some machines print their tables). */
-static char delimiter_of(const char *text)
+char sc_imp_delimiter_of(const char *text)
 {
     if (strchr(text, '\t'))
         return '\t';
@@ -149,14 +257,14 @@ static char delimiter_of(const char *text)
 
 /* text (not modified) copied into buf (PREAMBLE_LINE bytes) and split there at its delimiter
  * into field; the field count, or -2 if the line is longer than buf. */
-#define PREAMBLE_LINE 4096
+#define PREAMBLE_LINE PREAMBLE_LINE_MAX
 static int split_copy(const char *text, char *buf, char **field)
 {
     size_t len = strlen(text);
     if (len >= PREAMBLE_LINE)
         return -2;
     memcpy(buf, text, len + 1);
-    return split_fields(buf, delimiter_of(buf), field, NULL, MAX_TABLE_FIELDS);
+    return sc_imp_split_fields(buf, sc_imp_delimiter_of(buf), field, NULL, MAX_TABLE_FIELDS);
 }
 
 /* The header line, text (split in place) at line ln: the delimiter, and where each wanted
@@ -165,15 +273,37 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
 {
     sc_table *t = tr->t;
     t->header_line = ln;
-    t->delimiter = delimiter_of(text);
-    tr->n_header = split_fields(text, t->delimiter, tr->field, NULL, MAX_TABLE_FIELDS);
+    tr->in_rows = 1;
+    snprintf(tr->header_text, sizeof tr->header_text, "%s", text);
+    t->delimiter = sc_imp_delimiter_of(text);
+    tr->n_header = sc_imp_split_fields(text, t->delimiter, tr->field, NULL, MAX_TABLE_FIELDS);
     if (tr->n_header < 0)
-        return sc_error_set(err, SC_E_INPUT, tr->path, ln, "more than %d columns",
-                            MAX_TABLE_FIELDS);
+        return sc_error_set(err, SC_E_INPUT, tr->path, ln,
+                            "more than %d columns (items in columns, one column per point? "
+                            "--transpose)", MAX_TABLE_FIELDS);
+    tr->n_named = tr->n_header; /* trailing empty names (a header ending in a tab): no columns */
+    while (tr->n_named > 1 && !tr->field[tr->n_named - 1][0])
+        --tr->n_named;
+    tr->notes->header_fields = tr->n_header;
+    tr->notes->named_fields = tr->n_named;
+    for (int w = 0; tr->lay && w < tr->lay->n_where; ++w) { /* the filters' columns */
+        tr->where_of[w] = -1;
+        for (int f = 0; f < tr->n_header && tr->where_of[w] < 0; ++f)
+            if (sc_imp_name_equal(tr->field[f], tr->lay->where_col[w]))
+                tr->where_of[w] = f;
+        long num = sc_imp_column_number(tr->lay->where_col[w]);
+        if (tr->where_of[w] < 0 && num >= 1 && num <= tr->n_header)
+            tr->where_of[w] = (int)(num - 1);
+        if (tr->where_of[w] < 0)
+            return sc_error_set(err, SC_E_INPUT, tr->path, ln,
+                                "no column named '%s' (--where) in this header line%s",
+                                tr->lay->where_col[w],
+                                sc_imp_encoding_hint(tr->lay, tr->header_text));
+    }
     for (int k = 0; k < tr->n_cols; ++k) {
         tr->col_of[k] = -1;
         for (int f = 0; f < tr->n_header; ++f)
-            if (name_equal(tr->field[f], tr->names[k])) {
+            if (sc_imp_name_equal(tr->field[f], tr->names[k])) {
                 if (tr->col_of[k] >= 0)
                     return sc_error_set(err, SC_E_INPUT, tr->path, ln,
                                         "two columns are named '%s' (columns %d and %d: give the "
@@ -181,17 +311,18 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
                                         tr->names[k], tr->col_of[k] + 1, f + 1);
                 tr->col_of[k] = f;
             }
-        long num = column_number(tr->names[k]); /* no column of that name: its number (1-based) */
+        long num = sc_imp_column_number(tr->names[k]); /* no column of that name: its number (1-based) */
         if (tr->col_of[k] < 0 && num >= 1 && num <= tr->n_header)
             tr->col_of[k] = (int)(num - 1);
         if (tr->col_of[k] < 0)
             return sc_error_set(err, SC_E_INPUT, tr->path, ln,
-                                "no column named '%s' in this header line (delimiter '%s')",
+                                "no column named '%s' in this header line (delimiter '%s')%s",
                                 tr->names[k],
                                 t->delimiter == '\t'  ? "tab"
                                 : t->delimiter == ';' ? ";"
                                 : t->delimiter == ' ' ? "blanks"
-                                                      : ",");
+                                                      : ",",
+                                sc_imp_encoding_hint(tr->lay, tr->header_text));
     }
     return SC_OK;
 }
@@ -207,8 +338,8 @@ static int names_count(const table_reader *tr, const char *text)
     for (int k = 0; k < tr->n_cols; ++k) {
         int found = 0;
         for (int f = 0; f < n && !found; ++f)
-            found = name_equal(field[f], tr->names[k]);
-        long num = column_number(tr->names[k]); /* a column by number: a line that long */
+            found = sc_imp_name_equal(field[f], tr->names[k]);
+        long num = sc_imp_column_number(tr->names[k]); /* a column by number: a line that long */
         named += found;
         by_number += !found && num >= 1 && num <= n;
     }
@@ -219,14 +350,14 @@ static int names_count(const table_reader *tr, const char *text)
 static int all_by_number(const table_reader *tr)
 {
     for (int k = 0; k < tr->n_cols; ++k)
-        if (column_number(tr->names[k]) < 1)
+        if (sc_imp_column_number(tr->names[k]) < 1)
             return 0;
     return 1;
 }
 
 /* Whether field s is empty, or text without a digit ("MM", "Mittelwert": no number at all,
  * where "1.5.5" is a malformed one). */
-static int not_a_number(const char *s)
+int sc_imp_not_a_number(const char *s)
 {
     for (; *s; ++s)
         if (isdigit((unsigned char)*s))
@@ -245,12 +376,12 @@ static int row_by_number(const table_reader *tr, const char *text)
     if (n == -2)
         return 1;
     for (int k = 0; k < tr->n_cols; ++k) {
-        long num = column_number(tr->names[k]);
+        long num = sc_imp_column_number(tr->names[k]);
         double v;
         char mark;
-        if (num > n || parse_number(field[num - 1], &v, &mark) != 0)
+        if (num > n || sc_imp_parse_number(field[num - 1], &v, &mark) != 0)
             ok = 0;
-        digits |= num <= n && !not_a_number(field[num - 1]);
+        digits |= num <= n && !sc_imp_not_a_number(field[num - 1]);
     }
     return ok ? 1 : digits ? -1 : 0;
 }
@@ -260,7 +391,7 @@ static int row_by_number(const table_reader *tr, const char *text)
  * column named. */
 static int hash_header(const table_reader *tr, const char *text)
 {
-    char d = delimiter_of(text), *q = strchr(text, d);
+    char d = sc_imp_delimiter_of(text), *q = strchr(text, d);
     if (d == ' ' || !q)
         return 0;
     const char *s = text + 1;
@@ -273,7 +404,7 @@ static int hash_header(const table_reader *tr, const char *text)
 static int looks_like_data(const char *text)
 {
     char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
-    if (delimiter_of(text) == ' ')
+    if (sc_imp_delimiter_of(text) == ' ')
         return 0; /* "17 05 2024" in a preamble is no row: blank-aligned rows need a header */
     int n = split_copy(text, buf, field);
     if (n == -2)
@@ -283,7 +414,7 @@ static int looks_like_data(const char *text)
     for (int f = 0; f < n; ++f) {
         double v;
         char mark;
-        if (parse_number(field[f], &v, &mark) != 0)
+        if (sc_imp_parse_number(field[f], &v, &mark) != 0)
             return 0;
     }
     return 1;
@@ -315,52 +446,111 @@ static sc_status grow(table_reader *tr, sc_error *err)
 /* The value of wanted column k in the current line: a number, one decimal mark in the whole file,
  * no decimal comma in a comma-separated file unless the field is quoted ("99,5"), within any
  * plausible measurement. */
-static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err)
+sc_status sc_imp_value(sc_imp_marks *m, const char *path, long ln, const char *name,
+                       const char *s, int quoted, char delimiter, double *out, sc_error *err)
 {
-    const char *s = tr->field[tr->col_of[k]], *name = tr->names[k], *path = tr->path;
-    long ln = tr->r.line;
     char seen = 0;
-    int rc = parse_number(s, out, &seen);
+    int rc = sc_imp_parse_number(s, out, &seen);
     if (rc == -2)
         return sc_error_set(err, SC_E_INPUT, path, ln,
                             "column '%s': '%s' has both '.' and ',' (no thousands separators, please)",
                             name, s);
     if (rc != 0)
-        return sc_error_set(err, SC_E_INPUT, path, ln, "column '%s': '%s' is not a number", name,
-                            s);
-    if (seen == ',' && tr->t->delimiter == ',' && !tr->quoted[tr->col_of[k]])
+        return sc_error_set(err, SC_E_INPUT, path, ln, "column '%s': '%s' is not a number%s", name,
+                            s, sc_imp_not_a_number(s) && s[0] ? " (a placeholder for a mark not "
+                            "measured? --missing TOKEN)" : "");
+    if (seen == ',' && delimiter == ',' && !quoted)
         return sc_error_set(err, SC_E_INPUT, path, ln,
                             "column '%s': decimal comma in a comma-separated file (quote the "
                             "field, or use ';' or tab as delimiter)", name);
-    if (seen && tr->mark && seen != tr->mark)
+    if (seen && m->mark && seen != m->mark)
         return sc_error_set(err, SC_E_INPUT, path, ln,
                             "column '%s': decimal '%c' here but '%c' on line %ld (mixed decimal marks)",
-                            name, seen, tr->mark, tr->mark_line);
-    if (seen && !tr->mark) {
-        tr->mark = seen;
-        tr->mark_line = ln;
+                            name, seen, m->mark, m->mark_line);
+    if (seen && !m->mark) {
+        m->mark = seen;
+        m->mark_line = ln;
     }
+    int dec = sc_imp_decimals(s);
+    if (dec > m->decimals)
+        m->decimals = dec;
     if (!(fabs(*out) <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, path, ln,
                             "column '%s': %s is beyond any plausible measurement", name, s);
     return SC_OK;
 }
 
+/* The value of wanted column k in the current line (sc_imp_value's rules). */
+static sc_status parse_value(table_reader *tr, int k, double *out, sc_error *err)
+{
+    sc_status st = sc_imp_value(&tr->marks, tr->path, tr->r.line, tr->names[k],
+                                tr->field[tr->col_of[k]], tr->quoted[tr->col_of[k]],
+                                tr->t->delimiter, out, err);
+    if (tr->marks.decimals > tr->notes->decimals)
+        tr->notes->decimals = tr->marks.decimals;
+    return st;
+}
+
 static sc_status read_row(table_reader *tr, int nf, sc_error *err);
+
+/* Whether a line of nf fields (at tr->field) fits the header: as many fields; or fewer, where
+ * the header's last fields are empty (a header ending in a tab); or more, where the extra
+ * fields hold no number (an unlabelled column: a tolerance bar). */
+static int fields_fit(const table_reader *tr, int nf)
+{
+    if (nf == tr->n_header)
+        return 1;
+    if (nf < 0 || nf < tr->n_named)
+        return 0;
+    for (int k = 0; k < tr->n_cols; ++k)
+        if (tr->col_of[k] >= nf)
+            return 0;
+    for (int w = 0; tr->lay && w < tr->lay->n_where; ++w)
+        if (tr->where_of[w] >= nf)
+            return 0;
+    for (int f = tr->n_header; f < nf; ++f)
+        if (!sc_imp_not_a_number(tr->field[f]))
+            return 0;
+    return 1;
+}
+
+/* Whether the where filters let the current line (nf fields that fit) through. */
+static int where_passes(const table_reader *tr)
+{
+    for (int w = 0; tr->lay && w < tr->lay->n_where; ++w)
+        if (!sc_imp_name_equal(tr->field[tr->where_of[w]], tr->lay->where_value[w]))
+            return 0;
+    return 1;
+}
 
 
 /* Whether text (a field no wanted column is read from) names a statistic, as the summary rows
  * machines add under a table do ("Mean", "Mittelwert", "Max.", "Std dev:"): such a row's numbers
  * are no measurement, though they may well fall near a mark (the mean of a plate's points lies
  * on its centre mark). */
-static int names_statistic(const char *text)
+int sc_imp_names_statistic(const char *text)
 {
     static const char *const words[] = {
         "mean", "average", "avg", "min", "max", "minimum", "maximum", "std", "stdev", "stddev",
         "std dev", "std. dev", "sigma", "range", "sum", "total", "statistics", "mittelwert",
         "durchschnitt", "streuung", "standardabweichung", "spannweite", "summe", "moyenne",
-        "ecart type", "media", "promedio", "media aritmetica"};
-    char w[32];
+        "ecart type", "media", "promedio", "media aritmetica",
+        /* German (Excel's function names and CMM reports) */
+        "stabw", "stabwn", "stabw.s", "stabw.n", "standardabw", "std.-abw", "std.abw", "mittel",
+        "mittelw", "minimal", "maximal", "anzahl", "varianz",
+        /* French */
+        "écart type", "écart-type", "ecart-type", "Écart type", "Écart-type", "moyenne arithmétique",
+        "étendue", "Étendue", "etendue", "somme", "écart", "Écart",
+        /* Italian */
+        "deviazione standard", "dev. std", "dev.std", "dev std", "minimo", "massimo", "intervallo",
+        "campo di variazione", "somma", "media aritmetica",
+        /* Spanish */
+        "desviación estándar", "desviacion estandar", "desv. est", "desvest", "mínimo", "máximo",
+        "rango", "suma",
+        /* Japanese (Mitutoyo, Keyence, Excel in Japanese) */
+        "平均", "平均値", "最大", "最大値", "最小", "最小値", "標準偏差", "範囲", "合計", "レンジ",
+        "シグマ"};
+    char w[64];
     size_t n = strlen(text);
     while (n > 0 && (text[n - 1] == ':' || text[n - 1] == '.' || text[n - 1] == ' '))
         --n;
@@ -369,7 +559,7 @@ static int names_statistic(const char *text)
     memcpy(w, text, n);
     w[n] = '\0';
     for (size_t k = 0; k < sizeof words / sizeof words[0]; ++k)
-        if (name_equal(w, words[k]))
+        if (sc_imp_name_equal(w, words[k]))
             return 1;
     return 0;
 }
@@ -381,7 +571,7 @@ static int names_statistic(const char *text)
  * row (another field names a statistic: "Mean;12.5;3.1"): 5; else 0. */
 static int skipped_kind(const table_reader *tr, int nf)
 {
-    int empty = 1, same = nf == tr->n_header, header = same, texts = same, blanks = same;
+    int empty = 1, same = fields_fit(tr, nf), header = same, texts = same, blanks = same;
     int some_text = 0;
     for (int f = 0; f < nf; ++f)
         empty &= !tr->field[f][0];
@@ -389,15 +579,17 @@ static int skipped_kind(const table_reader *tr, int nf)
         return 1;
     for (int k = 0; k < tr->n_cols && same; ++k) { /* every wanted field, each test its own */
         const char *s = tr->field[tr->col_of[k]];
-        header = header && name_equal(s, tr->names[k]);
-        texts = texts && not_a_number(s); /* unit names or empty (";nm;nm": no unit for n) */
+        header = header && sc_imp_name_equal(s, tr->names[k]);
+        texts = texts && sc_imp_not_a_number(s); /* unit names or empty (";nm;nm": no unit for n) */
         some_text |= s[0] != 0;
         blanks = blanks && !s[0];
     }
     texts = texts && some_text;
+    if (header && !tr->t->header_line) /* no header line: "1;2" is a row, not its repetition */
+        header = 0;
     if (header)
         return 2;
-    if (texts && tr->after_header == 1)
+    if (texts && tr->after_header == 1 && tr->t->header_line)
         return 3;
     if (blanks)
         return 4;
@@ -405,7 +597,7 @@ static int skipped_kind(const table_reader *tr, int nf)
         int wanted = 0;
         for (int k = 0; k < tr->n_cols; ++k)
             wanted |= tr->col_of[k] == f;
-        if (!wanted && names_statistic(tr->field[f]))
+        if (!wanted && sc_imp_names_statistic(tr->field[f]))
             return 5;
     }
     return 0;
@@ -418,10 +610,10 @@ static int damaged_row(const table_reader *tr, int nf)
 {
     double v;
     char mark;
-    if (nf >= 1 && parse_number(tr->field[0], &v, &mark) == 0)
+    if (nf >= 1 && sc_imp_parse_number(tr->field[0], &v, &mark) == 0)
         return 1;
     for (int k = 0; k < tr->n_cols; ++k)
-        if (tr->col_of[k] < nf && parse_number(tr->field[tr->col_of[k]], &v, &mark) == 0)
+        if (tr->col_of[k] < nf && sc_imp_parse_number(tr->field[tr->col_of[k]], &v, &mark) == 0)
             return 1;
     return 0;
 }
@@ -430,10 +622,10 @@ static int damaged_row(const table_reader *tr, int nf)
  * wanted field that is no number — a footer's line if no row follows. */
 static int not_a_row(const table_reader *tr, int nf)
 {
-    if (nf != tr->n_header)
+    if (!fields_fit(tr, nf))
         return 1;
     for (int k = 0; k < tr->n_cols; ++k)
-        if (not_a_number(tr->field[tr->col_of[k]]))
+        if (sc_imp_not_a_number(tr->field[tr->col_of[k]]))
             return 1;
     return 0;
 }
@@ -445,7 +637,20 @@ static sc_status read_data_line(table_reader *tr, sc_error *err)
 {
     sc_table *t = tr->t;
     tr->after_header++;
-    int nf = split_fields(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
+    int nf = sc_imp_split_fields(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
+    if (nf >= 0 && tr->lay && fields_fit(tr, nf)) {
+        if (!where_passes(tr)) { /* another feature or characteristic: not read */
+            if (!tr->notes->n_filtered++)
+                tr->notes->filtered_line = tr->r.line;
+            return SC_OK;
+        }
+        for (int k = 0; k < tr->n_cols; ++k) /* placeholders of unmeasured marks: empty */
+            if (sc_imp_is_placeholder(tr->lay, tr->field[tr->col_of[k]])) {
+                tr->field[tr->col_of[k]][0] = '\0';
+                if (!tr->notes->n_placeholder++)
+                    tr->notes->placeholder_line = tr->r.line;
+            }
+    }
     if (tr->footer_err.code) { /* in a footer: a row after it makes its first line an error */
         if (nf >= 0 && !not_a_row(tr, nf) && skipped_kind(tr, nf) == 0) {
             if (err)
@@ -499,11 +704,16 @@ static sc_status read_data_line(table_reader *tr, sc_error *err)
 static sc_status read_row(table_reader *tr, int nf, sc_error *err)
 {
     sc_table *t = tr->t;
-    if (nf != tr->n_header)
+    if (!fields_fit(tr, nf))
         return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
-                            "%d fields, the header line (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,
-                            t->header_line, tr->n_header,
+                            "%d fields, the %s (line %ld) has %d%s", nf < 0 ? MAX_TABLE_FIELDS : nf,
+                            t->header_line ? "header line" : "first row",
+                            t->header_line ? t->header_line : tr->first_row_line, tr->n_header,
                             t->delimiter == ',' ? " (decimal commas need ';' or tab as delimiter)" : "");
+    if (nf != tr->n_header && !tr->notes->n_ragged++) {
+        tr->notes->ragged_line = tr->r.line;
+        tr->notes->ragged_fields = nf;
+    }
     sc_status st = grow(tr, err);
     if (st != SC_OK)
         return st;
@@ -527,27 +737,131 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
 sc_status sc_table_read_max(const char *path, int n_cols, const char *const *names,
                             const double *scale, long max_rows, sc_table *t, sc_error *err)
 {
-    memset(t, 0, sizeof *t);
-    snprintf(t->path, sizeof t->path, "%s", path);
-    t->n_cols = n_cols;
+    return sc_table_read_layout(path, n_cols, names, scale, max_rows, NULL, NULL, t, err);
+}
+
+/* For a header that is a data row (it has a number) taken because one of its fields matched a
+ * wanted column's name (an AXIS value X against the column x): the hint saying so, else "". */
+static const char *row_taken_hint(const table_reader *tr, const char *text, char *hint, size_t cap)
+{
+    char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
+    int n = split_copy(text, buf, field), number = 0;
+    const char *matched = NULL;
+    hint[0] = '\0';
+    for (int f = 0; f < n; ++f) {
+        double v;
+        char mark;
+        number |= sc_imp_parse_number(field[f], &v, &mark) == 0;
+        for (int k = 0; k < tr->n_cols && !matched; ++k)
+            if (sc_imp_name_equal(field[f], tr->names[k]))
+                matched = field[f];
+    }
+    if (number && matched)
+        snprintf(hint, cap,
+                 ": this line is a data row, taken for the header because its value '%.40s' "
+                 "matches a column's name (one row per axis? --id-col, --axis-col, --value-col)",
+                 matched);
+    return hint;
+}
+
+/* Without a header line (layout no_header): the first row (at tr->r) sets the delimiter and the
+ * field count, every wanted column is a number. */
+static sc_status first_row_as_header(table_reader *tr, sc_error *err)
+{
+    sc_table *t = tr->t;
+    char buf[PREAMBLE_LINE], *field[MAX_TABLE_FIELDS];
+    int n = split_copy(tr->r.text, buf, field);
+    if (n < 0)
+        return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line, "more than %d columns",
+                            MAX_TABLE_FIELDS);
+    t->delimiter = sc_imp_delimiter_of(tr->r.text);
+    tr->n_header = tr->n_named = n;
+    tr->notes->header_fields = tr->notes->named_fields = n;
+    tr->first_row_line = tr->r.line;
+    tr->in_rows = 1;
+    for (int k = 0; k < tr->n_cols; ++k) {
+        long num = sc_imp_column_number(tr->names[k]);
+        if (num < 1)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "without a header line, columns are given by number, not '%s'",
+                                tr->names[k]);
+        if (num > n)
+            return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                                "column %ld asked for, the first row has %d fields", num, n);
+        tr->col_of[k] = (int)(num - 1);
+    }
+    for (int w = 0; tr->lay && w < tr->lay->n_where; ++w) {
+        long num = sc_imp_column_number(tr->lay->where_col[w]);
+        if (num < 1 || num > n)
+            return sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                                "--where %s: without a header line, a column number in 1..%d",
+                                tr->lay->where_col[w], n);
+        tr->where_of[w] = (int)(num - 1);
+    }
+    return SC_OK;
+}
+
+/* The asked-for names (before anything is read): 1..16 distinct, scales finite and nonzero. */
+static sc_status check_request(int n_cols, const char *const *names, const double *scale,
+                               long max_rows, const sc_table_layout *lay, sc_error *err)
+{
     if (n_cols < 1 || n_cols > 16 || !names)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read asks for 1..16 columns, got %d",
                             n_cols);
     if (max_rows < 1 || max_rows > SC_TABLE_MAX_ROWS)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read takes 1..%ld rows at most, "
                             "not %ld", SC_TABLE_MAX_ROWS, max_rows);
-    for (int a = 0; scale && a < n_cols; ++a)
+    int n_scale = lay && lay->nominal_col ? 2 * n_cols : n_cols;
+    for (int a = 0; scale && a < n_scale; ++a)
         if (!isfinite(scale[a]) || scale[a] == 0)
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "the scale of column '%s' must be finite and nonzero, got %g",
-                                names[a], scale[a]);
+                                names[a % n_cols], scale[a]);
+    int is_long = lay && (lay->id_col || lay->axis_col || lay->value_col);
     for (int a = 0; a < n_cols; ++a) /* one column cannot be two quantities */
         for (int b = 0; b < a; ++b)
-            if (name_equal(names[a], names[b]))
+            if (sc_imp_name_equal(names[a], names[b]))
                 return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                    "the column '%s' is asked for twice (as the %s and the %s "
-                                    "quantity)", names[a], b == 0 ? "1st" : b == 1 ? "2nd" : "3rd",
-                                    a == 1 ? "2nd" : a == 2 ? "3rd" : "4th");
+                                    "the %s '%s' is asked for twice (as the %s and the %s "
+                                    "quantity)%s", is_long ? "axis" : "column", names[a],
+                                    b == 0 ? "1st" : b == 1 ? "2nd" : "3rd",
+                                    a == 1 ? "2nd" : a == 2 ? "3rd" : "4th",
+                                    is_long ? "" : " (one row per axis, X and Y in one column? "
+                                    "--id-col, --axis-col, --value-col)");
+    if (lay && (lay->n_where < 0 || lay->n_where > SC_TABLE_MAX_WHERE || lay->n_missing < 0 ||
+                lay->n_missing > SC_TABLE_MAX_MISSING))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "at most %d row filters and %d placeholders",
+                            SC_TABLE_MAX_WHERE, SC_TABLE_MAX_MISSING);
+    if (is_long && (!lay->id_col || !lay->axis_col || !lay->value_col))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "one row per axis needs the id, axis and value columns together");
+    if (lay && lay->nominal_col && !is_long)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "a nominal column per row goes with one row per axis");
+    if (is_long && lay->transpose)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "one row per axis and items in columns do not go together");
+    return SC_OK;
+}
+
+sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *names,
+                               const double *scale, long max_rows, const sc_table_layout *lay,
+                               sc_table_notes *notes, sc_table *t, sc_error *err)
+{
+    memset(t, 0, sizeof *t);
+    snprintf(t->path, sizeof t->path, "%s", path);
+    t->n_cols = n_cols;
+    sc_table_notes local_notes;
+    if (!notes)
+        notes = &local_notes;
+    memset(notes, 0, sizeof *notes);
+    sc_status st = check_request(n_cols, names, scale, max_rows, lay, err);
+    if (st != SC_OK)
+        return st;
+    if (lay && lay->id_col)
+        return sc_imp_read_long(path, n_cols, names, scale, max_rows, lay, notes, t, err);
+    if (lay && lay->transpose)
+        return sc_imp_read_transposed(path, n_cols, names, scale, max_rows, lay, notes, t, err);
     table_reader tr;
     memset(&tr, 0, sizeof tr);
     tr.t = t;
@@ -556,9 +870,17 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
     tr.names = names;
     tr.scale = scale;
     tr.max_rows = max_rows;
-    sc_status st = sc_csv_open(&tr.r, path, err);
+    tr.lay = lay;
+    tr.notes = notes;
+    sc_imp_conv conv;
+    st = sc_imp_conv_open(&conv, lay ? lay->encoding : SC_ENC_UTF8, path, err);
     if (st != SC_OK)
         return st;
+    st = sc_csv_open(&tr.r, path, err);
+    if (st != SC_OK) {
+        sc_imp_conv_close(&conv);
+        return st;
+    }
     int got = 0;
     /* the header is the first line naming every wanted column; lines before it that are not
      * data (a machine's preamble: program, date, operator) are skipped, up to PREAMBLE_MAX of
@@ -570,19 +892,28 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
     int hash_rows = 0; /* the header began with '#' ("#;X;Y": the point number's column), so rows
                           starting "#<digit>" are rows, not comments */
     int numbers = all_by_number(&tr);
+    int no_header = lay && lay->no_header;
     char *prev = NULL; /* with columns by number: the last line before the data, its number */
     long prev_line = 0;
     while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
         if (sc_csv_is_blank(&tr.r))
             continue;
+        if ((st = sc_imp_conv_line(&conv, &tr.r, err)) != SC_OK)
+            break;
         if (tr.r.text[0] == '#') {
             if (hash_rows ? !isdigit((unsigned char)tr.r.text[1])
-                          : (t->header_line || numbers || !hash_header(&tr, tr.r.text)))
+                          : (tr.in_rows || numbers || !hash_header(&tr, tr.r.text)))
                 continue; /* a comment */
             hash_rows = 1;
             tr.r.skip_run = 0; /* a row (or the "#;X;Y" header), not a comment */
         }
-        if (t->header_line) {
+        if (!tr.in_rows && no_header) {
+            st = first_row_as_header(&tr, err);
+            if (st == SC_OK)
+                st = read_data_line(&tr, err);
+            continue;
+        }
+        if (tr.in_rows) {
             st = read_data_line(&tr, err);
             continue;
         }
@@ -596,7 +927,7 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
                 if (st == SC_OK) {
                     sc_error e;
                     sc_error_clear(&e);
-                    int nf = split_fields(tr.r.text, t->delimiter, tr.field, tr.quoted,
+                    int nf = sc_imp_split_fields(tr.r.text, t->delimiter, tr.field, tr.quoted,
                                           MAX_TABLE_FIELDS);
                     st = read_row(&tr, nf, &e);
                     if (st == SC_OK) /* cannot be: it failed as a row above */
@@ -609,7 +940,7 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
             if (row < 0) { /* a damaged row with no header before it */
                 st = sc_error_set(err, SC_E_INPUT, path, tr.r.line,
                                   "not a row, and no header line before it (columns given by "
-                                  "number need one)");
+                                  "number need one, or --no-header)");
                 break;
             }
             if (row == 0) {
@@ -625,7 +956,7 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
             if (!prev) {
                 st = sc_error_set(err, SC_E_INPUT, path, tr.r.line,
                                   "no header line before the first row (columns given by number "
-                                  "need one)");
+                                  "need one, or --no-header)");
                 break;
             }
             char *h = prev;
@@ -652,12 +983,25 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
         if (st == SC_OK && (looks_like_data(tr.r.text) || ++preamble > PREAMBLE_MAX))
             break; /* no header before the data: the first line's error */
     }
-    if (st == SC_OK && got < 0)
+    if (st == SC_OK && got < 0) {
         st = err ? err->code : SC_E_INPUT;
-    else if (st == SC_OK && !t->header_line && first)
+    } else if (st == SC_OK && !tr.in_rows && first) {
+        char hint[256];
+        row_taken_hint(&tr, first, hint, sizeof hint);
         st = read_header_line(&tr, first, first_line, err);
-    else if (st == SC_OK && !t->header_line)
+        if (st != SC_OK && hint[0] && err && strstr(err->msg, "no column named")) {
+            char *paren = strstr(err->msg, " (delimiter"); /* the hint replaces the details */
+            if (paren)
+                *paren = '\0';
+            append_hint(err, hint);
+        } else if (st != SC_OK && err && !hint[0] && looks_like_data(first) &&
+                   strstr(err->msg, "no column named")) {
+            append_hint(err, ": this line is a row of numbers (no header line? --no-header "
+                             "with the columns by number)");
+        }
+    } else if (st == SC_OK && !tr.in_rows) {
         st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no header line naming the columns");
+    }
     free(first);
     free(prev);
     if (st == SC_OK && tr.provisional > 0) { /* trailing summary rows: no measurements */
@@ -665,13 +1009,15 @@ sc_status sc_table_read_max(const char *path, int n_cols, const char *const *nam
         t->n_summary = tr.provisional;
         t->summary_line = tr.provisional_line;
     }
-    if (st == SC_OK && !t->header_line) /* cannot happen: read_header_line failed or set it */
+    if (st == SC_OK && !tr.in_rows) /* cannot happen: read_header_line failed or set it */
         st = sc_error_set(err, SC_E_INTERNAL, path, tr.r.line, "no header line");
     else if (st == SC_OK && t->n_rows == 0)
-        st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no data lines after the header");
+        st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no data lines after the %s",
+                          t->header_line ? "header" : "filters");
     if (st == SC_OK)
-        t->decimal = tr.mark ? tr.mark : '.';
+        t->decimal = tr.marks.mark ? tr.marks.mark : '.';
     sc_csv_close(&tr.r);
+    sc_imp_conv_close(&conv);
     if (st != SC_OK)
         sc_table_free(t);
     return st;

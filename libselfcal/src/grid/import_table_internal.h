@@ -1,0 +1,71 @@
+/* Private to the table reader of measuring machines' exports (import_table.c) and its other
+ * layouts (import_layouts.c: one row per axis, items in columns): the field splitting, name
+ * matching and number rules they share, and the text encodings. */
+#ifndef SELFCAL_IMPORT_TABLE_INTERNAL_H
+#define SELFCAL_IMPORT_TABLE_INTERNAL_H
+
+#include <stdbool.h>
+
+#include "selfcal/csv.h"
+#include "selfcal/import.h"
+
+#define SC_IMP_MAX_FIELDS 256 /* fields of a line (items in columns: SC_IMP_MAX_ITEMS) */
+#define SC_IMP_PREAMBLE_MAX 100 /* lines before the header line that name no columns */
+
+/* Split s at delim in place (double-quoted fields may hold it; quotes removed), trimming blanks;
+ * the field count, or -1 beyond max. quoted (may be NULL): 1 for each quoted field. */
+int sc_imp_split_fields(char *s, char delim, char **field, unsigned char *quoted, int max);
+/* Names equal ignoring ASCII case. */
+int sc_imp_name_equal(const char *a, const char *b);
+/* A column given by its number ("2": the second), or 0 if name is no whole number. */
+long sc_imp_column_number(const char *name);
+/* A field as a number with either decimal mark (*mark_seen: '.', ',' or 0); 0 ok, -2 both marks,
+ * -1 no number. */
+int sc_imp_parse_number(const char *s, double *out, char *mark_seen);
+/* The delimiter of a line: tab, ';', ',' (in that order), else ' ' (blank-aligned columns). */
+char sc_imp_delimiter_of(const char *text);
+/* Whether text names a statistic (Mean, Mittelwert, Stabw., ...): a summary row's label. */
+int sc_imp_names_statistic(const char *text);
+/* Whether s has no digit (empty, a unit name, a label). */
+int sc_imp_not_a_number(const char *s);
+/* Digits after the decimal mark of a number as written ("12.3400": 4). */
+int sc_imp_decimals(const char *s);
+/* Whether s is valid UTF-8. */
+bool sc_imp_utf8_valid(const char *s);
+/* Whether field s is one of the layout's placeholder tokens (a mark not measured). */
+bool sc_imp_is_placeholder(const sc_table_layout *lay, const char *s);
+
+/* The decimal mark a file uses (0 until a number with a fraction is seen), where it was first
+ * seen, and the most digits after it. */
+typedef struct sc_imp_marks {
+    char mark;
+    long mark_line;
+    int decimals;
+} sc_imp_marks;
+/* A wanted field as a number: one decimal mark per file, no unquoted decimal comma in a
+ * comma-separated file, within SC_INPUT_MAX_ABS; SC_E_INPUT at path:ln naming the column. */
+sc_status sc_imp_value(sc_imp_marks *m, const char *path, long ln, const char *name,
+                       const char *s, int quoted, char delimiter, double *out, sc_error *err);
+
+/* A line's text converted to UTF-8 from the layout's encoding (nothing for UTF-8). */
+typedef struct sc_imp_conv {
+    void *cd;  /* iconv_t, NULL for UTF-8 */
+    char *buf; /* the converted line */
+    const char *name;
+} sc_imp_conv;
+sc_status sc_imp_conv_open(sc_imp_conv *c, sc_table_encoding enc, const char *path, sc_error *err);
+/* Convert r's current line in place of r->text (its bytes must be valid in the encoding). */
+sc_status sc_imp_conv_line(sc_imp_conv *c, sc_csv *r, sc_error *err);
+void sc_imp_conv_close(sc_imp_conv *c);
+/* The hint for a header line that is not UTF-8, "" if it is (or an encoding was given). */
+const char *sc_imp_encoding_hint(const sc_table_layout *lay, const char *header_text);
+
+/* The other layouts of sc_table_read_layout (arguments checked there, t zeroed with its path). */
+sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *names,
+                           const double *scale, long max_rows, const sc_table_layout *lay,
+                           sc_table_notes *notes, sc_table *t, sc_error *err);
+sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const *names,
+                                 const double *scale, long max_rows, const sc_table_layout *lay,
+                                 sc_table_notes *notes, sc_table *t, sc_error *err);
+
+#endif
