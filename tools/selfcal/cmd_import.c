@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "cli.h"
 #include "selfcal/atomic_file.h"
@@ -19,6 +20,10 @@ static const char *GRID_USAGE =
     "                           [--view \"...\" FILE ...] -o OUT.csv\n"
     "                           [--x-col x] [--y-col y] [--units mm|um] [--tolerance-mm P/4]\n"
     "                           [--min-share 0.5] [--ux-col NAME --uy-col NAME]\n"
+    "                           [--id-col NAME --axis-col NAME --value-col NAME\n"
+    "                            [--axis-names X,Y]] [--where COL=VALUE ...] [--missing TOKEN ...]\n"
+    "                           [--no-header] [--transpose] [--encoding utf-8|cp1252|latin-1|shift-jis]\n"
+    "                           [--deviations --nominal-x-col NAME --nominal-y-col NAME]\n"
     "\n"
     "Numbers the measured mark centres of each view (one FILE per view, points in any order) and\n"
     "writes a selfcal-grid v1 file with the views in the order given. FILE: a header line naming\n"
@@ -29,6 +34,13 @@ static const char *GRID_USAGE =
     "skipped and named on stderr.\n"
     "--ux-col/--uy-col: columns of each point's standard uncertainty (k = 1, in --units), written\n"
     "as ux_um,uy_um (SPEC §5); a view's sigma_um=S (µm) is passed on to its view line.\n"
+    "One row per axis (PC-DMIS, CALYPSO, GEOPAK): --id-col, --axis-col, --value-col; rows with\n"
+    "one ID form a point, the AXIS value names the coordinate (X and Y, or --axis-names).\n"
+    "--where COL=VALUE reads only those rows; --missing TOKEN: a placeholder of a mark not\n"
+    "measured; --no-header: columns by number; --transpose: one column per point, rows labelled\n"
+    "by their first field; --deviations: the values are deviations (in --units) from the nominal\n"
+    "columns (mm). Warnings: every point on its nominal position (nominal columns?), and values\n"
+    "rounded coarser than the noise (export more decimals).\n"
     "Each view's placement (translation + rotation) is fitted robustly from its points, then every\n"
     "point goes to the nearest mark the view measures. Points farther than --tolerance-mm from\n"
     "every mark are reported and left out; marks without a point are reported and absent.\n"
@@ -42,6 +54,10 @@ static const char *PROFILE_USAGE =
     "                              [--disp-units um|nm|mm] [--angle-units urad|mrad|arcsec]\n"
     "                              [--step-tolerance 0.1] [--sigma-disp-um S]\n"
     "                              [--sigma-angle-urad S]\n"
+    "\n"
+    "Layout options as for import grid: --where, --missing, --no-header, --transpose, --encoding,\n"
+    "and one row per axis (--id-col, --axis-col, --value-col, the four columns' names or\n"
+    "--axis-names P,M1,M2,M3 as the AXIS values).\n"
     "\n"
     "Turns the sensor logs of the two scans of a straightness measurement (SPEC §2) into a\n"
     "selfcal-profile v1 file. FILEk: the log of scan k with sensor spacing Dk: a header line naming\n"
@@ -157,6 +173,144 @@ static int parse_units(const char *cmd, const char *opt, const char *v, const ch
     return cli_usage_error(cmd, "%s: unknown unit '%s'", opt, v);
 }
 
+/* The layout options both commands take (SPEC §10a). */
+typedef struct layout_args {
+    sc_table_layout lay;
+    char where_buf[SC_TABLE_MAX_WHERE][256];
+    char axis_buf[512];
+    const char *axis[4]; /* --axis-names, split */
+    int n_axis;
+    int deviations;
+    const char *nominal[2]; /* --nominal-x-col, --nominal-y-col */
+} layout_args;
+
+enum { NOT_LAYOUT = -100 };
+
+/* A flag of the layout options (no value): --no-header, --transpose, --deviations. */
+static int parse_layout_flag(const char *o, layout_args *l)
+{
+    if (!strcmp(o, "--no-header"))
+        l->lay.no_header = true;
+    else if (!strcmp(o, "--transpose"))
+        l->lay.transpose = true;
+    else if (!strcmp(o, "--deviations"))
+        l->deviations = 1;
+    else
+        return NOT_LAYOUT;
+    return CLI_OK;
+}
+
+/* A layout option with its value v; NOT_LAYOUT for other options. */
+static int parse_layout_option(const char *cmd, const char *o, const char *v, layout_args *l)
+{
+    sc_table_layout *y = &l->lay;
+    if (!strcmp(o, "--id-col")) {
+        y->id_col = v;
+    } else if (!strcmp(o, "--axis-col")) {
+        y->axis_col = v;
+    } else if (!strcmp(o, "--value-col")) {
+        y->value_col = v;
+    } else if (!strcmp(o, "--nominal-x-col")) {
+        l->nominal[0] = v;
+    } else if (!strcmp(o, "--nominal-y-col")) {
+        l->nominal[1] = v;
+    } else if (!strcmp(o, "--axis-names")) {
+        if (strlen(v) >= sizeof l->axis_buf)
+            return cli_usage_error(cmd, "--axis-names: too long");
+        snprintf(l->axis_buf, sizeof l->axis_buf, "%s", v);
+        l->n_axis = 0;
+        for (char *tok = l->axis_buf; tok && l->n_axis < 5;) {
+            char *comma = strchr(tok, ',');
+            if (comma)
+                *comma = '\0';
+            if (l->n_axis == 4 || !*sc_str_trim(tok))
+                return cli_usage_error(cmd, "--axis-names needs names separated by commas "
+                                            "(X,Y), got '%s'", v);
+            l->axis[l->n_axis++] = sc_str_trim(tok);
+            tok = comma ? comma + 1 : NULL;
+        }
+    } else if (!strcmp(o, "--where")) {
+        const char *eq = strchr(v, '=');
+        if (!eq || eq == v || strlen(v) >= sizeof l->where_buf[0])
+            return cli_usage_error(cmd, "--where needs COL=VALUE, got '%s'", v);
+        if (y->n_where == SC_TABLE_MAX_WHERE)
+            return cli_usage_error(cmd, "at most %d --where", SC_TABLE_MAX_WHERE);
+        char *b = l->where_buf[y->n_where];
+        snprintf(b, sizeof l->where_buf[0], "%s", v);
+        b[eq - v] = '\0';
+        y->where_col[y->n_where] = sc_str_trim(b);
+        y->where_value[y->n_where++] = sc_str_trim(b + (eq - v) + 1);
+    } else if (!strcmp(o, "--missing")) {
+        if (y->n_missing == SC_TABLE_MAX_MISSING)
+            return cli_usage_error(cmd, "at most %d --missing", SC_TABLE_MAX_MISSING);
+        if (!v[0])
+            return cli_usage_error(cmd, "--missing needs a token (empty fields are always empty)");
+        y->missing[y->n_missing++] = v;
+    } else if (!strcmp(o, "--encoding")) {
+        static const char *const names[] = {"utf-8", "utf8", "cp1252", "windows-1252", "latin-1",
+                                            "latin1", "iso-8859-1", "shift-jis", "shift_jis",
+                                            "sjis", "cp932"};
+        static const sc_table_encoding enc[] = {SC_ENC_UTF8, SC_ENC_UTF8, SC_ENC_CP1252,
+                                                SC_ENC_CP1252, SC_ENC_LATIN1, SC_ENC_LATIN1,
+                                                SC_ENC_LATIN1, SC_ENC_SHIFT_JIS, SC_ENC_SHIFT_JIS,
+                                                SC_ENC_SHIFT_JIS, SC_ENC_SHIFT_JIS};
+        size_t k = 0;
+        while (k < sizeof names / sizeof names[0] && strcasecmp(v, names[k]))
+            ++k;
+        if (k == sizeof names / sizeof names[0])
+            return cli_usage_error(cmd, "--encoding: utf-8, cp1252, latin-1 or shift-jis, not '%s'",
+                                   v);
+        y->encoding = enc[k];
+    } else {
+        return NOT_LAYOUT;
+    }
+    return CLI_OK;
+}
+
+/* The layout's own checks (one row per axis: all three columns). */
+static int check_layout(const char *cmd, const layout_args *l)
+{
+    const sc_table_layout *y = &l->lay;
+    int n = !!y->id_col + !!y->axis_col + !!y->value_col;
+    if (n != 0 && n != 3)
+        return cli_usage_error(cmd, "one row per axis needs --id-col, --axis-col and --value-col");
+    if (l->n_axis && !n)
+        return cli_usage_error(cmd, "--axis-names goes with --id-col, --axis-col, --value-col");
+    if (n && y->transpose)
+        return cli_usage_error(cmd, "--transpose and one row per axis do not go together");
+    return CLI_OK;
+}
+
+/* What a read with a layout passed over (sc_table_notes), one stderr line each kind. */
+static void report_notes(const char *cmd, const char *file, const sc_table *t,
+                         const sc_table_notes *n)
+{
+    if (n->n_filtered)
+        fprintf(stderr, "%s: %s:%ld: %ld row%s left out by --where (the first here)\n", cmd, file,
+                n->filtered_line, n->n_filtered, n->n_filtered == 1 ? "" : "s");
+    if (n->n_placeholder)
+        fprintf(stderr, "%s: %s:%ld: %ld field%s held a --missing placeholder (not measured)\n",
+                cmd, file, n->placeholder_line, n->n_placeholder,
+                n->n_placeholder == 1 ? "" : "s");
+    if (n->n_other_axis)
+        fprintf(stderr, "%s: %s: %ld row%s of other axes or characteristics (Z, D, form, ...); "
+                        "not read\n", cmd, file, n->n_other_axis, n->n_other_axis == 1 ? "" : "s");
+    if (n->n_incomplete)
+        fprintf(stderr, "%s: %s:%ld: %ld point%s with only some of its coordinates (a row of an "
+                        "axis missing); left out\n", cmd, file, n->incomplete_line,
+                n->n_incomplete, n->n_incomplete == 1 ? "" : "s");
+    if (n->named_fields < n->header_fields)
+        fprintf(stderr, "%s: %s:%ld: the header line ends in %d empty field%s (a trailing tab or "
+                        "delimiter); ignored\n", cmd, file, t->header_line,
+                n->header_fields - n->named_fields,
+                n->header_fields - n->named_fields == 1 ? "" : "s");
+    if (n->n_ragged && n->ragged_fields > n->header_fields)
+        fprintf(stderr, "%s: %s:%ld: %ld row%s %d fields where the header line (line %ld) has %d: "
+                        "the unlabelled fields at the end (no numbers) are ignored\n", cmd, file,
+                n->ragged_line, n->n_ragged, n->n_ragged == 1 ? " has" : "s have (the first)",
+                n->ragged_fields, t->header_line, n->header_fields);
+}
+
 /* One view of an import: its placement, its file and the result of numbering its points. */
 typedef struct import_view {
     sc_grid_view v;
@@ -166,6 +320,8 @@ typedef struct import_view {
     long *mark_point;        /* per mark: its point, or -1 */
     long *point_mark;        /* per point: its mark, or -1 */
     sc_grid_import_fit fit;
+    sc_table_notes notes;
+    double nominal_max_mm;   /* the largest distance of an assigned point from its stage node */
 } import_view;
 
 static void fprint_view_line(FILE *fp, int k, const sc_grid_view *v, const char *sigma, int n)
@@ -211,9 +367,39 @@ static void report_skipped(const char *cmd, const char *file, const sc_table *t)
                 t->n_footer == 1 ? "is" : "are");
 }
 
-static void report_view(const sc_grid_import_params *p, int k, const import_view *iv)
+/* The warning when the file's values are rounded coarser than the calibration needs: rounding to
+ * a step q adds q/sqrt(12) of noise; more than a third of the machine's sigma (the view's
+ * sigma_um=, else 0.01 um: a good machine's) is noise the export added. */
+static void report_precision(const import_view *iv, int k, double unit_um)
+{
+    double sigma = 0.01;
+    if (iv->sigma[0])
+        sc_parse_double(iv->sigma, &sigma);
+    int dec = iv->notes.decimals;
+    double q = pow(10.0, -dec) * unit_um, noise = q / sqrt(12.0);
+    if (!(noise > sigma / 3))
+        return;
+    int need = dec;
+    while (need < 15 && pow(10.0, -need) * unit_um / sqrt(12.0) > sigma / 3)
+        ++need;
+    fprintf(stderr, "selfcal import grid: %s: view %d: warning: the positions have %d decimal%s "
+                    "(steps of %g um): rounding alone adds %.3g um of noise, more than a third of "
+                    "sigma_r = %g um%s; export %d decimals or more\n", iv->file, k, dec,
+            dec == 1 ? "" : "s", q, noise, sigma, iv->sigma[0] ? " (sigma_um=)" : " (a good "
+            "machine's; give the view's sigma_um= for yours)", need);
+}
+
+static void report_view(const sc_grid_import_params *p, int k, const import_view *iv,
+                        double unit_um)
 {
     report_skipped("selfcal import grid", iv->file, &iv->t);
+    report_notes("selfcal import grid", iv->file, &iv->t, &iv->notes);
+    if (iv->fit.n_assigned > 0 && iv->nominal_max_mm <= 1e-6)
+        fprintf(stderr, "selfcal import grid: %s: view %d: warning: every point lies within 1 nm "
+                        "of its nominal position: are these the nominal columns (Soll, NOMINAL) "
+                        "instead of the measured ones? The calibration of such values means "
+                        "nothing\n", iv->file, k);
+    report_precision(iv, k, unit_um);
     const long *point_mark = iv->point_mark;
     const sc_grid_import_fit *fit = &iv->fit;
     for (long q = 0; q < iv->t.n_rows; ++q)
@@ -268,6 +454,7 @@ static void report_view(const sc_grid_import_params *p, int k, const import_view
 
 /* import grid's command line, as given. */
 typedef struct {
+    layout_args lay; /* the layout options (SPEC §10a) */
     const char *out, *xcol, *ycol, *uxcol, *uycol;
     double n_d, pitch, unit_mm, tol, share, ox, oy;
     long snx, sny;
@@ -287,9 +474,14 @@ static int looks_like_option(const char *s)
 static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
 {
     const char *cmd = "import grid", *o = argv[*a];
+    if (parse_layout_flag(o, &g->lay) == CLI_OK)
+        return CLI_OK;
     if (*a + 1 >= argc)
         return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
     const char *v = argv[++*a];
+    int lrc = parse_layout_option(cmd, o, v, &g->lay);
+    if (lrc != NOT_LAYOUT)
+        return lrc;
     if (!strcmp(o, "--view")) {
         if (*a + 1 >= argc)
             return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
@@ -363,6 +555,23 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
             return CLI_BAD_INPUT;
     if (!g->uxcol != !g->uycol)
         return cli_usage_error(cmd, "--ux-col and --uy-col go together");
+    if (check_layout(cmd, &g->lay) != CLI_OK)
+        return CLI_BAD_INPUT;
+    if (g->lay.n_axis && g->lay.n_axis != 2)
+        return cli_usage_error(cmd, "--axis-names needs two names, X,Y");
+    const char **nom = g->lay.nominal;
+    if (g->lay.deviations && (!nom[0] || !nom[1]))
+        return cli_usage_error(cmd, "--deviations needs --nominal-x-col and --nominal-y-col");
+    if (!g->lay.deviations && (nom[0] || nom[1]))
+        return cli_usage_error(cmd, "--nominal-x-col/--nominal-y-col go with --deviations");
+    if (g->lay.lay.id_col && g->uxcol)
+        return cli_usage_error(cmd, "--ux-col/--uy-col: not with one row per axis (give the "
+                                    "view's sigma_um= instead)");
+    if (g->lay.lay.id_col && g->lay.deviations && strcasecmp(nom[0], nom[1]))
+        return cli_usage_error(cmd, "with one row per axis the nominal of X and of Y is one "
+                                    "column: --nominal-x-col and --nominal-y-col name the same");
+    if (g->lay.lay.id_col && g->lay.deviations)
+        g->lay.lay.nominal_col = nom[0];
     return CLI_OK;
 }
 
@@ -370,10 +579,35 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
 static sc_status import_grid_view(const grid_args *g, const sc_grid_import_params *p, int nc,
                                   import_view *iv, sc_error *err)
 {
-    const char *names[4] = {g->xcol, g->ycol, g->uxcol, g->uycol};
-    const double scale[4] = {g->unit_mm, g->unit_mm, g->unit_mm * 1e3, g->unit_mm * 1e3};
-    sc_status st = sc_table_read_max(iv->file, nc, names, scale, SC_IMPORT_VIEW_MAX_POINTS, &iv->t,
-                                     err);
+    /* the columns read: x, y [, ux, uy] [, nominal x, nominal y]; one row per axis: the axis
+     * values, then their nominals */
+    const layout_args *l = &g->lay;
+    const char *names[6] = {g->xcol, g->ycol, g->uxcol, g->uycol, NULL, NULL};
+    double scale[6] = {g->unit_mm, g->unit_mm, g->unit_mm * 1e3, g->unit_mm * 1e3, 1, 1};
+    int nread = nc;
+    if (l->lay.id_col) {
+        names[0] = l->n_axis ? l->axis[0] : "X";
+        names[1] = l->n_axis ? l->axis[1] : "Y";
+        scale[2] = scale[3] = 1; /* the nominals (mm) */
+    } else if (l->deviations) {
+        names[nc] = l->nominal[0];
+        names[nc + 1] = l->nominal[1];
+        scale[nc] = scale[nc + 1] = 1;
+        nread = nc + 2;
+    }
+    sc_status st = sc_table_read_layout(iv->file, nread, names, scale, SC_IMPORT_VIEW_MAX_POINTS,
+                                        &l->lay, &iv->notes, &iv->t, err);
+    if (st == SC_OK && l->deviations) { /* positions = nominal + deviation, nc columns a row */
+        int w = iv->t.n_cols, nom = l->lay.id_col ? 2 : nc;
+        for (long q = 0; q < iv->t.n_rows; ++q) {
+            const double *in = iv->t.value + (size_t)q * w;
+            double row[4];
+            for (int c = 0; c < nc; ++c)
+                row[c] = in[c] + (c < 2 ? in[nom + c] : 0);
+            memcpy(iv->t.value + (size_t)q * nc, row, (size_t)nc * sizeof(double));
+        }
+        iv->t.n_cols = nc;
+    }
     for (long q = 0; st == SC_OK && nc == 4 && q < iv->t.n_rows; ++q)
         if (!sc_grid_sigma_valid(iv->t.value[q * 4 + 2]) ||
             !sc_grid_sigma_valid(iv->t.value[q * 4 + 3]))
@@ -397,6 +631,22 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
         st = sc_grid_import_assign(p, &iv->v, np, xy, xy + np, iv->t.line, iv->file,
                                    iv->t.header_line, iv->point_mark, iv->mark_point, &iv->fit,
                                    work, err);
+    }
+    /* how far the points are from their nominal positions (the stage nodes): nominal columns
+     * taken for measured ones put every point on its node */
+    iv->nominal_max_mm = 0;
+    int snx = p->stage_nx ? p->stage_nx : p->n, sny = p->stage_ny ? p->stage_ny : p->n;
+    for (long m = 0; st == SC_OK && m < nn; ++m) {
+        int ni, nj;
+        long q = iv->mark_point[m];
+        if (q < 0 || !sc_grid_import_mark_node(p, &iv->v, (int)(m / p->n), (int)(m % p->n), &ni,
+                                                &nj))
+            continue;
+        double nx = p->origin_mm[0] + (nj - (snx - 1) / 2.0) * p->pitch_mm;
+        double ny = p->origin_mm[1] + (ni - (sny - 1) / 2.0) * p->pitch_mm;
+        double d = hypot(xy[q] - nx, xy[np + q] - ny);
+        if (d > iv->nominal_max_mm)
+            iv->nominal_max_mm = d;
     }
     free(xy);
     free(work);
@@ -482,7 +732,7 @@ static int import_grid_run(int argc, char **argv, grid_args *gp)
         st = import_grid_view(&g, &p, nc, &g.views[k], &err);
     if (st == SC_OK) { /* all views numbered: report, then write */
         for (int k = 0; k < g.n_views; ++k)
-            report_view(&p, k, &g.views[k]);
+            report_view(&p, k, &g.views[k], g.unit_mm * 1e3);
         st = write_grid_file(&g, &p, nc, &err);
     }
     for (int k = 0; k < g.n_views; ++k) {
