@@ -758,6 +758,8 @@ typedef struct {
     double pos_unit, disp_unit, angle_unit, step, step_tol, sigma_disp, sigma_angle;
     scan_log scans[2];
     int n_scans;
+    layout_args lay;
+    sc_table_notes notes[2];
 } profile_args;
 
 /* --pos-units, --disp-units, --angle-units; NOT_UNITS for other options. */
@@ -788,11 +790,18 @@ static int parse_profile_units(profile_args *g, const char *o, const char *v)
 static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
 {
     const char *cmd = "import profile", *o = argv[*a];
+    if (strcmp(o, "--deviations") && parse_layout_flag(o, &g->lay) == CLI_OK)
+        return CLI_OK;
     if (*a + 1 >= argc)
         return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
     const char *v = argv[++*a];
     double x;
     static const char *const col_opts[4] = {"--pos-col", "--m1-col", "--m2-col", "--m3-col"};
+    if (strncmp(o, "--nominal-", 10)) {
+        int lrc = parse_layout_option(cmd, o, v, &g->lay);
+        if (lrc != NOT_LAYOUT)
+            return lrc;
+    }
     for (int k = 0; k < 4; ++k)
         if (!strcmp(o, col_opts[k])) {
             g->col[k] = v;
@@ -837,8 +846,11 @@ static sc_status import_profile_run(profile_args *g, sc_error *err)
 {
     sc_status st = SC_OK;
     const double scale[4] = {g->pos_unit, g->disp_unit, g->disp_unit, g->angle_unit};
+    const char *const *names = g->lay.n_axis ? g->lay.axis : g->col; /* one row per axis: the
+                                                                        AXIS values */
     for (int k = 0; k < 2 && st == SC_OK; ++k)
-        st = sc_table_read(g->scans[k].file, 4, g->col, scale, &g->scans[k].t, err);
+        st = sc_table_read_layout(g->scans[k].file, 4, names, scale, SC_TABLE_MAX_ROWS, &g->lay.lay,
+                                  &g->notes[k], &g->scans[k].t, err);
     sc_profile_data d;
     memset(&d, 0, sizeof d);
     double p0 = 0;
@@ -862,8 +874,10 @@ static sc_status import_profile_run(profile_args *g, sc_error *err)
             d.sigma_angle_urad = g->sigma_angle;
         }
         st = sc_profile_write(g->out, &d, err);
-        for (int k = 0; k < 2 && st == SC_OK; ++k) /* the notes once it worked: else one line */
+        for (int k = 0; k < 2 && st == SC_OK; ++k) { /* the notes once it worked: else one line */
             report_skipped("selfcal import profile", g->scans[k].file, &g->scans[k].t);
+            report_notes("selfcal import profile", g->scans[k].file, &g->scans[k].t, &g->notes[k]);
+        }
         if (st == SC_OK)
             fprintf(stderr,
                     "selfcal import profile: N = %d points, step %.9g mm from %.6f mm, d1 = %d, "
@@ -876,9 +890,13 @@ static sc_status import_profile_run(profile_args *g, sc_error *err)
 
 static int import_profile(int argc, char **argv)
 {
-    profile_args g = {NULL, {"position", "m1", "m2", "m3"}, 1, 1, 1, 0, 0.1, NAN, NAN,
-                      {{0}}, 0};
-    memset(g.scans, 0, sizeof g.scans);
+    static profile_args g; /* large (the layout's buffers): not on the stack */
+    memset(&g, 0, sizeof g);
+    const char *const cols[4] = {"position", "m1", "m2", "m3"};
+    memcpy(g.col, cols, sizeof cols);
+    g.pos_unit = g.disp_unit = g.angle_unit = 1;
+    g.step_tol = 0.1;
+    g.sigma_disp = g.sigma_angle = NAN;
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(PROFILE_USAGE, stdout);
@@ -890,6 +908,11 @@ static int import_profile(int argc, char **argv)
     }
     if (!g.out || g.n_scans != 2)
         return cli_usage_error("import profile", "--spacing-mm D1 FILE1 --spacing-mm D2 FILE2 and -o are required (see --help)");
+    if (check_layout("import profile", &g.lay) != CLI_OK)
+        return CLI_BAD_INPUT;
+    if (g.lay.n_axis && g.lay.n_axis != 4)
+        return cli_usage_error("import profile", "--axis-names needs four names: position, m1, "
+                                                 "m2, m3");
     sc_error err;
     sc_error_clear(&err);
     sc_status st = import_profile_run(&g, &err);
