@@ -354,6 +354,140 @@ static void test_assign(void **state)
     assert_non_null(strstr(err.msg, "only"));
 }
 
+/* Read text with layout lay: status, and the table (freed by the caller when SC_OK). */
+static sc_status read_layout(const char *text, int n_cols, const char *const *names,
+                             const sc_table_layout *lay, sc_table_notes *notes, sc_table *t,
+                             sc_error *err)
+{
+    char path[512];
+    tmp_path(path, sizeof path, "layout.csv");
+    write_text(path, text);
+    return sc_table_read_layout(path, n_cols, names, NULL, 1000, lay, notes, t, err);
+}
+
+/* One row per axis: points gathered by ID in the order of their first rows, other axes
+ * counted, a point with one coordinate left out and counted, nominals with them; an ID with two
+ * X rows is bad input. */
+static void test_layout_long(void **state)
+{
+    (void)state;
+    static const char *const AX[2] = {"X", "Y"};
+    sc_table_layout lay;
+    memset(&lay, 0, sizeof lay);
+    lay.id_col = "FEATURE";
+    lay.axis_col = "AXIS";
+    lay.value_col = "MEAS";
+    sc_table t;
+    sc_table_notes n;
+    sc_error err;
+    const char *text = "Part Name, P\n\nFEATURE, AXIS, NOMINAL, MEAS\n"
+                       "\"C2\",\"y\",\"1.0\",\"1.25\"\n\"C1\",\"X\",\"0.0\",\"0.5\"\n"
+                       "\"C1\",\"Z\",\"0.0\",\"9\"\n\"C2\",\"X\",\"1.0\",\"1.5\"\n"
+                       "\"C1\",\"Y\",\"0.0\",\"-0.5\"\n\"C3\",\"X\",\"2.0\",\"2.5\"\n";
+    assert_int_equal(read_layout(text, 2, AX, &lay, &n, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 2);
+    assert_int_equal(t.header_line, 3);
+    assert_true(t.value[0] == 1.5 && t.value[1] == 1.25); /* C2 first: its first row is first */
+    assert_true(t.value[2] == 0.5 && t.value[3] == -0.5);
+    assert_int_equal(t.line[0], 4);
+    assert_int_equal(n.n_other_axis, 1);
+    assert_int_equal(n.n_incomplete, 1);
+    assert_int_equal(n.incomplete_line, 9);
+    assert_int_equal(n.decimals, 2);
+    sc_table_free(&t);
+    lay.nominal_col = "NOMINAL"; /* 2 * n_cols columns: values, then nominals */
+    assert_int_equal(read_layout(text, 2, AX, &lay, &n, &t, &err), SC_OK);
+    assert_int_equal(t.n_cols, 4);
+    assert_true(t.value[2] == 1.0 && t.value[3] == 1.0);
+    sc_table_free(&t);
+    lay.nominal_col = NULL;
+    const char *twice = "ID;AXIS;MEAS\nC1;X;1\nC1;Y;2\nC1;X;3\n";
+    lay.id_col = "ID";
+    assert_int_equal(read_layout(twice, 2, AX, &lay, &n, &t, &err), SC_E_INPUT);
+    assert_int_equal(err.line, 4);
+    assert_int_equal(read_layout(twice, 2, AX, &lay, &n, &t, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "'C1' has a second X row"));
+    lay.value_col = NULL; /* the three go together */
+    assert_int_equal(read_layout(twice, 2, AX, &lay, &n, &t, &err), SC_E_INPUT);
+}
+
+/* --where, --missing, the header's trailing empty field and an unlabelled trailing text field. */
+static void test_layout_filters(void **state)
+{
+    (void)state;
+    sc_table_layout lay;
+    memset(&lay, 0, sizeof lay);
+    lay.n_where = 1;
+    lay.where_col[0] = "type";
+    lay.where_value[0] = "circle";
+    lay.n_missing = 1;
+    lay.missing[0] = "-----";
+    sc_table t;
+    sc_table_notes n;
+    sc_error err;
+    const char *text = "id\ttype\tx\ty\t\nP\tPlane\t0\t0\nC1\tCircle\t1\t2\nC2\tCircle\t-----\t-----\n"
+                       "C3\tCircle\t3\t4\t--*|--\n";
+    assert_int_equal(read_layout(text, 2, XY, &lay, &n, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 2);
+    assert_true(t.value[2] == 3 && t.value[3] == 4);
+    assert_int_equal(n.n_filtered, 1);
+    assert_int_equal(n.filtered_line, 2);
+    assert_int_equal(n.n_placeholder, 2);
+    assert_int_equal(t.n_no_values, 1);
+    assert_int_equal(n.header_fields, 5);
+    assert_int_equal(n.named_fields, 4);
+    assert_int_equal(n.n_ragged, 0); /* C3's bar sits under the header's empty name */
+    sc_table_free(&t);
+    const char *bar = "x;y\n1;2;--*|--\n3;4;-*--|--\n";
+    assert_int_equal(read_layout(bar, 2, XY, NULL, &n, &t, &err), SC_OK);
+    assert_int_equal(n.n_ragged, 2);
+    assert_int_equal(n.ragged_line, 2);
+    assert_int_equal(n.ragged_fields, 3);
+    sc_table_free(&t);
+    /* a number in the unlabelled field is still an error */
+    const char *bad = "x;y\n1;2;3\n";
+    assert_int_equal(read_layout(bad, 2, XY, &lay, &n, &t, &err), SC_E_INPUT);
+}
+
+/* No header line (columns by number), items in columns, and an encoding. */
+static void test_layout_shapes(void **state)
+{
+    (void)state;
+    static const char *const N23[2] = {"2", "3"};
+    sc_table_layout lay;
+    memset(&lay, 0, sizeof lay);
+    lay.no_header = true;
+    sc_table t;
+    sc_table_notes n;
+    sc_error err;
+    assert_int_equal(read_layout("P1;1,5;2\nP2;3;4,25\n", 2, N23, &lay, &n, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 2);
+    assert_int_equal(t.header_line, 0);
+    assert_true(t.value[0] == 1.5 && t.value[3] == 4.25);
+    sc_table_free(&t);
+    assert_int_equal(read_layout("P1;1,5;2\n", 2, XY, &lay, &n, &t, &err), SC_E_INPUT);
+    memset(&lay, 0, sizeof lay);
+    lay.transpose = true;
+    assert_int_equal(read_layout("Merkmal;P1;P2;Mittelwert\nX;1;2;1,5\nZ;0;0;0\nY;3;4;3,5\n", 2,
+                                 XY, &lay, &n, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 2);
+    assert_int_equal(t.n_summary, 1);
+    assert_true(t.value[0] == 1 && t.value[1] == 3 && t.value[2] == 2 && t.value[3] == 4);
+    sc_table_free(&t);
+    static const char *const DE[2] = {"X-Ist [\xC2\xB5m]", "Y"};
+    memset(&lay, 0, sizeof lay);
+    const char *cp = "Me\xDF" "punkt;X-Ist [\xB5m];Y\n1;2;3\n";
+    assert_int_equal(read_layout(cp, 2, DE, &lay, &n, &t, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "not UTF-8"));
+    lay.encoding = SC_ENC_CP1252;
+    assert_int_equal(read_layout(cp, 2, DE, &lay, &n, &t, &err), SC_OK);
+    assert_true(t.value[0] == 2 && t.value[1] == 3);
+    sc_table_free(&t);
+    lay.encoding = SC_ENC_SHIFT_JIS; /* 0x81 0x7F is no Shift-JIS character */
+    assert_int_equal(read_layout("x;y\n\x81\x7f;1\n", 2, XY, &lay, &n, &t, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "not shift-jis text"));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -362,6 +496,9 @@ int main(void)
         cmocka_unit_test(test_table_preamble),
         cmocka_unit_test(test_table_max_rows),
         cmocka_unit_test(test_table_machine_lines),
+        cmocka_unit_test(test_layout_long),
+        cmocka_unit_test(test_layout_filters),
+        cmocka_unit_test(test_layout_shapes),
         cmocka_unit_test(test_assign),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

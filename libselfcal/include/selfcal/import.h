@@ -116,7 +116,8 @@ typedef struct sc_table_notes {
     long n_incomplete, incomplete_line;   /* one row per axis: points with only some coordinates
                                              (left out), the first's line */
     long n_other_axis;                    /* one row per axis: rows of other axes (Z, D, ...) */
-    long n_ragged, ragged_line;           /* rows whose unlabelled trailing fields were ignored */
+    long n_ragged, ragged_line;           /* rows with more fields than the header (unlabelled
+                                             trailing text, ignored), the first's line */
     int header_fields, named_fields;      /* the header's fields, those up to its last name */
     int ragged_fields;                    /* the first such row's field count */
     int decimals;                         /* most digits after the decimal mark in a value read */

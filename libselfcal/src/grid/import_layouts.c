@@ -391,7 +391,7 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
                               t->header_line ? t->header_line : first_row, n_header);
             break;
         }
-        if (nf != n_header && !notes->n_ragged++) {
+        if (nf > n_header && !notes->n_ragged++) {
             notes->ragged_line = r.line;
             notes->ragged_fields = nf;
         }

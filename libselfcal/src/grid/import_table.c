@@ -710,7 +710,7 @@ static sc_status read_row(table_reader *tr, int nf, sc_error *err)
                             t->header_line ? "header line" : "first row",
                             t->header_line ? t->header_line : tr->first_row_line, tr->n_header,
                             t->delimiter == ',' ? " (decimal commas need ';' or tab as delimiter)" : "");
-    if (nf != tr->n_header && !tr->notes->n_ragged++) {
+    if (nf > tr->n_header && !tr->notes->n_ragged++) { /* an unlabelled column's fields */
         tr->notes->ragged_line = tr->r.line;
         tr->notes->ragged_fields = nf;
     }
@@ -988,13 +988,14 @@ sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *
     } else if (st == SC_OK && !tr.in_rows && first) {
         char hint[256];
         row_taken_hint(&tr, first, hint, sizeof hint);
+        int first_is_data = looks_like_data(first); /* before the line is split in place */
         st = read_header_line(&tr, first, first_line, err);
         if (st != SC_OK && hint[0] && err && strstr(err->msg, "no column named")) {
             char *paren = strstr(err->msg, " (delimiter"); /* the hint replaces the details */
             if (paren)
                 *paren = '\0';
             append_hint(err, hint);
-        } else if (st != SC_OK && err && !hint[0] && looks_like_data(first) &&
+        } else if (st != SC_OK && err && !hint[0] && first_is_data &&
                    strstr(err->msg, "no column named")) {
             append_hint(err, ": this line is a row of numbers (no header line? --no-header "
                              "with the columns by number)");
