@@ -981,8 +981,60 @@ def case_vendor_messages():
         fail("4 decimals warned about for a 0.5 um machine: %s" % p.stderr)
 
 
+def g17(v):
+    return ("%.17g" % v).replace(".", ",")
+
+
+def case_profile_layouts():
+    """import profile with the layout options (SPEC §10a where they apply): logs with no header
+    line (columns by number) and logs with one row per channel (ID = sample, AXIS = channel,
+    other channels and a filtered run mixed in) import to the same file as the plain logs."""
+    d = fresh_dir("profile_layouts")
+    src = os.path.join(d, "sim.csv")
+    run("simulate", "profile", "--out", src, "--truth", os.path.join(d, "T.csv"), "--n", 60,
+        "--s-mm", 0.5, "--d1", 4, "--d2", 5, "--noise-free")
+    head, data = read_profile(src)
+    plain, nohead, longf = [], [], []
+    for k, dk in ((1, 4), (2, 5)):
+        rows = [(10 + n * 0.5, data[(k, n)][0], data[(k, n)][1], data[(k, n)][2])
+                for n in range(60 - dk)]
+        for name, lst in (("plain", plain), ("nohead", nohead), ("long", longf)):
+            lst.append(os.path.join(d, "%s%d.csv" % (name, k)))
+        write_scan(plain[-1], rows, delim=";", dec=",")
+        with open(nohead[-1], "w") as f:
+            f.write("".join("%d;%s\n" % (q, ";".join(g17(v) for v in r))
+                            for q, r in enumerate(rows)))
+        with open(longf[-1], "w") as f:
+            f.write("Run;Sample;Channel;Value\n")
+            for q, r in enumerate(rows):
+                for ch, v in zip(("Pos", "A", "B", "Phi", "Temp"), list(r) + [20.0]):
+                    f.write("1;%d;%s;%s\n" % (q, ch, g17(v)))
+                    f.write("0;%d;%s;%s\n" % (q, ch, g17(v + 1)))  # a discarded run
+    with open(plain[0]) as f:
+        cols = f.readline().strip().split(";")
+    outs = []
+    for name, files, opts in (
+            ("plain", plain, ["--pos-col", cols[0], "--m1-col", cols[1], "--m2-col", cols[2],
+                              "--m3-col", cols[3]]),
+            ("nohead", nohead, ["--no-header", "--pos-col", 2, "--m1-col", 3, "--m2-col", 4,
+                                "--m3-col", 5]),
+            ("long", longf, ["--id-col", "Sample", "--axis-col", "Channel", "--value-col", "Value",
+                             "--axis-names", "Pos,A,B,Phi", "--where", "Run=1"])):
+        outs.append(os.path.join(d, "%s_out.csv" % name))
+        p = run("import", "profile", *opts, "--spacing-mm", 2, files[0], "--spacing-mm", 2.5,
+                files[1], "-o", outs[-1])
+        if name == "long" and ("rows left out by --where" not in p.stderr or
+                               "of other axes" not in p.stderr):
+            fail("the long logs' notes are missing: %s" % p.stderr)
+    ref = open(outs[0]).read()
+    for o in outs[1:]:
+        if open(o).read() != ref:
+            fail("%s differs from the plain logs' import" % o)
+
+
 CASES = {"recover": case_recover,
          "vendors": case_vendors, "vendor_messages": case_vendor_messages,
+         "profile_layouts": case_profile_layouts,
          "recover_one_view": lambda: case_recover((1,), "recover_one_view"), "formats": case_formats, "placement": case_placement,
          "stage": case_stage, "bad_input": case_bad_input,
          "simulate_exports": case_simulate_exports, "profile": case_profile,
