@@ -29,6 +29,7 @@ typedef struct long_reader {
     long *line;               /* per point: its first row's line */
     double *value;            /* per point: n_out values */
     long n_points, cap;
+    long n_used;              /* rows that gave a point a coordinate (or its absence) */
     long *slot;               /* hash table of points (-1 empty), n_slots a power of 2 */
     size_t n_slots;
 } long_reader;
@@ -233,6 +234,7 @@ static sc_status long_row(long_reader *lr, const sc_table_layout *lay, const cha
                             "names one point (two views in one file? --where COL=VALUE picks one)",
                             id, names[k], lr->line[p]);
     lr->seen[p] |= 1u << k;
+    lr->n_used++;
     if (present) {
         lr->have[p] |= 1u << k;
         lr->value[(size_t)p * lr->n_out + k] = v[0] * (scale ? scale[k] : 1.0);
@@ -297,10 +299,10 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
         sc_imp_conv_close(&conv);
         return st;
     }
-    char *field[SC_IMP_MAX_FIELDS], header[4096] = "";
+    char *field[SC_IMP_MAX_FIELDS];
     unsigned char quoted[SC_IMP_MAX_FIELDS];
     int n_header = 0, in_rows = 0, got, best = -1;
-    long preamble = 0, best_line = 0, first_row = 0;
+    long preamble = 0, best_line = 0, first_row = 0, no_row_run = 0;
     sc_imp_marks marks = {0, 0, 0};
     char best_text[4096] = "";
     while (st == SC_OK && (got = sc_csv_next_line(&r, err)) == 1) {
@@ -356,7 +358,6 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
             } else if (all) {
                 n_header = n;
                 t->header_line = r.line;
-                snprintf(header, sizeof header, "%s", r.text);
                 in_rows = 1;
                 notes->header_fields = notes->named_fields = n;
                 while (notes->named_fields > 1 && !hf[notes->named_fields - 1][0])
@@ -383,8 +384,13 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
             int empty = nf >= 0;
             for (int f = 0; f < nf && empty; ++f)
                 empty = !field[f][0];
-            if (empty)
+            if (empty && ++no_row_run <= SC_CSV_MAX_SKIP_RUN)
                 continue; /* a spreadsheet's ";;;;" */
+            if (empty) {
+                st = sc_error_set(err, SC_E_INPUT, path, r.line, SC_IMP_NO_ROW_RUN_MSG,
+                                  SC_CSV_MAX_SKIP_RUN);
+                break;
+            }
             st = sc_error_set(err, SC_E_INPUT, path, r.line, "%d fields, the %s (line %ld) has %d",
                               nf < 0 ? SC_IMP_MAX_FIELDS : nf,
                               t->header_line ? "header line" : "first row",
@@ -395,8 +401,13 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
             notes->ragged_line = r.line;
             notes->ragged_fields = nf;
         }
+        long used = lr.n_used;
         st = long_row(&lr, lay, names, scale, field, quoted, nf, col_of, n_need, t->delimiter,
                       r.line, &marks, t, notes, err);
+        no_row_run = lr.n_used > used ? 0 : no_row_run + 1;
+        if (st == SC_OK && no_row_run > SC_CSV_MAX_SKIP_RUN)
+            st = sc_error_set(err, SC_E_INPUT, path, r.line, SC_IMP_NO_ROW_RUN_MSG,
+                              SC_CSV_MAX_SKIP_RUN);
     }
     if (st == SC_OK && got < 0)
         st = err ? err->code : SC_E_INPUT;
@@ -427,7 +438,6 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
         t->decimal = marks.mark ? marks.mark : '.';
         notes->decimals = marks.decimals;
     }
-    (void)header;
     long_free(&lr);
     sc_csv_close(&r);
     sc_imp_conv_close(&conv);
@@ -453,7 +463,7 @@ sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const
         return st;
     }
     char *text[16] = {0}, *prev = NULL, *items = NULL; /* the labelled rows, the item names */
-    long line[16] = {0}, prev_line = 0, items_line = 0, n_lines = 0;
+    long line[16] = {0}, prev_line = 0, items_line = 0, n_lines = 0, unlabelled = 0;
     int got;
     while (st == SC_OK && (got = sc_csv_next_line(&r, err)) == 1) {
         if (sc_csv_is_blank(&r) || r.text[0] == '#')
@@ -481,6 +491,12 @@ sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const
             if (num ? num == n_lines : sc_imp_name_equal(lab, names[a]))
                 k = a;
         }
+        if (k < 0 && ++unlabelled > SC_CSV_MAX_SKIP_RUN) {
+            st = sc_error_set(err, SC_E_INPUT, path, r.line,
+                              "more than %ld lines in a row without a wanted label: not this "
+                              "table's data (an endless input?)", SC_CSV_MAX_SKIP_RUN);
+            break;
+        }
         if (k < 0) {
             free(prev);
             prev = strdup(r.text);
@@ -489,6 +505,7 @@ sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const
                 st = sc_error_set(err, SC_E_NOMEM, path, r.line, "out of memory");
             continue;
         }
+        unlabelled = 0;
         if (text[k]) {
             st = sc_error_set(err, SC_E_INPUT, path, r.line,
                               "a second row labelled '%s' (the first: line %ld)", names[k], line[k]);

@@ -894,7 +894,7 @@ sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *
     int numbers = all_by_number(&tr);
     int no_header = lay && lay->no_header;
     char *prev = NULL; /* with columns by number: the last line before the data, its number */
-    long prev_line = 0;
+    long prev_line = 0, no_row_run = 0; /* lines in a row after the header that were no row */
     while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
         if (sc_csv_is_blank(&tr.r))
             continue;
@@ -914,7 +914,12 @@ sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *
             continue;
         }
         if (tr.in_rows) {
+            long rows_before = t->n_rows;
             st = read_data_line(&tr, err);
+            no_row_run = t->n_rows > rows_before ? 0 : no_row_run + 1;
+            if (st == SC_OK && no_row_run > SC_CSV_MAX_SKIP_RUN)
+                st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, SC_IMP_NO_ROW_RUN_MSG,
+                                  SC_CSV_MAX_SKIP_RUN);
             continue;
         }
         if (numbers) { /* the header: the line before the first row */

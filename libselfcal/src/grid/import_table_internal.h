@@ -11,6 +11,11 @@
 
 #define SC_IMP_MAX_FIELDS 256 /* fields of a line (items in columns: SC_IMP_MAX_ITEMS) */
 #define SC_IMP_PREAMBLE_MAX 100 /* lines before the header line that name no columns */
+/* More than SC_CSV_MAX_SKIP_RUN lines in a row that give no row (filtered, other axes, empty,
+ * unlabelled) are refused: an endless input of them would otherwise be read forever. */
+#define SC_IMP_NO_ROW_RUN_MSG \
+    "more than %ld lines in a row that are no row (left out by --where, other axes, empty): not " \
+    "this table's data (an endless input?)"
 
 /* Split s at delim in place (double-quoted fields may hold it; quotes removed), trimming blanks;
  * the field count, or -1 beyond max. quoted (may be NULL): 1 for each quoted field. */

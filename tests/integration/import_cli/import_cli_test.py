@@ -979,6 +979,23 @@ def case_vendor_messages():
             os.path.join(d, "pc6.csv"), "-o", os.path.join(d, "out.csv"))
     if "warning" in p.stderr:
         fail("4 decimals warned about for a 0.5 um machine: %s" % p.stderr)
+    os.remove(os.path.join(d, "out.csv"))
+    # an endless pipe of rows that give no point (filtered, other axes, unlabelled) is refused
+    # after a million in a row, not read forever
+    out = os.path.join(d, "out.csv")
+    for gen, opts in (("printf 'T;X;Y\\n'; exec yes 'L;0;0'", ["--where", "T=C"]),
+                      ("printf 'ID;AXIS;V\\n'; exec yes 'C1;Z;0'",
+                       ["--id-col", "ID", "--axis-col", "AXIS", "--value-col", "V"]),
+                      ("printf 'X;1\\nY;1\\n'; exec yes 'Z;0'", ["--transpose"])):
+        a = ["import", "grid", "--n", n, "--pitch-mm", 1, "--x-col", "X", "--y-col", "Y"] + opts
+        a += ["--view", "rot=0 shift=0,0", "/dev/stdin", "-o", out]
+        with subprocess.Popen(["sh", "-c", gen], stdout=subprocess.PIPE) as g:
+            p = subprocess.run([CLI] + [str(x) for x in a], stdin=g.stdout, capture_output=True,
+                               text=True, timeout=clitest._timeout)
+            g.kill()
+        if p.returncode != 2 or "/dev/stdin:100000" not in p.stderr or \
+                "an endless input?" not in p.stderr or os.path.exists(out):
+            fail("endless pipe %s: exit %d, %r" % (opts, p.returncode, p.stderr))
 
 
 def g17(v):
