@@ -9,7 +9,7 @@ if(SELFCAL_FUZZ)
   set(SELFCAL_FUZZ_SECONDS 20 CACHE STRING "Seconds each fuzz_short_<target> test runs")
   set(_fz ${CMAKE_CURRENT_SOURCE_DIR}/fuzz)
   set(_fz_targets grid_read profile_read stage_map profile_result table selfcald_config
-                  modbus_adu modbus_rtu can_frame import plate_map dabam verify plot_xy)
+                  modbus_adu modbus_rtu can_frame import import_layout plate_map dabam verify plot_xy)
   foreach(t ${_fz_targets})
     add_executable(fuzz_${t} ${_fz}/fuzz_${t}.c)
     target_include_directories(fuzz_${t} PRIVATE ${_fz})

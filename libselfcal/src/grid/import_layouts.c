@@ -546,7 +546,7 @@ sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const
                               "%d items here, %d in the row labelled '%s' (line %ld)", nf[k] - 1,
                               nf[0] - 1, names[0], line[0]);
     }
-    char **item = field + (size_t)n_cols * MAX_ITEMS;
+    char **item = field ? field + (size_t)n_cols * MAX_ITEMS : NULL; /* none on an error */
     int n_items = 0;
     if (st == SC_OK && items)
         n_items = sc_imp_split_fields(items, d, item, NULL, MAX_ITEMS);
