@@ -278,6 +278,9 @@ static int check_layout(const char *cmd, const layout_args *l)
         return cli_usage_error(cmd, "--axis-names goes with --id-col, --axis-col, --value-col");
     if (n && y->transpose)
         return cli_usage_error(cmd, "--transpose and one row per axis do not go together");
+    if (y->transpose && y->n_where)
+        return cli_usage_error(cmd, "--where filters rows; with --transpose the rows are X and Y "
+                                    "(leave the other columns out of the file)");
     return CLI_OK;
 }
 

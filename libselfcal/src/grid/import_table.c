@@ -841,6 +841,9 @@ static sc_status check_request(int n_cols, const char *const *names, const doubl
     if (is_long && lay->transpose)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "one row per axis and items in columns do not go together");
+    if (lay && lay->transpose && lay->n_where)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "row filters do not apply to items in columns");
     return SC_OK;
 }
 

@@ -980,6 +980,31 @@ def case_vendor_messages():
     if "warning" in p.stderr:
         fail("4 decimals warned about for a 0.5 um machine: %s" % p.stderr)
     os.remove(os.path.join(d, "out.csv"))
+    # the options' own mistakes: exit 2, one line, no output
+    out = os.path.join(d, "out.csv")
+    f0 = os.path.join(d, "pc1.csv")
+    for opts, want in (
+            (["--id-col", "FEATURE", "--axis-col", "AXIS"], "needs --id-col, --axis-col and "
+             "--value-col"),
+            (["--id-col", "F", "--axis-col", "A", "--value-col", "M", "--axis-names", "X"],
+             "--axis-names needs two names"),
+            (["--axis-names", "X,Y"], "--axis-names goes with --id-col"),
+            (["--where", "type"], "--where needs COL=VALUE"),
+            (["--missing", ""], "--missing needs a token"),
+            (["--encoding", "ebcdic"], "--encoding: utf-8, cp1252, latin-1 or shift-jis"),
+            (["--deviations", "--nominal-x-col", "NX"], "--deviations needs --nominal-x-col and "
+             "--nominal-y-col"),
+            (["--nominal-x-col", "NX", "--nominal-y-col", "NY"], "go with --deviations"),
+            (["--transpose", "--id-col", "F", "--axis-col", "A", "--value-col", "M"],
+             "--transpose and one row per axis do not go together"),
+            (["--transpose", "--where", "a=b"], "--where filters rows"),
+            (["--id-col", "F", "--axis-col", "A", "--value-col", "M", "--deviations",
+              "--nominal-x-col", "NX", "--nominal-y-col", "NY"], "name the same")):
+        p = run("import", "grid", "--n", n, "--pitch-mm", 1, *opts, "--view", "rot=0 shift=0,0",
+                f0, "-o", out, expect=2)
+        if len(p.stderr.strip().splitlines()) != 1 or want not in p.stderr or \
+                os.path.exists(out):
+            fail("usage error %s: want %r, got %r" % (opts, want, p.stderr))
     # an endless pipe of rows that give no point (filtered, other axes, unlabelled) is refused
     # after a million in a row, not read forever
     out = os.path.join(d, "out.csv")
