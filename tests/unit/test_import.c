@@ -393,6 +393,8 @@ static void test_layout_long(void **state)
     assert_int_equal(n.n_other_axis, 1);
     assert_int_equal(n.n_incomplete, 1);
     assert_int_equal(n.incomplete_line, 9);
+    assert_string_equal(n.incomplete_id, "C3");
+    assert_string_equal(n.incomplete_axis, "Y");
     assert_int_equal(n.decimals, 2);
     sc_table_free(&t);
     lay.nominal_col = "NOMINAL"; /* 2 * n_cols columns: values, then nominals */

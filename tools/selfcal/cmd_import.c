@@ -300,8 +300,9 @@ static void report_notes(const char *cmd, const char *file, const sc_table *t,
                         "not read\n", cmd, file, n->n_other_axis, n->n_other_axis == 1 ? "" : "s");
     if (n->n_incomplete)
         fprintf(stderr, "%s: %s:%ld: %ld point%s with only some of its coordinates (a row of an "
-                        "axis missing); left out\n", cmd, file, n->incomplete_line,
-                n->n_incomplete, n->n_incomplete == 1 ? "" : "s");
+                        "axis missing; the first: '%s', no %s value); left out\n", cmd, file,
+                n->incomplete_line, n->n_incomplete, n->n_incomplete == 1 ? "" : "s",
+                n->incomplete_id, n->incomplete_axis);
     if (n->named_fields < n->header_fields)
         fprintf(stderr, "%s: %s:%ld: the header line ends in %d empty field%s (a trailing tab or "
                         "delimiter); ignored\n", cmd, file, t->header_line,

@@ -115,6 +115,8 @@ typedef struct sc_table_notes {
     long n_placeholder, placeholder_line; /* wanted fields holding a missing token */
     long n_incomplete, incomplete_line;   /* one row per axis: points with only some coordinates
                                              (left out), the first's line */
+    char incomplete_id[64];               /* the first such point's ID (cut to 63 bytes) */
+    char incomplete_axis[32];             /* the first coordinate it lacks (names[k]) */
     long n_other_axis;                    /* one row per axis: rows of other axes (Z, D, ...) */
     long n_ragged, ragged_line;           /* rows with more fields than the header (unlabelled
                                              trailing text, ignored), the first's line */

@@ -21,6 +21,7 @@
 typedef struct long_reader {
     const char *path;
     int n_cols, n_out;        /* axes, and columns of the table (2 n_cols with nominals) */
+    const char *const *names; /* the axes' names */
     long max_rows;
     char *ids;                /* every point's ID, NUL-terminated, one after another */
     size_t ids_len, ids_cap;
@@ -268,6 +269,12 @@ static sc_status long_finish(long_reader *lr, sc_table *t, sc_table_notes *notes
                 t->no_values_line = lr->line[p];
         } else if (!notes->n_incomplete++) {
             notes->incomplete_line = lr->line[p];
+            snprintf(notes->incomplete_id, sizeof notes->incomplete_id, "%s",
+                     lr->ids + lr->id_at[p]);
+            for (int k = lr->n_cols - 1; k >= 0; --k)
+                if (!(lr->have[p] & (1u << k)))
+                    snprintf(notes->incomplete_axis, sizeof notes->incomplete_axis, "%s",
+                             lr->names[k]);
         }
     }
     return SC_OK;
@@ -286,6 +293,7 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
     memset(&lr, 0, sizeof lr);
     lr.path = path;
     lr.n_cols = n_cols;
+    lr.names = names;
     lr.n_out = lay->nominal_col ? 2 * n_cols : n_cols;
     lr.max_rows = max_rows;
     t->n_cols = lr.n_out;

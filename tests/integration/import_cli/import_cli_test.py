@@ -876,7 +876,8 @@ def case_vendor_messages():
     vendor_bad(d, "pc3.csv", "\r\n".join(lines[:y_row] + lines[y_row + 1:]),
                ["--id-col", "FEATURE", "--axis-col", "AXIS", "--value-col", "MEAS"],
                "pc3.csv:%d: 1 point with only some of its coordinates (a row of an axis "
-               "missing); left out" % (y_row), expect=0)
+               "missing; the first: '%s', no Y value); left out"
+               % (y_row, lines[y_row].split(",")[0].strip('"')), expect=0)
     # an ID with a second X row: two views in one file (or a repeated feature name)
     vendor_bad(d, "pc4.csv", pc + lines[5] + "\r\n",
                ["--id-col", "FEATURE", "--axis-col", "AXIS", "--value-col", "MEAS"],
