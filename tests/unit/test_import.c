@@ -365,6 +365,31 @@ static sc_status read_layout(const char *text, int n_cols, const char *const *na
     return sc_table_read_layout(path, n_cols, names, NULL, 1000, lay, notes, t, err);
 }
 
+/* Summary rows under a table in the languages metrology software writes: skipped, however many
+ * (a Mittelwert row followed by Stabw. was read as a point before Stabw. was known). */
+static void test_summary_words(void **state)
+{
+    (void)state;
+    static const char *const rows[] = {
+        "Mittelwert;1,5;2,5\nStabw.;0,5;0,5\nMin;1;2\nMax;2;3\n",
+        "Moyenne;1,5;2,5\n\xC3\x89" "cart type;0,5;0,5\n\xC3\x89tendue;1;1\n",
+        "Media;1,5;2,5\nDeviazione standard;0,5;0,5\nMinimo;1;2\nMassimo;2;3\n",
+        "\xE5\xB9\xB3\xE5\x9D\x87;1,5;2,5\n\xE6\xA8\x99\xE6\xBA\x96\xE5\x81\x8F"
+        "\xE5\xB7\xAE;0,5;0,5\n\xE6\x9C\x80\xE5\xA4\xA7;2;3\n", /* 平均, 標準偏差, 最大 */
+    };
+    for (size_t k = 0; k < sizeof rows / sizeof rows[0]; ++k) {
+        char text[512];
+        snprintf(text, sizeof text, "Nr;X;Y\n1;1;2\n2;2;3\n%s", rows[k]);
+        sc_table t;
+        sc_table_notes n;
+        sc_error err;
+        assert_int_equal(read_layout(text, 2, XY, NULL, &n, &t, &err), SC_OK);
+        assert_int_equal(t.n_rows, 2);
+        assert_true(t.n_summary >= 3);
+        sc_table_free(&t);
+    }
+}
+
 /* One row per axis: points gathered by ID in the order of their first rows, other axes
  * counted, a point with one coordinate left out and counted, nominals with them; an ID with two
  * X rows is bad input. */
@@ -498,6 +523,7 @@ int main(void)
         cmocka_unit_test(test_table_preamble),
         cmocka_unit_test(test_table_max_rows),
         cmocka_unit_test(test_table_machine_lines),
+        cmocka_unit_test(test_summary_words),
         cmocka_unit_test(test_layout_long),
         cmocka_unit_test(test_layout_filters),
         cmocka_unit_test(test_layout_shapes),
