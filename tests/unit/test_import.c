@@ -428,6 +428,18 @@ static void test_layout_long(void **state)
     assert_true(t.value[2] == 1.0 && t.value[3] == 1.0);
     sc_table_free(&t);
     lay.nominal_col = NULL;
+    /* a line without a digit and another field count (a footer, a title): skipped, counted */
+    const char *foot = "ID;AXIS;MEAS\nC1;X;1\n*** End of report ***\nC1;Y;2\n";
+    lay.id_col = "ID";
+    assert_int_equal(read_layout(foot, 2, AX, &lay, &n, &t, &err), SC_OK);
+    assert_int_equal(t.n_rows, 1);
+    assert_int_equal(t.n_footer, 1);
+    assert_int_equal(t.footer_line, 3);
+    sc_table_free(&t);
+    assert_int_equal(read_layout("ID;AXIS;MEAS\nC1;X;1\nC1;2\n", 2, AX, &lay, &n, &t, &err),
+                     SC_E_INPUT); /* a damaged row (a digit) is an error */
+    assert_non_null(strstr(err.msg, "2 fields, the header line (line 1) has 3"));
+    lay.id_col = "FEATURE";
     const char *twice = "ID;AXIS;MEAS\nC1;X;1\nC1;Y;2\nC1;X;3\n";
     lay.id_col = "ID";
     assert_int_equal(read_layout(twice, 2, AX, &lay, &n, &t, &err), SC_E_INPUT);

@@ -389,9 +389,17 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
         for (int f = n_header; f < nf && fits; ++f) /* unlabelled trailing fields: no numbers */
             fits = sc_imp_not_a_number(field[f]);
         if (!fits) {
-            int empty = nf >= 0;
+            int empty = nf >= 0, text = nf >= 0;
             for (int f = 0; f < nf && empty; ++f)
                 empty = !field[f][0];
+            for (int f = 0; f < nf && text; ++f)
+                text = sc_imp_not_a_number(field[f]);
+            if (text && !empty && ++no_row_run <= SC_CSV_MAX_SKIP_RUN) { /* no digit: no row
+                                           (a footer, a title between blocks); counted */
+                if (!t->n_footer++)
+                    t->footer_line = r.line;
+                continue;
+            }
             if (empty && ++no_row_run <= SC_CSV_MAX_SKIP_RUN)
                 continue; /* a spreadsheet's ";;;;" */
             if (empty) {
