@@ -19,11 +19,20 @@
 static const char *USAGE =
     "usage: selfcal profile --method {dft,lsq} IN.csv --out P.csv [--sigma-disp-um X]\n"
     "                       [--sigma-angle-urad Y] [--mc K] [--seed S] [--plot p.svg] [--quiet]\n"
+    "                       [--drift linear|quadratic] [--residuals R.csv] [--reject-outliers]\n"
     "  Reconstructs f (relative to its least-squares line) with its standard uncertainty and the\n"
     "  stage's straightness motion error e_y; writes n,x_mm,f_um,uf_um,ey_um.\n"
     "  Noise: the options win over the file's '# sigma_disp_um' / '# sigma_angle_urad' lines; with\n"
     "  neither, it is estimated from the least-squares residuals (equal scan weights).\n"
-    "  --mc K: uncertainty by K seeded Monte Carlo trials instead of the analytic formula.\n";
+    "  --mc K: uncertainty by K seeded Monte Carlo trials instead of the analytic formula.\n"
+    "  Real rigs (lsq; docs/profile.md): missing rows and empty fields are solved around (points\n"
+    "  no row determines are left empty and named); the header's probe_gain, angle_scale and\n"
+    "  spacing_u_mm correct the data and enter uf_um (budget in the summary).\n"
+    "  --drift linear|quadratic: fit a drift common to both scans (costs uncertainty: see the\n"
+    "  summary's drift_cost). --residuals R.csv: scan,n,r_um,t,outlier (data snooping, 5 %);\n"
+    "  each outlier is a warning. --reject-outliers: remove the worst, solve again, repeat.\n"
+    "  With the noise stated, a chi-square test of the residuals (95 %): when it fails high,\n"
+    "  uf_um is scaled by sqrt(wrss/dof).\n";
 
 
 static void progress_cb(void *ctx, long done, long total)
@@ -37,8 +46,9 @@ static void progress_cb(void *ctx, long done, long total)
 
 /* The command line. */
 typedef struct profile_args {
-    const char *in, *out, *method_s, *plot;
+    const char *in, *out, *method_s, *plot, *residuals;
     sc_profile_method method;
+    int drift, reject;
     double sigma_disp_um, sigma_angle_urad; /* NaN: not given */
     long mc;
     unsigned long long seed;
@@ -64,6 +74,13 @@ static int parse_option(profile_args *pa, int argc, char **argv, int *i)
         pa->out = val;
     else if (!strcmp(a, "--plot") && has_val)
         pa->plot = val;
+    else if (!strcmp(a, "--residuals") && has_val)
+        pa->residuals = val;
+    else if (!strcmp(a, "--drift") && has_val) {
+        if (strcmp(val, "linear") && strcmp(val, "quadratic"))
+            return cli_usage_error(cmd, "--drift must be linear or quadratic, not '%s'", val);
+        pa->drift = !strcmp(val, "linear") ? 1 : 2;
+    }
     else if (!strcmp(a, "--sigma-disp-um") && has_val) {
         if (cli_parse_noise(cmd, a, val, 0, &pa->sigma_disp_um) != CLI_OK)
             return CLI_BAD_INPUT;
@@ -84,6 +101,8 @@ static int parse_option(profile_args *pa, int argc, char **argv, int *i)
         *i -= has_val; /* no value taken */
         if (!strcmp(a, "--quiet"))
             pa->quiet = 1;
+        else if (!strcmp(a, "--reject-outliers"))
+            pa->reject = 1;
         else
             return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
     }
@@ -116,6 +135,8 @@ static int parse_args(int argc, char **argv, profile_args *pa)
         pa->method = SC_PROFILE_LSQ;
     else
         return cli_usage_error(cmd, "--method must be dft or lsq, not '%s'", pa->method_s);
+    if (pa->method == SC_PROFILE_DFT && (pa->drift || pa->residuals || pa->reject))
+        return cli_usage_error(cmd, "--drift, --residuals and --reject-outliers need --method lsq");
     return PARSE_GO_ON;
 }
 
@@ -131,6 +152,9 @@ static void calibrate_options(const profile_args *pa, sc_profile_options *opt)
     /* the summary's residual_ratio line is the least-squares method's: DFT skips its extra solve */
     opt->residual_check = pa->method == SC_PROFILE_LSQ;
     opt->progress = pa->mc > 0 && isatty(STDERR_FILENO) && !pa->quiet ? progress_cb : NULL;
+    opt->drift = pa->drift;
+    opt->reject_outliers = pa->reject;
+    opt->want_residuals = pa->residuals != NULL || pa->reject;
 }
 
 /* --plot: the profile with its uncertainty band as SVG, into fp. */
@@ -152,6 +176,88 @@ static sc_status write_plot(FILE *fp, const profile_args *pa, const sc_profile_d
     sc_status st = profile_plot_svg(fp, &r, NULL, NULL, &o, err);
     free(x);
     return st;
+}
+
+/* The real-rig part of the summary: the uncertainty budget, drift, gaps, outliers. */
+static void print_rig_summary(const sc_profile_data *d, const sc_profile_solution *sol)
+{
+    static const char *const src[SC_PROFILE_U_N] = {"noise", "probe_gain", "angle_scale",
+                                                    "spacing"};
+    const double U[SC_PROFILE_U_N] = {NAN, d->has_probe_gain ? d->probe_gain[1] : 0,
+                                      d->has_angle_scale ? d->angle_scale[1] : 0,
+                                      d->spacing_u_mm};
+    if (sol->have_uf && (U[1] > 0 || U[2] > 0 || U[3] > 0)) {
+        printf("budget: source,U,u_rms_um,u_max_um\n");
+        for (int i = 0; i < SC_PROFILE_U_N; ++i)
+            if (i == 0)
+                printf("budget: %s,,%.6g,%.6g\n", src[i], sol->budget_rms_um[i],
+                       sol->budget_max_um[i]);
+            else if (U[i] > 0)
+                printf("budget: %s,%.6g,%.6g,%.6g\n", src[i], U[i], sol->budget_rms_um[i],
+                       sol->budget_max_um[i]);
+    }
+    if (d->has_probe_gain || d->has_angle_scale)
+        printf("instrument: probe_gain %.9g, angle_scale %.9g (applied to m2, m3)\n",
+               d->has_probe_gain ? d->probe_gain[0] : 1.0,
+               d->has_angle_scale ? d->angle_scale[0] : 1.0);
+    if (isfinite(sol->drift_um[0]))
+        printf("drift_um: a %.6g%s%.6g (y_k += a*tau + b*tau^2, tau = -1..1 over n)\n",
+               sol->drift_um[0], isfinite(sol->drift_um[1]) ? ", b " : "",
+               isfinite(sol->drift_um[1]) ? sol->drift_um[1] : 0.0);
+    if (sol->rig)
+        printf("solver: rig (rows fitted: dof %d; undetermined points %d)\n", sol->dof,
+               sol->n_undetermined);
+    if (isfinite(sol->outlier_crit))
+        printf("outliers: %d flagged, %d removed (|t| > %.4g: data snooping, alpha 0.05 for the "
+               "whole data set)\n", sol->n_flagged, sol->n_removed, sol->outlier_crit);
+}
+
+/* The points the data cannot determine, named as ranges of n on stderr. */
+static void warn_undetermined(const profile_args *pa, const sc_profile_data *d,
+                              const sc_profile_solution *sol)
+{
+    if (sol->n_undetermined <= 0)
+        return;
+    fprintf(stderr, "selfcal: warning: %s: %d point%s no row ties to the rest, left empty: n =",
+            pa->in, sol->n_undetermined, sol->n_undetermined == 1 ? "" : "s");
+    int shown = 0;
+    for (int i = 0; i < d->n && shown < 20; ++i) {
+        if (isfinite(sol->f_um[i]))
+            continue;
+        int e = i;
+        while (e + 1 < d->n && !isfinite(sol->f_um[e + 1]))
+            ++e;
+        fprintf(stderr, shown ? ", %d" : " %d", i);
+        if (e > i)
+            fprintf(stderr, "..%d", e);
+        ++shown;
+        i = e;
+    }
+    fprintf(stderr, "%s\n", shown == 20 ? ", ..." : "");
+}
+
+/* One warning per flagged row, one line per removed row; the χ² test when it fails. */
+static void warn_rig(const profile_args *pa, const sc_profile_data *d,
+                     const sc_profile_solution *sol)
+{
+    warn_undetermined(pa, d, sol);
+    for (int k = 0; k < 2 && sol->r_um[0]; ++k)
+        for (int j = 0; j < d->n - d->d[k]; ++j)
+            if (sol->outlier[k][j])
+                fprintf(stderr, "selfcal: warning: %s outlier scan %d n = %d (r %.4g um, t %.3g; "
+                                "critical value %.3f)\n",
+                        sol->outlier[k][j] == 2 ? "removed" : "flagged", k + 1, j,
+                        sol->r_um[k][j], sol->t[k][j], sol->outlier_crit);
+    if (!sol->chi2_pass)
+        fprintf(stderr, "selfcal: warning: the residuals do not agree with the stated noise "
+                        "(chi-square test at 95 %%: wrss/dof = %.4g outside [%.4g, %.4g]); %s\n",
+                sol->residual_ratio * sol->residual_ratio, sol->chi2_lo, sol->chi2_hi,
+                sol->u_scaled ? "uf_um scaled by sqrt(wrss/dof)"
+                              : "uf_um kept as stated (the noise looks smaller than stated)");
+    if (isfinite(sol->drift_cost) && sol->drift_cost > 10)
+        fprintf(stderr, "selfcal: warning: the drift terms multiply the RMS uncertainty by %.3g "
+                        "with these spacings: this plan cannot afford them (a drift reference "
+                        "or a reversed scan: docs/profile.md)\n", sol->drift_cost);
 }
 
 /* The summary on stdout (not with --quiet). */
@@ -178,9 +284,15 @@ static void print_summary(const profile_args *pa, const sc_profile_data *d,
     if (!isnan(sol->residual_ratio))
         printf("residual_ratio: %.4g (RMS of residual/given sigma; dof %d)\n", sol->residual_ratio,
                sol->dof);
+    if (isfinite(sol->chi2_lo))
+        printf("chi2_test: %s (wrss/dof %.4g, 95 %% interval [%.4g, %.4g])%s\n",
+               sol->chi2_pass ? "pass" : "fail", sol->residual_ratio * sol->residual_ratio,
+               sol->chi2_lo, sol->chi2_hi,
+               sol->u_scaled ? "; uf_um scaled by sqrt(wrss/dof)" : "");
     if (sol->have_uf)
         printf("uncertainty: %s\nuf_rms_um: %.6g\nuf_max_um: %.6g\n",
-               pa->mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / n), mx);
+               pa->mc > 0 ? "Monte Carlo" : "analytic", sqrt(ss / (n - sol->n_undetermined)), mx);
+    print_rig_summary(d, sol);
 }
 
 void cli_warn_zero_noise(const char *cmd, const sc_profile_solution *s)
@@ -204,6 +316,13 @@ static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_da
 {
     const int n = d->n;
     sc_profile_solution sol = {.f_um = blk, .uf_um = blk + n, .ey_um = blk + 2 * (size_t)n};
+    if (pa->residuals || pa->reject) { /* r, t for both scans, then the marks */
+        double *r = blk + 3 * (size_t)n;
+        sol.r_um[0] = r, sol.r_um[1] = r + n, sol.t[0] = r + 2 * (size_t)n;
+        sol.t[1] = r + 3 * (size_t)n;
+        sol.outlier[0] = (unsigned char *)(r + 4 * (size_t)n);
+        sol.outlier[1] = sol.outlier[0] + n;
+    }
     sc_status st = sc_profile_calibration_run(*cal, d, &sol, err);
     sc_profile_calibration_destroy(*cal);
     *cal = NULL;
@@ -214,18 +333,25 @@ static sc_status calibrate_and_write(const profile_args *pa, const sc_profile_da
                         "uf_um left empty\n", sol.dof);
     if (!pa->quiet)
         cli_warn_zero_noise("selfcal profile", &sol);
-    /* the result and the plot: both written or neither (one commit for the two) */
-    sc_afile f[2];
+    warn_rig(pa, d, &sol);
+    /* the result, the plot and the residuals: all written or none (one commit) */
+    sc_afile f[3];
     memset(f, 0, sizeof f);
     st = sc_afile_open(&f[0], pa->out, err);
     if (st == SC_OK && pa->plot)
         st = sc_afile_open(&f[1], pa->plot, err);
+    if (st == SC_OK && pa->residuals)
+        st = sc_afile_open(&f[2], pa->residuals, err);
+    if (st == SC_OK && pa->residuals)
+        st = sc_profile_write_residuals_to(&f[2], n, d->d, (const double *const *)sol.r_um,
+                                           (const double *const *)sol.t,
+                                           (const unsigned char *const *)sol.outlier, err);
     if (st == SC_OK)
         st = sc_profile_write_result_to(&f[0], n, d->s_mm, sol.f_um,
                                         sol.have_uf ? sol.uf_um : NULL, sol.ey_um, n - d->d[0], err);
     if (st == SC_OK && pa->plot)
         st = write_plot(f[1].fp, pa, d, &sol, err);
-    st = sc_afile_finish_all(f, 2, st, err);
+    st = sc_afile_finish_all(f, 3, st, err);
     if (st == SC_OK && !pa->quiet)
         print_summary(pa, d, &sol);
     return st;
@@ -245,7 +371,9 @@ int cmd_profile(int argc, char **argv)
     sc_profile_calibration *cal;
     if (sc_profile_read_and_plan(pa.in, &opt, &d, &cal, &err) != SC_OK)
         return cli_report(&err);
-    double *blk = sc_big_alloc((size_t)3 * d.n, sizeof(double), 0); /* f, uf, ey */
+    /* f, uf, ey; with residuals r, t of both scans and the outlier marks */
+    size_t cols = pa.residuals || pa.reject ? 3 + 4 + 1 : 3;
+    double *blk = sc_big_alloc(cols * (size_t)d.n, sizeof(double), 0);
     sc_status st = blk ? calibrate_and_write(&pa, &d, &cal, blk, &err)
                        : sc_error_set(&err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", d.n);
     rc = st == SC_OK ? CLI_OK : cli_report(&err);

@@ -174,7 +174,7 @@ static const command commands[] = {
      "separate stage error G from plate error A", "--map --artifact --summary --residuals --covariance --plot"},
     {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one", "-o --out"},
     {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv",
-     "straightness profile + stage motion error", "--out -o --plot"},
+     "straightness profile + stage motion error", "--out -o --plot --residuals"},
     {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)", NULL},
     {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM]] -o TABLE",
      "build a correction table", "-o --out"},

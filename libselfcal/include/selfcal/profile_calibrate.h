@@ -31,7 +31,17 @@ typedef struct sc_profile_options {
                                 that solve (wrss and residual_ratio NaN for DFT with given noise,
                                 unless that noise is 0: then the residuals are always had, so
                                 that a caller can tell noise-free data from a wrong 0) */
+    /* Real rigs (SPEC §2a; least squares only). Any of these, or a gap in the data, takes the
+     * rig solver (docs/profile-lsq.md §10) instead of the fast one. */
+    int drift;               /* 0: none; 1: a drift a·τ common to both scans' y (τ = -1 at n = 0,
+                                +1 at n = N-1); 2: a·τ + b·τ² */
+    int reject_outliers;     /* 1: remove the worst flagged row, solve again, until none */
+    int want_residuals;      /* 1: fill the solution's residual arrays (rig solver) */
 } sc_profile_options;
+
+/* Uncertainty budget entries of sc_profile_solution (what enters uf_um). */
+enum { SC_PROFILE_U_NOISE = 0, SC_PROFILE_U_PROBE_GAIN, SC_PROFILE_U_ANGLE_SCALE,
+       SC_PROFILE_U_SPACING, SC_PROFILE_U_N };
 
 /* What came out. The arrays are the caller's, distinct, each of the data's N values (NULL: not
  * wanted); they are worked in, so after a failure their content is unspecified. */
@@ -51,6 +61,26 @@ typedef struct sc_profile_solution {
     int dof;                 /* its degrees of freedom, N - d1 - d2 */
     double residual_ratio;   /* sqrt(wrss/dof) when the noise is given and wrss known (1
                                 expected), else NaN */
+    /* χ² test of the stated noise (two-sided, 95 %): chi2_lo <= wrss/dof <= chi2_hi; NaN bounds
+     * and chi2_pass 1 when not applicable. When it fails high, uf's noise part is scaled by
+     * sqrt(wrss/dof) (u_scaled 1: the stated noise is too small for the residuals). */
+    double chi2_lo, chi2_hi;
+    int chi2_pass, u_scaled;
+    /* Budget: each source's RMS and largest contribution to uf over the points (µm, k = 1):
+     * noise, probe gain, angle scale, spacings; 0 for a source without U. */
+    double budget_rms_um[SC_PROFILE_U_N], budget_max_um[SC_PROFILE_U_N];
+    int rig;                 /* 1 if the rig solver ran (gaps, drift, residuals) */
+    int n_undetermined;      /* points no row ties to the rest: f, uf NaN there */
+    double drift_um[2];      /* the drift's a, b (µm; NaN when not fitted) */
+    double drift_cost;       /* RMS of uf with the drift terms / without them (same rows;
+                                NaN without drift) */
+    /* Residuals (caller's arrays, n - d[k] values each, or NULL; with want_residuals): r = y
+     * measured - fitted (µm), t standardized, outlier 0, 1 flagged, 2 flagged and removed; NaN
+     * r and t for a row with no data or outside the determined points. */
+    double *r_um[2], *t[2];
+    unsigned char *outlier[2];
+    double outlier_crit;     /* the critical |t| (data snooping, 5 % over the rows tested) */
+    int n_flagged, n_removed;
 } sc_profile_solution;
 
 /* Least squares, analytic uncertainties, noise from the header or the residuals. */

@@ -31,7 +31,17 @@ typedef struct sc_profile_data {
     long line_n;           /* line numbers of the "# N =" and "# scan k:" header lines in the */
     long line_scan[2];     /* file read (0 when not read from a file), for error messages */
     char path[256];        /* the file it was read from ("" if none) */
+    /* Real rigs (SPEC §2a). A missing row, or an empty field, is NaN in its array (a gap). */
+    int has_probe_gain;    /* 1 if "# probe_gain = K, U" was given (else K = 1, U = 0) */
+    int has_angle_scale;   /* 1 if "# angle_scale = K, U" was given (else K = 1, U = 0) */
+    int has_spacing_u;     /* 1 if "# spacing_u_mm = U" was given (else U = 0) */
+    double probe_gain[2];  /* K, U: probe 2 reads K times what probe 1 reads (m2 is divided by K) */
+    double angle_scale[2]; /* K, U: the angle sensor reads K times the true angle (m3 / K) */
+    double spacing_u_mm;   /* standard uncertainty of each probe spacing D_k (mm) */
 } sc_profile_data;
+
+/* Does d lack any sample or field (a NaN in m1, m2 or m3 of either scan)? */
+SC_API int sc_profile_has_gaps(const sc_profile_data *d);
 
 /* Allocate the per-scan arrays of d for (n, s_mm, d1, d2) (zero-filled; no sigmas). */
 SC_API sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, int d1, int d2,
@@ -40,8 +50,9 @@ SC_API sc_status sc_profile_data_init(sc_profile_data *d, int n, double s_mm, in
 /* Free the arrays of d (d itself is the caller's); safe on a zeroed or freed struct. */
 SC_API void sc_profile_data_free(sc_profile_data *d);
 
-/* Read a `selfcal-profile v1` file strictly (SPEC §2): missing scan, gaps or duplicates in n,
- * n out of range, N too small for the spacings, non-numeric fields -> SC_E_INPUT with file:line.
+/* Read a `selfcal-profile v1` file strictly (SPEC §2, §2a): missing scan (or a scan without a
+ * row), duplicates in n, n out of range, N too small for the spacings, non-numeric fields ->
+ * SC_E_INPUT with file:line. Missing rows and empty fields are gaps: NaN in the arrays.
  * Method-specific conditions are checked by sc_profile_check_method. */
 SC_API sc_status sc_profile_read(const char *path, sc_profile_data *out, sc_error *err);
 
@@ -61,7 +72,8 @@ SC_API sc_status sc_profile_read_hooked(const char *path, sc_profile_header_fn o
                                         void *ctx, sc_profile_data *out, sc_error *err);
 
 /* Write d as a `selfcal-profile v1` file atomically (each number with the fewest digits that read
- * back exactly, selfcal/number.h; the sigma lines only when known). */
+ * back exactly, selfcal/number.h; the sigma and instrument lines only when known; a NaN field is
+ * left empty, a row of three NaN is left out). */
 SC_API sc_status sc_profile_write(const char *path, const sc_profile_data *d, sc_error *err);
 
 /* Write the output file `n,x_mm,f_um,uf_um,ey_um` atomically: f, uf (may be NULL: empty column)
@@ -77,6 +89,15 @@ SC_API sc_status sc_profile_write_to(sc_afile *f, const sc_profile_data *d, sc_e
 SC_API sc_status sc_profile_write_result_to(sc_afile *f, int n, double s_mm, const double *f_um,
                                             const double *uf_um, const double *ey_um, int n_ey,
                                             sc_error *err);
+
+/* Write the residual file `scan,n,r_um,t,outlier` (SPEC §2a) into f (the caller ends it): one row
+ * per sample of scan 1 then scan 2 (n - d[k] each); r, t empty where NaN; outlier 1 where
+ * outlier[k][j] != 0. */
+SC_API sc_status sc_profile_write_residuals_to(sc_afile *f, int n, const int d[2],
+                                               const double *const r_um[2],
+                                               const double *const t[2],
+                                               const unsigned char *const outlier[2],
+                                               sc_error *err);
 
 /* A profile result (or truth) file read back. */
 typedef struct sc_profile_result {

@@ -85,6 +85,7 @@ void sc_profile_data_free(sc_profile_data *d)
 typedef struct profile_header {
     long n;
     double s_mm, sigma_disp_um, sigma_angle_urad;
+    double probe_gain[2], angle_scale[2], spacing_u_mm; /* SPEC §2a */
 } profile_header;
 
 static const sc_header_key header_keys[] = {
@@ -94,6 +95,11 @@ static const sc_header_key header_keys[] = {
     {"sigma_disp_um", SC_HEADER_DOUBLE, offsetof(profile_header, sigma_disp_um), 0, 0,
      SC_INPUT_MAX_ABS, 0},
     {"sigma_angle_urad", SC_HEADER_DOUBLE, offsetof(profile_header, sigma_angle_urad), 0, 0,
+     SC_INPUT_MAX_ABS, 0},
+    /* K, U: K checked > 0 after the header (the range is each number's) */
+    {"probe_gain", SC_HEADER_DOUBLE_PAIR, offsetof(profile_header, probe_gain), 0, 0, 1e3, 0},
+    {"angle_scale", SC_HEADER_DOUBLE_PAIR, offsetof(profile_header, angle_scale), 0, 0, 1e3, 0},
+    {"spacing_u_mm", SC_HEADER_DOUBLE, offsetof(profile_header, spacing_u_mm), 0, 0,
      SC_INPUT_MAX_ABS, 0},
 };
 
@@ -223,6 +229,13 @@ static sc_status read_header(profile_reader *pr, sc_error *err)
                             "no column header 'scan,n,m1_um,m2_um,m3_urad'");
     if ((st = sc_header_finish(&pr->hdr, r->path, r->line, err)) != SC_OK)
         return st;
+    static const char *const gain_key[2] = {"probe_gain", "angle_scale"};
+    const double *gain[2] = {pr->v.probe_gain, pr->v.angle_scale};
+    for (int g = 0; g < 2; ++g)
+        if (sc_header_line_of(&pr->hdr, gain_key[g]) && !(gain[g][0] >= 1e-3))
+            return sc_error_set(err, SC_E_INPUT, r->path, sc_header_line_of(&pr->hdr, gain_key[g]),
+                                "%s = K, U: the factor K must be at least 1e-3 (K = 1: a perfect "
+                                "sensor), got %g", gain_key[g], gain[g][0]);
     long line_n = sc_header_line_of(&pr->hdr, "N");
     for (int k = 0; k < 2; ++k) {
         if (!pr->line_scan[k])
@@ -293,8 +306,9 @@ static sc_status store_row(profile_reader *pr, long k, long idx, const double v[
 {
     const sc_csv *r = &pr->csv;
     const char *P = r->path;
-    if (!(fabs(v[0]) <= SC_INPUT_MAX_ABS && fabs(v[1]) <= SC_INPUT_MAX_ABS &&
-          fabs(v[2]) <= SC_INPUT_MAX_ABS))
+    if (!((isnan(v[0]) || fabs(v[0]) <= SC_INPUT_MAX_ABS) &&
+          (isnan(v[1]) || fabs(v[1]) <= SC_INPUT_MAX_ABS) &&
+          (isnan(v[2]) || fabs(v[2]) <= SC_INPUT_MAX_ABS)))
         return sc_error_set(err, SC_E_INPUT, P, r->line,
                             "a reading beyond 1 m (m1_um, m2_um) or 1 rad (m3_urad) is not a "
                             "sensor reading");
@@ -336,21 +350,26 @@ static sc_status data_row(profile_reader *pr, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, r->path, r->line,
                             "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got %d%s", r->nfields,
                             r->nfields > 5 ? " (the decimal mark is '.')" : "");
+    static const char *const name[3] = {"m1_um", "m2_um", "m3_urad"};
     long k, idx;
     double v[3];
     sc_status st;
     if ((st = sc_csv_long(r, 0, "scan", &k, err)) != SC_OK ||
-        (st = sc_csv_long(r, 1, "n", &idx, err)) != SC_OK ||
-        (st = sc_csv_double(r, 2, "m1_um", &v[0], err)) != SC_OK ||
-        (st = sc_csv_double(r, 3, "m2_um", &v[1], err)) != SC_OK ||
-        (st = sc_csv_double(r, 4, "m3_urad", &v[2], err)) != SC_OK)
+        (st = sc_csv_long(r, 1, "n", &idx, err)) != SC_OK)
         return st;
+    for (int c = 0; c < 3; ++c) { /* an empty reading is a gap (SPEC §2a): NaN */
+        const char *f = r->field[2 + c];
+        if (f[strspn(f, " \t")] == '\0')
+            v[c] = NAN;
+        else if ((st = sc_csv_double(r, 2 + c, name[c], &v[c], err)) != SC_OK)
+            return st;
+    }
     return store_row(pr, k, idx, v, err);
 }
 
-/* Every sample of both scans present: a gap is reported at the first row of its scan after it
- * (or at the end of the file). */
-static sc_status check_complete(const profile_reader *pr, sc_error *err)
+/* Each scan has rows; a sample without a row is a gap (SPEC §2a): NaN in all three readings,
+ * for the least squares to solve around (the DFT method refuses it, profile_calibrate.c). */
+static sc_status check_complete(profile_reader *pr, sc_error *err)
 {
     const char *P = pr->csv.path;
     for (int k = 0; k < 2; ++k) {
@@ -361,24 +380,20 @@ static sc_status check_complete(const profile_reader *pr, sc_error *err)
         if (present == 0)
             return sc_error_set(err, SC_E_INPUT, P, pr->line_scan[k],
                                 "scan %d missing: no data rows", k + 1);
-        for (long i = 0; i < m; ++i) {
-            if (rl[i])
-                continue;
-            long j = i;
-            while (j < m && !rl[j])
-                ++j;
-            long at = j < m ? rl[j] : pr->csv.line;
-            if (j - 1 > i)
-                return sc_error_set(err, SC_E_INPUT, P, at,
-                                    "gap in scan %d: no sample for n = %ld..%ld (scan %d needs "
-                                    "n = 0..%ld)",
-                                    k + 1, i, j - 1, k + 1, m - 1);
-            return sc_error_set(err, SC_E_INPUT, P, at,
-                                "gap in scan %d: no sample for n = %ld (scan %d needs n = 0..%ld)",
-                                k + 1, i, k + 1, m - 1);
-        }
+        for (long i = 0; i < m; ++i)
+            if (!rl[i])
+                pr->data.m1_um[k][i] = pr->data.m2_um[k][i] = pr->data.m3_urad[k][i] = NAN;
     }
     return SC_OK;
+}
+
+int sc_profile_has_gaps(const sc_profile_data *d)
+{
+    for (int k = 0; k < 2; ++k)
+        for (int i = 0; i < d->n - d->d[k]; ++i)
+            if (isnan(d->m1_um[k][i]) || isnan(d->m2_um[k][i]) || isnan(d->m3_urad[k][i]))
+                return 1;
+    return 0;
 }
 
 /* The data rows (up to the line at pr->stop_at, if any). A plain row (five fields, no blanks:
@@ -507,6 +522,14 @@ static void header_fields(const profile_reader *pr, sc_profile_data *d)
 {
     d->has_sigma_disp = sc_header_line_of(&pr->hdr, "sigma_disp_um") != 0;
     d->has_sigma_angle = sc_header_line_of(&pr->hdr, "sigma_angle_urad") != 0;
+    d->has_probe_gain = sc_header_line_of(&pr->hdr, "probe_gain") != 0;
+    d->has_angle_scale = sc_header_line_of(&pr->hdr, "angle_scale") != 0;
+    d->has_spacing_u = sc_header_line_of(&pr->hdr, "spacing_u_mm") != 0;
+    for (int i = 0; i < 2; ++i) {
+        d->probe_gain[i] = d->has_probe_gain ? pr->v.probe_gain[i] : (double)(1 - i);
+        d->angle_scale[i] = d->has_angle_scale ? pr->v.angle_scale[i] : (double)(1 - i);
+    }
+    d->spacing_u_mm = d->has_spacing_u ? pr->v.spacing_u_mm : 0.0;
     d->sigma_disp_um = pr->v.sigma_disp_um;
     d->sigma_angle_urad = pr->v.sigma_angle_urad;
     d->line_n = sc_header_line_of(&pr->hdr, "N");
@@ -626,10 +649,25 @@ static char *measurement_row(const void *ctx, long i, char *p)
     const sc_profile_data *d = ctx;
     int k = i >= d->n - d->d[0];
     long j = k ? i - (d->n - d->d[0]) : i;
+    const double v[3] = {d->m1_um[k][j], d->m2_um[k][j], d->m3_urad[k][j]};
+    if (isnan(v[0]) && isnan(v[1]) && isnan(v[2]))
+        return p; /* a missing row stays missing */
+    if (isnan(v[0]) || isnan(v[1]) || isnan(v[2])) { /* empty fields: the general path */
+        p = sc_io_put_long(p, k + 1, ',');
+        p = sc_io_put_long(p, j, ',');
+        for (int c = 0; c < 3; ++c) {
+            sc_number_shortest m;
+            if (isnan(v[c]))
+                *p++ = c < 2 ? ',' : '\n';
+            else
+                sc_number_find_shortest(v[c], &m), p = sc_io_put_shortest(p, &m, c < 2 ? ',' : '\n');
+        }
+        return p;
+    }
     sc_number_shortest m[3]; /* the three numbers' digits first, then the text */
-    sc_number_find_shortest(d->m1_um[k][j], &m[0]);
-    sc_number_find_shortest(d->m2_um[k][j], &m[1]);
-    sc_number_find_shortest(d->m3_urad[k][j], &m[2]);
+    sc_number_find_shortest(v[0], &m[0]);
+    sc_number_find_shortest(v[1], &m[1]);
+    sc_number_find_shortest(v[2], &m[2]);
     p = sc_io_put_long(p, k + 1, ',');
     p = sc_io_put_long(p, j, ',');
     p = sc_io_put_shortest(p, &m[0], ',');
@@ -637,7 +675,7 @@ static char *measurement_row(const void *ctx, long i, char *p)
     return sc_io_put_shortest(p, &m[2], '\n');
 }
 
-/* Every sample a finite number: only what the reader reads back is written. */
+/* Every sample a finite number or NaN (a gap): only what the reader reads back is written. */
 static sc_status check_writable(const sc_profile_data *d, sc_error *err)
 {
     static const char *const sensor[3] = {"m1_um", "m2_um", "m3_urad"};
@@ -645,7 +683,7 @@ static sc_status check_writable(const sc_profile_data *d, sc_error *err)
         const double *v[3] = {d->m1_um[k], d->m2_um[k], d->m3_urad[k]};
         for (int s = 0; s < 3; ++s)
             for (int j = 0; j < d->n - d->d[k]; ++j)
-                if (!isfinite(v[s][j]) || !(fabs(v[s][j]) <= SC_INPUT_MAX_ABS))
+                if (!isnan(v[s][j]) && !(fabs(v[s][j]) <= SC_INPUT_MAX_ABS))
                     return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                         "scan %d n = %d: %s = %g is not a finite measurement "
                                         "(|value| <= %g)", k + 1, j, sensor[s], v[s][j],
@@ -664,6 +702,12 @@ static void write_data(sc_io_out *o, const sc_profile_data *d)
         fprintf(fp, "# sigma_disp_um = %.17g\n", d->sigma_disp_um);
     if (d->has_sigma_angle)
         fprintf(fp, "# sigma_angle_urad = %.17g\n", d->sigma_angle_urad);
+    if (d->has_probe_gain)
+        fprintf(fp, "# probe_gain = %.17g, %.17g\n", d->probe_gain[0], d->probe_gain[1]);
+    if (d->has_angle_scale)
+        fprintf(fp, "# angle_scale = %.17g, %.17g\n", d->angle_scale[0], d->angle_scale[1]);
+    if (d->has_spacing_u)
+        fprintf(fp, "# spacing_u_mm = %.17g\n", d->spacing_u_mm);
     fputs("scan,n,m1_um,m2_um,m3_urad\n", fp);
     sc_io_out_rows(o, 2L * d->n - d->d[0] - d->d[1], measurement_row, d);
 }

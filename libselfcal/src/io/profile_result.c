@@ -24,15 +24,19 @@ typedef struct result_rows {
 static char *result_row(const void *ctx, long i, char *p)
 {
     const result_rows *t = ctx;
-    int has_uf = t->uf_um != NULL, has_ey = t->ey_um && i < t->n_ey;
+    /* a point the data cannot determine (SPEC §2a) leaves its fields empty */
+    int has_f = isfinite(t->f_um[i]), has_uf = t->uf_um != NULL && isfinite(t->uf_um[i]);
+    int has_ey = t->ey_um && i < t->n_ey && isfinite(t->ey_um[i]);
     sc_number_shortest d[4]; /* every number's digits first, then the text */
     sc_number_find_shortest((double)i * t->s_mm, &d[0]);
-    sc_number_find_shortest(t->f_um[i], &d[1]);
+    sc_number_find_shortest(has_f ? t->f_um[i] : 0.0, &d[1]);
     sc_number_find_shortest(has_uf ? t->uf_um[i] : 0.0, &d[2]);
     sc_number_find_shortest(has_ey ? t->ey_um[i] : 0.0, &d[3]);
     p = sc_io_put_long(p, i, ',');
     p = sc_io_put_shortest(p, &d[0], ',');
-    p = sc_io_put_shortest(p, &d[1], ',');
+    if (has_f)
+        p = sc_io_put_shortest(p, &d[1], 0);
+    *p++ = ',';
     if (has_uf)
         p = sc_io_put_shortest(p, &d[2], 0);
     *p++ = ',';
@@ -242,4 +246,37 @@ sc_status sc_profile_read_result(const char *path, sc_profile_result *out, sc_er
     }
     *out = rr.res;
     return SC_OK;
+}
+
+/* The residual file's columns, for its rows' formatter. */
+typedef struct residual_rows {
+    int m0;
+    const double *r_um[2], *t[2];
+    const unsigned char *outlier[2];
+} residual_rows;
+
+static char *residual_row(const void *ctx, long i, char *p)
+{
+    const residual_rows *t = ctx;
+    int k = i >= t->m0;
+    long j = k ? i - t->m0 : i;
+    p = sc_io_put_long(p, k + 1, ',');
+    p = sc_io_put_long(p, j, ',');
+    p = sc_io_put_15g_opt(p, t->r_um[k], (size_t)j, ',');
+    p = sc_io_put_15g_opt(p, t->t[k], (size_t)j, ',');
+    return sc_io_put_long(p, t->outlier[k][j] != 0, '\n');
+}
+
+sc_status sc_profile_write_residuals_to(sc_afile *f, int n, const int d[2],
+                                        const double *const r_um[2], const double *const t[2],
+                                        const unsigned char *const outlier[2], sc_error *err)
+{
+    sc_io_out o;
+    sc_status st = sc_io_out_attach(&o, f, err);
+    if (st != SC_OK)
+        return st;
+    fputs("scan,n,r_um,t,outlier\n", o.f.fp);
+    residual_rows rr = {n - d[0], {r_um[0], r_um[1]}, {t[0], t[1]}, {outlier[0], outlier[1]}};
+    sc_io_out_rows(&o, 2L * n - d[0] - d[1], residual_row, &rr);
+    return sc_io_out_drain(&o, err);
 }

@@ -5,14 +5,18 @@
  * the rows are read. The command line and the Python package call only this. */
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "selfcal/profile_calibrate.h"
 #include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 #include "../common/big_alloc.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
+#include "selfcal/grid_lsq.h" /* sc_chi2_quantile, sc_grid_outlier_critical: the same tests as grids */
 #include "profile_lsq_tuning.h"
+#include "profile_rig.h"
 
 void sc_profile_options_default(sc_profile_options *o)
 {
@@ -24,17 +28,23 @@ void sc_profile_options_default(sc_profile_options *o)
     o->progress = NULL;
     o->progress_ctx = NULL;
     o->residual_check = 1;
+    o->drift = 0;
+    o->reject_outliers = 0;
+    o->want_residuals = 0;
 }
 
 typedef struct solver_ctx {
     sc_profile_method method;
     sc_profile_dft_plan *dft;
     sc_profile_lsq_plan *lsq;
+    sc_rig_plan *rig; /* the rig solver's plan of this run (it wins when set) */
 } solver_ctx;
 
 static sc_status solve_cb(void *vctx, const double *y1, const double *y2, double *f, sc_error *err)
 {
     solver_ctx *c = vctx;
+    if (c->rig)
+        return sc_rig_solve(c->rig, y1, y2, f, NULL, NULL, err);
     if (c->method == SC_PROFILE_DFT)
         return sc_profile_dft_execute(c->dft, y1, y2, f, err);
     return sc_profile_lsq_execute(c->lsq, y1, y2, f, NULL, NULL, err);
@@ -70,6 +80,8 @@ static sc_status uncertainty(const sc_profile_data *d, const sc_profile_options 
         st = sc_profile_mc_uncertainty(d->n, d->d[0], d->d[1], sqrt(var[0]), sqrt(var[1]), solve_cb,
                                        ctx, o->mc_trials, o->mc_seed, o->progress, o->progress_ctx,
                                        uf, err);
+    else if (ctx->rig)
+        st = sc_rig_uncertainty(ctx->rig, uf, err);
     else if (o->method == SC_PROFILE_DFT)
         st = sc_profile_dft_uncertainty(ctx->dft, uf, NULL, err);
     else
@@ -139,6 +151,11 @@ sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_pro
     if (o->mc_trials < 0 || o->mc_trials == 1)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "mc_trials must be 0 (analytic) or at least 2, got %ld", o->mc_trials);
+    if (o->drift < 0 || o->drift > 2)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "drift must be 0, 1 or 2, got %d", o->drift);
+    if (o->method == SC_PROFILE_DFT && (o->drift || o->reject_outliers || o->want_residuals))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "drift terms, residuals and outlier rejection need --method lsq");
     sc_status st = sc_profile_check_method(hdr, o->method, err);
     if (st != SC_OK)
         return st;
@@ -160,6 +177,8 @@ sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_pro
     c->ctx.method = o->method;
     if (o->method == SC_PROFILE_DFT)
         st = sc_profile_dft_plan_create(c->n, c->d1, c->d2, c->w[0], c->w[1], &c->ctx.dft, err);
+    else if (o->drift || o->reject_outliers || o->want_residuals)
+        st = SC_OK; /* the rig solver's plan is made with the data (profile_rig.h) */
     else /* every point's uncertainty follows: start the selected inversion on a second core */
         st = sc_profile_lsq_plan_create_tuned(c->n, c->d1, c->d2, c->w[0], c->w[1],
                                               SC_PROFILE_LSQ_EARLY_UNCERTAINTY, &c->ctx.lsq, err);
@@ -180,6 +199,268 @@ void sc_profile_calibration_destroy(sc_profile_calibration *c)
     free(c);
 }
 
+/* The DFT method needs complete scans: the first gap named, at its scan's header line. */
+static sc_status refuse_gaps(const sc_profile_data *d, const double *y1, const double *y2,
+                             sc_error *err)
+{
+    const double *y[2] = {y1, y2};
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < d->n - d->d[k]; ++j)
+            if (isnan(y[k][j])) {
+                int e = j;
+                while (e + 1 < d->n - d->d[k] && isnan(y[k][e + 1]))
+                    ++e;
+                return sc_error_set(err, SC_E_INPUT, d->path[0] ? d->path : NULL,
+                                    d->line_scan[k],
+                                    "scan %d has no complete sample for n = %d..%d: the dft "
+                                    "method needs complete scans; --method lsq solves around "
+                                    "gaps", k + 1, j, e);
+            }
+    return SC_OK;
+}
+
+/* The noise scale from the residuals and the χ² test of a stated noise (s's fields); returns
+ * the factor on the plan's unit uncertainties. */
+static double noise_scale(const sc_profile_calibration *c, sc_profile_solution *s)
+{
+    double scale = 1.0;
+    s->have_uf = 1;
+    s->residual_ratio = NAN;
+    s->chi2_lo = s->chi2_hi = NAN;
+    s->chi2_pass = 1;
+    s->u_scaled = 0;
+    if (c->zero_noise)
+        return 0.0;
+    if (!s->noise_known && s->dof <= 0)
+        s->have_uf = 0; /* no redundancy: the noise is not estimable */
+    else if (!s->noise_known)
+        scale = sqrt(s->wrss / s->dof);
+    else if (s->dof > 0 && !isnan(s->wrss)) {
+        double vf = s->wrss / s->dof;
+        s->residual_ratio = sqrt(vf);
+        s->chi2_lo = sc_chi2_quantile(0.025, s->dof) / s->dof;
+        s->chi2_hi = sc_chi2_quantile(0.975, s->dof) / s->dof;
+        s->chi2_pass = vf >= s->chi2_lo && vf <= s->chi2_hi;
+        if (vf > s->chi2_hi) /* the stated noise is too small for the residuals: a posteriori */
+            scale = sqrt(vf), s->u_scaled = 1;
+    }
+    return scale;
+}
+
+/* The residuals of every row against the solution f, q of the plan in ctx, standardized with
+ * the scans' σ (sigma[k]); the rows flagged by data snooping (outlier 1; rows out of the fit
+ * keep their mark). Returns the worst flagged row in the fit (as k·N + j) or -1. */
+static long residual_test(const sc_rig_plan *rig, const sc_profile_data *d, const double *y[2],
+                          const double *f, const double *q, const double sigma[2],
+                          sc_profile_solution *s)
+{
+    long tested = 0, worst = -1;
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < d->n - d->d[k]; ++j) {
+            double r = NAN, t = NAN, h = sc_rig_leverage(rig, k, j);
+            if (isfinite(y[k][j]) && isfinite(h)) {
+                r = y[k][j] - sc_rig_predict(rig, k, j, f, q);
+                int in = sc_rig_row_used(rig, k, j);
+                double v = in ? 1 - h : 1 + h;
+                if (v > 1e-9 && sigma[k] > 0)
+                    t = r / (sigma[k] * sqrt(v));
+                tested += in && isfinite(t);
+            }
+            s->r_um[k][j] = r;
+            s->t[k][j] = t;
+        }
+    s->outlier_crit = tested > 0 ? sc_grid_outlier_critical(SC_GRID_OUTLIER_ALPHA, tested, 0) : NAN;
+    s->n_flagged = 0;
+    double tmax = 0;
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < d->n - d->d[k]; ++j) {
+            if (s->outlier[k][j] == 2)
+                continue;
+            int flag = isfinite(s->t[k][j]) && fabs(s->t[k][j]) > s->outlier_crit;
+            s->outlier[k][j] = (unsigned char)flag;
+            s->n_flagged += flag;
+            if (flag && fabs(s->t[k][j]) > tmax)
+                tmax = fabs(s->t[k][j]), worst = (long)k * d->n + j;
+        }
+    return worst;
+}
+
+/* What the drift terms cost: the RMS unit uncertainty with them (uf) over the one without
+ * them, on the same rows. */
+static sc_status drift_cost(const sc_profile_calibration *c, const sc_profile_data *d,
+                            const unsigned char *const use[2], const double *uf,
+                            sc_profile_solution *s, sc_error *err)
+{
+    const int n = d->n;
+    sc_rig_plan *p0 = NULL;
+    double *u0 = malloc((size_t)n * sizeof(double));
+    sc_status st = u0 ? sc_rig_plan_create(n, d->d[0], d->d[1], c->w, use, 0, &p0, err)
+                      : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    if (st == SC_OK)
+        st = sc_rig_uncertainty(p0, u0, err);
+    if (st == SC_OK) {
+        double a = 0, b = 0;
+        for (int i = 0; i < n; ++i)
+            if (isfinite(uf[i]) && isfinite(u0[i]))
+                a += uf[i] * uf[i], b += u0[i] * u0[i];
+        s->drift_cost = b > 0 ? sqrt(a / b) : NAN;
+    }
+    sc_rig_plan_destroy(p0);
+    free(u0);
+    return st;
+}
+
+/* The rig solver (gaps, drift, residuals, outliers): plan from the rows present, solve, noise,
+ * unit uncertainties, residual test, and with reject_outliers the worst flagged row out and
+ * again. The plan stays in c->ctx.rig for the sensitivities; uf gets the unit uncertainties,
+ * *scale the noise factor. */
+static sc_status rig_run(sc_profile_calibration *c, const sc_profile_data *d, const double *y1,
+                         const double *y2, double *f, double *uf, sc_profile_solution *s,
+                         double *scale, sc_error *err)
+{
+    const int n = d->n;
+    const double *y[2] = {y1, y2};
+    unsigned char *use[2] = {malloc((size_t)(n - d->d[0])), malloc((size_t)(n - d->d[1]))};
+    sc_status st = use[0] && use[1] ? SC_OK
+                                    : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    for (int k = 0; k < 2 && st == SC_OK; ++k)
+        for (int j = 0; j < n - d->d[k]; ++j)
+            use[k][j] = isfinite(y[k][j]);
+    int test = s->r_um[0] && s->r_um[1] && s->t[0] && s->t[1] && s->outlier[0] && s->outlier[1];
+    for (int k = 0; k < 2 && st == SC_OK && test; ++k)
+        memset(s->outlier[k], 0, (size_t)(n - d->d[k]));
+    s->n_removed = 0;
+    double q[SC_RIG_MAX_PARAMS];
+    while (st == SC_OK) {
+        sc_rig_plan_destroy(c->ctx.rig);
+        c->ctx.rig = NULL;
+        st = sc_rig_plan_create(n, d->d[0], d->d[1], c->w, (const unsigned char *const *)use,
+                                c->o.drift, &c->ctx.rig, err);
+        if (st != SC_OK) {
+            if (err && err->code == SC_E_INPUT && d->path[0])
+                snprintf(err->file, sizeof err->file, "%s", d->path), err->line = d->line_n;
+            break;
+        }
+        s->dof = sc_rig_dof(c->ctx.rig);
+        if ((st = sc_rig_solve(c->ctx.rig, y1, y2, f, q, &s->wrss, err)) != SC_OK)
+            break;
+        *scale = noise_scale(c, s);
+        if ((st = sc_rig_uncertainty(c->ctx.rig, uf, err)) != SC_OK)
+            break;
+        double res = s->noise_known ? (s->u_scaled ? *scale : 1.0) : *scale;
+        const double sigma[2] = {sqrt(c->var[0]) * res, sqrt(c->var[1]) * res};
+        if (!test)
+            break;
+        long worst = residual_test(c->ctx.rig, d, y, f, q, sigma, s);
+        if (!c->o.reject_outliers || worst < 0)
+            break;
+        int k = (int)(worst / n), j = (int)(worst % n);
+        use[k][j] = 0;
+        s->outlier[k][j] = 2;
+        s->n_removed++;
+    }
+    if (st == SC_OK && c->o.drift)
+        st = drift_cost(c, d, (const unsigned char *const *)use, uf, s, err);
+    if (st == SC_OK) {
+        s->rig = 1;
+        s->n_undetermined = n - sc_rig_n_determined(c->ctx.rig);
+        s->drift_um[0] = c->o.drift >= 1 ? q[2] : NAN;
+        s->drift_um[1] = c->o.drift >= 2 ? q[3] : NAN;
+    }
+    free(use[0]), free(use[1]);
+    return st;
+}
+
+/* The change of y (per unit of an instrument constant) for source src (SC_PROFILE_U_*), into
+ * dy[k]; the constant's standard uncertainty returned (0: not stated). */
+static double instrument_dy(const sc_profile_data *d, int src, double *dy[2])
+{
+    double kg = d->has_probe_gain ? d->probe_gain[0] : 1.0;
+    double ka = d->has_angle_scale ? d->angle_scale[0] : 1.0;
+    for (int k = 0; k < 2; ++k) {
+        double D = d->d[k] * d->s_mm;
+        for (int j = 0; j < d->n - d->d[k]; ++j) {
+            double m2 = d->m2_um[k][j], m3 = d->m3_urad[k][j];
+            dy[k][j] = src == SC_PROFILE_U_PROBE_GAIN    ? -m2 / (kg * kg)
+                       : src == SC_PROFILE_U_ANGLE_SCALE ? D * m3 / (ka * ka) * 1e-3
+                                                         : -m3 / ka * 1e-3;
+        }
+    }
+    return src == SC_PROFILE_U_PROBE_GAIN    ? (d->has_probe_gain ? d->probe_gain[1] : 0)
+           : src == SC_PROFILE_U_ANGLE_SCALE ? (d->has_angle_scale ? d->angle_scale[1] : 0)
+                                             : d->spacing_u_mm;
+}
+
+static void budget_entry(sc_profile_solution *s, int src, const double *u, int n)
+{
+    double ss = 0, mx = 0;
+    int m = 0;
+    for (int i = 0; i < n; ++i)
+        if (isfinite(u[i]))
+            ss += u[i] * u[i], m++, mx = u[i] > mx ? u[i] : mx;
+    s->budget_rms_um[src] = m ? sqrt(ss / m) : 0;
+    s->budget_max_um[src] = mx;
+}
+
+/* The instrument constants' uncertainties into uf (root sum of squares), each by the response
+ * of the estimator to its change (one solve each, two for the spacings D1, D2, taken as
+ * independent: the estimator is linear in y); work: 4n doubles. */
+static sc_status instrument_budget(sc_profile_calibration *c, const sc_profile_data *d,
+                                   double *uf, double *work, sc_profile_solution *s, sc_error *err)
+{
+    const int n = d->n;
+    double *dy[2] = {work, work + n}, *df = work + 2 * (size_t)n, *acc = work + 3 * (size_t)n;
+    for (int src = SC_PROFILE_U_PROBE_GAIN; src < SC_PROFILE_U_N; ++src) {
+        int parts = src == SC_PROFILE_U_SPACING ? 2 : 1;
+        double u = 0;
+        for (int i = 0; i < n; ++i)
+            acc[i] = 0;
+        for (int part = 0; part < parts; ++part) {
+            u = instrument_dy(d, src, dy);
+            if (!(u > 0))
+                break;
+            if (parts == 2) /* only scan `part`'s spacing */
+                for (int j = 0; j < n - d->d[1 - part]; ++j)
+                    dy[1 - part][j] = 0;
+            sc_status st = solve_cb(&c->ctx, dy[0], dy[1], df, err);
+            if (st != SC_OK)
+                return st;
+            for (int i = 0; i < n; ++i)
+                acc[i] += df[i] * u * df[i] * u;
+        }
+        if (!(u > 0))
+            continue;
+        for (int i = 0; i < n; ++i) {
+            acc[i] = sqrt(acc[i]);
+            uf[i] = sqrt(uf[i] * uf[i] + acc[i] * acc[i]);
+        }
+        budget_entry(s, src, acc, n);
+    }
+    return SC_OK;
+}
+
+/* e_y = m1 - f of scan 1, relative to its least-squares line over the samples where both are
+ * known (NaN elsewhere and for n >= N - d1). */
+static void stage_error(const sc_profile_data *d, const double *f, double *ey)
+{
+    const int m = d->n - d->d[0];
+    double sx = 0, sy = 0, sxx = 0, sxy = 0, cnt = 0;
+    for (int i = 0; i < m; ++i) {
+        ey[i] = d->m1_um[0][i] - f[i];
+        if (isfinite(ey[i]))
+            cnt += 1, sx += i, sy += ey[i];
+    }
+    double xm = cnt > 0 ? sx / cnt : 0, ym = cnt > 0 ? sy / cnt : 0;
+    for (int i = 0; i < m; ++i)
+        if (isfinite(ey[i]))
+            sxx += (i - xm) * (i - xm), sxy += (i - xm) * (ey[i] - ym);
+    double b = sxx > 0 ? sxy / sxx : 0;
+    for (int i = 0; i < m; ++i)
+        ey[i] = isfinite(ey[i]) ? ey[i] - ym - b * (i - xm) : NAN;
+    for (int i = m; i < d->n; ++i)
+        ey[i] = NAN;
+}
+
 sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile_data *d,
                                      sc_profile_solution *s, sc_error *err)
 {
@@ -193,10 +474,15 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     s->noise_known = c->noise_known;
     s->sigma_disp_um = c->sigma_disp_um;
     s->sigma_angle_urad = c->sigma_angle_urad;
+    s->rig = 0, s->n_undetermined = 0, s->n_flagged = s->n_removed = 0;
+    s->drift_um[0] = s->drift_um[1] = s->outlier_crit = s->drift_cost = NAN;
+    for (int i = 0; i < SC_PROFILE_U_N; ++i)
+        s->budget_rms_um[i] = s->budget_max_um[i] = 0;
     const double *var = c->var, *w = c->w;
     /* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the
-     * DFT's residuals */
-    size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT);
+     * DFT's residuals, 3 for the instrument budget, the residual arrays when not the caller's */
+    int own_res = (o->want_residuals || o->reject_outliers) && !s->r_um[0];
+    size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT) + 4 + 4 * own_res;
     double *blk = sc_big_alloc(own * (size_t)n, sizeof(double), 0);
     if (!blk)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
@@ -206,41 +492,61 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     if (!uf)
         uf = next, next += n;
     double *tmp = o->method == SC_PROFILE_DFT ? next : NULL;
+    next += o->method == SC_PROFILE_DFT ? n : 0;
+    double *work = next; /* the budget's; the outlier marks' during the rig run */
+    next += 4 * (size_t)n;
+    if (own_res) {
+        s->r_um[0] = next, s->r_um[1] = next + n, s->t[0] = next + 2 * (size_t)n;
+        s->t[1] = next + 3 * (size_t)n;
+        s->outlier[0] = (unsigned char *)work, s->outlier[1] = (unsigned char *)work + n;
+    }
     sc_profile_combine(d, 0, y1);
     sc_profile_combine(d, 1, y2);
-    sc_status st = solve_cb(&c->ctx, y1, y2, f, err);
-    if (st == SC_OK)
-        /* a noise stated as 0 is checked against the residuals (the caller warns if they are
-         * not 0): the DFT's extra least-squares solve is paid then too */
-        st = residuals(d, &c->ctx, y1, y2, f, w, tmp, o->residual_check || c->zero_noise, s, err);
+    int gaps = sc_profile_has_gaps(d), rig = o->method == SC_PROFILE_LSQ &&
+              (gaps || o->drift || o->reject_outliers || o->want_residuals);
+    sc_status st = SC_OK;
+    double scale = 1.0; /* multiplies the plan's unit uncertainties */
+    if (o->method == SC_PROFILE_DFT && gaps)
+        st = refuse_gaps(d, y1, y2, err);
+    else if (rig) {
+        st = rig_run(c, d, y1, y2, f, uf, s, &scale, err);
+    } else {
+        st = solve_cb(&c->ctx, y1, y2, f, err);
+        if (st == SC_OK)
+            /* a noise stated as 0 is checked against the residuals (the caller warns if they
+             * are not 0): the DFT's extra least-squares solve is paid then too */
+            st = residuals(d, &c->ctx, y1, y2, f, w, tmp, o->residual_check || c->zero_noise, s,
+                           err);
+        if (st == SC_OK)
+            scale = noise_scale(c, s);
+    }
     if (st != SC_OK)
         goto done;
-    double scale = 1.0; /* multiplies the plan's unit uncertainties */
-    s->have_uf = 1;
-    s->residual_ratio = NAN;
-    if (c->zero_noise)
-        scale = 0.0;
-    else if (!s->noise_known && s->dof <= 0)
-        s->have_uf = 0; /* no redundancy: the noise is not estimable */
-    else if (!s->noise_known)
-        scale = sqrt(s->wrss / s->dof);
-    else if (s->dof > 0 && !isnan(s->wrss))
-        s->residual_ratio = sqrt(s->wrss / s->dof);
     s->sigma_y_um[0] = s->have_uf ? sqrt(var[0]) * scale : NAN;
     s->sigma_y_um[1] = s->have_uf ? sqrt(var[1]) * scale : NAN;
-    if (s->have_uf)
+    if (s->have_uf && (!rig || o->mc_trials > 0))
         st = uncertainty(d, o, &c->ctx, var, scale, uf, err);
+    else if (s->have_uf)
+        for (int i = 0; i < n; ++i)
+            uf[i] *= scale;
     else
         for (int i = 0; i < n; ++i)
             uf[i] = NAN;
+    if (st == SC_OK && s->have_uf) {
+        budget_entry(s, SC_PROFILE_U_NOISE, uf, n);
+        st = instrument_budget(c, d, uf, work, s, err);
+    }
     if (st != SC_OK)
         goto done;
-    if (s->ey_um) {
-        sc_profile_stage_error(d, f, s->ey_um);
-        for (int i = n - d1; i < n; ++i)
-            s->ey_um[i] = NAN;
-    }
+    if (s->ey_um)
+        stage_error(d, f, s->ey_um);
 done:
+    if (own_res) { /* the caller did not give the arrays: none to hand back */
+        s->r_um[0] = s->r_um[1] = s->t[0] = s->t[1] = NULL;
+        s->outlier[0] = s->outlier[1] = NULL;
+    }
+    sc_rig_plan_destroy(c->ctx.rig);
+    c->ctx.rig = NULL;
     free(blk);
     return st;
 }
