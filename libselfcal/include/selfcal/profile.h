@@ -28,7 +28,9 @@ typedef enum sc_profile_method { SC_PROFILE_DFT = 0, SC_PROFILE_LSQ = 1 } sc_pro
 SC_API sc_status sc_profile_check_method(const sc_profile_data *d, sc_profile_method method,
                                          sc_error *err);
 
-/* The combined difference y_k = m2 - m1 - D_k·m3·1e-3 of scan k (k = 0 or 1), N-d[k] values (µm). */
+/* The combined difference y_k = m2/K - m1 - D_k·(m3/K_angle)·1e-3 of scan k (k = 0 or 1), N-d[k]
+ * values (µm); K, K_angle: the data's probe_gain and angle_scale (1 when not given); NaN where
+ * the data have a gap. */
 SC_API void sc_profile_combine(const sc_profile_data *d, int k, double *y_um);
 
 /* Variance of y_k (µm²) for displacement noise sigma_disp_um and angle noise sigma_angle_urad:

@@ -11,6 +11,13 @@ void sc_profile_combine(const sc_profile_data *d, int k, double *y_um)
 {
     const double D_mm = d->d[k] * d->s_mm;
     const int m = d->n - d->d[k];
+    if (d->has_probe_gain || d->has_angle_scale) { /* SPEC §2a: m2 / K, m3 / K_angle */
+        const double kg = d->has_probe_gain ? d->probe_gain[0] : 1.0;
+        const double ka = d->has_angle_scale ? d->angle_scale[0] : 1.0;
+        for (int i = 0; i < m; ++i)
+            y_um[i] = d->m2_um[k][i] / kg - d->m1_um[k][i] - D_mm * (d->m3_urad[k][i] / ka) * 1e-3;
+        return;
+    }
     for (int i = 0; i < m; ++i)
         y_um[i] = d->m2_um[k][i] - d->m1_um[k][i] - D_mm * d->m3_urad[k][i] * 1e-3;
 }

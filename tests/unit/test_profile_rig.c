@@ -1,0 +1,416 @@
+/* Real rigs (SPEC §2a, docs/profile.md "Real rigs"): gaps, probe gain and angle scale with their
+ * uncertainties, a common drift, residuals and outliers, the χ² verdict and the coverage of u(f),
+ * on simulated rigs (sc_profile_simulate, then the rig's effect applied to its readings). */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "selfcal/profile.h"
+#include "selfcal/profile_calibrate.h"
+#include "selfcal/profile_sim.h"
+#include "selfcal/rng.h"
+
+/* A simulated measurement and its truth (f relative to its least-squares line). */
+typedef struct rig {
+    sc_profile_data d;
+    double *truth, *f, *uf, *ey;
+    int n;
+} rig;
+
+static void rig_make(rig *r, int n, int d1, int d2, double sd, double sa, uint64_t seed)
+{
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n, p.d1 = d1, p.d2 = d2, p.sigma_disp_um = sd, p.sigma_angle_urad = sa, p.seed = seed;
+    r->n = n;
+    r->truth = malloc((size_t)n * sizeof(double));
+    r->f = malloc((size_t)n * sizeof(double));
+    r->uf = malloc((size_t)n * sizeof(double));
+    r->ey = malloc((size_t)n * sizeof(double));
+    double *ey = malloc((size_t)n * sizeof(double));
+    assert_non_null(r->truth);
+    assert_non_null(ey);
+    sc_profile_sim_random_truth(&p, 1.0, 20, r->truth);
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, r->truth, &r->d, ey, &err), SC_OK);
+    sc_profile_remove_line(n, r->truth);
+    free(ey);
+}
+
+static void rig_free(rig *r)
+{
+    sc_profile_data_free(&r->d);
+    free(r->truth), free(r->f), free(r->uf), free(r->ey);
+}
+
+static sc_status rig_solve(rig *r, const sc_profile_options *o, sc_profile_solution *s,
+                           sc_error *err)
+{
+    memset(s, 0, sizeof *s);
+    s->f_um = r->f, s->uf_um = r->uf, s->ey_um = r->ey;
+    return sc_profile_calibrate(&r->d, o, s, err);
+}
+
+/* Largest |f - truth| over the points determined, the truth relative to its least-squares line
+ * over those same points. */
+static double rig_error(const rig *r)
+{
+    double sx = 0, sy = 0, sxx = 0, sxy = 0, m = 0, worst = 0;
+    for (int i = 0; i < r->n; ++i)
+        if (isfinite(r->f[i]))
+            m += 1, sx += i, sy += r->truth[i];
+    double xm = sx / m, ym = sy / m;
+    for (int i = 0; i < r->n; ++i)
+        if (isfinite(r->f[i]))
+            sxx += (i - xm) * (i - xm), sxy += (i - xm) * (r->truth[i] - ym);
+    double b = sxy / sxx;
+    for (int i = 0; i < r->n; ++i)
+        if (isfinite(r->f[i])) {
+            double e = fabs(r->f[i] - (r->truth[i] - ym - b * (i - xm)));
+            worst = e > worst ? e : worst;
+        }
+    return worst;
+}
+
+/* The rig solver (forced by asking for residuals) gives the fast solver's f and u(f) on complete
+ * data. */
+static void test_rig_matches_fast(void **state)
+{
+    (void)state;
+    static const int cases[][3] = {{330, 10, 11}, {331, 10, 11}, {500, 7, 13}, {1000, 97, 101},
+                                   {21, 10, 11}, {40, 1, 2}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; ++c) {
+        rig r;
+        rig_make(&r, cases[c][0], cases[c][1], cases[c][2], 0.01, 1.0, 7 + c);
+        int n = r.n;
+        double *f0 = malloc((size_t)n * sizeof(double)), *u0 = malloc((size_t)n * sizeof(double));
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        sc_profile_solution s;
+        sc_error err;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_int_equal(s.rig, 0);
+        memcpy(f0, r.f, (size_t)n * sizeof(double));
+        memcpy(u0, r.uf, (size_t)n * sizeof(double));
+        o.want_residuals = 1; /* no arrays: the rig solver runs, nothing is tested */
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_int_equal(s.rig, 1);
+        for (int i = 0; i < n; ++i) {
+            assert_true(fabs(r.f[i] - f0[i]) < 1e-10);
+            assert_true(fabs(r.uf[i] / u0[i] - 1) < 1e-9);
+        }
+        free(f0), free(u0);
+        rig_free(&r);
+    }
+}
+
+static void drop_row(sc_profile_data *d, int k, int j)
+{
+    d->m1_um[k][j] = d->m2_um[k][j] = d->m3_urad[k][j] = NAN;
+}
+
+/* Noise-free data with gaps (20 missing rows, an empty field) solve exactly; a point no row ties
+ * to the rest is left empty and counted; u rises a little. */
+static void test_gaps_exact(void **state)
+{
+    (void)state;
+    rig r;
+    rig_make(&r, 330, 10, 11, 0, 0, 3);
+    for (int j = 100; j < 120; ++j)
+        drop_row(&r.d, 0, j);
+    r.d.m2_um[1][200] = NAN;
+    assert_true(sc_profile_has_gaps(&r.d));
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    sc_profile_solution s;
+    sc_error err;
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    assert_int_equal(s.rig, 1);
+    assert_int_equal(s.n_undetermined, 0);
+    assert_true(rig_error(&r) < 1e-11);
+    /* point 0 is in scan 1 row 0 and scan 2 row 0 only */
+    drop_row(&r.d, 0, 0);
+    drop_row(&r.d, 1, 0);
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    assert_int_equal(s.n_undetermined, 1);
+    assert_true(isnan(r.f[0]) && isnan(r.uf[0]));
+    assert_true(isfinite(r.f[1]));
+    assert_true(rig_error(&r) < 1e-11);
+    /* with noise stated: u rises a little (Ding's 12.87 nm RMS at 10/11) */
+    rig_free(&r);
+    rig_make(&r, 330, 10, 11, 0.01, 1.0, 3);
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    double rms0 = 0, rms1 = 0;
+    for (int i = 0; i < 330; ++i)
+        rms0 += r.uf[i] * r.uf[i];
+    for (int j = 100; j < 120; ++j)
+        drop_row(&r.d, 0, j);
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    for (int i = 0; i < 330; ++i)
+        rms1 += r.uf[i] * r.uf[i];
+    rms0 = sqrt(rms0 / 330), rms1 = sqrt(rms1 / 330);
+    assert_true(rms0 > 0.0125 && rms0 < 0.0132);
+    assert_true(rms1 > rms0 && rms1 < 1.2 * rms0);
+    rig_free(&r);
+}
+
+/* The DFT method refuses gaps, naming the scan's header line and --method lsq. */
+static void test_dft_refuses_gaps(void **state)
+{
+    (void)state;
+    rig r;
+    rig_make(&r, 330, 10, 11, 0.01, 1.0, 3);
+    r.d.line_scan[0] = 4, r.d.line_scan[1] = 5;
+    snprintf(r.d.path, sizeof r.d.path, "in.csv");
+    r.d.m3_urad[1][77] = NAN;
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    o.method = SC_PROFILE_DFT;
+    sc_profile_solution s;
+    sc_error err;
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "--method lsq"));
+    assert_non_null(strstr(err.msg, "scan 2"));
+    assert_int_equal(err.line, 5);
+    rig_free(&r);
+}
+
+/* Probe 2 reading K times (m2·K) and the angle sensor K_a times: stated, the bias is removed
+ * exactly; not stated, it is not. */
+static void test_gain_and_angle_scale_exact(void **state)
+{
+    (void)state;
+    for (int which = 0; which < 2; ++which) {
+        rig r;
+        rig_make(&r, 330, 10, 11, 0, 0, 5);
+        const double K = which ? 1.01 : 1.001;
+        for (int k = 0; k < 2; ++k)
+            for (int j = 0; j < 330 - r.d.d[k]; ++j) {
+                if (which)
+                    r.d.m3_urad[k][j] *= K;
+                else
+                    r.d.m2_um[k][j] *= K;
+            }
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        sc_profile_solution s;
+        sc_error err;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_true(rig_error(&r) > 1e-4); /* the bias, not seen by the residuals */
+        double *g = which ? r.d.angle_scale : r.d.probe_gain;
+        g[0] = K, g[1] = 0;
+        if (which)
+            r.d.has_angle_scale = 1;
+        else
+            r.d.has_probe_gain = 1;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_true(rig_error(&r) < 1e-11);
+        rig_free(&r);
+    }
+}
+
+/* A stated U of the gain, angle scale or spacing enters uf as |∂f/∂K|·U: checked against a
+ * finite difference of the solution, and shown in the budget. */
+static void test_instrument_u_enters_uf(void **state)
+{
+    (void)state;
+    for (int src = SC_PROFILE_U_PROBE_GAIN; src < SC_PROFILE_U_N; ++src) {
+        rig r;
+        rig_make(&r, 330, 10, 11, 0.01, 1.0, 9);
+        const int n = 330;
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        sc_profile_solution s;
+        sc_error err;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        double *u0 = malloc(n * sizeof(double)), *f0 = malloc(n * sizeof(double));
+        memcpy(u0, r.uf, n * sizeof(double));
+        memcpy(f0, r.f, n * sizeof(double));
+        const double U = src == SC_PROFILE_U_SPACING ? 0.01 : 1e-3, h = 1e-4;
+        if (src == SC_PROFILE_U_PROBE_GAIN)
+            r.d.has_probe_gain = 1, r.d.probe_gain[0] = 1 + h, r.d.probe_gain[1] = U;
+        else if (src == SC_PROFILE_U_ANGLE_SCALE)
+            r.d.has_angle_scale = 1, r.d.angle_scale[0] = 1 + h, r.d.angle_scale[1] = U;
+        else
+            r.d.has_spacing_u = 1, r.d.spacing_u_mm = U;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_true(s.budget_rms_um[src] > 0);
+        for (int other = 1; other < SC_PROFILE_U_N; ++other)
+            if (other != src)
+                assert_true(s.budget_rms_um[other] == 0);
+        if (src != SC_PROFILE_U_SPACING) { /* finite difference of f in K (f linear in 1/K) */
+            for (int i = 0; i < n; i += 7) {
+                double sens = (r.f[i] - f0[i]) / h; /* per unit of K near 1 */
+                double expect = sqrt(u0[i] * u0[i] + sens * U * sens * U);
+                assert_true(fabs(r.uf[i] - expect) < 1e-3 * expect + 1e-7);
+            }
+        } else
+            for (int i = 0; i < n; ++i)
+                assert_true(r.uf[i] >= u0[i]);
+        free(u0), free(f0);
+        rig_free(&r);
+    }
+}
+
+/* A differential drift a·τ + b·τ² in both scans' m2: fitted, the bias goes exactly; not fitted,
+ * it stays; and u grows (drift_cost > 1). */
+static void test_drift_removed(void **state)
+{
+    (void)state;
+    double cost1 = 0;
+    for (int order = 1; order <= 2; ++order) {
+        rig r;
+        rig_make(&r, 330, 10, 11, 0, 0, 11);
+        const double a = 0.005, b = order == 2 ? -0.003 : 0; /* µm */
+        for (int k = 0; k < 2; ++k)
+            for (int j = 0; j < 330 - r.d.d[k]; ++j) {
+                double t = (2.0 * j - 329) / 329;
+                r.d.m2_um[k][j] += a * t + b * t * t;
+            }
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        sc_profile_solution s;
+        sc_error err;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_true(rig_error(&r) > 1e-4);
+        o.drift = order;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_true(rig_error(&r) < 1e-9);
+        assert_true(fabs(s.drift_um[0] - a) < 1e-10);
+        if (order == 2)
+            assert_true(fabs(s.drift_um[1] - b) < 1e-10);
+        rig_free(&r);
+        /* the cost in u, with noise stated */
+        rig_make(&r, 330, 10, 11, 0.01, 1.0, 11);
+        o.drift = order;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        print_message("drift order %d: cost %.4g\n", order, s.drift_cost);
+        assert_true(s.drift_cost > 1.5);
+        if (order == 2) /* docs/profile.md: 4.9x linear, 5.9x with the quadratic term */
+            assert_true(s.drift_cost > cost1);
+        cost1 = s.drift_cost;
+        rig_free(&r);
+    }
+}
+
+/* One 10σ outlier: flagged in the residuals, removed with reject_outliers, and the profile then
+ * as without it. */
+static void test_outlier_flagged_and_removed(void **state)
+{
+    (void)state;
+    rig r;
+    rig_make(&r, 330, 10, 11, 0.01, 1.0, 13);
+    const int n = 330, m0 = n - 10, m1 = n - 11;
+    double *r_um = malloc((size_t)(m0 + m1) * sizeof(double));
+    double *t = malloc((size_t)(m0 + m1) * sizeof(double));
+    unsigned char *out = malloc((size_t)(m0 + m1));
+    double *fclean = malloc(n * sizeof(double));
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    o.want_residuals = 1;
+    sc_profile_solution s;
+    sc_error err;
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    memcpy(fclean, r.f, n * sizeof(double));
+    const double sy = sqrt(sc_profile_y_variance(10, 1.0, 0.01, 1.0));
+    r.d.m2_um[0][150] += 10 * sy;
+#define ARRAYS(s)                                                                                   \
+    (s).r_um[0] = r_um, (s).r_um[1] = r_um + m0, (s).t[0] = t, (s).t[1] = t + m0,                  \
+    (s).outlier[0] = out, (s).outlier[1] = out + m0
+    memset(&s, 0, sizeof s);
+    s.f_um = r.f, s.uf_um = r.uf, s.ey_um = r.ey;
+    ARRAYS(s);
+    assert_int_equal(sc_profile_calibrate(&r.d, &o, &s, &err), SC_OK);
+    assert_int_equal(out[150], 1);
+    assert_true(fabs(t[150]) > s.outlier_crit);
+    assert_true(s.n_flagged >= 1 && s.n_removed == 0);
+    o.reject_outliers = 1;
+    memset(&s, 0, sizeof s);
+    s.f_um = r.f, s.uf_um = r.uf, s.ey_um = r.ey;
+    ARRAYS(s);
+    assert_int_equal(sc_profile_calibrate(&r.d, &o, &s, &err), SC_OK);
+    assert_int_equal(out[150], 2);
+    assert_true(s.n_removed >= 1);
+    assert_true(fabs(r_um[150] - 10 * sy) < 5 * sy); /* its residual against the final fit */
+    for (int i = 0; i < n; ++i)
+        assert_true(fabs(r.f[i] - fclean[i]) < 0.5 * r.uf[i]);
+    free(r_um), free(t), free(out), free(fclean);
+    rig_free(&r);
+}
+
+/* Stated noise too small: the χ² test fails high and uf is scaled by sqrt(wrss/dof). */
+static void test_chi2_verdict(void **state)
+{
+    (void)state;
+    rig r;
+    rig_make(&r, 330, 10, 11, 0.01, 1.0, 17);
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    sc_profile_solution s;
+    sc_error err;
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    assert_true(isfinite(s.chi2_lo) && s.chi2_lo < 1 && s.chi2_hi > 1);
+    double u = r.uf[100];
+    o.sigma_disp_um = 0.005, o.sigma_angle_urad = 0.5; /* half the true noise */
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    assert_int_equal(s.chi2_pass, 0);
+    assert_int_equal(s.u_scaled, 1);
+    assert_true(fabs(r.uf[100] / u - 1) < 0.15); /* back near the true noise's u */
+    rig_free(&r);
+}
+
+/* Coverage: 200 noisy runs, the noise and a probe gain's U stated (the true gain drawn from
+ * N(1, U) each run): |f - truth| <= 2u for 95 ± 2 % of the points. */
+static void test_coverage(void **state)
+{
+    (void)state;
+    sc_rng rng;
+    sc_rng_seed(&rng, 42);
+    long in = 0, all = 0;
+    for (int run = 0; run < 200; ++run) {
+        rig r;
+        rig_make(&r, 330, 10, 11, 0.01, 1.0, 1000 + run);
+        const double U = 1e-3, K = 1 + U * sc_rng_normal(&rng);
+        for (int k = 0; k < 2; ++k)
+            for (int j = 0; j < 330 - r.d.d[k]; ++j)
+                r.d.m2_um[k][j] *= K;
+        r.d.has_probe_gain = 1, r.d.probe_gain[0] = 1, r.d.probe_gain[1] = U;
+        if (run % 2) /* half of them with a gap */
+            for (int j = 60; j < 80; ++j)
+                drop_row(&r.d, 1, j);
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        sc_profile_solution s;
+        sc_error err;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        for (int i = 0; i < 330; ++i) {
+            in += fabs(r.f[i] - r.truth[i]) <= 2 * r.uf[i];
+            all++;
+        }
+        rig_free(&r);
+    }
+    double cov = (double)in / (double)all;
+    print_message("coverage of 2u over 200 runs: %.4f\n", cov);
+    assert_true(cov > 0.93 && cov < 0.97);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_rig_matches_fast),
+        cmocka_unit_test(test_gaps_exact),
+        cmocka_unit_test(test_dft_refuses_gaps),
+        cmocka_unit_test(test_gain_and_angle_scale_exact),
+        cmocka_unit_test(test_instrument_u_enters_uf),
+        cmocka_unit_test(test_drift_removed),
+        cmocka_unit_test(test_outlier_flagged_and_removed),
+        cmocka_unit_test(test_chi2_verdict),
+        cmocka_unit_test(test_coverage),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
