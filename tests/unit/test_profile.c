@@ -537,6 +537,25 @@ static sc_status read_both_ways(const char *path, int *threads)
     return sa;
 }
 
+/* A file with gaps (SPEC §2a) reads, both ways alike, with NaN in the missing sample (scan k,
+ * n = idx) and the samples beside it present. */
+static void expect_gap(const text *t, int k, int idx)
+{
+    int threads;
+    assert_int_equal(read_both_ways(text_write(t), &threads), SC_OK);
+    sc_profile_data d;
+    sc_error err;
+    assert_int_equal(sc_profile_read(text_write(t), &d, &err), SC_OK);
+    for (int i = 0; idx < 0 && i < d.n - d.d[k]; ++i) /* -1: wherever it is */
+        if (isnan(d.m1_um[k][i]))
+            idx = i;
+    assert_true(idx >= 0);
+    assert_true(isnan(d.m1_um[k][idx]) && isnan(d.m2_um[k][idx]) && isnan(d.m3_urad[k][idx]));
+    assert_true(idx == 0 || isfinite(d.m1_um[k][idx - 1]));
+    assert_true(sc_profile_has_gaps(&d));
+    sc_profile_data_free(&d);
+}
+
 static void expect_bad(const text *t, long line, const char *what, int method)
 {
     sc_profile_data d;
@@ -605,15 +624,21 @@ static void test_reader_good_and_bad(void **state)
     text_set(&t, 2, "# N = 5");
     expect_bad(&t, 2, "N too small", -1);
     text_free(&t);
-    /* a gap in n: reported at the row after it */
+    /* a gap in n: read as NaN (SPEC §2a; the DFT refuses it, test_profile_rig) */
     text_good(&t, n, d1, d2);
     text_delete(&t, s1 + 4);
-    expect_bad(&t, s1 + 4, "gap in scan 1: no sample for n = 4", -1);
+    expect_gap(&t, 0, 4);
     text_free(&t);
-    /* a gap at the end of scan 2: reported at the last line */
+    /* a gap at the end of scan 2 */
     text_good(&t, n, d1, d2);
     text_delete(&t, t.nlines);
-    expect_bad(&t, t.nlines, "gap in scan 2", -1);
+    expect_gap(&t, 1, n - d2 - 1);
+    text_free(&t);
+    /* more than half of a scan missing: refused at the row after its largest gap */
+    text_good(&t, n, d1, d2);
+    for (int i = 0; i < (n - d1) / 2 + 1; ++i)
+        text_delete(&t, s1 + 2);
+    expect_bad(&t, s1 + 2, "gap in scan 1: no sample for n = 2..", -1);
     text_free(&t);
     /* a duplicate */
     text_good(&t, n, d1, d2);
@@ -856,9 +881,9 @@ static void test_reader_two_threads(void **state)
     text_free(&t);
     text_good(&t, n, d1, d2);
     int gap = t.nlines - 40;
-    text_delete(&t, gap); /* a gap in the second half: reported at the row after it */
-    expect_bad(&t, gap, "gap in scan 2", -1);
-    text_set(&t, t.nlines - 5, "2,7,0,0,x"); /* and a bad field after it: the field first */
+    text_delete(&t, gap); /* a gap in the second half: read as NaN */
+    expect_gap(&t, 1, -1);
+    text_set(&t, t.nlines - 5, "2,7,0,0,x"); /* and a bad field after it: the field */
     expect_bad(&t, t.nlines - 5, "m3_urad", -1);
     text_free(&t);
     text_good(&t, n, d1, d2);
@@ -867,8 +892,8 @@ static void test_reader_two_threads(void **state)
     expect_bad(&t, s1 + 4, "expected 5 fields", -1);
     text_free(&t);
     text_good(&t, n, d1, d2);
-    text_delete(&t, t.nlines); /* the last row missing: reported at the end */
-    expect_bad(&t, t.nlines, "gap in scan 2", -1);
+    text_delete(&t, t.nlines); /* the last row missing: a gap */
+    expect_gap(&t, 1, n - d2 - 1);
     text_free(&t);
 }
 

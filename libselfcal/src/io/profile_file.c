@@ -186,17 +186,18 @@ static sc_status read_magic(profile_reader *pr, sc_error *err)
 }
 
 /* Memory follows what the file can hold, not what its header claims: a valid file has a row of
- * at least SC_PROFILE_MIN_ROW_BYTES ("1,0,0,0,0\n") for each of the 2N - d1 - d2 samples, so a
- * regular file of S bytes cannot need N beyond about S / 20 (a pipe is read up to
- * SC_PROFILE_MAX_N). Memory: at most max(what the file can hold, SC_PROFILE_SMALL_N). */
+ * at least SC_PROFILE_MIN_ROW_BYTES ("1,0,0,0,0\n") for at least half of each scan's samples
+ * (check_complete), so a regular file of S bytes cannot need N beyond about S / 10 (a pipe is
+ * read up to SC_PROFILE_MAX_N). Memory: at most max(what the file can hold, SC_PROFILE_SMALL_N). */
 static sc_status check_size(const profile_reader *pr, sc_error *err)
 {
     struct stat sb;
-    long long rows = 2 * (long long)pr->v.n - pr->d[0] - pr->d[1];
+    long long rows = (2 * (long long)pr->v.n - pr->d[0] - pr->d[1] + 1) / 2;
     if (pr->v.n > SC_PROFILE_SMALL_N && fstat(fileno(pr->csv.fp), &sb) == 0 &&
         S_ISREG(sb.st_mode) && rows * SC_PROFILE_MIN_ROW_BYTES > (long long)sb.st_size)
         return sc_error_set(err, SC_E_INPUT, pr->csv.path, sc_header_line_of(&pr->hdr, "N"),
-                            "N = %ld needs %lld data rows, more than this %lld-byte file can hold",
+                            "N = %ld needs at least %lld data rows (half of each scan), more than "
+                            "this %lld-byte file can hold",
                             pr->v.n, rows, (long long)sb.st_size);
     return SC_OK;
 }
@@ -368,7 +369,9 @@ static sc_status data_row(profile_reader *pr, sc_error *err)
 }
 
 /* Each scan has rows; a sample without a row is a gap (SPEC §2a): NaN in all three readings,
- * for the least squares to solve around (the DFT method refuses it, profile_calibrate.c). */
+ * for the least squares to solve around (the DFT method refuses it, profile_calibrate.c). A
+ * scan missing more than half its samples is refused at its largest gap (a header claiming a
+ * large N over a few rows is not a measurement, and is refused before its arrays are touched). */
 static sc_status check_complete(profile_reader *pr, sc_error *err)
 {
     const char *P = pr->csv.path;
@@ -380,10 +383,37 @@ static sc_status check_complete(profile_reader *pr, sc_error *err)
         if (present == 0)
             return sc_error_set(err, SC_E_INPUT, P, pr->line_scan[k],
                                 "scan %d missing: no data rows", k + 1);
-        for (long i = 0; i < m; ++i)
-            if (!rl[i])
-                pr->data.m1_um[k][i] = pr->data.m2_um[k][i] = pr->data.m3_urad[k][i] = NAN;
+        if (2 * present < m) {
+            long best = 0, b0 = 0, at = pr->csv.line;
+            for (long i = 0; i < m;) {
+                long j = i;
+                while (j < m && !rl[j])
+                    ++j;
+                if (j - i > best)
+                    best = j - i, b0 = i, at = j < m ? rl[j] : pr->csv.line;
+                i = j + 1;
+            }
+            return sc_error_set(err, SC_E_INPUT, P, at,
+                                "gap in scan %d: no sample for n = %ld..%ld (%ld of its %ld "
+                                "samples present: at most half of a scan may be missing)",
+                                k + 1, b0, b0 + best - 1, present, m);
+        }
     }
+    /* the profile's first point is read only by the first sample of each scan, its last by the
+     * last: without them the header's N (or the scans' start) contradicts the data */
+    long last0 = pr->v.n - pr->d[0] - 1, last1 = pr->v.n - pr->d[1] - 1;
+    if (!pr->row_line[0][last0] && !pr->row_line[1][last1])
+        return sc_error_set(err, SC_E_INPUT, P, sc_header_line_of(&pr->hdr, "N"),
+                            "no row reaches the profile's last point n = %ld (scan 1 ends before "
+                            "n = %ld, scan 2 before n = %ld): N = %ld contradicts the data",
+                            pr->v.n - 1, last0, last1, pr->v.n);
+    if (!pr->row_line[0][0] && !pr->row_line[1][0])
+        return sc_error_set(err, SC_E_INPUT, P, pr->line_scan[0],
+                            "no row reaches the profile's first point: both scans lack n = 0");
+    for (int k = 0; k < 2; ++k)
+        for (long i = 0; i < pr->v.n - pr->d[k]; ++i)
+            if (!pr->row_line[k][i])
+                pr->data.m1_um[k][i] = pr->data.m2_um[k][i] = pr->data.m3_urad[k][i] = NAN;
     return SC_OK;
 }
 

@@ -371,10 +371,20 @@ static sc_status rig_run(sc_profile_calibration *c, const sc_profile_data *d, co
     return st;
 }
 
+/* The standard uncertainty of instrument constant src (SC_PROFILE_U_*; 0: not stated). */
+static double instrument_u(const sc_profile_data *d, int src)
+{
+    return src == SC_PROFILE_U_PROBE_GAIN    ? (d->has_probe_gain ? d->probe_gain[1] : 0)
+           : src == SC_PROFILE_U_ANGLE_SCALE ? (d->has_angle_scale ? d->angle_scale[1] : 0)
+                                             : (d->has_spacing_u ? d->spacing_u_mm : 0);
+}
+
 /* The change of y (per unit of an instrument constant) for source src (SC_PROFILE_U_*), into
  * dy[k]; the constant's standard uncertainty returned (0: not stated). */
 static double instrument_dy(const sc_profile_data *d, int src, double *dy[2])
 {
+    if (!(instrument_u(d, src) > 0))
+        return 0;
     double kg = d->has_probe_gain ? d->probe_gain[0] : 1.0;
     double ka = d->has_angle_scale ? d->angle_scale[0] : 1.0;
     for (int k = 0; k < 2; ++k) {
@@ -386,9 +396,7 @@ static double instrument_dy(const sc_profile_data *d, int src, double *dy[2])
                                                          : -m3 / ka * 1e-3;
         }
     }
-    return src == SC_PROFILE_U_PROBE_GAIN    ? (d->has_probe_gain ? d->probe_gain[1] : 0)
-           : src == SC_PROFILE_U_ANGLE_SCALE ? (d->has_angle_scale ? d->angle_scale[1] : 0)
-                                             : d->spacing_u_mm;
+    return instrument_u(d, src);
 }
 
 static void budget_entry(sc_profile_solution *s, int src, const double *u, int n)

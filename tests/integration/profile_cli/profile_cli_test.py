@@ -104,7 +104,9 @@ def case_bad_input():
     g[1] = "# N = 5"
     cases.append(("n_too_small", g, "lsq", 2, "N too small"))
     g = good_lines()
-    cases.append(("gap", g[: s1 + 3] + g[s1 + 4:], "lsq", s1 + 4, "gap in scan 1"))
+    # a gap (SPEC §2a): least squares solves around it (profile_cli_rig), the DFT refuses it at
+    # the scan's header line, naming --method lsq
+    cases.append(("gap", g[: s1 + 3] + g[s1 + 4:], "dft", 4, "--method lsq"))
     g = good_lines()
     g[s1 + 5] = "1,5,0,0,0"
     cases.append(("duplicate", g, "dft", s1 + 6, "duplicate"))
@@ -116,7 +118,7 @@ def case_bad_input():
     cases.append(("non_numeric", g, "lsq", s1 + 3, "m2_um"))
     g = good_lines()
     g[s1 + 2] = "1,3,0.1,0.2,"
-    cases.append(("empty_field", g, "dft", s1 + 3, "m3_urad"))
+    cases.append(("empty_field", g, "dft", 4, "scan 1 has no complete sample for n = 3..3"))
     g = good_lines()
     g[s1 + 2] = "1,3,0.1,0.2,7,5"  # a decimal comma: read as 7 it would shift the data silently
     cases.append(("decimal_comma", g, "lsq", s1 + 3, "expected 5 fields (scan,n,m1_um,m2_um,m3_urad), got 6"))
@@ -353,6 +355,111 @@ def case_plot_long():
     assert os.path.getsize(path("long_xy.svg")) < 1_000_000
 
 
-{"end_to_end": case_end_to_end, "bad_input": case_bad_input, "noise": case_noise, "plan": case_plan,
+def data_rows(p):
+    """The header lines and the rows {(scan, n): [m1, m2, m3]} of a selfcal-profile v1 file."""
+    head, rows = [], {}
+    for ln in open(p).read().splitlines():
+        f = ln.split(",")
+        if len(f) == 5 and f[0] in ("1", "2"):
+            rows[(int(f[0]), int(f[1]))] = [float(v) for v in f[2:]]
+        else:
+            head.append(ln)
+    return head, rows
+
+
+def write_rows(p, head, rows, extra_header=()):
+    lines = head[:-1] + list(extra_header) + head[-1:]
+    for (k, j), v in sorted(rows.items()):
+        lines.append(f"{k},{j}," + ",".join("" if x is None else repr(x) for x in v))
+    write_lines(p, lines)
+
+
+def f_error(out, truth, skip=()):
+    """max |f - truth| over the points given, the truth relative to its LS line over them."""
+    _, rows = read_csv(out)
+    _, trows = read_csv(truth)
+    idx = [i for i, r in enumerate(rows) if r["f_um"] is not None and i not in skip]
+    m = len(idx)
+    xm = sum(idx) / m
+    tm = sum(trows[i]["f_um"] for i in idx) / m
+    b = sum((i - xm) * (trows[i]["f_um"] - tm) for i in idx) / sum((i - xm) ** 2 for i in idx)
+    return max(abs(rows[i]["f_um"] - (trows[i]["f_um"] - tm - b * (i - xm))) for i in idx)
+
+
+def case_rig():
+    """SPEC §2a on simulated rigs through the command: gaps (least squares exact, DFT refused
+    naming --method lsq, an undetermined point left empty and named), probe gain and angle scale
+    stated (exact) with their U in the budget, a common drift, residuals and outliers, the χ²
+    verdict."""
+    inp, truth, out = path("in.csv"), path("t.csv"), path("p.csv")
+    run("simulate", "profile", "--out", inp, "--truth", truth, "--seed", "21", "--sigma-disp-um",
+        "0", "--sigma-angle-urad", "0")
+    head, rows = data_rows(inp)
+    # 20 missing rows and an empty field: exact; the DFT refuses at the scan's line
+    g = dict(rows)
+    for j in range(100, 120):
+        del g[(1, j)]
+    g[(2, 200)] = [g[(2, 200)][0], None, g[(2, 200)][2]]
+    write_rows(path("gap.csv"), head, g)
+    run("profile", "--method", "lsq", path("gap.csv"), "--out", out)
+    assert f_error(out, truth) < 1e-10, f_error(out, truth)
+    p = run("profile", "--method", "dft", path("gap.csv"), "--out", out, expect=2)
+    assert "--method lsq" in p.stderr and f"{path('gap.csv')}:4:" in p.stderr, p.stderr
+    # point 150 tied to nothing (its four rows missing): left empty, named on stderr
+    for key in ((1, 150), (1, 140), (2, 150), (2, 139)):
+        del g[key]
+    write_rows(path("gap0.csv"), head, g)
+    p = run("profile", "--method", "lsq", path("gap0.csv"), "--out", out)
+    assert "1 point no row ties to the rest, left empty: n = 150" in p.stderr, p.stderr
+    _, res = read_csv(out)
+    assert res[150]["f_um"] is None and res[150]["uf_um"] is None and res[149]["f_um"] is not None
+    assert f_error(out, truth) < 1e-10
+    # the first (or last) point reached by no row: the header contradicts the data
+    del g[(1, 0)], g[(2, 0)]
+    write_rows(path("gap1.csv"), head, g)
+    p = run("profile", "--method", "lsq", path("gap1.csv"), "--out", out, expect=2)
+    assert "no row reaches the profile's first point" in p.stderr, p.stderr
+    # probe 2 reading 0.1 % high, the angle sensor 1 % high: stated, exact; U in the budget
+    g = {key: [v[0], v[1] * 1.001, v[2] * 1.01] for key, v in rows.items()}
+    write_rows(path("gain.csv"), head, g)
+    run("profile", "--method", "lsq", path("gain.csv"), "--out", out)
+    assert f_error(out, truth) > 1e-4, "a gain not stated biases f"
+    write_rows(path("gain.csv"), head, g, ["# probe_gain = 1.001, 0.0005",
+                                           "# angle_scale = 1.01, 0.001", "# spacing_u_mm = 0.01",
+                                           ])
+    p = run("profile", "--method", "lsq", path("gain.csv"), "--out", out)
+    assert f_error(out, truth) < 1e-10, f_error(out, truth)
+    for src in ("noise", "probe_gain,0.0005", "angle_scale,0.001", "spacing,0.01"):
+        assert f"budget: {src}" in p.stdout, p.stdout
+    # a common differential drift (5 nm over the scan) with --drift linear: exact
+    g = {(k, j): [v[0], v[1] + 0.005 * (2 * j - 329) / 329, v[2]] for (k, j), v in rows.items()}
+    write_rows(path("drift.csv"), head, g)
+    run("profile", "--method", "lsq", path("drift.csv"), "--out", out)
+    assert f_error(out, truth) > 1e-4
+    p = run("profile", "--method", "lsq", path("drift.csv"), "--out", out, "--drift", "linear")
+    assert f_error(out, truth) < 1e-9 and "drift_um: a 0.005" in p.stdout, p.stdout
+    run("profile", "--method", "dft", path("drift.csv"), "--out", out, "--drift", "linear", expect=2)
+    # noise stated, one 10-sigma outlier: flagged in R.csv and on stderr, removed on request
+    run("simulate", "profile", "--out", inp, "--truth", truth, "--seed", "22")
+    head, rows = data_rows(inp)
+    sy = math.sqrt(2 * 0.01 ** 2 + (10 * 1.0 * 1e-3) ** 2)
+    rows[(1, 150)][1] += 10 * sy
+    write_rows(path("out.csv"), head, rows)
+    R = path("R.csv")
+    p = run("profile", "--method", "lsq", path("out.csv"), "--out", out, "--residuals", R)
+    assert "flagged outlier scan 1 n = 150" in p.stderr and "chi2_test: " in p.stdout, p.stderr
+    lines = open(R).read().splitlines()
+    assert lines[0] == "scan,n,r_um,t,outlier" and len(lines) == 1 + 320 + 319
+    r150 = lines[1 + 150].split(",")
+    assert r150[:2] == ["1", "150"] and r150[4] == "1" and abs(float(r150[3])) > 4, r150
+    p = run("profile", "--method", "lsq", path("out.csv"), "--out", out, "--residuals", R,
+            "--reject-outliers")
+    assert "removed outlier scan 1 n = 150" in p.stderr, p.stderr
+    assert "chi2_test: pass" in p.stdout, p.stdout
+    assert open(R).read().splitlines()[1 + 150].split(",")[4] == "1"
+    assert f_error(out, truth) < 0.06
+
+
+{"end_to_end": case_end_to_end, "rig": case_rig, "bad_input": case_bad_input, "noise": case_noise, "plan": case_plan,
  "plot": case_plot}[CASE]()
 print("OK")
