@@ -20,7 +20,8 @@
  *     assigned mark is one the view measures, assigned + left out = points, assigned >= the
  *     share, and each assigned point lies within the tolerance of its mark placed by the
  *     reported fit (recomputed here from tx, ty, theta);
- *   - an imported profile has N = samples + d for both scans, d = D / s (within 1e-6 of D / s),
+ *   - an imported profile has N >= samples + d for both scans (gaps: NaN, at most half of a
+ *     scan), d = D / s (within 1e-6 of D / s),
  *     and its values are the
  *     logs' values (the same multiset per column); written by sc_profile_write, the selfcal-profile
  *     v1 reader reads back exactly the same data set (what `selfcal import profile` promises). */
@@ -158,10 +159,13 @@ static void check_column(const sc_table *const scan[2], const sc_profile_data *d
         double *a = malloc((size_t)m * sizeof *a), *b = malloc((size_t)m * sizeof *b);
         const double *col = k == 1 ? d->m1_um[s] : k == 2 ? d->m2_um[s] : d->m3_urad[s];
         FUZZ_CHECK(a && b);
-        for (long q = 0; q < m; ++q) {
+        long got = 0; /* the data set's samples that are not gaps (NaN) */
+        for (long q = 0; q < d->n - d->d[s]; ++q)
+            if (!isnan(col[q]))
+                FUZZ_CHECK(got < m), b[got++] = col[q];
+        FUZZ_CHECK(got == m);
+        for (long q = 0; q < m; ++q)
             a[q] = scan[s]->value[q * 4 + k];
-            b[q] = col[q];
-        }
         qsort(a, (size_t)m, sizeof *a, cmp_double);
         qsort(b, (size_t)m, sizeof *b, cmp_double);
         FUZZ_CHECK(memcmp(a, b, (size_t)m * sizeof *a) == 0);
@@ -173,7 +177,7 @@ static void check_column(const sc_table *const scan[2], const sc_profile_data *d
 static int same_values(const double *a, const double *b, int m)
 {
     for (int q = 0; q < m; ++q)
-        if (!(a[q] == b[q]))
+        if (!(a[q] == b[q]) && !(isnan(a[q]) && isnan(b[q]))) /* a gap reads back as a gap */
             return 0;
     return 1;
 }
@@ -214,7 +218,9 @@ static void fuzz_profile(uint8_t c0, uint8_t c1, const uint8_t *data, size_t siz
         if (st == SC_OK) {
             FUZZ_CHECK(d.s_mm > 0 && isfinite(p0));
             for (int k = 0; k < 2; ++k) {
-                FUZZ_CHECK(d.d[k] >= 1 && d.n == t[k].n_rows + d.d[k]);
+                /* gaps (SPEC §2a): at most half of the scan's samples missing */
+                FUZZ_CHECK(d.d[k] >= 1 && d.n >= t[k].n_rows + d.d[k] &&
+                           2 * t[k].n_rows >= d.n - d.d[k]);
                 /* D is d whole steps within 1e-6 of D/s (the import's own rule, same rounding:
                  * |d·s - D| <= 1e-6·D, rounded differently, refused D/s = 76923.077 taken as
                  * 76923 steps of 13 nm, which is at the edge; regressions/) */

@@ -207,9 +207,10 @@ SC_API void sc_profile_import_defaults(sc_profile_import_params *p);
 
 /* Sort each scan's rows (tables of 4 columns: position mm, m1 µm, m2 µm, m3 µrad, e.g. from
  * sc_table_read with scales) by position, check the sampling (constant step s within the
- * tolerance from scan 1's first position p0, no gaps or repeats, both scans starting at p0, each
- * D a whole number of steps, samples + d equal for both scans: SC_E_INPUT at the file and line
- * otherwise) and fill out (allocated here, free with sc_profile_data_free; no sigma lines).
+ * tolerance from scan 1's first position p0, no repeats, both scans starting at p0, each D a
+ * whole number of steps, last sample + 1 + d equal for both scans, at most half of a scan's
+ * samples missing: SC_E_INPUT at the file and line otherwise) and fill out (allocated here, free
+ * with sc_profile_data_free; no sigma lines; a position not logged is a gap: NaN, SPEC §2a).
  * *p0_mm (may be NULL) gets p0. */
 SC_API sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
                                    sc_profile_data *out, double *p0_mm, sc_error *err);

@@ -35,9 +35,11 @@ static int cmp_double(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Scan k (rows sorted in o) on the grid p0 + n·step, n = 0, 1, ... without gaps or repeats. */
+/* Scan k (rows sorted in o) on the grid p0 + n·step, n = 0, 1, ... without repeats; each row's n
+ * into idx. A gap (positions not sampled) is passed on (SPEC §2a: least squares solves around
+ * it), up to half of the scan's samples (as the reader of the file written: gap_check). */
 static sc_status check_steps(const sc_table *t, const pos_row *o, int k, double p0, double step,
-                             double tol, sc_error *err)
+                             double tol, long *idx, sc_error *err)
 {
     long prev = -1, prev_row = -1;
     for (long q = 0; q < t->n_rows; ++q) {
@@ -58,11 +60,7 @@ static sc_status check_steps(const sc_table *t, const pos_row *o, int k, double 
             return sc_error_set(err, SC_E_INPUT, t->path, t->line[r],
                                 "position %.6f mm is sampled twice (also line %ld)", pos,
                                 t->line[prev_row]);
-        if (q > 0 && n != prev + 1)
-            return sc_error_set(err, SC_E_INPUT, t->path, t->line[r],
-                                "gap: %ld sample%s missing between %.6f mm (line %ld) and %.6f mm",
-                                n - prev - 1, n - prev - 1 == 1 ? "" : "s", o[q - 1].pos,
-                                t->line[prev_row], pos);
+        idx[q] = n;
         prev = n;
         prev_row = r;
     }
@@ -192,6 +190,23 @@ static sc_status step_and_spacings(const sc_profile_import_params *p, const sc_t
     return SC_OK;
 }
 
+/* At most half of scan k's samples (0..idx[last]) missing, as the profile reader allows; else
+ * SC_E_INPUT at the row after its largest gap. */
+static sc_status gap_check(const sc_table *t, const pos_row *o, const long *idx, int k,
+                           sc_error *err)
+{
+    long m = idx[t->n_rows - 1] + 1, best = 0, at = 0;
+    if (2 * t->n_rows >= m)
+        return SC_OK;
+    for (long q = 1; q < t->n_rows; ++q)
+        if (idx[q] - idx[q - 1] - 1 > best)
+            best = idx[q] - idx[q - 1] - 1, at = q;
+    return sc_error_set(err, SC_E_INPUT, t->path, t->line[o[at].row],
+                        "scan %d: %ld of its %ld samples present (the largest gap: %ld samples "
+                        "before %.6f mm): at most half of a scan may be missing",
+                        k + 1, t->n_rows, m, best, o[at].pos);
+}
+
 sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
                             sc_profile_data *out, double *p0_mm, sc_error *err)
 {
@@ -228,29 +243,41 @@ sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *c
     if (st == SC_OK)
         st = median_origin(scan[0], o[0], n0, step, &p0, err);
     free(n0);
-    for (int k = 0; k < 2 && st == SC_OK; ++k)
-        st = check_steps(scan[k], o[k], k, p0, step, p->step_tolerance, err);
+    long *idx[2] = {NULL, NULL};
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        idx[k] = malloc((size_t)scan[k]->n_rows * sizeof(long));
+        st = idx[k] ? check_steps(scan[k], o[k], k, p0, step, p->step_tolerance, idx[k], err)
+                    : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        if (st == SC_OK)
+            st = gap_check(scan[k], o[k], idx[k], k, err);
+    }
     if (st == SC_OK) {
-        long n1 = scan[0]->n_rows + dk[0], n2 = scan[1]->n_rows + dk[1];
+        long m1 = idx[0][scan[0]->n_rows - 1] + 1, m2 = idx[1][scan[1]->n_rows - 1] + 1;
+        long n1 = m1 + dk[0], n2 = m2 + dk[1];
         if (n1 != n2)
             st = sc_error_set(err, SC_E_INPUT, scan[1]->path,
                               scan[1]->line[o[1][scan[1]->n_rows - 1].row],
                               "scan 2 covers %ld points (%ld samples + d2 = %d), scan 1 covers %ld "
                               "(%ld samples + d1 = %d): both scans must cover the same profile",
-                              n2, scan[1]->n_rows, dk[1], n1, scan[0]->n_rows, dk[0]);
+                              n2, m2, dk[1], n1, m1, dk[0]);
         else if (n1 > 100000000L)
             st = sc_error_set(err, SC_E_INPUT, scan[0]->path, 0, "more than 1e8 points");
         else
             st = sc_profile_data_init(out, (int)n1, step, dk[0], dk[1], err);
     }
     if (st == SC_OK)
-        for (int k = 0; k < 2; ++k)
+        for (int k = 0; k < 2; ++k) {
+            for (long j = 0; j < out->n - dk[k]; ++j) /* a sample not logged: a gap */
+                out->m1_um[k][j] = out->m2_um[k][j] = out->m3_urad[k][j] = NAN;
             for (long q = 0; q < scan[k]->n_rows; ++q) {
                 const double *row = &scan[k]->value[o[k][q].row * 4];
-                out->m1_um[k][q] = row[1];
-                out->m2_um[k][q] = row[2];
-                out->m3_urad[k][q] = row[3];
+                out->m1_um[k][idx[k][q]] = row[1];
+                out->m2_um[k][idx[k][q]] = row[2];
+                out->m3_urad[k][idx[k][q]] = row[3];
             }
+        }
+    free(idx[0]);
+    free(idx[1]);
     free(o[0]);
     free(o[1]);
     if (p0_mm)

@@ -507,9 +507,21 @@ def case_profile():
                                   "--spacing-mm", spacings[1], os.path.join(d, "b2.csv")]
         check_bad(a, d, os.path.join(d, "bad_out.csv"), want)
 
+    # a gap (SPEC §2a) is passed on: the sample has no row, least squares solves around it
     gap = dict(scans)
     gap[2] = scans[2][:40] + scans[2][41:]
-    bad(gap, "b2.csv:42: gap: 1 sample missing between 119.750000 mm (line 41)")
+    for k in (1, 2):
+        write_scan(os.path.join(d, "g%d.csv" % k), gap[k])
+    gout = os.path.join(d, "gap_out.csv")
+    run(*(base + ["--spacing-mm", 3, os.path.join(d, "g1.csv"), "--spacing-mm", 3.5,
+                  os.path.join(d, "g2.csv")]), "-o", gout)
+    ghead, gdata = read_profile(gout)
+    if (2, 40) in gdata or (2, 39) not in gdata or (2, 41) not in gdata or len(gdata) != len(data) - 1:
+        fail("import profile: the gap (scan 2, n = 40) is not passed on as a missing row")
+    run("profile", "--method", "lsq", gout, "--out", os.path.join(d, "PG.csv"))
+    # more than half of a scan missing: refused at the row after its largest gap
+    gap[1] = scans[1][:2] + scans[1][80:]
+    bad(gap, "b1.csv:4: scan 1: 36 of its 114 samples present (the largest gap: 78 samples")
     rep = dict(scans)
     rep[1] = scans[1][:10] + [scans[1][9]] + scans[1][10:]
     bad(rep, "b1.csv:12: position 104.750000 mm is sampled twice (also line 11)")
