@@ -200,10 +200,13 @@ static void print_rig_summary(const sc_profile_data *d, const sc_profile_solutio
         printf("instrument: probe_gain %.9g, angle_scale %.9g (applied to m2, m3)\n",
                d->has_probe_gain ? d->probe_gain[0] : 1.0,
                d->has_angle_scale ? d->angle_scale[0] : 1.0);
-    if (isfinite(sol->drift_um[0]))
-        printf("drift_um: a %.6g%s%.6g (y_k += a*tau + b*tau^2, tau = -1..1 over n)\n",
-               sol->drift_um[0], isfinite(sol->drift_um[1]) ? ", b " : "",
-               isfinite(sol->drift_um[1]) ? sol->drift_um[1] : 0.0);
+    if (isfinite(sol->drift_um[0]) && isfinite(sol->drift_um[1]))
+        printf("drift_um: a %.6g, b %.6g (y_k += a*tau + b*tau^2, tau = -1..1 over n)\n",
+               sol->drift_um[0], sol->drift_um[1]);
+    else if (isfinite(sol->drift_um[0]))
+        printf("drift_um: a %.6g (y_k += a*tau, tau = -1..1 over n)\n", sol->drift_um[0]);
+    if (isfinite(sol->drift_cost))
+        printf("drift_cost: %.4g (RMS uf with the drift terms / without them)\n", sol->drift_cost);
     if (sol->rig)
         printf("solver: rig (rows fitted: dof %d; undetermined points %d)\n", sol->dof,
                sol->n_undetermined);

@@ -458,6 +458,12 @@ static void stage_error(const sc_profile_data *d, const double *f, double *ey)
         if (isfinite(ey[i]))
             cnt += 1, sx += i, sy += ey[i];
     }
+    for (int i = m; i < d->n; ++i)
+        ey[i] = NAN;
+    if (cnt == m) { /* no gap: the library's own line removal, to the last bit as always */
+        sc_profile_remove_line(m, ey);
+        return;
+    }
     double xm = cnt > 0 ? sx / cnt : 0, ym = cnt > 0 ? sy / cnt : 0;
     for (int i = 0; i < m; ++i)
         if (isfinite(ey[i]))
@@ -490,23 +496,29 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     /* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the
      * DFT's residuals, 3 for the instrument budget, the residual arrays when not the caller's */
     int own_res = (o->want_residuals || o->reject_outliers) && !s->r_um[0];
-    size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT) + 4 + 4 * own_res;
+    int budget = instrument_u(d, SC_PROFILE_U_PROBE_GAIN) > 0 ||
+                 instrument_u(d, SC_PROFILE_U_ANGLE_SCALE) > 0 ||
+                 instrument_u(d, SC_PROFILE_U_SPACING) > 0;
+    size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT);
     double *blk = sc_big_alloc(own * (size_t)n, sizeof(double), 0);
-    if (!blk)
+    /* the budget's work (4n) and the residual arrays when not the caller's (4n + marks) */
+    double *work = budget || own_res ? malloc((4 + 5 * (size_t)own_res) * (size_t)n * sizeof(double))
+                                     : NULL;
+    if (!blk || ((budget || own_res) && !work)) {
+        free(blk), free(work);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    }
     double *y1 = blk, *y2 = y1 + n, *next = y2 + n, *f = s->f_um, *uf = s->uf_um;
     if (!f)
         f = next, next += n;
     if (!uf)
         uf = next, next += n;
     double *tmp = o->method == SC_PROFILE_DFT ? next : NULL;
-    next += o->method == SC_PROFILE_DFT ? n : 0;
-    double *work = next; /* the budget's; the outlier marks' during the rig run */
-    next += 4 * (size_t)n;
     if (own_res) {
-        s->r_um[0] = next, s->r_um[1] = next + n, s->t[0] = next + 2 * (size_t)n;
-        s->t[1] = next + 3 * (size_t)n;
-        s->outlier[0] = (unsigned char *)work, s->outlier[1] = (unsigned char *)work + n;
+        double *r = work + 4 * (size_t)n;
+        s->r_um[0] = r, s->r_um[1] = r + n, s->t[0] = r + 2 * (size_t)n;
+        s->t[1] = r + 3 * (size_t)n;
+        s->outlier[0] = (unsigned char *)(r + 4 * (size_t)n), s->outlier[1] = s->outlier[0] + n;
     }
     sc_profile_combine(d, 0, y1);
     sc_profile_combine(d, 1, y2);
@@ -542,7 +554,8 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
             uf[i] = NAN;
     if (st == SC_OK && s->have_uf) {
         budget_entry(s, SC_PROFILE_U_NOISE, uf, n);
-        st = instrument_budget(c, d, uf, work, s, err);
+        if (budget)
+            st = instrument_budget(c, d, uf, work, s, err);
     }
     if (st != SC_OK)
         goto done;
@@ -555,6 +568,7 @@ done:
     }
     sc_rig_plan_destroy(c->ctx.rig);
     c->ctx.rig = NULL;
+    free(work);
     free(blk);
     return st;
 }
