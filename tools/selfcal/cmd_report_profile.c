@@ -100,17 +100,21 @@ static void draw_hist(FILE *fp, const void *ctx)
 }
 
 /* Residuals (nm) of scan k against the least-squares f: y_k(n) − (f(n+d) − f(n)) − c_k with c_k
- * their mean (the least-squares offset for that f). Returns the count, m = N − d. */
+ * their mean (the least-squares offset for that f), over the samples with a residual (a gap, or a
+ * point left undetermined, has none: SPEC §2a). Returns their count (m = N − d without gaps). */
 static int scan_residuals(const profile_run *r, int d, const double *y, double *res_nm)
 {
-    int m = r->n - d;
+    int m = r->n - d, got = 0;
     double c = 0;
-    for (int i = 0; i < m; ++i)
-        c += y[i] - (r->fres[i + d] - r->fres[i]);
-    c /= m;
-    for (int i = 0; i < m; ++i)
-        res_nm[i] = (y[i] - (r->fres[i + d] - r->fres[i]) - c) * 1e3;
-    return m;
+    for (int i = 0; i < m; ++i) {
+        double v = y[i] - (r->fres[i + d] - r->fres[i]);
+        if (isfinite(v))
+            c += v, res_nm[got++] = v;
+    }
+    c /= got > 0 ? got : 1;
+    for (int i = 0; i < got; ++i)
+        res_nm[i] = (res_nm[i] - c) * 1e3;
+    return got;
 }
 
 static double rms_max(const double *v, int n, double *mx)
@@ -247,6 +251,46 @@ static void section_noise(FILE *fp, const sc_profile_solution *so)
 
 }
 
+/* The uncertainty budget (SPEC §2a): what each stated instrument constant adds to u(f), with
+ * the noise's part; only when a constant is stated. */
+static void section_budget(FILE *fp, const sc_profile_data *d, const sc_profile_solution *so)
+{
+    static const char *const name[SC_PROFILE_U_N] = {
+        "sensor noise", "probe gain K (m2 / K)", "angle scale K (m3 / K)", "probe spacings D1, D2"};
+    static const char *const unit[SC_PROFILE_U_N] = {"", "", "", " mm"};
+    const double K[SC_PROFILE_U_N] = {NAN, d->has_probe_gain ? d->probe_gain[0] : NAN,
+                                      d->has_angle_scale ? d->angle_scale[0] : NAN, NAN};
+    const double U[SC_PROFILE_U_N] = {NAN, d->has_probe_gain ? d->probe_gain[1] : 0,
+                                      d->has_angle_scale ? d->angle_scale[1] : 0,
+                                      d->has_spacing_u ? d->spacing_u_mm : 0};
+    if (!(d->has_probe_gain || d->has_angle_scale || d->has_spacing_u) || !so->have_uf)
+        return;
+    fputs("<section id=\"budget\">\n<h3>Uncertainty budget</h3>\n<table>\n<tr><th class=\"l\">"
+          "source</th><th>value</th><th>standard uncertainty</th><th>u(f), RMS (nm)</th>"
+          "<th>u(f), largest (nm)</th></tr>\n", fp);
+    for (int i = 0; i < SC_PROFILE_U_N; ++i) {
+        if (i > 0 && !(U[i] > 0) && !isfinite(K[i]))
+            continue;
+        fprintf(fp, "<tr><td class=\"l\">%s</td>", name[i]);
+        html_num_cell(fp, NULL, "%.9g", K[i]);
+        if (i == 0)
+            fputs("<td>stated or estimated (section 3)</td>", fp);
+        else
+            fprintf(fp, "<td>%.4g%s</td>", U[i], unit[i]);
+        char id[32];
+        snprintf(id, sizeof id, "budget-rms-%d", i);
+        html_num_cell(fp, id, "%.4g", so->budget_rms_um[i] * 1e3);
+        snprintf(id, sizeof id, "budget-max-%d", i);
+        html_num_cell(fp, id, "%.4g", so->budget_max_um[i] * 1e3);
+        fputs("</tr>\n", fp);
+    }
+    fputs("</table>\n<p class=\"note\">Each constant's part is its U times the response of f to it "
+          "(the estimator is linear in y: one solve each); u(f) is the root sum of squares of "
+          "the parts. The constants themselves correct the data before the model (m2 / K, "
+          "m3 / K). The method cannot see them in its residuals: they are calibrated apart "
+          "(docs/profile.md, Real rigs).</p>\n</section>\n", fp);
+}
+
 /* 4. Residuals of both scans, with their histogram. */
 static sc_status section_residuals(FILE *fp, const sc_profile_data *d, const profile_run *r,
                                    sc_error *err)
@@ -352,6 +396,7 @@ static sc_status write_report(FILE *fp, const cli_input *src, const char *method
     report_summary(fp, src->orig, method_s, d, &g);
     section_setup_method(fp, method_s, d);
     section_noise(fp, &r->sol);
+    section_budget(fp, d, &r->sol);
     sc_status st = section_residuals(fp, d, r, err);
     if (st != SC_OK)
         return st;

@@ -431,6 +431,13 @@ def case_rig():
     assert f_error(out, truth) < 1e-10, f_error(out, truth)
     for src in ("noise", "probe_gain,0.0005", "angle_scale,0.001", "spacing,0.01"):
         assert f"budget: {src}" in p.stdout, p.stdout
+    # the same budget in the report; a report of data with gaps
+    run("report", "profile", path("gain.csv"), "-o", path("r.html"))
+    html = open(path("r.html")).read()
+    for i in range(4):
+        assert f'id="budget-rms-{i}"' in html, f"budget row {i} missing from the report"
+    run("report", "profile", path("gap.csv"), "-o", path("rg.html"))
+    assert 'id="budget"' not in open(path("rg.html")).read()
     # a common differential drift (5 nm over the scan) with --drift linear: exact
     g = {(k, j): [v[0], v[1] + 0.005 * (2 * j - 329) / 329, v[2]] for (k, j), v in rows.items()}
     write_rows(path("drift.csv"), head, g)
