@@ -9,27 +9,35 @@
 #include "cli.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
+#include "selfcal/profile_calibrate.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 
 static const char *USAGE =
     "usage: selfcal profile-plan --n N --s-mm S --sigma-disp-um X --sigma-angle-urad Y\n"
     "                            [--d-min A (2)] [--d-max D (30)] [--top K (20)] [--sort rms|max]\n"
+    "                            [--drift linear|quadratic]\n"
     "  Ranks the pairs A <= d1 < d2 <= D that least squares can solve by the predicted RMS (or the\n"
     "  worst point) of u(f) over the profile; the DFT method's figures where N = p·d1·d2.\n"
-    "  Prints CSV: rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm.\n";
+    "  Prints CSV: rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm.\n"
+    "  --drift: also the least squares with drift terms common to both scans (selfcal profile\n"
+    "  --drift): columns drift_rms_nm,drift_max_nm,drift_cost (its RMS u over lsq_rms_nm),\n"
+    "  ranked by them.\n";
 
 typedef struct plan_row {
     int d1, d2;
     double lsq_rms, lsq_max, dft_rms, dft_max; /* nm; NaN where not usable */
+    double drift_rms, drift_max, drift_cost;   /* with --drift (nm; the ratio to lsq_rms) */
 } plan_row;
 
-static int sort_by_max;
+static int sort_by_max, sort_by_drift;
 
 static int cmp_rows(const void *a, const void *b)
 {
     const plan_row *x = a, *y = b;
     double kx = sort_by_max ? x->lsq_max : x->lsq_rms, ky = sort_by_max ? y->lsq_max : y->lsq_rms;
+    if (sort_by_drift) /* with --drift: by the u the drift terms leave */
+        kx = sort_by_max ? x->drift_max : x->drift_rms, ky = sort_by_max ? y->drift_max : y->drift_rms;
     if (kx != ky)
         return kx < ky ? -1 : 1;
     double lx = sort_by_max ? x->lsq_rms : x->lsq_max, ly = sort_by_max ? y->lsq_rms : y->lsq_max;
@@ -62,13 +70,14 @@ static void print_num(double v)
 typedef struct {
     long n, dmin, dmax, top;
     double s, sd, sa; /* s_mm, sigma_disp_um, sigma_angle_urad */
+    int drift;        /* 0, 1 linear, 2 quadratic */
 } plan_args;
 
 /* argv into a (sort_by_max too); *help for --help. */
 static int parse_args(int argc, char **argv, plan_args *a, int *help)
 {
     const char *cmd = "profile-plan";
-    *a = (plan_args){0, 2, 30, 20, NAN, NAN, NAN};
+    *a = (plan_args){0, 2, 30, 20, NAN, NAN, NAN, 0};
     sort_by_max = 0;
     *help = 0;
     for (int i = 1; i < argc; ++i) {
@@ -95,6 +104,12 @@ static int parse_args(int argc, char **argv, plan_args *a, int *help)
                 sort_by_max = 1;
             else
                 return cli_usage_error(cmd, "--sort must be rms or max, not '%s'", v);
+            continue;
+        } else if (!strcmp(o, "--drift") && hv) {
+            const char *v = argv[++i];
+            if (strcmp(v, "linear") && strcmp(v, "quadratic"))
+                return cli_usage_error(cmd, "--drift must be linear or quadratic, not '%s'", v);
+            a->drift = !strcmp(v, "linear") ? 1 : 2;
             continue;
         } else
             return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", o);
@@ -144,7 +159,7 @@ static sc_status evaluate_pair(const plan_args *a, int d1, int d2, double *u, pl
     const int n = (int)a->n;
     double w1 = 1.0 / sc_profile_y_variance(d1, a->s, a->sd, a->sa);
     double w2 = 1.0 / sc_profile_y_variance(d2, a->s, a->sd, a->sa);
-    *r = (plan_row){d1, d2, NAN, NAN, NAN, NAN};
+    *r = (plan_row){d1, d2, NAN, NAN, NAN, NAN, NAN, NAN, NAN};
     sc_profile_lsq_plan *lp = NULL;
     sc_status st = sc_profile_lsq_plan_create(n, d1, d2, w1, w2, &lp, err);
     if (st == SC_OK)
@@ -165,14 +180,49 @@ static sc_status evaluate_pair(const plan_args *a, int d1, int d2, double *u, pl
     return st;
 }
 
+/* With --drift: the least squares with the drift terms (the rig solver of `selfcal profile
+ * --drift`, run on a data set of zeros with the noise stated: u does not depend on the data);
+ * u: 3N doubles of work. */
+static sc_status evaluate_drift(const plan_args *a, int d1, int d2, double *u, plan_row *r,
+                                sc_error *err)
+{
+    const int n = (int)a->n;
+    sc_profile_data d;
+    sc_status st = sc_profile_data_init(&d, n, a->s, d1, d2, err);
+    if (st != SC_OK)
+        return st;
+    d.has_sigma_disp = d.has_sigma_angle = 1;
+    d.sigma_disp_um = a->sd, d.sigma_angle_urad = a->sa;
+    sc_profile_options o;
+    sc_profile_options_default(&o);
+    o.drift = a->drift;
+    sc_profile_solution so = {.f_um = u + n, .uf_um = u, .ey_um = u + 2 * (size_t)n};
+    st = sc_profile_calibrate(&d, &o, &so, err);
+    sc_profile_data_free(&d);
+    if (st == SC_E_INPUT) { /* the drift cannot be told from the profile with this pair */
+        r->drift_rms = r->drift_max = r->drift_cost = INFINITY;
+        return SC_OK;
+    }
+    if (st != SC_OK)
+        return st;
+    stats(u, n, &r->drift_rms, &r->drift_max);
+    r->drift_cost = so.drift_cost;
+    return SC_OK;
+}
+
 /* The ranking on stdout: a comment line, the header, the best `top` rows. */
 static void print_ranking(const plan_args *a, plan_row *rows, size_t cnt)
 {
+    sort_by_drift = a->drift != 0;
     qsort(rows, cnt, sizeof *rows, cmp_rows);
     printf("# profile-plan: N = %ld, s_mm = %g, sigma_disp_um = %g, sigma_angle_urad = %g; "
-           "%zu usable pairs with %ld <= d1 < d2 <= %ld, ranked by least-squares %s of u(f)\n",
-           a->n, a->s, a->sd, a->sa, cnt, a->dmin, a->dmax, sort_by_max ? "worst point" : "RMS");
-    printf("rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm\n");
+           "%zu usable pairs with %ld <= d1 < d2 <= %ld, ranked by least-squares %s of u(f)%s\n",
+           a->n, a->s, a->sd, a->sa, cnt, a->dmin, a->dmax, sort_by_max ? "worst point" : "RMS",
+           a->drift == 1   ? " with a linear drift fitted"
+           : a->drift == 2 ? " with a linear and a quadratic drift fitted"
+                           : "");
+    printf("rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm%s\n",
+           a->drift ? ",drift_rms_nm,drift_max_nm,drift_cost" : "");
     for (size_t i = 0; i < cnt && (long)i < a->top; ++i) {
         printf("%zu,%d,%d,%g,%g", i + 1, rows[i].d1, rows[i].d2, rows[i].d1 * a->s,
                rows[i].d2 * a->s);
@@ -180,6 +230,11 @@ static void print_ranking(const plan_args *a, plan_row *rows, size_t cnt)
         print_num(rows[i].lsq_max);
         print_num(rows[i].dft_rms);
         print_num(rows[i].dft_max);
+        if (a->drift) {
+            print_num(rows[i].drift_rms);
+            print_num(rows[i].drift_max);
+            print_num(rows[i].drift_cost);
+        }
         printf("\n");
     }
 }
@@ -197,7 +252,7 @@ int cmd_profile_plan(int argc, char **argv)
         return rc;
     size_t cap = (size_t)(a.dmax - a.dmin + 1) * (size_t)(a.dmax - a.dmin + 1) / 2 + 1;
     plan_row *rows = malloc(cap * sizeof *rows);
-    double *u = malloc((size_t)a.n * sizeof(double));
+    double *u = malloc((size_t)a.n * 3 * sizeof(double));
     sc_error err;
     sc_error_clear(&err);
     if (!rows || !u) {
@@ -214,7 +269,9 @@ int cmd_profile_plan(int argc, char **argv)
             fprintf(stderr, "\rprofile-plan: d1 = %ld of %ld", d1, a.dmax), fflush(stderr);
         for (long d2 = d1 + 1; d2 <= a.dmax && st == SC_OK; ++d2)
             if (sc_profile_lsq_is_solvable((int)a.n, (int)d1, (int)d2, NULL) &&
-                (st = evaluate_pair(&a, (int)d1, (int)d2, u, &rows[cnt], &err)) == SC_OK)
+                (st = evaluate_pair(&a, (int)d1, (int)d2, u, &rows[cnt], &err)) == SC_OK &&
+                (!a.drift || (st = evaluate_drift(&a, (int)d1, (int)d2, u, &rows[cnt], &err)) ==
+                                 SC_OK))
                 cnt++;
     }
     if (tty)

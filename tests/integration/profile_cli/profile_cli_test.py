@@ -446,6 +446,16 @@ def case_rig():
     p = run("profile", "--method", "lsq", path("drift.csv"), "--out", out, "--drift", "linear")
     assert f_error(out, truth) < 1e-9 and "drift_um: a 0.005" in p.stdout, p.stdout
     run("profile", "--method", "dft", path("drift.csv"), "--out", out, "--drift", "linear", expect=2)
+    # profile-plan shows the same cost for the spacings (noise stated the same way)
+    write_rows(path("drift_n.csv"), [h for h in head if "sigma" not in h], g,
+               ["# sigma_disp_um = 0.01", "# sigma_angle_urad = 1"])
+    p = run("profile", "--method", "lsq", path("drift_n.csv"), "--out", out, "--drift", "linear")
+    cost = float(re.search(r"drift_cost: ([0-9.]+)", p.stdout).group(1))
+    p = run("profile-plan", "--n", 330, "--s-mm", 1, "--sigma-disp-um", 0.01, "--sigma-angle-urad",
+            1, "--d-min", 10, "--d-max", 11, "--drift", "linear")
+    head_p, row = p.stdout.splitlines()[1].split(","), p.stdout.splitlines()[2].split(",")
+    assert head_p[-3:] == ["drift_rms_nm", "drift_max_nm", "drift_cost"], head_p
+    assert abs(float(row[-1]) - cost) < 1e-3 and cost > 3, (row, cost)
     # noise stated, one 10-sigma outlier: flagged in R.csv and on stderr, removed on request
     run("simulate", "profile", "--out", inp, "--truth", truth, "--seed", "22")
     head, rows = data_rows(inp)
