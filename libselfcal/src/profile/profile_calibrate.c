@@ -347,7 +347,8 @@ static sc_status rig_run(sc_profile_calibration *c, const sc_profile_data *d, co
         *scale = noise_scale(c, s);
         if ((st = sc_rig_uncertainty(c->ctx.rig, uf, err)) != SC_OK)
             break;
-        double res = s->noise_known ? (s->u_scaled ? *scale : 1.0) : *scale;
+        double res = !s->have_uf ? 0.0 /* no noise to test against: t empty */
+                     : s->noise_known ? (s->u_scaled ? *scale : 1.0) : *scale;
         const double sigma[2] = {sqrt(c->var[0]) * res, sqrt(c->var[1]) * res};
         if (!test)
             break;
@@ -475,6 +476,27 @@ static void stage_error(const sc_profile_data *d, const double *f, double *ey)
         ey[i] = NAN;
 }
 
+/* f and the noise (s's fields, *scale on the unit uncertainties): the DFT refuses gaps; the rig
+ * solver (rig) for gaps, drift, residuals; else the plan's method and its residual check. */
+static sc_status solve_step(sc_profile_calibration *c, const sc_profile_data *d, int gaps, int rig,
+                            const double *y1, const double *y2, double *f, double *uf, double *tmp,
+                            sc_profile_solution *s, double *scale, sc_error *err)
+{
+    if (c->o.method == SC_PROFILE_DFT && gaps)
+        return refuse_gaps(d, y1, y2, err);
+    if (rig)
+        return rig_run(c, d, y1, y2, f, uf, s, scale, err);
+    sc_status st = solve_cb(&c->ctx, y1, y2, f, err);
+    if (st == SC_OK)
+        /* a noise stated as 0 is checked against the residuals (the caller warns if they are
+         * not 0): the DFT's extra least-squares solve is paid then too */
+        st = residuals(d, &c->ctx, y1, y2, f, c->w, tmp, c->o.residual_check || c->zero_noise, s,
+                       err);
+    if (st == SC_OK)
+        *scale = noise_scale(c, s);
+    return st;
+}
+
 sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile_data *d,
                                      sc_profile_solution *s, sc_error *err)
 {
@@ -492,7 +514,7 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     s->drift_um[0] = s->drift_um[1] = s->outlier_crit = s->drift_cost = NAN;
     for (int i = 0; i < SC_PROFILE_U_N; ++i)
         s->budget_rms_um[i] = s->budget_max_um[i] = 0;
-    const double *var = c->var, *w = c->w;
+    const double *var = c->var;
     /* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the
      * DFT's residuals, 3 for the instrument budget, the residual arrays when not the caller's */
     int own_res = (o->want_residuals || o->reject_outliers) && !s->r_um[0];
@@ -524,34 +546,17 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     sc_profile_combine(d, 1, y2);
     int gaps = sc_profile_has_gaps(d), rig = o->method == SC_PROFILE_LSQ &&
               (gaps || o->drift || o->reject_outliers || o->want_residuals);
-    sc_status st = SC_OK;
     double scale = 1.0; /* multiplies the plan's unit uncertainties */
-    if (o->method == SC_PROFILE_DFT && gaps)
-        st = refuse_gaps(d, y1, y2, err);
-    else if (rig) {
-        st = rig_run(c, d, y1, y2, f, uf, s, &scale, err);
-    } else {
-        st = solve_cb(&c->ctx, y1, y2, f, err);
-        if (st == SC_OK)
-            /* a noise stated as 0 is checked against the residuals (the caller warns if they
-             * are not 0): the DFT's extra least-squares solve is paid then too */
-            st = residuals(d, &c->ctx, y1, y2, f, w, tmp, o->residual_check || c->zero_noise, s,
-                           err);
-        if (st == SC_OK)
-            scale = noise_scale(c, s);
-    }
+    sc_status st = solve_step(c, d, gaps, rig, y1, y2, f, uf, tmp, s, &scale, err);
     if (st != SC_OK)
         goto done;
     s->sigma_y_um[0] = s->have_uf ? sqrt(var[0]) * scale : NAN;
     s->sigma_y_um[1] = s->have_uf ? sqrt(var[1]) * scale : NAN;
     if (s->have_uf && (!rig || o->mc_trials > 0))
         st = uncertainty(d, o, &c->ctx, var, scale, uf, err);
-    else if (s->have_uf)
+    else /* the rig solver's unit uncertainties are in uf already */
         for (int i = 0; i < n; ++i)
-            uf[i] *= scale;
-    else
-        for (int i = 0; i < n; ++i)
-            uf[i] = NAN;
+            uf[i] = s->have_uf ? uf[i] * scale : NAN;
     if (st == SC_OK && s->have_uf) {
         budget_entry(s, SC_PROFILE_U_NOISE, uf, n);
         if (budget)

@@ -207,6 +207,22 @@ static sc_status gap_check(const sc_table *t, const pos_row *o, const long *idx,
                         k + 1, t->n_rows, m, best, o[at].pos);
 }
 
+/* The logged samples into out at their indices; a sample not logged is a gap (NaN). */
+static void fill_samples(const sc_table *const scan[2], const pos_row *const o[2],
+                         const long *const idx[2], sc_profile_data *out)
+{
+    for (int k = 0; k < 2; ++k) {
+        for (long j = 0; j < out->n - out->d[k]; ++j)
+            out->m1_um[k][j] = out->m2_um[k][j] = out->m3_urad[k][j] = NAN;
+        for (long q = 0; q < scan[k]->n_rows; ++q) {
+            const double *row = &scan[k]->value[o[k][q].row * 4];
+            out->m1_um[k][idx[k][q]] = row[1];
+            out->m2_um[k][idx[k][q]] = row[2];
+            out->m3_urad[k][idx[k][q]] = row[3];
+        }
+    }
+}
+
 sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
                             sc_profile_data *out, double *p0_mm, sc_error *err)
 {
@@ -266,16 +282,7 @@ sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *c
             st = sc_profile_data_init(out, (int)n1, step, dk[0], dk[1], err);
     }
     if (st == SC_OK)
-        for (int k = 0; k < 2; ++k) {
-            for (long j = 0; j < out->n - dk[k]; ++j) /* a sample not logged: a gap */
-                out->m1_um[k][j] = out->m2_um[k][j] = out->m3_urad[k][j] = NAN;
-            for (long q = 0; q < scan[k]->n_rows; ++q) {
-                const double *row = &scan[k]->value[o[k][q].row * 4];
-                out->m1_um[k][idx[k][q]] = row[1];
-                out->m2_um[k][idx[k][q]] = row[2];
-                out->m3_urad[k][idx[k][q]] = row[3];
-            }
-        }
+        fill_samples(scan, (const pos_row *const *)o, (const long *const *)idx, out);
     free(idx[0]);
     free(idx[1]);
     free(o[0]);
