@@ -448,17 +448,40 @@ static sc_status instrument_budget(sc_profile_calibration *c, const sc_profile_d
     return SC_OK;
 }
 
-/* e_y = m1 - f of scan 1, relative to its least-squares line over the samples where both are
- * known (NaN elsewhere and for n >= N - d1). */
+/* Where scan 1 has no m1 but scan 2 has (the same probe over the same stage position), e_y from
+ * scan 2's m1, less the mean offset of scan 2's m1 from scan 1's over the samples both have. */
+static void stage_error_from_scan2(const sc_profile_data *d, const double *f, double *ey)
+{
+    const int m = d->n - d->d[0], m2 = d->n - d->d[1] < m ? d->n - d->d[1] : m;
+    const double *a = d->m1_um[0], *b = d->m1_um[1];
+    double off = 0, cnt = 0;
+    for (int i = 0; i < m2; ++i)
+        if (isfinite(a[i]) && isfinite(b[i]))
+            off += b[i] - a[i], cnt += 1;
+    if (cnt == 0)
+        return;
+    off /= cnt;
+    for (int i = 0; i < m2; ++i)
+        if (!isfinite(a[i]) && isfinite(b[i]))
+            ey[i] = b[i] - off - f[i];
+}
+
+/* e_y = m1 - f of scan 1 (of scan 2 where scan 1 has a gap), relative to its least-squares line
+ * over the samples where it is known (NaN elsewhere and for n >= N - d1). */
 static void stage_error(const sc_profile_data *d, const double *f, double *ey)
 {
     const int m = d->n - d->d[0];
     double sx = 0, sy = 0, sxx = 0, sxy = 0, cnt = 0;
-    for (int i = 0; i < m; ++i) {
+    for (int i = 0; i < m; ++i)
         ey[i] = d->m1_um[0][i] - f[i];
+    for (int i = 0; i < m; ++i)
+        if (!isfinite(ey[i])) { /* a gap: scan 2 may have the sample */
+            stage_error_from_scan2(d, f, ey);
+            break;
+        }
+    for (int i = 0; i < m; ++i)
         if (isfinite(ey[i]))
             cnt += 1, sx += i, sy += ey[i];
-    }
     for (int i = m; i < d->n; ++i)
         ey[i] = NAN;
     if (cnt == m) { /* no gap: the library's own line removal, to the last bit as always */

@@ -403,6 +403,11 @@ def case_rig():
     write_rows(path("gap.csv"), head, g)
     run("profile", "--method", "lsq", path("gap.csv"), "--out", out)
     assert f_error(out, truth) < 1e-10, f_error(out, truth)
+    # e_y where scan 1 has no row comes from scan 2's m1: the result is complete, and plots
+    _, res = read_csv(out)
+    _, tr = read_csv(truth)
+    assert max(abs(r["ey_um"] - t["ey_um"]) for r, t in zip(res[:320], tr[:320])) < 1e-10
+    run("plot", "profile", out, "-o", path("gap.svg"))
     p = run("profile", "--method", "dft", path("gap.csv"), "--out", out, expect=2)
     assert "--method lsq" in p.stderr and f"{path('gap.csv')}:4:" in p.stderr, p.stderr
     # point 150 tied to nothing (its four rows missing): left empty, named on stderr
