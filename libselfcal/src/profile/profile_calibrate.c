@@ -323,9 +323,15 @@ static sc_status rig_run(sc_profile_calibration *c, const sc_profile_data *d, co
     unsigned char *use[2] = {malloc((size_t)(n - d->d[0])), malloc((size_t)(n - d->d[1]))};
     sc_status st = use[0] && use[1] ? SC_OK
                                     : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    for (int k = 0; k < 2 && st == SC_OK; ++k)
+    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+        long used = 0;
         for (int j = 0; j < n - d->d[k]; ++j)
-            use[k][j] = isfinite(y[k][j]);
+            used += use[k][j] = isfinite(y[k][j]);
+        if (!used)
+            st = sc_error_set(err, SC_E_INPUT, d->path[0] ? d->path : NULL, d->line_scan[k],
+                              "scan %d has no complete sample (m1, m2 and m3 all given): its "
+                              "offset, and so the profile, is not determined", k + 1);
+    }
     int test = s->r_um[0] && s->r_um[1] && s->t[0] && s->t[1] && s->outlier[0] && s->outlier[1];
     for (int k = 0; k < 2 && st == SC_OK && test; ++k)
         memset(s->outlier[k], 0, (size_t)(n - d->d[k]));
