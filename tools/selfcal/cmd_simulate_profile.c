@@ -20,6 +20,10 @@ static const char *USAGE =
     "  --sigma-disp-um X (0.01)  --sigma-angle-urad Y (1)  [--noise-free] [--no-sigma-lines]\n"
     "  --ey-um A (0.5)  --ep-urad A (2)  --u1-um U (1.5)  --u2-um U (-0.7)  --u3-urad U (3)\n"
     "  --b0-um B (20)  --seed S (1)\n"
+    "  A real rig (docs/profile.md, Real rigs; nothing stated in the file's header):\n"
+    "  --probe-gain K (1: m2 read K times)  --angle-scale K (1: m3 read K times)\n"
+    "  --drift-um A (0: A·tau added to every m2, tau = -1..1 along the scan)\n"
+    "  --gap K:A..B (scan K's rows n = A..B left out)  --outlier K:N:UM (UM added to scan K's m2 at n = N)\n"
     "  Writes the selfcal-profile v1 data file and the truth n,x_mm,f_um,uf_um,ey_um (f and e_y\n"
     "  relative to their least-squares lines; uf empty; e_y empty where n >= N - d1).\n";
 
@@ -43,6 +47,9 @@ typedef struct {
     const char *out, *truth, *prof;
     double amp;
     long harmonics;
+    /* a real rig's effects on the readings */
+    double gain, angle, drift_um, outlier_um;
+    long gap[3], outlier[2]; /* scan, first, last (0: none); scan, n */
 } sim_profile_args;
 
 enum { NOT_NUMERIC = -1 };
@@ -65,6 +72,9 @@ static int parse_number_option(const char *o, const char *v, sc_profile_sim *p,
         {"--u2-um", &p->u2_um},
         {"--u3-urad", &p->u3_urad},
         {"--b0-um", &p->b0_um},
+        {"--probe-gain", &a->gain},
+        {"--angle-scale", &a->angle},
+        {"--drift-um", &a->drift_um},
     };
     for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k)
         if (!strcmp(o, reals[k].name))
@@ -108,6 +118,21 @@ static int parse_option(int argc, char **argv, int *i, sc_profile_sim *p, sim_pr
         p->sigma_disp_um = p->sigma_angle_urad = 0;
     else if (!strcmp(o, "--no-sigma-lines"))
         p->write_sigma = 0;
+    else if (!strcmp(o, "--gap") && hv) {
+        const char *v = argv[++*i];
+        int used = 0;
+        if (sscanf(v, "%ld:%ld..%ld%n", &a->gap[0], &a->gap[1], &a->gap[2], &used) != 3 ||
+            v[used] || (a->gap[0] != 1 && a->gap[0] != 2) || a->gap[1] < 0 || a->gap[2] < a->gap[1])
+            return cli_usage_error("simulate profile", "--gap: '%s' is not K:A..B (K 1 or 2, "
+                                   "0 <= A <= B)", v);
+    } else if (!strcmp(o, "--outlier") && hv) {
+        const char *v = argv[++*i];
+        int used = 0;
+        if (sscanf(v, "%ld:%ld:%lf%n", &a->outlier[0], &a->outlier[1], &a->outlier_um, &used) != 3 ||
+            v[used] || (a->outlier[0] != 1 && a->outlier[0] != 2) || a->outlier[1] < 0 ||
+            !isfinite(a->outlier_um))
+            return cli_usage_error("simulate profile", "--outlier: '%s' is not K:N:UM", v);
+    }
     else {
         int rc = hv ? parse_number_option(o, argv[*i + 1], p, a) : NOT_NUMERIC;
         if (rc == NOT_NUMERIC)
@@ -137,7 +162,36 @@ static int check_args(const sc_profile_sim *p, const sim_profile_args *a)
         return cli_usage_error("simulate profile", "%s", why.msg);
     if (p->sigma_disp_um < 0 || p->sigma_angle_urad < 0 || a->amp < 0)
         return cli_usage_error("simulate profile", "noise levels and amplitudes must be non-negative");
+    if (!(a->gain >= 1e-3 && a->gain <= 1e3) || !(a->angle >= 1e-3 && a->angle <= 1e3))
+        return cli_usage_error("simulate profile", "--probe-gain and --angle-scale must be in "
+                               "[0.001, 1000]");
+    const int dk[2] = {p->d1, p->d2};
+    if (a->gap[0] && a->gap[2] >= p->n - dk[a->gap[0] - 1])
+        return cli_usage_error("simulate profile", "--gap: n = %ld is beyond scan %ld (n < %d)",
+                               a->gap[2], a->gap[0], p->n - dk[a->gap[0] - 1]);
+    if (a->outlier[0] && a->outlier[1] >= p->n - dk[a->outlier[0] - 1])
+        return cli_usage_error("simulate profile", "--outlier: n = %ld is beyond scan %ld (n < %d)",
+                               a->outlier[1], a->outlier[0], p->n - dk[a->outlier[0] - 1]);
     return CLI_OK;
+}
+
+/* A real rig's effects on the simulated readings (the truth stays the same). */
+static void apply_rig(const sim_profile_args *a, sc_profile_data *d)
+{
+    for (int k = 0; k < 2; ++k) {
+        const int m = d->n - d->d[k];
+        for (int j = 0; j < m; ++j) {
+            double tau = d->n > 1 ? (2.0 * j - (d->n - 1)) / (double)(d->n - 1) : 0;
+            d->m2_um[k][j] = d->m2_um[k][j] * a->gain + a->drift_um * tau;
+            d->m3_urad[k][j] *= a->angle;
+        }
+    }
+    if (a->outlier[0])
+        d->m2_um[a->outlier[0] - 1][a->outlier[1]] += a->outlier_um;
+    for (long j = a->gap[1]; a->gap[0] && j <= a->gap[2]; ++j) {
+        int k = (int)a->gap[0] - 1;
+        d->m1_um[k][j] = d->m2_um[k][j] = d->m3_urad[k][j] = NAN;
+    }
 }
 
 /* The truth (random or a DABAM mirror), the two scans, and both files written. */
@@ -159,6 +213,7 @@ static sc_status simulate_and_write(const sc_profile_sim *p, const sim_profile_a
     if (st == SC_OK)
         st = sc_profile_simulate(p, f, &d, ey, err);
     if (st == SC_OK) {
+        apply_rig(a, &d);
         sc_profile_remove_line(n - p->d1, ey);
         /* both files are computed; the data and the truth: both written or neither */
         sc_afile af[2];
@@ -184,7 +239,7 @@ int cmd_simulate_profile(int argc, char **argv)
 {
     sc_profile_sim p;
     sc_profile_sim_defaults(&p);
-    sim_profile_args a = {NULL, NULL, "random", 1.0, 40};
+    sim_profile_args a = {NULL, NULL, "random", 1.0, 40, 1.0, 1.0, 0.0, 0.0, {0, 0, 0}, {0, 0}};
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
             fputs(USAGE, stdout);

@@ -461,6 +461,16 @@ def case_rig():
     head_p, row = p.stdout.splitlines()[1].split(","), p.stdout.splitlines()[2].split(",")
     assert head_p[-3:] == ["drift_rms_nm", "drift_max_nm", "drift_cost"], head_p
     assert abs(float(row[-1]) - cost) < 1e-3 and cost > 3, (row, cost)
+    # the same rig from simulate profile's own options: gain, drift and a gap at once
+    run("simulate", "profile", "--out", path("sim_rig.csv"), "--truth", truth, "--seed", "21",
+        "--noise-free", "--probe-gain", "1.001", "--drift-um", "0.005", "--gap", "1:100..119")
+    h2, r2 = data_rows(path("sim_rig.csv"))
+    assert (1, 100) not in r2 and (1, 99) in r2 and len(r2) == len(rows) - 20
+    write_rows(path("sim_rig_k.csv"), h2, r2, ["# probe_gain = 1.001, 0"])
+    run("profile", "--method", "lsq", path("sim_rig_k.csv"), "--out", out, "--drift", "linear")
+    assert f_error(out, truth) < 1e-9, f_error(out, truth)
+    run("simulate", "profile", "--out", path("x.csv"), "--truth", path("xt.csv"), "--gap",
+        "1:5..400", expect=2)
     # noise stated, one 10-sigma outlier: flagged in R.csv and on stderr, removed on request
     run("simulate", "profile", "--out", inp, "--truth", truth, "--seed", "22")
     head, rows = data_rows(inp)
