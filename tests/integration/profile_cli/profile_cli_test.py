@@ -489,6 +489,15 @@ def case_rig():
     assert "removed outlier scan 1 n = 150" in p.stderr, p.stderr
     assert "chi2_test: pass" in p.stdout, p.stdout
     assert open(R).read().splitlines()[1 + 150].split(",")[4] == "1"
+    # the noise stated too small: the verdict fails, a warning, u scaled a posteriori
+    p = run("profile", "--method", "lsq", inp, "--out", out, "--sigma-disp-um", "0.003",
+            "--sigma-angle-urad", "0.3")
+    assert "chi2_test: fail" in p.stdout and "uf_um scaled by sqrt(wrss/dof)" in p.stderr, p.stdout
+    u_scaled = float(re.search(r"uf_rms_um: ([0-9.e-]+)", p.stdout).group(1))
+    p = run("profile", "--method", "lsq", inp, "--out", out)
+    assert "chi2_test: pass" in p.stdout and p.stderr == "", p.stderr
+    u_true = float(re.search(r"uf_rms_um: ([0-9.e-]+)", p.stdout).group(1))
+    assert abs(u_scaled / u_true - 1) < 0.2, (u_scaled, u_true)
     assert f_error(out, truth) < 0.06
 
 
