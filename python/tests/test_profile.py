@@ -121,10 +121,22 @@ def test_errors(tmp_path):
     with pytest.raises(selfcal.Error):
         selfcal.calibrate_profile(5)
     m2, _ = selfcal.simulate_profile(n=50, d1=3, d2=7)
-    m2.m1_um[0][3] = np.nan
+    m2.m1_um[0][3] = np.inf
     with pytest.raises(selfcal.Error, match="not a finite measurement"):
-        m2.write(tmp_path / "nan.csv")
-    assert not (tmp_path / "nan.csv").exists()
+        m2.write(tmp_path / "inf.csv")
+    assert not (tmp_path / "inf.csv").exists()
+    # NaN is a gap (SPEC §2a): written as an empty field, read back as NaN, solved around
+    m2.m1_um[0][3] = np.nan
+    m2.write(tmp_path / "nan.csv")
+    back = selfcal.read_profile(tmp_path / "nan.csv")
+    assert np.isnan(back.m1_um[0][3]) and np.isfinite(back.m2_um[0][3])
+    r = selfcal.calibrate_profile(tmp_path / "nan.csv")
+    assert np.all(np.isfinite(r.f_um))
+    m3, _ = selfcal.simulate_profile(n=42, d1=3, d2=7)  # N = 2·3·7: the DFT's own condition
+    m3.m3_urad[1][5] = np.nan
+    m3.write(tmp_path / "gap42.csv")
+    with pytest.raises(selfcal.Error, match="--method lsq"):
+        selfcal.calibrate_profile(tmp_path / "gap42.csv", method="dft")
     m, _ = selfcal.simulate_profile(n=50, d1=3, d2=7)
     m.m1_um = (m.m1_um[0][:-1], m.m1_um[1])
     with pytest.raises(selfcal.Error, match="m1_um of scan 1 has 46 values, expected 47"):
