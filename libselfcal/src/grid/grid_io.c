@@ -100,11 +100,22 @@ void sc_grid_write_header(FILE *fp, const sc_grid_plan *p)
     fprintf(fp, "# origin_mm = %.15g,%.15g\n", p->origin_mm[0], p->origin_mm[1]);
     if (p->stage_nx > 0 || p->stage_ny > 0)
         fprintf(fp, "# stage = %d,%d\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
+    const sc_grid_scale *sc = &p->scale;
+    if (sc->has_plate_scale)
+        fprintf(fp, "# plate_scale_ppm = %.15g, %.15g\n", sc->plate_scale_ppm,
+                sc->u_plate_scale_ppm);
+    if (sc->has_cte)
+        fprintf(fp, "# plate_cte_ppm_per_K = %.15g, %.15g\n", sc->cte_ppm_per_K,
+                sc->u_cte_ppm_per_K);
+    if (sc->has_temps && sc->temp_u_K != SC_GRID_TEMP_U_K_DEFAULT)
+        fprintf(fp, "# temp_u_K = %.15g\n", sc->temp_u_K);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
         fprintf(fp, "# view %d: rot=%d shift=%d,%d", v, w->rot_deg, w->shift_x, w->shift_y);
         if (w->sigma_um > 0)
             fprintf(fp, " sigma_um=%.15g", w->sigma_um);
+        if (sc->has_temps)
+            fprintf(fp, " temp_C=%.15g", w->temp_C);
         if (w->restricted) {
             const char *sep = " rows=";
             for (int k = 0; k < p->n; ++k)
