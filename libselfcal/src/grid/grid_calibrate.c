@@ -615,7 +615,12 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     double *inv_diag = u2 + nvz, *y = inv_diag + nvz;
     for (int v = 0; v < nv; ++v) {
         rel_sd[v] = NAN;
-        if (red[v] >= VCE_MIN_RED)
+        int rows = 0; /* a declared view with no rows has no component: left out of F */
+        for (int k = 0; k < nn && !rows; ++k)
+            rows = isfinite(d->dx_um[v][k]);
+        if (!rows)
+            grp[v] = -1;
+        else if (red[v] >= VCE_MIN_RED)
             grp[v] = ng++;
         else
             grp[v] = low >= 0 ? low : (low = ng++);
@@ -637,7 +642,7 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     sc_rng rng;
     sc_rng_seed(&rng, 20261127); /* the same probes every run: reproducible figures */
     for (int v = 0; v < nv && st == SC_OK; ++v)
-        for (int t = 0; t < VCE_PROBES && st == SC_OK; ++t) {
+        for (int t = 0; grp[v] >= 0 && t < VCE_PROBES && st == SC_OK; ++t) {
             for (int w = 0; w < nv; ++w)
                 for (int k = 0; k < nn; ++k) {
                     if (!isfinite(save[w * nn + k]))
@@ -651,7 +656,8 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
             if (st == SC_OK)
                 st = sc_grid_lsq_view_components(q, d, &res, wrss, rd, u2, err);
             for (int u = 0; u < nv && st == SC_OK; ++u)
-                F[(size_t)grp[u] * nvz + (size_t)grp[v]] += wrss[u] / VCE_PROBES;
+                if (grp[u] >= 0)
+                    F[(size_t)grp[u] * nvz + (size_t)grp[v]] += wrss[u] / VCE_PROBES;
         }
     for (int v = 0; v < nv; ++v)
         for (int k = 0; k < nn; ++k)
@@ -677,7 +683,7 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
             inv_diag[g] = sum;
         }
         for (int v = 0; v < nv; ++v)
-            rel_sd[v] = sqrt(inv_diag[grp[v]] / 2);
+            rel_sd[v] = grp[v] >= 0 ? sqrt(inv_diag[grp[v]] / 2) : NAN;
     }
     free(vbuf), free(grp);
     return st;
