@@ -1136,12 +1136,11 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     int method;
     long mc_trials;
     unsigned long long mc_seed;
-    if (!PyArg_ParseTuple(args, "OidpppdpppiK", &src, &method, &o.sigma_r_um, &o.drift,
+    if (!PyArg_ParseTuple(args, "OidpppdppplK", &src, &method, &o.sigma_r_um, &o.drift,
                           &o.reject_outliers, &o.covariance, &o.outlier_alpha,
                           &o.outlier_alpha_each, &o.estimate_view_noise, &o.view_scale_free,
-                          &mc_trials_i, &mc_seed))
+                          &mc_trials, &mc_seed))
         return NULL;
-    mc_trials = mc_trials_i;
     o.method = (sc_grid_method)method;
     sc_grid_data d;
     sc_grid_file_info info;
