@@ -91,6 +91,13 @@ def case_noise_free():
         if e2 < 0.01:
             fail("%s: without the temperatures G is off by only %g um" % (name, e2))
         print("%s: G with temperatures %.2g um off the truth, without %.3g um" % (name, e, e2))
+    # the closed forms take the same model (no budget: they give no uncertainties)
+    s = simulate(d, "ye9", "--plan", "ye", "--n", 9, "--sigma-r-um", 0, *SCALE, "--view-temp-c",
+                 "20.3,19.8,20.5", "--magnification-ppm", 5)
+    g, sj = os.path.join(d, "ye9_g.csv"), os.path.join(d, "ye9_s.json")
+    run("grid", "--method", "ye", s["inp"], "--map", g, "--summary", sj)
+    if map_error(g, s["g"]) > 1e-6 or abs(json.load(open(sj))["magnification_ppm"] - 5) > 1e-6:
+        fail("Ye's closed form: G with M off by %g um" % map_error(g, s["g"]))
     # no plate scale: G in the SPEC gauge (no magnification), scale_included false
     s = simulate(d, "noE", "--plan", "double-shift", "--n", 15, "--sigma-r-um", 0,
                  "--plate-cte-ppm-per-k", "8,0.3", "--view-temp-c", temps(4, 3),
@@ -277,7 +284,28 @@ def case_views_declared():
         fail("the view without rows has a noise estimate: %r" % summ["views"][3])
 
 
-CASES = {"noise_free": case_noise_free, "bad_input": case_bad_input,
+def case_coverage_factor():
+    """k = 2 when sigma_r has many degrees of freedom or is given; Student's t for the
+    Welch-Satterthwaite degrees of freedom when it is estimated from few (Ye, N = 3: dof 10)."""
+    d = fresh_dir("coverage_factor")
+    s = simulate(d, "ye3", "--plan", "ye", "--n", 3, "--sigma-r-um", 0.05, "--plate-scale-ppm",
+                 "1,0.01")
+    g, sj = os.path.join(d, "g.csv"), os.path.join(d, "s.json")
+    run("grid", "--method", "lsq", s["inp"], "--map", g, "--summary", sj)
+    summ = json.load(open(sj))
+    b = summ["budget"]
+    if summ["dof"] != 10 or not abs(b["nu_eff"] - 10) < 0.01:
+        fail("Ye N = 3: dof %r, nu_eff %r (want 10, about 10)" % (summ["dof"], b["nu_eff"]))
+    if not b["k_from"].startswith("Welch") or abs(b["k"] - 2.228139) > 1e-4:
+        fail("few degrees of freedom: k %r from %r, want t95(10) = 2.228" % (b["k"], b["k_from"]))
+    run("grid", "--method", "lsq", s["inp"], "--map", g, "--summary", sj, "--sigma-r-um", 0.05)
+    b = json.load(open(sj))["budget"]
+    if b["k"] != 2 or b["k_from"] != "k = 2" or b["rows"][0]["dof"] is not None:
+        fail("a given sigma_r: k %r from %r, noise dof %r" % (b["k"], b["k_from"],
+                                                             b["rows"][0]["dof"]))
+
+
+CASES = {"noise_free": case_noise_free, "coverage_factor": case_coverage_factor, "bad_input": case_bad_input,
          "budget_mc": case_budget_mc, "view_scale_free": case_view_scale_free,
          "views_declared": case_views_declared}
 
