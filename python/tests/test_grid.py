@@ -343,6 +343,17 @@ def test_scale_and_budget_match_cli(cli, tmp_path):
     r = selfcal.calibrate_grid(str(t), view_scale="free")
     assert not r.scale_included and math.isnan(r.magnification_ppm)
     assert r.budget["view_scale_free"] and r.budget["u_view_scale_free_ppm"].shape == (4,)
+    # the scale lines survive read_grid and write; a GridMeasurement carries them to calibrate
+    m = selfcal.read_grid(str(f))
+    assert m.plan.plate_scale_ppm == (2.0, 0.1) and m.plan.plate_cte_ppm_per_K == (9.0, 0.5)
+    assert [v["temp_C"] for v in m.plan.views] == [20.3, 19.8, 20.6, 20.1]
+    m.write(tmp_path / "again.csv")
+    assert selfcal.calibrate_grid(m).magnification_ppm == pytest.approx(s["magnification_ppm"],
+                                                                        rel=1e-9)
+    assert selfcal.read_grid(str(tmp_path / "again.csv")).plan.plate_scale_ppm == (2.0, 0.1)
+    with pytest.raises(selfcal.Error, match="every view"):
+        selfcal.GridPlan(5, 1.0, [dict(rot=0, temp_C=20.0), dict(rot=90)],
+                         plate_cte_ppm_per_K=(8, 0.1))
     with pytest.raises(selfcal.Error, match="view_scale"):
         selfcal.calibrate_grid(str(t), view_scale="loose")
     with pytest.raises(selfcal.Error):

@@ -130,24 +130,35 @@ class GridPlan:
     default the plate's N x N) centred at ``origin_mm``, and the views: dicts with ``rot``
     (0, 90, 180, 270, counter-clockwise), ``shift`` (sx, sy) in pitches, optional ``rows`` and
     ``cols`` (the plate rows/columns a partial view measures) and ``sigma_um`` (the stated
-    standard uncertainty of each coordinate of the view's measurements)."""
+    standard uncertainty of each coordinate of the view's measurements) and ``temp_C`` (the
+    plate's temperature during the view, on every view or none). The plate's scale and
+    temperature (SPEC §11): ``plate_scale_ppm=(E, U)``, ``plate_cte_ppm_per_K=(A, U)``,
+    ``temp_u_K`` (default 0.05), as the file's header lines."""
 
-    def __init__(self, n, pitch_mm, views, origin_mm=(0.0, 0.0), stage=None):
+    def __init__(self, n, pitch_mm, views, origin_mm=(0.0, 0.0), stage=None,
+                 plate_scale_ppm=None, plate_cte_ppm_per_K=None, temp_u_K=0.05):
         self.n, self.pitch_mm = int(n), float(pitch_mm)
         self.origin_mm = (float(origin_mm[0]), float(origin_mm[1]))
         self.stage = (int(stage[0]), int(stage[1])) if stage is not None else (self.n, self.n)
         self.views = [dict(rot=int(v["rot"]), shift=tuple(int(a) for a in v.get("shift", (0, 0))),
-                           rows=v.get("rows"), cols=v.get("cols"), sigma_um=v.get("sigma_um"))
+                           rows=v.get("rows"), cols=v.get("cols"), sigma_um=v.get("sigma_um"),
+                           temp_C=v.get("temp_C"))
                       for v in views]
+        pair = lambda t: None if t is None else (float(t[0]), float(t[1]))  # noqa: E731
+        self.plate_scale_ppm = pair(plate_scale_ppm)
+        self.plate_cte_ppm_per_K = pair(plate_cte_ppm_per_K)
+        self.temp_u_K = float(temp_u_K)
         _native.grid_plan(self._as_dict())  # checked by the library now, not at first use
 
     @classmethod
     def _from_dict(cls, d):
-        return cls(d["n"], d["pitch_mm"], d["views"], d["origin_mm"], d["stage"])
+        return cls(d["n"], d["pitch_mm"], d["views"], d["origin_mm"], d["stage"],
+                   d.get("plate_scale_ppm"), d.get("plate_cte_ppm_per_K"), d.get("temp_u_K", 0.05))
 
     def _as_dict(self):
         return dict(n=self.n, pitch_mm=self.pitch_mm, origin_mm=self.origin_mm, stage=self.stage,
-                    views=self.views)
+                    views=self.views, plate_scale_ppm=self.plate_scale_ppm,
+                    plate_cte_ppm_per_K=self.plate_cte_ppm_per_K, temp_u_K=self.temp_u_K)
 
     @classmethod
     def standard(cls, name: str, n: int, pitch_mm: float = 1.0, origin_mm=(0.0, 0.0),

@@ -510,10 +510,11 @@ static PyObject *plan_to_dict(const sc_grid_plan *p)
             }
         }
         PyObject *sig = w->sigma_um > 0 ? PyFloat_FromDouble(w->sigma_um) : Py_NewRef(Py_None);
-        PyObject *d = (rows && cols && sig)
-                          ? Py_BuildValue("{s:i,s:(ii),s:N,s:N,s:N}", "rot", w->rot_deg, "shift",
-                                          w->shift_x, w->shift_y, "rows", rows, "cols", cols,
-                                          "sigma_um", sig)
+        PyObject *tc = p->scale.has_temps ? PyFloat_FromDouble(w->temp_C) : Py_NewRef(Py_None);
+        PyObject *d = (rows && cols && sig && tc)
+                          ? Py_BuildValue("{s:i,s:(ii),s:N,s:N,s:N,s:N}", "rot", w->rot_deg,
+                                          "shift", w->shift_x, w->shift_y, "rows", rows, "cols",
+                                          cols, "sigma_um", sig, "temp_C", tc)
                           : NULL;
         if (!d) {
             Py_DECREF(views);
@@ -521,9 +522,59 @@ static PyObject *plan_to_dict(const sc_grid_plan *p)
         }
         PyList_SET_ITEM(views, v, d);
     }
-    return Py_BuildValue("{s:i,s:d,s:(dd),s:(ii),s:N}", "n", p->n, "pitch_mm", p->pitch_mm,
-                         "origin_mm", p->origin_mm[0], p->origin_mm[1], "stage",
-                         sc_grid_stage_nx(p), sc_grid_stage_ny(p), "views", views);
+    const sc_grid_scale *sc = &p->scale;
+    PyObject *E = sc->has_plate_scale
+                      ? Py_BuildValue("(dd)", sc->plate_scale_ppm, sc->u_plate_scale_ppm)
+                      : Py_NewRef(Py_None);
+    PyObject *A = sc->has_cte ? Py_BuildValue("(dd)", sc->cte_ppm_per_K, sc->u_cte_ppm_per_K)
+                              : Py_NewRef(Py_None);
+    if (!E || !A) {
+        Py_XDECREF(E), Py_XDECREF(A), Py_DECREF(views);
+        return NULL;
+    }
+    return Py_BuildValue("{s:i,s:d,s:(dd),s:(ii),s:N,s:N,s:N,s:d}", "n", p->n, "pitch_mm",
+                         p->pitch_mm, "origin_mm", p->origin_mm[0], p->origin_mm[1], "stage",
+                         sc_grid_stage_nx(p), sc_grid_stage_ny(p), "views", views,
+                         "plate_scale_ppm", E, "plate_cte_ppm_per_K", A, "temp_u_K",
+                         sc->has_temps ? sc->temp_u_K : SC_GRID_TEMP_U_K_DEFAULT);
+}
+
+/* The scale lines (SPEC §11) of a plan dict: plate_scale_ppm and plate_cte_ppm_per_K as (value,
+ * u) or None, temp_u_K, and temp_C on every view or none (checked by sc_grid_plan_check). */
+static int scale_from_dict(PyObject *dict, PyObject *views, sc_grid_plan *p)
+{
+    sc_grid_scale *sc = &p->scale;
+    PyObject *E = PyDict_GetItemString(dict, "plate_scale_ppm"),
+             *A = PyDict_GetItemString(dict, "plate_cte_ppm_per_K"),
+             *U = PyDict_GetItemString(dict, "temp_u_K");
+    if (E && E != Py_None) {
+        if (!PyArg_ParseTuple(E, "dd", &sc->plate_scale_ppm, &sc->u_plate_scale_ppm))
+            return -1;
+        sc->has_plate_scale = 1;
+    }
+    if (A && A != Py_None) {
+        if (!PyArg_ParseTuple(A, "dd", &sc->cte_ppm_per_K, &sc->u_cte_ppm_per_K))
+            return -1;
+        sc->has_cte = 1;
+    }
+    sc->temp_u_K = U && U != Py_None ? PyFloat_AsDouble(U) : SC_GRID_TEMP_U_K_DEFAULT;
+    int with = 0;
+    for (int v = 0; v < p->n_views; ++v) {
+        PyObject *w = PySequence_Fast_GET_ITEM(views, v);
+        PyObject *t = PyDict_GetItemString(w, "temp_C");
+        if (t && t != Py_None) {
+            p->view[v].temp_C = PyFloat_AsDouble(t);
+            ++with;
+        }
+    }
+    if (PyErr_Occurred())
+        return -1;
+    if (with && with != p->n_views) {
+        PyErr_SetString(sc_py_error, "temp_C must be given on every view or on none");
+        return -1;
+    }
+    sc->has_temps = with > 0;
+    return 0;
 }
 
 /* An index list (rows= or cols=) into sel[n]; -1 with an exception. */
@@ -637,7 +688,10 @@ static int plan_from_dict_in(PyObject *dict, sc_grid_plan *p)
             }
         }
     }
+    int bad = scale_from_dict(dict, views, p);
     Py_DECREF(views);
+    if (bad)
+        return -1;
     sc_error err;
     sc_error_clear(&err);
     if (sc_grid_plan_check(p, &err) != SC_OK) {
