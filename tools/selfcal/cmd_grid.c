@@ -144,6 +144,23 @@ typedef struct grid_args {
     uint64_t mc_seed;
 } grid_args;
 
+/* --monte-carlo, --seed, --monte-carlo-out: CLI_OK or a usage error; -1: not one of them. */
+static int parse_mc_option(grid_args *g, const char *o, const char *v)
+{
+    if (!strcmp(o, "--monte-carlo-out")) {
+        g->mc_out = v;
+        return CLI_OK;
+    }
+    if (!strcmp(o, "--seed"))
+        return cli_parse_seed("grid", v, &g->mc_seed) == CLI_OK ? CLI_OK : CLI_BAD_INPUT;
+    if (strcmp(o, "--monte-carlo") != 0)
+        return -1;
+    if (sc_parse_long(v, &g->mc_trials) || g->mc_trials < 2 || g->mc_trials > 10000000)
+        return cli_usage_error("grid", "--monte-carlo needs a number of trials of 2 to 1e7, got "
+                                       "'%s'", v);
+    return CLI_OK;
+}
+
 /* Parse the arguments into g: -1 to go on, else the exit code (--help, a usage error). */
 static int parse_args(int argc, char **argv, grid_args *g)
 {
@@ -176,6 +193,8 @@ static int parse_args(int argc, char **argv, grid_args *g)
             return cli_usage_error("grid", "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
         int rc = cli_parse_lsq_option("grid", o, v, &g->opt); /* the outlier test, view noise */
+        if (rc < 0)
+            rc = parse_mc_option(g, o, v);
         if (rc >= 0) {
             if (rc != CLI_OK)
                 return rc;
@@ -188,15 +207,7 @@ static int parse_args(int argc, char **argv, grid_args *g)
         else if (!strcmp(o, "--plot")) g->plot = v;
         else if (!strcmp(o, "--residuals")) g->residuals = v;
         else if (!strcmp(o, "--covariance")) g->covariance = v;
-        else if (!strcmp(o, "--monte-carlo-out")) g->mc_out = v;
-        else if (!strcmp(o, "--seed")) {
-            if (cli_parse_seed("grid", v, &g->mc_seed) != CLI_OK)
-                return CLI_BAD_INPUT;
-        } else if (!strcmp(o, "--monte-carlo")) {
-            if (sc_parse_long(v, &g->mc_trials) || g->mc_trials < 2 || g->mc_trials > 10000000)
-                return cli_usage_error("grid", "--monte-carlo needs a number of trials of 2 to "
-                                               "1e7, got '%s'", v);
-        }
+
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
