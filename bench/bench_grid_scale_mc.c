@@ -36,17 +36,18 @@ static void make_data(int n, sc_grid_data *d)
     for (int v = 0; v < 4; ++v)
         p.view[v].temp_C = T[v];
     memset(d, 0, sizeof *d);
-    d->plan = p;
+    d->plan = p; /* the data own the plan from here */
     if (sc_grid_data_alloc(d, &err) != SC_OK)
         die("alloc", &err);
     size_t ns = (size_t)n * n, nn = ns;
-    double *buf = malloc(sizeof(double) * (4 * ns + 2 * nn + sc_grid_sim_work_doubles_plan(&p)));
+    double *buf = malloc(sizeof(double) * (4 * ns + 2 * nn + 12 + sc_grid_sim_work_doubles_plan(&p)));
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 2 * ns + nn;
+    t.tx_um = buf + 2 * ns + 2 * nn, t.ty_um = t.tx_um + 4, t.theta_urad = t.ty_um + 4;
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
-    if (sc_grid_sim_run(&p, &sp, &t, d, buf + 2 * ns + 2 * nn, &err) != SC_OK)
+    if (sc_grid_sim_run(&p, &sp, &t, d, buf + 2 * ns + 2 * nn + 12, &err) != SC_OK)
         die("simulate", &err);
     sc_grid_sim_scale(&p, 12.0, &t, d);
     free(buf);

@@ -60,14 +60,15 @@ static void test_magnification_noise(void **state)
     sc_grid_plan p;
     sc_error err;
     memset(&p, 0, sizeof p);
-    p.n = 7, p.pitch_mm = 2.0, p.n_views = 4;
+    p.n = 7, p.pitch_mm = 2.0;
+    assert_int_equal(sc_grid_plan_views(&p, 4, &err), SC_OK);
     p.view[1].rot_deg = 90;
     p.view[2].shift_x = 1;
     p.view[3].rot_deg = 180, p.view[3].shift_y = -1;
     assert_int_equal(sc_grid_plan_check(&p, &err), SC_OK);
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    d.plan = p;
+    d.plan = p; /* the data own the plan from here */
     assert_int_equal(sc_grid_data_alloc(&d, &err), SC_OK);
     int nn = p.n * p.n, ns = (int)sc_grid_stage_nodes(&p);
     for (int v = 0; v < p.n_views; ++v)
@@ -138,6 +139,8 @@ static void test_scale_lines(void **state)
         assert_true(d.plan.view[v].temp_C == 20.0 + 0.125 * v);
     assert_true(fabs(sc_grid_view_scale_ppm(&d.plan, 2) - (-1.25 + 11.5 * 0.25)) < 1e-12);
     sc_grid_data_free(&d);
+    sc_grid_file_info_free(&info);
+    sc_grid_plan_free(&p);
     static const struct {
         const char *text;
         long line;
@@ -162,6 +165,7 @@ static void test_scale_lines(void **state)
         sc_error_clear(&err);
         assert_int_equal(sc_grid_read(path, &d, &info, &err), SC_E_INPUT);
         assert_int_equal(err.line, bad[t].line);
+        sc_grid_file_info_free(&info);
     }
     remove(path);
 }
@@ -180,17 +184,18 @@ static void test_model_recovered(void **state)
         p.view[v].temp_C = T[v];
     sc_grid_data d;
     memset(&d, 0, sizeof d);
-    d.plan = p;
+    d.plan = p; /* the data own the plan from here */
     assert_int_equal(sc_grid_data_alloc(&d, &err), SC_OK);
     size_t ns = (size_t)sc_grid_stage_nodes(&p), nn = 225;
-    double *buf = malloc(sizeof(double) * (4 * ns + 2 * nn + sc_grid_sim_work_doubles_plan(&p)));
+    double *buf = malloc(sizeof(double) * (4 * ns + 2 * nn + 12 + sc_grid_sim_work_doubles_plan(&p)));
     sc_grid_sim_truth t;
     memset(&t, 0, sizeof t);
     t.gx_um = buf, t.gy_um = buf + ns, t.ax_um = buf + 2 * ns, t.ay_um = buf + 2 * ns + nn;
+    t.tx_um = buf + 2 * ns + 2 * nn, t.ty_um = t.tx_um + 4, t.theta_urad = t.ty_um + 4;
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.sigma_r_um = 0;
-    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 2 * ns + 2 * nn, &err), SC_OK);
+    assert_int_equal(sc_grid_sim_run(&p, &sp, &t, &d, buf + 2 * ns + 2 * nn + 12, &err), SC_OK);
     sc_grid_sim_scale(&p, M, &t, &d);
     sc_grid_options o;
     sc_grid_options_default(&o);

@@ -131,7 +131,7 @@ typedef struct {
     sc_grid_sim_params sp;
     sc_grid_scale scale;       /* --plate-scale-ppm, --plate-cte-ppm-per-k, --temp-u-k */
     int n_temps, temp_u_given;
-    double temps[SC_GRID_MAX_VIEWS]; /* --view-temp-c */
+    double *temps;             /* n_temps values (--view-temp-c), freed by cmd_simulate_grid */
     double magnification_ppm;
 } sim_args;
 
@@ -218,19 +218,31 @@ static int parse_value_u(const char *opt, const char *v, double lim, double *val
 
 static int parse_temps(sim_args *a, const char *v)
 {
-    char buf[1024];
-    snprintf(buf, sizeof buf, "%s", v);
-    a->n_temps = 0;
-    for (char *t = strtok(buf, ","); t; t = strtok(NULL, ",")) {
-        double T;
-        if (a->n_temps == SC_GRID_MAX_VIEWS || sc_parse_double(t, &T) ||
-            !(T >= SC_GRID_MIN_TEMP_C && T <= SC_GRID_MAX_TEMP_C))
-            return cli_usage_error("simulate grid", "--view-temp-c needs temperatures of %g to %g "
-                                                    "C, got '%s'", SC_GRID_MIN_TEMP_C,
-                                   SC_GRID_MAX_TEMP_C, v);
-        a->temps[a->n_temps++] = T;
+    size_t len = strlen(v), cap = 1;
+    for (const char *c = v; *c; ++c)
+        cap += *c == ',';
+    char *buf = malloc(len + 1);
+    free(a->temps);
+    a->temps = malloc(cap * sizeof *a->temps);
+    if (!buf || !a->temps) {
+        free(buf);
+        return cli_usage_error("simulate grid", "--view-temp-c: out of memory");
     }
-    return CLI_OK;
+    memcpy(buf, v, len + 1);
+    a->n_temps = 0;
+    int rc = CLI_OK;
+    for (char *t = strtok(buf, ","); t && rc == CLI_OK; t = strtok(NULL, ",")) {
+        double T;
+        if ((size_t)a->n_temps == cap || sc_parse_double(t, &T) ||
+            !(T >= SC_GRID_MIN_TEMP_C && T <= SC_GRID_MAX_TEMP_C))
+            rc = cli_usage_error("simulate grid", "--view-temp-c needs temperatures of %g to %g "
+                                                  "C, got '%s'", SC_GRID_MIN_TEMP_C,
+                                 SC_GRID_MAX_TEMP_C, v);
+        else
+            a->temps[a->n_temps++] = T;
+    }
+    free(buf);
+    return rc;
 }
 
 /* The scale and temperature options (SPEC §11); -1: not one of them. */
@@ -477,6 +489,7 @@ int cmd_simulate_grid(int argc, char **argv)
     else if (help)
         fputs(USAGE, stdout);
     free(a.view_sigma);
+    free(a.temps);
     return rc;
 }
 

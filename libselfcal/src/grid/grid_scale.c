@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include "grid_lsq_internal.h"
+#include "selfcal/grid_io.h"
 #include "selfcal/grid_sim.h"
 #include "selfcal/rng.h"
 
@@ -127,29 +128,28 @@ sc_status sc_grid_data_copy_values(const sc_grid_data *d, sc_grid_data *c, sc_er
     const sc_grid_plan *p = &d->plan;
     size_t nn = (size_t)p->n * p->n;
     memset(c, 0, sizeof *c);
-    c->plan = *p;
+    sc_status st = sc_grid_plan_copy(&c->plan, p, err);
+    if (st == SC_OK)
+        st = sc_grid_data_alloc(c, err); /* its own plan, tables and dx/dy */
+    if (st != SC_OK) {
+        sc_grid_data_free(c);
+        return st;
+    }
     for (int v = 0; v < p->n_views; ++v) {
-        c->dx_um[v] = malloc(nn * sizeof(double));
-        c->dy_um[v] = malloc(nn * sizeof(double));
-        if (!c->dx_um[v] || !c->dy_um[v]) {
-            sc_grid_data_copy_free(c);
-            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        }
         memcpy(c->dx_um[v], d->dx_um[v], nn * sizeof(double));
         memcpy(c->dy_um[v], d->dy_um[v], nn * sizeof(double));
-        c->ux_um[v] = d->ux_um[v], c->uy_um[v] = d->uy_um[v], c->t_s[v] = d->t_s[v];
+        c->ux_um[v] = d->ux_um ? d->ux_um[v] : NULL; /* borrowed */
+        c->uy_um[v] = d->uy_um ? d->uy_um[v] : NULL;
+        c->t_s[v] = d->t_s ? d->t_s[v] : NULL;
     }
     return SC_OK;
 }
 
 void sc_grid_data_copy_free(sc_grid_data *c)
 {
-    for (int v = 0; v < c->plan.n_views; ++v) {
-        free(c->dx_um[v]);
-        free(c->dy_um[v]);
-        c->dx_um[v] = c->dy_um[v] = NULL;
-        c->ux_um[v] = c->uy_um[v] = c->t_s[v] = NULL; /* borrowed */
-    }
+    for (int v = 0; c->ux_um && v < c->plan.n_views; ++v)
+        c->ux_um[v] = c->uy_um[v] = c->t_s[v] = NULL; /* borrowed: not freed */
+    sc_grid_data_free(c);
 }
 
 void sc_grid_sim_scale(const sc_grid_plan *p, double magnification_ppm, sc_grid_sim_truth *t,
