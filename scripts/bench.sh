@@ -28,6 +28,8 @@ section "grid: the whole selfcal grid --method lsq command vs SuiteSparse CHOLMO
 "$b/bench_grid_cholmod" 101 201 301 ${full:+401}
 section "grid: Monte Carlo sigma_C / sigma_r, three methods"
 "$b/bench_grid_mc" $full
+section "grid: the uncertainty budget's Monte Carlo (issue 34: M = 1000 at N = 25 in seconds)"
+"$b/bench_grid_scale_mc" $full
 section "profile: the whole command at N = 10⁶ (read, solve, write) and number conversions vs glibc"
 "$b/bench_profile_command" 1000010 "$build/bin/selfcal"
 section "profile: least squares, dense vs fast"

@@ -307,3 +307,54 @@ def test_calibration_releases_the_gil(tmp_path):
     th.join()
     assert span["s"] > 0.1, span  # long enough to tell a held GIL from a released one
     assert max(gaps) < 0.5 * span["s"], (max(gaps), span["s"])
+
+
+def test_scale_and_budget_match_cli(cli, tmp_path):
+    """SPEC §11 through Python: a file with a certified plate scale, an expansion coefficient and
+    per-view temperatures gives the command line's G, M, combined u, budget and Monte Carlo."""
+    f = tmp_path / "in.csv"
+    cli("simulate", "grid", "--plan", "double-shift", "--n", 15, "--out", f, "--truth-map",
+        tmp_path / "T.csv", "--plate-scale-ppm", "2,0.1", "--plate-cte-ppm-per-k", "9,0.5",
+        "--view-temp-c", "20.3,19.8,20.6,20.1", "--magnification-ppm", -6)
+    r = selfcal.calibrate_grid(str(f), monte_carlo=200, seed=4)
+    cli("grid", "--method", "lsq", f, "--map", tmp_path / "G.csv", "--summary",
+        tmp_path / "S.json", "--monte-carlo", 200, "--seed", 4, "--quiet")
+    g = read_csv(tmp_path / "G.csv")
+    s = json.loads((tmp_path / "S.json").read_text())
+    assert r.scale_included and s["scale_included"]
+    assert abs(r.magnification_ppm + 6) < 0.2
+    assert r.magnification_ppm == pytest.approx(s["magnification_ppm"], rel=1e-12)
+    assert r.u_magnification_ppm == pytest.approx(s["u_magnification_ppm"], rel=1e-12)
+    assert np.allclose(r.gx_um.ravel(), g["gx_um"], atol=1e-12)
+    assert np.allclose(r.ugx_um.ravel(), g["ugx_um"], rtol=1e-9)
+    b = r.budget
+    assert b["k_from"] == "2" and b["k"] == 2
+    assert [row["source"] for row in b["rows"]] == [row["source"] for row in s["budget"]["rows"]]
+    assert b["U_um"] == pytest.approx(s["budget"]["U_um"], rel=1e-12)
+    assert np.all(r.ugx_um >= b["ugx_noise_um"])  # the combined u holds the noise part
+    mc = r.monte_carlo
+    assert mc["trials"] == 200 and mc["ratio_mean"] == pytest.approx(
+        s["monte_carlo"]["ratio_mean"], rel=1e-12)
+    assert 0.8 < mc["ratio_mean"] < 1.2 and mc["ugx_um"].shape == r.gx_um.shape
+    # without the scale line: no magnification, and it says so
+    t = tmp_path / "noE.csv"
+    t.write_text("".join(l for l in f.read_text().splitlines(True)
+                         if not l.startswith("# plate_scale_ppm")))
+    r = selfcal.calibrate_grid(str(t), view_scale="free")
+    assert not r.scale_included and math.isnan(r.magnification_ppm)
+    assert r.budget["view_scale_free"] and r.budget["u_view_scale_free_ppm"].shape == (4,)
+    # the scale lines survive read_grid and write; a GridMeasurement carries them to calibrate
+    m = selfcal.read_grid(str(f))
+    assert m.plan.plate_scale_ppm == (2.0, 0.1) and m.plan.plate_cte_ppm_per_K == (9.0, 0.5)
+    assert [v["temp_C"] for v in m.plan.views] == [20.3, 19.8, 20.6, 20.1]
+    m.write(tmp_path / "again.csv")
+    assert selfcal.calibrate_grid(m).magnification_ppm == pytest.approx(s["magnification_ppm"],
+                                                                        rel=1e-9)
+    assert selfcal.read_grid(str(tmp_path / "again.csv")).plan.plate_scale_ppm == (2.0, 0.1)
+    with pytest.raises(selfcal.Error, match="every view"):
+        selfcal.GridPlan(5, 1.0, [dict(rot=0, temp_C=20.0), dict(rot=90)],
+                         plate_cte_ppm_per_K=(8, 0.1))
+    with pytest.raises(selfcal.Error, match="view_scale"):
+        selfcal.calibrate_grid(str(t), view_scale="loose")
+    with pytest.raises(selfcal.Error):
+        selfcal.calibrate_grid(str(t), method="ye", monte_carlo=10)

@@ -17,7 +17,8 @@ static const char *USAGE =
     "                    [--artifact A.csv] [--summary S.json] [--sigma-r-um X] [--plot map.svg]\n"
     "                    [--residuals R.csv] [--reject-outliers] [--covariance C.npy]\n"
     "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear]\n"
-    "                    [--view-noise stated|estimate] [--quiet]\n"
+    "                    [--view-noise stated|estimate] [--view-scale model|free]\n"
+    "                    [--monte-carlo M [--seed S] [--monte-carlo-out MC.csv]] [--quiet]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -50,6 +51,20 @@ static const char *USAGE =
     "                file stating uncertainties, a factor on them per view. Printed and in the\n"
     "                summary (sigma_um_est per view, u_sigma_um_est its standard uncertainty).\n"
     "                Excludes --sigma-r-um.\n"
+    "Scale and temperature (SPEC 11): with '# plate_scale_ppm = E, U' G includes the stage's\n"
+    "magnification M (summary: magnification_ppm, u_magnification_ppm); without it G carries no\n"
+    "magnification: the scale is not included. With '# plate_cte_ppm_per_K = A, U' and temp_C=\n"
+    "on every view line, the plate of each view is brought to 20 C first. With least squares the\n"
+    "map's ugx_um, ugy_um then combine the noise with the contributions of U, of A's uncertainty\n"
+    "and of the temperatures' (# temp_u_K, default 0.05 K), and the summary has the budget at\n"
+    "the worst node (k = 2, or Welch-Satterthwaite's t when sigma_r has few degrees of freedom).\n"
+    "                --view-scale free  each view's scale relative to the others is an unknown\n"
+    "                (a laboratory without a temperature log); their mean is the plate's model\n"
+    "                scale. Printed with their uncertainties; a warning when they are significant.\n"
+    "                --monte-carlo M  validates the budget (JCGM 101): M trials drawing the noise,\n"
+    "                E, A and every temperature, the whole estimator each time, on both cores;\n"
+    "                --seed S (default 1); the summary's monte_carlo: the ratios MC u / budget u;\n"
+    "                --monte-carlo-out: per node the MC u, the ratio and 95 % coverage intervals.\n"
     "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
     "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
 
@@ -122,15 +137,35 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
 
 /* What the command line asks for. */
 typedef struct grid_args {
-    const char *method, *in, *map, *art, *sum, *plot, *residuals, *covariance;
+    const char *method, *in, *map, *art, *sum, *plot, *residuals, *covariance, *mc_out;
     sc_grid_options opt;
     int quiet;
+    long mc_trials;          /* --monte-carlo M (0: none) */
+    uint64_t mc_seed;
 } grid_args;
+
+/* --monte-carlo, --seed, --monte-carlo-out: CLI_OK or a usage error; -1: not one of them. */
+static int parse_mc_option(grid_args *g, const char *o, const char *v)
+{
+    if (!strcmp(o, "--monte-carlo-out")) {
+        g->mc_out = v;
+        return CLI_OK;
+    }
+    if (!strcmp(o, "--seed"))
+        return cli_parse_seed("grid", v, &g->mc_seed) == CLI_OK ? CLI_OK : CLI_BAD_INPUT;
+    if (strcmp(o, "--monte-carlo") != 0)
+        return -1;
+    if (sc_parse_long(v, &g->mc_trials) || g->mc_trials < 2 || g->mc_trials > 10000000)
+        return cli_usage_error("grid", "--monte-carlo needs a number of trials of 2 to 1e7, got "
+                                       "'%s'", v);
+    return CLI_OK;
+}
 
 /* Parse the arguments into g: -1 to go on, else the exit code (--help, a usage error). */
 static int parse_args(int argc, char **argv, grid_args *g)
 {
     memset(g, 0, sizeof *g);
+    g->mc_seed = 1;
     sc_grid_options_default(&g->opt);
     g->opt.max_bytes = cli_memory_bytes();
     g->opt.warn = warn_stderr;
@@ -158,6 +193,8 @@ static int parse_args(int argc, char **argv, grid_args *g)
             return cli_usage_error("grid", "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
         int rc = cli_parse_lsq_option("grid", o, v, &g->opt); /* the outlier test, view noise */
+        if (rc < 0)
+            rc = parse_mc_option(g, o, v);
         if (rc >= 0) {
             if (rc != CLI_OK)
                 return rc;
@@ -170,6 +207,7 @@ static int parse_args(int argc, char **argv, grid_args *g)
         else if (!strcmp(o, "--plot")) g->plot = v;
         else if (!strcmp(o, "--residuals")) g->residuals = v;
         else if (!strcmp(o, "--covariance")) g->covariance = v;
+
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
@@ -198,25 +236,81 @@ static int parse_args(int argc, char **argv, grid_args *g)
      * (every node's σ and the outlier test are the same either way) */
     g->opt.node_sigma_only = g->sum == NULL;
     if (m != SC_GRID_METHOD_LSQ &&
-        (g->residuals || g->covariance || g->opt.reject_outliers || g->opt.drift))
-        return cli_usage_error("grid", "--residuals, --reject-outliers, --covariance and --drift "
-                                       "need --method lsq");
+        (g->residuals || g->covariance || g->opt.reject_outliers || g->opt.drift ||
+         g->opt.view_scale_free || g->mc_trials))
+        return cli_usage_error("grid", "--residuals, --reject-outliers, --covariance, --drift, "
+                                       "--view-scale free and --monte-carlo need --method lsq");
+    if (g->mc_out && !g->mc_trials)
+        return cli_usage_error("grid", "--monte-carlo-out needs --monte-carlo M");
     return -1;
+}
+
+/* The Monte Carlo per node: its u, the ratio to the budget's and the 95 % coverage intervals. */
+static void fprint_mc(FILE *fp, const sc_grid_plan *p, const sc_grid_mc *mc)
+{
+    int nx = sc_grid_stage_nx(p);
+    fputs("i,j,x_mm,y_mm,ugx_mc_um,ugy_mc_um,ratio_x,ratio_y,gx_lo_um,gx_hi_um,gy_lo_um,gy_hi_um\n",
+          fp);
+    for (long k = 0; k < sc_grid_stage_nodes(p); ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(p, (int)(k / nx), (int)(k % nx), &x, &y);
+        fprintf(fp, "%ld,%ld,%.15g,%.15g,%.6g,%.6g,%.6g,%.6g,%.15g,%.15g,%.15g,%.15g\n", k / nx,
+                k % nx, x + p->origin_mm[0], y + p->origin_mm[1], mc->ugx_um[k], mc->ugy_um[k],
+                mc->ratio_x[k], mc->ratio_y[k], mc->gx_lo_um[k], mc->gx_hi_um[k], mc->gy_lo_um[k],
+                mc->gy_hi_um[k]);
+    }
+}
+
+/* The scale model, the budget and the Monte Carlo on stdout. */
+static void print_budget(const sc_grid_plan *p, const sc_grid_solution *s, const sc_grid_mc *mc,
+                         const sc_grid_file_info *info)
+{
+    const sc_grid_budget *b = &s->budget;
+    if (!b->applies) {
+        printf("scale: not included (no '# plate_scale_ppm' line: G carries no magnification)\n");
+    } else if (b->magnification) {
+        printf("magnification_ppm: %.6g (u %.3g ppm, of which the noise %.3g)\n",
+               b->magnification_ppm, b->u_magnification_ppm, b->u_magnification_noise_ppm);
+    } else {
+        printf("scale: not included (no '# plate_scale_ppm' line: G carries no magnification)\n");
+    }
+    if (b->applies && b->view_scale_free) {
+        printf("view_scale_free_ppm:");
+        for (int v = 0; v < p->n_views; ++v)
+            printf(" %d:%.4g(%.2g)", info->view_id[v], b->view_scale_free_ppm[v],
+                   b->u_view_scale_free_ppm[v]);
+        printf(" (value(u); chi^2 %.3g, 95 %% limit %.3g)\n", b->view_scale_chi2,
+               b->view_scale_chi2_crit);
+    }
+    if (b->applies && b->n_rows > 0) {
+        int nx = sc_grid_stage_nx(p);
+        printf("budget at node %ld,%ld %s:", b->worst_node / nx, b->worst_node % nx,
+               b->worst_comp ? "gy" : "gx");
+        for (int r = 0; r < b->n_rows; ++r)
+            printf("%s %s %.3g um", r ? ";" : "", b->row[r].source, b->row[r].contrib_um);
+        printf("; u_c %.3g um, U %.3g um (k = %.3g%s)\n", b->u_c_um, b->U_um, b->k,
+               b->k_welch ? ", Welch-Satterthwaite" : "");
+    }
+    if (mc && mc->trials > 0)
+        printf("monte_carlo: %ld trials on %d thread(s) in %.2f s; MC u / budget u: mean %.4f, "
+               "min %.4f, max %.4f\n",
+               mc->trials, mc->threads, mc->seconds, mc->ratio_mean, mc->ratio_min,
+               mc->ratio_max);
 }
 
 /* Everything is computed: write every output asked for, commit them together (all or none). */
 static sc_status write_outputs(const grid_args *g, const sc_grid_plan *p,
                                const sc_grid_solution *sol, const sc_grid_file_info *info,
-                               sc_error *err)
+                               const sc_grid_mc *mc, sc_error *err)
 {
     const sc_grid_result *res = &sol->res;
-    const char *paths[6] = {g->map, g->art, g->sum, g->plot, g->residuals, g->covariance};
-    sc_afile f[6];
+    const char *paths[7] = {g->map, g->art, g->sum, g->plot, g->residuals, g->covariance, g->mc_out};
+    sc_afile f[7];
     memset(f, 0, sizeof f); /* entries not opened stay closed (fp == NULL) */
     int opened = 0;
     sc_status st = SC_OK;
     sc_stage_map gm = sc_grid_stage_map(p, res->gx_um, res->gy_um, res->ugx_um, res->ugy_um);
-    for (; opened < 6; ++opened) {
+    for (; opened < 7; ++opened) {
         if (!paths[opened])
             continue;
         st = sc_afile_open(&f[opened], paths[opened], err);
@@ -225,13 +319,17 @@ static sc_status write_outputs(const grid_args *g, const sc_grid_plan *p,
         switch (opened) {
         case 0: sc_grid_fprint_map(f[0].fp, p, res->gx_um, res->gy_um, res->ugx_um, res->ugy_um); break;
         case 1: sc_grid_fprint_artifact(f[1].fp, p, res->ax_um, res->ay_um); break;
-        case 2: sc_grid_fprint_summary(f[2].fp, g->method, p, res); break;
+        case 2:
+            sc_grid_fprint_solution_summary(f[2].fp, g->method, p, sol, info->view_id,
+                                            g->mc_trials ? mc : NULL);
+            break;
         case 3: plot_map_svg(f[3].fp, &gm, NULL, 0, cli_basename(g->in), 0); break;
         case 4:
             sc_grid_fprint_residuals(f[4].fp, p, info->view_id, sol->rx_um, sol->ry_um, sol->tx,
                                      sol->ty, sol->outlier);
             break;
         case 5: sc_fprint_npy(f[5].fp, sol->cov_um2, sol->n_cov, sol->n_cov); break;
+        case 6: fprint_mc(f[6].fp, p, mc); break;
         }
     }
     /* all files or none: sync every one, then rename them together */
@@ -252,11 +350,18 @@ int cmd_grid(int argc, char **argv)
     if (st != SC_OK)
         return cli_report(&err);
     sc_grid_solution sol;
+    sc_grid_mc mc;
+    memset(&mc, 0, sizeof mc);
     st = sc_grid_calibrate(&d, &info, g.in, &g.opt, &sol, &err);
+    if (st == SC_OK && g.mc_trials)
+        st = sc_grid_monte_carlo(&d, &g.opt, &sol, g.mc_trials, g.mc_seed, 0, &mc, &err);
     if (st == SC_OK)
-        st = write_outputs(&g, &d.plan, &sol, &info, &err);
-    if (st == SC_OK && !g.quiet)
+        st = write_outputs(&g, &d.plan, &sol, &info, &mc, &err);
+    if (st == SC_OK && !g.quiet) {
         print_grid_summary(g.method, &d.plan, &sol, sol.res.stated_u);
+        print_budget(&d.plan, &sol, &mc, &info);
+    }
+    sc_grid_mc_free(&mc);
     sc_grid_solution_free(&sol);
     sc_grid_data_free(&d);
     sc_grid_file_info_free(&info);

@@ -21,7 +21,7 @@
 static const char *USAGE =
     "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
     "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
-    "                           [--view-noise stated|estimate]\n"
+    "                           [--view-noise stated|estimate] [--view-scale model|free]\n"
     "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]]\n"
     "\n"
     "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
@@ -33,7 +33,9 @@ static const char *USAGE =
     "version, date, command line, SHA-256 of every input). Default method: lsq.\n"
     "Residuals and the noise estimate always come from the least-squares fit of the data (the\n"
     "closed forms are not least-squares estimates); the outlier test's options and --view-noise\n"
-    "are selfcal grid's.\n"
+    "are selfcal grid's, and so is --view-scale. The plate's scale and temperature lines (SPEC 11)\n"
+    "add a section with the stage's magnification, the views' scales and the uncertainty budget\n"
+    "(each source, its u, sensitivity and contribution at the worst node, combined and expanded).\n"
     "--verify adds the check of the compensated\n"
     "machine (see selfcal verify --help) against the plate error of this calibration.\n"
     "Exit 0, or 2 on bad input (one line naming the file and line; no report is left).\n";
@@ -95,6 +97,7 @@ static sc_status run(grid_report *r, sc_error *err)
     lo.outlier_alpha = r->test.outlier_alpha; /* the test runs on the least-squares fit */
     lo.outlier_alpha_each = r->test.outlier_alpha_each;
     lo.estimate_view_noise = r->test.estimate_view_noise;
+    lo.view_scale_free = r->test.view_scale_free;
     if (st == SC_OK) /* residuals, standardized residuals (exact leverage), Baarda's test */
         st = sc_grid_calibrate(&r->d, &r->info, r->in, &lo, &r->lsol, err);
     if (st != SC_OK)
@@ -623,6 +626,65 @@ static sc_status results_figures(FILE *fp, const grid_report *r, sc_error *err)
     return st;
 }
 
+/* The plate's scale and temperature (SPEC §11) and the budget at the worst node. */
+static void results_scale(FILE *fp, const grid_report *r)
+{
+    const sc_grid_plan *p = &r->d.plan;
+    int lsq = sc_grid_method_from_name(r->method) == SC_GRID_METHOD_LSQ;
+    const sc_grid_budget *b = lsq ? &r->lsol.budget : &r->sol.budget;
+    fputs("<h3>Scale, temperature and uncertainty budget</h3>\n", fp);
+    if (!b->applies || !b->magnification)
+        fputs("<p><b>Scale not included.</b> The file gives no certified plate scale ('# "
+              "plate_scale_ppm = E, U'): self-calibration cannot tell the stage's isotropic "
+              "scale from the plate's, so G carries no magnification (SPEC §1 gauge) and the "
+              "stage's scale error is not in G or its uncertainty.</p>\n",
+              fp);
+    if (!b->applies)
+        return;
+    fputs("<table>\n<tr><th class=\"l\">quantity</th><th>value</th><th>u (k = 1)</th>"
+          "<th>U (k = 2)</th><th class=\"l\">unit</th></tr>\n", fp);
+    if (b->magnification)
+        html_u_row(fp, "M, the stage's magnification", "magnification", b->magnification_ppm,
+                   b->u_magnification_ppm, "%.5g", "ppm");
+    for (int v = 0; v < p->n_views; ++v) {
+        char name[96], id[32];
+        snprintf(name, sizeof name, "view %d: plate scale s_v%s", r->info.view_id[v],
+                 p->scale.has_temps ? " = E + A·(T_v − 20)" : "");
+        snprintf(id, sizeof id, "scale-%d", v);
+        html_u_row(fp, name, id, b->view_scale_ppm[v],
+                   b->view_scale_free ? b->u_view_scale_free_ppm[v] : NAN, "%.5g", "ppm");
+    }
+    fputs("</table>\n", fp);
+    if (b->view_scale_free)
+        fprintf(fp, "<p>The views' scales are free (--view-scale free): their mean is the "
+                       "plate's model scale, χ² of their differences %.4g (95 %% limit %.4g): "
+                       "%s.</p>\n", b->view_scale_chi2, b->view_scale_chi2_crit,
+                   b->view_scale_significant ? "significant" : "not significant");
+    if (b->n_rows == 0)
+        return;
+    int nx = sc_grid_stage_nx(p);
+    fprintf(fp, "<p>Budget (GUM) at node (%ld, %ld), %s, where the combined uncertainty is "
+                   "largest:</p>\n<table>\n<tr><th class=\"l\">source</th><th>u</th>"
+                   "<th class=\"l\">unit</th><th>sensitivity (µm per unit)</th>"
+                   "<th>contribution (µm)</th><th>dof</th></tr>\n",
+               b->worst_node / nx, b->worst_node % nx, b->worst_comp ? "G<sub>y</sub>" : "G<sub>x</sub>");
+    for (int k = 0; k < b->n_rows; ++k) {
+        const sc_grid_budget_row *w = &b->row[k];
+        fprintf(fp, "<tr><td class=\"l\">%s</td>", w->source);
+        html_num_cell(fp, NULL, "%.4g", w->u);
+        fprintf(fp, "<td class=\"l\">%s</td>", w->unit);
+        html_num_cell(fp, NULL, "%.4g", w->c);
+        html_num_cell(fp, NULL, "%.4g", w->contrib_um);
+        html_num_cell(fp, NULL, "%.4g", w->dof);
+        fputs("</tr>\n", fp);
+    }
+    fprintf(fp, "</table>\n<p>Combined standard uncertainty u<sub>c</sub> = %.4g µm; "
+                   "effective degrees of freedom %.4g; expanded U = %.4g µm with k = %.4g (%s).</p>\n",
+               b->u_c_um, b->nu_eff, b->U_um, b->k,
+               b->k_welch ? "Student's t at 95 % for the Welch–Satterthwaite degrees of freedom"
+                          : "k = 2: the degrees of freedom are large");
+}
+
 static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
 {
     fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
@@ -630,6 +692,7 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
           "<th>U (k = 2)</th><th class=\"l\">unit</th></tr>\n",
           fp);
     results_first_order(fp, r);
+    results_scale(fp, r);
     results_g_table(fp, r);
     sc_status st = results_figures(fp, r, err);
     fputs("</section>\n", fp);

@@ -22,6 +22,9 @@ static const char *USAGE =
     "                             [--compensate-with T.lut]\n"
     "                             [--stage NX,NY] [--view-sigma-r-um S0,S1,...]\n"
     "                             [--dt-s DT] [--drift-um-s VX,VY]\n"
+    "                             [--plate-scale-ppm E[,U]] [--plate-cte-ppm-per-k A[,U]]\n"
+    "                             [--view-temp-c T0,T1,...] [--temp-u-k U]\n"
+    "                             [--magnification-ppm M]\n"
     "\n"
     "Simulates a stage error G (first-order O, R plus a SAR(1) field with row-standardised\n"
     "4-neighbour weights, scaled so that the std of all Gx, Gy values is sigma-g-um), a Gaussian\n"
@@ -42,7 +45,15 @@ static const char *USAGE =
     "not on the views: a one-view plan with the calibration's seed re-measures the same stage\n"
     "and plate. --compensate-with: the machine measures with this table active (each reading\n"
     "p becomes p - G_table(p), the table's measure-mode correction, as selfcald computes it):\n"
-    "a re-measurement after compensation for 'selfcal verify'.\n";
+    "a re-measurement after compensation for 'selfcal verify'.\n"
+    "Scale and temperature (SPEC 11): --plate-scale-ppm E,U writes '# plate_scale_ppm = E, U'\n"
+    "(U default 0): the plate's true pitch is P(1 + E 1e-6), its simulated error A is taken to\n"
+    "have no magnification, and the truth G includes the stage's magnification\n"
+    "--magnification-ppm M (M 1e-3 (x, y) um at the node). --plate-cte-ppm-per-k A,U and\n"
+    "--view-temp-c (one temperature per view, written as temp_C= on the view lines): the plate\n"
+    "of view v is scaled by E + A (T_v - 20) ppm. --temp-u-k: the temperatures' standard\n"
+    "uncertainty written as '# temp_u_K' (default 0.05). Without --plate-scale-ppm the truth G\n"
+    "stays in the SPEC gauge (no magnification).\n";
 
 static int parse_num(const char *opt, const char *s, double *out)
 {
@@ -52,7 +63,8 @@ static int parse_num(const char *opt, const char *s, double *out)
 }
 
 static void fprint_truth_summary(FILE *fp, const char *plan_name, const sc_grid_plan *p,
-                                 const sc_grid_sim_params *sp, const sc_grid_sim_truth *t)
+                                 const sc_grid_sim_params *sp, const sc_grid_sim_truth *t,
+                                 double magnification_ppm)
 {
     fprintf(fp, "{\n  \"format\": \"selfcal-grid-truth v1\",\n  \"plan\": \"");
     for (const char *c = plan_name; *c; ++c)
@@ -69,6 +81,8 @@ static void fprint_truth_summary(FILE *fp, const char *plan_name, const sc_grid_
             sp->sigma_a_um, sp->sigma_t_um, sp->sigma_theta_urad);
     fprintf(fp, "  \"sigma_r_um\": %.15g,\n  \"seed\": %llu,\n", sp->sigma_r_um,
             (unsigned long long)sp->seed);
+    if (p->scale.has_plate_scale)
+        fprintf(fp, "  \"magnification_ppm\": %.15g,\n", magnification_ppm);
     fprintf(fp, "  \"views\": [\n");
     for (int v = 0; v < p->n_views; ++v)
         fprintf(fp,
@@ -115,6 +129,10 @@ typedef struct {
     long stage_x, stage_y;
     double *view_sigma;     /* n_vs values (--view-sigma-r-um), freed by cmd_simulate_grid */
     sc_grid_sim_params sp;
+    sc_grid_scale scale;       /* --plate-scale-ppm, --plate-cte-ppm-per-k, --temp-u-k */
+    int n_temps, temp_u_given;
+    double *temps;             /* n_temps values (--view-temp-c), freed by cmd_simulate_grid */
+    double magnification_ppm;
 } sim_args;
 
 /* "A,B" into its two halves (in buf); NULL when there is no comma. */
@@ -185,6 +203,82 @@ static int parse_drift(sim_args *a, const char *v)
     return CLI_OK;
 }
 
+/* "V" or "V,U" with U >= 0 (U 0 when left out). */
+static int parse_value_u(const char *opt, const char *v, double lim, double *val, double *u)
+{
+    char buf[128];
+    const char *second = split_pair(v, buf, sizeof buf);
+    *u = 0;
+    if (sc_parse_double(buf, val) || !(fabs(*val) <= lim) ||
+        (second && (sc_parse_double(second, u) || !(*u >= 0) || !(*u <= lim))))
+        return cli_usage_error("simulate grid", "%s needs V or V,U (|V| and U <= %g, U >= 0), "
+                                                "got '%s'", opt, lim, v);
+    return CLI_OK;
+}
+
+static int parse_temps(sim_args *a, const char *v)
+{
+    size_t len = strlen(v), cap = 1;
+    for (const char *c = v; *c; ++c)
+        cap += *c == ',';
+    char *buf = malloc(len + 1);
+    free(a->temps);
+    a->temps = malloc(cap * sizeof *a->temps);
+    if (!buf || !a->temps) {
+        free(buf);
+        return cli_usage_error("simulate grid", "--view-temp-c: out of memory");
+    }
+    memcpy(buf, v, len + 1);
+    a->n_temps = 0;
+    int rc = CLI_OK;
+    for (char *t = strtok(buf, ","); t && rc == CLI_OK; t = strtok(NULL, ",")) {
+        double T;
+        if ((size_t)a->n_temps == cap || sc_parse_double(t, &T) ||
+            !(T >= SC_GRID_MIN_TEMP_C && T <= SC_GRID_MAX_TEMP_C))
+            rc = cli_usage_error("simulate grid", "--view-temp-c needs temperatures of %g to %g "
+                                                  "C, got '%s'", SC_GRID_MIN_TEMP_C,
+                                 SC_GRID_MAX_TEMP_C, v);
+        else
+            a->temps[a->n_temps++] = T;
+    }
+    free(buf);
+    return rc;
+}
+
+/* The scale and temperature options (SPEC §11); -1: not one of them. */
+static int parse_scale_option(sim_args *a, const char *o, const char *v)
+{
+    sc_grid_scale *sc = &a->scale;
+    if (!strcmp(o, "--plate-scale-ppm")) {
+        sc->has_plate_scale = 1;
+        return parse_value_u(o, v, SC_GRID_MAX_SCALE_PPM, &sc->plate_scale_ppm,
+                             &sc->u_plate_scale_ppm);
+    }
+    if (!strcmp(o, "--plate-cte-ppm-per-k")) {
+        sc->has_cte = 1;
+        return parse_value_u(o, v, SC_GRID_MAX_CTE, &sc->cte_ppm_per_K, &sc->u_cte_ppm_per_K);
+    }
+    if (!strcmp(o, "--view-temp-c"))
+        return parse_temps(a, v);
+    if (!strcmp(o, "--temp-u-k")) {
+        a->temp_u_given = 1;
+        if (sc_parse_double(v, &sc->temp_u_K) || !(sc->temp_u_K >= 0) ||
+            !(sc->temp_u_K <= SC_GRID_MAX_TEMP_U_K))
+            return cli_usage_error("simulate grid", "--temp-u-k needs 0 to %g K, got '%s'",
+                                   SC_GRID_MAX_TEMP_U_K, v);
+        return CLI_OK;
+    }
+    if (!strcmp(o, "--magnification-ppm")) {
+        if (sc_parse_double(v, &a->magnification_ppm) ||
+            !(fabs(a->magnification_ppm) <= SC_GRID_MAX_SCALE_PPM))
+            return cli_usage_error("simulate grid", "--magnification-ppm needs a number of ppm "
+                                                    "(|M| <= %g), got '%s'",
+                                   SC_GRID_MAX_SCALE_PPM, v);
+        return CLI_OK;
+    }
+    return -1;
+}
+
 /* The options taking one number. */
 static int parse_number_option(sim_args *a, const char *o, const char *v)
 {
@@ -214,6 +308,9 @@ static int parse_number_option(sim_args *a, const char *o, const char *v)
 
 static int parse_option(sim_args *a, const char *o, const char *v)
 {
+    int rc = parse_scale_option(a, o, v);
+    if (rc >= 0)
+        return rc;
     if (!strcmp(o, "--plan")) a->plan_arg = v;
     else if (!strcmp(o, "--out")) a->out = v;
     else if (!strcmp(o, "--truth-map")) a->truth_map = v;
@@ -263,7 +360,43 @@ static int parse_args(int argc, char **argv, sim_args *a, int *help)
         return cli_usage_error("simulate grid", "--drift-um-s needs --dt-s");
     if (!strcmp(a->plan_arg, "stitch") && !a->stage_x)
         return cli_usage_error("simulate grid", "--plan stitch needs --stage NX,NY");
+    if (a->n_temps && !a->scale.has_cte)
+        return cli_usage_error("simulate grid", "--view-temp-c needs --plate-cte-ppm-per-k");
+    if (a->temp_u_given && !a->n_temps)
+        return cli_usage_error("simulate grid", "--temp-u-k needs --view-temp-c");
     return CLI_OK;
+}
+
+/* The scale and temperature options into the plan (a plan file's own lines stay unless an
+ * option replaces them). */
+static sc_status apply_scale(const sim_args *a, sc_grid_plan *plan, int *usage_rc)
+{
+    sc_grid_scale *sc = &plan->scale;
+    if (a->scale.has_plate_scale) {
+        sc->has_plate_scale = 1;
+        sc->plate_scale_ppm = a->scale.plate_scale_ppm;
+        sc->u_plate_scale_ppm = a->scale.u_plate_scale_ppm;
+    }
+    if (a->scale.has_cte) {
+        sc->has_cte = 1;
+        sc->cte_ppm_per_K = a->scale.cte_ppm_per_K;
+        sc->u_cte_ppm_per_K = a->scale.u_cte_ppm_per_K;
+    }
+    if (!sc->has_temps)
+        sc->temp_u_K = SC_GRID_TEMP_U_K_DEFAULT;
+    if (a->temp_u_given)
+        sc->temp_u_K = a->scale.temp_u_K;
+    if (a->n_temps) {
+        if (a->n_temps != plan->n_views) {
+            *usage_rc = cli_usage_error("simulate grid", "--view-temp-c gives %d values for %d "
+                                                         "views", a->n_temps, plan->n_views);
+            return SC_E_INPUT;
+        }
+        sc->has_temps = 1;
+        for (int v = 0; v < plan->n_views; ++v)
+            plan->view[v].temp_C = a->temps[v];
+    }
+    return SC_OK;
 }
 
 /* The plan: a named one (stitch, ye, double-shift) or a file's header; then --stage and
@@ -314,7 +447,7 @@ static sc_status build_plan(const sim_args *a, sc_grid_plan *plan, int *usage_rc
         for (int v = 0; v < a->n_vs; ++v)
             plan->view[v].sigma_um = a->view_sigma[v];
     }
-    return st;
+    return st == SC_OK ? apply_scale(a, plan, usage_rc) : st;
 }
 
 /* Every file written, then committed together: all or none. */
@@ -336,7 +469,7 @@ static sc_status write_outputs(const sim_args *a, const sc_grid_data *d,
         case 0: sc_grid_fprint_input(f[0].fp, d); break;
         case 1: sc_grid_fprint_map(f[1].fp, &d->plan, t->gx_um, t->gy_um, NULL, NULL); break;
         case 2: sc_grid_fprint_artifact(f[2].fp, &d->plan, t->ax_um, t->ay_um); break;
-        case 3: fprint_truth_summary(f[3].fp, a->plan_arg, &d->plan, &a->sp, t); break;
+        case 3: fprint_truth_summary(f[3].fp, a->plan_arg, &d->plan, &a->sp, t, a->magnification_ppm); break;
         }
     }
     /* all files or none: sync every one, then rename them together */
@@ -356,6 +489,7 @@ int cmd_simulate_grid(int argc, char **argv)
     else if (help)
         fputs(USAGE, stdout);
     free(a.view_sigma);
+    free(a.temps);
     return rc;
 }
 
@@ -396,6 +530,8 @@ static int simulate_grid(sim_args *ap)
         st = sc_grid_data_alloc_extra(&d, 0, a.sp.dt_s > 0, &err);
     if (st == SC_OK)
         st = sc_grid_sim_run(&d.plan, &a.sp, &t, &d, buf + 2 * ns + 2 * nn + 3 * nv, &err);
+    if (st == SC_OK)
+        sc_grid_sim_scale(&d.plan, a.magnification_ppm, &t, &d);
     if (st == SC_OK && a.comp_table)
         st = compensate(&d, a.comp_table, &err);
     /* Everything is computed: write all files, commit them together. */

@@ -114,6 +114,12 @@ int cli_parse_lsq_option(const char *cmd, const char *opt, const char *v, sc_gri
         o->estimate_view_noise = !strcmp(v, "estimate");
         return CLI_OK;
     }
+    if (!strcmp(opt, "--view-scale")) {
+        if (strcmp(v, "free") != 0 && strcmp(v, "model") != 0)
+            return cli_usage_error(cmd, "--view-scale must be model or free, got '%s'", v);
+        o->view_scale_free = !strcmp(v, "free");
+        return CLI_OK;
+    }
     int each = !strcmp(opt, "--outlier-alpha-each");
     if (!each && strcmp(opt, "--outlier-alpha") != 0)
         return -1;

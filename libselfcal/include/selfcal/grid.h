@@ -44,7 +44,34 @@ typedef struct sc_grid_view {
     unsigned char col_sel[SC_GRID_MAX_N]; /* plate columns measured (when restricted) */
     double sigma_um;                    /* `sigma_um=` of the view line: standard uncertainty of
                                            each coordinate of its rows, µm; 0 = not stated */
+    double temp_C;                      /* `temp_C=` of the view line (SPEC §11): the plate's
+                                           temperature during the view, °C; read only when the
+                                           plan's scale.has_temps */
 } sc_grid_view;
+
+/* The plate's scale and temperature (SPEC §11, optional header lines). The plate of view v is
+ * the 20 °C plate scaled by s_v = E + A·(T_v − 20) ppm (sc_grid_view_scale_ppm). */
+typedef struct sc_grid_scale {
+    int has_plate_scale;        /* `# plate_scale_ppm = E, U` given: G carries the magnification */
+    double plate_scale_ppm;     /* E: the plate's certified scale error at 20 °C, ppm */
+    double u_plate_scale_ppm;   /* U: its standard uncertainty, ppm (>= 0) */
+    int has_cte;                /* `# plate_cte_ppm_per_K = A, U` given */
+    double cte_ppm_per_K;       /* A: the plate's linear expansion coefficient, ppm/K */
+    double u_cte_ppm_per_K;     /* its standard uncertainty, ppm/K (>= 0) */
+    int has_temps;              /* every view line carries temp_C= (needs has_cte) */
+    double temp_u_K;            /* `# temp_u_K`: standard uncertainty of each temperature, K
+                                   (SC_GRID_TEMP_U_K_DEFAULT when not given) */
+} sc_grid_scale;
+
+#define SC_GRID_TEMP_U_K_DEFAULT 0.05
+#define SC_GRID_REF_TEMP_C 20.0
+/* The ranges the files take: |E| and U to 1e4 ppm, |A| and its U to 1e3 ppm/K, temperatures
+ * -100 to 200 °C, temp_u_K to 100 K. */
+#define SC_GRID_MAX_SCALE_PPM 1e4
+#define SC_GRID_MAX_CTE 1e3
+#define SC_GRID_MIN_TEMP_C -100.0
+#define SC_GRID_MAX_TEMP_C 200.0
+#define SC_GRID_MAX_TEMP_U_K 100.0
 
 typedef struct sc_grid_plan {
     int n;                /* marks per side (odd) */
@@ -54,6 +81,7 @@ typedef struct sc_grid_plan {
     sc_grid_view *view;   /* n_views entries, owned by the plan (sc_grid_plan_views sizes them,
                              sc_grid_plan_copy copies them, sc_grid_plan_free frees them) */
     int stage_nx, stage_ny; /* stage grid (SPEC §5 `# stage = NX,NY`, odd >= 3); 0: N x N */
+    sc_grid_scale scale;    /* plate scale and temperatures (SPEC §11); all 0: none given */
 } sc_grid_plan;
 
 /* Measurements: dev = measured - nominal stage position in µm for mark (i, j) of each view;
@@ -195,6 +223,10 @@ SC_API bool sc_grid_sigma_valid(double u_um);
  * SC_GRID_MIN_PITCH_MM to 1e6 mm, origin within 1e6 mm, each view's sigma_um 0 or valid,
  * rotations, shifts, every view landing at least one mark on the stage). */
 SC_API sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err);
+
+/* The plate's scale in view v, ppm relative to its nominal pitch: E (if given) + A·(T_v − 20)
+ * (if temperatures are given); 0 when neither is. */
+SC_API double sc_grid_view_scale_ppm(const sc_grid_plan *p, int v);
 
 /* Forward model without noise: fill d->dx_um/dy_um (arrays provided by the caller) from a stage
  * error G (NX*NY nodes), plate error A (n*n marks, plate frame) and per-view misalignment. NaN

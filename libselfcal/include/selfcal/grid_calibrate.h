@@ -10,6 +10,7 @@
 #include "selfcal/grid.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
+#include "selfcal/grid_scale.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -54,6 +55,9 @@ typedef struct sc_grid_options {
                                 (sc_grid_lsq_opts.max_bytes); 0: no limit */
     sc_grid_warn_fn warn;    /* warnings (NULL: none) */
     void *warn_ctx;
+    int view_scale_free;     /* least squares: each view's scale relative to the others is an
+                                unknown (mean 0; for a laboratory without a temperature log),
+                                with its uncertainty and a warning when significant */
 } sc_grid_options;
 
 /* What came out. Allocated by sc_grid_calibrate, freed by sc_grid_solution_free. */
@@ -73,6 +77,7 @@ typedef struct sc_grid_solution {
     double *cov_um2;         /* covariance of G, n_cov x n_cov, node by node, gx then gy */
     long n_cov;
     sc_grid_lsq_info plan_info; /* least squares: the plan's analysis */
+    sc_grid_budget budget;   /* the plate's scale and temperature (SPEC §11) and the budget */
 } sc_grid_solution;
 
 /* Initialise o: least squares, noise estimated, no drift, no rejection, no covariance. */
@@ -91,6 +96,24 @@ SC_API sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_
 SC_API sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info,
                                    const char *path, const sc_grid_options *o,
                                    sc_grid_solution *s, sc_error *err);
+
+/* The Monte Carlo check of a least-squares solution s of d (JCGM 101): trials times, every
+ * coordinate's noise (as the budget takes it), E, A and each T_v drawn from their stated normal
+ * distributions, the whole estimator run (the correction to the 20 °C plate, least squares with
+ * the rows s kept, free view scales, the magnification gauge), on two threads when there are two
+ * cores (threads: 0 = that; 1 = one). Trial t draws from its own stream (seed, t): the figures do
+ * not depend on the threads. SC_E_INPUT for trials < 2 or a solution not made by least squares. */
+SC_API sc_status sc_grid_monte_carlo(const sc_grid_data *d, const sc_grid_options *o,
+                                     const sc_grid_solution *s, long trials, uint64_t seed,
+                                     int threads, sc_grid_mc *mc, sc_error *err);
+
+/* The JSON summary of a solution (sc_grid_fprint_summary's keys) with the views numbered as
+ * the file declares them (view_id; NULL: by position), the scale model and the budget (SPEC
+ * §11: magnification_ppm, u_magnification_ppm, a "budget" object) and, when mc is not NULL,
+ * the Monte Carlo's figures. */
+SC_API void sc_grid_fprint_solution_summary(FILE *fp, const char *method, const sc_grid_plan *p,
+                                            const sc_grid_solution *s, const int *view_id,
+                                            const sc_grid_mc *mc);
 
 /* Free what a solution holds (safe on a zeroed or freed one). */
 SC_API void sc_grid_solution_free(sc_grid_solution *s);

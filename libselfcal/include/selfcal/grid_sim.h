@@ -98,6 +98,16 @@ SC_API sc_status sc_grid_plan_stitch(int n, int nx, int ny, double pitch_mm, dou
 SC_API sc_status sc_grid_sim_run(const sc_grid_plan *plan, const sc_grid_sim_params *sp,
                                  sc_grid_sim_truth *truth, sc_grid_data *d, double *work, sc_error *err);
 
+/* The plate's scale and temperature and the stage's magnification (SPEC §11) added to a
+ * simulation made by sc_grid_sim_run on the same plan: each view's data get
+ * M·1e-3·(x, y) (the stage's magnification M ppm at the node) and (s_v − a)·1e-3·Rot_v(p) (the
+ * plate of view v scaled by s_v = sc_grid_view_scale_ppm), where a is the magnification of the
+ * simulated plate error, which is taken out of it (with plate_scale_ppm the certificate states the
+ * plate's whole scale). With plate_scale_ppm the truth's G gets M·1e-3·(x, y) (G's gauge keeps
+ * the magnification), else G stays in the SPEC gauge and A as simulated. Noise-free in itself. */
+SC_API void sc_grid_sim_scale(const sc_grid_plan *plan, double magnification_ppm,
+                              sc_grid_sim_truth *truth, sc_grid_data *d);
+
 #ifdef __cplusplus
 }
 #endif

@@ -13,6 +13,7 @@
 #include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 #include "selfcal/grid_exact.h"
 #include "grid_lsq_internal.h"
+#include "grid_scale_internal.h"
 #include "selfcal/rng.h"
 
 int sc_grid_method_from_name(const char *name)
@@ -242,6 +243,7 @@ static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
 
 void sc_grid_solution_free(sc_grid_solution *s)
 {
+    free(s->budget.view_scale_ppm); /* the budget's one block */
     free(s->res.gx_um); /* the block of every double array but the covariance */
     sc_grid_result_free_views(&s->res);
     free(s->outlier);
@@ -613,7 +615,12 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     double *inv_diag = u2 + nvz, *y = inv_diag + nvz;
     for (int v = 0; v < nv; ++v) {
         rel_sd[v] = NAN;
-        if (red[v] >= VCE_MIN_RED)
+        int rows = 0; /* a declared view with no rows has no component: left out of F */
+        for (int k = 0; k < nn && !rows; ++k)
+            rows = isfinite(d->dx_um[v][k]);
+        if (!rows)
+            grp[v] = -1;
+        else if (red[v] >= VCE_MIN_RED)
             grp[v] = ng++;
         else
             grp[v] = low >= 0 ? low : (low = ng++);
@@ -635,7 +642,7 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     sc_rng rng;
     sc_rng_seed(&rng, 20261127); /* the same probes every run: reproducible figures */
     for (int v = 0; v < nv && st == SC_OK; ++v)
-        for (int t = 0; t < VCE_PROBES && st == SC_OK; ++t) {
+        for (int t = 0; grp[v] >= 0 && t < VCE_PROBES && st == SC_OK; ++t) {
             for (int w = 0; w < nv; ++w)
                 for (int k = 0; k < nn; ++k) {
                     if (!isfinite(save[w * nn + k]))
@@ -649,7 +656,8 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
             if (st == SC_OK)
                 st = sc_grid_lsq_view_components(q, d, &res, wrss, rd, u2, err);
             for (int u = 0; u < nv && st == SC_OK; ++u)
-                F[(size_t)grp[u] * nvz + (size_t)grp[v]] += wrss[u] / VCE_PROBES;
+                if (grp[u] >= 0)
+                    F[(size_t)grp[u] * nvz + (size_t)grp[v]] += wrss[u] / VCE_PROBES;
         }
     for (int v = 0; v < nv; ++v)
         for (int k = 0; k < nn; ++k)
@@ -675,7 +683,7 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
             inv_diag[g] = sum;
         }
         for (int v = 0; v < nv; ++v)
-            rel_sd[v] = sqrt(inv_diag[grp[v]] / 2);
+            rel_sd[v] = grp[v] >= 0 ? sqrt(inv_diag[grp[v]] / 2) : NAN;
     }
     free(vbuf), free(grp);
     return st;
@@ -972,8 +980,8 @@ static sc_status run_lsq(sc_grid_data *d, const sc_grid_file_info *info, const c
     return st;
 }
 
-sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
-                            const sc_grid_options *o, sc_grid_solution *s, sc_error *err)
+static sc_status calibrate_plain(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                               const sc_grid_options *o, sc_grid_solution *s, sc_error *err)
 {
     memset(s, 0, sizeof *s);
     sc_status st = sc_grid_check_method(d, info, path, o, err);
@@ -1002,4 +1010,224 @@ sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, cons
             return sc_error_set(err, SC_E_INTERNAL, path, 0, "the %s solution is not finite",
                                 sc_grid_method_name(o->method));
     return SC_OK;
+}
+
+/* ---- the plate's scale and temperature (SPEC §11; grid_scale.c) ---- */
+
+/* The budget's arrays, in one block (freed by sc_grid_solution_free). */
+static sc_status budget_alloc(const sc_grid_plan *p, sc_grid_budget *b, sc_error *err)
+{
+    size_t nv = (size_t)p->n_views, ns = (size_t)sc_grid_stage_nodes(p);
+    double *buf = malloc(sizeof(double) * (3 * nv + 2 * ns));
+    if (!buf)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    memset(b, 0, sizeof *b);
+    b->view_scale_ppm = buf, b->view_scale_free_ppm = buf + nv;
+    b->u_view_scale_free_ppm = buf + 2 * nv, b->ugx_noise_um = buf + 3 * nv;
+    b->ugy_noise_um = buf + 3 * nv + ns;
+    for (size_t k = 0; k < 3 * nv + 2 * ns; ++k)
+        buf[k] = NAN;
+    b->n_views = p->n_views;
+    b->applies = 1;
+    b->magnification = p->scale.has_plate_scale;
+    b->magnification_ppm = b->u_magnification_ppm = b->u_magnification_noise_ppm = NAN;
+    b->view_scale_chi2 = b->view_scale_chi2_crit = NAN;
+    b->u_c_um = b->nu_eff = b->k = b->U_um = NAN;
+    b->worst_node = -1;
+    return SC_OK;
+}
+
+/* With E: move the plate's magnification to the stage (G, A and the views' translations). */
+static void magnification_gauge(const sc_grid_plan *p, sc_grid_solution *s)
+{
+    sc_grid_result *r = &s->res;
+    double m = sc_grid_plate_magnification_ppm(p, r->ax_um, r->ay_um);
+    int nx = sc_grid_stage_nx(p);
+    for (long k = 0; k < s->n_nodes; ++k) {
+        double x, y;
+        sc_grid_node_xy_mm(p, (int)(k / nx), (int)(k % nx), &x, &y);
+        r->gx_um[k] += m * 1e-3 * x, r->gy_um[k] += m * 1e-3 * y;
+    }
+    for (long k = 0; k < s->n_marks; ++k) {
+        double x, y;
+        sc_grid_mark_xy_mm(p, (int)(k / p->n), (int)(k % p->n), &x, &y);
+        r->ax_um[k] -= m * 1e-3 * x, r->ay_um[k] -= m * 1e-3 * y;
+    }
+    for (int v = 0; v < p->n_views; ++v) { /* node − Rot(p) = shift·P: a translation per view */
+        r->tx_um[v] -= m * 1e-3 * p->view[v].shift_x * p->pitch_mm;
+        r->ty_um[v] -= m * 1e-3 * p->view[v].shift_y * p->pitch_mm;
+    }
+    s->budget.magnification_ppm = m;
+}
+
+/* The free scales' rank taken from the residuals' degrees of freedom: σ̂ and the node
+ * uncertainties follow (when σ_r is the estimated one). */
+static void free_scales_dof(sc_grid_result *r, int rank, long ns)
+{
+    long dof = r->dof - rank;
+    if (rank <= 0 || dof <= 0 || r->dof <= 0)
+        return;
+    double f = sqrt((double)r->dof / (double)dof);
+    int estimated = !r->weighted && !r->view_noise_estimated;
+    r->sigma_r_est_um *= f;
+    if (estimated) {
+        r->sigma_r_used_um = r->sigma_r_est_um;
+        for (long k = 0; k < ns; ++k)
+            r->ugx_um[k] *= f, r->ugy_um[k] *= f;
+    }
+    if (isfinite(r->variance_factor))
+        r->variance_factor *= f * f;
+    r->dof = dof;
+}
+
+/* The free view scales' uncertainties and their χ² test (warned when significant). */
+static void free_scales_report(const sc_grid_est *e, const sc_grid_file_info *info,
+                               const char *path, const sc_grid_options *o, sc_grid_solution *s)
+{
+    sc_grid_budget *b = &s->budget;
+    double s0 = s->res.sigma_r_used_um, chi2 = 0;
+    int nv = e->nv, worst = 0;
+    for (int v = 0; v < nv; ++v) {
+        b->u_view_scale_free_ppm[v] = s0 * sqrt(fmax(e->Mp[v * nv + v], 0));
+        for (int c = 0; c < nv; ++c)
+            chi2 += b->view_scale_free_ppm[v] * e->M[v * nv + c] * b->view_scale_free_ppm[c];
+        if (fabs(b->view_scale_free_ppm[v]) > fabs(b->view_scale_free_ppm[worst]))
+            worst = v;
+    }
+    b->view_scale_chi2 = chi2 / (s0 * s0);
+    b->view_scale_chi2_crit = sc_chi2_quantile(0.95, (double)e->rank);
+    b->view_scale_significant = b->view_scale_chi2 > b->view_scale_chi2_crit;
+    if (b->view_scale_significant)
+        warnf(o, "%s: the views' scales differ significantly (chi^2 %.4g > %.4g at 95 %% over %d "
+                 "degrees of freedom; largest: view %d, %.4g ppm, u %.2g ppm): the plate's "
+                 "temperature changed between the views, or the stage's scale did",
+              path ? path : "data", b->view_scale_chi2, b->view_scale_chi2_crit, e->rank,
+              view_id(info, worst), b->view_scale_free_ppm[worst], b->u_view_scale_free_ppm[worst]);
+}
+
+/* After the least squares on the corrected data dc: the magnification gauge and the budget. */
+static sc_status scale_finish_lsq(const sc_grid_data *dc, const sc_grid_file_info *info,
+                                  const char *path, const sc_grid_options *o,
+                                  sc_grid_solution *s, sc_error *err)
+{
+    const sc_grid_plan *p = &dc->plan;
+    sc_grid_data mask;
+    sc_status st = sc_grid_data_copy_values(dc, &mask, err);
+    if (st != SC_OK)
+        return st;
+    size_t nn = (size_t)p->n * p->n;
+    for (size_t k = 0; o->reject_outliers && k < (size_t)p->n_views * nn; ++k)
+        if (s->outlier[k]) /* removed: not in the final solution */
+            mask.dx_um[k / nn][k % nn] = mask.dy_um[k / nn][k % nn] = NAN;
+    sc_grid_lsq_opts opts = lsq_opts(o);
+    opts.node_sigma_only = 1;
+    sc_grid_est e;
+    st = sc_grid_est_make(&mask, &opts, s->budget.magnification, o->view_scale_free, &e, err);
+    if (st == SC_OK && o->view_scale_free) {
+        free_scales_dof(&s->res, e.rank, s->n_nodes);
+        free_scales_report(&e, info, path, o, s);
+    }
+    int stated = s->res.stated_u || given_sigma_r(dc, info, o) > 0 || s->res.view_noise_estimated;
+    if (st == SC_OK)
+        st = sc_grid_budget_fill(&e, p, stated ? INFINITY : (double)s->res.dof, &s->res,
+                                 &s->budget, err);
+    sc_grid_est_free(&e);
+    sc_grid_data_copy_free(&mask);
+    return st;
+}
+
+/* The free view scales of dc (brought to the nominal plate), into b and subtracted from dc. */
+static sc_status free_scales_fit(sc_grid_data *dc, const sc_grid_options *o, sc_grid_budget *b,
+                                 sc_error *err)
+{
+    sc_grid_lsq_opts opts = lsq_opts(o);
+    opts.node_sigma_only = 1;
+    sc_grid_est e;
+    sc_status st = sc_grid_est_make(dc, &opts, 0, 1, &e, err);
+    if (st == SC_OK)
+        st = sc_grid_est_free_scales(&e, dc, b->view_scale_free_ppm, err);
+    sc_grid_est_free(&e);
+    if (st != SC_OK)
+        return st;
+    sc_grid_scale_subtract(dc, b->view_scale_free_ppm);
+    for (int v = 0; v < dc->plan.n_views; ++v)
+        b->view_scale_ppm[v] += b->view_scale_free_ppm[v];
+    b->view_scale_free = 1;
+    return SC_OK;
+}
+
+/* SPEC §11: the data brought to the 20 °C plate (E and each view's temperature), free view
+ * scales, the calibration, then the magnification moved to the stage and the budget. d itself
+ * is not changed (a corrected copy is solved: residuals are against it, i.e. the model's). */
+static sc_status calibrate_scaled(sc_grid_data *d, const sc_grid_file_info *info,
+                                  const char *path, const sc_grid_options *o,
+                                  sc_grid_solution *s, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    int lsq = o->method == SC_GRID_METHOD_LSQ;
+    memset(s, 0, sizeof *s);
+    if (o->view_scale_free && !lsq)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "free view scales need least squares");
+    sc_status st = sc_grid_check_method(d, info, path, o, err);
+    sc_grid_budget b;
+    sc_grid_data dc;
+    memset(&dc, 0, sizeof dc);
+    if (st == SC_OK)
+        st = budget_alloc(p, &b, err);
+    if (st != SC_OK)
+        return st;
+    for (int v = 0; v < p->n_views; ++v)
+        b.view_scale_ppm[v] = sc_grid_view_scale_ppm(p, v);
+    st = sc_grid_data_copy_values(d, &dc, err);
+    if (st == SC_OK)
+        sc_grid_scale_subtract(&dc, b.view_scale_ppm);
+    if (st == SC_OK && o->view_scale_free)
+        st = free_scales_fit(&dc, o, &b, err);
+    if (st == SC_OK)
+        st = calibrate_plain(&dc, info, path, o, s, err);
+    s->budget = b; /* owned by s from here */
+    if (st == SC_OK && b.magnification)
+        magnification_gauge(p, s);
+    if (st == SC_OK && lsq)
+        st = scale_finish_lsq(&dc, info, path, o, s, err);
+    sc_grid_data_copy_free(&dc);
+    return st;
+}
+
+sc_status sc_grid_calibrate(sc_grid_data *d, const sc_grid_file_info *info, const char *path,
+                            const sc_grid_options *o, sc_grid_solution *s, sc_error *err)
+{
+    if (sc_grid_scale_model_applies(&d->plan, o->view_scale_free))
+        return calibrate_scaled(d, info, path, o, s, err);
+    return calibrate_plain(d, info, path, o, s, err);
+}
+
+sc_status sc_grid_monte_carlo(const sc_grid_data *d, const sc_grid_options *o,
+                              const sc_grid_solution *s, long trials, uint64_t seed, int threads,
+                              sc_grid_mc *mc, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    memset(mc, 0, sizeof *mc);
+    if (trials < 2 || o->method != SC_GRID_METHOD_LSQ || !s->rx_um)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "the Monte Carlo needs least squares and at least 2 trials");
+    sc_grid_data base;
+    sc_status st = sc_grid_data_copy_values(d, &base, err);
+    if (st != SC_OK)
+        return st;
+    size_t nn = (size_t)p->n * p->n;
+    for (size_t k = 0; o->reject_outliers && k < (size_t)p->n_views * nn; ++k)
+        if (s->outlier[k])
+            base.dx_um[k / nn][k % nn] = base.dy_um[k / nn][k % nn] = NAN;
+    sc_grid_lsq_opts opts = lsq_opts(o);
+    opts.node_sigma_only = 1;
+    sc_grid_est e;
+    int mag = s->budget.applies && s->budget.magnification;
+    st = sc_grid_est_make(&base, &opts, mag, s->budget.applies && s->budget.view_scale_free, &e,
+                          err);
+    if (st == SC_OK)
+        st = sc_grid_mc_run(&base, o, s, &e, trials, seed, threads, mc, err);
+    sc_grid_est_free(&e);
+    sc_grid_data_copy_free(&base);
+    return st;
 }

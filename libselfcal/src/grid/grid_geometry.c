@@ -106,6 +106,35 @@ bool sc_grid_sigma_valid(double u_um)
     return u_um >= SC_GRID_MIN_SIGMA_UM && u_um <= SC_INPUT_MAX_ABS;
 }
 
+/* The scale lines of SPEC §11: finite, uncertainties >= 0, temperatures only with a CTE. */
+static sc_status grid_scale_check(const sc_grid_plan *p, sc_error *err)
+{
+    const sc_grid_scale *sc = &p->scale;
+    if (sc->has_plate_scale && (!(fabs(sc->plate_scale_ppm) <= SC_GRID_MAX_SCALE_PPM) ||
+                                !(sc->u_plate_scale_ppm >= 0) ||
+                                !(sc->u_plate_scale_ppm <= SC_GRID_MAX_SCALE_PPM)))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "plate_scale_ppm must be E, U with |E| <= %g and 0 <= U <= %g ppm",
+                            SC_GRID_MAX_SCALE_PPM, SC_GRID_MAX_SCALE_PPM);
+    if (sc->has_cte && (!(fabs(sc->cte_ppm_per_K) <= SC_GRID_MAX_CTE) ||
+                        !(sc->u_cte_ppm_per_K >= 0) || !(sc->u_cte_ppm_per_K <= SC_GRID_MAX_CTE)))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "plate_cte_ppm_per_K must be A, U with |A| <= %g and 0 <= U <= %g "
+                            "ppm/K",
+                            SC_GRID_MAX_CTE, SC_GRID_MAX_CTE);
+    if (sc->has_temps && !sc->has_cte)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "temp_C on the views needs '# plate_cte_ppm_per_K = A, U'");
+    if (sc->has_temps && (!(sc->temp_u_K >= 0) || !(sc->temp_u_K <= SC_GRID_MAX_TEMP_U_K)))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "temp_u_K must be 0 to %g K",
+                            SC_GRID_MAX_TEMP_U_K);
+    for (int v = 0; sc->has_temps && v < p->n_views; ++v)
+        if (!(p->view[v].temp_C >= SC_GRID_MIN_TEMP_C && p->view[v].temp_C <= SC_GRID_MAX_TEMP_C))
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "view %d: temp_C must be %g to %g C",
+                                v, SC_GRID_MIN_TEMP_C, SC_GRID_MAX_TEMP_C);
+    return SC_OK;
+}
+
 sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
 {
     if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
@@ -147,7 +176,16 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
                                 "stage grid",
                                 v, w->rot_deg, w->shift_x, w->shift_y);
     }
-    return SC_OK;
+    return grid_scale_check(p, err);
+}
+
+double sc_grid_view_scale_ppm(const sc_grid_plan *p, int v)
+{
+    const sc_grid_scale *sc = &p->scale;
+    double s = sc->has_plate_scale ? sc->plate_scale_ppm : 0.0;
+    if (sc->has_temps && sc->has_cte && v >= 0 && v < p->n_views)
+        s += sc->cte_ppm_per_K * (p->view[v].temp_C - SC_GRID_REF_TEMP_C);
+    return s;
 }
 
 void sc_grid_synthesize(const sc_grid_plan *p, const double *gx_um, const double *gy_um,

@@ -2,6 +2,7 @@
  * residuals, .npy covariance) and the measurement arrays; the reader of selfcal-grid v1 is
  * io/grid_read.c. */
 #include "selfcal/grid_io.h"
+#include "selfcal/grid_calibrate.h"
 
 #include <ctype.h>
 #include <math.h>
@@ -100,11 +101,22 @@ void sc_grid_write_header(FILE *fp, const sc_grid_plan *p)
     fprintf(fp, "# origin_mm = %.15g,%.15g\n", p->origin_mm[0], p->origin_mm[1]);
     if (p->stage_nx > 0 || p->stage_ny > 0)
         fprintf(fp, "# stage = %d,%d\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
+    const sc_grid_scale *sc = &p->scale;
+    if (sc->has_plate_scale)
+        fprintf(fp, "# plate_scale_ppm = %.15g, %.15g\n", sc->plate_scale_ppm,
+                sc->u_plate_scale_ppm);
+    if (sc->has_cte)
+        fprintf(fp, "# plate_cte_ppm_per_K = %.15g, %.15g\n", sc->cte_ppm_per_K,
+                sc->u_cte_ppm_per_K);
+    if (sc->has_temps && sc->temp_u_K != SC_GRID_TEMP_U_K_DEFAULT)
+        fprintf(fp, "# temp_u_K = %.15g\n", sc->temp_u_K);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
         fprintf(fp, "# view %d: rot=%d shift=%d,%d", v, w->rot_deg, w->shift_x, w->shift_y);
         if (w->sigma_um > 0)
             fprintf(fp, " sigma_um=%.15g", w->sigma_um);
+        if (sc->has_temps)
+            fprintf(fp, " temp_C=%.15g", w->temp_C);
         if (w->restricted) {
             const char *sep = " rows=";
             for (int k = 0; k < p->n; ++k)
@@ -248,8 +260,10 @@ static void json_kv(FILE *fp, const char *key, double v)
     json_num(fp, v);
 }
 
-void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
-                            const sc_grid_result *res)
+/* Everything of the summary but its closing brace; views numbered by view_id (NULL: position),
+ * with the budget's per-view figures when b applies. */
+static void summary_body(FILE *fp, const char *method, const sc_grid_plan *p,
+                         const sc_grid_result *res, const int *view_id, const sc_grid_budget *b)
 {
     fprintf(fp, "{\n  \"format\": \"selfcal-grid-summary v1\",\n  \"method\": \"%s\",\n", method);
     fprintf(fp, "  \"N\": %d,\n  \"pitch_mm\": %.15g,\n  \"origin_mm\": [%.15g, %.15g],\n", p->n,
@@ -266,8 +280,8 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
     fputs(",\n  \"views\": [\n", fp);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];
-        fprintf(fp, "    {\"view\": %d, \"rot\": %d, \"shift\": [%d, %d]", v, w->rot_deg,
-                w->shift_x, w->shift_y);
+        fprintf(fp, "    {\"view\": %d, \"rot\": %d, \"shift\": [%d, %d]",
+                view_id ? view_id[v] : v, w->rot_deg, w->shift_x, w->shift_y);
 #define VIEW_VALUE(arr) (res->arr ? res->arr[v] : NAN) /* an array not given: null */
         json_kv(fp, "tx_um", VIEW_VALUE(tx_um));
         json_kv(fp, "ty_um", VIEW_VALUE(ty_um));
@@ -279,6 +293,15 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
             json_kv(fp, "sigma_um_est", VIEW_VALUE(view_sigma_um));
             json_kv(fp, "u_sigma_um_est", VIEW_VALUE(view_sigma_u_um));
             json_kv(fp, "noise_factor", VIEW_VALUE(view_noise_factor));
+        }
+        if (b && b->applies) {
+            if (p->scale.has_temps)
+                json_kv(fp, "temp_C", w->temp_C);
+            json_kv(fp, "scale_ppm", b->view_scale_ppm[v]);
+            if (b->view_scale_free) {
+                json_kv(fp, "scale_free_ppm", b->view_scale_free_ppm[v]);
+                json_kv(fp, "u_scale_free_ppm", b->u_view_scale_free_ppm[v]);
+            }
         }
         if (res->drift) {
             json_kv(fp, "vx_um_s", VIEW_VALUE(vx_um_s));
@@ -318,8 +341,100 @@ void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
     }
     fprintf(fp, ",\n  \"view_noise\": \"%s\"", res->view_noise_estimated ? "estimated" : "stated");
     fprintf(fp, ",\n  \"misalignment_unique\": %s", res->misalignment_unique ? "true" : "false");
-    fprintf(fp, ",\n  \"n_measurements\": %ld,\n  \"dof\": %ld\n}\n", res->n_measurements,
-            res->dof);
+    fprintf(fp, ",\n  \"n_measurements\": %ld,\n  \"dof\": %ld", res->n_measurements, res->dof);
+}
+
+void sc_grid_fprint_summary(FILE *fp, const char *method, const sc_grid_plan *p,
+                            const sc_grid_result *res)
+{
+    summary_body(fp, method, p, res, NULL, NULL);
+    fputs("\n}\n", fp);
+}
+
+/* "key": [a, b] or null. */
+static void json_pair(FILE *fp, const char *key, int have, double a, double b)
+{
+    fprintf(fp, ",\n  \"%s\": ", key);
+    if (!have) {
+        fputs("null", fp);
+        return;
+    }
+    fputc('[', fp);
+    json_num(fp, a);
+    fputs(", ", fp);
+    json_num(fp, b);
+    fputc(']', fp);
+}
+
+/* The scale model (SPEC §11) and the budget table. */
+static void summary_budget(FILE *fp, const sc_grid_plan *p, const sc_grid_budget *b)
+{
+    const sc_grid_scale *sc = &p->scale;
+    int mag = b->applies && b->magnification;
+    fprintf(fp, ",\n  \"scale_included\": %s", mag ? "true" : "false");
+    fputs(",\n  \"magnification_ppm\": ", fp);
+    json_num(fp, mag ? b->magnification_ppm : NAN);
+    fputs(",\n  \"u_magnification_ppm\": ", fp);
+    json_num(fp, mag ? b->u_magnification_ppm : NAN);
+    json_pair(fp, "plate_scale_ppm", sc->has_plate_scale, sc->plate_scale_ppm,
+              sc->u_plate_scale_ppm);
+    json_pair(fp, "plate_cte_ppm_per_K", sc->has_cte, sc->cte_ppm_per_K, sc->u_cte_ppm_per_K);
+    fputs(",\n  \"temp_u_K\": ", fp);
+    json_num(fp, sc->has_temps ? sc->temp_u_K : NAN);
+    fprintf(fp, ",\n  \"view_scale\": \"%s\"", b->applies && b->view_scale_free ? "free" : "model");
+    if (!b->applies || b->n_rows == 0)
+        return;
+    if (b->view_scale_free) {
+        fputs(",\n  \"view_scale_chi2\": ", fp);
+        json_num(fp, b->view_scale_chi2);
+        fputs(", \"view_scale_chi2_95\": ", fp);
+        json_num(fp, b->view_scale_chi2_crit);
+    }
+    int nx = sc_grid_stage_nx(p);
+    fprintf(fp, ",\n  \"budget\": {\"node\": [%ld, %ld], \"component\": \"%s\", \"rows\": [\n",
+            b->worst_node / nx, b->worst_node % nx, b->worst_comp ? "gy" : "gx");
+    for (int r = 0; r < b->n_rows; ++r) {
+        const sc_grid_budget_row *w = &b->row[r];
+        fprintf(fp, "    {\"source\": \"%s\", \"unit\": \"%s\"", w->source, w->unit);
+        json_kv(fp, "u", w->u);
+        json_kv(fp, "sensitivity_um_per_unit", w->c);
+        json_kv(fp, "contribution_um", w->contrib_um);
+        json_kv(fp, "dof", w->dof);
+        fprintf(fp, "}%s\n", r + 1 < b->n_rows ? "," : "");
+    }
+    fputs("  ], \"u_c_um\": ", fp);
+    json_num(fp, b->u_c_um);
+    fputs(", \"nu_eff\": ", fp);
+    json_num(fp, b->nu_eff);
+    fputs(", \"k\": ", fp);
+    json_num(fp, b->k);
+    fprintf(fp, ", \"k_from\": \"%s\", \"U_um\": ",
+            b->k_welch ? "Welch-Satterthwaite t95(nu_eff)" : "k = 2");
+    json_num(fp, b->U_um);
+    fputc('}', fp);
+}
+
+static void summary_mc(FILE *fp, const sc_grid_mc *mc)
+{
+    fprintf(fp, ",\n  \"monte_carlo\": {\"trials\": %ld, \"seed\": %llu, \"threads\": %d",
+            mc->trials, (unsigned long long)mc->seed, mc->threads);
+    json_kv(fp, "seconds", mc->seconds);
+    json_kv(fp, "ratio_min", mc->ratio_min);
+    json_kv(fp, "ratio_max", mc->ratio_max);
+    json_kv(fp, "ratio_mean", mc->ratio_mean);
+    json_kv(fp, "magnification_sd_ppm", mc->magnification_sd_ppm);
+    fputc('}', fp);
+}
+
+void sc_grid_fprint_solution_summary(FILE *fp, const char *method, const sc_grid_plan *p,
+                                     const sc_grid_solution *s, const int *view_id,
+                                     const sc_grid_mc *mc)
+{
+    summary_body(fp, method, p, &s->res, view_id, &s->budget);
+    summary_budget(fp, p, &s->budget);
+    if (mc && mc->trials > 0)
+        summary_mc(fp, mc);
+    fputs("\n}\n", fp);
 }
 
 sc_status sc_grid_write_summary(const char *path, const char *method, const sc_grid_plan *p,

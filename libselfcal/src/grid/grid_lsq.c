@@ -2501,3 +2501,73 @@ out:
     free(v), free(b), free(U), free(x), free(r);
     return rc;
 }
+
+/* ---------------------------------------------------------------------------------------------
+ * The plate's magnification m = 1e3·Σ(x·Ax + y·Ay)/Σ(x² + y²) over the measured marks (ppm) of
+ * the gauged solution: the functional that moves to the stage when the plate's scale is
+ * certified (SPEC §11, grid_scale.c). Var(m)/σ0² = uᵀΣu with u = Qᵀf as for O and R; and
+ * Cov(G, m)/σ0² = the G part of Q Σ u, which is P⊥ of the G part of the pinned solve z = Σu
+ * (Q's G patterns are P⊥'s).
+ * ------------------------------------------------------------------------------------------- */
+int sc_grid_lsq_plate_magnification(const sc_grid_lsq_plan *q, double *var_m, double *cov_gx,
+                                    double *cov_gy)
+{
+    double Minv_T[49], Nf[7] = {0}, gam[7] = {0}, r2 = 0;
+    if (!q->info.identifiable || gauge_matrix(q, Minv_T) != 0)
+        return -1;
+    size_t n = (size_t)q->n_red, nn2 = 2 * (size_t)q->nn;
+    double *fA = calloc(nn2, sizeof(double)), *uA = calloc(nn2, sizeof(double));
+    double *ux = calloc(n, sizeof(double)), *z = malloc(sizeof(double) * n * 3);
+    if (!fA || !uA || !ux || !z) {
+        free(fA), free(uA), free(ux), free(z);
+        return -1;
+    }
+    for (int k = 0; k < q->nn; ++k)
+        if (q->mark_views[k]) {
+            double x, y;
+            sc_grid_mark_xy_mm(&q->plan, k / q->n, k % q->n, &x, &y);
+            r2 += x * x + y * y;
+        }
+    for (int k = 0; k < q->nn; ++k) {
+        double x, y, na[7][2];
+        if (!q->mark_views[k] || !(r2 > 0))
+            continue;
+        sc_grid_mark_xy_mm(&q->plan, k / q->n, k % q->n, &x, &y);
+        fA[2 * k] = 1e3 * x / r2, fA[2 * k + 1] = 1e3 * y / r2;
+        null_a(q, k, na);
+        for (int t = 0; t < 7; ++t)
+            Nf[t] += na[t][0] * fA[2 * k] + na[t][1] * fA[2 * k + 1];
+    }
+    for (int i = 0; i < 7; ++i)
+        for (int j = 0; j < 7; ++j)
+            gam[i] += Minv_T[i * 7 + j] * Nf[j];
+    for (int k = 0; k < q->ns; ++k) { /* u = f − Σ_t γ_t C_t: f has no G part */
+        double cg[7][2];
+        gauge_g(q, k, cg);
+        for (int c = 0; c < 2; ++c)
+            for (int t = 0; t < 7; ++t)
+                ux[2 * k + c] -= gam[t] * cg[t][c];
+    }
+    for (int k = 0; k < q->nn; ++k) {
+        double ca[7][2];
+        gauge_a(q, k, ca);
+        for (int c = 0; c < 2; ++c) {
+            double v = fA[2 * k + c];
+            for (int t = 0; t < 7; ++t)
+                v -= gam[t] * ca[t][c];
+            uA[2 * k + c] = v;
+        }
+    }
+    memcpy(z, ux, sizeof(double) * n);
+    a_correction(q, uA, z); /* r = u_x − a_correction(u_A) */
+    int rc = pinned_solve(q, z, 1, 2, z + n, z + 2 * n);
+    if (rc == 0) {
+        double v = functional_form(q, ux, uA, z, 1);
+        *var_m = v > 0 ? v : 0.0;
+        for (int k = 0; k < q->ns; ++k)
+            cov_gx[k] = z[2 * k], cov_gy[k] = z[2 * k + 1];
+        sc_grid_gauge_stage(&q->plan, cov_gx, cov_gy);
+    }
+    free(fA), free(uA), free(ux), free(z);
+    return rc;
+}

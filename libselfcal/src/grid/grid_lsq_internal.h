@@ -54,4 +54,11 @@ double sc_grid_sidak_share(double alpha, long m);
 /* How many solves so far had CHOLMOD make its solve workspace anew (execute must add none). */
 long sc_grid_lsq_workspace_made(const sc_grid_lsq_plan *q);
 
+/* The plate's magnification m = 1e3·Σ(x·Ax + y·Ay)/Σ(x² + y²) over the measured marks (ppm) of
+ * a result of q (the part of the scale SPEC §11 moves to the stage): *var_m = Var(m)/σ0² and
+ * cov_gx, cov_gy (stage nodes) = Cov(G, m)/σ0² in the SPEC gauge, per unit σ0 as the plan's
+ * node σ ratios. Returns 0, -1 if the plan does not identify G or memory ran out. */
+int sc_grid_lsq_plate_magnification(const sc_grid_lsq_plan *q, double *var_m, double *cov_gx,
+                                    double *cov_gy);
+
 #endif

@@ -33,6 +33,8 @@ typedef struct view_decl {
     long line;
     long rot, sx, sy;
     double sigma_um;
+    int has_temp;
+    double temp_C;
     int n_rows_sel, n_cols_sel;
     long *rows, *cols;  /* the rows=/cols= lists (NULL when not given; freed with the decls) */
 } view_decl;
@@ -104,6 +106,12 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
                 return sc_error_set(err, SC_E_INPUT, path, line,
                                     "view %ld: sigma_um must be %g to %g um", id,
                                     SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
+        } else if (!strcmp(tok, "temp_C")) {
+            if (vd->has_temp++ || sc_parse_double(val, &vd->temp_C) != 0 ||
+                !(vd->temp_C >= SC_GRID_MIN_TEMP_C && vd->temp_C <= SC_GRID_MAX_TEMP_C))
+                return sc_error_set(err, SC_E_INPUT, path, line,
+                                    "view %ld: temp_C must be a temperature of %g to %g C", id,
+                                    SC_GRID_MIN_TEMP_C, SC_GRID_MAX_TEMP_C);
         } else if (!strcmp(tok, "rows") || !strcmp(tok, "cols")) {
             int rows = tok[0] == 'r';
             int rc = (rows ? have_rows++ : have_cols++)
@@ -160,6 +168,9 @@ typedef struct grid_hdr {
     double pitch_mm;
     double origin_mm[2];
     long stage[2];
+    double plate_scale[2]; /* SPEC §11: E, U (ppm) */
+    double cte[2];         /* A, U (ppm/K) */
+    double temp_u_K;
 } grid_hdr;
 
 static const sc_header_key HDR_KEYS[] = {
@@ -167,6 +178,11 @@ static const sc_header_key HDR_KEYS[] = {
     {"pitch_mm", SC_HEADER_DOUBLE, offsetof(grid_hdr, pitch_mm), 1, SC_GRID_MIN_PITCH_MM, 1e6, 0},
     {"origin_mm", SC_HEADER_DOUBLE_PAIR, offsetof(grid_hdr, origin_mm), 0, -1e6, 1e6, 0},
     {"stage", SC_HEADER_LONG_PAIR, offsetof(grid_hdr, stage), 0, 3, SC_GRID_MAX_STAGE, 0},
+    {"plate_scale_ppm", SC_HEADER_DOUBLE_PAIR, offsetof(grid_hdr, plate_scale), 0,
+     -SC_GRID_MAX_SCALE_PPM, SC_GRID_MAX_SCALE_PPM, 0},
+    {"plate_cte_ppm_per_K", SC_HEADER_DOUBLE_PAIR, offsetof(grid_hdr, cte), 0, -SC_GRID_MAX_CTE,
+     SC_GRID_MAX_CTE, 0},
+    {"temp_u_K", SC_HEADER_DOUBLE, offsetof(grid_hdr, temp_u_K), 0, 0, SC_GRID_MAX_TEMP_U_K, 0},
 };
 
 typedef struct read_state {
@@ -271,6 +287,14 @@ static sc_status header_comment(read_state *s, long ln, sc_error *err)
             return sc_error_set(err, SC_E_INPUT, s->path, ln,
                                 "stage must be NX,NY, both odd and in 3..%d (got %ld,%ld)",
                                 SC_GRID_MAX_STAGE, s->h.stage[0], s->h.stage[1]);
+        if (sc_header_line_of(&s->hdr, "plate_scale_ppm") == ln && s->h.plate_scale[1] < 0)
+            return sc_error_set(err, SC_E_INPUT, s->path, ln,
+                                "plate_scale_ppm: the uncertainty U must be >= 0 (got %g)",
+                                s->h.plate_scale[1]);
+        if (sc_header_line_of(&s->hdr, "plate_cte_ppm_per_K") == ln && s->h.cte[1] < 0)
+            return sc_error_set(err, SC_E_INPUT, s->path, ln,
+                                "plate_cte_ppm_per_K: the uncertainty U must be >= 0 (got %g)",
+                                s->h.cte[1]);
         s->info->header_end_line = ln;
         return SC_OK;
     }
@@ -278,8 +302,8 @@ static sc_status header_comment(read_state *s, long ln, sc_error *err)
     snprintf(copy, sizeof copy, "%s", s->csv.text);
     if (sc_header_kv(s->csv.text, key, sizeof key, &val))
         return sc_error_set(err, SC_E_INPUT, s->path, ln,
-                            "unknown header '%.40s' (expected N, pitch_mm, origin_mm, stage or "
-                            "view)",
+                            "unknown header '%.40s' (expected N, pitch_mm, origin_mm, stage, "
+                            "plate_scale_ppm, plate_cte_ppm_per_K, temp_u_K or view)",
                             key);
     if (strchr(copy, '='))
         return sc_error_set(err, SC_E_INPUT, s->path, ln, "unreadable header line '%.60s'", copy);
@@ -356,6 +380,46 @@ static sc_status build_view(read_state *s, sc_grid_plan *p, int v, sc_error *err
     return SC_OK;
 }
 
+/* The scale lines (SPEC §11): temp_C on every view or none, and only with a CTE. */
+static sc_status build_scale(read_state *s, sc_grid_plan *p, sc_error *err)
+{
+    sc_grid_scale *sc = &p->scale;
+    memset(sc, 0, sizeof *sc);
+    if (sc_header_line_of(&s->hdr, "plate_scale_ppm")) {
+        sc->has_plate_scale = 1;
+        sc->plate_scale_ppm = s->h.plate_scale[0];
+        sc->u_plate_scale_ppm = s->h.plate_scale[1];
+    }
+    if (sc_header_line_of(&s->hdr, "plate_cte_ppm_per_K")) {
+        sc->has_cte = 1;
+        sc->cte_ppm_per_K = s->h.cte[0];
+        sc->u_cte_ppm_per_K = s->h.cte[1];
+    }
+    sc->temp_u_K = sc_header_line_of(&s->hdr, "temp_u_K") ? s->h.temp_u_K
+                                                          : SC_GRID_TEMP_U_K_DEFAULT;
+    int with = -1, without = -1;
+    for (int v = 0; v < s->n_decl; ++v) {
+        if (s->decl[v].has_temp && with < 0)
+            with = v;
+        if (!s->decl[v].has_temp && without < 0)
+            without = v;
+    }
+    if (with >= 0 && without >= 0)
+        return sc_error_set(err, SC_E_INPUT, s->path, s->decl[without].line,
+                            "view %d has no temp_C but view %d has (temp_C=%g): give temp_C on "
+                            "every view or on none",
+                            s->decl[without].id, s->decl[with].id, s->decl[with].temp_C);
+    if (with >= 0 && !sc->has_cte)
+        return sc_error_set(err, SC_E_INPUT, s->path, s->decl[with].line,
+                            "view %d: temp_C needs the plate's expansion coefficient "
+                            "('# plate_cte_ppm_per_K = A, U' in the header)",
+                            s->decl[with].id);
+    sc->has_temps = with >= 0;
+    for (int v = 0; sc->has_temps && v < s->n_decl; ++v)
+        p->view[v].temp_C = s->decl[v].temp_C;
+    return SC_OK;
+}
+
 /* The header is complete: check it and build the plan. */
 static sc_status build_plan(read_state *s, sc_grid_plan *p, sc_error *err)
 {
@@ -385,6 +449,8 @@ static sc_status build_plan(read_state *s, sc_grid_plan *p, sc_error *err)
     for (int v = 0; v < s->n_decl; ++v)
         if ((st = build_view(s, p, v, err)) != SC_OK)
             return st;
+    if ((st = build_scale(s, p, err)) != SC_OK)
+        return st;
     st = sc_grid_plan_check(p, err);
     if (st != SC_OK && err) {
         snprintf(err->file, sizeof err->file, "%s", s->path);

@@ -130,24 +130,35 @@ class GridPlan:
     default the plate's N x N) centred at ``origin_mm``, and the views: dicts with ``rot``
     (0, 90, 180, 270, counter-clockwise), ``shift`` (sx, sy) in pitches, optional ``rows`` and
     ``cols`` (the plate rows/columns a partial view measures) and ``sigma_um`` (the stated
-    standard uncertainty of each coordinate of the view's measurements)."""
+    standard uncertainty of each coordinate of the view's measurements) and ``temp_C`` (the
+    plate's temperature during the view, on every view or none). The plate's scale and
+    temperature (SPEC §11): ``plate_scale_ppm=(E, U)``, ``plate_cte_ppm_per_K=(A, U)``,
+    ``temp_u_K`` (default 0.05), as the file's header lines."""
 
-    def __init__(self, n, pitch_mm, views, origin_mm=(0.0, 0.0), stage=None):
+    def __init__(self, n, pitch_mm, views, origin_mm=(0.0, 0.0), stage=None,
+                 plate_scale_ppm=None, plate_cte_ppm_per_K=None, temp_u_K=0.05):
         self.n, self.pitch_mm = int(n), float(pitch_mm)
         self.origin_mm = (float(origin_mm[0]), float(origin_mm[1]))
         self.stage = (int(stage[0]), int(stage[1])) if stage is not None else (self.n, self.n)
         self.views = [dict(rot=int(v["rot"]), shift=tuple(int(a) for a in v.get("shift", (0, 0))),
-                           rows=v.get("rows"), cols=v.get("cols"), sigma_um=v.get("sigma_um"))
+                           rows=v.get("rows"), cols=v.get("cols"), sigma_um=v.get("sigma_um"),
+                           temp_C=v.get("temp_C"))
                       for v in views]
+        pair = lambda t: None if t is None else (float(t[0]), float(t[1]))  # noqa: E731
+        self.plate_scale_ppm = pair(plate_scale_ppm)
+        self.plate_cte_ppm_per_K = pair(plate_cte_ppm_per_K)
+        self.temp_u_K = float(temp_u_K)
         _native.grid_plan(self._as_dict())  # checked by the library now, not at first use
 
     @classmethod
     def _from_dict(cls, d):
-        return cls(d["n"], d["pitch_mm"], d["views"], d["origin_mm"], d["stage"])
+        return cls(d["n"], d["pitch_mm"], d["views"], d["origin_mm"], d["stage"],
+                   d.get("plate_scale_ppm"), d.get("plate_cte_ppm_per_K"), d.get("temp_u_K", 0.05))
 
     def _as_dict(self):
         return dict(n=self.n, pitch_mm=self.pitch_mm, origin_mm=self.origin_mm, stage=self.stage,
-                    views=self.views)
+                    views=self.views, plate_scale_ppm=self.plate_scale_ppm,
+                    plate_cte_ppm_per_K=self.plate_cte_ppm_per_K, temp_u_K=self.temp_u_K)
 
     @classmethod
     def standard(cls, name: str, n: int, pitch_mm: float = 1.0, origin_mm=(0.0, 0.0),
@@ -267,7 +278,20 @@ class GridResult:
     each view's estimated noise ``view_sigma_um`` with its uncertainty ``view_sigma_u_um``, and
     ``view_noise_factor`` (on its stated
     uncertainties; NaN if it stated none), ``view_noise_estimated``, and on request
-    ``covariance_um2``. ``warnings``: the lines ``selfcal grid`` prints as warnings."""
+    ``covariance_um2``. ``warnings``: the lines ``selfcal grid`` prints as warnings.
+
+    The plate's scale and temperature (SPEC §11): ``magnification_ppm`` and
+    ``u_magnification_ppm`` (NaN when the file gives no ``plate_scale_ppm``: ``scale_included``
+    is then False and G carries no magnification), and ``budget``, a dict with the views' scales
+    (``view_scale_ppm``; with ``view_scale="free"`` also ``view_scale_free_ppm`` and their
+    ``u_view_scale_free_ppm``), the noise part of u(G) (``ugx_noise_um``, ``ugy_noise_um``) and the
+    budget table at the worst ``node``: ``rows`` (source, unit, u, sensitivity_um_per_unit,
+    contribution_um, dof), ``u_c_um``, ``nu_eff``, ``k`` (``k_from``: "2" or
+    "welch-satterthwaite") and ``U_um``. ``ugx_um``, ``ugy_um`` are then the combined
+    uncertainties. ``monte_carlo`` (with ``monte_carlo=M``): a dict with per node ``ugx_um``,
+    ``ugy_um``, their ``ratio_x``, ``ratio_y`` to the budget's, the 95 % coverage intervals
+    ``gx_lo_um`` ... ``gy_hi_um``, and ``ratio_min``, ``ratio_max``, ``ratio_mean``,
+    ``seconds``, ``threads``; else None."""
 
     def __init__(self, d, method):
         self.method = method
@@ -280,6 +304,9 @@ class GridResult:
         self.weighted = bool(self.weighted)
         self.outlier_alpha_each = bool(self.outlier_alpha_each)
         self.view_noise_estimated = bool(self.view_noise_estimated)
+        self.scale_included = bool(self.budget["scale_included"])
+        self.magnification_ppm = self.budget["magnification_ppm"]
+        self.u_magnification_ppm = self.budget["u_magnification_ppm"]
 
     def expanded(self, k: float = 2.0):
         """The expanded uncertainties (k·u(Gx), k·u(Gy)), GUM coverage factor k (default 2)."""
@@ -293,7 +320,8 @@ class GridResult:
 def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = False,
                    reject_outliers: bool = False, covariance: bool = False,
                    outlier_alpha=None, outlier_alpha_each=None,
-                   view_noise: str = "stated") -> GridResult:
+                   view_noise: str = "stated", view_scale: str = "model",
+                   monte_carlo=None, seed: int = 1) -> GridResult:
     """Separate the stage error G from the plate error A, as ``selfcal grid``.
 
     ``source``: a ``selfcal-grid v1`` file path or a :class:`GridMeasurement`. ``method``:
@@ -306,8 +334,11 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
     whole data set (default 0.05, as ``--outlier-alpha``); ``outlier_alpha_each`` instead: for
     each coordinate on its own (Baarda's α0, e.g. 0.001, as ``--outlier-alpha-each``).
     ``view_noise="estimate"``: each view's noise estimated from its residuals (variance
-    components, as ``--view-noise estimate``): ``result.view_sigma_um`` per view. Warnings
-    (outliers, the χ² test) are in ``result.warnings`` and issued with :mod:`warnings` too.
+    components, as ``--view-noise estimate``): ``result.view_sigma_um`` per view.
+    ``view_scale="free"``: each view's scale relative to the others an unknown (``--view-scale
+    free``). ``monte_carlo=M``: the Monte Carlo check of the budget with ``seed`` (``--monte-carlo
+    M --seed S``; least squares). Warnings (outliers, the χ² test, significant view scales) are
+    in ``result.warnings`` and issued with :mod:`warnings` too.
     """
     if not isinstance(method, str) or method not in _GRID_METHODS:
         raise Error(f"method must be 'ye', 'double-shift' or 'lsq', not {method!r}")
@@ -317,13 +348,22 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
         raise Error("outlier_alpha and outlier_alpha_each exclude each other")
     if view_noise not in ("stated", "estimate"):
         raise Error(f"view_noise must be 'stated' or 'estimate', not {view_noise!r}")
+    if view_scale not in ("model", "free"):
+        raise Error(f"view_scale must be 'model' or 'free', not {view_scale!r}")
+    if monte_carlo is not None and not (isinstance(monte_carlo, int) and 2 <= monte_carlo <= 10**7):
+        raise Error("monte_carlo must be a number of trials of 2 to 1e7")
+    if not isinstance(seed, int) or not 0 <= seed < 2**64:
+        raise Error("seed must be a whole number of 0 to 2^64 - 1")
+    if (view_scale == "free" or monte_carlo) and method != "lsq":
+        raise Error("view_scale='free' and monte_carlo need method 'lsq'")
     alpha = outlier_alpha if outlier_alpha_each is None else outlier_alpha_each
     if alpha is not None and not 0 < alpha < 1:
         raise Error("the outlier test's significance must lie between 0 and 1")
     d = _native.grid_calibrate(_grid_source(source), _GRID_METHODS[method],
                                float(sigma_r_um or 0.0), bool(drift), bool(reject_outliers),
                                bool(covariance), float(alpha or 0.0),
-                               outlier_alpha_each is not None, view_noise == "estimate")
+                               outlier_alpha_each is not None, view_noise == "estimate",
+                               view_scale == "free", int(monte_carlo or 0), int(seed))
     r = GridResult(d, method)
     if r.warnings:
         import warnings as _w

@@ -510,10 +510,11 @@ static PyObject *plan_to_dict(const sc_grid_plan *p)
             }
         }
         PyObject *sig = w->sigma_um > 0 ? PyFloat_FromDouble(w->sigma_um) : Py_NewRef(Py_None);
-        PyObject *d = (rows && cols && sig)
-                          ? Py_BuildValue("{s:i,s:(ii),s:N,s:N,s:N}", "rot", w->rot_deg, "shift",
-                                          w->shift_x, w->shift_y, "rows", rows, "cols", cols,
-                                          "sigma_um", sig)
+        PyObject *tc = p->scale.has_temps ? PyFloat_FromDouble(w->temp_C) : Py_NewRef(Py_None);
+        PyObject *d = (rows && cols && sig && tc)
+                          ? Py_BuildValue("{s:i,s:(ii),s:N,s:N,s:N,s:N}", "rot", w->rot_deg,
+                                          "shift", w->shift_x, w->shift_y, "rows", rows, "cols",
+                                          cols, "sigma_um", sig, "temp_C", tc)
                           : NULL;
         if (!d) {
             Py_DECREF(views);
@@ -521,9 +522,59 @@ static PyObject *plan_to_dict(const sc_grid_plan *p)
         }
         PyList_SET_ITEM(views, v, d);
     }
-    return Py_BuildValue("{s:i,s:d,s:(dd),s:(ii),s:N}", "n", p->n, "pitch_mm", p->pitch_mm,
-                         "origin_mm", p->origin_mm[0], p->origin_mm[1], "stage",
-                         sc_grid_stage_nx(p), sc_grid_stage_ny(p), "views", views);
+    const sc_grid_scale *sc = &p->scale;
+    PyObject *E = sc->has_plate_scale
+                      ? Py_BuildValue("(dd)", sc->plate_scale_ppm, sc->u_plate_scale_ppm)
+                      : Py_NewRef(Py_None);
+    PyObject *A = sc->has_cte ? Py_BuildValue("(dd)", sc->cte_ppm_per_K, sc->u_cte_ppm_per_K)
+                              : Py_NewRef(Py_None);
+    if (!E || !A) {
+        Py_XDECREF(E), Py_XDECREF(A), Py_DECREF(views);
+        return NULL;
+    }
+    return Py_BuildValue("{s:i,s:d,s:(dd),s:(ii),s:N,s:N,s:N,s:d}", "n", p->n, "pitch_mm",
+                         p->pitch_mm, "origin_mm", p->origin_mm[0], p->origin_mm[1], "stage",
+                         sc_grid_stage_nx(p), sc_grid_stage_ny(p), "views", views,
+                         "plate_scale_ppm", E, "plate_cte_ppm_per_K", A, "temp_u_K",
+                         sc->has_temps ? sc->temp_u_K : SC_GRID_TEMP_U_K_DEFAULT);
+}
+
+/* The scale lines (SPEC §11) of a plan dict: plate_scale_ppm and plate_cte_ppm_per_K as (value,
+ * u) or None, temp_u_K, and temp_C on every view or none (checked by sc_grid_plan_check). */
+static int scale_from_dict(PyObject *dict, PyObject *views, sc_grid_plan *p)
+{
+    sc_grid_scale *sc = &p->scale;
+    PyObject *E = PyDict_GetItemString(dict, "plate_scale_ppm"),
+             *A = PyDict_GetItemString(dict, "plate_cte_ppm_per_K"),
+             *U = PyDict_GetItemString(dict, "temp_u_K");
+    if (E && E != Py_None) {
+        if (!PyArg_ParseTuple(E, "dd", &sc->plate_scale_ppm, &sc->u_plate_scale_ppm))
+            return -1;
+        sc->has_plate_scale = 1;
+    }
+    if (A && A != Py_None) {
+        if (!PyArg_ParseTuple(A, "dd", &sc->cte_ppm_per_K, &sc->u_cte_ppm_per_K))
+            return -1;
+        sc->has_cte = 1;
+    }
+    sc->temp_u_K = U && U != Py_None ? PyFloat_AsDouble(U) : SC_GRID_TEMP_U_K_DEFAULT;
+    int with = 0;
+    for (int v = 0; v < p->n_views; ++v) {
+        PyObject *w = PySequence_Fast_GET_ITEM(views, v);
+        PyObject *t = PyDict_GetItemString(w, "temp_C");
+        if (t && t != Py_None) {
+            p->view[v].temp_C = PyFloat_AsDouble(t);
+            ++with;
+        }
+    }
+    if (PyErr_Occurred())
+        return -1;
+    if (with && with != p->n_views) {
+        PyErr_SetString(sc_py_error, "temp_C must be given on every view or on none");
+        return -1;
+    }
+    sc->has_temps = with > 0;
+    return 0;
 }
 
 /* An index list (rows= or cols=) into sel[n]; -1 with an exception. */
@@ -637,7 +688,10 @@ static int plan_from_dict_in(PyObject *dict, sc_grid_plan *p)
             }
         }
     }
+    int bad = scale_from_dict(dict, views, p);
     Py_DECREF(views);
+    if (bad)
+        return -1;
     sc_error err;
     sc_error_clear(&err);
     if (sc_grid_plan_check(p, &err) != SC_OK) {
@@ -1047,8 +1101,86 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
     return ret;
 }
 
+/* d[key] = v (v's reference taken); -1 on failure (v NULL). */
+static int set_item(PyObject *d, const char *key, PyObject *v)
+{
+    if (!v)
+        return -1;
+    int rc = PyDict_SetItemString(d, key, v);
+    Py_DECREF(v);
+    return rc;
+}
+
+/* The budget (SPEC §11) as a dict: the scale model, the free view scales, the noise part of
+ * u(G) and the table at the worst node. */
+static PyObject *budget_to_dict(const sc_grid_plan *p, const sc_grid_budget *b)
+{
+    int nv = p->n_views, nx = sc_grid_stage_nx(p), ny = sc_grid_stage_ny(p);
+    npy_intp sg[2] = {ny, nx};
+    PyObject *d = PyDict_New(), *rows = PyList_New(0);
+    if (!d || !rows) {
+        Py_XDECREF(d), Py_XDECREF(rows);
+        return NULL;
+    }
+    int mag = b->applies && b->magnification, bad = 0;
+    bad |= set_item(d, "scale_included", PyBool_FromLong(mag));
+    bad |= set_item(d, "magnification_ppm", PyFloat_FromDouble(mag ? b->magnification_ppm : NAN));
+    bad |= set_item(d, "u_magnification_ppm",
+                    PyFloat_FromDouble(mag ? b->u_magnification_ppm : NAN));
+    bad |= set_item(d, "view_scale_free", PyBool_FromLong(b->applies && b->view_scale_free));
+    for (int r = 0; b->applies && r < b->n_rows; ++r) {
+        const sc_grid_budget_row *w = &b->row[r];
+        PyObject *row = Py_BuildValue("{s:s,s:s,s:d,s:d,s:d,s:d}", "source", w->source, "unit",
+                                      w->unit, "u", w->u, "sensitivity_um_per_unit", w->c,
+                                      "contribution_um", w->contrib_um, "dof", w->dof);
+        bad |= !row || PyList_Append(rows, row) != 0;
+        Py_XDECREF(row);
+    }
+    if (b->applies) {
+        bad |= set_item(d, "view_scale_ppm", per_view(b->view_scale_ppm, nv));
+        bad |= set_item(d, "view_scale_free_ppm", per_view(b->view_scale_free_ppm, nv));
+        bad |= set_item(d, "u_view_scale_free_ppm", per_view(b->u_view_scale_free_ppm, nv));
+        bad |= set_item(d, "view_scale_significant", PyBool_FromLong(b->view_scale_significant));
+    }
+    if (b->applies && b->n_rows > 0) {
+        bad |= set_item(d, "ugx_noise_um", arr_from(b->ugx_noise_um, 2, sg));
+        bad |= set_item(d, "ugy_noise_um", arr_from(b->ugy_noise_um, 2, sg));
+        bad |= set_item(d, "node", Py_BuildValue("(ll)", b->worst_node / nx, b->worst_node % nx));
+        bad |= set_item(d, "component", PyUnicode_FromString(b->worst_comp ? "gy" : "gx"));
+        bad |= set_item(d, "u_c_um", PyFloat_FromDouble(b->u_c_um));
+        bad |= set_item(d, "nu_eff", PyFloat_FromDouble(b->nu_eff));
+        bad |= set_item(d, "k", PyFloat_FromDouble(b->k));
+        bad |= set_item(d, "k_from", PyUnicode_FromString(b->k_welch ? "welch-satterthwaite"
+                                                                      : "2"));
+        bad |= set_item(d, "U_um", PyFloat_FromDouble(b->U_um));
+    }
+    bad |= PyDict_SetItemString(d, "rows", rows) != 0;
+    Py_DECREF(rows);
+    if (bad) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return d;
+}
+
+/* The Monte Carlo's figures as a dict. */
+static PyObject *mc_to_dict(const sc_grid_plan *p, const sc_grid_mc *mc)
+{
+    npy_intp sg[2] = {sc_grid_stage_ny(p), sc_grid_stage_nx(p)};
+    return Py_BuildValue("{s:l,s:K,s:i,s:d,s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,s:d}",
+                         "trials", mc->trials, "seed", (unsigned long long)mc->seed, "threads",
+                         mc->threads, "seconds", mc->seconds, "ugx_um", arr_from(mc->ugx_um, 2, sg),
+                         "ugy_um", arr_from(mc->ugy_um, 2, sg), "ratio_x",
+                         arr_from(mc->ratio_x, 2, sg), "ratio_y", arr_from(mc->ratio_y, 2, sg),
+                         "gx_lo_um", arr_from(mc->gx_lo_um, 2, sg), "gx_hi_um",
+                         arr_from(mc->gx_hi_um, 2, sg), "gy_lo_um", arr_from(mc->gy_lo_um, 2, sg),
+                         "gy_hi_um", arr_from(mc->gy_hi_um, 2, sg), "ratio_min", mc->ratio_min,
+                         "ratio_max", mc->ratio_max, "ratio_mean", mc->ratio_mean,
+                         "magnification_sd_ppm", mc->magnification_sd_ppm);
+}
+
 /* grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha,
- * outlier_alpha_each, estimate_view_noise) -> dict */
+ * outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed) -> dict */
 static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -1056,9 +1188,12 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     sc_grid_options o;
     sc_grid_options_default(&o);
     int method;
-    if (!PyArg_ParseTuple(args, "Oidpppdpp", &src, &method, &o.sigma_r_um, &o.drift,
+    long mc_trials;
+    unsigned long long mc_seed;
+    if (!PyArg_ParseTuple(args, "OidpppdppplK", &src, &method, &o.sigma_r_um, &o.drift,
                           &o.reject_outliers, &o.covariance, &o.outlier_alpha,
-                          &o.outlier_alpha_each, &o.estimate_view_noise))
+                          &o.outlier_alpha_each, &o.estimate_view_noise, &o.view_scale_free,
+                          &mc_trials, &mc_seed))
         return NULL;
     o.method = (sc_grid_method)method;
     sc_grid_data d;
@@ -1067,7 +1202,9 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
         return NULL;
     PyObject *warnings = PyList_New(0), *ret = NULL;
     sc_grid_solution s;
+    sc_grid_mc mc;
     memset(&s, 0, sizeof s);
+    memset(&mc, 0, sizeof mc);
     if (!warnings)
         goto done;
     o.warn = warn_collect; /* takes the GIL for each warning */
@@ -1079,6 +1216,8 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     sc_status st;
     Py_BEGIN_ALLOW_THREADS /* other Python threads run during the solve */
     st = sc_grid_calibrate(&d, path ? &info : NULL, pth, &o, &s, &err);
+    if (st == SC_OK && mc_trials > 0)
+        st = sc_grid_monte_carlo(&d, &o, &s, mc_trials, mc_seed, 0, &mc, &err);
     Py_END_ALLOW_THREADS
     if (st != SC_OK) {
         if (!err.file[0] && pth && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
@@ -1090,7 +1229,13 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
         goto done;
     }
     ret = solution_to_dict(&d, &s, warnings);
+    if (ret && set_item(ret, "budget", budget_to_dict(&d.plan, &s.budget)) != 0)
+        Py_CLEAR(ret);
+    if (ret && set_item(ret, "monte_carlo", mc_trials > 0 ? mc_to_dict(&d.plan, &mc)
+                                                          : Py_NewRef(Py_None)) != 0)
+        Py_CLEAR(ret);
 done:
+    sc_grid_mc_free(&mc);
     sc_grid_solution_free(&s);
     sc_grid_data_free(&d);
     sc_grid_file_info_free(&info);
@@ -1473,7 +1618,7 @@ static PyMethodDef module_methods[] = {
     {"grid_plan", py_grid_plan, METH_VARARGS, "grid_plan(path, plan or measurement) -> analysis dict."},
     {"grid_calibrate", py_grid_calibrate, METH_VARARGS,
      "grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha, "
-     "outlier_alpha_each, estimate_view_noise) -> dict."},
+     "outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed) -> dict."},
     {"grid_standard_plan", py_grid_standard_plan, METH_VARARGS,
      "grid_standard_plan(name, n, pitch_mm, ox, oy, nx, ny) -> plan dict."},
     {"grid_simulate", py_grid_simulate, METH_VARARGS, "grid_simulate(plan, params) -> (measurement, truth)."},
