@@ -13,4 +13,10 @@ if(SELFCAL_HAL_MODULE)
             ${_daemon})
   set_tests_properties(linuxcnc_hal PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77
                        RESOURCE_LOCK linuxcnc_hal LABELS "integration;linuxcnc")
+  # enable, ramp-ms, max-correction (SPEC §7a) and the exact inverse of the command chain
+  add_test(NAME linuxcnc_hal_ramp
+    COMMAND ${_py} ${CMAKE_CURRENT_SOURCE_DIR}/integration/linuxcnc/test_hal_ramp.py
+            $<TARGET_FILE:selfcal_cli> ${SELFCAL_HAL_MODULE} ${CMAKE_CURRENT_BINARY_DIR}/tmp/linuxcnc_hal_ramp)
+  set_tests_properties(linuxcnc_hal_ramp PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77
+                       RESOURCE_LOCK linuxcnc_hal LABELS "integration;linuxcnc")
 endif()
