@@ -72,6 +72,7 @@ author "selfcal";
 #endif
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -198,11 +199,32 @@ FUNCTION(_)
     }
     const double in_mm[3] = {x_in, y_in, 0.0};
     double out_mm[3];
+    const double lim = max_correction;
     unsigned st = sc_corr_apply(&selfcal_table, (sc_corr_mode)corr_mode, in_mm, out_mm);
-    if (!(st & SC_CORR_ST_INVALID)) {
+    unsigned clamped = 0;
+    if (!(st & SC_CORR_ST_INVALID) && corr_mode == SC_CORR_MEASURE_EXACT &&
+        (frac < 1.0 || (lim > 0.0 && (fabs(out_mm[0] - in_mm[0]) > lim ||
+                                      fabs(out_mm[1] - in_mm[1]) > lim)))) {
+        /* The exact inverse of what a position instance outputs at this f and clamp,
+         * t + f clamp(C(t)): the q with q + f clamp(C(q)) = p, by the core's fixed-point
+         * steps (q <- p - f clamp(C(q)), from q = p; C evaluated by the core in position
+         * mode). At f = 0 it is p itself; at f = 1 without a clamp the core's result above. */
+        double q[3] = {in_mm[0], in_mm[1], 0.0};
+        for (int it = 0; it < SC_CORR_EXACT_ITERATIONS; ++it) {
+            double t_mm[3];
+            st |= sc_corr_apply(&selfcal_table, SC_CORR_POSITION, q, t_mm);
+            double dx = t_mm[0] - q[0], dy = t_mm[1] - q[1];
+            if (lim > 0.0) {
+                dx = selfcal_xy_clamp(dx, lim, &clamped);
+                dy = selfcal_xy_clamp(dy, lim, &clamped);
+            }
+            q[0] = in_mm[0] - frac * dx;
+            q[1] = in_mm[1] - frac * dy;
+        }
+        out_mm[0] = q[0];
+        out_mm[1] = q[1];
+    } else if (!(st & SC_CORR_ST_INVALID)) {
         double dx = out_mm[0] - in_mm[0], dy = out_mm[1] - in_mm[1];
-        unsigned clamped = 0;
-        const double lim = max_correction;
         if (lim > 0.0) {
             dx = selfcal_xy_clamp(dx, lim, &clamped);
             dy = selfcal_xy_clamp(dy, lim, &clamped);
@@ -211,8 +233,8 @@ FUNCTION(_)
             out_mm[0] = in_mm[0] + frac * dx;
             out_mm[1] = in_mm[1] + frac * dy;
         } /* else the core's result as it is (f = 1, not clamped: SPEC §7 exactly) */
-        st |= clamped;
     }
+    st |= clamped;
     if (frac < 1.0)
         st |= SELFCAL_XY_ST_PARTIAL;
     x_out = out_mm[0];

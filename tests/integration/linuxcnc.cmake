@@ -19,4 +19,10 @@ if(SELFCAL_HAL_MODULE)
             $<TARGET_FILE:selfcal_cli> ${SELFCAL_HAL_MODULE} ${CMAKE_CURRENT_BINARY_DIR}/tmp/linuxcnc_hal_ramp)
   set_tests_properties(linuxcnc_hal_ramp PROPERTIES TIMEOUT 300 SKIP_RETURN_CODE 77
                        RESOURCE_LOCK linuxcnc_hal LABELS "integration;linuxcnc")
+  # the example machine examples/linuxcnc under LinuxCNC itself (milltask, motion, homing)
+  add_test(NAME linuxcnc_machine
+    COMMAND ${_py} ${CMAKE_CURRENT_SOURCE_DIR}/integration/linuxcnc/test_machine.py
+            $<TARGET_FILE:selfcal_cli> ${SELFCAL_HAL_MODULE} ${CMAKE_CURRENT_BINARY_DIR}/tmp/linuxcnc_machine)
+  set_tests_properties(linuxcnc_machine PROPERTIES TIMEOUT 600 SKIP_RETURN_CODE 77
+                       RESOURCE_LOCK linuxcnc_hal LABELS "integration;linuxcnc")
 endif()

@@ -169,10 +169,27 @@ lines += [f"setp sum2.{k}.gain0 1e6\nsetp sum2.{k}.gain1 -1e6" for k in range(4)
 for x, y in pts:
     lines += [f"sets xcmd {x}", f"sets ycmd {y}", env.run_periods("sum2.4.out", 2),
               "loadusr -w sleep 0.02", "getp sum2.4.out"] + [f"getp sum2.{k}.out" for k in range(4)]
+# the chain stays exact while the correction ramps (both instances at the same f) and when it is
+# clamped: measure-exact inverts what the position instance outputs, t + f clamp(C(t))
+x, y = pts[1]
+lines += [f"sets xcmd {x}", f"sets ycmd {y}"]
+for k in (0, 1):
+    lines += [f"setp selfcal-xy.{k}.ramp-ms 200", f"setp selfcal-xy.{k}.enable 0"]
+lines += [env.run_periods("sum2.4.out", 60), "loadusr -w sleep 0.02", "getp selfcal-xy.0.fraction",
+          "getp selfcal-xy.1.fraction", "getp sum2.0.out", "getp sum2.1.out"]
+for k in (0, 1):
+    lines += [f"setp selfcal-xy.{k}.max-correction 0.003", f"setp selfcal-xy.{k}.enable 1"]
+lines += [env.run_periods("sum2.4.out", 400), "loadusr -w sleep 0.02", "getp selfcal-xy.0.fraction",
+          "getp selfcal-xy.0.status", "getp sum2.0.out", "getp sum2.1.out"]
 rc, out, err = env.halrun(lines, "exact_chain")
 check(rc == 0, f"halrun exact chain failed ({rc}):\n{out}\n{err}")
 v = [float(t) for t in values(out)]
-check(len(v) == 5 * len(pts), f"exact chain: expected {5 * len(pts)} values:\n{out}")
+check(len(v) == 5 * len(pts) + 8, f"exact chain: expected {5 * len(pts) + 8} values:\n{out}")
+f0, f1, rx, ry, f_end, st_end, cx_end, cy_end = v[-8:]
+check(0 < f0 < 1 and f0 == f1, f"ramping: fractions {f0}, {f1}, want equal and in (0, 1)")
+check(math.hypot(rx, ry) <= 1.0, f"exact chain while ramping (f = {f0}): fb - cmd = ({rx}, {ry}) nm")
+check(f_end == 1 and int(st_end) & 16, f"clamped: fraction {f_end}, status {st_end}")
+check(math.hypot(cx_end, cy_end) <= 1.0, f"exact chain clamped to 3 um: ({cx_end}, {cy_end}) nm")
 worst_exact = worst_first = 0.0
 cnt_prev = 0
 for k, (x, y) in enumerate(pts):
@@ -190,6 +207,7 @@ for k, (x, y) in enumerate(pts):
     worst_first = max(worst_first, math.hypot(m_x, m_y))
 check(worst_first > 20.0, f"the measure chain's error G' G should show on this map: {worst_first} nm")
 print(f"map slope {slope:.5f}: cmd -> position -> measure-exact -> fb within {worst_exact:.4f} nm "
-      f"over {len(pts)} points (measure: up to {worst_first:.1f} nm)")
+      f"over {len(pts)} points (measure: up to {worst_first:.1f} nm); while ramping (f = {f0}) "
+      f"{math.hypot(rx, ry):.4f} nm, clamped {math.hypot(cx_end, cy_end):.4f} nm")
 env.close()
 print("PASS")
