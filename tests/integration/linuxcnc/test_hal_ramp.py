@@ -5,7 +5,8 @@ test_hal.py runs it (halenv.py).
 
 Ramp: the servo thread is stopped (halcmd stop) whenever inputs change or outputs are read, and a
 sum2 wired as a counter (out = previous out + 1, in the same thread) says how many periods ran in
-between (halenv.run_periods runs the thread for at least N of them, however loaded the machine), so the fraction f expected after them is exact: f moves by period / ramp-ms per period
+between (halenv.run_periods runs the thread for at least N of them, however loaded the
+machine), so the fraction f expected after them is exact: f moves by period / ramp-ms per period
 towards enable's side. Checked: f = 0 and out = in from the first period when enable starts FALSE;
 the ramp in (0 < f < 1, status bit 3, correction = f times the full one); f = 1 (bit 3 clear,
 the full correction); the ramp out; ramp-ms 0 (at once, both ways); max-correction (the clamped
@@ -14,8 +15,9 @@ getp's 7 digits), against an independent evaluation of `selfcal lut dump` (sclib
 
 Exact inverse: a map with slopes of 0.01 (`lut info` says so); commanded positions go through a
 position instance, its output (the drive's position) through a measure-exact instance; the chain's
-error, fb - cmd, read in nanometres through sum2, must be <= 1 nm at every point; through a
-measure instance it is G' G, here tens of nanometres (the check that the test sees it).
+error, fb - cmd, read in nanometres through sum2, must be <= 1 nm at every point, also while the
+correction ramps and when it is clamped; through a measure instance it is G' G, here tens of
+nanometres (the check that the test sees it).
 
 usage: test_hal_ramp.py SELFCAL_CLI SELFCAL_XY_SO WORKDIR"""
 import math
