@@ -10,7 +10,9 @@
  * table or mode makes loadrt fail with the reason logged through rtapi_print_msg. The realtime
  * function only reads the decoded table (static storage, one per module, shared by every
  * instance; each instance has its own mode, so that one load serves the commanded positions
- * (position) and the feedback (measure)): no allocation, no I/O, constant time.
+ * (position) and the feedback (measure or measure-exact)); each instance has its own fraction f of
+the correction (enable, ramp-ms: SPEC §7a) and clamp (max-correction): no allocation, no I/O,
+constant time.
  * Docs: docs/linuxcnc.md.
  */
 component selfcal_xy "Correct X and Y positions with a selfcal error-map table (2D grid and straightness profiles)";
@@ -27,15 +29,17 @@ mode=measure-exact: as measure, but the exact inverse of position mode (the q wi
 offsets = p, by 3 fixed-point steps: constant time, about four times measure's cost in
 bench_core_apply); it removes measure's first-order error, G times the slope of G (0.9 nm rms and
 10 nm at worst on the demo's map at 1 mm pitch).
-\fBenable\fR and \fBramp-ms\fR (SPEC §7a): the applied fraction f of the correction moves towards 1
+\\fBenable\\fR and \\fBramp-ms\\fR (SPEC §7a): the applied fraction f of the correction moves towards 1
 while enable is TRUE and towards 0 while it is FALSE, by one servo period / ramp-ms per period (at
-once when ramp-ms is 0 or less); x-out = x-in + f (x_corrected \- x-in), the same for y. f starts
+once when ramp-ms is 0 or less); x-out = x-in + f (x_corrected \- x-in), the same for y, in
+position and measure mode; measure-exact inverts a position instance at the same f (the q with
+q + f C(q) = p), so that command and feedback stay inverse while ramping. f starts
 at enable's value on the first period (TRUE by default: the full correction at once). Connect
 enable to the joints' homed state, so that homing latches uncorrected positions and the correction
 ramps in without a step (and out on unhoming).
-\fBmax-correction\fR (mm, 0: no limit) clamps each component of the correction, x_corrected \-
+\\fBmax-correction\\fR (mm, 0: no limit) clamps each component of the correction, x_corrected \-
 x-in and y_corrected \- y-in, to [\-max-correction, max-correction] before f is applied, and sets
-status bit 4 while it does.
+status bit 4 while it does (measure-exact inverts the clamped correction).
 A missing or invalid table, or an unknown mode, makes loadrt fail with the reason in the log.
 """;
 
