@@ -4,8 +4,9 @@
 shuts the machine down when it exits). With the `linuxcnc` and `hal` Python modules of
 LinuxCNC (Debian: linuxcnc-uspace), it:
 
-1. records every servo period with halsampler (the sampler of selfcal_sim.hal: commanded machine
-   position, correction in um, following error in nm, the applied fraction, the stage, status);
+1. records every servo period with halsampler (the sampler of selfcal_sim.hal: the sample's
+   number, then the commanded machine position, the correction in um, the following error in nm,
+   the applied fraction, the stage, the status);
 2. puts the simulated stage where SELFCAL_POWERUP_MM says it stood at power-up ("x,y" mm,
    default "0,0"), resets the E-stop, turns the machine on, homes all joints (home switches);
 3. waits for the correction to ramp in, moves to SELFCAL_FRAME_MM (default "5,-3") and reads where
@@ -71,7 +72,9 @@ def at_rest(timeout_s=30):
     wait(lambda: s.inpos and s.current_vel == 0, timeout_s, "in position")
 
 
-sampler = subprocess.Popen(["halsampler"], stdout=open(samples_path, "w"))
+# -t: each line starts with the sample's number, so that samples lost (the FIFO full because the
+# machine was too busy to read it) show as gaps
+sampler = subprocess.Popen(["halsampler", "-t"], stdout=open(samples_path, "w"))
 try:
     hal.set_p("sampler.0.enable", "1")
     hal.set_p("x-stage.offset", repr(powerup[0]))
@@ -116,7 +119,8 @@ try:
         at_rest()
         time.sleep(0.1)
         event("program done")
-        result["end"] = pins("joint.0.f-error", "joint.1.f-error", "selfcal-xy.0.status")
+        result["end"] = pins("joint.0.f-error", "joint.1.f-error", "selfcal-xy.0.status",
+                             "sampler.0.overruns")
     # unhoming takes the correction out again (motion.is-all-homed goes FALSE)
     ensure_mode(linuxcnc.MODE_MANUAL)
     c.teleop_enable(0)

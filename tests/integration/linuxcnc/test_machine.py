@@ -90,13 +90,19 @@ def machine(name, powerup, program, table=None):
         f.write(f"exit {p.returncode}\n--- stdout\n{p.stdout}\n--- stderr\n{p.stderr}")
     res_path = os.path.join(cfg, "selfcal_drive.json")
     res = json.load(open(res_path)) if os.path.exists(res_path) else None
+    # samples: [x-in mm, y-in mm, cx um, cy um, x f-error nm, y f-error nm, f, x stage mm,
+    # status, sample number]; a gap in the numbers is samples lost (halsampler read too late)
     samples = []
     sp = os.path.join(cfg, "selfcal_drive.samples")
     if os.path.exists(sp):
         for line in open(sp):
             t = line.split()
-            if len(t) == 9:
-                samples.append([float(v) for v in t[:8]] + [int(t[8])])
+            if len(t) == 10:
+                samples.append([float(v) for v in t[1:9]] + [int(t[9]), int(t[0])])
+        lost = sum(b[9] - a[9] - 1 for a, b in zip(samples, samples[1:]))
+        print(f"run {name}: {len(samples)} samples recorded, {lost} lost")
+        if lost:
+            shutil.copy(sp, os.path.join(work, name + ".samples"))
     return p, res, samples, cfg
 
 
@@ -138,16 +144,22 @@ for name, powerup, program in (("a", "0,0", "selfcal_sim.ngc"), ("b", "3.3,-2.7"
         check(all(s[8] & 8 for s in samples[k0:k1]), f"run {name}: status bit 3 while f = 0")
         # the ramp in: f grows by one period / RAMP_MS per period, the correction with it
         step = PERIOD_MS / RAMP_MS
-        ramp = samples[k1 - 1: k1 + int(round(1 / step)) + 1]
+        t_end = samples[k1 - 1][9] + int(round(1 / step))  # the period the ramp ends in
+        k2 = next((k for k in range(k1, len(samples)) if samples[k][9] >= t_end), len(samples) - 1)
+        ramp = samples[k1 - 1: k2 + 1]
         fs = [s[6] for s in ramp]
-        check(all(abs((b - a) - step) <= 1e-6 or (b == 1.0 and a < 1.0) for a, b in zip(fs, fs[1:])
-                  if a < 1.0), f"run {name}: ramp in {fs[:5]} ... {fs[-5:]}")
+        # per period (n: periods between two samples, 1 unless samples were lost)
+        check(all(abs((b[6] - a[6]) - n * step) <= 1e-6 or (b[6] == 1.0 and a[6] < 1.0)
+                  for a, b in zip(ramp, ramp[1:]) if a[6] < 1.0 for n in [b[9] - a[9]]),
+              f"run {name}: ramp in {fs[:5]} ... {fs[-5:]}")
         check(fs[-1] == 1.0, f"run {name}: f = {fs[-1]} after the ramp")
         cmax = max(abs(c) for s in ramp for c in s[2:4])
-        check(all(abs(b[2] - a[2]) <= step * cmax + 1e-5 and abs(b[3] - a[3]) <= step * cmax + 1e-5
-                  for a, b in zip(ramp, ramp[1:])), f"run {name}: a step in the ramp")
+        check(all(abs(b[2] - a[2]) <= n * step * cmax + 1e-5 and
+                  abs(b[3] - a[3]) <= n * step * cmax + 1e-5
+                  for a, b in zip(ramp, ramp[1:]) for n in [b[9] - a[9]]),
+              f"run {name}: a step in the ramp")
         print(f"run {name}: power-up {powerup}: home offsets exact, f = 0 while homing "
-              f"({k1 - k0} periods), ramp in over {len(ramp) - 2} periods")
+              f"({k1 - k0} periods), ramp in over {ramp[-1][9] - ramp[0][9] - 1} periods")
 
 if "a" in runs and "b" in runs:
     fa, fb = runs["a"][0]["frame"], runs["b"][0]["frame"]
@@ -176,13 +188,14 @@ if "a" in runs:
             break
         check(bool(s[8] & 2) == outside, f"status {s[8]} at ({s[0]}, {s[1]}): outside {outside}")
     print(f"{n_full} periods with the full correction: within {worst * 1e6:.2f} pm of the map")
-    # dwells: 100 or more periods at one commanded position
+    # dwells: 100 or more periods at one commanded position (the program dwells 400 ms of task time;
+    # a loaded machine may run fewer servo periods in it)
     dwells, k = [], 0
     while k < len(samples):
         m = k
         while m + 1 < len(samples) and samples[m + 1][0:2] == samples[k][0:2]:
             m += 1
-        if m - k >= 100 and samples[k][6] == 1.0:
+        if samples[m][9] - samples[k][9] >= 100 and samples[k][6] == 1.0:
             dwells.append((k, m))
         k = m + 1
     prog = [tuple(float(v) for v in re.findall(r"X(\S+) Y(\S+)", ln)[0])
@@ -190,7 +203,8 @@ if "a" in runs:
             and "F2400" in ln]
     seen = {(round(samples[k][0], 4), round(samples[k][1], 4)) for k, _ in dwells}
     missing = [pt for pt in prog if (round(pt[0], 4), round(pt[1], 4)) not in seen]
-    check(len(prog) == 23 and not missing, f"dwells of the program not recorded: {missing}")
+    check(len(prog) == 23 and not missing, f"dwells of the program not recorded: {missing} "
+          f"(dwells seen: {sorted(seen)})")
     n_out = sum(1 for k, _ in dwells if samples[k][8] & 2)
     check(n_out >= 3, f"{n_out} dwells outside the map, want 3")
     worst_fe = 0.0
@@ -204,7 +218,7 @@ if "a" in runs:
     # slope times the distance moved (plus the recording's 1 nm rounding of the position)
     worst_ratio, n_moving = 0.0, 0
     for a, b in zip(samples, samples[1:]):
-        if a[6] != 1.0 or b[6] != 1.0 or a[0:2] == b[0:2]:
+        if a[6] != 1.0 or b[6] != 1.0 or a[0:2] == b[0:2] or b[9] != a[9] + 1:
             continue
         n_moving += 1
         dist_um = (abs(b[0] - a[0]) + abs(b[1] - a[1])) * 1e3
