@@ -51,14 +51,14 @@ ex, ey, _ = ref.correct_nm(X * 1e6, Y * 1e6, "position")
 CX, CY = (ex - X * 1e6) * 1e-3, (ey - Y * 1e6) * 1e-3  # the full correction, um
 check(abs(CX) > 0.5 and abs(CY) > 0.5 and abs(abs(CX) - abs(CY)) > 0.2,
       f"the test point has a correction to see: ({CX}, {CY}) um")
-RAMP_MS = 200.0
+RAMP_MS = 2000.0  # long: on a loaded machine run_periods may overshoot by hundreds of periods
 LIM_UM = 0.5 * (abs(CX) + abs(CY))  # clamps the larger component only
 
 # Each step: (pin settings while stopped, periods to run at least, what is expected afterwards).
 steps = [
     (["setp selfcal-xy.0.enable 0"], 5, "off"),            # FALSE from the first period
     (["setp selfcal-xy.0.enable 1"], 20, "ramp_in"),
-    ([], 200, "full"),
+    ([], int(RAMP_MS / PERIOD_MS), "full"),
     (["setp selfcal-xy.0.enable 0"], 30, "ramp_out"),
     (["setp selfcal-xy.0.ramp-ms 0"], 1, "off"),           # the rest of the ramp at once
     (["setp selfcal-xy.0.enable 1"], 1, "full"),           # in at once
@@ -176,12 +176,13 @@ for x, y in pts:
 x, y = pts[1]
 lines += [f"sets xcmd {x}", f"sets ycmd {y}"]
 for k in (0, 1):
-    lines += [f"setp selfcal-xy.{k}.ramp-ms 200", f"setp selfcal-xy.{k}.enable 0"]
+    lines += [f"setp selfcal-xy.{k}.ramp-ms {RAMP_MS}", f"setp selfcal-xy.{k}.enable 0"]
 lines += [env.run_periods("sum2.4.out", 60), "loadusr -w sleep 0.02", "getp selfcal-xy.0.fraction",
           "getp selfcal-xy.1.fraction", "getp sum2.0.out", "getp sum2.1.out"]
 for k in (0, 1):
     lines += [f"setp selfcal-xy.{k}.max-correction 0.003", f"setp selfcal-xy.{k}.enable 1"]
-lines += [env.run_periods("sum2.4.out", 400), "loadusr -w sleep 0.02", "getp selfcal-xy.0.fraction",
+lines += [env.run_periods("sum2.4.out", int(RAMP_MS / PERIOD_MS) + 100), "loadusr -w sleep 0.02",
+          "getp selfcal-xy.0.fraction",
           "getp selfcal-xy.0.status", "getp sum2.0.out", "getp sum2.1.out"]
 rc, out, err = env.halrun(lines, "exact_chain")
 check(rc == 0, f"halrun exact chain failed ({rc}):\n{out}\n{err}")
