@@ -10,7 +10,9 @@
  * table or mode makes loadrt fail with the reason logged through rtapi_print_msg. The realtime
  * function only reads the decoded table (static storage, one per module, shared by every
  * instance; each instance has its own mode, so that one load serves the commanded positions
- * (position) and the feedback (measure)): no allocation, no I/O, constant time.
+ * (position) and the feedback (measure or measure-exact)); each instance has its own fraction f of
+the correction (enable, ramp-ms: SPEC §7a) and clamp (max-correction): no allocation, no I/O,
+constant time.
  * Docs: docs/linuxcnc.md.
  */
 component selfcal_xy "Correct X and Y positions with a selfcal error-map table (2D grid and straightness profiles)";
@@ -27,6 +29,17 @@ mode=measure-exact: as measure, but the exact inverse of position mode (the q wi
 offsets = p, by 3 fixed-point steps: constant time, about four times measure's cost in
 bench_core_apply); it removes measure's first-order error, G times the slope of G (0.9 nm rms and
 10 nm at worst on the demo's map at 1 mm pitch).
+\\fBenable\\fR and \\fBramp-ms\\fR (SPEC §7a): the applied fraction f of the correction moves towards 1
+while enable is TRUE and towards 0 while it is FALSE, by one servo period / ramp-ms per period (at
+once when ramp-ms is 0 or less); x-out = x-in + f (x_corrected \- x-in), the same for y, in
+position and measure mode; measure-exact inverts a position instance at the same f (the q with
+q + f C(q) = p), so that command and feedback stay inverse while ramping. f starts
+at enable's value on the first period (TRUE by default: the full correction at once). Connect
+enable to the joints' homed state, so that homing latches uncorrected positions and the correction
+ramps in without a step (and out on unhoming).
+\\fBmax-correction\\fR (mm, 0: no limit) clamps each component of the correction, x_corrected \-
+x-in and y_corrected \- y-in, to [\-max-correction, max-correction] before f is applied, and sets
+status bit 4 while it does (measure-exact inverts the clamped correction).
 A missing or invalid table, or an unknown mode, makes loadrt fail with the reason in the log.
 """;
 
@@ -34,13 +47,19 @@ pin in float x_in "X input, mm (commanded position in mode=position, feedback in
 pin in float y_in "Y input, mm";
 pin out float x_out "corrected X, mm";
 pin out float y_out "corrected Y, mm";
-pin out u32 status = 1 "bit 0: table loaded (from loadrt on: a table that does not load fails loadrt); bit 1: input outside the grid (correction held at the edge); bit 2: input NaN or infinite (passed through)";
+pin in bit enable = TRUE "TRUE: ramp the correction in; FALSE: ramp it out (connect to the joints' homed state)";
+pin in float ramp_ms = 100 "time of a full ramp of the correction, ms (0 or less: at once)";
+pin out float fraction "the applied fraction f of the correction, 0 to 1";
+pin out u32 status = 1 "bit 0: table loaded (from loadrt on: a table that does not load fails loadrt); bit 1: input outside the grid (correction held at the edge); bit 2: input NaN or infinite (passed through); bit 3: f < 1 (ramping, or disabled); bit 4: the correction was clamped to max-correction";
+param rw float max_correction = 0 "largest correction applied per axis, mm (0: no limit); larger ones are clamped and set status bit 4";
 
 function _ "correct x-in, y-in into x-out, y-out (no allocation, constant time)";
 
 option extra_setup yes;
 
 variable int corr_mode; /* this instance's sc_corr_mode */
+variable double frac;   /* the applied fraction f of the correction (SPEC §7a) */
+variable int started;   /* 0 until the first period: f then starts at enable's value */
 
 /* The correction core, compiled into the module before the pin macros below exist. */
 include "selfcal/correct.h";
@@ -57,6 +76,7 @@ author "selfcal";
 #endif
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -149,12 +169,80 @@ EXTRA_SETUP()
     return 0;
 }
 
+/* Status bits of SPEC §7a and of max-correction, above the core's bits 0-2. */
+#define SELFCAL_XY_ST_PARTIAL 0x08u /* f < 1 */
+#define SELFCAL_XY_ST_CLAMPED 0x10u /* a correction was clamped to max-correction */
+
+/* d clamped to [-lim, lim] (lim > 0); *clamped set when it was. */
+static double selfcal_xy_clamp(double d, double lim, unsigned *clamped)
+{
+    if (d > lim) {
+        *clamped = SELFCAL_XY_ST_CLAMPED;
+        return lim;
+    }
+    if (d < -lim) {
+        *clamped = SELFCAL_XY_ST_CLAMPED;
+        return -lim;
+    }
+    return d;
+}
+
 FUNCTION(_)
 {
+    /* f: one period / ramp-ms per period towards enable's side (at once when ramp-ms <= 0). */
+    const double target = enable ? 1.0 : 0.0;
+    if (!started) {
+        frac = target;
+        started = 1;
+    } else if (!(ramp_ms > 0.0)) {
+        frac = target;
+    } else {
+        const double step = fperiod * 1e3 / ramp_ms;
+        frac = frac < target ? (frac + step < target ? frac + step : target)
+                             : (frac - step > target ? frac - step : target);
+    }
     const double in_mm[3] = {x_in, y_in, 0.0};
     double out_mm[3];
-    const unsigned st = sc_corr_apply(&selfcal_table, (sc_corr_mode)corr_mode, in_mm, out_mm);
+    const double lim = max_correction;
+    unsigned st = sc_corr_apply(&selfcal_table, (sc_corr_mode)corr_mode, in_mm, out_mm);
+    unsigned clamped = 0;
+    if (!(st & SC_CORR_ST_INVALID) && corr_mode == SC_CORR_MEASURE_EXACT &&
+        (frac < 1.0 || (lim > 0.0 && (fabs(out_mm[0] - in_mm[0]) > lim ||
+                                      fabs(out_mm[1] - in_mm[1]) > lim)))) {
+        /* The exact inverse of what a position instance outputs at this f and clamp,
+         * t + f clamp(C(t)): the q with q + f clamp(C(q)) = p, by the core's fixed-point
+         * steps (q <- p - f clamp(C(q)), from q = p; C evaluated by the core in position
+         * mode). At f = 0 it is p itself; at f = 1 without a clamp the core's result above. */
+        double q[3] = {in_mm[0], in_mm[1], 0.0};
+        for (int it = 0; it < SC_CORR_EXACT_ITERATIONS; ++it) {
+            double t_mm[3];
+            st |= sc_corr_apply(&selfcal_table, SC_CORR_POSITION, q, t_mm);
+            double dx = t_mm[0] - q[0], dy = t_mm[1] - q[1];
+            if (lim > 0.0) {
+                dx = selfcal_xy_clamp(dx, lim, &clamped);
+                dy = selfcal_xy_clamp(dy, lim, &clamped);
+            }
+            q[0] = in_mm[0] - frac * dx;
+            q[1] = in_mm[1] - frac * dy;
+        }
+        out_mm[0] = q[0];
+        out_mm[1] = q[1];
+    } else if (!(st & SC_CORR_ST_INVALID)) {
+        double dx = out_mm[0] - in_mm[0], dy = out_mm[1] - in_mm[1];
+        if (lim > 0.0) {
+            dx = selfcal_xy_clamp(dx, lim, &clamped);
+            dy = selfcal_xy_clamp(dy, lim, &clamped);
+        }
+        if (frac < 1.0 || clamped) { /* x-out = x-in + f (x_corrected - x-in), SPEC §7a */
+            out_mm[0] = in_mm[0] + frac * dx;
+            out_mm[1] = in_mm[1] + frac * dy;
+        } /* else the core's result as it is (f = 1, not clamped: SPEC §7 exactly) */
+    }
+    st |= clamped;
+    if (frac < 1.0)
+        st |= SELFCAL_XY_ST_PARTIAL;
     x_out = out_mm[0];
     y_out = out_mm[1];
+    fraction = frac;
     status = st;
 }

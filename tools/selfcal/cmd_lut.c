@@ -1,5 +1,6 @@
 /* cmd_lut.c — `selfcal lut build|dump|info`: build the binary lookup table from the SPEC map and
  * profile files, print it back as CSV (SPEC §3), show its provenance. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,7 +20,8 @@ static void lut_usage(FILE *to)
             "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
             "                         [--created UNIX_SECONDS] [--max-nodes N]\n"
             "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
-            "       selfcal lut info TABLE     print size, encoding, quantization and provenance\n"
+            "       selfcal lut info TABLE     print size, encoding, quantization, |G| and slope\n"
+            "                                  bounds, and provenance\n"
             "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
             "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to %d.\n"
             "                            The profile's x_mm is placed at machine position\n"
@@ -298,6 +300,57 @@ static size_t stored_size(const sc_lut *lut)
     return size + 56 + 32 * (size_t)lut->prov.n_sources + 4;
 }
 
+/* The bounds an integrator sizes margins from (docs/linuxcnc.md, "Margins"): the largest |G| at
+ * the nodes (bilinear interpolation stays within them), and the largest slope of G, dimensionless
+ * (um per um): the largest difference of a component between neighbouring nodes over their pitch
+ * (a bilinear cell's partial derivatives are largest on its edges). Then the same bounds for the
+ * whole correction C = G + profile offsets, per coordinate. */
+static void print_correction_bounds(const sc_lut *lut)
+{
+    double gmax_um = 0, cmax_um[3] = {0, 0, 0}, slope_g = 0, slope_c[3] = {0, 0, 0};
+    for (int i = 0; i < lut->ny; ++i)
+        for (int j = 0; j < lut->nx; ++j) {
+            const size_t k = (size_t)i * lut->nx + j;
+            const double gx = lut->gx_um[k], gy = lut->gy_um[k], g = sqrt(gx * gx + gy * gy);
+            gmax_um = g > gmax_um ? g : gmax_um;
+            cmax_um[0] = fabs(gx) > cmax_um[0] ? fabs(gx) : cmax_um[0];
+            cmax_um[1] = fabs(gy) > cmax_um[1] ? fabs(gy) : cmax_um[1];
+            for (int d = 0; d < 2; ++d) { /* along x (to j + 1) and along y (to i + 1) */
+                if ((d == 0 && j + 1 >= lut->nx) || (d == 1 && i + 1 >= lut->ny))
+                    continue;
+                const size_t k2 = d == 0 ? k + 1 : k + (size_t)lut->nx;
+                const double pitch_um = 1e3 * (d == 0 ? lut->px_mm : lut->py_mm);
+                const double sx = fabs(lut->gx_um[k2] - gx) / pitch_um;
+                const double sy = fabs(lut->gy_um[k2] - gy) / pitch_um;
+                slope_g = sx > slope_g ? sx : slope_g;
+                slope_g = sy > slope_g ? sy : slope_g;
+                slope_c[0] = sx > slope_c[0] ? sx : slope_c[0];
+                slope_c[1] = sy > slope_c[1] ? sy : slope_c[1];
+            }
+        }
+    for (int k = 0; k < lut->n_profiles; ++k) { /* a profile adds to its coordinate's bounds */
+        const sc_lut_profile *p = &lut->profile[k];
+        double emax_um = 0, smax = 0;
+        for (int n = 0; n < p->n; ++n) {
+            emax_um = fabs(p->err_um[n]) > emax_um ? fabs(p->err_um[n]) : emax_um;
+            if (n + 1 < p->n) {
+                const double s = fabs(p->err_um[n + 1] - p->err_um[n]) / (1e3 * p->step_mm);
+                smax = s > smax ? s : smax;
+            }
+        }
+        if (p->dir >= 0 && p->dir < 3) {
+            cmax_um[p->dir] += emax_um;
+            slope_c[p->dir] += smax;
+        }
+    }
+    double slope_all = slope_c[0] > slope_c[1] ? slope_c[0] : slope_c[1];
+    slope_all = slope_c[2] > slope_all ? slope_c[2] : slope_all;
+    printf("largest |G|: %.6f um\n", gmax_um);
+    printf("largest slope of G: %.6e (um per um)\n", slope_g);
+    printf("correction bounds (grid and profiles): |cx| <= %.6f um, |cy| <= %.6f um, "
+           "slope <= %.6e\n", cmax_um[0], cmax_um[1], slope_all);
+}
+
 static int lut_info(int argc, char **argv)
 {
     sc_lut *lut = NULL;
@@ -317,6 +370,7 @@ static int lut_info(int argc, char **argv)
                k, sc_lut_axis_name(p->dir), sc_lut_axis_name(p->axis), p->n, p->start_mm,
                p->step_mm, enc_name(p->encoding), (unsigned)p->scale_pm);
     }
+    print_correction_bounds(lut);
     printf("method: %s\n", lut->prov.method[0] ? lut->prov.method : "(not recorded)");
     time_t t = (time_t)lut->prov.created_unix_s;
     struct tm tmv;

@@ -307,36 +307,6 @@ two_instances()
 print("count=2 mode=position,measure: each instance follows its own mode")
 
 
-# The sample wiring of docs/linuxcnc.md, as printed there, loads into a stepconf-like machine
-# (LinuxCNC's own motmod, stepgen) and puts the functions in the documented thread order.
-def doc_sample():
-    doc = open(os.path.join(HERE, "..", "..", "..", "docs", "linuxcnc.md")).read()
-    a = doc.index("loadrt selfcal_xy count=2 table=[SELFCAL]TABLE")
-    snippet = doc[a:doc.index("```", a)].replace("[SELFCAL]TABLE", table)
-    base = ["loadrt trivkins", "loadrt tpmod", "loadrt homemod",
-            "loadrt motmod servo_period_nsec=1000000 num_joints=2",
-            "loadrt stepgen step_type=0,0",
-            "addf stepgen.capture-position servo-thread",
-            "addf motion-command-handler servo-thread", "addf motion-controller servo-thread",
-            "addf stepgen.update-freq servo-thread",
-            "net xpos-cmd joint.0.motor-pos-cmd => stepgen.0.position-cmd",
-            "net xpos-fb stepgen.0.position-fb => joint.0.motor-pos-fb"]
-    rc, out, err = halrun(base + snippet.splitlines() + ["show thread servo-thread",
-                                                          "show sig x-cmd-drive"], "doc_sample")
-    check(rc == 0, f"docs/linuxcnc.md sample: halrun failed:\n{out}\n{err}")
-    order = re.findall(r"^\s+\d+ (\S+)$", out, re.M)
-    want = ["stepgen.capture-position", "sum2.2", "selfcal-xy.1", "sum2.3",
-            "motion-command-handler", "motion-controller", "sum2.0", "selfcal-xy.0", "sum2.1",
-            "stepgen.update-freq"]
-    check(order == want, f"docs/linuxcnc.md sample: thread order {order}, want {want}")
-    check(re.search(r"x-cmd-drive\s+==> stepgen\.0\.position-cmd\s+<== sum2\.1\.out", out)
-          is not None, f"docs/linuxcnc.md sample: the drive's command comes from sum2.1:\n{out}")
-
-
-doc_sample()
-print("docs/linuxcnc.md sample .hal: loads with motmod and stepgen, documented thread order")
-
-
 # Bad loads: loadrt fails, the reason is logged.
 def bad_load(args, want, name):
     rc, out, err = halrun([f"loadrt selfcal_xy {args}".rstrip()], name)
