@@ -18,6 +18,7 @@ static const char *USAGE =
     "                    [--residuals R.csv] [--reject-outliers] [--covariance C.npy]\n"
     "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear]\n"
     "                    [--view-noise stated|estimate] [--quiet]\n"
+    "                    [--progress] [--max-memory SIZE]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -51,7 +52,13 @@ static const char *USAGE =
     "                summary (sigma_um_est per view, u_sigma_um_est its standard uncertainty).\n"
     "                Excludes --sigma-r-um.\n"
     "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
-    "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
+    "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n"
+    "--progress: the phase of a least-squares solve (read, assemble, analyse, factor, selected\n"
+    "inverse, solve, residuals, write), the time so far and, once the factor's rate is known, the\n"
+    "time left, and the peak memory estimated before the assembly, on stderr (shown anyway on a\n"
+    "terminal: one line, rewritten). A plan whose estimated peak exceeds the memory allowed is\n"
+    "refused before it is assembled or factored (exit 1): by default the machine's available\n"
+    "memory (MemAvailable), or --max-memory SIZE (bytes, or K, M, G, T: powers of 1024).\n";
 
 /* Warnings of the calibration (outliers, the χ² test) go to stderr, one line each. */
 static void warn_stderr(void *ctx, const char *msg)
@@ -124,7 +131,7 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
 typedef struct grid_args {
     const char *method, *in, *map, *art, *sum, *plot, *residuals, *covariance;
     sc_grid_options opt;
-    int quiet;
+    int quiet, progress;
 } grid_args;
 
 /* Parse the arguments into g: -1 to go on, else the exit code (--help, a usage error). */
@@ -146,6 +153,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
         }
         if (!strcmp(o, "--quiet")) {
             g->quiet = 1;
+            continue;
+        }
+        if (!strcmp(o, "--progress")) {
+            g->progress = 1;
             continue;
         }
         if (o[0] != '-' || !strcmp(o, "-")) {
@@ -170,6 +181,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
         else if (!strcmp(o, "--plot")) g->plot = v;
         else if (!strcmp(o, "--residuals")) g->residuals = v;
         else if (!strcmp(o, "--covariance")) g->covariance = v;
+        else if (!strcmp(o, "--max-memory")) {
+            if ((rc = cli_parse_max_memory("grid", v, &g->opt.max_bytes)) != CLI_OK)
+                return rc;
+        }
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
@@ -248,13 +263,23 @@ int cmd_grid(int argc, char **argv)
     sc_error_clear(&err);
     sc_grid_data d;
     sc_grid_file_info info;
+    cli_progress pr;
+    cli_progress_init(&pr, "grid", g.progress, g.opt.max_bytes);
+    if (g.opt.method == SC_GRID_METHOD_LSQ)
+        g.opt.progress = cli_progress_lsq, g.opt.progress_ctx = &pr;
+    cli_progress_phase(&pr, "read", 0, 0, 0);
     sc_status st = sc_grid_read(g.in, &d, &info, &err);
-    if (st != SC_OK)
+    if (st != SC_OK) {
+        cli_progress_end(&pr);
         return cli_report(&err);
+    }
     sc_grid_solution sol;
     st = sc_grid_calibrate(&d, &info, g.in, &g.opt, &sol, &err);
     if (st == SC_OK)
+        cli_progress_phase(&pr, "write", 1, 1, 0);
+    if (st == SC_OK)
         st = write_outputs(&g, &d.plan, &sol, &info, &err);
+    cli_progress_end(&pr);
     if (st == SC_OK && !g.quiet)
         print_grid_summary(g.method, &d.plan, &sol, sol.res.stated_u);
     sc_grid_solution_free(&sol);

@@ -54,6 +54,8 @@ typedef struct sc_grid_options {
                                 (sc_grid_lsq_opts.max_bytes); 0: no limit */
     sc_grid_warn_fn warn;    /* warnings (NULL: none) */
     void *warn_ctx;
+    sc_grid_progress_fn progress; /* least squares: its phases (sc_grid_lsq_opts; NULL: none) */
+    void *progress_ctx;
 } sc_grid_options;
 
 /* What came out. Allocated by sc_grid_calibrate, freed by sc_grid_solution_free. */
