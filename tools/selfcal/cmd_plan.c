@@ -156,8 +156,18 @@ static int design(int argc, char **argv)
         sc_grid_lsq_opts only = {.node_sigma_only = 1, /* what is printed: no σ of O, R */
                                  .max_bytes = max_bytes};
         if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK) {
+            int views = p.n_views;
             sc_grid_plan_free(&p);
-            return cli_report(&err);
+            int rc = cli_report(&err);
+            if (err.code == SC_E_NOMEM) /* what to do about it */
+                fprintf(stderr,
+                        "selfcal: plan --design: a %dx%d stage with an N = %d plate is too large "
+                        "for the exact analysis (every node's sigma) within %.3g GB: the raster "
+                        "of step %d (%d placements) couples each plate mark to every node it "
+                        "lands on (docs/grid-lsq.md, 'Large stages'); a smaller stage, a larger "
+                        "plate or --max-memory SIZE\n",
+                        (int)sx, (int)sy, n, max_bytes / 1e9, step, views);
+            return rc;
         }
         sc_grid_lsq_get_info(q, &bi);
         sc_grid_lsq_plan_destroy(q);
