@@ -21,8 +21,10 @@
  * Each side runs REPEAT times (default 3), interleaved; the table keeps each side's fastest run
  * and the median of the ratios of the runs made side by side (on the shared machine a run's CPU
  * time moved by up to 40 % from one run to the next, 23-26 Nov, and both sides moved together).
- * Usage: [REPEAT=3] bench_grid_cholmod [N ...]   (default 101 201 301; add 401 for the large
- * target) */
+ * Usage: [REPEAT=3] bench_grid_cholmod [N | S:N ...]   (default 101 201 301; add 401 for the
+ * large target). S:N: a stitched S x S stage and an N x N plate instead (`--plan stitch`: rot-0
+ * placements at step (N-1)/2 plus a rot-90 and a +1,0 at the centre; hundreds of views, issue 33);
+ * the table then gives S, N and the number of views. */
 #define _GNU_SOURCE /* RTLD_DEFAULT */
 #include <dlfcn.h>
 #include <math.h>
@@ -37,6 +39,7 @@
 
 #include "../libselfcal/src/grid/grid_lsq_internal.h"
 #include "selfcal/grid_lsq.h"
+#include "selfcal/grid_sim.h"
 
 #ifndef SELFCAL_CLI
 #error "SELFCAL_CLI (the selfcal executable) must be defined by the build"
@@ -83,6 +86,8 @@ static void petro_plan(sc_grid_plan *p, int n)
 typedef struct figures {
     double seconds, wall, mib;
     char ordering[32];
+    long n_red;      /* the export's: unknowns of the reduced matrix */
+    int views;       /* and the plan's views */
 } figures;
 
 /* Run argv as a child; its CPU time, wall time and peak RSS. 0 if it exited 0. */
@@ -109,10 +114,16 @@ static int run_command(char *const argv[], figures *out)
     return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
-static void export_child(int n, const char *path)
+static void export_child(int n, int stage, const char *path, figures *fg)
 {
     sc_grid_plan p;
-    petro_plan(&p, n);
+    if (stage > 0) {
+        if (sc_grid_plan_stitch(n, stage, stage, 1.0, 0, 0, &p, NULL) != SC_OK)
+            exit(1);
+    } else {
+        petro_plan(&p, n);
+    }
+    fg->views = p.n_views;
     sc_error err;
     sc_grid_lsq_plan *q = NULL;
     if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK)
@@ -122,6 +133,7 @@ static void export_child(int n, const char *path)
     const int *Ai;
     const double *Ax;
     sc_grid_lsq_matrix(q, &n_red, &Ap, &Ai, &Ax);
+    fg->n_red = n_red;
     FILE *f = fopen(path, "wb");
     if (!f || fwrite(&n_red, sizeof n_red, 1, f) != 1 ||
         fwrite(Ap, sizeof(long), n_red + 1, f) != (size_t)n_red + 1 ||
@@ -188,7 +200,7 @@ static void cholmod_child(const char *path, int serial_openmp, figures *out)
 
 /* Run the export (which = 1), CHOLMOD with OpenMP regions on one thread (2) or as shipped (3) in
  * a child; figures come back through a pipe. */
-static int in_child(figures *out, int which, int n, const char *path)
+static int in_child(figures *out, int which, int n, int stage, const char *path)
 {
     int fd[2];
     if (pipe(fd) != 0)
@@ -199,7 +211,7 @@ static int in_child(figures *out, int which, int n, const char *path)
         figures fg;
         memset(&fg, 0, sizeof fg);
         if (which == 1)
-            export_child(n, path);
+            export_child(n, stage, path, &fg);
         else
             cholmod_child(path, which == 2, &fg);
         if (write(fd[1], &fg, sizeof fg) != (ssize_t)sizeof fg)
@@ -216,12 +228,13 @@ static int in_child(figures *out, int which, int n, const char *path)
 
 /* The file names of one N's run in dir. */
 typedef struct bench_files {
-    char n[16], in[256], truth[256], map[256], res[256];
+    char n[16], stage[32], in[256], truth[256], map[256], res[256];
 } bench_files;
 
-static void bench_files_init(bench_files *f, int n, const char *dir)
+static void bench_files_init(bench_files *f, int n, int stage, const char *dir)
 {
     snprintf(f->n, sizeof f->n, "%d", n);
+    snprintf(f->stage, sizeof f->stage, "%d,%d", stage, stage);
     snprintf(f->in, sizeof f->in, "%s/in.csv", dir);
     snprintf(f->truth, sizeof f->truth, "%s/truth.csv", dir);
     snprintf(f->map, sizeof f->map, "%s/G.csv", dir);
@@ -233,7 +246,9 @@ static int selfcal_data(bench_files *f)
 {
     char *sim[] = {SELFCAL_CLI, "simulate", "grid", "--plan", "double-shift", "--n", f->n, "--out",
                    f->in, "--truth-map", f->truth, "--seed", "7", "--O", "2e-6", "--R", "2e-6",
-                   NULL};
+                   NULL, NULL, NULL};
+    if (strcmp(f->stage, "0,0") != 0)
+        sim[4] = "stitch", sim[17] = "--stage", sim[18] = f->stage;
     figures sim_fg;
     return run_command(sim, &sim_fg);
 }
@@ -272,16 +287,16 @@ static int cmp_double(const void *x, const void *y)
     return (a > b) - (a < b);
 }
 
-static int bench_one(int n, const char *dir, const char *path, int repeat, figures *a,
-                     figures *c, figures *shipped, double *ratio)
+static int bench_one(int n, int stage, const char *dir, const char *path, int repeat,
+                     figures *a, figures *c, figures *shipped, double *ratio, figures *e)
 {
     double ratios[64];
     if (repeat > 64)
         repeat = 64;
     bench_files f;
-    bench_files_init(&f, n, dir);
-    figures e, run;
-    if (selfcal_data(&f) != 0 || in_child(&e, 1, n, path) != 0)
+    bench_files_init(&f, n, stage, dir);
+    figures run;
+    if (selfcal_data(&f) != 0 || in_child(e, 1, n, stage, path) != 0)
         return -1;
     for (int r = 0; r < repeat; ++r) {
         memset(&run, 0, sizeof run);
@@ -289,11 +304,11 @@ static int bench_one(int n, const char *dir, const char *path, int repeat, figur
             return -1;
         keep_best(a, &run, r == 0);
         double mine = run.seconds;
-        if (in_child(&run, 2, n, path) != 0)
+        if (in_child(&run, 2, n, stage, path) != 0)
             return -1;
         keep_best(c, &run, r == 0);
         ratios[r] = mine / run.seconds;
-        if (in_child(&run, 3, n, path) != 0)
+        if (in_child(&run, 3, n, stage, path) != 0)
             return -1;
         keep_best(shipped, &run, r == 0);
     }
@@ -310,11 +325,15 @@ int main(int argc, char **argv)
         setenv("OMP_NUM_THREADS", "1", 0);
         execv("/proc/self/exe", argv);
     }
-    int ns[16], count = 0, repeat = getenv("REPEAT") ? atoi(getenv("REPEAT")) : 3;
+    int ns[16], stages[16] = {0}, count = 0;
+    int repeat = getenv("REPEAT") ? atoi(getenv("REPEAT")) : 3;
     if (repeat < 1)
         repeat = 1;
-    for (int i = 1; i < argc && count < 16; ++i)
-        ns[count++] = atoi(argv[i]);
+    for (int i = 1; i < argc && count < 16; ++i) {
+        const char *colon = strchr(argv[i], ':');
+        stages[count] = colon ? atoi(argv[i]) : 0;
+        ns[count++] = atoi(colon ? colon + 1 : argv[i]);
+    }
     if (count == 0)
         ns[0] = 101, ns[1] = 201, ns[2] = 301, count = 3;
     char dir[64], path[96];
@@ -337,23 +356,26 @@ int main(int argc, char **argv)
     printf("(selfcal %s huge pages for SuiteSparse's large blocks; the CHOLMOD child uses\n"
            "SuiteSparse's own allocator: SELFCAL_HUGEPAGES=0 runs selfcal the same way)\n",
            huge && !strcmp(huge, "0") ? "without" : "with");
-    printf("%5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s | %8s %6s\n", "N", "reduced",
-           "selfcal", "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x",
-           "shipped", "x");
+    printf("%5s %5s %5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s | %8s %6s\n", "stage",
+           "N", "views", "reduced", "selfcal", "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order",
+           "time x", "mem x", "shipped", "x");
     for (int t = 0; t < count; ++t) {
         int n = ns[t];
-        figures a, c, sh;
+        figures a, c, sh, e;
         memset(&a, 0, sizeof a);
         memset(&c, 0, sizeof c);
         memset(&sh, 0, sizeof sh);
+        memset(&e, 0, sizeof e);
         double ratio;
-        if (bench_one(n, dir, path, repeat, &a, &c, &sh, &ratio) != 0) {
-            printf("%5d failed\n", n);
+        int st = stages[t] > 0 ? stages[t] : n;
+        if (bench_one(n, stages[t], dir, path, repeat, &a, &c, &sh, &ratio, &e) != 0) {
+            printf("%5d %5d failed\n", st, n);
             continue;
         }
-        printf("%5d %8d | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f | %8.3f %6.2f\n",
-               n, 2 * n * n + 12, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib, c.ordering,
-               ratio, a.mib / c.mib, sh.seconds, a.seconds / sh.seconds);
+        printf("%5d %5d %5d %8ld | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f | "
+               "%8.3f %6.2f\n",
+               st, n, e.views, e.n_red, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib,
+               c.ordering, ratio, a.mib / c.mib, sh.seconds, a.seconds / sh.seconds);
         fflush(stdout);
     }
     remove(path);

@@ -60,6 +60,27 @@ def test_hundreds_of_views(tmp_path):
     assert np.max(np.abs(np.asarray(r.tx_um) - truth["tx_um"])) < 1e-9
 
 
+def test_progress_and_memory():
+    """The progress callback sees every phase; a memory limit below the estimate refuses."""
+    m, _ = selfcal.simulate_grid("stitch", n=9, stage=(29, 29), seed=3)
+    seen = []
+    r = selfcal.calibrate_grid(m, progress=lambda ph, done, tot, peak: seen.append((ph, done, tot, peak)))
+    phases = [p for p, *_ in seen]
+    for want in ("assemble", "analyse", "factor", "selected inverse", "solve", "residuals"):
+        assert want in phases
+    assert phases.index("assemble") < phases.index("factor") < phases.index("solve")
+    assert all(peak > 0 for p, d, t, peak in seen if p != "residuals")
+    assert any(t > 0 and d == t for p, d, t, peak in seen)
+    assert np.isfinite(r.gx_um).all()
+    with pytest.raises(MemoryError, match="needs about"):
+        selfcal.calibrate_grid(m, max_memory=65536)
+
+    def boom(*a):
+        raise KeyError("stop")
+    with pytest.raises(KeyError):
+        selfcal.calibrate_grid(m, progress=boom)
+
+
 def test_plan_analysis_matches_cli(cli, tmp_path):
     p = selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)])
     a = selfcal.plan(p)

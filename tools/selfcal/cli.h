@@ -51,9 +51,30 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
                              double *offset_mm);
 
 /* --seed S: a whole number 0..2^64-1 (digits only) into *out: CLI_OK, or the usage error. */
-/* This machine's physical memory in bytes (0 if unknown): the limit a command's large work is
- * refused above, up front, instead of being killed after a long time (or taking the machine). */
+/* This machine's available memory in bytes (MemAvailable of /proc/meminfo; else the physical
+ * memory; 0 if unknown): the limit a command's large work is refused above, up front, instead of
+ * being killed after a long time (or taking the machine). progress.c */
 double cli_memory_bytes(void);
+
+/* --max-memory SIZE (bytes, or with K, M, G, T: powers of 1024) into *out: CLI_OK, or the usage
+ * error. */
+int cli_parse_max_memory(const char *cmd, const char *v, double *out);
+
+/* Progress of a long solve on stderr: on a terminal (one line, rewritten) or when asked (one line
+ * per phase): the phase, the time so far, the time left once the factor's rate is known, and the
+ * estimated peak memory once (progress.c). */
+typedef struct cli_progress {
+    const char *cmd;
+    int on, tty, open, stated;
+    double t0, work_t0, limit_bytes;
+} cli_progress;
+void cli_progress_init(cli_progress *p, const char *cmd, int asked, double limit_bytes);
+void cli_progress_phase(cli_progress *p, const char *phase, double done, double total,
+                        double peak_bytes);
+/* An sc_grid_progress_fn for a cli_progress (ctx). */
+void cli_progress_lsq(void *ctx, const char *phase, double work_done, double work_total,
+                      double peak_bytes);
+void cli_progress_end(cli_progress *p);
 
 int cli_parse_seed(const char *cmd, const char *v, uint64_t *out);
 

@@ -19,6 +19,7 @@ static const char *USAGE =
     "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear]\n"
     "                    [--view-noise stated|estimate] [--view-scale model|free]\n"
     "                    [--monte-carlo M [--seed S] [--monte-carlo-out MC.csv]] [--quiet]\n"
+    "                    [--progress] [--max-memory SIZE]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -66,7 +67,13 @@ static const char *USAGE =
     "                --seed S (default 1); the summary's monte_carlo: the ratios MC u / budget u;\n"
     "                --monte-carlo-out: per node the MC u, the ratio and 95 % coverage intervals.\n"
     "Extra views in the file are ignored by the exact methods. Exit 2 on bad input.\n"
-    "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n";
+    "Prints a short summary (method, noise, residual RMS, O, R, the largest |G|) unless --quiet.\n"
+    "--progress: the phase of a least-squares solve (read, assemble, analyse, factor, selected\n"
+    "inverse, solve, residuals, write), the time so far and, once the factor's rate is known, the\n"
+    "time left, and the peak memory estimated before the assembly, on stderr (shown anyway on a\n"
+    "terminal: one line, rewritten). A plan whose estimated peak exceeds the memory allowed is\n"
+    "refused before it is assembled or factored (exit 1): by default the machine's available\n"
+    "memory (MemAvailable), or --max-memory SIZE (bytes, or K, M, G, T: powers of 1024).\n";
 
 /* Warnings of the calibration (outliers, the χ² test) go to stderr, one line each. */
 static void warn_stderr(void *ctx, const char *msg)
@@ -139,7 +146,7 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
 typedef struct grid_args {
     const char *method, *in, *map, *art, *sum, *plot, *residuals, *covariance, *mc_out;
     sc_grid_options opt;
-    int quiet;
+    int quiet, progress;
     long mc_trials;          /* --monte-carlo M (0: none) */
     uint64_t mc_seed;
 } grid_args;
@@ -183,6 +190,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
             g->quiet = 1;
             continue;
         }
+        if (!strcmp(o, "--progress")) {
+            g->progress = 1;
+            continue;
+        }
         if (o[0] != '-' || !strcmp(o, "-")) {
             if (g->in)
                 return cli_usage_error("grid", "more than one input file ('%s', '%s')", g->in, o);
@@ -207,7 +218,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
         else if (!strcmp(o, "--plot")) g->plot = v;
         else if (!strcmp(o, "--residuals")) g->residuals = v;
         else if (!strcmp(o, "--covariance")) g->covariance = v;
-
+        else if (!strcmp(o, "--max-memory")) {
+            if ((rc = cli_parse_max_memory("grid", v, &g->opt.max_bytes)) != CLI_OK)
+                return rc;
+        }
         else if (!strcmp(o, "--drift")) {
             if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
                 return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
@@ -346,9 +360,16 @@ int cmd_grid(int argc, char **argv)
     sc_error_clear(&err);
     sc_grid_data d;
     sc_grid_file_info info;
+    cli_progress pr;
+    cli_progress_init(&pr, "grid", g.progress, g.opt.max_bytes);
+    if (g.opt.method == SC_GRID_METHOD_LSQ)
+        g.opt.progress = cli_progress_lsq, g.opt.progress_ctx = &pr;
+    cli_progress_phase(&pr, "read", 0, 0, 0);
     sc_status st = sc_grid_read(g.in, &d, &info, &err);
-    if (st != SC_OK)
+    if (st != SC_OK) {
+        cli_progress_end(&pr);
         return cli_report(&err);
+    }
     sc_grid_solution sol;
     sc_grid_mc mc;
     memset(&mc, 0, sizeof mc);
@@ -356,7 +377,10 @@ int cmd_grid(int argc, char **argv)
     if (st == SC_OK && g.mc_trials)
         st = sc_grid_monte_carlo(&d, &g.opt, &sol, g.mc_trials, g.mc_seed, 0, &mc, &err);
     if (st == SC_OK)
+        cli_progress_phase(&pr, "write", 1, 1, 0);
+    if (st == SC_OK)
         st = write_outputs(&g, &d.plan, &sol, &info, &mc, &err);
+    cli_progress_end(&pr);
     if (st == SC_OK && !g.quiet) {
         print_grid_summary(g.method, &d.plan, &sol, sol.res.stated_u);
         print_budget(&d.plan, &sol, &mc, &info);

@@ -12,8 +12,9 @@
 #include "selfcal/grid_sim.h"
 
 static const char *USAGE =
-    "usage: selfcal plan PLAN.csv [--drift linear]\n"
+    "usage: selfcal plan PLAN.csv [--drift linear] [--max-memory SIZE]\n"
     "       selfcal plan --design --stage NX,NY --n N [--pitch-mm P] [--origin-mm X,Y] [-o PLAN.csv]\n"
+    "                    [--max-memory SIZE]\n"
     "\n"
     "Reads a selfcal-grid v1 header (a plan file: header lines only) or a data file (then the\n"
     "marks actually measured count) and prints, first:\n"
@@ -39,7 +40,9 @@ static const char *USAGE =
     "raster covering the stage plus a rot-90 and a shift +1,0 placement at the centre, with the\n"
     "largest raster step (fewest placements) that identifies G; prints identifiable, free and the\n"
     "sigma_c ratios for it with its views, and writes its header to -o (a plan file for\n"
-    "'selfcal simulate grid --plan'; 'selfcal plan PLAN.csv' gives the full analysis).\n";
+    "'selfcal simulate grid --plan'; 'selfcal plan PLAN.csv' gives the full analysis).\n"
+    "A plan whose analysis would need more memory than this machine has available (or than\n"
+    "--max-memory SIZE: bytes, or K, M, G, T, powers of 1024) is refused up front (exit 1).\n";
 
 /* 1 if every mark the view would measure (all on the grid, or row c / cols c, c+1) is measured. */
 static int view_complete(const sc_grid_data *d, int has_data, int v, int partial)
@@ -102,6 +105,7 @@ static int design(int argc, char **argv)
 {
     double sx = 0, sy = 0, n_d = 0, pitch = 1, ox = 0, oy = 0;
     const char *out = NULL;
+    double max_bytes = cli_memory_bytes();
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
         if (!strcmp(o, "--design"))
@@ -123,6 +127,10 @@ static int design(int argc, char **argv)
                 return cli_usage_error("plan", "--origin-mm needs X,Y, got '%s'", v);
         } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
             out = v;
+        } else if (!strcmp(o, "--max-memory")) {
+            int rc = cli_parse_max_memory("plan", v, &max_bytes);
+            if (rc != CLI_OK)
+                return rc;
         } else
             return cli_usage_error("plan", "unknown option '%s' (see --help)", o);
     }
@@ -146,10 +154,20 @@ static int design(int argc, char **argv)
                             "%ld unknowns)\n", step, p.n_views, unknowns);
         sc_grid_lsq_plan *q = NULL;
         sc_grid_lsq_opts only = {.node_sigma_only = 1, /* what is printed: no σ of O, R */
-                                 .max_bytes = cli_memory_bytes()};
+                                 .max_bytes = max_bytes};
         if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK) {
+            int views = p.n_views;
             sc_grid_plan_free(&p);
-            return cli_report(&err);
+            int rc = cli_report(&err);
+            if (err.code == SC_E_NOMEM) /* what to do about it */
+                fprintf(stderr,
+                        "selfcal: plan --design: a %dx%d stage with an N = %d plate is too large "
+                        "for the exact analysis (every node's sigma) within %.3g GB: the raster "
+                        "of step %d (%d placements) couples each plate mark to every node it "
+                        "lands on (docs/grid-lsq.md, 'Large stages'); a smaller stage, a larger "
+                        "plate or --max-memory SIZE\n",
+                        (int)sx, (int)sy, n, max_bytes / 1e9, step, views);
+            return rc;
         }
         sc_grid_lsq_get_info(q, &bi);
         sc_grid_lsq_plan_destroy(q);
@@ -289,6 +307,13 @@ int cmd_plan(int argc, char **argv)
             if (a + 1 >= argc || (strcmp(argv[a + 1], "linear") && strcmp(argv[a + 1], "none")))
                 return cli_usage_error("plan", "--drift needs linear or none (see --help)");
             opts.drift = !strcmp(argv[++a], "linear");
+            continue;
+        }
+        if (!strcmp(argv[a], "--max-memory")) {
+            int rc = a + 1 < argc ? cli_parse_max_memory("plan", argv[++a], &opts.max_bytes)
+                                  : cli_usage_error("plan", "--max-memory needs a SIZE");
+            if (rc != CLI_OK)
+                return rc;
             continue;
         }
         if (argv[a][0] == '-' && strcmp(argv[a], "-") != 0)

@@ -84,12 +84,6 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
     return CLI_OK;
 }
 
-double cli_memory_bytes(void)
-{
-    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
-}
-
 int cli_parse_seed(const char *cmd, const char *v, uint64_t *out)
 {
     /* digits only: strtoull would take a sign (and wrap a negative) and saturate silently */

@@ -58,6 +58,8 @@ typedef struct sc_grid_options {
     int view_scale_free;     /* least squares: each view's scale relative to the others is an
                                 unknown (mean 0; for a laboratory without a temperature log),
                                 with its uncertainty and a warning when significant */
+    sc_grid_progress_fn progress; /* least squares: its phases (sc_grid_lsq_opts; NULL: none) */
+    void *progress_ctx;
 } sc_grid_options;
 
 /* What came out. Allocated by sc_grid_calibrate, freed by sc_grid_solution_free. */

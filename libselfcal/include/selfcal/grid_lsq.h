@@ -46,6 +46,15 @@ typedef struct sc_grid_lsq_info {
                                  it (sigma_c_ratio_* are then in µm; unit_weights for ratios) */
 } sc_grid_lsq_info;
 
+/* Progress of a long computation (called from the computing thread): phase is "assemble",
+ * "analyse", "factor", "selected inverse" or "solve" (sc_grid_calibrate adds "residuals");
+ * work_done of work_total multiply-adds of the factor and the selected inverse are done (both 0
+ * until the analysis has counted them, work_done = work_total at the end); peak_bytes is the peak
+ * memory estimated so far (from the plan before the assembly, from the analysis after it; 0:
+ * not yet). */
+typedef void (*sc_grid_progress_fn)(void *ctx, const char *phase, double work_done,
+                                    double work_total, double peak_bytes);
+
 /* Model options. */
 typedef struct sc_grid_lsq_opts {
     int drift;                /* 1: per-view translation drift rates (vx, vy)·(t − mean t) as
@@ -55,10 +64,14 @@ typedef struct sc_grid_lsq_opts {
                                  the misalignments (NaN in sc_grid_result): less work (N = 101:
                                  10 ms of 0.15 s); node σ identical either way. 0: all of them */
     double max_bytes;         /* > 0: refuse (SC_E_NOMEM, saying how much it needs) a plan whose
-                                 peak memory, estimated from the factor's analysis (about 4x the
-                                 factor), exceeds it, before factoring; 0: no limit */
+                                 peak memory exceeds it: estimated from the plan before the
+                                 assembly (its dense node-misalignment block and the pairs of
+                                 unknowns each plate mark couples), then from the factor's
+                                 analysis (about 4x the factor) before factoring; 0: no limit */
     int unit_weights;         /* 1: every equation weight 1, stated uncertainties ignored: the
                                  plan's geometry alone (its σ_C ratios per unit σ_r) */
+    sc_grid_progress_fn progress; /* NULL: none */
+    void *progress_ctx;
 } sc_grid_lsq_opts;
 
 /* The outlier test, Baarda's data snooping (docs/grid-lsq.md): on clean data each standardized

@@ -343,7 +343,8 @@ static long worst_outlier(const sc_grid_solution *s, size_t tot)
 static sc_grid_lsq_opts lsq_opts(const sc_grid_options *o)
 {
     sc_grid_lsq_opts q = {.drift = o->drift, .node_sigma_only = o->node_sigma_only,
-                          .max_bytes = o->max_bytes};
+                          .max_bytes = o->max_bytes, .progress = o->progress,
+                          .progress_ctx = o->progress_ctx};
     return q;
 }
 
@@ -855,6 +856,8 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
         sc_status st = sc_grid_lsq_execute(*qp, d, sigma_r, &s->res, err);
         if (st == SC_OK && o->estimate_view_noise)
             st = estimate_view_noise(d, info, o, vn, s, qp, src, err);
+        if (st == SC_OK && o->progress)
+            o->progress(o->progress_ctx, "residuals", 1, 1, 0);
         if (st == SC_OK)
             st = sc_grid_lsq_residuals(*qp, d, &s->res, s->rx_um, s->ry_um, s->tx, s->ty, NULL, err);
         if (st != SC_OK)

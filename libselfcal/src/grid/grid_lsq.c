@@ -51,6 +51,10 @@ struct sc_grid_lsq_plan {
     int drift;
     int node_sigma_only;    /* no σ of O, R and the misalignments (sc_grid_lsq_opts) */
     double max_bytes;       /* > 0: refuse a plan estimated to need more (sc_grid_lsq_opts) */
+    sc_grid_progress_fn progress; /* sc_grid_lsq_opts' (NULL: none) */
+    void *progress_ctx;
+    double peak_est;        /* the peak memory estimated so far, bytes (0: not yet) */
+    double work_total;      /* multiply-adds of the factor and selected inverse (0: not known) */
     int weighted;           /* weights were stated (1/u²); else all 1 */
     int unit_weights;       /* sc_grid_lsq_opts.unit_weights: stated weights ignored */
     double *eq_w;           /* weight of each scalar equation */
@@ -99,6 +103,13 @@ struct sc_grid_lsq_plan {
     double *work;           /* execute's workspace: 4 n_red + ng + 2 nn + nm doubles */
     size_t bytes;
 };
+
+/* Tell the caller's progress function (if any) the phase and the work done so far. */
+static void progress(const sc_grid_lsq_plan *q, const char *phase, double done)
+{
+    if (q->progress)
+        q->progress(q->progress_ctx, phase, done, q->work_total, q->peak_est);
+}
 
 /* The A component and sign a scalar equation (c = 0: dx, 1: dy) of a view rotated rot touches. */
 static void rot_component(int rot, int c, int *acomp, int *sign)
@@ -619,8 +630,23 @@ static sc_status memory_refused(const sc_grid_lsq_plan *q, double need, sc_error
 {
     return sc_error_set(err, SC_E_NOMEM, NULL, 0,
                         "the least-squares plan of %d unknowns needs about %.2g GB, more than "
-                        "the %.2g GB allowed (this machine's memory)", q->n_red, need / 1e9,
-                        q->max_bytes / 1e9);
+                        "the %.2g GB allowed", q->n_red, need / 1e9, q->max_bytes / 1e9);
+}
+
+/* The peak of the assembly, estimated from the plan before anything is allocated (bytes): what
+ * is held, the dense node-misalignment block and the misalignment block (twice), and the matrix:
+ * each A component's group of k equations couples its k stage unknowns pairwise once A is
+ * eliminated (k(k+1)/2 entries of 12 bytes, held twice while the columns are assembled). */
+static double assembly_bytes(const sc_grid_lsq_plan *q)
+{
+    double pairs = 0;
+    for (int a = 0; a < 2 * q->nn; ++a) {
+        double k = (double)(q->grp_ptr[a + 1] - q->grp_ptr[a]);
+        pairs += 0.5 * k * (k + 1);
+    }
+    double nm = q->nm;
+    return (double)q->bytes + sizeof(double) * ((double)q->ng * nm + 2 * nm * nm) +
+           2 * (sizeof(double) + sizeof(int)) * (pairs + q->ng);
 }
 
 static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
@@ -634,6 +660,7 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
     int n_last = free_misalignments(q, last, NULL);
     sc_spsym_hint hint = {1, q->ng, last, n_last};
+    progress(q, "analyse", 0);
     int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
     free(last);
     if (arc == -3)
@@ -652,10 +679,21 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
      * (the factor, the selected inverse's blocks and tracked columns): 1.0-1.2x the peak RSS */
     double groups = sizeof(double) * (double)q->ng * q->nm;
     double need = (double)q->bytes - groups + 3.0 * (double)sc_spsym_factor_bytes(q->f);
+    if (need > q->peak_est)
+        q->peak_est = need;
     if (q->max_bytes > 0 && need > q->max_bytes)
         return memory_refused(q, need, err);
+    sc_spsym_stats fs;
+    sc_spsym_get_stats(q->f, &fs);
+    /* the selected inverse (every node's σ) costs about what the factor does (docs/grid-lsq.md) */
+    q->work_total = fs.factor_flops * 2;
+    progress(q, "factor", 0);
     if (sc_spsym_factor(q->f, q->Ax, LSQ_PIVOT_TOL) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
+    if (!(q->work_total > 0)) { /* a backend that counts the flops as it factors */
+        sc_spsym_get_stats(q->f, &fs);
+        q->work_total = fs.factor_flops * 2;
+    }
     q->nullity_pin = sc_spsym_nullity(q->f);
     return SC_OK;
 }
@@ -665,9 +703,10 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
 static sc_status build_and_factor(sc_grid_lsq_plan *q, sc_error *err)
 {
     int nm = q->nm;
-    double groups = sizeof(double) * (double)q->ng * nm; /* the node-misalignment couplings */
-    if (q->max_bytes > 0 && (double)q->bytes + groups > q->max_bytes)
-        return memory_refused(q, (double)q->bytes + groups, err);
+    q->peak_est = assembly_bytes(q); /* with the node-misalignment couplings, ng x nm */
+    progress(q, "assemble", 0);
+    if (q->max_bytes > 0 && q->peak_est > q->max_bytes)
+        return memory_refused(q, q->peak_est, err);
     long *rp = NULL;
     int *ri = NULL;
     double *rv = NULL;
@@ -819,6 +858,8 @@ static sc_status plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan,
     q->node_sigma_only = opts && opts->node_sigma_only;
     q->unit_weights = opts && opts->unit_weights;
     q->max_bytes = opts && opts->max_bytes > 0 ? opts->max_bytes : 0;
+    q->progress = opts ? opts->progress : NULL;
+    q->progress_ctx = opts ? opts->progress_ctx : NULL;
     q->nb = q->drift ? 5 : 3;
     q->L_mm = (plan->n - 1) / 2 * plan->pitch_mm;
     q->ng = 2 * q->ns;
@@ -1533,6 +1574,7 @@ sc_status sc_grid_lsq_execute(const sc_grid_lsq_plan *q, const sc_grid_data *d, 
     sc_status st = check_data(q, d, err);
     if (st != SC_OK)
         return st;
+    progress(q, "solve", q->work_total);
     size_t n = (size_t)q->n_red;
     double *x = q->work, *r = x + n, *b = r + n, *r2 = b + n, *g = r2 + n, *a = g + q->ng;
     double *m = a + 2 * (size_t)q->nn;
@@ -2145,6 +2187,7 @@ static sc_status plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     U = WB = fg = uA = NULL;
     if (st != SC_OK)
         goto out;
+    progress(q, "selected inverse", q->work_total / 2);
     if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) { /* leverages: G pairs on S's pattern */
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
         goto out;

@@ -321,7 +321,7 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
                    reject_outliers: bool = False, covariance: bool = False,
                    outlier_alpha=None, outlier_alpha_each=None,
                    view_noise: str = "stated", view_scale: str = "model",
-                   monte_carlo=None, seed: int = 1) -> GridResult:
+                   monte_carlo=None, seed: int = 1, progress=None, max_memory=None) -> GridResult:
     """Separate the stage error G from the plate error A, as ``selfcal grid``.
 
     ``source``: a ``selfcal-grid v1`` file path or a :class:`GridMeasurement`. ``method``:
@@ -339,7 +339,18 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
     free``). ``monte_carlo=M``: the Monte Carlo check of the budget with ``seed`` (``--monte-carlo
     M --seed S``; least squares). Warnings (outliers, the χ² test, significant view scales) are
     in ``result.warnings`` and issued with :mod:`warnings` too.
+    ``progress``: a callable ``progress(phase, work_done, work_total, peak_bytes)`` called as a
+    least-squares solve goes (phases ``"assemble"``, ``"analyse"``, ``"factor"``, ``"selected
+    inverse"``, ``"solve"``, ``"residuals"``; work in multiply-adds of the factor and the selected
+    inverse, 0 until the analysis has counted it; the peak memory estimated so far in bytes); an
+    exception it raises is raised after the solve. ``max_memory``: bytes a solve may use
+    (default: the machine's available memory); a plan estimated to need more raises
+    ``MemoryError`` before it is assembled or factored.
     """
+    if progress is not None and not callable(progress):
+        raise TypeError("progress must be callable")
+    if max_memory is not None and not max_memory > 0:
+        raise Error("max_memory must be a positive number of bytes")
     if not isinstance(method, str) or method not in _GRID_METHODS:
         raise Error(f"method must be 'ye', 'double-shift' or 'lsq', not {method!r}")
     if sigma_r_um is not None and not sigma_r_um > 0:
@@ -363,7 +374,8 @@ def calibrate_grid(source, method: str = "lsq", sigma_r_um=None, drift: bool = F
                                float(sigma_r_um or 0.0), bool(drift), bool(reject_outliers),
                                bool(covariance), float(alpha or 0.0),
                                outlier_alpha_each is not None, view_noise == "estimate",
-                               view_scale == "free", int(monte_carlo or 0), int(seed))
+                               view_scale == "free", int(monte_carlo or 0), int(seed),
+                               progress, float(max_memory or 0.0))
     r = GridResult(d, method)
     if r.warnings:
         import warnings as _w

@@ -38,6 +38,17 @@ static PyObject *sc_py_error; /* selfcal.Error, a ValueError */
 /* This machine's physical memory in bytes (0: unknown): the grid solver's limit, as the CLI's. */
 static double memory_bytes(void)
 {
+    /* the available memory (MemAvailable), as the command line; else the physical memory */
+    FILE *fp = fopen("/proc/meminfo", "r");
+    char line[256];
+    double kib = -1;
+    while (fp && fgets(line, sizeof line, fp))
+        if (sscanf(line, "MemAvailable: %lf kB", &kib) == 1)
+            break;
+    if (fp)
+        fclose(fp);
+    if (kib > 0)
+        return kib * 1024.0;
     long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
     return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
 }
@@ -1179,8 +1190,29 @@ static PyObject *mc_to_dict(const sc_grid_plan *p, const sc_grid_mc *mc)
                          "magnification_sd_ppm", mc->magnification_sd_ppm);
 }
 
+/* The caller's progress function (a Python callable, called with the GIL taken): its first
+ * exception is kept and raised after the solve, and it is not called again. */
+typedef struct progress_ctx {
+    PyObject *fn;
+    PyObject *exc_type, *exc_value, *exc_tb;
+} progress_ctx;
+
+static void progress_call(void *ctx, const char *phase, double done, double total, double peak)
+{
+    progress_ctx *c = ctx;
+    PyGILState_STATE g = PyGILState_Ensure();
+    if (!c->exc_type) {
+        PyObject *r = PyObject_CallFunction(c->fn, "sddd", phase, done, total, peak);
+        if (!r)
+            PyErr_Fetch(&c->exc_type, &c->exc_value, &c->exc_tb);
+        Py_XDECREF(r);
+    }
+    PyGILState_Release(g);
+}
+
 /* grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha,
- * outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed) -> dict */
+ * outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed[, progress,
+ * max_bytes]) -> dict */
 static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -1190,11 +1222,18 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     int method;
     long mc_trials;
     unsigned long long mc_seed;
-    if (!PyArg_ParseTuple(args, "OidpppdppplK", &src, &method, &o.sigma_r_um, &o.drift,
+    PyObject *progress = Py_None;
+    double max_bytes = 0;
+    if (!PyArg_ParseTuple(args, "OidpppdppplK|Od", &src, &method, &o.sigma_r_um, &o.drift,
                           &o.reject_outliers, &o.covariance, &o.outlier_alpha,
                           &o.outlier_alpha_each, &o.estimate_view_noise, &o.view_scale_free,
-                          &mc_trials, &mc_seed))
+                          &mc_trials, &mc_seed, &progress, &max_bytes))
         return NULL;
+    if (progress != Py_None && !PyCallable_Check(progress)) {
+        PyErr_SetString(PyExc_TypeError, "progress must be callable");
+        return NULL;
+    }
+    progress_ctx pc = {progress, NULL, NULL, NULL};
     o.method = (sc_grid_method)method;
     sc_grid_data d;
     sc_grid_file_info info;
@@ -1209,7 +1248,9 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
         goto done;
     o.warn = warn_collect; /* takes the GIL for each warning */
     o.warn_ctx = warnings;
-    o.max_bytes = memory_bytes(); /* a plan too large for the machine: refused, saying so */
+    o.max_bytes = max_bytes > 0 ? max_bytes : memory_bytes(); /* too large: refused, saying so */
+    if (progress != Py_None)
+        o.progress = progress_call, o.progress_ctx = &pc;
     sc_error err;
     sc_error_clear(&err);
     const char *pth = path ? PyBytes_AS_STRING(path) : NULL;
@@ -1219,6 +1260,10 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     if (st == SC_OK && mc_trials > 0)
         st = sc_grid_monte_carlo(&d, &o, &s, mc_trials, mc_seed, 0, &mc, &err);
     Py_END_ALLOW_THREADS
+    if (pc.exc_type) { /* the progress function's exception, as it was raised */
+        PyErr_Restore(pc.exc_type, pc.exc_value, pc.exc_tb);
+        goto done;
+    }
     if (st != SC_OK) {
         if (!err.file[0] && pth && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE)) {
             snprintf(err.file, sizeof err.file, "%s", pth);

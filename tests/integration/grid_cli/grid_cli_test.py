@@ -576,8 +576,45 @@ def case_many_views():
     print("import of 363 view files: max |G-G_true| %.3g um" % wi)
 
 
+def case_memory_progress():
+    """Memory stated up front and refused beyond --max-memory (exit 1, before the assembly);
+    --progress names every phase of a least-squares solve on stderr."""
+    d = fresh_dir("memory_progress")
+    sim = simulate(d, "s", "stitch", 9, "--stage", "29,29", "--sigma-r-um", 0.01)
+    m = os.path.join(d, "G.csv")
+    p = run("grid", "--method", "lsq", sim["inp"], "--map", m, "--quiet", "--max-memory", "64K",
+            expect=1)
+    if "needs about" not in p.stderr or "GB allowed" not in p.stderr or os.path.exists(m):
+        fail("--max-memory 64K: %r" % p.stderr)
+    p = run("plan", sim["inp"], "--max-memory", "64K", expect=1)
+    if "needs about" not in p.stderr:
+        fail("plan --max-memory 64K: %r" % p.stderr)
+    p = run("plan", "--design", "--n", 9, "--stage", "29,29", "--max-memory", "64K", expect=1)
+    if "needs about" not in p.stderr or "too large for the exact analysis" not in p.stderr:
+        fail("plan --design --max-memory 64K: %r" % p.stderr)
+    for bad in ("12X", "-1G", "0", "G", ""):
+        run("grid", "--method", "lsq", sim["inp"], "--map", m, "--max-memory", bad, expect=2)
+    p = run("grid", "--method", "lsq", sim["inp"], "--map", m, "--quiet", "--progress",
+            "--max-memory", "4G")
+    phases = [l.split(": ", 1)[1].split(" (")[0] for l in p.stderr.splitlines()
+              if l.startswith("selfcal grid: ") and " (" in l]
+    want = ["read", "assemble", "analyse", "factor", "selected inverse", "solve", "residuals",
+            "write"]
+    if [ph for ph in phases if ph in want] != want:
+        fail("--progress phases %s (stderr %r)" % (phases, p.stderr))
+    mem = [l for l in p.stderr.splitlines() if "peak memory about" in l]
+    if len(mem) != 1 or "of 4.00 GiB allowed" not in mem[0]:
+        fail("--progress memory line: %r" % mem)
+    if not any("left)" in l for l in p.stderr.splitlines()):
+        fail("--progress: no time left after the factor: %r" % p.stderr)
+    # without --progress and not on a terminal: nothing on stderr
+    p = run("grid", "--method", "lsq", sim["inp"], "--map", m, "--quiet")
+    if p.stderr:
+        fail("stderr without --progress: %r" % p.stderr)
+
+
 CASES = {"fuzz": case_fuzz, "end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
          "plot": case_plot, "simulate": case_simulate, "bad_input": case_bad_input,
-         "many_views": case_many_views}
+         "many_views": case_many_views, "memory_progress": case_memory_progress}
 CASES[CASE]()
 print("PASS " + CASE + " " + " ".join(ARGS))
