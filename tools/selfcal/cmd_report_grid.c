@@ -22,7 +22,9 @@ static const char *USAGE =
     "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
     "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
     "                           [--view-noise stated|estimate]\n"
-    "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]]\n"
+    "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]\n"
+    "                            [--decision-rule simple|guarded] [--u-verify-um U]\n"
+    "                            [--verify-sigma-um S] [--u-plate-um UA]]\n"
     "\n"
     "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
     "prints to PDF from a browser) with the plan and whether it identifies G, the method, the\n"
@@ -42,6 +44,8 @@ static const char *USAGE =
 typedef struct grid_report {
     const char *in, *method;
     const cli_input *src; /* in as read (a pipe from its in-memory copy) */
+    const char *verify_name, *table_name; /* --verify V.csv --table T.lut as given */
+    const cli_input *vsrc[2];             /* ... as read */
     double sigma_r_given; /* 0: not given */
     sc_grid_options test; /* the fit's options: outlier_alpha, _each, estimate_view_noise */
     sc_grid_data d;
@@ -668,7 +672,7 @@ static void appendix_table(FILE *fp, const grid_report *r)
 }
 
 /* One option (and its value, from argv[*a + 1]) into r, vo and *out. */
-static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_opts *vo,
+static int parse_option(int argc, char **argv, int *a, grid_report *r, sc_verify_opts *vo,
                         const char **out)
 {
     const char *cmd = "report grid", *o = argv[*a];
@@ -696,10 +700,12 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
         if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||
             !(r->sigma_r_given <= SC_INPUT_MAX_ABS))
             return cli_usage_error(cmd, "--sigma-r-um needs a positive number, got '%s'", v);
-    } else if (!strcmp(o, "--verify"))
-        vo->measurement = v;
+    } else if ((rc = verify_parse_option(cmd, o, v, vo)) >= 0)
+        return rc;
+    else if (!strcmp(o, "--verify"))
+        r->verify_name = v;
     else if (!strcmp(o, "--table"))
-        vo->table = v;
+        r->table_name = v;
     else if (!strcmp(o, "--tolerance-um")) {
         if (sc_parse_double(v, &vo->tolerance_um) || !(vo->tolerance_um > 0) ||
             !(vo->tolerance_um <= SC_INPUT_MAX_ABS))
@@ -710,8 +716,7 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
 }
 
 /* Title and the summary paragraph (its numbers from the run and the verification). */
-static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo,
-                           const verify_result *vr)
+static void report_summary(FILE *fp, const grid_report *r, const sc_verify_result *vr)
 {
     char title[600];
     snprintf(title, sizeof title, "Grid plate self-calibration report — %s", cli_basename(r->in));
@@ -738,17 +743,18 @@ static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo
     if (isfinite(mux))
         fprintf(fp, " Largest u(G): %.4g µm (k = 1), U = %.4g µm (k = 2).", fmax(mux, muy),
                 2 * fmax(mux, muy));
-    if (vo->measurement)
-        fprintf(fp, " Verification: <b class=\"%s\">%s</b>.", vr->pass ? "pass" : "fail",
-                vr->pass ? "pass" : "fail");
+    if (r->verify_name && vr->verdict != SC_VERIFY_NO_VERDICT)
+        fprintf(fp, " Verification: <b class=\"%s\">%s</b> (%s rule).",
+                vr->verdict == SC_VERIFY_PASS ? "pass" : vr->verdict == SC_VERIFY_FAIL ? "fail" : "note",
+                sc_verify_verdict_name(vr->verdict), sc_verify_rule_name(vr->rule));
     fputs("</p></div>\n", fp);
 }
 
 /* The whole report into fp: summary, sections 1-6, provenance, appendix. */
-static sc_status write_report(FILE *fp, const grid_report *r, const verify_opts *vo,
-                              const verify_result *vr, int argc, char **argv, sc_error *err)
+static sc_status write_report(FILE *fp, const grid_report *r, const sc_verify_opts *vo,
+                              const sc_verify_result *vr, int argc, char **argv, sc_error *err)
 {
-    report_summary(fp, r, vo, vr);
+    report_summary(fp, r, vr);
     section_plan(fp, r);
     section_method(fp, r);
     int chi2;
@@ -757,13 +763,14 @@ static sc_status write_report(FILE *fp, const grid_report *r, const verify_opts 
     sc_status st = section_residuals(fp, r, &n_out, err);
     if (st == SC_OK)
         st = section_results(fp, r, err);
-    if (st == SC_OK && vo->measurement)
-        st = verify_html_section(fp, vo, vr, "6. Verification of the compensated machine", err);
-    const cli_input *inputs[3] = {r->src, vo->src[0], vo->src[1]};
+    if (st == SC_OK && r->verify_name)
+        st = verify_html_section(fp, vo, r->verify_name, vr,
+                                 "6. Verification of the compensated machine", err);
+    const cli_input *inputs[3] = {r->src, r->vsrc[0], r->vsrc[1]};
     const char *roles[3] = {"measurement (selfcal-grid v1)", "re-measurement (verify)",
                             "lookup table (verify)"};
     if (st == SC_OK)
-        st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, vo->measurement ? 3 : 1, err);
+        st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, r->verify_name ? 3 : 1, err);
     if (st == SC_OK) {
         fputs("<h2>Appendix</h2>\n", fp);
         appendix_table(fp, r);
@@ -779,8 +786,8 @@ int cmd_report_grid(int argc, char **argv)
     memset(&r, 0, sizeof r);
     r.method = "lsq";
     const char *out = NULL;
-    verify_opts vo;
-    verify_opts_init(&vo);
+    sc_verify_opts vo;
+    sc_verify_opts_init(&vo);
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
@@ -794,7 +801,7 @@ int cmd_report_grid(int argc, char **argv)
         return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
     if (strcmp(r.method, "lsq") && strcmp(r.method, "ye") && strcmp(r.method, "double-shift"))
         return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
-    if (!vo.measurement != !vo.table)
+    if (!r.verify_name != !r.table_name)
         return cli_usage_error(cmd, "--verify and --table go together (see --help)");
     if (r.test.estimate_view_noise && r.sigma_r_given > 0)
         return cli_usage_error(cmd, "--sigma-r-um and --view-noise estimate exclude each other "
@@ -802,20 +809,21 @@ int cmd_report_grid(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
-    const char *names[3] = {r.in, vo.measurement, vo.table};
+    const char *names[3] = {r.in, r.verify_name, r.table_name};
     int opened;
-    sc_status st = cli_input_open_all(src, names, vo.measurement ? 3 : 1, 1u << 2 /* the table */,
+    sc_status st = cli_input_open_all(src, names, r.verify_name ? 3 : 1, 1u << 2 /* the table */,
                                       &opened, &err);
     r.src = &src[0];
-    if (vo.measurement)
-        vo.src[0] = &src[1], vo.src[1] = &src[2];
+    if (r.verify_name)
+        r.vsrc[0] = &src[1], r.vsrc[1] = &src[2];
     if (st == SC_OK)
         st = run(&r, &err);
-    verify_result vr;
+    sc_verify_result vr;
     memset(&vr, 0, sizeof vr);
-    if (st == SC_OK && vo.measurement) {
+    if (st == SC_OK && r.verify_name) {
         vo.plate = &r.am;
-        st = verify_run(&vo, &vr, &err);
+        vo.measurement = src[1].path, vo.table = src[2].path;
+        st = sc_verify_run(&vo, &vr, &err);
     }
     sc_afile f;
     memset(&f, 0, sizeof f);
@@ -825,7 +833,7 @@ int cmd_report_grid(int argc, char **argv)
         st = write_report(f.fp, &r, &vo, &vr, argc, argv, &err);
         st = sc_afile_finish(&f, st, &err);
     }
-    verify_result_free(&vr);
+    sc_verify_result_free(&vr);
     free_report(&r);
     int rc = CLI_OK;
     if (st != SC_OK) {

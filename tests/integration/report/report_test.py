@@ -570,8 +570,8 @@ def case_pipes():
     print("pipes: ok")
 
 
-def case_verify():
-    d = fresh_dir("verify")
+def case_verify(name="verify"):
+    d = fresh_dir(name)
     n, seed = 11, 7
     inp, gt, _ = simulate_grid(d, n=n, plan="double-shift", seed=seed, sigma_r=0.01)
     p = lambda x: os.path.join(d, x)  # noqa: E731
@@ -592,7 +592,7 @@ def case_verify():
                "--tolerance-um", tol, "--residuals", p("res.csv"), "--plot", p("v.svg"),
                "--html", p("v.html"))
     kv = dict(l.split(": ", 1) for l in good.stdout.splitlines())
-    if kv["verdict"] != "pass" or not float(kv["after_max_um"]) <= tol:
+    if kv["verdict"].split()[0] != "pass" or not float(kv["after_max_um"]) <= tol:
         fail("good table: %s" % good.stdout)
     if not float(kv["before_rms_um"]) > 20 * float(kv["after_rms_um"]):
         fail("good table: before %s vs after %s" % (kv["before_rms_um"], kv["after_rms_um"]))
@@ -620,7 +620,7 @@ def case_verify():
     bad = run("verify", p("V_neg.csv"), "--table", p("neg.lut"), "--artifact", p("A.csv"),
               "--tolerance-um", tol, "--residuals", p("res_neg.csv"), expect=3)
     kv = dict(l.split(": ", 1) for l in bad.stdout.splitlines())
-    if kv["verdict"] != "fail" or not float(kv["after_max_um"]) > 10 * tol:
+    if kv["verdict"].split()[0] != "fail" or not float(kv["after_max_um"]) > 10 * tol:
         fail("wrong-sign table: %s" % bad.stdout)
     if not os.path.exists(p("res_neg.csv")):
         fail("a failed verification still writes its residual file")
@@ -654,6 +654,67 @@ def case_verify():
     c = parse(check_self_contained(out))
     if c.ids.get("verify-verdict", (None, ""))[1] != "pass":
         fail("report with a good table: verdict %r" % (c.ids.get("verify-verdict"),))
+    return d, p, tol
+
+
+def case_verify_guarded():
+    """The guarded decision rule (ISO 14253-1) gives each of its three outcomes, with U given and
+    with U computed from its parts; the verdict line names the rule and U; the report shows it."""
+    d, p, _ = case_verify("verify_guarded")
+    base = ["verify", p("V_good.csv"), "--table", p("good.lut"), "--artifact", p("A.csv")]
+
+    def kv_of(r):
+        return dict(l.split(": ", 1) for l in r.stdout.splitlines())
+    # the largest residual after compensation, under the simple rule
+    mx = float(kv_of(run(*base, "--tolerance-um", 1))["after_max_um"])
+    U = 0.5 * mx
+    cases = ((mx + 1.5 * U, 0, "pass"),   # max + U <= T
+             (mx - 1.5 * U, 3, "fail"),   # max - U > T
+             (mx + 0.5 * U, 4, "inconclusive"), (mx - 0.5 * U, 4, "inconclusive"))
+    for T, code, verdict in cases:
+        r = run(*base, "--tolerance-um", "%.9g" % T, "--decision-rule", "guarded",
+                "--u-verify-um", "%.9g" % U, expect=code)
+        kv = kv_of(r)
+        line = kv["verdict"]
+        if line.split()[0] != verdict or "guarded" not in line or ("U = %.4g" % U) not in line:
+            fail("guarded, T = %g, U = %g, max %g: verdict line %r, want %s" % (T, U, mx, line, verdict))
+        if kv["decision_rule"] != "guarded" or abs(float(kv["U_verify_um"]) - U) > 1e-3 * U:
+            fail("guarded: %s" % r.stdout)
+        # the simple rule on the same T: pass or fail by max alone
+        r = run(*base, "--tolerance-um", "%.9g" % T, expect=0 if mx <= T else 3)
+        if kv_of(r)["verdict"].split()[:2] != ["pass" if mx <= T else "fail", "(simple,"]:
+            fail("simple, T = %g: %r" % (T, kv_of(r)["verdict"]))
+    # U from its parts: 2 sqrt(s^2 + uA^2 + uq^2), s and uA given; the table's quantization is
+    # below 1e-4 um, so U is 2 sqrt(s^2 + uA^2) within 1 %
+    s, ua = 0.2 * mx, 0.15 * mx
+    want = 2 * math.sqrt(s * s + ua * ua)  # 0.5 max
+    for T, code, verdict in ((mx + want + 0.1 * mx, 0, "pass"), (mx - want - 0.1 * mx, 3, "fail"),
+                             (mx, 4, "inconclusive")):
+        if T <= 0:
+            fail("constructed tolerance %g is not positive (max %g, U %g)" % (T, mx, want))
+        r = run(*base, "--tolerance-um", "%.9g" % T, "--decision-rule", "guarded",
+                "--sigma-r-um", "%.9g" % s, "--u-plate-um", "%.9g" % ua, expect=code)
+        kv = kv_of(r)
+        if kv["verdict"].split()[0] != verdict or abs(float(kv["U_verify_um"]) - want) > 1e-2 * want:
+            fail("guarded with U from its parts (want %.4g): %s" % (want, r.stdout))
+    # without given parts: sigma from the residuals (an upper bound), u(A) = sigma, U > 0
+    r = run(*base, "--tolerance-um", 10, "--decision-rule", "guarded")
+    kv = kv_of(r)
+    if not 0 < float(kv["U_verify_um"]) < 1 or kv["verdict"].split()[0] != "pass":
+        fail("guarded, U computed: %s" % r.stdout)
+    run("verify", p("V_good.csv"), "--table", p("good.lut"), "--artifact", p("A.csv"),
+        "--tolerance-um", 1, "--decision-rule", "strict", expect=2)
+    run(*base, "--tolerance-um", 1, "--decision-rule", "guarded", "--u-verify-um", "-1", expect=2)
+    # the report states the rule, U and the verdict
+    out = p("R_guarded.html")
+    run("report", "grid", p("in.csv"), "-o", out, "--verify", p("V_good.csv"), "--table",
+        p("good.lut"), "--tolerance-um", "%.9g" % mx, "--decision-rule", "guarded",
+        "--u-verify-um", "%.9g" % U)
+    c = parse(check_self_contained(out))
+    if c.ids.get("verify-verdict", (None, ""))[1] != "inconclusive":
+        fail("report, guarded: verdict %r" % (c.ids.get("verify-verdict"),))
+    if "guarded" not in c.ids.get("verify-rule", (None, ""))[1] or "verify-U" not in c.ids:
+        fail("report, guarded: rule %r, U %r" % (c.ids.get("verify-rule"), c.ids.get("verify-U")))
 
 
 def expect_bad(args, name, outs):
@@ -852,6 +913,6 @@ def case_figs_grid():
 
 {"figs_grid": case_figs_grid, "outliers": case_outliers, "stage": case_stage, "render_grid": case_render_grid, "render_profile": case_render_profile,
  "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
- "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots,
+ "verify": case_verify, "verify_guarded": case_verify_guarded, "bad_input": case_bad_input, "plots": case_plots,
  "pipes": case_pipes}[CASE]()
 print("ok")
