@@ -7,9 +7,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "plots.h"
+#include "report_cert.h"
 #include "report_html.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -19,7 +21,8 @@
 #include "verify.h"
 
 static const char *USAGE =
-    "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
+    "usage: selfcal report grid IN.csv -o R.html|--pdf R.pdf [--method lsq|ye|double-shift]\n"
+    "                           [--sigma-r-um S] [--info KEY=VALUE ...] [--info-file F]\n"
     "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
     "                           [--view-noise stated|estimate]\n"
     "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]\n"
@@ -38,6 +41,11 @@ static const char *USAGE =
     "are selfcal grid's.\n"
     "--verify adds the check of the compensated\n"
     "machine (see selfcal verify --help) against the plate error of this calibration.\n"
+    "--info KEY=VALUE (repeatable) and --info-file F (lines 'key = value') identify the report\n"
+    "as a certificate: report_id, item, plate, instrument, customer, operator, measured_on,\n"
+    "conditions, approved_by (other keys are listed as given); every printed page carries the\n"
+    "report id and 'page n of m'. --pdf R.pdf prints the report through headless Chromium\n"
+    "(SELFCAL_CHROMIUM, else chromium on PATH; without it: exit 1, nothing written).\n"
     "Exit 0, or 2 on bad input (one line naming the file and line; no report is left).\n";
 
 /* Everything the report shows, computed once. */
@@ -627,6 +635,8 @@ static sc_status results_figures(FILE *fp, const grid_report *r, sc_error *err)
     return st;
 }
 
+static void uncertainty_statement(FILE *fp, const grid_report *r);
+
 static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
 {
     fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
@@ -636,24 +646,21 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
     results_first_order(fp, r);
     results_g_table(fp, r);
     sc_status st = results_figures(fp, r, err);
+    uncertainty_statement(fp, r);
     fputs("</section>\n", fp);
     return st;
 }
 
-/* The whole map as a table (small maps only; the map file holds it anyway). */
+/* The whole map as a table, every node (print repeats the header row on every page). */
 static void appendix_table(FILE *fp, const grid_report *r)
 {
     int nx = sc_grid_stage_nx(&r->d.plan), ny = sc_grid_stage_ny(&r->d.plan);
-    if ((long)nx * ny > 41 * 41) {
-        fputs("<p>The node table is left out for maps larger than 41 × 41 nodes; the map file "
-              "written by <code>selfcal grid --map</code> holds it.</p>\n",
-              fp);
-        return;
-    }
-    fputs("<details id=\"node-table\"><summary>Stage error at every node (table)</summary>\n"
-          "<table class=\"map\">\n<tr><th>i</th><th>j</th><th>x (mm)</th><th>y (mm)</th>"
-          "<th>G<sub>x</sub> (µm)</th><th>G<sub>y</sub> (µm)</th><th>u(G<sub>x</sub>)</th>"
-          "<th>u(G<sub>y</sub>)</th><th>U(G<sub>x</sub>), k = 2</th><th>U(G<sub>y</sub>), k = 2</th></tr>\n",
+    fprintf(fp, "<p>The stage error at every one of the %d × %d nodes (the map file written by "
+                "<code>selfcal grid --map</code> holds the same values).</p>\n", nx, ny);
+    fputs("<table class=\"map\" id=\"node-table\">\n<thead><tr><th>i</th><th>j</th><th>x (mm)</th>"
+          "<th>y (mm)</th><th>G<sub>x</sub> (µm)</th><th>G<sub>y</sub> (µm)</th>"
+          "<th>u(G<sub>x</sub>) (µm)</th><th>u(G<sub>y</sub>) (µm)</th><th>U(G<sub>x</sub>), k = 2</th>"
+          "<th>U(G<sub>y</sub>), k = 2</th></tr></thead>\n<tbody>\n",
           fp);
     for (int i = 0; i < ny; ++i)
         for (int j = 0; j < nx; ++j) {
@@ -668,12 +675,37 @@ static void appendix_table(FILE *fp, const grid_report *r)
             html_num_cell(fp, NULL, "%.5f", 2 * r->res.ugy_um[k]);
             fputs("</tr>\n", fp);
         }
-    fputs("</table>\n</details>\n", fp);
+    fputs("</tbody>\n</table>\n", fp);
+}
+
+/* The statement of what U covers (SPEC §12), at the end of the results. */
+static void uncertainty_statement(FILE *fp, const grid_report *r)
+{
+    fputs("<h3>Statement of uncertainty</h3>\n", fp);
+    if (!sc_stage_map_has_u(&r->gm)) {
+        fputs("<p id=\"uncertainty-statement\" class=\"statement\">The closed-form method "
+              "gives no uncertainty of G: this report states none (use --method lsq).</p>\n", fp);
+        return;
+    }
+    report_uncertainty_statement(
+        fp,
+        r->lres.stated_u
+            ? "the measurement noise of the calibration data, as the file states it per "
+              "measurement and scaled by the residuals (section 3), propagated through the "
+              "least-squares estimate to every node of G, to O, R and to the misalignments."
+            : "the measurement noise of the calibration data (σ_r used, section 3), propagated "
+              "through the least-squares estimate to every node of G, to O, R and to the "
+              "misalignments.",
+        "Not included: the scale of the plate and its thermal expansion (self-calibration cannot "
+        "tell the stage's isotropic scale from the plate's: G carries no magnification), the "
+        "temperatures of stage and plate during the measurement, the stage's drift and "
+        "repeatability after the measurement, and the interpolation of a table between the "
+        "nodes.");
 }
 
 /* One option (and its value, from argv[*a + 1]) into r, vo and *out. */
 static int parse_option(int argc, char **argv, int *a, grid_report *r, sc_verify_opts *vo,
-                        const char **out)
+                        report_info *ri, const char **out)
 {
     const char *cmd = "report grid", *o = argv[*a];
     if (o[0] != '-' || !strcmp(o, "-")) {
@@ -691,6 +723,8 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, sc_verify
     const char *v = argv[++*a];
     int rc = cli_parse_lsq_option(cmd, o, v, &r->test); /* the outlier test, view noise */
     if (rc >= 0)
+        return rc;
+    if ((rc = report_info_option(cmd, o, v, ri)) >= 0)
         return rc;
     if (!strcmp(o, "-o") || !strcmp(o, "--out"))
         *out = v;
@@ -716,14 +750,21 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, sc_verify
 }
 
 /* Title and the summary paragraph (its numbers from the run and the verification). */
-static void report_summary(FILE *fp, const grid_report *r, const sc_verify_result *vr)
+/* The page head: title, the printed pages' label, the certificate block. */
+static void report_head(FILE *fp, const grid_report *r, const report_info *ri)
 {
     char title[600];
     snprintf(title, sizeof title, "Grid plate self-calibration report — %s", cli_basename(r->in));
     html_begin(fp, title);
+    report_page_css(fp, ri);
     fputs("<h1>", fp);
     html_esc(fp, title);
     fputs("</h1>\n", fp);
+    report_info_html(fp, ri, "report");
+}
+
+static void report_summary(FILE *fp, const grid_report *r, const sc_verify_result *vr)
+{
     double mux, muy;
     rms_of(r->res.ugx_um, NG(r), &mux);
     rms_of(r->res.ugy_um, NG(r), &muy);
@@ -752,8 +793,10 @@ static void report_summary(FILE *fp, const grid_report *r, const sc_verify_resul
 
 /* The whole report into fp: summary, sections 1-6, provenance, appendix. */
 static sc_status write_report(FILE *fp, const grid_report *r, const sc_verify_opts *vo,
-                              const sc_verify_result *vr, int argc, char **argv, sc_error *err)
+                              const sc_verify_result *vr, const report_info *ri, int argc,
+                              char **argv, sc_error *err)
 {
+    report_head(fp, r, ri);
     report_summary(fp, r, vr);
     section_plan(fp, r);
     section_method(fp, r);
@@ -788,17 +831,19 @@ int cmd_report_grid(int argc, char **argv)
     const char *out = NULL;
     sc_verify_opts vo;
     sc_verify_opts_init(&vo);
+    report_info ri;
+    memset(&ri, 0, sizeof ri);
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
         }
-        int rc = parse_option(argc, argv, &a, &r, &vo, &out);
+        int rc = parse_option(argc, argv, &a, &r, &vo, &ri, &out);
         if (rc != CLI_OK)
             return rc;
     }
-    if (!r.in || !out)
-        return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
+    if (!r.in || (!out && !ri.pdf))
+        return cli_usage_error(cmd, "IN.csv and -o R.html or --pdf R.pdf are required (see --help)");
     if (strcmp(r.method, "lsq") && strcmp(r.method, "ye") && strcmp(r.method, "double-shift"))
         return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
     if (!r.verify_name != !r.table_name)
@@ -810,9 +855,15 @@ int cmd_report_grid(int argc, char **argv)
     sc_error_clear(&err);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
     const char *names[3] = {r.in, r.verify_name, r.table_name};
-    int opened;
-    sc_status st = cli_input_open_all(src, names, r.verify_name ? 3 : 1, 1u << 2 /* the table */,
-                                      &opened, &err);
+    int opened = 0;
+    report_out ro;
+    memset(&ro, 0, sizeof ro);
+    sc_status st = report_info_load(&ri, &err);
+    if (st == SC_OK)
+        st = report_out_prepare(&ro, &ri, out, &err); /* Chromium first: nothing written without */
+    if (st == SC_OK)
+        st = cli_input_open_all(src, names, r.verify_name ? 3 : 1, 1u << 2 /* the table */,
+                                &opened, &err);
     r.src = &src[0];
     if (r.verify_name)
         r.vsrc[0] = &src[1], r.vsrc[1] = &src[2];
@@ -828,13 +879,16 @@ int cmd_report_grid(int argc, char **argv)
     sc_afile f;
     memset(&f, 0, sizeof f);
     if (st == SC_OK)
-        st = sc_afile_open(&f, out, &err);
+        st = sc_afile_open(&f, ro.html, &err);
     if (st == SC_OK) {
-        st = write_report(f.fp, &r, &vo, &vr, argc, argv, &err);
+        st = write_report(f.fp, &r, &vo, &vr, &ri, argc, argv, &err);
         st = sc_afile_finish(&f, st, &err);
-    }
+        st = report_out_finish(&ro, &ri, st, &err);
+    } else if (ro.temp)
+        unlink(ro.html);
     sc_verify_result_free(&vr);
     free_report(&r);
+    report_info_free(&ri);
     int rc = CLI_OK;
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE))
