@@ -717,6 +717,131 @@ def case_verify_guarded():
         fail("report, guarded: rule %r, U %r" % (c.ids.get("verify-rule"), c.ids.get("verify-U")))
 
 
+def run_long(*args):
+    """selfcal with a long time limit (a 220-page PDF prints in 40 s on an idle machine)."""
+    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=900)
+    if p.returncode != 0:
+        fail("selfcal %s: exit %d\n%s" % (" ".join(map(str, args)), p.returncode, p.stderr))
+    return p
+
+
+def pdf_pages(pdf):
+    """The text of each page of a PDF (pdftotext -layout), in order."""
+    exe = shutil.which("pdftotext")
+    if not exe:
+        fail("pdftotext not found (scripts/install-deps.sh installs poppler-utils)")
+    p = subprocess.run([exe, "-layout", pdf, "-"], capture_output=True, timeout=300)
+    if p.returncode != 0:
+        fail("pdftotext %s: %s" % (pdf, p.stderr[-500:]))
+    pages = p.stdout.decode("utf-8", errors="replace").split("\f")
+    return pages[:-1] if pages and not pages[-1].strip() else pages
+
+
+NODE_ROW = re.compile(r"^\s*(\d+)\s+(\d+)\s+(-?[\d.]+)\s+(-?[\d.]+)(\s+-?\d+\.\d{5}){6}\s*$")
+
+
+def check_grid_pdf(d, n, info):
+    """report grid --pdf at N: the info fields, 'page k of m' and the report id on every page,
+    every node's appendix row, no page ending in a heading."""
+    inp = os.path.join(d, "in%d.csv" % n)
+    run("simulate", "grid", "--plan", "double-shift", "--n", n, "--seed", 5, "--sigma-r-um", 0.01,
+        "--out", inp, "--truth-map", os.path.join(d, "gt%d.csv" % n))
+    pdf, html_ = os.path.join(d, "R%d.pdf" % n), os.path.join(d, "R%d.html" % n)
+    args = ["report", "grid", inp, "--pdf", pdf, "-o", html_]
+    for k, v in info:
+        args += ["--info", "%s=%s" % (k, v)]
+    run_long(*args[0:])
+    if not open(pdf, "rb").read(5).startswith(b"%PDF"):
+        fail("%s is not a PDF" % pdf)
+    pages = pdf_pages(pdf)
+    m = len(pages)
+    rid = dict(info)["report_id"]
+    for k, page in enumerate(pages, 1):
+        foot = [l for l in page.splitlines() if l.strip()][-1]
+        if not re.search(r"page %d of %d\s*$" % (k, m), foot) or rid not in foot:
+            fail("N = %d: page %d of %d has the foot %r" % (n, k, m, foot))
+    text = "\n".join(pages)
+    flat = " ".join(text.split())
+    for k, v in info:
+        if " ".join(v.split()) not in flat:
+            fail("N = %d: the PDF lacks the info value %r (%s)" % (n, v, k))
+    labels = {"report_id": "Report number", "item": "Calibrated item", "customer": "Customer",
+              "measured_on": "Date of measurement", "approved_by": "Approved by"}
+    for label in (labels[k] for k, _ in info if k in labels):
+        if label not in flat:
+            fail("N = %d: the PDF lacks the label %r" % (n, label))
+    if "coverage factor k = 2" not in flat or "Not included" not in flat:
+        fail("N = %d: the PDF lacks the uncertainty statement" % n)
+    nodes = set()
+    for line in text.splitlines():
+        mm = NODE_ROW.match(line)
+        if mm:
+            nodes.add((int(mm.group(1)), int(mm.group(2))))
+    want = {(i, j) for i in range(n) for j in range(n)}
+    if nodes != want:
+        fail("N = %d: %d of the %d appendix rows in the PDF (missing e.g. %s)"
+             % (n, len(nodes & want), n * n, sorted(want - nodes)[:5]))
+    # no heading left alone at the foot of a page: the last line above the page label is not one
+    heads = set()
+    hp = re.compile(r"<h[23][^>]*>(.*?)</h[23]>", re.S)
+    for h in hp.findall(open(html_, encoding="utf-8").read()):
+        heads.add(" ".join(re.sub(r"<[^>]+>", "", h).split()))
+    for k, page in enumerate(pages[:-1], 1):
+        body = [l.strip() for l in page.splitlines() if l.strip()][:-1]
+        if body and " ".join(body[-1].split()) in heads:
+            fail("N = %d: page %d ends with the heading %r" % (n, k, body[-1]))
+    return m
+
+
+def case_pdf():
+    d = fresh_dir("pdf")
+    info = [("report_id", "CAL-2026-0042"), ("item", "XY stage S/N 4711"),
+            ("customer", "ACME Präzision GmbH"), ("operator", "J. Doe"),
+            ("measured_on", "2026-11-20"), ("conditions", "20.0 °C ± 0.2 K, 45 % rH"),
+            ("approved_by", "Dr. A. Smith"), ("purchase_order", "PO 77/12")]
+    m25 = check_grid_pdf(d, 25, info)
+    m101 = check_grid_pdf(d, 101, info[:3])
+    if not m101 > m25:
+        fail("the N = 101 PDF has %d pages, the N = 25 one %d" % (m101, m25))
+    # an info file, and its errors (exit 2, one line naming the file and line, nothing written)
+    inp = os.path.join(d, "in25.csv")
+    with open(os.path.join(d, "info.txt"), "w") as f:
+        f.write("# the certificate's identification\nreport_id = F-1\n\nitem = stage <B>\n")
+    out = os.path.join(d, "F.html")
+    run("report", "grid", inp, "-o", out, "--info-file", os.path.join(d, "info.txt"),
+        "--info", "item=stage C")
+    c = parse(open(out, encoding="utf-8").read())
+    if c.ids.get("info-report_id", (0, ""))[1] != "F-1" or c.ids.get("info-item", (0, ""))[1] != "stage C":
+        fail("--info-file then --info: %r %r" % (c.ids.get("info-report_id"), c.ids.get("info-item")))
+    with open(os.path.join(d, "bad.txt"), "w") as f:
+        f.write("report_id = X\nno equals sign here\n")
+    r = run("report", "grid", inp, "-o", os.path.join(d, "B.html"), "--info-file",
+            os.path.join(d, "bad.txt"), expect=2)
+    if "bad.txt:2:" not in r.stderr or os.path.exists(os.path.join(d, "B.html")):
+        fail("a bad --info-file: %r" % r.stderr)
+    run("report", "grid", inp, "-o", os.path.join(d, "B.html"), "--info", "novalue", expect=2)
+    # --pdf without Chromium: says so, exit 1, nothing written
+    env = dict(os.environ, PATH="/nonexistent")
+    env.pop("SELFCAL_CHROMIUM", None)
+    p = subprocess.run([CLI, "report", "grid", inp, "-o", os.path.join(d, "N.html"), "--pdf",
+                        os.path.join(d, "N.pdf")], capture_output=True, text=True, env=env,
+                       timeout=300)
+    if p.returncode != 1 or "Chromium" not in p.stderr or os.path.exists(os.path.join(d, "N.pdf")) \
+            or os.path.exists(os.path.join(d, "N.html")):
+        fail("--pdf without Chromium: exit %d, %r" % (p.returncode, p.stderr))
+    # the profile report prints too, with its own label
+    run("simulate", "profile", "--n", 200, "--d1", 10, "--d2", 11, "--out", os.path.join(d, "p.csv"),
+        "--truth", os.path.join(d, "pt.csv"))
+    run_long("report", "profile", os.path.join(d, "p.csv"), "--pdf", os.path.join(d, "P.pdf"),
+             "--info", "report_id=P-9")
+    pages = pdf_pages(os.path.join(d, "P.pdf"))
+    for k, page in enumerate(pages, 1):
+        if not re.search(r"P-9.*page %d of %d\s*$" % (k, len(pages)), page.rstrip()):
+            fail("profile PDF: page %d lacks its label" % k)
+    if [x for x in os.listdir(d) if x.startswith(".selfcal-report")]:
+        fail("--pdf left its temporary HTML file")
+
+
 def expect_bad(args, name, outs):
     p = run(*args, expect=2)
     lines = p.stderr.strip().splitlines()
@@ -913,6 +1038,6 @@ def case_figs_grid():
 
 {"figs_grid": case_figs_grid, "outliers": case_outliers, "stage": case_stage, "render_grid": case_render_grid, "render_profile": case_render_profile,
  "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
- "verify": case_verify, "verify_guarded": case_verify_guarded, "bad_input": case_bad_input, "plots": case_plots,
+ "pdf": case_pdf, "verify": case_verify, "verify_guarded": case_verify_guarded, "bad_input": case_bad_input, "plots": case_plots,
  "pipes": case_pipes}[CASE]()
 print("ok")
