@@ -541,8 +541,9 @@ static void results_first_order(FILE *fp, const grid_report *r)
     const sc_grid_plan *p = &r->d.plan;
     const sc_grid_result *s = &r->res;
     const double uO = s->uO, uR = s->uR;
-    html_u_row(fp, "O, non-orthogonality (Petrò eq. 4)", "O", s->O * 1e6, uO * 1e6, "%.5g", "µm/m");
-    html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "µm/m");
+    /* ids O and R (their values in µrad and ppm, as the summary's O_urad and R_ppm) */
+    html_u_row(fp, "O, non-orthogonality (Petrò eq. 4)", "O", s->O * 1e6, uO * 1e6, "%.5g", "µrad");
+    html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "ppm (µm/m)");
     for (int v = 0; v < p->n_views; ++v) {
         const double ut = s->utx_um[v], uu = s->uty_um[v], uth = s->utheta_urad[v];
         char name[96], id[32];

@@ -270,8 +270,15 @@ def case_numbers_grid():
         run("report", "grid", inp, "-o", out, "--method", method, *extra)
         c = parse(check_self_contained(out))
         sm = json.load(open(s))
-        close(num(c, "O"), sm["O"] * 1e6, "O (um/m)")
-        close(num(c, "R"), sm["R"] * 1e6, "R (um/m)")
+        close(num(c, "O"), sm["O_urad"], "O (urad)")
+        close(num(c, "R"), sm["R_ppm"], "R (ppm)")
+        close(sm["O_urad"], sm["O"] * 1e6, "O_urad against the dimensionless O (kept through 0.3)")
+        close(sm["R_ppm"], sm["R"] * 1e6, "R_ppm against the dimensionless R")
+        if method == "lsq":
+            close(sm["uO_urad"], sm["uO"] * 1e6, "uO_urad")
+            close(sm["uR_ppm"], sm["uR"] * 1e6, "uR_ppm")
+        if "µrad" not in c.ids.get("O", ("", ""))[1] and "µrad" not in open(out, encoding="utf-8").read():
+            fail("the report gives O without its unit")
         for v, view in enumerate(sm["views"]):
             close(num(c, "tx-%d" % v), view["tx_um"], "tx view %d" % v)
             close(num(c, "ty-%d" % v), view["ty_um"], "ty view %d" % v)
