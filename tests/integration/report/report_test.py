@@ -911,6 +911,28 @@ def svg_texts(path):
     return root, ns, [t for t in root.iter(ns + "text")]
 
 
+def check_texts_inside(path):
+    """No text of the SVG runs past its edges (colour-bar labels were cut at the right edge): each
+    text's extent, from its anchor and an upper bound of its width (0.62 em a character), lies
+    within the drawing; texts in rotated groups (axis titles) are skipped."""
+    root = ET.parse(path).getroot()
+    ns = "{http://www.w3.org/2000/svg}"
+    width = float(root.get("width"))
+    rotated = {id(t) for g in root.iter(ns + "g") if "rotate" in (g.get("transform") or "")
+               for t in g.iter(ns + "text")}
+    for t in root.iter(ns + "text"):
+        if id(t) in rotated or not t.text:
+            continue
+        x, size = float(t.get("x")), float(t.get("font-size", 12))
+        w = 0.62 * size * len(t.text)
+        anchor = t.get("text-anchor", "start")
+        lo = x - (w if anchor == "end" else w / 2 if anchor == "middle" else 0)
+        hi = x + (0 if anchor == "end" else w / 2 if anchor == "middle" else w)
+        if lo < -1 or hi > width + 1:
+            fail("%s: the text %r runs from %.0f to %.0f px, the drawing is %.0f wide"
+                 % (path, t.text, lo, hi, width))
+
+
 def case_plots():
     d = fresh_dir("plots")
     p = lambda x: os.path.join(d, x)  # noqa: E731
@@ -977,9 +999,14 @@ def case_plots():
     lines = root.findall(ns + "polyline")
     if len(lines) != 3:  # ye, and lsq broken at its gap
         fail("plot xy: %d polylines" % len(lines))
+    # every axis has a title: the y axis, without --ylabel, names the series' columns
+    ytitles = [t.text for g in root.iter(ns + "g") if "rotate(-90)" in (g.get("transform") or "")
+               for t in g.iter(ns + "text")]
+    if ytitles != ["ye, lsq"] or "sigma_r_um" not in labels:
+        fail("plot xy axis titles: y %r, x in %s" % (ytitles, labels))
     run("plot", "xy", p("xy.csv"), "-o", p("xy2.svg"), "--y", "nope", expect=2)
-    # a large map (151 x 151 nodes) is drawn at one node in three each way, always with its
-    # largest arrow; its u(G) cells in blocks of 2 x 2 nodes
+    # a large map (151 x 151 nodes) is drawn at one node in six each way over |G|, always with
+    # its largest arrow; its |G| and u(G) cells in blocks of 2 x 2 nodes
     n = 151
     with open(p("big.csv"), "w") as f:
         f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
@@ -991,10 +1018,13 @@ def case_plots():
     run("plot", "map", p("big.csv"), "-o", p("big.svg"))
     root, ns, texts = svg_texts(p("big.svg"))
     arrows = [a for a in root.iter(ns + "line") if a.get("stroke") == "#1f4e9c"]
-    if not 51 * 51 <= len(arrows) <= 51 * 51 + 2:  # 51 x 51 nodes, the largest, the scale bar
+    # above 41 nodes a side: |G| as a colour map under arrows at one node in ceil(N / 26) = 6
+    if not 26 * 26 <= len(arrows) <= 26 * 26 + 2:  # 26 x 26 nodes, the largest, the scale bar
         fail("large map: %d arrows" % len(arrows))
     alltext = " ".join(t.text or "" for t in texts)
-    if "one node in 3" not in alltext or "max |G| = 5" not in alltext:
+    if "|G| (µm)" not in alltext or "colour: |G| at every node" not in alltext:
+        fail("large map: no |G| colour map under the arrows: %s" % alltext[:400])
+    if "one node in 6" not in alltext or "max |G| = 5" not in alltext:
         fail("large map texts: %s" % alltext[:400])
     # the largest arrow (5 µm at node (61, 62), off the drawn nodes) is drawn: longer than 3 times
     # any other but the scale bar
@@ -1004,8 +1034,22 @@ def case_plots():
     if not lens[-1] > 3 * lens[-3]:
         fail("large map: the largest arrow is not drawn (%s)" % lens[-4:])
     cells = [r for r in root.iter(ns + "rect") if r.get("fill", "").startswith("#") and r.get("fill") != "#333"]
-    if not 76 * 76 <= len(cells) <= 76 * 76 + 80 or os.path.getsize(p("big.svg")) > 2_000_000:
+    # two colour maps (|G| under the arrows, u(G)) of 76 x 76 cells, and their bars' 64 steps
+    if not 2 * 76 * 76 <= len(cells) <= 2 * 76 * 76 + 200 or os.path.getsize(p("big.svg")) > 2_000_000:
         fail("large map: %d cells, %d bytes" % (len(cells), os.path.getsize(p("big.svg"))))
+    check_texts_inside(p("big.svg"))
+    # the colour bars of the standalone maps are not cut: a map with u(G), and with its truth
+    ug = p("small_u.csv")
+    with open(ug, "w") as f:
+        f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
+        for i in range(9):
+            for j in range(9):
+                f.write("%d,%d,%g,%g,%g,%g,%g,%g\n" % (i, j, j, i, 1e-4 * i, -2e-4 * j,
+                                                       1e-5 * (1 + i * j), 1e-5))
+    run("plot", "map", ug, "-o", p("small_u.svg"))
+    check_texts_inside(p("small_u.svg"))
+    run("plot", "map", ug, "-o", p("small_ut.svg"), "--truth", ug)
+    check_texts_inside(p("small_ut.svg"))
     # profile plot: the f chart has uncertainty bands
     pin, pout = p("p.csv"), p("P.csv")
     run("simulate", "profile", "--out", pin, "--truth", p("pt.csv"))
