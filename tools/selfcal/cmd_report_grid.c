@@ -787,7 +787,7 @@ static void report_summary(FILE *fp, const grid_report *r, const sc_verify_resul
                 2 * fmax(mux, muy));
     if (r->verify_name && vr->verdict != SC_VERIFY_NO_VERDICT)
         fprintf(fp, " Verification: <b class=\"%s\">%s</b> (%s rule).",
-                vr->verdict == SC_VERIFY_PASS ? "pass" : vr->verdict == SC_VERIFY_FAIL ? "fail" : "note",
+                vr->verdict == SC_VERIFY_PASS ? "pass" : vr->verdict == SC_VERIFY_FAIL ? "fail" : "inconclusive",
                 sc_verify_verdict_name(vr->verdict), sc_verify_rule_name(vr->rule));
     fputs("</p></div>\n", fp);
 }

@@ -126,7 +126,7 @@ sc_status verify_html_section(FILE *fp, const sc_verify_opts *o, const char *nam
         const char *v = sc_verify_verdict_name(r->verdict);
         fprintf(fp, "<p>Verdict: <b id=\"verify-verdict\" class=\"%s\">%s</b> (%s rule, "
                     "U = %.4g µm).",
-                r->verdict == SC_VERIFY_PASS ? "pass" : r->verdict == SC_VERIFY_FAIL ? "fail" : "note",
+                r->verdict == SC_VERIFY_PASS ? "pass" : r->verdict == SC_VERIFY_FAIL ? "fail" : "inconclusive",
                 v, sc_verify_rule_name(r->rule), r->u.U_um);
         if (r->verdict == SC_VERIFY_INCONCLUSIVE)
             fputs(" The tolerance lies within max |r| ± U: neither conformance nor "
