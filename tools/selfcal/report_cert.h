@@ -23,7 +23,7 @@ typedef struct report_info {
     const char *pdf; /* --pdf R.pdf, or NULL */
 } report_info;
 
-/* --info KEY=VALUE, --info-file F or --pdF R.pdf with its value v into ri: CLI_OK, the usage error,
+/* --info KEY=VALUE, --info-file F or --pdf R.pdf with its value v into ri: CLI_OK, the usage error,
  * or -1 if opt is none of them. */
 int report_info_option(const char *cmd, const char *opt, const char *v, report_info *ri);
 
