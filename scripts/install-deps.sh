@@ -12,7 +12,7 @@ DEB_PACKAGES=(
   qemu-system-x86 busybox-static can-utils iproute2 cpio gzip
   mbpoll socat python3 python3-pip python3-venv
   clang libclang-rt-14-dev
-  chromium
+  chromium poppler-utils
   # LinuxCNC (uspace): halcompile builds the HAL component selfcal_xy, halrun tests it
   # (util-linux: unshare and setpriv, which that test uses)
   linuxcnc-uspace linuxcnc-uspace-dev util-linux

@@ -24,7 +24,21 @@ def test_noise_free_recovery(method):
     assert np.max(np.abs(r.gy_um - truth["gy_um"])) < 1e-9
     assert np.max(np.abs(r.ax_um - truth["ax_um"])) < 1e-9
     assert abs(r.O - truth["O"]) < 1e-12 and abs(r.R - truth["R"]) < 1e-12
+    assert abs(r.O_urad - truth["O_urad"]) < 1e-6 and abs(r.R_ppm - truth["R_ppm"]) < 1e-6
+    assert r.O_urad == pytest.approx(r.O * 1e6) and r.R_ppm == pytest.approx(r.R * 1e6)
     assert np.isnan(r.ugx_um).all() == (method != "lsq")
+
+
+def test_first_order_terms_in_urad_and_ppm():
+    m, truth = selfcal.simulate_grid("double-shift", n=9, sigma_r_um=0.0, seed=3, O_urad=12.0,
+                                     R_ppm=-4.0)
+    assert truth["O_urad"] == pytest.approx(12.0) and truth["R_ppm"] == pytest.approx(-4.0)
+    assert truth["O"] == pytest.approx(12e-6)
+    r = selfcal.calibrate_grid(m, method="lsq")
+    assert r.O_urad == pytest.approx(12.0, abs=1e-6) and r.R_ppm == pytest.approx(-4.0, abs=1e-6)
+    assert np.isfinite(r.uO_urad) and r.uO_urad == pytest.approx(r.uO * 1e6)
+    with pytest.raises(TypeError):
+        selfcal.simulate_grid("ye", n=5, O=1e-5, O_urad=10.0)
 
 
 def test_stitched_stage_and_missing_mark_in_memory():

@@ -1,48 +1,24 @@
-/* tests/fuzz/fuzz_verify.c — libFuzzer target: `selfcal verify` (tools/selfcal/verify.c,
- * verify_run) on a fuzzed re-measurement of the plate (a selfcal-grid v1 file read by
+/* tests/fuzz/fuzz_verify.c — libFuzzer target: `selfcal verify` (libselfcal/src/verify/verify.c,
+ * sc_verify_run) on a fuzzed re-measurement of the plate (a selfcal-grid v1 file read by
  * sc_grid_read, then placed, corrected by the table through sc_corr_apply, misalignment
  * removed), with the plate error (sc_grid_read_artifact) and the table (sc_lut_load_corr_file)
- * of a calibration made here by the library's writers. The HTML and SVG parts of verify.c are
- * not exercised (stubs below).
+ * of a calibration made here by the library's writers.
  * Input: one control byte (bits 0-1: the plate error's N = 3, 5, 7, 9 (other N: the
  * "plate error has N" refusal); bit 2: a table of zero corrections, else a smooth one; bit 3:
- * --raw; bits 4-7: tolerance k x 0.25 µm, 0: none), then the re-measurement.
+ * --raw; bits 4-7: tolerance k x 0.25 µm, 0: none; the guarded rule when k is odd), then the
+ * re-measurement.
  * Checks beyond "no memory error, no undefined behaviour":
  *   - a one-line error, or statistics over the same count of marks before and after, finite,
  *     RMS of x and of y <= RMS of |r| <= max |r|;
- *   - the verdict is exactly max |r| after <= tolerance (no tolerance: no verdict);
+ *   - the verdict is exactly max |r| after <= tolerance (no tolerance: no verdict), under the
+ *     guarded rule pass exactly when max + U <= T, fail when max - U > T, U finite and >= 0;
  *   - with a zero table, before and after compensation are the same (to rounding). */
 #include <math.h>
 
 #include "fuzz_reader_check.h"
-#include "plots.h"
-#include "report_html.h"
 #include "selfcal/lut.h"
 #include "selfcal/plate_map.h"
-#include "verify.h"
-
-/* verify.c's HTML section draws through these; the fuzz target never calls it. */
-void plot_arrows_pair_svg(FILE *fp, const sc_stage_map *a, const char *title_a,
-                          const sc_stage_map *b, const char *title_b, const char *heading)
-{
-    (void)fp, (void)a, (void)title_a, (void)b, (void)title_b, (void)heading;
-    abort();
-}
-void html_esc(FILE *fp, const char *s)
-{
-    (void)fp, (void)s;
-    abort();
-}
-sc_status html_figure(FILE *fp, html_draw_fn draw, const void *ctx, const char *caption, sc_error *err)
-{
-    (void)fp, (void)draw, (void)ctx, (void)caption, (void)err;
-    abort();
-}
-void html_num_cell(FILE *fp, const char *id, const char *fmt, double v)
-{
-    (void)fp, (void)id, (void)fmt, (void)v;
-    abort();
-}
+#include "selfcal/verify.h"
 
 static char g_plate[4][320], g_table[2][320];
 
@@ -82,7 +58,7 @@ static void make_fixtures(void)
     }
 }
 
-static void check_stats(const verify_stats *s)
+static void check_stats(const sc_verify_stats *s)
 {
     FUZZ_CHECK(isfinite(s->rms_x) && isfinite(s->rms_y) && isfinite(s->rms) && isfinite(s->max));
     double tol = 1e-12 * s->max;
@@ -96,8 +72,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (size < 1)
         return 0;
     uint8_t c = data[0];
-    verify_opts o;
-    verify_opts_init(&o);
+    sc_verify_opts o;
+    sc_verify_opts_init(&o);
     o.measurement = fuzz_path(data + 1, size - 1);
     o.artifact = g_plate[c & 3];
     int zero = (c >> 2) & 1;
@@ -105,7 +81,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     o.raw = (c >> 3) & 1;
     if (c >> 4)
         o.tolerance_um = 0.25 * (c >> 4);
-    verify_result r;
+    if ((c >> 4) & 1)
+        o.rule = SC_VERIFY_RULE_GUARDED;
+    sc_verify_result r;
     sc_error err;
     memset(&err, 0, sizeof err);
     sc_status st = verify_run(&o, &r, &err);
@@ -114,10 +92,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         FUZZ_CHECK(r.st_before.count >= 1 && r.st_before.count == r.st_after.count);
         check_stats(&r.st_before);
         check_stats(&r.st_after);
-        if (isnan(o.tolerance_um))
-            FUZZ_CHECK(r.pass == -1);
+        FUZZ_CHECK(isfinite(r.u.U_um) && r.u.U_um >= 0);
+        double mx = r.st_after.max, T = o.tolerance_um, U = r.u.U_um;
+        if (isnan(T))
+            FUZZ_CHECK(r.verdict == SC_VERIFY_NO_VERDICT);
+        else if (o.rule == SC_VERIFY_RULE_SIMPLE)
+            FUZZ_CHECK(r.verdict == (mx <= T ? SC_VERIFY_PASS : SC_VERIFY_FAIL));
         else
-            FUZZ_CHECK(r.pass == (r.st_after.max <= o.tolerance_um));
+            FUZZ_CHECK(r.verdict == (mx + U <= T   ? SC_VERIFY_PASS
+                                     : mx - U > T ? SC_VERIFY_FAIL
+                                                  : SC_VERIFY_INCONCLUSIVE));
         if (zero) {
             const sc_grid_plan *p = &r.d.plan;
             double scale = 1 + fabs(p->origin_mm[0]) + fabs(p->origin_mm[1]) +
@@ -127,6 +111,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             FUZZ_CHECK(fabs(r.st_before.max - r.st_after.max) <= tol);
         }
     }
-    verify_result_free(&r);
+    sc_verify_result_free(&r);
     return 0;
 }

@@ -21,14 +21,12 @@ if(SELFCAL_FUZZ)
     else()
       target_link_libraries(fuzz_${t} PRIVATE selfcal_static m)
     endif()
-    # `selfcal verify`'s computation and `plot xy`'s reader live in the CLI's sources
-    if(t STREQUAL "verify")
-      target_sources(fuzz_${t} PRIVATE ${PROJECT_SOURCE_DIR}/tools/selfcal/verify.c)
-    elseif(t STREQUAL "plot_xy")
+    # `plot xy`'s reader lives in the CLI's sources
+    if(t STREQUAL "plot_xy")
       target_sources(fuzz_${t} PRIVATE ${PROJECT_SOURCE_DIR}/tools/selfcal/cmd_plot_xy.c
                                        ${PROJECT_SOURCE_DIR}/tools/selfcal/svg.c)
     endif()
-    if(t MATCHES "^(verify|plot_xy)$")
+    if(t STREQUAL "plot_xy")
       target_include_directories(fuzz_${t} PRIVATE ${PROJECT_SOURCE_DIR}/tools/selfcal)
     endif()
     set_target_properties(fuzz_${t} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/fuzz)

@@ -12,9 +12,12 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   # Chromium: up to 3 runs per report, each a few seconds (20 s under load): 5x margin.
   report_test(report_render_grid render_grid 600)
   report_test(report_render_profile render_profile 600)
+  # --pdf at N = 25 and N = 101 (a 220-page PDF: 40 s on an idle machine) and a profile
+  report_test(report_pdf pdf 1200)
   report_test(report_numbers_grid numbers_grid 120)
   report_test(report_numbers_profile numbers_profile 120)
   report_test(report_verify verify 120)
+  report_test(report_verify_guarded verify_guarded 240)
   report_test(report_pipes pipes 120)
   report_test(report_bad_input bad_input 120)
   report_test(report_plots plots 120)

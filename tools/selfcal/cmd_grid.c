@@ -121,6 +121,7 @@ static void print_grid_summary(const char *method, const sc_grid_plan *p,
             printf("sigma_r_used_um: %.6g (for the uncertainties)\n", r->sigma_r_used_um);
     }
     printf("residual_rms_um: %.6g\nO: %.6g\nR: %.6g\n", r->residual_rms_um, r->O, r->R);
+    printf("O_urad: %.6g\nR_ppm: %.6g\n", r->O * 1e6, r->R * 1e6);
     printf("worst_node: %d,%d at (%g, %g) mm: |G| = %.6g um (gx %.6g, gy %.6g)", i, j,
            x_mm + p->origin_mm[0], y_mm + p->origin_mm[1], worst_um, r->gx_um[worst], r->gy_um[worst]);
     if (isfinite(r->ugx_um[worst]))

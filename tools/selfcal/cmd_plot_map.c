@@ -99,6 +99,13 @@ static const char *axis_y(int plate) { return plate ? "y (mm, plate frame)" : "y
  * 1.4 px apart (a 37 MB drawing nobody can read); with the stride the arrows stay ~10 px apart. */
 #define MAP_MAX_ARROWS 56
 #define MAP_MAX_CELLS 140
+/* Above this many nodes on a side, an arrow panel draws |G| as a colour map under the arrows and
+ * thins the arrows to at most MAP_MAX_ARROWS_BACKDROP on a side (about 20 px apart), so that
+ * each arrow can be read and the colour shows where the error is large (at N = 101 the arrows
+ * of every second node were specks). */
+#define MAP_BACKDROP_N 41
+#define MAP_MAX_ARROWS_BACKDROP 26
+#define MAP_BAR_W 16 /* colour bar width, px */
 
 static int map_stride(const sc_stage_map *m, int most)
 {
@@ -106,14 +113,68 @@ static int map_stride(const sc_stage_map *m, int most)
     return n > most ? (n + most - 1) / most : 1;
 }
 
+/* Does an arrow panel of m draw |G| under its arrows? */
+static int map_has_backdrop(const sc_stage_map *m) { return map_nside(m) > MAP_BACKDROP_N; }
+
+/* Colour cells of v on chart c for [lo, hi]: a cell per node, or per block of stride × stride
+ * nodes of a large map: the block's value of largest magnitude (its worst node), grey where it
+ * has none. */
+static void colormap_cells(FILE *fp, const svg_chart *c, const sc_stage_map *m, const double *v,
+                           double lo, double hi, int palette)
+{
+    int st = map_stride(m, MAP_MAX_CELLS);
+    double cell = svg_px(c, m->px_mm) - svg_px(c, 0), cell_h = svg_px(c, m->py_mm) - svg_px(c, 0);
+    char col[8];
+    for (int by = 0; by < m->ny; by += st)
+        for (int bx = 0; bx < m->nx; bx += st) {
+            int ex = bx + st < m->nx ? bx + st : m->nx, ey = by + st < m->ny ? by + st : m->ny;
+            double val = NAN;
+            for (int iy = by; iy < ey; ++iy)
+                for (int ix = bx; ix < ex; ++ix) {
+                    double w = v[(long)iy * m->nx + ix];
+                    if (isfinite(w) && (isnan(val) || fabs(w) > fabs(val)))
+                        val = w; /* the first of the largest magnitude */
+                }
+            if (isfinite(val))
+                svg_palette((val - lo) / (hi - lo), palette, col);
+            else
+                snprintf(col, sizeof col, "#d0d0d0");
+            /* from the block's first node's cell corner to its last node's */
+            double ax = svg_px(c, sc_stage_map_x_mm(m, bx)), ay = svg_py(c, sc_stage_map_y_mm(m, by));
+            double zx = svg_px(c, sc_stage_map_x_mm(m, ex - 1)), zy = svg_py(c, sc_stage_map_y_mm(m, ey - 1));
+            double x_lo = fmin(ax, zx) - cell / 2, y_lo = fmin(ay, zy) - cell_h / 2;
+            fprintf(fp, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"%s\"/>\n",
+                    x_lo, y_lo, fabs(zx - ax) + cell + 0.3, fabs(zy - ay) + cell_h + 0.3, col);
+        }
+}
+
+/* The colour bar of |what| beside an arrow panel whose largest arrow is vmax µm: its label. */
+static void backdrop_label(char *buf, size_t cap, const char *what)
+{
+    snprintf(buf, cap, "|%s| (µm)", what);
+}
+
+/* What an arrow panel of m needs right of its frame (its |G| colour bar), px; 0 without. */
+static double arrow_panel_right(const sc_stage_map *m, const double *gx, const double *gy,
+                                const char *what, int backdrop)
+{
+    if (!backdrop || !map_has_backdrop(m))
+        return 0;
+    stats s = map_stats(map_nodes(m), gx, gy);
+    char lab[64];
+    backdrop_label(lab, sizeof lab, what);
+    return 18 + svg_color_bar_extent(MAP_BAR_W, 0, s.max > 0 ? s.max : 1, lab);
+}
+
 /* One arrow panel at (x0, y0), sz px square: arrows at nodes (every stride-th of a large map, and
  * always the largest), missing marks, the statistics line above, the scale bar below. The data
  * range holds the longest arrow, so no arrow crosses the frame. */
 static void arrow_panel(FILE *fp, double x0, double y0, double sz, const sc_stage_map *m, int plate,
                         const double *gx, const double *gy, double scale_um_per_pitch,
-                        const char *title, const char *what, const char *color)
+                        const char *title, const char *what, const char *color, int backdrop)
 {
-    int stride = map_stride(m, MAP_MAX_ARROWS);
+    backdrop = backdrop && map_has_backdrop(m);
+    int stride = map_stride(m, backdrop ? MAP_MAX_ARROWS_BACKDROP : MAP_MAX_ARROWS);
     int n = (map_nside(m) + stride - 1) / stride; /* arrows on a side */
     long nn = map_nodes(m);
     stats s = map_stats(nn, gx, gy);
@@ -127,6 +188,19 @@ static void arrow_panel(FILE *fp, double x0, double y0, double sz, const sc_stag
     svg_chart c;
     svg_chart_init(&c, fp, x0, y0, sz, sz, lo_x, lo_x + span, lo_y, lo_y + span);
     svg_axes(&c, axis_x(plate), axis_y(plate), NULL);
+    double *mag = backdrop ? malloc((size_t)nn * sizeof(double)) : NULL;
+    if (mag) { /* |G| under the arrows, with its colour bar */
+        for (long k = 0; k < nn; ++k)
+            mag[k] = hypot(gx[k], gy[k]);
+        double hi = s.max > 0 ? s.max : 1;
+        colormap_cells(fp, &c, m, mag, 0, hi, SVG_PALETTE_HEAT);
+        fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#333\"/>\n",
+                c.x, c.y, c.w, c.h);
+        char lab[64];
+        backdrop_label(lab, sizeof lab, what);
+        svg_color_bar(fp, x0 + sz + 18, y0 + 10, MAP_BAR_W, sz - 20, 0, hi, SVG_PALETTE_HEAT, lab);
+        free(mag);
+    }
     svg_text_fit(fp, x0 + sz / 2, y0 - 30, 15, sz + 60, "middle", "#000", "%s", title);
     if (s.count)
         svg_text_fit(fp, x0 + sz / 2, y0 - 12, 12, sz + 60, "middle", "#333",
@@ -157,8 +231,9 @@ static void arrow_panel(FILE *fp, double x0, double y0, double sz, const sc_stag
                  scale);
     else
         svg_text(fp, bx + blen + 8, by + 4, 12, "start", "#000",
-                 "%g µm   (an arrow %d pitches long, %g mm, is %g µm; one node in %d drawn each way)",
-                 stride * scale, stride, stride * map_pitch(m), stride * scale, stride);
+                 "%g µm   (an arrow %d pitches long, %g mm, is %g µm; one node in %d drawn each way%s)",
+                 stride * scale, stride, stride * map_pitch(m), stride * scale, stride,
+                 backdrop ? "; colour: |G| at every node" : "");
 }
 
 /* One colour-map panel at (x0, y0), sz px square: a cell per node coloured by v (NaN: grey),
@@ -186,32 +261,7 @@ static void colormap_panel(FILE *fp, double x0, double y0, double sz, const sc_s
     svg_chart c;
     svg_chart_init(&c, fp, x0, y0, sz, sz, lo_x, lo_x + span, lo_y, lo_y + span);
     svg_axes(&c, axis_x(plate), axis_y(plate), NULL);
-    /* a cell per node, or per block of stride × stride nodes of a large map: the block's value of
-     * largest magnitude (its worst node), grey where it has none */
-    int st = map_stride(m, MAP_MAX_CELLS);
-    double cell = svg_px(&c, m->px_mm) - svg_px(&c, 0), cell_h = svg_px(&c, m->py_mm) - svg_px(&c, 0);
-    char col[8];
-    for (int by = 0; by < m->ny; by += st)
-        for (int bx = 0; bx < m->nx; bx += st) {
-            int ex = bx + st < m->nx ? bx + st : m->nx, ey = by + st < m->ny ? by + st : m->ny;
-            double val = NAN;
-            for (int iy = by; iy < ey; ++iy)
-                for (int ix = bx; ix < ex; ++ix) {
-                    double w = v[(long)iy * m->nx + ix];
-                    if (isfinite(w) && (isnan(val) || fabs(w) > fabs(val)))
-                        val = w; /* the first of the largest magnitude */
-                }
-            if (isfinite(val))
-                svg_palette((val - lo) / (hi - lo), diverging, col);
-            else
-                snprintf(col, sizeof col, "#d0d0d0");
-            /* from the block's first node's cell corner to its last node's */
-            double ax = svg_px(&c, sc_stage_map_x_mm(m, bx)), ay = svg_py(&c, sc_stage_map_y_mm(m, by));
-            double zx = svg_px(&c, sc_stage_map_x_mm(m, ex - 1)), zy = svg_py(&c, sc_stage_map_y_mm(m, ey - 1));
-            double x_lo = fmin(ax, zx) - cell / 2, y_lo = fmin(ay, zy) - cell_h / 2;
-            fprintf(fp, "<rect x=\"%.2f\" y=\"%.2f\" width=\"%.2f\" height=\"%.2f\" fill=\"%s\"/>\n",
-                    x_lo, y_lo, fabs(zx - ax) + cell + 0.3, fabs(zy - ay) + cell_h + 0.3, col);
-        }
+    colormap_cells(fp, &c, m, v, lo, hi, diverging);
     fprintf(fp, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#333\"/>\n",
             c.x, c.y, c.w, c.h);
     svg_text_fit(fp, x0 + sz / 2, y0 - 30, 15, sz + 60, "middle", "#000", "%s", title);
@@ -222,14 +272,38 @@ static void colormap_panel(FILE *fp, double x0, double y0, double sz, const sc_s
     svg_color_bar(fp, x0 + sz + 18, y0 + 10, 16, sz - 20, lo, hi, diverging, unit);
 }
 
+/* What a colour-map panel of v needs right of its frame (its colour bar), px. */
+static double colormap_right(const sc_stage_map *m, const double *v, int diverging, const char *unit)
+{
+    double vmax = 0;
+    for (long k = 0; k < map_nodes(m); ++k)
+        if (isfinite(v[k]))
+            vmax = fmax(vmax, fabs(v[k]));
+    double lo = diverging ? -vmax : 0, hi = vmax;
+    if (!(hi > lo))
+        hi = lo + 1;
+    return 18 + svg_color_bar_extent(MAP_BAR_W, lo, hi, unit);
+}
+
 void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
                   double scale_um_per_pitch, const char *name, int plate)
 {
     int n = map_nside(m);
     double sz = 560, margin_l = 80, margin_t = 100, gap = 120, bottom = 80;
     int u_panel = sc_stage_map_has_u(m);
-    int panels = 1 + (truth != NULL) + u_panel;
-    int w = (int)(margin_l + panels * sz + (panels - 1) * gap + 70);
+    size_t nn = (size_t)map_nodes(m);
+    double *buf = malloc(2 * nn * sizeof(double));
+    if (buf && u_panel)
+        for (size_t k = 0; k < nn; ++k)
+            buf[k] = fmax(m->ugx_um[k], m->ugy_um[k]); /* NaN only if both are */
+    const char *what = plate ? "A" : "G";
+    /* the first panel's |G| colour bar sits in the gap after it (or in the right margin) */
+    double right0 = arrow_panel_right(m, m->gx_um, m->gy_um, what, 1);
+    double gap0 = fmax(gap, right0 + 75); /* the next panel's axis labels need ~75 px */
+    int more = (truth != NULL) + (u_panel && buf);
+    double right = more == 0 ? fmax(40, right0 + 10)
+                   : u_panel && buf ? fmax(70, colormap_right(m, buf, 0, "µm") + 10) : 40;
+    int w = (int)(margin_l + (1 + more) * sz + (more ? gap0 + (more - 1) * gap : 0) + right);
     int h = (int)(margin_t + sz + bottom);
     svg_begin(fp, w, h);
     if (m->nx == m->ny && m->px_mm == m->py_mm)
@@ -247,29 +321,31 @@ void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
                                   "translation, rotation or magnification");
     double x = margin_l;
     arrow_panel(fp, x, margin_t, sz, m, plate, m->gx_um, m->gy_um, scale_um_per_pitch,
-                plate ? "plate error A" : "stage error G",
-                plate ? "A" : "G", "#1f4e9c");
-    x += sz + gap;
-    size_t nn = (size_t)map_nodes(m);
-    double *buf = malloc(2 * nn * sizeof(double));
+                plate ? "plate error A" : "stage error G", what, "#1f4e9c", 1);
+    x += sz + gap0;
     if (!buf) { /* the drawing loses its extra panels, never its frame */
         svg_end(fp);
         return;
     }
     if (truth) {
-        for (size_t k = 0; k < nn; ++k) {
-            buf[k] = m->gx_um[k] - truth->gx_um[k];
-            buf[nn + k] = m->gy_um[k] - truth->gy_um[k];
+        double *ex = buf + (u_panel ? nn : 0), *ey = u_panel ? NULL : buf + nn;
+        double *tmp = u_panel ? malloc(nn * sizeof(double)) : NULL;
+        if (u_panel)
+            ey = tmp;
+        if (ey) {
+            for (size_t k = 0; k < nn; ++k) {
+                ex[k] = m->gx_um[k] - truth->gx_um[k];
+                ey[k] = m->gy_um[k] - truth->gy_um[k];
+            }
+            arrow_panel(fp, x, margin_t, sz, m, plate, ex, ey, 0,
+                        plate ? "estimation error A − A_true" : "estimation error G − G_true",
+                        "error", "#b3261e", 0);
         }
-        arrow_panel(fp, x, margin_t, sz, m, plate, buf, buf + nn, 0, plate ? "estimation error A − A_true" : "estimation error G − G_true",
-                    "error", "#b3261e");
+        free(tmp);
         x += sz + gap;
     }
-    if (u_panel) {
-        for (size_t k = 0; k < nn; ++k)
-            buf[k] = fmax(m->ugx_um[k], m->ugy_um[k]); /* NaN only if both are */
+    if (u_panel)
         colormap_panel(fp, x, margin_t, sz, m, plate, buf, "u(G): larger of u(gx), u(gy), k = 1", "µm", 0);
-    }
     free(buf);
     svg_end(fp);
 }
@@ -278,9 +354,10 @@ void plot_arrows_svg(FILE *fp, const sc_stage_map *m, int plate, double scale_um
                      const char *title, const char *what)
 {
     double sz = 520;
-    svg_begin(fp, (int)(80 + sz + 40), (int)(70 + sz + 75));
+    double right = fmax(40, arrow_panel_right(m, m->gx_um, m->gy_um, what, 1) + 10);
+    svg_begin(fp, (int)(80 + sz + right), (int)(70 + sz + 75));
     arrow_panel(fp, 80, 60, sz, m, plate, m->gx_um, m->gy_um, scale_um_per_pitch, title, what,
-                "#1f4e9c");
+                "#1f4e9c", 1);
     svg_end(fp);
 }
 
@@ -292,8 +369,8 @@ void plot_arrows_pair_svg(FILE *fp, const sc_stage_map *a, const char *title_a,
     svg_begin(fp, w, (int)(100 + sz + 75));
     if (heading)
         svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s", heading);
-    arrow_panel(fp, 80, 90, sz, a, 0, a->gx_um, a->gy_um, 0, title_a, "r", "#1f4e9c");
-    arrow_panel(fp, 80 + sz + gap, 90, sz, b, 0, b->gx_um, b->gy_um, 0, title_b, "r", "#b3261e");
+    arrow_panel(fp, 80, 90, sz, a, 0, a->gx_um, a->gy_um, 0, title_a, "r", "#1f4e9c", 0);
+    arrow_panel(fp, 80 + sz + gap, 90, sz, b, 0, b->gx_um, b->gy_um, 0, title_b, "r", "#b3261e", 0);
     svg_end(fp);
 }
 
@@ -301,7 +378,8 @@ void plot_colormap_svg(FILE *fp, const sc_stage_map *m, int plate, const double 
                        const char *title, const char *unit, int diverging)
 {
     double sz = 420;
-    svg_begin(fp, (int)(80 + sz + 100), (int)(70 + sz + 50));
+    double right = fmax(40, colormap_right(m, v, diverging, unit) + 10);
+    svg_begin(fp, (int)(80 + sz + right), (int)(70 + sz + 50));
     colormap_panel(fp, 80, 60, sz, m, plate, v, title, unit, diverging);
     svg_end(fp);
 }

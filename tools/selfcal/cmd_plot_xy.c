@@ -18,7 +18,8 @@ static const char *USAGE =
     "  A line chart of a CSV file with a header line: x from column COL (default the first), one\n"
     "  line with markers per --y column (default every other column); empty fields are gaps.\n"
     "  --logx/--logy: logarithmic axes (values <= 0 are left out). At most 10^8 values\n"
-    "  (rows x columns).\n";
+    "  (rows x columns). Axis titles: --xlabel (default the x column's name), --ylabel (default\n"
+    "  the y columns' names).\n";
 
 #define XY_MAX_SERIES 16
 /* the most values read (rows x columns, 800 MB): an endless pipe is refused there instead of
@@ -241,7 +242,17 @@ static void draw_chart(FILE *fp, const xy_args *a, const xy_data *t, int xc, con
     svg_chart_init(&c, fp, 85, 50, W - 115, H - 120, range[0], range[1], range[2], range[3]);
     c.logx = a->logx;
     c.logy = a->logy;
-    svg_axes(&c, a->xlabel ? a->xlabel : t->names[xc], a->ylabel, a->title);
+    /* every axis has a title: without --ylabel, the series' column names (as the legend) */
+    char ylab[160] = "";
+    for (int q = 0; q < nser && !a->ylabel; ++q) {
+        size_t len = strlen(ylab);
+        if (len + strlen(t->names[yc[q]]) + 3 >= sizeof ylab) {
+            snprintf(ylab, sizeof ylab, "%s", nser > 1 ? "values of the series (legend)" : "value");
+            break;
+        }
+        snprintf(ylab + len, sizeof ylab - len, "%s%s", q ? ", " : "", t->names[yc[q]]);
+    }
+    svg_axes(&c, a->xlabel ? a->xlabel : t->names[xc], a->ylabel ? a->ylabel : ylab, a->title);
     for (int q = 0; q < nser; ++q) {
         const char *col = COLORS[q % 8], *dash = DASHES[(q / 8 + q) % 4];
         for (long r = 0; r < t->nrows; ++r) {

@@ -7,9 +7,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "plots.h"
+#include "report_cert.h"
 #include "report_html.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -19,10 +21,13 @@
 #include "verify.h"
 
 static const char *USAGE =
-    "usage: selfcal report grid IN.csv -o R.html [--method lsq|ye|double-shift] [--sigma-r-um S]\n"
+    "usage: selfcal report grid IN.csv -o R.html|--pdf R.pdf [--method lsq|ye|double-shift]\n"
+    "                           [--sigma-r-um S] [--info KEY=VALUE ...] [--info-file F]\n"
     "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
     "                           [--view-noise stated|estimate] [--view-scale model|free]\n"
-    "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]]\n"
+    "                           [--verify V.csv --table T.lut [--tolerance-um T] [--raw]\n"
+    "                            [--decision-rule simple|guarded] [--u-verify-um U]\n"
+    "                            [--verify-sigma-um S] [--u-plate-um UA]]\n"
     "\n"
     "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
     "prints to PDF from a browser) with the plan and whether it identifies G, the method, the\n"
@@ -38,12 +43,19 @@ static const char *USAGE =
     "(each source, its u, sensitivity and contribution at the worst node, combined and expanded).\n"
     "--verify adds the check of the compensated\n"
     "machine (see selfcal verify --help) against the plate error of this calibration.\n"
+    "--info KEY=VALUE (repeatable) and --info-file F (lines 'key = value') identify the report\n"
+    "as a certificate: report_id, item, plate, instrument, customer, operator, measured_on,\n"
+    "conditions, approved_by (other keys are listed as given); every printed page carries the\n"
+    "report id and 'page n of m'. --pdf R.pdf prints the report through headless Chromium\n"
+    "(SELFCAL_CHROMIUM, else chromium on PATH; without it: exit 1, nothing written).\n"
     "Exit 0, or 2 on bad input (one line naming the file and line; no report is left).\n";
 
 /* Everything the report shows, computed once. */
 typedef struct grid_report {
     const char *in, *method;
     const cli_input *src; /* in as read (a pipe from its in-memory copy) */
+    const char *verify_name, *table_name; /* --verify V.csv --table T.lut as given */
+    const cli_input *vsrc[2];             /* ... as read */
     double sigma_r_given; /* 0: not given */
     sc_grid_options test; /* the fit's options: outlier_alpha, _each, estimate_view_noise */
     sc_grid_data d;
@@ -532,8 +544,9 @@ static void results_first_order(FILE *fp, const grid_report *r)
     const sc_grid_plan *p = &r->d.plan;
     const sc_grid_result *s = &r->res;
     const double uO = s->uO, uR = s->uR;
-    html_u_row(fp, "O, non-orthogonality (Petrò eq. 4)", "O", s->O * 1e6, uO * 1e6, "%.5g", "µm/m");
-    html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "µm/m");
+    /* ids O and R (their values in µrad and ppm, as the summary's O_urad and R_ppm) */
+    html_u_row(fp, "O, non-orthogonality (Petrò eq. 4)", "O", s->O * 1e6, uO * 1e6, "%.5g", "µrad");
+    html_u_row(fp, "R, scale (Petrò eq. 5)", "R", s->R * 1e6, uR * 1e6, "%.5g", "ppm (µm/m)");
     for (int v = 0; v < p->n_views; ++v) {
         const double ut = s->utx_um[v], uu = s->uty_um[v], uth = s->utheta_urad[v];
         char name[96], id[32];
@@ -685,6 +698,8 @@ static void results_scale(FILE *fp, const grid_report *r)
                           : "k = 2: the degrees of freedom are large");
 }
 
+static void uncertainty_statement(FILE *fp, const grid_report *r);
+
 static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
 {
     fputs("<section id=\"results\">\n<h2>5. Results</h2>\n<h3>First-order terms and misalignments</h3>\n"
@@ -695,24 +710,21 @@ static sc_status section_results(FILE *fp, const grid_report *r, sc_error *err)
     results_scale(fp, r);
     results_g_table(fp, r);
     sc_status st = results_figures(fp, r, err);
+    uncertainty_statement(fp, r);
     fputs("</section>\n", fp);
     return st;
 }
 
-/* The whole map as a table (small maps only; the map file holds it anyway). */
+/* The whole map as a table, every node (print repeats the header row on every page). */
 static void appendix_table(FILE *fp, const grid_report *r)
 {
     int nx = sc_grid_stage_nx(&r->d.plan), ny = sc_grid_stage_ny(&r->d.plan);
-    if ((long)nx * ny > 41 * 41) {
-        fputs("<p>The node table is left out for maps larger than 41 × 41 nodes; the map file "
-              "written by <code>selfcal grid --map</code> holds it.</p>\n",
-              fp);
-        return;
-    }
-    fputs("<details id=\"node-table\"><summary>Stage error at every node (table)</summary>\n"
-          "<table class=\"map\">\n<tr><th>i</th><th>j</th><th>x (mm)</th><th>y (mm)</th>"
-          "<th>G<sub>x</sub> (µm)</th><th>G<sub>y</sub> (µm)</th><th>u(G<sub>x</sub>)</th>"
-          "<th>u(G<sub>y</sub>)</th><th>U(G<sub>x</sub>), k = 2</th><th>U(G<sub>y</sub>), k = 2</th></tr>\n",
+    fprintf(fp, "<p>The stage error at every one of the %d × %d nodes (the map file written by "
+                "<code>selfcal grid --map</code> holds the same values).</p>\n", nx, ny);
+    fputs("<table class=\"map\" id=\"node-table\">\n<thead><tr><th>i</th><th>j</th><th>x (mm)</th>"
+          "<th>y (mm)</th><th>G<sub>x</sub> (µm)</th><th>G<sub>y</sub> (µm)</th>"
+          "<th>u(G<sub>x</sub>) (µm)</th><th>u(G<sub>y</sub>) (µm)</th><th>U(G<sub>x</sub>), k = 2</th>"
+          "<th>U(G<sub>y</sub>), k = 2</th></tr></thead>\n<tbody>\n",
           fp);
     for (int i = 0; i < ny; ++i)
         for (int j = 0; j < nx; ++j) {
@@ -727,12 +739,56 @@ static void appendix_table(FILE *fp, const grid_report *r)
             html_num_cell(fp, NULL, "%.5f", 2 * r->res.ugy_um[k]);
             fputs("</tr>\n", fp);
         }
-    fputs("</table>\n</details>\n", fp);
+    fputs("</tbody>\n</table>\n", fp);
+}
+
+/* The statement of what U covers (SPEC §12), at the end of the results. */
+static void uncertainty_statement(FILE *fp, const grid_report *r)
+{
+    fputs("<h3>Statement of uncertainty</h3>\n", fp);
+    if (!sc_stage_map_has_u(&r->gm)) {
+        fputs("<p id=\"uncertainty-statement\" class=\"statement\">The closed-form method "
+              "gives no uncertainty of G: this report states none (use --method lsq).</p>\n", fp);
+        return;
+    }
+    const char *noise =
+        r->lres.stated_u
+            ? "the measurement noise of the calibration data, as the file states it per "
+              "measurement and scaled by the residuals (section 3), propagated through the "
+              "least-squares estimate to every node of G, to O, R and to the misalignments"
+            : "the measurement noise of the calibration data (σ_r used, section 3), propagated "
+              "through the least-squares estimate to every node of G, to O, R and to the "
+              "misalignments";
+    const char *after = "the stage's drift and repeatability after the measurement, and the "
+                        "interpolation of a table between the nodes.";
+    /* with the plate's scale and temperature lines (SPEC §11) the map's u is the budget's */
+    const sc_grid_budget *b = &r->lsol.budget;
+    char covers[1024], excluded[512];
+    if (b->applies && b->n_rows > 0) {
+        snprintf(covers, sizeof covers, "%s; and, combined with it at every node (the budget of "
+                 "section 'Scale, temperature and uncertainty budget'), the uncertainty of %s%s.",
+                 noise, b->magnification ? "the plate's certified scale, " : "",
+                 r->d.plan.scale.has_temps ? "the plate's expansion coefficient and the "
+                                             "temperature of each view"
+                                           : "the plate's expansion coefficient");
+        snprintf(excluded, sizeof excluded, "Not included: %s%s",
+                 b->magnification ? "" : "the scale of the plate (no certified scale was given: "
+                                         "G carries no magnification), ",
+                 after);
+    } else {
+        snprintf(covers, sizeof covers, "%s.", noise);
+        snprintf(excluded, sizeof excluded, "Not included: the scale of the plate and its "
+                 "thermal expansion (self-calibration cannot tell the stage's isotropic scale "
+                 "from the plate's: G carries no magnification; the file gives no "
+                 "'# plate_scale_ppm' and no temperatures), the temperatures of stage and plate "
+                 "during the measurement, %s", after);
+    }
+    report_uncertainty_statement(fp, covers, excluded);
 }
 
 /* One option (and its value, from argv[*a + 1]) into r, vo and *out. */
-static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_opts *vo,
-                        const char **out)
+static int parse_option(int argc, char **argv, int *a, grid_report *r, sc_verify_opts *vo,
+                        report_info *ri, const char **out)
 {
     const char *cmd = "report grid", *o = argv[*a];
     if (o[0] != '-' || !strcmp(o, "-")) {
@@ -751,6 +807,8 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
     int rc = cli_parse_lsq_option(cmd, o, v, &r->test); /* the outlier test, view noise */
     if (rc >= 0)
         return rc;
+    if ((rc = report_info_option(cmd, o, v, ri)) >= 0)
+        return rc;
     if (!strcmp(o, "-o") || !strcmp(o, "--out"))
         *out = v;
     else if (!strcmp(o, "--method"))
@@ -759,10 +817,12 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
         if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||
             !(r->sigma_r_given <= SC_INPUT_MAX_ABS))
             return cli_usage_error(cmd, "--sigma-r-um needs a positive number, got '%s'", v);
-    } else if (!strcmp(o, "--verify"))
-        vo->measurement = v;
+    } else if ((rc = verify_parse_option(cmd, o, v, vo)) >= 0)
+        return rc;
+    else if (!strcmp(o, "--verify"))
+        r->verify_name = v;
     else if (!strcmp(o, "--table"))
-        vo->table = v;
+        r->table_name = v;
     else if (!strcmp(o, "--tolerance-um")) {
         if (sc_parse_double(v, &vo->tolerance_um) || !(vo->tolerance_um > 0) ||
             !(vo->tolerance_um <= SC_INPUT_MAX_ABS))
@@ -773,15 +833,21 @@ static int parse_option(int argc, char **argv, int *a, grid_report *r, verify_op
 }
 
 /* Title and the summary paragraph (its numbers from the run and the verification). */
-static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo,
-                           const verify_result *vr)
+/* The page head: title, the printed pages' label, the certificate block. */
+static void report_head(FILE *fp, const grid_report *r, const report_info *ri)
 {
     char title[600];
     snprintf(title, sizeof title, "Grid plate self-calibration report — %s", cli_basename(r->in));
     html_begin(fp, title);
+    report_page_css(fp, ri);
     fputs("<h1>", fp);
     html_esc(fp, title);
     fputs("</h1>\n", fp);
+    report_info_html(fp, ri, "report");
+}
+
+static void report_summary(FILE *fp, const grid_report *r, const sc_verify_result *vr)
+{
     double mux, muy;
     rms_of(r->res.ugx_um, NG(r), &mux);
     rms_of(r->res.ugy_um, NG(r), &muy);
@@ -801,17 +867,20 @@ static void report_summary(FILE *fp, const grid_report *r, const verify_opts *vo
     if (isfinite(mux))
         fprintf(fp, " Largest u(G): %.4g µm (k = 1), U = %.4g µm (k = 2).", fmax(mux, muy),
                 2 * fmax(mux, muy));
-    if (vo->measurement)
-        fprintf(fp, " Verification: <b class=\"%s\">%s</b>.", vr->pass ? "pass" : "fail",
-                vr->pass ? "pass" : "fail");
+    if (r->verify_name && vr->verdict != SC_VERIFY_NO_VERDICT)
+        fprintf(fp, " Verification: <b class=\"%s\">%s</b> (%s rule).",
+                vr->verdict == SC_VERIFY_PASS ? "pass" : vr->verdict == SC_VERIFY_FAIL ? "fail" : "inconclusive",
+                sc_verify_verdict_name(vr->verdict), sc_verify_rule_name(vr->rule));
     fputs("</p></div>\n", fp);
 }
 
 /* The whole report into fp: summary, sections 1-6, provenance, appendix. */
-static sc_status write_report(FILE *fp, const grid_report *r, const verify_opts *vo,
-                              const verify_result *vr, int argc, char **argv, sc_error *err)
+static sc_status write_report(FILE *fp, const grid_report *r, const sc_verify_opts *vo,
+                              const sc_verify_result *vr, const report_info *ri, int argc,
+                              char **argv, sc_error *err)
 {
-    report_summary(fp, r, vo, vr);
+    report_head(fp, r, ri);
+    report_summary(fp, r, vr);
     section_plan(fp, r);
     section_method(fp, r);
     int chi2;
@@ -820,13 +889,14 @@ static sc_status write_report(FILE *fp, const grid_report *r, const verify_opts 
     sc_status st = section_residuals(fp, r, &n_out, err);
     if (st == SC_OK)
         st = section_results(fp, r, err);
-    if (st == SC_OK && vo->measurement)
-        st = verify_html_section(fp, vo, vr, "6. Verification of the compensated machine", err);
-    const cli_input *inputs[3] = {r->src, vo->src[0], vo->src[1]};
+    if (st == SC_OK && r->verify_name)
+        st = verify_html_section(fp, vo, r->verify_name, vr,
+                                 "6. Verification of the compensated machine", err);
+    const cli_input *inputs[3] = {r->src, r->vsrc[0], r->vsrc[1]};
     const char *roles[3] = {"measurement (selfcal-grid v1)", "re-measurement (verify)",
                             "lookup table (verify)"};
     if (st == SC_OK)
-        st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, vo->measurement ? 3 : 1, err);
+        st = html_provenance(fp, argc + 1, argv - 1, inputs, roles, r->verify_name ? 3 : 1, err);
     if (st == SC_OK) {
         fputs("<h2>Appendix</h2>\n", fp);
         appendix_table(fp, r);
@@ -842,22 +912,24 @@ int cmd_report_grid(int argc, char **argv)
     memset(&r, 0, sizeof r);
     r.method = "lsq";
     const char *out = NULL;
-    verify_opts vo;
-    verify_opts_init(&vo);
+    sc_verify_opts vo;
+    sc_verify_opts_init(&vo);
+    report_info ri;
+    memset(&ri, 0, sizeof ri);
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
             return CLI_OK;
         }
-        int rc = parse_option(argc, argv, &a, &r, &vo, &out);
+        int rc = parse_option(argc, argv, &a, &r, &vo, &ri, &out);
         if (rc != CLI_OK)
             return rc;
     }
-    if (!r.in || !out)
-        return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
+    if (!r.in || (!out && !ri.pdf))
+        return cli_usage_error(cmd, "IN.csv and -o R.html or --pdf R.pdf are required (see --help)");
     if (strcmp(r.method, "lsq") && strcmp(r.method, "ye") && strcmp(r.method, "double-shift"))
         return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
-    if (!vo.measurement != !vo.table)
+    if (!r.verify_name != !r.table_name)
         return cli_usage_error(cmd, "--verify and --table go together (see --help)");
     if (r.test.estimate_view_noise && r.sigma_r_given > 0)
         return cli_usage_error(cmd, "--sigma-r-um and --view-noise estimate exclude each other "
@@ -865,31 +937,41 @@ int cmd_report_grid(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
-    const char *names[3] = {r.in, vo.measurement, vo.table};
-    int opened;
-    sc_status st = cli_input_open_all(src, names, vo.measurement ? 3 : 1, 1u << 2 /* the table */,
-                                      &opened, &err);
+    const char *names[3] = {r.in, r.verify_name, r.table_name};
+    int opened = 0;
+    report_out ro;
+    memset(&ro, 0, sizeof ro);
+    sc_status st = report_info_load(&ri, &err);
+    if (st == SC_OK)
+        st = report_out_prepare(&ro, &ri, out, &err); /* Chromium first: nothing written without */
+    if (st == SC_OK)
+        st = cli_input_open_all(src, names, r.verify_name ? 3 : 1, 1u << 2 /* the table */,
+                                &opened, &err);
     r.src = &src[0];
-    if (vo.measurement)
-        vo.src[0] = &src[1], vo.src[1] = &src[2];
+    if (r.verify_name)
+        r.vsrc[0] = &src[1], r.vsrc[1] = &src[2];
     if (st == SC_OK)
         st = run(&r, &err);
-    verify_result vr;
+    sc_verify_result vr;
     memset(&vr, 0, sizeof vr);
-    if (st == SC_OK && vo.measurement) {
+    if (st == SC_OK && r.verify_name) {
         vo.plate = &r.am;
-        st = verify_run(&vo, &vr, &err);
+        vo.measurement = src[1].path, vo.table = src[2].path;
+        st = sc_verify_run(&vo, &vr, &err);
     }
     sc_afile f;
     memset(&f, 0, sizeof f);
     if (st == SC_OK)
-        st = sc_afile_open(&f, out, &err);
+        st = sc_afile_open(&f, ro.html, &err);
     if (st == SC_OK) {
-        st = write_report(f.fp, &r, &vo, &vr, argc, argv, &err);
+        st = write_report(f.fp, &r, &vo, &vr, &ri, argc, argv, &err);
         st = sc_afile_finish(&f, st, &err);
-    }
-    verify_result_free(&vr);
+        st = report_out_finish(&ro, &ri, st, &err);
+    } else if (ro.temp)
+        unlink(ro.html);
+    sc_verify_result_free(&vr);
     free_report(&r);
+    report_info_free(&ri);
     int rc = CLI_OK;
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE))

@@ -10,13 +10,15 @@
 #include "cli.h"
 #include "plots.h"
 #include "selfcal/profile_calibrate.h"
+#include "report_cert.h"
 #include "report_html.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 
 static const char *USAGE =
-    "usage: selfcal report profile IN.csv -o R.html [--method lsq|dft] [--sigma-disp-um X]\n"
-    "                              [--sigma-angle-urad Y]\n"
+    "usage: selfcal report profile IN.csv -o R.html|--pdf R.pdf [--method lsq|dft]\n"
+    "                              [--sigma-disp-um X] [--sigma-angle-urad Y]\n"
+    "                              [--info KEY=VALUE ...] [--info-file F]\n"
     "\n"
     "Writes one self-contained HTML file (figures inline as SVG, nothing fetched from outside;\n"
     "prints to PDF from a browser): the set-up (N, s, d1, d2), the method, the sensor noise given\n"
@@ -24,8 +26,9 @@ static const char *USAGE =
     "factor and its chi-square test, the residuals of each scan (statistics and histogram), the\n"
     "profile f with bands of its standard (k = 1) and expanded (k = 2) uncertainty, u(f), the\n"
     "stage's straightness motion error e_y, and the provenance (selfcal version, date, command\n"
-    "line, SHA-256 of the input). Default method: lsq. Exit 0, or 2 on bad input (one line\n"
-    "naming the file and line; no report is left).\n";
+    "line, SHA-256 of the input). Default method: lsq. --info, --info-file and --pdf as for\n"
+    "selfcal report grid (see its --help). Exit 0, or 2 on bad input (one line naming the file\n"
+    "and line; no report is left).\n";
 
 /* The calibration as `selfcal profile` computes it, plus what the residuals need. */
 typedef struct profile_run {
@@ -161,15 +164,18 @@ static profile_figures figures_of(const sc_profile_data *d, const profile_run *r
 
 /* Title and the summary paragraph. */
 static void report_summary(FILE *fp, const char *in, const char *method_s,
-                           const sc_profile_data *d, const profile_figures *g)
+                           const sc_profile_data *d, const profile_figures *g,
+                           const report_info *ri)
 {
     const int n = d->n;
     char title[600];
     snprintf(title, sizeof title, "Straightness profile report — %s", cli_basename(in));
     html_begin(fp, title);
+    report_page_css(fp, ri);
     fputs("<h1>", fp);
     html_esc(fp, title);
     fputs("</h1>\n", fp);
+    report_info_html(fp, ri, "report");
     double umax = g->umax, fpv = g->fpv;
     fprintf(fp, "<div class=\"summary\" id=\"summary\"><p>Method <b>%s</b>; N = %d points, s = %g mm, "
                 "d1 = %d, d2 = %d. Straightness of f (peak to valley) %.4g µm",
@@ -365,6 +371,15 @@ static sc_status section_results(FILE *fp, const char *method_s, const sc_profil
                      "The profile f with bands f ± u(f) (k = 1) and f ± 2u(f) (k = 2), its standard "
                      "uncertainty u(f) and the stage's straightness motion error e_y.",
                      err);
+    if (r->sol.have_uf) {
+        fputs("<h3>Statement of uncertainty</h3>\n", fp);
+        report_uncertainty_statement(
+            fp, "the noise of the displacement and angle sensors (section 3), propagated through "
+                "the estimate to every point of f.",
+            "Not included: the sensors' calibration (scale) and their temperature, the spacings' "
+            "errors, the stage's repeatability after the measurement and the interpolation of a "
+            "table between the points.");
+    }
     fputs("</section>\n", fp);
     return st;
 }
@@ -372,9 +387,9 @@ static sc_status section_results(FILE *fp, const char *method_s, const sc_profil
 /* The appendix: the profile at every point. */
 static void report_appendix(FILE *fp, int n, const double *x, const profile_run *r)
 {
-    fputs("<h2>Appendix</h2>\n<details id=\"profile-table\"><summary>The profile at every point "
-          "(table)</summary>\n<table class=\"profile\">\n<tr><th>n</th><th>x (mm)</th>"
-          "<th>f (µm)</th><th>u(f) (µm)</th><th>U(f), k = 2 (µm)</th><th>e_y (µm)</th></tr>\n",
+    fputs("<h2>Appendix</h2>\n<p>The profile at every point.</p>\n<table class=\"profile map\" "
+          "id=\"profile-table\">\n<thead><tr><th>n</th><th>x (mm)</th>"
+          "<th>f (µm)</th><th>u(f) (µm)</th><th>U(f), k = 2 (µm)</th><th>e_y (µm)</th></tr></thead>\n",
           fp);
     for (int i = 0; i < n; ++i) {
         fprintf(fp, "<tr class=\"pt\"><td>%d</td><td>%g</td>", i, x[i]);
@@ -384,16 +399,16 @@ static void report_appendix(FILE *fp, int n, const double *x, const profile_run 
         html_num_cell(fp, NULL, "%.6f", r->ey[i]);
         fputs("</tr>\n", fp);
     }
-    fputs("</table>\n</details>\n", fp);
+    fputs("</table>\n", fp);
 }
 
 static sc_status write_report(FILE *fp, const cli_input *src, const char *method_s,
-                              const sc_profile_data *d, const profile_run *r, int argc,
-                              char **argv, sc_error *err)
+                              const sc_profile_data *d, const profile_run *r,
+                              const report_info *ri, int argc, char **argv, sc_error *err)
 {
     const int n = d->n;
     profile_figures g = figures_of(d, r);
-    report_summary(fp, src->orig, method_s, d, &g);
+    report_summary(fp, src->orig, method_s, d, &g, ri);
     section_setup_method(fp, method_s, d);
     section_noise(fp, &r->sol);
     section_budget(fp, d, &r->sol);
@@ -422,6 +437,8 @@ int cmd_report_profile(int argc, char **argv)
     const char *cmd = "report profile";
     const char *in = NULL, *out = NULL, *method_s = "lsq";
     double sd = NAN, sa = NAN;
+    report_info ri;
+    memset(&ri, 0, sizeof ri);
     for (int a = 1; a < argc; ++a) {
         const char *o = argv[a];
         if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
@@ -437,7 +454,11 @@ int cmd_report_profile(int argc, char **argv)
         if (a + 1 >= argc)
             return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
         const char *v = argv[++a];
-        if (!strcmp(o, "-o") || !strcmp(o, "--out"))
+        int rc = report_info_option(cmd, o, v, &ri);
+        if (rc >= 0) {
+            if (rc != CLI_OK)
+                return rc;
+        } else if (!strcmp(o, "-o") || !strcmp(o, "--out"))
             out = v;
         else if (!strcmp(o, "--method"))
             method_s = v;
@@ -452,8 +473,8 @@ int cmd_report_profile(int argc, char **argv)
         } else
             return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
     }
-    if (!in || !out)
-        return cli_usage_error(cmd, "IN.csv and -o R.html are required (see --help)");
+    if (!in || (!out && !ri.pdf))
+        return cli_usage_error(cmd, "IN.csv and -o R.html or --pdf R.pdf are required (see --help)");
     sc_profile_method method;
     if (!strcmp(method_s, "lsq"))
         method = SC_PROFILE_LSQ;
@@ -464,12 +485,23 @@ int cmd_report_profile(int argc, char **argv)
     sc_error err;
     sc_error_clear(&err);
     sc_profile_data d;
-    cli_input src; /* a pipe is read once: into memory, hashed on the way */
-    if (cli_input_open(&src, in, 1, &err) != SC_OK)
+    report_out ro;
+    if (report_info_load(&ri, &err) != SC_OK ||
+        report_out_prepare(&ro, &ri, out, &err) != SC_OK) { /* Chromium first */
+        report_info_free(&ri);
         return cli_report(&err);
+    }
+    cli_input src; /* a pipe is read once: into memory, hashed on the way */
+    if (cli_input_open(&src, in, 1, &err) != SC_OK) {
+        report_out_finish(&ro, &ri, SC_E_INPUT, NULL);
+        report_info_free(&ri);
+        return cli_report(&err);
+    }
     if (sc_profile_read(src.path, &d, &err) != SC_OK) {
         int rc = cli_report(&err);
         cli_input_close(&src);
+        report_out_finish(&ro, &ri, SC_E_INPUT, NULL);
+        report_info_free(&ri);
         return rc;
     }
     profile_run r;
@@ -479,12 +511,14 @@ int cmd_report_profile(int argc, char **argv)
         cli_warn_zero_noise("selfcal report profile", &r.sol);
     if (st == SC_OK) {
         sc_afile f;
-        st = sc_afile_open(&f, out, &err);
+        st = sc_afile_open(&f, ro.html, &err);
         if (st == SC_OK) {
-            st = write_report(f.fp, &src, method_s, &d, &r, argc + 1, argv - 1, &err);
+            st = write_report(f.fp, &src, method_s, &d, &r, &ri, argc + 1, argv - 1, &err);
             st = sc_afile_finish(&f, st, &err);
         }
     }
+    st = report_out_finish(&ro, &ri, st, &err); /* the PDF; the temporary HTML removed */
+    report_info_free(&ri);
     profile_run_free(&r);
     sc_profile_data_free(&d);
     int rc = st == SC_OK ? CLI_OK : cli_report(&err);

@@ -16,7 +16,7 @@ static const char *USAGE =
     "usage: selfcal simulate grid --plan {ye,double-shift,stitch,PLAN.csv} --out IN.csv --truth-map G_true.csv\n"
     "                             [--n 25] [--pitch-mm 1] [--origin-mm X,Y]\n"
     "                             [--sigma-g-um 1] [--sigma-a-um 1] [--sigma-r-um 0.01]\n"
-    "                             [--O 1e-5] [--R 1e-5] [--rho 0.9]\n"
+    "                             [--O-urad 10] [--R-ppm 10] [--rho 0.9]\n"
     "                             [--sigma-t-um 0.1] [--sigma-theta-urad 100] [--seed 1]\n"
     "                             [--truth-artifact A_true.csv] [--truth-summary T.json]\n"
     "                             [--compensate-with T.lut]\n"
@@ -31,7 +31,9 @@ static const char *USAGE =
     "plate error A (sigma-a-um), a random misalignment per view (sigma-t-um, sigma-theta-urad) and\n"
     "measurement noise (sigma-r-um), and writes the selfcal-grid v1 input file (--out) and the truth\n"
     "in the SPEC gauge: G (--truth-map, map format, no uncertainties), A (--truth-artifact) and a\n"
-    "JSON summary (--truth-summary: O, R, misalignments, sigmas, seed).\n"
+    "JSON summary (--truth-summary: O_urad, R_ppm, misalignments, sigmas, seed).\n"
+    "--O-urad, --R-ppm: the first-order terms in urad and ppm (--O, --R: the same dimensionless,\n"
+    "1e-5 = 10 urad; kept through version 0.3).\n"
     "--plan ye: {rot 0}, {rot 90}, {shift +1,0}; double-shift: {rot 0}, {rot 90}, {shift +2,0},\n"
     "{shift -3,0 rows=c cols=c,c+1} (N >= 7); a file: its header gives N, pitch, origin and views\n"
     "(then --n, --pitch-mm and --origin-mm must agree with it or be left out).\n"
@@ -73,6 +75,7 @@ static void fprint_truth_summary(FILE *fp, const char *plan_name, const sc_grid_
             p->n, p->pitch_mm, p->origin_mm[0], p->origin_mm[1]);
     fprintf(fp, "  \"stage\": [%d, %d],\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
     fprintf(fp, "  \"O\": %.15g,\n  \"R\": %.15g,\n", t->O, t->R);
+    fprintf(fp, "  \"O_urad\": %.15g,\n  \"R_ppm\": %.15g,\n", t->O * 1e6, t->R * 1e6);
     fprintf(fp, "  \"dt_s\": %.15g,\n  \"drift_um_s\": [%.15g, %.15g],\n", sp->dt_s,
             sp->drift_vx_um_s, sp->drift_vy_um_s);
     fprintf(fp, "  \"sigma_g_um\": %.15g,\n  \"rho\": %.15g,\n  \"sar_weights\": \"row-standardised 4-neighbour\",\n",
@@ -295,6 +298,8 @@ static int parse_number_option(sim_args *a, const char *o, const char *v)
     else if (!strcmp(o, "--sigma-theta-urad")) sp->sigma_theta_urad = x;
     else if (!strcmp(o, "--O")) sp->O = x;
     else if (!strcmp(o, "--R")) sp->R = x;
+    else if (!strcmp(o, "--O-urad")) sp->O = x * 1e-6;
+    else if (!strcmp(o, "--R-ppm")) sp->R = x * 1e-6;
     else if (!strcmp(o, "--rho")) sp->rho = x;
     else if (!strcmp(o, "--dt-s")) {
         if (!(x > 0) || x > 1e6)

@@ -14,6 +14,8 @@
 
 static const char *USAGE =
     "usage: selfcal verify V.csv --table T.lut --artifact A.csv --tolerance-um T [--raw]\n"
+    "                      [--decision-rule simple|guarded] [--u-verify-um U]\n"
+    "                      [--sigma-r-um S] [--u-plate-um UA]\n"
     "                      [--residuals R.csv] [--plot V.svg] [--html V.html]\n"
     "\n"
     "V.csv: the plate measured again after the table T.lut was loaded into the machine (a\n"
@@ -25,17 +27,25 @@ static const char *USAGE =
     "stage error the table did not remove, plus noise. 'Before' is the same measurement as the\n"
     "machine would have read it without the table (the table's position-mode correction undoes\n"
     "the compensation), i.e. about G. Corrections use selfcald's correction core.\n"
-    "Prints the statistics (RMS and max |r|, before and after) and the verdict:\n"
-    "  pass  if max |r| after compensation <= T (um)   exit 0\n"
-    "  fail  otherwise                                  exit 3\n"
+    "Prints the statistics (RMS and max |r|, before and after), the expanded uncertainty U\n"
+    "(k = 2) of a residual and the verdict under the decision rule (default simple):\n"
+    "  simple:  pass if max |r| after compensation <= T (um)     exit 0\n"
+    "           fail otherwise                                    exit 3\n"
+    "  guarded (ISO 14253-1):  pass if max |r| + U <= T           exit 0\n"
+    "           fail if max |r| - U > T                           exit 3\n"
+    "           inconclusive otherwise                            exit 4\n"
+    "U = 2 sqrt(s^2 + uA^2 + uq^2): s the re-measurement's noise (--sigma-r-um, else stated in\n"
+    "V.csv, else the RMS per coordinate of the residuals after, an upper bound), uA the plate\n"
+    "error's (--u-plate-um, else taken equal to s), uq the table's quantization (q/sqrt 3);\n"
+    "or U given by --u-verify-um.\n"
     "Bad input: exit 2 with one line FILE:LINE: reason, and no output file. Other errors: 1.\n"
     "--residuals: view,i,j,x_mm,y_mm,before_rx_um,before_ry_um,after_rx_um,after_ry_um\n"
     "--plot: the residual maps before and after, side by side; --html: a self-contained report.\n";
 
-enum { VERIFY_FAIL_EXIT = 3 };
+enum { VERIFY_FAIL_EXIT = 3, VERIFY_INCONCLUSIVE_EXIT = 4 };
 
 
-static void print_residuals(FILE *fp, const verify_result *r)
+static void print_residuals(FILE *fp, const sc_verify_result *r)
 {
     const sc_grid_plan *p = &r->d.plan;
     int n = p->n;
@@ -54,26 +64,28 @@ static void print_residuals(FILE *fp, const verify_result *r)
             }
 }
 
-static void draw_plot(FILE *fp, const verify_result *r)
+static void draw_plot(FILE *fp, const sc_verify_result *r)
 {
     plot_arrows_pair_svg(fp, &r->before, "before compensation (A, placement removed)", &r->after,
                          "after compensation (own arrow scale)",
                          "Re-measurement of the plate: residual maps before and after compensation");
 }
 
-/* The optional outputs: residuals, plot, HTML section. */
+/* The optional outputs: residuals, plot, HTML section; the inputs as named and as read. */
 typedef struct {
     const char *res_path, *plot, *html;
+    const char *names[3];    /* measurement, table, artifact as given */
+    const cli_input *src[3]; /* as read (a pipe from its in-memory copy) */
 } verify_outputs;
 
 /* One option (with its value from argv[*a + 1]) into o and out. */
-static int parse_option(int argc, char **argv, int *a, verify_opts *o, verify_outputs *out)
+static int parse_option(int argc, char **argv, int *a, sc_verify_opts *o, verify_outputs *out)
 {
     const char *cmd = "verify", *s = argv[*a];
     if (s[0] != '-' || !strcmp(s, "-")) {
-        if (o->measurement)
-            return cli_usage_error(cmd, "more than one measurement ('%s', '%s')", o->measurement, s);
-        o->measurement = s;
+        if (out->names[0])
+            return cli_usage_error(cmd, "more than one measurement ('%s', '%s')", out->names[0], s);
+        out->names[0] = s;
         return CLI_OK;
     }
     if (!strcmp(s, "--raw")) {
@@ -83,8 +95,11 @@ static int parse_option(int argc, char **argv, int *a, verify_opts *o, verify_ou
     if (*a + 1 >= argc)
         return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", s);
     const char *v = argv[++*a];
-    if (!strcmp(s, "--table")) o->table = v;
-    else if (!strcmp(s, "--artifact")) o->artifact = v;
+    int rc = verify_parse_option(cmd, s, v, o);
+    if (rc >= 0)
+        return rc;
+    if (!strcmp(s, "--table")) out->names[1] = v;
+    else if (!strcmp(s, "--artifact")) out->names[2] = v;
     else if (!strcmp(s, "--residuals")) out->res_path = v;
     else if (!strcmp(s, "--plot")) out->plot = v;
     else if (!strcmp(s, "--html")) out->html = v;
@@ -98,13 +113,14 @@ static int parse_option(int argc, char **argv, int *a, verify_opts *o, verify_ou
 }
 
 /* The standalone HTML page of the verification. */
-static sc_status write_html(FILE *fp, const verify_opts *o, const verify_result *r, int argc,
-                            char **argv, sc_error *err)
+static sc_status write_html(FILE *fp, const verify_outputs *out, const sc_verify_opts *o,
+                            const sc_verify_result *r, int argc, char **argv, sc_error *err)
 {
     html_begin(fp, "Verification of a compensated stage");
     fputs("<h1>Verification of a compensated stage</h1>\n", fp);
-    sc_status st = verify_html_section(fp, o, r, "Re-measurement after compensation", err);
-    const cli_input *inputs[3] = {o->src[0], o->src[1], o->src[2]};
+    sc_status st = verify_html_section(fp, o, out->names[0], r, "Re-measurement after compensation",
+                                       err);
+    const cli_input *inputs[3] = {out->src[0], out->src[1], out->src[2]};
     const char *roles[3] = {"re-measurement (selfcal-grid v1)", "lookup table",
                             "plate error of the calibration"};
     if (st == SC_OK)
@@ -114,8 +130,8 @@ static sc_status write_html(FILE *fp, const verify_opts *o, const verify_result 
 }
 
 /* Every output asked for, committed together: all or none. */
-static sc_status write_outputs(const verify_outputs *out, const verify_opts *o,
-                               const verify_result *r, int argc, char **argv, sc_error *err)
+static sc_status write_outputs(const verify_outputs *out, const sc_verify_opts *o,
+                               const sc_verify_result *r, int argc, char **argv, sc_error *err)
 {
     const char *paths[3] = {out->res_path, out->plot, out->html};
     sc_afile f[3];
@@ -134,17 +150,34 @@ static sc_status write_outputs(const verify_outputs *out, const verify_opts *o,
         else if (opened == 1)
             draw_plot(fp, r);
         else
-            st = write_html(fp, o, r, argc, argv, err);
+            st = write_html(fp, out, o, r, argc, argv, err);
     }
     /* all files or none: sync every one, then rename them together */
     return sc_afile_finish_all(f, opened, st, err);
 }
 
+/* stdout: the statistics, U and the verdict, one `key: value` per line. */
+static void print_summary(const sc_verify_opts *o, const sc_verify_result *r)
+{
+    const sc_verify_stats *b = &r->st_before, *a = &r->st_after;
+    printf("marks: %ld\n", a->count);
+    printf("before_rms_um: %.6g\nbefore_max_um: %.6g\n", b->rms, b->max);
+    printf("after_rms_um: %.6g\nafter_max_um: %.6g\n", a->rms, a->max);
+    printf("after_max_at_mm: %g,%g\n", a->max_x_mm, a->max_y_mm);
+    printf("tolerance_um: %g\n", o->tolerance_um);
+    printf("decision_rule: %s\n", sc_verify_rule_name(r->rule));
+    printf("U_verify_um: %.4g\n", r->u.U_um);
+    char line[128];
+    verify_verdict_text(line, sizeof line, r);
+    printf("verdict: %s\n", line);
+}
+
 int cmd_verify(int argc, char **argv)
 {
-    verify_opts o;
-    verify_opts_init(&o);
-    verify_outputs out = {NULL, NULL, NULL};
+    sc_verify_opts o;
+    sc_verify_opts_init(&o);
+    verify_outputs out;
+    memset(&out, 0, sizeof out);
     for (int a = 1; a < argc; ++a) {
         if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
             fputs(USAGE, stdout);
@@ -154,40 +187,37 @@ int cmd_verify(int argc, char **argv)
         if (rc != CLI_OK)
             return rc;
     }
-    if (!o.measurement || !o.table || !o.artifact || !isfinite(o.tolerance_um))
+    if (!out.names[0] || !out.names[1] || !out.names[2] || !isfinite(o.tolerance_um))
         return cli_usage_error("verify", "V.csv, --table, --artifact and --tolerance-um are required (see --help)");
     sc_error err;
     sc_error_clear(&err);
-    verify_result r;
+    sc_verify_result r;
     memset(&r, 0, sizeof r);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
-    const char *names[3] = {o.measurement, o.table, o.artifact};
     int opened;
-    sc_status st = cli_input_open_all(src, names, 3, 1u << 1 /* the table */, &opened, &err);
+    sc_status st = cli_input_open_all(src, out.names, 3, 1u << 1 /* the table */, &opened, &err);
     for (int k = 0; k < 3; ++k)
-        o.src[k] = &src[k];
-    if (st == SC_OK)
-        st = verify_run(&o, &r, &err);
+        out.src[k] = &src[k];
+    if (st == SC_OK) {
+        o.measurement = src[0].path, o.table = src[1].path, o.artifact = src[2].path;
+        st = sc_verify_run(&o, &r, &err);
+    }
     if (st == SC_OK)
         st = write_outputs(&out, &o, &r, argc, argv, &err);
     int rc = st == SC_OK ? CLI_OK : cli_report(&err);
     cli_input_close_all(src, opened);
     if (st != SC_OK) {
-        verify_result_free(&r);
+        sc_verify_result_free(&r);
         return rc;
     }
-    const verify_stats *b = &r.st_before, *a = &r.st_after;
     if (r.n_unmeasured || r.n_unseen)
         fprintf(stderr, "selfcal verify: left out of the statistics: %ld mark(s) the views place "
                         "on the stage without a point in %s, %ld the calibration saw no error for "
                         "(empty in %s)\n",
-                r.n_unmeasured, o.measurement, r.n_unseen, o.artifact ? o.artifact : "the plate error");
-    printf("marks: %ld\n", a->count);
-    printf("before_rms_um: %.6g\nbefore_max_um: %.6g\n", b->rms, b->max);
-    printf("after_rms_um: %.6g\nafter_max_um: %.6g\n", a->rms, a->max);
-    printf("after_max_at_mm: %g,%g\n", a->max_x_mm, a->max_y_mm);
-    printf("tolerance_um: %g\nverdict: %s\n", o.tolerance_um, r.pass ? "pass" : "fail");
-    int pass = r.pass;
-    verify_result_free(&r);
-    return pass ? CLI_OK : VERIFY_FAIL_EXIT;
+                r.n_unmeasured, out.names[0], r.n_unseen, out.names[2]);
+    print_summary(&o, &r);
+    sc_verify_verdict v = r.verdict;
+    sc_verify_result_free(&r);
+    return v == SC_VERIFY_PASS ? CLI_OK
+           : v == SC_VERIFY_INCONCLUSIVE ? VERIFY_INCONCLUSIVE_EXIT : VERIFY_FAIL_EXIT;
 }

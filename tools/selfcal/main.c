@@ -193,9 +193,9 @@ static const command commands[] = {
     {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg", "arrow plot of an error map", "-o --out"},
     {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves", "-o --out"},
     {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns", "-o --out"},
-    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML)", "-o --out"},
+    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML, PDF)", "-o --out --pdf"},
     {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]",
-     "profile report (HTML)", "-o --out"},
+     "profile report (HTML, PDF)", "-o --out --pdf"},
     {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T",
      "check a compensated stage", "--html --plot --residuals"},
 };

@@ -27,12 +27,17 @@ static const char *CSS =
     "figure{margin:1em 0;break-inside:avoid;page-break-inside:avoid}"
     "figure svg{max-width:100%;height:auto;display:block}figcaption{font-size:.9em;color:#333}\n"
     ".pass{color:#11602a;font-weight:bold}.fail{color:#a3121c;font-weight:bold}"
+    ".inconclusive{color:#8a5a00;font-weight:bold}"
     ".note{background:#fff7e0;border-left:4px solid #e0a800;padding:.4em .8em}"
     ".mono{font-family:'DejaVu Sans Mono',monospace;font-size:.85em;word-break:break-all}\n"
     ".summary{background:#f3f6fb;border:1px solid #c5d0e0;padding:.5em 1em}\n"
-    "@media print{body{max-width:none;margin:0;font-size:10pt}h2{break-after:avoid;"
+    ".cert th{width:16em}.statement{border-left:4px solid #5a7bb5;padding:.3em .8em}\n"
+    "@media print{body{max-width:none;margin:0;font-size:10pt}h1,h2,h3{break-after:avoid;"
     "page-break-after:avoid}section{break-inside:auto}table,figure{break-inside:avoid;"
-    "page-break-inside:avoid}details>summary{display:none}details{display:block}"
+    "page-break-inside:avoid}table.map{break-inside:auto;page-break-inside:auto;font-size:8pt}"
+    "thead{display:table-header-group}tr{break-inside:avoid;page-break-inside:avoid}"
+    "figure svg{max-height:120mm;width:auto;max-width:100%}"
+    "details>summary{display:none}details{display:block}"
     "a{color:inherit;text-decoration:none}@page{size:A4;margin:15mm}}\n";
 
 void html_esc(FILE *fp, const char *s) { svg_escape(fp, s); }

@@ -294,7 +294,9 @@ void svg_palette(double t, int diverging, char out[8])
                                      {244, 165, 130}, {178, 24, 43}};
     static const double seq[5][3] = {{255, 255, 217}, {199, 233, 180}, {65, 182, 196},
                                      {34, 94, 168}, {8, 29, 88}};
-    const double(*pal)[3] = diverging ? div : seq;
+    static const double heat[5][3] = {{255, 255, 229}, {254, 227, 145}, {254, 178, 76},
+                                      {240, 101, 60}, {189, 30, 36}};
+    const double(*pal)[3] = diverging == SVG_PALETTE_HEAT ? heat : diverging ? div : seq;
     if (!isfinite(t))
         t = 0.5;
     t = t < 0 ? 0 : t > 1 ? 1 : t;
@@ -325,6 +327,22 @@ void svg_band(const svg_chart *c, const double *xv, const double *lo, const doub
         put_thinned(c, xv, lo, k - 1, a - 1, -1);
         fputs("\"/>\n", c->fp);
     }
+}
+
+double svg_color_bar_extent(double w, double vmin, double vmax, const char *label)
+{
+    double ext = w + 6, lab = label ? svg_text_width(label, 12) / 2 + w / 2 : 0;
+    if (vmax > vmin) {
+        double st = nice_step(vmax - vmin, 5), k0 = ceil(vmin / st), widest = 0;
+        for (int k = 0; k <= 100 && (k0 + k) * st <= vmax + 1e-9 * st; ++k) {
+            char b[48];
+            double t = (k0 + k) * st;
+            snprintf(b, sizeof b, "%g", fabs(t) < 1e-12 * st ? 0.0 : t);
+            widest = fmax(widest, svg_text_width(b, 11));
+        }
+        ext += widest;
+    }
+    return fmax(ext, lab) + 4;
 }
 
 void svg_color_bar(FILE *fp, double x, double y, double w, double h, double vmin, double vmax,

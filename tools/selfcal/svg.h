@@ -73,10 +73,15 @@ double svg_nice_step(double span, int target);
 /* Colour of t in [0, 1] on a palette: diverging (blue, white, red; 0.5 = white) for signed
  * values, else sequential (light yellow to dark blue) for magnitudes. Writes "#rrggbb". */
 void svg_palette(double t, int diverging, char out[8]);
+#define SVG_PALETTE_HEAT 2 /* diverging = 2: a light yellow-to-red scale (under blue arrows) */
 
 /* Filled band between lo[] and hi[] over xv[] (data coordinates; a NaN in any breaks the band). */
 void svg_band(const svg_chart *c, const double *xv, const double *lo, const double *hi, int n,
               const char *color, double opacity);
+
+/* How far right of x a colour bar of width w drawn by svg_color_bar reaches (its tick labels, its
+ * label above it), in px: what a drawing must leave for it. */
+double svg_color_bar_extent(double w, double vmin, double vmax, const char *label);
 
 /* A colour scale bar at (x, y) px, w x h (vertical), for [vmin, vmax], with round ticks and a
  * label (unit) above it. */

@@ -277,6 +277,15 @@ static void summary_body(FILE *fp, const char *method, const sc_grid_plan *p,
     json_num(fp, res->R);
     fputs(",\n  \"uR\": ", fp);
     json_num(fp, res->uR);
+    /* the same with their units in the key (the dimensionless keys above: kept through 0.3) */
+    fputs(",\n  \"O_urad\": ", fp);
+    json_num(fp, res->O * 1e6);
+    fputs(",\n  \"uO_urad\": ", fp);
+    json_num(fp, res->uO * 1e6);
+    fputs(",\n  \"R_ppm\": ", fp);
+    json_num(fp, res->R * 1e6);
+    fputs(",\n  \"uR_ppm\": ", fp);
+    json_num(fp, res->uR * 1e6);
     fputs(",\n  \"views\": [\n", fp);
     for (int v = 0; v < p->n_views; ++v) {
         const sc_grid_view *w = &p->view[v];

@@ -3,7 +3,7 @@
 Everything here calls libselfcal, the C library behind the ``selfcal`` command line (the
 extension module ``selfcal._native`` has the library linked in): the same
 estimators, the same file readers, the same error messages. Units are in the names: ``_mm``
-millimetres, ``_um`` micrometres, ``_urad`` microradians.
+millimetres, ``_um`` micrometres, ``_urad`` microradians, ``_ppm`` parts per million.
 
 Bad input raises :class:`selfcal.Error` (a ``ValueError``) whose message is the library's one
 line, ``FILE:LINE: reason``, exactly as the command line prints it after ``selfcal:``.
@@ -21,6 +21,7 @@ __all__ = [
     "calibrate_grid", "simulate_grid",
     "ProfileMeasurement", "ProfileResult", "read_profile", "calibrate_profile", "simulate_profile",
     "Table", "build_table",
+    "VerifyResult", "verify",
 ]
 __version__ = _native.version()
 
@@ -268,7 +269,9 @@ class GridResult:
     """A grid calibration. Arrays indexed [i, j] as the map file: ``gx_um``, ``gy_um`` (stage
     error G, shape (NY, NX)), ``ugx_um``, ``ugy_um`` (standard uncertainties, k = 1; NaN for the
     closed forms), ``x_mm``, ``y_mm`` (node positions), ``ax_um``, ``ay_um`` (plate error, (N, N),
-    NaN for an unmeasured mark). Scalars: ``O``, ``R`` (with ``uO``, ``uR``), per-view
+    NaN for an unmeasured mark). Scalars: ``O_urad`` (non-orthogonality, µrad), ``R_ppm`` (scale,
+    ppm = µm/m), with ``uO_urad``, ``uR_ppm`` (the dimensionless ``O``, ``R``, ``uO``, ``uR``
+    are kept through version 0.3, then dropped), per-view
     misalignments ``tx_um``, ``ty_um``, ``theta_urad`` (with ``utx_um`` ...),
     ``residual_rms_um``, ``sigma_r_est_um``, ``sigma_r_used_um``, ``dof``, ``variance_factor``,
     ``chi2_pass``. Least squares also gives the residuals ``rx_um``, ``ry_um``, the standardized
@@ -389,12 +392,19 @@ def simulate_grid(plan="double-shift", n: int = 25, pitch_mm: float = 1.0, stage
     """Simulate a plate measured in a plan, as ``selfcal simulate grid`` (Petrò §5).
 
     ``plan``: a :class:`GridPlan` or a standard plan's name (``"ye"``, ``"double-shift"``,
-    ``"stitch"`` with ``stage=(NX, NY)``). Other parameters by name: ``rho``, ``O``, ``R``,
+    ``"stitch"`` with ``stage=(NX, NY)``). Other parameters by name: ``rho``, ``O_urad``,
+    ``R_ppm`` (or the dimensionless ``O``, ``R``, kept through version 0.3),
     ``sigma_a_um``, ``sigma_t_um``, ``sigma_theta_urad``, ``dt_s``, ``drift_vx_um_s``,
     ``drift_vy_um_s``. Returns ``(measurement, truth)``: a :class:`GridMeasurement` and a dict
-    with ``gx_um``, ``gy_um`` (NY, NX), ``ax_um``, ``ay_um`` (N, N), ``O``, ``R`` and the views'
-    misalignments, all in the SPEC gauge.
+    with ``gx_um``, ``gy_um`` (NY, NX), ``ax_um``, ``ay_um`` (N, N), ``O_urad``, ``R_ppm`` (and
+    ``O``, ``R``) and the views' misalignments, all in the SPEC gauge.
     """
+    for k in ("O", "R"):  # the keys with their unit: µrad and ppm
+        unit = k + ("_urad" if k == "O" else "_ppm")
+        if unit in params:
+            if k in params:
+                raise TypeError(f"give {unit} or {k}, not both")
+            params[k] = float(params.pop(unit)) * 1e-6
     allowed = {"rho", "O", "R", "sigma_a_um", "sigma_t_um", "sigma_theta_urad", "dt_s",
                "drift_vx_um_s", "drift_vy_um_s"}
     bad = set(params) - allowed
@@ -563,3 +573,64 @@ def build_table(path, gx_um, gy_um, x0_mm: float, y0_mm: float, px_mm: float, py
                       float(py_mm if py_mm is not None else px_mm), prof, str(method),
                       float(sigma_um), int(created_unix_s))
     return Table(path)
+
+
+# ---- verification of a compensated machine (selfcal verify) ----
+
+_RULES = {"simple": 0, "guarded": 1}
+
+
+class VerifyResult:
+    """A verification of a compensated machine, as ``selfcal verify`` prints it: ``verdict``
+    (``"pass"``, ``"fail"``, ``"inconclusive"``), ``decision_rule``, ``tolerance_um``,
+    ``marks``, ``before_rms_um``, ``before_max_um``, ``after_rms_um``, ``after_max_um``,
+    ``after_max_at_mm`` (x, y), the expanded uncertainty ``U_um`` (k = 2) of a residual and its
+    parts: ``sigma_um`` (the re-measurement's noise; ``sigma_source``: ``"given"``,
+    ``"stated"``, ``"residuals"``), ``u_plate_um``, ``quant_um`` (the table's quantization bound),
+    ``u_um``, ``k``; ``U_given``; ``n_unmeasured``, ``n_unseen``. ``exit_status`` is the command
+    line's: 0 pass, 3 fail, 4 inconclusive."""
+
+    def __init__(self, d):
+        for k, v in d.items():
+            setattr(self, k, v)
+
+    @property
+    def exit_status(self) -> int:
+        return {"pass": 0, "fail": 3, "inconclusive": 4}[self.verdict]
+
+    def __repr__(self):
+        return (f"VerifyResult(verdict={self.verdict!r}, decision_rule={self.decision_rule!r}, "
+                f"after_max_um={self.after_max_um:.4g}, U_um={self.U_um:.4g}, "
+                f"tolerance_um={self.tolerance_um:g})")
+
+
+def verify(measurement, table, artifact, tolerance_um: float, decision_rule: str = "simple",
+           u_verify_um=None, sigma_r_um=None, u_plate_um=None, raw: bool = False) -> VerifyResult:
+    """Check a compensated machine, as ``selfcal verify`` (the same library function).
+
+    ``measurement``: the plate measured again with the table loaded (a ``selfcal-grid v1`` file;
+    ``raw=True``: uncompensated readings), ``table``: the table file, ``artifact``: the plate
+    error of the calibration (``selfcal grid --artifact``). ``decision_rule``: ``"simple"``
+    (pass if max |r| <= T) or ``"guarded"`` (ISO 14253-1: pass if max |r| + U <= T, fail if
+    max |r| - U > T, else inconclusive). U = 2·sqrt(sigma² + u_plate² + u_q²) from
+    ``sigma_r_um`` (else the file's stated noise, else the residuals'), ``u_plate_um`` (else
+    sigma) and the table's quantization, or ``u_verify_um`` given.
+    """
+    import os
+    if decision_rule not in _RULES:
+        raise ValueError(f"decision_rule must be 'simple' or 'guarded', got {decision_rule!r}")
+
+    def num(v, name):
+        if v is None:
+            return float("nan")
+        v = float(v)
+        if not v >= 0 or v > 1e6:
+            raise ValueError(f"{name} must be a number >= 0 (um), got {v!r}")
+        return v
+    t = float(tolerance_um)
+    if not 0 < t <= 1e6:
+        raise ValueError(f"tolerance_um must be a positive number, got {tolerance_um!r}")
+    return VerifyResult(_native.verify(os.fspath(measurement), os.fspath(table),
+                                       os.fspath(artifact), t, _RULES[decision_rule],
+                                       num(u_verify_um, "u_verify_um"), num(sigma_r_um, "sigma_r_um"),
+                                       num(u_plate_um, "u_plate_um"), bool(raw)))

@@ -31,6 +31,7 @@
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
 #include "selfcal/profile_sim.h"
+#include "selfcal/verify.h"
 #include "selfcal/version.h"
 
 static PyObject *sc_py_error; /* selfcal.Error, a ValueError */
@@ -1084,7 +1085,7 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
     PyObject *ret = outlier ? Py_BuildValue(
         "{s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,s:d,s:N,s:N,s:N,s:N,s:N,s:N,s:d,s:d,s:d,"
         "s:l,s:l,s:O,s:d,s:d,s:d,s:O,s:N,s:N,s:N,s:N,s:N,s:l,s:l,s:N,s:O,s:d,s:O,s:d,s:d,s:l,"
-        "s:O,s:N,s:N,s:N}",
+        "s:O,s:N,s:N,s:N,s:d,s:d,s:d,s:d}",
         "gx_um", arr_from(r->gx_um, 2, sg), "gy_um", arr_from(r->gy_um, 2, sg),
         "ugx_um", arr_from(r->ugx_um, 2, sg), "ugy_um", arr_from(r->ugy_um, 2, sg),
         "x_mm", arr_from(xy, 2, sg), "y_mm", arr_from(xy + (size_t)nx * ny, 2, sg),
@@ -1106,7 +1107,8 @@ static PyObject *solution_to_dict(const sc_grid_data *d, const sc_grid_solution 
         "view_noise_estimated", r->view_noise_estimated ? Py_True : Py_False,
         "view_sigma_um", per_view(r->view_sigma_um, nv),
         "view_noise_factor", per_view(r->view_noise_factor, nv),
-        "view_sigma_u_um", per_view(r->view_sigma_u_um, nv)) : NULL;
+        "view_sigma_u_um", per_view(r->view_sigma_u_um, nv), "O_urad", r->O * 1e6,
+        "R_ppm", r->R * 1e6, "uO_urad", r->uO * 1e6, "uR_ppm", r->uR * 1e6) : NULL;
 #undef OPT
     free(xy);
     return ret;
@@ -1376,9 +1378,10 @@ static PyObject *py_grid_simulate(PyObject *self, PyObject *args)
     npy_intp sg[2] = {sc_grid_stage_ny(p), sc_grid_stage_nx(p)}, sa[2] = {p->n, p->n};
     PyObject *meas = data_to_dict(&d);
     PyObject *truth = meas ? Py_BuildValue(
-        "{s:N,s:N,s:N,s:N,s:d,s:d,s:N,s:N,s:N}", "gx_um", arr_from(t.gx_um, 2, sg), "gy_um",
+        "{s:N,s:N,s:N,s:N,s:d,s:d,s:d,s:d,s:N,s:N,s:N}", "gx_um", arr_from(t.gx_um, 2, sg), "gy_um",
         arr_from(t.gy_um, 2, sg), "ax_um", arr_from(t.ax_um, 2, sa), "ay_um",
-        arr_from(t.ay_um, 2, sa), "O", t.O, "R", t.R, "tx_um", per_view(t.tx_um, p->n_views),
+        arr_from(t.ay_um, 2, sa), "O", t.O, "R", t.R, "O_urad", t.O * 1e6, "R_ppm", t.R * 1e6,
+        "tx_um", per_view(t.tx_um, p->n_views),
         "ty_um", per_view(t.ty_um, p->n_views), "theta_urad", per_view(t.theta_urad, p->n_views))
                             : NULL;
     if (meas && truth)
@@ -1645,6 +1648,63 @@ static PyTypeObject TableType = {
     .tp_methods = Table_methods,
 };
 
+/* ---- verification of a compensated machine (selfcal/verify.h) ---- */
+
+/* verify(measurement, table, artifact, tolerance_um, rule, u_verify_um, sigma_r_um, u_plate_um,
+ * raw) -> dict; NaN for the numbers not given, rule 0 simple, 1 guarded. */
+static PyObject *py_verify(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *pm = NULL, *pt = NULL, *pa = NULL;
+    sc_verify_opts o;
+    sc_verify_opts_init(&o);
+    int rule = 0, raw = 0;
+    if (!PyArg_ParseTuple(args, "O&O&O&didddp", PyUnicode_FSConverter, &pm, PyUnicode_FSConverter,
+                          &pt, PyUnicode_FSConverter, &pa, &o.tolerance_um, &rule, &o.u_verify_um,
+                          &o.sigma_r_um, &o.u_plate_um, &raw)) {
+        Py_XDECREF(pm);
+        Py_XDECREF(pt);
+        Py_XDECREF(pa);
+        return NULL;
+    }
+    o.measurement = PyBytes_AS_STRING(pm);
+    o.table = PyBytes_AS_STRING(pt);
+    o.artifact = PyBytes_AS_STRING(pa);
+    o.rule = rule ? SC_VERIFY_RULE_GUARDED : SC_VERIFY_RULE_SIMPLE;
+    o.raw = raw;
+    sc_verify_result r;
+    sc_error err;
+    sc_error_clear(&err);
+    sc_status st;
+    Py_BEGIN_ALLOW_THREADS
+    st = sc_verify_run(&o, &r, &err);
+    Py_END_ALLOW_THREADS
+    Py_DECREF(pm);
+    Py_DECREF(pt);
+    Py_DECREF(pa);
+    PyObject *ret = NULL;
+    if (st != SC_OK)
+        raise_sc(&err);
+    else {
+        static const char *src[3] = {"given", "stated", "residuals"};
+        const sc_verify_stats *b = &r.st_before, *a = &r.st_after;
+        const sc_verify_u *u = &r.u;
+        ret = Py_BuildValue(
+            "{s:s,s:s,s:d,s:l,s:d,s:d,s:d,s:d,s:(dd),s:d,s:d,s:s,s:d,s:O,s:d,s:d,s:d,s:O,s:l,s:l}",
+            "verdict", sc_verify_verdict_name(r.verdict), "decision_rule",
+            sc_verify_rule_name(r.rule), "tolerance_um", o.tolerance_um, "marks", a->count,
+            "before_rms_um", b->rms, "before_max_um", b->max, "after_rms_um", a->rms,
+            "after_max_um", a->max, "after_max_at_mm", a->max_x_mm, a->max_y_mm, "U_um", u->U_um,
+            "sigma_um", u->sigma_um, "sigma_source", u->given ? "none" : src[u->sigma_source],
+            "u_plate_um", u->u_plate_um, "u_plate_given", u->u_plate_given ? Py_True : Py_False,
+            "quant_um", u->quant_um, "u_um", u->u_um, "k", u->k,
+            "U_given", u->given ? Py_True : Py_False, "n_unmeasured", r.n_unmeasured,
+            "n_unseen", r.n_unseen);
+    }
+    sc_verify_result_free(&r);
+    return ret;
+}
+
 /* ---- module ---- */
 
 static PyObject *py_version(PyObject *self, PyObject *unused)
@@ -1667,6 +1727,9 @@ static PyMethodDef module_methods[] = {
     {"grid_standard_plan", py_grid_standard_plan, METH_VARARGS,
      "grid_standard_plan(name, n, pitch_mm, ox, oy, nx, ny) -> plan dict."},
     {"grid_simulate", py_grid_simulate, METH_VARARGS, "grid_simulate(plan, params) -> (measurement, truth)."},
+    {"verify", py_verify, METH_VARARGS,
+     "verify(measurement, table, artifact, tolerance_um, rule, u_verify_um, sigma_r_um, "
+     "u_plate_um, raw) -> dict."},
     {"profile_read", py_profile_read, METH_VARARGS, "profile_read(path) -> measurement dict."},
     {"profile_write", py_profile_write, METH_VARARGS, "profile_write(path, measurement dict)."},
     {"profile_calibrate", py_profile_calibrate, METH_VARARGS,

@@ -270,8 +270,15 @@ def case_numbers_grid():
         run("report", "grid", inp, "-o", out, "--method", method, *extra)
         c = parse(check_self_contained(out))
         sm = json.load(open(s))
-        close(num(c, "O"), sm["O"] * 1e6, "O (um/m)")
-        close(num(c, "R"), sm["R"] * 1e6, "R (um/m)")
+        close(num(c, "O"), sm["O_urad"], "O (urad)")
+        close(num(c, "R"), sm["R_ppm"], "R (ppm)")
+        close(sm["O_urad"], sm["O"] * 1e6, "O_urad against the dimensionless O (kept through 0.3)")
+        close(sm["R_ppm"], sm["R"] * 1e6, "R_ppm against the dimensionless R")
+        if method == "lsq":
+            close(sm["uO_urad"], sm["uO"] * 1e6, "uO_urad")
+            close(sm["uR_ppm"], sm["uR"] * 1e6, "uR_ppm")
+        if "µrad" not in c.ids.get("O", ("", ""))[1] and "µrad" not in open(out, encoding="utf-8").read():
+            fail("the report gives O without its unit")
         for v, view in enumerate(sm["views"]):
             close(num(c, "tx-%d" % v), view["tx_um"], "tx view %d" % v)
             close(num(c, "ty-%d" % v), view["ty_um"], "ty view %d" % v)
@@ -570,8 +577,8 @@ def case_pipes():
     print("pipes: ok")
 
 
-def case_verify():
-    d = fresh_dir("verify")
+def case_verify(name="verify"):
+    d = fresh_dir(name)
     n, seed = 11, 7
     inp, gt, _ = simulate_grid(d, n=n, plan="double-shift", seed=seed, sigma_r=0.01)
     p = lambda x: os.path.join(d, x)  # noqa: E731
@@ -592,7 +599,7 @@ def case_verify():
                "--tolerance-um", tol, "--residuals", p("res.csv"), "--plot", p("v.svg"),
                "--html", p("v.html"))
     kv = dict(l.split(": ", 1) for l in good.stdout.splitlines())
-    if kv["verdict"] != "pass" or not float(kv["after_max_um"]) <= tol:
+    if kv["verdict"].split()[0] != "pass" or not float(kv["after_max_um"]) <= tol:
         fail("good table: %s" % good.stdout)
     if not float(kv["before_rms_um"]) > 20 * float(kv["after_rms_um"]):
         fail("good table: before %s vs after %s" % (kv["before_rms_um"], kv["after_rms_um"]))
@@ -620,7 +627,7 @@ def case_verify():
     bad = run("verify", p("V_neg.csv"), "--table", p("neg.lut"), "--artifact", p("A.csv"),
               "--tolerance-um", tol, "--residuals", p("res_neg.csv"), expect=3)
     kv = dict(l.split(": ", 1) for l in bad.stdout.splitlines())
-    if kv["verdict"] != "fail" or not float(kv["after_max_um"]) > 10 * tol:
+    if kv["verdict"].split()[0] != "fail" or not float(kv["after_max_um"]) > 10 * tol:
         fail("wrong-sign table: %s" % bad.stdout)
     if not os.path.exists(p("res_neg.csv")):
         fail("a failed verification still writes its residual file")
@@ -654,6 +661,192 @@ def case_verify():
     c = parse(check_self_contained(out))
     if c.ids.get("verify-verdict", (None, ""))[1] != "pass":
         fail("report with a good table: verdict %r" % (c.ids.get("verify-verdict"),))
+    return d, p, tol
+
+
+def case_verify_guarded():
+    """The guarded decision rule (ISO 14253-1) gives each of its three outcomes, with U given and
+    with U computed from its parts; the verdict line names the rule and U; the report shows it."""
+    d, p, _ = case_verify("verify_guarded")
+    base = ["verify", p("V_good.csv"), "--table", p("good.lut"), "--artifact", p("A.csv")]
+
+    def kv_of(r):
+        return dict(l.split(": ", 1) for l in r.stdout.splitlines())
+    # the largest residual after compensation, under the simple rule
+    mx = float(kv_of(run(*base, "--tolerance-um", 1))["after_max_um"])
+    U = 0.5 * mx
+    cases = ((mx + 1.5 * U, 0, "pass"),   # max + U <= T
+             (mx - 1.5 * U, 3, "fail"),   # max - U > T
+             (mx + 0.5 * U, 4, "inconclusive"), (mx - 0.5 * U, 4, "inconclusive"))
+    for T, code, verdict in cases:
+        r = run(*base, "--tolerance-um", "%.9g" % T, "--decision-rule", "guarded",
+                "--u-verify-um", "%.9g" % U, expect=code)
+        kv = kv_of(r)
+        line = kv["verdict"]
+        if line.split()[0] != verdict or "guarded" not in line or ("U = %.4g" % U) not in line:
+            fail("guarded, T = %g, U = %g, max %g: verdict line %r, want %s" % (T, U, mx, line, verdict))
+        if kv["decision_rule"] != "guarded" or abs(float(kv["U_verify_um"]) - U) > 1e-3 * U:
+            fail("guarded: %s" % r.stdout)
+        # the simple rule on the same T: pass or fail by max alone
+        r = run(*base, "--tolerance-um", "%.9g" % T, expect=0 if mx <= T else 3)
+        if kv_of(r)["verdict"].split()[:2] != ["pass" if mx <= T else "fail", "(simple,"]:
+            fail("simple, T = %g: %r" % (T, kv_of(r)["verdict"]))
+    # U from its parts: 2 sqrt(s^2 + uA^2 + uq^2), s and uA given; the table's quantization is
+    # below 1e-4 um, so U is 2 sqrt(s^2 + uA^2) within 1 %
+    s, ua = 0.2 * mx, 0.15 * mx
+    want = 2 * math.sqrt(s * s + ua * ua)  # 0.5 max
+    for T, code, verdict in ((mx + want + 0.1 * mx, 0, "pass"), (mx - want - 0.1 * mx, 3, "fail"),
+                             (mx, 4, "inconclusive")):
+        if T <= 0:
+            fail("constructed tolerance %g is not positive (max %g, U %g)" % (T, mx, want))
+        r = run(*base, "--tolerance-um", "%.9g" % T, "--decision-rule", "guarded",
+                "--sigma-r-um", "%.9g" % s, "--u-plate-um", "%.9g" % ua, expect=code)
+        kv = kv_of(r)
+        if kv["verdict"].split()[0] != verdict or abs(float(kv["U_verify_um"]) - want) > 1e-2 * want:
+            fail("guarded with U from its parts (want %.4g): %s" % (want, r.stdout))
+    # without given parts: sigma from the residuals (an upper bound), u(A) = sigma, U > 0
+    r = run(*base, "--tolerance-um", 10, "--decision-rule", "guarded")
+    kv = kv_of(r)
+    if not 0 < float(kv["U_verify_um"]) < 1 or kv["verdict"].split()[0] != "pass":
+        fail("guarded, U computed: %s" % r.stdout)
+    run("verify", p("V_good.csv"), "--table", p("good.lut"), "--artifact", p("A.csv"),
+        "--tolerance-um", 1, "--decision-rule", "strict", expect=2)
+    run(*base, "--tolerance-um", 1, "--decision-rule", "guarded", "--u-verify-um", "-1", expect=2)
+    # the report states the rule, U and the verdict
+    out = p("R_guarded.html")
+    run("report", "grid", p("in.csv"), "-o", out, "--verify", p("V_good.csv"), "--table",
+        p("good.lut"), "--tolerance-um", "%.9g" % mx, "--decision-rule", "guarded",
+        "--u-verify-um", "%.9g" % U)
+    c = parse(check_self_contained(out))
+    if c.ids.get("verify-verdict", (None, ""))[1] != "inconclusive":
+        fail("report, guarded: verdict %r" % (c.ids.get("verify-verdict"),))
+    if "guarded" not in c.ids.get("verify-rule", (None, ""))[1] or "verify-U" not in c.ids:
+        fail("report, guarded: rule %r, U %r" % (c.ids.get("verify-rule"), c.ids.get("verify-U")))
+
+
+def run_long(*args):
+    """selfcal with a long time limit (a 220-page PDF prints in 40 s on an idle machine)."""
+    p = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=900)
+    if p.returncode != 0:
+        fail("selfcal %s: exit %d\n%s" % (" ".join(map(str, args)), p.returncode, p.stderr))
+    return p
+
+
+def pdf_pages(pdf):
+    """The text of each page of a PDF (pdftotext -layout), in order."""
+    exe = shutil.which("pdftotext")
+    if not exe:
+        fail("pdftotext not found (scripts/install-deps.sh installs poppler-utils)")
+    p = subprocess.run([exe, "-layout", pdf, "-"], capture_output=True, timeout=300)
+    if p.returncode != 0:
+        fail("pdftotext %s: %s" % (pdf, p.stderr[-500:]))
+    pages = p.stdout.decode("utf-8", errors="replace").split("\f")
+    return pages[:-1] if pages and not pages[-1].strip() else pages
+
+
+NODE_ROW = re.compile(r"^\s*(\d+)\s+(\d+)\s+(-?[\d.]+)\s+(-?[\d.]+)(\s+-?\d+\.\d{5}){6}\s*$")
+
+
+def check_grid_pdf(d, n, info):
+    """report grid --pdf at N: the info fields, 'page k of m' and the report id on every page,
+    every node's appendix row, no page ending in a heading."""
+    inp = os.path.join(d, "in%d.csv" % n)
+    run("simulate", "grid", "--plan", "double-shift", "--n", n, "--seed", 5, "--sigma-r-um", 0.01,
+        "--out", inp, "--truth-map", os.path.join(d, "gt%d.csv" % n))
+    pdf, html_ = os.path.join(d, "R%d.pdf" % n), os.path.join(d, "R%d.html" % n)
+    args = ["report", "grid", inp, "--pdf", pdf, "-o", html_]
+    for k, v in info:
+        args += ["--info", "%s=%s" % (k, v)]
+    run_long(*args[0:])
+    if not open(pdf, "rb").read(5).startswith(b"%PDF"):
+        fail("%s is not a PDF" % pdf)
+    pages = pdf_pages(pdf)
+    m = len(pages)
+    rid = dict(info)["report_id"]
+    for k, page in enumerate(pages, 1):
+        foot = [l for l in page.splitlines() if l.strip()][-1]
+        if not re.search(r"page %d of %d\s*$" % (k, m), foot) or rid not in foot:
+            fail("N = %d: page %d of %d has the foot %r" % (n, k, m, foot))
+    text = "\n".join(pages)
+    flat = " ".join(text.split())
+    for k, v in info:
+        if " ".join(v.split()) not in flat:
+            fail("N = %d: the PDF lacks the info value %r (%s)" % (n, v, k))
+    labels = {"report_id": "Report number", "item": "Calibrated item", "customer": "Customer",
+              "measured_on": "Date of measurement", "approved_by": "Approved by"}
+    for label in (labels[k] for k, _ in info if k in labels):
+        if label not in flat:
+            fail("N = %d: the PDF lacks the label %r" % (n, label))
+    if "coverage factor k = 2" not in flat or "Not included" not in flat:
+        fail("N = %d: the PDF lacks the uncertainty statement" % n)
+    nodes = set()
+    for line in text.splitlines():
+        mm = NODE_ROW.match(line)
+        if mm:
+            nodes.add((int(mm.group(1)), int(mm.group(2))))
+    want = {(i, j) for i in range(n) for j in range(n)}
+    if nodes != want:
+        fail("N = %d: %d of the %d appendix rows in the PDF (missing e.g. %s)"
+             % (n, len(nodes & want), n * n, sorted(want - nodes)[:5]))
+    # no heading left alone at the foot of a page: the last line above the page label is not one
+    heads = set()
+    hp = re.compile(r"<h[23][^>]*>(.*?)</h[23]>", re.S)
+    for h in hp.findall(open(html_, encoding="utf-8").read()):
+        heads.add(" ".join(re.sub(r"<[^>]+>", "", h).split()))
+    for k, page in enumerate(pages[:-1], 1):
+        body = [l.strip() for l in page.splitlines() if l.strip()][:-1]
+        if body and " ".join(body[-1].split()) in heads:
+            fail("N = %d: page %d ends with the heading %r" % (n, k, body[-1]))
+    return m
+
+
+def case_pdf():
+    d = fresh_dir("pdf")
+    info = [("report_id", "CAL-2026-0042"), ("item", "XY stage S/N 4711"),
+            ("customer", "ACME Präzision GmbH"), ("operator", "J. Doe"),
+            ("measured_on", "2026-11-20"), ("conditions", "20.0 °C ± 0.2 K, 45 % rH"),
+            ("approved_by", "Dr. A. Smith"), ("purchase_order", "PO 77/12")]
+    m25 = check_grid_pdf(d, 25, info)
+    m101 = check_grid_pdf(d, 101, info[:3])
+    if not m101 > m25:
+        fail("the N = 101 PDF has %d pages, the N = 25 one %d" % (m101, m25))
+    # an info file, and its errors (exit 2, one line naming the file and line, nothing written)
+    inp = os.path.join(d, "in25.csv")
+    with open(os.path.join(d, "info.txt"), "w") as f:
+        f.write("# the certificate's identification\nreport_id = F-1\n\nitem = stage <B>\n")
+    out = os.path.join(d, "F.html")
+    run("report", "grid", inp, "-o", out, "--info-file", os.path.join(d, "info.txt"),
+        "--info", "item=stage C")
+    c = parse(open(out, encoding="utf-8").read())
+    if c.ids.get("info-report_id", (0, ""))[1] != "F-1" or c.ids.get("info-item", (0, ""))[1] != "stage C":
+        fail("--info-file then --info: %r %r" % (c.ids.get("info-report_id"), c.ids.get("info-item")))
+    with open(os.path.join(d, "bad.txt"), "w") as f:
+        f.write("report_id = X\nno equals sign here\n")
+    r = run("report", "grid", inp, "-o", os.path.join(d, "B.html"), "--info-file",
+            os.path.join(d, "bad.txt"), expect=2)
+    if "bad.txt:2:" not in r.stderr or os.path.exists(os.path.join(d, "B.html")):
+        fail("a bad --info-file: %r" % r.stderr)
+    run("report", "grid", inp, "-o", os.path.join(d, "B.html"), "--info", "novalue", expect=2)
+    # --pdf without Chromium: says so, exit 1, nothing written
+    env = dict(os.environ, PATH="/nonexistent")
+    env.pop("SELFCAL_CHROMIUM", None)
+    p = subprocess.run([CLI, "report", "grid", inp, "-o", os.path.join(d, "N.html"), "--pdf",
+                        os.path.join(d, "N.pdf")], capture_output=True, text=True, env=env,
+                       timeout=300)
+    if p.returncode != 1 or "Chromium" not in p.stderr or os.path.exists(os.path.join(d, "N.pdf")) \
+            or os.path.exists(os.path.join(d, "N.html")):
+        fail("--pdf without Chromium: exit %d, %r" % (p.returncode, p.stderr))
+    # the profile report prints too, with its own label
+    run("simulate", "profile", "--n", 200, "--d1", 10, "--d2", 11, "--out", os.path.join(d, "p.csv"),
+        "--truth", os.path.join(d, "pt.csv"))
+    run_long("report", "profile", os.path.join(d, "p.csv"), "--pdf", os.path.join(d, "P.pdf"),
+             "--info", "report_id=P-9")
+    pages = pdf_pages(os.path.join(d, "P.pdf"))
+    for k, page in enumerate(pages, 1):
+        if not re.search(r"P-9.*page %d of %d\s*$" % (k, len(pages)), page.rstrip()):
+            fail("profile PDF: page %d lacks its label" % k)
+    if [x for x in os.listdir(d) if x.startswith(".selfcal-report")]:
+        fail("--pdf left its temporary HTML file")
 
 
 def expect_bad(args, name, outs):
@@ -716,6 +909,28 @@ def svg_texts(path):
     root = ET.parse(path).getroot()
     ns = "{http://www.w3.org/2000/svg}"
     return root, ns, [t for t in root.iter(ns + "text")]
+
+
+def check_texts_inside(path):
+    """No text of the SVG runs past its edges (colour-bar labels were cut at the right edge): each
+    text's extent, from its anchor and an upper bound of its width (0.62 em a character), lies
+    within the drawing; texts in rotated groups (axis titles) are skipped."""
+    root = ET.parse(path).getroot()
+    ns = "{http://www.w3.org/2000/svg}"
+    width = float(root.get("width"))
+    rotated = {id(t) for g in root.iter(ns + "g") if "rotate" in (g.get("transform") or "")
+               for t in g.iter(ns + "text")}
+    for t in root.iter(ns + "text"):
+        if id(t) in rotated or not t.text:
+            continue
+        x, size = float(t.get("x")), float(t.get("font-size", 12))
+        w = 0.62 * size * len(t.text)
+        anchor = t.get("text-anchor", "start")
+        lo = x - (w if anchor == "end" else w / 2 if anchor == "middle" else 0)
+        hi = x + (0 if anchor == "end" else w / 2 if anchor == "middle" else w)
+        if lo < -1 or hi > width + 1:
+            fail("%s: the text %r runs from %.0f to %.0f px, the drawing is %.0f wide"
+                 % (path, t.text, lo, hi, width))
 
 
 def case_plots():
@@ -784,9 +999,14 @@ def case_plots():
     lines = root.findall(ns + "polyline")
     if len(lines) != 3:  # ye, and lsq broken at its gap
         fail("plot xy: %d polylines" % len(lines))
+    # every axis has a title: the y axis, without --ylabel, names the series' columns
+    ytitles = [t.text for g in root.iter(ns + "g") if "rotate(-90)" in (g.get("transform") or "")
+               for t in g.iter(ns + "text")]
+    if ytitles != ["ye, lsq"] or "sigma_r_um" not in labels:
+        fail("plot xy axis titles: y %r, x in %s" % (ytitles, labels))
     run("plot", "xy", p("xy.csv"), "-o", p("xy2.svg"), "--y", "nope", expect=2)
-    # a large map (151 x 151 nodes) is drawn at one node in three each way, always with its
-    # largest arrow; its u(G) cells in blocks of 2 x 2 nodes
+    # a large map (151 x 151 nodes) is drawn at one node in six each way over |G|, always with
+    # its largest arrow; its |G| and u(G) cells in blocks of 2 x 2 nodes
     n = 151
     with open(p("big.csv"), "w") as f:
         f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
@@ -798,10 +1018,13 @@ def case_plots():
     run("plot", "map", p("big.csv"), "-o", p("big.svg"))
     root, ns, texts = svg_texts(p("big.svg"))
     arrows = [a for a in root.iter(ns + "line") if a.get("stroke") == "#1f4e9c"]
-    if not 51 * 51 <= len(arrows) <= 51 * 51 + 2:  # 51 x 51 nodes, the largest, the scale bar
+    # above 41 nodes a side: |G| as a colour map under arrows at one node in ceil(N / 26) = 6
+    if not 26 * 26 <= len(arrows) <= 26 * 26 + 2:  # 26 x 26 nodes, the largest, the scale bar
         fail("large map: %d arrows" % len(arrows))
     alltext = " ".join(t.text or "" for t in texts)
-    if "one node in 3" not in alltext or "max |G| = 5" not in alltext:
+    if "|G| (µm)" not in alltext or "colour: |G| at every node" not in alltext:
+        fail("large map: no |G| colour map under the arrows: %s" % alltext[:400])
+    if "one node in 6" not in alltext or "max |G| = 5" not in alltext:
         fail("large map texts: %s" % alltext[:400])
     # the largest arrow (5 µm at node (61, 62), off the drawn nodes) is drawn: longer than 3 times
     # any other but the scale bar
@@ -811,8 +1034,22 @@ def case_plots():
     if not lens[-1] > 3 * lens[-3]:
         fail("large map: the largest arrow is not drawn (%s)" % lens[-4:])
     cells = [r for r in root.iter(ns + "rect") if r.get("fill", "").startswith("#") and r.get("fill") != "#333"]
-    if not 76 * 76 <= len(cells) <= 76 * 76 + 80 or os.path.getsize(p("big.svg")) > 2_000_000:
+    # two colour maps (|G| under the arrows, u(G)) of 76 x 76 cells, and their bars' 64 steps
+    if not 2 * 76 * 76 <= len(cells) <= 2 * 76 * 76 + 200 or os.path.getsize(p("big.svg")) > 2_000_000:
         fail("large map: %d cells, %d bytes" % (len(cells), os.path.getsize(p("big.svg"))))
+    check_texts_inside(p("big.svg"))
+    # the colour bars of the standalone maps are not cut: a map with u(G), and with its truth
+    ug = p("small_u.csv")
+    with open(ug, "w") as f:
+        f.write("i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um\n")
+        for i in range(9):
+            for j in range(9):
+                f.write("%d,%d,%g,%g,%g,%g,%g,%g\n" % (i, j, j, i, 1e-4 * i, -2e-4 * j,
+                                                       1e-5 * (1 + i * j), 1e-5))
+    run("plot", "map", ug, "-o", p("small_u.svg"))
+    check_texts_inside(p("small_u.svg"))
+    run("plot", "map", ug, "-o", p("small_ut.svg"), "--truth", ug)
+    check_texts_inside(p("small_ut.svg"))
     # profile plot: the f chart has uncertainty bands
     pin, pout = p("p.csv"), p("P.csv")
     run("simulate", "profile", "--out", pin, "--truth", p("pt.csv"))
@@ -852,6 +1089,6 @@ def case_figs_grid():
 
 {"figs_grid": case_figs_grid, "outliers": case_outliers, "stage": case_stage, "render_grid": case_render_grid, "render_profile": case_render_profile,
  "numbers_grid": case_numbers_grid, "numbers_profile": case_numbers_profile,
- "verify": case_verify, "bad_input": case_bad_input, "plots": case_plots,
+ "pdf": case_pdf, "verify": case_verify, "verify_guarded": case_verify_guarded, "bad_input": case_bad_input, "plots": case_plots,
  "pipes": case_pipes}[CASE]()
 print("ok")
