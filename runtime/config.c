@@ -32,7 +32,8 @@ const char sc_config_usage[] =
     "  --max-per-peer N              connections one client address may hold (0 = any, default)\n"
     "  --byte-timeout-ms N           a started TCP request must complete within N ms (500)\n"
     "  --idle-timeout-ms N           close TCP connections silent N ms; 0 = never (60000)\n"
-    "  --rtu-byte-timeout-ms N       RTU silence that ends a partial frame (50)\n"
+    "  --rtu-byte-timeout-ms N       RTU frames end after N ms of silence, no t1.5 check (a\n"
+    "                                bursty USB adapter); 0 = t1.5/t3.5 from the baud (default)\n"
     "  --busy-poll-us N              after a request, poll without sleeping for N us: lower\n"
     "                                latency for a core given to selfcald (0 = off, default)\n"
     "  --can-in-id ID --can-out-id ID --can-status-id ID --can-status-period-ms N\n"
@@ -217,7 +218,8 @@ static const numeric_option numeric_options[] = {
     NUMERIC("byte-timeout-ms", 1, 600000, tcp.byte_timeout_ms, FIELD_U32, NULL, ""),
     NUMERIC("idle-timeout-ms", 0, 86400000, tcp.idle_timeout_ms, FIELD_U32, NULL, ""),
     NUMERIC("busy-poll-us", 0, 1000000, busy_poll_us, FIELD_U32, NULL, ""),
-    NUMERIC("rtu-byte-timeout-ms", 1, 60000, rtu.byte_timeout_ms, FIELD_U32, NULL, ""),
+    NUMERIC("rtu-byte-timeout-ms", 0, 60000, rtu.byte_timeout_ms, FIELD_U32, NULL,
+            " (0 = t3.5 from the baud rate)"),
     CAN_ID("can-in-id", can.in_id),
     CAN_ID("can-out-id", can.out_id),
     CAN_ID("can-status-id", can.status_id),

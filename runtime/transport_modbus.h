@@ -31,7 +31,10 @@ typedef struct sc_mbrtu_config {
     int data_bits;             /* 8 */
     int stop_bits;             /* 1 */
     uint8_t unit_id;           /* default 1 (1..247) */
-    uint32_t byte_timeout_ms;  /* silence that ends/discards a partial frame; default 50 */
+    uint32_t byte_timeout_ms;  /* 0 (default): frames end after t3.5 of silence and break at
+                                * t1.5, from the baud rate (Modbus over Serial Line §2.5.1.1);
+                                * N > 0: frames end after N ms of silence, no t1.5 check (an
+                                * adapter that delivers bytes in bursts) */
     sc_word_order word_order;  /* of 32-bit values; default high word first (SPEC) */
 } sc_mbrtu_config;
 
@@ -60,6 +63,13 @@ void sc_mbtcp_format_addr(const struct sockaddr_storage *a, char *buf, int len);
 void sc_modbus_rtu_transport(sc_transport *t, const sc_mbrtu_config *cfg);
 /* Frames dropped by the RTU server since start: bad CRC, or incomplete at a silence. */
 uint32_t sc_modbus_rtu_bad_frames(void);
+/* Frames for other units (requests, responses, exceptions) and broadcasts skipped since start. */
+uint32_t sc_modbus_rtu_other_frames(void);
+/* The silences of cfg in microseconds: t1.5 (0: not checked) and t3.5 (11-bit characters; fixed
+ * 750 us / 1750 us above 19 200 baud; t3.5 = byte_timeout_ms when that is set). */
+void sc_mbrtu_silences(const sc_mbrtu_config *c, uint32_t *t15_us, uint32_t *t35_us);
+/* For tests: the clock (monotonic microseconds) that stamps each read; NULL restores it. */
+void sc_modbus_rtu_use_clock(uint64_t (*clock_us)(void));
 /* For tests: make open() serve fd (e.g. one end of a socketpair standing for the serial line)
  * instead of opening cfg.device; close() then leaves fd open. fd < 0 restores normal behaviour. */
 void sc_modbus_rtu_use_fd(int fd);
