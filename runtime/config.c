@@ -29,7 +29,10 @@ const char sc_config_usage[] =
     "  --word-order high-first|low-first   32-bit word order (default high-first)\n"
     "  --max-connections N           Modbus TCP connection cap (default 64); at the cap a new\n"
     "                                client closes the longest-idle connection\n"
-    "  --max-per-peer N              connections one client address may hold (0 = any, default)\n"
+    "  --max-per-peer N              connections one client address may hold (default: a\n"
+    "                                quarter of --max-connections; 0 = any)\n"
+    "  --allow CIDR[,CIDR...]        only these client networks (a.b.c.d/len, IPv6/len); others\n"
+    "                                are closed at accept and counted (default: any)\n"
     "  --byte-timeout-ms N           a started TCP request must complete within N ms (500)\n"
     "  --idle-timeout-ms N           close TCP connections silent N ms; 0 = never (60000)\n"
     "  --rtu-byte-timeout-ms N       RTU frames end after N ms of silence, no t1.5 check (a\n"
@@ -376,6 +379,11 @@ static sc_status set_max_gradient(sc_config *c, const char *value, sc_error *err
     return set_bound(&c->max_gradient_um_per_mm, "max-gradient-um-per-mm", value, err);
 }
 
+static sc_status set_allow(sc_config *c, const char *value, sc_error *err)
+{
+    return sc_mbtcp_parse_allow(&c->tcp, value, err);
+}
+
 /* The other options, each with its own setter. */
 typedef sc_status (*option_setter)(sc_config *c, const char *value, sc_error *err);
 
@@ -394,6 +402,7 @@ static const struct {
     {"syslog", set_syslog},
     {"syslog-socket", set_syslog_socket},
     {"log-level", set_log_level},
+    {"allow", set_allow},
     {"max-correction-um", set_max_correction},
     {"max-gradient-um-per-mm", set_max_gradient},
 };

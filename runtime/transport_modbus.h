@@ -12,6 +12,21 @@
 /* Compile-time cap on TCP connections (one pollfd each, plus the listening socket). */
 #define SC_MBTCP_MAX_CONN (SC_TRANSPORT_MAX_FDS - 1)
 
+/* Most networks an allow-list (--allow) may name. */
+#define SC_MBTCP_MAX_ALLOW 16
+/* max_per_peer's default: a quarter of max_connections (at least 1), resolved at open. */
+#define SC_MBTCP_PER_PEER_AUTO (-1)
+/* At the cap, a connection that has had a request answered is closed for a newcomer only after
+ * this long without a request (a busy client is never reset by a connect burst). */
+#define SC_MBTCP_EVICT_SERVED_IDLE_MS 1000u
+
+/* One network of an allow-list: family AF_INET or AF_INET6, the address, the prefix length. */
+typedef struct sc_cidr {
+    int family;
+    uint8_t addr[16];
+    int prefix;
+} sc_cidr;
+
 typedef struct sc_mbtcp_config {
     char host[64];             /* listen address: IPv4, IPv6 or a name; default "127.0.0.1"
                                 * ("0.0.0.0": all IPv4, "::": all) */
@@ -20,7 +35,10 @@ typedef struct sc_mbtcp_config {
     int max_connections;       /* default 64, at most SC_MBTCP_MAX_CONN */
     uint32_t byte_timeout_ms;  /* a started request must complete within this; default 500 */
     uint32_t idle_timeout_ms;  /* close a connection silent this long; 0 = never; default 60000 */
-    int max_per_peer;          /* connections one peer address may hold; 0 = no limit (default) */
+    int max_per_peer;          /* connections one peer address may hold; 0 = no limit;
+                                * default SC_MBTCP_PER_PEER_AUTO: max_connections / 4 */
+    int n_allow;               /* 0: any peer; else only peers in allow[] (others closed at accept) */
+    sc_cidr allow[SC_MBTCP_MAX_ALLOW];
     sc_word_order word_order;  /* of 32-bit values; default high word first (SPEC) */
 } sc_mbtcp_config;
 
@@ -50,6 +68,14 @@ int sc_modbus_tcp_connections(void);
 uint32_t sc_modbus_tcp_refused(void);
 /* Connections closed to make room for a new one at the cap (the longest idle first). */
 uint32_t sc_modbus_tcp_evicted(void);
+/* Connections closed at accept because the peer is not in the allow-list. */
+uint32_t sc_modbus_tcp_denied(void);
+/* Parse "CIDR[,CIDR...]" (a.b.c.d[/len], IPv6[/len]; a plain address is one host) into c's
+ * allow-list, replacing it. SC_OK, or SC_E_INPUT with the reason in err. */
+sc_status sc_mbtcp_parse_allow(sc_mbtcp_config *c, const char *list, sc_error *err);
+/* Is the peer address a within one of c's networks (or is the list empty)? An IPv4-mapped IPv6
+ * peer (::ffff:a.b.c.d) is matched as its IPv4 address. */
+int sc_mbtcp_allowed(const sc_mbtcp_config *c, const struct sockaddr_storage *a);
 
 /* Resolve a listen address: an IPv4 literal (dotted decimal, as inet_pton reads it), an IPv6
  * literal, or a name (getaddrinfo; its IPv4 address first). The legacy forms inet_aton accepts
