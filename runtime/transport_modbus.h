@@ -70,8 +70,9 @@ uint32_t sc_modbus_tcp_refused(void);
 uint32_t sc_modbus_tcp_evicted(void);
 /* Connections closed at accept because the peer is not in the allow-list. */
 uint32_t sc_modbus_tcp_denied(void);
-/* Parse "CIDR[,CIDR...]" (a.b.c.d[/len], IPv6[/len]; a plain address is one host) into c's
- * allow-list, replacing it. SC_OK, or SC_E_INPUT with the reason in err. */
+/* Parse "CIDR[,CIDR...]" (a.b.c.d[/len], IPv6[/len]; a plain address is one host) and add the
+ * networks to c's allow-list (several lists add up, at most SC_MBTCP_MAX_ALLOW networks). SC_OK,
+ * or SC_E_INPUT with the reason in err. */
 sc_status sc_mbtcp_parse_allow(sc_mbtcp_config *c, const char *list, sc_error *err);
 /* Is the peer address a within one of c's networks (or is the list empty)? An IPv4-mapped IPv6
  * peer (::ffff:a.b.c.d) is matched as its IPv4 address. */

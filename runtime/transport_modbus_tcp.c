@@ -134,7 +134,7 @@ static sc_status parse_cidr(const char *text, sc_cidr *out, sc_error *err)
 sc_status sc_mbtcp_parse_allow(sc_mbtcp_config *c, const char *list, sc_error *err)
 {
     char item[80];
-    int n = 0;
+    int n = c->n_allow; /* several lists add up, as systemd's IPAddressAllow= lines */
     const char *p = list;
     if (list == NULL || *list == '\0')
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: expected CIDR[,CIDR...]");
@@ -151,7 +151,7 @@ sc_status sc_mbtcp_parse_allow(sc_mbtcp_config *c, const char *list, sc_error *e
             return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: empty or too long entry in '%.64s'",
                                 list);
         if (n >= SC_MBTCP_MAX_ALLOW)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: more than %d networks",
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: more than %d networks in all",
                                 SC_MBTCP_MAX_ALLOW);
         memcpy(item, p, len);
         item[len] = '\0';

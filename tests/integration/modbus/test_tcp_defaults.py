@@ -10,8 +10,9 @@ clients bind their own 127.x.y.z source addresses; nothing leaves the machine):
    answered before the burst, is ever reset (at the cap only connections never answered, or
    silent for 1 s, make room; else the newcomer is closed); how many of the burst were answered
    or closed is printed;
-3. --allow CIDR[,CIDR...]: peers outside are closed at accept and counted in the log, peers
-   inside served (IPv4 and ::1); bad lists are refused with exit status 2.
+3. --allow CIDR[,CIDR...] (a configuration line and a flag add up): peers outside are closed at
+   accept and counted in the log, peers inside served (IPv4 and ::1); bad lists are refused with
+   exit status 2.
 usage: test_tcp_defaults.py SELFCAL_CLI SELFCALD WORKDIR [SECONDS]"""
 import os
 import resource
@@ -204,7 +205,11 @@ for bad in ("10.0.0.0/33", "127.0.0.1/", "bogus", "", "::1/129", ",", "1.2.3.4,"
     r = subprocess.run([selfcald, "--table", table, "--allow", bad], capture_output=True,
                        text=True, timeout=30)
     check(r.returncode == 2 and "--allow" in r.stderr, f"--allow '{bad}': {r.returncode} {r.stderr!r}")
-d = Daemon(selfcald, table, ["--allow", "127.0.0.2/32, 127.3.0.0/16,::1"],
+conf = os.path.join(work, "allow.conf")
+with open(conf, "w") as f:
+    f.write("allow = 127.3.0.0/16\n")
+# a configuration line and a flag add up (as IPAddressAllow= lines)
+d = Daemon(selfcald, table, ["--config", conf, "--allow", "127.0.0.2/32, ::1"],
            log_path=os.path.join(work, "allow.log"))
 try:
     for src in ("127.0.0.2", "127.3.200.1"):
