@@ -9,7 +9,9 @@
  * the stale "PATH.tmpXXXXXX" files (six letters or digits) nobody holds: those of a writer killed
  * between link and rename, or during a write without O_TMPFILE (as SQLite's next writer cleans up
  * a journal left by a crash). */
+#ifndef _GNU_SOURCE
 #define _GNU_SOURCE /* O_TMPFILE */
+#endif
 #include "selfcal/atomic_file.h"
 #include "selfcal/rng.h"
 
