@@ -170,6 +170,7 @@ int main(int argc, char **argv)
         sc_mbtcp_config_defaults(&cfg);
         cfg.port = 0;
         cfg.max_connections = SC_MBTCP_MAX_CONN;
+        cfg.max_per_peer = 0; /* all 64 clients come from 127.0.0.1 */
         sc_transport t;
         sc_modbus_tcp_transport(&t, &cfg);
         sc_daemon_add(&g_d, &t);

@@ -29,10 +29,18 @@ const char sc_config_usage[] =
     "  --word-order high-first|low-first   32-bit word order (default high-first)\n"
     "  --max-connections N           Modbus TCP connection cap (default 64); at the cap a new\n"
     "                                client closes the longest-idle connection\n"
-    "  --max-per-peer N              connections one client address may hold (0 = any, default)\n"
+    "  --max-per-peer N              connections one client address may hold (default: a\n"
+    "                                quarter of --max-connections; 0 = any)\n"
+    "  --allow CIDR[,CIDR...]        only these client networks (a.b.c.d/len, IPv6/len; several\n"
+    "                                add up); others are closed at accept (default: any)\n"
     "  --byte-timeout-ms N           a started TCP request must complete within N ms (500)\n"
     "  --idle-timeout-ms N           close TCP connections silent N ms; 0 = never (60000)\n"
-    "  --rtu-byte-timeout-ms N       RTU silence that ends a partial frame (50)\n"
+    "  --rtu-byte-timeout-ms N       RTU frames end after N ms of silence, no t1.5 check (a\n"
+    "                                bursty USB adapter); 0 = t1.5/t3.5 from the baud (default)\n"
+    "  --max-correction-um X         refuse a table that can correct one coordinate by more\n"
+    "                                than X um (1000; 0 = no bound); a reload keeps the old one\n"
+    "  --max-gradient-um-per-mm X    refuse a table changing by more than X um per mm between\n"
+    "                                neighbouring nodes (100; 0 = no bound)\n"
     "  --busy-poll-us N              after a request, poll without sleeping for N us: lower\n"
     "                                latency for a core given to selfcald (0 = off, default)\n"
     "  --can-in-id ID --can-out-id ID --can-status-id ID --can-status-period-ms N\n"
@@ -44,6 +52,14 @@ const char sc_config_usage[] =
     "  --version, --help\n"
     "numbers are decimal (a leading 0 is not octal); CAN ids also 0x...\n"
     "signals: SIGHUP reloads the table (kept if the new one is invalid); SIGTERM/SIGINT stop.\n";
+
+/* The plausibility bounds' defaults: far beyond any stage's error, far below what a table with
+ * an absurd scale commands. */
+static void sc_config_bounds_defaults(sc_config *c)
+{
+    c->max_correction_um = 1000.0;
+    c->max_gradient_um_per_mm = 100.0;
+}
 
 void sc_config_defaults(sc_config *c)
 {
@@ -61,6 +77,7 @@ void sc_config_defaults(sc_config *c)
 #endif
     c->word_order = SC_WORD_HIGH_FIRST;
     c->log_level = SC_LOG_INFO;
+    sc_config_bounds_defaults(c);
 }
 
 /* A whole number in 0..max: decimal (a leading 0 is not octal: "01502" is 1502), or with
@@ -217,7 +234,8 @@ static const numeric_option numeric_options[] = {
     NUMERIC("byte-timeout-ms", 1, 600000, tcp.byte_timeout_ms, FIELD_U32, NULL, ""),
     NUMERIC("idle-timeout-ms", 0, 86400000, tcp.idle_timeout_ms, FIELD_U32, NULL, ""),
     NUMERIC("busy-poll-us", 0, 1000000, busy_poll_us, FIELD_U32, NULL, ""),
-    NUMERIC("rtu-byte-timeout-ms", 1, 60000, rtu.byte_timeout_ms, FIELD_U32, NULL, ""),
+    NUMERIC("rtu-byte-timeout-ms", 0, 60000, rtu.byte_timeout_ms, FIELD_U32, NULL,
+            " (0 = t3.5 from the baud rate)"),
     CAN_ID("can-in-id", can.in_id),
     CAN_ID("can-out-id", can.out_id),
     CAN_ID("can-status-id", can.status_id),
@@ -341,6 +359,31 @@ static sc_status set_log_level(sc_config *c, const char *value, sc_error *err)
     BAD("--log-level: expected error, warning, notice, info or debug, got '%s'", value);
 }
 
+/* A bound in 0..1e6 (0 = none): --max-correction-um, --max-gradient-um-per-mm. */
+static sc_status set_bound(double *field, const char *key, const char *value, sc_error *err)
+{
+    double v;
+    if (sc_parse_double(value, &v) != SC_OK || !(v >= 0.0 && v <= 1e6))
+        BAD("--%s: expected a number in 0..1e6 (0 = no bound), got '%s'", key, value);
+    *field = v;
+    return SC_OK;
+}
+
+static sc_status set_max_correction(sc_config *c, const char *value, sc_error *err)
+{
+    return set_bound(&c->max_correction_um, "max-correction-um", value, err);
+}
+
+static sc_status set_max_gradient(sc_config *c, const char *value, sc_error *err)
+{
+    return set_bound(&c->max_gradient_um_per_mm, "max-gradient-um-per-mm", value, err);
+}
+
+static sc_status set_allow(sc_config *c, const char *value, sc_error *err)
+{
+    return sc_mbtcp_parse_allow(&c->tcp, value, err);
+}
+
 /* The other options, each with its own setter. */
 typedef sc_status (*option_setter)(sc_config *c, const char *value, sc_error *err);
 
@@ -359,6 +402,9 @@ static const struct {
     {"syslog", set_syslog},
     {"syslog-socket", set_syslog_socket},
     {"log-level", set_log_level},
+    {"allow", set_allow},
+    {"max-correction-um", set_max_correction},
+    {"max-gradient-um-per-mm", set_max_gradient},
 };
 
 sc_status sc_config_set(sc_config *c, const char *key, const char *value, sc_error *err)

@@ -20,6 +20,9 @@ typedef struct sc_config {
     char syslog_socket[108]; /* default /dev/log */
     int log_level; /* SC_LOG_* */
     uint32_t busy_poll_us; /* after activity, poll without sleeping this long (0 = off) */
+    /* plausibility bounds of a table (0 = none): --max-correction-um, --max-gradient-um-per-mm */
+    double max_correction_um;
+    double max_gradient_um_per_mm;
 } sc_config;
 
 void sc_config_defaults(sc_config *c);

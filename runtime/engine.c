@@ -66,6 +66,25 @@ static sc_status read_file(const char *path, size_t *len, sc_error *err)
     return st;
 }
 
+/* The plausibility bounds of e against table t (just loaded from path). */
+static sc_status check_bounds(const sc_engine *e, const sc_corr_table *t, const char *path,
+                              sc_error *err)
+{
+    double corr_um, grad;
+    sc_corr_bounds(t, &corr_um, &grad);
+    if (e->max_correction_um > 0 && !(corr_um <= e->max_correction_um))
+        return sc_error_set(err, SC_E_INPUT, path, 0,
+                            "the table can command a correction of %.3f um, beyond "
+                            "--max-correction-um %g",
+                            corr_um, e->max_correction_um);
+    if (e->max_gradient_um_per_mm > 0 && !(grad <= e->max_gradient_um_per_mm))
+        return sc_error_set(err, SC_E_INPUT, path, 0,
+                            "the table changes by %.3f um per mm between neighbouring nodes, "
+                            "beyond --max-gradient-um-per-mm %g",
+                            grad, e->max_gradient_um_per_mm);
+    return SC_OK;
+}
+
 sc_status sc_engine_load_file(sc_engine *e, const char *path, sc_error *err)
 {
     size_t len = 0;
@@ -76,6 +95,8 @@ sc_status sc_engine_load_file(sc_engine *e, const char *path, sc_error *err)
         if (code != SC_CORR_OK)
             st = sc_error_set(err, SC_E_INPUT, path, 0, "not a valid table: %s",
                               sc_corr_explain(g_filebuf, len));
+        else
+            st = check_bounds(e, spare, path, err);
     }
     if (st != SC_OK) {
         e->reload_failed++;

@@ -27,13 +27,16 @@ typedef struct sc_engine {
     uint32_t reload_ok, reload_failed; /* reloads (SIGHUP) that swapped tables in / were refused */
     int32_t last_in_x_nm, last_in_y_nm;   /* input of the last correction */
     int32_t last_out_x_nm, last_out_y_nm; /* its result */
+    /* Plausibility bounds (0 = none): a table that can command a larger correction of one
+     * coordinate, or a steeper change between neighbouring nodes, is refused (sc_corr_bounds). */
+    double max_correction_um, max_gradient_um_per_mm;
 } sc_engine;
 
 /* Reset e (no table, measure mode, counters zero). */
 void sc_engine_init(sc_engine *e, sc_corr_mode mode);
 
-/* Read the table file at path into the spare static slot and validate it with sc_corr_load;
- * swap it in only if it is valid. SC_OK, or SC_E_INPUT (not a valid table) / SC_E_IO (cannot be
+/* Read the table file at path into the spare static slot and validate it with sc_corr_load and
+ * the engine's plausibility bounds; swap it in only if it is valid and within them. SC_OK, or SC_E_INPUT (not a valid table) / SC_E_IO (cannot be
  * read) with err naming the file and the reason (the old table, if any, stays in use, and
  * SC_ENGINE_ST_RELOAD_FAILED is set in the status). Allocation-free: open/read into a static
  * buffer. Not reentrant (one engine per process). */

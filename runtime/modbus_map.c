@@ -61,14 +61,19 @@ int32_t sc_mb_get_i32(const uint16_t *regs, sc_word_order order)
     return (int32_t)((hi << 16) | lo);
 }
 
+uint16_t sc_modbus_crc16_update(uint16_t crc, uint8_t byte)
+{
+    crc ^= byte;
+    for (int b = 0; b < 8; b++)
+        crc = (crc & 1) ? (uint16_t)((crc >> 1) ^ 0xa001) : (uint16_t)(crc >> 1);
+    return crc;
+}
+
 uint16_t sc_modbus_crc16(const uint8_t *p, int n)
 {
     uint16_t crc = 0xffff;
-    for (int i = 0; i < n; i++) {
-        crc ^= p[i];
-        for (int b = 0; b < 8; b++)
-            crc = (crc & 1) ? (uint16_t)((crc >> 1) ^ 0xa001) : (uint16_t)(crc >> 1);
-    }
+    for (int i = 0; i < n; i++)
+        crc = sc_modbus_crc16_update(crc, p[i]);
     return crc;
 }
 

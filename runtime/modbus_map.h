@@ -76,6 +76,8 @@ int sc_modbus_reply_exception(int fd, const uint8_t *req, int hdr_len, unsigned 
 
 /* The Modbus RTU CRC-16 of n bytes (to be sent low byte first). */
 uint16_t sc_modbus_crc16(const uint8_t *p, int n);
+/* One more byte into a running CRC-16 (start from 0xffff). */
+uint16_t sc_modbus_crc16_update(uint16_t crc, uint8_t byte);
 
 /* Split an int32 into two registers in the given word order, and back. */
 void sc_mb_put_i32(uint16_t *regs, int32_t v, sc_word_order order);

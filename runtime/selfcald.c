@@ -57,6 +57,8 @@ int main(int argc, char **argv)
 
     sc_daemon_init(&g_daemon, g_cfg.table, g_cfg.mode);
     g_daemon.busy_poll_us = g_cfg.busy_poll_us;
+    g_daemon.engine.max_correction_um = g_cfg.max_correction_um;
+    g_daemon.engine.max_gradient_um_per_mm = g_cfg.max_gradient_um_per_mm;
     g_cfg.tcp.word_order = g_cfg.rtu.word_order = g_cfg.word_order; /* the map takes it at open */
     sc_transport t;
     if (g_cfg.use_modbus_tcp) {

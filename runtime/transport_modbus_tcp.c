@@ -7,8 +7,10 @@
  * others: a partial request older than byte_timeout_ms, or a connection silent for
  * idle_timeout_ms, is closed. When the connection cap is reached, a new client evicts the
  * longest-idle connection, preferring those never served (so idle connections cannot lock clients
- * out, and a flood of them cannot push out a client being served), and one peer address
- * may hold at most max_per_peer connections (0 = no limit). The shared map builds the replies.
+ * out, and a flood of them cannot push out a client being served: one served less than
+ * SC_MBTCP_EVICT_SERVED_IDLE_MS ago is never evicted), one peer address may hold at most
+ * max_per_peer connections (a quarter of the cap by default; 0 = no limit), and peers outside
+ * the allow-list (--allow) are closed at accept. The shared map builds the replies.
  * All state is static; nothing allocates after open(). */
 #define _GNU_SOURCE /* accept4 */
 #include <arpa/inet.h>
@@ -45,7 +47,7 @@ typedef struct mbtcp_state {
     uint16_t bound_port;
     char bound[INET6_ADDRSTRLEN + 8]; /* the address really bound, as logged */
     int nconn;
-    uint32_t refused, timeouts, evicted;
+    uint32_t refused, timeouts, evicted, denied;
     conn c[SC_MBTCP_MAX_CONN];
     int polled[SC_TRANSPORT_MAX_FDS]; /* what each pollfd slot of the last fill was: -1 listen */
     int npolled;
@@ -62,7 +64,8 @@ void sc_mbtcp_config_defaults(sc_mbtcp_config *c)
     c->max_connections = 64;
     c->byte_timeout_ms = 500;
     c->idle_timeout_ms = 60000;
-    c->max_per_peer = 0;
+    c->max_per_peer = SC_MBTCP_PER_PEER_AUTO;
+    c->n_allow = 0;
 }
 
 uint16_t sc_modbus_tcp_bound_port(void)
@@ -83,6 +86,126 @@ uint32_t sc_modbus_tcp_refused(void)
 uint32_t sc_modbus_tcp_evicted(void)
 {
     return g_tcp.evicted;
+}
+
+uint32_t sc_modbus_tcp_denied(void)
+{
+    return g_tcp.denied;
+}
+
+/* One "address[/len]" into *out. */
+static sc_status parse_cidr(const char *text, sc_cidr *out, sc_error *err)
+{
+    char a[64];
+    size_t n = strlen(text);
+    const char *slash = strchr(text, '/');
+    size_t al = slash ? (size_t)(slash - text) : n;
+    if (al == 0 || al >= sizeof a)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: bad network '%.64s'", text);
+    memcpy(a, text, al);
+    a[al] = '\0';
+    memset(out, 0, sizeof *out);
+    int maxlen;
+    if (inet_pton(AF_INET, a, out->addr) == 1) {
+        out->family = AF_INET;
+        maxlen = 32;
+    } else if (inet_pton(AF_INET6, a, out->addr) == 1) {
+        out->family = AF_INET6;
+        maxlen = 128;
+    } else {
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "--allow: '%.64s' is not an IPv4 or IPv6 address (a.b.c.d/len, "
+                            "::1/128)", a);
+    }
+    out->prefix = maxlen;
+    if (slash != NULL) {
+        const char *p = slash + 1;
+        int v = 0, digits = 0;
+        for (; *p >= '0' && *p <= '9' && digits < 4; p++, digits++)
+            v = v * 10 + (*p - '0');
+        if (digits == 0 || *p != '\0' || v > maxlen)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "--allow: bad prefix length in '%.64s' (0..%d)", text, maxlen);
+        out->prefix = v;
+    }
+    return SC_OK;
+}
+
+sc_status sc_mbtcp_parse_allow(sc_mbtcp_config *c, const char *list, sc_error *err)
+{
+    char item[80];
+    int n = c->n_allow; /* several lists add up, as systemd's IPAddressAllow= lines */
+    const char *p = list;
+    if (list == NULL || *list == '\0')
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: expected CIDR[,CIDR...]");
+    for (;;) {
+        const char *comma = strchr(p, ',');
+        size_t len = comma ? (size_t)(comma - p) : strlen(p);
+        while (len > 0 && (*p == ' ' || *p == '\t')) {
+            p++;
+            len--;
+        }
+        while (len > 0 && (p[len - 1] == ' ' || p[len - 1] == '\t'))
+            len--;
+        if (len == 0 || len >= sizeof item)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: empty or too long entry in '%.64s'",
+                                list);
+        if (n >= SC_MBTCP_MAX_ALLOW)
+            return sc_error_set(err, SC_E_INPUT, NULL, 0, "--allow: more than %d networks in all",
+                                SC_MBTCP_MAX_ALLOW);
+        memcpy(item, p, len);
+        item[len] = '\0';
+        sc_status st = parse_cidr(item, &c->allow[n], err);
+        if (st != SC_OK)
+            return st;
+        n++;
+        if (comma == NULL)
+            break;
+        p = comma + 1;
+    }
+    c->n_allow = n;
+    return SC_OK;
+}
+
+static int prefix_match(const uint8_t *a, const uint8_t *net, int prefix)
+{
+    int whole = prefix / 8, rest = prefix % 8;
+    if (memcmp(a, net, (size_t)whole) != 0)
+        return 0;
+    if (rest == 0)
+        return 1;
+    uint8_t mask = (uint8_t)(0xffu << (8 - rest));
+    return (a[whole] & mask) == (net[whole] & mask);
+}
+
+int sc_mbtcp_allowed(const sc_mbtcp_config *c, const struct sockaddr_storage *a)
+{
+    if (c->n_allow == 0)
+        return 1;
+    uint8_t v4[4];
+    const uint8_t *v6 = NULL;
+    int is_v4 = 0;
+    if (a->ss_family == AF_INET) {
+        memcpy(v4, &((const struct sockaddr_in *)a)->sin_addr, 4);
+        is_v4 = 1;
+    } else if (a->ss_family == AF_INET6) {
+        v6 = ((const struct sockaddr_in6 *)a)->sin6_addr.s6_addr;
+        static const uint8_t mapped[12] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xff, 0xff};
+        if (memcmp(v6, mapped, 12) == 0) {
+            memcpy(v4, v6 + 12, 4);
+            is_v4 = 1;
+        }
+    } else {
+        return 0;
+    }
+    for (int i = 0; i < c->n_allow; i++) {
+        const sc_cidr *n = &c->allow[i];
+        if (is_v4 && n->family == AF_INET && prefix_match(v4, n->addr, n->prefix))
+            return 1;
+        if (!is_v4 && v6 != NULL && n->family == AF_INET6 && prefix_match(v6, n->addr, n->prefix))
+            return 1;
+    }
+    return 0;
 }
 
 /* Only digits and dots, or a colon: meant as a numeric address. */
@@ -205,6 +328,8 @@ static sc_status tcp_open(void *state, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "modbus-tcp: max-connections must be 1..%d",
                             SC_MBTCP_MAX_CONN);
     }
+    if (s->cfg.max_per_peer == SC_MBTCP_PER_PEER_AUTO)
+        s->cfg.max_per_peer = s->cfg.max_connections >= 4 ? s->cfg.max_connections / 4 : 1;
     sc_modbus_map_open(sc_modbus_map_shared(), s->cfg.word_order);
     struct sockaddr_storage addr;
     socklen_t alen;
@@ -218,7 +343,7 @@ static sc_status tcp_open(void *state, sc_error *err)
     int one = 1;
     setsockopt(s->listen_fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
     if (bind(s->listen_fd, (struct sockaddr *)&addr, alen) != 0 ||
-        listen(s->listen_fd, 128) != 0) {
+        listen(s->listen_fd, 1024) != 0) { /* a connect burst waits in the backlog */
         char a[sizeof s->bound];
         sc_mbtcp_format_addr(&addr, a, sizeof a);
         close(s->listen_fd);
@@ -234,9 +359,13 @@ static sc_status tcp_open(void *state, sc_error *err)
                                   : ((struct sockaddr_in *)&got)->sin_port);
         sc_mbtcp_format_addr(&got, s->bound, sizeof s->bound);
     }
-    sc_log(SC_LOG_NOTICE, "modbus-tcp: listening on %s (unit id %u, max %d connections%s)",
-           s->bound, (unsigned)s->cfg.unit_id, s->cfg.max_connections,
-           s->cfg.max_per_peer > 0 ? ", a per-peer limit" : "");
+    char per_peer[32] = "no per-peer limit";
+    if (s->cfg.max_per_peer > 0)
+        snprintf(per_peer, sizeof per_peer, "%d per peer", s->cfg.max_per_peer);
+    sc_log(SC_LOG_NOTICE,
+           "modbus-tcp: listening on %s (unit id %u, max %d connections, %s, %s)", s->bound,
+           (unsigned)s->cfg.unit_id, s->cfg.max_connections, per_peer,
+           s->cfg.n_allow > 0 ? "an allow-list" : "any peer address");
     return SC_OK;
 }
 
@@ -264,8 +393,9 @@ static int tcp_fill(void *state, struct pollfd *fds, int max)
 
 /* The connection to close for a newcomer at the cap: the longest idle among those that never
  * had a request answered (a flood of idle or half-open connections cannot push out a client
- * being served), else the longest idle of all; NULL if none is open. */
-static conn *longest_idle(mbtcp_state *s)
+ * being served), else the longest idle of those served but silent for at least
+ * SC_MBTCP_EVICT_SERVED_IDLE_MS; NULL if there is none (the newcomer is then refused). */
+static conn *longest_idle(mbtcp_state *s, uint64_t now_ms)
 {
     conn *best = NULL;
     for (int pass = 0; pass < 2 && best == NULL; pass++)
@@ -273,6 +403,8 @@ static conn *longest_idle(mbtcp_state *s)
             conn *c = &s->c[i];
             if (c->fd < 0 || (pass == 0 && c->served > 0))
                 continue;
+            if (pass == 1 && now_ms - c->last_rx_ms < SC_MBTCP_EVICT_SERVED_IDLE_MS)
+                continue; /* a client being served is never reset for a newcomer */
             if (best == NULL || c->last_rx_ms < best->last_rx_ms)
                 best = c;
         }
@@ -303,6 +435,15 @@ static void tcp_accept(mbtcp_state *s, uint64_t now_ms)
                 sc_log(SC_LOG_WARNING, "modbus-tcp: accept: %s", strerror(errno));
             return;
         }
+        if (!sc_mbtcp_allowed(&s->cfg, &peer)) {
+            s->denied++;
+            char a[INET6_ADDRSTRLEN + 8];
+            sc_mbtcp_format_addr(&peer, a, sizeof a);
+            sc_log(SC_LOG_WARNING, "modbus-tcp: connection from %s closed: not in the allow-list; "
+                   "%u denied so far", a, (unsigned)s->denied);
+            close(fd);
+            continue;
+        }
         if (s->cfg.max_per_peer > 0 && peer_count(s, &peer) >= s->cfg.max_per_peer) {
             s->refused++;
             sc_log(SC_LOG_WARNING, "modbus-tcp: connection refused: this peer has %d open (the "
@@ -312,13 +453,20 @@ static void tcp_accept(mbtcp_state *s, uint64_t now_ms)
             continue;
         }
         if (s->nconn >= s->cfg.max_connections) {
-            conn *victim = longest_idle(s);
+            conn *victim = longest_idle(s, now_ms);
+            if (victim == NULL) { /* every connection is a client being served */
+                s->refused++;
+                sc_log(SC_LOG_WARNING, "modbus-tcp: %d connections open (the cap), all of them "
+                       "clients being served: the new connection is closed; %u refused so far",
+                       s->nconn, (unsigned)s->refused);
+                close(fd);
+                continue;
+            }
             s->evicted++;
             sc_log(SC_LOG_WARNING, "modbus-tcp: %d connections open (the cap): closing the "
                    "longest idle (%u ms); %u evicted so far", s->nconn,
-                   victim ? (unsigned)(now_ms - victim->last_rx_ms) : 0u, (unsigned)s->evicted);
-            if (victim != NULL)
-                conn_close(s, victim, NULL);
+                   (unsigned)(now_ms - victim->last_rx_ms), (unsigned)s->evicted);
+            conn_close(s, victim, NULL);
         }
         int one = 1;
         setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);

@@ -2,8 +2,9 @@
  * transport frames it (transport_modbus_rtu.c: the frame length from the function code and byte
  * count, the CRC, resynchronisation at a silence, other units ignored), served through the
  * transport interface on one end of a socketpair standing for the serial line.
- * Input: chunks, each a control byte (bits 0-6: length, bit 7: a silence longer than the byte
- * timeout before it) and that many bytes of the line.
+ * Input: chunks, each a control byte (bits 0-6: length, bit 7: a silence longer than t3.5 before
+ * it; without it the chunk follows 10 us after the previous one) and that many bytes of the line.
+ * The transport reads a fake clock (sc_modbus_rtu_use_clock) that only this target advances.
  * Checks beyond "no memory error, no undefined behaviour":
  *   - everything the server sends is a sequence of whole RTU responses from unit 1 with a correct
  *     CRC-16 (computed here bit by bit, not with selfcald's table), each a normal response of a
@@ -25,7 +26,13 @@ static sc_engine g_e;
 static sc_corr_table g_t;
 static sc_transport g_tr;
 static int g_sv[2];
-static uint64_t g_now = 1000;
+static uint64_t g_now = 1000;   /* ms, for the transport interface */
+static uint64_t g_now_us = 1000000; /* what the transport's clock reads */
+
+static uint64_t fake_clock_us(void)
+{
+    return g_now_us;
+}
 
 static uint16_t crc16(const uint8_t *p, int n)
 {
@@ -51,6 +58,7 @@ static void init(void)
     sc_mbrtu_config_defaults(&cfg);
     strcpy(cfg.device, "/dev/null");
     sc_modbus_rtu_use_fd(g_sv[0]);
+    sc_modbus_rtu_use_clock(fake_clock_us);
     sc_modbus_rtu_transport(&g_tr, &cfg);
 }
 
@@ -61,12 +69,13 @@ static void serve(void)
     FUZZ_CHECK(g_tr.fill_pollfds(g_tr.state, &pf, 1) == 1);
     pf.revents = POLLIN;
     g_tr.serve(g_tr.state, &pf, 1, &g_e, g_now);
-    g_now += 1;
+    g_now_us += 10; /* well inside t1.5 */
 }
 
 static void silence(void)
 {
-    g_now += 200; /* beyond the 50 ms byte timeout */
+    g_now += 200; /* beyond t3.5 */
+    g_now_us += 200000;
     g_tr.tick(g_tr.state, &g_e, g_now);
 }
 

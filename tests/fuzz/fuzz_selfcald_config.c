@@ -19,7 +19,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     FUZZ_CHECK(c.tcp.max_connections >= 1 && c.tcp.max_connections <= SC_MBTCP_MAX_CONN);
-    FUZZ_CHECK(c.tcp.max_per_peer >= 0 && c.tcp.max_per_peer <= SC_MBTCP_MAX_CONN);
+    FUZZ_CHECK(c.tcp.max_per_peer >= SC_MBTCP_PER_PEER_AUTO && c.tcp.max_per_peer <= SC_MBTCP_MAX_CONN);
+    FUZZ_CHECK(c.tcp.n_allow >= 0 && c.tcp.n_allow <= SC_MBTCP_MAX_ALLOW);
     FUZZ_CHECK(memchr(c.table, '\0', sizeof c.table) != NULL);
     FUZZ_CHECK(memchr(c.tcp.host, '\0', sizeof c.tcp.host) != NULL);
     FUZZ_CHECK(c.word_order == SC_WORD_HIGH_FIRST || c.word_order == SC_WORD_LOW_FIRST);

@@ -11,6 +11,11 @@ add_test(NAME faults_cli
   COMMAND ${SELFCAL_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/integration/faults/test_cli_faults.py
           $<TARGET_FILE:selfcal_cli> $<TARGET_FILE:fault_fsync> ${CMAKE_CURRENT_BINARY_DIR}/tmp/faults_cli 100)
 set_tests_properties(faults_cli PROPERTIES TIMEOUT 300 LABELS "integration;faults")
+# SIGKILL at each step of an atomic write (strace's syscall injection): no temporary outlives it
+add_test(NAME faults_tmp_kill
+  COMMAND ${SELFCAL_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/integration/faults/test_tmp_kill.py
+          $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/faults_tmp_kill)
+set_tests_properties(faults_tmp_kill PROPERTIES TIMEOUT 300 LABELS "integration;faults")
 if(TARGET selfcald)
   add_test(NAME faults_daemon
     COMMAND ${CMAKE_SOURCE_DIR}/.venv/bin/python ${CMAKE_CURRENT_SOURCE_DIR}/integration/faults/test_daemon_storm.py

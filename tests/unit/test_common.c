@@ -6,9 +6,11 @@
 #include <cmocka.h>
 
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -276,7 +278,11 @@ static void test_atomic_group(void **state)
     assert_int_equal(sc_afile_open(&f[0], a, &err), SC_OK);
     assert_int_equal(sc_afile_open(&f[1], b, &err), SC_OK);
     fputs("new a\n", f[0].fp);
-    FILE *ro = fopen(f[1].tmp_path, "r"); /* swap in a read-only stream: writing sets its error */
+    /* swap in a read-only stream: writing sets its error (an anonymous O_TMPFILE temporary is
+     * opened again through /proc) */
+    char reopen[64];
+    snprintf(reopen, sizeof reopen, "/proc/self/fd/%d", fileno(f[1].fp));
+    FILE *ro = fopen(f[1].tmp_path[0] ? f[1].tmp_path : reopen, "r");
     assert_non_null(ro);
     fclose(f[1].fp);
     f[1].fp = ro;
@@ -296,6 +302,57 @@ static void test_atomic_group(void **state)
     assert_string_equal(buf, "old b\n");
     assert_false(file_exists(tmp0));
     assert_false(file_exists(tmp1));
+}
+
+/* Issue 36: no temporary file under any name while a file is written (anonymous where the file
+ * system has O_TMPFILE), and a commit removes the stale "PATH.tmpXXXXXX" files of its name that
+ * nobody holds (a killed writer's), not a live writer's (flocked), nor other names. */
+static void test_atomic_stale_tmps(void **state)
+{
+    (void)state;
+    const char *path = SELFCAL_TEST_TMP "/stale.txt";
+    const char *stale = SELFCAL_TEST_TMP "/stale.txt.tmpAb3xY9";
+    const char *live = SELFCAL_TEST_TMP "/stale.txt.tmpLIVE01";
+    const char *other[] = {SELFCAL_TEST_TMP "/stale.txt.tmpABCDEFG", SELFCAL_TEST_TMP "/stale.txt.tmp12",
+                           SELFCAL_TEST_TMP "/stale2.txt.tmpABCDEF", SELFCAL_TEST_TMP "/stale.txt.tmp-x-y-z"};
+    const char *all[] = {stale, live, other[0], other[1], other[2], other[3]};
+    for (size_t k = 0; k < sizeof all / sizeof all[0]; ++k) {
+        FILE *w = fopen(all[k], "w");
+        assert_non_null(w);
+        fputs("x\n", w);
+        fclose(w);
+    }
+    int lfd = open(live, O_RDONLY);
+    assert_true(lfd >= 0);
+    assert_int_equal(flock(lfd, LOCK_EX), 0);
+    sc_error err;
+    sc_afile f;
+    assert_int_equal(sc_afile_open(&f, path, &err), SC_OK);
+    if (f.direct == 2) /* anonymous: nothing under a name until the commit */
+        assert_string_equal(f.tmp_path, "");
+    fputs("new\n", f.fp);
+    assert_int_equal(sc_afile_commit(&f, &err), SC_OK);
+    assert_false(file_exists(stale));
+    assert_true(file_exists(live));
+    for (size_t k = 0; k < 4; ++k)
+        assert_true(file_exists(other[k]));
+    close(lfd); /* its writer gone: the next commit removes it */
+    assert_int_equal(sc_write_file_atomic(path, "again\n", 6, &err), SC_OK);
+    assert_false(file_exists(live));
+    for (size_t k = 0; k < 4; ++k) {
+        assert_true(file_exists(other[k]));
+        unlink(other[k]);
+    }
+    /* an aborted anonymous temporary leaves nothing either */
+    assert_int_equal(sc_afile_open(&f, path, &err), SC_OK);
+    fputs("discarded\n", f.fp);
+    sc_afile_abort(&f);
+    char buf[16] = {0};
+    FILE *in = fopen(path, "r");
+    assert_non_null(in);
+    assert_non_null(fgets(buf, sizeof buf, in));
+    fclose(in);
+    assert_string_equal(buf, "again\n");
 }
 
 static void test_rng(void **state)
@@ -459,6 +516,7 @@ int main(void)
         cmocka_unit_test(test_csv_long_line_with_nul),
         cmocka_unit_test(test_atomic_file),
         cmocka_unit_test(test_atomic_group),
+        cmocka_unit_test(test_atomic_stale_tmps),
         cmocka_unit_test(test_atomic_finish_all),
         cmocka_unit_test(test_atomic_file_device_target),
         cmocka_unit_test(test_rng),

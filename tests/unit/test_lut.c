@@ -221,6 +221,106 @@ static void test_encode_decode_round_trip(void **state)
     free(out);
 }
 
+/* The format's range (issue 36): every value a block can express within +-2^31 pm. The writer
+ * refuses values beyond it, the loader refuses scale fields that could express more (the audit's
+ * table: a grid scale of 1e9 pm with the CRC right), and the bounds a table commands are the same
+ * from the host table (sc_lut_bounds) and from the loaded one (sc_corr_bounds). */
+static void test_range_and_bounds(void **state)
+{
+    (void)state;
+    sc_rng rng;
+    sc_rng_seed(&rng, 36);
+    sc_lut *in = malloc(sizeof *in), *out = malloc(sizeof *out);
+    sc_corr_table *t = malloc(sizeof *t);
+    assert_non_null(in);
+    assert_non_null(out);
+    assert_non_null(t);
+    sc_error err;
+    size_t len = 0;
+    /* the largest encodable values: int32 at 1 pm; int16 up to 50000 pm */
+    random_lut(in, &rng, 5, 4, 2147.0, 2, 9);
+    in->gx_um[3] = -2147.483647;
+    round_trip(in, out, SC_LUT_ENC_AUTO, SC_LUT_ENC_INT32);
+    assert_int_equal(in->grid_scale_pm, 1);
+    random_lut(in, &rng, 5, 4, 1600.0, 0, 0);
+    round_trip(in, out, SC_LUT_ENC_INT16, SC_LUT_ENC_INT16);
+    assert_int_equal(in->grid_scale_pm, 50000);
+    /* beyond: refused, naming the range */
+    random_lut(in, &rng, 5, 4, 1.0, 1, 9);
+    in->gy_um[7] = 2147.49;
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "range"));
+    in->gy_um[7] = 1700.0;
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_INT16, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_INT32, buf, sizeof buf, &len, &err), SC_OK);
+    in->gy_um[7] = 0.5;
+    in->profile[0].err_um[2] = -3000.0;
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "profile 0"));
+
+    /* scale fields: int16 up to 65536 pm, int32 exactly 1 pm; the grid's at offset 56, the
+     * first profile's 24 bytes into its header (right after the grid codes) */
+    random_lut(in, &rng, 4, 3, 2.0, 1, 5);
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_INT16, buf, sizeof buf, &len, &err), SC_OK);
+    const size_t pscale = 64 + 2 * 12 * 2 + 24;
+    static const struct {
+        size_t off;
+        uint32_t scale;
+        int ok;
+    } cases[] = {{56, 65536, 1}, {56, 65537, 0}, {56, 1000000000u, 0}, {56, 0, 0},
+                 {pscale, 65536, 1}, {pscale, 65537, 0}, {pscale, 1000000000u, 0}};
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; ++c) {
+        assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_INT16, buf, sizeof buf, &len, &err), SC_OK);
+        for (int b = 0; b < 4; ++b)
+            buf[cases[c].off + (size_t)b] = (uint8_t)(cases[c].scale >> (8 * b));
+        uint32_t crc = sc_corr_crc32(buf, len - 4);
+        for (int b = 0; b < 4; ++b)
+            buf[len - 4 + (size_t)b] = (uint8_t)(crc >> (8 * b));
+        assert_int_equal(sc_corr_load(t, buf, len), cases[c].ok ? SC_CORR_OK : SC_CORR_E_RANGE);
+        assert_int_equal(sc_lut_decode(buf, len, out, "audit.lut", &err),
+                         cases[c].ok ? SC_OK : SC_E_INPUT);
+        if (!cases[c].ok)
+            assert_non_null(strstr(err.msg, "scale"));
+    }
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_INT32, buf, sizeof buf, &len, &err), SC_OK);
+    buf[56] = 2; /* int32 codes of 2 pm: could express 4.3 mm */
+    uint32_t crc = sc_corr_crc32(buf, len - 4);
+    for (int b = 0; b < 4; ++b)
+        buf[len - 4 + (size_t)b] = (uint8_t)(crc >> (8 * b));
+    assert_int_equal(sc_corr_load(t, buf, len), SC_CORR_E_RANGE);
+
+    /* bounds: known values, then host and loaded table agree */
+    random_lut(in, &rng, 3, 2, 0.0, 2, 4);
+    in->px_mm = 2.0;
+    in->py_mm = 4.0;
+    in->gx_um[1] = 3.0;    /* node (0, 1): 3 um over 2 mm from both x neighbours: 1.5 um/mm */
+    in->gy_um[4] = -2.5;   /* node (1, 1) */
+    in->profile[0].dir = 1; /* a profile on y adds its largest |value| to y's */
+    in->profile[0].err_um[2] = 0.75;
+    in->profile[1].dir = 2;
+    in->profile[1].err_um[1] = 0.1;
+    double corr, grad, corr2, grad2;
+    sc_lut_bounds(in, &corr, &grad);
+    assert_true(fabs(corr - 3.25) < 1e-12);
+    assert_true(fabs(grad - 1.5) < 1e-12);
+    in->profile[0].step_mm = 0.25; /* 0.75 um within 0.25 mm: 3 um/mm */
+    sc_lut_bounds(in, &corr, &grad);
+    assert_true(fabs(grad - 3.0) < 1e-12);
+    for (int r = 0; r < 20; ++r) {
+        random_lut(in, &rng, 2 + r % 7, 2 + r % 5, 0.5 + r, r % 4, 3 + r);
+        assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_OK);
+        assert_int_equal(sc_lut_decode(buf, len, out, "mem", &err), SC_OK);
+        assert_int_equal(sc_corr_load(t, buf, len), SC_CORR_OK);
+        sc_lut_bounds(out, &corr, &grad);
+        sc_corr_bounds(t, &corr2, &grad2);
+        assert_true(fabs(corr - corr2) <= 1e-6 * corr + 1e-9); /* float-rounded node values */
+        assert_true(fabs(grad - grad2) <= 1e-6 * grad + 1e-9);
+    }
+    free(in);
+    free(out);
+    free(t);
+}
+
 static void test_encode_rejects(void **state)
 {
     (void)state;
@@ -589,6 +689,7 @@ int main(void)
         cmocka_unit_test(test_sha256_vectors),
         cmocka_unit_test(test_encode_decode_round_trip),
         cmocka_unit_test(test_encode_rejects),
+        cmocka_unit_test(test_range_and_bounds),
         cmocka_unit_test(test_read_map),
         cmocka_unit_test(test_fit_grid),
         cmocka_unit_test(test_read_profile),

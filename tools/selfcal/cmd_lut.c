@@ -20,8 +20,8 @@ static void lut_usage(FILE *to)
             "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
             "                         [--created UNIX_SECONDS] [--max-nodes N]\n"
             "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
-            "       selfcal lut info TABLE     print size, encoding, quantization, |G| and slope\n"
-            "                                  bounds, and provenance\n"
+            "       selfcal lut info TABLE     print size, encoding, quantization, bounds, |G| and\n"
+            "                                  slope, and provenance\n"
             "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
             "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to %d.\n"
             "                            The profile's x_mm is placed at machine position\n"
@@ -164,6 +164,15 @@ static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report
     return sc_lut_write_file(b->out, lut, b->enc, err);
 }
 
+/* What the table commands: the figures selfcald's --max-correction-um and
+ * --max-gradient-um-per-mm are compared with. */
+static void print_bounds(const sc_lut *lut)
+{
+    double corr_um, grad;
+    sc_lut_bounds(lut, &corr_um, &grad);
+    printf("bounds: max correction %.6f um, max gradient %.6f um/mm\n", corr_um, grad);
+}
+
 static int lut_build(int argc, char **argv)
 {
     static build_args b;
@@ -218,6 +227,7 @@ static int lut_build(int argc, char **argv)
            b.out, lut->nx, lut->ny, lut->px_mm, lut->py_mm, lut->n_profiles, bytes,
            1e3 * sc_lut_quantization_um(lut->grid_scale_pm),
            lut->grid_encoding == SC_LUT_ENC_INT16 ? "int16" : "int32");
+    print_bounds(lut);
     free(lut);
     return CLI_OK;
 }
@@ -370,6 +380,7 @@ static int lut_info(int argc, char **argv)
                k, sc_lut_axis_name(p->dir), sc_lut_axis_name(p->axis), p->n, p->start_mm,
                p->step_mm, enc_name(p->encoding), (unsigned)p->scale_pm);
     }
+    print_bounds(lut);
     print_correction_bounds(lut);
     printf("method: %s\n", lut->prov.method[0] ? lut->prov.method : "(not recorded)");
     time_t t = (time_t)lut->prov.created_unix_s;

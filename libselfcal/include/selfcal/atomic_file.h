@@ -1,7 +1,10 @@
 /* selfcal/atomic_file.h — write a file so that a crash never leaves half of it under its name.
  *
- * Writes go to a temporary file in the same directory; commit flushes, fsyncs, renames it over
- * the final name and fsyncs the directory; abort removes the temporary file.
+ * Writes go to a temporary file in the same directory: anonymous (O_TMPFILE) where the file system
+ * supports it, so a killed writer leaves nothing, else named "PATH.tmpXXXXXX"; commit flushes,
+ * fsyncs, links an anonymous one to that name, renames it over the final name, fsyncs the
+ * directory and removes stale "PATH.tmpXXXXXX" files whose writer is gone (none holds their
+ * flock); abort removes the temporary file.
  */
 #ifndef SELFCAL_ATOMIC_FILE_H
 #define SELFCAL_ATOMIC_FILE_H
@@ -21,7 +24,8 @@ typedef struct sc_afile {
     char path[4096];     /* the final name */
     char tmp_path[4096]; /* the temporary file ("" when written straight) */
     int direct;          /* 1: stdout, or an existing device or FIFO (/dev/null): written
-                            straight, never replaced */
+                            straight, never replaced; 2: an anonymous temporary file
+                            (O_TMPFILE), named only at commit; 0: a named temporary file */
 } sc_afile;
 
 /* Create the temporary file for path ("-" writes straight to stdout; so does an existing

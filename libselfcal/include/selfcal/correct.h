@@ -167,6 +167,13 @@ SC_API const char *sc_corr_strerror(int code);
  * runs every check again. */
 SC_API const char *sc_corr_explain(const void *buf, size_t len);
 
+/* What loaded table t can command: *max_correction_um, the largest correction of one coordinate
+ * (um: the largest |node value| of Gx or Gy, plus the largest |value| of each profile of that
+ * DIR; bilinear and linear interpolation stay within it) and *max_gradient_um_per_mm, the steepest
+ * change between neighbouring grid nodes (along x or y) or profile points (um per mm). */
+SC_API void sc_corr_bounds(const sc_corr_table *t, double *max_correction_um,
+                           double *max_gradient_um_per_mm);
+
 /* Correct one position (mm; z passes through unless a profile has DIR z). Returns status bits.
  * NaN or infinite input: out = in, SC_CORR_ST_INVALID set. Constant time, no allocation. */
 SC_API unsigned sc_corr_apply(const sc_corr_table *t, sc_corr_mode mode, const double in_mm[3],

@@ -139,6 +139,12 @@ SC_API sc_status sc_lut_read_file(const char *path, sc_lut *lut, sc_error *err);
  * for sc_corr_apply. SC_E_INPUT with the file and the reason if the file is not a valid table. */
 SC_API sc_status sc_lut_load_corr_file(const char *path, sc_corr_table *t, sc_error *err);
 
+/* What the table commands, as sc_corr_bounds measures a loaded one: the largest correction of
+ * one coordinate (um: largest |Gx| or |Gy| plus the largest |value| of each profile of that DIR)
+ * and the steepest change between neighbouring nodes or profile points (um per mm). */
+SC_API void sc_lut_bounds(const sc_lut *lut, double *max_correction_um,
+                          double *max_gradient_um_per_mm);
+
 /* The quantization bound of a block: half its scale, in micrometres. */
 SC_API double sc_lut_quantization_um(uint32_t scale_pm);
 

@@ -1,8 +1,21 @@
 /* atomic_file.c — owns writing files so that a crash never leaves half of one under its name
- * (temporary file, fsync, rename, directory fsync; groups of files committed together). */
+ * (temporary file, fsync, rename, directory fsync; groups of files committed together).
+ *
+ * The temporary file is anonymous where the file system supports it (O_TMPFILE, Linux >= 3.11 on
+ * ext4, xfs, btrfs, tmpfs...): a writer killed before its commit leaves nothing behind. At commit
+ * it is fsynced, linked to "PATH.tmpXXXXXX" (linkat) and renamed over PATH. Elsewhere the
+ * temporary file is created under that name from the start. Either way the writer holds an
+ * exclusive flock on its temporary file until it is renamed, and each successful commit removes
+ * the stale "PATH.tmpXXXXXX" files (six letters or digits) nobody holds: those of a writer killed
+ * between link and rename, or during a write without O_TMPFILE (as SQLite's next writer cleans up
+ * a journal left by a crash). */
+#ifndef _GNU_SOURCE
+#define _GNU_SOURCE /* O_TMPFILE */
+#endif
 #include "selfcal/atomic_file.h"
 #include "selfcal/rng.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
@@ -12,6 +25,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
@@ -145,6 +159,117 @@ static int create_tmp(char *tmp, size_t cap, const char *path, mode_t mode)
     return -1;
 }
 
+/* A new anonymous file (O_TMPFILE) in the folder of path, with mode; -1 (errno) where the file
+ * system or the kernel has none, or /proc (for linkat) is not there. */
+static int create_anon(const char *path, mode_t mode)
+{
+#ifdef O_TMPFILE
+    char dir[4096];
+    const char *slash = strrchr(path, '/');
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else
+        snprintf(dir, sizeof dir, "%.*s", slash == path ? 1 : (int)(slash - path), path);
+    if (access("/proc/self/fd", X_OK) != 0)
+        return -1;
+    return open(dir, O_TMPFILE | O_WRONLY | O_CLOEXEC, mode);
+#else
+    (void)path;
+    (void)mode;
+    errno = EOPNOTSUPP;
+    return -1;
+#endif
+}
+
+/* Give the anonymous temporary file of f the name "PATH.tmpXXXXXX" (kept in f->tmp_path and
+ * tracked for signals). 0, or -1 with errno. */
+static int link_anon(sc_afile *f)
+{
+    static const char abc[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789";
+    char proc[64];
+    snprintf(proc, sizeof proc, "/proc/self/fd/%d", fileno(f->fp));
+    struct timespec ts;
+    clock_gettime(CLOCK_REALTIME, &ts);
+    sc_rng rng;
+    sc_rng_seed(&rng, (uint64_t)ts.tv_nsec ^ ((uint64_t)ts.tv_sec << 30) ^
+                          ((uint64_t)getpid() << 16) ^ (uint64_t)(uintptr_t)f);
+    for (int attempt = 0; attempt < 100; ++attempt) {
+        char name[sizeof f->tmp_path + 16], sfx[7];
+        for (int k = 0; k < 6; ++k)
+            sfx[k] = abc[sc_rng_u64(&rng) % (sizeof abc - 1)];
+        sfx[6] = '\0';
+        if (snprintf(name, sizeof name, "%s.tmp%s", f->path, sfx) >= (int)sizeof f->tmp_path) {
+            errno = ENAMETOOLONG;
+            return -1;
+        }
+        sigset_t old;
+        block_signals(&old); /* linked and tracked as one step */
+        defer_signals_begin();
+        int rc = linkat(AT_FDCWD, proc, AT_FDCWD, name, AT_SYMLINK_FOLLOW);
+        int e = errno;
+        if (rc == 0) {
+            memcpy(f->tmp_path, name, strlen(name) + 1);
+            track(f);
+        }
+        restore_signals(&old);
+        defer_signals_end();
+        if (rc == 0)
+            return 0;
+        if (e != EEXIST) {
+            errno = e;
+            return -1;
+        }
+    }
+    errno = EEXIST;
+    return -1;
+}
+
+/* Is name "BASE.tmpXXXXXX" (six letters or digits), our temporary files' naming for base? */
+static int is_our_tmp_name(const char *name, const char *base)
+{
+    size_t bl = strlen(base);
+    if (strncmp(name, base, bl) != 0 || strncmp(name + bl, ".tmp", 4) != 0)
+        return 0;
+    const char *sfx = name + bl + 4;
+    for (int k = 0; k < 6; ++k) {
+        char c = sfx[k];
+        if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9')))
+            return 0;
+    }
+    return sfx[6] == '\0';
+}
+
+/* After path was committed: remove the stale temporary files of path nobody holds (their writer
+ * died: its flock went with it). A live writer's temporary file is flocked and stays. */
+static void remove_stale_tmps(const char *path)
+{
+    char dir[4096];
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    if (!slash)
+        snprintf(dir, sizeof dir, ".");
+    else
+        snprintf(dir, sizeof dir, "%.*s", slash == path ? 1 : (int)(slash - path), path);
+    DIR *d = opendir(dir);
+    if (!d)
+        return;
+    int dfd = dirfd(d);
+    struct dirent *de;
+    while ((de = readdir(d)) != NULL) {
+        if (!is_our_tmp_name(de->d_name, base))
+            continue;
+        int fd = openat(dfd, de->d_name, O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+        if (fd < 0)
+            continue;
+        struct stat sb;
+        if (fstat(fd, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_uid == geteuid() &&
+            flock(fd, LOCK_EX | LOCK_NB) == 0)
+            unlinkat(dfd, de->d_name, 0);
+        close(fd);
+    }
+    closedir(d);
+}
+
 /* Whether the kernel would follow the symbolic link path (lstat'ed as *lsb) when opening it:
  * its protected_symlinks rule — a link in a sticky world-writable folder (/tmp) is followed only
  * by its owner or when the folder's owner owns it too. */
@@ -260,11 +385,20 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     defer_signals_begin();
     /* created with the final permissions at once: a replaced 0600 file's new content is never
      * readable by others, not even for a moment */
-    int fd = create_tmp(f->tmp_path, sizeof f->tmp_path, path,
-                        replacing ? (sb.st_mode & 0777) : 0666);
+    mode_t mode = replacing ? (sb.st_mode & 0777) : 0666;
+    int fd = create_anon(path, mode);
+    if (fd >= 0) {
+        f->direct = 2; /* anonymous until commit: nothing to track */
+        f->tmp_path[0] = '\0';
+    } else {
+        fd = create_tmp(f->tmp_path, sizeof f->tmp_path, path, mode);
+    }
     int e = errno;
-    if (fd >= 0)
+    if (fd >= 0 && f->direct == 0)
         track(f);
+    if (fd >= 0)
+        flock(fd, LOCK_EX | LOCK_NB); /* held until the rename: a live writer's file is no
+                                         one's stale file */
     restore_signals(&old);
     defer_signals_end();
     if (fd < 0)
@@ -276,7 +410,8 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     if (!f->fp) {
         e = errno;
         close(fd);
-        remove_tmp(f);
+        if (f->tmp_path[0])
+            remove_tmp(f);
         return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
     }
     return SC_OK;
@@ -300,7 +435,8 @@ static void fsync_parent_dir(const char *path)
     }
 }
 
-/* Flush, fsync and close the temporary file (fp becomes NULL); on failure it is removed. */
+/* Flush and fsync the temporary file and give it its temporary name if it is anonymous; it stays
+ * open (and flocked) until afile_rename. On failure it is closed and removed (fp NULL). */
 static sc_status afile_sync(sc_afile *f, sc_error *err)
 {
     errno = 0;
@@ -310,29 +446,35 @@ static sc_status afile_sync(sc_afile *f, sc_error *err)
         e = probe_write_errno(fileno(f->fp));
     if (!bad && fsync(fileno(f->fp)) != 0)
         bad = 1, e = errno;
-    if (fclose(f->fp) != 0 && !bad) {
-        bad = 1;
-        e = errno;
-    }
-    f->fp = NULL;
+    if (!bad && f->direct == 2 && link_anon(f) != 0)
+        bad = 1, e = errno;
     if (bad) {
-        remove_tmp(f);
+        fclose(f->fp);
+        f->fp = NULL;
+        if (f->tmp_path[0])
+            remove_tmp(f);
         return sc_error_set(err, SC_E_IO, f->path, 0, "write error: %s", strerror(e ? e : EIO));
     }
     return SC_OK;
 }
 
-/* Rename a synced temporary file over its final name. */
+/* Rename a synced temporary file over its final name, close it, and remove the stale temporary
+ * files of that name. */
 static sc_status afile_rename(sc_afile *f, sc_error *err)
 {
     if (rename(f->tmp_path, f->path) != 0) {
         int e = errno;
         remove_tmp(f);
+        fclose(f->fp);
+        f->fp = NULL;
         return sc_error_set(err, SC_E_IO, f->path, 0, "cannot rename into place: %s",
                             strerror(e));
     }
     untrack(f);
+    fclose(f->fp); /* its data are on disk (fsync): a late error would change nothing */
+    f->fp = NULL;
     fsync_parent_dir(f->path);
+    remove_stale_tmps(f->path);
     return SC_OK;
 }
 
@@ -356,7 +498,7 @@ sc_status sc_afile_commit(sc_afile *f, sc_error *err)
 {
     if (!f->fp)
         return sc_error_set(err, SC_E_INTERNAL, f->path, 0, "file not open");
-    if (f->direct)
+    if (f->direct == 1)
         return direct_commit(f, err);
     sc_status st = afile_sync(f, err);
     return st == SC_OK ? afile_rename(f, err) : st;
@@ -387,14 +529,11 @@ static sc_status commit_group(sc_afile *f, int n, int *synced, sc_error *err)
     for (int k = 0; k < n && st == SC_OK; ++k) {
         if (!f[k].fp)
             continue;
-        st = f[k].direct ? direct_commit(&f[k], err) : afile_sync(&f[k], err);
+        st = f[k].direct == 1 ? direct_commit(&f[k], err) : afile_sync(&f[k], err);
         synced[k] = st == SC_OK && f[k].tmp_path[0];
     }
     if (st != SC_OK) {
-        for (int k = 0; k < n; ++k)
-            if (synced[k])
-                remove_tmp(&f[k]);
-        sc_afile_abort_all(f, n);
+        sc_afile_abort_all(f, n); /* the synced ones are still open: closed and removed */
         return st;
     }
     /* The renames as one step for signals: a SIGINT/SIGTERM arriving now is handled after the
@@ -407,7 +546,7 @@ static sc_status commit_group(sc_afile *f, int n, int *synced, sc_error *err)
         if (st == SC_OK)
             st = afile_rename(&f[k], err);
         else
-            remove_tmp(&f[k]);
+            sc_afile_abort(&f[k]);
     }
     restore_signals(&old);
     return st;
@@ -439,7 +578,7 @@ void sc_afile_abort(sc_afile *f)
 {
     if (!f->fp)
         return;
-    if (f->direct) {
+    if (f->direct == 1) {
         if (is_stdout(f))
             fflush(f->fp);
         else
@@ -447,9 +586,10 @@ void sc_afile_abort(sc_afile *f)
         f->fp = NULL;
         return;
     }
-    fclose(f->fp);
+    fclose(f->fp); /* an anonymous temporary file not yet linked goes with it */
     f->fp = NULL;
-    remove_tmp(f);
+    if (f->tmp_path[0])
+        remove_tmp(f);
 }
 
 sc_status sc_write_file_atomic(const char *path, const void *data, size_t len, sc_error *err)

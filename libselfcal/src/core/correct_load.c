@@ -67,9 +67,12 @@ static int all_zero(const uint8_t *p, size_t n)
     return 1;
 }
 
-static int scale_ok(uint32_t scale_pm)
+/* A scale with which no code of encoding enc leaves +-SC_LUTF_MAX_VALUE_PM (a scale that could
+ * express metres, e.g. 1e9 pm per code, is refused even if the codes are small). */
+static int scale_ok(uint32_t scale_pm, unsigned enc)
 {
-    return scale_pm >= 1u && scale_pm <= SC_LUTF_MAX_SCALE_PM;
+    return scale_pm >= 1u && scale_pm <= (enc == SC_LUTF_ENC_INT16 ? SC_LUTF_MAX_SCALE_PM_INT16
+                                                                     : SC_LUTF_MAX_SCALE_PM_INT32);
 }
 
 /* The failure code with its reason (correct_reason.h) in *why, when asked for. */
@@ -98,7 +101,7 @@ static int check_profile_header(const uint8_t *h, unsigned char *why)
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_EXTENT);
     if (!(step >= SC_LUTF_MIN_PITCH_MM))
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_STEP);
-    if (!scale_ok(sc_lutf_get_u32(h + SC_LUTF_POFF_SCALE)))
+    if (!scale_ok(sc_lutf_get_u32(h + SC_LUTF_POFF_SCALE), enc))
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_PROFILE_SCALE);
     return SC_CORR_OK;
 }
@@ -153,7 +156,7 @@ static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *w
     double x1 = x0 + px * (double)(nx - 1), y1 = y0 + py * (double)(ny - 1);
     if (!within(x1, SC_LUTF_MAX_ABS_MM) || !within(y1, SC_LUTF_MAX_ABS_MM))
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_EXTENT);
-    if (!scale_ok(gscale))
+    if (!scale_ok(gscale, genc))
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_GRID_SCALE);
 
     /* Layout: every block must lie inside the file, and the blocks must fill it exactly.

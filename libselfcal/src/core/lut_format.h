@@ -52,7 +52,11 @@
 /* Range limits checked at load (beyond the structural ones). */
 #define SC_LUTF_MAX_ABS_MM 1.0e6        /* |origin|, |start|, extent: within +-1 km */
 #define SC_LUTF_MIN_PITCH_MM 1.0e-6     /* 1 nm */
-#define SC_LUTF_MAX_SCALE_PM 1000000000u /* 1 mm per code */
+/* Every value a block can express (largest |code| x scale) lies within +-2^31 pm
+ * (+-2147.483648 um): int16 codes take a scale of at most 65536 pm, int32 codes only 1 pm. */
+#define SC_LUTF_MAX_VALUE_PM 2147483648u
+#define SC_LUTF_MAX_SCALE_PM_INT16 65536u
+#define SC_LUTF_MAX_SCALE_PM_INT32 1u
 
 /* Byte offsets of the header fields (from the start of the file). */
 #define SC_LUTF_OFF_VERSION 8u

@@ -70,25 +70,26 @@ static double block_max_abs(const double *a, size_t n, const double *b, size_t n
     return m;
 }
 
-/* Smallest 1-2-5 x 10^k picometre scale with max_abs_um / scale <= limit codes; 0 if none. */
-static uint32_t choose_scale(double max_abs_um, double limit)
+/* Smallest 1-2-5 x 10^k picometre scale, at most max_scale, with max_abs_um / scale <= limit
+ * codes; 0 if none. */
+static uint32_t choose_scale(double max_abs_um, double limit, uint32_t max_scale)
 {
     static const uint32_t mant[3] = {1, 2, 5};
     double need_pm = max_abs_um * 1e6 / limit;
     for (uint32_t dec = 1; dec <= 100000000u; dec *= 10u)
         for (int k = 0; k < 3; ++k) {
             uint32_t s = mant[k] * dec;
-            if ((double)s >= need_pm && s <= SC_LUTF_MAX_SCALE_PM)
+            if ((double)s >= need_pm && s <= max_scale)
                 return s;
         }
-    return (need_pm <= (double)SC_LUTF_MAX_SCALE_PM) ? SC_LUTF_MAX_SCALE_PM : 0;
+    return 0;
 }
 
 /* Pick encoding and scale of a block; 0 on success. */
 static int choose_block(double max_abs_um, sc_lut_encoding want, int *enc, uint32_t *scale)
 {
-    uint32_t s16 = choose_scale(max_abs_um, 32767.0);
-    uint32_t s32 = choose_scale(max_abs_um, 2147483647.0);
+    uint32_t s16 = choose_scale(max_abs_um, 32767.0, SC_LUTF_MAX_SCALE_PM_INT16);
+    uint32_t s32 = choose_scale(max_abs_um, 2147483647.0, SC_LUTF_MAX_SCALE_PM_INT32);
     if (want == SC_LUT_ENC_INT16 || (want == SC_LUT_ENC_AUTO && s16 != 0 && s16 <= SC_LUT_AUTO_MAX_INT16_SCALE_PM)) {
         if (s16 == 0)
             return -1;
@@ -244,7 +245,9 @@ sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t c
     if (m < 0.0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the map has a non-finite value");
     if (choose_block(m, enc, &genc, &gscale) != 0)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "map value %g um too large to encode", m);
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "map value %g um beyond the table format's range (+-2147.48 um; "
+                            "+-1638.35 um with int16 codes)", m);
     int penc[SC_LUT_MAX_PROFILES];
     uint32_t pscale[SC_LUT_MAX_PROFILES];
     for (int k = 0; k < lut->n_profiles; ++k) {
@@ -253,7 +256,9 @@ sc_status sc_lut_encode(sc_lut *lut, sc_lut_encoding enc, uint8_t *buf, size_t c
         if (pm < 0.0)
             return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d has a non-finite value", k);
         if (choose_block(pm, enc, &penc[k], &pscale[k]) != 0)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d value %g um too large", k, pm);
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "profile %d value %g um beyond the table format's range "
+                                "(+-2147.48 um; +-1638.35 um with int16 codes)", k, pm);
     }
     size_t size = sc_lut_encoded_size(lut, enc);
     if (size > cap || size > UINT32_MAX)
@@ -468,4 +473,41 @@ bool sc_lut_grid_eval(const sc_lut *lut, double x_mm, double y_mm, double *gx_um
     *gy_um = (lut->gy_um[k] * (1 - fx) + lut->gy_um[k + 1] * fx) * (1 - fy) +
              (lut->gy_um[kn] * (1 - fx) + lut->gy_um[kn + 1] * fx) * fy;
     return outside;
+}
+
+static void steeper(double *worst, double a, double b, double step_mm)
+{
+    double g = fabs(b - a) / step_mm;
+    if (g > *worst)
+        *worst = g;
+}
+
+void sc_lut_bounds(const sc_lut *lut, double *max_correction_um, double *max_gradient_um_per_mm)
+{
+    double axis_um[3] = {0, 0, 0}, grad = 0;
+    for (int c = 0; c < 2; ++c) {
+        const double *g = c == 0 ? lut->gx_um : lut->gy_um;
+        for (int i = 0; i < lut->ny; ++i)
+            for (int j = 0; j < lut->nx; ++j) {
+                size_t k = (size_t)i * (size_t)lut->nx + (size_t)j;
+                axis_um[c] = fmax(axis_um[c], fabs(g[k]));
+                if (j + 1 < lut->nx)
+                    steeper(&grad, g[k], g[k + 1], lut->px_mm);
+                if (i + 1 < lut->ny)
+                    steeper(&grad, g[k], g[k + (size_t)lut->nx], lut->py_mm);
+            }
+    }
+    for (int k = 0; k < lut->n_profiles; ++k) {
+        const sc_lut_profile *p = &lut->profile[k];
+        double m = 0;
+        for (int n = 0; n < p->n; ++n) {
+            m = fmax(m, fabs(p->err_um[n]));
+            if (n + 1 < p->n)
+                steeper(&grad, p->err_um[n], p->err_um[n + 1], p->step_mm);
+        }
+        if (p->dir >= 0 && p->dir < 3)
+            axis_um[p->dir] += m;
+    }
+    *max_correction_um = fmax(axis_um[0], fmax(axis_um[1], axis_um[2]));
+    *max_gradient_um_per_mm = grad;
 }

@@ -84,7 +84,7 @@ def daemon_fds(pid):
 # 1. SIGHUP storm.
 replace_file(live, blob_a)
 d = Daemon(selfcald, live, ["--log-level", "notice", "--max-connections", "64",
-                            "--byte-timeout-ms", "300"])
+                            "--byte-timeout-ms", "300", "--max-per-peer", "0"])  # one address
 try:
     stop = threading.Event()
     stats = [new_stats() for _ in range(4)]
@@ -126,7 +126,7 @@ finally:
 # 2-4. Connection floods, half-open and trickling clients, SIGTERM under load.
 replace_file(live, blob_a)
 d = Daemon(selfcald, live, ["--log-level", "notice", "--max-connections", "64",
-                            "--byte-timeout-ms", "300"])
+                            "--byte-timeout-ms", "300", "--max-per-peer", "0"])  # one address
 try:
     pid = d.p.pid
     base_fds = daemon_fds(pid)

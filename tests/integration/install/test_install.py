@@ -215,7 +215,7 @@ def case_install():
         check(cmd.replace("-", "\\-") in man1, "selfcal.1 documents 'selfcal %s'" % cmd)
     # the paths of the prefix it was installed to (stage), not the one configured (/usr/local)
     unit = open(os.path.join(prefix, "lib/systemd/system/selfcald.service")).read()
-    check(re.search(r"^ExecStart=%s/bin/selfcald --config %s/etc/selfcal/selfcald.conf$" % (re.escape(stage), re.escape(stage)), unit,
+    check(re.search(r"^ExecStart=%s/bin/selfcald --config %s/etc/selfcal/selfcald.conf --allow 127\.0\.0\.0/8,::1/128$" % (re.escape(stage), re.escape(stage)), unit,
                     re.M) and "@" not in re.sub(r"^SystemCallFilter=.*$", "", unit, flags=re.M),
           "selfcald.service names the installed paths under %s: %r" % (stage, re.findall(r"^ExecStart=.*$", unit, re.M)))
     check(os.path.isfile(os.path.join(prefix, "etc/selfcal/selfcald.conf")), "installed etc/selfcal/selfcald.conf")
@@ -437,7 +437,7 @@ def case_deb():
         glob.glob(os.path.join(root, "lib/systemd/system/selfcald.service"))
     if check(len(units) == 1, ".deb unit found (%r)" % units):
         unit = open(units[0]).read()
-        check(re.search(r"^ExecStart=/usr/bin/selfcald --config /etc/selfcal/selfcald.conf$", unit, re.M) and
+        check(re.search(r"^ExecStart=/usr/bin/selfcald --config /etc/selfcal/selfcald.conf --allow 127\.0\.0\.0/8,::1/128$", unit, re.M) and
               re.search(r"^ReadOnlyPaths=/etc/selfcal$", unit, re.M) and
               re.search(r"^Documentation=man:selfcald\(8\) ", unit, re.M),
               ".deb unit names /usr/bin/selfcald, /etc/selfcal and man:selfcald(8): %r" %
@@ -455,7 +455,7 @@ def case_deb():
     names = [n[2:] if n.startswith("./") else n for n in names]
     check("usr/local/bin/selfcal" in names and "usr/local/bin/selfcald" in names,
           ".tar.gz is a /usr/local tree holding bin/selfcal and bin/selfcald: %r" % names[:5])
-    check(re.search(r"^ExecStart=/usr/local/bin/selfcald --config /usr/local/etc/selfcal/selfcald.conf$",
+    check(re.search(r"^ExecStart=/usr/local/bin/selfcald --config /usr/local/etc/selfcal/selfcald.conf --allow 127\.0\.0\.0/8,::1/128$",
                     unit, re.M) and "_CPack_Packages" not in unit,
           ".tar.gz unit names /usr/local paths: %r" % re.findall(r"^ExecStart=.*$", unit, re.M))
 

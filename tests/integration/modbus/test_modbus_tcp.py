@@ -64,7 +64,9 @@ def check_point(x, y, got_x, got_y, status, r=ref, mode="measure"):
     check(bool(status & 2) == out, f"({x},{y}): outside bit {status & 2} but outside={out}")
 
 
-d = Daemon(selfcald, live, ["--byte-timeout-ms", "300", "--max-connections", "12"])
+# every client comes from 127.0.0.1: no per-peer limit here (it_tcp_defaults tests it)
+d = Daemon(selfcald, live, ["--byte-timeout-ms", "300", "--max-connections", "12",
+                            "--max-per-peer", "0"])
 try:
     c = ModbusTcpClient("127.0.0.1", port=d.port, timeout=2, retries=0)
     check(c.connect(), "connect")
@@ -167,12 +169,15 @@ try:
     count = None
 
     # 8. Connection cap (12): a 13th client is served, and the longest-idle connection (the
-    # first of the 12, silent since its request) is closed to make room; the rest stay served.
+    # first of the 12, silent for more than 1 s since its request) is closed to make room; the
+    # rest stay served.
     oldest = socket.create_connection(("127.0.0.1", d.port))
     oldest.sendall(struct.pack(">HHHBBHH", 1, 0, 6, 1, 4, 0, 1))
     oldest.settimeout(3)
     check(len(oldest.recv(64)) == 11, "cap: first connection not served")
-    time.sleep(0.05)
+    # a served connection is evicted only once silent for 1 s (issue 36: a connect burst never
+    # resets a client being served)
+    time.sleep(1.2)
     roundtrip(c, 5, 5)
     socks = [ModbusTcpClient("127.0.0.1", port=d.port, timeout=2, retries=0) for _ in range(10)]
     for s in socks:
