@@ -121,7 +121,7 @@ def console_steps(b):
     while i < len(lines):
         l = lines[i]
         if l.startswith("$ ") or l == "$":
-            if cmd is not None and cmd.strip():
+            if cmd is not None and "".join(cmd).strip():
                 s = Block(b.doc, start, "sh", cmd)
                 s.lang, s.console = "sh", True
                 while out and not out[-1].strip():
