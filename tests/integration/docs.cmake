@@ -25,3 +25,12 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli AND TARGET selfcald)
            ${PROJECT_SOURCE_DIR}/tools/doctest.py ${CMAKE_CURRENT_BINARY_DIR}/tmp/docs_self)
   set_tests_properties(docs_doctest_self PROPERTIES TIMEOUT 120 LABELS "integration;docs")
 endif()
+
+# every option of `selfcal CMD --help` is in CMD's section of selfcal(1), selfcald --help's in
+# selfcald(8), and the reverse
+if(SELFCAL_PYTHON3 AND TARGET selfcal_cli AND TARGET selfcald)
+  add_test(NAME docs_help_vs_man COMMAND ${SELFCAL_PYTHON3}
+           ${CMAKE_CURRENT_SOURCE_DIR}/integration/docs/help_vs_man.py
+           $<TARGET_FILE:selfcal_cli> $<TARGET_FILE:selfcald> ${PROJECT_SOURCE_DIR}/docs/man)
+  set_tests_properties(docs_help_vs_man PROPERTIES TIMEOUT 120 LABELS "integration;docs;cli")
+endif()
