@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """--help and the man pages agree: every option a command's --help prints is in that command's
-section of selfcal(1) (or in selfcald(8)), and every option a section documents is in --help.
-usage: help_vs_man.py SELFCAL SELFCALD MANDIR"""
+section of selfcal(1) (or in selfcald(8)), and every option a section documents is in --help;
+the synopses of docs/formats.md section 3 name only options their command's --help has.
+usage: help_vs_man.py SELFCAL SELFCALD MANDIR   (MANDIR: docs/man, formats.md beside it)"""
+import os
 import re
 import subprocess
 import sys
@@ -82,6 +84,29 @@ for o in sorted(opts - documented):
     problems.append("selfcald(8): %s (in selfcald --help) is missing" % o)
 for o in sorted(documented - opts):
     problems.append("selfcald --help: %s (in selfcald(8)) is missing" % o)
+
+# docs/formats.md §3's synopses: every option a synopsis shows exists in that command's --help
+formats = os.path.join(os.path.dirname(os.path.abspath(mandir)), "formats.md")
+sec = re.search(r"^## 3\. .*?(?=^## 4\.)", open(formats, encoding="utf-8").read(), re.M | re.S)
+if not sec:
+    problems.append("formats.md: no section 3")
+checked = 0
+for syn in re.findall(r"^\| `([^`]*)`", sec.group(0) if sec else "", re.M):
+    words = syn.split()
+    if words[0] == "selfcald":
+        cmd, argv = "selfcald", [selfcald]
+    else:
+        two = " ".join(words[1:3])
+        cmd = two if two in COMMANDS else words[1]
+        if cmd not in COMMANDS:
+            continue  # `simulate grid|profile ...`
+        argv = [selfcal] + cmd.split()
+    _, opts = help_opts(argv)
+    checked += 1
+    for o in sorted(set(OPT.findall(syn)) - opts):
+        problems.append("formats.md §3, `%s`: %s is not in its --help" % (cmd, o))
+if checked < 5:
+    problems.append("formats.md §3: only %d synopses found" % checked)
 
 for p in problems:
     print("FAIL:", p)
