@@ -9,14 +9,3 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
     set_tests_properties(import_cli_${case} PROPERTIES TIMEOUT 120 LABELS "integration;import")
   endforeach()
 endif()
-
-# docs/guide.md: its ```sh test blocks, run in order on simulated exports (needs mbpoll, as the
-# Modbus tests do).
-find_program(SELFCAL_MBPOLL mbpoll)
-if(SELFCAL_PYTHON3 AND TARGET selfcal_cli AND TARGET selfcald AND SELFCAL_MBPOLL)
-  add_test(NAME guide_commands COMMAND ${SELFCAL_PYTHON3}
-           ${CMAKE_CURRENT_SOURCE_DIR}/integration/guide/run_guide.py
-           ${PROJECT_SOURCE_DIR}/docs/guide.md $<TARGET_FILE_DIR:selfcal_cli>
-           ${CMAKE_CURRENT_BINARY_DIR}/tmp/guide)
-  set_tests_properties(guide_commands PROPERTIES TIMEOUT 300 LABELS "integration;import;docs")
-endif()

@@ -8,6 +8,8 @@ add_test(NAME python_package
           ${CMAKE_CURRENT_BINARY_DIR}/tmp/pyvenv $<TARGET_FILE:selfcal_cli>)
 # pip builds the library once more (Release, no sanitizer): about a minute on two busy cores.
 set_tests_properties(python_package PROPERTIES TIMEOUT 1200 LABELS "integration;python")
+# its venv (tmp/pyvenv) runs the documents' python blocks (tests/integration/docs.cmake)
+set_tests_properties(python_package PROPERTIES FIXTURES_SETUP selfcal_pyvenv)
 # The portable wheel (scripts/build-wheel.sh: manylinux, FFTW and the run-time solver bundled), run
 # with the system's copies of its libraries hidden in a mount namespace (needs root: unshare -m).
 add_test(NAME python_wheel

@@ -217,6 +217,18 @@ static void test_dabam_refusals(void **state)
             fail_msg("case %zu: line %ld, want %ld (%s)", k, err.line, want, err.msg);
         assert_non_null(strstr(err.file, want ? "bad-dabam.dat" : "bad-dabam.txt"));
     }
+    /* a .dat that does not exist (its .txt does): the error names the .dat the caller gave */
+    remove(TMP "/gone-dabam.dat");
+    FILE *fp = fopen(TMP "/gone-dabam.txt", "w");
+    assert_non_null(fp);
+    fprintf(fp, "{\n \"FILE_HEADER_LINES\": 1\n}\n");
+    fclose(fp);
+    double f[16];
+    sc_error err;
+    sc_error_clear(&err);
+    assert_int_not_equal(sc_profile_load_dabam(TMP "/gone-dabam.dat", 16, 0.1, f, NULL, 0, &err), SC_OK);
+    assert_non_null(strstr(err.file, "gone-dabam.dat"));
+    assert_non_null(strstr(err.msg, "cannot open"));
 }
 
 /* The DFT method's analytic uncertainty equals the one from its brute-force linear response. */

@@ -232,11 +232,22 @@ static int lut_build(int argc, char **argv)
     return CLI_OK;
 }
 
+/* `lut dump --help`, `lut info --help`: their own usage, not lut build's */
+static void lut_table_usage(const char *cmd, FILE *to)
+{
+    if (!strcmp(cmd, "lut dump"))
+        fprintf(to, "usage: selfcal lut dump TABLE\n\n"
+                    "Prints the table as CSV on stdout: the grid nodes, then the profiles.\n");
+    else
+        fprintf(to, "usage: selfcal lut info TABLE\n\n"
+                    "Prints the table's size, encoding, quantization and provenance.\n");
+}
+
 static int load_table(const char *cmd, int argc, char **argv, sc_lut **out)
 {
     for (int k = 1; k < argc; ++k) /* --help anywhere: the usage, as the other commands */
         if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
-            lut_usage(stdout);
+            lut_table_usage(cmd, stdout);
             return -1;
         }
     if (argc != 2)

@@ -1,5 +1,6 @@
 /* Simulated straightness measurements (SPEC §2 model) and the profiles they measure. */
 #include <ctype.h>
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -316,6 +317,14 @@ sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double
     if (L < 4 || strcmp(dat_path + L - 4, ".dat") != 0 || L >= sizeof meta_path)
         return sc_error_set(err, SC_E_INPUT, dat_path, 0,
                             "a DABAM profile is a .dat file (with its .txt metadata)");
+    /* the file the caller named first: a missing .dat is reported as such, not as its .txt */
+    FILE *probe = fopen(dat_path, "rb");
+    if (!probe) {
+        int e = errno;
+        return sc_error_set(err, sc_open_failure_status(e), dat_path, 0, "cannot open: %s",
+                            strerror(e));
+    }
+    fclose(probe);
     memcpy(meta_path, dat_path, L - 4);
     strcpy(meta_path + L - 4, ".txt");
     dabam_meta m;

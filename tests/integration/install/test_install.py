@@ -266,7 +266,7 @@ def case_install():
     check_example_output(os.path.join(build, "grid_node"), inp, rows, "find_package without FFTW's files")
     # the complete example of README.md ("Using the library"), as printed there
     readme = open(os.path.join(SRC, "README.md")).read()
-    m = re.search(r"^## Using the library$.*?^```c\n(.*?)^```$", readme, re.M | re.S)
+    m = re.search(r"^## Using the library$.*?^```c[^\n]*\n(.*?)^```$", readme, re.M | re.S)
     if check(m is not None, "README.md has a C example under 'Using the library'"):
         with open(os.path.join(work, "readme.c"), "w") as f:
             f.write(m.group(1))
