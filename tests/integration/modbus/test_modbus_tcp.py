@@ -4,7 +4,8 @@
 Every corrected position is compared with an independent bilinear evaluation of the table as
 printed by `selfcal lut dump`; exceptions, unit id, word order, function 23 atomicity with
 concurrent clients, byte timeout against a stalled client, the connection cap and SIGHUP reload
-(corrupt table kept out, valid table swapped in) are checked.
+(corrupt table kept out, valid table swapped in) are checked, and function 22 (mask write) on the
+Modbus specification's own example.
 usage: test_modbus_tcp.py SELFCAL_CLI SELFCALD WORKDIR"""
 import os
 import random
@@ -100,6 +101,24 @@ try:
     expect_ok(c.write_register(3, 7), "fn6 to 3")
     check(expect_ok(c.read_input_registers(5, count=1), "fn4").registers[0] == count,
           "a partial write computed")
+    # 3b. Function 22 (mask write register), the Modbus specification's own example: register
+    # holding 0x0012, AND mask 0x00F2, OR mask 0x0025 -> (0x12 AND 0xF2) OR (0x25 AND NOT 0xF2)
+    # = 0x0017, read back with function 3. A mask write of one register of 0-3 computes nothing.
+    for a in range(4):
+        expect_ok(c.write_register(a, 0x0012), f"fn6 0x12 to {a}")
+        r = expect_ok(c.mask_write_register(address=a, and_mask=0x00F2, or_mask=0x0025), "fn22")
+        check((r.address, r.and_mask, r.or_mask) == (a, 0x00F2, 0x0025), f"fn22 echo {r}")
+        got = expect_ok(c.read_holding_registers(a, count=1), "fn3").registers[0]
+        check(got == 0x0017, f"fn22 on holding {a}: 0x{got:04X}, expected 0x0017")
+    # AND 0 OR v sets v; AND 0xFFFF keeps the register whatever the OR mask
+    expect_ok(c.mask_write_register(address=1, and_mask=0x0000, or_mask=0xBEEF), "fn22 set")
+    expect_ok(c.mask_write_register(address=1, and_mask=0xFFFF, or_mask=0x1234), "fn22 keep")
+    got = expect_ok(c.read_holding_registers(1, count=1), "fn3").registers[0]
+    check(got == 0xBEEF, f"fn22 set/keep: 0x{got:04X}, expected 0xBEEF")
+    expect_exc(c.mask_write_register(address=4, and_mask=0, or_mask=1), ILLEGAL_ADDRESS,
+               "fn22 to 4")
+    check(expect_ok(c.read_input_registers(5, count=1), "fn4").registers[0] == count,
+          "a mask write computed")
     # 4. Exceptions: illegal data address.
     expect_exc(c.read_holding_registers(0, count=11), ILLEGAL_ADDRESS, "read holding 0-10")
     expect_exc(c.read_holding_registers(10, count=1), ILLEGAL_ADDRESS, "read holding 10")
