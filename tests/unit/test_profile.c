@@ -341,6 +341,72 @@ static void test_residual_noise_estimate(void **state)
     free(f), free(ey), free(fe), free(y1), free(y2);
 }
 
+/* The sensors' zero points, end to end: a zero offset of scan k's second displacement sensor
+ * (m2 + e_k) is the offset c_k of y_k = m2 - m1 - D_k·m3, which the fit estimates and which must
+ * change nothing else. Through the calibration the CLI runs (both methods, noise estimated from
+ * the residuals, whose fit has its own c_k): the same f, u(f), e_y and residual sum; through
+ * least squares: c moves by exactly (+e_1, +e_2), with the sign of the data's own offsets. */
+static void test_zero_point_offsets(void **state)
+{
+    (void)state;
+    const int n = 1100;
+    const double e[2] = {3.0, -2.0};
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double));
+    random_profile(n, 21, f);
+    sc_profile_data a, b;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &a, ey, &err), SC_OK);
+    assert_int_equal(sc_profile_simulate(&p, f, &b, ey, &err), SC_OK);
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < n - b.d[k]; ++j)
+            b.m2_um[k][j] += e[k];
+    double *ra = malloc(3 * n * sizeof(double)), *rb = malloc(3 * n * sizeof(double));
+    for (int m = 0; m < 2; ++m) {
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+        a.has_sigma_disp = a.has_sigma_angle = b.has_sigma_disp = b.has_sigma_angle = 0;
+        sc_profile_solution sa = {.f_um = ra, .uf_um = ra + n, .ey_um = ra + 2 * n};
+        sc_profile_solution sb = {.f_um = rb, .uf_um = rb + n, .ey_um = rb + 2 * n};
+        assert_int_equal(sc_profile_calibrate(&a, &o, &sa, &err), SC_OK);
+        assert_int_equal(sc_profile_calibrate(&b, &o, &sb, &err), SC_OK);
+        double worst = 0;
+        for (int i = 0; i < n; ++i)
+            worst = fmax(worst, fabs(ra[i] - rb[i]));
+        print_message("%s: zero offsets (%+g, %+g) um move f by at most %.3g um; wrss %.6g vs %.6g\n",
+                      m ? "dft" : "lsq", e[0], e[1], worst, sa.wrss, sb.wrss);
+        for (int i = 0; i < 3 * n; ++i)
+            if (!(isnan(ra[i]) && isnan(rb[i])))
+                assert_true(fabs(ra[i] - rb[i]) < 1e-9);
+        assert_true(isfinite(sa.wrss) && sa.wrss > 0);
+        assert_true(fabs(sb.wrss / sa.wrss - 1) < 1e-9);
+    }
+    /* least squares' own c: the offsets of the data, sign included */
+    double *y1a = malloc(n * sizeof(double)), *y2a = malloc(n * sizeof(double));
+    double *y1b = malloc(n * sizeof(double)), *y2b = malloc(n * sizeof(double));
+    sc_profile_combine(&a, 0, y1a), sc_profile_combine(&a, 1, y2a);
+    sc_profile_combine(&b, 0, y1b), sc_profile_combine(&b, 1, y2b);
+    sc_profile_lsq_plan *pl;
+    assert_int_equal(sc_profile_lsq_plan_create(n, a.d[0], a.d[1], 1, 1, &pl, &err), SC_OK);
+    double ca[2], cb[2], wa, wb;
+    assert_int_equal(sc_profile_lsq_execute(pl, y1a, y2a, ra, ca, &wa, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pl, y1b, y2b, rb, cb, &wb, &err), SC_OK);
+    assert_true(fabs(cb[0] - ca[0] - e[0]) < 1e-9 && fabs(cb[1] - ca[1] - e[1]) < 1e-9);
+    assert_true(fabs(wb / wa - 1) < 1e-9);
+    /* the residual sum of a given f fits the offsets itself: the same with and without them */
+    int dof;
+    double sa_ss = sc_profile_residual_ss(n, a.d[0], a.d[1], y1a, y2a, ra, 1, 1, &dof);
+    double sb_ss = sc_profile_residual_ss(n, a.d[0], a.d[1], y1b, y2b, ra, 1, 1, &dof);
+    assert_true(fabs(sb_ss / sa_ss - 1) < 1e-9);
+    sc_profile_lsq_plan_destroy(pl);
+    sc_profile_data_free(&a);
+    sc_profile_data_free(&b);
+    free(f), free(ey), free(ra), free(rb), free(y1a), free(y2a), free(y1b), free(y2b);
+}
+
 /* ---- the calibration in two steps (plan from the header, run on the data) ------------------- */
 
 /* sc_profile_calibrate(d, o) and create(header of d, o) + run (twice): the same values, bit for bit. */
@@ -1037,6 +1103,7 @@ int main(void)
         cmocka_unit_test(test_dft_uncertainty_exact),
         cmocka_unit_test(test_paper_setup_mc),
         cmocka_unit_test(test_residual_noise_estimate),
+        cmocka_unit_test(test_zero_point_offsets),
         cmocka_unit_test(test_calibration_plan_and_run),
         cmocka_unit_test(test_read_hooked),
         cmocka_unit_test(test_plan_while_reading),
