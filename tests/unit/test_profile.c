@@ -407,6 +407,71 @@ static void test_zero_point_offsets(void **state)
     free(f), free(ey), free(ra), free(rb), free(y1a), free(y2a), free(y1b), free(y2b);
 }
 
+/* Where the noise comes from: the options, else the header, else the residuals. Each source on
+ * its own is used (a displacement noise alone, an angle noise alone); with none, every point's
+ * uncertainty is the plan's unit uncertainty times sqrt(wrss/dof), the first and last included. */
+static void test_noise_sources(void **state)
+{
+    (void)state;
+    const int n = 1100;
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double));
+    double *r = malloc(3 * n * sizeof(double)), *u = malloc(n * sizeof(double));
+    random_profile(n, 5, f);
+    sc_profile_data d;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &d, ey, &err), SC_OK);
+    const struct {
+        int hdr_sd, hdr_sa;       /* the header states them (0.02 um, 0.5 urad) */
+        double opt_sd, opt_sa;    /* the options' (NaN: not given) */
+        int known;
+        double sd, sa;            /* the noise used */
+    } cases[] = {
+        {1, 1, NAN, NAN, 1, 0.02, 0.5},  {0, 0, 0.03, 0.7, 1, 0.03, 0.7},
+        {0, 0, 0.03, NAN, 1, 0.03, 0.0}, {0, 0, NAN, 0.7, 1, 0.0, 0.7},
+        {1, 0, NAN, NAN, 1, 0.02, 0.0},  {0, 1, NAN, NAN, 1, 0.0, 0.5},
+        {1, 1, 0.03, NAN, 1, 0.03, 0.5}, {0, 0, NAN, NAN, 0, NAN, NAN},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k)
+        for (int m = 0; m < 2; ++m) {
+            sc_profile_options o;
+            sc_profile_options_default(&o);
+            o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+            o.sigma_disp_um = cases[k].opt_sd;
+            o.sigma_angle_urad = cases[k].opt_sa;
+            d.has_sigma_disp = cases[k].hdr_sd, d.sigma_disp_um = 0.02;
+            d.has_sigma_angle = cases[k].hdr_sa, d.sigma_angle_urad = 0.5;
+            sc_profile_solution s = {.f_um = r, .uf_um = r + n, .ey_um = r + 2 * n};
+            assert_int_equal(sc_profile_calibrate(&d, &o, &s, &err), SC_OK);
+            assert_int_equal(s.noise_known, cases[k].known);
+            assert_int_equal(s.have_uf, 1);
+            if (cases[k].known) {
+                assert_true(s.sigma_disp_um == cases[k].sd);
+                assert_true(s.sigma_angle_urad == cases[k].sa);
+                for (int q = 0; q < 2; ++q)
+                    assert_true(fabs(s.sigma_y_um[q] - sqrt(sc_profile_y_variance(
+                                         d.d[q], d.s_mm, cases[k].sd, cases[k].sa))) < 1e-15);
+                continue;
+            }
+            /* estimated: equal weights, unit uncertainties scaled by sqrt(wrss/dof) */
+            assert_true(isnan(s.sigma_disp_um) && isnan(s.sigma_angle_urad));
+            double scale = sqrt(s.wrss / s.dof);
+            assert_true(s.sigma_y_um[0] == scale && s.sigma_y_um[1] == scale);
+            if (m == 0) {
+                sc_profile_lsq_plan *pl;
+                assert_int_equal(sc_profile_lsq_plan_create(n, d.d[0], d.d[1], 1, 1, &pl, &err), SC_OK);
+                assert_int_equal(sc_profile_lsq_uncertainty(pl, u, NULL, &err), SC_OK);
+                for (int i = 0; i < n; ++i)
+                    assert_true(fabs(r[n + i] / (scale * u[i]) - 1) < 1e-12);
+                sc_profile_lsq_plan_destroy(pl);
+            }
+        }
+    sc_profile_data_free(&d);
+    free(f), free(ey), free(r), free(u);
+}
+
 /* ---- the calibration in two steps (plan from the header, run on the data) ------------------- */
 
 /* sc_profile_calibrate(d, o) and create(header of d, o) + run (twice): the same values, bit for bit. */
@@ -1104,6 +1169,7 @@ int main(void)
         cmocka_unit_test(test_paper_setup_mc),
         cmocka_unit_test(test_residual_noise_estimate),
         cmocka_unit_test(test_zero_point_offsets),
+        cmocka_unit_test(test_noise_sources),
         cmocka_unit_test(test_calibration_plan_and_run),
         cmocka_unit_test(test_read_hooked),
         cmocka_unit_test(test_plan_while_reading),
