@@ -1114,6 +1114,48 @@ static void test_dft_refuses(void **state)
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
     assert_null(p);
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
+    /* the message names the nearest N the method takes (a multiple of d1·d2, at least one) */
+    const int ns[][2] = {{331, 330}, {1101, 1100}, {1160, 1210}, {1154, 1100}, {1155, 1210}, {50, 110}};
+    for (size_t k = 0; k < sizeof ns / sizeof ns[0]; ++k) {
+        char want[32];
+        snprintf(want, sizeof want, "nearest: %d;", ns[k][1]);
+        assert_false(sc_profile_dft_is_usable(ns[k][0], 10, 11, &err));
+        if (!strstr(err.msg, want))
+            fail_msg("N = %d: '%s' does not say '%s'", ns[k][0], err.msg, want);
+    }
+    /* the uncertainty's missing arguments */
+    assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 1, 1, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_dft_uncertainty(p, NULL, NULL, &err), SC_E_INPUT);
+    double u[330];
+    assert_int_equal(sc_profile_dft_uncertainty(NULL, u, NULL, &err), SC_E_INPUT);
+    sc_profile_dft_plan_destroy(p);
+}
+
+/* A "solver" whose every output is 1000 µm plus y1(0): the Monte Carlo uncertainty of every
+ * point is then σ_y1, whatever the large mean (Welford's running mean must follow it). */
+static sc_status offset_solver(void *ctx, const double *y1_um, const double *y2_um, double *f_um,
+                               sc_error *err)
+{
+    (void)y2_um, (void)err;
+    int n = *(const int *)ctx;
+    for (int i = 0; i < n; ++i)
+        f_um[i] = 1000.0 + y1_um[0];
+    return SC_OK;
+}
+
+static void test_mc_large_mean(void **state)
+{
+    (void)state;
+    int n = 40;
+    double u[40];
+    sc_error err;
+    assert_int_equal(sc_profile_mc_uncertainty(n, 3, 5, 0.25, 0.5, offset_solver, &n, 2000, 7, NULL,
+                                               NULL, u, &err), SC_OK);
+    for (int i = 0; i < n; ++i) {
+        if (!(fabs(u[i] / 0.25 - 1) < 0.08))
+            fail_msg("u[%d] = %g, expected 0.25 (2000 trials)", i, u[i]);
+        assert_true(u[i] == u[0]);
+    }
 }
 
 /* FFTW's planner is not thread-safe: plans made and destroyed in several threads at once (DFT
@@ -1178,6 +1220,7 @@ int main(void)
         cmocka_unit_test(test_write_read_roundtrip),
         cmocka_unit_test(test_write_read_large),
         cmocka_unit_test(test_dft_refuses),
+        cmocka_unit_test(test_mc_large_mean),
         cmocka_unit_test(test_dft_plans_in_threads),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
