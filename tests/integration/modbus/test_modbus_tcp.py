@@ -119,6 +119,19 @@ try:
                "fn22 to 4")
     check(expect_ok(c.read_input_registers(5, count=1), "fn4").registers[0] == count,
           "a mask write computed")
+    # 3c. The responses' exact bytes on a raw socket (pymodbus accepts a response with a byte too
+    # many): function 22 echoes its request; function 17 (report server id) is function, byte
+    # count, then that many bytes (unit id, run indicator 0xFF, the id text).
+    with socket.create_connection(("127.0.0.1", d.port), timeout=2) as s:
+        req = struct.pack(">HHHBBHHH", 0x4301, 0, 8, 1, 22, 2, 0x00F2, 0x0025)
+        s.sendall(req)
+        got = s.recv(64)
+        check(got == req, f"fn22 raw: {got.hex()} is not the echo {req.hex()}")
+        s.sendall(struct.pack(">HHHBB", 0x4302, 0, 2, 1, 17))
+        got = s.recv(300)
+        ln, fn, bc = struct.unpack(">H", got[4:6])[0], got[7], got[8]
+        check(fn == 17 and len(got) == 6 + ln and ln == 3 + bc and got[10] == 0xFF,
+              f"fn17 raw: {got.hex()}")
     # 4. Exceptions: illegal data address.
     expect_exc(c.read_holding_registers(0, count=11), ILLEGAL_ADDRESS, "read holding 0-10")
     expect_exc(c.read_holding_registers(10, count=1), ILLEGAL_ADDRESS, "read holding 10")
