@@ -239,6 +239,14 @@ static void test_encode_rejects(void **state)
     random_lut(in, &rng, 5, 5, 1.0, 1, 10);
     in->profile[0].n = 1;
     assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    /* a profile may end at 1 km exactly (its last point, not one step beyond it) */
+    random_lut(in, &rng, 5, 5, 1.0, 1, 10);
+    in->profile[0].step_mm = 1000.0;
+    in->profile[0].start_mm = 1e6 - 1000.0 * (in->profile[0].n - 1);
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_OK);
+    in->profile[0].start_mm += 1000.0;
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "within 1 km"));
     random_lut(in, &rng, 5, 5, 1.0, 1, 10);
     assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, 100, &len, &err), SC_E_NOMEM);
     /* Nothing is written under the final name when encoding fails. */
