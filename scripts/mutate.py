@@ -263,14 +263,17 @@ def copy_tree(work):
             continue
         os.makedirs(os.path.dirname(b), exist_ok=True)
         shutil.copy2(a, b)
-    venv = os.path.join(ROOT, ".venv")  # the Modbus tests' Python (pymodbus), if installed
-    if os.path.isdir(venv) and not os.path.exists(os.path.join(src, ".venv")):
-        os.symlink(os.path.realpath(venv), os.path.join(src, ".venv"))
+    # what scripts/install-deps.sh put in the checkout: the Modbus tests' Python (.venv, pymodbus)
+    # and the vcan tests' kernel (.cache/kernel)
+    for extra in (".venv", ".cache"):
+        have = os.path.join(ROOT, extra)
+        if os.path.isdir(have) and not os.path.lexists(os.path.join(src, extra)):
+            os.symlink(os.path.realpath(have), os.path.join(src, extra))
     return src
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(prog="scripts/mutate.sh", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("files", nargs="*", help="source files (as in modules.txt); default: all of them")
     ap.add_argument("--module", action="append", help="only the files of this module (repeatable)")
@@ -336,9 +339,9 @@ def main():
             print("mutate: none of the listed mutants is in the sources", file=sys.stderr)
             return 2
     elif a.per_module > 0:
-        rng = random.Random(a.seed)
         chosen = []
         for mod in dict.fromkeys(m.module for m in mutants):
+            rng = random.Random("%d:%s" % (a.seed, mod))  # a module's sample is its own
             pool = [m for m in mutants if m.module == mod]
             chosen += sorted(rng.sample(pool, min(a.per_module, len(pool))),
                              key=lambda m: (m.file, m.start))
