@@ -225,6 +225,18 @@ static void test_sigma_estimate(void **s)
         assert_true(res.r.dof > 100);
         assert_true(fabs(res.r.sigma_r_est_um / 0.05 - 1) < 0.08);
         assert_true(res.r.sigma_r_used_um == res.r.sigma_r_est_um);
+        /* exactly the residuals' sum of squares (every equation's, from sc_grid_lsq_residuals) */
+        size_t tot = (size_t)p.n_views * t.nn;
+        double *rx = malloc(sizeof(double) * tot), *ry = malloc(sizeof(double) * tot), rss = 0;
+        long cnt = 0;
+        assert_int_equal(sc_grid_lsq_residuals(q, &d, &res.r, rx, ry, NULL, NULL, NULL, &err), SC_OK);
+        for (size_t k = 0; k < tot; ++k)
+            if (isfinite(rx[k]))
+                rss += rx[k] * rx[k] + ry[k] * ry[k], cnt += 2;
+        assert_int_equal(cnt, res.r.n_measurements);
+        assert_true(fabs(res.r.sigma_r_est_um * res.r.sigma_r_est_um * res.r.dof / rss - 1) < 1e-9);
+        assert_true(fabs(res.r.residual_rms_um * res.r.residual_rms_um * cnt / rss - 1) < 1e-9);
+        free(rx), free(ry);
         double u_est = res.r.ugx_um[3];
         assert_int_equal(sc_grid_lsq_execute(q, &d, 0.2, &res.r, &err), SC_OK);
         assert_true(res.r.sigma_r_used_um == 0.2);
