@@ -54,6 +54,17 @@ static void check_recovery(int n, int kind, uint64_t seed)
     assert_true(em <= 1e-9);
     assert_true(et <= 1e-6);
     assert_true(res.r.residual_rms_um < 1e-9);
+    /* the fitted model predicts every measurement (rotation included) */
+    double worst = 0;
+    for (int v = 0; v < p.n_views; ++v)
+        for (int k = 0; k < t.nn; ++k) {
+            if (!isfinite(d.dx_um[v][k]))
+                continue;
+            double px, py;
+            sc_grid_lsq_predict(q, &res.r, v, k / n, k % n, 0.0, &px, &py);
+            worst = fmax(worst, fmax(fabs(px - d.dx_um[v][k]), fabs(py - d.dy_um[v][k])));
+        }
+    assert_true(worst < 1e-9);
     /* O and R of the gauged truth */
     double O, R;
     sc_grid_first_order(&p, t.gx, t.gy, &O, &R);
