@@ -1123,6 +1123,21 @@ static void test_dft_refuses(void **state)
         if (!strstr(err.msg, want))
             fail_msg("N = %d: '%s' does not say '%s'", ns[k][0], err.msg, want);
     }
+    /* refusals of arguments, not of a file: no file, no line */
+    assert_false(sc_profile_dft_is_usable(360, 10, 12, &err));
+    assert_true(err.file[0] == '\0' && err.line == 0);
+    assert_false(sc_profile_dft_is_usable(331, 10, 11, &err));
+    assert_true(err.file[0] == '\0' && err.line == 0);
+    /* a value that is not a number is named, scan and index */
+    assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 1, 1, &p, &err), SC_OK);
+    double y1[330] = {0}, y2[330] = {0}, f[330];
+    y2[7] = NAN;
+    assert_int_equal(sc_profile_dft_execute(p, y1, y2, f, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "y2(7) is not a finite number"));
+    y2[7] = 0, y1[4] = INFINITY;
+    assert_int_equal(sc_profile_dft_execute(p, y1, y2, f, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "y1(4) is not a finite number"));
+    sc_profile_dft_plan_destroy(p);
     /* the uncertainty's missing arguments */
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 1, 1, &p, &err), SC_OK);
     assert_int_equal(sc_profile_dft_uncertainty(p, NULL, NULL, &err), SC_E_INPUT);
