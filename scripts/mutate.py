@@ -113,10 +113,14 @@ def constant_mutations(tok):
 
 
 class Mutant:
-    __slots__ = ("file", "line", "func", "op", "start", "end", "new", "orig_line", "mut_line", "module")
+    __slots__ = ("file", "line", "func", "op", "start", "end", "new", "orig_line", "mut_line", "module",
+                 "occurrence")
 
     def key(self):
-        return "%s | %s => %s" % (self.file, self.orig_line, self.mut_line)
+        """FILE | ORIGINAL => MUTATED, and ` @k` for the k-th (k >= 2) mutant of a file with the
+        same two texts (a line that repeats in the file)."""
+        k = getattr(self, "occurrence", 1)
+        return "%s | %s => %s%s" % (self.file, self.orig_line, self.mut_line, " @%d" % k if k > 1 else "")
 
     def short(self):
         return "%s:%d (%s, %s) %s  ->  %s" % (self.file, self.line, self.func, self.op,
@@ -167,6 +171,9 @@ def enumerate_mutants(rel, text, funcs=None):
                 if depth == 0:
                     func = "<file scope>"
         offset += len(line) + 1
+    seen = {}
+    for mu in out:
+        mu.occurrence = seen[(mu.orig_line, mu.mut_line)] = seen.get((mu.orig_line, mu.mut_line), 0) + 1
     return out
 
 
