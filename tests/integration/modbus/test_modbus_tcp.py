@@ -132,6 +132,18 @@ try:
         ln, fn, bc = struct.unpack(">H", got[4:6])[0], got[7], got[8]
         check(fn == 17 and len(got) == 6 + ln and ln == 3 + bc and got[10] == 0xFF,
               f"fn17 raw: {got.hex()}")
+        # the quantity's limits come first (exception 3 beyond them), then the address range
+        # (exception 2): reads of 1..125 registers, writes of 1..123 (124 do not fit a frame)
+        for tid, pdu, code in ((0x4303, struct.pack(">BHH", 3, 0, 125), 2),
+                               (0x4304, struct.pack(">BHH", 3, 0, 126), 3),
+                               (0x4305, struct.pack(">BHH", 4, 0, 125), 2),
+                               (0x4306, struct.pack(">BHH", 4, 0, 126), 3),
+                               (0x4307, struct.pack(">BHHB", 16, 0, 123, 246) + bytes(246), 2)):
+            s.sendall(struct.pack(">HHHB", tid, 0, 1 + len(pdu), 1) + pdu)
+            got = s.recv(64)
+            check(got[7] == (pdu[0] | 0x80) and got[8] == code,
+                  f"fn{pdu[0]} quantity {struct.unpack('>H', pdu[3:5])[0]}: {got.hex()}, "
+                  f"expected exception {code}")
     # 4. Exceptions: illegal data address.
     expect_exc(c.read_holding_registers(0, count=11), ILLEGAL_ADDRESS, "read holding 0-10")
     expect_exc(c.read_holding_registers(10, count=1), ILLEGAL_ADDRESS, "read holding 10")
