@@ -119,6 +119,12 @@ try:
                "fn22 to 4")
     check(expect_ok(c.read_input_registers(5, count=1), "fn4").registers[0] == count,
           "a mask write computed")
+    # 3b'. Function 23 at its smallest: one register read, one written (holding 3: no correction)
+    r = expect_ok(c.readwrite_registers(read_address=9, read_count=1, write_address=3,
+                                        values=[0x0102]), "fn23 one register")
+    check(len(r.registers) == 1, f"fn23 one register: {r.registers}")
+    check(expect_ok(c.read_holding_registers(3, count=1), "fn3").registers[0] == 0x0102,
+          "fn23 wrote one register")
     # 3c. The responses' exact bytes on a raw socket (pymodbus accepts a response with a byte too
     # many): function 22 echoes its request; function 17 (report server id) is function, byte
     # count, then that many bytes (unit id, run indicator 0xFF, the id text).
