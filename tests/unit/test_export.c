@@ -690,6 +690,14 @@ static void test_kmotion_report(void **state)
     assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
     assert_int_equal(rep.tables, 1);
     assert_true(rep.points[0] >= 9 && rep.points[1] >= 7);
+    /* a map of one row or one column is no map for any format */
+    for (int k = 0; k < 2; ++k) {
+        int nx = m->nx, ny = m->ny;
+        *(k ? &m->ny : &m->nx) = 1;
+        assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_E_INPUT);
+        assert_non_null(strstr(err.msg, "at least 2 x 2 nodes"));
+        m->nx = nx, m->ny = ny;
+    }
     free(m);
 }
 
