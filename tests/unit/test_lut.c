@@ -239,6 +239,8 @@ static void test_encode_rejects(void **state)
     random_lut(in, &rng, 5, 5, 1.0, 1, 10);
     in->profile[0].n = 1;
     assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    in->profile[0].n = 2; /* the smallest profile */
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_OK);
     /* a profile may end at 1 km exactly (its last point, not one step beyond it) */
     random_lut(in, &rng, 5, 5, 1.0, 1, 10);
     in->profile[0].step_mm = 1000.0;
