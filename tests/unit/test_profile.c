@@ -1128,6 +1128,8 @@ static void test_dft_refuses(void **state)
     assert_true(err.file[0] == '\0' && err.line == 0);
     assert_false(sc_profile_dft_is_usable(331, 10, 11, &err));
     assert_true(err.file[0] == '\0' && err.line == 0);
+    assert_false(sc_profile_dft_is_usable(330, 11, 11, &err));
+    assert_true(err.file[0] == '\0' && err.line == 0 && strstr(err.msg, "d1 = d2 = 11"));
     /* a value that is not a number is named, scan and index */
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 1, 1, &p, &err), SC_OK);
     double y1[330] = {0}, y2[330] = {0}, f[330];
