@@ -23,6 +23,7 @@ import os
 import random
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -471,6 +472,8 @@ def main():
 
 
 if __name__ == "__main__":
+    # stopped (SIGTERM): through the finally that puts the mutated file back in the copy
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     try:
         sys.exit(main())
     except BrokenPipeError:  # --list into head
