@@ -688,6 +688,7 @@ static void test_chi2_bounds(void **s)
     sc_grid_lsq_plan_destroy(q);
     tu_data_free(&d);
     tu_truth_free(&t);
+    sc_grid_plan_free(&p);
 }
 
 int main(void)
