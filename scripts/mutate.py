@@ -253,7 +253,8 @@ def sh(cmd, cwd, timeout=None, env=None):
 
 def copy_tree(work):
     """WORK/src: the tracked files of the checkout as they are now (or every file but build
-    folders when it is not a git checkout); unchanged files keep their time stamps."""
+    folders when it is not a git checkout); unchanged files keep their time stamps, changed ones
+    get the time of the copy (the checkout's may be older than the copy's build)."""
     src = os.path.join(work, "src")
     try:
         files = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, check=True,
@@ -270,7 +271,16 @@ def copy_tree(work):
         if os.path.exists(b) and open(a, "rb").read() == open(b, "rb").read():
             continue
         os.makedirs(os.path.dirname(b), exist_ok=True)
-        shutil.copy2(a, b)
+        shutil.copy(a, b)  # a new time stamp: the build redoes what depends on it
+    # files the checkout no longer has (renamed, deleted) leave the copy too: a build that globs
+    # its sources would still compile them
+    tracked = {os.path.normpath(f) for f in files if f}
+    for d, dirs, names in os.walk(src):
+        dirs[:] = [x for x in dirs if not (d == src and x in (".venv", ".cache"))]
+        for x in names:
+            rel = os.path.normpath(os.path.relpath(os.path.join(d, x), src))
+            if rel not in tracked:
+                os.remove(os.path.join(d, x))
     # what scripts/install-deps.sh put in the checkout: the Modbus tests' Python (.venv, pymodbus)
     # and the vcan tests' kernel (.cache/kernel)
     for extra in (".venv", ".cache"):
