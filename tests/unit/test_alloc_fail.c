@@ -100,6 +100,10 @@ static void every_allocation(const char *name, call_fn fn, void *ctx)
         if (st != SC_E_NOMEM)
             fail_msg("%s: allocation %ld failed but the call returned %d (%s)", name, k, st,
                      st == SC_OK ? "the failure was skipped" : err.msg);
+        /* said in a message; a line number only with the file it is in */
+        if (!err.msg[0] || (!err.file[0] && err.line != 0))
+            fail_msg("%s: allocation %ld: message '%s', file '%s', line %ld", name, k, err.msg,
+                     err.file, err.line);
         if (k > 100000)
             fail_msg("%s: no end of allocations", name);
     }

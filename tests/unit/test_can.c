@@ -120,6 +120,8 @@ static void test_config_check(void **state)
     c.out_id = 0x800;
     assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT);
     assert_non_null(strstr(why.msg, "0x800"));
+    c.out_id = 0x7ff; /* the largest 11-bit id is one */
+    assert_int_equal(sc_can_config_check(&c, &why), SC_OK);
     c.out_id = 0x100;
     assert_int_equal(sc_can_config_check(&c, &why), SC_E_INPUT);
     assert_non_null(strstr(why.msg, "differ"));

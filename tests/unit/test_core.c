@@ -678,6 +678,46 @@ static void test_measure_exact_mode(void **state)
                      SC_CORR_ST_LOADED | SC_CORR_ST_OUTSIDE);
 }
 
+/* The iteration count is capped at 16: more is 16 exactly, and 15 is not (a steep table, slopes
+ * up to ~0.25, so that the 16th step still moves the result by ~1e-10 mm). */
+static void test_inverse_iteration_cap(void **state)
+{
+    (void)state;
+    make_grid(6, 6, 1, 20000, 30000); /* +-0.6 mm over a 5 mm pitch */
+    S.px = 5.0;
+    S.py = 4.0;
+    load_ok();
+    double x1 = S.x0 + (S.nx - 1) * S.px, y1 = S.y0 + (S.ny - 1) * S.py;
+    int differ = 0;
+    for (int k = 0; k < 200; ++k) {
+        double p[3] = {rnd_uniform(S.x0 + 1, x1 - 1), rnd_uniform(S.y0 + 1, y1 - 1), 0.0};
+        double q15[3], q16[3], q17[3], q99[3];
+        sc_corr_apply_inverse(&T, p, q15, 15);
+        sc_corr_apply_inverse(&T, p, q16, 16);
+        sc_corr_apply_inverse(&T, p, q17, 17);
+        sc_corr_apply_inverse(&T, p, q99, 1000);
+        assert_true(memcmp(q16, q17, sizeof q16) == 0 && memcmp(q16, q99, sizeof q16) == 0);
+        differ += memcmp(q15, q16, sizeof q15) != 0;
+    }
+    assert_true(differ > 100);
+}
+
+/* The smallest profile has 2 points (a line); 1 point is refused. */
+static void test_two_point_profile(void **state)
+{
+    (void)state;
+    make_grid(5, 5, 1, 100, 20000);
+    add_profile(SC_CORR_AXIS_X, SC_CORR_AXIS_Y, 2, -10.0, 4.0, 50, 30000);
+    load_ok();
+    assert_int_equal(T.n_profiles, 1);
+    double x1 = S.x0 + (S.nx - 1) * S.px, y1 = S.y0 + (S.ny - 1) * S.py;
+    for (int k = 0; k < 200; ++k)
+        check_point(rnd_uniform(S.x0, x1), rnd_uniform(S.y0, y1), 0.0);
+    S.p[0].n = 1;
+    size_t len = write_image();
+    assert_int_equal(sc_corr_load(&T, img, len), SC_CORR_E_RANGE);
+}
+
 /* Expected reason for a flip of one bit at byte b of a valid image. */
 static int flip_reason(size_t b)
 {
@@ -881,6 +921,8 @@ int main(void)
         cmocka_unit_test(test_not_loaded_passes_through),
         cmocka_unit_test(test_inverse_iteration),
         cmocka_unit_test(test_measure_exact_mode),
+        cmocka_unit_test(test_inverse_iteration_cap),
+        cmocka_unit_test(test_two_point_profile),
         cmocka_unit_test(test_every_bit_flip_and_truncation),
         cmocka_unit_test(test_semantic_errors),
         cmocka_unit_test(test_fuzz_valid_crc),

@@ -191,6 +191,12 @@ static void check_residual(const sc_lut *m, const sc_export_report *rep, double 
     assert_int_equal(rep->samples, n);
     assert_true(fabs(rep->rms_um - sqrt(ss / n)) < 1e-9);
     assert_true(fabs(rep->max_um - mx) < 1e-9);
+    /* where: the residual there is the largest */
+    double at = 0;
+    for (int c = 0; c < nc; ++c)
+        at = fmax(at, fabs(ctrl(ctx, comps[c], rep->max_at_mm[0], rep->max_at_mm[1]) -
+                           sign * map_ref(m, comps[c], rep->max_at_mm[0], rep->max_at_mm[1])));
+    assert_true(fabs(at - mx) < 1e-9);
 }
 
 static double bk_ctrl(const void *ctx, int comp, double x, double y)
@@ -417,6 +423,7 @@ static void test_siemens(void **state)
     o.siemens_first_table = 2;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
     parse_siemens(path, c);
+    assert_non_null(strstr(slurp(path), "tables hold -A and -B of Gx and Gy"));
     int ntab = 0;
     for (int t = 0; t < 8; ++t)
         ntab += c->used[t];
@@ -557,6 +564,7 @@ static void test_linuxcnc(void **state)
         o.axis = axis;
         assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
         parse_linuxcnc(path, l);
+        assert_non_null(strstr(slurp(path), axis == 0 ? "X trims (+Gx, mm" : "Y trims (+Gy, mm"));
         assert_int_equal(l->n, axis == 0 ? 31 : 11);
         assert_int_equal(rep.points[0], l->n);
         /* no entry beyond the map: the first is the map's first node */
@@ -670,6 +678,29 @@ static double profile_ref(const sc_lut_profile *p, double x)
     return p->err_um[k] * (1 - (u - k)) + p->err_um[k + 1] * (u - k);
 }
 
+/* KMotion: one 2-D table, covering at least the map's nodes. */
+static void test_kmotion_report(void **state)
+{
+    (void)state;
+    sc_lut *m = make_map(9, 7, -20.0, -15.0, 5.0, 5.0, 0);
+    sc_export_options o;
+    sc_export_options_init(&o, SC_EXPORT_KMOTION);
+    sc_export_report rep;
+    sc_error err;
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+    assert_int_equal(rep.tables, 1);
+    assert_true(rep.points[0] >= 9 && rep.points[1] >= 7);
+    /* a map of one row or one column is no map for any format */
+    for (int k = 0; k < 2; ++k) {
+        int nx = m->nx, ny = m->ny;
+        *(k ? &m->ny : &m->nx) = 1;
+        assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_E_INPUT);
+        assert_non_null(strstr(err.msg, "at least 2 x 2 nodes"));
+        m->nx = nx, m->ny = ny;
+    }
+    free(m);
+}
+
 static void test_beckhoff_cross(void **state)
 {
     (void)state;
@@ -739,7 +770,12 @@ static void test_beckhoff_cross(void **state)
     unlink(path);
     o.travel_mm[0] = -20.0;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
-    assert_non_null(strstr(err.msg, "does not contain"));
+    assert_non_null(strstr(err.msg, "travel -20..40 mm does not contain"));
+    o.travel_mm[0] = 50.0; /* MIN > MAX: not about a file, so no file and no line */
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "MIN < MAX"));
+    assert_true(err.file[0] == '\0' && err.line == 0);
+    o.travel_mm[0] = -20.0;
     o.use_travel = 0;
     o.profile_interval_mm = 0.05;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
@@ -748,6 +784,11 @@ static void test_beckhoff_cross(void **state)
     p->start_mm = 200.0;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
     assert_non_null(strstr(err.msg, "do not overlap"));
+    /* touching the map at one end (x = 20 or x = -20 mm) is overlapping */
+    p->start_mm = 20.0;
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+    p->start_mm = -20.0 - 300 * 0.17;
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
     p->start_mm = -23.33333;
     o.cross_profile = 1;
     assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
@@ -827,6 +868,7 @@ int main(void)
         cmocka_unit_test(test_linuxcnc),
         cmocka_unit_test(test_beckhoff_cross),
         cmocka_unit_test(test_backends),
+        cmocka_unit_test(test_kmotion_report),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

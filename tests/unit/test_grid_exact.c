@@ -348,8 +348,9 @@ static void test_extra_views(void **state)
 }
 
 /* With noise: unbiased (the mean error over seeds shrinks like 1/sqrt(runs)) and σ_C of the
- * order of σ_r; the estimate does not depend on the size of G (linear, exact method). */
-static void check_noise(sc_grid_exact_method m, const view_spec *vs, int nv, int n, int runs)
+ * order of σ_r; the estimate does not depend on the size of G (linear, exact method). Returns
+ * σ_C/σ_r over the runs. */
+static double check_noise(sc_grid_exact_method m, const view_spec *vs, int nv, int n, int runs)
 {
     const double sigma = 0.01;
     double *mean = calloc((size_t)2 * n * n, sizeof(double));
@@ -393,15 +394,67 @@ static void check_noise(sc_grid_exact_method m, const view_spec *vs, int nv, int
     assert_true(res > 0.2 * sigma && res < 3.0 * sigma);
     /* 2 n^2 node components, each mean ~ t(runs - 1) in these units if unbiased */
     assert_true(bias < (runs >= 40 ? 4.5 : 6.5));
+    return sc / sigma;
 }
 
 static void test_noise(void **state)
 {
     (void)state;
     check_noise(SC_GRID_YE, YE, 3, 11, 40);
-    check_noise(SC_GRID_DOUBLE_SHIFT, DS, 4, 11, 40);
+    /* pinned: the same seeds give the same σ_C/σ_r to rounding; the double shift's estimator
+     * with one link instead of the mean of both gives 1.1442 here, well within the loose bounds
+     * above (issue 43) */
+    double ds = check_noise(SC_GRID_DOUBLE_SHIFT, DS, 4, 11, 40);
+    assert_true(fabs(ds / 1.1065 - 1) < 0.01);
     check_noise(SC_GRID_YE, YE, 3, 25, 12);
     check_noise(SC_GRID_DOUBLE_SHIFT, DS, 4, 25, 12);
+}
+
+/* The double shift's wrap columns of a row i != c come from the two links view 3 gives in its
+ * columns c and c+1 (docs/grid-exact.md §6): each gives an estimate of F(i,1) - F(i,0), and the
+ * two are averaged. The two estimates carry the link with opposite signs, so moving view 3's
+ * mark (i, c) by e changes the result exactly as moving its mark (i, c+1) by -e does (a
+ * mean); with one estimate alone, one of the two would change nothing. */
+static void test_ds_wrap_mean_of_links(void **state)
+{
+    (void)state;
+    const int ns[] = {9, 11, 13};
+    for (size_t a = 0; a < sizeof ns / sizeof ns[0]; ++a) {
+        int n = ns[a], c = (n - 1) / 2, nn = n * n;
+        for (int comp = 0; comp < 2; ++comp) {
+            sim base, sa, sb;
+            sim_init(&base, n, 1.0, DS, 4, 77 + (uint64_t)n, 0.1, 100.0);
+            sim_init(&sa, n, 1.0, DS, 4, 77 + (uint64_t)n, 0.1, 100.0);
+            sim_init(&sb, n, 1.0, DS, 4, 77 + (uint64_t)n, 0.1, 100.0);
+            int i = c - 2;
+            double *va = comp ? sa.data.dy_um[3] : sa.data.dx_um[3];
+            double *vb = comp ? sb.data.dy_um[3] : sb.data.dx_um[3];
+            assert_true(isfinite(va[i * n + c]) && isfinite(vb[i * n + c + 1]));
+            va[i * n + c] += 0.5;
+            vb[i * n + c + 1] += 0.5;
+            sc_error err;
+            assert_int_equal(run(SC_GRID_DOUBLE_SHIFT, &base, &err), SC_OK);
+            assert_int_equal(run(SC_GRID_DOUBLE_SHIFT, &sa, &err), SC_OK);
+            assert_int_equal(run(SC_GRID_DOUBLE_SHIFT, &sb, &err), SC_OK);
+            double moved_a = 0, moved_b = 0, sum = 0;
+            double *ra[] = {sa.rgx, sa.rgy, sa.rax, sa.ray}, *rb[] = {sb.rgx, sb.rgy, sb.rax, sb.ray};
+            double *r0[] = {base.rgx, base.rgy, base.rax, base.ray};
+            for (int q = 0; q < 4; ++q)
+                for (int k = 0; k < nn; ++k) {
+                    double da = ra[q][k] - r0[q][k], db = rb[q][k] - r0[q][k];
+                    moved_a = fmax(moved_a, fabs(da));
+                    moved_b = fmax(moved_b, fabs(db));
+                    sum = fmax(sum, fabs(da + db));
+                }
+            if (!(moved_a > 0.01 && moved_b > 0.01 && sum < 1e-9))
+                fail_msg("N=%d %s: mark (%d,%d) moves the result by %.3g, (%d,%d) by %.3g, "
+                         "both by %.3g (expected equal and opposite)",
+                         n, comp ? "y" : "x", i, c, moved_a, i, c + 1, moved_b, sum);
+            sim_free(&base);
+            sim_free(&sa);
+            sim_free(&sb);
+        }
+    }
 }
 
 /* Scaling G by 100 changes nothing in the estimate error (σ_C independent of σ_G). */
@@ -535,6 +588,7 @@ int main(void)
         cmocka_unit_test(test_misalignment_recovered),
         cmocka_unit_test(test_extra_views),
         cmocka_unit_test(test_noise),
+        cmocka_unit_test(test_ds_wrap_mean_of_links),
         cmocka_unit_test(test_noise_independent_of_g),
         cmocka_unit_test(test_rejections),
     };

@@ -54,6 +54,17 @@ static void check_recovery(int n, int kind, uint64_t seed)
     assert_true(em <= 1e-9);
     assert_true(et <= 1e-6);
     assert_true(res.r.residual_rms_um < 1e-9);
+    /* the fitted model predicts every measurement (rotation included) */
+    double worst = 0;
+    for (int v = 0; v < p.n_views; ++v)
+        for (int k = 0; k < t.nn; ++k) {
+            if (!isfinite(d.dx_um[v][k]))
+                continue;
+            double px, py;
+            sc_grid_lsq_predict(q, &res.r, v, k / n, k % n, 0.0, &px, &py);
+            worst = fmax(worst, fmax(fabs(px - d.dx_um[v][k]), fabs(py - d.dy_um[v][k])));
+        }
+    assert_true(worst < 1e-9);
     /* O and R of the gauged truth */
     double O, R;
     sc_grid_first_order(&p, t.gx, t.gy, &O, &R);
@@ -225,6 +236,18 @@ static void test_sigma_estimate(void **s)
         assert_true(res.r.dof > 100);
         assert_true(fabs(res.r.sigma_r_est_um / 0.05 - 1) < 0.08);
         assert_true(res.r.sigma_r_used_um == res.r.sigma_r_est_um);
+        /* exactly the residuals' sum of squares (every equation's, from sc_grid_lsq_residuals) */
+        size_t tot = (size_t)p.n_views * t.nn;
+        double *rx = malloc(sizeof(double) * tot), *ry = malloc(sizeof(double) * tot), rss = 0;
+        long cnt = 0;
+        assert_int_equal(sc_grid_lsq_residuals(q, &d, &res.r, rx, ry, NULL, NULL, NULL, &err), SC_OK);
+        for (size_t k = 0; k < tot; ++k)
+            if (isfinite(rx[k]))
+                rss += rx[k] * rx[k] + ry[k] * ry[k], cnt += 2;
+        assert_int_equal(cnt, res.r.n_measurements);
+        assert_true(fabs(res.r.sigma_r_est_um * res.r.sigma_r_est_um * res.r.dof / rss - 1) < 1e-9);
+        assert_true(fabs(res.r.residual_rms_um * res.r.residual_rms_um * cnt / rss - 1) < 1e-9);
+        free(rx), free(ry);
         double u_est = res.r.ugx_um[3];
         assert_int_equal(sc_grid_lsq_execute(q, &d, 0.2, &res.r, &err), SC_OK);
         assert_true(res.r.sigma_r_used_um == 0.2);
@@ -612,6 +635,62 @@ static void test_undetermined_view(void **s)
     sc_grid_plan_free(&pye);
 }
 
+/* The χ² test of a fit with a stated σ_r: its acceptance interval is the two-sided 95 % one, the
+ * 2.5 % and 97.5 % quantiles at the fit's dof divided by the dof, and the verdict follows it. A
+ * variance factor between the 95 % and the 97.5 % quantile (and one between 2.5 % and 5 %) passes;
+ * one just outside either bound fails. The variance factor is RSS / dof / σ_r², so each case is
+ * made by choosing the σ_r stated for the same data. */
+static void test_chi2_bounds(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    tu_truth t;
+    sc_grid_data d;
+    tu_noisy_case(&p, 11, PLAN_YE, 4242, 0.05, &t, &d);
+    sc_grid_lsq_plan *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
+    tu_res res;
+    tu_res_alloc(&res, t.nn);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 1.0, &res.r, &err), SC_OK);
+    long dof = res.r.dof;
+    assert_true(dof > 50);
+    double vf1 = res.r.variance_factor; /* at σ_r = 1 µm: RSS / dof */
+    assert_true(vf1 > 0);
+    double k = (double)dof;
+    double q025 = sc_chi2_quantile(0.025, k) / k, q05 = sc_chi2_quantile(0.05, k) / k;
+    double q95 = sc_chi2_quantile(0.95, k) / k, q975 = sc_chi2_quantile(0.975, k) / k;
+    /* the quantiles themselves, against tables at 100 dof (the interval 0.7422..1.2956) */
+    assert_true(fabs(sc_chi2_quantile(0.025, 100) - 74.2219) < 2e-3);
+    assert_true(fabs(sc_chi2_quantile(0.975, 100) - 129.5612) < 2e-3);
+    assert_true(q025 < q05 && q05 < 1 && 1 < q95 && q95 < q975);
+    const struct {
+        double vf;
+        int pass;
+    } cases[] = {
+        {0.5 * (q95 + q975), 1}, {0.5 * (q025 + q05), 1}, {1.0, 1},
+        {q975 * 1.01, 0},        {q025 * 0.99, 0},
+    };
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; ++c) {
+        double sigma = sqrt(vf1 / cases[c].vf);
+        assert_int_equal(sc_grid_lsq_execute(q, &d, sigma, &res.r, &err), SC_OK);
+        assert_int_equal(res.r.dof, dof);
+        assert_true(fabs(res.r.variance_factor / cases[c].vf - 1) < 1e-9);
+        assert_true(fabs(res.r.chi2_lo / q025 - 1) < 1e-12);
+        assert_true(fabs(res.r.chi2_hi / q975 - 1) < 1e-12);
+        if (res.r.chi2_pass != cases[c].pass)
+            fprintf(stderr, "dof %ld: variance factor %.4f in [%.4f, %.4f]: pass %d, expected %d\n",
+                    dof, res.r.variance_factor, res.r.chi2_lo, res.r.chi2_hi, res.r.chi2_pass,
+                    cases[c].pass);
+        assert_int_equal(res.r.chi2_pass, cases[c].pass);
+    }
+    tu_res_free(&res);
+    sc_grid_lsq_plan_destroy(q);
+    tu_data_free(&d);
+    tu_truth_free(&t);
+    sc_grid_plan_free(&p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -623,6 +702,7 @@ int main(void)
         cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),
+        cmocka_unit_test(test_chi2_bounds),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

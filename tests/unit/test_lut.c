@@ -339,6 +339,16 @@ static void test_encode_rejects(void **state)
     random_lut(in, &rng, 5, 5, 1.0, 1, 10);
     in->profile[0].n = 1;
     assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    in->profile[0].n = 2; /* the smallest profile */
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_OK);
+    /* a profile may end at 1 km exactly (its last point, not one step beyond it) */
+    random_lut(in, &rng, 5, 5, 1.0, 1, 10);
+    in->profile[0].step_mm = 1000.0;
+    in->profile[0].start_mm = 1e6 - 1000.0 * (in->profile[0].n - 1);
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_OK);
+    in->profile[0].start_mm += 1000.0;
+    assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, sizeof buf, &len, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "within 1 km"));
     random_lut(in, &rng, 5, 5, 1.0, 1, 10);
     assert_int_equal(sc_lut_encode(in, SC_LUT_ENC_AUTO, buf, 100, &len, &err), SC_E_NOMEM);
     /* Nothing is written under the final name when encoding fails. */
@@ -424,6 +434,16 @@ static void test_read_map(void **state)
     assert_true(fabs(ex - mean) < 1e-12);
     assert_int_equal(sc_lut_grid_eval(lut, -100, 10.0 + 1.25, &ex, &ey), 1);
     assert_true(ex == lut->gx_um[7]);
+    /* half a pitch beyond each edge: outside, the value at the nearest edge point */
+    const double x1 = -3.5 + 6 * 2.5, y1 = 10.0 + 3 * 1.25;
+    assert_int_equal(sc_lut_grid_eval(lut, x1 + 1.25, 10.0 + 1.25, &ex, &ey), 1);
+    assert_true(ex == lut->gx_um[7 + 6] && ey == lut->gy_um[7 + 6]);
+    assert_int_equal(sc_lut_grid_eval(lut, -3.5 + 2.5, y1 + 0.625, &ex, &ey), 1);
+    assert_true(ex == lut->gx_um[21 + 1] && ey == lut->gy_um[21 + 1]);
+    assert_int_equal(sc_lut_grid_eval(lut, -3.5 + 2.5, 10.0 - 0.625, &ex, &ey), 1);
+    assert_true(ex == lut->gx_um[1] && ey == lut->gy_um[1]);
+    assert_int_equal(sc_lut_grid_eval(lut, x1, y1, &ex, &ey), 0); /* the last node is inside */
+    assert_true(ex == lut->gx_um[27] && ey == lut->gy_um[27]);
 
     /* Bad maps: SC_E_INPUT with the line of the problem. */
     struct {

@@ -353,6 +353,134 @@ static void test_residual_noise_estimate(void **state)
     free(f), free(ey), free(fe), free(y1), free(y2);
 }
 
+/* The sensors' zero points, end to end: a zero offset of scan k's second displacement sensor
+ * (m2 + e_k) is the offset c_k of y_k = m2 - m1 - D_k·m3, which the fit estimates and which must
+ * change nothing else. Through the calibration the CLI runs (both methods, noise estimated from
+ * the residuals, whose fit has its own c_k): the same f, u(f), e_y and residual sum; through
+ * least squares: c moves by exactly (+e_1, +e_2), with the sign of the data's own offsets. */
+static void test_zero_point_offsets(void **state)
+{
+    (void)state;
+    const int n = 1100;
+    const double e[2] = {3.0, -2.0};
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double));
+    random_profile(n, 21, f);
+    sc_profile_data a, b;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &a, ey, &err), SC_OK);
+    assert_int_equal(sc_profile_simulate(&p, f, &b, ey, &err), SC_OK);
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < n - b.d[k]; ++j)
+            b.m2_um[k][j] += e[k];
+    double *ra = malloc(3 * n * sizeof(double)), *rb = malloc(3 * n * sizeof(double));
+    for (int m = 0; m < 2; ++m) {
+        sc_profile_options o;
+        sc_profile_options_default(&o);
+        o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+        a.has_sigma_disp = a.has_sigma_angle = b.has_sigma_disp = b.has_sigma_angle = 0;
+        sc_profile_solution sa = {.f_um = ra, .uf_um = ra + n, .ey_um = ra + 2 * n};
+        sc_profile_solution sb = {.f_um = rb, .uf_um = rb + n, .ey_um = rb + 2 * n};
+        assert_int_equal(sc_profile_calibrate(&a, &o, &sa, &err), SC_OK);
+        assert_int_equal(sc_profile_calibrate(&b, &o, &sb, &err), SC_OK);
+        double worst = 0;
+        for (int i = 0; i < n; ++i)
+            worst = fmax(worst, fabs(ra[i] - rb[i]));
+        print_message("%s: zero offsets (%+g, %+g) um move f by at most %.3g um; wrss %.6g vs %.6g\n",
+                      m ? "dft" : "lsq", e[0], e[1], worst, sa.wrss, sb.wrss);
+        for (int i = 0; i < 3 * n; ++i)
+            if (!(isnan(ra[i]) && isnan(rb[i])))
+                assert_true(fabs(ra[i] - rb[i]) < 1e-9);
+        assert_true(isfinite(sa.wrss) && sa.wrss > 0);
+        assert_true(fabs(sb.wrss / sa.wrss - 1) < 1e-9);
+    }
+    /* least squares' own c: the offsets of the data, sign included */
+    double *y1a = malloc(n * sizeof(double)), *y2a = malloc(n * sizeof(double));
+    double *y1b = malloc(n * sizeof(double)), *y2b = malloc(n * sizeof(double));
+    sc_profile_combine(&a, 0, y1a), sc_profile_combine(&a, 1, y2a);
+    sc_profile_combine(&b, 0, y1b), sc_profile_combine(&b, 1, y2b);
+    sc_profile_lsq_plan *pl;
+    assert_int_equal(sc_profile_lsq_plan_create(n, a.d[0], a.d[1], 1, 1, &pl, &err), SC_OK);
+    double ca[2], cb[2], wa, wb;
+    assert_int_equal(sc_profile_lsq_execute(pl, y1a, y2a, ra, ca, &wa, &err), SC_OK);
+    assert_int_equal(sc_profile_lsq_execute(pl, y1b, y2b, rb, cb, &wb, &err), SC_OK);
+    assert_true(fabs(cb[0] - ca[0] - e[0]) < 1e-9 && fabs(cb[1] - ca[1] - e[1]) < 1e-9);
+    assert_true(fabs(wb / wa - 1) < 1e-9);
+    /* the residual sum of a given f fits the offsets itself: the same with and without them */
+    int dof;
+    double sa_ss = sc_profile_residual_ss(n, a.d[0], a.d[1], y1a, y2a, ra, 1, 1, &dof);
+    double sb_ss = sc_profile_residual_ss(n, a.d[0], a.d[1], y1b, y2b, ra, 1, 1, &dof);
+    assert_true(fabs(sb_ss / sa_ss - 1) < 1e-9);
+    sc_profile_lsq_plan_destroy(pl);
+    sc_profile_data_free(&a);
+    sc_profile_data_free(&b);
+    free(f), free(ey), free(ra), free(rb), free(y1a), free(y2a), free(y1b), free(y2b);
+}
+
+/* Where the noise comes from: the options, else the header, else the residuals. Each source on
+ * its own is used (a displacement noise alone, an angle noise alone); with none, every point's
+ * uncertainty is the plan's unit uncertainty times sqrt(wrss/dof), the first and last included. */
+static void test_noise_sources(void **state)
+{
+    (void)state;
+    const int n = 1100;
+    sc_profile_sim p;
+    sc_profile_sim_defaults(&p);
+    p.n = n;
+    double *f = malloc(n * sizeof(double)), *ey = malloc(n * sizeof(double));
+    double *r = malloc(3 * n * sizeof(double)), *u = malloc(n * sizeof(double));
+    random_profile(n, 5, f);
+    sc_profile_data d;
+    sc_error err;
+    assert_int_equal(sc_profile_simulate(&p, f, &d, ey, &err), SC_OK);
+    const struct {
+        int hdr_sd, hdr_sa;       /* the header states them (0.02 um, 0.5 urad) */
+        double opt_sd, opt_sa;    /* the options' (NaN: not given) */
+        int known;
+        double sd, sa;            /* the noise used */
+    } cases[] = {
+        {1, 1, NAN, NAN, 1, 0.02, 0.5},  {0, 0, 0.03, 0.7, 1, 0.03, 0.7},
+        {0, 0, 0.03, NAN, 1, 0.03, 0.0}, {0, 0, NAN, 0.7, 1, 0.0, 0.7},
+        {1, 0, NAN, NAN, 1, 0.02, 0.0},  {0, 1, NAN, NAN, 1, 0.0, 0.5},
+        {1, 1, 0.03, NAN, 1, 0.03, 0.5}, {0, 0, NAN, NAN, 0, NAN, NAN},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k)
+        for (int m = 0; m < 2; ++m) {
+            sc_profile_options o;
+            sc_profile_options_default(&o);
+            o.method = m ? SC_PROFILE_DFT : SC_PROFILE_LSQ;
+            o.sigma_disp_um = cases[k].opt_sd;
+            o.sigma_angle_urad = cases[k].opt_sa;
+            d.has_sigma_disp = cases[k].hdr_sd, d.sigma_disp_um = 0.02;
+            d.has_sigma_angle = cases[k].hdr_sa, d.sigma_angle_urad = 0.5;
+            sc_profile_solution s = {.f_um = r, .uf_um = r + n, .ey_um = r + 2 * n};
+            assert_int_equal(sc_profile_calibrate(&d, &o, &s, &err), SC_OK);
+            assert_int_equal(s.noise_known, cases[k].known);
+            assert_int_equal(s.have_uf, 1);
+            if (cases[k].known) {
+                assert_true(s.sigma_disp_um == cases[k].sd);
+                assert_true(s.sigma_angle_urad == cases[k].sa);
+                continue;
+            }
+            /* estimated: equal weights, unit uncertainties scaled by sqrt(wrss/dof) */
+            assert_true(isnan(s.sigma_disp_um) && isnan(s.sigma_angle_urad));
+            double scale = sqrt(s.wrss / s.dof);
+            assert_true(s.sigma_y_um[0] == scale && s.sigma_y_um[1] == scale);
+            if (m == 0) {
+                sc_profile_lsq_plan *pl;
+                assert_int_equal(sc_profile_lsq_plan_create(n, d.d[0], d.d[1], 1, 1, &pl, &err), SC_OK);
+                assert_int_equal(sc_profile_lsq_uncertainty(pl, u, NULL, &err), SC_OK);
+                for (int i = 0; i < n; ++i)
+                    assert_true(fabs(r[n + i] / (scale * u[i]) - 1) < 1e-12);
+                sc_profile_lsq_plan_destroy(pl);
+            }
+        }
+    sc_profile_data_free(&d);
+    free(f), free(ey), free(r), free(u);
+}
+
 /* ---- the calibration in two steps (plan from the header, run on the data) ------------------- */
 
 /* sc_profile_calibrate(d, o) and create(header of d, o) + run (twice): the same values, bit for bit. */
@@ -995,6 +1123,65 @@ static void test_dft_refuses(void **state)
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 12, 1, 1, &p, &err), SC_E_INPUT);
     assert_null(p);
     assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 0, 1, &p, &err), SC_E_INPUT);
+    /* the message names the nearest N the method takes (a multiple of d1·d2, at least one) */
+    const int ns[][2] = {{331, 330}, {1101, 1100}, {1160, 1210}, {1154, 1100}, {1155, 1210}, {50, 110}};
+    for (size_t k = 0; k < sizeof ns / sizeof ns[0]; ++k) {
+        char want[32];
+        snprintf(want, sizeof want, "nearest: %d;", ns[k][1]);
+        assert_false(sc_profile_dft_is_usable(ns[k][0], 10, 11, &err));
+        if (!strstr(err.msg, want))
+            fail_msg("N = %d: '%s' does not say '%s'", ns[k][0], err.msg, want);
+    }
+    /* refusals of arguments, not of a file: no file, no line */
+    assert_false(sc_profile_dft_is_usable(360, 10, 12, &err));
+    assert_true(err.file[0] == '\0' && err.line == 0);
+    assert_false(sc_profile_dft_is_usable(331, 10, 11, &err));
+    assert_true(err.file[0] == '\0' && err.line == 0);
+    assert_false(sc_profile_dft_is_usable(330, 11, 11, &err));
+    assert_true(err.file[0] == '\0' && err.line == 0 && strstr(err.msg, "d1 = d2 = 11"));
+    /* a value that is not a number is named, scan and index */
+    assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 1, 1, &p, &err), SC_OK);
+    double y1[330] = {0}, y2[330] = {0}, f[330];
+    y2[7] = NAN;
+    assert_int_equal(sc_profile_dft_execute(p, y1, y2, f, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "y2(7) is not a finite number"));
+    y2[7] = 0, y1[4] = INFINITY;
+    assert_int_equal(sc_profile_dft_execute(p, y1, y2, f, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "y1(4) is not a finite number"));
+    sc_profile_dft_plan_destroy(p);
+    /* the uncertainty's missing arguments */
+    assert_int_equal(sc_profile_dft_plan_create(330, 10, 11, 1, 1, &p, &err), SC_OK);
+    assert_int_equal(sc_profile_dft_uncertainty(p, NULL, NULL, &err), SC_E_INPUT);
+    double u[330];
+    assert_int_equal(sc_profile_dft_uncertainty(NULL, u, NULL, &err), SC_E_INPUT);
+    sc_profile_dft_plan_destroy(p);
+}
+
+/* A "solver" whose every output is 1000 µm plus y1(0): the Monte Carlo uncertainty of every
+ * point is then σ_y1, whatever the large mean (Welford's running mean must follow it). */
+static sc_status offset_solver(void *ctx, const double *y1_um, const double *y2_um, double *f_um,
+                               sc_error *err)
+{
+    (void)y2_um, (void)err;
+    int n = *(const int *)ctx;
+    for (int i = 0; i < n; ++i)
+        f_um[i] = 1000.0 + y1_um[0];
+    return SC_OK;
+}
+
+static void test_mc_large_mean(void **state)
+{
+    (void)state;
+    int n = 40;
+    double u[40];
+    sc_error err;
+    assert_int_equal(sc_profile_mc_uncertainty(n, 3, 5, 0.25, 0.5, offset_solver, &n, 2000, 7, NULL,
+                                               NULL, u, &err), SC_OK);
+    for (int i = 0; i < n; ++i) {
+        if (!(fabs(u[i] / 0.25 - 1) < 0.08))
+            fail_msg("u[%d] = %g, expected 0.25 (2000 trials)", i, u[i]);
+        assert_true(u[i] == u[0]);
+    }
 }
 
 /* FFTW's planner is not thread-safe: plans made and destroyed in several threads at once (DFT
@@ -1049,6 +1236,8 @@ int main(void)
         cmocka_unit_test(test_dft_uncertainty_exact),
         cmocka_unit_test(test_paper_setup_mc),
         cmocka_unit_test(test_residual_noise_estimate),
+        cmocka_unit_test(test_zero_point_offsets),
+        cmocka_unit_test(test_noise_sources),
         cmocka_unit_test(test_calibration_plan_and_run),
         cmocka_unit_test(test_read_hooked),
         cmocka_unit_test(test_plan_while_reading),
@@ -1057,6 +1246,7 @@ int main(void)
         cmocka_unit_test(test_write_read_roundtrip),
         cmocka_unit_test(test_write_read_large),
         cmocka_unit_test(test_dft_refuses),
+        cmocka_unit_test(test_mc_large_mean),
         cmocka_unit_test(test_dft_plans_in_threads),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -221,6 +221,7 @@ def case_outlier_test():
     printed summary and the residual file agree with the warnings; bad values exit 2."""
     d = fresh_dir("outlier_test")
     quiet = noisy = 0
+    tsq = []
     for seed in range(1, 7):
         s = simulate(d, "p%d" % seed, "--plan", "double-shift", "--seed", seed)
         g, r, sm = (os.path.join(d, "p%d_%s" % (seed, x)) for x in ("g.csv", "r.csv", "s.json"))
@@ -256,8 +257,16 @@ def case_outlier_test():
                 noisy += len(flagged) > 0
             else:
                 quiet += not flagged
+                tsq += [float(x[k]) ** 2 for x in R for k in ("tx", "ty") if x[k] != ""]
     if quiet < 5 or noisy < 5:
         fail("clean plates: %d of 6 quiet by default, %d of 6 flagged at 0.001 each" % (quiet, noisy))
+    # The leverage, end to end: on clean data each t = r / (sigma sqrt(1 - h)) has variance 1, so
+    # the mean of t^2 over ~22 000 coordinates is 1 within a few per cent; without the leverage
+    # (t = r / sigma) it would be the residuals' share of freedom, dof / equations (about 1/3
+    # here), and with sqrt(1 + h) less still.
+    mean_tsq = sum(tsq) / len(tsq)
+    if len(tsq) < 18000 or abs(mean_tsq - 1) > 0.1:
+        fail("clean plates: mean t^2 %.4f over %d coordinates (expected 1)" % (mean_tsq, len(tsq)))
     s = simulate(d, "p1", "--plan", "double-shift", "--seed", 1)
     g = os.path.join(d, "bad_g.csv")
     for args, needle in ((["--outlier-alpha", "0"], "between 0 and 1"),
@@ -271,8 +280,8 @@ def case_outlier_test():
             expect=2)
     if "need least squares" not in p.stderr or os.path.exists(g):
         fail("a closed form with --outlier-alpha: %r" % p.stderr)
-    print("outlier_test: ok (%d of 6 clean plates quiet by default, %d flagged at 0.001 each)"
-          % (quiet, noisy))
+    print("outlier_test: ok (%d of 6 clean plates quiet by default, %d flagged at 0.001 each; "
+          "mean t^2 %.4f over %d coordinates)" % (quiet, noisy, mean_tsq, len(tsq)))
 
 
 def case_view_noise():

@@ -4,7 +4,8 @@
 Every corrected position is compared with an independent bilinear evaluation of the table as
 printed by `selfcal lut dump`; exceptions, unit id, word order, function 23 atomicity with
 concurrent clients, byte timeout against a stalled client, the connection cap and SIGHUP reload
-(corrupt table kept out, valid table swapped in) are checked.
+(corrupt table kept out, valid table swapped in) are checked, and function 22 (mask write) on the
+Modbus specification's own example.
 usage: test_modbus_tcp.py SELFCAL_CLI SELFCALD WORKDIR"""
 import os
 import random
@@ -102,6 +103,55 @@ try:
     expect_ok(c.write_register(3, 7), "fn6 to 3")
     check(expect_ok(c.read_input_registers(5, count=1), "fn4").registers[0] == count,
           "a partial write computed")
+    # 3b. Function 22 (mask write register), the Modbus specification's own example: register
+    # holding 0x0012, AND mask 0x00F2, OR mask 0x0025 -> (0x12 AND 0xF2) OR (0x25 AND NOT 0xF2)
+    # = 0x0017, read back with function 3. A mask write of one register of 0-3 computes nothing.
+    for a in range(4):
+        expect_ok(c.write_register(a, 0x0012), f"fn6 0x12 to {a}")
+        r = expect_ok(c.mask_write_register(address=a, and_mask=0x00F2, or_mask=0x0025), "fn22")
+        check((r.address, r.and_mask, r.or_mask) == (a, 0x00F2, 0x0025), f"fn22 echo {r}")
+        got = expect_ok(c.read_holding_registers(a, count=1), "fn3").registers[0]
+        check(got == 0x0017, f"fn22 on holding {a}: 0x{got:04X}, expected 0x0017")
+    # AND 0 OR v sets v; AND 0xFFFF keeps the register whatever the OR mask
+    expect_ok(c.mask_write_register(address=1, and_mask=0x0000, or_mask=0xBEEF), "fn22 set")
+    expect_ok(c.mask_write_register(address=1, and_mask=0xFFFF, or_mask=0x1234), "fn22 keep")
+    got = expect_ok(c.read_holding_registers(1, count=1), "fn3").registers[0]
+    check(got == 0xBEEF, f"fn22 set/keep: 0x{got:04X}, expected 0xBEEF")
+    expect_exc(c.mask_write_register(address=4, and_mask=0, or_mask=1), ILLEGAL_ADDRESS,
+               "fn22 to 4")
+    check(expect_ok(c.read_input_registers(5, count=1), "fn4").registers[0] == count,
+          "a mask write computed")
+    # 3b'. Function 23 at its smallest: one register read, one written (holding 3: no correction)
+    r = expect_ok(c.readwrite_registers(read_address=9, read_count=1, write_address=3,
+                                        values=[0x0102]), "fn23 one register")
+    check(len(r.registers) == 1, f"fn23 one register: {r.registers}")
+    check(expect_ok(c.read_holding_registers(3, count=1), "fn3").registers[0] == 0x0102,
+          "fn23 wrote one register")
+    # 3c. The responses' exact bytes on a raw socket (pymodbus accepts a response with a byte too
+    # many): function 22 echoes its request; function 17 (report server id) is function, byte
+    # count, then that many bytes (unit id, run indicator 0xFF, the id text).
+    with socket.create_connection(("127.0.0.1", d.port), timeout=2) as s:
+        req = struct.pack(">HHHBBHHH", 0x4301, 0, 8, 1, 22, 2, 0x00F2, 0x0025)
+        s.sendall(req)
+        got = s.recv(64)
+        check(got == req, f"fn22 raw: {got.hex()} is not the echo {req.hex()}")
+        s.sendall(struct.pack(">HHHBB", 0x4302, 0, 2, 1, 17))
+        got = s.recv(300)
+        ln, fn, bc = struct.unpack(">H", got[4:6])[0], got[7], got[8]
+        check(fn == 17 and len(got) == 6 + ln and ln == 3 + bc and got[10] == 0xFF,
+              f"fn17 raw: {got.hex()}")
+        # the quantity's limits come first (exception 3 beyond them), then the address range
+        # (exception 2): reads of 1..125 registers, writes of 1..123 (124 do not fit a frame)
+        for tid, pdu, code in ((0x4303, struct.pack(">BHH", 3, 0, 125), 2),
+                               (0x4304, struct.pack(">BHH", 3, 0, 126), 3),
+                               (0x4305, struct.pack(">BHH", 4, 0, 125), 2),
+                               (0x4306, struct.pack(">BHH", 4, 0, 126), 3),
+                               (0x4307, struct.pack(">BHHB", 16, 0, 123, 246) + bytes(246), 2)):
+            s.sendall(struct.pack(">HHHB", tid, 0, 1 + len(pdu), 1) + pdu)
+            got = s.recv(64)
+            check(got[7] == (pdu[0] | 0x80) and got[8] == code,
+                  f"fn{pdu[0]} quantity {struct.unpack('>H', pdu[3:5])[0]}: {got.hex()}, "
+                  f"expected exception {code}")
     # 4. Exceptions: illegal data address.
     expect_exc(c.read_holding_registers(0, count=11), ILLEGAL_ADDRESS, "read holding 0-10")
     expect_exc(c.read_holding_registers(10, count=1), ILLEGAL_ADDRESS, "read holding 10")
