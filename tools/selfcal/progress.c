@@ -8,23 +8,12 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "selfcal/grid_lsq.h"
 #include "selfcal/csv.h"
 
 double cli_memory_bytes(void)
 {
-    /* MemAvailable: what can be had without swapping (free + reclaimable caches) */
-    FILE *fp = fopen("/proc/meminfo", "r");
-    char line[256];
-    double kib = -1;
-    while (fp && fgets(line, sizeof line, fp))
-        if (sscanf(line, "MemAvailable: %lf kB", &kib) == 1)
-            break;
-    if (fp)
-        fclose(fp);
-    if (kib > 0)
-        return kib * 1024.0;
-    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+    return sc_memory_available_bytes(); /* MemAvailable: what can be had without swapping */
 }
 
 int cli_parse_max_memory(const char *cmd, const char *v, double *out)

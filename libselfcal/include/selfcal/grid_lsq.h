@@ -74,6 +74,10 @@ typedef struct sc_grid_lsq_opts {
     void *progress_ctx;
 } sc_grid_lsq_opts;
 
+/* The memory a plan may take by default, in bytes: the machine's available memory (Linux's
+ * MemAvailable: free plus reclaimable caches), else its physical memory; 0 when unknown. */
+SC_API double sc_memory_available_bytes(void);
+
 /* The outlier test, Baarda's data snooping (docs/grid-lsq.md): on clean data each standardized
  * residual t is N(0, 1); a coordinate is flagged when |t| exceeds a two-sided critical value. By
  * default its significance α holds for the whole data set: the chance that clean data raise any

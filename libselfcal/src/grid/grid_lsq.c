@@ -30,9 +30,11 @@
 #include "selfcal/grid_lsq.h"
 
 #include <float.h>
+#include <stdio.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "../common/big_alloc.h"
 #include "grid_lsq_internal.h"
@@ -625,6 +627,22 @@ static int free_misalignments(const sc_grid_lsq_plan *q, int *at, int *slot)
 }
 
 /* Order (once) and factor the pinned reduced matrix; the pinned system's nullity. */
+double sc_memory_available_bytes(void)
+{
+    FILE *fp = fopen("/proc/meminfo", "r");
+    char line[256];
+    double kib = -1;
+    while (fp && fgets(line, sizeof line, fp))
+        if (sscanf(line, "MemAvailable: %lf kB", &kib) == 1)
+            break;
+    if (fp)
+        fclose(fp);
+    if (kib > 0)
+        return kib * 1024.0;
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
+}
+
 /* A plan that would need more than max_bytes, refused before it is built or factored. */
 static sc_status memory_refused(const sc_grid_lsq_plan *q, double need, sc_error *err)
 {

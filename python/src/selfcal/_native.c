@@ -36,23 +36,6 @@
 
 static PyObject *sc_py_error; /* selfcal.Error, a ValueError */
 
-/* This machine's physical memory in bytes (0: unknown): the grid solver's limit, as the CLI's. */
-static double memory_bytes(void)
-{
-    /* the available memory (MemAvailable), as the command line; else the physical memory */
-    FILE *fp = fopen("/proc/meminfo", "r");
-    char line[256];
-    double kib = -1;
-    while (fp && fgets(line, sizeof line, fp))
-        if (sscanf(line, "MemAvailable: %lf kB", &kib) == 1)
-            break;
-    if (fp)
-        fclose(fp);
-    if (kib > 0)
-        return kib * 1024.0;
-    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    return pages > 0 && page > 0 ? (double)pages * (double)page : 0;
-}
 
 /* selfcal.Error with a printf message: PyErr_Format knows no %g, which numbers need. */
 static void error_printf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
@@ -1250,7 +1233,7 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
         goto done;
     o.warn = warn_collect; /* takes the GIL for each warning */
     o.warn_ctx = warnings;
-    o.max_bytes = max_bytes > 0 ? max_bytes : memory_bytes(); /* too large: refused, saying so */
+    o.max_bytes = max_bytes > 0 ? max_bytes : sc_memory_available_bytes(); /* too large: refused, saying so */
     if (progress != Py_None)
         o.progress = progress_call, o.progress_ctx = &pc;
     sc_error err;
