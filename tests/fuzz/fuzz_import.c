@@ -161,8 +161,10 @@ static void check_column(const sc_table *const scan[2], const sc_profile_data *d
         FUZZ_CHECK(a && b);
         long got = 0; /* the data set's samples that are not gaps (NaN) */
         for (long q = 0; q < d->n - d->d[s]; ++q)
-            if (!isnan(col[q]))
-                FUZZ_CHECK(got < m), b[got++] = col[q];
+            if (!isnan(col[q])) {
+                FUZZ_CHECK(got < m);
+                b[got++] = col[q];
+            }
         FUZZ_CHECK(got == m);
         for (long q = 0; q < m; ++q)
             a[q] = scan[s]->value[q * 4 + k];

@@ -86,7 +86,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     sc_verify_result r;
     sc_error err;
     memset(&err, 0, sizeof err);
-    sc_status st = verify_run(&o, &r, &err);
+    sc_status st = sc_verify_run(&o, &r, &err);
     fuzz_check_error(st, &err);
     if (st == SC_OK) {
         FUZZ_CHECK(r.st_before.count >= 1 && r.st_before.count == r.st_after.count);

@@ -53,8 +53,8 @@ static void rule_paragraph(FILE *fp, const sc_verify_opts *o, const sc_verify_re
         html_num_cell(fp, "verify-U", "%.4g µm", u->U_um);
     } else {
         static const char *src[3] = {"given (--sigma-r-um)", "stated in the re-measurement's file",
-                                     "the residuals' RMS per coordinate (an upper bound: it "
-                                     "holds what the table left too)"};
+                                     ("the residuals' RMS per coordinate (an upper bound: "
+                                      "it holds what the table left too)")};
         fprintf(fp, "</tr>\n<tr><th class=\"l\">re-measurement noise σ (k = 1), %s</th>",
                 src[u->sigma_source]);
         html_num_cell(fp, "verify-sigma", "%.4g µm", u->sigma_um);
