@@ -628,3 +628,22 @@ sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const
         sc_table_free(t);
     return st;
 }
+
+/* The public entry (import.h): the layout the options ask for. It lives here, beside the layouts
+ * it chooses among, so that the table reader (import_table.c) calls nothing of this file. */
+sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *names,
+                               const double *scale, long max_rows, const sc_table_layout *lay,
+                               sc_table_notes *notes, sc_table *t, sc_error *err)
+{
+    if (!(lay && (lay->id_col || lay->transpose)))
+        return sc_imp_read_wide(path, n_cols, names, scale, max_rows, lay, notes, t, err);
+    sc_table_notes local_notes;
+    if (!notes)
+        notes = &local_notes;
+    sc_status st = sc_imp_begin(path, n_cols, names, scale, max_rows, lay, notes, t, err);
+    if (st != SC_OK)
+        return st;
+    if (lay->id_col)
+        return sc_imp_read_long(path, n_cols, names, scale, max_rows, lay, notes, t, err);
+    return sc_imp_read_transposed(path, n_cols, names, scale, max_rows, lay, notes, t, err);
+}

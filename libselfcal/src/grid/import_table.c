@@ -737,7 +737,7 @@ sc_status sc_table_read(const char *path, int n_cols, const char *const *names,
 sc_status sc_table_read_max(const char *path, int n_cols, const char *const *names,
                             const double *scale, long max_rows, sc_table *t, sc_error *err)
 {
-    return sc_table_read_layout(path, n_cols, names, scale, max_rows, NULL, NULL, t, err);
+    return sc_imp_read_wide(path, n_cols, names, scale, max_rows, NULL, NULL, t, err);
 }
 
 /* For a header that is a data row (it has a number) taken because one of its fields matched a
@@ -801,9 +801,19 @@ static sc_status first_row_as_header(table_reader *tr, sc_error *err)
     return SC_OK;
 }
 
-/* The asked-for names (before anything is read): 1..16 distinct, scales finite and nonzero. */
-static sc_status check_request(int n_cols, const char *const *names, const double *scale,
-                               long max_rows, const sc_table_layout *lay, sc_error *err)
+sc_status sc_imp_begin(const char *path, int n_cols, const char *const *names,
+                       const double *scale, long max_rows, const sc_table_layout *lay,
+                       sc_table_notes *notes, sc_table *t, sc_error *err)
+{
+    memset(t, 0, sizeof *t);
+    snprintf(t->path, sizeof t->path, "%s", path);
+    t->n_cols = n_cols;
+    memset(notes, 0, sizeof *notes);
+    return sc_imp_check_request(n_cols, names, scale, max_rows, lay, err);
+}
+
+sc_status sc_imp_check_request(int n_cols, const char *const *names, const double *scale,
+                                long max_rows, const sc_table_layout *lay, sc_error *err)
 {
     if (n_cols < 1 || n_cols > 16 || !names)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read asks for 1..16 columns, got %d",
@@ -847,24 +857,16 @@ static sc_status check_request(int n_cols, const char *const *names, const doubl
     return SC_OK;
 }
 
-sc_status sc_table_read_layout(const char *path, int n_cols, const char *const *names,
-                               const double *scale, long max_rows, const sc_table_layout *lay,
-                               sc_table_notes *notes, sc_table *t, sc_error *err)
+sc_status sc_imp_read_wide(const char *path, int n_cols, const char *const *names,
+                           const double *scale, long max_rows, const sc_table_layout *lay,
+                           sc_table_notes *notes, sc_table *t, sc_error *err)
 {
-    memset(t, 0, sizeof *t);
-    snprintf(t->path, sizeof t->path, "%s", path);
-    t->n_cols = n_cols;
     sc_table_notes local_notes;
     if (!notes)
         notes = &local_notes;
-    memset(notes, 0, sizeof *notes);
-    sc_status st = check_request(n_cols, names, scale, max_rows, lay, err);
+    sc_status st = sc_imp_begin(path, n_cols, names, scale, max_rows, lay, notes, t, err);
     if (st != SC_OK)
         return st;
-    if (lay && lay->id_col)
-        return sc_imp_read_long(path, n_cols, names, scale, max_rows, lay, notes, t, err);
-    if (lay && lay->transpose)
-        return sc_imp_read_transposed(path, n_cols, names, scale, max_rows, lay, notes, t, err);
     table_reader tr;
     memset(&tr, 0, sizeof tr);
     tr.t = t;

@@ -65,7 +65,22 @@ void sc_imp_conv_close(sc_imp_conv *c);
 /* The hint for a header line that is not UTF-8, "" if it is (or an encoding was given). */
 const char *sc_imp_encoding_hint(const sc_table_layout *lay, const char *header_text);
 
-/* The other layouts of sc_table_read_layout (arguments checked there, t zeroed with its path). */
+/* The asked-for names (before anything is read): 1..16 distinct, scales finite and nonzero, the
+ * layout's options consistent. */
+sc_status sc_imp_check_request(int n_cols, const char *const *names, const double *scale,
+                               long max_rows, const sc_table_layout *lay, sc_error *err);
+/* What every layout does first: t zeroed with its path and column count, notes zeroed, the
+ * request checked (sc_imp_check_request). */
+sc_status sc_imp_begin(const char *path, int n_cols, const char *const *names,
+                       const double *scale, long max_rows, const sc_table_layout *lay,
+                       sc_table_notes *notes, sc_table *t, sc_error *err);
+/* Columns of a header line, one row per item: the table reader itself (import_table.c); it
+ * begins with sc_imp_begin. */
+sc_status sc_imp_read_wide(const char *path, int n_cols, const char *const *names,
+                           const double *scale, long max_rows, const sc_table_layout *lay,
+                           sc_table_notes *notes, sc_table *t, sc_error *err);
+/* The other layouts of sc_table_read_layout (import_layouts.c; arguments checked there, t
+ * zeroed with its path). */
 sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *names,
                            const double *scale, long max_rows, const sc_table_layout *lay,
                            sc_table_notes *notes, sc_table *t, sc_error *err);
