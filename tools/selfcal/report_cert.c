@@ -3,6 +3,7 @@
  * (report_cert.h). */
 #define _GNU_SOURCE /* mkstemps, mkdtemp */
 #include "report_cert.h"
+#include "selfcal/csv.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -126,9 +127,9 @@ static const char *info_line(report_info *ri, const char *s, const char *e)
 
 static sc_status info_file(report_info *ri, const char *path, sc_error *err)
 {
-    FILE *f = fopen(path, "rb");
+    FILE *f = sc_open_input(path, err); /* "cannot open: ...", or "is a directory" */
     if (!f)
-        return sc_error_set(err, SC_E_INPUT, path, 0, "cannot open: %s", strerror(errno));
+        return err ? err->code : SC_E_INPUT;
     char *buf = malloc(REPORT_INFO_FILE_MAX + 1);
     if (!buf) {
         fclose(f);

@@ -827,6 +827,10 @@ def case_pdf():
     if "bad.txt:2:" not in r.stderr or os.path.exists(os.path.join(d, "B.html")):
         fail("a bad --info-file: %r" % r.stderr)
     run("report", "grid", inp, "-o", os.path.join(d, "B.html"), "--info", "novalue", expect=2)
+    # an --info-file that is a folder is named as such (the shared input opener), nothing written
+    r = run("report", "grid", inp, "-o", os.path.join(d, "B.html"), "--info-file", d, expect=2)
+    if "is a directory" not in r.stderr or os.path.exists(os.path.join(d, "B.html")):
+        fail("an --info-file that is a folder: %r" % r.stderr)
     # --pdf without Chromium: says so, exit 1, nothing written
     env = dict(os.environ, PATH="/nonexistent")
     env.pop("SELFCAL_CHROMIUM", None)
