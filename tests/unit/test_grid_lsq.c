@@ -15,6 +15,7 @@
 #include "../../libselfcal/src/grid/grid_lsq_internal.h"
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
+#include "grid_lsq_reference.h"
 #include "test_grid_lsq_util.h"
 
 /* Noise-free data from a gauged truth: the estimate must equal the truth. */

@@ -1,5 +1,5 @@
 /* Unit tests of the symmetric sparse solver behind the least-squares grid estimator
- * (libselfcal/src/grid/sparse_sym.h): solves and the selected inverse match dense computations
+ * (libselfcal/src/linalg/sparse_sym.h): solves and the selected inverse match dense computations
  * (with and without dense border columns, as the misalignments make), and the pivot-tolerance
  * rank decision counts the nullity of semidefinite matrices. */
 #include <setjmp.h>
@@ -13,7 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "../../libselfcal/src/grid/sparse_sym.h"
+#include "../../libselfcal/src/linalg/sparse_sym.h"
 #include "selfcal/rng.h"
 
 /* B (m x n): ~per_row random entries per row among the first n - border columns, plus every

@@ -14,7 +14,7 @@
 #include "../common/big_alloc.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
-#include "selfcal/grid_lsq.h" /* sc_chi2_quantile, sc_grid_outlier_critical: the same tests as grids */
+#include "../linalg/stats.h" /* sc_chi2_quantile, sc_grid_outlier_critical: the same tests as grids */
 #include "profile_lsq_tuning.h"
 #include "profile_rig.h"
 

@@ -1,5 +1,5 @@
-/* sparse_sym.h — private to the grid area: the symmetric sparse solver behind the grid least
- * squares (grid_lsq.c calls only this). One object per plan:
+/* sparse_sym.h — private to linalg/: the symmetric sparse solver behind the grid least
+ * squares (the grid_lsq_*.c files call only this). One object per plan:
  *
  *   analyze(pattern)  once: fill-reducing order and symbolic factorization, chosen once
  *                     (CHOLMOD's choice, or the order a hint describes);

@@ -1,4 +1,4 @@
-/* sparse_ldl.h — private to the grid area: a scalar sparse LDLᵀ factorization of a symmetric
+/* sparse_ldl.h — private to linalg/: a scalar sparse LDLᵀ factorization of a symmetric
  * positive semidefinite matrix with rank decisions by a relative pivot tolerance, solves, and the
  * Takahashi selected inverse on the factor's pattern. Only sparse_sym.c uses it, as the
  * rank-revealing path for matrices CHOLMOD's Cholesky cannot factor (numerically singular).
