@@ -61,7 +61,8 @@ static void export_usage(FILE *to)
             "               profile output: the error of DIR along AXIS, placed as in lut build)\n"
             "               siemens: one more table, input AXIS, output DIR (z: AX3);\n"
             "               beckhoff: a cross compensation list OUT-cross-DIR, slave DIR, master\n"
-            "               AXIS, ISG's sign (-e)\n"
+            "               AXIS, ISG's sign (-e); aerotech-a1: one table each in the 1-D file\n"
+            "               OUT-1d, reference axis AXIS, output axis DIR, +e (assumed; --negate)\n"
             "  --profile-interval MM  the profiles' table spacing (default: the profile's own\n"
             "               points; siemens: --interval if given)\n"
             "  --travel [AXIS:]MIN,MAX  beckhoff profiles: the master axis' travel (mm, machine\n"
@@ -129,12 +130,41 @@ static void print_cross_report(const sc_lut *lut, const char *out, const sc_expo
                 out, an, rep->span_mm[0], rep->span_mm[1], an);
 }
 
+/* Automation1's 1-D file: its tables, and their residual against the profiles. */
+static void print_a1_1d_report(const sc_lut *lut, const sc_export_options *o,
+                               const sc_export_report *rep)
+{
+    const int nr[3] = {o->beckhoff_x_axis_nr, o->beckhoff_y_axis_nr, o->beckhoff_z_axis_nr};
+    printf(", 1-D table(s):");
+    for (int k = 0; k < lut->n_profiles; ++k)
+        printf("%s %s from %s (axis %d from axis %d)", k ? "," : "",
+               sc_lut_axis_name(lut->profile[k].dir), sc_lut_axis_name(lut->profile[k].axis),
+               nr[lut->profile[k].dir], nr[lut->profile[k].axis]);
+    printf("; %d points in all (no size limit in the pages read), corrections in um (unit %.4g "
+           "um), %s, nearest end point beyond\n",
+           rep->points[0] + rep->points[1] + rep->points[2] + rep->points[3], rep->unit_um,
+           o->negate ? "-e (negated)" : "+e (assumed: added to the command)");
+    const int k = (int)rep->max_at_mm[1];
+    printf("residual (controller table - profile) over %ld samples: rms %.4f um, max %.4f um at "
+           "%s = %.3f mm (profile %d)\n",
+           rep->samples, rep->rms_um, rep->max_um, sc_lut_axis_name(lut->profile[k].axis),
+           rep->max_at_mm[0], k);
+    if (rep->limit_um > 0)
+        printf("clipped points: %ld (limit %.4g um)\n", rep->clipped, rep->limit_um);
+    else
+        printf("clipped points: 0 (no limit)\n");
+}
+
 static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
                          const sc_export_options *o, const sc_export_report *rep)
 {
     printf("export %s: %s", fmt, out);
     if (f == SC_EXPORT_BECKHOFF && o->cross_profile >= 0) {
         print_cross_report(lut, out, o, rep);
+        return;
+    }
+    if (f == SC_EXPORT_AEROTECH_A1 && o->cross_profile >= 0) {
+        print_a1_1d_report(lut, o, rep);
         return;
     }
     if (f == SC_EXPORT_BECKHOFF)
@@ -415,9 +445,11 @@ static int resolve_axis(const export_args *a, int f, sc_export_options *o, int *
 /* The profile options: --profile, --profile-interval and --travel where they apply. */
 static int check_profile_options(const export_args *a, int f)
 {
-    if (a->np > 0 && f != SC_EXPORT_SIEMENS_CEC && f != SC_EXPORT_BECKHOFF)
-        return cli_usage_error("export", "--profile applies to --format siemens-cec and beckhoff only "
-                                         "(LinuxCNC: the HAL component applies profiles)");
+    if (a->np > 0 && f != SC_EXPORT_SIEMENS_CEC && f != SC_EXPORT_BECKHOFF &&
+        f != SC_EXPORT_AEROTECH_A1)
+        return cli_usage_error("export", "--profile applies to --format siemens-cec, beckhoff and "
+                                         "aerotech-a1 only (LinuxCNC: the HAL component applies "
+                                         "profiles)");
     if (a->pinterval > 0 && a->np == 0)
         return cli_usage_error("export", "--profile-interval applies to --profile tables only");
     for (int t = 0; t < 4; ++t) {
@@ -502,7 +534,8 @@ static sc_status load_table(const export_args *a, sc_lut *lut, sc_lut_fit_report
     return st;
 }
 
-/* The files: the map's (one, or OUT-x and OUT-y), then a Beckhoff list per profile. */
+/* The files: the map's (one, or OUT-x and OUT-y), then a Beckhoff list per profile, or
+ * Automation1's 1-D file of all profiles (a calibration file holds tables of one kind). */
 enum { MAX_FILES = 2 + SC_LUT_MAX_PROFILES };
 
 static int plan_files(const export_args *a, int f, const sc_export_options *o, int both_files,
@@ -528,6 +561,11 @@ static int plan_files(const export_args *a, int f, const sc_export_options *o, i
         opts[nfiles].travel_mm[0] = a->travel[t][0];
         opts[nfiles].travel_mm[1] = a->travel[t][1];
         tagged_path(a->out, tag, paths[nfiles], 4096);
+    }
+    if (a->np > 0 && f == SC_EXPORT_AEROTECH_A1) {
+        opts[nfiles] = *o;
+        opts[nfiles].cross_profile = 0; /* every profile, one table each */
+        tagged_path(a->out, "1d", paths[nfiles++], 4096);
     }
     return nfiles;
 }
@@ -565,7 +603,7 @@ int cmd_export(int argc, char **argv)
     if (f < 0)
         return cli_usage_error("export",
                                "--format: beckhoff, siemens-cec, linuxcnc, kmotion, klipper, "
-                               "marlin or reprap, not '%s'",
+                               "marlin, reprap, aerotech-a1 or powerpmac, not '%s'",
                                a.fmt);
     sc_export_options o;
     sc_export_options_init(&o, (sc_export_format)f);
@@ -585,7 +623,7 @@ int cmd_export(int argc, char **argv)
     static sc_export_report reps[MAX_FILES];
     static sc_export_options opts[MAX_FILES];
     int nfiles = plan_files(&a, f, &o, both_files, paths, opts);
-    for (int k = 0; k < nfiles; ++k) { /* OUT-x, OUT-y, OUT-cross-DIR: not one of the inputs */
+    for (int k = 0; k < nfiles; ++k) { /* OUT-x, OUT-y, OUT-cross-DIR, OUT-1d: no input */
         rc = cli_check_derived_output("export", "-o --out", "-o", paths[k], argc, argv);
         if (rc >= 0) {
             free(lut);

@@ -45,6 +45,7 @@ typedef enum sc_export_format {
 #define SC_EXPORT_SIEMENS_828D_POINTS 200 /* ... of 200 points, fixed */
 #define SC_EXPORT_MARLIN_MAX_SKEW 1.0     /* Marlin SKEW_FACTOR_MIN/MAX: |I| <= 1 */
 #define SC_EXPORT_AEROTECH_UNIT_UM 1e-4   /* Automation1 corrections written in um, 4 decimals */
+#define SC_EXPORT_AEROTECH_1D_MAX_POINTS 65536 /* selfcal's bound on a 1-D table (none documented) */
 
 typedef struct sc_export_options {
     sc_export_format format;
@@ -61,7 +62,9 @@ typedef struct sc_export_options {
     int beckhoff_x_axis_nr, beckhoff_y_axis_nr;
     int beckhoff_z_axis_nr; /* z's logical axis number, for a profile with z (default 3) */
     /* Beckhoff: -1 = the plane compensation list of `axis` (the map); k >= 0 = the cross
-     * compensation list of lut's straightness profile k (slave = its dir, master = its axis). */
+     * compensation list of lut's straightness profile k (slave = its dir, master = its axis).
+     * Automation1: -1 = the 2-D file of the map; any k >= 0 = the 1-D file of all of lut's
+     * profiles (one table each: reference axis = its axis, output axis = its dir). */
     int cross_profile;
     /* Beckhoff cross compensation: the master axis' travel (mm, machine coordinates), which must
      * contain the profile; the table then gets points at the travel ends carrying the profile's
@@ -69,8 +72,8 @@ typedef struct sc_export_options {
      * happens beyond its first and last point: the report says so). */
     int use_travel;
     double travel_mm[2];
-    /* Profiles' tables (Beckhoff cross lists, Siemens profile tables): their spacing in mm; 0 =
-     * the profile's own points (Siemens: interval_mm if that is set). */
+    /* Profiles' tables (Beckhoff cross lists, Siemens and Automation1 profile tables): their
+     * spacing in mm; 0 = the profile's own points (Siemens: interval_mm if that is set). */
     double profile_interval_mm;
     const char *siemens_x_name, *siemens_y_name;
     const char *siemens_z_name; /* Siemens: z's axis name, for profiles with z (NULL: "AX3") */
@@ -98,7 +101,9 @@ typedef struct sc_export_report {
     double profile_max_um; /* Siemens: largest |table - profile| of the profiles' tables */
     /* Beckhoff cross compensation: the table's first and last setpoint (mm) and the points added
      * at the travel ends (0..2; points[0] counts them too). rms_um, max_um and max_at_mm[0]
-     * (master position) are then the table against the profile. */
+     * (master position) are then the table against the profile. Automation1's 1-D file: tables
+     * = profiles, points[k] the entries of table k (k >= 3 summed into [3]), rms_um and max_um
+     * the tables against the profiles, max_at_mm = (reference position, profile index). */
     double span_mm[2];
     int travel_points;
     /* Firmware formats: the map's first order and what was written. */
@@ -118,7 +123,8 @@ SC_API int sc_export_format_from_name(const char *name);
 
 /* Resample lut's grid for the controller (and, for Siemens CEC, each of lut's straightness
  * profiles as one more table AXIS -> DIR; for Beckhoff with cross_profile = k, profile k alone as
- * a cross compensation list; the other formats ignore profiles), write it atomically to path
+ * a cross compensation list; for Automation1 with cross_profile >= 0, every profile as a table of
+ * one 1-D file; the other formats ignore profiles), write it atomically to path
  * (NULL: check and report only, nothing written), fill *rep. SC_E_INPUT for options the format
  * cannot honour (e.g. more entries than it holds), profiles that do not overlap the map, and maps
  * beyond the firmware's limits. */

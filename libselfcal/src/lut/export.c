@@ -65,9 +65,12 @@ sc_status sc_export_write(const sc_lut *lut, const sc_export_options *o, const c
     if (o->interval_mm > 1e6)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "interval %g mm is beyond 1 km",
                             o->interval_mm);
-    if (o->cross_profile >= 0 && (o->format != SC_EXPORT_BECKHOFF || o->cross_profile >= lut->n_profiles))
+    if (o->cross_profile >= 0 &&
+        ((o->format != SC_EXPORT_BECKHOFF && o->format != SC_EXPORT_AEROTECH_A1) ||
+         o->cross_profile >= lut->n_profiles))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                            "a cross compensation list needs --format beckhoff and profile %d of %d",
+                            "a profile's table needs --format beckhoff or aerotech-a1 and profile "
+                            "%d of %d",
                             o->cross_profile, lut->n_profiles);
     if (!(o->profile_interval_mm >= 0) || !(o->profile_interval_mm <= 1e6) ||
         (o->profile_interval_mm > 0 && o->profile_interval_mm < 1e-4))

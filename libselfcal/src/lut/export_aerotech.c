@@ -26,7 +26,9 @@
  * (--axis-numbers NX,NY give the one-based indices of x and y), the units (primary units taken
  * as mm, corrections PRIMARY/1000 = um) and OFFSETROW/OFFSETCOL, written as the NEGATIVE of the
  * first row's and column's positions (those scripts' convention: table index = (position +
- * OFFSET) / SampleDist); --offset moves the map into machine coordinates. */
+ * OFFSET) / SampleDist); --offset moves the map into machine coordinates. Straightness
+ * profiles go to a 1-D file of their own (a calibration file holds tables of one kind):
+ * export_aerotech_1d.c. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -67,6 +69,8 @@ static void a1_value(char *buf, size_t cap, long long v)
 static sc_status export_aerotech(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                sc_export_report *rep, sc_error *err)
 {
+    if (o->cross_profile >= 0) /* the profiles' 1-D file */
+        return sc_export_aerotech_1d(lut, o, t, rep, err);
     if (o->interval_mm > 0 || o->use_line)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "aerotech-a1: the table takes the map's own nodes (no interval, no "

@@ -1,7 +1,8 @@
 /* export_internal.h — the exporter back-ends' interface and what they share. export.c holds the
  * table of back-ends and the dispatch; each back-end lives in its own file and defines one
  * sc_export_backend (export_beckhoff.c with export_cross.c, export_siemens.c, export_linuxcnc.c,
- * export_kmotion.c, export_firmware.c, export_aerotech.c, export_pmac.c); the helpers are in
+ * export_kmotion.c, export_firmware.c, export_aerotech.c with export_aerotech_1d.c,
+ * export_pmac.c); the helpers are in
  * export_common.c, which calls no back-end. Internal: not installed. */
 #ifndef SELFCAL_EXPORT_INTERNAL_H
 #define SELFCAL_EXPORT_INTERNAL_H
@@ -75,6 +76,12 @@ sc_status sc_export_profile_meets_map(const sc_lut *lut, int k, const char *fmt,
  * into t, report filled (docs/exporters.md). SC_E_INPUT for what the list cannot hold. */
 sc_status sc_export_beckhoff_cross(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
                                    sc_export_report *rep, sc_error *err);
+
+/* The Automation1 1-D axis calibration file of all of lut's straightness profiles (one table
+ * each: reference axis = the profile's axis, output axis = its dir; export_aerotech_1d.c) into t,
+ * report filled. SC_E_INPUT for what the file cannot hold. */
+sc_status sc_export_aerotech_1d(const sc_lut *lut, const sc_export_options *o, sc_textbuf *t,
+                                sc_export_report *rep, sc_error *err);
 
 /* A back-end: its format, its --format name, and the function that writes lut for it into t (the
  * caller frees t->s), filling rep; SC_E_INPUT for what the format cannot hold. */
