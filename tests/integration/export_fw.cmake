@@ -32,3 +32,13 @@ if(SELFCAL_PYTHON3)
             $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/export_precision)
   set_tests_properties(export_precision PROPERTIES TIMEOUT 300 LABELS "integration;lut;export")
 endif()
+# Straightness profiles as Automation1 1-D axis calibration tables (OUT-1d): read and applied by
+# Aerotech's documented rule (linear, nearest end point), against selfcald's profiles, beside the
+# demo's map and a stitched stage; the wrong sign doubles the error.
+if(SELFCAL_PYTHON3)
+  add_test(NAME export_a1_profile
+    COMMAND ${SELFCAL_PYTHON3} ${CMAKE_CURRENT_SOURCE_DIR}/integration/export_fw/test_a1_profile.py
+            $<TARGET_FILE:selfcal_cli> ${CMAKE_CURRENT_BINARY_DIR}/tmp/export_a1_profile
+            ${CMAKE_CURRENT_SOURCE_DIR}/data/dabam/dabam-002.dat)
+  set_tests_properties(export_a1_profile PROPERTIES TIMEOUT 240 LABELS "integration;lut;export")
+endif()
