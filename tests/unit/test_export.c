@@ -797,6 +797,144 @@ static void test_beckhoff_cross(void **state)
     free(m);
 }
 
+/* ---- Automation1 1-D tables (straightness profiles), read back by Aerotech's rule ---- */
+
+typedef struct a1_table {
+    int ref, out, n;
+    double first_mm, step_mm;
+    double v_um[4096];
+} a1_table;
+
+/* The tables of an Automation1 1-D file: ':START REF OUT SAMPLEDIST=S POSUNIT=PRIMARY
+ * CORUNIT=PRIMARY/1000', ':START OFFSET=O' (index = (position + O) / S), one value a line,
+ * ':END'; ';' comments. Returns the number of tables. */
+static int parse_a1_1d(const char *path, a1_table *t, int cap)
+{
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    char line[512];
+    int nt = -1, in_table = 0;
+    while (fgets(line, sizeof line, f)) {
+        double v;
+        int ref, out;
+        if (line[0] == ';')
+            continue;
+        if (sscanf(line, ":START %d %d SAMPLEDIST=%lf", &ref, &out, &v) == 3) {
+            assert_true(++nt < cap);
+            t[nt].ref = ref, t[nt].out = out, t[nt].step_mm = v, t[nt].n = 0;
+            assert_non_null(strstr(line, "POSUNIT=PRIMARY CORUNIT=PRIMARY/1000"));
+        } else if (sscanf(line, ":START OFFSET=%lf", &v) == 1) {
+            t[nt].first_mm = -v;
+            in_table = 1;
+        } else if (!strncmp(line, ":END", 4)) {
+            in_table = 0;
+        } else {
+            assert_true(in_table && sscanf(line, "%lf", &v) == 1 && t[nt].n < 4096);
+            t[nt].v_um[t[nt].n++] = v;
+        }
+    }
+    fclose(f);
+    return nt + 1;
+}
+
+/* Linear between the entries, the nearest end point beyond them. */
+static double a1_table_eval(const a1_table *t, double s)
+{
+    double u = (s - t->first_mm) / t->step_mm;
+    if (u <= 0)
+        return t->v_um[0];
+    if (u >= t->n - 1)
+        return t->v_um[t->n - 1];
+    int k = (int)u;
+    return t->v_um[k] * (1 - (u - k)) + t->v_um[k + 1] * (u - k);
+}
+
+static void test_aerotech_1d(void **state)
+{
+    (void)state;
+    sc_lut *m = make_map(9, 7, -20.0, -15.0, 5.0, 5.0, 0);
+    for (int k = 0; k < 2; ++k) {
+        sc_lut_profile *p = &m->profile[k];
+        p->axis = k == 0 ? 0 : 1; /* x:y, then y:z */
+        p->dir = k == 0 ? 1 : 2;
+        p->n = k == 0 ? 301 : 90;
+        p->start_mm = k == 0 ? -23.3 : -14.0;
+        p->step_mm = k == 0 ? 0.17 : 0.35;
+        for (int i = 0; i < p->n; ++i)
+            p->err_um[i] = 1.7 * sin(0.05 * i + k) + 0.3 * cos(0.31 * i);
+    }
+    m->n_profiles = 2;
+    sc_export_options o;
+    sc_export_options_init(&o, SC_EXPORT_AEROTECH_A1);
+    o.cross_profile = 0;
+    o.beckhoff_y_axis_nr = 4;
+    o.beckhoff_z_axis_nr = 6;
+    sc_export_report rep;
+    sc_error err;
+    const char *path = TMP "a1.cal";
+    a1_table *t = malloc(2 * sizeof *t);
+    assert_non_null(t);
+    for (int negate = 0; negate < 2; ++negate) {
+        o.negate = negate;
+        unlink(path);
+        assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+        assert_int_equal(parse_a1_1d(path, t, 2), 2);
+        assert_int_equal(rep.tables, 2);
+        assert_int_equal(rep.points[0], 301);
+        assert_int_equal(rep.points[1], 90);
+        assert_true(t[0].ref == 1 && t[0].out == 4 && t[1].ref == 4 && t[1].out == 6);
+        const double sign = negate ? -1.0 : 1.0; /* +e: added to the command */
+        double mx = 0;
+        for (int k = 0; k < 2; ++k) {
+            const sc_lut_profile *p = &m->profile[k];
+            assert_int_equal(t[k].n, p->n);
+            assert_true(fabs(t[k].first_mm - p->start_mm) < 1e-9);
+            assert_true(fabs(t[k].step_mm - p->step_mm) < 1e-9);
+            for (int q = -60; q <= 20 * (p->n - 1) + 60; ++q) { /* beyond both ends too */
+                const double s = p->start_mm + p->step_mm * q / 20.0;
+                mx = fmax(mx, fabs(a1_table_eval(&t[k], s) - sign * profile_ref(p, s)));
+            }
+        }
+        assert_true(mx <= 0.5 * SC_EXPORT_AEROTECH_UNIT_UM + 1e-9);
+        assert_true(rep.max_um <= 0.5 * SC_EXPORT_AEROTECH_UNIT_UM + 1e-9 &&
+                    rep.max_um >= mx - 1e-6);
+    }
+    o.negate = 0;
+    /* a coarser spacing: equally spaced from the first point, the last step past the end */
+    o.profile_interval_mm = 1.0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    assert_int_equal(parse_a1_1d(path, t, 2), 2);
+    assert_int_equal(t[0].n, 52); /* 51 mm of profile: 52 points */
+    assert_true(fabs(t[0].v_um[51] - m->profile[0].err_um[300]) <= 0.5e-4 + 1e-9);
+    assert_true(rep.max_um > 0.01); /* the profile between the points */
+    /* Refusals, no file: too many points, a profile beside the map, no such profile, a limit
+     * that clips and counts. */
+    unlink(path);
+    o.profile_interval_mm = 1e-4;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "65536"));
+    o.profile_interval_mm = 0;
+    m->profile[0].start_mm = 200.0;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "do not overlap"));
+    m->profile[0].start_mm = -23.3;
+    o.cross_profile = 2;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_E_INPUT);
+    struct stat st;
+    assert_int_not_equal(stat(path, &st), 0);
+    o.cross_profile = 0;
+    o.limit_um = 1.0;
+    assert_int_equal(sc_export_write(m, &o, NULL, &rep, &err), SC_OK);
+    long over = 0;
+    for (int k = 0; k < 2; ++k)
+        for (int i = 0; i < m->profile[k].n; ++i)
+            over += fabs(m->profile[k].err_um[i]) > 1.0;
+    assert_true(over > 0);
+    assert_int_equal(rep.clipped, over);
+    free(t);
+    free(m);
+}
+
 /* ---- the table of back-ends; Automation1 and Power PMAC through the library ---- */
 
 static void test_backends(void **state)
@@ -869,6 +1007,7 @@ int main(void)
         cmocka_unit_test(test_beckhoff_cross),
         cmocka_unit_test(test_backends),
         cmocka_unit_test(test_kmotion_report),
+        cmocka_unit_test(test_aerotech_1d),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
