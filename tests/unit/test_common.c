@@ -5,6 +5,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
+#include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
@@ -252,6 +253,89 @@ static void test_atomic_finish_all(void **state)
     assert_non_null(fgets(buf, sizeof buf, in));
     fclose(in);
     assert_string_equal(buf, "newer a\n");
+}
+
+/* Count of this process' open descriptors (/proc/self/fd, less the one reading it). */
+static int open_fds(void)
+{
+    DIR *d = opendir("/proc/self/fd");
+    assert_non_null(d);
+    int n = 0;
+    for (struct dirent *e; (e = readdir(d));)
+        n += e->d_name[0] != '.';
+    closedir(d);
+    return n - 1;
+}
+
+/* sc_afile_park: a group far larger than the descriptors it holds (each file closed once
+ * written), renamed as one group; a group aborted after parking leaves the old files and no
+ * temporary file; a parked file committed alone. */
+static void test_atomic_park(void **state)
+{
+    (void)state;
+    enum { N = 100 };
+    static sc_afile f[N];
+    char path[N][256];
+    sc_error err;
+    const int fds0 = open_fds();
+    for (int k = 0; k < N; ++k) {
+        snprintf(path[k], sizeof path[k], SELFCAL_TEST_TMP "/park_%d.txt", k);
+        assert_int_equal(sc_write_file_atomic(path[k], "old\n", 4, &err), SC_OK);
+    }
+    /* aborted: the old contents stay, no temporary file is left */
+    for (int k = 0; k < N; ++k) {
+        assert_int_equal(sc_afile_open(&f[k], path[k], &err), SC_OK);
+        fprintf(f[k].fp, "new %d\n", k);
+        assert_int_equal(sc_afile_park(&f[k], &err), SC_OK);
+        assert_null(f[k].fp);
+        assert_true(f[k].tmp_path[0] != '\0' && file_exists(f[k].tmp_path));
+    }
+    assert_int_equal(open_fds(), fds0); /* none held */
+    char tmp0[sizeof f[0].tmp_path];
+    snprintf(tmp0, sizeof tmp0, "%s", f[0].tmp_path);
+    assert_int_equal(sc_afile_finish_all(f, N, SC_E_INPUT, &err), SC_E_INPUT);
+    assert_false(file_exists(tmp0));
+    char buf[32];
+    for (int k = 0; k < N; ++k) {
+        FILE *in = fopen(path[k], "r");
+        assert_non_null(in);
+        assert_non_null(fgets(buf, sizeof buf, in));
+        fclose(in);
+        assert_string_equal(buf, "old\n");
+    }
+    /* committed: every file renamed, the last one still open when the group ends */
+    for (int k = 0; k < N; ++k) {
+        assert_int_equal(sc_afile_open(&f[k], path[k], &err), SC_OK);
+        fprintf(f[k].fp, "new %d\n", k);
+        if (k < N - 1)
+            assert_int_equal(sc_afile_park(&f[k], &err), SC_OK);
+    }
+    snprintf(tmp0, sizeof tmp0, "%s", f[0].tmp_path);
+    assert_int_equal(sc_afile_finish_all(f, N, SC_OK, &err), SC_OK);
+    assert_false(file_exists(tmp0));
+    for (int k = 0; k < N; ++k) {
+        char want[32];
+        snprintf(want, sizeof want, "new %d\n", k);
+        FILE *in = fopen(path[k], "r");
+        assert_non_null(in);
+        assert_non_null(fgets(buf, sizeof buf, in));
+        fclose(in);
+        assert_string_equal(buf, want);
+        assert_null(f[k].fp);
+        sc_afile_abort(&f[k]); /* after the commit: nothing to do, the file stays */
+        assert_true(file_exists(path[k]));
+        unlink(path[k]);
+    }
+    assert_int_equal(open_fds(), fds0);
+    /* one parked file, committed alone; parking what is not open is refused */
+    assert_int_equal(sc_afile_open(&f[0], path[0], &err), SC_OK);
+    fputs("one\n", f[0].fp);
+    assert_int_equal(sc_afile_park(&f[0], &err), SC_OK);
+    assert_false(file_exists(path[0]));
+    assert_int_equal(sc_afile_commit(&f[0], &err), SC_OK);
+    assert_true(file_exists(path[0]));
+    assert_int_equal(sc_afile_park(&f[0], &err), SC_E_INTERNAL);
+    unlink(path[0]);
 }
 
 static void test_atomic_group(void **state)
@@ -518,6 +602,7 @@ int main(void)
         cmocka_unit_test(test_atomic_group),
         cmocka_unit_test(test_atomic_stale_tmps),
         cmocka_unit_test(test_atomic_finish_all),
+        cmocka_unit_test(test_atomic_park),
         cmocka_unit_test(test_atomic_file_device_target),
         cmocka_unit_test(test_rng),
         cmocka_unit_test(test_version),

@@ -231,6 +231,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     sc_rng rng;
     sc_rng_seed(&rng, seed);
     double *pts = malloc((size_t)((long)p->n * p->n + n_stray) * 2 * sizeof(double));
+    /* one file per view, written and parked one after the other (a plan of thousands of views
+     * holds one descriptor), committed as one group: every view file or none */
     sc_afile *f = calloc((size_t)p->n_views, sizeof *f); /* entries not opened stay closed */
     int opened = 0;
     if (!pts || !f)
@@ -244,6 +246,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
             break;
         opened = v + 1;
         print_view_file(f[v].fp, pts, np, unit_per_mm, sty);
+        st = sc_afile_park(&f[v], &err); /* closed now: one descriptor at a time, however many
+                                            views; renamed with the others at the end */
     }
     if (f)
         st = sc_afile_finish_all(f, opened, st, &err);

@@ -25,7 +25,8 @@ typedef struct sc_afile {
     char tmp_path[4096]; /* the temporary file ("" when written straight) */
     int direct;          /* 1: stdout, or an existing device or FIFO (/dev/null): written
                             straight, never replaced; 2: an anonymous temporary file
-                            (O_TMPFILE), named only at commit; 0: a named temporary file */
+                            (O_TMPFILE), named only at commit; 0: a named temporary file;
+                            3: parked (sc_afile_park): complete under tmp_path, fp closed */
 } sc_afile;
 
 /* Create the temporary file for path ("-" writes straight to stdout; so does an existing
@@ -44,10 +45,22 @@ SC_API void sc_afile_abort(sc_afile *f);
 /* Commit n files as one group: flush and fsync every temporary file first and rename them into
  * place only if all were written completely; a write failure removes every temporary file and
  * touches no final name (a rename refused by the OS midway leaves the files renamed before it,
- * each complete). Entries that are not open (fp == NULL) are skipped. */
+ * each complete). Parked entries (sc_afile_park) are renamed with the others; entries that are
+ * neither open nor parked are skipped. */
 SC_API sc_status sc_afile_commit_all(sc_afile *f, int n, sc_error *err);
 
-/* Abort every open entry of f[0..n-1]. */
+/* Park one file of a group whose members outnumber the descriptors a process may hold: flush,
+ * fsync and close it now, its content kept complete under its temporary name (fp becomes NULL),
+ * until sc_afile_commit_all (or sc_afile_commit) renames it into place with the rest of the
+ * group, or an abort removes it. A file written straight (stdout, a device) is committed here.
+ * On failure the temporary file is removed and the error returned. A parked file no longer
+ * holds its lock: another writer of the same final name committing meanwhile may remove it as
+ * stale (the group's commit then fails with that name); only the first 64 temporary files a
+ * process holds are removed on a signal (sc_afile_cleanup_on_signals), the others are left as
+ * stale "PATH.tmpXXXXXX", which the next commit of that name removes. */
+SC_API sc_status sc_afile_park(sc_afile *f, sc_error *err);
+
+/* Abort every open or parked entry of f[0..n-1]. */
 SC_API void sc_afile_abort_all(sc_afile *f, int n);
 
 /* End one file that was being written: commit it when st is SC_OK, else abort it and return st

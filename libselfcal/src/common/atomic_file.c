@@ -458,21 +458,26 @@ static sc_status afile_sync(sc_afile *f, sc_error *err)
     return SC_OK;
 }
 
-/* Rename a synced temporary file over its final name, close it, and remove the stale temporary
- * files of that name. */
+/* Rename a synced (or parked) temporary file over its final name, close it, and remove the
+ * stale temporary files of that name. */
 static sc_status afile_rename(sc_afile *f, sc_error *err)
 {
     if (rename(f->tmp_path, f->path) != 0) {
         int e = errno;
         remove_tmp(f);
-        fclose(f->fp);
+        if (f->fp)
+            fclose(f->fp);
         f->fp = NULL;
+        f->tmp_path[0] = '\0';
         return sc_error_set(err, SC_E_IO, f->path, 0, "cannot rename into place: %s",
                             strerror(e));
     }
     untrack(f);
-    fclose(f->fp); /* its data are on disk (fsync): a late error would change nothing */
+    if (f->fp)
+        fclose(f->fp); /* its data are on disk (fsync): a late error would change nothing */
     f->fp = NULL;
+    if (f->direct == 3) /* parked: its temporary name is gone, nothing left to abort */
+        f->tmp_path[0] = '\0';
     fsync_parent_dir(f->path);
     remove_stale_tmps(f->path);
     return SC_OK;
@@ -494,8 +499,27 @@ static sc_status direct_commit(sc_afile *f, sc_error *err)
                : SC_OK;
 }
 
+static int is_parked(const sc_afile *f) { return !f->fp && f->direct == 3 && f->tmp_path[0]; }
+
+sc_status sc_afile_park(sc_afile *f, sc_error *err)
+{
+    if (!f->fp)
+        return sc_error_set(err, SC_E_INTERNAL, f->path, 0, "file not open");
+    if (f->direct == 1)
+        return direct_commit(f, err);
+    sc_status st = afile_sync(f, err); /* an anonymous file gets its temporary name here */
+    if (st != SC_OK)
+        return st;
+    fclose(f->fp); /* flushed and fsynced: nothing left to fail */
+    f->fp = NULL;
+    f->direct = 3;
+    return SC_OK;
+}
+
 sc_status sc_afile_commit(sc_afile *f, sc_error *err)
 {
+    if (is_parked(f))
+        return afile_rename(f, err);
     if (!f->fp)
         return sc_error_set(err, SC_E_INTERNAL, f->path, 0, "file not open");
     if (f->direct == 1)
@@ -527,8 +551,10 @@ static sc_status commit_group(sc_afile *f, int n, int *synced, sc_error *err)
 {
     sc_status st = SC_OK;
     for (int k = 0; k < n && st == SC_OK; ++k) {
-        if (!f[k].fp)
+        if (!f[k].fp) {
+            synced[k] = is_parked(&f[k]);
             continue;
+        }
         st = f[k].direct == 1 ? direct_commit(&f[k], err) : afile_sync(&f[k], err);
         synced[k] = st == SC_OK && f[k].tmp_path[0];
     }
@@ -576,6 +602,11 @@ sc_status sc_afile_finish_all(sc_afile *f, int n, sc_status st, sc_error *err)
 
 void sc_afile_abort(sc_afile *f)
 {
+    if (is_parked(f)) {
+        remove_tmp(f);
+        f->tmp_path[0] = '\0';
+        return;
+    }
     if (!f->fp)
         return;
     if (f->direct == 1) {

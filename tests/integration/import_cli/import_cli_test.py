@@ -441,6 +441,73 @@ def case_simulate_exports():
         fail("simulate exports + import: positions differ by %g mm" % worst)
 
 
+def run_fd_limited(args, nofile=64):
+    """selfcal ARGS with at most nofile open descriptors (ulimit -n)."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_NOFILE, (nofile, nofile))
+    return subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True,
+                          timeout=300, preexec_fn=limit)
+
+
+def case_simulate_exports_many():
+    """A plan of 1200 views (more than the 64 descriptors allowed here): simulate exports writes
+    every view file under `ulimit -n 64`, import reads them back to the simulated measurements,
+    and a failure at view 700 leaves no view file new or changed and no temporary file."""
+    d = fresh_dir("simexports_many")
+    nviews = 1200
+    plan = os.path.join(d, "PLAN.csv")
+    with open(plan, "w") as f:
+        f.write("# selfcal-grid v1\n# N = 5\n# pitch_mm = 1\n# origin_mm = 0,0\n# stage = 9,9\n")
+        f.write("# view 0: rot=90 shift=0,0\n# view 1: rot=0 shift=1,0\n")
+        corners = ((-2, -2), (2, -2), (-2, 2), (2, 2))
+        for v in range(2, nviews):
+            f.write("# view %d: rot=0 shift=%d,%d\n" % ((v,) + corners[v % 4]))
+    truth = os.path.join(d, "truth_in.csv")
+    run("simulate", "grid", "--plan", plan, "--out", truth, "--truth-map",
+        os.path.join(d, "G_true.csv"), "--sigma-r-um", 0, "--seed", 5)
+    head, rows = read_grid(truth)
+    ex = os.path.join(d, "ex")
+    p = run_fd_limited(["simulate", "exports", truth, "--dir", ex, "--seed", 2])
+    if p.returncode != 0:
+        fail("simulate exports of %d views under ulimit -n 64: exit %d: %s"
+             % (nviews, p.returncode, p.stderr))
+    names = sorted(os.listdir(ex))
+    if names != sorted("view%d.csv" % v for v in range(nviews)):
+        fail("want view0..view%d.csv and nothing else, got %d entries (%s...)"
+             % (nviews - 1, len(names), [n for n in names if "tmp" in n][:3]))
+    for v in range(nviews):
+        lines = open(os.path.join(ex, "view%d.csv" % v)).read().splitlines()
+        if lines[0] != "Nr;X;Y;Z" or len(lines) != 26:
+            fail("view%d.csv: a header and 25 points, got %d lines" % (v, len(lines)))
+    args = shlex.split(p.stdout.replace("\\\n", " "))[1:]
+    out = os.path.join(d, "imported.csv")
+    args[args.index("-o") + 1] = out
+    q = run_fd_limited(args)
+    if q.returncode != 0:
+        fail("import of %d views under ulimit -n 64: exit %d: %s"
+             % (nviews, q.returncode, q.stderr[-500:]))
+    _, irows = read_grid(out)
+    if set(irows) != set(rows):
+        fail("simulate exports + import of %d views: marks differ" % nviews)
+    worst = max(max(abs(irows[k][0] - rows[k][0]), abs(irows[k][1] - rows[k][1])) for k in rows)
+    if worst > 1e-12:
+        fail("simulate exports + import of %d views: positions differ by %g mm" % (nviews, worst))
+    # all or none: view 700's name taken by a folder; the old view0.csv stays as it was
+    ex2 = os.path.join(d, "ex2")
+    os.makedirs(os.path.join(ex2, "view700.csv"))
+    with open(os.path.join(ex2, "view0.csv"), "w") as f:
+        f.write("old\n")
+    p = run_fd_limited(["simulate", "exports", truth, "--dir", ex2])
+    left = sorted(os.listdir(ex2))
+    if p.returncode == 0 or len(p.stderr.strip().splitlines()) != 1 or "view700.csv" not in p.stderr:
+        fail("a view that cannot be written: want one line naming it, got exit %d %r"
+             % (p.returncode, p.stderr))
+    if left != ["view0.csv", "view700.csv"] or open(os.path.join(ex2, "view0.csv")).read() != "old\n":
+        fail("a failed export left files behind or changed one: %s" % left[:5])
+
+
 def write_scan(path, rows, delim=";", dec=","):
     with open(path, "w") as f:
         f.write(delim.join(["pos [mm]", "A", "B", "phi"]) + "\n")
@@ -1093,6 +1160,7 @@ CASES = {"recover": case_recover,
          "recover_one_view": lambda: case_recover((1,), "recover_one_view"), "formats": case_formats, "placement": case_placement,
          "stage": case_stage, "bad_input": case_bad_input,
          "simulate_exports": case_simulate_exports, "profile": case_profile,
+         "simulate_exports_many": case_simulate_exports_many,
          "weights": case_weights, "stitched": case_stitched, "partial": case_partial}
 CASES[CASE]()
 print("ok")
