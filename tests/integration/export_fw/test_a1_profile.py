@@ -27,46 +27,16 @@ usage: test_a1_profile.py SELFCAL_CLI WORKDIR DABAM_DAT"""
 import math
 import os
 import re
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from exportlib import Export  # noqa: E402
+from exportlib import Export, interp_clamped, precision_maps  # noqa: E402
 
 cli, work, dabam = sys.argv[1], sys.argv[2], sys.argv[3]
 E = Export(cli, work)
-check, run = E.check, E.run
+check, run, path, selfcal = E.check, E.run, E.path, E.selfcal
 UNIT = 0.5e-4   # half the 0.1 nm unit of the written corrections, um
 LUT_Q = 0.5e-4  # lut dump's 0.1 nm
-
-
-def path(name):
-    return os.path.join(work, name)
-
-
-def selfcal(*args):
-    p = subprocess.run([cli, *args], capture_output=True, text=True, timeout=300)
-    if p.returncode != 0:
-        print(p.stdout, p.stderr, file=sys.stderr)
-        sys.exit(f"selfcal {args[0]} failed")
-    return p.stdout
-
-
-def linear_nearest_end(xs, vs, s):
-    """Linear between ascending xs, the nearest end point beyond them."""
-    if s <= xs[0]:
-        return vs[0]
-    if s >= xs[-1]:
-        return vs[-1]
-    lo, hi = 0, len(xs) - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xs[mid] <= s:
-            lo = mid
-        else:
-            hi = mid
-    f = (s - xs[lo]) / (xs[hi] - xs[lo])
-    return vs[lo] * (1 - f) + vs[hi] * f
 
 
 def read_a1_1d(name):
@@ -136,8 +106,8 @@ def assess(tables, prof, ref_nr, out_nr, shift):
     # resampled table lie), all in selfcald's (map) coordinates
     grid = [lo + (hi - lo) * q / 6000 for q in range(6001)] + list(px) + [x - shift for x in xs]
     for s in grid:
-        e = linear_nearest_end(px, pe, s)
-        c = linear_nearest_end(xs, vs, s + shift)  # the controller's (machine) coordinates
+        e = interp_clamped(px, pe, s)
+        c = interp_clamped(xs, vs, s + shift)  # the controller's (machine) coordinates
         res.append(c - e)
         left.append(c - e)     # true - command: the stage stands e short of t + c
         raw.append(-e)
@@ -156,13 +126,7 @@ def printed(out):
 selfcal("simulate", "profile", "--profile", dabam, "--out", path("PIN.csv"), "--truth",
         path("PT.csv"), "--ey-um", "2", "--seed", "4")
 selfcal("profile", "--method", "lsq", path("PIN.csv"), "--out", path("P.csv"))
-selfcal("simulate", "grid", "--plan", "double-shift", "--out", path("demo_in.csv"),
-        "--truth-map", path("demo_truth.csv"), "--n", "25", "--pitch-mm", "1", "--seed", "1",
-        "--sigma-g-um", "1", "--sigma-a-um", "1", "--sigma-r-um", "0.01")  # scripts/demo.sh
-selfcal("grid", "--method", "lsq", path("demo_in.csv"), "--map", path("demo.csv"))
-selfcal("simulate", "grid", "--plan", "stitch", "--stage", "41,31", "--n", "15", "--pitch-mm", "2",
-        "--out", path("stitch_in.csv"), "--truth-map", path("stitch_truth.csv"), "--seed", "2")
-selfcal("grid", "--method", "lsq", path("stitch_in.csv"), "--map", path("stitch.csv"))
+precision_maps(E)
 PROFS = [f"x:y:{path('P.csv')}@-160", f"y:x:{path('P.csv')}@-150"]
 
 cases = {  # name: (map, axis indices x, y, --offset)

@@ -19,45 +19,14 @@ usage: test_cross_signs.py SELFCAL_CLI WORKDIR DABAM_DAT"""
 import math
 import os
 import re
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from exportlib import Export  # noqa: E402
+from exportlib import Export, interp_clamped  # noqa: E402
 
 cli, work, dabam = sys.argv[1], sys.argv[2], sys.argv[3]
 E = Export(cli, work)
-check, run = E.check, E.run
-
-
-def path(name):
-    return os.path.join(work, name)
-
-
-def selfcal(*args):
-    p = subprocess.run([cli, *args], capture_output=True, text=True, timeout=120)
-    if p.returncode != 0:
-        print(p.stdout, p.stderr, file=sys.stderr)
-        sys.exit(f"selfcal {args[0]} failed")
-    return p.stdout
-
-
-def interp_clamped(xs, vs, s):
-    """Linear interpolation over ascending xs, the end values beyond them (ISG within the
-    table; selfcald's profile rule, SPEC §4)."""
-    if s <= xs[0]:
-        return vs[0]
-    if s >= xs[-1]:
-        return vs[-1]
-    lo, hi = 0, len(xs) - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xs[mid] <= s:
-            lo = mid
-        else:
-            hi = mid
-    f = (s - xs[lo]) / (xs[hi] - xs[lo])
-    return vs[lo] * (1 - f) + vs[hi] * f
+check, run, path, selfcal = E.check, E.run, E.path, E.selfcal
 
 
 def read_isg(name):

@@ -17,11 +17,7 @@ from exportlib import Export, read_beckhoff_plane  # noqa: E402
 
 cli, work = sys.argv[1], sys.argv[2]
 E = Export(cli, work)
-check, run = E.check, E.run
-
-
-def path(name):
-    return os.path.join(work, name)
+check, run, path = E.check, E.run, E.path
 
 
 def write_map(name, nx, ny, x0, y0, px, py):

@@ -26,27 +26,14 @@ usage: test_precision.py SELFCAL_CLI WORKDIR"""
 import math
 import os
 import re
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from exportlib import Export  # noqa: E402
+from exportlib import Export, precision_maps  # noqa: E402
 
 cli, work = sys.argv[1], sys.argv[2]
 E = Export(cli, work)
-check, run = E.check, E.run
-
-
-def path(name):
-    return os.path.join(work, name)
-
-
-def selfcal(*args):
-    p = subprocess.run([cli, *args], capture_output=True, text=True, timeout=300)
-    if p.returncode != 0:
-        print(p.stdout, p.stderr, file=sys.stderr)
-        sys.exit(f"selfcal {args[0]} failed")
-    return p.stdout
+check, run, path, selfcal = E.check, E.run, E.path, E.selfcal
 
 
 def bilinear_clamped(xs, ys, val, x, y):
@@ -228,13 +215,7 @@ def printed_residual(out):
 
 
 # The maps: the demo's and a stitched rectangular stage.
-selfcal("simulate", "grid", "--plan", "double-shift", "--out", path("demo_in.csv"),
-        "--truth-map", path("demo_truth.csv"), "--n", "25", "--pitch-mm", "1", "--seed", "1",
-        "--sigma-g-um", "1", "--sigma-a-um", "1", "--sigma-r-um", "0.01")  # scripts/demo.sh
-selfcal("grid", "--method", "lsq", path("demo_in.csv"), "--map", path("demo.csv"))
-selfcal("simulate", "grid", "--plan", "stitch", "--stage", "41,31", "--n", "15", "--pitch-mm", "2",
-        "--out", path("stitch_in.csv"), "--truth-map", path("stitch_truth.csv"), "--seed", "2")
-selfcal("grid", "--method", "lsq", path("stitch_in.csv"), "--map", path("stitch.csv"))
+precision_maps(E)
 maps = {"demo": SelfcaldMap(path("demo.csv"), "demo"),
         "stitched": SelfcaldMap(path("stitch.csv"), "stitch")}
 check(len(maps["stitched"].xs) == 41 and len(maps["stitched"].ys) == 31, "a 41 x 31 stitched map")

@@ -11,27 +11,14 @@ usage: test_lut_bounds.py SELFCAL_BINARY WORK_DIR
 import math
 import os
 import re
-import subprocess
 import sys
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "export_fw"))
+from exportlib import Checks  # noqa: E402
+
 SELFCAL, WORK = sys.argv[1], sys.argv[2]
-os.makedirs(WORK, exist_ok=True)
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what)
-
-
-def run(*args):
-    p = subprocess.run([SELFCAL, *args], capture_output=True, text=True, timeout=60)
-    return p.returncode, p.stdout, p.stderr
-
-
-def path(name):
-    return os.path.join(WORK, name)
+C = Checks(SELFCAL, WORK, stream=sys.stdout)
+check, run, path = C.check, C.run, C.path
 
 
 def write_map(name, n, pitch, gfun):
@@ -148,7 +135,4 @@ rc, out, err = run("lut", "build", "--map", path("z.csv"), "-o", path("z.lut"))
 g, s, c = info(path("z.lut"))
 check(g == 0 and s == 0 and c == (0.0, 0.0, 0.0), f"flat map: {g, s, c}")
 
-if failures:
-    print(f"{len(failures)} failure(s)")
-    sys.exit(1)
-print("lut info bounds: all checks passed")
+C.finish("lut info bounds")

@@ -11,30 +11,14 @@ import hashlib
 import os
 import random
 import re
-import subprocess
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "export_fw"))
-from exportlib import read_beckhoff_plane  # noqa: E402
+from exportlib import Checks, read_beckhoff_plane  # noqa: E402
 
 SELFCAL, WORK = sys.argv[1], sys.argv[2]
-os.makedirs(WORK, exist_ok=True)
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what)
-
-
-def run(*args):
-    p = subprocess.run([SELFCAL, *args], capture_output=True, text=True, timeout=60)
-    return p.returncode, p.stdout, p.stderr
-
-
-def path(name):
-    return os.path.join(WORK, name)
+C = Checks(SELFCAL, WORK, stream=sys.stdout)
+check, run, path = C.check, C.run, C.path
 
 
 rng = random.Random(20261121)
@@ -348,7 +332,4 @@ rc, out, err = run("export", "--format", "beckhoff", "--axis", "x", "--map", pat
 check(rc == 0 and "fitted by a 101 x 101 table" in out and os.path.exists(path("B.beckhoff")),
       f"export --max-nodes: exit {rc} {err!r}")
 
-if failures:
-    print(f"{len(failures)} failure(s)")
-    sys.exit(1)
-print("lut CLI: all checks passed")
+C.finish("lut CLI")
