@@ -1,10 +1,13 @@
 """clitest.py — the preamble the CLI integration tests share (grid_cli, grid_real, import_cli,
 report): the command line `TEST.py CLI TMPDIR CASE [args]`, a failure that ends the test with
-one FAIL line, a run of selfcal that must exit as expected, a fresh scratch folder per case.
+one FAIL line, a run of selfcal that must exit as expected, a fresh scratch folder per case;
+and for the grid tests a CSV's rows, a simulated grid with its truth files, and a map's largest
+difference from the truth.
 
 Use:  sys.path.insert(0, <tests/integration>); import clitest
       CLI, TMP, CASE = clitest.setup("grid_cli_")
 """
+import csv
 import os
 import shutil
 import subprocess
@@ -44,3 +47,29 @@ def fresh_dir(name):
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     return d
+
+
+def rows(path):
+    """A CSV file's rows as dicts (its header line names the fields)."""
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def simulate(d, name, *args):
+    """`selfcal simulate grid ARGS` into folder d: the input NAME.csv and the truth (G, A and the
+    JSON summary); returns their paths (inp, g, a, t)."""
+    f = dict(inp=os.path.join(d, name + ".csv"), g=os.path.join(d, name + "_G.csv"),
+             a=os.path.join(d, name + "_A.csv"), t=os.path.join(d, name + "_T.json"))
+    run("simulate", "grid", "--out", f["inp"], "--truth-map", f["g"], "--truth-artifact", f["a"],
+        "--truth-summary", f["t"], *args)
+    return f
+
+
+def map_error(got, truth):
+    """The largest |G - G_true| component of map got against map truth, um (the same nodes)."""
+    t = {(r["i"], r["j"]): r for r in rows(truth)}
+    g = rows(got)
+    if len(g) != len(t):
+        fail("%s: %d rows, truth %d" % (got, len(g), len(t)))
+    return max(max(abs(float(r["gx_um"]) - float(t[(r["i"], r["j"])]["gx_um"])),
+                   abs(float(r["gy_um"]) - float(t[(r["i"], r["j"])]["gy_um"]))) for r in g)

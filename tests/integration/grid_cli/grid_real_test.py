@@ -7,7 +7,6 @@ Usage: grid_real_test.py CLI TMPDIR CASE
 Assertions compare against the simulated truth or what the input says, never against stored
 outputs of selfcal itself.
 """
-import csv
 import json
 import math
 import os
@@ -17,31 +16,9 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 import clitest  # noqa: E402  (the shared preamble: tests/integration/clitest.py)
-from clitest import fail, fresh_dir, run  # noqa: E402
+from clitest import fail, fresh_dir, map_error, rows, run, simulate  # noqa: E402
 
 CLI, TMP, CASE = clitest.setup("grid_real_", timeout=600)
-
-
-def rows(path):
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
-def simulate(d, name, *args):
-    f = dict(inp=os.path.join(d, name + ".csv"), g=os.path.join(d, name + "_G.csv"),
-             a=os.path.join(d, name + "_A.csv"), t=os.path.join(d, name + "_T.json"))
-    run("simulate", "grid", "--out", f["inp"], "--truth-map", f["g"], "--truth-artifact", f["a"],
-        "--truth-summary", f["t"], *args)
-    return f
-
-
-def map_error(got, truth):
-    t = {(r["i"], r["j"]): r for r in rows(truth)}
-    g = rows(got)
-    if len(g) != len(t):
-        fail("%s: %d rows, truth %d" % (got, len(g), len(t)))
-    return max(max(abs(float(r["gx_um"]) - float(t[(r["i"], r["j"])]["gx_um"])),
-                   abs(float(r["gy_um"]) - float(t[(r["i"], r["j"])]["gy_um"]))) for r in g)
 
 
 def data_lines(path):

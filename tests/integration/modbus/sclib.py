@@ -198,6 +198,26 @@ def check(cond, msg):
         sys.exit(1)
 
 
+def pty_pair(work, tag=""):
+    """Two linked pseudo-terminals made by socat, WORK/ptyA<tag> and WORK/ptyB<tag> (a serial
+    line with a device at each end): (a, b, the socat process, which the caller terminates and
+    waits for). The test fails if they are not there within 5 s."""
+    a, b = os.path.join(work, f"ptyA{tag}"), os.path.join(work, f"ptyB{tag}")
+    for p in (a, b):
+        if os.path.lexists(p):
+            os.unlink(p)
+    socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
+                             stderr=subprocess.DEVNULL)
+    deadline = time.time() + 5
+    while not (os.path.exists(a) and os.path.exists(b)) and time.time() < deadline:
+        time.sleep(0.02)
+    if not (os.path.exists(a) and os.path.exists(b)):
+        socat.terminate()
+        socat.wait()
+        check(False, "socat did not create the pty pair")
+    return a, b, socat
+
+
 def recv_exact(s, n):
     """n bytes from socket s; ConnectionError if the daemon closes the connection first."""
     b = b""

@@ -5,13 +5,12 @@ client on the other. Checks corrected positions against an independent evaluatio
 usage: test_modbus_rtu.py SELFCAL_CLI SELFCALD WORKDIR"""
 import os
 import random
-import subprocess
 import sys
 import termios
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sclib import Daemon, check, i32_to_regs, make_table, regs_to_i32  # noqa: E402
+from sclib import Daemon, check, i32_to_regs, make_table, pty_pair, regs_to_i32  # noqa: E402
 
 import serial  # noqa: E402
 from pymodbus.client import ModbusSerialClient  # noqa: E402
@@ -45,18 +44,9 @@ serial.serial_for_url = _pty_serial_for_url
 cli, selfcald, work = sys.argv[1], sys.argv[2], sys.argv[3]
 os.makedirs(work, exist_ok=True)
 table, ref = make_table(cli, work, "rtu", n=7, pitch=3.0, scale_um=1.0)
-a, b = os.path.join(work, "ptyA"), os.path.join(work, "ptyB")
-for p in (a, b):
-    if os.path.lexists(p):
-        os.unlink(p)
-socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}", f"pty,raw,echo=0,link={b}"],
-                         stderr=subprocess.DEVNULL)
+a, b, socat = pty_pair(work)
 d = None
 try:
-    deadline = time.time() + 5
-    while not (os.path.exists(a) and os.path.exists(b)) and time.time() < deadline:
-        time.sleep(0.02)
-    check(os.path.exists(a) and os.path.exists(b), "socat did not create the pty pair")
     d = Daemon(selfcald, table, ["--modbus-rtu", f"{a}:38400:E:8:1", "--unit-id", "3"],
                tcp=False, log_path=os.path.join(work, "rtu.log"))
     # Line noise first: random bytes and a frame with a bad CRC; the server must resynchronise.

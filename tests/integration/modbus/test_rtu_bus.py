@@ -22,13 +22,12 @@ import os
 import random
 import select
 import struct
-import subprocess
 import sys
 import time
 import tty
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sclib import Daemon, check, make_table, regs_to_i32  # noqa: E402
+from sclib import Daemon, check, make_table, pty_pair, regs_to_i32  # noqa: E402
 
 UNIT, OTHER = 3, 2
 
@@ -178,18 +177,9 @@ def main():
     table, ref = make_table(cli, work, "bus", n=7, pitch=3.0, scale_um=1.0)
     rng = random.Random(36)
     for baud in (9600, 19200, 115200):
-        a, b = os.path.join(work, f"ptyA{baud}"), os.path.join(work, f"ptyB{baud}")
-        for p in (a, b):
-            if os.path.lexists(p):
-                os.unlink(p)
-        socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}",
-                                  f"pty,raw,echo=0,link={b}"], stderr=subprocess.DEVNULL)
+        a, b, socat = pty_pair(work, baud)
         d = None
         try:
-            deadline = time.time() + 5
-            while not (os.path.exists(a) and os.path.exists(b)) and time.time() < deadline:
-                time.sleep(0.02)
-            check(os.path.exists(a) and os.path.exists(b), "socat did not create the pty pair")
             d = Daemon(selfcald, table, ["--modbus-rtu", f"{a}:{baud}:E:8:1", "--unit-id",
                                          str(UNIT)], tcp=False,
                        log_path=os.path.join(work, f"bus{baud}.log"))
