@@ -66,6 +66,31 @@ def precision_maps(c):
     return c.path("demo.csv"), c.path("stitch.csv")
 
 
+def parse_lut_dump(text, check):
+    """`selfcal lut dump` output (SPEC §3) read strictly, each point of its form passed to
+    check(cond, what): the grid {(i, j): (x_mm, y_mm, gx_um, gy_um)} and the profiles
+    [(axis, dir, [(n, pos_mm, err_um), ...]), ...] in their order."""
+    lines = text.splitlines()
+    check(lines[0] == "i,j,x_mm,y_mm,gx_um,gy_um", "dump header")
+    grid, profiles, k = {}, [], 1
+    while k < len(lines) and not lines[k].startswith("#"):
+        i, j, x, y, gx, gy = lines[k].split(",")
+        grid[(int(i), int(j))] = (float(x), float(y), float(gx), float(gy))
+        k += 1
+    while k < len(lines):
+        m = re.fullmatch(r"# profile (\d+): axis=([xyz]) dir=([xyz])", lines[k])
+        check(m is not None and int(m.group(1)) == len(profiles), f"profile line: {lines[k]!r}")
+        check(lines[k + 1] == "n,pos_mm,err_um", "profile header")
+        rows = []
+        k += 2
+        while k < len(lines) and not lines[k].startswith("#"):
+            n, pos, err = lines[k].split(",")
+            rows.append((int(n), float(pos), float(err)))
+            k += 1
+        profiles.append((m.group(2), m.group(3), rows))
+    return grid, profiles
+
+
 def interp_clamped(xs, vs, s):
     """Linear interpolation over ascending xs, the end values beyond them (selfcald's profile
     rule, SPEC §4; ISG within its table; Automation1's "nearest end point")."""

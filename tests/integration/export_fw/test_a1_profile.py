@@ -30,7 +30,7 @@ import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from exportlib import Export, interp_clamped, precision_maps  # noqa: E402
+from exportlib import Export, interp_clamped, parse_lut_dump, precision_maps  # noqa: E402
 
 cli, work, dabam = sys.argv[1], sys.argv[2], sys.argv[3]
 E = Export(cli, work)
@@ -77,18 +77,9 @@ def selfcald_profiles(map_csv, profs, name):
     for p in profs:
         args += ["--profile", p]
     selfcal(*args, "-o", path(name + ".lut"))
-    dump = selfcal("lut", "dump", path(name + ".lut")).splitlines()
-    out = []
-    for k in range(len(profs)):
-        at = next(i for i, ln in enumerate(dump) if ln.startswith(f"# profile {k}: "))
-        m = re.match(r"# profile \d+: axis=(\w) dir=(\w)", dump[at])
-        rows = []
-        for ln in dump[at + 2:]:
-            if not ln or ln.startswith("#"):
-                break
-            rows.append(list(map(float, ln.split(","))))
-        out.append((m.group(1), m.group(2), [r[1] for r in rows], [r[2] for r in rows]))
-    return out
+    _, profiles = parse_lut_dump(selfcal("lut", "dump", path(name + ".lut")), check)
+    check(len(profiles) == len(profs), f"{name}: {len(profiles)} profiles in the table")
+    return [(a, d, [r[1] for r in rows], [r[2] for r in rows]) for a, d, rows in profiles]
 
 
 def assess(tables, prof, ref_nr, out_nr, shift):

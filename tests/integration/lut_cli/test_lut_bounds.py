@@ -14,7 +14,7 @@ import re
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "export_fw"))
-from exportlib import Checks  # noqa: E402
+from exportlib import Checks, parse_lut_dump  # noqa: E402
 
 SELFCAL, WORK = sys.argv[1], sys.argv[2]
 C = Checks(SELFCAL, WORK, stream=sys.stdout)
@@ -53,22 +53,8 @@ def info(table):
 def dump(table):
     rc, out, err = run("lut", "dump", table)
     check(rc == 0, f"lut dump: {err}")
-    lines = out.splitlines()
-    grid, profiles, k = {}, [], 1
-    while k < len(lines) and not lines[k].startswith("#"):
-        i, j, x, y, gx, gy = lines[k].split(",")
-        grid[(int(i), int(j))] = (float(x), float(y), float(gx), float(gy))
-        k += 1
-    while k < len(lines):
-        m = re.match(r"# profile \d+: axis=(\w) dir=(\w)", lines[k])
-        k += 2
-        pts = []
-        while k < len(lines) and not lines[k].startswith("#"):
-            _, pos, e = lines[k].split(",")
-            pts.append((float(pos), float(e)))
-            k += 1
-        profiles.append((m.group(1), m.group(2), pts))
-    return grid, profiles
+    grid, profiles = parse_lut_dump(out, check)
+    return grid, [(a, d, [(pos, e) for _, pos, e in rows]) for a, d, rows in profiles]
 
 
 def bounds_from_dump(grid, profiles):

@@ -14,7 +14,7 @@ import re
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "export_fw"))
-from exportlib import Checks, read_beckhoff_plane  # noqa: E402
+from exportlib import Checks, parse_lut_dump, read_beckhoff_plane  # noqa: E402
 
 SELFCAL, WORK = sys.argv[1], sys.argv[2]
 C = Checks(SELFCAL, WORK, stream=sys.stdout)
@@ -53,25 +53,7 @@ def write_profile(name, n_total, n_valid, s_mm, amp):
 
 
 def parse_dump(text):
-    lines = text.splitlines()
-    check(lines[0] == "i,j,x_mm,y_mm,gx_um,gy_um", "dump header")
-    grid, profiles, k = {}, [], 1
-    while k < len(lines) and not lines[k].startswith("#"):
-        i, j, x, y, gx, gy = lines[k].split(",")
-        grid[(int(i), int(j))] = (float(x), float(y), float(gx), float(gy))
-        k += 1
-    while k < len(lines):
-        m = re.fullmatch(r"# profile (\d+): axis=([xyz]) dir=([xyz])", lines[k])
-        check(m is not None, f"profile line: {lines[k]!r}")
-        check(lines[k + 1] == "n,pos_mm,err_um", "profile header")
-        rows = []
-        k += 2
-        while k < len(lines) and not lines[k].startswith("#"):
-            n, pos, err = lines[k].split(",")
-            rows.append((int(n), float(pos), float(err)))
-            k += 1
-        profiles.append((m.group(2), m.group(3), rows))
-    return grid, profiles
+    return parse_lut_dump(text, check)
 
 
 def quantization_nm(table):
