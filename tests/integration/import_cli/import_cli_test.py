@@ -84,6 +84,17 @@ def import_args(views, files, n=25, units="um"):
     return a
 
 
+def same_grid(got, want, tol_mm, what):
+    """The imported marks are exactly want's (grid file rows {(view, i, j): (x_mm, y_mm)}), each
+    within tol_mm of its position."""
+    if set(got) != set(want):
+        fail("%s: imported marks differ: extra %s, missing %s"
+             % (what, sorted(set(got) - set(want))[:5], sorted(set(want) - set(got))[:5]))
+    worst = max(max(abs(got[k][0] - want[k][0]), abs(got[k][1] - want[k][1])) for k in want)
+    if worst > tol_mm:
+        fail("%s: imported positions differ by %g mm" % (what, worst))
+
+
 def check_bad(args, d, out, want):
     """Exit 2, one stderr line naming FILE:LINE (want: substring), no output file."""
     p = run(*args, "-o", out, expect=2)
@@ -122,12 +133,7 @@ def case_recover(missing_views=(0, 1, 2, 3), name="recover"):
         fail("the missing mark is not reported: %s" % p.stderr)
     ihead, irows = read_grid(out)
     want = {k: v for k, v in rows.items() if not (k[1:] == missing and k[0] in missing_views)}
-    if set(irows) != set(want):
-        fail("imported marks differ: extra %s, missing %s"
-             % (sorted(set(irows) - set(want))[:5], sorted(set(want) - set(irows))[:5]))
-    worst = max(max(abs(irows[k][0] - want[k][0]), abs(irows[k][1] - want[k][1])) for k in want)
-    if worst > 1e-12:
-        fail("imported positions differ from the export's by %g mm" % worst)
+    same_grid(irows, want, 1e-12, name)
     if [h for h in ihead if h.startswith("# view")] != [h for h in head if h.startswith("# view")]:
         fail("view lines differ: %s vs %s" % (ihead, head))
     run("grid", "--method", "lsq", out, "--map", os.path.join(d, "G.csv"), "--artifact",
@@ -166,11 +172,7 @@ def case_formats():
         a[a.index("X")] = "x"
         run(*a, "-o", out)
         _, irows = read_grid(out)
-        if set(irows) != set(rows):
-            fail("style %r: marks differ" % delim)
-        worst = max(max(abs(irows[k][0] - rows[k][0]), abs(irows[k][1] - rows[k][1])) for k in rows)
-        if worst > 1e-9:
-            fail("style %r: positions differ by %g mm" % (delim, worst))
+        same_grid(irows, rows, 1e-9, "style %r" % delim)
     # a machine's preamble before the header line (program, date, operator, a blank line): the
     # same grid as without it
     pre = "Program: plate_9x9\nDate%s2026-11-27%sOperator: A. B.\n\n" % (";", ";")
@@ -432,13 +434,9 @@ def case_simulate_exports():
         fail("stray/missing not reported: %s" % p.stderr)
     _, irows = read_grid(out)
     want = {k: v for k, v in rows.items() if k[1:] != (0, 0) and k != (1, 3, 4)}
-    if set(irows) != set(want):
-        fail("simulate exports + import: marks differ %s" % sorted(set(irows) ^ set(want))[:5])
     x, y = want[(0, 5, 6)]
     want[(0, 5, 6)] = (x + 0.4e-3, y - 0.2e-3)
-    worst = max(max(abs(irows[k][0] - want[k][0]), abs(irows[k][1] - want[k][1])) for k in want)
-    if worst > 1e-12:
-        fail("simulate exports + import: positions differ by %g mm" % worst)
+    same_grid(irows, want, 1e-12, "simulate exports + import")
 
 
 def run_fd_limited(args, nofile=64):
@@ -489,11 +487,7 @@ def case_simulate_exports_many():
         fail("import of %d views under ulimit -n 64: exit %d: %s"
              % (nviews, q.returncode, q.stderr[-500:]))
     _, irows = read_grid(out)
-    if set(irows) != set(rows):
-        fail("simulate exports + import of %d views: marks differ" % nviews)
-    worst = max(max(abs(irows[k][0] - rows[k][0]), abs(irows[k][1] - rows[k][1])) for k in rows)
-    if worst > 1e-12:
-        fail("simulate exports + import of %d views: positions differ by %g mm" % (nviews, worst))
+    same_grid(irows, rows, 1e-12, "simulate exports + import of %d views" % nviews)
     # all or none: view 700's name taken by a folder; the old view0.csv stays as it was
     ex2 = os.path.join(d, "ex2")
     os.makedirs(os.path.join(ex2, "view700.csv"))
@@ -734,11 +728,7 @@ def case_partial():
     if "view 3 (rot=0 shift=-3,0): 22 of 54 marks" not in p.stderr:
         fail("view 3's report: %s" % p.stderr)
     _, irows = read_grid(out)
-    if set(irows) != set(rows):
-        fail("partial view: marks differ: %s" % sorted(set(irows) ^ set(rows))[:6])
-    worst = max(max(abs(irows[k][0] - rows[k][0]), abs(irows[k][1] - rows[k][1])) for k in rows)
-    if worst > 1e-12:
-        fail("partial view: positions differ by %g mm" % worst)
+    same_grid(irows, rows, 1e-12, "partial view")
     for method in ("double-shift", "lsq"):
         run("grid", "--method", method, out, "--map", os.path.join(d, "G_%s.csv" % method))
         t, e = read_map(os.path.join(d, "G_true.csv")), read_map(os.path.join(d, "G_%s.csv" % method))
@@ -896,13 +886,7 @@ def case_vendors():
         if "warning" in p.stderr:
             fail("%s: a warning on a good export: %s" % (name, p.stderr))
         _, irows = read_grid(out)
-        if set(irows) != set(direct):
-            fail("%s: imported marks differ: extra %s, missing %s" % (
-                name, sorted(set(irows) - set(direct))[:5], sorted(set(direct) - set(irows))[:5]))
-        worst = max(max(abs(irows[k][0] - direct[k][0]), abs(irows[k][1] - direct[k][1]))
-                    for k in direct)
-        if worst > 1e-12:
-            fail("%s: imported positions differ from the export's by %g mm" % (name, worst))
+        same_grid(irows, direct, 1e-12, name)
         dpath = os.path.join(d, "%s_direct.csv" % name)
         write_direct(dpath, head, direct)
         gi, gd = os.path.join(d, "%s_Gi.csv" % name), os.path.join(d, "%s_Gd.csv" % name)
