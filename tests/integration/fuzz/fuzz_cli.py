@@ -311,7 +311,7 @@ def t_lut_table():
 
 def profile_option(rnd, results, rops, t):
     """A --profile AXIS:DIR:RESULT[@OFFSET_MM] for the table formats that take straightness
-    (Beckhoff cross lists, Siemens CEC tables), sometimes with --travel / --profile-interval;
+    (Beckhoff cross lists, Siemens CEC tables, Automation1 1-D tables), sometimes with --travel / --profile-interval;
     the result file is valid or mutated. Returns (options, the result file)."""
     r = p("res_in_%d.csv" % t)
     write(r, rnd.choice(results) if rnd.random() < 0.5 else
@@ -336,16 +336,17 @@ def t_export():
     mops, rops = map_ops(), result_ops()
     for t in range(A.iterations):
         fmt = rnd.choice(("beckhoff", "siemens-cec", "linuxcnc", "kmotion", "klipper", "marlin",
-                          "reprap"))
-        with_profile = fmt in ("beckhoff", "siemens-cec") and rnd.random() < 0.4
+                          "reprap", "aerotech-a1", "powerpmac"))
+        with_profile = fmt in ("beckhoff", "siemens-cec", "aerotech-a1") and rnd.random() < 0.4
         m = p("map_in_%d.csv" % t)
         # with a profile, the map is often left valid so that the profile's own paths are reached
         write(m, rnd.choice(maps) if with_profile and rnd.random() < 0.6 else
               fuzzlib.mutate_text(rnd, rnd.choice(maps), mops))
         out = p("exp_%d.txt" % t)
-        # every file an export may write: OUT, OUT-x/-y (--axis both), OUT-cross-DIR (profiles)
+        # every file an export may write: OUT, OUT-x/-y (--axis both), OUT-cross-DIR (Beckhoff's
+        # profiles), OUT-1d (Automation1's)
         outs = [out] + [p("exp_%d-%s.txt" % (t, s))
-                        for s in ("x", "y", "cross-x", "cross-y", "cross-z")]
+                        for s in ("x", "y", "cross-x", "cross-y", "cross-z", "1d")]
         ins = [m]
         cmd = [CLI, "export", "--format", fmt, "--map", m, "-o", out]
         if fmt in ("beckhoff", "linuxcnc") or (fmt == "siemens-cec" and rnd.random() < 0.3):
