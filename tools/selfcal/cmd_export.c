@@ -140,9 +140,10 @@ static void print_a1_1d_report(const sc_lut *lut, const sc_export_options *o,
         printf("%s %s from %s (axis %d from axis %d)", k ? "," : "",
                sc_lut_axis_name(lut->profile[k].dir), sc_lut_axis_name(lut->profile[k].axis),
                nr[lut->profile[k].dir], nr[lut->profile[k].axis]);
-    printf("; %d points in all (no size limit in the pages read), corrections in um (unit %.4g "
-           "um), %s, nearest end point beyond\n",
-           rep->points[0] + rep->points[1] + rep->points[2] + rep->points[3], rep->unit_um,
+    printf("; %d points in all (at most %d a table: selfcal's bound, none in the pages read), "
+           "corrections in um (unit %.4g um), %s, nearest end point beyond\n",
+           rep->points[0] + rep->points[1] + rep->points[2] + rep->points[3],
+           SC_EXPORT_AEROTECH_1D_MAX_POINTS, rep->unit_um,
            o->negate ? "-e (negated)" : "+e (assumed: added to the command)");
     const int k = (int)rep->max_at_mm[1];
     printf("residual (controller table - profile) over %ld samples: rms %.4f um, max %.4f um at "
