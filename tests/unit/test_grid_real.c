@@ -20,6 +20,7 @@
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
 #include "selfcal/rng.h"
+#include "test_grid_sim_util.h"
 
 #define TRUTH_VIEWS 32 /* misalignments drawn at least (the random stream of the old cap) */
 
@@ -678,18 +679,13 @@ static double *unequal_views(sc_grid_data *d, const sc_grid_plan *plan, const do
     for (int v = 0; v < p->n_views; ++v)
         d->plan.view[v].sigma_um = sig[v];
     assert_int_equal(sc_grid_data_alloc(d, NULL), SC_OK);
-    long ns = sc_grid_stage_nodes(p), nn = (long)p->n * p->n, nv = p->n_views;
-    double *buf = malloc(sizeof(double) *
-                         (2 * ns + 2 * nn + 3 * nv + sc_grid_sim_work_doubles_plan(p)));
+    sc_grid_sim_truth t;
+    double *work, *buf = tu_sim_buffer(p, &t, &work);
+    assert_non_null(buf);
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.seed = seed;
-    sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
-                           .ay_um = buf + 2 * ns + nn, .tx_um = buf + 2 * ns + 2 * nn,
-                           .ty_um = buf + 2 * ns + 2 * nn + nv,
-                           .theta_urad = buf + 2 * ns + 2 * nn + 2 * nv};
-    assert_int_equal(sc_grid_sim_run(p, &sp, &t, d, buf + 2 * ns + 2 * nn + 3 * nv, NULL),
-                     SC_OK);
+    assert_int_equal(sc_grid_sim_run(p, &sp, &t, d, work, NULL), SC_OK);
     for (int v = 0; v < p->n_views; ++v)
         d->plan.view[v].sigma_um = 0; /* as if the file stated nothing */
     return buf;

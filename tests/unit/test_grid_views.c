@@ -17,6 +17,7 @@
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
 #include "selfcal/rng.h"
+#include "test_grid_sim_util.h"
 
 static void tmp_path(char *buf, size_t n, const char *name)
 {
@@ -95,17 +96,12 @@ static void test_ten_thousand_views_file(void **state)
     assert_int_equal(nv, 100 * 100 + 2);
     assert_int_equal(sc_grid_data_alloc(&d, &err), SC_OK);
     assert_int_equal(sc_grid_data_alloc_extra(&d, 1, 0, &err), SC_OK);
-    size_t ns = (size_t)sc_grid_stage_nodes(&d.plan);
-    double *buf = malloc(sizeof(double) * (4 * ns + 2 * nn + 3 * (size_t)nv +
-                                           sc_grid_sim_work_doubles_plan(&d.plan)));
+    sc_grid_sim_truth t;
+    double *work, *buf = tu_sim_buffer(&d.plan, &t, &work);
     assert_non_null(buf);
-    sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
-                           .ay_um = buf + 2 * ns + nn, .tx_um = buf + 2 * ns + 2 * nn,
-                           .ty_um = buf + 2 * ns + 2 * nn + nv,
-                           .theta_urad = buf + 2 * ns + 2 * nn + 2 * nv};
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
-    assert_int_equal(sc_grid_sim_run(&d.plan, &sp, &t, &d, t.theta_urad + nv, &err), SC_OK);
+    assert_int_equal(sc_grid_sim_run(&d.plan, &sp, &t, &d, work, &err), SC_OK);
     for (int v = 0; v < nv; ++v) /* each row its stated uncertainties */
         for (int k = 0; k < nn; ++k)
             if (isfinite(d.dx_um[v][k]))
@@ -198,17 +194,13 @@ static void test_lsq_363_views(void **state)
     assert_int_equal(nv, 363);
     assert_int_equal(sc_grid_data_alloc(&d, &err), SC_OK);
     size_t ns = (size_t)sc_grid_stage_nodes(&d.plan);
-    double *buf = malloc(sizeof(double) * (2 * ns + 2 * nn + 3 * (size_t)nv +
-                                           sc_grid_sim_work_doubles_plan(&d.plan)));
+    sc_grid_sim_truth t;
+    double *work, *buf = tu_sim_buffer(&d.plan, &t, &work);
     assert_non_null(buf);
-    sc_grid_sim_truth t = {.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,
-                           .ay_um = buf + 2 * ns + nn, .tx_um = buf + 2 * ns + 2 * nn,
-                           .ty_um = buf + 2 * ns + 2 * nn + nv,
-                           .theta_urad = buf + 2 * ns + 2 * nn + 2 * nv};
     sc_grid_sim_params sp;
     sc_grid_sim_defaults(&sp);
     sp.sigma_r_um = 0;
-    assert_int_equal(sc_grid_sim_run(&d.plan, &sp, &t, &d, t.theta_urad + nv, &err), SC_OK);
+    assert_int_equal(sc_grid_sim_run(&d.plan, &sp, &t, &d, work, &err), SC_OK);
     sc_grid_lsq_plan *q = NULL;
     assert_int_equal(sc_grid_lsq_plan_create(&d.plan, &d, NULL, &q, &err), SC_OK);
     sc_grid_lsq_info qi;
