@@ -35,6 +35,12 @@ static const char *USAGE =
     "(um) and Angle (urad), and prints the matching `selfcal import profile` command.\n"
     "--style semicolon (default): ';' and decimal commas; comma: ',' and '.'; tab: tabs and '.'.\n";
 
+/* Plans of up to this many views keep their files open until the group's commit (anonymous
+ * temporaries: a kill leaves nothing); larger ones park each file once written (closed, complete
+ * under its temporary name: a kill -9 can leave those, which the next export of the same names
+ * removes). */
+enum { EXPORTS_OPEN_MAX = 16 };
+
 typedef struct style {
     char delim, decimal;
 } style;
@@ -231,8 +237,9 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
     sc_rng rng;
     sc_rng_seed(&rng, seed);
     double *pts = malloc((size_t)((long)p->n * p->n + n_stray) * 2 * sizeof(double));
-    /* one file per view, written and parked one after the other (a plan of thousands of views
-     * holds one descriptor), committed as one group: every view file or none */
+    /* one file per view, committed as one group: every view file or none; beyond
+     * EXPORTS_OPEN_MAX views each is parked once written (a plan of thousands of views holds one
+     * descriptor) */
     sc_afile *f = calloc((size_t)p->n_views, sizeof *f); /* entries not opened stay closed */
     int opened = 0;
     if (!pts || !f)
@@ -246,8 +253,8 @@ static int grid_exports(const char *in, const char *dir, double unit_per_mm, con
             break;
         opened = v + 1;
         print_view_file(f[v].fp, pts, np, unit_per_mm, sty);
-        st = sc_afile_park(&f[v], &err); /* closed now: one descriptor at a time, however many
-                                            views; renamed with the others at the end */
+        if (p->n_views > EXPORTS_OPEN_MAX) /* closed now, renamed with the others at the end */
+            st = sc_afile_park(&f[v], &err);
     }
     if (f)
         st = sc_afile_finish_all(f, opened, st, &err);
