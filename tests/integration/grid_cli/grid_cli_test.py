@@ -321,6 +321,15 @@ def case_simulate():
 
 
 # --------------------------------------------------------------------------------------------
+def with_field(lines, k, col, value):
+    """A copy of the file's lines with field col of line k replaced by value."""
+    out = list(lines)
+    f = out[k].split(",")
+    f[col] = value
+    out[k] = ",".join(f)
+    return out
+
+
 def case_bad_input():
     """Each bad input: exit 2, 'selfcal: FILE:LINE: ...' on stderr, no output file."""
     d = fresh_dir("bad")
@@ -357,24 +366,15 @@ def case_bad_input():
     lines.insert(k + 5, lines[k])
     cases.append(("duplicate", "lsq", lines, k + 6, "duplicate"))
     # A mark off the grid: view 2 (shift +1) mark in the last column.
-    lines = list(ye_lines)
     k = rows_of(ye_lines, 2)[0]
-    f = lines[k].split(",")
-    f[2] = "8"
-    lines[k] = ",".join(f)
+    lines = with_field(ye_lines, k, 2, "8")
     cases.append(("off_grid", "ye", lines, k + 1, "does not land on the stage grid"))
     # Off the plate altogether.
-    lines = list(ye_lines)
-    f = lines[k].split(",")
-    f[1] = "9"
-    lines[k] = ",".join(f)
+    lines = with_field(ye_lines, k, 1, "9")
     cases.append(("off_plate", "lsq", lines, k + 1, "off the plate"))
     # Non-numeric field.
-    lines = list(ye_lines)
     k = rows_of(ye_lines, 1)[5]
-    f = lines[k].split(",")
-    f[4] = "1.2.3\n"
-    lines[k] = ",".join(f)
+    lines = with_field(ye_lines, k, 4, "1.2.3\n")
     cases.append(("non_numeric", "ye", lines, k + 1, "not a finite number"))
     # Wrong field count.
     lines = list(ye_lines)
