@@ -6,8 +6,9 @@
  * Signs follow each vendor's own definition of its value (docs/exporters.md cites them): LinuxCNC
  * and KMotion take what is added to the commanded position (+G, the position-mode sign of SPEC
  * §4); Beckhoff/ISG takes the measured error, actual - setpoint, and Siemens a value of which a
- * positive one moves the axis negative: both -G (a profile's tables: -e). `negate` flips the
- * default. The firmware formats (Klipper, Marlin, RepRapFirmware) carry only the first-order part
+ * positive one moves the axis negative: both -G (a profile's tables: -e); Automation1 and Power
+ * PMAC are taken as adding to the command, +G (Automation1's profile tables: +e), which their
+ * pages read leave open. `negate` flips the default. The firmware formats (Klipper, Marlin, RepRapFirmware) carry only the first-order part
  * of the map, non-orthogonality O and scale R (Petro eqs. 4-5), converted to each firmware's own
  * skew parameter and transform; their residual is what remains after the firmware's transform,
  * up to the translation, rotation and magnification that a self-calibrated map does not define.
