@@ -189,6 +189,21 @@ def write(path, data):
 
 
 # ---- targets -----------------------------------------------------------------------------
+def map_corpus():
+    """The valid stage maps and profile results the map and table targets mutate, and their
+    mutation operators: (maps, results, map operators, result operators)."""
+    maps = [open(m, "rb").read() for m in make_maps()]
+    results = [open(r, "rb").read() for r in make_results(make_profiles())]
+    return maps, results, map_ops(), result_ops()
+
+
+def remove(*paths):
+    """Each path that exists, removed (a case's inputs and outputs before the next)."""
+    for f in paths:
+        if os.path.exists(f):
+            os.unlink(f)
+
+
 def t_profile():
     bases = [open(b, "rb").read() for b in make_profiles()]
     for t in range(A.iterations):
@@ -208,15 +223,11 @@ def t_profile():
         if rc == 0:  # chain: the result goes on to plot profile and lut build
             F.check([CLI, "plot", "profile", out, "-o", svg], [inp, out], [svg], "plot-profile-chain",
                     expect_file=out)
-        for f in (inp, out, svg):
-            if os.path.exists(f):
-                os.unlink(f)
+        remove(inp, out, svg)
 
 
 def t_lut_build():
-    maps = [open(m, "rb").read() for m in make_maps()]
-    results = [open(r, "rb").read() for r in make_results(make_profiles())]
-    mops, rops = map_ops(), result_ops()
+    maps, results, mops, rops = map_corpus()
     for t in range(A.iterations):
         m, pr = p("map_in_%d.csv" % t), p("prof_in_%d.csv" % t)
         out = p("table_%d.lut" % t)
@@ -237,9 +248,7 @@ def t_lut_build():
         if rc == 0:
             F.check([CLI, "lut", "dump", out], [out], [], "lut-dump-chain", rc_ok=(0,))
             F.check([CLI, "lut", "info", out], [out], [], "lut-info-chain", rc_ok=(0,))
-        for f in (m, pr, out):
-            if os.path.exists(f):
-                os.unlink(f)
+        remove(m, pr, out)
 
 
 def fix_table(b):
@@ -331,9 +340,7 @@ def profile_option(rnd, results, rops, t):
 
 
 def t_export():
-    maps = [open(m, "rb").read() for m in make_maps()]
-    results = [open(r, "rb").read() for r in make_results(make_profiles())]
-    mops, rops = map_ops(), result_ops()
+    maps, results, mops, rops = map_corpus()
     for t in range(A.iterations):
         fmt = rnd.choice(("beckhoff", "siemens-cec", "linuxcnc", "kmotion", "klipper", "marlin",
                           "reprap", "aerotech-a1", "powerpmac"))
@@ -364,15 +371,11 @@ def t_export():
             err = F.run(cmd)[2].decode("utf-8", "replace")
             if not any(i in err for i in ins) and not err.startswith("selfcal export:"):
                 F.soft(err.strip()[:100])
-        for f in ins + outs:
-            if os.path.exists(f):
-                os.unlink(f)
+        remove(*(ins + outs))
 
 
 def t_plot():
-    maps = [open(m, "rb").read() for m in make_maps()]
-    results = [open(r, "rb").read() for r in make_results(make_profiles())]
-    mops, rops = map_ops(), result_ops()
+    maps, results, mops, rops = map_corpus()
     for t in range(A.iterations):
         svg = p("plot_%d.svg" % t)
         if rnd.random() < 0.5:
@@ -410,9 +413,7 @@ def t_plot():
             except ET.ParseError as e:
                 F.fail("output", "%s: exit 0 but the SVG is not well-formed XML: %s" % (label, e),
                        cmd, "", ins + [svg])
-        for f in ins + [svg]:
-            if os.path.exists(f):
-                os.unlink(f)
+        remove(*(ins + [svg]))
 
 
 {"profile": t_profile, "lut-build": t_lut_build, "lut-table": t_lut_table, "export": t_export,
