@@ -38,8 +38,8 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# Python peers for the integration tests (versions pinned in tests/requirements.txt), in a venv
-# inside the project so nothing global is touched.
+# Python peers for the integration tests, and lizard for the code_metrics test (versions pinned
+# in tests/requirements.txt), in a venv inside the project so nothing global is touched.
 venv="$here/.venv"
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
