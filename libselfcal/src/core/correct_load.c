@@ -119,9 +119,8 @@ typedef struct layout {
     uint64_t poff[SC_LUTF_MAX_PROFILES];
 } layout;
 
-/* Every format check (size, magic, version, CRC, ranges, layout); fills *L; the reason of a
- * failure in *why (may be NULL). */
-static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *why)
+/* The envelope: size, magic, version, the file-size field and the CRC over the whole image. */
+static int check_envelope(const uint8_t *b, size_t len, unsigned char *why)
 {
     if (!b || len < (size_t)SC_LUTF_HEADER_BYTES + SC_LUTF_CRC_BYTES)
         return fail(why, SC_CORR_E_SIZE, SC_CORR_R_SHORT);
@@ -134,13 +133,17 @@ static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *w
         return fail(why, SC_CORR_E_SIZE, SC_CORR_R_FILE_BYTES);
     if (sc_corr_crc32(b, len - SC_LUTF_CRC_BYTES) != sc_lutf_get_u32(b + len - SC_LUTF_CRC_BYTES))
         return fail(why, SC_CORR_E_CRC, SC_CORR_R_CRC);
+    return SC_CORR_OK;
+}
 
-    /* Header fields. */
+/* The header's grid fields (counts, encoding, origin, pitch, extent, scale) into *L. */
+static int check_header(const uint8_t *b, layout *L, unsigned char *why)
+{
     unsigned nx = sc_lutf_get_u16(b + SC_LUTF_OFF_NX), ny = sc_lutf_get_u16(b + SC_LUTF_OFF_NY);
     unsigned np = b[SC_LUTF_OFF_NPROFILES], genc = b[SC_LUTF_OFF_GRID_ENC];
     double x0 = sc_lutf_get_f64(b + SC_LUTF_OFF_X0), y0 = sc_lutf_get_f64(b + SC_LUTF_OFF_Y0);
     double px = sc_lutf_get_f64(b + SC_LUTF_OFF_PX), py = sc_lutf_get_f64(b + SC_LUTF_OFF_PY);
-    uint32_t gscale = sc_lutf_get_u32(b + SC_LUTF_OFF_GRID_SCALE), prov = sc_lutf_get_u32(b + SC_LUTF_OFF_PROV_BYTES);
+    uint32_t gscale = sc_lutf_get_u32(b + SC_LUTF_OFF_GRID_SCALE);
     if (sc_lutf_get_u16(b + SC_LUTF_OFF_HEADER_BYTES) != SC_LUTF_HEADER_BYTES || sc_lutf_get_u16(b + SC_LUTF_OFF_RESERVED) != 0)
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_HEADER);
     if (nx < 2 || ny < 2)
@@ -158,36 +161,6 @@ static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *w
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_EXTENT);
     if (!scale_ok(gscale, genc))
         return fail(why, SC_CORR_E_RANGE, SC_CORR_R_GRID_SCALE);
-
-    /* Layout: every block must lie inside the file, and the blocks must fill it exactly.
-     * 64-bit offsets: nx * ny * 8 does not overflow them. */
-    const uint64_t body_end = (uint64_t)len - SC_LUTF_CRC_BYTES;
-    uint64_t off = SC_LUTF_HEADER_BYTES;
-    off += 2u * (uint64_t)nx * ny * sc_lutf_code_bytes(genc);
-    for (unsigned k = 0; k < np; ++k) {
-        if (off + SC_LUTF_PROFILE_HEADER_BYTES > body_end)
-            return fail(why, SC_CORR_E_SIZE, SC_CORR_R_BLOCKS_PAST_END);
-        const uint8_t *h = b + (size_t)off;
-        int rc = check_profile_header(h, why);
-        if (rc != SC_CORR_OK)
-            return rc;
-        L->poff[k] = off;
-        off += SC_LUTF_PROFILE_HEADER_BYTES + (uint64_t)sc_lutf_get_u16(h + SC_LUTF_POFF_N) * sc_lutf_code_bytes(h[SC_LUTF_POFF_ENC]);
-    }
-    if (off + SC_LUTF_PROV_FIXED_BYTES > body_end || off + prov != body_end)
-        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_BLOCKS_FILL);
-    /* Provenance: method a NUL-terminated string, sigma finite (negative = unknown), count <= 9,
-     * reserved bytes zero, one SHA-256 per source. */
-    const uint8_t *pv = b + (size_t)off;
-    if (pv[SC_LUTF_METHOD_BYTES - 1] != 0)
-        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_METHOD);
-    if (!within(sc_lutf_get_f64(pv + SC_LUTF_VOFF_SIGMA), DBL_MAX))
-        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_SIGMA);
-    unsigned nsrc = pv[SC_LUTF_VOFF_COUNT];
-    if (nsrc > SC_LUTF_MAX_SOURCES || !all_zero(pv + SC_LUTF_VOFF_RESERVED, 7))
-        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_SOURCES);
-    if (prov != SC_LUTF_PROV_FIXED_BYTES + nsrc * SC_LUTF_SHA256_BYTES)
-        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_PROV_SIZE);
     L->nx = nx;
     L->ny = ny;
     L->np = np;
@@ -200,6 +173,64 @@ static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *w
     L->y1 = y1;
     L->gscale = gscale;
     return SC_CORR_OK;
+}
+
+/* The blocks after the header: the grid, then each profile (its header checked, its offset in
+ * L->poff), each inside the body; the offset of the provenance block in *prov_off. 64-bit
+ * offsets: nx * ny * 8 does not overflow them. */
+static int check_blocks(const uint8_t *b, size_t len, layout *L, uint64_t *prov_off, unsigned char *why)
+{
+    const uint64_t body_end = (uint64_t)len - SC_LUTF_CRC_BYTES;
+    uint64_t off = SC_LUTF_HEADER_BYTES;
+    off += 2u * (uint64_t)L->nx * L->ny * sc_lutf_code_bytes(L->genc);
+    for (unsigned k = 0; k < L->np; ++k) {
+        if (off + SC_LUTF_PROFILE_HEADER_BYTES > body_end)
+            return fail(why, SC_CORR_E_SIZE, SC_CORR_R_BLOCKS_PAST_END);
+        const uint8_t *h = b + (size_t)off;
+        int rc = check_profile_header(h, why);
+        if (rc != SC_CORR_OK)
+            return rc;
+        L->poff[k] = off;
+        off += SC_LUTF_PROFILE_HEADER_BYTES + (uint64_t)sc_lutf_get_u16(h + SC_LUTF_POFF_N) * sc_lutf_code_bytes(h[SC_LUTF_POFF_ENC]);
+    }
+    *prov_off = off;
+    return SC_CORR_OK;
+}
+
+/* The provenance block at pv, prov bytes long: method a NUL-terminated string, sigma finite
+ * (negative = unknown), count <= 9, reserved bytes zero, one SHA-256 per source. */
+static int check_provenance(const uint8_t *pv, uint32_t prov, unsigned char *why)
+{
+    if (pv[SC_LUTF_METHOD_BYTES - 1] != 0)
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_METHOD);
+    if (!within(sc_lutf_get_f64(pv + SC_LUTF_VOFF_SIGMA), DBL_MAX))
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_SIGMA);
+    unsigned nsrc = pv[SC_LUTF_VOFF_COUNT];
+    if (nsrc > SC_LUTF_MAX_SOURCES || !all_zero(pv + SC_LUTF_VOFF_RESERVED, 7))
+        return fail(why, SC_CORR_E_RANGE, SC_CORR_R_SOURCES);
+    if (prov != SC_LUTF_PROV_FIXED_BYTES + nsrc * SC_LUTF_SHA256_BYTES)
+        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_PROV_SIZE);
+    return SC_CORR_OK;
+}
+
+/* Every format check (size, magic, version, CRC, ranges, layout); fills *L; the reason of a
+ * failure in *why (may be NULL). Layout: every block must lie inside the file, and the blocks
+ * must fill it exactly. */
+static int check_image(const uint8_t *b, size_t len, layout *L, unsigned char *why)
+{
+    int rc = check_envelope(b, len, why);
+    if (rc == SC_CORR_OK)
+        rc = check_header(b, L, why);
+    uint64_t off = 0;
+    if (rc == SC_CORR_OK)
+        rc = check_blocks(b, len, L, &off, why);
+    if (rc != SC_CORR_OK)
+        return rc;
+    const uint64_t body_end = (uint64_t)len - SC_LUTF_CRC_BYTES;
+    uint32_t prov = sc_lutf_get_u32(b + SC_LUTF_OFF_PROV_BYTES);
+    if (off + SC_LUTF_PROV_FIXED_BYTES > body_end || off + prov != body_end)
+        return fail(why, SC_CORR_E_SIZE, SC_CORR_R_BLOCKS_FILL);
+    return check_provenance(b + (size_t)off, prov, why);
 }
 
 /* Whether a valid image L fits this build's capacity; the reason in *why (may be NULL). */
