@@ -154,8 +154,8 @@ static int pos_ok(double x)
     return isfinite(x) && fabs(x) <= SC_LUTF_MAX_ABS_MM;
 }
 
-/* The checks a table must pass before encoding, with messages for people. */
-static sc_status check_encodable(const sc_lut *lut, sc_error *err)
+/* The grid of a table to encode: node counts, origin, pitch and extent. */
+static sc_status check_encodable_grid(const sc_lut *lut, sc_error *err)
 {
     if (lut->nx < 2 || lut->ny < 2 || lut->nx > SC_LUT_MAX_NX || lut->ny > SC_LUT_MAX_NY)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -167,23 +167,29 @@ static sc_status check_encodable(const sc_lut *lut, sc_error *err)
         !pos_ok(lut->y0_mm + lut->py_mm * (lut->ny - 1)))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "grid origin/pitch out of range (pitch >= 1 nm, |position| <= 1 km)");
-    if (lut->n_profiles < 0 || lut->n_profiles > SC_LUT_MAX_PROFILES)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "%d profiles: at most %d", lut->n_profiles,
-                            SC_LUT_MAX_PROFILES);
-    for (int k = 0; k < lut->n_profiles; ++k) {
-        const sc_lut_profile *p = &lut->profile[k];
-        if (p->axis < 0 || p->axis > 2 || p->dir < 0 || p->dir > 2)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: axis/dir must be x, y or z", k);
-        if (p->n < 2 || p->n > SC_LUT_MAX_PROFILE_POINTS)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: %d points, need 2..%d", k,
-                                p->n, SC_LUT_MAX_PROFILE_POINTS);
-        if (!pos_ok(p->start_mm) || !(p->step_mm >= SC_LUTF_MIN_PITCH_MM) ||
-            !pos_ok(p->start_mm + p->step_mm * (p->n - 1)))
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "profile %d: step %g mm (at least 1 nm) or positions %g .. %g mm "
-                                "(within 1 km) out of range",
-                                k, p->step_mm, p->start_mm, p->start_mm + p->step_mm * (p->n - 1));
-    }
+    return SC_OK;
+}
+
+/* Profile k of a table to encode: axis, direction, point count, step and positions. */
+static sc_status check_encodable_profile(const sc_lut_profile *p, int k, sc_error *err)
+{
+    if (p->axis < 0 || p->axis > 2 || p->dir < 0 || p->dir > 2)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: axis/dir must be x, y or z", k);
+    if (p->n < 2 || p->n > SC_LUT_MAX_PROFILE_POINTS)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "profile %d: %d points, need 2..%d", k,
+                            p->n, SC_LUT_MAX_PROFILE_POINTS);
+    if (!pos_ok(p->start_mm) || !(p->step_mm >= SC_LUTF_MIN_PITCH_MM) ||
+        !pos_ok(p->start_mm + p->step_mm * (p->n - 1)))
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "profile %d: step %g mm (at least 1 nm) or positions %g .. %g mm "
+                            "(within 1 km) out of range",
+                            k, p->step_mm, p->start_mm, p->start_mm + p->step_mm * (p->n - 1));
+    return SC_OK;
+}
+
+/* The provenance of a table to encode: source count, method name, sigma. */
+static sc_status check_encodable_provenance(const sc_lut *lut, sc_error *err)
+{
     if (lut->prov.n_sources < 0 || lut->prov.n_sources > SC_LUT_MAX_SOURCES)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "%d source hashes: at most %d",
                             lut->prov.n_sources, SC_LUT_MAX_SOURCES);
@@ -193,6 +199,21 @@ static sc_status check_encodable(const sc_lut *lut, sc_error *err)
     if (!isfinite(lut->prov.sigma_um))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "sigma is not finite");
     return SC_OK;
+}
+
+/* The checks a table must pass before encoding, with messages for people. */
+static sc_status check_encodable(const sc_lut *lut, sc_error *err)
+{
+    sc_status st = check_encodable_grid(lut, err);
+    if (st != SC_OK)
+        return st;
+    if (lut->n_profiles < 0 || lut->n_profiles > SC_LUT_MAX_PROFILES)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "%d profiles: at most %d", lut->n_profiles,
+                            SC_LUT_MAX_PROFILES);
+    for (int k = 0; k < lut->n_profiles; ++k)
+        if ((st = check_encodable_profile(&lut->profile[k], k, err)) != SC_OK)
+            return st;
+    return check_encodable_provenance(lut, err);
 }
 
 /* The fixed header of a table of `size` bytes with grid encoding genc and scale gscale. */
