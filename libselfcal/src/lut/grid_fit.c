@@ -105,8 +105,9 @@ static double table_at(const axis_fit *ax, const axis_fit *ay, const double *c, 
            wy * ((1 - wx) * r1[kx] + wx * r1[kx + 1]);
 }
 
-sc_status sc_lut_fit_grid(sc_lut *lut, const sc_stage_map *m, int max_nodes, const char *name,
-                          sc_lut_fit_report *rep, sc_error *err)
+/* The table's nodes per axis (*mx, *my: the map's, at most max_nodes) and their pitch. */
+static sc_status fit_size(const sc_stage_map *m, int max_nodes, const char *name, int *mx, int *my,
+                          double *px, double *py, sc_error *err)
 {
     if (max_nodes < 2 || max_nodes > SC_LUT_MAX_NX || max_nodes > SC_LUT_MAX_NY)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
@@ -115,14 +116,66 @@ sc_status sc_lut_fit_grid(sc_lut *lut, const sc_stage_map *m, int max_nodes, con
     if (m->nx < 2 || m->ny < 2)
         return sc_error_set(err, SC_E_INPUT, name, 0, "the map has %d x %d nodes; at least 2 x 2",
                             m->nx, m->ny);
-    const int mx = m->nx < max_nodes ? m->nx : max_nodes;
-    const int my = m->ny < max_nodes ? m->ny : max_nodes;
+    *mx = m->nx < max_nodes ? m->nx : max_nodes;
+    *my = m->ny < max_nodes ? m->ny : max_nodes;
     /* an axis kept as it is keeps its pitch exactly */
-    const double px = mx == m->nx ? m->px_mm : m->px_mm * (m->nx - 1) / (mx - 1);
-    const double py = my == m->ny ? m->py_mm : m->py_mm * (m->ny - 1) / (my - 1);
-    if (!(px >= SC_LUTF_MIN_PITCH_MM && py >= SC_LUTF_MIN_PITCH_MM))
+    *px = *mx == m->nx ? m->px_mm : m->px_mm * (m->nx - 1) / (*mx - 1);
+    *py = *my == m->ny ? m->py_mm : m->py_mm * (m->ny - 1) / (*my - 1);
+    if (!(*px >= SC_LUTF_MIN_PITCH_MM && *py >= SC_LUTF_MIN_PITCH_MM))
         return sc_error_set(err, SC_E_INPUT, name, 0, "pitch %g x %g mm is below the table's 1 nm",
-                            px, py);
+                            *px, *py);
+    return SC_OK;
+}
+
+/* The table's values of both components: each map row fitted along x into h (m->ny x mx),
+ * then each column of h along y. */
+static void fit_solve(const axis_fit *ax, const axis_fit *ay, const sc_stage_map *m, double *h,
+                      sc_lut *lut)
+{
+    const int mx = ax->m;
+    for (int comp = 0; comp < 2; ++comp) {
+        const double *g = comp == 0 ? m->gx_um : m->gy_um;
+        double *c = comp == 0 ? lut->gx_um : lut->gy_um;
+        for (int i = 0; i < m->ny; ++i) /* each map row along x: h = G B_x (B_x^T B_x)^-1 */
+            axis_solve(ax, g + (size_t)i * m->nx, 1, h + (size_t)i * mx, 1);
+        for (int j = 0; j < mx; ++j) /* each column of h along y */
+            axis_solve(ay, h + j, (size_t)mx, c + j, (size_t)mx);
+    }
+}
+
+/* How far the fitted table is from the map at the map's nodes: RMS and worst, into *rep. */
+static void fit_report(const axis_fit *ax, const axis_fit *ay, const sc_stage_map *m,
+                       const sc_lut *lut, sc_lut_fit_report *rep)
+{
+    double sum2 = 0, worst = -1;
+    int wi = 0, wj = 0;
+    for (int i = 0; i < m->ny; ++i)
+        for (int j = 0; j < m->nx; ++j) {
+            size_t q = (size_t)i * m->nx + j;
+            double ex = table_at(ax, ay, lut->gx_um, i, j) - m->gx_um[q];
+            double ey = table_at(ax, ay, lut->gy_um, i, j) - m->gy_um[q];
+            double e2 = ex * ex + ey * ey;
+            sum2 += e2;
+            if (e2 > worst)
+                worst = e2, wi = i, wj = j;
+        }
+    rep->map_nx = m->nx;
+    rep->map_ny = m->ny;
+    rep->fitted = ax->m < m->nx || ay->m < m->ny;
+    rep->rms_um = sqrt(sum2 / ((double)m->nx * m->ny));
+    rep->max_um = sqrt(worst);
+    rep->max_at_mm[0] = sc_stage_map_x_mm(m, wj);
+    rep->max_at_mm[1] = sc_stage_map_y_mm(m, wi);
+}
+
+sc_status sc_lut_fit_grid(sc_lut *lut, const sc_stage_map *m, int max_nodes, const char *name,
+                          sc_lut_fit_report *rep, sc_error *err)
+{
+    int mx = 0, my = 0;
+    double px = 0, py = 0;
+    sc_status st = fit_size(m, max_nodes, name, &mx, &my, &px, &py, err);
+    if (st != SC_OK)
+        return st;
     axis_fit ax, ay;
     int rx = axis_init(&ax, m->nx, mx);
     int ry = rx == 0 ? axis_init(&ay, m->ny, my) : -1;
@@ -138,26 +191,9 @@ sc_status sc_lut_fit_grid(sc_lut *lut, const sc_stage_map *m, int max_nodes, con
                    ? sc_error_set(err, SC_E_INTERNAL, name, 0, "the table fit is singular")
                    : sc_error_set(err, SC_E_NOMEM, name, 0, "out of memory (table fit)");
     }
-    double sum2 = 0, worst = -1;
-    int wi = 0, wj = 0;
-    for (int comp = 0; comp < 2; ++comp) {
-        const double *g = comp == 0 ? m->gx_um : m->gy_um;
-        double *c = comp == 0 ? lut->gx_um : lut->gy_um;
-        for (int i = 0; i < m->ny; ++i) /* each map row along x: h = G B_x (B_x^T B_x)^-1 */
-            axis_solve(&ax, g + (size_t)i * m->nx, 1, h + (size_t)i * mx, 1);
-        for (int j = 0; j < mx; ++j) /* each column of h along y */
-            axis_solve(&ay, h + j, (size_t)mx, c + j, (size_t)mx);
-    }
-    for (int i = 0; i < m->ny; ++i)
-        for (int j = 0; j < m->nx; ++j) {
-            size_t q = (size_t)i * m->nx + j;
-            double ex = table_at(&ax, &ay, lut->gx_um, i, j) - m->gx_um[q];
-            double ey = table_at(&ax, &ay, lut->gy_um, i, j) - m->gy_um[q];
-            double e2 = ex * ex + ey * ey;
-            sum2 += e2;
-            if (e2 > worst)
-                worst = e2, wi = i, wj = j;
-        }
+    fit_solve(&ax, &ay, m, h, lut);
+    if (rep)
+        fit_report(&ax, &ay, m, lut, rep);
     free(h);
     axis_free(&ax);
     axis_free(&ay);
@@ -167,15 +203,6 @@ sc_status sc_lut_fit_grid(sc_lut *lut, const sc_stage_map *m, int max_nodes, con
     lut->y0_mm = m->y0_mm;
     lut->px_mm = px;
     lut->py_mm = py;
-    if (rep) {
-        rep->map_nx = m->nx;
-        rep->map_ny = m->ny;
-        rep->fitted = mx < m->nx || my < m->ny;
-        rep->rms_um = sqrt(sum2 / ((double)m->nx * m->ny));
-        rep->max_um = sqrt(worst);
-        rep->max_at_mm[0] = sc_stage_map_x_mm(m, wj);
-        rep->max_at_mm[1] = sc_stage_map_y_mm(m, wi);
-    }
     return SC_OK;
 }
 
