@@ -246,6 +246,38 @@ static sc_status border(sc_rig_plan *p, const double *g, sc_error *err)
     return SC_OK;
 }
 
+/* The plan's arrays (rows used copied from use[]); SC_E_NOMEM when one cannot be had. */
+static sc_status plan_alloc(sc_rig_plan *p, const unsigned char *const use[2], sc_error *err)
+{
+    const int n = p->n, d1 = p->d[0], d2 = p->d[1];
+    size_t band = (size_t)n * (size_t)(p->bw + 1);
+    p->use[0] = malloc((size_t)(n - d1));
+    p->use[1] = malloc((size_t)(n - d2));
+    p->det = malloc((size_t)n);
+    p->fixed = malloc((size_t)n);
+    p->L = calloc(band, sizeof(double));
+    p->Z = calloc((size_t)n * (size_t)p->np, sizeof(double));
+    if (!p->use[0] || !p->use[1] || !p->det || !p->fixed || !p->L || !p->Z)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    memcpy(p->use[0], use[0], (size_t)(n - d1));
+    memcpy(p->use[1], use[1], (size_t)(n - d2));
+    return SC_OK;
+}
+
+/* The degrees of freedom: rows used less the unknowns (points but the gauge's two, parameters). */
+static sc_status plan_dof(sc_rig_plan *p, sc_error *err)
+{
+    long rows = 0;
+    for (int k = 0; k < 2; ++k)
+        for (int j = 0; j < p->n - p->d[k]; ++j)
+            rows += p->use[k][j] != 0;
+    p->dof = (int)(rows - (p->ndet - 2) - p->np);
+    if (p->dof < 0)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0, "fewer rows (%ld) than unknowns (%d)", rows,
+                            p->ndet - 2 + p->np);
+    return SC_OK;
+}
+
 sc_status sc_rig_plan_create(int n, int d1, int d2, const double w[2],
                              const unsigned char *const use[2], int drift, sc_rig_plan **out,
                              sc_error *err)
@@ -260,21 +292,9 @@ sc_status sc_rig_plan_create(int n, int d1, int d2, const double w[2],
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     p->n = n, p->d[0] = d1, p->d[1] = d2, p->bw = d1 > d2 ? d1 : d2;
     p->drift = drift, p->np = 2 + drift, p->w[0] = w[0], p->w[1] = w[1];
-    size_t band = (size_t)n * (size_t)(p->bw + 1);
-    p->use[0] = malloc((size_t)(n - d1));
-    p->use[1] = malloc((size_t)(n - d2));
-    p->det = malloc((size_t)n);
-    p->fixed = malloc((size_t)n);
-    p->L = calloc(band, sizeof(double));
-    p->Z = calloc((size_t)n * (size_t)p->np, sizeof(double));
-    sc_status st = SC_OK;
-    if (!p->use[0] || !p->use[1] || !p->det || !p->fixed || !p->L || !p->Z)
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
-    if (st == SC_OK) {
-        memcpy(p->use[0], use[0], (size_t)(n - d1));
-        memcpy(p->use[1], use[1], (size_t)(n - d2));
+    sc_status st = plan_alloc(p, use, err);
+    if (st == SC_OK)
         st = components(p, err);
-    }
     double g[MAXP * MAXP];
     if (st == SC_OK) {
         assemble(p, g);
@@ -282,16 +302,8 @@ sc_status sc_rig_plan_create(int n, int d1, int d2, const double w[2],
     }
     if (st == SC_OK)
         st = border(p, g, err);
-    if (st == SC_OK) {
-        long rows = 0;
-        for (int k = 0; k < 2; ++k)
-            for (int j = 0; j < n - p->d[k]; ++j)
-                rows += p->use[k][j] != 0;
-        p->dof = (int)(rows - (p->ndet - 2) - p->np);
-        if (p->dof < 0)
-            st = sc_error_set(err, SC_E_INPUT, NULL, 0,
-                              "fewer rows (%ld) than unknowns (%d)", rows, p->ndet - 2 + p->np);
-    }
+    if (st == SC_OK)
+        st = plan_dof(p, err);
     if (st != SC_OK) {
         sc_rig_plan_destroy(p);
         return st;
@@ -443,35 +455,44 @@ static double zsz(const sc_rig_plan *p, int i, int j)
     return s;
 }
 
-sc_status sc_rig_uncertainty(sc_rig_plan *p, double *uf, sc_error *err)
+/* U: an orthonormal basis of {1, i} over the determined points (zero elsewhere). */
+typedef struct line_basis {
+    double m, xm, sxx; /* count, mean index and sum of squared deviations of the points */
+} line_basis;
+
+static line_basis line_basis_of(const sc_rig_plan *p)
+{
+    line_basis b = {0, 0, 0};
+    for (int i = 0; i < p->n; ++i)
+        if (p->det[i])
+            b.m += 1, b.xm += i;
+    b.xm /= b.m;
+    for (int i = 0; i < p->n; ++i)
+        if (p->det[i])
+            b.sxx += (i - b.xm) * (i - b.xm);
+    return b;
+}
+
+/* Column a (0: the constant, 1: the slope) of U at point i. */
+static double basis_at(const sc_rig_plan *p, const line_basis *b, int a, int i)
+{
+    if (!p->det[i])
+        return 0.0;
+    return a ? (i - b->xm) / sqrt(b->sxx) : 1.0 / sqrt(b->m);
+}
+
+/* cu (n x 2, column-major) = CU = B̃⁻¹U + Z S⁻¹ ZᵀU, fixed rows zero. */
+static void basis_response(const sc_rig_plan *p, const line_basis *b, double *cu)
 {
     const int n = p->n, np = p->np;
-    sc_status st = band_inverse(p, err);
-    if (st != SC_OK)
-        return st;
-    /* U: orthonormal basis of {1, i} over the determined points (zero elsewhere) */
-    double m = 0, xm = 0, sxx = 0;
-    for (int i = 0; i < n; ++i)
-        if (p->det[i])
-            m += 1, xm += i;
-    xm /= m;
-    for (int i = 0; i < n; ++i)
-        if (p->det[i])
-            sxx += (i - xm) * (i - xm);
-    double *cu = malloc((size_t)n * 2 * sizeof(double));
-    if (!cu)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
-#define U0(i) (p->det[i] ? 1.0 / sqrt(m) : 0.0)
-#define U1(i) (p->det[i] ? ((i) - xm) / sqrt(sxx) : 0.0)
-    /* CU = B̃⁻¹U + Z S⁻¹ ZᵀU */
     double ztu[2][MAXP] = {{0}};
     for (int a = 0; a < 2; ++a) {
         double *c = cu + (size_t)a * n;
         for (int i = 0; i < n; ++i)
-            c[i] = p->fixed[i] ? 0.0 : (a ? U1(i) : U0(i));
+            c[i] = p->fixed[i] ? 0.0 : basis_at(p, b, a, i);
         band_solve(p, c);
         for (int i = 0; i < n; ++i) {
-            double u = a ? U1(i) : U0(i);
+            double u = basis_at(p, b, a, i);
             for (int r = 0; r < np; ++r)
                 ztu[a][r] += p->Z[(size_t)i * np + r] * u;
         }
@@ -485,11 +506,24 @@ sc_status sc_rig_uncertainty(sc_rig_plan *p, double *uf, sc_error *err)
                 c[i] += p->Z[(size_t)i * np + r] * ztu[a][r];
         }
     }
+}
+
+sc_status sc_rig_uncertainty(sc_rig_plan *p, double *uf, sc_error *err)
+{
+    const int n = p->n;
+    sc_status st = band_inverse(p, err);
+    if (st != SC_OK)
+        return st;
+    line_basis b = line_basis_of(p);
+    double *cu = malloc((size_t)n * 2 * sizeof(double));
+    if (!cu)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
+    basis_response(p, &b, cu);
     double utcu[2][2] = {{0}};
     for (int i = 0; i < n; ++i)
         for (int a = 0; a < 2; ++a) {
-            utcu[a][0] += U0(i) * cu[(size_t)a * n + i];
-            utcu[a][1] += U1(i) * cu[(size_t)a * n + i];
+            utcu[a][0] += basis_at(p, &b, 0, i) * cu[(size_t)a * n + i];
+            utcu[a][1] += basis_at(p, &b, 1, i) * cu[(size_t)a * n + i];
         }
     for (int i = 0; i < n; ++i) {
         if (!p->det[i]) {
@@ -497,16 +531,14 @@ sc_status sc_rig_uncertainty(sc_rig_plan *p, double *uf, sc_error *err)
             continue;
         }
         double c = p->fixed[i] ? 0.0 : p->Zb[(size_t)i * (size_t)(p->bw + 1)] + zsz(p, i, i);
-        double u[2] = {U0(i), U1(i)}, v = c;
+        double u[2] = {basis_at(p, &b, 0, i), basis_at(p, &b, 1, i)}, v = c;
         for (int a = 0; a < 2; ++a)
             v -= 2 * u[a] * cu[(size_t)a * n + i];
         for (int a = 0; a < 2; ++a)
-            for (int b = 0; b < 2; ++b)
-                v += u[a] * u[b] * 0.5 * (utcu[a][b] + utcu[b][a]);
+            for (int q = 0; q < 2; ++q)
+                v += u[a] * u[q] * 0.5 * (utcu[a][q] + utcu[q][a]);
         uf[i] = sqrt(v > 0 ? v : 0);
     }
-#undef U0
-#undef U1
     free(cu);
     return SC_OK;
 }
