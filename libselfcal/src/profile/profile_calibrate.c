@@ -131,12 +131,10 @@ struct sc_profile_calibration {
     solver_ctx ctx;
 };
 
-sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_profile_options *o,
-                                        sc_profile_calibration **out, sc_error *err)
+/* The options as profile_calibrate.h states them: a known method, noise NaN (not given) or
+ * >= 0 and finite, analytic (0) or Monte Carlo (>= 2), drift 0..2 and only with lsq. */
+static sc_status check_options(const sc_profile_options *o, sc_error *err)
 {
-    *out = NULL;
-    /* the options as profile_calibrate.h states them: a known method, noise NaN (not given) or
-     * >= 0 and finite, analytic (0) or Monte Carlo (>= 2) */
     if (o->method != SC_PROFILE_DFT && o->method != SC_PROFILE_LSQ)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "unknown method %d", (int)o->method);
     if (!isnan(o->sigma_disp_um) && !(o->sigma_disp_um >= 0 && o->sigma_disp_um <= SC_INPUT_MAX_ABS))
@@ -156,14 +154,13 @@ sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_pro
     if (o->method == SC_PROFILE_DFT && (o->drift || o->reject_outliers || o->want_residuals))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "drift terms, residuals and outlier rejection need --method lsq");
-    sc_status st = sc_profile_check_method(hdr, o->method, err);
-    if (st != SC_OK)
-        return st;
-    sc_profile_calibration *c = calloc(1, sizeof *c);
-    if (!c)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    c->o = *o;
-    c->n = hdr->n, c->d1 = hdr->d[0], c->d2 = hdr->d[1], c->s_mm = hdr->s_mm;
+    return SC_OK;
+}
+
+/* The noise and the scan weights of calibration c from the header and the options. */
+static void set_noise(sc_profile_calibration *c, const sc_profile_data *hdr,
+                      const sc_profile_options *o)
+{
     sc_profile_solution noise;
     choose_noise(hdr, o, &noise, c->var);
     c->noise_known = noise.noise_known;
@@ -174,6 +171,23 @@ sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_pro
         c->var[0] = c->var[1] = 1; /* the weights are then arbitrary; uncertainties 0 */
     c->w[0] = 1.0 / c->var[0];
     c->w[1] = 1.0 / c->var[1];
+}
+
+sc_status sc_profile_calibration_create(const sc_profile_data *hdr, const sc_profile_options *o,
+                                        sc_profile_calibration **out, sc_error *err)
+{
+    *out = NULL;
+    sc_status st = check_options(o, err);
+    if (st == SC_OK)
+        st = sc_profile_check_method(hdr, o->method, err);
+    if (st != SC_OK)
+        return st;
+    sc_profile_calibration *c = calloc(1, sizeof *c);
+    if (!c)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    c->o = *o;
+    c->n = hdr->n, c->d1 = hdr->d[0], c->d2 = hdr->d[1], c->s_mm = hdr->s_mm;
+    set_noise(c, hdr, o);
     c->ctx.method = o->method;
     if (o->method == SC_PROFILE_DFT)
         st = sc_profile_dft_plan_create(c->n, c->d1, c->d2, c->w[0], c->w[1], &c->ctx.dft, err);
@@ -310,6 +324,55 @@ static sc_status drift_cost(const sc_profile_calibration *c, const sc_profile_da
     return st;
 }
 
+/* The rows present (y finite) into use[k]; a scan with none is refused at its header line. */
+static sc_status rig_rows(const sc_profile_data *d, const double *y[2], unsigned char *use[2],
+                          sc_error *err)
+{
+    for (int k = 0; k < 2; ++k) {
+        long used = 0;
+        for (int j = 0; j < d->n - d->d[k]; ++j)
+            used += use[k][j] = isfinite(y[k][j]);
+        if (!used)
+            return sc_error_set(err, SC_E_INPUT, d->path[0] ? d->path : NULL, d->line_scan[k],
+                                "scan %d has no complete sample (m1, m2 and m3 all given): its "
+                                "offset, and so the profile, is not determined", k + 1);
+    }
+    return SC_OK;
+}
+
+/* One pass of the rig solver on the rows in use: a new plan in c->ctx.rig, f and q, the noise
+ * (s's fields, *scale) and the unit uncertainties into uf. A singular plan is named at the
+ * file's N line. */
+static sc_status rig_pass(sc_profile_calibration *c, const sc_profile_data *d, const double *y1,
+                          const double *y2, unsigned char *use[2], double *f, double *q,
+                          double *uf, sc_profile_solution *s, double *scale, sc_error *err)
+{
+    sc_rig_plan_destroy(c->ctx.rig);
+    c->ctx.rig = NULL;
+    sc_status st = sc_rig_plan_create(d->n, d->d[0], d->d[1], c->w,
+                                      (const unsigned char *const *)use, c->o.drift, &c->ctx.rig,
+                                      err);
+    if (st != SC_OK) {
+        if (err && err->code == SC_E_INPUT && d->path[0])
+            snprintf(err->file, sizeof err->file, "%s", d->path), err->line = d->line_n;
+        return st;
+    }
+    s->dof = sc_rig_dof(c->ctx.rig);
+    if ((st = sc_rig_solve(c->ctx.rig, y1, y2, f, q, &s->wrss, err)) != SC_OK)
+        return st;
+    *scale = noise_scale(c, s);
+    return sc_rig_uncertainty(c->ctx.rig, uf, err);
+}
+
+/* The factor on the scans' σ for the residual test: none without noise to test against (t
+ * empty), the a-posteriori scale when the noise was estimated or found too small. */
+static double residual_sigma_factor(const sc_profile_solution *s, double scale)
+{
+    if (!s->have_uf)
+        return 0.0;
+    return s->noise_known ? (s->u_scaled ? scale : 1.0) : scale;
+}
+
 /* The rig solver (gaps, drift, residuals, outliers): plan from the rows present, solve, noise,
  * unit uncertainties, residual test, and with reject_outliers the worst flagged row out and
  * again. The plan stays in c->ctx.rig for the sensitivities; uf gets the unit uncertainties,
@@ -321,43 +384,19 @@ static sc_status rig_run(sc_profile_calibration *c, const sc_profile_data *d, co
     const int n = d->n;
     const double *y[2] = {y1, y2};
     unsigned char *use[2] = {malloc((size_t)(n - d->d[0])), malloc((size_t)(n - d->d[1]))};
-    sc_status st = use[0] && use[1] ? SC_OK
+    sc_status st = use[0] && use[1] ? rig_rows(d, y, use, err)
                                     : sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    for (int k = 0; k < 2 && st == SC_OK; ++k) {
-        long used = 0;
-        for (int j = 0; j < n - d->d[k]; ++j)
-            used += use[k][j] = isfinite(y[k][j]);
-        if (!used)
-            st = sc_error_set(err, SC_E_INPUT, d->path[0] ? d->path : NULL, d->line_scan[k],
-                              "scan %d has no complete sample (m1, m2 and m3 all given): its "
-                              "offset, and so the profile, is not determined", k + 1);
-    }
     int test = s->r_um[0] && s->r_um[1] && s->t[0] && s->t[1] && s->outlier[0] && s->outlier[1];
     for (int k = 0; k < 2 && st == SC_OK && test; ++k)
         memset(s->outlier[k], 0, (size_t)(n - d->d[k]));
     s->n_removed = 0;
     double q[SC_RIG_MAX_PARAMS];
     while (st == SC_OK) {
-        sc_rig_plan_destroy(c->ctx.rig);
-        c->ctx.rig = NULL;
-        st = sc_rig_plan_create(n, d->d[0], d->d[1], c->w, (const unsigned char *const *)use,
-                                c->o.drift, &c->ctx.rig, err);
-        if (st != SC_OK) {
-            if (err && err->code == SC_E_INPUT && d->path[0])
-                snprintf(err->file, sizeof err->file, "%s", d->path), err->line = d->line_n;
+        st = rig_pass(c, d, y1, y2, use, f, q, uf, s, scale, err);
+        if (st != SC_OK || !test)
             break;
-        }
-        s->dof = sc_rig_dof(c->ctx.rig);
-        if ((st = sc_rig_solve(c->ctx.rig, y1, y2, f, q, &s->wrss, err)) != SC_OK)
-            break;
-        *scale = noise_scale(c, s);
-        if ((st = sc_rig_uncertainty(c->ctx.rig, uf, err)) != SC_OK)
-            break;
-        double res = !s->have_uf ? 0.0 /* no noise to test against: t empty */
-                     : s->noise_known ? (s->u_scaled ? *scale : 1.0) : *scale;
+        double res = residual_sigma_factor(s, *scale);
         const double sigma[2] = {sqrt(c->var[0]) * res, sqrt(c->var[1]) * res};
-        if (!test)
-            break;
         long worst = residual_test(c->ctx.rig, d, y, f, q, sigma, s);
         if (!c->o.reject_outliers || worst < 0)
             break;
@@ -526,16 +565,22 @@ static sc_status solve_step(sc_profile_calibration *c, const sc_profile_data *d,
     return st;
 }
 
-sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile_data *d,
-                                     sc_profile_solution *s, sc_error *err)
+/* The data must be those the calibration was made for (N, the spacings, the step). */
+static sc_status check_shape(const sc_profile_calibration *c, const sc_profile_data *d,
+                             sc_error *err)
 {
-    const sc_profile_options *o = &c->o;
     const int n = d->n, d1 = d->d[0], d2 = d->d[1];
     if (n != c->n || d1 != c->d1 || d2 != c->d2 || d->s_mm != c->s_mm)
         return sc_error_set(err, SC_E_INPUT, d->path[0] ? d->path : NULL, 0,
                             "the data (N = %d, d = %d/%d, s_mm = %g) are not those the "
                             "calibration was made for (N = %d, d = %d/%d, s_mm = %g)",
                             n, d1, d2, d->s_mm, c->n, c->d1, c->d2, c->s_mm);
+    return SC_OK;
+}
+
+/* s's summary fields before a run: the noise chosen at create, nothing found yet. */
+static void solution_reset(const sc_profile_calibration *c, sc_profile_solution *s)
+{
     s->noise_known = c->noise_known;
     s->sigma_disp_um = c->sigma_disp_um;
     s->sigma_angle_urad = c->sigma_angle_urad;
@@ -543,67 +588,114 @@ sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile
     s->drift_um[0] = s->drift_um[1] = s->outlier_crit = s->drift_cost = NAN;
     for (int i = 0; i < SC_PROFILE_U_N; ++i)
         s->budget_rms_um[i] = s->budget_max_um[i] = 0;
-    const double *var = c->var;
-    /* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the
-     * DFT's residuals, 3 for the instrument budget, the residual arrays when not the caller's */
-    int own_res = (o->want_residuals || o->reject_outliers) && !s->r_um[0];
-    int budget = instrument_u(d, SC_PROFILE_U_PROBE_GAIN) > 0 ||
-                 instrument_u(d, SC_PROFILE_U_ANGLE_SCALE) > 0 ||
-                 instrument_u(d, SC_PROFILE_U_SPACING) > 0;
+}
+
+/* Whether the header states an instrument constant with its uncertainty (a budget to add). */
+static int has_budget(const sc_profile_data *d)
+{
+    return instrument_u(d, SC_PROFILE_U_PROBE_GAIN) > 0 ||
+           instrument_u(d, SC_PROFILE_U_ANGLE_SCALE) > 0 ||
+           instrument_u(d, SC_PROFILE_U_SPACING) > 0;
+}
+
+/* The arrays of one run: blk and work are owned (freed at the end), the others point into
+ * them or into the caller's solution. */
+typedef struct run_arrays {
+    double *blk, *work;
+    double *y1, *y2, *f, *uf, *tmp;
+    int own_res, budget;
+} run_arrays;
+
+/* y1, y2, and f, uf where the caller wants none (they are written in place), tmp for the DFT's
+ * residuals, the instrument budget's work (4n) and the residual arrays when not the caller's
+ * (4n + marks, handed to s for the run). */
+static sc_status run_alloc(const sc_profile_calibration *c, const sc_profile_data *d,
+                           sc_profile_solution *s, run_arrays *a, sc_error *err)
+{
+    const sc_profile_options *o = &c->o;
+    const int n = d->n;
+    a->own_res = (o->want_residuals || o->reject_outliers) && !s->r_um[0];
+    a->budget = has_budget(d);
     size_t own = 2 + !s->f_um + !s->uf_um + (o->method == SC_PROFILE_DFT);
-    double *blk = sc_big_alloc(own * (size_t)n, sizeof(double), 0);
-    /* the budget's work (4n) and the residual arrays when not the caller's (4n + marks) */
-    double *work = budget || own_res ? malloc((4 + 5 * (size_t)own_res) * (size_t)n * sizeof(double))
-                                     : NULL;
-    if (!blk || ((budget || own_res) && !work)) {
-        free(blk), free(work);
+    a->blk = sc_big_alloc(own * (size_t)n, sizeof(double), 0);
+    a->work = a->budget || a->own_res
+                  ? malloc((4 + 5 * (size_t)a->own_res) * (size_t)n * sizeof(double))
+                  : NULL;
+    if (!a->blk || ((a->budget || a->own_res) && !a->work)) {
+        free(a->blk), free(a->work);
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory for N = %d", n);
     }
-    double *y1 = blk, *y2 = y1 + n, *next = y2 + n, *f = s->f_um, *uf = s->uf_um;
-    if (!f)
-        f = next, next += n;
-    if (!uf)
-        uf = next, next += n;
-    double *tmp = o->method == SC_PROFILE_DFT ? next : NULL;
-    if (own_res) {
-        double *r = work + 4 * (size_t)n;
+    double *next = a->blk + 2 * (size_t)n;
+    a->y1 = a->blk, a->y2 = a->blk + n, a->f = s->f_um, a->uf = s->uf_um;
+    if (!a->f)
+        a->f = next, next += n;
+    if (!a->uf)
+        a->uf = next, next += n;
+    a->tmp = o->method == SC_PROFILE_DFT ? next : NULL;
+    if (a->own_res) {
+        double *r = a->work + 4 * (size_t)n;
         s->r_um[0] = r, s->r_um[1] = r + n, s->t[0] = r + 2 * (size_t)n;
         s->t[1] = r + 3 * (size_t)n;
         s->outlier[0] = (unsigned char *)(r + 4 * (size_t)n), s->outlier[1] = s->outlier[0] + n;
     }
-    sc_profile_combine(d, 0, y1);
-    sc_profile_combine(d, 1, y2);
-    int gaps = sc_profile_has_gaps(d), rig = o->method == SC_PROFILE_LSQ &&
-              (gaps || o->drift || o->reject_outliers || o->want_residuals);
-    double scale = 1.0; /* multiplies the plan's unit uncertainties */
-    sc_status st = solve_step(c, d, gaps, rig, y1, y2, f, uf, tmp, s, &scale, err);
-    if (st != SC_OK)
-        goto done;
+    return SC_OK;
+}
+
+/* The scans' σ and every point's uncertainty (the noise scaled by `scale`: Monte Carlo, the
+ * method's formula or the rig solver's unit uncertainties already in a->uf), then the budget:
+ * the noise and each instrument constant stated. */
+static sc_status final_uncertainty(sc_profile_calibration *c, const sc_profile_data *d, int rig,
+                                   double scale, run_arrays *a, sc_profile_solution *s,
+                                   sc_error *err)
+{
+    const sc_profile_options *o = &c->o;
+    const double *var = c->var;
+    double *uf = a->uf;
+    sc_status st = SC_OK;
     s->sigma_y_um[0] = s->have_uf ? sqrt(var[0]) * scale : NAN;
     s->sigma_y_um[1] = s->have_uf ? sqrt(var[1]) * scale : NAN;
     if (s->have_uf && (!rig || o->mc_trials > 0))
         st = uncertainty(d, o, &c->ctx, var, scale, uf, err);
     else /* the rig solver's unit uncertainties are in uf already */
-        for (int i = 0; i < n; ++i)
+        for (int i = 0; i < d->n; ++i)
             uf[i] = s->have_uf ? uf[i] * scale : NAN;
     if (st == SC_OK && s->have_uf) {
-        budget_entry(s, SC_PROFILE_U_NOISE, uf, n);
-        if (budget)
-            st = instrument_budget(c, d, uf, work, s, err);
+        budget_entry(s, SC_PROFILE_U_NOISE, uf, d->n);
+        if (a->budget)
+            st = instrument_budget(c, d, uf, a->work, s, err);
     }
+    return st;
+}
+
+sc_status sc_profile_calibration_run(sc_profile_calibration *c, const sc_profile_data *d,
+                                     sc_profile_solution *s, sc_error *err)
+{
+    const sc_profile_options *o = &c->o;
+    sc_status st = check_shape(c, d, err);
     if (st != SC_OK)
-        goto done;
-    if (s->ey_um)
-        stage_error(d, f, s->ey_um);
-done:
-    if (own_res) { /* the caller did not give the arrays: none to hand back */
+        return st;
+    solution_reset(c, s);
+    run_arrays a = {0};
+    if ((st = run_alloc(c, d, s, &a, err)) != SC_OK)
+        return st;
+    sc_profile_combine(d, 0, a.y1);
+    sc_profile_combine(d, 1, a.y2);
+    int gaps = sc_profile_has_gaps(d), rig = o->method == SC_PROFILE_LSQ &&
+              (gaps || o->drift || o->reject_outliers || o->want_residuals);
+    double scale = 1.0; /* multiplies the plan's unit uncertainties */
+    st = solve_step(c, d, gaps, rig, a.y1, a.y2, a.f, a.uf, a.tmp, s, &scale, err);
+    if (st == SC_OK)
+        st = final_uncertainty(c, d, rig, scale, &a, s, err);
+    if (st == SC_OK && s->ey_um)
+        stage_error(d, a.f, s->ey_um);
+    if (a.own_res) { /* the caller did not give the arrays: none to hand back */
         s->r_um[0] = s->r_um[1] = s->t[0] = s->t[1] = NULL;
         s->outlier[0] = s->outlier[1] = NULL;
     }
     sc_rig_plan_destroy(c->ctx.rig);
     c->ctx.rig = NULL;
-    free(work);
-    free(blk);
+    free(a.work);
+    free(a.blk);
     return st;
 }
 
