@@ -24,6 +24,83 @@ SC_ATTR static void SC_SFX(assemble_row)(const sc_lsq_band *b, int i)
     ri[bw] = aii;
 }
 
+/* gather the panel of columns j .. j+nb-1: pc[c][k - j] = L[k][j+c] (0 outside the band, above
+ * the diagonal, past N); row by row — a row's panel entries are contiguous in the band storage.
+ * col: the 8 columns of h + 8 doubles each that pc points into. */
+SC_ATTR static inline void SC_SFX(panel_gather)(const sc_lsq_band *b, double *col,
+                                                double *const *pc, int j, int nb, int last, int h)
+{
+    int bw = b->bw;
+    size_t ld = b->ld;
+    for (size_t q = 0; q < 8 * (size_t)(h + 8); q++) col[q] = 0.0;
+    for (int q = 0; q <= last - j; q++) {
+        /* row j+q's slot of column j+c is bw - q + c >= 0 (c >= q - bw); indexing from the
+         * row start keeps the pointer inside the array when q > bw */
+        const double *src = b->a + (size_t)(j + q) * ld;
+        int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
+        for (int c = c0; c <= c1; c++) pc[c][q] = src[bw - q + c];
+    }
+}
+
+/* Factor the panel in the scratch (pivot square roots, column scaling, updates inside the
+ * panel; h rows); the first column whose pivot is not positive and finite, or -1. */
+SC_ATTR static inline int SC_SFX(panel_factor)(double *const *pc, int nb, int h)
+{
+    for (int c = 0; c < nb; c++) {
+        double *pcc = pc[c];
+        double djj = pcc[c];
+        if (!(djj > 0.0) || !(djj < INFINITY)) return c;
+        double inv = 1.0 / sqrt(djj);
+        pcc[c] = inv;
+        for (int q = c + 1; q < h; q++) pcc[q] *= inv;
+        for (int c2 = c + 1; c2 < nb; c2++) {
+            double m = pcc[c2];
+            if (m == 0.0) continue;
+            double *p2 = pc[c2];
+            for (int q = c2; q < h; q++) p2[q] -= pcc[q] * m;
+        }
+    }
+    return -1;
+}
+
+/* Write the factored panel back into the band, row by row. */
+SC_ATTR static inline void SC_SFX(panel_scatter)(sc_lsq_band *b, double *const *pc, int j, int nb,
+                                                 int last)
+{
+    int bw = b->bw;
+    size_t ld = b->ld;
+    for (int q = 0; q <= last - j; q++) {
+        double *dst = b->a + (size_t)(j + q) * ld;
+        int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
+        for (int c = c0; c <= c1; c++) dst[bw - q + c] = pc[c][q];
+    }
+}
+
+/* The trailing rows k = j+8 .. last, columns l0 = j+8 .. k, less the full panel's rank-8 product:
+ * row -= Σ_c L[k][j+c]·L[l][j+c]; four rows at a time — past `last` into rows not assembled yet
+ * (assembly overwrites them), except at the end of the storage, where the last rows go one by
+ * one. */
+SC_ATTR static inline void SC_SFX(panel_trailing)(sc_lsq_band *b, const double *col,
+                                                  double *const *pc, int j, int last, int h)
+{
+    int nrow = b->nrow, bw = b->bw;
+    size_t ld = b->ld;
+    int l0 = j + 8;
+    int k = l0;
+    for (; k <= last && (k + 3 < nrow); k += 4) {
+        double *y0 = b->a + (size_t)k * ld + (size_t)(l0 - k + bw);
+        SC_SYRK8X4(y0, (ptrdiff_t)ld - 1, col + 8, h + 8, k - j - 8, k - l0);
+    }
+    for (; k <= last; k++) {
+        double *row = b->a + (size_t)k * ld;
+        for (int l = l0; l <= k; l++) {
+            double v = 0.0;
+            for (int c = 0; c < 8; c++) v += pc[c][k - j] * pc[c][l - j];
+            row[l - k + bw] -= v;
+        }
+    }
+}
+
 /* Right-looking banded Cholesky in panels of eight columns: copy the panel (its eight columns,
  * rows j .. j+7+bw) into contiguous scratch, factor it there (pivot square roots, column scaling,
  * updates inside the panel), write it back, then subtract its rank-8 outer product from the
@@ -35,7 +112,6 @@ SC_ATTR static void SC_SFX(assemble_row)(const sc_lsq_band *b, int i)
 SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
 {
     int ncol = b->ncol, nrow = b->nrow, bw = b->bw;
-    size_t ld = b->ld;
     int h = bw + 8; /* panel rows j .. j+7+bw; each column padded with 8 zeros (stride h + 8) */
     double *pc[8];
     for (int c = 0; c < 8; c++) pc[c] = col + (size_t)c * (h + 8);
@@ -44,55 +120,12 @@ SC_ATTR static int SC_SFX(factor)(sc_lsq_band *b, double *col)
         int nb = ncol - j < 8 ? ncol - j : 8;
         int last = j + nb - 1 + bw < nrow - 1 ? j + nb - 1 + bw : nrow - 1;
         while (next_row <= last) SC_SFX(assemble_row)(b, next_row++);
-        /* gather: pc[c][k - j] = L[k][j+c] (0 outside the band, above the diagonal, past N);
-         * row by row — a row's panel entries are contiguous in the band storage */
-        for (size_t q = 0; q < 8 * (size_t)(h + 8); q++) col[q] = 0.0;
-        for (int q = 0; q <= last - j; q++) {
-            /* row j+q's slot of column j+c is bw - q + c >= 0 (c >= q - bw); indexing from the
-             * row start keeps the pointer inside the array when q > bw */
-            const double *src = b->a + (size_t)(j + q) * ld;
-            int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
-            for (int c = c0; c <= c1; c++) pc[c][q] = src[bw - q + c];
-        }
-        /* factor the panel in the scratch */
-        for (int c = 0; c < nb; c++) {
-            double *pcc = pc[c];
-            double djj = pcc[c];
-            if (!(djj > 0.0) || !(djj < INFINITY)) return j + c;
-            double inv = 1.0 / sqrt(djj);
-            pcc[c] = inv;
-            for (int q = c + 1; q < h; q++) pcc[q] *= inv;
-            for (int c2 = c + 1; c2 < nb; c2++) {
-                double m = pcc[c2];
-                if (m == 0.0) continue;
-                double *p2 = pc[c2];
-                for (int q = c2; q < h; q++) p2[q] -= pcc[q] * m;
-            }
-        }
-        /* write the panel back, row by row */
-        for (int q = 0; q <= last - j; q++) {
-            double *dst = b->a + (size_t)(j + q) * ld;
-            int c0 = q - bw > 0 ? q - bw : 0, c1 = q < nb - 1 ? q : nb - 1;
-            for (int c = c0; c <= c1; c++) dst[bw - q + c] = pc[c][q];
-        }
+        SC_SFX(panel_gather)(b, col, pc, j, nb, last, h);
+        int bad = SC_SFX(panel_factor)(pc, nb, h);
+        if (bad >= 0) return j + bad;
+        SC_SFX(panel_scatter)(b, pc, j, nb, last);
         if (nb < 8) continue; /* the last columns (ncol = nrow, or ncol % 8 = 0): nothing trails */
-        /* trailing rows k = j+8 .. last, columns l0 = j+8 .. k: row -= Σ_c L[k][j+c]·L[l][j+c];
-         * four rows at a time — past `last` into rows not assembled yet (assembly overwrites
-         * them), except at the end of the storage, where the last rows go one by one */
-        int l0 = j + 8;
-        int k = l0;
-        for (; k <= last && (k + 3 < nrow); k += 4) {
-            double *y0 = b->a + (size_t)k * ld + (size_t)(l0 - k + bw);
-            SC_SYRK8X4(y0, (ptrdiff_t)ld - 1, col + 8, h + 8, k - j - 8, k - l0);
-        }
-        for (; k <= last; k++) {
-            double *row = b->a + (size_t)k * ld;
-            for (int l = l0; l <= k; l++) {
-                double v = 0.0;
-                for (int c = 0; c < 8; c++) v += pc[c][k - j] * pc[c][l - j];
-                row[l - k + bw] -= v;
-            }
-        }
+        SC_SFX(panel_trailing)(b, col, pc, j, last, h);
     }
     while (next_row < nrow) SC_SFX(assemble_row)(b, next_row++);
     return -1;
@@ -209,6 +242,105 @@ SC_ATTR static void SC_SFX(solve)(const sc_lsq_band *b, double *const *xs, int n
     SC_SFX(backward)(b, xs, nrhs);
 }
 
+#ifndef SC_LSQ_ZWIN_DEFINED
+#define SC_LSQ_ZWIN_DEFINED
+/* The sliding copy of the window of Z used by inverse_diag_blocked: index k at row and column
+ * k - base of an R×R array zb. */
+typedef struct sc_lsq_zwin {
+    double *zb;
+    long base;
+    int R;
+} sc_lsq_zwin;
+#endif
+/* Z[k][j] in the window z (a local copy of the caller's sc_lsq_zwin) */
+#define ZB(k, j) z.zb[(size_t)((k) - z.base) * z.R + (size_t)((j) - z.base)]
+
+/* Move the live window (indices i+1 .. i+bw) to the far end of the copy: w->base lowered so
+ * that the next blocks, below i, fit. */
+SC_ATTR static inline void SC_SFX(window_slide)(sc_lsq_zwin *w, int i, int bw, int bwp)
+{
+    const sc_lsq_zwin z = *w;
+    long nbase = (long)i + 1 + bwp - z.R;
+    long shift = z.base - nbase; /* > 0: positions grow */
+    for (int r = bw - 1; r >= 0; r--) {
+        double *src = &ZB(i + 1 + r, i + 1);
+        memmove(src + shift * z.R + shift, src, (size_t)bw * sizeof(double));
+    }
+    w->base = nbase;
+}
+
+/* Column kk = i - 24 of L, a few blocks ahead, on its way from memory: each of its entries is in
+ * another row (another cache line), beyond what the hardware prefetcher follows. */
+SC_ATTR static inline void SC_SFX(prefetch_ahead)(const sc_lsq_band *b, int i)
+{
+#if defined(__GNUC__)
+    const int kk = i - 24, bw = b->bw;
+    if (kk >= 0)
+        for (int row = kk + 1; row <= kk + bw && row < b->nrow; row++)
+            __builtin_prefetch(b->a + (size_t)row * b->ld + (size_t)(kk - row + bw), 0, 1);
+#else
+    (void)b;
+    (void)i;
+#endif
+}
+
+/* Lc[r][q] = L[i+1+q][i-r] for the block's nb rows (0 past the band and past N; rows of bwp):
+ * row i+1+q holds the four next to each other. */
+SC_ATTR static inline void SC_SFX(gather_lc)(const sc_lsq_band *b, double *lc, int bwp, int i,
+                                             int nb)
+{
+    const int bw = b->bw;
+    for (size_t q = 0; q < 4 * (size_t)bwp; q++) lc[q] = 0.0;
+    int qmax = bw - 1;
+    if (b->nrow - 2 - i < qmax) qmax = b->nrow - 2 - i;
+    if (b->n - 2 - i < qmax) qmax = b->n - 2 - i;
+    for (int q = 0; q <= qmax; q++) {
+        const double *src = b->a + (size_t)(i + 1 + q) * b->ld + (size_t)(bw - 1 - q);
+        int rmax = bw - 1 - q < nb - 1 ? bw - 1 - q : nb - 1;
+        for (int r = 0; r <= rmax; r++) lc[(size_t)r * bwp + q] = src[-r];
+    }
+}
+
+/* Row k = i - r of Z (block i-nb+1 .. i, rows of the block above k already done): the window
+ * columns from T (tr, += the block rows above k), the columns inside the block, the diagonal
+ * (also into diag[k]). */
+SC_ATTR static inline void SC_SFX(block_row)(const sc_lsq_band *b, const sc_lsq_zwin *w,
+                                             const double *lr, double *tr, int i, int k,
+                                             double *diag)
+{
+    const sc_lsq_zwin z = *w;
+    const int bw = b->bw;
+    const size_t ld = b->ld;
+    const double *a = b->a;
+    double rkk = a[(size_t)k * ld + bw];
+    double *zk = &ZB(k, i + 1);
+    /* window columns: + Σ_{q=k+1}^{i} L[q][k]·Z[q][j] */
+    for (int q = k + 1; q <= i; q++) {
+        double lqk = a[(size_t)q * ld + (size_t)(k - q + bw)];
+        const double *zq = &ZB(q, i + 1);
+        for (int j = 0; j < bw; j++) tr[j] += lqk * zq[j];
+    }
+    double acc = 0.0;
+    for (int j = 0; j < bw; j++) {
+        double zv = -tr[j] * rkk;
+        zk[j] = zv;
+        acc += lr[j] * zv;
+    }
+    /* columns inside the block: j = k+1 .. i */
+    for (int j = k + 1; j <= i; j++) {
+        double v = SC_DOT(lr, &ZB(j, i + 1), bw);
+        for (int q = k + 1; q <= i; q++)
+            v += a[(size_t)q * ld + (size_t)(k - q + bw)] * ZB(q, j);
+        double zv = -v * rkk;
+        ZB(k, j) = zv;
+        ZB(j, k) = zv;
+        acc += a[(size_t)j * ld + (size_t)(k - j + bw)] * zv;
+    }
+    double zkk = (rkk - acc) * rkk;
+    ZB(k, k) = zkk;
+    diag[k] = zkk;
+}
+
 /* The same recurrences four steps at a time (bw >= 8), over a sliding (non-circular) copy of the
  * window: Z over the indices base .. base+R-1 at row/column (index - base), R = bwp + 64 (bwp = bw
  * rounded up to 4); when the next block would fall below base, the live window (indices
@@ -221,84 +353,27 @@ SC_ATTR static void SC_SFX(solve)(const sc_lsq_band *b, double *const *xs, int n
 SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *scr, double *diag,
                                                  int i0, const double *zss, int s)
 {
-    const int n = b->n, nrow = b->nrow, bw = b->bw;
-    const size_t ld = b->ld;
-    const double *a = b->a;
+    const int bw = b->bw;
     const int bwp = (bw + 3) & ~3, R = bwp + 64;
-    double *zb = scr, *lc = zb + (size_t)R * R, *tw = lc + 4 * (size_t)bwp;
+    double *lc = scr + (size_t)R * R, *tw = lc + 4 * (size_t)bwp;
     for (size_t q = 0; q < (size_t)R * R + 8 * (size_t)bwp; q++) scr[q] = 0.0;
-    long base = (long)i0 + 1 + bwp - R;
-#define ZB(k, j) zb[(size_t)((k) - base) * R + (size_t)((j) - base)]
-    int sw = s < bw ? s : bw;
-    for (int r = 0; r < sw; r++)
-        for (int c = 0; c < sw; c++) ZB(i0 + 1 + r, i0 + 1 + c) = zss[(size_t)r * s + c];
+    sc_lsq_zwin zw = {scr, (long)i0 + 1 + bwp - R, R};
+    {
+        const sc_lsq_zwin z = zw;
+        int sw = s < bw ? s : bw;
+        for (int r = 0; r < sw; r++)
+            for (int c = 0; c < sw; c++) ZB(i0 + 1 + r, i0 + 1 + c) = zss[(size_t)r * s + c];
+    }
     int i = i0;
     while (i >= 0) {
         int nb = i + 1 < 4 ? i + 1 : 4;
-        if (i - nb + 1 - base < 0) { /* move the window i+1 .. i+bw to the far end */
-            long nbase = (long)i + 1 + bwp - R;
-            long shift = base - nbase; /* > 0: positions grow */
-            for (int r = bw - 1; r >= 0; r--) {
-                double *src = zb + (size_t)(i + 1 + r - base) * R + (size_t)(i + 1 - base);
-                memmove(src + shift * R + shift, src, (size_t)bw * sizeof(double));
-            }
-            base = nbase;
-        }
-        /* column kk of L, a few blocks ahead, on its way from memory: each of its entries is in
-         * another row (another cache line), beyond what the hardware prefetcher follows */
-#if defined(__GNUC__)
-        {
-            int kk = i - 24;
-            if (kk >= 0)
-                for (int row = kk + 1; row <= kk + bw && row < nrow; row++)
-                    __builtin_prefetch(a + (size_t)row * ld + (size_t)(kk - row + bw), 0, 1);
-        }
-#endif
-        /* Lc[r][q] = L[i+1+q][i-r]: row i+1+q holds the four next to each other */
-        for (size_t q = 0; q < 4 * (size_t)bwp; q++) lc[q] = 0.0;
-        {
-            int qmax = bw - 1;
-            if (nrow - 2 - i < qmax) qmax = nrow - 2 - i;
-            if (n - 2 - i < qmax) qmax = n - 2 - i;
-            for (int q = 0; q <= qmax; q++) {
-                const double *src = a + (size_t)(i + 1 + q) * ld + (size_t)(bw - 1 - q);
-                int rmax = bw - 1 - q < nb - 1 ? bw - 1 - q : nb - 1;
-                for (int r = 0; r <= rmax; r++) lc[(size_t)r * bwp + q] = src[-r];
-            }
-        }
+        if (i - nb + 1 - zw.base < 0) SC_SFX(window_slide)(&zw, i, bw, bwp);
+        const sc_lsq_zwin z = zw;
+        SC_SFX(prefetch_ahead)(b, i);
+        SC_SFX(gather_lc)(b, lc, bwp, i, nb);
         SC_GEMM4(tw, bwp, lc, bwp, &ZB(i + 1, i + 1), R, bw, bwp);
-        for (int r = 0; r < nb; r++) {
-            int k = i - r;
-            double rkk = a[(size_t)k * ld + bw];
-            const double *lr = lc + (size_t)r * bwp;
-            double *tr = tw + (size_t)r * bwp;
-            double *zk = &ZB(k, i + 1);
-            /* window columns: + Σ_{q=k+1}^{i} L[q][k]·Z[q][j] */
-            for (int q = k + 1; q <= i; q++) {
-                double lqk = a[(size_t)q * ld + (size_t)(k - q + bw)];
-                const double *zq = &ZB(q, i + 1);
-                for (int j = 0; j < bw; j++) tr[j] += lqk * zq[j];
-            }
-            double acc = 0.0;
-            for (int j = 0; j < bw; j++) {
-                double z = -tr[j] * rkk;
-                zk[j] = z;
-                acc += lr[j] * z;
-            }
-            /* columns inside the block: j = k+1 .. i */
-            for (int j = k + 1; j <= i; j++) {
-                double v = SC_DOT(lr, &ZB(j, i + 1), bw);
-                for (int q = k + 1; q <= i; q++)
-                    v += a[(size_t)q * ld + (size_t)(k - q + bw)] * ZB(q, j);
-                double z = -v * rkk;
-                ZB(k, j) = z;
-                ZB(j, k) = z;
-                acc += a[(size_t)j * ld + (size_t)(k - j + bw)] * z;
-            }
-            double zkk = (rkk - acc) * rkk;
-            ZB(k, k) = zkk;
-            diag[k] = zkk;
-        }
+        for (int r = 0; r < nb; r++)
+            SC_SFX(block_row)(b, &zw, lc + (size_t)r * bwp, tw + (size_t)r * bwp, i, i - r, diag);
         /* the block's columns in the window rows, by symmetry (the block's rows are contiguous
          * there: one short store per window row) */
         for (int j = 0; j < bw; j++) {
@@ -307,8 +382,8 @@ SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *s
         }
         i -= nb;
     }
-#undef ZB
 }
+#undef ZB
 
 /* Row i of Z from t (= Σ_k L[k][i]·Z[k][·] over the window slots): Z[i][k] = -t[slot k]/L[i][i],
  * Z[i][i] = (1/L[i][i])(1/L[i][i] - Σ_k L[k][i]·Z[i][k]); written into row and column slot(i). */
