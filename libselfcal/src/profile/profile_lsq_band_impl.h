@@ -242,103 +242,50 @@ SC_ATTR static void SC_SFX(solve)(const sc_lsq_band *b, double *const *xs, int n
     SC_SFX(backward)(b, xs, nrhs);
 }
 
-#ifndef SC_LSQ_ZWIN_DEFINED
-#define SC_LSQ_ZWIN_DEFINED
-/* The sliding copy of the window of Z used by inverse_diag_blocked: index k at row and column
- * k - base of an R×R array zb. */
-typedef struct sc_lsq_zwin {
-    double *zb;
-    long base;
-    int R;
-} sc_lsq_zwin;
-#endif
-/* Z[k][j] in the window z (a local copy of the caller's sc_lsq_zwin) */
-#define ZB(k, j) z.zb[(size_t)((k) - z.base) * z.R + (size_t)((j) - z.base)]
-
-/* Move the live window (indices i+1 .. i+bw) to the far end of the copy: w->base lowered so
- * that the next blocks, below i, fit. */
-SC_ATTR static inline void SC_SFX(window_slide)(sc_lsq_zwin *w, int i, int bw, int bwp)
+/* Move the live window of Z (indices i+1 .. i+bw, stored at row/column index - base of the R×R
+ * copy zb) to the far end of the copy, so that the next blocks, below i, fit; the new base. */
+SC_ATTR static inline long SC_SFX(window_slide)(double *zb, int R, long base, int i, int bw,
+                                                int bwp)
 {
-    const sc_lsq_zwin z = *w;
-    long nbase = (long)i + 1 + bwp - z.R;
-    long shift = z.base - nbase; /* > 0: positions grow */
+    long nbase = (long)i + 1 + bwp - R;
+    long shift = base - nbase; /* > 0: positions grow */
     for (int r = bw - 1; r >= 0; r--) {
-        double *src = &ZB(i + 1 + r, i + 1);
-        memmove(src + shift * z.R + shift, src, (size_t)bw * sizeof(double));
+        double *src = zb + (size_t)(i + 1 + r - base) * R + (size_t)(i + 1 - base);
+        memmove(src + shift * R + shift, src, (size_t)bw * sizeof(double));
     }
-    w->base = nbase;
+    return nbase;
 }
 
-/* Column kk = i - 24 of L, a few blocks ahead, on its way from memory: each of its entries is in
- * another row (another cache line), beyond what the hardware prefetcher follows. */
-SC_ATTR static inline void SC_SFX(prefetch_ahead)(const sc_lsq_band *b, int i)
+/* Column kk = i - 24 of L (band a, ld doubles a row, nrow rows), a few blocks ahead, on its way
+ * from memory: each of its entries is in another row (another cache line), beyond what the
+ * hardware prefetcher follows. */
+SC_ATTR static inline void SC_SFX(prefetch_ahead)(const double *a, size_t ld, int bw, int nrow,
+                                                  int i)
 {
 #if defined(__GNUC__)
-    const int kk = i - 24, bw = b->bw;
+    int kk = i - 24;
     if (kk >= 0)
-        for (int row = kk + 1; row <= kk + bw && row < b->nrow; row++)
-            __builtin_prefetch(b->a + (size_t)row * b->ld + (size_t)(kk - row + bw), 0, 1);
+        for (int row = kk + 1; row <= kk + bw && row < nrow; row++)
+            __builtin_prefetch(a + (size_t)row * ld + (size_t)(kk - row + bw), 0, 1);
 #else
-    (void)b;
-    (void)i;
+    (void)a, (void)ld, (void)bw, (void)nrow, (void)i;
 #endif
 }
 
-/* Lc[r][q] = L[i+1+q][i-r] for the block's nb rows (0 past the band and past N; rows of bwp):
- * row i+1+q holds the four next to each other. */
-SC_ATTR static inline void SC_SFX(gather_lc)(const sc_lsq_band *b, double *lc, int bwp, int i,
-                                             int nb)
+/* Lc[r][q] = L[i+1+q][i-r] for the block's nb rows (rows of bwp; 0 past the band, past the
+ * storage's nrow rows and past N = n): row i+1+q holds the four next to each other. */
+SC_ATTR static inline void SC_SFX(gather_lc)(double *lc, int bwp, const double *a, size_t ld,
+                                             int bw, int nrow, int n, int i, int nb)
 {
-    const int bw = b->bw;
     for (size_t q = 0; q < 4 * (size_t)bwp; q++) lc[q] = 0.0;
     int qmax = bw - 1;
-    if (b->nrow - 2 - i < qmax) qmax = b->nrow - 2 - i;
-    if (b->n - 2 - i < qmax) qmax = b->n - 2 - i;
+    if (nrow - 2 - i < qmax) qmax = nrow - 2 - i;
+    if (n - 2 - i < qmax) qmax = n - 2 - i;
     for (int q = 0; q <= qmax; q++) {
-        const double *src = b->a + (size_t)(i + 1 + q) * b->ld + (size_t)(bw - 1 - q);
+        const double *src = a + (size_t)(i + 1 + q) * ld + (size_t)(bw - 1 - q);
         int rmax = bw - 1 - q < nb - 1 ? bw - 1 - q : nb - 1;
         for (int r = 0; r <= rmax; r++) lc[(size_t)r * bwp + q] = src[-r];
     }
-}
-
-/* Row k = i - r of Z (block i-nb+1 .. i, rows of the block above k already done): the window
- * columns from T (tr, += the block rows above k), the columns inside the block, the diagonal
- * (also into diag[k]). */
-SC_ATTR static inline void SC_SFX(block_row)(const sc_lsq_band *b, const sc_lsq_zwin *w,
-                                             const double *lr, double *tr, int i, int k,
-                                             double *diag)
-{
-    const sc_lsq_zwin z = *w;
-    const int bw = b->bw;
-    const size_t ld = b->ld;
-    const double *a = b->a;
-    double rkk = a[(size_t)k * ld + bw];
-    double *zk = &ZB(k, i + 1);
-    /* window columns: + Σ_{q=k+1}^{i} L[q][k]·Z[q][j] */
-    for (int q = k + 1; q <= i; q++) {
-        double lqk = a[(size_t)q * ld + (size_t)(k - q + bw)];
-        const double *zq = &ZB(q, i + 1);
-        for (int j = 0; j < bw; j++) tr[j] += lqk * zq[j];
-    }
-    double acc = 0.0;
-    for (int j = 0; j < bw; j++) {
-        double zv = -tr[j] * rkk;
-        zk[j] = zv;
-        acc += lr[j] * zv;
-    }
-    /* columns inside the block: j = k+1 .. i */
-    for (int j = k + 1; j <= i; j++) {
-        double v = SC_DOT(lr, &ZB(j, i + 1), bw);
-        for (int q = k + 1; q <= i; q++)
-            v += a[(size_t)q * ld + (size_t)(k - q + bw)] * ZB(q, j);
-        double zv = -v * rkk;
-        ZB(k, j) = zv;
-        ZB(j, k) = zv;
-        acc += a[(size_t)j * ld + (size_t)(k - j + bw)] * zv;
-    }
-    double zkk = (rkk - acc) * rkk;
-    ZB(k, k) = zkk;
-    diag[k] = zkk;
 }
 
 /* The same recurrences four steps at a time (bw >= 8), over a sliding (non-circular) copy of the
@@ -353,27 +300,56 @@ SC_ATTR static inline void SC_SFX(block_row)(const sc_lsq_band *b, const sc_lsq_
 SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *scr, double *diag,
                                                  int i0, const double *zss, int s)
 {
-    const int bw = b->bw;
+    const int n = b->n, nrow = b->nrow, bw = b->bw;
+    const size_t ld = b->ld;
+    const double *a = b->a;
     const int bwp = (bw + 3) & ~3, R = bwp + 64;
-    double *lc = scr + (size_t)R * R, *tw = lc + 4 * (size_t)bwp;
+    double *zb = scr, *lc = zb + (size_t)R * R, *tw = lc + 4 * (size_t)bwp;
     for (size_t q = 0; q < (size_t)R * R + 8 * (size_t)bwp; q++) scr[q] = 0.0;
-    sc_lsq_zwin zw = {scr, (long)i0 + 1 + bwp - R, R};
-    {
-        const sc_lsq_zwin z = zw;
-        int sw = s < bw ? s : bw;
-        for (int r = 0; r < sw; r++)
-            for (int c = 0; c < sw; c++) ZB(i0 + 1 + r, i0 + 1 + c) = zss[(size_t)r * s + c];
-    }
+    long base = (long)i0 + 1 + bwp - R;
+#define ZB(k, j) zb[(size_t)((k) - base) * R + (size_t)((j) - base)]
+    int sw = s < bw ? s : bw;
+    for (int r = 0; r < sw; r++)
+        for (int c = 0; c < sw; c++) ZB(i0 + 1 + r, i0 + 1 + c) = zss[(size_t)r * s + c];
     int i = i0;
     while (i >= 0) {
         int nb = i + 1 < 4 ? i + 1 : 4;
-        if (i - nb + 1 - zw.base < 0) SC_SFX(window_slide)(&zw, i, bw, bwp);
-        const sc_lsq_zwin z = zw;
-        SC_SFX(prefetch_ahead)(b, i);
-        SC_SFX(gather_lc)(b, lc, bwp, i, nb);
+        if (i - nb + 1 - base < 0) base = SC_SFX(window_slide)(zb, R, base, i, bw, bwp);
+        SC_SFX(prefetch_ahead)(a, ld, bw, nrow, i);
+        SC_SFX(gather_lc)(lc, bwp, a, ld, bw, nrow, n, i, nb);
         SC_GEMM4(tw, bwp, lc, bwp, &ZB(i + 1, i + 1), R, bw, bwp);
-        for (int r = 0; r < nb; r++)
-            SC_SFX(block_row)(b, &zw, lc + (size_t)r * bwp, tw + (size_t)r * bwp, i, i - r, diag);
+        for (int r = 0; r < nb; r++) {
+            int k = i - r;
+            double rkk = a[(size_t)k * ld + bw];
+            const double *lr = lc + (size_t)r * bwp;
+            double *tr = tw + (size_t)r * bwp;
+            double *zk = &ZB(k, i + 1);
+            /* window columns: + Σ_{q=k+1}^{i} L[q][k]·Z[q][j] */
+            for (int q = k + 1; q <= i; q++) {
+                double lqk = a[(size_t)q * ld + (size_t)(k - q + bw)];
+                const double *zq = &ZB(q, i + 1);
+                for (int j = 0; j < bw; j++) tr[j] += lqk * zq[j];
+            }
+            double acc = 0.0;
+            for (int j = 0; j < bw; j++) {
+                double z = -tr[j] * rkk;
+                zk[j] = z;
+                acc += lr[j] * z;
+            }
+            /* columns inside the block: j = k+1 .. i */
+            for (int j = k + 1; j <= i; j++) {
+                double v = SC_DOT(lr, &ZB(j, i + 1), bw);
+                for (int q = k + 1; q <= i; q++)
+                    v += a[(size_t)q * ld + (size_t)(k - q + bw)] * ZB(q, j);
+                double z = -v * rkk;
+                ZB(k, j) = z;
+                ZB(j, k) = z;
+                acc += a[(size_t)j * ld + (size_t)(k - j + bw)] * z;
+            }
+            double zkk = (rkk - acc) * rkk;
+            ZB(k, k) = zkk;
+            diag[k] = zkk;
+        }
         /* the block's columns in the window rows, by symmetry (the block's rows are contiguous
          * there: one short store per window row) */
         for (int j = 0; j < bw; j++) {
@@ -382,8 +358,8 @@ SC_ATTR static void SC_SFX(inverse_diag_blocked)(const sc_lsq_band *b, double *s
         }
         i -= nb;
     }
-}
 #undef ZB
+}
 
 /* Row i of Z from t (= Σ_k L[k][i]·Z[k][·] over the window slots): Z[i][k] = -t[slot k]/L[i][i],
  * Z[i][i] = (1/L[i][i])(1/L[i][i] - Σ_k L[k][i]·Z[i][k]); written into row and column slot(i). */
