@@ -7,52 +7,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-sc_status sc_grid_plan_views(sc_grid_plan *p, int n_views, sc_error *err)
-{
-    if (n_views < 1 || n_views > SC_GRID_VIEW_LIMIT)
-        return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d (got %d)",
-                            SC_GRID_VIEW_LIMIT, n_views);
-    int had = p->view ? p->n_views : 0;
-    if (had < 0)
-        had = 0;
-    sc_grid_view *w = realloc(p->view, (size_t)n_views * sizeof *w);
-    if (!w)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (a plan of %d views)",
-                            n_views);
-    if (n_views > had)
-        memset(w + had, 0, (size_t)(n_views - had) * sizeof *w);
-    p->view = w;
-    p->n_views = n_views;
-    return SC_OK;
-}
-
-sc_status sc_grid_plan_copy(sc_grid_plan *dst, const sc_grid_plan *src, sc_error *err)
-{
-    if (dst == src)
-        return SC_OK;
-    sc_grid_view *w = NULL;
-    if (src->n_views > 0 && src->view) {
-        w = malloc((size_t)src->n_views * sizeof *w);
-        if (!w)
-            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (a plan of %d views)",
-                                src->n_views);
-        memcpy(w, src->view, (size_t)src->n_views * sizeof *w);
-    }
-    free(dst->view);
-    *dst = *src;
-    dst->view = w;
-    if (!w)
-        dst->n_views = 0;
-    return SC_OK;
-}
-
-void sc_grid_plan_free(sc_grid_plan *p)
-{
-    free(p->view);
-    p->view = NULL;
-    p->n_views = 0;
-}
-
 sc_status sc_grid_result_views(sc_grid_result *res, int n_views, sc_error *err)
 {
     sc_grid_result_free_views(res);
@@ -84,17 +38,3 @@ void sc_grid_result_free_views(sc_grid_result *res)
     res->view_sigma_um = res->view_noise_factor = res->view_sigma_u_um = NULL;
 }
 
-sc_status sc_grid_data_views(sc_grid_data *d, sc_error *err)
-{
-    int nv = d->plan.n_views;
-    if (d->dx_um)
-        return SC_OK;
-    double **t = calloc(5 * (size_t)(nv > 0 ? nv : 1), sizeof *t);
-    if (!t)
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (grid data of %d views)",
-                            nv);
-    size_t s = (size_t)(nv > 0 ? nv : 1);
-    d->dx_um = t, d->dy_um = t + s, d->ux_um = t + 2 * s, d->uy_um = t + 3 * s;
-    d->t_s = t + 4 * s;
-    return SC_OK;
-}

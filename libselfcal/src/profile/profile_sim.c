@@ -1,14 +1,11 @@
 /* Simulated straightness measurements (SPEC §2 model) and the profiles they measure. */
-#include <ctype.h>
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "selfcal/csv.h"
-#include "../common/csv_internal.h"
 #include "selfcal/profile_sim.h"
+#include "../io/dabam_internal.h"
 
 void sc_profile_sim_defaults(sc_profile_sim *p)
 {
@@ -60,216 +57,10 @@ void sc_profile_sim_random_truth(const sc_profile_sim *p, double amp_um, int har
     sc_profile_random_smooth(p->n, amp_um, harmonics, &rng, f_um);
 }
 
-/* ---- DABAM ---------------------------------------------------------------------------------- */
-
-/* The value text of "key" in a flat JSON object (NULL if absent); copies at most len-1 chars. */
-static int json_value(const char *json, const char *key, char *out, size_t len)
-{
-    char pat[96];
-    snprintf(pat, sizeof pat, "\"%s\"", key);
-    const char *p = strstr(json, pat);
-    if (!p)
-        return 0;
-    p += strlen(pat);
-    while (isspace((unsigned char)*p))
-        ++p;
-    if (*p != ':')
-        return 0;
-    ++p;
-    while (isspace((unsigned char)*p))
-        ++p;
-    size_t k = 0;
-    if (*p == '"') {
-        ++p;
-        while (*p && *p != '"' && k + 1 < len)
-            out[k++] = *p++;
-    } else {
-        while (*p && *p != ',' && *p != '}' && !isspace((unsigned char)*p) && k + 1 < len)
-            out[k++] = *p++;
-    }
-    out[k] = '\0';
-    return 1;
-}
-
-static char *read_all(const char *path, sc_error *err)
-{
-    FILE *f = sc_open_input(path, err);
-    if (!f)
-        return NULL;
-    size_t cap = 4096, len = 0;
-    char *buf = malloc(cap);
-    size_t got;
-    while (buf && (got = fread(buf + len, 1, cap - len - 1, f)) > 0) {
-        len += got;
-        if (len + 1 == cap) {
-            char *nb = realloc(buf, cap * 2);
-            if (!nb) {
-                free(buf);
-                buf = NULL;
-                break;
-            }
-            buf = nb;
-            cap *= 2;
-        }
-    }
-    fclose(f);
-    if (!buf) {
-        sc_error_set(err, SC_E_NOMEM, path, 0, "out of memory");
-        return NULL;
-    }
-    buf[len] = '\0';
-    return buf;
-}
-
-/* What the DABAM metadata (.txt, JSON) says about the .dat file. */
-typedef struct {
-    long header_lines;
-    double x_factor; /* metres per abscissa unit */
-    double y_factor; /* radians (slopes) or metres (heights) per ordinate unit */
-    int is_slope;
-} dabam_meta;
-
-/* Slopes or heights: PLOT_TITLE_Y1 says, else FILE_FORMAT (1 = slopes, 2 = heights). */
-static int dabam_is_slope(const char *meta)
-{
-    char title[128] = "", v[128];
-    if (json_value(meta, "PLOT_TITLE_Y1", title, sizeof title)) {
-        char low[128];
-        size_t k = 0;
-        for (; title[k] && k + 1 < sizeof low; ++k)
-            low[k] = (char)tolower((unsigned char)title[k]);
-        low[k] = '\0';
-        if (strstr(low, "slope"))
-            return 1;
-        if (strstr(low, "height") || strstr(low, "heigth"))
-            return 0;
-        return 1;
-    }
-    if (json_value(meta, "FILE_FORMAT", v, sizeof v))
-        return strcmp(v, "2") != 0;
-    return 1;
-}
-
-static sc_status dabam_read_meta(const char *meta_path, dabam_meta *m, sc_error *err)
-{
-    char *meta = read_all(meta_path, err);
-    if (!meta)
-        return err ? err->code : SC_E_INPUT;
-    char v[128];
-    sc_status st = SC_OK;
-    m->x_factor = 1e-3;
-    m->y_factor = 1.0;
-    if (!json_value(meta, "FILE_HEADER_LINES", v, sizeof v) ||
-        sscanf(v, "%ld", &m->header_lines) != 1 || m->header_lines < 0) {
-        st = sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid FILE_HEADER_LINES");
-    } else if (!json_value(meta, "X1_FACTOR", v, sizeof v) ||
-               sc_parse_double(v, &m->x_factor) != 0 ||
-               !json_value(meta, "Y1_FACTOR", v, sizeof v) ||
-               sc_parse_double(v, &m->y_factor) != 0) {
-        st = sc_error_set(err, SC_E_INPUT, meta_path, 0, "no valid X1_FACTOR / Y1_FACTOR");
-    } else if (!(m->x_factor > 0 && m->x_factor <= 1) ||
-               !(m->y_factor != 0 && fabs(m->y_factor) <= 1)) {
-        /* DABAM uses 1e-3 and 1e-6; beyond 1 a mirror would be longer than a kilometre or its
-         * slopes beyond 1 rad, and the heights could overflow (a fuzzed X1_FACTOR = 1e306
-         * made them NaN) */
-        st = sc_error_set(err, SC_E_INPUT, meta_path, 0,
-                          "X1_FACTOR must be in (0, 1] and Y1_FACTOR nonzero within [-1, 1]");
-    } else {
-        m->is_slope = dabam_is_slope(meta);
-    }
-    free(meta);
-    return st;
-}
-
-/* The abscissae (m) and ordinates (rad or m) of the .dat file, in growing arrays. */
-typedef struct {
-    double *xs, *ys;
-    size_t count, cap;
-} dabam_points;
-
-static void dabam_points_free(dabam_points *d)
-{
-    free(d->xs);
-    free(d->ys);
-}
-
-static sc_status dabam_points_push(dabam_points *d, double x, double y)
-{
-    if (d->count == d->cap) {
-        size_t cap = d->cap ? 2 * d->cap : 1024;
-        double *nx = realloc(d->xs, cap * sizeof(double));
-        if (nx)
-            d->xs = nx;
-        double *ny = realloc(d->ys, cap * sizeof(double));
-        if (ny)
-            d->ys = ny;
-        if (!nx || !ny)
-            return SC_E_NOMEM;
-        d->cap = cap;
-    }
-    d->xs[d->count] = x;
-    d->ys[d->count] = y;
-    d->count++;
-    return SC_OK;
-}
-
-/* One data line (past the header): blank and '#' lines are skipped, else two numbers. */
-static sc_status dabam_data_line(const char *path, long ln, const char *line, const dabam_meta *m,
-                                 dabam_points *d, sc_error *err)
-{
-    const char *p = line;
-    while (isspace((unsigned char)*p))
-        ++p;
-    if (!*p || *p == '#')
-        return SC_OK;
-    char *e1, *e2;
-    double a = strtod(p, &e1);
-    double b = strtod(e1, &e2);
-    if (e1 == p || e2 == e1 || !isfinite(a) || !isfinite(b))
-        return sc_error_set(err, SC_E_INPUT, path, ln, "expected two numbers (abscissa, ordinate)");
-    if (!(fabs(a * m->x_factor) <= 1e3 && fabs(b * m->y_factor) <= 1))
-        return sc_error_set(err, SC_E_INPUT, path, ln,
-                            "beyond any mirror (|x| > 1 km, or a slope or height beyond 1 rad "
-                            "or 1 m)");
-    if (dabam_points_push(d, a * m->x_factor, b * m->y_factor) != SC_OK)
-        return sc_error_set(err, SC_E_NOMEM, path, ln, "out of memory");
-    if (d->count > 1 && !(d->xs[d->count - 1] > d->xs[d->count - 2]))
-        return sc_error_set(err, SC_E_INPUT, path, ln, "abscissa not increasing");
-    return SC_OK;
-}
-
-#define SC_DABAM_MAX_HEADER_LINES 1000000L /* FILE_HEADER_LINES beyond this: not DABAM */
-
-static sc_status dabam_read_points(const char *path, const dabam_meta *m, dabam_points *d,
-                                   sc_error *err)
-{
-    FILE *fp = sc_open_input(path, err);
-    if (!fp)
-        return err ? err->code : SC_E_INPUT;
-    char line[4096];
-    long ln = 0, skipped = 0; /* comment or blank lines in a row */
-    sc_status st = SC_OK;
-    while (st == SC_OK && fgets(line, sizeof line, fp)) {
-        ++ln;
-        skipped = sc_csv_text_skippable(line) ? skipped + 1 : 0;
-        if (!strchr(line, '\n') && !feof(fp))
-            st = sc_error_set(err, SC_E_INPUT, path, ln, "line longer than %zu bytes",
-                              sizeof line - 2);
-        else if (skipped > SC_CSV_MAX_SKIP_RUN) /* an endless input, as the CSV reader says */
-            st = sc_error_set(err, SC_E_INPUT, path, ln, SC_CSV_SKIP_RUN_MSG, SC_CSV_MAX_SKIP_RUN);
-        else if (ln > m->header_lines)
-            st = dabam_data_line(path, ln, line, m, d, err);
-        else if (ln > SC_DABAM_MAX_HEADER_LINES)
-            st = sc_error_set(err, SC_E_INPUT, path, ln, "more header lines than any DABAM file");
-    }
-    fclose(fp);
-    if (st == SC_OK && d->count < 4)
-        st = sc_error_set(err, SC_E_INPUT, path, ln, "fewer than 4 points");
-    return st;
-}
+/* ---- DABAM: the file is io/dabam.c's; here its points become a profile on the scan ---- */
 
 /* Heights in µm at the abscissae: the slopes integrated by the trapezoidal rule, or scaled. */
-static void dabam_heights_um(const dabam_points *d, int is_slope, double *hs)
+static void dabam_heights_um(const sc_dabam_points *d, int is_slope, double *hs)
 {
     if (is_slope) {
         hs[0] = 0;
@@ -283,7 +74,7 @@ static void dabam_heights_um(const dabam_points *d, int is_slope, double *hs)
 
 /* n points at pitch s_mm, centred on the mirror (true scale), or the mirror stretched onto the
  * scan when it is shorter; linear interpolation of hs. Returns whether at true scale. */
-static int dabam_resample(const dabam_points *d, const double *hs, int n, double s_mm,
+static int dabam_resample(const sc_dabam_points *d, const double *hs, int n, double s_mm,
                           double *f_um)
 {
     const double *xs = d->xs;
@@ -312,42 +103,23 @@ static int dabam_resample(const dabam_points *d, const double *hs, int n, double
 sc_status sc_profile_load_dabam(const char *dat_path, int n, double s_mm, double *f_um,
                                 char *info, size_t infolen, sc_error *err)
 {
-    char meta_path[4096];
-    size_t L = strlen(dat_path);
-    if (L < 4 || strcmp(dat_path + L - 4, ".dat") != 0 || L >= sizeof meta_path)
-        return sc_error_set(err, SC_E_INPUT, dat_path, 0,
-                            "a DABAM profile is a .dat file (with its .txt metadata)");
-    /* the file the caller named first: a missing .dat is reported as such, not as its .txt */
-    FILE *probe = fopen(dat_path, "rb");
-    if (!probe) {
-        int e = errno;
-        return sc_error_set(err, sc_open_failure_status(e), dat_path, 0, "cannot open: %s",
-                            strerror(e));
-    }
-    fclose(probe);
-    memcpy(meta_path, dat_path, L - 4);
-    strcpy(meta_path + L - 4, ".txt");
-    dabam_meta m;
-    sc_status st = dabam_read_meta(meta_path, &m, err);
+    sc_dabam_points d;
+    sc_status st = sc_dabam_read(dat_path, &d, err);
     if (st != SC_OK)
         return st;
-    dabam_points d = {0};
-    st = dabam_read_points(dat_path, &m, &d, err);
-    double *hs = st == SC_OK ? malloc(d.count * sizeof(double)) : NULL;
-    if (st == SC_OK && !hs)
-        st = sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
-    if (st != SC_OK) {
-        dabam_points_free(&d);
-        return st;
+    double *hs = malloc(d.count * sizeof(double));
+    if (!hs) {
+        sc_dabam_points_free(&d);
+        return sc_error_set(err, SC_E_NOMEM, dat_path, 0, "out of memory");
     }
-    dabam_heights_um(&d, m.is_slope, hs);
+    dabam_heights_um(&d, d.is_slope, hs);
     int true_scale = dabam_resample(&d, hs, n, s_mm, f_um);
     sc_profile_remove_line(n, f_um);
     if (info)
         snprintf(info, infolen, "%s: %zu %s points over %.1f mm, %s", dat_path, d.count,
-                 m.is_slope ? "slope" : "height", (d.xs[d.count - 1] - d.xs[0]) * 1e3,
+                 d.is_slope ? "slope" : "height", (d.xs[d.count - 1] - d.xs[0]) * 1e3,
                  true_scale ? "true scale, centred" : "stretched onto the scan length");
-    dabam_points_free(&d);
+    sc_dabam_points_free(&d);
     free(hs);
     return SC_OK;
 }

@@ -2,17 +2,23 @@
  * N, pitch_mm, origin_mm, stage through the declarative header parser, view lines with rot=,
  * shift=, rows=, cols=, sigma_um=), the column header (view,i,j,x_mm,y_mm[,ux_um,uy_um][,t_s])
  * and the data rows. Strict: every problem is SC_E_INPUT with FILE:LINE; on failure the data
- * hold no memory. Writers of the same format are in grid/grid_io.c. */
+ * hold no memory. The writer of the same format follows the reader: one column header for both.
+ * The plan and data it reads into, and the geometry its rows are checked against, are in
+ * grid_plan.c (which says why they live in io/). */
 #include <ctype.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/header.h"
+#include "selfcal/number.h"
+#include "io_internal.h"
 
+/* The column header of the data rows (the optional ux_um,uy_um and t_s follow it). */
 #define COLUMN_HEADER "view,i,j,x_mm,y_mm"
 
 /* Parse "a,b" into two longs. */
@@ -699,4 +705,103 @@ sc_status sc_grid_read(const char *path, sc_grid_data *d, sc_grid_file_info *inf
     info->has_u = s.has_u;
     info->has_t = s.t_state > 0;
     return SC_OK;
+}
+
+/* ---------------------------------------------------------------------------------------------
+ * The writer
+ * ------------------------------------------------------------------------------------------- */
+
+void sc_grid_write_header(FILE *fp, const sc_grid_plan *p)
+{
+    fprintf(fp, "# selfcal-grid v1\n# N = %d\n# pitch_mm = %.15g\n", p->n, p->pitch_mm);
+    fprintf(fp, "# origin_mm = %.15g,%.15g\n", p->origin_mm[0], p->origin_mm[1]);
+    if (p->stage_nx > 0 || p->stage_ny > 0)
+        fprintf(fp, "# stage = %d,%d\n", sc_grid_stage_nx(p), sc_grid_stage_ny(p));
+    const sc_grid_scale *sc = &p->scale;
+    if (sc->has_plate_scale)
+        fprintf(fp, "# plate_scale_ppm = %.15g, %.15g\n", sc->plate_scale_ppm,
+                sc->u_plate_scale_ppm);
+    if (sc->has_cte)
+        fprintf(fp, "# plate_cte_ppm_per_K = %.15g, %.15g\n", sc->cte_ppm_per_K,
+                sc->u_cte_ppm_per_K);
+    if (sc->has_temps && sc->temp_u_K != SC_GRID_TEMP_U_K_DEFAULT)
+        fprintf(fp, "# temp_u_K = %.15g\n", sc->temp_u_K);
+    for (int v = 0; v < p->n_views; ++v) {
+        const sc_grid_view *w = &p->view[v];
+        fprintf(fp, "# view %d: rot=%d shift=%d,%d", v, w->rot_deg, w->shift_x, w->shift_y);
+        if (w->sigma_um > 0)
+            fprintf(fp, " sigma_um=%.15g", w->sigma_um);
+        if (sc->has_temps)
+            fprintf(fp, " temp_C=%.15g", w->temp_C);
+        if (w->restricted) {
+            const char *sep = " rows=";
+            for (int k = 0; k < p->n; ++k)
+                if (w->row_sel[k]) {
+                    fprintf(fp, "%s%d", sep, k);
+                    sep = ",";
+                }
+            sep = " cols=";
+            for (int k = 0; k < p->n; ++k)
+                if (w->col_sel[k]) {
+                    fprintf(fp, "%s%d", sep, k);
+                    sep = ",";
+                }
+        }
+        fputc('\n', fp);
+    }
+}
+
+static sc_status finish(sc_afile *f, sc_error *err)
+{
+    return sc_afile_commit(f, err); /* a write that failed: "write error: <reason>" */
+}
+
+static void put_num(FILE *fp, const double *a, int k)
+{
+    char b[SC_NUMBER_BUF];
+    fwrite(b, 1, (size_t)(sc_io_put_15g_opt(b, a, (size_t)k, 0) - b), fp);
+}
+
+void sc_grid_fprint_input(FILE *fp, const sc_grid_data *d)
+{
+    const sc_grid_plan *p = &d->plan;
+    sc_grid_write_header(fp, p);
+    int has_u = 0, has_t = 0;
+    for (int v = 0; v < p->n_views; ++v)
+        has_u |= d->ux_um[v] != NULL, has_t |= d->t_s[v] != NULL;
+    fprintf(fp, COLUMN_HEADER "%s%s\n", has_u ? ",ux_um,uy_um" : "", has_t ? ",t_s" : "");
+    int n = p->n;
+    for (int v = 0; v < p->n_views; ++v)
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                int k = i * n + j;
+                double x, y;
+                if (!isfinite(d->dx_um[v][k]) || !isfinite(d->dy_um[v][k]) ||
+                    !sc_grid_mark_stage_xy_mm(p, v, i, j, &x, &y))
+                    continue;
+                x += p->origin_mm[0] + d->dx_um[v][k] * 1e-3;
+                y += p->origin_mm[1] + d->dy_um[v][k] * 1e-3;
+                fprintf(fp, "%d,%d,%d,%.15f,%.15f", v, i, j, x, y);
+                if (has_u) {
+                    fputc(',', fp);
+                    put_num(fp, d->ux_um[v], k);
+                    fputc(',', fp);
+                    put_num(fp, d->uy_um[v], k);
+                }
+                if (has_t) {
+                    fputc(',', fp);
+                    put_num(fp, d->t_s[v], k);
+                }
+                fputc('\n', fp);
+            }
+}
+
+sc_status sc_grid_write_input(const char *path, const sc_grid_data *d, sc_error *err)
+{
+    sc_afile f;
+    sc_status st = sc_afile_open(&f, path, err);
+    if (st != SC_OK)
+        return st;
+    sc_grid_fprint_input(f.fp, d);
+    return finish(&f, err);
 }
