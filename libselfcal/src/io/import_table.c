@@ -235,6 +235,21 @@ typedef struct table_reader {
     int in_rows;                /* the header (or, without one, the first row) was found */
     long first_row_line;        /* without a header line: the first row's line */
     char header_text[PREAMBLE_LINE_MAX]; /* the header line as read (for hints) */
+    /* finding the header (sc_imp_read_wide): it is the first line naming every wanted column;
+     * lines before it that are not data (a machine's preamble: program, date, operator) are
+     * skipped, up to PREAMBLE_MAX of them. If none names them all, the first line naming some
+     * of them (else the first line) is taken for the header and its error told. */
+    char *first;       /* that line, its number, whether it names some */
+    long first_line;
+    int first_named;
+    long preamble;     /* lines before the header */
+    int hash_rows;     /* the header began with '#' ("#;X;Y": the point number's column), so rows
+                          starting "#<digit>" are rows, not comments */
+    int numbers;       /* every wanted column given by number (all_by_number) */
+    int no_header;     /* the layout says there is no header line */
+    char *prev;        /* with columns by number: the last line before the data, its number */
+    long prev_line;
+    long no_row_run;   /* lines in a row after the header that were no row */
 } table_reader;
 
 #define FOOTER_MAX 20 /* lines after the last row that are not rows, taken for a footer */
@@ -630,6 +645,55 @@ static int not_a_row(const table_reader *tr, int nf)
     return 0;
 }
 
+/* The layout's rules on a line of nf fields that fit: whether the where filters leave it out
+ * (counted), and its placeholders of unmeasured marks emptied (counted). */
+static int layout_leaves_out(table_reader *tr, int nf)
+{
+    if (nf < 0 || !tr->lay || !fields_fit(tr, nf))
+        return 0;
+    if (!where_passes(tr)) { /* another feature or characteristic: not read */
+        if (!tr->notes->n_filtered++)
+            tr->notes->filtered_line = tr->r.line;
+        return 1;
+    }
+    for (int k = 0; k < tr->n_cols; ++k) /* placeholders of unmeasured marks: empty */
+        if (sc_imp_is_placeholder(tr->lay, tr->field[tr->col_of[k]])) {
+            tr->field[tr->col_of[k]][0] = '\0';
+            if (!tr->notes->n_placeholder++)
+                tr->notes->placeholder_line = tr->r.line;
+        }
+    return 0;
+}
+
+/* A line while in a footer (tr->footer_err set): a row after it makes the footer's first line
+ * an error, as do more than FOOTER_MAX lines of it. */
+static sc_status footer_line(table_reader *tr, int nf, sc_error *err)
+{
+    int row = nf >= 0 && !not_a_row(tr, nf) && skipped_kind(tr, nf) == 0;
+    if (row || ++tr->t->n_footer > FOOTER_MAX) {
+        if (err)
+            *err = tr->footer_err;
+        return tr->footer_err.code;
+    }
+    return SC_OK;
+}
+
+/* Whether a line of skipped_kind kind 1..4 is passed over (each kind counted as it is). */
+static int skipped_line(table_reader *tr, int kind)
+{
+    sc_table *t = tr->t;
+    if (kind == 2) { /* a units line may follow it again */
+        if (!t->n_header_repeats++)
+            t->header_repeat_line = tr->r.line;
+        tr->after_header = 0;
+    }
+    if (kind == 3 && !t->units_line)
+        t->units_line = tr->r.line;
+    if (kind == 4 && !t->n_no_values++)
+        t->no_values_line = tr->r.line;
+    return kind >= 1 && kind <= 4;
+}
+
 /* One line after the header: a row (as many fields as the header, every wanted value, scaled),
  * a line machines write that is skipped and counted (skipped_kind), or, after some rows, the
  * start of a footer: its error kept and reported only if a row follows. */
@@ -638,46 +702,12 @@ static sc_status read_data_line(table_reader *tr, sc_error *err)
     sc_table *t = tr->t;
     tr->after_header++;
     int nf = sc_imp_split_fields(tr->r.text, t->delimiter, tr->field, tr->quoted, MAX_TABLE_FIELDS);
-    if (nf >= 0 && tr->lay && fields_fit(tr, nf)) {
-        if (!where_passes(tr)) { /* another feature or characteristic: not read */
-            if (!tr->notes->n_filtered++)
-                tr->notes->filtered_line = tr->r.line;
-            return SC_OK;
-        }
-        for (int k = 0; k < tr->n_cols; ++k) /* placeholders of unmeasured marks: empty */
-            if (sc_imp_is_placeholder(tr->lay, tr->field[tr->col_of[k]])) {
-                tr->field[tr->col_of[k]][0] = '\0';
-                if (!tr->notes->n_placeholder++)
-                    tr->notes->placeholder_line = tr->r.line;
-            }
-    }
-    if (tr->footer_err.code) { /* in a footer: a row after it makes its first line an error */
-        if (nf >= 0 && !not_a_row(tr, nf) && skipped_kind(tr, nf) == 0) {
-            if (err)
-                *err = tr->footer_err;
-            return tr->footer_err.code;
-        }
-        if (++t->n_footer > FOOTER_MAX) {
-            if (err)
-                *err = tr->footer_err;
-            return tr->footer_err.code;
-        }
+    if (layout_leaves_out(tr, nf))
         return SC_OK;
-    }
+    if (tr->footer_err.code) /* in a footer: a row after it makes its first line an error */
+        return footer_line(tr, nf, err);
     int kind = nf >= 0 ? skipped_kind(tr, nf) : 0;
-    if (kind == 1)
-        return SC_OK;
-    if (kind == 2) { /* a units line may follow it again */
-        if (!t->n_header_repeats++)
-            t->header_repeat_line = tr->r.line;
-        tr->after_header = 0;
-        return SC_OK;
-    }
-    if (kind == 3 && !t->units_line)
-        t->units_line = tr->r.line;
-    if (kind == 4 && !t->n_no_values++)
-        t->no_values_line = tr->r.line;
-    if (kind == 3 || kind == 4)
+    if (skipped_line(tr, kind))
         return SC_OK;
     sc_error e;
     sc_error_clear(&e);
@@ -695,7 +725,7 @@ static sc_status read_data_line(table_reader *tr, sc_error *err)
         t->n_footer = 1;
         return SC_OK;
     }
-    if (st != SC_OK && err)
+    if (err)
         *err = e;
     return st;
 }
@@ -812,8 +842,10 @@ sc_status sc_imp_begin(const char *path, int n_cols, const char *const *names,
     return sc_imp_check_request(n_cols, names, scale, max_rows, lay, err);
 }
 
-sc_status sc_imp_check_request(int n_cols, const char *const *names, const double *scale,
-                                long max_rows, const sc_table_layout *lay, sc_error *err)
+/* The request's sizes: 1..16 columns, 1..SC_TABLE_MAX_ROWS rows, every scale finite and nonzero
+ * (two per column with a nominal column). */
+static sc_status check_sizes(int n_cols, const char *const *names, const double *scale,
+                             long max_rows, const sc_table_layout *lay, sc_error *err)
 {
     if (n_cols < 1 || n_cols > 16 || !names)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "a table read asks for 1..16 columns, got %d",
@@ -827,34 +859,262 @@ sc_status sc_imp_check_request(int n_cols, const char *const *names, const doubl
             return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                 "the scale of column '%s' must be finite and nonzero, got %g",
                                 names[a % n_cols], scale[a]);
-    int is_long = lay && (lay->id_col || lay->axis_col || lay->value_col);
-    for (int a = 0; a < n_cols; ++a) /* one column cannot be two quantities */
+    return SC_OK;
+}
+
+/* One column cannot be two quantities: the names asked for are distinct. */
+static sc_status check_distinct(int n_cols, const char *const *names, int is_long, sc_error *err)
+{
+    static const char *const nth[] = {"1st", "2nd", "3rd", "4th"};
+    for (int a = 0; a < n_cols; ++a)
         for (int b = 0; b < a; ++b)
             if (sc_imp_name_equal(names[a], names[b]))
                 return sc_error_set(err, SC_E_INPUT, NULL, 0,
                                     "the %s '%s' is asked for twice (as the %s and the %s "
                                     "quantity)%s", is_long ? "axis" : "column", names[a],
-                                    b == 0 ? "1st" : b == 1 ? "2nd" : "3rd",
-                                    a == 1 ? "2nd" : a == 2 ? "3rd" : "4th",
+                                    nth[b < 2 ? b : 2], nth[a < 3 ? a : 3],
                                     is_long ? "" : " (one row per axis, X and Y in one column? "
                                     "--id-col, --axis-col, --value-col)");
-    if (lay && (lay->n_where < 0 || lay->n_where > SC_TABLE_MAX_WHERE || lay->n_missing < 0 ||
-                lay->n_missing > SC_TABLE_MAX_MISSING))
+    return SC_OK;
+}
+
+/* The layout's options go together. */
+static sc_status check_layout(const sc_table_layout *lay, int is_long, sc_error *err)
+{
+    if (!lay)
+        return SC_OK;
+    if (lay->n_where < 0 || lay->n_where > SC_TABLE_MAX_WHERE || lay->n_missing < 0 ||
+        lay->n_missing > SC_TABLE_MAX_MISSING)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "at most %d row filters and %d placeholders",
                             SC_TABLE_MAX_WHERE, SC_TABLE_MAX_MISSING);
     if (is_long && (!lay->id_col || !lay->axis_col || !lay->value_col))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "one row per axis needs the id, axis and value columns together");
-    if (lay && lay->nominal_col && !is_long)
+    if (lay->nominal_col && !is_long)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "a nominal column per row goes with one row per axis");
     if (is_long && lay->transpose)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "one row per axis and items in columns do not go together");
-    if (lay && lay->transpose && lay->n_where)
+    if (lay->transpose && lay->n_where)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "row filters do not apply to items in columns");
     return SC_OK;
+}
+
+sc_status sc_imp_check_request(int n_cols, const char *const *names, const double *scale,
+                                long max_rows, const sc_table_layout *lay, sc_error *err)
+{
+    int is_long = lay && (lay->id_col || lay->axis_col || lay->value_col);
+    sc_status st = check_sizes(n_cols, names, scale, max_rows, lay, err);
+    if (st == SC_OK)
+        st = check_distinct(n_cols, names, is_long, err);
+    if (st == SC_OK)
+        st = check_layout(lay, is_long, err);
+    return st;
+}
+
+/* Whether a line starting with '#' is a comment; the first that is the header ("#;X;Y") makes
+ * every later "#<digit>" line a row. */
+static int hash_comment(table_reader *tr)
+{
+    const char *text = tr->r.text;
+    if (tr->hash_rows ? !isdigit((unsigned char)text[1])
+                      : (tr->in_rows || tr->numbers || !hash_header(tr, text)))
+        return 1;
+    tr->hash_rows = 1;
+    tr->r.skip_run = 0; /* a row (or the "#;X;Y" header), not a comment */
+    return 0;
+}
+
+/* A line after the header: read_data_line, with the run of lines that give no row bounded. */
+static sc_status rows_line(table_reader *tr, sc_error *err)
+{
+    long rows_before = tr->t->n_rows;
+    sc_status st = read_data_line(tr, err);
+    tr->no_row_run = tr->t->n_rows > rows_before ? 0 : tr->no_row_run + 1;
+    if (st == SC_OK && tr->no_row_run > SC_CSV_MAX_SKIP_RUN)
+        st = sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line, SC_IMP_NO_ROW_RUN_MSG,
+                          SC_CSV_MAX_SKIP_RUN);
+    return st;
+}
+
+/* Take the kept line before the data (tr->prev) for the header line. */
+static sc_status header_from_prev(table_reader *tr, sc_error *err)
+{
+    char *h = tr->prev;
+    tr->prev = NULL;
+    sc_status st = read_header_line(tr, h, tr->prev_line, err);
+    free(h);
+    return st;
+}
+
+/* Columns by number: a damaged row (the current line) before the first good one, after the
+ * header line kept in tr->prev: the row's error. */
+static sc_status damaged_first_row(table_reader *tr, sc_error *err)
+{
+    sc_status st = header_from_prev(tr, err);
+    if (st != SC_OK)
+        return st;
+    sc_error e;
+    sc_error_clear(&e);
+    int nf = sc_imp_split_fields(tr->r.text, tr->t->delimiter, tr->field, tr->quoted,
+                                 MAX_TABLE_FIELDS);
+    st = read_row(tr, nf, &e);
+    if (st == SC_OK) /* cannot be: it failed as a row above */
+        st = sc_error_set(&e, SC_E_INPUT, tr->path, tr->r.line, "not a row");
+    if (err)
+        *err = e;
+    return st;
+}
+
+enum { LINE_NEXT, LINE_STOP }; /* go on with the next line, or stop reading */
+
+/* Columns by number, before the data: the header is the line before the first row. */
+static int numbered_line(table_reader *tr, sc_status *st, sc_error *err)
+{
+    int row = row_by_number(tr, tr->r.text);
+    if (row < 0 && tr->prev) { /* a damaged row before the first good one: its error */
+        *st = damaged_first_row(tr, err);
+        return LINE_STOP;
+    }
+    if (row < 0) { /* a damaged row with no header before it */
+        *st = sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                           "not a row, and no header line before it (columns given by "
+                           "number need one, or --no-header)");
+        return LINE_STOP;
+    }
+    if (row == 0) {
+        free(tr->prev);
+        tr->prev = strdup(tr->r.text);
+        tr->prev_line = tr->r.line;
+        if (!tr->prev)
+            *st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        else if (++tr->preamble > PREAMBLE_MAX + 1)
+            return LINE_STOP;
+        return LINE_NEXT;
+    }
+    if (!tr->prev) {
+        *st = sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                           "no header line before the first row (columns given by number "
+                           "need one, or --no-header)");
+        return LINE_STOP;
+    }
+    *st = header_from_prev(tr, err);
+    if (*st == SC_OK)
+        *st = read_data_line(tr, err);
+    return LINE_NEXT;
+}
+
+/* Columns by name, before the data: the line naming them all is the header; else the first
+ * line naming some (else the first line) is kept, until the data or too long a preamble. */
+static int named_line(table_reader *tr, sc_status *st, sc_error *err)
+{
+    int named = names_count(tr, tr->r.text);
+    if (named == tr->n_cols) {
+        *st = read_header_line(tr, tr->r.text, tr->r.line, err);
+        return LINE_NEXT;
+    }
+    if (!tr->first || (named > 0 && !tr->first_named)) {
+        free(tr->first);
+        tr->first = strdup(tr->r.text);
+        tr->first_line = tr->r.line;
+        tr->first_named = named > 0;
+        if (!tr->first)
+            *st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    if (*st == SC_OK && (looks_like_data(tr->r.text) || ++tr->preamble > PREAMBLE_MAX))
+        return LINE_STOP; /* no header before the data: the first line's error */
+    return LINE_NEXT;
+}
+
+/* One line of the file (not blank): *st its status; LINE_STOP where reading ends early. */
+static int wide_line(table_reader *tr, sc_imp_conv *conv, sc_status *st, sc_error *err)
+{
+    if ((*st = sc_imp_conv_line(conv, &tr->r, err)) != SC_OK)
+        return LINE_STOP;
+    if (tr->r.text[0] == '#' && hash_comment(tr))
+        return LINE_NEXT;
+    if (!tr->in_rows && tr->no_header) {
+        *st = first_row_as_header(tr, err);
+        if (*st == SC_OK)
+            *st = read_data_line(tr, err);
+        return LINE_NEXT;
+    }
+    if (tr->in_rows) {
+        *st = rows_line(tr, err);
+        return LINE_NEXT;
+    }
+    return tr->numbers ? numbered_line(tr, st, err) : named_line(tr, st, err);
+}
+
+/* No line named every column: the kept first line read as the header, for its error, with the
+ * hint of what the line seems to be. */
+static sc_status header_from_first(table_reader *tr, sc_error *err)
+{
+    char hint[256];
+    row_taken_hint(tr, tr->first, hint, sizeof hint);
+    int first_is_data = looks_like_data(tr->first); /* before the line is split in place */
+    sc_status st = read_header_line(tr, tr->first, tr->first_line, err);
+    if (st != SC_OK && hint[0] && err && strstr(err->msg, "no column named")) {
+        char *paren = strstr(err->msg, " (delimiter"); /* the hint replaces the details */
+        if (paren)
+            *paren = '\0';
+        append_hint(err, hint);
+    } else if (st != SC_OK && err && !hint[0] && first_is_data &&
+               strstr(err->msg, "no column named")) {
+        append_hint(err, ": this line is a row of numbers (no header line? --no-header "
+                         "with the columns by number)");
+    }
+    return st;
+}
+
+/* After the last line (got: the line reader's last answer): the header's error if none was
+ * found, the trailing summary rows dropped, and the table checked for rows. */
+static sc_status wide_end(table_reader *tr, int got, sc_status st, sc_error *err)
+{
+    sc_table *t = tr->t;
+    if (st == SC_OK && got < 0)
+        st = err ? err->code : SC_E_INPUT;
+    else if (st == SC_OK && !tr->in_rows && tr->first)
+        st = header_from_first(tr, err);
+    else if (st == SC_OK && !tr->in_rows)
+        st = sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line,
+                          "no header line naming the columns");
+    if (st == SC_OK && tr->provisional > 0) { /* trailing summary rows: no measurements */
+        t->n_rows -= tr->provisional;
+        t->n_summary = tr->provisional;
+        t->summary_line = tr->provisional_line;
+    }
+    if (st == SC_OK && !tr->in_rows) /* cannot happen: read_header_line failed or set it */
+        st = sc_error_set(err, SC_E_INTERNAL, tr->path, tr->r.line, "no header line");
+    else if (st == SC_OK && t->n_rows == 0)
+        st = sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line, "no data lines after the %s",
+                          t->header_line ? "header" : "filters");
+    if (st == SC_OK)
+        t->decimal = tr->marks.mark ? tr->marks.mark : '.';
+    return st;
+}
+
+sc_status sc_imp_open(sc_imp_conv *conv, sc_csv *r, sc_table_encoding enc, const char *path,
+                      sc_error *err)
+{
+    sc_status st = sc_imp_conv_open(conv, enc, path, err);
+    if (st != SC_OK)
+        return st;
+    st = sc_csv_open(r, path, err);
+    if (st != SC_OK)
+        sc_imp_conv_close(conv);
+    return st;
+}
+
+sc_status sc_imp_close(sc_imp_conv *conv, sc_csv *r, sc_table *t, sc_status st)
+{
+    sc_csv_close(r);
+    sc_imp_conv_close(conv);
+    if (st != SC_OK)
+        sc_table_free(t);
+    return st;
 }
 
 sc_status sc_imp_read_wide(const char *path, int n_cols, const char *const *names,
@@ -877,159 +1137,18 @@ sc_status sc_imp_read_wide(const char *path, int n_cols, const char *const *name
     tr.max_rows = max_rows;
     tr.lay = lay;
     tr.notes = notes;
+    tr.numbers = all_by_number(&tr);
+    tr.no_header = lay && lay->no_header;
     sc_imp_conv conv;
-    st = sc_imp_conv_open(&conv, lay ? lay->encoding : SC_ENC_UTF8, path, err);
+    st = sc_imp_open(&conv, &tr.r, lay ? lay->encoding : SC_ENC_UTF8, path, err);
     if (st != SC_OK)
         return st;
-    st = sc_csv_open(&tr.r, path, err);
-    if (st != SC_OK) {
-        sc_imp_conv_close(&conv);
-        return st;
-    }
     int got = 0;
-    /* the header is the first line naming every wanted column; lines before it that are not
-     * data (a machine's preamble: program, date, operator) are skipped, up to PREAMBLE_MAX of
-     * them. If none names them all, the first line naming some of them (else the first line)
-     * is taken for the header and its error told. */
-    char *first = NULL; /* that line, and its number */
-    long first_line = 0, preamble = 0;
-    int first_named = 0;
-    int hash_rows = 0; /* the header began with '#' ("#;X;Y": the point number's column), so rows
-                          starting "#<digit>" are rows, not comments */
-    int numbers = all_by_number(&tr);
-    int no_header = lay && lay->no_header;
-    char *prev = NULL; /* with columns by number: the last line before the data, its number */
-    long prev_line = 0, no_row_run = 0; /* lines in a row after the header that were no row */
-    while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1) {
-        if (sc_csv_is_blank(&tr.r))
-            continue;
-        if ((st = sc_imp_conv_line(&conv, &tr.r, err)) != SC_OK)
+    while (st == SC_OK && (got = sc_csv_next_line(&tr.r, err)) == 1)
+        if (!sc_csv_is_blank(&tr.r) && wide_line(&tr, &conv, &st, err) == LINE_STOP)
             break;
-        if (tr.r.text[0] == '#') {
-            if (hash_rows ? !isdigit((unsigned char)tr.r.text[1])
-                          : (tr.in_rows || numbers || !hash_header(&tr, tr.r.text)))
-                continue; /* a comment */
-            hash_rows = 1;
-            tr.r.skip_run = 0; /* a row (or the "#;X;Y" header), not a comment */
-        }
-        if (!tr.in_rows && no_header) {
-            st = first_row_as_header(&tr, err);
-            if (st == SC_OK)
-                st = read_data_line(&tr, err);
-            continue;
-        }
-        if (tr.in_rows) {
-            long rows_before = t->n_rows;
-            st = read_data_line(&tr, err);
-            no_row_run = t->n_rows > rows_before ? 0 : no_row_run + 1;
-            if (st == SC_OK && no_row_run > SC_CSV_MAX_SKIP_RUN)
-                st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, SC_IMP_NO_ROW_RUN_MSG,
-                                  SC_CSV_MAX_SKIP_RUN);
-            continue;
-        }
-        if (numbers) { /* the header: the line before the first row */
-            int row = row_by_number(&tr, tr.r.text);
-            if (row < 0 && prev) { /* a damaged row before the first good one: its error */
-                char *h = prev;
-                prev = NULL;
-                st = read_header_line(&tr, h, prev_line, err);
-                free(h);
-                if (st == SC_OK) {
-                    sc_error e;
-                    sc_error_clear(&e);
-                    int nf = sc_imp_split_fields(tr.r.text, t->delimiter, tr.field, tr.quoted,
-                                          MAX_TABLE_FIELDS);
-                    st = read_row(&tr, nf, &e);
-                    if (st == SC_OK) /* cannot be: it failed as a row above */
-                        st = sc_error_set(&e, SC_E_INPUT, path, tr.r.line, "not a row");
-                    if (err)
-                        *err = e;
-                }
-                break;
-            }
-            if (row < 0) { /* a damaged row with no header before it */
-                st = sc_error_set(err, SC_E_INPUT, path, tr.r.line,
-                                  "not a row, and no header line before it (columns given by "
-                                  "number need one, or --no-header)");
-                break;
-            }
-            if (row == 0) {
-                free(prev);
-                prev = strdup(tr.r.text);
-                prev_line = tr.r.line;
-                if (!prev)
-                    st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-                else if (++preamble > PREAMBLE_MAX + 1)
-                    break;
-                continue;
-            }
-            if (!prev) {
-                st = sc_error_set(err, SC_E_INPUT, path, tr.r.line,
-                                  "no header line before the first row (columns given by number "
-                                  "need one, or --no-header)");
-                break;
-            }
-            char *h = prev;
-            prev = NULL;
-            st = read_header_line(&tr, h, prev_line, err);
-            free(h);
-            if (st == SC_OK)
-                st = read_data_line(&tr, err);
-            continue;
-        }
-        int named = names_count(&tr, tr.r.text);
-        if (named == n_cols) {
-            st = read_header_line(&tr, tr.r.text, tr.r.line, err);
-            continue;
-        }
-        if (!first || (named > 0 && !first_named)) {
-            free(first);
-            first = strdup(tr.r.text);
-            first_line = tr.r.line;
-            first_named = named > 0;
-            if (!first)
-                st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        }
-        if (st == SC_OK && (looks_like_data(tr.r.text) || ++preamble > PREAMBLE_MAX))
-            break; /* no header before the data: the first line's error */
-    }
-    if (st == SC_OK && got < 0) {
-        st = err ? err->code : SC_E_INPUT;
-    } else if (st == SC_OK && !tr.in_rows && first) {
-        char hint[256];
-        row_taken_hint(&tr, first, hint, sizeof hint);
-        int first_is_data = looks_like_data(first); /* before the line is split in place */
-        st = read_header_line(&tr, first, first_line, err);
-        if (st != SC_OK && hint[0] && err && strstr(err->msg, "no column named")) {
-            char *paren = strstr(err->msg, " (delimiter"); /* the hint replaces the details */
-            if (paren)
-                *paren = '\0';
-            append_hint(err, hint);
-        } else if (st != SC_OK && err && !hint[0] && first_is_data &&
-                   strstr(err->msg, "no column named")) {
-            append_hint(err, ": this line is a row of numbers (no header line? --no-header "
-                             "with the columns by number)");
-        }
-    } else if (st == SC_OK && !tr.in_rows) {
-        st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no header line naming the columns");
-    }
-    free(first);
-    free(prev);
-    if (st == SC_OK && tr.provisional > 0) { /* trailing summary rows: no measurements */
-        t->n_rows -= tr.provisional;
-        t->n_summary = tr.provisional;
-        t->summary_line = tr.provisional_line;
-    }
-    if (st == SC_OK && !tr.in_rows) /* cannot happen: read_header_line failed or set it */
-        st = sc_error_set(err, SC_E_INTERNAL, path, tr.r.line, "no header line");
-    else if (st == SC_OK && t->n_rows == 0)
-        st = sc_error_set(err, SC_E_INPUT, path, tr.r.line, "no data lines after the %s",
-                          t->header_line ? "header" : "filters");
-    if (st == SC_OK)
-        t->decimal = tr.marks.mark ? tr.marks.mark : '.';
-    sc_csv_close(&tr.r);
-    sc_imp_conv_close(&conv);
-    if (st != SC_OK)
-        sc_table_free(t);
-    return st;
+    st = wide_end(&tr, got, st, err);
+    free(tr.first);
+    free(tr.prev);
+    return sc_imp_close(&conv, &tr.r, t, st);
 }

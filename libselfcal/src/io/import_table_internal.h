@@ -65,6 +65,13 @@ void sc_imp_conv_close(sc_imp_conv *c);
 /* The hint for a header line that is not UTF-8, "" if it is (or an encoding was given). */
 const char *sc_imp_encoding_hint(const sc_table_layout *lay, const char *header_text);
 
+/* Open path for a layout: the encoding's converter into c, the line reader r (on failure neither
+ * is left open). */
+sc_status sc_imp_open(sc_imp_conv *c, sc_csv *r, sc_table_encoding enc, const char *path,
+                      sc_error *err);
+/* The end of every layout's read: r and c closed, and t freed when st is not SC_OK; returns st. */
+sc_status sc_imp_close(sc_imp_conv *c, sc_csv *r, sc_table *t, sc_status st);
+
 /* The asked-for names (before anything is read): 1..16 distinct, scales finite and nonzero, the
  * layout's options consistent. */
 sc_status sc_imp_check_request(int n_cols, const char *const *names, const double *scale,
