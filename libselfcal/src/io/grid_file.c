@@ -69,6 +69,109 @@ static int parse_index_list(char *s, long **out, int *count)
     return 0;
 }
 
+/* One attribute of a view line: its value parsed into vd (id: the view's number for the
+ * messages; repeated: the attribute was given before, an error); SC_OK, or SC_E_INPUT /
+ * SC_E_NOMEM with the message. */
+typedef sc_status (*view_attr_fn)(const char *path, long line, long id, char *val, int repeated,
+                                  view_decl *vd, sc_error *err);
+
+static sc_status attr_rot(const char *path, long line, long id, char *val, int repeated,
+                          view_decl *vd, sc_error *err)
+{
+    if (repeated || sc_parse_long(val, &vd->rot) != 0)
+        return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: bad or repeated rot", id);
+    if (vd->rot != 0 && vd->rot != 90 && vd->rot != 180 && vd->rot != 270)
+        return sc_error_set(err, SC_E_INPUT, path, line,
+                            "view %ld: rot must be 0, 90, 180 or 270 (got %ld)", id, vd->rot);
+    return SC_OK;
+}
+
+static sc_status attr_shift(const char *path, long line, long id, char *val, int repeated,
+                            view_decl *vd, sc_error *err)
+{
+    if (repeated || parse_long_pair(val, &vd->sx, &vd->sy) != 0)
+        return sc_error_set(err, SC_E_INPUT, path, line,
+                            "view %ld: shift must be two whole numbers SX,SY", id);
+    return SC_OK;
+}
+
+static sc_status attr_sigma(const char *path, long line, long id, char *val, int repeated,
+                            view_decl *vd, sc_error *err)
+{
+    if (repeated || sc_parse_double(val, &vd->sigma_um) != 0 ||
+        !sc_grid_sigma_valid(vd->sigma_um))
+        return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: sigma_um must be %g to %g um",
+                            id, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
+    return SC_OK;
+}
+
+static sc_status attr_temp(const char *path, long line, long id, char *val, int repeated,
+                           view_decl *vd, sc_error *err)
+{
+    vd->has_temp = 1;
+    if (repeated || sc_parse_double(val, &vd->temp_C) != 0 ||
+        !(vd->temp_C >= SC_GRID_MIN_TEMP_C && vd->temp_C <= SC_GRID_MAX_TEMP_C))
+        return sc_error_set(err, SC_E_INPUT, path, line,
+                            "view %ld: temp_C must be a temperature of %g to %g C", id,
+                            SC_GRID_MIN_TEMP_C, SC_GRID_MAX_TEMP_C);
+    return SC_OK;
+}
+
+/* rows= and cols=: a comma list of plate rows or columns. */
+static sc_status attr_list(const char *path, long line, long id, char *val, int repeated,
+                           int rows, view_decl *vd, sc_error *err)
+{
+    int rc = repeated ? -1
+                      : parse_index_list(val, rows ? &vd->rows : &vd->cols,
+                                         rows ? &vd->n_rows_sel : &vd->n_cols_sel);
+    if (rc == -2)
+        return sc_error_set(err, SC_E_NOMEM, path, line, "out of memory");
+    if (rc != 0)
+        return sc_error_set(err, SC_E_INPUT, path, line,
+                            rows ? "view %ld: rows must be a comma list of plate rows"
+                                 : "view %ld: cols must be a comma list of plate columns",
+                            id);
+    return SC_OK;
+}
+
+static sc_status attr_rows(const char *path, long line, long id, char *val, int repeated,
+                           view_decl *vd, sc_error *err)
+{
+    return attr_list(path, line, id, val, repeated, 1, vd, err);
+}
+
+static sc_status attr_cols(const char *path, long line, long id, char *val, int repeated,
+                           view_decl *vd, sc_error *err)
+{
+    return attr_list(path, line, id, val, repeated, 0, vd, err);
+}
+
+/* The attributes of a view line (SPEC §1), each at most once; rot and shift are required. */
+static const struct view_attr {
+    const char *key;
+    view_attr_fn parse;
+} VIEW_ATTRS[] = {
+    {"rot", attr_rot},           {"shift", attr_shift}, {"sigma_um", attr_sigma},
+    {"temp_C", attr_temp},       {"rows", attr_rows},   {"cols", attr_cols},
+};
+#define N_VIEW_ATTRS ((int)(sizeof VIEW_ATTRS / sizeof VIEW_ATTRS[0]))
+
+/* One key=value token of a view line; seen[a] counts attribute a. */
+static sc_status view_token(const char *path, long line, long id, char *tok, view_decl *vd,
+                            int *seen, sc_error *err)
+{
+    char *eq = strchr(tok, '=');
+    if (!eq)
+        return sc_error_set(err, SC_E_INPUT, path, line,
+                            "view %ld: expected key=value, got '%.40s'", id, tok);
+    *eq = '\0';
+    for (int a = 0; a < N_VIEW_ATTRS; ++a)
+        if (!strcmp(tok, VIEW_ATTRS[a].key))
+            return VIEW_ATTRS[a].parse(path, line, id, eq + 1, seen[a]++ > 0, vd, err);
+    return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: unknown attribute '%.40s'", id,
+                        tok);
+}
+
 /* "# view K: rot=R shift=SX,SY rows=.. cols=.." (text = after '#', trimmed, starting with "view"). */
 static sc_status parse_view_line(const char *path, long line, char *text, view_decl *vd,
                                  sc_error *err)
@@ -85,60 +188,16 @@ static sc_status parse_view_line(const char *path, long line, char *text, view_d
     if (sc_parse_long(sc_str_trim(p), &id) != 0 || id < 0 || id > 1000000)
         return sc_error_set(err, SC_E_INPUT, path, line, "view number is not a whole number >= 0");
     vd->id = (int)id;
-    int have_rot = 0, have_shift = 0, have_rows = 0, have_cols = 0, have_sigma = 0;
+    int seen[N_VIEW_ATTRS] = {0};
     char *save = NULL;
     for (char *tok = strtok_r(colon + 1, " \t", &save); tok; tok = strtok_r(NULL, " \t", &save)) {
-        char *eq = strchr(tok, '=');
-        if (!eq)
-            return sc_error_set(err, SC_E_INPUT, path, line,
-                                "view %ld: expected key=value, got '%.40s'", id, tok);
-        *eq = '\0';
-        char *val = eq + 1;
-        if (!strcmp(tok, "rot")) {
-            if (have_rot++ || sc_parse_long(val, &vd->rot) != 0)
-                return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: bad or repeated rot",
-                                    id);
-            if (vd->rot != 0 && vd->rot != 90 && vd->rot != 180 && vd->rot != 270)
-                return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: rot must be 0, 90, 180 or 270 (got %ld)", id,
-                                    vd->rot);
-        } else if (!strcmp(tok, "shift")) {
-            if (have_shift++ || parse_long_pair(val, &vd->sx, &vd->sy) != 0)
-                return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: shift must be two whole numbers SX,SY", id);
-        } else if (!strcmp(tok, "sigma_um")) {
-            if (have_sigma++ || sc_parse_double(val, &vd->sigma_um) != 0 ||
-                !sc_grid_sigma_valid(vd->sigma_um))
-                return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: sigma_um must be %g to %g um", id,
-                                    SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
-        } else if (!strcmp(tok, "temp_C")) {
-            if (vd->has_temp++ || sc_parse_double(val, &vd->temp_C) != 0 ||
-                !(vd->temp_C >= SC_GRID_MIN_TEMP_C && vd->temp_C <= SC_GRID_MAX_TEMP_C))
-                return sc_error_set(err, SC_E_INPUT, path, line,
-                                    "view %ld: temp_C must be a temperature of %g to %g C", id,
-                                    SC_GRID_MIN_TEMP_C, SC_GRID_MAX_TEMP_C);
-        } else if (!strcmp(tok, "rows") || !strcmp(tok, "cols")) {
-            int rows = tok[0] == 'r';
-            int rc = (rows ? have_rows++ : have_cols++)
-                         ? -1
-                         : parse_index_list(val, rows ? &vd->rows : &vd->cols,
-                                            rows ? &vd->n_rows_sel : &vd->n_cols_sel);
-            if (rc == -2)
-                return sc_error_set(err, SC_E_NOMEM, path, line, "out of memory");
-            if (rc != 0)
-                return sc_error_set(err, SC_E_INPUT, path, line,
-                                    rows ? "view %ld: rows must be a comma list of plate rows"
-                                         : "view %ld: cols must be a comma list of plate columns",
-                                    id);
-        } else {
-            return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: unknown attribute '%.40s'",
-                                id, tok);
-        }
+        sc_status st = view_token(path, line, id, tok, vd, seen, err);
+        if (st != SC_OK)
+            return st;
     }
-    if (!have_rot)
+    if (!seen[0])
         return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: rot= is missing", id);
-    if (!have_shift)
+    if (!seen[1])
         return sc_error_set(err, SC_E_INPUT, path, line, "view %ld: shift= is missing", id);
     return SC_OK;
 }

@@ -117,7 +117,9 @@ static sc_status grid_scale_check(const sc_grid_plan *p, sc_error *err)
     return SC_OK;
 }
 
-sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
+/* The plan's sizes: N, the stage grid, the pitch and origin within the readers' limits (a plan
+ * made in memory must write a file that reads back), the number of views. */
+static sc_status plan_size_check(const sc_grid_plan *p, sc_error *err)
 {
     if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "N must be odd and in 3..%d (got %d)",
@@ -128,7 +130,6 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "stage NX, NY must be odd and in 3..%d (got %d,%d)", SC_GRID_MAX_STAGE,
                             p->stage_nx, p->stage_ny);
-    /* the readers' limits (a plan made in memory must write a file that reads back) */
     if (!(p->pitch_mm >= SC_GRID_MIN_PITCH_MM) || !(p->pitch_mm <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "the pitch must be %g to %g mm, got %g", SC_GRID_MIN_PITCH_MM,
@@ -139,26 +140,38 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
     if (p->n_views < 1 || p->n_views > SC_GRID_VIEW_LIMIT || !p->view)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d",
                             SC_GRID_VIEW_LIMIT);
-    for (int v = 0; v < p->n_views; ++v) {
-        const sc_grid_view *w = &p->view[v];
-        if (!(w->sigma_um == 0 || sc_grid_sigma_valid(w->sigma_um))) /* 0: not stated */
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d: sigma_um must be %g to %g um (0: not stated), got %g", v,
-                                SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, w->sigma_um);
-        if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);
-        int any = 0;
-        for (int i = 0; i < p->n && !any; ++i)
-            for (int j = 0; j < p->n && !any; ++j)
-                any = sc_grid_view_measures(p, v, i, j);
-        if (!any)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d (rot %d, shift %d,%d) lands no measured mark on the "
-                                "stage grid",
-                                v, w->rot_deg, w->shift_x, w->shift_y);
-    }
-    return grid_scale_check(p, err);
+    return SC_OK;
+}
+
+/* View v: its stated noise, its rotation, and at least one mark it measures on the stage grid. */
+static sc_status view_check(const sc_grid_plan *p, int v, sc_error *err)
+{
+    const sc_grid_view *w = &p->view[v];
+    if (!(w->sigma_um == 0 || sc_grid_sigma_valid(w->sigma_um))) /* 0: not stated */
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "view %d: sigma_um must be %g to %g um (0: not stated), got %g", v,
+                            SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, w->sigma_um);
+    if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);
+    int any = 0;
+    for (int i = 0; i < p->n && !any; ++i)
+        for (int j = 0; j < p->n && !any; ++j)
+            any = sc_grid_view_measures(p, v, i, j);
+    if (!any)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "view %d (rot %d, shift %d,%d) lands no measured mark on the "
+                            "stage grid",
+                            v, w->rot_deg, w->shift_x, w->shift_y);
+    return SC_OK;
+}
+
+sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
+{
+    sc_status st = plan_size_check(p, err);
+    for (int v = 0; st == SC_OK && v < p->n_views; ++v)
+        st = view_check(p, v, err);
+    return st == SC_OK ? grid_scale_check(p, err) : st;
 }
 
 /* ---- run-time sized storage: a plan's views, a data set's tables, a file's lines ---- */
