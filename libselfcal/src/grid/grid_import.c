@@ -341,16 +341,10 @@ static sc_status count_assignment(const sc_grid_import_params *p, long n_points,
     return SC_OK;
 }
 
-sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
-                                long n_points, const double *x_mm, const double *y_mm,
-                                const long *lines, const char *path, long header_line,
-                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
-                                double *work, sc_error *err)
+/* The marks view v puts on the stage (fit->n_marks): none is an error. */
+static sc_status count_marks(const sc_grid_import_params *p, const sc_grid_view *v,
+                             const char *path, sc_grid_import_fit *fit, sc_error *err)
 {
-    sc_status st = sc_grid_import_check(p, err);
-    if (st != SC_OK)
-        return st;
-    memset(fit, 0, sizeof *fit);
     for (int i = 0; i < p->n; ++i)
         for (int j = 0; j < p->n; ++j) {
             int ni, nj;
@@ -360,28 +354,38 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
         return sc_error_set(err, SC_E_INPUT, path, 0,
                             "the view (rot=%d shift=%d,%d) puts no mark on the stage",
                             v->rot_deg, v->shift_x, v->shift_y);
-    for (long k = 0; k < n_points; ++k)
-        point_mark[k] = -2;
-    placement a = {0, 0, 1, 0};
+    return SC_OK;
+}
+
+/* Steps 1 and 2 of the placement: the nominal one with gate P/2 and the median translation, then
+ * the rigid placement refitted on the matched pairs and matched again (gate P/2 once, then T)
+ * until nothing changes; the iterations it took. */
+static int place_view(const sc_grid_import_params *p, const sc_grid_view *v, placement *a,
+                      long n_points, const double *x_mm, const double *y_mm, long *point_mark,
+                      long *mark_point, double *work)
+{
     double *dist = work, gate = p->pitch_mm / 2;
-    /* 1. nominal placement, gate P/2, then the median translation */
-    match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
-    median_translation(p, v, x_mm, y_mm, mark_point, work, &a);
-    /* 2. refit rigid placement on the matched pairs, re-match; gate P/2 once, then T */
+    match(p, v, a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    median_translation(p, v, x_mm, y_mm, mark_point, work, a);
     int it = 0;
     for (; it < MAX_ITERATIONS; ++it) {
-        long changed = match(p, v, &a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+        long changed = match(p, v, a, gate, n_points, x_mm, y_mm, point_mark, mark_point, dist);
         if (it >= 2 && changed == 0)
             break;
-        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, &a);
+        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, a);
         gate = p->tolerance_mm;
     }
-    fit->iterations = it;
-    /* 3. final matching at T, then the points far beyond the others left out */
-    match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
-    /* the far points out, the placement fitted again without them (they pulled it), until
-     * no more go */
-    double *far_out = work + 2 * n_points; /* 1: left out as far (stays out) */
+    return it;
+}
+
+/* The points far beyond the others left out (they stay out), the placement fitted again without
+ * them (they pulled it) and matched again, until no more go (5 rounds at most). */
+static void drop_far_points(const sc_grid_import_params *p, const sc_grid_view *v, placement *a,
+                            long n_points, const double *x_mm, const double *y_mm,
+                            long *point_mark, long *mark_point, double *work,
+                            sc_grid_import_fit *fit)
+{
+    double *dist = work, *far_out = work + 2 * n_points; /* 1: left out as far (stays out) */
     for (long k = 0; k < n_points; ++k)
         far_out[k] = 0;
     for (int round = 0; round < 5; ++round) {
@@ -392,8 +396,8 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
         for (long k = 0; k < n_points; ++k)
             if (point_mark[k] == -2)
                 far_out[k] = 1;
-        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, &a);
-        match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+        fit_rigid(p, v, n_points, x_mm, y_mm, mark_point, a);
+        match(p, v, a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
         for (long k = 0; k < n_points; ++k) /* those left out stay out */
             if (far_out[k] != 0) {
                 if (point_mark[k] >= 0 && mark_point[point_mark[k]] == k)
@@ -406,21 +410,81 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
                 mark_point[m] = k;
         }
     }
+}
+
+/* The points left out that still lie on the lattice (counted), and those on marks the view's
+ * rows=/cols= leave out (-3, not strays). */
+static void mark_off_view_points(const sc_grid_import_params *p, const sc_grid_view *v,
+                                 const placement *a, long n_points, const double *x_mm,
+                                 const double *y_mm, long *point_mark, sc_grid_import_fit *fit)
+{
     for (long k = 0; k < n_points; ++k) /* left out, yet on the lattice */
-        if (point_mark[k] == -1 && on_the_lattice(p, v, &a, x_mm[k], y_mm[k]))
+        if (point_mark[k] == -1 && on_the_lattice(p, v, a, x_mm[k], y_mm[k]))
             fit->n_on_lattice++;
-    if (v->restricted) { /* points on marks the view's rows=/cols= leave out: -3, not strays */
-        sc_grid_view all = *v;
-        all.restricted = 0;
-        for (long k = 0; k < n_points; ++k) {
-            double d;
-            if (point_mark[k] == -1 && nearest_mark(p, &all, &a, x_mm[k], y_mm[k], &d) >= 0 &&
-                d <= p->tolerance_mm) {
-                point_mark[k] = -3;
-                fit->n_unselected++;
-            }
+    if (!v->restricted)
+        return;
+    sc_grid_view all = *v;
+    all.restricted = 0;
+    for (long k = 0; k < n_points; ++k) {
+        double d;
+        if (point_mark[k] == -1 && nearest_mark(p, &all, a, x_mm[k], y_mm[k], &d) >= 0 &&
+            d <= p->tolerance_mm) {
+            point_mark[k] = -3;
+            fit->n_unselected++;
         }
     }
+}
+
+/* Too few points fell on a mark: the error says where the points are against where the view's
+ * marks should be (a frame or unit mistake shows there). */
+static sc_status too_few_on_marks(const sc_grid_import_params *p, const sc_grid_view *v,
+                                  long n_points, const double *x_mm, const double *y_mm,
+                                  const char *path, long header_line,
+                                  const sc_grid_import_fit *fit, sc_error *err)
+{
+    double px = 0, py = 0, mx = 0, my = 0;
+    for (long k = 0; k < n_points; ++k)
+        px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int ni, nj;
+            double nx, ny;
+            if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
+                continue;
+            mark_nominal(p, v, i, j, &nx, &ny); /* relative to the origin */
+            mx += (nx + p->origin_mm[0]) / (double)fit->n_marks;
+            my += (ny + p->origin_mm[1]) / (double)fit->n_marks;
+        }
+    return sc_error_set(err, SC_E_INPUT, path, header_line,
+                        "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
+                        "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "
+                        "columns? The points' centre is at (%.4f, %.4f) mm, the view's marks' "
+                        "at (%.4f, %.4f) mm (another frame? --origin-mm)",
+                        fit->n_assigned + fit->n_unselected, n_points, p->tolerance_mm,
+                        v->rot_deg, v->shift_x, v->shift_y, p->min_share * 100, px, py, mx, my);
+}
+
+sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_view *v,
+                                long n_points, const double *x_mm, const double *y_mm,
+                                const long *lines, const char *path, long header_line,
+                                long *point_mark, long *mark_point, sc_grid_import_fit *fit,
+                                double *work, sc_error *err)
+{
+    sc_status st = sc_grid_import_check(p, err);
+    if (st != SC_OK)
+        return st;
+    memset(fit, 0, sizeof *fit);
+    if ((st = count_marks(p, v, path, fit, err)) != SC_OK)
+        return st;
+    for (long k = 0; k < n_points; ++k)
+        point_mark[k] = -2;
+    placement a = {0, 0, 1, 0};
+    double *dist = work;
+    /* 1, 2: the placement; 3: final matching at T, then the points far beyond the others out */
+    fit->iterations = place_view(p, v, &a, n_points, x_mm, y_mm, point_mark, mark_point, work);
+    match(p, v, &a, p->tolerance_mm, n_points, x_mm, y_mm, point_mark, mark_point, dist);
+    drop_far_points(p, v, &a, n_points, x_mm, y_mm, point_mark, mark_point, work, fit);
+    mark_off_view_points(p, v, &a, n_points, x_mm, y_mm, point_mark, fit);
     st = count_assignment(p, n_points, lines, path, point_mark, mark_point, dist, x_mm, y_mm, fit,
                           err);
     if (st != SC_OK)
@@ -432,29 +496,7 @@ sc_status sc_grid_import_assign(const sc_grid_import_params *p, const sc_grid_vi
      * without a point are absent); a file whose points mostly fall on no mark is the wrong
      * file, view, units or columns. */
     if (fit->n_assigned == 0 ||
-        (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points) {
-        /* where the points are against where the view's marks should be: a frame or unit
-         * mistake shows there */
-        double px = 0, py = 0, mx = 0, my = 0;
-        for (long k = 0; k < n_points; ++k)
-            px += x_mm[k] / (double)n_points, py += y_mm[k] / (double)n_points;
-        for (int i = 0; i < p->n; ++i)
-            for (int j = 0; j < p->n; ++j) {
-                int ni, nj;
-                double nx, ny;
-                if (!sc_grid_import_mark_node(p, v, i, j, &ni, &nj))
-                    continue;
-                mark_nominal(p, v, i, j, &nx, &ny); /* relative to the origin */
-                mx += (nx + p->origin_mm[0]) / (double)fit->n_marks;
-                my += (ny + p->origin_mm[1]) / (double)fit->n_marks;
-            }
-        return sc_error_set(err, SC_E_INPUT, path, header_line,
-                            "only %ld of the %ld points lie within %g mm of a mark of view rot=%d "
-                            "shift=%d,%d (at least %.0f %% needed): wrong --view, --units or "
-                            "columns? The points' centre is at (%.4f, %.4f) mm, the view's marks' "
-                            "at (%.4f, %.4f) mm (another frame? --origin-mm)",
-                            fit->n_assigned + fit->n_unselected, n_points, p->tolerance_mm,
-                            v->rot_deg, v->shift_x, v->shift_y, p->min_share * 100, px, py, mx, my);
-    }
+        (double)(fit->n_assigned + fit->n_unselected) < p->min_share * (double)n_points)
+        return too_few_on_marks(p, v, n_points, x_mm, y_mm, path, header_line, fit, err);
     return SC_OK;
 }

@@ -223,10 +223,11 @@ static void fill_samples(const sc_table *const scan[2], const pos_row *const o[2
     }
 }
 
-sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
-                            sc_profile_data *out, double *p0_mm, sc_error *err)
+/* The request: two scans of 4 columns with samples, positive spacings and step, the step
+ * tolerance in (0, 0.5). */
+static sc_status import_check(const sc_profile_import_params *p, const sc_table *const scan[2],
+                              sc_error *err)
 {
-    memset(out, 0, sizeof *out);
     for (int k = 0; k < 2; ++k)
         if (scan[k]->n_cols != 4 || scan[k]->n_rows < 1)
             return sc_error_set(err, SC_E_INPUT, scan[k]->path, 0,
@@ -235,30 +236,72 @@ sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *c
         !(p->spacing_mm[0] > 0) || !(p->spacing_mm[1] > 0))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "spacings and step must be positive, the step tolerance in (0, 0.5)");
-    pos_row *o[2] = {NULL, NULL};
-    sc_status st = SC_OK;
-    for (int k = 0; k < 2 && st == SC_OK; ++k) {
+    return SC_OK;
+}
+
+/* Each scan's rows in the order of their positions (o[k], allocated here). */
+static sc_status sort_positions(const sc_table *const scan[2], pos_row *o[2], sc_error *err)
+{
+    for (int k = 0; k < 2; ++k) {
         const sc_table *t = scan[k];
         o[k] = malloc((size_t)t->n_rows * sizeof(pos_row));
-        if (!o[k]) {
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-            break;
-        }
+        if (!o[k])
+            return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
         for (long q = 0; q < t->n_rows; ++q)
             o[k][q] = (pos_row){t->value[q * 4], q};
         qsort(o[k], (size_t)t->n_rows, sizeof(pos_row), cmp_pos);
     }
+    return SC_OK;
+}
+
+/* The step, the spacings in steps and the origin p0 from scan 1 (its indices in a temporary
+ * array). */
+static sc_status step_and_origin(const sc_profile_import_params *p, const sc_table *const scan[2],
+                                 pos_row *const o[2], double *step, int dk[2], double *p0,
+                                 sc_error *err)
+{
+    long *n0 = malloc((size_t)scan[0]->n_rows * sizeof(long));
+    if (!n0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    const char *paths[2] = {scan[0]->path, scan[1]->path};
+    sc_status st = step_and_spacings(p, scan[0], o[0], n0, step, dk, paths, err);
+    if (st == SC_OK)
+        st = median_origin(scan[0], o[0], n0, *step, p0, err);
+    free(n0);
+    return st;
+}
+
+/* out sized for the profile both scans cover (the same number of points). */
+static sc_status import_init(const sc_table *const scan[2], pos_row *const o[2],
+                             long *const idx[2], double step, const int dk[2],
+                             sc_profile_data *out, sc_error *err)
+{
+    long m1 = idx[0][scan[0]->n_rows - 1] + 1, m2 = idx[1][scan[1]->n_rows - 1] + 1;
+    long n1 = m1 + dk[0], n2 = m2 + dk[1];
+    if (n1 != n2)
+        return sc_error_set(err, SC_E_INPUT, scan[1]->path,
+                            scan[1]->line[o[1][scan[1]->n_rows - 1].row],
+                            "scan 2 covers %ld points (%ld samples + d2 = %d), scan 1 covers %ld "
+                            "(%ld samples + d1 = %d): both scans must cover the same profile",
+                            n2, m2, dk[1], n1, m1, dk[0]);
+    if (n1 > 100000000L)
+        return sc_error_set(err, SC_E_INPUT, scan[0]->path, 0, "more than 1e8 points");
+    return sc_profile_data_init(out, (int)n1, step, dk[0], dk[1], err);
+}
+
+sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *const scan[2],
+                            sc_profile_data *out, double *p0_mm, sc_error *err)
+{
+    memset(out, 0, sizeof *out);
+    sc_status st = import_check(p, scan, err);
+    if (st != SC_OK)
+        return st;
+    pos_row *o[2] = {NULL, NULL};
     double step = 0, p0 = 0;
     int dk[2] = {0, 0};
-    long *n0 = st == SC_OK ? malloc((size_t)scan[0]->n_rows * sizeof(long)) : NULL;
-    if (st == SC_OK && !n0)
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    const char *paths[2] = {scan[0]->path, scan[1]->path};
+    st = sort_positions(scan, o, err);
     if (st == SC_OK)
-        st = step_and_spacings(p, scan[0], o[0], n0, &step, dk, paths, err);
-    if (st == SC_OK)
-        st = median_origin(scan[0], o[0], n0, step, &p0, err);
-    free(n0);
+        st = step_and_origin(p, scan, o, &step, dk, &p0, err);
     long *idx[2] = {NULL, NULL};
     for (int k = 0; k < 2 && st == SC_OK; ++k) {
         idx[k] = malloc((size_t)scan[k]->n_rows * sizeof(long));
@@ -267,20 +310,8 @@ sc_status sc_profile_import(const sc_profile_import_params *p, const sc_table *c
         if (st == SC_OK)
             st = gap_check(scan[k], o[k], idx[k], k, err);
     }
-    if (st == SC_OK) {
-        long m1 = idx[0][scan[0]->n_rows - 1] + 1, m2 = idx[1][scan[1]->n_rows - 1] + 1;
-        long n1 = m1 + dk[0], n2 = m2 + dk[1];
-        if (n1 != n2)
-            st = sc_error_set(err, SC_E_INPUT, scan[1]->path,
-                              scan[1]->line[o[1][scan[1]->n_rows - 1].row],
-                              "scan 2 covers %ld points (%ld samples + d2 = %d), scan 1 covers %ld "
-                              "(%ld samples + d1 = %d): both scans must cover the same profile",
-                              n2, m2, dk[1], n1, m1, dk[0]);
-        else if (n1 > 100000000L)
-            st = sc_error_set(err, SC_E_INPUT, scan[0]->path, 0, "more than 1e8 points");
-        else
-            st = sc_profile_data_init(out, (int)n1, step, dk[0], dk[1], err);
-    }
+    if (st == SC_OK)
+        st = import_init(scan, o, idx, step, dk, out, err);
     if (st == SC_OK)
         fill_samples(scan, (const pos_row *const *)o, (const long *const *)idx, out);
     free(idx[0]);
