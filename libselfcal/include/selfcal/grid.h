@@ -155,7 +155,7 @@ typedef struct sc_grid_result {
 /* The number of per-view arrays of sc_grid_result (tx_um ... view_sigma_u_um). */
 #define SC_GRID_RESULT_VIEW_ARRAYS 13
 
-/* ---- run-time sized per-view storage (grid_geometry.c) ---- */
+/* ---- run-time sized per-view storage (io/grid_plan.c; a result's: grid/grid_views.c) ---- */
 
 /* Size p's views to n_views (1..SC_GRID_VIEW_LIMIT): the entries kept keep their content, new
  * ones are zero (rot 0, shift 0,0, not restricted, sigma_um not stated). p must be zeroed or
@@ -175,7 +175,8 @@ SC_API sc_status sc_grid_result_views(sc_grid_result *res, int n_views, sc_error
 /* Free the block of sc_grid_result_views and clear the per-view pointers (safe on a zeroed res). */
 SC_API void sc_grid_result_free_views(sc_grid_result *res);
 
-/* ---- geometry (grid_geometry.c) ---- */
+/* ---- geometry (io/grid_plan.c: the stage grid, where a view puts a mark, the plan's checks;
+ * grid/grid_geometry.c: the forward model and the gauge) ---- */
 
 /* Stage grid size along x (NX) and y (NY): the plan's stage_nx/ny, or N when they are 0. */
 SC_API int sc_grid_stage_nx(const sc_grid_plan *p);

@@ -1,4 +1,5 @@
-/* Geometry of views, the noise-free forward model and the gauge of SPEC §1. */
+/* The noise-free forward model and the gauge of SPEC §1, on the plan's geometry (where a view
+ * puts each mark: io/grid_plan.c, with the format that defines it). */
 #include "selfcal/grid.h"
 #include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 

@@ -1,7 +1,6 @@
-/* Run-time sized per-view storage: a plan's views, a data set's per-view tables and a result's
- * per-view arrays (no cap on the number of views; grid.h, grid_io.h). */
+/* Run-time sized per-view storage of a result: its per-view arrays in one block (no cap on the
+ * number of views; grid.h). A plan's views and a data set's tables are io/grid_plan.c's. */
 #include "selfcal/grid.h"
-#include "selfcal/grid_io.h"
 
 #include <math.h>
 #include <stdlib.h>
