@@ -156,16 +156,6 @@ static void long_free(long_reader *lr)
     free(lr->slot);
 }
 
-/* Where column name is among the n fields of a header line (by name, else by number); -1. */
-static int find_column(char *const *field, int n, const char *name)
-{
-    for (int f = 0; f < n; ++f)
-        if (sc_imp_name_equal(field[f], name))
-            return f;
-    long num = sc_imp_column_number(name);
-    return num >= 1 && num <= n ? (int)(num - 1) : -1;
-}
-
 /* The columns a long read needs: id, axis, value [, nominal], then the where filters. */
 static int long_columns(const sc_table_layout *lay, const char **cols)
 {
@@ -327,7 +317,7 @@ static int long_match_columns(long_reader *lr, char *const *hf, int n)
     int named = 0, all = 1, no_header = lr->lay->no_header;
     for (int c = 0; c < lr->n_need; ++c) { /* by name; by number beside a name */
         const char *col = lr->cols[c];
-        lr->col_of[c] = no_header ? -1 : find_column(hf, n, col);
+        lr->col_of[c] = no_header ? -1 : sc_imp_find_column(hf, n, col);
         if (lr->col_of[c] >= 0 && sc_imp_column_number(col) >= 1 &&
             !sc_imp_name_equal(hf[lr->col_of[c]], col))
             lr->col_of[c] = -1;
@@ -474,20 +464,17 @@ static sc_status long_no_header(long_reader *lr, sc_error *err)
     char hbuf[4096], *hf[SC_IMP_MAX_FIELDS];
     snprintf(hbuf, sizeof hbuf, "%s", lr->best_text);
     int n = sc_imp_split_fields(hbuf, sc_imp_delimiter_of(hbuf), hf, NULL, SC_IMP_MAX_FIELDS);
-    while (c < lr->n_need - 1 && find_column(hf, n, lr->cols[c]) >= 0)
+    while (c < lr->n_need - 1 && sc_imp_find_column(hf, n, lr->cols[c]) >= 0)
         ++c;
     return sc_error_set(err, SC_E_INPUT, lr->path, lr->best_line,
                         "no column named '%s' in this header line%s", lr->cols[c],
                         sc_imp_encoding_hint(lr->lay, lr->best_text));
 }
 
-/* After the last line (got: the line reader's last answer): the points into t, which must have
- * a complete one. */
-static sc_status long_end(long_reader *lr, int got, sc_status st, sc_error *err)
+/* After the last line: the points into t, which must have a complete one. */
+static sc_status long_end(long_reader *lr, sc_status st, sc_error *err)
 {
     sc_table *t = lr->t;
-    if (st == SC_OK && got < 0)
-        st = err ? err->code : SC_E_INPUT;
     if (st == SC_OK && !lr->in_rows)
         st = long_no_header(lr, err);
     if (st == SC_OK)
@@ -497,10 +484,8 @@ static sc_status long_end(long_reader *lr, int got, sc_status st, sc_error *err)
                           "no point has all of its coordinates (%ld IDs read%s)", lr->n_points,
                           lr->notes->n_other_axis ? "; the AXIS column holds other names: "
                                                     "--axis-names" : "");
-    if (st == SC_OK) {
-        t->decimal = lr->marks.mark ? lr->marks.mark : '.';
-        lr->notes->decimals = lr->marks.decimals;
-    }
+    if (st == SC_OK)
+        sc_imp_set_decimal(&lr->marks, t, lr->notes);
     return st;
 }
 
@@ -526,17 +511,13 @@ sc_status sc_imp_read_long(const char *path, int n_cols, const char *const *name
     sc_status st = sc_imp_open(&conv, &lr.r, lay->encoding, path, err);
     if (st != SC_OK)
         return st;
-    int got = 0, next = LONG_NEXT;
-    while (st == SC_OK && next != LONG_STOP && (got = sc_csv_next_line(&lr.r, err)) == 1) {
-        if (sc_csv_is_blank(&lr.r) || lr.r.text[0] == '#')
-            continue;
-        if ((st = sc_imp_conv_line(&conv, &lr.r, err)) != SC_OK)
-            break;
+    int next = LONG_NEXT;
+    while (st == SC_OK && next != LONG_STOP && sc_imp_next_line(&lr.r, &conv, &st, err) == 1) {
         next = lr.in_rows ? LONG_ROW : long_header(&lr, &st, err);
         if (next == LONG_ROW)
             next = long_data_line(&lr, &st, err);
     }
-    st = long_end(&lr, got, st, err);
+    st = long_end(&lr, st, err);
     long_free(&lr);
     return sc_imp_close(&conv, &lr.r, t, st);
 }
@@ -728,10 +709,8 @@ static sc_status trans_items(trans_reader *tr, sc_error *err)
         st = trans_item(tr, c, err);
     if (st == SC_OK && t->n_rows == 0)
         st = sc_error_set(err, SC_E_INPUT, tr->path, tr->line[0], "no item with values");
-    if (st == SC_OK) {
-        t->decimal = tr->marks.mark ? tr->marks.mark : '.';
-        tr->notes->decimals = tr->marks.decimals;
-    }
+    if (st == SC_OK)
+        sc_imp_set_decimal(&tr->marks, t, tr->notes);
     return st;
 }
 
@@ -747,16 +726,9 @@ sc_status sc_imp_read_transposed(const char *path, int n_cols, const char *const
     sc_status st = sc_imp_open(&conv, &tr.r, lay->encoding, path, err);
     if (st != SC_OK)
         return st;
-    int got = 0, next = LONG_NEXT;
-    while (st == SC_OK && next != LONG_STOP && (got = sc_csv_next_line(&tr.r, err)) == 1) {
-        if (sc_csv_is_blank(&tr.r) || tr.r.text[0] == '#')
-            continue;
-        if ((st = sc_imp_conv_line(&conv, &tr.r, err)) != SC_OK)
-            break;
+    int next = LONG_NEXT;
+    while (st == SC_OK && next != LONG_STOP && sc_imp_next_line(&tr.r, &conv, &st, err) == 1)
         next = trans_line(&tr, &st, err);
-    }
-    if (st == SC_OK && got < 0)
-        st = err ? err->code : SC_E_INPUT;
     if (st == SC_OK)
         st = trans_split(&tr, err);
     t->delimiter = tr.d ? tr.d : ','; /* found once every wanted row was there */

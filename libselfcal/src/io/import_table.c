@@ -67,6 +67,22 @@ int sc_imp_name_equal(const char *a, const char *b)
     return *a == *b;
 }
 
+int sc_imp_find_column(char *const *field, int n, const char *name)
+{
+    for (int f = 0; f < n; ++f)
+        if (sc_imp_name_equal(field[f], name))
+            return f;
+    long num = sc_imp_column_number(name);
+    return num >= 1 && num <= n ? (int)(num - 1) : -1;
+}
+
+void sc_imp_set_decimal(const sc_imp_marks *m, sc_table *t, sc_table_notes *notes)
+{
+    t->decimal = m->mark ? m->mark : '.';
+    if (notes)
+        notes->decimals = m->decimals;
+}
+
 /* A column given by its number ("2": the second), or 0 if name is not a whole number. */
 long sc_imp_column_number(const char *name)
 {
@@ -302,13 +318,7 @@ static sc_status read_header_line(table_reader *tr, char *text, long ln, sc_erro
     tr->notes->header_fields = tr->n_header;
     tr->notes->named_fields = tr->n_named;
     for (int w = 0; tr->lay && w < tr->lay->n_where; ++w) { /* the filters' columns */
-        tr->where_of[w] = -1;
-        for (int f = 0; f < tr->n_header && tr->where_of[w] < 0; ++f)
-            if (sc_imp_name_equal(tr->field[f], tr->lay->where_col[w]))
-                tr->where_of[w] = f;
-        long num = sc_imp_column_number(tr->lay->where_col[w]);
-        if (tr->where_of[w] < 0 && num >= 1 && num <= tr->n_header)
-            tr->where_of[w] = (int)(num - 1);
+        tr->where_of[w] = sc_imp_find_column(tr->field, tr->n_header, tr->lay->where_col[w]);
         if (tr->where_of[w] < 0)
             return sc_error_set(err, SC_E_INPUT, tr->path, ln,
                                 "no column named '%s' (--where) in this header line%s",
@@ -1091,8 +1101,8 @@ static sc_status wide_end(table_reader *tr, int got, sc_status st, sc_error *err
     else if (st == SC_OK && t->n_rows == 0)
         st = sc_error_set(err, SC_E_INPUT, tr->path, tr->r.line, "no data lines after the %s",
                           t->header_line ? "header" : "filters");
-    if (st == SC_OK)
-        t->decimal = tr->marks.mark ? tr->marks.mark : '.';
+    if (st == SC_OK) /* the decimals were counted as the values came (parse_value) */
+        sc_imp_set_decimal(&tr->marks, t, NULL);
     return st;
 }
 
@@ -1106,6 +1116,20 @@ sc_status sc_imp_open(sc_imp_conv *conv, sc_csv *r, sc_table_encoding enc, const
     if (st != SC_OK)
         sc_imp_conv_close(conv);
     return st;
+}
+
+int sc_imp_next_line(sc_csv *r, sc_imp_conv *conv, sc_status *st, sc_error *err)
+{
+    int got;
+    while ((got = sc_csv_next_line(r, err)) == 1) {
+        if (sc_csv_is_blank(r) || r->text[0] == '#')
+            continue;
+        *st = sc_imp_conv_line(conv, r, err);
+        return *st == SC_OK ? 1 : -1;
+    }
+    if (got < 0)
+        *st = err ? err->code : SC_E_INPUT;
+    return got;
 }
 
 sc_status sc_imp_close(sc_imp_conv *conv, sc_csv *r, sc_table *t, sc_status st)

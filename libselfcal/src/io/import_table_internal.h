@@ -24,6 +24,9 @@ int sc_imp_split_fields(char *s, char delim, char **field, unsigned char *quoted
 int sc_imp_name_equal(const char *a, const char *b);
 /* A column given by its number ("2": the second), or 0 if name is no whole number. */
 long sc_imp_column_number(const char *name);
+/* Where column name is among the n fields of a header line: the first field of that name
+ * (ignoring ASCII case), else its number (1..n), else -1. */
+int sc_imp_find_column(char *const *field, int n, const char *name);
 /* A field as a number with either decimal mark (*mark_seen: '.', ',' or 0); 0 ok, -2 both marks,
  * -1 no number. */
 int sc_imp_parse_number(const char *s, double *out, char *mark_seen);
@@ -47,6 +50,9 @@ typedef struct sc_imp_marks {
     long mark_line;
     int decimals;
 } sc_imp_marks;
+/* The end of a read: t's decimal mark (m's, '.' if no number had a fraction) and, with notes,
+ * the most decimals seen. */
+void sc_imp_set_decimal(const sc_imp_marks *m, sc_table *t, sc_table_notes *notes);
 /* A wanted field as a number: one decimal mark per file, no unquoted decimal comma in a
  * comma-separated file, within SC_INPUT_MAX_ABS; SC_E_INPUT at path:ln naming the column. */
 sc_status sc_imp_value(sc_imp_marks *m, const char *path, long ln, const char *name,
@@ -69,6 +75,9 @@ const char *sc_imp_encoding_hint(const sc_table_layout *lay, const char *header_
  * is left open). */
 sc_status sc_imp_open(sc_imp_conv *c, sc_csv *r, sc_table_encoding enc, const char *path,
                       sc_error *err);
+/* The next line of r that is neither blank nor a comment ('#'), converted to UTF-8 (the lines of
+ * one row per axis and of items in columns): 1; 0 at the end; -1 with *st and err set. */
+int sc_imp_next_line(sc_csv *r, sc_imp_conv *c, sc_status *st, sc_error *err);
 /* The end of every layout's read: r and c closed, and t freed when st is not SC_OK; returns st. */
 sc_status sc_imp_close(sc_imp_conv *c, sc_csv *r, sc_table *t, sc_status st);
 
