@@ -135,14 +135,19 @@ static sc_status grid_scale_check(const sc_grid_plan *p, sc_error *err)
     return SC_OK;
 }
 
-sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
+/* 1 if a stage dimension is valid: 0 (the plate's own N) or odd in 3..SC_GRID_MAX_STAGE. */
+static int stage_dim_ok(int m)
+{
+    return m == 0 || (m >= 3 && m % 2 == 1 && m <= SC_GRID_MAX_STAGE);
+}
+
+/* The plate's N, the stage size, the pitch and the origin of p. */
+static sc_status plan_size_check(const sc_grid_plan *p, sc_error *err)
 {
     if (p->n < 3 || p->n > SC_GRID_MAX_N || p->n % 2 == 0)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "N must be odd and in 3..%d (got %d)",
                             SC_GRID_MAX_N, p->n);
-    if (p->stage_nx < 0 || p->stage_ny < 0 || (p->stage_nx > 0 && (p->stage_nx < 3 ||
-        p->stage_nx % 2 == 0 || p->stage_nx > SC_GRID_MAX_STAGE)) || (p->stage_ny > 0 &&
-        (p->stage_ny < 3 || p->stage_ny % 2 == 0 || p->stage_ny > SC_GRID_MAX_STAGE)))
+    if (!stage_dim_ok(p->stage_nx) || !stage_dim_ok(p->stage_ny))
         return sc_error_set(err, SC_E_INPUT, NULL, 0,
                             "stage NX, NY must be odd and in 3..%d (got %d,%d)", SC_GRID_MAX_STAGE,
                             p->stage_nx, p->stage_ny);
@@ -154,28 +159,43 @@ sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
     if (!(fabs(p->origin_mm[0]) <= SC_INPUT_MAX_ABS) || !(fabs(p->origin_mm[1]) <= SC_INPUT_MAX_ABS))
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "the origin must be within +-%g mm",
                             SC_INPUT_MAX_ABS);
+    return SC_OK;
+}
+
+/* View v of p: its σ, its rotation, and at least one mark landing on the stage grid. */
+static sc_status plan_view_check(const sc_grid_plan *p, int v, sc_error *err)
+{
+    const sc_grid_view *w = &p->view[v];
+    if (!(w->sigma_um == 0 || sc_grid_sigma_valid(w->sigma_um))) /* 0: not stated */
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "view %d: sigma_um must be %g to %g um (0: not stated), got %g", v,
+                            SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, w->sigma_um);
+    if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);
+    int any = 0;
+    for (int i = 0; i < p->n && !any; ++i)
+        for (int j = 0; j < p->n && !any; ++j)
+            any = sc_grid_view_measures(p, v, i, j);
+    if (!any)
+        return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                            "view %d (rot %d, shift %d,%d) lands no measured mark on the "
+                            "stage grid",
+                            v, w->rot_deg, w->shift_x, w->shift_y);
+    return SC_OK;
+}
+
+sc_status sc_grid_plan_check(const sc_grid_plan *p, sc_error *err)
+{
+    sc_status st = plan_size_check(p, err);
+    if (st != SC_OK)
+        return st;
     if (p->n_views < 1 || p->n_views > SC_GRID_VIEW_LIMIT || !p->view)
         return sc_error_set(err, SC_E_INPUT, NULL, 0, "number of views must be 1..%d",
                             SC_GRID_VIEW_LIMIT);
-    for (int v = 0; v < p->n_views; ++v) {
-        const sc_grid_view *w = &p->view[v];
-        if (!(w->sigma_um == 0 || sc_grid_sigma_valid(w->sigma_um))) /* 0: not stated */
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d: sigma_um must be %g to %g um (0: not stated), got %g", v,
-                                SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS, w->sigma_um);
-        if (w->rot_deg != 0 && w->rot_deg != 90 && w->rot_deg != 180 && w->rot_deg != 270)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d: rot must be 0, 90, 180 or 270 (got %d)", v, w->rot_deg);
-        int any = 0;
-        for (int i = 0; i < p->n && !any; ++i)
-            for (int j = 0; j < p->n && !any; ++j)
-                any = sc_grid_view_measures(p, v, i, j);
-        if (!any)
-            return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                "view %d (rot %d, shift %d,%d) lands no measured mark on the "
-                                "stage grid",
-                                v, w->rot_deg, w->shift_x, w->shift_y);
-    }
+    for (int v = 0; v < p->n_views; ++v)
+        if ((st = plan_view_check(p, v, err)) != SC_OK)
+            return st;
     return grid_scale_check(p, err);
 }
 
