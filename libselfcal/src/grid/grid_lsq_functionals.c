@@ -339,7 +339,7 @@ static void functional_basis_rhs(const sc_grid_lsq_plan *q, double *fg, double *
 }
 /* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
  * u = Qᵀ f = f − Σ_t γ_t C_t. In the reduced unknowns uᵀΣu = r·Σr + Σ_a u_A[a]²/W_a with
- * r = u_x − sc_lsq_a_correction(u_A) (functional_form). The gauge patterns C_t lie on G for t < 4 (U_t =
+ * r = u_x − a_correction(u_A) (functional_form). The gauge patterns C_t lie on G for t < 4 (U_t =
  * scale_t·C_t) and on A for t >= 4 (a_correction of them: D_t), so
  *     r = f − Σ_{t<4} γ_t U_t/scale_t + Σ_{t>=4} γ_t D_t,
  * and Σr combines the 9 solved columns X = (W = ΣU, B = Σ(fg_O, fg_R, D_4..6)) with Σ f for a

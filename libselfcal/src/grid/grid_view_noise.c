@@ -438,8 +438,8 @@ static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_in
             if (!isfinite(u2[v]))
                 continue;
             if (!(k[v] * u2[v] >= NOISE_FLOOR_UM * NOISE_FLOOR_UM)) {
-                sc_grid_warnf(o, "%s: the residuals of view %d are at the rounding level: the noise per "
-                         "view is not estimated (the weights stay as stated)",
+                sc_grid_warnf(o, "%s: the residuals of view %d are at the rounding level: the "
+                                 "noise per view is not estimated (the weights stay as stated)",
                       src, sc_grid_view_id(info, v));
                 return it ? view_noise_reset(d, o, vn, s, qp, err) : SC_OK;
             }
@@ -447,9 +447,9 @@ static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_in
              * them by these views (its equations become the ones the fit must pass through):
              * Förstner's estimator has no answer there */
             if (!(k[v] * u2[v] >= VCE_COLLAPSE * VCE_COLLAPSE * s2_all)) {
-                sc_grid_warnf(o, "%s: the noise of view %d runs to zero against the other views' (not "
-                         "separable by this plan, or an outlier elsewhere): the noise per view is "
-                         "not estimated (the weights stay as stated)",
+                sc_grid_warnf(o, "%s: the noise of view %d runs to zero against the other views' "
+                                 "(not separable by this plan, or an outlier elsewhere): the noise "
+                                 "per view is not estimated (the weights stay as stated)",
                       src, sc_grid_view_id(info, v));
                 return view_noise_reset(d, o, vn, s, qp, err);
             }
@@ -458,8 +458,9 @@ static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_in
         if (worst < VCE_TOL)
             break;
         if (it >= VCE_MAX_IT) {
-            sc_grid_warnf(o, "%s: the noise per view did not settle in %d re-weighted solves (its factors "
-                     "still change by %.2g): not estimated (the weights stay as stated)",
+            sc_grid_warnf(o, "%s: the noise per view did not settle in %d re-weighted solves (its "
+                             "factors still change by %.2g): not estimated (the weights stay as "
+                             "stated)",
                   src, VCE_MAX_IT, worst);
             return view_noise_reset(d, o, vn, s, qp, err);
         }
