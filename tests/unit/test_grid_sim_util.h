@@ -16,6 +16,7 @@ static double *tu_sim_buffer(const sc_grid_plan *p, sc_grid_sim_truth *t, double
     const size_t nv = (size_t)p->n_views;
     double *buf = malloc(sizeof(double) *
                          (2 * ns + 2 * nn + 3 * nv + sc_grid_sim_work_doubles_plan(p)));
+    *work = NULL;
     if (!buf)
         return NULL;
     *t = (sc_grid_sim_truth){.gx_um = buf, .gy_um = buf + ns, .ax_um = buf + 2 * ns,

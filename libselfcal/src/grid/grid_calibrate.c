@@ -89,7 +89,8 @@ static sc_status check_view(const sc_grid_data *d, const sc_grid_file_info *info
                 return sc_error_set(err, SC_E_INPUT, path, line_of(info, 2, v),
                                     "view %d (rot=%d shift=%d,%d) lacks mark (%d,%d), which method "
                                     "%s needs",
-                                    sc_grid_view_id(info, v), w->rot_deg, w->shift_x, w->shift_y, i, j, method);
+                                    sc_grid_view_id(info, v), w->rot_deg, w->shift_x, w->shift_y, i, j,
+                                    method);
         }
     return SC_OK;
 }
@@ -358,8 +359,8 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
     int stop = 0;
     double sigma_r = given_sigma_r(d, info, o);
     if (o->sigma_r_um > 0 && !(sigma_r > 0))
-        sc_grid_warnf(o, "%s: the file states its uncertainties (ux_um,uy_um or sigma_um=): --sigma-r-um "
-                 "%g is ignored",
+        sc_grid_warnf(o, "%s: the file states its uncertainties (ux_um,uy_um or sigma_um=): "
+                         "--sigma-r-um %g is ignored",
               src, o->sigma_r_um);
     for (int first = 1;; first = 0) {
         if (!first || !*qp) { /* the first plan may come made (sc_grid_calibrate) */
@@ -379,14 +380,14 @@ static sc_status lsq_loop(sc_grid_data *d, const sc_grid_file_info *info, const 
                 d->dx_um[v][k] = keep[pending], d->dy_um[v][k] = keep[tot + pending];
                 s->outlier[pending] = 0;
                 s->n_removed--;
-                sc_grid_warnf(o, "%s: outlier view %d mark (%d,%d) kept: without it the views would not "
-                         "identify G",
+                sc_grid_warnf(o, "%s: outlier view %d mark (%d,%d) kept: without it the views "
+                                 "would not identify G",
                       src, sc_grid_view_id(info, v), k / p->n, k % p->n);
                 pending = -1, stop = 1;
                 continue;
             }
-            sc_grid_warnf(o, "%s: removed outlier view %d mark (%d,%d) (tx %.3g, ty %.3g; critical value "
-                     "%.3f) and solved again",
+            sc_grid_warnf(o, "%s: removed outlier view %d mark (%d,%d) (tx %.3g, ty %.3g; critical "
+                             "value %.3f) and solved again",
                   src, sc_grid_view_id(info, v), k / p->n, k % p->n, s->tx[pending], s->ty[pending],
                   s->res.outlier_crit);
             pending = -1;
@@ -457,20 +458,22 @@ static void lsq_finish(sc_grid_data *d, const sc_grid_file_info *info, const cha
             s->outlier[k] = 1;
             s->n_flagged++;
             if (s->res.outlier_alpha_each)
-                sc_grid_warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, "
-                         "ty %.3g beyond %.3f: data snooping, alpha = %g for each coordinate)",
+                sc_grid_warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals "
+                                 "tx %.3g, ty %.3g beyond %.3f: data snooping, alpha = %g for each "
+                                 "coordinate)",
                       src, sc_grid_view_id(info, v), m / p->n, m % p->n, s->tx[k], s->ty[k],
                       s->res.outlier_crit, s->res.outlier_alpha);
             else
-                sc_grid_warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals tx %.3g, "
-                         "ty %.3g beyond %.3f: data snooping, alpha = %g over %ld coordinates)",
+                sc_grid_warnf(o, "%s: view %d mark (%d,%d) is an outlier (standardized residuals "
+                                 "tx %.3g, ty %.3g beyond %.3f: data snooping, alpha = %g over %ld "
+                                 "coordinates)",
                       src, sc_grid_view_id(info, v), m / p->n, m % p->n, s->tx[k], s->ty[k],
                       s->res.outlier_crit, s->res.outlier_alpha, s->res.n_outlier_tests);
         }
     }
     if (!s->res.chi2_pass)
-        sc_grid_warnf(o, "%s: the residuals disagree with the %s noise: variance factor %.4g outside the "
-                 "chi^2 95 %% interval [%.4g, %.4g]%s%s",
+        sc_grid_warnf(o, "%s: the residuals disagree with the %s noise: variance factor %.4g "
+                         "outside the chi^2 95 %% interval [%.4g, %.4g]%s%s",
               src, given_sigma_r(d, info, o) > 0 ? "given" : "stated", s->res.variance_factor,
               s->res.chi2_lo, s->res.chi2_hi,
               given_sigma_r(d, info, o) > 0
@@ -644,11 +647,12 @@ static void free_scales_report(const sc_grid_est *e, const sc_grid_file_info *in
     b->view_scale_chi2_crit = sc_chi2_quantile(0.95, (double)e->rank);
     b->view_scale_significant = b->view_scale_chi2 > b->view_scale_chi2_crit;
     if (b->view_scale_significant)
-        sc_grid_warnf(o, "%s: the views' scales differ significantly (chi^2 %.4g > %.4g at 95 %% over %d "
-                 "degrees of freedom; largest: view %d, %.4g ppm, u %.2g ppm): the plate's "
-                 "temperature changed between the views, or the stage's scale did",
+        sc_grid_warnf(o, "%s: the views' scales differ significantly (chi^2 %.4g > %.4g at 95 %% "
+                         "over %d degrees of freedom; largest: view %d, %.4g ppm, u %.2g ppm): the "
+                         "plate's temperature changed between the views, or the stage's scale did",
               path ? path : "data", b->view_scale_chi2, b->view_scale_chi2_crit, e->rank,
-              sc_grid_view_id(info, worst), b->view_scale_free_ppm[worst], b->u_view_scale_free_ppm[worst]);
+              sc_grid_view_id(info, worst), b->view_scale_free_ppm[worst],
+              b->u_view_scale_free_ppm[worst]);
 }
 
 /* After the least squares on the corrected data dc: the magnification gauge and the budget. */

@@ -339,7 +339,7 @@ static void functional_basis_rhs(const sc_grid_lsq_plan *q, double *fg, double *
 }
 /* Var/σ0² of O, R and (when unique) of every misalignment unknown: Var(fᵀ z_g) = uᵀ Σ u with
  * u = Qᵀ f = f − Σ_t γ_t C_t. In the reduced unknowns uᵀΣu = r·Σr + Σ_a u_A[a]²/W_a with
- * r = u_x − sc_lsq_a_correction(u_A) (functional_form). The gauge patterns C_t lie on G for t < 4 (U_t =
+ * r = u_x − a_correction(u_A) (functional_form). The gauge patterns C_t lie on G for t < 4 (U_t =
  * scale_t·C_t) and on A for t >= 4 (a_correction of them: D_t), so
  *     r = f − Σ_{t<4} γ_t U_t/scale_t + Σ_{t>=4} γ_t D_t,
  * and Σr combines the 9 solved columns X = (W = ΣU, B = Σ(fg_O, fg_R, D_4..6)) with Σ f for a
@@ -370,6 +370,64 @@ static void a_gauge_gram(const sc_grid_lsq_plan *q, double C[3][3])
             for (int u = 0; u < 3; ++u)
                 C[t][u] += ca[4 + t][a % 2] * ca[4 + u][a % 2] / W;
     }
+}
+
+/* functional_variances' phase 1 for misalignment unknown t (reduced index m):
+ * r·(Σ e_m) = (Σ e_m)_m − Σ_{t<4} γ_t U_t·col/scale_t − Σ γ_t D_t·col added to part[t] into
+ * q->var_m[t]; col: scratch of n_red. Returns -1 when its column of Σ cannot be had. */
+static int misalignment_variance(sc_grid_lsq_plan *q, int t, int m, const int *slot,
+                                 const double scale[4], const double *U, const double *D,
+                                 const double *gam, double *col, const double *part)
+{
+    size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
+    if (slot[t] < 0) { /* a pinned one: its column is 0 */
+        q->var_m[t] = part[t] > 0 ? part[t] : 0.0;
+        return 0;
+    }
+    if (sc_spsym_inv_column(q->f, slot[t], col) != 0)
+        return -1;
+    sc_lsq_zero_pinned(q, col, 1);
+    double v = col[m];
+    for (int s = 0; s < 4; ++s)
+        v -= gam[s] / scale[s] * dot(U + (size_t)s * ng, col, ng);
+    for (int s = 0; s < 3; ++s)
+        v -= gam[4 + s] * dot(D + (size_t)s * n, col, n);
+    double var = part[t] + v;
+    q->var_m[t] = var > 0 ? var : 0.0;
+    return 0;
+}
+
+/* functional_variances' phase 0 for functional f (O, R, then the misalignments, reduced index
+ * m): z0 = Σ(r − own) = Σ_s c_s X_s, formed first (a sum of the dot tables' products would
+ * lose more to cancellation), then its form: own·z0 − Σ_{t<4} γ_t U_t·z0/scale_t
+ * − Σ_{t>=4} γ_t D_t·z0 + Σ γ_t γ_t' C_tt'. z: scratch of n_red. */
+static double functional_variance0(const sc_grid_lsq_plan *q, int f, int m,
+                                   const double scale[4], const double *U, const double *D,
+                                   const double *X, const double *gam, const double C[3][3],
+                                   const double *fg, double *z)
+{
+    size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
+    double c[9];
+    for (int t = 0; t < 4; ++t)
+        c[t] = -gam[t] / scale[t];
+    c[4] = f == 0, c[5] = f == 1;
+    for (int t = 0; t < 3; ++t)
+        c[6 + t] = -gam[4 + t];
+    for (size_t i = 0; i < n; ++i) {
+        double v = 0;
+        for (int s2 = 0; s2 < 9; ++s2)
+            v += c[s2] * X[(size_t)s2 * n + i];
+        z[i] = v;
+    }
+    double var = f < 2 ? dot(fg, z, ng) : z[m];
+    for (int t = 0; t < 4; ++t)
+        var -= gam[t] / scale[t] * dot(U + (size_t)t * ng, z, ng);
+    for (int t = 0; t < 3; ++t)
+        var -= gam[4 + t] * dot(D + (size_t)t * n, z, n);
+    for (int t = 0; t < 3; ++t)
+        for (int u = 0; u < 3; ++u)
+            var += gam[4 + t] * gam[4 + u] * C[t][u];
+    return var;
 }
 
 /* Phase 0 (before the selected inverse): O and R, and part[t] for every misalignment unknown t
@@ -406,46 +464,12 @@ static sc_status functional_variances(sc_grid_lsq_plan *q, int phase, const doub
         functional_def(q, f, fg ? fg : fm, fm, &pg, &pm); /* phase 1: misalignments only */
         functional_gamma(q, Minv_T, pg, pm, gam);
         int m = (int)ng + f - 2;
-        if (phase == 1) { /* r·(Σ e_m) = (Σ e_m)_m − Σ_{t<4} γ_t U_t·col/scale_t − Σ γ_t D_t·col */
-            if (slot[f - 2] < 0) { /* a pinned one: its column is 0 */
-                q->var_m[f - 2] = part[f - 2] > 0 ? part[f - 2] : 0.0;
-                continue;
-            }
-            if (sc_spsym_inv_column(q->f, slot[f - 2], col) != 0)
+        if (phase == 1) {
+            if (misalignment_variance(q, f - 2, m, slot, scale, U, D, gam, col, part) != 0)
                 break;
-            sc_lsq_zero_pinned(q, col, 1);
-            double v = col[m];
-            for (int t = 0; t < 4; ++t)
-                v -= gam[t] / scale[t] * dot(U + (size_t)t * ng, col, ng);
-            for (int t = 0; t < 3; ++t)
-                v -= gam[4 + t] * dot(D + (size_t)t * n, col, n);
-            double var = part[f - 2] + v;
-            q->var_m[f - 2] = var > 0 ? var : 0.0;
             continue;
         }
-        /* z0 = Σ(r − own) = Σ_s c_s X_s, formed first (a sum of the dot tables' products would
-         * lose more to cancellation), then its form: own·z0 − Σ_{t<4} γ_t U_t·z0/scale_t
-         * − Σ_{t>=4} γ_t D_t·z0 + Σ γ_t γ_t' C_tt' */
-        double c[9];
-        for (int t = 0; t < 4; ++t)
-            c[t] = -gam[t] / scale[t];
-        c[4] = f == 0, c[5] = f == 1;
-        for (int t = 0; t < 3; ++t)
-            c[6 + t] = -gam[4 + t];
-        for (size_t i = 0; i < n; ++i) {
-            double v = 0;
-            for (int s2 = 0; s2 < 9; ++s2)
-                v += c[s2] * X[(size_t)s2 * n + i];
-            z[i] = v;
-        }
-        double var = f < 2 ? dot(fg, z, ng) : z[m];
-        for (int t = 0; t < 4; ++t)
-            var -= gam[t] / scale[t] * dot(U + (size_t)t * ng, z, ng);
-        for (int t = 0; t < 3; ++t)
-            var -= gam[4 + t] * dot(D + (size_t)t * n, z, n);
-        for (int t = 0; t < 3; ++t)
-            for (int u = 0; u < 3; ++u)
-                var += gam[4 + t] * gam[4 + u] * C[t][u];
+        double var = functional_variance0(q, f, m, scale, U, D, X, gam, C, fg, z);
         if (f >= 2)
             part[f - 2] = var;
         else
@@ -484,19 +508,18 @@ static void misalignment_block(const sc_grid_lsq_plan *q, const int *slot, doubl
     }
 }
 
-/* Leverage of every equation of group a into h (by equation index). u: the group's unknowns;
- * vec: 2 vectors over them (Σm, then m); sub: Σ's block on them; mrow: misalignment_block;
- * grow: scratch of ROW_MAX·(group size) x n_track (the G unknowns' rows of Σ's whole columns). */
-static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const double *mrow, int a,
-                           int *u, double *vec, double *sub, double *grow, double *h)
+/* The unknowns u[0 .. return value) group a's equations touch, in the order met; *W the group's
+ * total weight. */
+static int group_unknowns(const sc_grid_lsq_plan *q, int a, int *u, double *W)
 {
     long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
-    int idx[ROW_MAX], nu = 0, ng = q->ng, nm = q->nm;
-    double val[ROW_MAX], W = 0;
+    int idx[ROW_MAX], nu = 0;
+    double val[ROW_MAX];
+    *W = 0;
     for (long t = 0; t < cnt; ++t) {
         long e = q->grp_eq[g0 + t];
         int len = sc_lsq_eq_row(q, e, idx, val);
-        W += q->eq_w[e];
+        *W += q->eq_w[e];
         for (int r = 0; r < len; ++r) {
             int f = 0;
             while (f < nu && u[f] != idx[r])
@@ -505,7 +528,16 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const dou
                 u[nu++] = idx[r];
         }
     }
-    double *mean = vec + nu;
+    return nu;
+}
+
+/* mean (nu): group a's mean row over its unknowns u, weighted by w_e / W. */
+static void group_mean(const sc_grid_lsq_plan *q, int a, const int *u, int nu, double W,
+                       double *mean)
+{
+    long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+    int idx[ROW_MAX];
+    double val[ROW_MAX];
     memset(mean, 0, sizeof(double) * (size_t)nu);
     for (long t = 0; t < cnt; ++t) {
         long e = q->grp_eq[g0 + t];
@@ -515,10 +547,15 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const dou
                 if (u[f] == idx[r])
                     mean[f] += q->eq_w[e] * val[r] / W;
     }
-    /* Σ's block on the group's unknowns: G pairs from the selected inverse (on S's pattern), G
-     * with a misalignment from the G unknown's row of the whole columns (fetched once), two
-     * misalignments from mrow */
-    int nt = 0;
+}
+
+/* sub (nu x nu): Σ's block on the unknowns u: G pairs from the selected inverse (on S's
+ * pattern), G with a misalignment from the G unknown's row of the whole columns (fetched once
+ * into grow), two misalignments from mrow (misalignment_block); 0 on pins. */
+static void group_sigma_block(const sc_grid_lsq_plan *q, const int *slot, const double *mrow,
+                              const int *u, int nu, double *grow, double *sub)
+{
+    int nt = 0, ng = q->ng, nm = q->nm;
     for (int t = 0; t < nm; ++t)
         nt += slot[t] >= 0;
     for (int i = 0; i < nu; ++i)
@@ -540,6 +577,21 @@ static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const dou
                 v = grow[(size_t)j * nt + slot[ui - ng]];
             sub[i * nu + j] = sub[j * nu + i] = v;
         }
+}
+
+/* Leverage of every equation of group a into h (by equation index). u: the group's unknowns;
+ * vec: 2 vectors over them (Σm, then m); sub: Σ's block on them; mrow: misalignment_block;
+ * grow: scratch of ROW_MAX·(group size) x n_track (the G unknowns' rows of Σ's whole columns). */
+static void group_leverage(const sc_grid_lsq_plan *q, const int *slot, const double *mrow, int a,
+                           int *u, double *vec, double *sub, double *grow, double *h)
+{
+    long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+    int idx[ROW_MAX];
+    double val[ROW_MAX], W;
+    int nu = group_unknowns(q, a, u, &W);
+    double *mean = vec + nu;
+    group_mean(q, a, u, nu, W, mean);
+    group_sigma_block(q, slot, mrow, u, nu, grow, sub);
     double *sm = vec, msm = 0;
     for (int i = 0; i < nu; ++i) {
         double v = 0;
@@ -601,6 +653,64 @@ static sc_status leverages(sc_grid_lsq_plan *q, sc_error *err)
     return st;
 }
 
+/* sc_lsq_plan_uncertainties before the selected inverse: W = ΣU (WB's first 4 columns) and
+ * the node σ's projection part; with functionals, B = Σ·functional_basis_rhs (WB's next 5; its
+ * A-gauge right-hand sides kept in D) and phase 0 of functional_variances into part. */
+static sc_status uncertainty_solves(sc_grid_lsq_plan *q, int functionals, double *U, double *WB,
+                                    double *D, double *fg, double *uA, double *part,
+                                    sc_error *err)
+{
+    size_t n = (size_t)q->n_red, ng = (size_t)q->ng;
+    double scale[4], *W = WB, *B = functionals ? WB + 4 * n : NULL;
+    for (int t = 0; t < q->nm; ++t)
+        q->var_m[t] = NAN;
+    sc_lsq_gauge_basis(q, U, scale);
+    for (int c = 0; c < 4; ++c)
+        for (size_t i = 0; i < n; ++i)
+            W[(size_t)c * n + i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
+    if (sc_lsq_pinned_solve(q, W, 4, 0, NULL, NULL) != 0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
+    sigma_ratios_projection(q, U, W);
+    if (!functionals)
+        return SC_OK;
+    functional_basis_rhs(q, fg, uA, B);
+    memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
+    if (sc_lsq_pinned_solve(q, B, 5, 0, NULL, NULL) != 0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
+    return functional_variances(q, 0, scale, U, D, WB, part, err);
+}
+
+/* sc_lsq_plan_uncertainties from the selected inverse on (kept: the diagonal, the G pairs on
+ * S's pattern, the free misalignments last[0 .. n_last)): the node σ, every leverage, and with
+ * functionals phase 1 of functional_variances (D and part from uncertainty_solves). The
+ * selected inverse is dropped after. */
+static sc_status uncertainty_selinv(sc_grid_lsq_plan *q, int functionals, const int *last,
+                                    int n_last, const double *D, double *part, sc_error *err)
+{
+    sc_lsq_progress(q, "selected inverse", q->work_total / 2);
+    if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) /* leverages: G pairs on S's pattern */
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
+    sigma_ratios_finish(q);
+    sc_status st = leverages(q, err);
+    if (st == SC_OK)
+        sc_lsq_redundancy_info(q);
+    if (st == SC_OK && q->misalignment_estimable && functionals) {
+        double scale[4], *U = malloc(sizeof(double) * 4 * (size_t)q->ng);
+        if (!U)
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+        else {
+            sc_lsq_gauge_basis(q, U, scale);
+            st = functional_variances(q, 1, scale, U, D, NULL, part, err);
+        }
+        free(U);
+        for (int v = 0; v < q->nv; ++v) /* a view's own free columns: no uncertainty there */
+            for (int c = 0; q->view_free[v] && c < q->nb; ++c)
+                q->var_m[v * q->nb + c] = NAN;
+    }
+    sc_spsym_drop_inverse(q->f);
+    return st;
+}
+
 /* Everything of an identifying plan that does not depend on the measured values. First blocked
  * solves on the factor: W = ΣU (the gauge columns, 4) for the projection's part of every node's
  * σ, and B = Σ·functional_basis_rhs (5) for the σ of O and R; then the selected inverse (kept: the
@@ -618,7 +728,6 @@ sc_status sc_lsq_plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
     double *U = malloc(sizeof(double) * 4 * ng);
     double *WB = sc_big_alloc((functionals ? 9 : 4) * n, sizeof(double), 0); /* W: 0-3, B: 4-8 */
     double *D = NULL, *fg = NULL, *uA = NULL;
-    double scale[4], *W = NULL, *B = NULL;
     double *part = malloc(sizeof(double) * ((size_t)q->nm + 1));
     int *last = malloc(sizeof(int) * ((size_t)q->nm + 1));
     int n_last = last ? sc_lsq_free_misalignments(q, last, NULL) : 0;
@@ -628,60 +737,16 @@ sc_status sc_lsq_plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
         D = malloc(sizeof(double) * 3 * n), fg = malloc(sizeof(double) * ng);
         uA = malloc(sizeof(double) * 2 * (size_t)q->nn);
     }
-    if (!U || !WB || (functionals && (!D || !fg || !uA)) || !q->var_m || !part || !last) {
+    if (!U || !WB || (functionals && (!D || !fg || !uA)) || !q->var_m || !part || !last)
         st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        goto out;
-    }
-    for (int t = 0; t < q->nm; ++t)
-        q->var_m[t] = NAN;
-    W = WB, B = functionals ? WB + 4 * n : NULL;
-    sc_lsq_gauge_basis(q, U, scale);
-    for (int c = 0; c < 4; ++c)
-        for (size_t i = 0; i < n; ++i)
-            W[(size_t)c * n + i] = i < ng ? U[(size_t)c * ng + i] : 0.0;
-    if (sc_lsq_pinned_solve(q, W, 4, 0, NULL, NULL) != 0) {
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
-        goto out;
-    }
-    sigma_ratios_projection(q, U, W);
-    if (functionals) {
-        functional_basis_rhs(q, fg, uA, B);
-        memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
-        if (sc_lsq_pinned_solve(q, B, 5, 0, NULL, NULL) != 0) {
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
-            goto out;
-        }
-        st = functional_variances(q, 0, scale, U, D, WB, part, err);
-    }
+    else
+        st = uncertainty_solves(q, functionals, U, WB, D, fg, uA, part, err);
     /* the selected inverse needs the memory more (U is made again after it; D, 3 columns, is
      * kept: making it again takes 3 passes over the equations) */
     free(U), free(WB), free(fg), free(uA);
-    U = WB = fg = uA = NULL;
-    if (st != SC_OK)
-        goto out;
-    sc_lsq_progress(q, "selected inverse", q->work_total / 2);
-    if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) { /* leverages: G pairs on S's pattern */
-        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
-        goto out;
-    }
-    sigma_ratios_finish(q);
-    st = leverages(q, err);
     if (st == SC_OK)
-        sc_lsq_redundancy_info(q);
-    if (st == SC_OK && q->misalignment_estimable && functionals) {
-        if (!(U = malloc(sizeof(double) * 4 * ng)))
-            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-        else {
-            sc_lsq_gauge_basis(q, U, scale);
-            st = functional_variances(q, 1, scale, U, D, NULL, part, err);
-        }
-        for (int v = 0; v < q->nv; ++v) /* a view's own free columns: no uncertainty there */
-            for (int c = 0; q->view_free[v] && c < q->nb; ++c)
-                q->var_m[v * q->nb + c] = NAN;
-    }
-    sc_spsym_drop_inverse(q->f);
-out:
-    free(U), free(WB), free(D), free(fg), free(uA), free(part), free(last);
+        st = uncertainty_selinv(q, functionals, last, n_last, D, part, err);
+    free(D), free(part), free(last);
     return st;
 }
 

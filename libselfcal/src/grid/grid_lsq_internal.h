@@ -49,10 +49,42 @@ long sc_grid_lsq_workspace_made(const sc_grid_lsq_plan *q);
 int sc_grid_lsq_plate_magnification(const sc_grid_lsq_plan *q, double *var_m, double *cov_gx,
                                     double *cov_gy);
 
+/* ---- for the test references only (tests/unit/grid_lsq_reference.c; grid_lsq_probe.c) ----
+ * Each uncertainty of a plan is a quadratic form vᵀΣv of the pinned inverse Σ (0 on pins) over
+ * the n_red reduced unknowns; these give v and the plan's own value, so that a test can compute
+ * the form independently (refined solves). */
+
+/* What a reference reads of q's sizes: the reduced unknowns (ng of them G), the stage nodes,
+ * the misalignment unknowns and the equations; pinned: per reduced unknown (borrowed). */
+typedef struct sc_grid_lsq_probe {
+    int n_red, ng, ns, nm;
+    long neq;
+    const unsigned char *pinned;
+} sc_grid_lsq_probe;
+void sc_grid_lsq_probe_get(const sc_grid_lsq_plan *q, sc_grid_lsq_probe *p);
+
+/* b := the pinned solve of b (n_red; zero on pins) with q's factor, unrefined. 0, -1 if memory
+ * ran out. */
+int sc_grid_lsq_probe_solve(const sc_grid_lsq_plan *q, double *b);
+
+/* (σ_x of stage node k / σ)² = vᵀΣv with v = P⊥ e_x(k); *plan: the plan's σ_x ratio. Returns 0,
+ * -1 if the plan has no node σ or memory ran out. */
+int sc_grid_lsq_probe_node(const sc_grid_lsq_plan *q, int k, double *v, double *plan);
+
+/* The leverage of equation e is c + w·vᵀΣv (v = its row minus its A group's weighted mean row,
+ * c = w_e/W_a, w = w_e); *plan: the plan's leverage. Returns 0, -1 if the plan has none. */
+int sc_grid_lsq_probe_equation(const sc_grid_lsq_plan *q, long e, double *v, double *c,
+                               double *w, double *plan);
+
+/* Var/σ0² of misalignment unknown t is vᵀΣv + c; *plan: the plan's. Returns 0; 1 if the plan
+ * gives it no uncertainty (not estimable, or its view's own free column); -1 if the plan has no
+ * misalignment variances or memory ran out. */
+int sc_grid_lsq_probe_misalignment(const sc_grid_lsq_plan *q, int t, double *v, double *c,
+                                   double *plan);
+
 /* ---------------------------------------------------------------------------------------------
  * Shared by the estimator's files (grid_lsq_plan.c, grid_lsq_execute.c, grid_lsq_functionals.c,
- * grid_lsq_residuals.c) and the test references (tests/unit/grid_lsq_reference.c); nothing
- * else uses them. The method:
+ * grid_lsq_residuals.c, grid_lsq_probe.c); nothing else uses them. The method:
  *
  * Unknowns: G (2 per node), A (2 per measured mark), (tx, ty, φ) per view with φ = θ·L·1e-3 µm
  * (L = c·P, so the rotation column is scaled like the others). Each scalar equation touches one

@@ -215,16 +215,9 @@ static sc_status measured_marks(sc_grid_lsq_plan *q, const sc_grid_data *mask, s
     return SC_OK;
 }
 
-/* The scalar equations (2 per measured mark): node, view, mark, A component and sign, the φ
- * coefficient, weight; grouped by A component; the drift columns. */
-static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
+/* The arrays of the q->neq scalar equations and their groups by A component. */
+static sc_status equations_alloc(sc_grid_lsq_plan *q, sc_error *err)
 {
-    const sc_grid_plan *p = &q->plan;
-    int n = q->n, nn = q->nn, nv = q->nv;
-    q->weighted = !q->unit_weights && stated_weights(q, mask);
-    sc_status st = measured_marks(q, mask, err);
-    if (st != SC_OK)
-        return st;
     long ne = q->neq + 1;
     q->eq_g = malloc(sizeof(int) * ne);
     q->eq_v = malloc(sizeof(int) * ne);
@@ -233,51 +226,84 @@ static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, 
     q->eq_c = malloc(ne);
     q->eq_s = malloc(ne);
     q->eq_pos = malloc(sizeof(double) * ne);
-    q->grp_ptr = calloc((size_t)2 * nn + 1, sizeof(long));
+    q->grp_ptr = calloc((size_t)2 * q->nn + 1, sizeof(long));
     q->grp_eq = malloc(sizeof(long) * ne);
     q->eq_w = malloc(sizeof(double) * ne);
     q->eq_dt = calloc((size_t)ne, sizeof(double));
     if (!q->eq_g || !q->eq_v || !q->eq_k || !q->eq_a || !q->eq_c || !q->eq_s || !q->eq_pos ||
         !q->grp_ptr || !q->grp_eq || !q->eq_w || !q->eq_dt)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    long e = 0;
-    for (int v = 0; v < nv; ++v)
-        for (int k = 0; k < nn; ++k) {
-            if (!q->meas[v * nn + k])
-                continue;
-            int ni, nj;
-            sc_grid_mark_node(p, v, k / n, k % n, &ni, &nj);
-            int node = ni * q->stage_nx + nj;
-            double x, y;
-            sc_grid_node_xy_mm(p, ni, nj, &x, &y);
-            for (int c = 0; c < 2; ++c, ++e) {
-                double u = mask ? sc_grid_data_u_um(mask, v, k, c) : NAN;
-                if (!isnan(u) && !(u > 0 && isfinite(u))) /* the reader refuses these too */
-                    return sc_error_set(err, SC_E_INPUT, NULL, 0,
-                                        "view %d mark (%d,%d): the %s uncertainty %g um is not "
-                                        "positive and finite", v, k / n, k % n, c ? "y" : "x", u);
-                q->eq_w[e] = mask_weight(q, mask, v, k, c);
-                int ac, s;
-                rot_component(p->view[v].rot_deg, c, &ac, &s);
-                q->eq_g[e] = 2 * node + c;
-                q->eq_v[e] = v;
-                q->eq_k[e] = k;
-                q->eq_a[e] = 2 * k + ac;
-                q->eq_c[e] = (unsigned char)c;
-                q->eq_s[e] = (signed char)s;
-                q->eq_pos[e] = c == 0 ? -y / q->L_mm : x / q->L_mm;
-                q->grp_ptr[q->eq_a[e] + 1]++;
-            }
-        }
+    return SC_OK;
+}
+
+/* The two equations (dx, dy) of view v's mark k, from e on: node, view, mark, A component and
+ * sign, the φ coefficient, weight; each counted into its A component's group. */
+static sc_status mark_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, int v, int k,
+                                long e, sc_error *err)
+{
+    const sc_grid_plan *p = &q->plan;
+    int n = q->n, ni, nj;
+    sc_grid_mark_node(p, v, k / n, k % n, &ni, &nj);
+    int node = ni * q->stage_nx + nj;
+    double x, y;
+    sc_grid_node_xy_mm(p, ni, nj, &x, &y);
+    for (int c = 0; c < 2; ++c, ++e) {
+        double u = mask ? sc_grid_data_u_um(mask, v, k, c) : NAN;
+        if (!isnan(u) && !(u > 0 && isfinite(u))) /* the reader refuses these too */
+            return sc_error_set(err, SC_E_INPUT, NULL, 0,
+                                "view %d mark (%d,%d): the %s uncertainty %g um is not "
+                                "positive and finite", v, k / n, k % n, c ? "y" : "x", u);
+        q->eq_w[e] = mask_weight(q, mask, v, k, c);
+        int ac, s;
+        rot_component(p->view[v].rot_deg, c, &ac, &s);
+        q->eq_g[e] = 2 * node + c;
+        q->eq_v[e] = v;
+        q->eq_k[e] = k;
+        q->eq_a[e] = 2 * k + ac;
+        q->eq_c[e] = (unsigned char)c;
+        q->eq_s[e] = (signed char)s;
+        q->eq_pos[e] = c == 0 ? -y / q->L_mm : x / q->L_mm;
+        q->grp_ptr[q->eq_a[e] + 1]++;
+    }
+    return SC_OK;
+}
+
+/* The equations of each A component in a row (q->grp_eq), from the counts in q->grp_ptr. */
+static sc_status group_equations(sc_grid_lsq_plan *q, sc_error *err)
+{
+    int nn = q->nn;
     for (int a = 0; a < 2 * nn; ++a)
         q->grp_ptr[a + 1] += q->grp_ptr[a];
     long *fill = malloc(sizeof(long) * (size_t)(2 * nn));
     if (!fill)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
     memcpy(fill, q->grp_ptr, sizeof(long) * (size_t)(2 * nn));
-    for (e = 0; e < q->neq; ++e)
+    for (long e = 0; e < q->neq; ++e)
         q->grp_eq[fill[q->eq_a[e]]++] = e;
     free(fill);
+    return SC_OK;
+}
+
+/* The scalar equations (2 per measured mark): node, view, mark, A component and sign, the φ
+ * coefficient, weight; grouped by A component; the drift columns. */
+static sc_status build_equations(sc_grid_lsq_plan *q, const sc_grid_data *mask, sc_error *err)
+{
+    int nn = q->nn, nv = q->nv;
+    q->weighted = !q->unit_weights && stated_weights(q, mask);
+    sc_status st = measured_marks(q, mask, err);
+    if (st == SC_OK)
+        st = equations_alloc(q, err);
+    long e = 0;
+    for (int v = 0; v < nv && st == SC_OK; ++v)
+        for (int k = 0; k < nn && st == SC_OK; ++k)
+            if (q->meas[v * nn + k]) {
+                st = mark_equations(q, mask, v, k, e, err);
+                e += 2;
+            }
+    if (st == SC_OK)
+        st = group_equations(q, err);
+    if (st != SC_OK)
+        return st;
     return q->drift ? build_drift(q, mask, err) : SC_OK;
 }
 
@@ -375,6 +401,64 @@ static sc_status assemble_groups(const sc_grid_lsq_plan *q, double *gm, double *
     return SC_OK;
 }
 
+/* For g_block_cols: Wg[a] the weight of A component a's group; ep, eg the equations at each G
+ * unknown (eg[ep[j] .. ep[j+1]) those at j; cp is work). Returns the bound on the entries: the
+ * sum of the group sizes over the equations. */
+static long g_equations_by_unknown(const sc_grid_lsq_plan *q, double *Wg, long *ep, long *cp,
+                                   long *eg)
+{
+    int ng = q->ng, n2 = 2 * q->nn;
+    long bound = 0;
+    for (int a = 0; a < n2; ++a) {
+        double W = 0;
+        for (long t = q->grp_ptr[a]; t < q->grp_ptr[a + 1]; ++t)
+            W += q->eq_w[q->grp_eq[t]];
+        Wg[a] = W;
+    }
+    for (long e = 0; e < q->neq; ++e) { /* the equations at each G unknown */
+        ep[q->eq_g[e] + 1]++;
+        bound += q->grp_ptr[q->eq_a[e] + 1] - q->grp_ptr[q->eq_a[e]];
+    }
+    for (int j = 0; j < ng; ++j)
+        ep[j + 1] += ep[j];
+    memcpy(cp, ep, sizeof(long) * (size_t)ng);
+    for (long e = 0; e < q->neq; ++e)
+        eg[cp[q->eq_g[e]]++] = e;
+    return bound;
+}
+
+/* For g_block_cols: column j (not pinned) into acc at the rows touched[0 .. return value), in
+ * the order first touched (mark[i] = j once row i is). */
+static int g_column(const sc_grid_lsq_plan *q, int j, const long *ep, const long *eg,
+                    const double *Wg, double *acc, int *mark, int *touched)
+{
+    int nt = 0;
+    for (long p = ep[j]; p < ep[j + 1]; ++p) {
+        long e = eg[p];
+        int a = q->eq_a[e];
+        long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
+        if (cnt < 2)
+            continue;
+        double we = q->eq_w[e] * q->eq_s[e], W = Wg[a];
+        for (long t = 0; t < cnt; ++t) {
+            long e2 = q->grp_eq[g0 + t];
+            int i = q->eq_g[e2];
+            if (i > j || q->pinned[i])
+                continue;
+            double v = -we * q->eq_w[e2] * q->eq_s[e2] / W;
+            if (e2 == e)
+                v += we * q->eq_s[e];
+            if (mark[i] != j) {
+                mark[i] = j;
+                acc[i] = 0;
+                touched[nt++] = i;
+            }
+            acc[i] += v;
+        }
+    }
+    return nt;
+}
+
 /* The G block of the pinned reduced matrix as upper columns (cp, ci, cv: column j holds rows
  * i <= j, duplicates summed, pinned rows and columns left out), built column by column: every
  * equation e has one G unknown g_e (coefficient s_e), so column j gathers, over the equations e
@@ -394,21 +478,7 @@ static sc_status g_block_cols(const sc_grid_lsq_plan *q, long **cp_out, int **ci
     sc_status st = SC_E_NOMEM;
     if (!ep || !cp || !eg || !Wg || !acc || !touched || !mark)
         goto out;
-    for (int a = 0; a < n2; ++a) {
-        double W = 0;
-        for (long t = q->grp_ptr[a]; t < q->grp_ptr[a + 1]; ++t)
-            W += q->eq_w[q->grp_eq[t]];
-        Wg[a] = W;
-    }
-    for (long e = 0; e < q->neq; ++e) { /* the equations at each G unknown */
-        ep[q->eq_g[e] + 1]++;
-        bound += q->grp_ptr[q->eq_a[e] + 1] - q->grp_ptr[q->eq_a[e]];
-    }
-    for (int j = 0; j < ng; ++j)
-        ep[j + 1] += ep[j];
-    memcpy(cp, ep, sizeof(long) * (size_t)ng);
-    for (long e = 0; e < q->neq; ++e)
-        eg[cp[q->eq_g[e]]++] = e;
+    bound = g_equations_by_unknown(q, Wg, ep, cp, eg);
     if (!(ci = malloc(sizeof(int) * (size_t)(bound + 1))) ||
         !(cv = malloc(sizeof(double) * (size_t)(bound + 1))))
         goto out;
@@ -419,30 +489,7 @@ static sc_status g_block_cols(const sc_grid_lsq_plan *q, long **cp_out, int **ci
         cp[j] = w;
         if (q->pinned[j])
             continue;
-        int nt = 0;
-        for (long p = ep[j]; p < ep[j + 1]; ++p) {
-            long e = eg[p];
-            int a = q->eq_a[e];
-            long g0 = q->grp_ptr[a], cnt = q->grp_ptr[a + 1] - g0;
-            if (cnt < 2)
-                continue;
-            double we = q->eq_w[e] * q->eq_s[e], W = Wg[a];
-            for (long t = 0; t < cnt; ++t) {
-                long e2 = q->grp_eq[g0 + t];
-                int i = q->eq_g[e2];
-                if (i > j || q->pinned[i])
-                    continue;
-                double v = -we * q->eq_w[e2] * q->eq_s[e2] / W;
-                if (e2 == e)
-                    v += we * q->eq_s[e];
-                if (mark[i] != j) {
-                    mark[i] = j;
-                    acc[i] = 0;
-                    touched[nt++] = i;
-                }
-                acc[i] += v;
-            }
-        }
+        int nt = g_column(q, j, ep, eg, Wg, acc, mark, touched);
         for (int t = 0; t < nt; ++t) {
             ci[w] = touched[t];
             cv[w++] = acc[touched[t]];

@@ -251,22 +251,14 @@ static sc_status view_noise_reset(sc_grid_data *d, const sc_grid_options *o, vie
  * Pooled views share one θ: their rows and columns of F are summed. rel_sd: per view; NaN where
  * F is not positive definite. */
 #define VCE_PROBES 8
-static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const double *red,
-                                   double *rel_sd, sc_error *err)
+
+/* The group of every view in F (grp[v]: its own when its redundancy red[v] is at least
+ * VCE_MIN_RED, else the one pooled group; -1 for a declared view with no rows); returns the
+ * number of groups. rel_sd := NaN. */
+static int spread_groups(const sc_grid_data *d, const double *red, int *grp, double *rel_sd)
 {
     const sc_grid_plan *p = &d->plan;
     int nv = p->n_views, nn = p->n * p->n, ng = 0, low = -1;
-    long ns = sc_grid_stage_nodes(p);
-    /* per view: its group, the components; F (ng x ng, ng <= nv: dense, as Cov(θ̂) = 2F⁻¹ is) */
-    size_t nvz = (size_t)nv;
-    double *vbuf = calloc(nvz * nvz + 5 * nvz, sizeof(double));
-    int *grp = malloc(nvz * sizeof *grp);
-    if (!vbuf || !grp) {
-        free(vbuf), free(grp);
-        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
-    double *F = vbuf, *wrss = F + nvz * nvz, *rd = wrss + nvz, *u2 = rd + nvz;
-    double *inv_diag = u2 + nvz, *y = inv_diag + nvz;
     for (int v = 0; v < nv; ++v) {
         rel_sd[v] = NAN;
         int rows = 0; /* a declared view with no rows has no component: left out of F */
@@ -279,12 +271,38 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
         else
             grp[v] = low >= 0 ? low : (low = ng++);
     }
-    size_t tot = (size_t)nv * nn;
+    return ng;
+}
+
+/* d's data := one Rademacher probe on view v (±u at its measured marks, 1 where it states no
+ * u), 0 on the other views' measured marks (save: d's values, dx then dy). */
+static void spread_probe(sc_grid_data *d, const double *save, int v, sc_rng *rng)
+{
+    const sc_grid_plan *p = &d->plan;
+    int nv = p->n_views, nn = p->n * p->n;
+    for (int w = 0; w < nv; ++w)
+        for (int k = 0; k < nn; ++k) {
+            if (!isfinite(save[w * nn + k]))
+                continue;
+            double ux = sc_grid_data_u_um(d, w, k, 0), uy = sc_grid_data_u_um(d, w, k, 1);
+            int on = w == v;
+            d->dx_um[w][k] = on ? (sc_rng_u64(rng) & 1 ? 1 : -1) * (ux > 0 ? ux : 1) : 0;
+            d->dy_um[w][k] = on ? (sc_rng_u64(rng) & 1 ? 1 : -1) * (uy > 0 ? uy : 1) : 0;
+        }
+}
+
+/* F's columns by the probes (F: ng groups, row stride nv; wrss, rd, u2: nv scratch each): the
+ * probes' solves on q overwrite d's values, which are restored before the return. */
+static sc_status spread_probes(sc_grid_data *d, sc_grid_lsq_plan *q, const int *grp, double *F,
+                               double *wrss, double *rd, double *u2, sc_error *err)
+{
+    const sc_grid_plan *p = &d->plan;
+    int nv = p->n_views, nn = p->n * p->n;
+    long ns = sc_grid_stage_nodes(p);
+    size_t nvz = (size_t)nv, tot = (size_t)nv * nn;
     double *buf = malloc(sizeof(double) * (2 * tot + 4 * (size_t)ns + 2 * (size_t)nn));
-    if (!buf) {
-        free(vbuf), free(grp);
+    if (!buf)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
-    }
     double *save = buf, *o = buf + 2 * tot;
     for (int v = 0; v < nv; ++v)
         for (int k = 0; k < nn; ++k)
@@ -297,15 +315,7 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
     sc_rng_seed(&rng, 20261127); /* the same probes every run: reproducible figures */
     for (int v = 0; v < nv && st == SC_OK; ++v)
         for (int t = 0; grp[v] >= 0 && t < VCE_PROBES && st == SC_OK; ++t) {
-            for (int w = 0; w < nv; ++w)
-                for (int k = 0; k < nn; ++k) {
-                    if (!isfinite(save[w * nn + k]))
-                        continue;
-                    double ux = sc_grid_data_u_um(d, w, k, 0), uy = sc_grid_data_u_um(d, w, k, 1);
-                    int on = w == v;
-                    d->dx_um[w][k] = on ? (sc_rng_u64(&rng) & 1 ? 1 : -1) * (ux > 0 ? ux : 1) : 0;
-                    d->dy_um[w][k] = on ? (sc_rng_u64(&rng) & 1 ? 1 : -1) * (uy > 0 ? uy : 1) : 0;
-                }
+            spread_probe(d, save, v, &rng);
             st = sc_grid_lsq_execute(q, d, 0, &res, err);
             if (st == SC_OK)
                 st = sc_grid_lsq_view_components(q, d, &res, wrss, rd, u2, err);
@@ -318,27 +328,56 @@ static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const d
             d->dx_um[v][k] = save[v * nn + k], d->dy_um[v][k] = save[tot + v * nn + k];
     free(buf);
     sc_grid_result_free_views(&res);
-    /* (F⁻¹)_gg by Cholesky of the symmetrized F (its two estimates of F_uv averaged), in place:
-     * the lower triangle becomes L */
+    return st;
+}
+
+/* inv_diag[g] := (F⁻¹)_gg for the ng groups by Cholesky of the symmetrized F (its two
+ * estimates of F_uv averaged), in place (row stride lda; the lower triangle becomes L); y:
+ * scratch of ng. Returns 0 when F is not positive definite. */
+static int spread_inverse_diag(int ng, double *F, int lda, double *y, double *inv_diag)
+{
+    size_t nvz = (size_t)lda;
     double *L = F;
-    for (int i = 0; st == SC_OK && i < ng; ++i)
+    for (int i = 0; i < ng; ++i)
         for (int j = 0; j < i; ++j)
             L[(size_t)i * nvz + j] = 0.5 * (F[(size_t)i * nvz + j] + F[(size_t)j * nvz + i]);
-    if (st == SC_OK && chol_small(ng, L, nv)) { /* else not positive definite: NaN */
-        for (int g = 0; g < ng; ++g) { /* column g of L⁻¹: (F⁻¹)_gg = Σ_i (L⁻¹)_ig² */
-            double sum = 0;
-            for (int i = g; i < ng; ++i) {
-                double t = i == g ? 1.0 : 0.0;
-                for (int k = g; k < i; ++k)
-                    t -= L[(size_t)i * nvz + k] * y[k];
-                y[i] = t / L[(size_t)i * nvz + i];
-                sum += y[i] * y[i];
-            }
-            inv_diag[g] = sum;
+    if (!chol_small(ng, L, lda))
+        return 0;
+    for (int g = 0; g < ng; ++g) { /* column g of L⁻¹: (F⁻¹)_gg = Σ_i (L⁻¹)_ig² */
+        double sum = 0;
+        for (int i = g; i < ng; ++i) {
+            double t = i == g ? 1.0 : 0.0;
+            for (int k = g; k < i; ++k)
+                t -= L[(size_t)i * nvz + k] * y[k];
+            y[i] = t / L[(size_t)i * nvz + i];
+            sum += y[i] * y[i];
         }
+        inv_diag[g] = sum;
+    }
+    return 1;
+}
+
+/* rel_sd: the relative standard deviation of every view's σ estimate (the method above), from
+ * the probes' F; red: the views' redundancies. */
+static sc_status view_noise_spread(sc_grid_data *d, sc_grid_lsq_plan *q, const double *red,
+                                   double *rel_sd, sc_error *err)
+{
+    int nv = d->plan.n_views;
+    /* per view: its group, the components; F (ng x ng, ng <= nv: dense, as Cov(θ̂) = 2F⁻¹ is) */
+    size_t nvz = (size_t)nv;
+    double *vbuf = calloc(nvz * nvz + 5 * nvz, sizeof(double));
+    int *grp = malloc(nvz * sizeof *grp);
+    if (!vbuf || !grp) {
+        free(vbuf), free(grp);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    }
+    double *F = vbuf, *wrss = F + nvz * nvz, *rd = wrss + nvz, *u2 = rd + nvz;
+    double *inv_diag = u2 + nvz, *y = inv_diag + nvz;
+    int ng = spread_groups(d, red, grp, rel_sd);
+    sc_status st = spread_probes(d, q, grp, F, wrss, rd, u2, err);
+    if (st == SC_OK && spread_inverse_diag(ng, F, nv, y, inv_diag)) /* else NaN */
         for (int v = 0; v < nv; ++v)
             rel_sd[v] = grp[v] >= 0 ? sqrt(inv_diag[grp[v]] / 2) : NAN;
-    }
     free(vbuf), free(grp);
     return st;
 }
@@ -399,8 +438,8 @@ static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_in
             if (!isfinite(u2[v]))
                 continue;
             if (!(k[v] * u2[v] >= NOISE_FLOOR_UM * NOISE_FLOOR_UM)) {
-                sc_grid_warnf(o, "%s: the residuals of view %d are at the rounding level: the noise per "
-                         "view is not estimated (the weights stay as stated)",
+                sc_grid_warnf(o, "%s: the residuals of view %d are at the rounding level: the "
+                                 "noise per view is not estimated (the weights stay as stated)",
                       src, sc_grid_view_id(info, v));
                 return it ? view_noise_reset(d, o, vn, s, qp, err) : SC_OK;
             }
@@ -408,9 +447,9 @@ static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_in
              * them by these views (its equations become the ones the fit must pass through):
              * Förstner's estimator has no answer there */
             if (!(k[v] * u2[v] >= VCE_COLLAPSE * VCE_COLLAPSE * s2_all)) {
-                sc_grid_warnf(o, "%s: the noise of view %d runs to zero against the other views' (not "
-                         "separable by this plan, or an outlier elsewhere): the noise per view is "
-                         "not estimated (the weights stay as stated)",
+                sc_grid_warnf(o, "%s: the noise of view %d runs to zero against the other views' "
+                                 "(not separable by this plan, or an outlier elsewhere): the noise "
+                                 "per view is not estimated (the weights stay as stated)",
                       src, sc_grid_view_id(info, v));
                 return view_noise_reset(d, o, vn, s, qp, err);
             }
@@ -419,8 +458,9 @@ static sc_status estimate_view_noise_loop(sc_grid_data *d, const sc_grid_file_in
         if (worst < VCE_TOL)
             break;
         if (it >= VCE_MAX_IT) {
-            sc_grid_warnf(o, "%s: the noise per view did not settle in %d re-weighted solves (its factors "
-                     "still change by %.2g): not estimated (the weights stay as stated)",
+            sc_grid_warnf(o, "%s: the noise per view did not settle in %d re-weighted solves (its "
+                             "factors still change by %.2g): not estimated (the weights stay as "
+                             "stated)",
                   src, VCE_MAX_IT, worst);
             return view_noise_reset(d, o, vn, s, qp, err);
         }
