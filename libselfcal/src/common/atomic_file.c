@@ -351,16 +351,25 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     }
     struct stat sb;
     if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
-        if (!S_ISCHR(sb.st_mode) && !S_ISFIFO(sb.st_mode))
-            return sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
-                                S_ISDIR(sb.st_mode) ? "a directory" : "a special file");
+        if (!S_ISCHR(sb.st_mode) && !S_ISFIFO(sb.st_mode)) {
+            sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
+                         S_ISDIR(sb.st_mode) ? "a directory" : "a special file");
+            if (err && S_ISDIR(sb.st_mode))
+                err->sys_errno = EISDIR;
+            return SC_E_INPUT;
+        }
         /* a device or FIFO (/dev/null, /dev/stdout): a temporary file renamed over it would
          * replace the device (as root, even /dev/null), so it is written straight */
         if (strlen(path) >= sizeof f->path)
             return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
         f->fp = fopen(path, "wb");
-        if (!f->fp)
-            return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+        if (!f->fp) {
+            int e = errno;
+            sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
+            if (err)
+                err->sys_errno = e;
+            return SC_E_IO;
+        }
         f->direct = 1;
         snprintf(f->path, sizeof f->path, "%s", path);
         return SC_OK;
@@ -401,8 +410,12 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
                                          one's stale file */
     restore_signals(&old);
     defer_signals_end();
-    if (fd < 0)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
+    if (fd < 0) {
+        sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
+        if (err)
+            err->sys_errno = e;
+        return SC_E_IO;
+    }
     if (replacing) /* the file it replaces keeps its permissions (not its set-id bits): the
                       bits the umask took at creation given back (only ever widening) */
         fchmod(fd, sb.st_mode & 0777);
@@ -412,7 +425,10 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
         close(fd);
         if (f->tmp_path[0])
             remove_tmp(f);
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
+        sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
+        if (err)
+            err->sys_errno = e;
+        return SC_E_IO;
     }
     return SC_OK;
 }
