@@ -37,11 +37,11 @@ BAD_INPUT: "list[tuple[str, Callable[[], Any], type, str]]" = [
                  r"sigma_um, temp_C$"),
     ("view without rot", lambda: selfcal.GridPlan(5, 1.0, [dict(shift=(1, 0))]),
      ValueError, r"^views\[0\]: missing key rot$"),
-    ("view not a dict", lambda: selfcal.GridPlan(5, 1.0, [(0, (1, 0))]),
+    ("view not a dict", lambda: selfcal.GridPlan(5, 1.0, [(0, (1, 0))]),  # type: ignore[list-item]
      TypeError, r"^views\[0\] must be a dict with keys rot, shift"),
     ("shift of text", lambda: selfcal.GridPlan(5, 1.0, [dict(rot=0, shift="10")]),
      TypeError, r"^views\[0\]\['shift'\] must be a pair of numbers, not str '10'$"),
-    ("pitch as text", lambda: selfcal.GridPlan(5, "1.0", [dict(rot=0)]),
+    ("pitch as text", lambda: selfcal.GridPlan(5, "1.0", [dict(rot=0)]),  # type: ignore[arg-type]
      TypeError, r"^pitch_mm must be a number, not str '1\.0' \(write 1\.0, without quotes\)$"),
     ("n a float", lambda: selfcal.GridPlan(5.5, 1.0, [dict(rot=0)]),  # type: ignore[arg-type]
      TypeError, r"^n must be a whole number, not float$"),
@@ -128,7 +128,7 @@ def test_file_errors(tmp_path: Path) -> None:
     for call in (selfcal.read_grid, selfcal.read_profile, selfcal.Table, selfcal.calibrate_grid,
                  selfcal.calibrate_profile):
         with pytest.raises(FileNotFoundError) as e:
-            call(missing)  # type: ignore[operator]
+            call(missing)
         assert isinstance(e.value, selfcal.MissingFileError)
         assert isinstance(e.value, selfcal.Error) and isinstance(e.value, OSError)
         assert not isinstance(e.value, ValueError)
@@ -202,7 +202,7 @@ def test_keys_checked_everywhere() -> None:
     with pytest.raises(TypeError, match="got an unexpected keyword argument 'sigma_r'"):
         selfcal.calibrate_grid(_meas(), sigma_r=0.01)  # type: ignore[call-arg]
     # the right keys still work, numpy numbers included
-    p = selfcal.GridPlan(np.int64(5), np.float64(1.0),
+    p = selfcal.GridPlan(np.int64(5), np.float64(1.0),  # type: ignore[arg-type]
                          [dict(rot=0), dict(rot=np.int32(90)), dict(rot=0, shift=(1, 0), sigma_um=0.01)])
     assert p.views[2]["shift"] == (1, 0) and p.views[2]["sigma_um"] == 0.01
 
@@ -285,7 +285,7 @@ def test_numpydoc_docstrings() -> None:
 
 def _help_text(obj: object) -> str:
     import pydoc
-    return pydoc.render_doc(obj, renderer=pydoc.plaintext)
+    return pydoc.plain(pydoc.render_doc(obj))
 
 
 def test_units_in_docstrings() -> None:
