@@ -62,6 +62,11 @@ class InternalError(Error, RuntimeError):
     """A numerical or internal failure that should not happen (please report it)."""
 
 
+for _cls in (Error, InputError, UnsolvableError, ArgumentTypeError, FileError, MissingFileError,
+             FilePermissionError, DirectoryError, OutOfMemoryError, InternalError):
+    _cls.__module__ = "selfcal"  # shown as selfcal.InputError, where users find them
+del _cls
+
 __all__ = ["Error", "InputError", "UnsolvableError", "ArgumentTypeError", "FileError",
            "MissingFileError", "FilePermissionError", "DirectoryError", "OutOfMemoryError",
            "InternalError"]
