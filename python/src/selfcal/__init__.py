@@ -41,8 +41,8 @@ __all__ = [
 __version__ = _native.version()
 
 #: a file path: str, bytes or os.PathLike
-PathLike = _Union[str, bytes, "_os.PathLike[str]", "_os.PathLike[bytes]"]
-F64Array = _npt.NDArray[_np.float64]
+_PathLike = _Union[str, bytes, _os.PathLike[str], _os.PathLike[bytes]]
+_F64 = _npt.NDArray[_np.float64]
 
 _MODES = {"measure": 0, "position": 1, "measure-exact": 2}
 
@@ -93,7 +93,7 @@ class Table:
         A corrupt or oversized table (:class:`InputError`).
     """
 
-    def __init__(self, path: PathLike) -> None:
+    def __init__(self, path: _PathLike) -> None:
         self._t = _native.Table(_check.fspath(path, "path"))
         self.path = path
         info = self._t.info()
@@ -361,11 +361,11 @@ class GridMeasurement:
     """
 
     plan: GridPlan
-    x_mm: F64Array
-    y_mm: F64Array
-    ux_um: "F64Array | None"
-    uy_um: "F64Array | None"
-    t_s: "F64Array | None"
+    x_mm: _F64
+    y_mm: _F64
+    ux_um: "_F64 | None"
+    uy_um: "_F64 | None"
+    t_s: "_F64 | None"
 
     def __init__(self, plan: GridPlan, x_mm: _npt.ArrayLike, y_mm: _npt.ArrayLike,
                  ux_um: "_npt.ArrayLike | None" = None, uy_um: "_npt.ArrayLike | None" = None,
@@ -398,7 +398,7 @@ class GridMeasurement:
         return dict(plan=self.plan._as_dict(), x_mm=self.x_mm, y_mm=self.y_mm, ux_um=self.ux_um,
                     uy_um=self.uy_um, t_s=self.t_s)
 
-    def write(self, path: PathLike) -> None:
+    def write(self, path: _PathLike) -> None:
         """Write as a ``selfcal-grid v1`` file, atomically (complete or absent).
 
         Parameters
@@ -418,7 +418,7 @@ class GridMeasurement:
                 f"{int(_np.isfinite(self.x_mm).sum())} marks measured)")
 
 
-def read_grid(path: PathLike) -> GridMeasurement:
+def read_grid(path: _PathLike) -> GridMeasurement:
     """Read a ``selfcal-grid v1`` data file strictly, as the command line does.
 
     Parameters
@@ -486,8 +486,8 @@ class PlanAnalysis:
     sigma_c_ratio_max: float
     sigma_c_rms_um: float
     sigma_c_max_um: float
-    sigma_ratio_gx: F64Array
-    sigma_ratio_gy: F64Array
+    sigma_ratio_gx: _F64
+    sigma_ratio_gy: _F64
     n_unknowns: int
     n_equations: int
     n_constraints: int
@@ -513,7 +513,7 @@ class PlanAnalysis:
                 f"sigma_c_ratio_max={self.sigma_c_ratio_max:.4g})")
 
 
-def plan(source: "PathLike | GridPlan | GridMeasurement") -> PlanAnalysis:
+def plan(source: "_PathLike | GridPlan | GridMeasurement") -> PlanAnalysis:
     """Analyse a plan before measuring, as ``selfcal plan`` (least squares: loads CHOLMOD).
 
     Parameters
@@ -591,14 +591,14 @@ class GridResult:
     """
 
     method: str
-    gx_um: F64Array
-    gy_um: F64Array
-    ugx_um: F64Array
-    ugy_um: F64Array
-    x_mm: F64Array
-    y_mm: F64Array
-    ax_um: F64Array
-    ay_um: F64Array
+    gx_um: _F64
+    gy_um: _F64
+    ugx_um: _F64
+    ugy_um: _F64
+    x_mm: _F64
+    y_mm: _F64
+    ax_um: _F64
+    ay_um: _F64
     O_urad: float
     R_ppm: float
     uO_urad: float
@@ -607,12 +607,12 @@ class GridResult:
     R: float
     uO: float
     uR: float
-    tx_um: F64Array
-    ty_um: F64Array
-    theta_urad: F64Array
-    utx_um: F64Array
-    uty_um: F64Array
-    utheta_urad: F64Array
+    tx_um: _F64
+    ty_um: _F64
+    theta_urad: _F64
+    utx_um: _F64
+    uty_um: _F64
+    utheta_urad: _F64
     residual_rms_um: float
     sigma_r_est_um: float
     sigma_r_used_um: float
@@ -623,14 +623,14 @@ class GridResult:
     chi2_lo: float
     chi2_hi: float
     chi2_pass: "bool | None"
-    rx_um: F64Array
-    ry_um: F64Array
-    tx: F64Array
-    ty: F64Array
+    rx_um: _F64
+    ry_um: _F64
+    tx: _F64
+    ty: _F64
     outlier: "_np.ndarray"
     n_flagged: int
     n_removed: int
-    covariance_um2: "F64Array | None"
+    covariance_um2: "_F64 | None"
     warnings: "list[str]"
     outlier_alpha: float
     outlier_alpha_each: bool
@@ -638,9 +638,9 @@ class GridResult:
     outlier_crit: float
     n_outlier_tests: int
     view_noise_estimated: bool
-    view_sigma_um: F64Array
-    view_noise_factor: F64Array
-    view_sigma_u_um: F64Array
+    view_sigma_um: _F64
+    view_noise_factor: _F64
+    view_sigma_u_um: _F64
     scale_included: bool
     magnification_ppm: float
     u_magnification_ppm: float
@@ -660,7 +660,7 @@ class GridResult:
         self.magnification_ppm = self.budget["magnification_ppm"]
         self.u_magnification_ppm = self.budget["u_magnification_ppm"]
 
-    def expanded(self, k: float = 2.0) -> "tuple[F64Array, F64Array]":
+    def expanded(self, k: float = 2.0) -> "tuple[_F64, _F64]":
         """The expanded uncertainties of G (GUM).
 
         Parameters
@@ -682,7 +682,7 @@ class GridResult:
                 f"sigma_r_est_um={self.sigma_r_est_um:.4g})")
 
 
-def calibrate_grid(source: "PathLike | GridMeasurement", method: str = "lsq",
+def calibrate_grid(source: "_PathLike | GridMeasurement", method: str = "lsq",
                    sigma_r_um: "float | None" = None, drift: bool = False,
                    reject_outliers: bool = False, covariance: bool = False,
                    outlier_alpha: "float | None" = None,
@@ -849,13 +849,13 @@ def simulate_grid(plan: "str | GridPlan" = "double-shift", n: int = 25, pitch_mm
 _PROFILE_METHODS = {"dft": 0, "lsq": 1}
 
 
-def _nan_pad(v: F64Array, n: int) -> F64Array:
+def _nan_pad(v: _F64, n: int) -> _F64:
     out = _np.full(n, _np.nan)
     out[: len(v)] = v
     return out
 
 
-def _scans(value: object, name: str, n: int, d: "tuple[int, int]") -> "tuple[F64Array, F64Array]":
+def _scans(value: object, name: str, n: int, d: "tuple[int, int]") -> "tuple[_F64, _F64]":
     if isinstance(value, (str, bytes, _Mapping)) or not hasattr(value, "__len__") \
             or len(value) != 2:  # type: ignore[arg-type]
         raise ArgumentTypeError(f"{name} must hold the two scans' arrays")
@@ -897,9 +897,9 @@ class ProfileMeasurement:
     s_mm: float
     d1: int
     d2: int
-    m1_um: "tuple[F64Array, F64Array]"
-    m2_um: "tuple[F64Array, F64Array]"
-    m3_urad: "tuple[F64Array, F64Array]"
+    m1_um: "tuple[_F64, _F64]"
+    m2_um: "tuple[_F64, _F64]"
+    m3_urad: "tuple[_F64, _F64]"
     sigma_disp_um: "float | None"
     sigma_angle_urad: "float | None"
 
@@ -932,7 +932,7 @@ class ProfileMeasurement:
                     m2_um=self.m2_um, m3_urad=self.m3_urad, sigma_disp_um=self.sigma_disp_um,
                     sigma_angle_urad=self.sigma_angle_urad)
 
-    def write(self, path: PathLike) -> None:
+    def write(self, path: _PathLike) -> None:
         """Write as a ``selfcal-profile v1`` file, atomically (complete or absent).
 
         Parameters
@@ -946,7 +946,7 @@ class ProfileMeasurement:
         return f"selfcal.ProfileMeasurement(N={self.n}, s_mm={self.s_mm:g}, d={self.d1}/{self.d2})"
 
 
-def read_profile(path: PathLike) -> ProfileMeasurement:
+def read_profile(path: _PathLike) -> ProfileMeasurement:
     """Read a ``selfcal-profile v1`` file strictly, as the command line does.
 
     Parameters
@@ -1005,10 +1005,10 @@ class ProfileResult:
     """
 
     method: str
-    x_mm: F64Array
-    f_um: F64Array
-    uf_um: F64Array
-    ey_um: F64Array
+    x_mm: _F64
+    f_um: _F64
+    uf_um: _F64
+    ey_um: _F64
     noise_known: bool
     have_uf: bool
     sigma_disp_um: float
@@ -1030,7 +1030,7 @@ class ProfileResult:
         self.noise_known = bool(self.noise_known)
         self.have_uf = bool(self.have_uf)
 
-    def expanded_uf_um(self, k: float = 2.0) -> F64Array:
+    def expanded_uf_um(self, k: float = 2.0) -> _F64:
         """The expanded uncertainty k·u(f) (GUM).
 
         Parameters
@@ -1049,7 +1049,7 @@ class ProfileResult:
         return f"selfcal.ProfileResult({self.method}, N={self.n}, d={self.d1}/{self.d2})"
 
 
-def calibrate_profile(source: "PathLike | ProfileMeasurement", method: str = "lsq",
+def calibrate_profile(source: "_PathLike | ProfileMeasurement", method: str = "lsq",
                       sigma_disp_um: "float | None" = None,
                       sigma_angle_urad: "float | None" = None,
                       mc_trials: int = 0, seed: int = 1) -> ProfileResult:
@@ -1105,9 +1105,9 @@ _SIM_PROFILE_PARAMS = ("ey_amp_um", "ep_amp_urad", "u1_um", "u2_um", "u3_urad", 
 def simulate_profile(n: int = 330, s_mm: float = 1.0, d1: int = 10, d2: int = 11,
                      sigma_disp_um: float = 0.01, sigma_angle_urad: float = 1.0,
                      f_um: "_npt.ArrayLike | None" = None, amp_um: float = 1.0,
-                     harmonics: int = 40, dabam: "PathLike | None" = None,
+                     harmonics: int = 40, dabam: "_PathLike | None" = None,
                      seed: int = 1, write_sigma: bool = True,
-                     **instrument: float) -> "tuple[ProfileMeasurement, dict[str, F64Array]]":
+                     **instrument: float) -> "tuple[ProfileMeasurement, dict[str, _F64]]":
     """Simulate a two-scan measurement of a profile, as ``selfcal simulate profile``.
 
     Parameters
@@ -1168,7 +1168,7 @@ _AXES = {"x": 0, "y": 1, "z": 2}
 _PROFILE_KEYS = ("axis", "dir", "start_mm", "step_mm", "err_um")
 
 
-def build_table(path: PathLike, gx_um: _npt.ArrayLike, gy_um: _npt.ArrayLike, x0_mm: float,
+def build_table(path: _PathLike, gx_um: _npt.ArrayLike, gy_um: _npt.ArrayLike, x0_mm: float,
                 y0_mm: float, px_mm: float, py_mm: "float | None" = None,
                 profiles: "_Sequence[_Mapping[str, _Any]]" = (), method: str = "",
                 sigma_um: float = -1.0, created_unix_s: "int | None" = None) -> Table:
@@ -1304,7 +1304,7 @@ class VerifyResult:
                 f"tolerance_um={self.tolerance_um:g})")
 
 
-def verify(measurement: PathLike, table: PathLike, artifact: PathLike, tolerance_um: float,
+def verify(measurement: _PathLike, table: _PathLike, artifact: _PathLike, tolerance_um: float,
            decision_rule: str = "simple", u_verify_um: "float | None" = None,
            sigma_r_um: "float | None" = None, u_plate_um: "float | None" = None,
            raw: bool = False) -> VerifyResult:
