@@ -16,7 +16,8 @@ bad content or an unknown key :class:`ValueError` (:class:`InputError`), a wrong
 import os as _os
 import time as _time
 import warnings as _warnings
-from collections.abc import Callable as _Callable, Mapping as _Mapping, Sequence as _Sequence
+from collections.abc import (Callable as _Callable, Iterable as _Iterable, Mapping as _Mapping,
+                             Sequence as _Sequence)
 from typing import TYPE_CHECKING as _TYPE_CHECKING, Any as _Any, Union as _Union
 
 import numpy as _np
@@ -107,7 +108,8 @@ class Table:
 
     def apply(self, x_mm: _npt.ArrayLike, y_mm: _npt.ArrayLike, mode: str = "measure",
               z_mm: "_npt.ArrayLike | None" = None,
-              out: "tuple[_np.ndarray, ...] | None" = None) -> "tuple[_np.ndarray, ...]":
+              out: "tuple[_np.ndarray[_Any, _Any], ...] | None" = None
+              ) -> "tuple[_np.ndarray[_Any, _Any], ...]":
         """Correct positions as selfcald does (SPEC §4), vectorised in C.
 
         Parameters
@@ -193,9 +195,9 @@ _VIEW_KEYS = ("rot", "shift", "rows", "cols", "sigma_um", "temp_C")
 def _index_list(v: object, name: str, n: int) -> "list[int] | None":
     if v is None:
         return None
-    if isinstance(v, (str, bytes)) or not hasattr(v, "__iter__"):
+    if isinstance(v, (str, bytes)) or not isinstance(v, _Iterable):
         raise ArgumentTypeError(f"{name} must be a list of plate indices, not {type(v).__name__}")
-    return [_check.integer(i, f"{name}[{k}]", 0, n - 1) for k, i in enumerate(v)]  # type: ignore[attr-defined]
+    return [_check.integer(i, f"{name}[{k}]", 0, n - 1) for k, i in enumerate(v)]
 
 
 def _view(v: object, k: int, n: int) -> "dict[str, _Any]":
@@ -445,7 +447,7 @@ def _grid_source(source: object) -> object:
     if isinstance(source, (GridMeasurement, GridPlan)):
         return source._as_dict()
     if _check.path_like(source):
-        return _os.fspath(source)  # type: ignore[arg-type]
+        return _check.fspath(source, "source")
     raise ArgumentTypeError(f"source must be a file path, a selfcal.GridMeasurement or a "
                             f"selfcal.GridPlan, not {type(source).__name__}")
 
@@ -627,7 +629,7 @@ class GridResult:
     ry_um: _F64
     tx: _F64
     ty: _F64
-    outlier: "_np.ndarray"
+    outlier: "_npt.NDArray[_np.bool_]"
     n_flagged: int
     n_removed: int
     covariance_um2: "_F64 | None"
@@ -856,10 +858,10 @@ def _nan_pad(v: _F64, n: int) -> _F64:
 
 
 def _scans(value: object, name: str, n: int, d: "tuple[int, int]") -> "tuple[_F64, _F64]":
-    if isinstance(value, (str, bytes, _Mapping)) or not hasattr(value, "__len__") \
-            or len(value) != 2:  # type: ignore[arg-type]
+    items = _check.two(value)
+    if items is None:
         raise ArgumentTypeError(f"{name} must hold the two scans' arrays")
-    a, b = value  # type: ignore[misc]
+    a, b = items
     return (_check.array(a, f"{name}[0]", (n - d[0],)), _check.array(b, f"{name}[1]", (n - d[1],)))
 
 
@@ -1146,7 +1148,8 @@ def simulate_profile(n: int = 330, s_mm: float = 1.0, d1: int = 10, d2: int = 11
         for n >= N - d1).
     """
     _check.kwargs(instrument, _SIM_PROFILE_PARAMS, "simulate_profile")
-    params = dict(n=_check.integer(n, "n", 2, 100000000),
+    nn = _check.integer(n, "n", 2, 100000000)
+    params = dict(n=nn,
                   s_mm=_check.real(s_mm, "s_mm", low=0, low_open=True),
                   d1=_check.integer(d1, "d1", 1, 2**31 - 1),
                   d2=_check.integer(d2, "d2", 1, 2**31 - 1),
@@ -1155,7 +1158,7 @@ def simulate_profile(n: int = 330, s_mm: float = 1.0, d1: int = 10, d2: int = 11
                   seed=_check.integer(seed, "seed", 0, 2**64 - 1),
                   write_sigma=int(_check.flag(write_sigma, "write_sigma")),
                   **{k: _check.real(v, k) for k, v in instrument.items()})
-    f = None if f_um is None else _check.array(f_um, "f_um", (params["n"],), nan_ok=False)
+    f = None if f_um is None else _check.array(f_um, "f_um", (nn,), nan_ok=False)
     path = None if dabam is None else _check.fspath(dabam, "dabam")
     meas, fv, ey = _native.profile_simulate(params, f, _check.real(amp_um, "amp_um"),
                                             _check.integer(harmonics, "harmonics", -2**31,

@@ -5,7 +5,7 @@ conversion's message. Types: :class:`ArgumentTypeError` (a TypeError); values:
 import math
 import operator
 import os
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Iterable, Mapping, Sized
 from typing import Any
 
 import numpy as np
@@ -85,12 +85,21 @@ def integer(value: object, name: str, low: int = -(2**63), high: int = 2**63 - 1
     return v
 
 
+def two(value: object) -> "tuple[object, object] | None":
+    """The two items of a tuple, list or array of two (not text or a dict), else None."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, Sized) \
+            or not isinstance(value, Iterable) or len(value) != 2:
+        return None
+    a, b = list(value)
+    return a, b
+
+
 def pair(value: object, name: str, whole: bool = False) -> "tuple[Any, Any]":
     """Two numbers (a tuple, list or array of two)."""
-    if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, "__len__") \
-            or len(value) != 2:  # type: ignore[arg-type]
+    items = two(value)
+    if items is None:
         raise ArgumentTypeError(f"{name} must be a pair of numbers, not {_kind(value)}")
-    a, b = value  # type: ignore[misc]
+    a, b = items
     if whole:
         return integer(a, f"{name}[0]"), integer(b, f"{name}[1]")
     return real(a, f"{name}[0]"), real(b, f"{name}[1]")
@@ -142,7 +151,9 @@ def path_like(value: object) -> bool:
 
 
 def fspath(value: object, name: str) -> "str | bytes":
-    if not path_like(value):
+    """A file path as str or bytes; ArgumentTypeError naming the argument otherwise."""
+    if not isinstance(value, (str, bytes, os.PathLike)):
         raise ArgumentTypeError(f"{name} must be a file path (str or os.PathLike), not "
                                 f"{_kind(value)}")
-    return os.fspath(value)  # type: ignore[arg-type]
+    p: "str | bytes" = os.fspath(value)
+    return p
