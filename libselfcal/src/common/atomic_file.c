@@ -340,6 +340,20 @@ static void remove_tmp(sc_afile *f)
     restore_signals(&old);
 }
 
+/* err (already set to code) keeps errno e, the system's reason (sc_error.sys_errno); code. */
+static sc_status keep_errno(sc_error *err, int e, sc_status code)
+{
+    if (err)
+        err->sys_errno = e;
+    return code;
+}
+
+/* The system refused path: "WHAT: strerror(e)" with errno e kept. */
+static sc_status refused(sc_error *err, const char *path, const char *what, int e)
+{
+    return keep_errno(err, e, sc_error_set(err, SC_E_IO, path, 0, "%s: %s", what, strerror(e)));
+}
+
 sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
 {
     memset(f, 0, sizeof *f);
@@ -351,25 +365,17 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     }
     struct stat sb;
     if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
-        if (!S_ISCHR(sb.st_mode) && !S_ISFIFO(sb.st_mode)) {
-            sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
-                         S_ISDIR(sb.st_mode) ? "a directory" : "a special file");
-            if (err && S_ISDIR(sb.st_mode))
-                err->sys_errno = EISDIR;
-            return SC_E_INPUT;
-        }
+        if (!S_ISCHR(sb.st_mode) && !S_ISFIFO(sb.st_mode))
+            return keep_errno(err, S_ISDIR(sb.st_mode) ? EISDIR : 0,
+                              sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
+                                           S_ISDIR(sb.st_mode) ? "a directory" : "a special file"));
         /* a device or FIFO (/dev/null, /dev/stdout): a temporary file renamed over it would
          * replace the device (as root, even /dev/null), so it is written straight */
         if (strlen(path) >= sizeof f->path)
             return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
         f->fp = fopen(path, "wb");
-        if (!f->fp) {
-            int e = errno;
-            sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
-            if (err)
-                err->sys_errno = e;
-            return SC_E_IO;
-        }
+        if (!f->fp)
+            return refused(err, path, "cannot open", errno);
         f->direct = 1;
         snprintf(f->path, sizeof f->path, "%s", path);
         return SC_OK;
@@ -410,12 +416,8 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
                                          one's stale file */
     restore_signals(&old);
     defer_signals_end();
-    if (fd < 0) {
-        sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
-        if (err)
-            err->sys_errno = e;
-        return SC_E_IO;
-    }
+    if (fd < 0)
+        return refused(err, path, "cannot create", e);
     if (replacing) /* the file it replaces keeps its permissions (not its set-id bits): the
                       bits the umask took at creation given back (only ever widening) */
         fchmod(fd, sb.st_mode & 0777);
@@ -425,10 +427,7 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
         close(fd);
         if (f->tmp_path[0])
             remove_tmp(f);
-        sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
-        if (err)
-            err->sys_errno = e;
-        return SC_E_IO;
+        return refused(err, path, "cannot open", e);
     }
     return SC_OK;
 }
