@@ -4,16 +4,18 @@ import json
 import math
 import re
 import warnings
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 import selfcal
-from conftest import read_csv
+from conftest import Cli, read_csv
 
 
 @pytest.mark.parametrize("method", ["lsq", "double-shift", "ye"])
-def test_noise_free_recovery(method):
+def test_noise_free_recovery(method: str) -> None:
     plan = "ye" if method == "ye" else "double-shift"
     m, truth = selfcal.simulate_grid(plan, n=11, sigma_r_um=0.0, seed=4)
     with warnings.catch_warnings():
@@ -29,7 +31,7 @@ def test_noise_free_recovery(method):
     assert np.isnan(r.ugx_um).all() == (method != "lsq")
 
 
-def test_first_order_terms_in_urad_and_ppm():
+def test_first_order_terms_in_urad_and_ppm() -> None:
     m, truth = selfcal.simulate_grid("double-shift", n=9, sigma_r_um=0.0, seed=3, O_urad=12.0,
                                      R_ppm=-4.0)
     assert truth["O_urad"] == pytest.approx(12.0) and truth["R_ppm"] == pytest.approx(-4.0)
@@ -41,7 +43,7 @@ def test_first_order_terms_in_urad_and_ppm():
         selfcal.simulate_grid("ye", n=5, O=1e-5, O_urad=10.0)
 
 
-def test_stitched_stage_and_missing_mark_in_memory():
+def test_stitched_stage_and_missing_mark_in_memory() -> None:
     m, truth = selfcal.simulate_grid("stitch", n=7, stage=(13, 11), sigma_r_um=0.0, seed=2)
     assert m.plan.stage == (13, 11)
     m.x_mm[:, 2, 3] = np.nan  # a damaged mark, in every view
@@ -58,7 +60,7 @@ def test_stitched_stage_and_missing_mark_in_memory():
     assert not b.identifiable and b.free > 0
 
 
-def test_hundreds_of_views(tmp_path):
+def test_hundreds_of_views(tmp_path: Path) -> None:
     """363 placements (no fixed cap on views): simulated, written, read, analysed, calibrated."""
     m, truth = selfcal.simulate_grid("stitch", n=3, stage=(21, 21), sigma_r_um=0.0, seed=4)
     assert len(m.plan.views) == 363 and m.x_mm.shape == (363, 3, 3)
@@ -74,7 +76,7 @@ def test_hundreds_of_views(tmp_path):
     assert np.max(np.abs(np.asarray(r.tx_um) - truth["tx_um"])) < 1e-9
 
 
-def test_progress_and_memory():
+def test_progress_and_memory() -> None:
     """The progress callback sees every phase; a memory limit below the estimate refuses."""
     m, _ = selfcal.simulate_grid("stitch", n=9, stage=(29, 29), seed=3)
     seen = []
@@ -89,13 +91,13 @@ def test_progress_and_memory():
     with pytest.raises(MemoryError, match="needs about"):
         selfcal.calibrate_grid(m, max_memory=65536)
 
-    def boom(*a):
+    def boom(*a: object) -> None:
         raise KeyError("stop")
     with pytest.raises(KeyError):
         selfcal.calibrate_grid(m, progress=boom)
 
 
-def test_plan_analysis_matches_cli(cli, tmp_path):
+def test_plan_analysis_matches_cli(cli: Cli, tmp_path: Path) -> None:
     p = selfcal.GridPlan(9, 1.0, [dict(rot=0), dict(rot=90)])
     a = selfcal.plan(p)
     assert not a.identifiable and a.free == (81 - 5) // 2 and a.sigma_c_ratio_rms == np.inf
@@ -117,7 +119,7 @@ def test_plan_analysis_matches_cli(cli, tmp_path):
     assert np.isnan(b.sigma_c_rms_um) and "sigma_c_rms_um" not in lines  # nothing stated
 
 
-def test_plan_with_stated_uncertainties(cli, tmp_path):
+def test_plan_with_stated_uncertainties(cli: Cli, tmp_path: Path) -> None:
     """Views stating sigma_um: the ratios stay the geometry's (equal weights), std(G) in µm is
     given apart, and equals ratio x sigma when every view states the same sigma."""
     text = ("# selfcal-grid v1\n# N = 9\n# pitch_mm = 1\n"
@@ -143,7 +145,7 @@ def test_plan_with_stated_uncertainties(cli, tmp_path):
 
 
 @pytest.mark.parametrize("method", ["lsq", "double-shift"])
-def test_equals_cli(cli, tmp_path, method):
+def test_equals_cli(cli: Cli, tmp_path: Path, method: str) -> None:
     m, _ = selfcal.simulate_grid("double-shift", n=13, sigma_r_um=0.02, seed=9)
     f = tmp_path / "in.csv"
     m.write(f)
@@ -168,7 +170,7 @@ def test_equals_cli(cli, tmp_path, method):
     assert np.allclose(r2.gx_um, r.gx_um, rtol=1e-9, atol=1e-11)
 
 
-def test_weights_outliers_and_residuals(cli, tmp_path):
+def test_weights_outliers_and_residuals(cli: Cli, tmp_path: Path) -> None:
     m, truth = selfcal.simulate_grid("double-shift", n=11, sigma_r_um=0.01, seed=3)
     m.x_mm[0, 3, 4] += 0.005  # a 5 µm blunder (500 sigma)
     with pytest.warns(UserWarning, match=r"view 0 mark \(3,4\) is an outlier"):
@@ -212,15 +214,16 @@ def test_weights_outliers_and_residuals(cli, tmp_path):
     assert w.weighted and w.chi2_pass and 0.5 < w.variance_factor < 1.5
 
 
-def test_covariance():
+def test_covariance() -> None:
     m, _ = selfcal.simulate_grid("ye", n=5, sigma_r_um=0.01)
     r = selfcal.calibrate_grid(m, sigma_r_um=0.01, covariance=True)
     c = r.covariance_um2
+    assert c is not None
     assert c.shape == (50, 50) and np.allclose(c, c.T)
     assert np.allclose(np.sqrt(np.diag(c))[0::2], r.ugx_um.reshape(-1), rtol=1e-6)
 
 
-def test_errors(cli, tmp_path):
+def test_errors(cli: Cli, tmp_path: Path) -> None:
     with pytest.raises(selfcal.Error, match="missing.csv"):
         selfcal.read_grid(tmp_path / "missing.csv")
     m, _ = selfcal.simulate_grid("ye", n=9)
@@ -259,13 +262,14 @@ def test_errors(cli, tmp_path):
     u2[0, 4, 4] = -0.01
     with pytest.raises(selfcal.Error, match="not positive"):
         selfcal.calibrate_grid(selfcal.GridMeasurement(m.plan, m.x_mm, m.y_mm, u2, u))
+    bad_source: Any
     for bad_source in (5, {}):
         with pytest.raises(selfcal.Error):
             selfcal.plan(bad_source)
         with pytest.raises(selfcal.Error):
             selfcal.calibrate_grid(bad_source)
     with pytest.raises(selfcal.Error, match="method"):
-        selfcal.calibrate_grid(m, method=[])
+        selfcal.calibrate_grid(m, method=[])  # type: ignore[arg-type]
     with pytest.raises(selfcal.Error):
         selfcal.GridPlan.standard("ye", 2**31)
     with pytest.raises(selfcal.Error):
@@ -277,7 +281,7 @@ def test_errors(cli, tmp_path):
     assert selfcal.calibrate_grid(m).chi2_pass is None
 
 
-def test_example_script_runs(tmp_path):
+def test_example_script_runs(tmp_path: Path) -> None:
     import os
     import subprocess
     import sys
@@ -289,7 +293,7 @@ def test_example_script_runs(tmp_path):
     assert "identifiable: True" in p.stdout and "corrected a 5 x 5 raster" in p.stdout
 
 
-def test_view_noise_estimated(cli, tmp_path):
+def test_view_noise_estimated(cli: Cli, tmp_path: Path) -> None:
     sig = [0.02 if v == 1 else 0.03 if v == 3 else 0.05 if v == 20 else 0.01 for v in range(22)]
     std = selfcal.GridPlan.standard("stitch", 15, 1.0, stage=(41, 31))
     plan = selfcal.GridPlan(15, 1.0, [dict(v, sigma_um=s) for v, s in zip(std.views, sig)],
@@ -313,7 +317,7 @@ def test_view_noise_estimated(cli, tmp_path):
     assert np.allclose([v["sigma_um_est"] for v in s["views"]], r.view_sigma_um, rtol=1e-9)
 
 
-def test_calibration_releases_the_gil(tmp_path):
+def test_calibration_releases_the_gil(tmp_path: Path) -> None:
     """Other Python threads run while a grid is calibrated (and a file read): the solve and the
     readers run without the GIL. Measured as the longest pause of a thread that only counts time,
     against the calibration's own duration (held, the pause would be all of it)."""
@@ -325,7 +329,7 @@ def test_calibration_releases_the_gil(tmp_path):
     done = threading.Event()
     span = {}
 
-    def work():
+    def work() -> None:
         t0 = time.perf_counter()
         selfcal.calibrate_grid(path)
         span["s"] = time.perf_counter() - t0
@@ -344,7 +348,7 @@ def test_calibration_releases_the_gil(tmp_path):
     assert max(gaps) < 0.5 * span["s"], (max(gaps), span["s"])
 
 
-def test_scale_and_budget_match_cli(cli, tmp_path):
+def test_scale_and_budget_match_cli(cli: Cli, tmp_path: Path) -> None:
     """SPEC §11 through Python: a file with a certified plate scale, an expansion coefficient and
     per-view temperatures gives the command line's G, M, combined u, budget and Monte Carlo."""
     f = tmp_path / "in.csv"
@@ -368,6 +372,7 @@ def test_scale_and_budget_match_cli(cli, tmp_path):
     assert b["U_um"] == pytest.approx(s["budget"]["U_um"], rel=1e-12)
     assert np.all(r.ugx_um >= b["ugx_noise_um"])  # the combined u holds the noise part
     mc = r.monte_carlo
+    assert mc is not None
     assert mc["trials"] == 200 and mc["ratio_mean"] == pytest.approx(
         s["monte_carlo"]["ratio_mean"], rel=1e-12)
     assert 0.8 < mc["ratio_mean"] < 1.2 and mc["ugx_um"].shape == r.gx_um.shape

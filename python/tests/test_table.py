@@ -1,13 +1,21 @@
 """Table.apply: the correction core from numpy, checked against an independent bilinear
 evaluation of `selfcal lut dump` (SPEC §4)."""
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 import pytest
 
 import selfcal
+from conftest import Cli
+
+TableFixture = tuple[Path, tuple[Any, list[dict[str, Any]]]]
 
 
-def parse_dump(text):
-    grid, profiles, cur = [], [], None
+def parse_dump(text: str) -> "tuple[Any, list[dict[str, Any]]]":
+    grid: "list[list[float]]" = []
+    profiles: "list[dict[str, Any]]" = []
+    cur: "dict[str, Any] | None" = None
     for line in text.splitlines():
         if line.startswith("# profile"):
             kv = dict(t.split("=") for t in line.split(":", 1)[1].split())
@@ -22,7 +30,7 @@ def parse_dump(text):
     return np.array(grid), profiles
 
 
-def reference(grid, profiles, x, y, mode):
+def reference(grid: Any, profiles: "list[dict[str, Any]]", x: Any, y: Any, mode: str) -> "tuple[Any, Any, Any]":
     """Independent SPEC §4 evaluation: bilinear G clamped at the edges, profiles linear, clamped."""
     xs, ys = np.unique(grid[:, 2]), np.unique(grid[:, 3])
     nx, ny = len(xs), len(ys)
@@ -31,7 +39,7 @@ def reference(grid, profiles, x, y, mode):
     for i, j, _, _, a, b in grid:
         gx[int(i), int(j)], gy[int(i), int(j)] = a, b
 
-    def bil(g, xq, yq):
+    def bil(g: Any, xq: Any, yq: Any) -> Any:
         u = np.clip((xq - xs[0]) / (xs[1] - xs[0]), 0, nx - 1)
         v = np.clip((yq - ys[0]) / (ys[1] - ys[0]), 0, ny - 1)
         j = np.minimum(u.astype(int), nx - 2)
@@ -51,7 +59,7 @@ def reference(grid, profiles, x, y, mode):
 
 
 @pytest.fixture(scope="module")
-def table(cli, tmp_path_factory):
+def table(cli: Cli, tmp_path_factory: pytest.TempPathFactory) -> TableFixture:
     d = tmp_path_factory.mktemp("table")
     cli("simulate", "grid", "--plan", "double-shift", "--n", 11, "--pitch-mm", 2,
         "--sigma-r-um", 0.01, "--out", d / "in.csv", "--truth-map", d / "Gt.csv")
@@ -65,7 +73,7 @@ def table(cli, tmp_path_factory):
 
 
 @pytest.mark.parametrize("mode", ["measure", "position"])
-def test_apply_matches_dump(table, mode):
+def test_apply_matches_dump(table: TableFixture, mode: str) -> None:
     path, (grid, profiles) = table
     t = selfcal.Table(path)
     assert (t.nx, t.ny) == (11, 11) and len(t.profiles) == 1
@@ -81,7 +89,7 @@ def test_apply_matches_dump(table, mode):
     assert np.all(st & 1)
 
 
-def test_broadcast_scalars_and_invalid(table):
+def test_broadcast_scalars_and_invalid(table: TableFixture) -> None:
     t = selfcal.Table(table[0])
     xo, yo, st = t.apply(0.5, [0.0, 1.0, np.nan])
     assert xo.shape == (3,)
@@ -90,7 +98,7 @@ def test_broadcast_scalars_and_invalid(table):
     assert xo.shape == () and zo == 3.0
 
 
-def test_position_then_measure_is_near_identity(table):
+def test_position_then_measure_is_near_identity(table: TableFixture) -> None:
     t = selfcal.Table(table[0])
     x = np.linspace(-9, 9, 101)
     xp, yp, _ = t.apply(x, x[::-1], mode="position")
@@ -102,7 +110,7 @@ def test_position_then_measure_is_near_identity(table):
     assert np.max(np.abs(xm - x)) < 0.01 * corr and np.max(np.abs(ym - x[::-1])) < 0.01 * corr
 
 
-def test_measure_exact_inverts_position(table):
+def test_measure_exact_inverts_position(table: TableFixture) -> None:
     t = selfcal.Table(table[0])
     x = np.linspace(-9, 9, 101)
     xp, yp, _ = t.apply(x, x[::-1], mode="position")
@@ -118,7 +126,7 @@ def test_measure_exact_inverts_position(table):
         t.apply(x, x, mode="exact")
 
 
-def test_errors(tmp_path):
+def test_errors(tmp_path: Path) -> None:
     with pytest.raises(selfcal.Error, match="nope.lut"):
         selfcal.Table(tmp_path / "nope.lut")
     bad = tmp_path / "bad.lut"
@@ -127,13 +135,13 @@ def test_errors(tmp_path):
         selfcal.Table(bad)
 
 
-def test_mode_checked(table):
+def test_mode_checked(table: TableFixture) -> None:
     t = selfcal.Table(table[0])
     with pytest.raises(selfcal.Error, match="mode"):
         t.apply(0, 0, mode="forward")
 
 
-def test_bad_positions_raise_selfcal_error(table):
+def test_bad_positions_raise_selfcal_error(table: TableFixture) -> None:
     """SPEC §8: errors raise selfcal.Error, also for arguments numpy would refuse."""
     t = selfcal.Table(table[0])
     with pytest.raises(selfcal.Error, match="do not broadcast"):
@@ -141,8 +149,9 @@ def test_bad_positions_raise_selfcal_error(table):
     with pytest.raises(selfcal.Error, match="x_mm: not real numbers"):
         t.apply("a", "b")
     with pytest.raises(selfcal.Error, match="z_mm: not real numbers"):
-        t.apply(1.0, 2.0, z_mm=[1.0, "c"])
+        t.apply(1.0, 2.0, z_mm=[1.0, "c"])  # type: ignore[arg-type]
     # what numpy would quietly turn into numbers: None (NaN), complex (real part), numeric text
+    bad: Any
     for bad in (None, [1.0, None], 1 + 2j, np.array([1.0, 2.0], complex), "1.5", [True, False]):
         with pytest.raises(selfcal.Error, match="x_mm: not real numbers"):
             t.apply(bad, 2.0)
@@ -159,7 +168,7 @@ def test_bad_positions_raise_selfcal_error(table):
             t.apply(x, x, out=bad)
 
 
-def test_build_table_from_arrays_equals_cli(cli, tmp_path):
+def test_build_table_from_arrays_equals_cli(cli: Cli, tmp_path: Path) -> None:
     m, truth = selfcal.simulate_grid("double-shift", n=9, pitch_mm=2.0, sigma_r_um=0.01, seed=8)
     r = selfcal.calibrate_grid(m)
     prof = dict(axis="y", dir="x", start_mm=-8.0, step_mm=0.5, err_um=np.sin(np.arange(33) / 5.0))
@@ -177,7 +186,7 @@ def test_build_table_from_arrays_equals_cli(cli, tmp_path):
     assert not (tmp_path / "bad.lut").exists()
 
 
-def test_out_arrays_are_filled_in_place(table):
+def test_out_arrays_are_filled_in_place(table: TableFixture) -> None:
     t = selfcal.Table(table[0])
     x = np.linspace(-5, 5, 12).reshape(3, 4)
     out = (np.empty((3, 4)), np.empty((3, 4)), np.empty((3, 4), dtype=np.uint32))

@@ -1,13 +1,18 @@
 """selfcal.verify: the same verdict, statistics and U as `selfcal verify` on the same files, the
 guarded decision rule's three outcomes, and its errors."""
+from pathlib import Path
+from typing import Callable
+
 import pytest
 
 import selfcal
+from conftest import Cli
 
 
 @pytest.fixture
-def files(cli, tmp_path):
-    p = lambda x: str(tmp_path / x)  # noqa: E731
+def files(cli: Cli, tmp_path: Path) -> Callable[[str], str]:
+    def p(x: str) -> str:
+        return str(tmp_path / x)
     cli("simulate", "grid", "--plan", "double-shift", "--n", 9, "--seed", 3, "--sigma-r-um", 0.01,
         "--out", p("in.csv"), "--truth-map", p("gt.csv"))
     cli("grid", "--method", "lsq", p("in.csv"), "--map", p("G.csv"), "--artifact", p("A.csv"))
@@ -19,11 +24,11 @@ def files(cli, tmp_path):
     return p
 
 
-def kv(out):
+def kv(out: str) -> "dict[str, str]":
     return dict(l.split(": ", 1) for l in out.splitlines())
 
 
-def test_equals_cli(cli, files):
+def test_equals_cli(cli: Cli, files: Callable[[str], str]) -> None:
     p = files
     for rule in ("simple", "guarded"):
         r = selfcal.verify(p("V.csv"), p("T.lut"), p("A.csv"), tolerance_um=0.1, decision_rule=rule)
@@ -37,7 +42,7 @@ def test_equals_cli(cli, files):
         assert r.marks == int(k["marks"]) == 81
 
 
-def test_three_outcomes(files):
+def test_three_outcomes(files: Callable[[str], str]) -> None:
     p = files
     mx = selfcal.verify(p("V.csv"), p("T.lut"), p("A.csv"), tolerance_um=1).after_max_um
     U = 0.4 * mx
@@ -50,7 +55,7 @@ def test_three_outcomes(files):
     assert r.sigma_source == "given" and r.U_um == pytest.approx(2 * (0.01**2 + 0.02**2) ** 0.5, rel=1e-3)
 
 
-def test_errors(files, tmp_path):
+def test_errors(files: Callable[[str], str], tmp_path: Path) -> None:
     p = files
     with pytest.raises(ValueError):
         selfcal.verify(p("V.csv"), p("T.lut"), p("A.csv"), tolerance_um=1, decision_rule="strict")

@@ -16,3 +16,11 @@ add_test(NAME python_wheel
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/integration/python/test_wheel.sh ${PROJECT_SOURCE_DIR}
           ${CMAKE_CURRENT_BINARY_DIR}/tmp/pywheel)
 set_tests_properties(python_wheel PROPERTIES TIMEOUT 1200 LABELS "integration;python")
+# The package's annotations as a user's type checker reads them (py.typed, _native.pyi): mypy
+# --strict on the examples and the tests, with the package installed in the python_package venv,
+# and on the package itself.
+add_test(NAME python_mypy
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/integration/python/run_mypy.sh ${PROJECT_SOURCE_DIR}
+          ${CMAKE_CURRENT_BINARY_DIR}/tmp/pyvenv)
+set_tests_properties(python_mypy PROPERTIES TIMEOUT 600 LABELS "integration;python"
+                     FIXTURES_REQUIRED selfcal_pyvenv)

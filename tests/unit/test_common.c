@@ -98,11 +98,19 @@ static void test_csv_lines_and_errors(void **state)
     sc_csv_close(&r);
 
     assert_int_equal(sc_csv_open(&r, SELFCAL_TEST_TMP "/does-not-exist.csv", &err), SC_E_INPUT);
+    assert_int_equal(err.sys_errno, ENOENT); /* the system's reason, for bindings (Python) */
     /* a directory is bad input too, said as such (not a read error later) */
     assert_int_equal(sc_csv_open(&r, SELFCAL_TEST_TMP, &err), SC_E_INPUT);
     assert_non_null(strstr(err.msg, "directory"));
+    assert_int_equal(err.sys_errno, EISDIR);
+    /* an error that is not the system's carries no errno (sc_error_set resets it) */
+    sc_error_set(&err, SC_E_INPUT, "f", 1, "bad");
+    assert_int_equal(err.sys_errno, 0);
     assert_null(sc_open_input(SELFCAL_TEST_TMP, &err));
     assert_int_equal(err.code, SC_E_INPUT);
+    assert_int_equal(err.sys_errno, EISDIR);
+    sc_error_clear(&err);
+    assert_int_equal(err.sys_errno, 0);
     /* a path naming nothing is bad input (exit 2); the system refusing a file is not (exit 1) */
     assert_int_equal(sc_open_failure_status(ENOENT), SC_E_INPUT);
     assert_int_equal(sc_open_failure_status(ENOTDIR), SC_E_INPUT);
@@ -114,6 +122,7 @@ static void test_csv_lines_and_errors(void **state)
     if (geteuid() != 0 && chmod(path, 0) == 0) { /* root reads any file */
         assert_int_equal(sc_csv_open(&r, path, &err), SC_E_IO);
         assert_non_null(strstr(err.msg, "ermission"));
+        assert_int_equal(err.sys_errno, EACCES);
         chmod(path, 0644);
     }
 
@@ -186,6 +195,11 @@ static void test_atomic_file(void **state)
     assert_string_equal(buf, "old\n");
     struct stat st;
     assert_int_not_equal(stat(f.tmp_path, &st), 0);
+    /* a folder that does not exist, or a folder in place of the file: the system's errno kept */
+    assert_int_equal(sc_afile_open(&f, SELFCAL_TEST_TMP "/no-such-dir/a.txt", &err), SC_E_IO);
+    assert_int_equal(err.sys_errno, ENOENT);
+    assert_int_equal(sc_afile_open(&f, SELFCAL_TEST_TMP, &err), SC_E_INPUT);
+    assert_int_equal(err.sys_errno, EISDIR);
     assert_int_equal(sc_afile_open(&f, path, &err), SC_OK);
     fputs("new\n", f.fp);
     assert_int_equal(sc_afile_commit(&f, &err), SC_OK);

@@ -30,12 +30,15 @@ typedef struct sc_error {
     char file[256]; /* the input file the problem is in, "" if none */
     long line;      /* 1-based line in that file, 0 if none */
     char msg[512];  /* one line, no trailing newline */
+    int sys_errno;  /* errno of the system call that failed on `file` (ENOENT, EACCES, EISDIR,
+                       ...), 0 when the problem is not a refusal by the system */
 } sc_error;
 
 /* Reset err to "no error"; err may be NULL. */
 SC_API void sc_error_clear(sc_error *err);
 
-/* Record an error (printf-style message) and return code; err may be NULL, file may be NULL. */
+/* Record an error (printf-style message, sys_errno 0) and return code; err may be NULL, file may
+ * be NULL. */
 SC_API sc_status sc_error_set(sc_error *err, sc_status code, const char *file, long line,
                               const char *fmt, ...)
 #if defined(__GNUC__)

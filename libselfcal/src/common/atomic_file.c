@@ -340,6 +340,20 @@ static void remove_tmp(sc_afile *f)
     restore_signals(&old);
 }
 
+/* err (already set to code) keeps errno e, the system's reason (sc_error.sys_errno); code. */
+static sc_status keep_errno(sc_error *err, int e, sc_status code)
+{
+    if (err)
+        err->sys_errno = e;
+    return code;
+}
+
+/* The system refused path: "WHAT: strerror(e)" with errno e kept. */
+static sc_status refused(sc_error *err, const char *path, const char *what, int e)
+{
+    return keep_errno(err, e, sc_error_set(err, SC_E_IO, path, 0, "%s: %s", what, strerror(e)));
+}
+
 sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
 {
     memset(f, 0, sizeof *f);
@@ -352,15 +366,16 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     struct stat sb;
     if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
         if (!S_ISCHR(sb.st_mode) && !S_ISFIFO(sb.st_mode))
-            return sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
-                                S_ISDIR(sb.st_mode) ? "a directory" : "a special file");
+            return keep_errno(err, S_ISDIR(sb.st_mode) ? EISDIR : 0,
+                              sc_error_set(err, SC_E_INPUT, path, 0, "not a regular file (%s)",
+                                           S_ISDIR(sb.st_mode) ? "a directory" : "a special file"));
         /* a device or FIFO (/dev/null, /dev/stdout): a temporary file renamed over it would
          * replace the device (as root, even /dev/null), so it is written straight */
         if (strlen(path) >= sizeof f->path)
             return sc_error_set(err, SC_E_INPUT, path, 0, "path too long");
         f->fp = fopen(path, "wb");
         if (!f->fp)
-            return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(errno));
+            return refused(err, path, "cannot open", errno);
         f->direct = 1;
         snprintf(f->path, sizeof f->path, "%s", path);
         return SC_OK;
@@ -402,7 +417,7 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
     restore_signals(&old);
     defer_signals_end();
     if (fd < 0)
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot create: %s", strerror(e));
+        return refused(err, path, "cannot create", e);
     if (replacing) /* the file it replaces keeps its permissions (not its set-id bits): the
                       bits the umask took at creation given back (only ever widening) */
         fchmod(fd, sb.st_mode & 0777);
@@ -412,7 +427,7 @@ sc_status sc_afile_open(sc_afile *f, const char *path, sc_error *err)
         close(fd);
         if (f->tmp_path[0])
             remove_tmp(f);
-        return sc_error_set(err, SC_E_IO, path, 0, "cannot open: %s", strerror(e));
+        return refused(err, path, "cannot open", e);
     }
     return SC_OK;
 }

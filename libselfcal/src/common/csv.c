@@ -33,12 +33,16 @@ FILE *sc_open_input(const char *path, sc_error *err)
     if (!fp) {
         int e = errno;
         sc_error_set(err, sc_open_failure_status(e), path, 0, "cannot open: %s", strerror(e));
+        if (err)
+            err->sys_errno = e;
         return NULL;
     }
     struct stat st;
     if (fstat(fileno(fp), &st) == 0 && S_ISDIR(st.st_mode)) {
         fclose(fp);
         sc_error_set(err, SC_E_INPUT, path, 0, "is a directory, not a file");
+        if (err)
+            err->sys_errno = EISDIR;
         return NULL;
     }
     return fp;
@@ -93,7 +97,10 @@ static int csv_refill(sc_csv *r, sc_error *err)
     size_t nread = fread(r->buf + keep, 1, CSV_BLOCK - keep, r->fp);
     if (nread == 0) {
         if (ferror(r->fp)) {
-            sc_error_set(err, SC_E_IO, r->path, r->line + 1, "read error: %s", strerror(errno));
+            int e = errno;
+            sc_error_set(err, SC_E_IO, r->path, r->line + 1, "read error: %s", strerror(e));
+            if (err)
+                err->sys_errno = e;
             return -1;
         }
         r->eof = 1;

@@ -14,6 +14,7 @@ void sc_error_clear(sc_error *err)
     err->file[0] = '\0';
     err->line = 0;
     err->msg[0] = '\0';
+    err->sys_errno = 0;
 }
 
 /* Length of the valid UTF-8 sequence at p that is printable on one line (no C1 control, no
@@ -75,6 +76,7 @@ sc_status sc_error_set(sc_error *err, sc_status code, const char *file, long lin
     err->code = code;
     snprintf(err->file, sizeof err->file, "%s", file ? file : "");
     err->line = line;
+    err->sys_errno = 0;
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(err->msg, sizeof err->msg, fmt, ap);

@@ -226,8 +226,10 @@ sc_status sc_dabam_read(const char *dat_path, sc_dabam_points *d, sc_error *err)
     FILE *probe = fopen(dat_path, "rb");
     if (!probe) {
         int e = errno;
-        return sc_error_set(err, sc_open_failure_status(e), dat_path, 0, "cannot open: %s",
-                            strerror(e));
+        sc_error_set(err, sc_open_failure_status(e), dat_path, 0, "cannot open: %s", strerror(e));
+        if (err)
+            err->sys_errno = e;
+        return sc_open_failure_status(e);
     }
     fclose(probe);
     memcpy(meta_path, dat_path, L - 4);

@@ -13,6 +13,7 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 
+#include <errno.h>
 #include <limits.h>
 #include <stdarg.h>
 #include <math.h>
@@ -34,7 +35,10 @@
 #include "selfcal/verify.h"
 #include "selfcal/version.h"
 
-static PyObject *sc_py_error; /* selfcal.Error, a ValueError */
+/* The exceptions of selfcal._errors (imported at module init): sc_py_error is InputError (a
+ * selfcal.Error and a ValueError), the message of bad content or a bad argument value. */
+static PyObject *sc_py_error, *exc_unsolvable, *exc_file, *exc_missing, *exc_permission,
+    *exc_directory, *exc_nomem, *exc_internal;
 
 
 /* selfcal.Error with a printf message: PyErr_Format knows no %g, which numbers need. */
@@ -49,18 +53,49 @@ static void error_printf(const char *fmt, ...)
     PyErr_SetString(sc_py_error, msg);
 }
 
-/* Raise selfcal.Error with the command line's one-line message for the same error ("selfcal:
- * FILE:LINE: reason"). Out-of-memory becomes MemoryError, I/O OSError. */
+/* The OSError subclass of selfcal._errors for a system refusal errnum (not 0). */
+static PyObject *file_error_type(int errnum)
+{
+    switch (errnum) {
+    case ENOENT: case ENOTDIR:
+        return exc_missing; /* FileNotFoundError */
+    case EACCES: case EPERM: case EROFS:
+        return exc_permission; /* PermissionError */
+    case EISDIR:
+        return exc_directory; /* IsADirectoryError */
+    default:
+        return exc_file; /* OSError */
+    }
+}
+
+/* Raise the command line's one-line message for the same error ("selfcal: FILE:LINE: reason")
+ * as the standard library's kind of exception, each also a selfcal.Error: a refusal by the system
+ * (the library's sys_errno) an OSError subclass with errno, strerror and filename; out of memory
+ * a MemoryError; an unsolvable problem, bad input and the rest ValueError (InputError) or
+ * RuntimeError (InternalError). */
 static PyObject *raise_sc(const sc_error *err)
 {
     char buf[1024] = "selfcal: ";
     sc_error_format(err, buf + 9, sizeof buf - 9);
-    if (err->code == SC_E_NOMEM)
-        PyErr_SetString(PyExc_MemoryError, buf);
-    else if (err->code == SC_E_IO)
-        PyErr_SetString(PyExc_OSError, buf);
-    else
-        PyErr_SetString(sc_py_error, buf);
+    if (err->sys_errno) {
+        PyObject *name = err->file[0] ? PyUnicode_DecodeFSDefault(err->file) : Py_NewRef(Py_None);
+        PyObject *e = name ? PyObject_CallFunction(file_error_type(err->sys_errno), "isO",
+                                                   err->sys_errno, strerror(err->sys_errno), name)
+                           : NULL;
+        Py_XDECREF(name);
+        PyObject *msg = e ? PyUnicode_DecodeUTF8(buf, (Py_ssize_t)strlen(buf), "replace") : NULL;
+        if (msg && PyObject_SetAttrString(e, "message", msg) == 0)
+            PyErr_SetObject((PyObject *)Py_TYPE(e), e);
+        Py_XDECREF(msg);
+        Py_XDECREF(e);
+        return NULL;
+    }
+    PyObject *type = err->code == SC_E_NOMEM         ? exc_nomem
+                     : err->code == SC_E_IO          ? exc_file
+                     : err->code == SC_E_UNSOLVABLE  ? exc_unsolvable
+                     : err->code == SC_E_INTERNAL    ? exc_internal
+                                                     : sc_py_error;
+    PyErr_SetString(type, buf);
     return NULL;
 }
 
@@ -289,6 +324,20 @@ static PyObject *py_profile_read(PyObject *self, PyObject *args)
     PyObject *r = profile_to_dict(&d);
     sc_profile_data_free(&d);
     return r;
+}
+
+/* profile_check(dict): a measurement dict checked as the library checks it: None or raises. */
+static PyObject *py_profile_check(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *src;
+    if (!PyArg_ParseTuple(args, "O!", &PyDict_Type, &src))
+        return NULL;
+    sc_profile_data d;
+    if (profile_from_dict(src, &d))
+        return NULL;
+    sc_profile_data_free(&d);
+    Py_RETURN_NONE;
 }
 
 static PyObject *py_profile_write(PyObject *self, PyObject *args)
@@ -904,6 +953,28 @@ static PyObject *py_grid_read(PyObject *self, PyObject *args)
     PyObject *r = data_to_dict(&d);
     sc_grid_data_free(&d);
     return r;
+}
+
+/* grid_check(dict): a plan dict (no "plan" key) or a measurement dict checked as the library
+ * checks it, nothing solved (no CHOLMOD): None, or the exception a calibration would raise. */
+static PyObject *py_grid_check(PyObject *self, PyObject *args)
+{
+    (void)self;
+    PyObject *src;
+    if (!PyArg_ParseTuple(args, "O!", &PyDict_Type, &src))
+        return NULL;
+    if (!PyDict_GetItemString(src, "plan")) {
+        sc_grid_plan p;
+        if (plan_from_dict(src, &p))
+            return NULL;
+        sc_grid_plan_free(&p);
+    } else {
+        sc_grid_data d;
+        if (data_from_dict(src, &d))
+            return NULL;
+        sc_grid_data_free(&d);
+    }
+    Py_RETURN_NONE;
 }
 
 static PyObject *py_grid_write(PyObject *self, PyObject *args)
@@ -1703,6 +1774,8 @@ static PyMethodDef module_methods[] = {
      "lut_build(path, gx, gy, x0, y0, px, py, profiles, method, sigma_um, created): write a table."},
     {"grid_read", py_grid_read, METH_VARARGS, "grid_read(path) -> measurement dict."},
     {"grid_write", py_grid_write, METH_VARARGS, "grid_write(path, measurement dict)."},
+    {"grid_check", py_grid_check, METH_VARARGS,
+     "grid_check(plan or measurement dict): checked as a calibration would, nothing solved."},
     {"grid_plan", py_grid_plan, METH_VARARGS, "grid_plan(path, plan or measurement) -> analysis dict."},
     {"grid_calibrate", py_grid_calibrate, METH_VARARGS,
      "grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha, "
@@ -1715,6 +1788,7 @@ static PyMethodDef module_methods[] = {
      "u_plate_um, raw) -> dict."},
     {"profile_read", py_profile_read, METH_VARARGS, "profile_read(path) -> measurement dict."},
     {"profile_write", py_profile_write, METH_VARARGS, "profile_write(path, measurement dict)."},
+    {"profile_check", py_profile_check, METH_VARARGS, "profile_check(measurement dict)."},
     {"profile_calibrate", py_profile_calibrate, METH_VARARGS,
      "profile_calibrate(path or dict, method (0 dft, 1 lsq), sigma_disp_um, sigma_angle_urad, mc, seed) -> dict."},
     {"profile_simulate", py_profile_simulate, METH_VARARGS,
@@ -1733,16 +1807,24 @@ PyMODINIT_FUNC PyInit__native(void)
     PyObject *m = PyModule_Create(&module_def);
     if (!m)
         return NULL;
-    sc_py_error = PyErr_NewExceptionWithDoc(
-        "selfcal.Error",
-        "Bad input or an unsolvable problem; the message is the library's one line "
-        "(file:line: reason), as the command line prints it.",
-        PyExc_ValueError, NULL);
-    if (!sc_py_error || PyModule_AddObject(m, "Error", sc_py_error) < 0) {
+    /* the exceptions are Python classes (selfcal/_errors.py): kept for the module's life */
+    PyObject *errors = PyImport_ImportModule("selfcal._errors");
+    if (!errors) {
         Py_DECREF(m);
         return NULL;
     }
-    Py_INCREF(sc_py_error); /* the module's reference was stolen; keep ours */
+    struct { const char *name; PyObject **dst; } exc[] = {
+        {"InputError", &sc_py_error},      {"UnsolvableError", &exc_unsolvable},
+        {"FileError", &exc_file},          {"MissingFileError", &exc_missing},
+        {"FilePermissionError", &exc_permission}, {"DirectoryError", &exc_directory},
+        {"OutOfMemoryError", &exc_nomem},  {"InternalError", &exc_internal}};
+    for (size_t k = 0; k < sizeof exc / sizeof exc[0]; ++k)
+        if (!(*exc[k].dst = PyObject_GetAttrString(errors, exc[k].name))) {
+            Py_DECREF(errors);
+            Py_DECREF(m);
+            return NULL;
+        }
+    Py_DECREF(errors);
     Py_INCREF(&TableType);
     if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0) {
         Py_DECREF(&TableType);

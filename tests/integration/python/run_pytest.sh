@@ -19,7 +19,8 @@ import glob, sys, zipfile
 w = glob.glob(sys.argv[1] + "/selfcal-*.whl")
 assert len(w) == 1, w
 names = zipfile.ZipFile(w[0]).namelist()
-for need in ("selfcal/__init__.py", "selfcal/LICENSE", "selfcal/COPYRIGHT"):
+for need in ("selfcal/__init__.py", "selfcal/LICENSE", "selfcal/COPYRIGHT", "selfcal/py.typed",
+             "selfcal/_native.pyi"):
     assert need in names, (need, names)
 assert not any("libselfcal" in n for n in names), names
 assert any(n.startswith("selfcal/_native.") and n.endswith(".so") for n in names), names
