@@ -261,6 +261,16 @@ static void test_beckhoff(void **state)
     assert_true(rep.max_um <= 0.05 + 1e-9);
     free(b.tab);
     free(m);
+    /* An origin 1e-10 mm off the 0.1 um grid (1e-6 of the table's unit, the tolerance's edge)
+     * is on it: still the common interval, not the smaller pitch. */
+    m = make_map(9, 7, 3.3, 1e-10, 2.0, 3.0, 0);
+    sc_export_options_init(&o, SC_EXPORT_BECKHOFF);
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    parse_beckhoff(path, &b);
+    assert_int_equal(b.interval, 10000);
+    assert_true(b.start1 == 33000 && b.start2 == 0);
+    free(b.tab);
+    free(m);
     /* Where the common interval needs more than 101 points (2 and 2.5 mm: 0.5 mm over 100 mm),
      * the smaller pitch, the other axis resampled. */
     m = make_map(51, 41, 0.0, 0.0, 2.0, 2.5, 0);
@@ -678,6 +688,197 @@ static double profile_ref(const sc_lut_profile *p, double x)
     return p->err_um[k] * (1 - (u - k)) + p->err_um[k + 1] * (u - k);
 }
 
+/* ---- KMotion: the GeoCorrect table, read back as KMotionCNC reads it ---- */
+
+typedef struct kmo {
+    int nrows, ncols;
+    double sx, sy, ox, oy; /* inches */
+    double *ax, *ay;       /* [row][col], inches */
+} kmo;
+
+static void parse_kmotion(const char *path, kmo *k)
+{
+    char *text = slurp(path), *save = NULL;
+    char *line = strtok_r(text, "\n", &save);
+    assert_non_null(line);
+    assert_int_equal(sscanf(line, "%d,%d", &k->nrows, &k->ncols), 2);
+    assert_true(k->nrows >= 2 && k->ncols >= 2);
+    assert_non_null(line = strtok_r(NULL, "\n", &save));
+    assert_int_equal(sscanf(line, "%lf,%lf", &k->sx, &k->sy), 2);
+    assert_non_null(line = strtok_r(NULL, "\n", &save));
+    assert_int_equal(sscanf(line, "%lf,%lf", &k->ox, &k->oy), 2);
+    assert_true(k->sx > 0 && k->sy > 0);
+    size_t n = (size_t)k->nrows * (size_t)k->ncols;
+    k->ax = calloc(n, sizeof *k->ax);
+    k->ay = calloc(n, sizeof *k->ay);
+    char *seen = calloc(n, 1);
+    assert_true(k->ax && k->ay && seen);
+    size_t count = 0;
+    while ((line = strtok_r(NULL, "\n", &save))) {
+        int r, c;
+        double x, y, z;
+        char extra;
+        assert_int_equal(sscanf(line, "%d,%d,%lf,%lf,%lf %c", &r, &c, &x, &y, &z, &extra), 5);
+        assert_true(r >= 0 && r < k->nrows && c >= 0 && c < k->ncols);
+        assert_false(seen[r * k->ncols + c]);
+        seen[r * k->ncols + c] = 1;
+        k->ax[r * k->ncols + c] = x;
+        k->ay[r * k->ncols + c] = y;
+        assert_true(z == 0.0);
+        ++count;
+    }
+    assert_int_equal(count, n); /* every node, once */
+    free(seen);
+}
+
+/* KMotionX's GeoCorrect (GCodeInterpreter/Kinematics.cpp): the cell of the offset position
+ * clamped to the table, the fractions not (the edge cells extrapolate), bilinear; inches. */
+static void kmo_correct(const kmo *k, double x, double y, double *cx, double *cy)
+{
+    double u = (x - k->ox) / k->sx, v = (y - k->oy) / k->sy;
+    int c = (int)floor(u), r = (int)floor(v);
+    c = c < 0 ? 0 : c > k->ncols - 2 ? k->ncols - 2 : c;
+    r = r < 0 ? 0 : r > k->nrows - 2 ? k->nrows - 2 : r;
+    double fu = u - c, fv = v - r;
+    const double *t[2] = {k->ax, k->ay};
+    double out[2];
+    for (int a = 0; a < 2; ++a) {
+        const double *g = t[a];
+        out[a] = (1 - fu) * (1 - fv) * g[r * k->ncols + c] + fu * (1 - fv) * g[r * k->ncols + c + 1] +
+                 (1 - fu) * fv * g[(r + 1) * k->ncols + c] + fu * fv * g[(r + 1) * k->ncols + c + 1];
+    }
+    *cx = out[0];
+    *cy = out[1];
+}
+
+/* What KMotion commands minus the ideal point, um. */
+static double kmo_ctrl(const void *ctx, int comp, double x, double y)
+{
+    double cx, cy;
+    kmo_correct(ctx, x / 25.4, y / 25.4, &cx, &cy);
+    return comp == 0 ? (cx * 25.4 - x) * 1e3 : (cy * 25.4 - y) * 1e3;
+}
+
+/* The table holds the map's correction at its nodes and the edge values beyond; the report's
+ * residual is that of KMotion's own interpolation (recomputed here), also negated and clipped. */
+static void test_kmotion_table(void **state)
+{
+    (void)state;
+    const char *path = TMP "geo.txt";
+    sc_lut *m = make_map(9, 7, -20.0, -15.0, 5.0, 2.5, 0);
+    int comps[2] = {0, 1};
+    for (int neg = 0; neg < 2; ++neg) {
+        sc_export_options o;
+        sc_export_options_init(&o, SC_EXPORT_KMOTION);
+        o.negate = neg;
+        sc_export_report rep;
+        sc_error err;
+        assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+        kmo k;
+        parse_kmotion(path, &k);
+        assert_int_equal(rep.tables, 1);
+        assert_int_equal(rep.points[0], k.ncols);
+        assert_int_equal(rep.points[1], k.nrows);
+        assert_true(fabs(rep.interval_mm - 5.0) < 1e-12);
+        assert_true(fabs(rep.unit_um - 25.4e-6) < 1e-15);
+        assert_int_equal(rep.clipped, 0);
+        const double sign = neg ? -1.0 : 1.0;
+        /* at every node of the map: the ideal point plus (or minus) G, to the 1e-9 in written */
+        for (int i = 0; i < m->ny; ++i)
+            for (int j = 0; j < m->nx; ++j) {
+                double x = m->x0_mm + j * m->px_mm, y = m->y0_mm + i * m->py_mm;
+                assert_true(fabs(kmo_ctrl(&k, 0, x, y) - sign * m->gx_um[i * m->nx + j]) < 1e-4);
+                assert_true(fabs(kmo_ctrl(&k, 1, x, y) - sign * m->gy_um[i * m->nx + j]) < 1e-4);
+            }
+        /* beyond the map, 1.3 pitches out on every side: the edge value (our clamping) */
+        const double xs[3] = {m->x0_mm - 6.5, m->x0_mm + 12.0, m->x0_mm + 8 * 5.0 + 6.5};
+        const double ys[3] = {m->y0_mm - 3.25, m->y0_mm + 7.0, m->y0_mm + 6 * 2.5 + 3.25};
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) {
+                if (a == 1 && b == 1)
+                    continue;
+                double xc = fmin(fmax(xs[a], m->x0_mm), m->x0_mm + 40.0);
+                double yc = fmin(fmax(ys[b], m->y0_mm), m->y0_mm + 15.0);
+                for (int c = 0; c < 2; ++c)
+                    assert_true(fabs(kmo_ctrl(&k, c, xs[a], ys[b]) - sign * map_ref(m, c, xc, yc)) < 1e-4);
+            }
+        check_residual(m, &rep, kmo_ctrl, &k, comps, 2, sign);
+        assert_true(rep.max_um < 0.1); /* the map's nodes: only the cells' own bilinear error */
+        free(k.ax);
+        free(k.ay);
+    }
+    /* a limit: entries beyond it written at it and counted (both components) */
+    sc_export_options o;
+    sc_export_options_init(&o, SC_EXPORT_KMOTION);
+    o.limit_um = 0.5;
+    sc_export_report rep;
+    sc_error err;
+    assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+    kmo k;
+    parse_kmotion(path, &k);
+    long over = 0;
+    for (int r = 0; r < k.nrows; ++r)
+        for (int c = 0; c < k.ncols; ++c) {
+            int i = r - 1 < 0 ? 0 : r - 1 > m->ny - 1 ? m->ny - 1 : r - 1;
+            int j = c - 1 < 0 ? 0 : c - 1 > m->nx - 1 ? m->nx - 1 : c - 1;
+            double x = m->x0_mm + (c - 1) * m->px_mm, y = m->y0_mm + (r - 1) * m->py_mm;
+            const double g[2] = {m->gx_um[i * m->nx + j], m->gy_um[i * m->nx + j]};
+            const double t[2] = {(k.ax[r * k.ncols + c] * 25.4 - x) * 1e3, (k.ay[r * k.ncols + c] * 25.4 - y) * 1e3};
+            for (int a = 0; a < 2; ++a) {
+                over += fabs(g[a]) > 0.5;
+                assert_true(fabs(t[a] - fmin(fmax(g[a], -0.5), 0.5)) < 1e-4);
+            }
+        }
+    assert_true(over > 0);
+    assert_int_equal(rep.clipped, over);
+    assert_true(fabs(rep.limit_um - 0.5) < 1e-12);
+    check_residual(m, &rep, kmo_ctrl, &k, comps, 2, 1.0);
+    free(k.ax);
+    free(k.ay);
+    free(m);
+    unlink(path);
+}
+
+/* The firmware formats report the skew they wrote, as the firmware reads it back: Marlin's I,
+ * RepRapFirmware's X / S (X written with 6 decimals over S = 1000 mm). */
+static void test_firmware_skew_as_written(void **state)
+{
+    (void)state;
+    const char *path = TMP "fw.gcode";
+    sc_lut *m = make_map(9, 9, -20.0, -20.0, 5.0, 5.0, 0);
+    for (int i = 0; i < 9; ++i)
+        for (int j = 0; j < 9; ++j) /* x moving with y: a skew that is no round number */
+            m->gx_um[i * 9 + j] += 1e3 * 3.33333333e-5 * (-20.0 + 5.0 * i);
+    const int fmts[2] = {SC_EXPORT_MARLIN, SC_EXPORT_REPRAP};
+    for (int f = 0; f < 2; ++f) {
+        sc_export_options o;
+        sc_export_options_init(&o, fmts[f]);
+        sc_export_report rep;
+        sc_error err;
+        assert_int_equal(sc_export_write(m, &o, path, &rep, &err), SC_OK);
+        const char *text = slurp(path);
+        double want;
+        if (fmts[f] == SC_EXPORT_MARLIN) {
+            const char *l = strstr(text, "\nM852 I");
+            assert_non_null(l);
+            assert_int_equal(sscanf(l, "\nM852 I%lf", &want), 1);
+        } else {
+            const char *l = strstr(text, "\nM556 S");
+            assert_non_null(l);
+            double S, X;
+            assert_int_equal(sscanf(l, "\nM556 S%lf X%lf", &S, &X), 2);
+            assert_true(S == 1000.0);
+            want = X / S;
+            assert_non_null(strstr(l, ".")); /* X as written: 6 decimals */
+            assert_int_equal((int)strcspn(strchr(strchr(l, 'X'), '.') + 1, "\n"), 6);
+        }
+        assert_true(fabs(want) > 1e-6);
+        assert_true(fabs(rep.skew - want) <= 1e-15 * fabs(want));
+    }
+    free(m);
+    unlink(path);
+}
+
 /* KMotion: one 2-D table, covering at least the map's nodes. */
 static void test_kmotion_report(void **state)
 {
@@ -1008,6 +1209,8 @@ int main(void)
         cmocka_unit_test(test_backends),
         cmocka_unit_test(test_kmotion_report),
         cmocka_unit_test(test_aerotech_1d),
+        cmocka_unit_test(test_kmotion_table),
+        cmocka_unit_test(test_firmware_skew_as_written),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
