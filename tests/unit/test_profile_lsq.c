@@ -156,8 +156,53 @@ static void test_refuses_bad_input(void **state)
     double y1[11] = {0}, y2[10] = {0}, f[21];
     y1[3] = NAN;
     assert_int_equal(sc_profile_lsq_execute(p, y1, y2, f, NULL, NULL, &err), SC_E_INPUT);
+    /* named by scan and index; the library's arrays have no file or line */
+    assert_non_null(strstr(err.msg, "y1(3) is not a finite number"));
+    assert_int_equal(err.line, 0);
+    assert_string_equal(err.file, "");
     sc_profile_lsq_plan_destroy(p);
     sc_profile_lsq_plan_destroy(NULL);
+    /* N up to INT32_MAX / 2 - 8 keeps the indices (up to 2N + a few) in int; one more is refused */
+    sc_error_clear(&err);
+    assert_true(sc_profile_lsq_is_solvable(INT32_MAX / 2 - 8, 1, 2, &err));
+    assert_false(sc_profile_lsq_is_solvable(INT32_MAX / 2 - 7, 1, 2, &err));
+    assert_non_null(strstr(err.msg, "too large"));
+}
+
+/* Only the ratio of the weights matters: both scaled by 1e-100 or 1e100 (σ of 1e50 or 1e-50 µm)
+ * give the same f and c, and u(f) scales by 1/sqrt of the factor (the zero-point offsets'
+ * 2 x 2 system is judged relative to its own size, not to 1). */
+static void test_weight_scale_invariance(void **state)
+{
+    (void)state;
+    const int n = 330, d1 = 10, d2 = 11;
+    sc_rng rng;
+    sc_rng_seed(&rng, 4343);
+    double *f = dalloc(n), *y1 = dalloc(n), *y2 = dalloc(n), *f0 = dalloc(n), *fs = dalloc(n);
+    double *u0 = dalloc(n), *us = dalloc(n);
+    random_profile(n, &rng, f);
+    simulate(n, d1, d2, f, 0.1, -0.2, y1, y2, &rng, 0.01, 0.012);
+    const double scale[3] = {1.0, 1e-100, 1e100};
+    double c0[2], cs[2];
+    for (int k = 0; k < 3; k++) {
+        sc_profile_lsq_plan *p = NULL;
+        sc_error err;
+        sc_error_clear(&err);
+        assert_int_equal(sc_profile_lsq_plan_create(n, d1, d2, 1e4 * scale[k], 7e3 * scale[k], &p, &err),
+                         SC_OK);
+        assert_int_equal(sc_profile_lsq_execute(p, y1, y2, k ? fs : f0, k ? cs : c0, NULL, &err), SC_OK);
+        assert_int_equal(sc_profile_lsq_uncertainty(p, k ? us : u0, NULL, &err), SC_OK);
+        sc_profile_lsq_plan_destroy(p);
+        if (k == 0)
+            continue;
+        for (int i = 0; i < n; i++) {
+            assert_true(fabs(fs[i] - f0[i]) <= 1e-9 * (1 + fabs(f0[i])));
+            assert_true(fabs(us[i] * sqrt(scale[k]) - u0[i]) <= 1e-9 * u0[i] + 1e-300);
+        }
+        for (int j = 0; j < 2; j++)
+            assert_true(fabs(cs[j] - c0[j]) <= 1e-9 * (1 + fabs(c0[j])));
+    }
+    free(f), free(y1), free(y2), free(f0), free(fs), free(u0), free(us);
 }
 
 /* ---------- noise-free reconstruction ---------- */
@@ -353,6 +398,12 @@ static void test_portable_and_simd_agree(void **state)
             sc_profile_lsq_plan_create_tuned(n, d1, d2, 1e4, 7e3, SC_PROFILE_LSQ_PORTABLE, &pb, &err),
             SC_OK);
         assert_false(sc_profile_lsq_uses_simd(pb));
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+        /* without the flag, the AVX2 kernels wherever the processor has them */
+        __builtin_cpu_init();
+        assert_int_equal(sc_profile_lsq_uses_simd(pa),
+                         __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"));
+#endif
         assert_int_equal(sc_profile_lsq_dof(pa), n - d1 - d2);
         assert_int_equal(sc_profile_lsq_execute(pa, y1, y2, fa, NULL, NULL, &err), SC_OK);
         assert_int_equal(sc_profile_lsq_execute(pb, y1, y2, fb, NULL, NULL, &err), SC_OK);
@@ -772,6 +823,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_solvable_matches_dense_rank),
         cmocka_unit_test(test_refuses_bad_input),
+        cmocka_unit_test(test_weight_scale_invariance),
         cmocka_unit_test(test_noise_free_simulated),
         cmocka_unit_test(test_noise_free_dabam),
         cmocka_unit_test(test_fast_matches_dense),

@@ -359,6 +359,111 @@ static void test_outlier_flagged_and_removed(void **state)
     rig_free(&r);
 }
 
+/* The calibration's edges: an outlier at the very first reading, rejected also when the caller
+ * gives no residual arrays; e_y relative to its own least-squares line when a point is missing;
+ * a data file named with one character named in the error; the defaults' residual check; and a
+ * caller who wants neither f nor u(f) gets the same noise and e_y. */
+static void test_rig_edges(void **state)
+{
+    (void)state;
+    const int n = 330;
+    rig r;
+    sc_profile_options o;
+    sc_profile_solution s;
+    sc_error err;
+    double *fclean = malloc(n * sizeof(double)), *ey0 = malloc(n * sizeof(double));
+    unsigned char *out = malloc((size_t)(2 * n));
+    double *ra = malloc(2 * n * sizeof(double)), *ta = malloc(2 * n * sizeof(double));
+    assert_true(fclean && ey0 && out && ra && ta);
+    /* An outlier in point 0's first reading: point 0 has two readings only (y1(0), y2(0)), so
+     * their standardized residuals are equal but for rounding and either may be the one removed
+     * (the largest |t| found first); one of them is, with or without the caller's arrays, and the
+     * rest of f is as without the outlier. */
+    int first = 0;
+    for (int seed = 0; seed < 8; ++seed) {
+        const int d1 = seed < 4 ? 10 : 11, m0 = n - d1; /* either scan the finer */
+        rig_make(&r, n, d1, 21 - d1, 0.01, 1.0, 23 + (uint64_t)seed);
+        sc_profile_options_default(&o);
+        o.want_residuals = 1;
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        memcpy(fclean, r.f, n * sizeof(double));
+        const double sy = sqrt(sc_profile_y_variance(d1, 1.0, 0.01, 1.0));
+        r.d.m2_um[0][0] += 30 * sy;
+        o.want_residuals = 0;
+        o.reject_outliers = 1; /* no arrays given: the calibration's own */
+        assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+        assert_int_equal(s.n_removed, 1);
+        for (int i = 1; i < n; ++i) /* f(0) keeps the outlier if y2(0) went */
+            assert_true(fabs(r.f[i] - fclean[i]) < 2 * r.uf[i]);
+        memset(&s, 0, sizeof s); /* the caller's arrays: which reading went */
+        s.f_um = r.f, s.uf_um = r.uf, s.ey_um = r.ey;
+        s.r_um[0] = ra, s.r_um[1] = ra + m0, s.t[0] = ta, s.t[1] = ta + m0;
+        s.outlier[0] = out, s.outlier[1] = out + m0;
+        assert_int_equal(sc_profile_calibrate(&r.d, &o, &s, &err), SC_OK);
+        assert_int_equal(s.n_removed, 1);
+        assert_true(out[0] == 2 || out[m0] == 2);
+        first += out[0] == 2;
+        rig_free(&r);
+    }
+    print_message("an outlier in y1(0): y1(0) itself removed in %d of 8 runs, y2(0) in the others\n",
+                  first);
+    rig_make(&r, n, 10, 11, 0.01, 1.0, 23);
+    sc_profile_options_default(&o);
+
+    /* point 150 in no complete row of either scan: e_y has a hole there, and is the residual of
+     * its own least-squares line over the points it has */
+    drop_row(&r.d, 0, 150);
+    drop_row(&r.d, 0, 140);
+    drop_row(&r.d, 1, 150);
+    drop_row(&r.d, 1, 139);
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    assert_true(isnan(r.ey[150]));
+    double cnt = 0, sx = 0, sum = 0, mom = 0, scale = 0;
+    for (int i = 0; i < n - 10; ++i)
+        if (isfinite(r.ey[i]))
+            cnt += 1, sx += i, sum += r.ey[i], scale = fmax(scale, fabs(r.ey[i]));
+    for (int i = 0; i < n - 10; ++i)
+        if (isfinite(r.ey[i]))
+            mom += (i - sx / cnt) * r.ey[i];
+    assert_true(cnt == n - 10 - 1 && scale > 0);
+    assert_true(fabs(sum) < 1e-9 * scale * cnt);
+    assert_true(fabs(mom) < 1e-9 * scale * cnt * cnt);
+
+    /* neither f nor u(f) wanted: the same noise, wrss and e_y */
+    memcpy(ey0, r.ey, n * sizeof(double));
+    const double wrss = s.wrss, sig = s.sigma_y_um[0];
+    memset(&s, 0, sizeof s);
+    s.ey_um = r.ey;
+    assert_int_equal(sc_profile_calibrate(&r.d, &o, &s, &err), SC_OK);
+    assert_true(fabs(s.wrss - wrss) <= 1e-9 * wrss && fabs(s.sigma_y_um[0] - sig) <= 1e-12 * sig);
+    for (int i = 0; i < n; ++i)
+        assert_true(isnan(ey0[i]) ? isnan(r.ey[i]) : fabs(r.ey[i] - ey0[i]) < 1e-12);
+
+    /* a scan with no complete sample, in a file named "p": the file and the scan's line */
+    snprintf(r.d.path, sizeof r.d.path, "p");
+    r.d.line_scan[0] = 4, r.d.line_scan[1] = 5;
+    for (int j = 0; j < n - 11; ++j)
+        drop_row(&r.d, 1, j);
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "scan 2 has no complete sample"));
+    assert_string_equal(err.file, "p");
+    assert_int_equal(err.line, 5);
+    rig_free(&r);
+
+    /* the defaults check the residuals against given noise, the DFT method too */
+    rig_make(&r, n, 10, 11, 0.01, 1.0, 29);
+    sc_profile_options_default(&o);
+    assert_int_equal(o.residual_check, 1);
+    o.method = SC_PROFILE_DFT;
+    o.sigma_disp_um = 0.01, o.sigma_angle_urad = 1.0;
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+    assert_true(s.noise_known);
+    assert_true(isfinite(s.wrss) && s.wrss > 0);
+    assert_true(s.residual_ratio > 0.8 && s.residual_ratio < 1.2);
+    free(fclean), free(ey0), free(out), free(ra), free(ta);
+    rig_free(&r);
+}
+
 /* Stated noise too small: the χ² test fails high and uf is scaled by sqrt(wrss/dof). */
 static void test_chi2_verdict(void **state)
 {
@@ -425,6 +530,7 @@ int main(void)
         cmocka_unit_test(test_instrument_u_enters_uf),
         cmocka_unit_test(test_drift_removed),
         cmocka_unit_test(test_outlier_flagged_and_removed),
+        cmocka_unit_test(test_rig_edges),
         cmocka_unit_test(test_chi2_verdict),
         cmocka_unit_test(test_coverage),
     };
