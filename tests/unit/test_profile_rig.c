@@ -190,6 +190,12 @@ static void test_dft_refuses_gaps(void **state)
     assert_non_null(strstr(err.msg, "--method lsq"));
     assert_non_null(strstr(err.msg, "scan 2"));
     assert_int_equal(err.line, 5);
+    /* a gap running to the scan's last reading: named to its end */
+    r.d.m3_urad[1][77] = 0;
+    for (int j = 330 - 11 - 3; j < 330 - 11; ++j)
+        r.d.m1_um[1][j] = NAN;
+    assert_int_equal(rig_solve(&r, &o, &s, &err), SC_E_INPUT);
+    assert_non_null(strstr(err.msg, "scan 2 has no complete sample for n = 316..318:"));
     rig_free(&r);
 }
 
@@ -262,9 +268,37 @@ static void test_instrument_u_enters_uf(void **state)
                 double expect = sqrt(u0[i] * u0[i] + sens * U * sens * U);
                 assert_true(fabs(r.uf[i] - expect) < 1e-3 * expect + 1e-7);
             }
-        } else
-            for (int i = 0; i < n; ++i)
-                assert_true(r.uf[i] >= u0[i]);
+        } else {
+            /* each spacing D_k by itself (independent): scan k's angle readings scaled by
+             * 1 + U/D_k move y_k by exactly U times its sensitivity to D_k (-m3) */
+            double *df[2], *m3[2];
+            for (int k = 0; k < 2; ++k) {
+                const int m = n - r.d.d[k];
+                const double D = r.d.d[k] * r.d.s_mm;
+                df[k] = malloc(n * sizeof(double));
+                m3[k] = malloc(m * sizeof(double));
+                memcpy(m3[k], r.d.m3_urad[k], m * sizeof(double));
+                r.d.has_spacing_u = 0;
+                for (int j = 0; j < m; ++j)
+                    r.d.m3_urad[k][j] *= 1 + U / D;
+                assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+                for (int i = 0; i < n; ++i)
+                    df[k][i] = r.f[i] - f0[i];
+                memcpy(r.d.m3_urad[k], m3[k], m * sizeof(double));
+            }
+            r.d.has_spacing_u = 1;
+            assert_int_equal(rig_solve(&r, &o, &s, &err), SC_OK);
+            double ss = 0;
+            for (int i = 0; i < n; ++i) {
+                double b2 = df[0][i] * df[0][i] + df[1][i] * df[1][i];
+                double expect = sqrt(u0[i] * u0[i] + b2);
+                assert_true(fabs(r.uf[i] - expect) < 1e-6 * expect + 1e-9);
+                ss += b2;
+            }
+            assert_true(fabs(s.budget_rms_um[src] - sqrt(ss / n)) < 1e-6 * s.budget_rms_um[src]);
+            for (int k = 0; k < 2; ++k)
+                free(df[k]), free(m3[k]);
+        }
         free(u0), free(f0);
         rig_free(&r);
     }
@@ -429,6 +463,19 @@ static void test_rig_edges(void **state)
     assert_true(fabs(sum) < 1e-9 * scale * cnt);
     assert_true(fabs(mom) < 1e-9 * scale * cnt * cnt);
 
+    /* part of the residual arrays given: none is written, no test (all six or none) */
+    {
+        double *r1 = malloc(n * sizeof(double));
+        for (int i = 0; i < n; ++i)
+            r1[i] = -7.0;
+        memset(&s, 0, sizeof s);
+        s.f_um = r.f, s.uf_um = r.uf, s.ey_um = r.ey;
+        s.r_um[1] = r1, s.t[0] = r1, s.t[1] = r1, s.outlier[0] = out, s.outlier[1] = out;
+        assert_int_equal(sc_profile_calibrate(&r.d, &o, &s, &err), SC_OK);
+        for (int i = 0; i < n; ++i)
+            assert_true(r1[i] == -7.0);
+        free(r1);
+    }
     /* neither f nor u(f) wanted: the same noise, wrss and e_y */
     memcpy(ey0, r.ey, n * sizeof(double));
     const double wrss = s.wrss, sig = s.sigma_y_um[0];
