@@ -342,6 +342,14 @@ static void test_extra_views(void **state)
         assert_true(a.res.residual_rms_um == b.res.residual_rms_um);
         for (int q = 0; q < nv; ++q)
             assert_true(a.res.theta_urad[q] == b.res.theta_urad[pos[q]]);
+        /* an unused view whose every mark is missing: its misalignment is not determined
+         * (all three NaN, not a rotation of 0), and nothing else changes */
+        assert_true(isfinite(b.res.theta_urad[1]));
+        for (int k = 0; k < n * n; ++k)
+            b.data.dx_um[1][k] = b.data.dy_um[1][k] = NAN;
+        assert_int_equal(run((sc_grid_exact_method)m, &b, &err), SC_OK);
+        assert_true(isnan(b.res.tx_um[1]) && isnan(b.res.ty_um[1]) && isnan(b.res.theta_urad[1]));
+        assert_true(max_err(n, a.rgx, b.rgx, a.rgy, b.rgy) == 0.0);
         sim_free(&a);
         sim_free(&b);
     }
