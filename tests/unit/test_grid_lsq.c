@@ -336,6 +336,41 @@ static void test_node_sigma_only(void **s)
     }
 }
 
+/* The plan's summary of std(G) is that of its per-node values (sc_grid_lsq_sigma_ratio): the
+ * RMS and the largest, also when every node is below 1 (stated uncertainties of 0.01 µm: std(G)
+ * in µm) and with none stated (ratios to σ_r). */
+static void test_sigma_ratio_summary(void **s)
+{
+    (void)s;
+    const int n = 9, nn = n * n;
+    for (int weighted = 0; weighted < 2; ++weighted) {
+        sc_grid_plan p;
+        tu_plan(&p, n, PLAN_RICH);
+        for (int v = 0; weighted && v < p.n_views; ++v)
+            p.view[v].sigma_um = 0.01;
+        sc_grid_lsq_plan *q = NULL;
+        sc_error err;
+        assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err), SC_OK);
+        sc_grid_lsq_info info;
+        sc_grid_lsq_get_info(q, &info);
+        assert_int_equal(info.weighted, weighted);
+        double *sgx = malloc(sizeof(double) * nn), *sgy = malloc(sizeof(double) * nn);
+        assert_int_equal(sc_grid_lsq_sigma_ratio(q, sgx, sgy, &err), SC_OK);
+        double mx = 0, ss = 0;
+        for (int k = 0; k < nn; ++k) {
+            mx = fmax(mx, fmax(sgx[k], sgy[k]));
+            ss += sgx[k] * sgx[k] + sgy[k] * sgy[k];
+        }
+        if (weighted)
+            assert_true(mx < 0.1); /* std(G) in µm, of the order of the 0.01 µm stated */
+        assert_true(info.sigma_c_ratio_max == mx);
+        assert_true(fabs(info.sigma_c_ratio_rms - sqrt(ss / (2 * nn))) <= 1e-12 * info.sigma_c_ratio_rms);
+        free(sgx), free(sgy);
+        sc_grid_lsq_plan_destroy(q);
+        sc_grid_plan_free(&p);
+    }
+}
+
 /* Monte Carlo: the empirical per-node std of G equals the predicted one. */
 static void test_monte_carlo(void **s)
 {
@@ -700,6 +735,7 @@ int main(void)
         cmocka_unit_test(test_reference_accuracy),
         cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_node_sigma_only),
         cmocka_unit_test(test_memory_limit),
+        cmocka_unit_test(test_sigma_ratio_summary),
         cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),
