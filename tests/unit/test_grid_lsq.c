@@ -371,6 +371,83 @@ static void test_sigma_ratio_summary(void **s)
     }
 }
 
+/* The peak memory reported before the assembly (the plan's estimate, progress and --max-memory)
+ * holds at least the dense node-misalignment block and the pairs of stage unknowns each plate
+ * mark component couples: k views seeing it, k(k+1)/2 entries of 12 bytes held twice (16
+ * views: k above 12). The work is counted once the factor
+ * has (the sparse solver counts it while factoring): the solve's report is all of it, > 0. */
+typedef struct peak_log {
+    double first;      /* the peak of the first report (the assembly's: the plan's estimate) */
+    double done, total; /* the work of the last report */
+    int calls;
+} peak_log;
+
+static void record_peak(void *ctx, const char *phase, double done, double total, double peak)
+{
+    (void)phase;
+    peak_log *l = ctx;
+    if (l->calls == 0)
+        l->first = peak;
+    l->done = done, l->total = total;
+    l->calls++;
+}
+
+static void test_peak_estimate(void **s)
+{
+    (void)s;
+    const int n = 9, nn = n * n, nv = 16;
+    sc_grid_plan p;
+    memset(&p, 0, sizeof p);
+    p.n = n;
+    p.pitch_mm = 2.5;
+    for (int v = 0; v < nv; ++v) /* the four rotations at four shifts */
+        tu_add_view(&p, 90 * (v % 4), (v / 4) % 2, v / 8);
+    sc_grid_lsq_opts o;
+    memset(&o, 0, sizeof o);
+    peak_log l = {0, 0, 0, 0};
+    o.progress = record_peak;
+    o.progress_ctx = &l;
+    sc_grid_lsq_plan *q = NULL;
+    sc_error err;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &o, &q, &err), SC_OK);
+    sc_grid_lsq_info info;
+    sc_grid_lsq_get_info(q, &info);
+    assert_int_equal(info.identifiable, 1);
+    /* Σ k(k+1)/2 over the 2 nn mark components, k summing to the equations: at least its value
+     * for equal k (convexity) */
+    const double nm = 3.0 * nv, ne = (double)info.n_equations, ka = ne / (2.0 * nn);
+    const double pairs = 2.0 * nn * ka * (ka + 1) / 2;
+    const double ng = (double)info.n_unknowns - 2 * nn - nm; /* the stage's nodes, both axes */
+    assert_true(ng >= 2 * nn && ka > 12);
+    const double bound = 8 * ng * nm + 2 * 12 * (pairs + ng);
+    assert_true(l.calls > 0);
+    assert_true(l.first >= bound);
+    /* a solve: the last report is the whole work, counted by the factor */
+    sc_rng r;
+    sc_rng_seed(&r, 43);
+    sc_grid_data d;
+    tu_data_alloc(&d, &p);
+    tu_truth t;
+    tu_truth_make(&t, &p, &r);
+    sc_grid_synthesize(&p, t.gx, t.gy, t.ax, t.ay, t.tx, t.ty, t.th, &d);
+    tu_res res;
+    tu_res_alloc(&res, nn);
+    assert_int_equal(sc_grid_lsq_execute(q, &d, 0.01, &res.r, &err), SC_OK);
+    assert_true(l.total > 0 && l.done == l.total);
+    tu_truth_free(&t);
+    tu_res_free(&res);
+    tu_data_free(&d);
+    /* and a limit below it refuses the plan before anything is assembled */
+    o.progress = NULL;
+    o.max_bytes = bound / 2;
+    sc_grid_lsq_plan *q2 = NULL;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &o, &q2, &err), SC_E_NOMEM);
+    assert_non_null(strstr(err.msg, "needs about"));
+    assert_null(q2);
+    sc_grid_lsq_plan_destroy(q);
+    sc_grid_plan_free(&p);
+}
+
 /* Monte Carlo: the empirical per-node std of G equals the predicted one. */
 static void test_monte_carlo(void **s)
 {
@@ -736,6 +813,7 @@ int main(void)
         cmocka_unit_test(test_sigma_estimate), cmocka_unit_test(test_node_sigma_only),
         cmocka_unit_test(test_memory_limit),
         cmocka_unit_test(test_sigma_ratio_summary),
+        cmocka_unit_test(test_peak_estimate),
         cmocka_unit_test(test_monte_carlo),
         cmocka_unit_test(test_mask_subset),    cmocka_unit_test(test_bad_input),
         cmocka_unit_test(test_unmeasured_node), cmocka_unit_test(test_undetermined_view),
