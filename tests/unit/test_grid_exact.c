@@ -355,6 +355,38 @@ static void test_extra_views(void **state)
     }
 }
 
+/* A plan keeps nothing of an execution: run on one data set, then on another, it gives for the
+ * second exactly what a fresh plan gives (Ye's last column of H is completed from the others,
+ * whatever the previous run left in it). */
+static void test_plan_reused(void **state)
+{
+    (void)state;
+    const int n = 11;
+    for (int m = 0; m < 2; ++m) {
+        const view_spec *vs = m == 0 ? YE : DS;
+        int nv = m == 0 ? 3 : 4;
+        sim a, b;
+        sim_init(&a, n, 0.5, vs, nv, 501 + m, 0.2, 50.0);
+        sim_init(&b, n, 0.5, vs, nv, 601 + m, 0.2, 50.0);
+        add_noise(&a, 0.01, 5);
+        add_noise(&b, 0.01, 6);
+        sc_error err;
+        assert_int_equal(run((sc_grid_exact_method)m, &b, &err), SC_OK); /* fresh */
+        double *gx = malloc(sizeof(double) * n * n), *gy = malloc(sizeof(double) * n * n);
+        memcpy(gx, b.rgx, sizeof(double) * n * n);
+        memcpy(gy, b.rgy, sizeof(double) * n * n);
+        sc_grid_exact_plan *p = NULL;
+        assert_int_equal(sc_grid_exact_plan_create((sc_grid_exact_method)m, n, &p, &err), SC_OK);
+        assert_int_equal(sc_grid_exact_execute(p, &a.data, &a.res, &err), SC_OK);
+        assert_int_equal(sc_grid_exact_execute(p, &b.data, &b.res, &err), SC_OK);
+        sc_grid_exact_plan_destroy(p);
+        assert_true(max_err(n, b.rgx, gx, b.rgy, gy) == 0.0);
+        free(gx), free(gy);
+        sim_free(&a);
+        sim_free(&b);
+    }
+}
+
 /* With noise: unbiased (the mean error over seeds shrinks like 1/sqrt(runs)) and σ_C of the
  * order of σ_r; the estimate does not depend on the size of G (linear, exact method). Returns
  * σ_C/σ_r over the runs. */
@@ -595,6 +627,7 @@ int main(void)
         cmocka_unit_test(test_large_misalignment),
         cmocka_unit_test(test_misalignment_recovered),
         cmocka_unit_test(test_extra_views),
+        cmocka_unit_test(test_plan_reused),
         cmocka_unit_test(test_noise),
         cmocka_unit_test(test_ds_wrap_mean_of_links),
         cmocka_unit_test(test_noise_independent_of_g),

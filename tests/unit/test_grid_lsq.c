@@ -63,6 +63,7 @@ static void check_recovery(int n, int kind, uint64_t seed)
                 continue;
             double px, py;
             sc_grid_lsq_predict(q, &res.r, v, k / n, k % n, 0.0, &px, &py);
+            assert_true(isfinite(px) && isfinite(py)); /* fmax below would pass over a NaN */
             worst = fmax(worst, fmax(fabs(px - d.dx_um[v][k]), fabs(py - d.dy_um[v][k])));
         }
     assert_true(worst < 1e-9);

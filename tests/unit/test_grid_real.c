@@ -902,19 +902,24 @@ static void test_outlier_test_calibrate(void **s)
                 quiet_default += sol.n_flagged == 0;
             sc_grid_solution_free(&sol);
         }
-        if (seed == 1) { /* a 50-sigma blunder: flagged, and removed alone */
-            double keep = d.dx_um[2][300];
-            d.dx_um[2][300] += 0.5;
+        for (int bv = 2; seed == 1 && bv >= 0; bv -= 2) { /* a 50-sigma blunder: flagged, and
+                                                           removed alone, in view 2, then 0 */
+            double keep = d.dx_um[bv][300];
+            d.dx_um[bv][300] += 0.5;
             sc_grid_options o;
             sc_grid_options_default(&o);
             o.reject_outliers = 1;
             sc_grid_solution sol;
             assert_int_equal(sc_grid_calibrate(&d, NULL, NULL, &o, &sol, NULL), SC_OK);
             assert_int_equal(sol.n_removed, 1);
-            assert_int_equal(sol.outlier[2 * 625 + 300], 1);
-            assert_true(d.dx_um[2][300] == keep + 0.5); /* the data as they came */
+            assert_int_equal(sol.outlier[bv * 625 + 300], 1);
+            assert_true(d.dx_um[bv][300] == keep + 0.5); /* the data as they came */
+            /* its residual against the final solution (predicted from its view's fit): the
+             * blunder, to a few σ_r */
+            assert_true(fabs(sol.rx_um[bv * 625 + 300] - 0.5) < 0.05);
+            assert_true(fabs(sol.ry_um[bv * 625 + 300]) < 0.05);
             sc_grid_solution_free(&sol);
-            d.dx_um[2][300] = keep;
+            d.dx_um[bv][300] = keep;
         }
         sc_grid_data_free(&d);
     }
