@@ -1,0 +1,87 @@
+/* cli_opts.h — a command's options as a declarative table, parsed by one function (cli_opts.c).
+ *
+ * The table is the one list of what a command accepts: cli_opts_parse reads the command line by
+ * it (usage errors as "selfcal CMD: ...", exit status 2), and cli_opts_print lists it (name,
+ * value, kind, range, default, help), which `selfcal --options CMD` prints and from which the
+ * OPTIONS lists of selfcal(1) are generated (tools/man_options.py; a test keeps them equal and
+ * compares them with --help both ways).
+ *
+ * To add an option: one row in the command's table, e.g.
+ *     {"--node-sigma", CLI_CHOICE, F(opt.node_sigma), "all|none", .choices = "all|none",
+ *      .bad = "--node-sigma must be all or none, got '%s'", .def = "all",
+ *      .help = "which nodes get an uncertainty"},
+ * where F(field) is offsetof(the command's argument struct, field); then run
+ * `python3 tools/man_options.py build/bin/selfcal docs/man/selfcal.1.in` to refresh the man page,
+ * and say it in the command's --help text. A value the kinds below cannot check takes CLI_CUSTOM
+ * and a parse function. */
+#ifndef SELFCAL_CLI_OPTS_H
+#define SELFCAL_CLI_OPTS_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+typedef enum {
+    CLI_FLAG,   /* no value: the int field set to 1 */
+    CLI_STRING, /* the value itself: a const char * field */
+    CLI_LONG,   /* a whole number from min to max: a long field */
+    CLI_INT,    /* a whole number from min to max: an int field */
+    CLI_DOUBLE, /* a number from min to max (CLI_MIN_OPEN, CLI_MAX_OPEN: the end excluded) */
+    CLI_CHOICE, /* one of choices ("a|b|c"): an int field, the index of the value */
+    CLI_LIST,   /* repeatable: each value appended to a const char *[max] field; the count at
+                 * count (an int), a value more than max is the usage error bad (%s: the value) */
+    CLI_CUSTOM  /* the row's parse function */
+} cli_kind;
+
+enum { CLI_MIN_OPEN = 1u, CLI_MAX_OPEN = 2u };
+
+/* A parse function: the value v of option opt into the field the row names (an operand: into
+ * the command's argument struct): CLI_OK, or the exit status of the usage error it printed
+ * (cli_usage_error with cmd). */
+typedef int (*cli_opt_parse_fn)(const char *cmd, const char *opt, const char *v, void *field);
+
+/* The parse functions of values several commands take (cli.c): --seed (a uint64_t), --max-memory
+ * (a double of bytes), the least-squares options of cli_parse_lsq_option (the sc_grid_options). */
+int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field);
+int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field);
+int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field);
+
+/* One option. Unset fields are zero (designated initializers). */
+typedef struct cli_opt {
+    const char *name;    /* "--map", or aliases "-o|--out" */
+    cli_kind kind;
+    size_t field;        /* offsetof(argument struct, the field the option sets) */
+    const char *value;   /* the value's name in help and the man page ("G.csv", "N"); NULL: flag */
+    double min, max;     /* CLI_LONG, CLI_INT, CLI_DOUBLE: the range; CLI_LIST: max values */
+    unsigned ends;       /* CLI_MIN_OPEN | CLI_MAX_OPEN */
+    const char *choices; /* CLI_CHOICE: "a|b|c" */
+    const char *bad;     /* the usage error of a bad value (printf format, %s: the value) */
+    size_t count;        /* CLI_LIST: offsetof the int count */
+    cli_opt_parse_fn parse; /* CLI_CUSTOM */
+    const char *def;     /* the default as the man page states it, or NULL */
+    const char *help;    /* what it does, one line */
+} cli_opt;
+
+/* A command's table and the words of its generic usage errors (NULL: the usual words). */
+typedef struct cli_cmd_opts {
+    const char *cmd;        /* "grid", "report grid": the prefix of its usage errors */
+    const char *usage;      /* the --help text (stdout, exit 0) */
+    const cli_opt *opts;
+    int n_opts;
+    size_t positional;      /* offsetof the const char * set by the one operand (a file) */
+    cli_opt_parse_fn operand; /* instead: each operand passed to it (opt NULL) */
+    const char *more;       /* a second operand: format with the first and the second */
+    const char *missing;    /* an option without value: format with the option */
+    const char *unknown;    /* an unknown option: format with the option */
+} cli_cmd_opts;
+
+/* Parse argv[1..argc-1] by the table into args (already holding the defaults): -1 to go on,
+ * CLI_OK after --help, else the exit status of the usage error printed. */
+int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args);
+
+/* The table, one option a line: name, value, kind, range, default, help, tab-separated. */
+void cli_opts_print(FILE *to, const cli_cmd_opts *c);
+
+/* The commands' tables (in their cmd_*.c; main.c's command list points at them). */
+extern const cli_cmd_opts cli_grid_opts;
+
+#endif
