@@ -173,3 +173,13 @@ int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field)
 {
     return cli_parse_lsq_option(cmd, opt, v, field);
 }
+
+int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field)
+{
+    return cli_parse_noise(cmd, opt, v, 0, field);
+}
+
+int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field)
+{
+    return cli_parse_noise(cmd, opt, v, 1, field);
+}

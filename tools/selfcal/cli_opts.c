@@ -49,10 +49,16 @@ static int choice_index(const char *choices, const char *v)
     return -1;
 }
 
+/* The row's usage error for the value v: its format takes the value, or with two %s the option
+ * and the value. */
 static int bad_value(const cli_cmd_opts *c, const cli_opt *o, const char *v)
 {
-    return cli_usage_error(c->cmd, o->bad ? o->bad : "%s: bad value '%s' (see --help)",
-                           o->bad ? v : o->name, v);
+    if (!o->bad)
+        return cli_usage_error(c->cmd, "%s: bad value '%s' (see --help)", o->name, v);
+    const char *first = strstr(o->bad, "%s");
+    if (first && strstr(first + 2, "%s"))
+        return cli_usage_error(c->cmd, o->bad, o->name, v);
+    return cli_usage_error(c->cmd, o->bad, v);
 }
 
 /* A number option's value into its field: CLI_OK or the usage error. */

@@ -44,6 +44,9 @@ typedef int (*cli_opt_parse_fn)(const char *cmd, const char *opt, const char *v,
 int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field);
+/* A noise (cli_parse_noise, a double): from 0, or above 0 (_positive), to SC_INPUT_MAX_ABS. */
+int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field);
+int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field);
 
 /* One option. Unset fields are zero (designated initializers). */
 typedef struct cli_opt {
@@ -54,7 +57,8 @@ typedef struct cli_opt {
     double min, max;     /* CLI_LONG, CLI_INT, CLI_DOUBLE: the range; CLI_LIST: max values */
     unsigned ends;       /* CLI_MIN_OPEN | CLI_MAX_OPEN */
     const char *choices; /* CLI_CHOICE: "a|b|c" */
-    const char *bad;     /* the usage error of a bad value (printf format, %s: the value) */
+    const char *bad;     /* the usage error of a bad value (printf format: one %s, the value; two,
+                          * the option and the value) */
     size_t count;        /* CLI_LIST: offsetof the int count */
     cli_opt_parse_fn parse; /* CLI_CUSTOM */
     const char *def;     /* the default as the man page states it, or NULL */
@@ -82,6 +86,6 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args);
 void cli_opts_print(FILE *to, const cli_cmd_opts *c);
 
 /* The commands' tables (in their cmd_*.c; main.c's command list points at them). */
-extern const cli_cmd_opts cli_grid_opts;
+extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts;
 
 #endif
