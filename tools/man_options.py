@@ -7,7 +7,8 @@ tools/selfcal/cli_opts.h), so that the man page, the table and --help cannot dri
                                           tables make, and each command's --help names exactly
                                           the options of its table
 
-A list sits at the end of its command's `.SS "selfcal CMD ..."` section between the lines
+A row's first name is the one shown (in --help and here); the others are aliases the command
+also accepts ("-o|--out"). A list sits at the end of its command's `.SS "selfcal CMD ..."` section between the lines
 `.\\" OPTIONS CMD (generated ...)` and `.\\" END OPTIONS`; a command without a table has none."""
 import re
 import subprocess
@@ -39,7 +40,7 @@ def roff(s):
 def block(cmd, rows):
     out = [BEGIN % cmd, ".PP", "Options (the command's option table):"]
     for name, value, kind, rng, default, text in rows:
-        names = ", ".join("\\fB%s\\fR" % roff(n) for n in name.split("|"))
+        names = "\\fB%s\\fR" % roff(name.split("|")[0])  # the name; an alias is not shown
         out += [".TP", names + (" \\fI%s\\fR" % roff(value) if value else "")]
         facts = []
         if kind in ("integer", "number") or (rng and kind != "choice" and "|" not in rng):
@@ -74,7 +75,7 @@ def help_problems(selfcal, cmd, rows):
     p = subprocess.run([selfcal] + cmd.split() + ["--help"], capture_output=True, text=True,
                        timeout=60)
     in_help = set(OPT.findall(p.stdout)) - {"--help"}
-    in_table = {n for r in rows for n in r[0].split("|") if n.startswith("--")}
+    in_table = {r[0].split("|")[0] for r in rows if r[0].startswith("--")}
     return (["selfcal %s --help: %s (in its option table) is missing" % (cmd, o)
              for o in sorted(in_table - in_help)] +
             ["selfcal %s: %s (in --help) is not in its option table" % (cmd, o)

@@ -50,7 +50,7 @@ int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void
 
 /* One option. Unset fields are zero (designated initializers). */
 typedef struct cli_opt {
-    const char *name;    /* "--map", or aliases "-o|--out" */
+    const char *name;    /* "--map", or with aliases "-o|--out" (the first is the one documented) */
     cli_kind kind;
     size_t field;        /* offsetof(argument struct, the field the option sets) */
     const char *value;   /* the value's name in help and the man page ("G.csv", "N"); NULL: flag */
@@ -86,6 +86,7 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args);
 void cli_opts_print(FILE *to, const cli_cmd_opts *c);
 
 /* The commands' tables (in their cmd_*.c; main.c's command list points at them). */
-extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts;
+extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts,
+    cli_report_grid_opts;
 
 #endif

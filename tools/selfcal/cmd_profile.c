@@ -65,7 +65,7 @@ typedef struct profile_args {
 /* profile's options (cli_opts.h), in the order of its --help */
 static const cli_opt PROFILE_OPTS[] = {
     {"--method", CLI_STRING, F(method_s), "dft|lsq", .help = "the method (required)"},
-    {"-o|--out", CLI_STRING, F(out), "P.csv", .help = "the profile (required; - for stdout)"},
+    {"--out|-o", CLI_STRING, F(out), "P.csv", .help = "the profile (required; - for stdout)"},
     {"--sigma-disp-um", CLI_CUSTOM, F(sigma_disp_um), "X", 0, SC_INPUT_MAX_ABS, .parse = cli_opt_noise,
      .def = "the file's, else estimated", .help = "the displacement probes' noise (um)"},
     {"--sigma-angle-urad", CLI_CUSTOM, F(sigma_angle_urad), "Y", 0, SC_INPUT_MAX_ABS,

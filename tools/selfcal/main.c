@@ -57,7 +57,7 @@ static const command commands[] = {
     {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves", "-o --out", TUNE_NONE, NULL},
     {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns", "-o --out", TUNE_NONE, NULL},
     {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML, PDF)", "-o --out --pdf",
-     TUNE_FACTOR, NULL},
+     TUNE_FACTOR, &cli_report_grid_opts},
     {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]",
      "profile report (HTML, PDF)", "-o --out --pdf", TUNE_NONE, NULL},
     {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T",
