@@ -71,10 +71,21 @@ def rewrite(lines, cmd, rows):
     return lines[:end] + block(cmd, rows) + lines[end:]
 
 
+def own_opts(text, cmd):
+    """The options a --help text names, leaving out those it cites of another command (`from grid
+    --artifact`, `selfcal plan --design`)."""
+    others = sorted((c for c in COMMANDS + ["lut dump", "lut info"] if c != cmd), key=len,
+                    reverse=True)
+    groups = "".join("(?<!%s )" % g for g in ("import", "simulate", "report", "plot", "lut"))
+    cite = re.compile(r"(?<![\w-])%s(?:%s)\s+--[a-z][a-z0-9-]*"
+                      % (groups, "|".join(map(re.escape, others))))
+    return set(OPT.findall(cite.sub(" ", text))) - {"--help"}
+
+
 def help_problems(selfcal, cmd, rows):
     p = subprocess.run([selfcal] + cmd.split() + ["--help"], capture_output=True, text=True,
                        timeout=60)
-    in_help = set(OPT.findall(p.stdout)) - {"--help"}
+    in_help = own_opts(p.stdout, cmd)
     in_table = {r[0].split("|")[0] for r in rows if r[0].startswith("--")}
     return (["selfcal %s --help: %s (in its option table) is missing" % (cmd, o)
              for o in sorted(in_table - in_help)] +

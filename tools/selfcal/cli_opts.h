@@ -87,6 +87,7 @@ void cli_opts_print(FILE *to, const cli_cmd_opts *c);
 
 /* The commands' tables (in their cmd_*.c; main.c's command list points at them). */
 extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts,
-    cli_report_grid_opts;
+    cli_report_grid_opts, cli_report_profile_opts,
+    cli_plot_map_opts, cli_plot_profile_opts;
 
 #endif

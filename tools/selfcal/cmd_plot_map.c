@@ -1,10 +1,12 @@
 /* selfcal plot map — arrow plot of a stage error map (and of its estimation error vs a truth). */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "input_once.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -13,7 +15,7 @@
 #include "plots.h"
 #include "svg.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal plot map G.csv|A.csv -o map.svg [--truth TRUE.csv] [--scale-um-per-pitch X]\n"
     "                        [--pitch-mm P]\n"
     "\n"
@@ -465,36 +467,38 @@ static int is_artifact_file(const char *path)
     return art;
 }
 
+/* What the command line asks for. */
+typedef struct plot_map_args {
+    const char *in, *out, *truth_path;
+    double scale, pitch; /* 0: not given */
+} plot_map_args;
+
+#define F(field) offsetof(plot_map_args, field)
+/* plot map's options (cli_opts.h), in the order of its --help */
+static const cli_opt PLOT_MAP_OPTS[] = {
+    {"-o|--out", CLI_STRING, F(out), "map.svg", .help = "the plot (SVG)"},
+    {"--truth", CLI_STRING, F(truth_path), "TRUE.csv", .help = "the true map, drawn beside"},
+    {"--scale-um-per-pitch", CLI_DOUBLE, F(scale), "X", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--scale-um-per-pitch needs a positive number", .def = "a round number from half the largest error",
+     .help = "the arrows' scale: um drawn as one pitch"},
+    {"--pitch-mm", CLI_DOUBLE, F(pitch), "P", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--pitch-mm needs a positive number", .def = "1", .help = "a plate error file's pitch (mm)"},
+};
+#undef F
+
+const cli_cmd_opts cli_plot_map_opts = {
+    "plot map", USAGE, PLOT_MAP_OPTS, (int)(sizeof PLOT_MAP_OPTS / sizeof PLOT_MAP_OPTS[0]),
+    offsetof(plot_map_args, in), NULL, "more than one map ('%s', '%s')", NULL, NULL,
+};
+
 int cmd_plot_map(int argc, char **argv)
 {
-    const char *in = NULL, *out = NULL, *truth_path = NULL;
-    double scale = 0, pitch = 0;
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        if (o[0] != '-' || !strcmp(o, "-")) {
-            if (in)
-                return cli_usage_error("plot map", "more than one map ('%s', '%s')", in, o);
-            in = o;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error("plot map", "%s: unknown option or missing value (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
-        else if (!strcmp(o, "--truth")) truth_path = v;
-        else if (!strcmp(o, "--scale-um-per-pitch")) {
-            if (sc_parse_double(v, &scale) || !(scale > 0) || !(scale <= SC_INPUT_MAX_ABS))
-                return cli_usage_error("plot map", "--scale-um-per-pitch needs a positive number");
-        } else if (!strcmp(o, "--pitch-mm")) {
-            if (sc_parse_double(v, &pitch) || !(pitch > 0) || !(pitch <= SC_INPUT_MAX_ABS))
-                return cli_usage_error("plot map", "--pitch-mm needs a positive number");
-        } else
-            return cli_usage_error("plot map", "unknown option '%s' (see --help)", o);
-    }
+    plot_map_args p = {0};
+    int rc = cli_opts_parse(&cli_plot_map_opts, argc, argv, &p);
+    if (rc >= 0)
+        return rc;
+    const char *in = p.in, *out = p.out, *truth_path = p.truth_path;
+    double scale = p.scale, pitch = p.pitch;
     if (!in || !out)
         return cli_usage_error("plot map", "G.csv and -o map.svg are required (see --help)");
     sc_error err;
@@ -508,7 +512,7 @@ int cmd_plot_map(int argc, char **argv)
     sc_status st = plate ? sc_grid_read_artifact(src.path, pitch > 0 ? pitch : 1.0, &m, &err)
                          : sc_stage_map_read(src.path, &m, &err);
     if (st != SC_OK) {
-        int rc = cli_report(&err);
+        rc = cli_report(&err);
         cli_input_close(&src);
         return rc;
     }
@@ -533,7 +537,7 @@ int cmd_plot_map(int argc, char **argv)
     }
     sc_stage_map_free(&m);
     sc_stage_map_free(&t);
-    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    rc = st == SC_OK ? CLI_OK : cli_report(&err);
     cli_input_close(&src);
     return rc;
 }

@@ -797,11 +797,6 @@ typedef struct report_grid_args {
     const char *out;
 } report_grid_args;
 
-static int info_opt(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return report_info_option(cmd, opt, v, field);
-}
-
 static int verify_opt(const char *cmd, const char *opt, const char *v, void *field)
 {
     return verify_parse_option(cmd, opt, v, field);
@@ -813,7 +808,7 @@ static int verify_opt(const char *cmd, const char *opt, const char *v, void *fie
 /* report grid's options (cli_opts.h), in the order of its --help */
 static const cli_opt REPORT_GRID_OPTS[] = {
     {"-o|--out", CLI_STRING, F(out), "R.html", .help = "the report (HTML)"},
-    {"--pdf", CLI_CUSTOM, F(ri), "R.pdf", .parse = info_opt, .help = "the report as PDF"},
+    {"--pdf", CLI_CUSTOM, F(ri), "R.pdf", .parse = report_info_opt, .help = "the report as PDF"},
     {"--method", CLI_STRING, F(r.method), "lsq|ye|double-shift", .def = "lsq", .help = "the method"},
     {"--sigma-r-um", CLI_DOUBLE, F(r.sigma_r_given), "S", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
      .bad = "--sigma-r-um needs a positive number, got '%s'", .def = "estimated from the residuals",
@@ -836,8 +831,8 @@ static const cli_opt REPORT_GRID_OPTS[] = {
     VERIFY_UM("--u-verify-um", "the re-measurement's uncertainty (um)"),
     VERIFY_UM("--u-plate-um", "the plate error's uncertainty (um)"),
     VERIFY_UM("--verify-sigma-um", "the re-measurement's noise (um)"),
-    {"--info", CLI_CUSTOM, F(ri), "KEY=VALUE", .parse = info_opt, .help = "a certificate field"},
-    {"--info-file", CLI_CUSTOM, F(ri), "F", .parse = info_opt, .help = "certificate fields from a file"},
+    {"--info", CLI_CUSTOM, F(ri), "KEY=VALUE", .parse = report_info_opt, .help = "a certificate field"},
+    {"--info-file", CLI_CUSTOM, F(ri), "F", .parse = report_info_opt, .help = "certificate fields from a file"},
 };
 #undef VERIFY_UM
 #undef F
