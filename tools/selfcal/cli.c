@@ -183,3 +183,9 @@ int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void
 {
     return cli_parse_noise(cmd, opt, v, 1, field);
 }
+
+int cli_opt_no_operand(const char *cmd, const char *opt, const char *v, void *args)
+{
+    (void)opt, (void)args;
+    return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", v);
+}

@@ -51,29 +51,30 @@ static int choice_index(const char *choices, const char *v)
 
 /* The row's usage error for the value v: its format takes the value, or with two %s the option
  * and the value. */
-static int bad_value(const cli_cmd_opts *c, const cli_opt *o, const char *v)
+static int bad_value(const cli_cmd_opts *c, const cli_opt *o, const char *name, const char *v)
 {
     if (!o->bad)
-        return cli_usage_error(c->cmd, "%s: bad value '%s' (see --help)", o->name, v);
+        return cli_usage_error(c->cmd, "%s: bad value '%s' (see --help)", name, v);
     const char *first = strstr(o->bad, "%s");
     if (first && strstr(first + 2, "%s"))
-        return cli_usage_error(c->cmd, o->bad, o->name, v);
+        return cli_usage_error(c->cmd, o->bad, name, v);
     return cli_usage_error(c->cmd, o->bad, v);
 }
 
 /* A number option's value into its field: CLI_OK or the usage error. */
-static int set_number(const cli_cmd_opts *c, const cli_opt *o, const char *v, char *field)
+static int set_number(const cli_cmd_opts *c, const cli_opt *o, const char *name, const char *v,
+                      char *field)
 {
     if (o->kind == CLI_DOUBLE) {
         double x;
         if (sc_parse_double(v, &x) != SC_OK || !in_range(o, x))
-            return bad_value(c, o, v);
+            return bad_value(c, o, name, v);
         memcpy(field, &x, sizeof x);
         return CLI_OK;
     }
     long n;
     if (sc_parse_long(v, &n) != SC_OK || !in_range(o, (double)n))
-        return bad_value(c, o, v);
+        return bad_value(c, o, name, v);
     if (o->kind == CLI_INT) {
         int i = (int)n;
         memcpy(field, &i, sizeof i);
@@ -83,8 +84,9 @@ static int set_number(const cli_cmd_opts *c, const cli_opt *o, const char *v, ch
     return CLI_OK;
 }
 
-/* The value v of option o into args: CLI_OK or the usage error. */
-static int set_value(const cli_cmd_opts *c, const cli_opt *o, const char *v, void *args)
+/* The value v of option o (typed as name) into args: CLI_OK or the usage error. */
+static int set_value(const cli_cmd_opts *c, const cli_opt *o, const char *name, const char *v,
+                     void *args)
 {
     char *field = (char *)args + o->field;
     switch (o->kind) {
@@ -94,24 +96,24 @@ static int set_value(const cli_cmd_opts *c, const cli_opt *o, const char *v, voi
     case CLI_LONG:
     case CLI_INT:
     case CLI_DOUBLE:
-        return set_number(c, o, v, field);
+        return set_number(c, o, name, v, field);
     case CLI_CHOICE: {
         int k = choice_index(o->choices, v);
         if (k < 0)
-            return bad_value(c, o, v);
+            return bad_value(c, o, name, v);
         memcpy(field, &k, sizeof k);
         return CLI_OK;
     }
     case CLI_LIST: {
         int *count = (int *)(void *)((char *)args + o->count);
         if (*count >= (int)o->max)
-            return bad_value(c, o, v);
+            return bad_value(c, o, name, v);
         memcpy(field + (size_t)*count * sizeof v, &v, sizeof v);
         ++*count;
         return CLI_OK;
     }
     case CLI_CUSTOM:
-        return o->parse(c->cmd, o->name, v, field);
+        return o->parse(c->cmd, name, v, field);
     case CLI_FLAG:
         break;
     }
@@ -143,7 +145,10 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
         int rc;
         if (o && o->kind == CLI_FLAG) {
             int one = 1;
-            memcpy((char *)args + o->field, &one, sizeof one);
+            if (o->parse && (rc = o->parse(c->cmd, name, NULL, (char *)args + o->field)) != CLI_OK)
+                return rc;
+            if (!o->parse)
+                memcpy((char *)args + o->field, &one, sizeof one);
             continue;
         }
         if (name[0] != '-' || !strcmp(name, "-")) {
@@ -159,7 +164,7 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
         if (!o)
             return cli_usage_error(c->cmd, c->unknown ? c->unknown : "unknown option '%s' (see --help)",
                                    name);
-        if ((rc = set_value(c, o, v, args)) != CLI_OK)
+        if ((rc = set_value(c, o, name, v, args)) != CLI_OK)
             return rc;
     }
     return -1;

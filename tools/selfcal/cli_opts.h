@@ -21,7 +21,8 @@
 #include <stdio.h>
 
 typedef enum {
-    CLI_FLAG,   /* no value: the int field set to 1 */
+    CLI_FLAG,   /* no value: the int field set to 1 (or, with a parse function, that called
+                 * with the value NULL) */
     CLI_STRING, /* the value itself: a const char * field */
     CLI_LONG,   /* a whole number from min to max: a long field */
     CLI_INT,    /* a whole number from min to max: an int field */
@@ -47,6 +48,8 @@ int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field);
 /* A noise (cli_parse_noise, a double): from 0, or above 0 (_positive), to SC_INPUT_MAX_ABS. */
 int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field);
+/* The operand function of a command that takes none: "unknown option or missing value: WORD". */
+int cli_opt_no_operand(const char *cmd, const char *opt, const char *v, void *args);
 
 /* One option. Unset fields are zero (designated initializers). */
 typedef struct cli_opt {
@@ -88,6 +91,6 @@ void cli_opts_print(FILE *to, const cli_cmd_opts *c);
 /* The commands' tables (in their cmd_*.c; main.c's command list points at them). */
 extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts,
     cli_report_grid_opts, cli_report_profile_opts,
-    cli_plot_map_opts, cli_plot_profile_opts;
+    cli_plot_map_opts, cli_plot_profile_opts, cli_plot_xy_opts, cli_simulate_profile_opts;
 
 #endif

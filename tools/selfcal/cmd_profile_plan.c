@@ -78,13 +78,6 @@ typedef struct {
     int sort_max;     /* --sort: 0 rms, 1 max */
 } plan_args;
 
-/* profile-plan has no operand: a word that is no option is refused as an unknown option */
-static int no_operand(const char *cmd, const char *opt, const char *v, void *args)
-{
-    (void)opt, (void)args;
-    return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", v);
-}
-
 #define F(field) offsetof(plan_args, field)
 #define WHOLE(name, f, dflt, text)                                                                  \
     {name, CLI_LONG, F(f), "K", 1, LONG_MAX, .bad = "%s: '%s' must be a positive whole number",    \
@@ -113,7 +106,7 @@ static const cli_opt PLAN_OPTS[] = {
 
 const cli_cmd_opts cli_profile_plan_opts = {
     "profile-plan", USAGE, PLAN_OPTS, (int)(sizeof PLAN_OPTS / sizeof PLAN_OPTS[0]), 0,
-    no_operand, NULL, "unknown option or missing value: %s (see --help)",
+    cli_opt_no_operand, NULL, "unknown option or missing value: %s (see --help)",
     "unknown option or missing value: %s (see --help)",
 };
 
