@@ -1,4 +1,5 @@
 /* cli_opts.c — one parser for every command's option table, and the table's listing (cli_opts.h). */
+#include <stdio.h>
 #include <string.h>
 
 #include "cli.h"
@@ -84,6 +85,18 @@ static int set_number(const cli_cmd_opts *c, const cli_opt *o, const char *name,
     return CLI_OK;
 }
 
+/* "A,B" into two numbers: 0, or -1 */
+static int parse_pair(const char *v, double *ab)
+{
+    char buf[128];
+    snprintf(buf, sizeof buf, "%s", v);
+    char *comma = strchr(buf, ',');
+    if (!comma)
+        return -1;
+    *comma = '\0';
+    return sc_parse_double(buf, &ab[0]) || sc_parse_double(comma + 1, &ab[1]) ? -1 : 0;
+}
+
 /* The value v of option o (typed as name) into args: CLI_OK or the usage error. */
 static int set_value(const cli_cmd_opts *c, const cli_opt *o, const char *name, const char *v,
                      void *args)
@@ -97,6 +110,13 @@ static int set_value(const cli_cmd_opts *c, const cli_opt *o, const char *name, 
     case CLI_INT:
     case CLI_DOUBLE:
         return set_number(c, o, name, v, field);
+    case CLI_PAIR: {
+        double ab[2];
+        if (parse_pair(v, ab) != 0)
+            return bad_value(c, o, name, v);
+        memcpy(field, ab, sizeof ab);
+        return CLI_OK;
+    }
     case CLI_CHOICE: {
         int k = choice_index(o->choices, v);
         if (k < 0)
@@ -133,33 +153,49 @@ static int set_operand(const cli_cmd_opts *c, const char *a, void *args)
     return CLI_OK;
 }
 
+/* The usage error of an option without its value (or of an unknown option at the end). */
+static int missing_value(const cli_cmd_opts *c, const cli_opt *o, const char *name)
+{
+    const char *fmt = o && o->missing ? o->missing
+                      : c->missing    ? c->missing
+                                      : "%s: unknown option or missing value (see --help)";
+    return cli_usage_error(c->cmd, fmt, name);
+}
+
+/* A flag: its function called, or its int field set to 1. */
+static int set_flag(const cli_cmd_opts *c, const cli_opt *o, const char *name, void *args)
+{
+    char *field = (char *)args + o->field;
+    if (o->parse)
+        return o->parse(c->cmd, name, NULL, field);
+    int one = 1;
+    memcpy(field, &one, sizeof one);
+    return CLI_OK;
+}
+
 int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
 {
+    int words = !(c->flags & CLI_NO_OPERAND); /* a word is an operand */
     for (int a = 1; a < argc; ++a) {
         const char *name = argv[a];
-        if (!strcmp(name, "--help") || !strcmp(name, "-h")) {
+        if (!(c->flags & CLI_NO_HELP) && (!strcmp(name, "--help") || !strcmp(name, "-h"))) {
             fputs(c->usage, stdout);
             return CLI_OK;
         }
         const cli_opt *o = find_opt(c, name);
         int rc;
         if (o && o->kind == CLI_FLAG) {
-            int one = 1;
-            if (o->parse && (rc = o->parse(c->cmd, name, NULL, (char *)args + o->field)) != CLI_OK)
+            if ((rc = set_flag(c, o, name, args)) != CLI_OK)
                 return rc;
-            if (!o->parse)
-                memcpy((char *)args + o->field, &one, sizeof one);
             continue;
         }
-        if (name[0] != '-' || !strcmp(name, "-")) {
+        if (words && (name[0] != '-' || !strcmp(name, "-"))) {
             if ((rc = set_operand(c, name, args)) != CLI_OK)
                 return rc;
             continue;
         }
         if (a + 1 >= argc)
-            return cli_usage_error(c->cmd, c->missing ? c->missing
-                                                      : "%s: unknown option or missing value (see --help)",
-                                   name);
+            return missing_value(c, o, name);
         const char *v = argv[++a];
         if (!o)
             return cli_usage_error(c->cmd, c->unknown ? c->unknown : "unknown option '%s' (see --help)",
@@ -170,8 +206,8 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
     return -1;
 }
 
-static const char *const KIND_NAME[] = {"flag", "string", "integer", "integer", "number",
-                                        "choice", "list", "value"};
+static const char *const KIND_NAME[] = {"flag",   "string", "integer", "integer", "number",
+                                        "choice", "pair",   "list",    "value"};
 
 /* The values an option takes: its choices "a|b", the range of a number ("[2, 10000000]",
  * "(0, 1)", also of a CLI_CUSTOM row that states one), of a list "at most N"; else nothing. */
@@ -187,12 +223,18 @@ static void print_range(FILE *to, const cli_opt *o)
         fprintf(to, "at most %.0f", o->max);
 }
 
+static void print_row(FILE *to, const cli_opt *o)
+{
+    fprintf(to, "%s\t%s\t%s\t", o->name, o->value ? o->value : "", KIND_NAME[o->kind]);
+    print_range(to, o);
+    fprintf(to, "\t%s\t%s\n", o->def ? o->def : "", o->help ? o->help : "");
+}
+
 void cli_opts_print(FILE *to, const cli_cmd_opts *c)
 {
-    for (int k = 0; k < c->n_opts; ++k) {
-        const cli_opt *o = &c->opts[k];
-        fprintf(to, "%s\t%s\t%s\t", o->name, o->value ? o->value : "", KIND_NAME[o->kind]);
-        print_range(to, o);
-        fprintf(to, "\t%s\t%s\n", o->def ? o->def : "", o->help ? o->help : "");
-    }
+    for (int k = 0; k < c->n_opts; ++k)
+        print_row(to, &c->opts[k]);
+    for (int k = 0; c->also && k < c->also->n_opts; ++k)
+        if (!find_opt(c, c->also->opts[k].name))
+            print_row(to, &c->also->opts[k]);
 }

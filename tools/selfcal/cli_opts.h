@@ -28,6 +28,7 @@ typedef enum {
     CLI_INT,    /* a whole number from min to max: an int field */
     CLI_DOUBLE, /* a number from min to max (CLI_MIN_OPEN, CLI_MAX_OPEN: the end excluded) */
     CLI_CHOICE, /* one of choices ("a|b|c"): an int field, the index of the value */
+    CLI_PAIR,   /* two numbers "A,B": a double[2] field */
     CLI_LIST,   /* repeatable: each value appended to a const char *[max] field; the count at
                  * count (an int), a value more than max is the usage error bad (%s: the value) */
     CLI_CUSTOM  /* the row's parse function */
@@ -60,6 +61,8 @@ typedef struct cli_opt {
     double min, max;     /* CLI_LONG, CLI_INT, CLI_DOUBLE: the range; CLI_LIST: max values */
     unsigned ends;       /* CLI_MIN_OPEN | CLI_MAX_OPEN */
     const char *choices; /* CLI_CHOICE: "a|b|c" */
+    const char *missing; /* the usage error of a missing value (format with the option), or NULL:
+                          * the command's */
     const char *bad;     /* the usage error of a bad value (printf format: one %s, the value; two,
                           * the option and the value) */
     size_t count;        /* CLI_LIST: offsetof the int count */
@@ -79,18 +82,30 @@ typedef struct cli_cmd_opts {
     const char *more;       /* a second operand: format with the first and the second */
     const char *missing;    /* an option without value: format with the option */
     const char *unknown;    /* an unknown option: format with the option */
+    unsigned flags;         /* CLI_NO_OPERAND, CLI_NO_HELP */
+    const struct cli_cmd_opts *also; /* the table of another form of the command (plan --design),
+                                      * listed with this one; NULL */
 } cli_cmd_opts;
 
+enum {
+    CLI_NO_OPERAND = 1u, /* every word is an option (a word not in the table: unknown) */
+    CLI_NO_HELP = 2u,    /* --help is an option as any other (plan --design's second pass) */
+    CLI_STOP = -2        /* a parse function's "stop here": cli_opts_parse returns it */
+};
+
 /* Parse argv[1..argc-1] by the table into args (already holding the defaults): -1 to go on,
- * CLI_OK after --help, else the exit status of the usage error printed. */
+ * CLI_OK after --help, CLI_STOP where a parse function said so, else the exit status of the
+ * usage error printed. */
 int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args);
 
-/* The table, one option a line: name, value, kind, range, default, help, tab-separated. */
+/* The table (and its also's rows of other names), one option a line: name, value, kind, range,
+ * default, help, tab-separated. */
 void cli_opts_print(FILE *to, const cli_cmd_opts *c);
 
 /* The commands' tables (in their cmd_*.c; main.c's command list points at them). */
 extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts,
     cli_report_grid_opts, cli_report_profile_opts,
-    cli_plot_map_opts, cli_plot_profile_opts, cli_plot_xy_opts, cli_simulate_profile_opts;
+    cli_plot_map_opts, cli_plot_profile_opts, cli_plot_xy_opts, cli_simulate_profile_opts,
+    cli_plan_opts;
 
 #endif

@@ -33,7 +33,7 @@ static const command commands[] = {
      "separate stage error G from plate error A", "--map --artifact --summary --residuals --covariance --plot",
      TUNE_FACTOR, &cli_grid_opts},
     {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one", "-o --out",
-     TUNE_FACTOR, NULL},
+     TUNE_FACTOR, &cli_plan_opts},
     {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv",
      "straightness profile + stage motion error", "--out -o --plot --residuals", TUNE_TRANSFORM,
      &cli_profile_opts},
