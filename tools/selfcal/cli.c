@@ -189,3 +189,9 @@ int cli_opt_no_operand(const char *cmd, const char *opt, const char *v, void *ar
     (void)opt, (void)args;
     return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", v);
 }
+
+int cli_opt_max_nodes(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)opt;
+    return cli_parse_max_nodes(cmd, v, field);
+}

@@ -189,7 +189,7 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
                 return rc;
             continue;
         }
-        if (words && (name[0] != '-' || !strcmp(name, "-"))) {
+        if (words && (name[0] != '-' || (!strcmp(name, "-") && !(c->flags & CLI_DASH_OPTION)))) {
             if ((rc = set_operand(c, name, args)) != CLI_OK)
                 return rc;
             continue;

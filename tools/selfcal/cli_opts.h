@@ -46,6 +46,8 @@ typedef int (*cli_opt_parse_fn)(const char *cmd, const char *opt, const char *v,
 int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field);
+/* --max-nodes N (cli_parse_max_nodes, an int) */
+int cli_opt_max_nodes(const char *cmd, const char *opt, const char *v, void *field);
 /* A noise (cli_parse_noise, a double): from 0, or above 0 (_positive), to SC_INPUT_MAX_ABS. */
 int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field);
@@ -90,6 +92,7 @@ typedef struct cli_cmd_opts {
 enum {
     CLI_NO_OPERAND = 1u, /* every word is an option (a word not in the table: unknown) */
     CLI_NO_HELP = 2u,    /* --help is an option as any other (plan --design's second pass) */
+    CLI_DASH_OPTION = 4u, /* a lone "-" is an option word (unknown), not an operand */
     CLI_STOP = -2        /* a parse function's "stop here": cli_opts_parse returns it */
 };
 
@@ -106,6 +109,6 @@ void cli_opts_print(FILE *to, const cli_cmd_opts *c);
 extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts,
     cli_report_grid_opts, cli_report_profile_opts,
     cli_plot_map_opts, cli_plot_profile_opts, cli_plot_xy_opts, cli_simulate_profile_opts,
-    cli_plan_opts;
+    cli_plan_opts, cli_lut_build_opts;
 
 #endif

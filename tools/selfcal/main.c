@@ -40,7 +40,7 @@ static const command commands[] = {
     {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)", NULL, TUNE_NONE,
      &cli_profile_plan_opts},
     {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM]] -o TABLE",
-     "build a correction table", "-o --out", TUNE_NONE, NULL},
+     "build a correction table", "-o --out", TUNE_NONE, &cli_lut_build_opts},
     {"lut", NULL, NULL, "lut dump TABLE", "print a table as CSV", NULL, TUNE_NONE, NULL},
     {"lut", NULL, NULL, "lut info TABLE", "size, encoding, quantization, provenance", NULL, TUNE_NONE, NULL},
     {"export", NULL, cmd_export, "export --format F --map G.csv -o OUT", "resample the map for a machine controller", "-o --out", TUNE_NONE, NULL},
@@ -107,16 +107,15 @@ static void usage(FILE *to, const char *name)
  * which selfcal(1)'s option lists are made. */
 static int print_options(int argc, char **argv)
 {
-    for (size_t k = 0; argc >= 1 && k < N_COMMANDS; ++k) {
-        const command *c = &commands[k];
-        if (!c->opts || strcmp(argv[0], c->name) != 0 ||
-            (c->sub && (argc < 2 || strcmp(argv[1], c->sub) != 0)))
-            continue;
-        cli_opts_print(stdout, c->opts);
-        return CLI_OK;
-    }
-    fprintf(stderr, "selfcal --options: no option table for '%s%s%s'\n", argc >= 1 ? argv[0] : "",
-            argc >= 2 ? " " : "", argc >= 2 ? argv[1] : "");
+    char want[64] = "";
+    for (int k = 0; k < argc && k < 2; ++k)
+        snprintf(want + strlen(want), sizeof want - strlen(want), "%s%.30s", k ? " " : "", argv[k]);
+    for (size_t k = 0; k < N_COMMANDS; ++k)
+        if (commands[k].opts && !strcmp(commands[k].opts->cmd, want)) {
+            cli_opts_print(stdout, commands[k].opts);
+            return CLI_OK;
+        }
+    fprintf(stderr, "selfcal --options: no option table for '%s'\n", want);
     return CLI_BAD_INPUT;
 }
 
