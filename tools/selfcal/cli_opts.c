@@ -133,7 +133,7 @@ static int set_value(const cli_cmd_opts *c, const cli_opt *o, const char *name, 
         return CLI_OK;
     }
     case CLI_CUSTOM:
-        return o->parse(c->cmd, name, v, field);
+        return o->parse(c->cmd, name, v, field); /* two words: cli_opts_parse */
     case CLI_FLAG:
         break;
     }
@@ -197,10 +197,17 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
         if (a + 1 >= argc)
             return missing_value(c, o, name);
         const char *v = argv[++a];
-        if (!o)
-            return cli_usage_error(c->cmd, c->unknown ? c->unknown : "unknown option '%s' (see --help)",
-                                   name);
-        if ((rc = set_value(c, o, name, v, args)) != CLI_OK)
+        if (!o && c->other)
+            rc = c->other(c->cmd, name, v, args);
+        else if (!o)
+            rc = cli_usage_error(c->cmd, c->unknown ? c->unknown : "unknown option '%s' (see --help)",
+                                 name);
+        else if (o->parse2 && (rc = o->parse2(c->cmd, name, v, a + 1 < argc ? argv[a + 1] : NULL,
+                                              (char *)args + o->field)) == CLI_OK)
+            ++a; /* its second word */
+        else if (!o->parse2)
+            rc = set_value(c, o, name, v, args);
+        if (rc != CLI_OK)
             return rc;
     }
     return -1;

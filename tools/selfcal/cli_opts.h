@@ -41,6 +41,11 @@ enum { CLI_MIN_OPEN = 1u, CLI_MAX_OPEN = 2u };
  * (cli_usage_error with cmd). */
 typedef int (*cli_opt_parse_fn)(const char *cmd, const char *opt, const char *v, void *field);
 
+/* An option of two words ("--view SPEC FILE"): v the first, next the word after it (NULL at the
+ * end); CLI_OK takes both, else the exit status of the usage error printed. */
+typedef int (*cli_opt_parse2_fn)(const char *cmd, const char *opt, const char *v,
+                                 const char *next, void *field);
+
 /* The parse functions of values several commands take (cli.c): --seed (a uint64_t), --max-memory
  * (a double of bytes), the least-squares options of cli_parse_lsq_option (the sc_grid_options). */
 int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field);
@@ -69,6 +74,7 @@ typedef struct cli_opt {
                           * the option and the value) */
     size_t count;        /* CLI_LIST: offsetof the int count */
     cli_opt_parse_fn parse; /* CLI_CUSTOM */
+    cli_opt_parse2_fn parse2; /* CLI_CUSTOM of two words (instead of parse) */
     const char *def;     /* the default as the man page states it, or NULL */
     const char *help;    /* what it does, one line */
 } cli_opt;
@@ -87,6 +93,8 @@ typedef struct cli_cmd_opts {
     unsigned flags;         /* CLI_NO_OPERAND, CLI_NO_HELP */
     const struct cli_cmd_opts *also; /* the table of another form of the command (plan --design),
                                       * listed with this one; NULL */
+    cli_opt_parse_fn other; /* an option not in the table, with its value (field: the argument
+                             * struct): its own usage error instead of unknown's; NULL */
 } cli_cmd_opts;
 
 enum {
@@ -110,6 +118,6 @@ extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts
     cli_report_grid_opts, cli_report_profile_opts,
     cli_plot_map_opts, cli_plot_profile_opts, cli_plot_xy_opts, cli_simulate_profile_opts,
     cli_plan_opts, cli_lut_build_opts,
-    cli_export_opts;
+    cli_export_opts, cli_import_grid_opts, cli_import_profile_opts;
 
 #endif

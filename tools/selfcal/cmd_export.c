@@ -397,7 +397,7 @@ static const cli_opt EXPORT_OPTS[] = {
 
 const cli_cmd_opts cli_export_opts = {
     "export", USAGE, EXPORT_OPTS, (int)(sizeof EXPORT_OPTS / sizeof EXPORT_OPTS[0]), 0, NULL,
-    NULL, NULL, NULL, CLI_NO_OPERAND, NULL,
+    NULL, NULL, NULL, CLI_NO_OPERAND, NULL, NULL,
 };
 
 /* argv into a: -1 to go on, else the exit code (--help, a usage error). */

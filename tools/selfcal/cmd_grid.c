@@ -197,7 +197,7 @@ static const cli_opt GRID_OPTS[] = {
 
 const cli_cmd_opts cli_grid_opts = {
     "grid", USAGE, GRID_OPTS, (int)(sizeof GRID_OPTS / sizeof GRID_OPTS[0]),
-    offsetof(grid_args, in), NULL, NULL, NULL, NULL, 0, NULL,
+    offsetof(grid_args, in), NULL, NULL, NULL, NULL, 0, NULL, NULL,
 };
 
 /* Parse the arguments into g: -1 to go on, else the exit code (--help, a usage error). */

@@ -153,7 +153,7 @@ static const cli_opt LUT_BUILD_OPTS[] = {
 
 const cli_cmd_opts cli_lut_build_opts = {
     "lut build", USAGE, LUT_BUILD_OPTS, (int)(sizeof LUT_BUILD_OPTS / sizeof LUT_BUILD_OPTS[0]), 0,
-    options_only, NULL, NULL, NULL, CLI_DASH_OPTION, NULL,
+    options_only, NULL, NULL, NULL, CLI_DASH_OPTION, NULL, NULL,
 };
 
 /* The map and the profiles read, their hashes as provenance, the table written. */

@@ -120,7 +120,7 @@ static const cli_opt DESIGN_OPTS[] = {
 
 static const cli_cmd_opts design_opts = {
     "plan", USAGE, DESIGN_OPTS, (int)(sizeof DESIGN_OPTS / sizeof DESIGN_OPTS[0]), 0, NULL, NULL,
-    NULL, NULL, CLI_NO_OPERAND | CLI_NO_HELP, NULL,
+    NULL, NULL, CLI_NO_OPERAND | CLI_NO_HELP, NULL, NULL,
 };
 
 static int design(int argc, char **argv)
@@ -318,7 +318,7 @@ static const cli_opt PLAN_OPTS[] = {
 const cli_cmd_opts cli_plan_opts = {
     "plan", USAGE, PLAN_OPTS, (int)(sizeof PLAN_OPTS / sizeof PLAN_OPTS[0]),
     offsetof(plan_args, in), NULL, "one plan file only (see --help)",
-    "unknown option '%s' (see --help)", "unknown option '%s' (see --help)", 0, &design_opts,
+    "unknown option '%s' (see --help)", "unknown option '%s' (see --help)", 0, &design_opts, NULL,
 };
 
 int cmd_plan(int argc, char **argv)

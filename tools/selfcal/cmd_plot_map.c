@@ -488,7 +488,7 @@ static const cli_opt PLOT_MAP_OPTS[] = {
 
 const cli_cmd_opts cli_plot_map_opts = {
     "plot map", USAGE, PLOT_MAP_OPTS, (int)(sizeof PLOT_MAP_OPTS / sizeof PLOT_MAP_OPTS[0]),
-    offsetof(plot_map_args, in), NULL, "more than one map ('%s', '%s')", NULL, NULL, 0, NULL,
+    offsetof(plot_map_args, in), NULL, "more than one map ('%s', '%s')", NULL, NULL, 0, NULL, NULL,
 };
 
 int cmd_plot_map(int argc, char **argv)

@@ -308,7 +308,7 @@ const cli_cmd_opts cli_plot_profile_opts = {
     "plot profile", USAGE, PLOT_PROFILE_OPTS,
     (int)(sizeof PLOT_PROFILE_OPTS / sizeof PLOT_PROFILE_OPTS[0]), offsetof(plot_profile_args, in),
     NULL, "more than one input file (%s, %s)", "unknown option or missing value: %s (see --help)",
-    "unknown option or missing value: %s (see --help)", 0, NULL,
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
 };
 
 int cmd_plot_profile(int argc, char **argv)

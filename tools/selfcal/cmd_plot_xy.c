@@ -147,7 +147,7 @@ static const cli_opt PLOT_XY_OPTS[] = {
 
 const cli_cmd_opts cli_plot_xy_opts = {
     "plot xy", USAGE, PLOT_XY_OPTS, (int)(sizeof PLOT_XY_OPTS / sizeof PLOT_XY_OPTS[0]),
-    offsetof(xy_args, in), NULL, NULL, NULL, NULL, 0, NULL,
+    offsetof(xy_args, in), NULL, NULL, NULL, NULL, 0, NULL, NULL,
 };
 
 /* The x column and the series' columns (--y, or every other column). */

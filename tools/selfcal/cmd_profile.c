@@ -89,7 +89,7 @@ const cli_cmd_opts cli_profile_opts = {
     "profile", USAGE, PROFILE_OPTS, (int)(sizeof PROFILE_OPTS / sizeof PROFILE_OPTS[0]),
     offsetof(profile_args, in), NULL, "more than one input file (%s, %s)",
     "unknown option or missing value: %s (see --help)",
-    "unknown option or missing value: %s (see --help)", 0, NULL,
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
 };
 
 /* The whole command line into pa: PARSE_GO_ON, or an exit code (--help, a usage error). */

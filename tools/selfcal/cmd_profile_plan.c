@@ -107,7 +107,7 @@ static const cli_opt PLAN_OPTS[] = {
 const cli_cmd_opts cli_profile_plan_opts = {
     "profile-plan", USAGE, PLAN_OPTS, (int)(sizeof PLAN_OPTS / sizeof PLAN_OPTS[0]), 0,
     cli_opt_no_operand, NULL, "unknown option or missing value: %s (see --help)",
-    "unknown option or missing value: %s (see --help)", 0, NULL,
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
 };
 
 /* argv into a (sort_by_max too): -1 to go on, else the exit code (--help, a usage error). */

@@ -840,7 +840,7 @@ static const cli_opt REPORT_GRID_OPTS[] = {
 const cli_cmd_opts cli_report_grid_opts = {
     "report grid", USAGE, REPORT_GRID_OPTS,
     (int)(sizeof REPORT_GRID_OPTS / sizeof REPORT_GRID_OPTS[0]), offsetof(report_grid_args, r.in),
-    NULL, NULL, NULL, NULL, 0, NULL,
+    NULL, NULL, NULL, NULL, 0, NULL, NULL,
 };
 
 /* The command line into g: -1 to go on, else the exit code (--help, a usage error). */

@@ -461,7 +461,7 @@ static const cli_opt REPORT_PROFILE_OPTS[] = {
 const cli_cmd_opts cli_report_profile_opts = {
     "report profile", USAGE, REPORT_PROFILE_OPTS,
     (int)(sizeof REPORT_PROFILE_OPTS / sizeof REPORT_PROFILE_OPTS[0]),
-    offsetof(report_profile_args, in), NULL, NULL, NULL, NULL, 0, NULL,
+    offsetof(report_profile_args, in), NULL, NULL, NULL, NULL, 0, NULL, NULL,
 };
 
 /* The command line into p: -1 to go on, else the exit code (--help, a usage error). */

@@ -134,7 +134,7 @@ const cli_cmd_opts cli_simulate_profile_opts = {
     "simulate profile", USAGE, SIM_PROFILE_OPTS,
     (int)(sizeof SIM_PROFILE_OPTS / sizeof SIM_PROFILE_OPTS[0]), 0, cli_opt_no_operand, NULL,
     "unknown option or missing value: %s (see --help)",
-    "unknown option or missing value: %s (see --help)", 0, NULL,
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
 };
 
 static int check_args(const sc_profile_sim *p, const sim_profile_args *a)
