@@ -119,6 +119,6 @@ extern const cli_cmd_opts cli_grid_opts, cli_profile_opts, cli_profile_plan_opts
     cli_plot_map_opts, cli_plot_profile_opts, cli_plot_xy_opts, cli_simulate_profile_opts,
     cli_plan_opts, cli_lut_build_opts,
     cli_export_opts, cli_import_grid_opts, cli_import_profile_opts,
-    cli_simulate_grid_opts, cli_simulate_exports_opts;
+    cli_simulate_grid_opts, cli_simulate_exports_opts, cli_verify_opts;
 
 #endif

@@ -797,14 +797,9 @@ typedef struct report_grid_args {
     const char *out;
 } report_grid_args;
 
-static int verify_opt(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return verify_parse_option(cmd, opt, v, field);
-}
-
 #define F(field) offsetof(report_grid_args, field)
 #define VERIFY_UM(name, text)                                                                      \
-    {name, CLI_CUSTOM, F(vo), "U", 0, SC_INPUT_MAX_ABS, .parse = verify_opt, .help = text}
+    {name, CLI_CUSTOM, F(vo), "U", 0, SC_INPUT_MAX_ABS, .parse = verify_parse_opt, .help = text}
 /* report grid's options (cli_opts.h), in the order of its --help */
 static const cli_opt REPORT_GRID_OPTS[] = {
     {"-o|--out", CLI_STRING, F(out), "R.html", .help = "the report (HTML)"},
@@ -827,7 +822,7 @@ static const cli_opt REPORT_GRID_OPTS[] = {
      .bad = "--tolerance-um needs a positive number, got '%s'", .help = "the verdict's tolerance (um)"},
     {"--raw", CLI_FLAG, F(vo.raw), .help = "the re-measurement is of the uncompensated machine"},
     {"--decision-rule", CLI_CUSTOM, F(vo), "simple|guarded", .choices = "simple|guarded",
-     .parse = verify_opt, .help = "the verdict's decision rule"},
+     .parse = verify_parse_opt, .help = "the verdict's decision rule"},
     VERIFY_UM("--u-verify-um", "the re-measurement's uncertainty (um)"),
     VERIFY_UM("--u-plate-um", "the plate error's uncertainty (um)"),
     VERIFY_UM("--verify-sigma-um", "the re-measurement's noise (um)"),

@@ -71,7 +71,8 @@ static const command commands[] = {
      "profile report (HTML, PDF)", "-o --out --pdf", TUNE_NONE,
      &cli_report_profile_opts},
     {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T",
-     "check a compensated stage", "--html --plot --residuals", TUNE_NONE, NULL},
+     "check a compensated stage", "--html --plot --residuals", TUNE_NONE,
+     &cli_verify_opts},
 };
 #define N_COMMANDS (sizeof commands / sizeof commands[0])
 
