@@ -155,18 +155,9 @@ static void print_a1_1d_report(const sc_lut *lut, const sc_export_options *o,
         printf("clipped points: 0 (no limit)\n");
 }
 
-static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
-                         const sc_export_options *o, const sc_export_report *rep)
+/* The rest of the report's first line: what the file of format f holds. */
+static void print_contents(int f, const sc_export_options *o, const sc_export_report *rep)
 {
-    printf("export %s: %s", fmt, out);
-    if (f == SC_EXPORT_BECKHOFF && o->cross_profile >= 0) {
-        print_cross_report(lut, out, o, rep);
-        return;
-    }
-    if (f == SC_EXPORT_AEROTECH_A1 && o->cross_profile >= 0) {
-        print_a1_1d_report(lut, o, rep);
-        return;
-    }
     if (f == SC_EXPORT_BECKHOFF)
         printf(", slave axis %s, %d x %d points, interval %.4f mm, unit 0.1 um, %s\n",
                o->axis == 0 ? "x" : "y", rep->points[0], rep->points[1], rep->interval_mm,
@@ -198,13 +189,12 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
     else
         printf(", O = %.6g, R = %.6g, XY skew %.9g, scale x %.9f y %.9f\n", rep->O, rep->R,
                rep->skew, rep->scale[0], rep->scale[1]);
-    printf("residual (controller %s - map) over %ld samples: rms %.4f um, max %.4f um at "
-           "(%.3f, %.3f) mm\n",
-           is_firmware(f) ? "correction, up to translation/rotation/magnification"
-                                  : "table",
-           rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
-    if (is_firmware(f))
-        return;
+}
+
+/* A table format's notes after the residual: the 828D's size, the profile tables, the clipping,
+ * LinuxCNC's file type. */
+static void print_table_notes(int f, const sc_export_options *o, const sc_export_report *rep)
+{
     if (f == SC_EXPORT_SIEMENS_CEC && !o->siemens_828d) {
         int most = 0;
         for (int k = 0; k < rep->tables && k < 4; ++k)
@@ -224,6 +214,28 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
         printf("IMPORTANT: set COMP_FILE_TYPE = 1 in [JOINT_%d] of the .ini: LinuxCNC's default 0 "
                "reads these trims as positions (errors as large as the positions)\n",
                o->axis);
+}
+
+static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
+                         const sc_export_options *o, const sc_export_report *rep)
+{
+    printf("export %s: %s", fmt, out);
+    if (f == SC_EXPORT_BECKHOFF && o->cross_profile >= 0) {
+        print_cross_report(lut, out, o, rep);
+        return;
+    }
+    if (f == SC_EXPORT_AEROTECH_A1 && o->cross_profile >= 0) {
+        print_a1_1d_report(lut, o, rep);
+        return;
+    }
+    print_contents(f, o, rep);
+    printf("residual (controller %s - map) over %ld samples: rms %.4f um, max %.4f um at "
+           "(%.3f, %.3f) mm\n",
+           is_firmware(f) ? "correction, up to translation/rotation/magnification"
+                                  : "table",
+           rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
+    if (!is_firmware(f))
+        print_table_notes(f, o, rep);
 }
 
 /* The command line, as given. */
@@ -383,7 +395,7 @@ static const cli_opt EXPORT_OPTS[] = {
     {"--rotation-distance", CLI_CUSTOM, F(rdist), "RX,RY", .parse = parse_scales,
      .help = "klipper: the present rotation_distance"},
     {"--profile", CLI_CUSTOM, 0, "AXIS:DIR:P.csv[@OFFSET_MM]", .parse = parse_profile,
-     .help = "a straightness profile (repeatable; siemens-cec, beckhoff)"},
+     .help = "a straightness profile (repeatable; siemens-cec, beckhoff, aerotech-a1)"},
     {"--travel", CLI_CUSTOM, 0, "[AXIS:]MIN,MAX", .parse = parse_travel,
      .help = "beckhoff: the master axis' travel (mm)"},
     POSITIVE("--profile-interval", pinterval, "MM",

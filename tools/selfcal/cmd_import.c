@@ -591,6 +591,8 @@ const cli_cmd_opts cli_import_grid_opts = {
     "unknown option or missing value: '%s' (see --help)", NULL, CLI_NO_OPERAND, NULL, grid_other,
 };
 
+static int grid_columns(grid_args *g);
+
 /* The import's parameters and every view's placement, checked. */
 static int grid_params(grid_args *g, sc_grid_import_params *p)
 {
@@ -615,6 +617,13 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
         if (parse_view(g->view_spec[k], p->n, &g->views[k].v, g->views[k].sigma,
                        sizeof g->views[k].sigma))
             return CLI_BAD_INPUT;
+    return grid_columns(g);
+}
+
+/* The columns' options together (uncertainties, layout, deviations), checked. */
+static int grid_columns(grid_args *g)
+{
+    const char *cmd = "import grid";
     if (!g->uxcol != !g->uycol)
         return cli_usage_error(cmd, "--ux-col and --uy-col go together");
     if (check_layout(cmd, &g->lay) != CLI_OK)
@@ -637,9 +646,9 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
     return CLI_OK;
 }
 
-/* One view's file read (nc columns: x, y [, ux, uy]) and its points assigned to marks. */
-static sc_status import_grid_view(const grid_args *g, const sc_grid_import_params *p, int nc,
-                                  import_view *iv, sc_error *err)
+/* One view's file read into iv->t: nc columns a row (x, y [, ux, uy]), deviations added to their
+ * nominals, the uncertainties checked. */
+static sc_status read_view_points(const grid_args *g, int nc, import_view *iv, sc_error *err)
 {
     /* the columns read: x, y [, ux, uy] [, nominal x, nominal y]; one row per axis: the axis
      * values, then their nominals */
@@ -676,6 +685,37 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
             st = sc_error_set(err, SC_E_INPUT, iv->file, iv->t.line[q],
                               "the uncertainties in '%s' and '%s' must be %g to %g um", g->uxcol,
                               g->uycol, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
+    return st;
+}
+
+/* The largest distance of an assigned point (xy: np x, then np y) from its nominal position,
+ * the stage node of its mark: nominal columns taken for measured ones put every point there. */
+static double nominal_max_mm(const sc_grid_import_params *p, const import_view *iv, long np,
+                             const double *xy)
+{
+    double dmax = 0;
+    long nn = (long)p->n * p->n;
+    int snx = p->stage_nx ? p->stage_nx : p->n, sny = p->stage_ny ? p->stage_ny : p->n;
+    for (long m = 0; m < nn; ++m) {
+        int ni, nj;
+        long q = iv->mark_point[m];
+        if (q < 0 || !sc_grid_import_mark_node(p, &iv->v, (int)(m / p->n), (int)(m % p->n), &ni,
+                                                &nj))
+            continue;
+        double nx = p->origin_mm[0] + (nj - (snx - 1) / 2.0) * p->pitch_mm;
+        double ny = p->origin_mm[1] + (ni - (sny - 1) / 2.0) * p->pitch_mm;
+        double d = hypot(xy[q] - nx, xy[np + q] - ny);
+        if (d > dmax)
+            dmax = d;
+    }
+    return dmax;
+}
+
+/* One view's file read (nc columns: x, y [, ux, uy]) and its points assigned to marks. */
+static sc_status import_grid_view(const grid_args *g, const sc_grid_import_params *p, int nc,
+                                  import_view *iv, sc_error *err)
+{
+    sc_status st = read_view_points(g, nc, iv, err);
     if (st != SC_OK)
         return st;
     long np = iv->t.n_rows, nn = (long)p->n * p->n;
@@ -694,22 +734,8 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
                                    iv->t.header_line, iv->point_mark, iv->mark_point, &iv->fit,
                                    work, err);
     }
-    /* how far the points are from their nominal positions (the stage nodes): nominal columns
-     * taken for measured ones put every point on its node */
-    iv->nominal_max_mm = 0;
-    int snx = p->stage_nx ? p->stage_nx : p->n, sny = p->stage_ny ? p->stage_ny : p->n;
-    for (long m = 0; st == SC_OK && m < nn; ++m) {
-        int ni, nj;
-        long q = iv->mark_point[m];
-        if (q < 0 || !sc_grid_import_mark_node(p, &iv->v, (int)(m / p->n), (int)(m % p->n), &ni,
-                                                &nj))
-            continue;
-        double nx = p->origin_mm[0] + (nj - (snx - 1) / 2.0) * p->pitch_mm;
-        double ny = p->origin_mm[1] + (ni - (sny - 1) / 2.0) * p->pitch_mm;
-        double d = hypot(xy[q] - nx, xy[np + q] - ny);
-        if (d > iv->nominal_max_mm)
-            iv->nominal_max_mm = d;
-    }
+    /* how far the points are from their nominal positions (the stage nodes) */
+    iv->nominal_max_mm = st == SC_OK ? nominal_max_mm(p, iv, np, xy) : 0;
     free(xy);
     free(work);
     return st;

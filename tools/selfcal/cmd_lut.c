@@ -341,50 +341,67 @@ static size_t stored_size(const sc_lut *lut)
  * (um per um): the largest difference of a component between neighbouring nodes over their pitch
  * (a bilinear cell's partial derivatives are largest on its edges). Then the same bounds for the
  * whole correction C = G + profile offsets, per coordinate. */
+typedef struct corr_bounds {
+    double gmax_um, cmax_um[3]; /* the largest |G|; of each coordinate's correction */
+    double slope_g, slope_c[3]; /* the largest slope of G; of each coordinate's correction */
+} corr_bounds;
+
+/* The slopes of G from node (i, j) to its neighbours along x (j + 1) and y (i + 1) into b. */
+static void node_slopes(const sc_lut *lut, int i, int j, corr_bounds *b)
+{
+    const size_t k = (size_t)i * lut->nx + j;
+    const double gx = lut->gx_um[k], gy = lut->gy_um[k];
+    for (int d = 0; d < 2; ++d) {
+        if ((d == 0 && j + 1 >= lut->nx) || (d == 1 && i + 1 >= lut->ny))
+            continue;
+        const size_t k2 = d == 0 ? k + 1 : k + (size_t)lut->nx;
+        const double pitch_um = 1e3 * (d == 0 ? lut->px_mm : lut->py_mm);
+        const double sx = fabs(lut->gx_um[k2] - gx) / pitch_um;
+        const double sy = fabs(lut->gy_um[k2] - gy) / pitch_um;
+        b->slope_g = sx > b->slope_g ? sx : b->slope_g;
+        b->slope_g = sy > b->slope_g ? sy : b->slope_g;
+        b->slope_c[0] = sx > b->slope_c[0] ? sx : b->slope_c[0];
+        b->slope_c[1] = sy > b->slope_c[1] ? sy : b->slope_c[1];
+    }
+}
+
+/* A profile adds its largest |error| and slope to its coordinate's bounds. */
+static void profile_bounds(const sc_lut_profile *p, corr_bounds *b)
+{
+    double emax_um = 0, smax = 0;
+    for (int n = 0; n < p->n; ++n) {
+        emax_um = fabs(p->err_um[n]) > emax_um ? fabs(p->err_um[n]) : emax_um;
+        if (n + 1 < p->n) {
+            const double s = fabs(p->err_um[n + 1] - p->err_um[n]) / (1e3 * p->step_mm);
+            smax = s > smax ? s : smax;
+        }
+    }
+    if (p->dir >= 0 && p->dir < 3) {
+        b->cmax_um[p->dir] += emax_um;
+        b->slope_c[p->dir] += smax;
+    }
+}
+
 static void print_correction_bounds(const sc_lut *lut)
 {
-    double gmax_um = 0, cmax_um[3] = {0, 0, 0}, slope_g = 0, slope_c[3] = {0, 0, 0};
+    corr_bounds b = {0, {0, 0, 0}, 0, {0, 0, 0}};
     for (int i = 0; i < lut->ny; ++i)
         for (int j = 0; j < lut->nx; ++j) {
             const size_t k = (size_t)i * lut->nx + j;
             const double gx = lut->gx_um[k], gy = lut->gy_um[k], g = sqrt(gx * gx + gy * gy);
-            gmax_um = g > gmax_um ? g : gmax_um;
-            cmax_um[0] = fabs(gx) > cmax_um[0] ? fabs(gx) : cmax_um[0];
-            cmax_um[1] = fabs(gy) > cmax_um[1] ? fabs(gy) : cmax_um[1];
-            for (int d = 0; d < 2; ++d) { /* along x (to j + 1) and along y (to i + 1) */
-                if ((d == 0 && j + 1 >= lut->nx) || (d == 1 && i + 1 >= lut->ny))
-                    continue;
-                const size_t k2 = d == 0 ? k + 1 : k + (size_t)lut->nx;
-                const double pitch_um = 1e3 * (d == 0 ? lut->px_mm : lut->py_mm);
-                const double sx = fabs(lut->gx_um[k2] - gx) / pitch_um;
-                const double sy = fabs(lut->gy_um[k2] - gy) / pitch_um;
-                slope_g = sx > slope_g ? sx : slope_g;
-                slope_g = sy > slope_g ? sy : slope_g;
-                slope_c[0] = sx > slope_c[0] ? sx : slope_c[0];
-                slope_c[1] = sy > slope_c[1] ? sy : slope_c[1];
-            }
+            b.gmax_um = g > b.gmax_um ? g : b.gmax_um;
+            b.cmax_um[0] = fabs(gx) > b.cmax_um[0] ? fabs(gx) : b.cmax_um[0];
+            b.cmax_um[1] = fabs(gy) > b.cmax_um[1] ? fabs(gy) : b.cmax_um[1];
+            node_slopes(lut, i, j, &b);
         }
-    for (int k = 0; k < lut->n_profiles; ++k) { /* a profile adds to its coordinate's bounds */
-        const sc_lut_profile *p = &lut->profile[k];
-        double emax_um = 0, smax = 0;
-        for (int n = 0; n < p->n; ++n) {
-            emax_um = fabs(p->err_um[n]) > emax_um ? fabs(p->err_um[n]) : emax_um;
-            if (n + 1 < p->n) {
-                const double s = fabs(p->err_um[n + 1] - p->err_um[n]) / (1e3 * p->step_mm);
-                smax = s > smax ? s : smax;
-            }
-        }
-        if (p->dir >= 0 && p->dir < 3) {
-            cmax_um[p->dir] += emax_um;
-            slope_c[p->dir] += smax;
-        }
-    }
-    double slope_all = slope_c[0] > slope_c[1] ? slope_c[0] : slope_c[1];
-    slope_all = slope_c[2] > slope_all ? slope_c[2] : slope_all;
-    printf("largest |G|: %.6f um\n", gmax_um);
-    printf("largest slope of G: %.6e (um per um)\n", slope_g);
+    for (int k = 0; k < lut->n_profiles; ++k)
+        profile_bounds(&lut->profile[k], &b);
+    double slope_all = b.slope_c[0] > b.slope_c[1] ? b.slope_c[0] : b.slope_c[1];
+    slope_all = b.slope_c[2] > slope_all ? b.slope_c[2] : slope_all;
+    printf("largest |G|: %.6f um\n", b.gmax_um);
+    printf("largest slope of G: %.6e (um per um)\n", b.slope_g);
     printf("correction bounds (grid and profiles): |cx| <= %.6f um, |cy| <= %.6f um, "
-           "slope <= %.6e\n", cmax_um[0], cmax_um[1], slope_all);
+           "slope <= %.6e\n", b.cmax_um[0], b.cmax_um[1], slope_all);
 }
 
 static int lut_info(int argc, char **argv)

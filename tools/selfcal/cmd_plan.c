@@ -226,6 +226,41 @@ static void print_reliability(const sc_grid_lsq_info *qi)
 }
 
 /* The analysis lines of a plan or data file (see the usage text). */
+/* Does view v measure mark (i, j): in the data, or by the plan's selection. */
+static int measures(const sc_grid_data *d, int has_data, int v, int i, int j)
+{
+    const sc_grid_plan *p = &d->plan;
+    return has_data ? isfinite(d->dx_um[v][i * p->n + j]) : sc_grid_view_measures(p, v, i, j);
+}
+
+/* The marks no view measures. */
+static long unseen_marks(const sc_grid_data *d, int has_data)
+{
+    const sc_grid_plan *p = &d->plan;
+    long unseen = 0;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int seen = 0;
+            for (int v = 0; v < p->n_views && !seen; ++v)
+                seen = measures(d, has_data, v, i, j);
+            unseen += !seen;
+        }
+    return unseen;
+}
+
+/* Which methods the plan supports. */
+static void print_methods(const sc_grid_data *d, int has_data, const sc_grid_lsq_info *qi)
+{
+    static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+    static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+    const sc_grid_plan *p = &d->plan;
+    int plate_stage = sc_grid_stage_is_plate(p);
+    printf("method ye: %s\n", plate_stage && supports(d, has_data, ye, 3) ? "yes" : "no");
+    printf("method double-shift: %s\n",
+           plate_stage && p->n >= sc_grid_exact_min_n(SC_GRID_DOUBLE_SHIFT) && supports(d, has_data, ds, 4) ? "yes" : "no");
+    printf("method lsq: %s\n", qi->identifiable ? "yes" : "no");
+}
+
 static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, int has_data,
                            const sc_grid_lsq_info *qi, const sc_grid_lsq_info *unit)
 {
@@ -248,19 +283,12 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
         printf("unmeasured_stage_nodes: %ld\n", qi->n_stage_unmeasured);
     printf("source: %s\n", has_data ? "data file (the marks measured)" : "plan (the marks the views select)");
     printf("views: %d\n", p->n_views);
-    long empty_views = 0, unseen_marks = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            int seen = 0;
-            for (int v = 0; v < p->n_views && !seen; ++v)
-                seen = has_data ? isfinite(d->dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
-            unseen_marks += !seen;
-        }
+    long empty_views = 0, unseen = unseen_marks(d, has_data);
     for (int v = 0; v < p->n_views; ++v) {
         long marks = 0;
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j)
-                marks += has_data ? isfinite(d->dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
+                marks += measures(d, has_data, v, i, j);
         empty_views += marks == 0;
         printf("view %d: rot=%d shift=%d,%d%s marks=%ld\n", fi->view_id[v], p->view[v].rot_deg,
                p->view[v].shift_x, p->view[v].shift_y, p->view[v].restricted ? " (rows/cols)" : "",
@@ -275,17 +303,11 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
         printf("residual_dof: %ld\n", qi->residual_dof);
         print_reliability(qi);
     }
-    if (empty_views || unseen_marks)
+    if (empty_views || unseen)
         printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
                "misalignment / plate error stay unknown)\n",
-               empty_views, unseen_marks);
-    static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
-    static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-    int plate_stage = sc_grid_stage_is_plate(p);
-    printf("method ye: %s\n", plate_stage && supports(d, has_data, ye, 3) ? "yes" : "no");
-    printf("method double-shift: %s\n",
-           plate_stage && n >= sc_grid_exact_min_n(SC_GRID_DOUBLE_SHIFT) && supports(d, has_data, ds, 4) ? "yes" : "no");
-    printf("method lsq: %s\n", qi->identifiable ? "yes" : "no");
+               empty_views, unseen);
+    print_methods(d, has_data, qi);
 }
 
 /* What plan (the analysis) is asked. */

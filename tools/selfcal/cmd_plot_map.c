@@ -287,10 +287,50 @@ static double colormap_right(const sc_stage_map *m, const double *v, int divergi
     return 18 + svg_color_bar_extent(MAP_BAR_W, lo, hi, unit);
 }
 
+/* The drawing's title and subtitle (w pixels wide). */
+static void map_titles(FILE *fp, int w, const sc_stage_map *m, const char *name, int plate)
+{
+    if (m->nx == m->ny && m->px_mm == m->py_mm)
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s — %s (N = %d, pitch %g mm)",
+                     plate ? "Plate error map" : "Stage error map", name, map_nside(m),
+                     map_pitch(m));
+    else
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000",
+                     "%s — %s (%d x %d nodes, pitch %g x %g mm)",
+                     plate ? "Plate error map" : "Stage error map", name, m->nx, m->ny, m->px_mm,
+                     m->py_mm);
+    svg_text_fit(fp, w / 2.0, 42, 11, w - 20, "middle", "#555", "%s",
+                 plate ? "plate error A = mark position − nominal, plate frame; no "
+                                  "translation or rotation"
+                                : "stage error G = indicated − true position; SPEC gauge: no "
+                                  "translation, rotation or magnification");
+}
+
+/* The estimation error panel (map - truth) at x, sz pixels; buf: 2 nn doubles, the first nn
+ * holding u(G) when u_panel (then the panel takes a buffer of its own for y). */
+static void truth_panel(FILE *fp, double x, double top, double sz, const sc_stage_map *m,
+                        const sc_stage_map *truth, int plate, double *buf, int u_panel)
+{
+    size_t nn = (size_t)map_nodes(m);
+    double *ex = buf + (u_panel ? nn : 0), *ey = u_panel ? NULL : buf + nn;
+    double *tmp = u_panel ? malloc(nn * sizeof(double)) : NULL;
+    if (u_panel)
+        ey = tmp;
+    if (ey) {
+        for (size_t k = 0; k < nn; ++k) {
+            ex[k] = m->gx_um[k] - truth->gx_um[k];
+            ey[k] = m->gy_um[k] - truth->gy_um[k];
+        }
+        arrow_panel(fp, x, top, sz, m, plate, ex, ey, 0,
+                    plate ? "estimation error A − A_true" : "estimation error G − G_true",
+                    "error", "#b3261e", 0);
+    }
+    free(tmp);
+}
+
 void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
                   double scale_um_per_pitch, const char *name, int plate)
 {
-    int n = map_nside(m);
     double sz = 560, margin_l = 80, margin_t = 100, gap = 120, bottom = 80;
     int u_panel = sc_stage_map_has_u(m);
     size_t nn = (size_t)map_nodes(m);
@@ -308,19 +348,7 @@ void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
     int w = (int)(margin_l + (1 + more) * sz + (more ? gap0 + (more - 1) * gap : 0) + right);
     int h = (int)(margin_t + sz + bottom);
     svg_begin(fp, w, h);
-    if (m->nx == m->ny && m->px_mm == m->py_mm)
-        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s — %s (N = %d, pitch %g mm)",
-                     plate ? "Plate error map" : "Stage error map", name, n, map_pitch(m));
-    else
-        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000",
-                     "%s — %s (%d x %d nodes, pitch %g x %g mm)",
-                     plate ? "Plate error map" : "Stage error map", name, m->nx, m->ny, m->px_mm,
-                     m->py_mm);
-    svg_text_fit(fp, w / 2.0, 42, 11, w - 20, "middle", "#555", "%s",
-                 plate ? "plate error A = mark position − nominal, plate frame; no "
-                                  "translation or rotation"
-                                : "stage error G = indicated − true position; SPEC gauge: no "
-                                  "translation, rotation or magnification");
+    map_titles(fp, w, m, name, plate);
     double x = margin_l;
     arrow_panel(fp, x, margin_t, sz, m, plate, m->gx_um, m->gy_um, scale_um_per_pitch,
                 plate ? "plate error A" : "stage error G", what, "#1f4e9c", 1);
@@ -330,20 +358,7 @@ void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
         return;
     }
     if (truth) {
-        double *ex = buf + (u_panel ? nn : 0), *ey = u_panel ? NULL : buf + nn;
-        double *tmp = u_panel ? malloc(nn * sizeof(double)) : NULL;
-        if (u_panel)
-            ey = tmp;
-        if (ey) {
-            for (size_t k = 0; k < nn; ++k) {
-                ex[k] = m->gx_um[k] - truth->gx_um[k];
-                ey[k] = m->gy_um[k] - truth->gy_um[k];
-            }
-            arrow_panel(fp, x, margin_t, sz, m, plate, ex, ey, 0,
-                        plate ? "estimation error A − A_true" : "estimation error G − G_true",
-                        "error", "#b3261e", 0);
-        }
-        free(tmp);
+        truth_panel(fp, x, margin_t, sz, m, truth, plate, buf, u_panel);
         x += sz + gap;
     }
     if (u_panel)
