@@ -1,6 +1,7 @@
 /* cli.c — the helpers every subcommand shares (cli.h): error reports, usage errors, the common
  * option values (profiles, noise, seed, node counts, the least-squares options), maps. */
 #include <errno.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -8,7 +9,6 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "cli_opts.h"
 #include "input_once.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_calibrate.h"
@@ -78,6 +78,29 @@ int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
     if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
         return cli_usage_error(cmd, "--max-nodes: 2..%d nodes per axis, not '%s'", SC_LUT_MAX_NX, v);
     *out = (int)n;
+    return CLI_OK;
+}
+
+int cli_parse_max_memory(const char *cmd, const char *v, double *out)
+{
+    char num[64];
+    size_t len = strlen(v);
+    double unit = 1;
+    if (len > 0 && len < sizeof num) {
+        const char *units = "KMGT";
+        const char *u = strchr(units, v[len - 1] & ~0x20); /* K, M, G, T or k, m, g, t */
+        memcpy(num, v, len + 1);
+        if (u && v[len - 1] != '\0') {
+            unit = pow(1024.0, (double)(u - units + 1));
+            num[len - 1] = '\0';
+        }
+    }
+    double x;
+    if (len == 0 || len >= sizeof num || sc_parse_double(num, &x) || !(x > 0) ||
+        !(x * unit <= 1e18))
+        return cli_usage_error(cmd, "--max-memory needs a size such as 12G, 800M or bytes "
+                                    "(K, M, G, T: powers of 1024), got '%s'", v);
+    *out = x * unit;
     return CLI_OK;
 }
 
@@ -155,43 +178,4 @@ const char *cli_basename(const char *path)
 {
     const char *b = strrchr(path, '/');
     return b && b[1] ? b + 1 : path;
-}
-
-int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_seed(cmd, v, field);
-}
-
-int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_max_memory(cmd, v, field);
-}
-
-int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_lsq_option(cmd, opt, v, field);
-}
-
-int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_noise(cmd, opt, v, 0, field);
-}
-
-int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_noise(cmd, opt, v, 1, field);
-}
-
-int cli_opt_no_operand(const char *cmd, const char *opt, const char *v, void *args)
-{
-    (void)opt, (void)args;
-    return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", v);
-}
-
-int cli_opt_max_nodes(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_max_nodes(cmd, v, field);
 }

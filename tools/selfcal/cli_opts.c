@@ -1,4 +1,5 @@
 /* cli_opts.c — one parser for every command's option table, and the table's listing (cli_opts.h). */
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -244,4 +245,45 @@ void cli_opts_print(FILE *to, const cli_cmd_opts *c)
     for (int k = 0; c->also && k < c->also->n_opts; ++k)
         if (!find_opt(c, c->also->opts[k].name))
             print_row(to, &c->also->opts[k]);
+}
+
+/* ---- the parse functions of values several commands take (cli_opts.h) ---- */
+
+int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)opt;
+    return cli_parse_seed(cmd, v, field);
+}
+
+int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)opt;
+    return cli_parse_max_memory(cmd, v, field);
+}
+
+int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field)
+{
+    return cli_parse_lsq_option(cmd, opt, v, field);
+}
+
+int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field)
+{
+    return cli_parse_noise(cmd, opt, v, 0, field);
+}
+
+int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field)
+{
+    return cli_parse_noise(cmd, opt, v, 1, field);
+}
+
+int cli_opt_no_operand(const char *cmd, const char *opt, const char *v, void *args)
+{
+    (void)opt, (void)args;
+    return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", v);
+}
+
+int cli_opt_max_nodes(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)opt;
+    return cli_parse_max_nodes(cmd, v, field);
 }
