@@ -6,7 +6,7 @@
  * OPTIONS lists of selfcal(1) are generated (tools/man_options.py; a test keeps them equal and
  * compares them with --help both ways).
  *
- * To add an option: one row in the command's table, e.g.
+ * To add an option: one row in the command's table, e.g. (a made-up row of grid's table)
  *     {"--node-sigma", CLI_CHOICE, F(opt.node_sigma), "all|none", .choices = "all|none",
  *      .bad = "--node-sigma must be all or none, got '%s'", .def = "all",
  *      .help = "which nodes get an uncertainty"},
@@ -46,7 +46,7 @@ typedef int (*cli_opt_parse_fn)(const char *cmd, const char *opt, const char *v,
 typedef int (*cli_opt_parse2_fn)(const char *cmd, const char *opt, const char *v,
                                  const char *next, void *field);
 
-/* The parse functions of values several commands take (cli.c): --seed (a uint64_t), --max-memory
+/* The parse functions of values several commands take (cli_opts.c, on cli.c's parsers): --seed (a uint64_t), --max-memory
  * (a double of bytes), the least-squares options of cli_parse_lsq_option (the sc_grid_options). */
 int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field);
 int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field);
@@ -65,9 +65,10 @@ typedef struct cli_opt {
     cli_kind kind;
     size_t field;        /* offsetof(argument struct, the field the option sets) */
     const char *value;   /* the value's name in help and the man page ("G.csv", "N"); NULL: flag */
-    double min, max;     /* CLI_LONG, CLI_INT, CLI_DOUBLE: the range; CLI_LIST: max values */
+    double min, max;     /* CLI_LONG, CLI_INT, CLI_DOUBLE: the range (a CLI_CUSTOM row may state
+                          * the range its function checks, for the listing); CLI_LIST: max values */
     unsigned ends;       /* CLI_MIN_OPEN | CLI_MAX_OPEN */
-    const char *choices; /* CLI_CHOICE: "a|b|c" */
+    const char *choices; /* CLI_CHOICE: "a|b|c"; another kind: the values it takes, as listed */
     const char *missing; /* the usage error of a missing value (format with the option), or NULL:
                           * the command's */
     const char *bad;     /* the usage error of a bad value (printf format: one %s, the value; two,
@@ -90,7 +91,7 @@ typedef struct cli_cmd_opts {
     const char *more;       /* a second operand: format with the first and the second */
     const char *missing;    /* an option without value: format with the option */
     const char *unknown;    /* an unknown option: format with the option */
-    unsigned flags;         /* CLI_NO_OPERAND, CLI_NO_HELP */
+    unsigned flags;         /* CLI_NO_OPERAND, CLI_NO_HELP, CLI_DASH_OPTION */
     const struct cli_cmd_opts *also; /* the table of another form of the command (plan --design),
                                       * listed with this one; NULL */
     cli_opt_parse_fn other; /* an option not in the table, with its value (field: the argument
