@@ -278,7 +278,7 @@ static int parse_encoding(const char *cmd, const char *opt, const char *v, void 
     {"--value-col", CLI_STRING, F(lay.lay.value_col), "NAME",                                      \
      .help = "one row per axis: the value"},                                                       \
     {"--axis-names", CLI_CUSTOM, F(lay), "A,B[,...]", .parse = parse_axis_names,                   \
-     .def = "X,Y", .help = "one row per axis: the coordinates' names"},                            \
+     .help = "one row per axis: the AXIS values of the coordinates, in order"},                    \
     {"--where", CLI_CUSTOM, F(lay), "COL=VALUE", .parse = parse_where,                             \
      .help = "only the rows with VALUE in COL (repeatable)"},                                      \
     {"--missing", CLI_CUSTOM, F(lay.lay), "TOKEN", .parse = parse_missing,                         \
