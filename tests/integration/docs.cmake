@@ -34,3 +34,13 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli AND TARGET selfcald)
            $<TARGET_FILE:selfcal_cli> $<TARGET_FILE:selfcald> ${PROJECT_SOURCE_DIR}/docs/man)
   set_tests_properties(docs_help_vs_man PROPERTIES TIMEOUT 120 LABELS "integration;docs;cli")
 endif()
+
+# selfcal(1)'s option lists are generated from the commands' option tables (tools/man_options.py)
+# and --help names each table's options, both ways
+if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
+  add_test(NAME docs_man_options COMMAND ${SELFCAL_PYTHON3}
+           ${CMAKE_CURRENT_SOURCE_DIR}/integration/docs/man_options_test.py
+           ${PROJECT_SOURCE_DIR}/tools/man_options.py $<TARGET_FILE:selfcal_cli>
+           ${PROJECT_SOURCE_DIR}/docs/man/selfcal.1.in ${CMAKE_CURRENT_BINARY_DIR}/tmp/docs_man_options)
+  set_tests_properties(docs_man_options PROPERTIES TIMEOUT 300 LABELS "integration;docs;cli")
+endif()

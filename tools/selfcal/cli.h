@@ -57,7 +57,7 @@ int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, siz
 double cli_memory_bytes(void);
 
 /* --max-memory SIZE (bytes, or with K, M, G, T: powers of 1024) into *out: CLI_OK, or the usage
- * error. */
+ * error (cli.c). */
 int cli_parse_max_memory(const char *cmd, const char *v, double *out);
 
 /* Progress of a long solve on stderr: on a terminal (one line, rewritten) or when asked (one line

@@ -5,18 +5,18 @@
  * straightness profiles as Siemens CEC tables or Beckhoff/ISG cross compensation lists. Every
  * file is computed (and checked) before the first is written: all files or none. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/csv.h"
 #include "selfcal/export.h"
 #include "selfcal/lut.h"
 
-static void export_usage(FILE *to)
-{
-    fprintf(to,
+static const char USAGE[] =
             "usage: selfcal export --format FORMAT --map G.csv -o OUT\n"
             "                      [--axis x|y|both] [--interval MM] [--at MM] [--limit-um UM]\n"
             "                      [--negate] [--offset DX,DY] [--axis-numbers NX,NY[,NZ]]\n"
@@ -71,8 +71,7 @@ static void export_usage(FILE *to)
             "               AXIS: for the profiles with that master axis (repeatable), else all\n"
             "  --steps-per-mm  marlin, reprap: present X,Y steps/mm, to write M92 with the scale;\n"
             "               powerpmac: X,Y motor units per mm (default 1: motors scaled in mm)\n"
-            "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n");
-}
+            "  --rotation-distance  klipper: present X,Y rotation_distance, to write the new ones\n";
 
 /* OUT with "-" and tag before its extension: "x", "y" (--axis both for one-axis formats),
  * "cross-y" (a Beckhoff cross compensation list of slave y). */
@@ -156,18 +155,9 @@ static void print_a1_1d_report(const sc_lut *lut, const sc_export_options *o,
         printf("clipped points: 0 (no limit)\n");
 }
 
-static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
-                         const sc_export_options *o, const sc_export_report *rep)
+/* The rest of the report's first line: what the file of format f holds. */
+static void print_contents(int f, const sc_export_options *o, const sc_export_report *rep)
 {
-    printf("export %s: %s", fmt, out);
-    if (f == SC_EXPORT_BECKHOFF && o->cross_profile >= 0) {
-        print_cross_report(lut, out, o, rep);
-        return;
-    }
-    if (f == SC_EXPORT_AEROTECH_A1 && o->cross_profile >= 0) {
-        print_a1_1d_report(lut, o, rep);
-        return;
-    }
     if (f == SC_EXPORT_BECKHOFF)
         printf(", slave axis %s, %d x %d points, interval %.4f mm, unit 0.1 um, %s\n",
                o->axis == 0 ? "x" : "y", rep->points[0], rep->points[1], rep->interval_mm,
@@ -199,13 +189,12 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
     else
         printf(", O = %.6g, R = %.6g, XY skew %.9g, scale x %.9f y %.9f\n", rep->O, rep->R,
                rep->skew, rep->scale[0], rep->scale[1]);
-    printf("residual (controller %s - map) over %ld samples: rms %.4f um, max %.4f um at "
-           "(%.3f, %.3f) mm\n",
-           is_firmware(f) ? "correction, up to translation/rotation/magnification"
-                                  : "table",
-           rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
-    if (is_firmware(f))
-        return;
+}
+
+/* A table format's notes after the residual: the 828D's size, the profile tables, the clipping,
+ * LinuxCNC's file type. */
+static void print_table_notes(int f, const sc_export_options *o, const sc_export_report *rep)
+{
     if (f == SC_EXPORT_SIEMENS_CEC && !o->siemens_828d) {
         int most = 0;
         for (int k = 0; k < rep->tables && k < 4; ++k)
@@ -227,6 +216,28 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
                o->axis);
 }
 
+static void print_report(const sc_lut *lut, const char *fmt, int f, const char *out,
+                         const sc_export_options *o, const sc_export_report *rep)
+{
+    printf("export %s: %s", fmt, out);
+    if (f == SC_EXPORT_BECKHOFF && o->cross_profile >= 0) {
+        print_cross_report(lut, out, o, rep);
+        return;
+    }
+    if (f == SC_EXPORT_AEROTECH_A1 && o->cross_profile >= 0) {
+        print_a1_1d_report(lut, o, rep);
+        return;
+    }
+    print_contents(f, o, rep);
+    printf("residual (controller %s - map) over %ld samples: rms %.4f um, max %.4f um at "
+           "(%.3f, %.3f) mm\n",
+           is_firmware(f) ? "correction, up to translation/rotation/magnification"
+                                  : "table",
+           rep->samples, rep->rms_um, rep->max_um, rep->max_at_mm[0], rep->max_at_mm[1]);
+    if (!is_firmware(f))
+        print_table_notes(f, o, rep);
+}
+
 /* The command line, as given. */
 typedef struct {
     const char *map, *out, *fmt, *axis;
@@ -242,10 +253,10 @@ typedef struct {
     int use_travel[4];
 } export_args;
 
-enum { NOT_AN_OPTION = -1 };
-
-static int parse_axis_numbers(export_args *a, const char *v)
+static int parse_axis_numbers(const char *cmd, const char *opt, const char *v, void *field)
 {
+    export_args *a = field;
+    (void)cmd, (void)opt;
     char tail;
     const int got = sscanf(v, "%d,%d,%d%c", &a->ax_nr[0], &a->ax_nr[1], &a->ax_nr[2], &tail);
     if ((got != 2 && got != 3) || a->ax_nr[0] < 1 || a->ax_nr[1] < 1 || a->ax_nr[2] < 1 ||
@@ -254,8 +265,10 @@ static int parse_axis_numbers(export_args *a, const char *v)
     return CLI_OK;
 }
 
-static int parse_axis_names(export_args *a, const char *v)
+static int parse_axis_names(const char *cmd, const char *opt, const char *v, void *field)
 {
+    export_args *a = field;
+    (void)cmd, (void)opt;
     const char *comma = strchr(v, ',');
     size_t l0 = comma ? (size_t)(comma - v) : 0, l1 = comma ? strlen(comma + 1) : 0;
     if (!comma || l0 == 0 || l1 == 0 || l0 >= sizeof a->names[0] || l1 >= sizeof a->names[1] ||
@@ -267,8 +280,10 @@ static int parse_axis_names(export_args *a, const char *v)
     return CLI_OK;
 }
 
-static int parse_profile(export_args *a, const char *v)
+static int parse_profile(const char *cmd, const char *opt, const char *v, void *field)
 {
+    export_args *a = field;
+    (void)cmd, (void)opt;
     const int np = a->np;
     if (np == SC_LUT_MAX_PROFILES)
         return cli_usage_error("export", "at most %d profiles", SC_LUT_MAX_PROFILES);
@@ -285,8 +300,10 @@ static int parse_profile(export_args *a, const char *v)
     return CLI_OK;
 }
 
-static int parse_travel(export_args *a, const char *v)
+static int parse_travel(const char *cmd, const char *opt, const char *v, void *field)
 {
+    export_args *a = field;
+    (void)cmd, (void)opt;
     int t = 3;
     const char *mm = v;
     if (v[0] && v[1] == ':') {
@@ -305,90 +322,98 @@ static int parse_travel(export_args *a, const char *v)
     return CLI_OK;
 }
 
-/* Options with a number of mm or µm. */
-static int parse_number_option(export_args *a, const char *opt, const char *v)
+/* --at MM: the line (linuxcnc) */
+static int parse_at(const char *cmd, const char *opt, const char *v, void *field)
 {
-    if (!strcmp(opt, "--interval")) {
-        if (sc_parse_double(v, &a->interval) != 0 || a->interval <= 0)
-            return cli_usage_error("export", "--interval: a positive number of mm, not '%s'", v);
-    } else if (!strcmp(opt, "--max-nodes")) {
-        return cli_parse_max_nodes("export", v, &a->max_nodes);
-    } else if (!strcmp(opt, "--limit-um")) {
-        if (sc_parse_double(v, &a->limit) != 0 || a->limit <= 0)
-            return cli_usage_error("export", "--limit-um: a positive number, not '%s'", v);
-    } else if (!strcmp(opt, "--at")) {
-        if (sc_parse_double(v, &a->at) != 0)
-            return cli_usage_error("export", "--at: a position in mm, not '%s'", v);
-        a->use_at = 1;
-    } else if (!strcmp(opt, "--profile-interval")) {
-        if (sc_parse_double(v, &a->pinterval) != 0 || !(a->pinterval > 0))
-            return cli_usage_error("export",
-                                   "--profile-interval: a positive number of mm, not '%s'", v);
-    } else if (!strcmp(opt, "--offset")) {
-        if (two_doubles(v, a->offset) != 0 || fabs(a->offset[0]) > 1e6 ||
-            fabs(a->offset[1]) > 1e6)
-            return cli_usage_error("export", "--offset: DX,DY in mm (within 1 km), not '%s'", v);
-    } else if (!strcmp(opt, "--steps-per-mm") || !strcmp(opt, "--rotation-distance")) {
-        double *d = opt[2] == 's' ? a->steps : a->rdist;
-        if (two_doubles(v, d) != 0 || !(d[0] > 0) || !(d[1] > 0) || d[0] > 1e9 || d[1] > 1e9)
-            return cli_usage_error("export", "%s: X,Y (positive), not '%s'", opt, v);
-    } else {
-        return NOT_AN_OPTION;
-    }
+    export_args *a = field;
+    (void)opt;
+    if (sc_parse_double(v, &a->at) != 0)
+        return cli_usage_error(cmd, "--at: a position in mm, not '%s'", v);
+    a->use_at = 1;
     return CLI_OK;
 }
 
-/* Siemens' --target and --first-table. */
-static int parse_siemens_option(export_args *a, const char *opt, const char *v)
+/* --offset DX,DY (mm, within 1 km) into the double[2] */
+static int parse_offset(const char *cmd, const char *opt, const char *v, void *field)
 {
-    if (!strcmp(opt, "--target")) {
-        if (!strcmp(v, "828d") || !strcmp(v, "828D"))
-            a->target_828d = 1;
-        else if (strcmp(v, "840d") != 0 && strcmp(v, "840D") != 0)
-            return cli_usage_error("export", "--target: 840d or 828d, not '%s'", v);
-    } else if (!strcmp(opt, "--first-table")) {
-        long t;
-        if (sc_parse_long(v, &t) != 0 || t < 0 || t > 1000)
-            return cli_usage_error("export", "--first-table: a table index >= 0, not '%s'", v);
-        a->first_table = (int)t;
-    } else {
-        return NOT_AN_OPTION;
-    }
+    double *d = field;
+    (void)opt;
+    if (two_doubles(v, d) != 0 || fabs(d[0]) > 1e6 || fabs(d[1]) > 1e6)
+        return cli_usage_error(cmd, "--offset: DX,DY in mm (within 1 km), not '%s'", v);
     return CLI_OK;
 }
 
-/* One option with its value. */
-static int parse_value_option(export_args *a, const char *opt, const char *v)
+/* --steps-per-mm, --rotation-distance X,Y (positive, at most 1e9) into the double[2] */
+static int parse_scales(const char *cmd, const char *opt, const char *v, void *field)
 {
-    if (!strcmp(opt, "--format"))
-        a->fmt = v;
-    else if (!strcmp(opt, "--map"))
-        a->map = v;
-    else if (!strcmp(opt, "-o") || !strcmp(opt, "--out"))
-        a->out = v;
-    else if (!strcmp(opt, "--axis"))
-        a->axis = v;
-    else if (!strcmp(opt, "--axis-numbers"))
-        return parse_axis_numbers(a, v);
-    else if (!strcmp(opt, "--axis-names"))
-        return parse_axis_names(a, v);
-    else if (!strcmp(opt, "--profile"))
-        return parse_profile(a, v);
-    else if (!strcmp(opt, "--travel"))
-        return parse_travel(a, v);
-    else {
-        int rc = parse_number_option(a, opt, v);
-        if (rc == NOT_AN_OPTION)
-            rc = parse_siemens_option(a, opt, v);
-        if (rc == NOT_AN_OPTION)
-            return cli_usage_error("export", "unknown option '%s' (see --help)", opt);
-        return rc;
-    }
+    double *d = field;
+    if (two_doubles(v, d) != 0 || !(d[0] > 0) || !(d[1] > 0) || d[0] > 1e9 || d[1] > 1e9)
+        return cli_usage_error(cmd, "%s: X,Y (positive), not '%s'", opt, v);
     return CLI_OK;
 }
 
-/* argv into a; *help set for --help. */
-static int parse_args(int argc, char **argv, export_args *a, int *help)
+/* Siemens' --target 840d|828d into the int target_828d */
+static int parse_target(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)opt;
+    if (!strcmp(v, "828d") || !strcmp(v, "828D"))
+        *(int *)field = 1;
+    else if (strcmp(v, "840d") != 0 && strcmp(v, "840D") != 0)
+        return cli_usage_error(cmd, "--target: 840d or 828d, not '%s'", v);
+    return CLI_OK;
+}
+
+#define F(field) offsetof(export_args, field)
+#define POSITIVE(name, f, v, bad_, dflt, text)                                                     \
+    {name, CLI_DOUBLE, F(f), v, 0, HUGE_VAL, CLI_MIN_OPEN, .bad = bad_, .def = dflt, .help = text}
+/* export's options (cli_opts.h), in the order of its --help */
+static const cli_opt EXPORT_OPTS[] = {
+    {"--format", CLI_STRING, F(fmt), "FORMAT", .help = "the controller's format (required)"},
+    {"--map", CLI_STRING, F(map), "G.csv", .help = "the stage error map (required)"},
+    {"-o|--out", CLI_STRING, F(out), "OUT", .help = "the file (required)"},
+    {"--axis", CLI_STRING, F(axis), "x|y|both", .help = "the axis of a one-axis format"},
+    POSITIVE("--interval", interval, "MM", "--interval: a positive number of mm, not '%s'",
+             "the map's pitch", "the table's spacing (mm)"),
+    {"--at", CLI_CUSTOM, 0, "MM", .parse = parse_at, .def = "the mean",
+     .help = "linuxcnc: G along the line at MM"},
+    POSITIVE("--limit-um", limit, "UM", "--limit-um: a positive number, not '%s'", NULL,
+             "clip values above this magnitude"),
+    {"--negate", CLI_FLAG, F(negate), .help = "the opposite of the format's default sign"},
+    {"--offset", CLI_CUSTOM, F(offset), "DX,DY", .parse = parse_offset, .def = "0,0",
+     .help = "the machine coordinates of the map's origin (mm)"},
+    {"--axis-numbers", CLI_CUSTOM, 0, "NX,NY[,NZ]", .parse = parse_axis_numbers, .def = "1,2,3",
+     .help = "the controller's axis numbers"},
+    {"--axis-names", CLI_CUSTOM, 0, "NAMEX,NAMEY", .parse = parse_axis_names, .def = "AX1,AX2",
+     .help = "siemens: the axis names"},
+    {"--first-table", CLI_INT, F(first_table), "T", 0, 1000,
+     .bad = "--first-table: a table index >= 0, not '%s'", .def = "0",
+     .help = "siemens, powerpmac: the first table's index"},
+    {"--target", CLI_CUSTOM, F(target_828d), "840d|828d", .choices = "840d|828d",
+     .parse = parse_target, .def = "840d", .help = "siemens: the control"},
+    {"--steps-per-mm", CLI_CUSTOM, F(steps), "SX,SY", .parse = parse_scales,
+     .help = "marlin, reprap, powerpmac: the present steps (units) per mm"},
+    {"--rotation-distance", CLI_CUSTOM, F(rdist), "RX,RY", .parse = parse_scales,
+     .help = "klipper: the present rotation_distance"},
+    {"--profile", CLI_CUSTOM, 0, "AXIS:DIR:P.csv[@OFFSET_MM]", .parse = parse_profile,
+     .help = "a straightness profile (repeatable; siemens-cec, beckhoff, aerotech-a1)"},
+    {"--travel", CLI_CUSTOM, 0, "[AXIS:]MIN,MAX", .parse = parse_travel,
+     .help = "beckhoff: the master axis' travel (mm)"},
+    POSITIVE("--profile-interval", pinterval, "MM",
+             "--profile-interval: a positive number of mm, not '%s'", "the profile's points",
+             "the profiles' table spacing (mm)"),
+    {"--max-nodes", CLI_CUSTOM, F(max_nodes), "N", 2, SC_LUT_MAX_NX, .parse = cli_opt_max_nodes,
+     .def = "the map as it is", .help = "a larger map fitted by N nodes per axis first"},
+};
+#undef POSITIVE
+#undef F
+
+const cli_cmd_opts cli_export_opts = {
+    "export", USAGE, EXPORT_OPTS, (int)(sizeof EXPORT_OPTS / sizeof EXPORT_OPTS[0]), 0, NULL,
+    NULL, NULL, NULL, CLI_NO_OPERAND, NULL, NULL,
+};
+
+/* argv into a: -1 to go on, else the exit code (--help, a usage error). */
+static int parse_args(int argc, char **argv, export_args *a)
 {
     memset(a, 0, sizeof *a);
     a->ax_nr[0] = 1;
@@ -396,26 +421,7 @@ static int parse_args(int argc, char **argv, export_args *a, int *help)
     a->ax_nr[2] = 3;
     snprintf(a->names[0], sizeof a->names[0], "AX1");
     snprintf(a->names[1], sizeof a->names[1], "AX2");
-    *help = 0;
-    for (int k = 1; k < argc; ++k) {
-        const char *opt = argv[k];
-        if (!strcmp(opt, "--help") || !strcmp(opt, "-h")) {
-            *help = 1;
-            return CLI_OK;
-        }
-        if (!strcmp(opt, "--negate")) {
-            a->negate = 1;
-            continue;
-        }
-        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
-        if (!v)
-            return cli_usage_error("export", "%s: unknown option or missing value (see --help)", opt);
-        ++k;
-        int rc = parse_value_option(a, opt, v);
-        if (rc != CLI_OK)
-            return rc;
-    }
-    return CLI_OK;
+    return cli_opts_parse(&cli_export_opts, argc, argv, a);
 }
 
 /* --axis for format f: o->axis, or *both_files for one file per axis (OUT-x, OUT-y). */
@@ -590,14 +596,9 @@ static sc_status write_files(const sc_lut *lut, int nfiles, char paths[][4096],
 int cmd_export(int argc, char **argv)
 {
     static export_args a;
-    int help;
-    int rc = parse_args(argc, argv, &a, &help);
-    if (rc != CLI_OK)
+    int rc = parse_args(argc, argv, &a);
+    if (rc >= 0)
         return rc;
-    if (help) {
-        export_usage(stdout);
-        return CLI_OK;
-    }
     if (!a.fmt || !a.map || !a.out)
         return cli_usage_error("export", "--format, --map and -o are required (see --help)");
     int f = sc_export_format_from_name(a.fmt);

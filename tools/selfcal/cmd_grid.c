@@ -1,10 +1,12 @@
 /* selfcal grid — separate the stage error G from the plate error A (Ye, double shift, least squares). */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_calibrate.h"
@@ -12,7 +14,7 @@
 #include "plots.h"
 
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal grid --method {ye,double-shift,lsq} IN.csv --map G.csv\n"
     "                    [--artifact A.csv] [--summary S.json] [--sigma-r-um X] [--plot map.svg]\n"
     "                    [--residuals R.csv] [--reject-outliers] [--covariance C.npy]\n"
@@ -152,22 +154,51 @@ typedef struct grid_args {
     uint64_t mc_seed;
 } grid_args;
 
-/* --monte-carlo, --seed, --monte-carlo-out: CLI_OK or a usage error; -1: not one of them. */
-static int parse_mc_option(grid_args *g, const char *o, const char *v)
-{
-    if (!strcmp(o, "--monte-carlo-out")) {
-        g->mc_out = v;
-        return CLI_OK;
-    }
-    if (!strcmp(o, "--seed"))
-        return cli_parse_seed("grid", v, &g->mc_seed) == CLI_OK ? CLI_OK : CLI_BAD_INPUT;
-    if (strcmp(o, "--monte-carlo") != 0)
-        return -1;
-    if (sc_parse_long(v, &g->mc_trials) || g->mc_trials < 2 || g->mc_trials > 10000000)
-        return cli_usage_error("grid", "--monte-carlo needs a number of trials of 2 to 1e7, got "
-                                       "'%s'", v);
-    return CLI_OK;
-}
+#define F(field) offsetof(grid_args, field)
+/* grid's options (cli_opts.h), in the order of its --help */
+static const cli_opt GRID_OPTS[] = {
+    {"--method", CLI_STRING, F(method), "ye|double-shift|lsq", .help = "the method (required)"},
+    {"--map", CLI_STRING, F(map), "G.csv", .help = "the stage error G (required)"},
+    {"--artifact", CLI_STRING, F(art), "A.csv", .help = "the plate error A"},
+    {"--summary", CLI_STRING, F(sum), "S.json", .help = "a JSON summary"},
+    {"--sigma-r-um", CLI_DOUBLE, F(opt.sigma_r_um), "X", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--sigma-r-um needs a positive number of um (at most 1e6), got '%s'",
+     .def = "estimated from the residuals", .help = "the measurement noise for the uncertainties (um)"},
+    {"--plot", CLI_STRING, F(plot), "map.svg", .help = "an arrow plot of G"},
+    {"--residuals", CLI_STRING, F(residuals), "R.csv",
+     .help = "lsq: the residuals, standardized, and the outlier test"},
+    {"--reject-outliers", CLI_FLAG, F(opt.reject_outliers),
+     .help = "lsq: remove the worst outlier, solve again, repeat"},
+    {"--covariance", CLI_STRING, F(covariance), "C.npy", .help = "lsq: the covariance of G (um^2)"},
+    {"--outlier-alpha", CLI_CUSTOM, F(opt), "A", 0, 1, CLI_MIN_OPEN | CLI_MAX_OPEN,
+     .parse = cli_opt_lsq, .def = "0.05", .help = "lsq: the outlier test's significance for the data set"},
+    {"--outlier-alpha-each", CLI_CUSTOM, F(opt), "A", 0, 1, CLI_MIN_OPEN | CLI_MAX_OPEN,
+     .parse = cli_opt_lsq, .help = "lsq: the outlier test's significance for each coordinate"},
+    {"--drift", CLI_CHOICE, F(opt.drift), "linear|none", .choices = "none|linear",
+     .bad = "--drift must be linear or none, got '%s'", .def = "none",
+     .help = "lsq: per-view drift rates from the t_s column"},
+    {"--view-noise", CLI_CUSTOM, F(opt), "stated|estimate", .choices = "stated|estimate",
+     .parse = cli_opt_lsq, .def = "stated", .help = "lsq: each view's noise estimated"},
+    {"--view-scale", CLI_CUSTOM, F(opt), "model|free", .choices = "model|free",
+     .parse = cli_opt_lsq, .def = "model", .help = "lsq: each view's scale an unknown"},
+    {"--monte-carlo", CLI_LONG, F(mc_trials), "M", 2, 1e7,
+     .bad = "--monte-carlo needs a number of trials of 2 to 1e7, got '%s'",
+     .help = "lsq: the budget validated by M trials"},
+    {"--seed", CLI_CUSTOM, F(mc_seed), "S", .parse = cli_opt_seed, .def = "1",
+     .help = "the Monte Carlo's seed, 0 to 2^64-1"},
+    {"--monte-carlo-out", CLI_STRING, F(mc_out), "MC.csv",
+     .help = "per node the Monte Carlo u, the ratio and the 95 % intervals"},
+    {"--quiet", CLI_FLAG, F(quiet), .help = "no summary on stdout"},
+    {"--progress", CLI_FLAG, F(progress), .help = "the phases of a least-squares solve on stderr"},
+    {"--max-memory", CLI_CUSTOM, F(opt.max_bytes), "SIZE", .parse = cli_opt_max_memory,
+     .def = "the available memory", .help = "refuse a plan estimated to need more (K, M, G, T)"},
+};
+#undef F
+
+const cli_cmd_opts cli_grid_opts = {
+    "grid", USAGE, GRID_OPTS, (int)(sizeof GRID_OPTS / sizeof GRID_OPTS[0]),
+    offsetof(grid_args, in), NULL, NULL, NULL, NULL, 0, NULL, NULL,
+};
 
 /* Parse the arguments into g: -1 to go on, else the exit code (--help, a usage error). */
 static int parse_args(int argc, char **argv, grid_args *g)
@@ -177,65 +208,9 @@ static int parse_args(int argc, char **argv, grid_args *g)
     sc_grid_options_default(&g->opt);
     g->opt.max_bytes = cli_memory_bytes();
     g->opt.warn = warn_stderr;
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        if (!strcmp(o, "--reject-outliers")) {
-            g->opt.reject_outliers = 1;
-            continue;
-        }
-        if (!strcmp(o, "--quiet")) {
-            g->quiet = 1;
-            continue;
-        }
-        if (!strcmp(o, "--progress")) {
-            g->progress = 1;
-            continue;
-        }
-        if (o[0] != '-' || !strcmp(o, "-")) {
-            if (g->in)
-                return cli_usage_error("grid", "more than one input file ('%s', '%s')", g->in, o);
-            g->in = o;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error("grid", "%s: unknown option or missing value (see --help)", o);
-        const char *v = argv[++a];
-        int rc = cli_parse_lsq_option("grid", o, v, &g->opt); /* the outlier test, view noise */
-        if (rc < 0)
-            rc = parse_mc_option(g, o, v);
-        if (rc >= 0) {
-            if (rc != CLI_OK)
-                return rc;
-            continue;
-        }
-        if (!strcmp(o, "--method")) g->method = v;
-        else if (!strcmp(o, "--map")) g->map = v;
-        else if (!strcmp(o, "--artifact")) g->art = v;
-        else if (!strcmp(o, "--summary")) g->sum = v;
-        else if (!strcmp(o, "--plot")) g->plot = v;
-        else if (!strcmp(o, "--residuals")) g->residuals = v;
-        else if (!strcmp(o, "--covariance")) g->covariance = v;
-        else if (!strcmp(o, "--max-memory")) {
-            if ((rc = cli_parse_max_memory("grid", v, &g->opt.max_bytes)) != CLI_OK)
-                return rc;
-        }
-        else if (!strcmp(o, "--drift")) {
-            if (strcmp(v, "linear") != 0 && strcmp(v, "none") != 0)
-                return cli_usage_error("grid", "--drift must be linear or none, got '%s'", v);
-            g->opt.drift = !strcmp(v, "linear");
-        }
-        else if (!strcmp(o, "--sigma-r-um")) {
-            if (sc_parse_double(v, &g->opt.sigma_r_um) || !(g->opt.sigma_r_um > 0) ||
-                !(g->opt.sigma_r_um <= SC_INPUT_MAX_ABS))
-                return cli_usage_error("grid", "--sigma-r-um needs a positive number of um (at "
-                                               "most 1e6), got '%s'", v);
-        } else
-            return cli_usage_error("grid", "unknown option '%s' (see --help)", o);
-    }
+    int rc = cli_opts_parse(&cli_grid_opts, argc, argv, g);
+    if (rc >= 0)
+        return rc;
     if (!g->method || !g->in || !g->map)
         return cli_usage_error("grid", "--method, IN.csv and --map are required (see --help)");
     int m = sc_grid_method_from_name(g->method);

@@ -3,18 +3,21 @@
  * selfcal/import.h), and the two scans' sensor logs of a straightness measurement checked for
  * constant step, gaps and spacings. Options and checks: docs/import.md. */
 #include <math.h>
+#include <stdbool.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/import.h"
 #include "selfcal/profile.h"
 
-static const char *GRID_USAGE =
+static const char GRID_USAGE[] =
     "usage: selfcal import grid --n N --pitch-mm P [--origin-mm X,Y] [--stage NX,NY]\n"
     "                           --view \"rot=R shift=SX,SY [rows=..] [cols=..]\" FILE\n"
     "                           [--view \"...\" FILE ...] -o OUT.csv\n"
@@ -47,7 +50,7 @@ static const char *GRID_USAGE =
     "Bad input (exit 2, no output): a missing column, two points on one mark, a view where fewer\n"
     "than --min-share of its points (or none) fall on a mark, mixed decimal marks.\n";
 
-static const char *PROFILE_USAGE =
+static const char PROFILE_USAGE[] =
     "usage: selfcal import profile --spacing-mm D1 FILE1 --spacing-mm D2 FILE2 -o OUT.csv\n"
     "                              [--step-mm S] [--pos-col position] [--m1-col m1]\n"
     "                              [--m2-col m2] [--m3-col m3] [--pos-units mm|um]\n"
@@ -184,88 +187,108 @@ typedef struct layout_args {
     const char *nominal[2]; /* --nominal-x-col, --nominal-y-col */
 } layout_args;
 
-enum { NOT_LAYOUT = -100 };
-
-/* A flag of the layout options (no value): --no-header, --transpose, --deviations. */
-static int parse_layout_flag(const char *o, layout_args *l)
+/* --no-header, --transpose: the layout's bool set */
+static int set_bool(const char *cmd, const char *opt, const char *v, void *field)
 {
-    if (!strcmp(o, "--no-header"))
-        l->lay.no_header = true;
-    else if (!strcmp(o, "--transpose"))
-        l->lay.transpose = true;
-    else if (!strcmp(o, "--deviations"))
-        l->deviations = 1;
-    else
-        return NOT_LAYOUT;
+    (void)cmd, (void)opt, (void)v;
+    *(bool *)field = true;
     return CLI_OK;
 }
 
-/* A layout option with its value v; NOT_LAYOUT for other options. */
-static int parse_layout_option(const char *cmd, const char *o, const char *v, layout_args *l)
+/* --axis-names A,B[,C,D] into the layout_args */
+static int parse_axis_names(const char *cmd, const char *opt, const char *v, void *field)
 {
-    sc_table_layout *y = &l->lay;
-    if (!strcmp(o, "--id-col")) {
-        y->id_col = v;
-    } else if (!strcmp(o, "--axis-col")) {
-        y->axis_col = v;
-    } else if (!strcmp(o, "--value-col")) {
-        y->value_col = v;
-    } else if (!strcmp(o, "--nominal-x-col")) {
-        l->nominal[0] = v;
-    } else if (!strcmp(o, "--nominal-y-col")) {
-        l->nominal[1] = v;
-    } else if (!strcmp(o, "--axis-names")) {
-        if (strlen(v) >= sizeof l->axis_buf)
-            return cli_usage_error(cmd, "--axis-names: too long");
-        snprintf(l->axis_buf, sizeof l->axis_buf, "%s", v);
-        l->n_axis = 0;
-        for (char *tok = l->axis_buf; tok && l->n_axis < 5;) {
-            char *comma = strchr(tok, ',');
-            if (comma)
-                *comma = '\0';
-            if (l->n_axis == 4 || !*sc_str_trim(tok))
-                return cli_usage_error(cmd, "--axis-names needs names separated by commas "
-                                            "(X,Y), got '%s'", v);
-            l->axis[l->n_axis++] = sc_str_trim(tok);
-            tok = comma ? comma + 1 : NULL;
-        }
-    } else if (!strcmp(o, "--where")) {
-        const char *eq = strchr(v, '=');
-        if (!eq || eq == v || strlen(v) >= sizeof l->where_buf[0])
-            return cli_usage_error(cmd, "--where needs COL=VALUE, got '%s'", v);
-        if (y->n_where == SC_TABLE_MAX_WHERE)
-            return cli_usage_error(cmd, "at most %d --where", SC_TABLE_MAX_WHERE);
-        char *b = l->where_buf[y->n_where];
-        snprintf(b, sizeof l->where_buf[0], "%s", v);
-        b[eq - v] = '\0';
-        y->where_col[y->n_where] = sc_str_trim(b);
-        y->where_value[y->n_where++] = sc_str_trim(b + (eq - v) + 1);
-    } else if (!strcmp(o, "--missing")) {
-        if (y->n_missing == SC_TABLE_MAX_MISSING)
-            return cli_usage_error(cmd, "at most %d --missing", SC_TABLE_MAX_MISSING);
-        if (!v[0])
-            return cli_usage_error(cmd, "--missing needs a token (empty fields are always empty)");
-        y->missing[y->n_missing++] = v;
-    } else if (!strcmp(o, "--encoding")) {
-        static const char *const names[] = {"utf-8", "utf8", "cp1252", "windows-1252", "latin-1",
-                                            "latin1", "iso-8859-1", "shift-jis", "shift_jis",
-                                            "sjis", "cp932"};
-        static const sc_table_encoding enc[] = {SC_ENC_UTF8, SC_ENC_UTF8, SC_ENC_CP1252,
-                                                SC_ENC_CP1252, SC_ENC_LATIN1, SC_ENC_LATIN1,
-                                                SC_ENC_LATIN1, SC_ENC_SHIFT_JIS, SC_ENC_SHIFT_JIS,
-                                                SC_ENC_SHIFT_JIS, SC_ENC_SHIFT_JIS};
-        size_t k = 0;
-        while (k < sizeof names / sizeof names[0] && strcasecmp(v, names[k]))
-            ++k;
-        if (k == sizeof names / sizeof names[0])
-            return cli_usage_error(cmd, "--encoding: utf-8, cp1252, latin-1 or shift-jis, not '%s'",
-                                   v);
-        y->encoding = enc[k];
-    } else {
-        return NOT_LAYOUT;
+    layout_args *l = field;
+    (void)opt;
+    if (strlen(v) >= sizeof l->axis_buf)
+        return cli_usage_error(cmd, "--axis-names: too long");
+    snprintf(l->axis_buf, sizeof l->axis_buf, "%s", v);
+    l->n_axis = 0;
+    for (char *tok = l->axis_buf; tok && l->n_axis < 5;) {
+        char *comma = strchr(tok, ',');
+        if (comma)
+            *comma = '\0';
+        if (l->n_axis == 4 || !*sc_str_trim(tok))
+            return cli_usage_error(cmd, "--axis-names needs names separated by commas "
+                                        "(X,Y), got '%s'", v);
+        l->axis[l->n_axis++] = sc_str_trim(tok);
+        tok = comma ? comma + 1 : NULL;
     }
     return CLI_OK;
 }
+
+/* --where COL=VALUE, one more into the layout_args */
+static int parse_where(const char *cmd, const char *opt, const char *v, void *field)
+{
+    layout_args *l = field;
+    sc_table_layout *y = &l->lay;
+    (void)opt;
+    const char *eq = strchr(v, '=');
+    if (!eq || eq == v || strlen(v) >= sizeof l->where_buf[0])
+        return cli_usage_error(cmd, "--where needs COL=VALUE, got '%s'", v);
+    if (y->n_where == SC_TABLE_MAX_WHERE)
+        return cli_usage_error(cmd, "at most %d --where", SC_TABLE_MAX_WHERE);
+    char *b = l->where_buf[y->n_where];
+    snprintf(b, sizeof l->where_buf[0], "%s", v);
+    b[eq - v] = '\0';
+    y->where_col[y->n_where] = sc_str_trim(b);
+    y->where_value[y->n_where++] = sc_str_trim(b + (eq - v) + 1);
+    return CLI_OK;
+}
+
+/* --missing TOKEN, one more into the sc_table_layout */
+static int parse_missing(const char *cmd, const char *opt, const char *v, void *field)
+{
+    sc_table_layout *y = field;
+    (void)opt;
+    if (y->n_missing == SC_TABLE_MAX_MISSING)
+        return cli_usage_error(cmd, "at most %d --missing", SC_TABLE_MAX_MISSING);
+    if (!v[0])
+        return cli_usage_error(cmd, "--missing needs a token (empty fields are always empty)");
+    y->missing[y->n_missing++] = v;
+    return CLI_OK;
+}
+
+/* --encoding NAME into the sc_table_layout */
+static int parse_encoding(const char *cmd, const char *opt, const char *v, void *field)
+{
+    static const char *const names[] = {"utf-8", "utf8", "cp1252", "windows-1252", "latin-1",
+                                        "latin1", "iso-8859-1", "shift-jis", "shift_jis",
+                                        "sjis", "cp932"};
+    static const sc_table_encoding enc[] = {SC_ENC_UTF8, SC_ENC_UTF8, SC_ENC_CP1252,
+                                            SC_ENC_CP1252, SC_ENC_LATIN1, SC_ENC_LATIN1,
+                                            SC_ENC_LATIN1, SC_ENC_SHIFT_JIS, SC_ENC_SHIFT_JIS,
+                                            SC_ENC_SHIFT_JIS, SC_ENC_SHIFT_JIS};
+    (void)opt;
+    size_t k = 0;
+    while (k < sizeof names / sizeof names[0] && strcasecmp(v, names[k]))
+        ++k;
+    if (k == sizeof names / sizeof names[0])
+        return cli_usage_error(cmd, "--encoding: utf-8, cp1252, latin-1 or shift-jis, not '%s'", v);
+    ((sc_table_layout *)field)->encoding = enc[k];
+    return CLI_OK;
+}
+
+/* The layout options both commands take (SPEC §10a), as rows of a table whose argument struct
+ * holds the layout_args as lay (F: that table's offsetof). */
+#define LAYOUT_ROWS                                                                                \
+    {"--id-col", CLI_STRING, F(lay.lay.id_col), "NAME", .help = "one row per axis: the point's ID"}, \
+    {"--axis-col", CLI_STRING, F(lay.lay.axis_col), "NAME",                                        \
+     .help = "one row per axis: the coordinate's name"},                                           \
+    {"--value-col", CLI_STRING, F(lay.lay.value_col), "NAME",                                      \
+     .help = "one row per axis: the value"},                                                       \
+    {"--axis-names", CLI_CUSTOM, F(lay), "A,B[,...]", .parse = parse_axis_names,                   \
+     .help = "one row per axis: the AXIS values of the coordinates, in order"},                    \
+    {"--where", CLI_CUSTOM, F(lay), "COL=VALUE", .parse = parse_where,                             \
+     .help = "only the rows with VALUE in COL (repeatable)"},                                      \
+    {"--missing", CLI_CUSTOM, F(lay.lay), "TOKEN", .parse = parse_missing,                         \
+     .help = "a placeholder of a value not measured (repeatable)"},                                \
+    {"--no-header", CLI_FLAG, F(lay.lay.no_header), .parse = set_bool,                             \
+     .help = "no header line: columns by number"},                                                 \
+    {"--transpose", CLI_FLAG, F(lay.lay.transpose), .parse = set_bool,                             \
+     .help = "one column per point, rows labelled by their first field"},                          \
+    {"--encoding", CLI_CUSTOM, F(lay.lay), "utf-8|cp1252|latin-1|shift-jis",                       \
+     .parse = parse_encoding, .def = "utf-8", .help = "the file's character encoding"}
 
 /* The layout's own checks (one row per axis: all three columns). */
 static int check_layout(const char *cmd, const layout_args *l)
@@ -474,64 +497,101 @@ static int looks_like_option(const char *s)
     return (s[0] == '-' && s[1] == '-') || !strcmp(s, "-o");
 }
 
-/* One option of import grid; argv[*a] is the option, its value(s) follow. */
-static int parse_grid_option(int argc, char **argv, int *a, grid_args *g)
+/* --view SPEC FILE: one more view into the grid_args */
+static int parse_view_arg(const char *cmd, const char *opt, const char *v, const char *next,
+                          void *field)
 {
-    const char *cmd = "import grid", *o = argv[*a];
-    if (parse_layout_flag(o, &g->lay) == CLI_OK)
-        return CLI_OK;
-    if (*a + 1 >= argc)
-        return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
-    const char *v = argv[++*a];
-    int lrc = parse_layout_option(cmd, o, v, &g->lay);
-    if (lrc != NOT_LAYOUT)
-        return lrc;
-    if (!strcmp(o, "--view")) {
-        if (*a + 1 >= argc)
-            return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
-        if (g->n_views == g->max_views || g->n_views == SC_GRID_VIEW_LIMIT)
-            return cli_usage_error(cmd, "at most %d views", SC_GRID_VIEW_LIMIT);
-        if (looks_like_option(argv[*a + 1]))
-            return cli_usage_error(cmd, "--view \"%s\" must be followed by its FILE, not by the "
-                                        "option '%s'", v, argv[*a + 1]);
-        g->view_spec[g->n_views] = v;
-        g->views[g->n_views++].file = argv[++*a];
-    } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
-        g->out = v;
-    } else if (!strcmp(o, "--x-col")) {
-        g->xcol = v;
-    } else if (!strcmp(o, "--y-col")) {
-        g->ycol = v;
-    } else if (!strcmp(o, "--ux-col")) {
-        g->uxcol = v;
-    } else if (!strcmp(o, "--uy-col")) {
-        g->uycol = v;
-    } else if (!strcmp(o, "--units")) {
-        static const char *const names[] = {"mm", "um", "µm"};
-        static const double f[] = {1, 1e-3, 1e-3};
-        if (parse_units(cmd, o, v, names, f, 3, &g->unit_mm))
-            return CLI_BAD_INPUT;
-    } else if (!strcmp(o, "--origin-mm")) {
-        if (parse_pair_double(v, &g->ox, &g->oy))
-            return cli_usage_error(cmd, "--origin-mm needs X,Y, got '%s'", v);
-    } else if (!strcmp(o, "--stage")) {
-        if (parse_pair_long(v, &g->snx, &g->sny) || g->snx < 3 || g->sny < 3 ||
-            g->snx % 2 == 0 || g->sny % 2 == 0 || g->snx > 4 * SC_GRID_MAX_N ||
-            g->sny > 4 * SC_GRID_MAX_N)
-            return cli_usage_error(cmd, "--stage needs NX,NY (odd, >= 3), got '%s'", v);
-    } else {
-        double x;
-        if (sc_parse_double(v, &x))
-            return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
-        if (!strcmp(o, "--n")) g->n_d = x;
-        else if (!strcmp(o, "--pitch-mm")) g->pitch = x;
-        else if (!strcmp(o, "--tolerance-mm")) g->tol = x;
-        else if (!strcmp(o, "--min-share")) g->share = x;
-        else
-            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-    }
+    grid_args *g = field;
+    (void)opt;
+    if (!next)
+        return cli_usage_error(cmd, "--view \"rot=R shift=SX,SY\" must be followed by FILE");
+    if (g->n_views == g->max_views || g->n_views == SC_GRID_VIEW_LIMIT)
+        return cli_usage_error(cmd, "at most %d views", SC_GRID_VIEW_LIMIT);
+    if (looks_like_option(next))
+        return cli_usage_error(cmd, "--view \"%s\" must be followed by its FILE, not by the "
+                                    "option '%s'", v, next);
+    g->view_spec[g->n_views] = v;
+    g->views[g->n_views++].file = next;
     return CLI_OK;
 }
+
+/* --units mm|um into the double (mm per unit) */
+static int parse_grid_units(const char *cmd, const char *opt, const char *v, void *field)
+{
+    static const char *const names[] = {"mm", "um", "µm"};
+    static const double f[] = {1, 1e-3, 1e-3};
+    return parse_units(cmd, opt, v, names, f, 3, field) ? CLI_BAD_INPUT : CLI_OK;
+}
+
+/* --origin-mm X,Y into the grid_args */
+static int parse_origin(const char *cmd, const char *opt, const char *v, void *field)
+{
+    grid_args *g = field;
+    (void)opt;
+    if (parse_pair_double(v, &g->ox, &g->oy))
+        return cli_usage_error(cmd, "--origin-mm needs X,Y, got '%s'", v);
+    return CLI_OK;
+}
+
+/* --stage NX,NY (odd, 3 to 4 plates) into the grid_args */
+static int parse_stage(const char *cmd, const char *opt, const char *v, void *field)
+{
+    grid_args *g = field;
+    (void)opt;
+    if (parse_pair_long(v, &g->snx, &g->sny) || g->snx < 3 || g->sny < 3 || g->snx % 2 == 0 ||
+        g->sny % 2 == 0 || g->snx > 4 * SC_GRID_MAX_N || g->sny > 4 * SC_GRID_MAX_N)
+        return cli_usage_error(cmd, "--stage needs NX,NY (odd, >= 3), got '%s'", v);
+    return CLI_OK;
+}
+
+/* An option import grid does not know: a value that is no number is named first. */
+static int grid_other(const char *cmd, const char *opt, const char *v, void *args)
+{
+    double x;
+    (void)args;
+    if (sc_parse_double(v, &x))
+        return cli_usage_error(cmd, "%s needs a number, got '%s'", opt, v);
+    return cli_usage_error(cmd, "unknown option '%s' (see --help)", opt);
+}
+
+#define F(field) offsetof(grid_args, field)
+#define NUMBER(name, f, v, dflt, text)                                                             \
+    {name, CLI_DOUBLE, F(f), v, -HUGE_VAL, HUGE_VAL, .bad = "%s needs a number, got '%s'",         \
+     .def = dflt, .help = text}
+/* import grid's options (cli_opts.h), in the order of its --help */
+static const cli_opt IMPORT_GRID_OPTS[] = {
+    NUMBER("--n", n_d, "N", NULL, "the plate's marks per side (odd; required)"),
+    NUMBER("--pitch-mm", pitch, "P", NULL, "the plate's pitch (mm; required)"),
+    {"--origin-mm", CLI_CUSTOM, 0, "X,Y", .parse = parse_origin, .def = "0,0",
+     .help = "the stage node (0,0)'s position (mm)"},
+    {"--stage", CLI_CUSTOM, 0, "NX,NY", .parse = parse_stage, .def = "the plate's",
+     .help = "the stage's nodes (odd)"},
+    {"--view", CLI_CUSTOM, 0, "SPEC FILE", .parse2 = parse_view_arg,
+     .help = "a view (\"rot=R shift=SX,SY [rows=..] [cols=..]\") and its file (repeatable)"},
+    {"-o|--out", CLI_STRING, F(out), "OUT.csv", .help = "the selfcal-grid v1 file (required)"},
+    {"--x-col", CLI_STRING, F(xcol), "NAME", .def = "x", .help = "the x column (name or number)"},
+    {"--y-col", CLI_STRING, F(ycol), "NAME", .def = "y", .help = "the y column (name or number)"},
+    {"--units", CLI_CUSTOM, F(unit_mm), "mm|um", .choices = "mm|um", .parse = parse_grid_units,
+     .def = "mm", .help = "the positions' unit"},
+    NUMBER("--tolerance-mm", tol, "T", "P/4", "the farthest a point may lie from its mark"),
+    NUMBER("--min-share", share, "S", "0.5", "the share of a view's points that must fall on marks"),
+    {"--ux-col", CLI_STRING, F(uxcol), "NAME", .help = "x's standard uncertainty column"},
+    {"--uy-col", CLI_STRING, F(uycol), "NAME", .help = "y's standard uncertainty column"},
+    LAYOUT_ROWS,
+    {"--deviations", CLI_FLAG, F(lay.deviations), .help = "the values are deviations from nominal"},
+    {"--nominal-x-col", CLI_STRING, F(lay.nominal[0]), "NAME", .help = "the nominal x column (mm)"},
+    {"--nominal-y-col", CLI_STRING, F(lay.nominal[1]), "NAME", .help = "the nominal y column (mm)"},
+};
+#undef NUMBER
+#undef F
+
+const cli_cmd_opts cli_import_grid_opts = {
+    "import grid", GRID_USAGE, IMPORT_GRID_OPTS,
+    (int)(sizeof IMPORT_GRID_OPTS / sizeof IMPORT_GRID_OPTS[0]), 0, NULL, NULL,
+    "unknown option or missing value: '%s' (see --help)", NULL, CLI_NO_OPERAND, NULL, grid_other,
+};
+
+static int grid_columns(grid_args *g);
 
 /* The import's parameters and every view's placement, checked. */
 static int grid_params(grid_args *g, sc_grid_import_params *p)
@@ -557,6 +617,13 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
         if (parse_view(g->view_spec[k], p->n, &g->views[k].v, g->views[k].sigma,
                        sizeof g->views[k].sigma))
             return CLI_BAD_INPUT;
+    return grid_columns(g);
+}
+
+/* The columns' options together (uncertainties, layout, deviations), checked. */
+static int grid_columns(grid_args *g)
+{
+    const char *cmd = "import grid";
     if (!g->uxcol != !g->uycol)
         return cli_usage_error(cmd, "--ux-col and --uy-col go together");
     if (check_layout(cmd, &g->lay) != CLI_OK)
@@ -579,9 +646,9 @@ static int grid_params(grid_args *g, sc_grid_import_params *p)
     return CLI_OK;
 }
 
-/* One view's file read (nc columns: x, y [, ux, uy]) and its points assigned to marks. */
-static sc_status import_grid_view(const grid_args *g, const sc_grid_import_params *p, int nc,
-                                  import_view *iv, sc_error *err)
+/* One view's file read into iv->t: nc columns a row (x, y [, ux, uy]), deviations added to their
+ * nominals, the uncertainties checked. */
+static sc_status read_view_points(const grid_args *g, int nc, import_view *iv, sc_error *err)
 {
     /* the columns read: x, y [, ux, uy] [, nominal x, nominal y]; one row per axis: the axis
      * values, then their nominals */
@@ -618,6 +685,37 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
             st = sc_error_set(err, SC_E_INPUT, iv->file, iv->t.line[q],
                               "the uncertainties in '%s' and '%s' must be %g to %g um", g->uxcol,
                               g->uycol, SC_GRID_MIN_SIGMA_UM, SC_INPUT_MAX_ABS);
+    return st;
+}
+
+/* The largest distance of an assigned point (xy: np x, then np y) from its nominal position,
+ * the stage node of its mark: nominal columns taken for measured ones put every point there. */
+static double nominal_max_mm(const sc_grid_import_params *p, const import_view *iv, long np,
+                             const double *xy)
+{
+    double dmax = 0;
+    long nn = (long)p->n * p->n;
+    int snx = p->stage_nx ? p->stage_nx : p->n, sny = p->stage_ny ? p->stage_ny : p->n;
+    for (long m = 0; m < nn; ++m) {
+        int ni, nj;
+        long q = iv->mark_point[m];
+        if (q < 0 || !sc_grid_import_mark_node(p, &iv->v, (int)(m / p->n), (int)(m % p->n), &ni,
+                                                &nj))
+            continue;
+        double nx = p->origin_mm[0] + (nj - (snx - 1) / 2.0) * p->pitch_mm;
+        double ny = p->origin_mm[1] + (ni - (sny - 1) / 2.0) * p->pitch_mm;
+        double d = hypot(xy[q] - nx, xy[np + q] - ny);
+        if (d > dmax)
+            dmax = d;
+    }
+    return dmax;
+}
+
+/* One view's file read (nc columns: x, y [, ux, uy]) and its points assigned to marks. */
+static sc_status import_grid_view(const grid_args *g, const sc_grid_import_params *p, int nc,
+                                  import_view *iv, sc_error *err)
+{
+    sc_status st = read_view_points(g, nc, iv, err);
     if (st != SC_OK)
         return st;
     long np = iv->t.n_rows, nn = (long)p->n * p->n;
@@ -636,22 +734,8 @@ static sc_status import_grid_view(const grid_args *g, const sc_grid_import_param
                                    iv->t.header_line, iv->point_mark, iv->mark_point, &iv->fit,
                                    work, err);
     }
-    /* how far the points are from their nominal positions (the stage nodes): nominal columns
-     * taken for measured ones put every point on its node */
-    iv->nominal_max_mm = 0;
-    int snx = p->stage_nx ? p->stage_nx : p->n, sny = p->stage_ny ? p->stage_ny : p->n;
-    for (long m = 0; st == SC_OK && m < nn; ++m) {
-        int ni, nj;
-        long q = iv->mark_point[m];
-        if (q < 0 || !sc_grid_import_mark_node(p, &iv->v, (int)(m / p->n), (int)(m % p->n), &ni,
-                                                &nj))
-            continue;
-        double nx = p->origin_mm[0] + (nj - (snx - 1) / 2.0) * p->pitch_mm;
-        double ny = p->origin_mm[1] + (ni - (sny - 1) / 2.0) * p->pitch_mm;
-        double d = hypot(xy[q] - nx, xy[np + q] - ny);
-        if (d > iv->nominal_max_mm)
-            iv->nominal_max_mm = d;
-    }
+    /* how far the points are from their nominal positions (the stage nodes) */
+    iv->nominal_max_mm = st == SC_OK ? nominal_max_mm(p, iv, np, xy) : 0;
     free(xy);
     free(work);
     return st;
@@ -715,17 +799,11 @@ static int import_grid_run(int argc, char **argv, grid_args *gp)
     g.unit_mm = 1;
     g.share = 0.5;
     g.pitch = g.tol = NAN; /* not given (0 is a value, refused by the checks) */
-    for (int a = 1; a < argc; ++a) {
-        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
-            fputs(GRID_USAGE, stdout);
-            return CLI_OK;
-        }
-        int rc = parse_grid_option(argc, argv, &a, &g);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    int rc = cli_opts_parse(&cli_import_grid_opts, argc, argv, &g);
+    if (rc >= 0)
+        return rc;
     sc_grid_import_params p;
-    int rc = grid_params(&g, &p);
+    rc = grid_params(&g, &p);
     if (rc != CLI_OK)
         return rc;
     sc_error err;
@@ -766,75 +844,46 @@ typedef struct {
     sc_table_notes notes[2];
 } profile_args;
 
-/* --pos-units, --disp-units, --angle-units; NOT_UNITS for other options. */
-enum { NOT_UNITS = -1 };
-
-static int parse_profile_units(profile_args *g, const char *o, const char *v)
+/* --pos-units, --disp-units, --angle-units into the double (the file's unit in mm, um, urad) */
+static int parse_profile_units(const char *cmd, const char *o, const char *v, void *field)
 {
-    const char *cmd = "import profile";
-    if (!strcmp(o, "--pos-units")) {
-        static const char *const names[] = {"mm", "um", "µm"};
-        static const double f[] = {1, 1e-3, 1e-3};
-        return parse_units(cmd, o, v, names, f, 3, &g->pos_unit) ? CLI_BAD_INPUT : CLI_OK;
-    }
-    if (!strcmp(o, "--disp-units")) {
-        static const char *const names[] = {"um", "µm", "nm", "mm"};
-        static const double f[] = {1, 1, 1e-3, 1e3};
-        return parse_units(cmd, o, v, names, f, 4, &g->disp_unit) ? CLI_BAD_INPUT : CLI_OK;
-    }
-    if (!strcmp(o, "--angle-units")) {
-        static const char *const names[] = {"urad", "µrad", "mrad", "arcsec"};
-        static const double f[] = {1, 1, 1e3, 4.84813681109535994e0};
-        return parse_units(cmd, o, v, names, f, 4, &g->angle_unit) ? CLI_BAD_INPUT : CLI_OK;
-    }
-    return NOT_UNITS;
+    static const char *const pos[] = {"mm", "um", "µm"}, *disp[] = {"um", "µm", "nm", "mm"},
+                             *angle[] = {"urad", "µrad", "mrad", "arcsec"};
+    static const double fpos[] = {1, 1e-3, 1e-3}, fdisp[] = {1, 1, 1e-3, 1e3},
+                        fangle[] = {1, 1, 1e3, 4.84813681109535994e0};
+    int rc = !strcmp(o, "--pos-units")    ? parse_units(cmd, o, v, pos, fpos, 3, field)
+             : !strcmp(o, "--disp-units") ? parse_units(cmd, o, v, disp, fdisp, 4, field)
+                                          : parse_units(cmd, o, v, angle, fangle, 4, field);
+    return rc ? CLI_BAD_INPUT : CLI_OK;
 }
 
-/* One option of import profile; argv[*a] is the option, its value(s) follow. */
-static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
+/* --spacing-mm D FILE: one more scan into the profile_args */
+static int parse_spacing(const char *cmd, const char *opt, const char *v, const char *next,
+                         void *field)
 {
-    const char *cmd = "import profile", *o = argv[*a];
-    if (strcmp(o, "--deviations") && parse_layout_flag(o, &g->lay) == CLI_OK)
-        return CLI_OK;
-    if (*a + 1 >= argc)
-        return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
-    const char *v = argv[++*a];
+    profile_args *g = field;
     double x;
-    static const char *const col_opts[4] = {"--pos-col", "--m1-col", "--m2-col", "--m3-col"};
-    if (strncmp(o, "--nominal-", 10)) {
-        int lrc = parse_layout_option(cmd, o, v, &g->lay);
-        if (lrc != NOT_LAYOUT)
-            return lrc;
-    }
-    for (int k = 0; k < 4; ++k)
-        if (!strcmp(o, col_opts[k])) {
-            g->col[k] = v;
-            return CLI_OK;
-        }
-    if (!strcmp(o, "--spacing-mm")) {
-        if (*a + 1 >= argc)
-            return cli_usage_error(cmd, "--spacing-mm D must be followed by FILE");
-        if (g->n_scans == 2)
-            return cli_usage_error(cmd, "two scans: --spacing-mm D1 FILE1 --spacing-mm D2 FILE2");
-        if (sc_parse_double(v, &x) || !(x > 0) || x > SC_INPUT_MAX_ABS)
-            return cli_usage_error(cmd, "--spacing-mm needs a positive number, got '%s'", v);
-        if (looks_like_option(argv[*a + 1]))
-            return cli_usage_error(cmd, "--spacing-mm %s must be followed by its FILE, not by "
-                                        "the option '%s'", v, argv[*a + 1]);
-        g->scans[g->n_scans].spacing_mm = x;
-        g->scans[g->n_scans++].file = argv[++*a];
-        return CLI_OK;
-    }
-    if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
-        g->out = v;
-        return CLI_OK;
-    }
-    int rc = parse_profile_units(g, o, v);
-    if (rc != NOT_UNITS)
-        return rc;
-    if (!strcmp(o, "--sigma-disp-um") || !strcmp(o, "--sigma-angle-urad")) /* as the reader's range */
-        return cli_parse_noise(cmd, o, v, 1, !strcmp(o, "--sigma-disp-um") ? &g->sigma_disp
-                                                                            : &g->sigma_angle);
+    (void)opt;
+    if (!next)
+        return cli_usage_error(cmd, "--spacing-mm D must be followed by FILE");
+    if (g->n_scans == 2)
+        return cli_usage_error(cmd, "two scans: --spacing-mm D1 FILE1 --spacing-mm D2 FILE2");
+    if (sc_parse_double(v, &x) || !(x > 0) || x > SC_INPUT_MAX_ABS)
+        return cli_usage_error(cmd, "--spacing-mm needs a positive number, got '%s'", v);
+    if (looks_like_option(next))
+        return cli_usage_error(cmd, "--spacing-mm %s must be followed by its FILE, not by the "
+                                    "option '%s'", v, next);
+    g->scans[g->n_scans].spacing_mm = x;
+    g->scans[g->n_scans++].file = next;
+    return CLI_OK;
+}
+
+/* --step-mm S (> 0), --step-tolerance T (0 < T < 0.5) into the profile_args; with another
+ * option (the table's other), its usage error */
+static int profile_number(const char *cmd, const char *o, const char *v, void *field)
+{
+    profile_args *g = field;
+    double x;
     if (sc_parse_double(v, &x))
         return cli_usage_error(cmd, "%s needs a number, got '%s'", o, v);
     if (!strcmp(o, "--step-mm") && x > 0) g->step = x;
@@ -844,6 +893,41 @@ static int parse_profile_option(int argc, char **argv, int *a, profile_args *g)
                                o, v);
     return CLI_OK;
 }
+
+#define F(field) offsetof(profile_args, field)
+#define UNITS(name, f, v, dflt, text)                                                              \
+    {name, CLI_CUSTOM, F(f), v, .choices = v, .parse = parse_profile_units, .def = dflt, .help = text}
+/* import profile's options (cli_opts.h), in the order of its --help */
+static const cli_opt IMPORT_PROFILE_OPTS[] = {
+    {"--spacing-mm", CLI_CUSTOM, 0, "D FILE", .parse2 = parse_spacing,
+     .help = "a scan's sensor spacing (mm) and its log (twice)"},
+    {"-o|--out", CLI_STRING, F(out), "OUT.csv", .help = "the selfcal-profile v1 file (required)"},
+    {"--step-mm", CLI_CUSTOM, 0, "S", 0, HUGE_VAL, CLI_MIN_OPEN, .parse = profile_number,
+     .def = "scan 1's median step", .help = "the sampling step (mm)"},
+    {"--pos-col", CLI_STRING, F(col[0]), "NAME", .def = "position", .help = "the position column"},
+    {"--m1-col", CLI_STRING, F(col[1]), "NAME", .def = "m1", .help = "displacement sensor 1's column"},
+    {"--m2-col", CLI_STRING, F(col[2]), "NAME", .def = "m2", .help = "displacement sensor 2's column"},
+    {"--m3-col", CLI_STRING, F(col[3]), "NAME", .def = "m3", .help = "the angle sensor's column"},
+    UNITS("--pos-units", pos_unit, "mm|um", "mm", "the positions' unit"),
+    UNITS("--disp-units", disp_unit, "um|nm|mm", "um", "the displacements' unit"),
+    UNITS("--angle-units", angle_unit, "urad|mrad|arcsec", "urad", "the angles' unit"),
+    {"--step-tolerance", CLI_CUSTOM, 0, "T", 0, 0.5, CLI_MIN_OPEN | CLI_MAX_OPEN,
+     .parse = profile_number, .def = "0.1", .help = "the positions' largest distance from the grid (steps)"},
+    {"--sigma-disp-um", CLI_CUSTOM, F(sigma_disp), "S", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .parse = cli_opt_noise_positive, .help = "the displacement sensors' noise, for the header"},
+    {"--sigma-angle-urad", CLI_CUSTOM, F(sigma_angle), "S", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .parse = cli_opt_noise_positive, .help = "the angle sensor's noise, for the header"},
+    LAYOUT_ROWS,
+};
+#undef UNITS
+#undef F
+
+const cli_cmd_opts cli_import_profile_opts = {
+    "import profile", PROFILE_USAGE, IMPORT_PROFILE_OPTS,
+    (int)(sizeof IMPORT_PROFILE_OPTS / sizeof IMPORT_PROFILE_OPTS[0]), 0, NULL, NULL,
+    "unknown option or missing value: '%s' (see --help)", NULL, CLI_NO_OPERAND, NULL,
+    profile_number,
+};
 
 /* Both logs read, merged onto one grid and written as a selfcal-profile v1 file. */
 static sc_status import_profile_run(profile_args *g, sc_error *err)
@@ -901,15 +985,9 @@ static int import_profile(int argc, char **argv)
     g.pos_unit = g.disp_unit = g.angle_unit = 1;
     g.step_tol = 0.1;
     g.sigma_disp = g.sigma_angle = NAN;
-    for (int a = 1; a < argc; ++a) {
-        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
-            fputs(PROFILE_USAGE, stdout);
-            return CLI_OK;
-        }
-        int rc = parse_profile_option(argc, argv, &a, &g);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    int rc = cli_opts_parse(&cli_import_profile_opts, argc, argv, &g);
+    if (rc >= 0)
+        return rc;
     if (!g.out || g.n_scans != 2)
         return cli_usage_error("import profile", "--spacing-mm D1 FILE1 --spacing-mm D2 FILE2 and -o are required (see --help)");
     if (check_layout("import profile", &g.lay) != CLI_OK)

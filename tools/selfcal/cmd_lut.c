@@ -1,40 +1,41 @@
 /* cmd_lut.c — `selfcal lut build|dump|info`: build the binary lookup table from the SPEC map and
  * profile files, print it back as CSV (SPEC §3), show its provenance. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "input_once.h"
 #include "selfcal/correct.h"
 #include "selfcal/csv.h"
 #include "selfcal/lut.h"
 #include "selfcal/sha256.h"
 
-static void lut_usage(FILE *to)
-{
-    fprintf(to,
-            "usage: selfcal lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] -o TABLE\n"
-            "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
-            "                         [--created UNIX_SECONDS] [--max-nodes N]\n"
-            "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
-            "       selfcal lut info TABLE     print size, encoding, quantization, bounds, |G| and\n"
-            "                                  slope, and provenance\n"
-            "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
-            "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to %d.\n"
-            "                            The profile's x_mm is placed at machine position\n"
-            "                            x_mm + OFFSET_MM along AXIS (default offset 0); a profile\n"
-            "                            that does not overlap the map gets a warning on stderr\n"
-            "  --max-nodes N             a map with more than N nodes along an axis (a table\n"
-            "                            holds 101) gets N table nodes there spanning it, fitted\n"
-            "                            by least squares; the fit's error at the map's nodes is\n"
-            "                            printed (N = 2..101)\n"
-            "  --sigma UM                estimated sigma of the map (provenance)\n"
-            "  --created                 creation time to record (default: SOURCE_DATE_EPOCH or now)\n",
-            SC_LUT_MAX_PROFILES);
-}
+#define LUT_STR_(x) #x
+#define LUT_STR(x) LUT_STR_(x)
+static const char USAGE[] =
+    "usage: selfcal lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] -o TABLE\n"
+    "                         [--method NAME] [--sigma UM] [--encoding auto|int16|int32]\n"
+    "                         [--created UNIX_SECONDS] [--max-nodes N]\n"
+    "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
+    "       selfcal lut info TABLE     print size, encoding, quantization, bounds, |G| and\n"
+    "                                  slope, and provenance\n"
+    "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
+    "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to "
+    LUT_STR(SC_LUT_MAX_PROFILES) ".\n"
+    "                            The profile's x_mm is placed at machine position\n"
+    "                            x_mm + OFFSET_MM along AXIS (default offset 0); a profile\n"
+    "                            that does not overlap the map gets a warning on stderr\n"
+    "  --max-nodes N             a map with more than N nodes along an axis (a table\n"
+    "                            holds 101) gets N table nodes there spanning it, fitted\n"
+    "                            by least squares; the fit's error at the map's nodes is\n"
+    "                            printed (N = 2..101)\n"
+    "  --sigma UM                estimated sigma of the map (provenance)\n"
+    "  --created                 creation time to record (default: SOURCE_DATE_EPOCH or now)\n";
 
 typedef struct profile_arg {
     int axis, dir;
@@ -77,55 +78,83 @@ typedef struct {
     long long created;
     int max_nodes; /* 0: the map as it is */
     sc_lut_encoding enc;
+    int enc_ix; /* --encoding: 0 auto, 1 int16, 2 int32 (sc_lut_encoding's values) */
     profile_arg pa[SC_LUT_MAX_PROFILES];
     int np;
 } build_args;
 
-/* One option of lut build with its value. */
-static int parse_build_option(build_args *b, const char *a, const char *v)
+/* --method NAME (at most SC_LUT_METHOD_LEN - 1 characters) into the const char * */
+static int parse_method(const char *cmd, const char *opt, const char *v, void *field)
 {
-    if (!strcmp(a, "--map"))
-        b->map = v;
-    else if (!strcmp(a, "-o") || !strcmp(a, "--out"))
-        b->out = v;
-    else if (!strcmp(a, "--method")) {
-        if (strlen(v) >= SC_LUT_METHOD_LEN)
-            return cli_usage_error("lut build", "--method: at most %d characters",
-                                   SC_LUT_METHOD_LEN - 1);
-        b->method = v;
-    } else if (!strcmp(a, "--sigma")) {
-        if (sc_parse_double(v, &b->sigma) != 0 || b->sigma < 0)
-            return cli_usage_error("lut build", "--sigma: a non-negative number in um, not '%s'", v);
-    } else if (!strcmp(a, "--created")) {
-        long c;
-        if (sc_parse_long(v, &c) != 0 || c < 0)
-            return cli_usage_error("lut build", "--created: Unix seconds, not '%s'", v);
-        b->created = c;
-    } else if (!strcmp(a, "--max-nodes")) {
-        return cli_parse_max_nodes("lut build", v, &b->max_nodes);
-    } else if (!strcmp(a, "--encoding")) {
-        if (!strcmp(v, "auto"))
-            b->enc = SC_LUT_ENC_AUTO;
-        else if (!strcmp(v, "int16"))
-            b->enc = SC_LUT_ENC_INT16;
-        else if (!strcmp(v, "int32"))
-            b->enc = SC_LUT_ENC_INT32;
-        else
-            return cli_usage_error("lut build", "--encoding: auto, int16 or int32, not '%s'", v);
-    } else if (!strcmp(a, "--profile")) {
-        if (b->np == SC_LUT_MAX_PROFILES)
-            return cli_usage_error("lut build", "at most %d profiles", SC_LUT_MAX_PROFILES);
-        if (parse_profile_arg(v, &b->pa[b->np]) != 0)
-            return cli_usage_error("lut build", "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
-        if (b->pa[b->np].axis == b->pa[b->np].dir) /* allowed (SPEC §3), but rarely meant */
-            fprintf(stderr, "selfcal lut build: warning: --profile %s: DIR = AXIS makes it an "
-                            "error along its own axis (a scale error), not a straightness; the "
-                            "controller exports refuse it\n", v);
-        ++b->np;
-    } else
-        return cli_usage_error("lut build", "unknown option '%s' (see --help)", a);
+    (void)opt;
+    if (strlen(v) >= SC_LUT_METHOD_LEN)
+        return cli_usage_error(cmd, "--method: at most %d characters", SC_LUT_METHOD_LEN - 1);
+    memcpy(field, &v, sizeof v);
     return CLI_OK;
 }
+
+/* --created UNIX_SECONDS into the long long */
+static int parse_created(const char *cmd, const char *opt, const char *v, void *field)
+{
+    long c;
+    (void)opt;
+    if (sc_parse_long(v, &c) != 0 || c < 0)
+        return cli_usage_error(cmd, "--created: Unix seconds, not '%s'", v);
+    *(long long *)field = c;
+    return CLI_OK;
+}
+
+/* --profile AXIS:DIR:P.csv[@OFFSET_MM], one more into the build_args */
+static int parse_profile(const char *cmd, const char *opt, const char *v, void *field)
+{
+    build_args *b = field;
+    (void)opt;
+    if (b->np == SC_LUT_MAX_PROFILES)
+        return cli_usage_error(cmd, "at most %d profiles", SC_LUT_MAX_PROFILES);
+    if (parse_profile_arg(v, &b->pa[b->np]) != 0)
+        return cli_usage_error(cmd, "--profile: AXIS:DIR:FILE[@OFFSET_MM] with AXIS, DIR in x, y, z and |OFFSET_MM| <= 1e6; not '%s'", v);
+    if (b->pa[b->np].axis == b->pa[b->np].dir) /* allowed (SPEC §3), but rarely meant */
+        fprintf(stderr, "selfcal lut build: warning: --profile %s: DIR = AXIS makes it an "
+                        "error along its own axis (a scale error), not a straightness; the "
+                        "controller exports refuse it\n", v);
+    ++b->np;
+    return CLI_OK;
+}
+
+/* a word that is no option */
+static int options_only(const char *cmd, const char *opt, const char *v, void *args)
+{
+    (void)opt, (void)args;
+    return cli_usage_error(cmd, "'%s': lut build takes options only (--map G.csv ... -o TABLE; see "
+                                "--help)", v);
+}
+
+#define F(field) offsetof(build_args, field)
+/* lut build's options (cli_opts.h), in the order of its --help */
+static const cli_opt LUT_BUILD_OPTS[] = {
+    {"--map", CLI_STRING, F(map), "G.csv", .help = "the stage error map (required)"},
+    {"--profile", CLI_CUSTOM, 0, "AXIS:DIR:P.csv[@OFFSET_MM]", .parse = parse_profile,
+     .help = "a profile's ey_um as the error of DIR along AXIS (repeatable, up to "
+             LUT_STR(SC_LUT_MAX_PROFILES) ")"},
+    {"-o|--out", CLI_STRING, F(out), "TABLE", .help = "the table (required)"},
+    {"--method", CLI_CUSTOM, F(method), "NAME", .parse = parse_method,
+     .help = "the method, as provenance (at most 31 characters)"},
+    {"--sigma", CLI_DOUBLE, F(sigma), "UM", 0, HUGE_VAL,
+     .bad = "--sigma: a non-negative number in um, not '%s'", .help = "the map's sigma, as provenance"},
+    {"--encoding", CLI_CHOICE, F(enc_ix), "auto|int16|int32", .choices = "auto|int16|int32",
+     .bad = "--encoding: auto, int16 or int32, not '%s'", .def = "auto",
+     .help = "the grid's codes (auto: int16 if fine enough)"},
+    {"--created", CLI_CUSTOM, F(created), "UNIX_SECONDS", .parse = parse_created,
+     .def = "SOURCE_DATE_EPOCH, else now", .help = "the creation time recorded"},
+    {"--max-nodes", CLI_CUSTOM, F(max_nodes), "N", 2, SC_LUT_MAX_NX, .parse = cli_opt_max_nodes,
+     .def = "the map as it is", .help = "a larger map fitted by N nodes per axis"},
+};
+#undef F
+
+const cli_cmd_opts cli_lut_build_opts = {
+    "lut build", USAGE, LUT_BUILD_OPTS, (int)(sizeof LUT_BUILD_OPTS / sizeof LUT_BUILD_OPTS[0]), 0,
+    options_only, NULL, NULL, NULL, CLI_DASH_OPTION, NULL, NULL,
+};
 
 /* The map and the profiles read, their hashes as provenance, the table written. */
 static sc_status build_table(const build_args *b, sc_lut *lut, sc_lut_fit_report *fit,
@@ -179,24 +208,10 @@ static int lut_build(int argc, char **argv)
     memset(&b, 0, sizeof b);
     b.sigma = -1.0;
     b.created = -1;
-    b.enc = SC_LUT_ENC_AUTO;
-    for (int k = 1; k < argc; ++k) {
-        const char *a = argv[k];
-        const char *v = k + 1 < argc ? argv[k + 1] : NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            lut_usage(stdout);
-            return CLI_OK;
-        }
-        if (a[0] != '-')
-            return cli_usage_error("lut build", "'%s': lut build takes options only (--map G.csv ... "
-                                                "-o TABLE; see --help)", a);
-        if (!v)
-            return cli_usage_error("lut build", "%s: unknown option or missing value (see --help)", a);
-        ++k;
-        int rc = parse_build_option(&b, a, v);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    int rc = cli_opts_parse(&cli_lut_build_opts, argc, argv, &b);
+    if (rc >= 0)
+        return rc;
+    b.enc = (sc_lut_encoding)b.enc_ix;
     if (!b.map || !b.out)
         return cli_usage_error("lut build", "--map and -o are required (see --help)");
     if (b.created < 0) {
@@ -326,50 +341,67 @@ static size_t stored_size(const sc_lut *lut)
  * (um per um): the largest difference of a component between neighbouring nodes over their pitch
  * (a bilinear cell's partial derivatives are largest on its edges). Then the same bounds for the
  * whole correction C = G + profile offsets, per coordinate. */
+typedef struct corr_bounds {
+    double gmax_um, cmax_um[3]; /* the largest |G|; of each coordinate's correction */
+    double slope_g, slope_c[3]; /* the largest slope of G; of each coordinate's correction */
+} corr_bounds;
+
+/* The slopes of G from node (i, j) to its neighbours along x (j + 1) and y (i + 1) into b. */
+static void node_slopes(const sc_lut *lut, int i, int j, corr_bounds *b)
+{
+    const size_t k = (size_t)i * lut->nx + j;
+    const double gx = lut->gx_um[k], gy = lut->gy_um[k];
+    for (int d = 0; d < 2; ++d) {
+        if ((d == 0 && j + 1 >= lut->nx) || (d == 1 && i + 1 >= lut->ny))
+            continue;
+        const size_t k2 = d == 0 ? k + 1 : k + (size_t)lut->nx;
+        const double pitch_um = 1e3 * (d == 0 ? lut->px_mm : lut->py_mm);
+        const double sx = fabs(lut->gx_um[k2] - gx) / pitch_um;
+        const double sy = fabs(lut->gy_um[k2] - gy) / pitch_um;
+        b->slope_g = sx > b->slope_g ? sx : b->slope_g;
+        b->slope_g = sy > b->slope_g ? sy : b->slope_g;
+        b->slope_c[0] = sx > b->slope_c[0] ? sx : b->slope_c[0];
+        b->slope_c[1] = sy > b->slope_c[1] ? sy : b->slope_c[1];
+    }
+}
+
+/* A profile adds its largest |error| and slope to its coordinate's bounds. */
+static void profile_bounds(const sc_lut_profile *p, corr_bounds *b)
+{
+    double emax_um = 0, smax = 0;
+    for (int n = 0; n < p->n; ++n) {
+        emax_um = fabs(p->err_um[n]) > emax_um ? fabs(p->err_um[n]) : emax_um;
+        if (n + 1 < p->n) {
+            const double s = fabs(p->err_um[n + 1] - p->err_um[n]) / (1e3 * p->step_mm);
+            smax = s > smax ? s : smax;
+        }
+    }
+    if (p->dir >= 0 && p->dir < 3) {
+        b->cmax_um[p->dir] += emax_um;
+        b->slope_c[p->dir] += smax;
+    }
+}
+
 static void print_correction_bounds(const sc_lut *lut)
 {
-    double gmax_um = 0, cmax_um[3] = {0, 0, 0}, slope_g = 0, slope_c[3] = {0, 0, 0};
+    corr_bounds b = {0, {0, 0, 0}, 0, {0, 0, 0}};
     for (int i = 0; i < lut->ny; ++i)
         for (int j = 0; j < lut->nx; ++j) {
             const size_t k = (size_t)i * lut->nx + j;
             const double gx = lut->gx_um[k], gy = lut->gy_um[k], g = sqrt(gx * gx + gy * gy);
-            gmax_um = g > gmax_um ? g : gmax_um;
-            cmax_um[0] = fabs(gx) > cmax_um[0] ? fabs(gx) : cmax_um[0];
-            cmax_um[1] = fabs(gy) > cmax_um[1] ? fabs(gy) : cmax_um[1];
-            for (int d = 0; d < 2; ++d) { /* along x (to j + 1) and along y (to i + 1) */
-                if ((d == 0 && j + 1 >= lut->nx) || (d == 1 && i + 1 >= lut->ny))
-                    continue;
-                const size_t k2 = d == 0 ? k + 1 : k + (size_t)lut->nx;
-                const double pitch_um = 1e3 * (d == 0 ? lut->px_mm : lut->py_mm);
-                const double sx = fabs(lut->gx_um[k2] - gx) / pitch_um;
-                const double sy = fabs(lut->gy_um[k2] - gy) / pitch_um;
-                slope_g = sx > slope_g ? sx : slope_g;
-                slope_g = sy > slope_g ? sy : slope_g;
-                slope_c[0] = sx > slope_c[0] ? sx : slope_c[0];
-                slope_c[1] = sy > slope_c[1] ? sy : slope_c[1];
-            }
+            b.gmax_um = g > b.gmax_um ? g : b.gmax_um;
+            b.cmax_um[0] = fabs(gx) > b.cmax_um[0] ? fabs(gx) : b.cmax_um[0];
+            b.cmax_um[1] = fabs(gy) > b.cmax_um[1] ? fabs(gy) : b.cmax_um[1];
+            node_slopes(lut, i, j, &b);
         }
-    for (int k = 0; k < lut->n_profiles; ++k) { /* a profile adds to its coordinate's bounds */
-        const sc_lut_profile *p = &lut->profile[k];
-        double emax_um = 0, smax = 0;
-        for (int n = 0; n < p->n; ++n) {
-            emax_um = fabs(p->err_um[n]) > emax_um ? fabs(p->err_um[n]) : emax_um;
-            if (n + 1 < p->n) {
-                const double s = fabs(p->err_um[n + 1] - p->err_um[n]) / (1e3 * p->step_mm);
-                smax = s > smax ? s : smax;
-            }
-        }
-        if (p->dir >= 0 && p->dir < 3) {
-            cmax_um[p->dir] += emax_um;
-            slope_c[p->dir] += smax;
-        }
-    }
-    double slope_all = slope_c[0] > slope_c[1] ? slope_c[0] : slope_c[1];
-    slope_all = slope_c[2] > slope_all ? slope_c[2] : slope_all;
-    printf("largest |G|: %.6f um\n", gmax_um);
-    printf("largest slope of G: %.6e (um per um)\n", slope_g);
+    for (int k = 0; k < lut->n_profiles; ++k)
+        profile_bounds(&lut->profile[k], &b);
+    double slope_all = b.slope_c[0] > b.slope_c[1] ? b.slope_c[0] : b.slope_c[1];
+    slope_all = b.slope_c[2] > slope_all ? b.slope_c[2] : slope_all;
+    printf("largest |G|: %.6f um\n", b.gmax_um);
+    printf("largest slope of G: %.6e (um per um)\n", b.slope_g);
     printf("correction bounds (grid and profiles): |cx| <= %.6f um, |cy| <= %.6f um, "
-           "slope <= %.6e\n", cmax_um[0], cmax_um[1], slope_all);
+           "slope <= %.6e\n", b.cmax_um[0], b.cmax_um[1], slope_all);
 }
 
 static int lut_info(int argc, char **argv)
@@ -418,7 +450,7 @@ int cmd_lut(int argc, char **argv)
     if (argc < 2)
         return cli_usage_error("lut", "expected a subcommand: build, dump or info (see --help)");
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
-        lut_usage(stdout);
+        fputs(USAGE, stdout);
         return CLI_OK;
     }
     if (!strcmp(argv[1], "build"))

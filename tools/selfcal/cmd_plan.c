@@ -1,9 +1,11 @@
 /* selfcal plan — does a view plan identify G, and how precisely? (before touching the plate) */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/grid_exact.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/atomic_file.h"
@@ -11,7 +13,7 @@
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal plan PLAN.csv [--drift linear] [--max-memory SIZE]\n"
     "       selfcal plan --design --stage NX,NY --n N [--pitch-mm P] [--origin-mm X,Y] [-o PLAN.csv]\n"
     "                    [--max-memory SIZE]\n"
@@ -73,17 +75,6 @@ static int supports(const sc_grid_data *d, int has_data, const int (*need)[4], i
     return 1;
 }
 
-static int parse_pair(const char *v, double *a, double *b)
-{
-    char buf[128];
-    snprintf(buf, sizeof buf, "%s", v);
-    char *comma = strchr(buf, ',');
-    if (!comma)
-        return -1;
-    *comma = '\0';
-    return sc_parse_double(buf, a) || sc_parse_double(comma + 1, b) ? -1 : 0;
-}
-
 /* Stages of more nodes than this take a second or more to analyse (per candidate raster of the
  * designer): each analysis is announced on stderr. */
 #define ANNOUNCE_NODES 100000
@@ -101,39 +92,46 @@ static int worth_announcing(const sc_grid_plan *p, int drift, long *unknowns)
 static int design_print(const sc_grid_plan *bp, const sc_grid_lsq_info *bip, int n, int sx_i,
                         int sy_i, double pitch, const char *out);
 
+/* What plan --design is asked. */
+typedef struct design_args {
+    double stage[2], n, pitch, origin[2]; /* NX,NY; N; mm; mm */
+    const char *out;
+    double max_bytes;
+    int design;
+} design_args;
+
+#define F(field) offsetof(design_args, field)
+/* plan --design's options (cli_opts.h), in the order of its --help */
+static const cli_opt DESIGN_OPTS[] = {
+    {"--design", CLI_FLAG, F(design), .help = "design a plan (the options below)"},
+    {"--stage", CLI_PAIR, F(stage), "NX,NY", .bad = "--stage needs NX,NY, got '%s'",
+     .help = "the stage's nodes (odd, >= 3; required)"},
+    {"--n", CLI_DOUBLE, F(n), "N", -HUGE_VAL, HUGE_VAL, .bad = "--n needs a number, got '%s'",
+     .help = "the plate's marks per side (odd, >= 3; required)"},
+    {"--pitch-mm", CLI_DOUBLE, F(pitch), "P", 0, HUGE_VAL, CLI_MIN_OPEN,
+     .bad = "--pitch-mm needs a positive number", .def = "1", .help = "the pitch (mm)"},
+    {"--origin-mm", CLI_PAIR, F(origin), "X,Y", .bad = "--origin-mm needs X,Y, got '%s'",
+     .def = "0,0", .help = "the stage's first node (mm)"},
+    {"-o|--out", CLI_STRING, F(out), "PLAN.csv", .help = "the plan's header (a plan file)"},
+    {"--max-memory", CLI_CUSTOM, F(max_bytes), "SIZE", .parse = cli_opt_max_memory,
+     .def = "the available memory", .help = "refuse an analysis estimated to need more"},
+};
+#undef F
+
+static const cli_cmd_opts design_opts = {
+    "plan", USAGE, DESIGN_OPTS, (int)(sizeof DESIGN_OPTS / sizeof DESIGN_OPTS[0]), 0, NULL, NULL,
+    NULL, NULL, CLI_NO_OPERAND | CLI_NO_HELP, NULL, NULL,
+};
+
 static int design(int argc, char **argv)
 {
-    double sx = 0, sy = 0, n_d = 0, pitch = 1, ox = 0, oy = 0;
-    const char *out = NULL;
-    double max_bytes = cli_memory_bytes();
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--design"))
-            continue;
-        if (a + 1 >= argc)
-            return cli_usage_error("plan", "%s: unknown option or missing value (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "--stage")) {
-            if (parse_pair(v, &sx, &sy))
-                return cli_usage_error("plan", "--stage needs NX,NY, got '%s'", v);
-        } else if (!strcmp(o, "--n")) {
-            if (sc_parse_double(v, &n_d))
-                return cli_usage_error("plan", "--n needs a number, got '%s'", v);
-        } else if (!strcmp(o, "--pitch-mm")) {
-            if (sc_parse_double(v, &pitch) || !(pitch > 0))
-                return cli_usage_error("plan", "--pitch-mm needs a positive number");
-        } else if (!strcmp(o, "--origin-mm")) {
-            if (parse_pair(v, &ox, &oy))
-                return cli_usage_error("plan", "--origin-mm needs X,Y, got '%s'", v);
-        } else if (!strcmp(o, "-o") || !strcmp(o, "--out")) {
-            out = v;
-        } else if (!strcmp(o, "--max-memory")) {
-            int rc = cli_parse_max_memory("plan", v, &max_bytes);
-            if (rc != CLI_OK)
-                return rc;
-        } else
-            return cli_usage_error("plan", "unknown option '%s' (see --help)", o);
-    }
+    design_args g = {.pitch = 1, .max_bytes = cli_memory_bytes()};
+    int rc = cli_opts_parse(&design_opts, argc, argv, &g);
+    if (rc >= 0)
+        return rc;
+    double sx = g.stage[0], sy = g.stage[1], n_d = g.n, pitch = g.pitch, ox = g.origin[0],
+           oy = g.origin[1], max_bytes = g.max_bytes;
+    const char *out = g.out;
     if (n_d != floor(n_d) || n_d < 3 || n_d > SC_GRID_MAX_N || fmod(n_d, 2) == 0 ||
         sx != floor(sx) || sy != floor(sy) || sx < 3 || sy < 3 || fmod(sx, 2) == 0 ||
         fmod(sy, 2) == 0 || sx > SC_GRID_MAX_STAGE || sy > SC_GRID_MAX_STAGE)
@@ -182,7 +180,7 @@ static int design(int argc, char **argv)
                 (int)sx, (int)sy, n);
         return CLI_FAIL;
     }
-    int rc = design_print(&best, &bi, n, (int)sx, (int)sy, pitch, out);
+    rc = design_print(&best, &bi, n, (int)sx, (int)sy, pitch, out);
     sc_grid_plan_free(&best);
     return rc;
 }
@@ -228,6 +226,41 @@ static void print_reliability(const sc_grid_lsq_info *qi)
 }
 
 /* The analysis lines of a plan or data file (see the usage text). */
+/* Does view v measure mark (i, j): in the data, or by the plan's selection. */
+static int measures(const sc_grid_data *d, int has_data, int v, int i, int j)
+{
+    const sc_grid_plan *p = &d->plan;
+    return has_data ? isfinite(d->dx_um[v][i * p->n + j]) : sc_grid_view_measures(p, v, i, j);
+}
+
+/* The marks no view measures. */
+static long unseen_marks(const sc_grid_data *d, int has_data)
+{
+    const sc_grid_plan *p = &d->plan;
+    long unseen = 0;
+    for (int i = 0; i < p->n; ++i)
+        for (int j = 0; j < p->n; ++j) {
+            int seen = 0;
+            for (int v = 0; v < p->n_views && !seen; ++v)
+                seen = measures(d, has_data, v, i, j);
+            unseen += !seen;
+        }
+    return unseen;
+}
+
+/* Which methods the plan supports. */
+static void print_methods(const sc_grid_data *d, int has_data, const sc_grid_lsq_info *qi)
+{
+    static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
+    static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
+    const sc_grid_plan *p = &d->plan;
+    int plate_stage = sc_grid_stage_is_plate(p);
+    printf("method ye: %s\n", plate_stage && supports(d, has_data, ye, 3) ? "yes" : "no");
+    printf("method double-shift: %s\n",
+           plate_stage && p->n >= sc_grid_exact_min_n(SC_GRID_DOUBLE_SHIFT) && supports(d, has_data, ds, 4) ? "yes" : "no");
+    printf("method lsq: %s\n", qi->identifiable ? "yes" : "no");
+}
+
 static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, int has_data,
                            const sc_grid_lsq_info *qi, const sc_grid_lsq_info *unit)
 {
@@ -250,19 +283,12 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
         printf("unmeasured_stage_nodes: %ld\n", qi->n_stage_unmeasured);
     printf("source: %s\n", has_data ? "data file (the marks measured)" : "plan (the marks the views select)");
     printf("views: %d\n", p->n_views);
-    long empty_views = 0, unseen_marks = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            int seen = 0;
-            for (int v = 0; v < p->n_views && !seen; ++v)
-                seen = has_data ? isfinite(d->dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
-            unseen_marks += !seen;
-        }
+    long empty_views = 0, unseen = unseen_marks(d, has_data);
     for (int v = 0; v < p->n_views; ++v) {
         long marks = 0;
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j)
-                marks += has_data ? isfinite(d->dx_um[v][i * n + j]) : sc_grid_view_measures(p, v, i, j);
+                marks += measures(d, has_data, v, i, j);
         empty_views += marks == 0;
         printf("view %d: rot=%d shift=%d,%d%s marks=%ld\n", fi->view_id[v], p->view[v].rot_deg,
                p->view[v].shift_x, p->view[v].shift_y, p->view[v].restricted ? " (rows/cols)" : "",
@@ -277,51 +303,58 @@ static void print_analysis(const sc_grid_data *d, const sc_grid_file_info *fi, i
         printf("residual_dof: %ld\n", qi->residual_dof);
         print_reliability(qi);
     }
-    if (empty_views || unseen_marks)
+    if (empty_views || unseen)
         printf("note: %ld view(s) without marks, %ld mark(s) measured in no view (their "
                "misalignment / plate error stay unknown)\n",
-               empty_views, unseen_marks);
-    static const int ye[3][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 1, 0, 0}};
-    static const int ds[4][4] = {{0, 0, 0, 0}, {90, 0, 0, 0}, {0, 2, 0, 0}, {0, -3, 0, 1}};
-    int plate_stage = sc_grid_stage_is_plate(p);
-    printf("method ye: %s\n", plate_stage && supports(d, has_data, ye, 3) ? "yes" : "no");
-    printf("method double-shift: %s\n",
-           plate_stage && n >= sc_grid_exact_min_n(SC_GRID_DOUBLE_SHIFT) && supports(d, has_data, ds, 4) ? "yes" : "no");
-    printf("method lsq: %s\n", qi->identifiable ? "yes" : "no");
+               empty_views, unseen);
+    print_methods(d, has_data, qi);
 }
+
+/* What plan (the analysis) is asked. */
+typedef struct plan_args {
+    const char *in;
+    sc_grid_lsq_opts opts;
+} plan_args;
+
+/* --design: the designer's options instead (design_opts), from the start */
+static int to_design(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)cmd, (void)opt, (void)v, (void)field;
+    return CLI_STOP;
+}
+
+#define F(field) offsetof(plan_args, field)
+/* plan's options (cli_opts.h), in the order of its --help */
+static const cli_opt PLAN_OPTS[] = {
+    {"--drift", CLI_CHOICE, F(opts.drift), "linear|none", .choices = "none|linear",
+     .missing = "--drift needs linear or none (see --help)",
+     .bad = "--drift needs linear or none (see --help)", .def = "none",
+     .help = "analyse with a drift rate per view"},
+    {"--max-memory", CLI_CUSTOM, F(opts.max_bytes), "SIZE", .parse = cli_opt_max_memory,
+     .missing = "--max-memory needs a SIZE", .def = "the available memory",
+     .help = "refuse a plan estimated to need more (K, M, G, T)"},
+    {"--design", CLI_FLAG, 0, .parse = to_design, .help = "design a plan (selfcal plan --design)"},
+};
+#undef F
+
+const cli_cmd_opts cli_plan_opts = {
+    "plan", USAGE, PLAN_OPTS, (int)(sizeof PLAN_OPTS / sizeof PLAN_OPTS[0]),
+    offsetof(plan_args, in), NULL, "one plan file only (see --help)",
+    "unknown option '%s' (see --help)", "unknown option '%s' (see --help)", 0, &design_opts, NULL,
+};
 
 int cmd_plan(int argc, char **argv)
 {
-    const char *in = NULL;
     /* the analysis printed needs every node's σ (the σ_C ratios), not the σ of O, R and the
      * misalignments */
-    sc_grid_lsq_opts opts = {.node_sigma_only = 1, .max_bytes = cli_memory_bytes()};
-    for (int a = 1; a < argc; ++a) {
-        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        if (!strcmp(argv[a], "--design"))
-            return design(argc, argv);
-        if (!strcmp(argv[a], "--drift")) {
-            if (a + 1 >= argc || (strcmp(argv[a + 1], "linear") && strcmp(argv[a + 1], "none")))
-                return cli_usage_error("plan", "--drift needs linear or none (see --help)");
-            opts.drift = !strcmp(argv[++a], "linear");
-            continue;
-        }
-        if (!strcmp(argv[a], "--max-memory")) {
-            int rc = a + 1 < argc ? cli_parse_max_memory("plan", argv[++a], &opts.max_bytes)
-                                  : cli_usage_error("plan", "--max-memory needs a SIZE");
-            if (rc != CLI_OK)
-                return rc;
-            continue;
-        }
-        if (argv[a][0] == '-' && strcmp(argv[a], "-") != 0)
-            return cli_usage_error("plan", "unknown option '%s' (see --help)", argv[a]);
-        if (in)
-            return cli_usage_error("plan", "one plan file only (see --help)");
-        in = argv[a];
-    }
+    plan_args g = {NULL, {.node_sigma_only = 1, .max_bytes = cli_memory_bytes()}};
+    int rc = cli_opts_parse(&cli_plan_opts, argc, argv, &g);
+    if (rc == CLI_STOP)
+        return design(argc, argv);
+    if (rc >= 0)
+        return rc;
+    const char *in = g.in;
+    sc_grid_lsq_opts opts = g.opts;
     if (!in)
         return cli_usage_error("plan", "a plan file is required (see --help)");
     sc_error err;

@@ -1,10 +1,12 @@
 /* selfcal plot map — arrow plot of a stage error map (and of its estimation error vs a truth). */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "input_once.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -13,7 +15,7 @@
 #include "plots.h"
 #include "svg.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal plot map G.csv|A.csv -o map.svg [--truth TRUE.csv] [--scale-um-per-pitch X]\n"
     "                        [--pitch-mm P]\n"
     "\n"
@@ -285,10 +287,50 @@ static double colormap_right(const sc_stage_map *m, const double *v, int divergi
     return 18 + svg_color_bar_extent(MAP_BAR_W, lo, hi, unit);
 }
 
+/* The drawing's title and subtitle (w pixels wide). */
+static void map_titles(FILE *fp, int w, const sc_stage_map *m, const char *name, int plate)
+{
+    if (m->nx == m->ny && m->px_mm == m->py_mm)
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s — %s (N = %d, pitch %g mm)",
+                     plate ? "Plate error map" : "Stage error map", name, map_nside(m),
+                     map_pitch(m));
+    else
+        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000",
+                     "%s — %s (%d x %d nodes, pitch %g x %g mm)",
+                     plate ? "Plate error map" : "Stage error map", name, m->nx, m->ny, m->px_mm,
+                     m->py_mm);
+    svg_text_fit(fp, w / 2.0, 42, 11, w - 20, "middle", "#555", "%s",
+                 plate ? "plate error A = mark position − nominal, plate frame; no "
+                                  "translation or rotation"
+                                : "stage error G = indicated − true position; SPEC gauge: no "
+                                  "translation, rotation or magnification");
+}
+
+/* The estimation error panel (map - truth) at x, sz pixels; buf: 2 nn doubles, the first nn
+ * holding u(G) when u_panel (then the panel takes a buffer of its own for y). */
+static void truth_panel(FILE *fp, double x, double top, double sz, const sc_stage_map *m,
+                        const sc_stage_map *truth, int plate, double *buf, int u_panel)
+{
+    size_t nn = (size_t)map_nodes(m);
+    double *ex = buf + (u_panel ? nn : 0), *ey = u_panel ? NULL : buf + nn;
+    double *tmp = u_panel ? malloc(nn * sizeof(double)) : NULL;
+    if (u_panel)
+        ey = tmp;
+    if (ey) {
+        for (size_t k = 0; k < nn; ++k) {
+            ex[k] = m->gx_um[k] - truth->gx_um[k];
+            ey[k] = m->gy_um[k] - truth->gy_um[k];
+        }
+        arrow_panel(fp, x, top, sz, m, plate, ex, ey, 0,
+                    plate ? "estimation error A − A_true" : "estimation error G − G_true",
+                    "error", "#b3261e", 0);
+    }
+    free(tmp);
+}
+
 void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
                   double scale_um_per_pitch, const char *name, int plate)
 {
-    int n = map_nside(m);
     double sz = 560, margin_l = 80, margin_t = 100, gap = 120, bottom = 80;
     int u_panel = sc_stage_map_has_u(m);
     size_t nn = (size_t)map_nodes(m);
@@ -306,19 +348,7 @@ void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
     int w = (int)(margin_l + (1 + more) * sz + (more ? gap0 + (more - 1) * gap : 0) + right);
     int h = (int)(margin_t + sz + bottom);
     svg_begin(fp, w, h);
-    if (m->nx == m->ny && m->px_mm == m->py_mm)
-        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000", "%s — %s (N = %d, pitch %g mm)",
-                     plate ? "Plate error map" : "Stage error map", name, n, map_pitch(m));
-    else
-        svg_text_fit(fp, w / 2.0, 24, 17, w - 20, "middle", "#000",
-                     "%s — %s (%d x %d nodes, pitch %g x %g mm)",
-                     plate ? "Plate error map" : "Stage error map", name, m->nx, m->ny, m->px_mm,
-                     m->py_mm);
-    svg_text_fit(fp, w / 2.0, 42, 11, w - 20, "middle", "#555", "%s",
-                 plate ? "plate error A = mark position − nominal, plate frame; no "
-                                  "translation or rotation"
-                                : "stage error G = indicated − true position; SPEC gauge: no "
-                                  "translation, rotation or magnification");
+    map_titles(fp, w, m, name, plate);
     double x = margin_l;
     arrow_panel(fp, x, margin_t, sz, m, plate, m->gx_um, m->gy_um, scale_um_per_pitch,
                 plate ? "plate error A" : "stage error G", what, "#1f4e9c", 1);
@@ -328,20 +358,7 @@ void plot_map_svg(FILE *fp, const sc_stage_map *m, const sc_stage_map *truth,
         return;
     }
     if (truth) {
-        double *ex = buf + (u_panel ? nn : 0), *ey = u_panel ? NULL : buf + nn;
-        double *tmp = u_panel ? malloc(nn * sizeof(double)) : NULL;
-        if (u_panel)
-            ey = tmp;
-        if (ey) {
-            for (size_t k = 0; k < nn; ++k) {
-                ex[k] = m->gx_um[k] - truth->gx_um[k];
-                ey[k] = m->gy_um[k] - truth->gy_um[k];
-            }
-            arrow_panel(fp, x, margin_t, sz, m, plate, ex, ey, 0,
-                        plate ? "estimation error A − A_true" : "estimation error G − G_true",
-                        "error", "#b3261e", 0);
-        }
-        free(tmp);
+        truth_panel(fp, x, margin_t, sz, m, truth, plate, buf, u_panel);
         x += sz + gap;
     }
     if (u_panel)
@@ -465,36 +482,38 @@ static int is_artifact_file(const char *path)
     return art;
 }
 
+/* What the command line asks for. */
+typedef struct plot_map_args {
+    const char *in, *out, *truth_path;
+    double scale, pitch; /* 0: not given */
+} plot_map_args;
+
+#define F(field) offsetof(plot_map_args, field)
+/* plot map's options (cli_opts.h), in the order of its --help */
+static const cli_opt PLOT_MAP_OPTS[] = {
+    {"-o|--out", CLI_STRING, F(out), "map.svg", .help = "the plot (SVG)"},
+    {"--truth", CLI_STRING, F(truth_path), "TRUE.csv", .help = "the true map, drawn beside"},
+    {"--scale-um-per-pitch", CLI_DOUBLE, F(scale), "X", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--scale-um-per-pitch needs a positive number", .def = "a round number from half the largest error",
+     .help = "the arrows' scale: um drawn as one pitch"},
+    {"--pitch-mm", CLI_DOUBLE, F(pitch), "P", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--pitch-mm needs a positive number", .def = "1", .help = "a plate error file's pitch (mm)"},
+};
+#undef F
+
+const cli_cmd_opts cli_plot_map_opts = {
+    "plot map", USAGE, PLOT_MAP_OPTS, (int)(sizeof PLOT_MAP_OPTS / sizeof PLOT_MAP_OPTS[0]),
+    offsetof(plot_map_args, in), NULL, "more than one map ('%s', '%s')", NULL, NULL, 0, NULL, NULL,
+};
+
 int cmd_plot_map(int argc, char **argv)
 {
-    const char *in = NULL, *out = NULL, *truth_path = NULL;
-    double scale = 0, pitch = 0;
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        if (o[0] != '-' || !strcmp(o, "-")) {
-            if (in)
-                return cli_usage_error("plot map", "more than one map ('%s', '%s')", in, o);
-            in = o;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error("plot map", "%s: unknown option or missing value (see --help)", o);
-        const char *v = argv[++a];
-        if (!strcmp(o, "-o") || !strcmp(o, "--out")) out = v;
-        else if (!strcmp(o, "--truth")) truth_path = v;
-        else if (!strcmp(o, "--scale-um-per-pitch")) {
-            if (sc_parse_double(v, &scale) || !(scale > 0) || !(scale <= SC_INPUT_MAX_ABS))
-                return cli_usage_error("plot map", "--scale-um-per-pitch needs a positive number");
-        } else if (!strcmp(o, "--pitch-mm")) {
-            if (sc_parse_double(v, &pitch) || !(pitch > 0) || !(pitch <= SC_INPUT_MAX_ABS))
-                return cli_usage_error("plot map", "--pitch-mm needs a positive number");
-        } else
-            return cli_usage_error("plot map", "unknown option '%s' (see --help)", o);
-    }
+    plot_map_args p = {0};
+    int rc = cli_opts_parse(&cli_plot_map_opts, argc, argv, &p);
+    if (rc >= 0)
+        return rc;
+    const char *in = p.in, *out = p.out, *truth_path = p.truth_path;
+    double scale = p.scale, pitch = p.pitch;
     if (!in || !out)
         return cli_usage_error("plot map", "G.csv and -o map.svg are required (see --help)");
     sc_error err;
@@ -508,7 +527,7 @@ int cmd_plot_map(int argc, char **argv)
     sc_status st = plate ? sc_grid_read_artifact(src.path, pitch > 0 ? pitch : 1.0, &m, &err)
                          : sc_stage_map_read(src.path, &m, &err);
     if (st != SC_OK) {
-        int rc = cli_report(&err);
+        rc = cli_report(&err);
         cli_input_close(&src);
         return rc;
     }
@@ -533,7 +552,7 @@ int cmd_plot_map(int argc, char **argv)
     }
     sc_stage_map_free(&m);
     sc_stage_map_free(&t);
-    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    rc = st == SC_OK ? CLI_OK : cli_report(&err);
     cli_input_close(&src);
     return rc;
 }

@@ -1,11 +1,13 @@
 /* selfcal plot profile — charts of a profile result: f, its uncertainty, its error against a
  * truth file, and the stage's e_y; optionally a second result to compare. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/profile.h"
 #include "plots.h"
@@ -277,44 +279,48 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
     return sc_afile_commit(&af, err); /* a write that failed: "write error: <reason>" */
 }
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal plot profile P.csv -o p.svg [--truth T.csv] [--compare Q.csv]\n"
     "                            [--label A] [--compare-label B] [--title T] [--uncertainty-only]\n"
     "  Charts of a profile result (n,x_mm,f_um,uf_um,ey_um): f, u(f), the error against a truth\n"
     "  file (selfcal simulate profile --truth) and e_y.\n";
 
+/* What the command line asks for. */
+typedef struct plot_profile_args {
+    const char *in, *out, *tpath, *cpath;
+    profile_plot_opts o;
+} plot_profile_args;
+
+#define F(field) offsetof(plot_profile_args, field)
+/* plot profile's options (cli_opts.h), in the order of its --help */
+static const cli_opt PLOT_PROFILE_OPTS[] = {
+    {"-o|--out", CLI_STRING, F(out), "p.svg", .help = "the plot (SVG)"},
+    {"--truth", CLI_STRING, F(tpath), "T.csv", .help = "the true profile: the error against it"},
+    {"--compare", CLI_STRING, F(cpath), "Q.csv", .help = "a second result drawn beside"},
+    {"--label", CLI_STRING, F(o.label_a), "A", .help = "the result's name in the legend"},
+    {"--compare-label", CLI_STRING, F(o.label_b), "B", .help = "the second result's name"},
+    {"--title", CLI_STRING, F(o.title), "T", .help = "the chart's title"},
+    {"--uncertainty-only", CLI_FLAG, F(o.uncertainty_only), .help = "only the u(f) chart"},
+};
+#undef F
+
+const cli_cmd_opts cli_plot_profile_opts = {
+    "plot profile", USAGE, PLOT_PROFILE_OPTS,
+    (int)(sizeof PLOT_PROFILE_OPTS / sizeof PLOT_PROFILE_OPTS[0]), offsetof(plot_profile_args, in),
+    NULL, "more than one input file (%s, %s)", "unknown option or missing value: %s (see --help)",
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
+};
+
 int cmd_plot_profile(int argc, char **argv)
 {
     const char *cmd = "plot profile";
-    const char *in = NULL, *out = NULL, *tpath = NULL, *cpath = NULL;
-    profile_plot_opts o = {NULL, NULL, NULL, 0};
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        int hv = i + 1 < argc;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        } else if ((!strcmp(a, "-o") || !strcmp(a, "--out")) && hv)
-            out = argv[++i];
-        else if (!strcmp(a, "--truth") && hv)
-            tpath = argv[++i];
-        else if (!strcmp(a, "--compare") && hv)
-            cpath = argv[++i];
-        else if (!strcmp(a, "--label") && hv)
-            o.label_a = argv[++i];
-        else if (!strcmp(a, "--compare-label") && hv)
-            o.label_b = argv[++i];
-        else if (!strcmp(a, "--title") && hv)
-            o.title = argv[++i];
-        else if (!strcmp(a, "--uncertainty-only"))
-            o.uncertainty_only = 1;
-        else if (a[0] == '-' && a[1])
-            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
-        else if (!in)
-            in = a;
-        else
-            return cli_usage_error(cmd, "more than one input file (%s, %s)", in, a);
-    }
+    plot_profile_args p;
+    memset(&p, 0, sizeof p);
+    int rc = cli_opts_parse(&cli_plot_profile_opts, argc, argv, &p);
+    if (rc >= 0)
+        return rc;
+    const char *in = p.in, *out = p.out, *tpath = p.tpath, *cpath = p.cpath;
+    profile_plot_opts o = p.o;
     if (!in || !out) {
         return cli_usage_error(cmd, "IN.csv and -o OUT.svg are required (see --help)");
     }
@@ -325,7 +331,7 @@ int cmd_plot_profile(int argc, char **argv)
     memset(&c, 0, sizeof c);
     if (sc_profile_read_result(in, &a, &err) != SC_OK)
         return cli_report(&err);
-    int rc = CLI_OK;
+    rc = CLI_OK;
     if ((tpath && sc_profile_read_result(tpath, &t, &err) != SC_OK) ||
         (cpath && sc_profile_read_result(cpath, &c, &err) != SC_OK))
         rc = cli_report(&err);

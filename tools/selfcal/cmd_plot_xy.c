@@ -2,17 +2,19 @@
  * columns, linear or logarithmic axes): the figures of scripts/figs-grid.sh, and any table a
  * benchmark writes. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "plots.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "svg.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal plot xy DATA.csv -o chart.svg [--x COL] [--y COL ...] [--logx] [--logy]\n"
     "                       [--title T] [--xlabel L] [--ylabel L]\n"
     "  A line chart of a CSV file with a header line: x from column COL (default the first), one\n"
@@ -22,6 +24,8 @@ static const char *USAGE =
     "  the y columns' names).\n";
 
 #define XY_MAX_SERIES 16
+#define XY_STR_(x) #x
+#define XY_STR(x) XY_STR_(x)
 /* the most values read (rows x columns, 800 MB): an endless pipe is refused there instead of
  * read until memory runs out; series are thinned to the figure's width when drawn */
 #define XY_MAX_VALUES 100000000L
@@ -125,36 +129,26 @@ typedef struct {
     int ny, logx, logy;
 } xy_args;
 
-/* One option (and its value, taken from argv[*k + 1]). */
-static int parse_option(int argc, char **argv, int *k, xy_args *a)
-{
-    const char *cmd = "plot xy", *o = argv[*k];
-    if (o[0] != '-' || !strcmp(o, "-")) {
-        if (a->in)
-            return cli_usage_error(cmd, "more than one input file ('%s', '%s')", a->in, o);
-        a->in = o;
-        return CLI_OK;
-    }
-    if (!strcmp(o, "--logx") || !strcmp(o, "--logy")) {
-        *(o[5] == 'x' ? &a->logx : &a->logy) = 1;
-        return CLI_OK;
-    }
-    if (*k + 1 >= argc)
-        return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
-    const char *v = argv[++*k];
-    if (!strcmp(o, "-o") || !strcmp(o, "--out")) a->out = v;
-    else if (!strcmp(o, "--x")) a->xname = v;
-    else if (!strcmp(o, "--y")) {
-        if (a->ny == XY_MAX_SERIES)
-            return cli_usage_error(cmd, "at most %d --y columns", XY_MAX_SERIES);
-        a->ynames[a->ny++] = v;
-    } else if (!strcmp(o, "--title")) a->title = v;
-    else if (!strcmp(o, "--xlabel")) a->xlabel = v;
-    else if (!strcmp(o, "--ylabel")) a->ylabel = v;
-    else
-        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-    return CLI_OK;
-}
+#define F(field) offsetof(xy_args, field)
+/* plot xy's options (cli_opts.h), in the order of its --help */
+static const cli_opt PLOT_XY_OPTS[] = {
+    {"-o|--out", CLI_STRING, F(out), "chart.svg", .help = "the chart (SVG)"},
+    {"--x", CLI_STRING, F(xname), "COL", .def = "the first column", .help = "the x column"},
+    {"--y", CLI_LIST, F(ynames), "COL", 0, XY_MAX_SERIES, .count = F(ny),
+     .bad = "at most " XY_STR(XY_MAX_SERIES) " --y columns", .def = "every other column",
+     .help = "a series' column (repeatable)"},
+    {"--logx", CLI_FLAG, F(logx), .help = "a logarithmic x axis"},
+    {"--logy", CLI_FLAG, F(logy), .help = "a logarithmic y axis"},
+    {"--title", CLI_STRING, F(title), "T", .help = "the chart's title"},
+    {"--xlabel", CLI_STRING, F(xlabel), "L", .def = "the x column's name", .help = "the x axis' label"},
+    {"--ylabel", CLI_STRING, F(ylabel), "L", .def = "the y columns' names", .help = "the y axis' label"},
+};
+#undef F
+
+const cli_cmd_opts cli_plot_xy_opts = {
+    "plot xy", USAGE, PLOT_XY_OPTS, (int)(sizeof PLOT_XY_OPTS / sizeof PLOT_XY_OPTS[0]),
+    offsetof(xy_args, in), NULL, NULL, NULL, NULL, 0, NULL, NULL,
+};
 
 /* The x column and the series' columns (--y, or every other column). */
 static sc_status select_columns(const xy_args *a, const xy_data *t, int *xc, int *yc, int *nser,
@@ -276,15 +270,9 @@ int cmd_plot_xy(int argc, char **argv)
 {
     xy_args a;
     memset(&a, 0, sizeof a);
-    for (int k = 1; k < argc; ++k) {
-        if (!strcmp(argv[k], "--help") || !strcmp(argv[k], "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        int rc = parse_option(argc, argv, &k, &a);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    int rc = cli_opts_parse(&cli_plot_xy_opts, argc, argv, &a);
+    if (rc >= 0)
+        return rc;
     if (!a.in || !a.out)
         return cli_usage_error("plot xy", "DATA.csv and -o chart.svg are required (see --help)");
     sc_error err;

@@ -3,12 +3,15 @@
  * plan (which needs only the file's header) is made while the rows are read
  * (sc_profile_read_and_plan). */
 #include <math.h>
+#include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "../../libselfcal/src/common/big_alloc.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -16,7 +19,7 @@
 #include "selfcal/profile_calibrate.h"
 #include "plots.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal profile --method {dft,lsq} IN.csv --out P.csv [--sigma-disp-um X]\n"
     "                       [--sigma-angle-urad Y] [--mc K] [--seed S] [--plot p.svg] [--quiet]\n"
     "                       [--drift linear|quadratic] [--residuals R.csv] [--reject-outliers]\n"
@@ -49,82 +52,55 @@ typedef struct profile_args {
     const char *in, *out, *method_s, *plot, *residuals;
     sc_profile_method method;
     int drift, reject;
+    int drift_ix; /* --drift: 0 linear, 1 quadratic; -1 none */
     double sigma_disp_um, sigma_angle_urad; /* NaN: not given */
     long mc;
-    unsigned long long seed;
+    uint64_t seed;
     int quiet;
 } profile_args;
 
-#define PARSE_GO_ON (-1) /* parse_option/parse_args: no exit code, carry on */
+#define PARSE_GO_ON (-1) /* parse_args: no exit code, carry on */
 
-/* The option at argv[*i] (and its value, *i advanced past it): PARSE_GO_ON or an exit code. */
-static int parse_option(profile_args *pa, int argc, char **argv, int *i)
-{
-    const char *cmd = "profile", *a = argv[*i];
-    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-        fputs(USAGE, stdout);
-        return CLI_OK;
-    }
-    int has_val = *i + 1 < argc;
-    const char *val = has_val ? argv[*i + 1] : NULL;
-    *i += has_val;
-    if (!strcmp(a, "--method") && has_val)
-        pa->method_s = val;
-    else if ((!strcmp(a, "--out") || !strcmp(a, "-o")) && has_val)
-        pa->out = val;
-    else if (!strcmp(a, "--plot") && has_val)
-        pa->plot = val;
-    else if (!strcmp(a, "--residuals") && has_val)
-        pa->residuals = val;
-    else if (!strcmp(a, "--drift") && has_val) {
-        if (strcmp(val, "linear") && strcmp(val, "quadratic"))
-            return cli_usage_error(cmd, "--drift must be linear or quadratic, not '%s'", val);
-        pa->drift = !strcmp(val, "linear") ? 1 : 2;
-    }
-    else if (!strcmp(a, "--sigma-disp-um") && has_val) {
-        if (cli_parse_noise(cmd, a, val, 0, &pa->sigma_disp_um) != CLI_OK)
-            return CLI_BAD_INPUT;
-    } else if (!strcmp(a, "--sigma-angle-urad") && has_val) {
-        if (cli_parse_noise(cmd, a, val, 0, &pa->sigma_angle_urad) != CLI_OK)
-            return CLI_BAD_INPUT;
-    } else if (!strcmp(a, "--mc") && has_val) {
-        char *e;
-        pa->mc = strtol(val, &e, 10);
-        if (*e || pa->mc < 2 || pa->mc > 100000000)
-            return cli_usage_error(cmd, "--mc: '%s' must be a whole number >= 2", val);
-    } else if (!strcmp(a, "--seed") && has_val) {
-        uint64_t s;
-        if (cli_parse_seed(cmd, val, &s) != CLI_OK)
-            return CLI_BAD_INPUT;
-        pa->seed = s;
-    } else {
-        *i -= has_val; /* no value taken */
-        if (!strcmp(a, "--quiet"))
-            pa->quiet = 1;
-        else if (!strcmp(a, "--reject-outliers"))
-            pa->reject = 1;
-        else
-            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", a);
-    }
-    return PARSE_GO_ON;
-}
+#define F(field) offsetof(profile_args, field)
+/* profile's options (cli_opts.h), in the order of its --help */
+static const cli_opt PROFILE_OPTS[] = {
+    {"--method", CLI_STRING, F(method_s), "dft|lsq", .help = "the method (required)"},
+    {"--out|-o", CLI_STRING, F(out), "P.csv", .help = "the profile (required; - for stdout)"},
+    {"--sigma-disp-um", CLI_CUSTOM, F(sigma_disp_um), "X", 0, SC_INPUT_MAX_ABS, .parse = cli_opt_noise,
+     .def = "the file's, else estimated", .help = "the displacement probes' noise (um)"},
+    {"--sigma-angle-urad", CLI_CUSTOM, F(sigma_angle_urad), "Y", 0, SC_INPUT_MAX_ABS,
+     .parse = cli_opt_noise, .def = "the file's, else estimated",
+     .help = "the angle probe's noise (urad)"},
+    {"--mc", CLI_LONG, F(mc), "K", 2, 100000000, .bad = "--mc: '%s' must be a whole number >= 2",
+     .help = "the uncertainty by K Monte Carlo trials"},
+    {"--seed", CLI_CUSTOM, F(seed), "S", .parse = cli_opt_seed, .def = "1",
+     .help = "the Monte Carlo's seed, 0 to 2^64-1"},
+    {"--plot", CLI_STRING, F(plot), "p.svg", .help = "a plot of the profile"},
+    {"--quiet", CLI_FLAG, F(quiet), .help = "no summary on stdout"},
+    {"--drift", CLI_CHOICE, F(drift_ix), "linear|quadratic", .choices = "linear|quadratic",
+     .bad = "--drift must be linear or quadratic, not '%s'", .def = "none",
+     .help = "lsq: a drift common to both scans"},
+    {"--residuals", CLI_STRING, F(residuals), "R.csv", .help = "lsq: the residuals and outlier test"},
+    {"--reject-outliers", CLI_FLAG, F(reject), .help = "lsq: remove the worst outlier, solve again"},
+};
+#undef F
+
+const cli_cmd_opts cli_profile_opts = {
+    "profile", USAGE, PROFILE_OPTS, (int)(sizeof PROFILE_OPTS / sizeof PROFILE_OPTS[0]),
+    offsetof(profile_args, in), NULL, "more than one input file (%s, %s)",
+    "unknown option or missing value: %s (see --help)",
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
+};
 
 /* The whole command line into pa: PARSE_GO_ON, or an exit code (--help, a usage error). */
 static int parse_args(int argc, char **argv, profile_args *pa)
 {
     const char *cmd = "profile";
-    *pa = (profile_args){.sigma_disp_um = NAN, .sigma_angle_urad = NAN, .seed = 1};
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        if (a[0] == '-' && a[1]) {
-            int rc = parse_option(pa, argc, argv, &i);
-            if (rc != PARSE_GO_ON)
-                return rc;
-        } else if (!pa->in)
-            pa->in = a;
-        else
-            return cli_usage_error(cmd, "more than one input file (%s, %s)", pa->in, a);
-    }
+    *pa = (profile_args){.sigma_disp_um = NAN, .sigma_angle_urad = NAN, .seed = 1, .drift_ix = -1};
+    int rc = cli_opts_parse(&cli_profile_opts, argc, argv, pa);
+    if (rc != PARSE_GO_ON)
+        return rc;
+    pa->drift = pa->drift_ix + 1;
     if (!pa->method_s || !pa->in || !pa->out)
         return cli_usage_error(cmd, "--method, IN.csv and --out are required (see --help)");
     if (!strcmp(pa->out, "-"))

@@ -1,19 +1,22 @@
 /* selfcal profile-plan — rank the usable sensor spacings (d1, d2) for a straightness measurement
  * by the predicted uncertainty of the profile, before the fixture is built. */
+#include <limits.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
 #include "selfcal/profile_calibrate.h"
 #include "selfcal/profile_dft.h"
 #include "selfcal/profile_lsq.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal profile-plan --n N --s-mm S --sigma-disp-um X --sigma-angle-urad Y\n"
     "                            [--d-min A (2)] [--d-max D (30)] [--top K (20)] [--sort rms|max]\n"
     "                            [--drift linear|quadratic]\n"
@@ -71,55 +74,50 @@ typedef struct {
     long n, dmin, dmax, top;
     double s, sd, sa; /* s_mm, sigma_disp_um, sigma_angle_urad */
     int drift;        /* 0, 1 linear, 2 quadratic */
+    int drift_ix;     /* --drift: 0 linear, 1 quadratic; -1 not given */
+    int sort_max;     /* --sort: 0 rms, 1 max */
 } plan_args;
 
-/* argv into a (sort_by_max too); *help for --help. */
-static int parse_args(int argc, char **argv, plan_args *a, int *help)
+#define F(field) offsetof(plan_args, field)
+#define WHOLE(name, f, dflt, text)                                                                  \
+    {name, CLI_LONG, F(f), "K", 1, LONG_MAX, .bad = "%s: '%s' must be a positive whole number",    \
+     .def = dflt, .help = text}
+#define NONNEG(name, f, v, text)                                                                   \
+    {name, CLI_DOUBLE, F(f), v, 0, HUGE_VAL, .bad = "%s: '%s' must be a non-negative number",      \
+     .help = text}
+/* profile-plan's options (cli_opts.h), in the order of its --help */
+static const cli_opt PLAN_OPTS[] = {
+    WHOLE("--n", n, NULL, "the number of points (required)"),
+    NONNEG("--s-mm", s, "S", "the sampling step, mm (required; above 0)"),
+    NONNEG("--sigma-disp-um", sd, "X", "the displacement probes' noise, um (required)"),
+    NONNEG("--sigma-angle-urad", sa, "Y", "the angle probe's noise, urad (required)"),
+    WHOLE("--d-min", dmin, "2", "the smallest spacing, in steps"),
+    WHOLE("--d-max", dmax, "30", "the largest spacing, in steps (at most N - 1)"),
+    WHOLE("--top", top, "20", "the pairs printed"),
+    {"--sort", CLI_CHOICE, F(sort_max), "rms|max", .choices = "rms|max",
+     .bad = "--sort must be rms or max, not '%s'", .def = "rms", .help = "rank by the RMS or the worst point"},
+    {"--drift", CLI_CHOICE, F(drift_ix), "linear|quadratic", .choices = "linear|quadratic",
+     .bad = "--drift must be linear or quadratic, not '%s'", .def = "none",
+     .help = "the least squares with drift terms"},
+};
+#undef WHOLE
+#undef NONNEG
+#undef F
+
+const cli_cmd_opts cli_profile_plan_opts = {
+    "profile-plan", USAGE, PLAN_OPTS, (int)(sizeof PLAN_OPTS / sizeof PLAN_OPTS[0]), 0,
+    cli_opt_no_operand, NULL, "unknown option or missing value: %s (see --help)",
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
+};
+
+/* argv into a (sort_by_max too): -1 to go on, else the exit code (--help, a usage error). */
+static int parse_args(int argc, char **argv, plan_args *a)
 {
-    const char *cmd = "profile-plan";
-    *a = (plan_args){0, 2, 30, 20, NAN, NAN, NAN, 0};
-    sort_by_max = 0;
-    *help = 0;
-    for (int i = 1; i < argc; ++i) {
-        const char *o = argv[i];
-        int hv = i + 1 < argc;
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            *help = 1;
-            return CLI_OK;
-        }
-        long *lp = NULL;
-        double *dp = NULL;
-        if (!strcmp(o, "--n") && hv) lp = &a->n;
-        else if (!strcmp(o, "--d-min") && hv) lp = &a->dmin;
-        else if (!strcmp(o, "--d-max") && hv) lp = &a->dmax;
-        else if (!strcmp(o, "--top") && hv) lp = &a->top;
-        else if (!strcmp(o, "--s-mm") && hv) dp = &a->s;
-        else if (!strcmp(o, "--sigma-disp-um") && hv) dp = &a->sd;
-        else if (!strcmp(o, "--sigma-angle-urad") && hv) dp = &a->sa;
-        else if (!strcmp(o, "--sort") && hv) {
-            const char *v = argv[++i];
-            if (!strcmp(v, "rms"))
-                sort_by_max = 0;
-            else if (!strcmp(v, "max"))
-                sort_by_max = 1;
-            else
-                return cli_usage_error(cmd, "--sort must be rms or max, not '%s'", v);
-            continue;
-        } else if (!strcmp(o, "--drift") && hv) {
-            const char *v = argv[++i];
-            if (strcmp(v, "linear") && strcmp(v, "quadratic"))
-                return cli_usage_error(cmd, "--drift must be linear or quadratic, not '%s'", v);
-            a->drift = !strcmp(v, "linear") ? 1 : 2;
-            continue;
-        } else
-            return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", o);
-        const char *v = argv[++i];
-        if (lp && (sc_parse_long(v, lp) != 0 || *lp < 1))
-            return cli_usage_error(cmd, "%s: '%s' must be a positive whole number", o, v);
-        if (dp && (sc_parse_double(v, dp) != 0 || *dp < 0))
-            return cli_usage_error(cmd, "%s: '%s' must be a non-negative number", o, v);
-    }
-    return CLI_OK;
+    *a = (plan_args){0, 2, 30, 20, NAN, NAN, NAN, 0, -1, 0};
+    int rc = cli_opts_parse(&cli_profile_plan_opts, argc, argv, a);
+    a->drift = a->drift_ix + 1;
+    sort_by_max = a->sort_max;
+    return rc;
 }
 
 /* The required options and their ranges; d-max is clamped to N - 1. */
@@ -242,13 +240,8 @@ static void print_ranking(const plan_args *a, plan_row *rows, size_t cnt)
 int cmd_profile_plan(int argc, char **argv)
 {
     plan_args a;
-    int help;
-    int rc = parse_args(argc, argv, &a, &help);
-    if (rc == CLI_OK && help) {
-        fputs(USAGE, stdout);
-        return CLI_OK;
-    }
-    if (rc != CLI_OK || (rc = check_args(&a)) != CLI_OK)
+    int rc = parse_args(argc, argv, &a);
+    if (rc >= 0 || (rc = check_args(&a)) != CLI_OK)
         return rc;
     size_t cap = (size_t)(a.dmax - a.dmin + 1) * (size_t)(a.dmax - a.dmin + 1) / 2 + 1;
     plan_row *rows = malloc(cap * sizeof *rows);

@@ -4,12 +4,14 @@
  * optionally the verification of the compensated machine, and the provenance. Everything is
  * computed here by calling the library, as `selfcal grid` does, never read back from its output. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "plots.h"
 #include "report_cert.h"
 #include "report_html.h"
@@ -20,7 +22,7 @@
 #include "selfcal/grid_lsq.h"
 #include "verify.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal report grid IN.csv -o R.html|--pdf R.pdf [--method lsq|ye|double-shift]\n"
     "                           [--sigma-r-um S] [--info KEY=VALUE ...] [--info-file F]\n"
     "                           [--outlier-alpha A | --outlier-alpha-each A]\n"
@@ -786,50 +788,77 @@ static void uncertainty_statement(FILE *fp, const grid_report *r)
     report_uncertainty_statement(fp, covers, excluded);
 }
 
-/* One option (and its value, from argv[*a + 1]) into r, vo and *out. */
-static int parse_option(int argc, char **argv, int *a, grid_report *r, sc_verify_opts *vo,
-                        report_info *ri, const char **out)
+/* What the command line asks for: the report, the verification's options, the certificate's
+ * information and the HTML output. */
+typedef struct report_grid_args {
+    grid_report r;
+    sc_verify_opts vo;
+    report_info ri;
+    const char *out;
+} report_grid_args;
+
+#define F(field) offsetof(report_grid_args, field)
+#define VERIFY_UM(name, text)                                                                      \
+    {name, CLI_CUSTOM, F(vo), "U", 0, SC_INPUT_MAX_ABS, .parse = verify_parse_opt, .help = text}
+/* report grid's options (cli_opts.h), in the order of its --help */
+static const cli_opt REPORT_GRID_OPTS[] = {
+    {"-o|--out", CLI_STRING, F(out), "R.html", .help = "the report (HTML)"},
+    {"--pdf", CLI_CUSTOM, F(ri), "R.pdf", .parse = report_info_opt, .help = "the report as PDF"},
+    {"--method", CLI_STRING, F(r.method), "lsq|ye|double-shift", .def = "lsq", .help = "the method"},
+    {"--sigma-r-um", CLI_DOUBLE, F(r.sigma_r_given), "S", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--sigma-r-um needs a positive number, got '%s'", .def = "estimated from the residuals",
+     .help = "the measurement noise (um)"},
+    {"--outlier-alpha", CLI_CUSTOM, F(r.test), "A", 0, 1, CLI_MIN_OPEN | CLI_MAX_OPEN,
+     .parse = cli_opt_lsq, .def = "0.05", .help = "the outlier test's significance for the data set"},
+    {"--outlier-alpha-each", CLI_CUSTOM, F(r.test), "A", 0, 1, CLI_MIN_OPEN | CLI_MAX_OPEN,
+     .parse = cli_opt_lsq, .help = "the outlier test's significance for each coordinate"},
+    {"--view-noise", CLI_CUSTOM, F(r.test), "stated|estimate", .choices = "stated|estimate",
+     .parse = cli_opt_lsq, .def = "stated", .help = "each view's noise estimated"},
+    {"--view-scale", CLI_CUSTOM, F(r.test), "model|free", .choices = "model|free",
+     .parse = cli_opt_lsq, .def = "model", .help = "each view's scale an unknown"},
+    {"--verify", CLI_STRING, F(r.verify_name), "V.csv", .help = "a re-measurement (with --table)"},
+    {"--table", CLI_STRING, F(r.table_name), "T.lut", .help = "the table it was measured with"},
+    {"--tolerance-um", CLI_DOUBLE, F(vo.tolerance_um), "T", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--tolerance-um needs a positive number, got '%s'", .help = "the verdict's tolerance (um)"},
+    {"--raw", CLI_FLAG, F(vo.raw), .help = "the re-measurement is of the uncompensated machine"},
+    {"--decision-rule", CLI_CUSTOM, F(vo), "simple|guarded", .choices = "simple|guarded",
+     .parse = verify_parse_opt, .help = "the verdict's decision rule"},
+    VERIFY_UM("--u-verify-um", "the re-measurement's uncertainty (um)"),
+    VERIFY_UM("--u-plate-um", "the plate error's uncertainty (um)"),
+    VERIFY_UM("--verify-sigma-um", "the re-measurement's noise (um)"),
+    {"--info", CLI_CUSTOM, F(ri), "KEY=VALUE", .parse = report_info_opt, .help = "a certificate field"},
+    {"--info-file", CLI_CUSTOM, F(ri), "F", .parse = report_info_opt, .help = "certificate fields from a file"},
+};
+#undef VERIFY_UM
+#undef F
+
+const cli_cmd_opts cli_report_grid_opts = {
+    "report grid", USAGE, REPORT_GRID_OPTS,
+    (int)(sizeof REPORT_GRID_OPTS / sizeof REPORT_GRID_OPTS[0]), offsetof(report_grid_args, r.in),
+    NULL, NULL, NULL, NULL, 0, NULL, NULL,
+};
+
+/* The command line into g: -1 to go on, else the exit code (--help, a usage error). */
+static int parse_args(int argc, char **argv, report_grid_args *g)
 {
-    const char *cmd = "report grid", *o = argv[*a];
-    if (o[0] != '-' || !strcmp(o, "-")) {
-        if (r->in)
-            return cli_usage_error(cmd, "more than one input file ('%s', '%s')", r->in, o);
-        r->in = o;
-        return CLI_OK;
-    }
-    if (!strcmp(o, "--raw")) {
-        vo->raw = 1;
-        return CLI_OK;
-    }
-    if (*a + 1 >= argc)
-        return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
-    const char *v = argv[++*a];
-    int rc = cli_parse_lsq_option(cmd, o, v, &r->test); /* the outlier test, view noise */
+    const char *cmd = "report grid";
+    memset(g, 0, sizeof *g);
+    g->r.method = "lsq";
+    sc_verify_opts_init(&g->vo);
+    int rc = cli_opts_parse(&cli_report_grid_opts, argc, argv, g);
     if (rc >= 0)
         return rc;
-    if ((rc = report_info_option(cmd, o, v, ri)) >= 0)
-        return rc;
-    if (!strcmp(o, "-o") || !strcmp(o, "--out"))
-        *out = v;
-    else if (!strcmp(o, "--method"))
-        r->method = v;
-    else if (!strcmp(o, "--sigma-r-um")) {
-        if (sc_parse_double(v, &r->sigma_r_given) || !(r->sigma_r_given > 0) ||
-            !(r->sigma_r_given <= SC_INPUT_MAX_ABS))
-            return cli_usage_error(cmd, "--sigma-r-um needs a positive number, got '%s'", v);
-    } else if ((rc = verify_parse_option(cmd, o, v, vo)) >= 0)
-        return rc;
-    else if (!strcmp(o, "--verify"))
-        r->verify_name = v;
-    else if (!strcmp(o, "--table"))
-        r->table_name = v;
-    else if (!strcmp(o, "--tolerance-um")) {
-        if (sc_parse_double(v, &vo->tolerance_um) || !(vo->tolerance_um > 0) ||
-            !(vo->tolerance_um <= SC_INPUT_MAX_ABS))
-            return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
-    } else
-        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-    return CLI_OK;
+    grid_report *r = &g->r;
+    if (!r->in || (!g->out && !g->ri.pdf))
+        return cli_usage_error(cmd, "IN.csv and -o R.html or --pdf R.pdf are required (see --help)");
+    if (strcmp(r->method, "lsq") && strcmp(r->method, "ye") && strcmp(r->method, "double-shift"))
+        return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r->method);
+    if (!r->verify_name != !r->table_name)
+        return cli_usage_error(cmd, "--verify and --table go together (see --help)");
+    if (r->test.estimate_view_noise && r->sigma_r_given > 0)
+        return cli_usage_error(cmd, "--sigma-r-um and --view-noise estimate exclude each other "
+                                    "(a given noise, or each view's estimated)");
+    return -1;
 }
 
 /* Title and the summary paragraph (its numbers from the run and the verification). */
@@ -907,75 +936,56 @@ static sc_status write_report(FILE *fp, const grid_report *r, const sc_verify_op
 
 int cmd_report_grid(int argc, char **argv)
 {
-    const char *cmd = "report grid";
-    grid_report r;
-    memset(&r, 0, sizeof r);
-    r.method = "lsq";
-    const char *out = NULL;
-    sc_verify_opts vo;
-    sc_verify_opts_init(&vo);
-    report_info ri;
-    memset(&ri, 0, sizeof ri);
-    for (int a = 1; a < argc; ++a) {
-        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        int rc = parse_option(argc, argv, &a, &r, &vo, &ri, &out);
-        if (rc != CLI_OK)
-            return rc;
-    }
-    if (!r.in || (!out && !ri.pdf))
-        return cli_usage_error(cmd, "IN.csv and -o R.html or --pdf R.pdf are required (see --help)");
-    if (strcmp(r.method, "lsq") && strcmp(r.method, "ye") && strcmp(r.method, "double-shift"))
-        return cli_usage_error(cmd, "--method must be lsq, ye or double-shift (got '%s')", r.method);
-    if (!r.verify_name != !r.table_name)
-        return cli_usage_error(cmd, "--verify and --table go together (see --help)");
-    if (r.test.estimate_view_noise && r.sigma_r_given > 0)
-        return cli_usage_error(cmd, "--sigma-r-um and --view-noise estimate exclude each other "
-                                    "(a given noise, or each view's estimated)");
+    report_grid_args g;
+    int rc = parse_args(argc, argv, &g);
+    if (rc >= 0)
+        return rc;
+    grid_report *rp = &g.r;
+    sc_verify_opts *vop = &g.vo;
+    report_info *rip = &g.ri;
+    const char *out = g.out;
     sc_error err;
     sc_error_clear(&err);
     cli_input src[3]; /* pipes read once, into memory, hashed on the way */
-    const char *names[3] = {r.in, r.verify_name, r.table_name};
+    const char *names[3] = {rp->in, rp->verify_name, rp->table_name};
     int opened = 0;
     report_out ro;
     memset(&ro, 0, sizeof ro);
-    sc_status st = report_info_load(&ri, &err);
+    sc_status st = report_info_load(rip, &err);
     if (st == SC_OK)
-        st = report_out_prepare(&ro, &ri, out, &err); /* Chromium first: nothing written without */
+        st = report_out_prepare(&ro, rip, out, &err); /* Chromium first: nothing written without */
     if (st == SC_OK)
-        st = cli_input_open_all(src, names, r.verify_name ? 3 : 1, 1u << 2 /* the table */,
+        st = cli_input_open_all(src, names, rp->verify_name ? 3 : 1, 1u << 2 /* the table */,
                                 &opened, &err);
-    r.src = &src[0];
-    if (r.verify_name)
-        r.vsrc[0] = &src[1], r.vsrc[1] = &src[2];
+    rp->src = &src[0];
+    if (rp->verify_name)
+        rp->vsrc[0] = &src[1], rp->vsrc[1] = &src[2];
     if (st == SC_OK)
-        st = run(&r, &err);
+        st = run(rp, &err);
     sc_verify_result vr;
     memset(&vr, 0, sizeof vr);
-    if (st == SC_OK && r.verify_name) {
-        vo.plate = &r.am;
-        vo.measurement = src[1].path, vo.table = src[2].path;
-        st = sc_verify_run(&vo, &vr, &err);
+    if (st == SC_OK && rp->verify_name) {
+        vop->plate = &rp->am;
+        vop->measurement = src[1].path, vop->table = src[2].path;
+        st = sc_verify_run(vop, &vr, &err);
     }
     sc_afile f;
     memset(&f, 0, sizeof f);
     if (st == SC_OK)
         st = sc_afile_open(&f, ro.html, &err);
     if (st == SC_OK) {
-        st = write_report(f.fp, &r, &vo, &vr, &ri, argc, argv, &err);
+        st = write_report(f.fp, rp, vop, &vr, rip, argc, argv, &err);
         st = sc_afile_finish(&f, st, &err);
-        st = report_out_finish(&ro, &ri, st, &err);
+        st = report_out_finish(&ro, rip, st, &err);
     } else if (ro.temp)
         unlink(ro.html);
     sc_verify_result_free(&vr);
-    free_report(&r);
-    report_info_free(&ri);
-    int rc = CLI_OK;
+    free_report(rp);
+    report_info_free(rip);
+    rc = CLI_OK;
     if (st != SC_OK) {
         if (!err.file[0] && (err.code == SC_E_INPUT || err.code == SC_E_UNSOLVABLE))
-            snprintf(err.file, sizeof err.file, "%s", r.in);
+            snprintf(err.file, sizeof err.file, "%s", rp->in);
         rc = cli_report(&err);
     }
     cli_input_close_all(src, opened);

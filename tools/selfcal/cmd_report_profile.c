@@ -3,11 +3,13 @@
  * given and estimated with its χ² test, the residuals of each scan, f with its uncertainty (k = 1
  * and k = 2), u(f), e_y, and the provenance. Computed by the same code as `selfcal profile`. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "plots.h"
 #include "selfcal/profile_calibrate.h"
 #include "report_cert.h"
@@ -15,7 +17,7 @@
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal report profile IN.csv -o R.html|--pdf R.pdf [--method lsq|dft]\n"
     "                              [--sigma-disp-um X] [--sigma-angle-urad Y]\n"
     "                              [--info KEY=VALUE ...] [--info-file F]\n"
@@ -432,56 +434,67 @@ static sc_status write_report(FILE *fp, const cli_input *src, const char *method
     return st;
 }
 
-int cmd_report_profile(int argc, char **argv)
+/* What the command line asks for. */
+typedef struct report_profile_args {
+    const char *in, *out, *method_s;
+    double sd, sa; /* the noise given, NaN if not */
+    report_info ri;
+    sc_profile_method method;
+} report_profile_args;
+
+#define F(field) offsetof(report_profile_args, field)
+/* report profile's options (cli_opts.h), in the order of its --help */
+static const cli_opt REPORT_PROFILE_OPTS[] = {
+    {"-o|--out", CLI_STRING, F(out), "R.html", .help = "the report (HTML)"},
+    {"--pdf", CLI_CUSTOM, F(ri), "R.pdf", .parse = report_info_opt, .help = "the report as PDF"},
+    {"--method", CLI_STRING, F(method_s), "lsq|dft", .def = "lsq", .help = "the method"},
+    {"--sigma-disp-um", CLI_CUSTOM, F(sd), "X", 0, SC_INPUT_MAX_ABS, .parse = cli_opt_noise,
+     .def = "the file's, else estimated", .help = "the displacement probes' noise (um)"},
+    {"--sigma-angle-urad", CLI_CUSTOM, F(sa), "Y", 0, SC_INPUT_MAX_ABS, .parse = cli_opt_noise,
+     .def = "the file's, else estimated", .help = "the angle probe's noise (urad)"},
+    {"--info", CLI_CUSTOM, F(ri), "KEY=VALUE", .parse = report_info_opt, .help = "a certificate field"},
+    {"--info-file", CLI_CUSTOM, F(ri), "F", .parse = report_info_opt,
+     .help = "certificate fields from a file"},
+};
+#undef F
+
+const cli_cmd_opts cli_report_profile_opts = {
+    "report profile", USAGE, REPORT_PROFILE_OPTS,
+    (int)(sizeof REPORT_PROFILE_OPTS / sizeof REPORT_PROFILE_OPTS[0]),
+    offsetof(report_profile_args, in), NULL, NULL, NULL, NULL, 0, NULL, NULL,
+};
+
+/* The command line into p: -1 to go on, else the exit code (--help, a usage error). */
+static int parse_args(int argc, char **argv, report_profile_args *p)
 {
     const char *cmd = "report profile";
-    const char *in = NULL, *out = NULL, *method_s = "lsq";
-    double sd = NAN, sa = NAN;
-    report_info ri;
-    memset(&ri, 0, sizeof ri);
-    for (int a = 1; a < argc; ++a) {
-        const char *o = argv[a];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        if (o[0] != '-' || !strcmp(o, "-")) {
-            if (in)
-                return cli_usage_error(cmd, "more than one input file ('%s', '%s')", in, o);
-            in = o;
-            continue;
-        }
-        if (a + 1 >= argc)
-            return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", o);
-        const char *v = argv[++a];
-        int rc = report_info_option(cmd, o, v, &ri);
-        if (rc >= 0) {
-            if (rc != CLI_OK)
-                return rc;
-        } else if (!strcmp(o, "-o") || !strcmp(o, "--out"))
-            out = v;
-        else if (!strcmp(o, "--method"))
-            method_s = v;
-        else if (!strcmp(o, "--sigma-disp-um") || !strcmp(o, "--sigma-angle-urad")) {
-            double x;
-            if (cli_parse_noise(cmd, o, v, 0, &x) != CLI_OK)
-                return CLI_BAD_INPUT;
-            if (o[8] == 'd')
-                sd = x;
-            else
-                sa = x;
-        } else
-            return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-    }
-    if (!in || (!out && !ri.pdf))
+    memset(p, 0, sizeof *p);
+    p->method_s = "lsq";
+    p->sd = p->sa = NAN;
+    int rc = cli_opts_parse(&cli_report_profile_opts, argc, argv, p);
+    if (rc >= 0)
+        return rc;
+    if (!p->in || (!p->out && !p->ri.pdf))
         return cli_usage_error(cmd, "IN.csv and -o R.html or --pdf R.pdf are required (see --help)");
-    sc_profile_method method;
-    if (!strcmp(method_s, "lsq"))
-        method = SC_PROFILE_LSQ;
-    else if (!strcmp(method_s, "dft"))
-        method = SC_PROFILE_DFT;
+    if (!strcmp(p->method_s, "lsq"))
+        p->method = SC_PROFILE_LSQ;
+    else if (!strcmp(p->method_s, "dft"))
+        p->method = SC_PROFILE_DFT;
     else
-        return cli_usage_error(cmd, "--method must be lsq or dft (got '%s')", method_s);
+        return cli_usage_error(cmd, "--method must be lsq or dft (got '%s')", p->method_s);
+    return -1;
+}
+
+int cmd_report_profile(int argc, char **argv)
+{
+    report_profile_args p;
+    int rc = parse_args(argc, argv, &p);
+    if (rc >= 0)
+        return rc;
+    const char *in = p.in, *out = p.out, *method_s = p.method_s;
+    double sd = p.sd, sa = p.sa;
+    sc_profile_method method = p.method;
+    report_info ri = p.ri;
     sc_error err;
     sc_error_clear(&err);
     sc_profile_data d;
@@ -498,7 +511,7 @@ int cmd_report_profile(int argc, char **argv)
         return cli_report(&err);
     }
     if (sc_profile_read(src.path, &d, &err) != SC_OK) {
-        int rc = cli_report(&err);
+        rc = cli_report(&err);
         cli_input_close(&src);
         report_out_finish(&ro, &ri, SC_E_INPUT, NULL);
         report_info_free(&ri);
@@ -521,7 +534,7 @@ int cmd_report_profile(int argc, char **argv)
     report_info_free(&ri);
     profile_run_free(&r);
     sc_profile_data_free(&d);
-    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    rc = st == SC_OK ? CLI_OK : cli_report(&err);
     cli_input_close(&src);
     return rc;
 }

@@ -5,6 +5,7 @@
  * user starts. */
 #include <errno.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,6 +13,7 @@
 #include <unistd.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "input_once.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
@@ -19,7 +21,7 @@
 #include "selfcal/profile.h"
 #include "selfcal/rng.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal simulate exports IN.csv --dir DIR [--units um|mm] [--style semicolon|comma|tab]\n"
     "                                [--missing I,J[@V] ...] [--stray V ...] [--seed 1]\n"
     "                                [--displace I,J@V:DX,DY ...]\n"
@@ -329,9 +331,10 @@ typedef struct {
 } exports_args;
 
 /* --missing I,J[@V] */
-static int parse_missing(exports_args *a, const char *v)
+static int parse_missing(const char *cmd, const char *opt, const char *v, void *field)
 {
-    const char *cmd = "simulate exports";
+    exports_args *a = field;
+    (void)opt;
     char buf[128];
     snprintf(buf, sizeof buf, "%s", v);
     char *at = strchr(buf, '@'), *comma = strchr(buf, ',');
@@ -352,9 +355,10 @@ static int parse_missing(exports_args *a, const char *v)
 }
 
 /* --displace I,J@V:DX,DY (µm) */
-static int parse_displace(exports_args *a, const char *v)
+static int parse_displace(const char *cmd, const char *opt, const char *v, void *field)
 {
-    const char *cmd = "simulate exports";
+    exports_args *a = field;
+    (void)opt;
     char buf[128];
     missing_mark m = {0, 0, 0, 0, 0};
     snprintf(buf, sizeof buf, "%s", v);
@@ -374,38 +378,65 @@ static int parse_displace(exports_args *a, const char *v)
     return CLI_OK;
 }
 
-/* One option with its value. */
-static int parse_option(exports_args *a, const char *o, const char *v)
+/* --units mm|um into the double (units per mm) */
+static int parse_units(const char *cmd, const char *opt, const char *v, void *field)
 {
-    const char *cmd = "simulate exports";
-    if (!strcmp(o, "--dir")) {
-        a->dir = v;
-    } else if (!strcmp(o, "--units")) {
-        if (!strcmp(v, "mm")) a->unit_per_mm = 1;
-        else if (!strcmp(v, "um")) a->unit_per_mm = 1000;
-        else return cli_usage_error(cmd, "--units mm or um, got '%s'", v);
-    } else if (!strcmp(o, "--style")) {
-        if (!strcmp(v, "semicolon")) a->sty = (style){';', ','};
-        else if (!strcmp(v, "comma")) a->sty = (style){',', '.'};
-        else if (!strcmp(v, "tab")) a->sty = (style){'\t', '.'};
-        else return cli_usage_error(cmd, "--style semicolon, comma or tab, got '%s'", v);
-    } else if (!strcmp(o, "--missing")) {
-        return parse_missing(a, v);
-    } else if (!strcmp(o, "--displace")) {
-        return parse_displace(a, v);
-    } else if (!strcmp(o, "--stray")) {
-        long s;
-        if (sc_parse_long(v, &s) || s < 0 || a->n_stray == 64)
-            return cli_usage_error(cmd, "--stray V (a view index, at most 64 times), got '%s'", v);
-        a->stray[a->n_stray++] = (int)s;
-    } else if (!strcmp(o, "--seed")) {
-        if (cli_parse_seed(cmd, v, &a->seed) != CLI_OK)
-            return CLI_BAD_INPUT;
-    } else {
-        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
-    }
+    (void)opt;
+    if (!strcmp(v, "mm")) *(double *)field = 1;
+    else if (!strcmp(v, "um")) *(double *)field = 1000;
+    else return cli_usage_error(cmd, "--units mm or um, got '%s'", v);
     return CLI_OK;
 }
+
+/* --style semicolon|comma|tab into the style */
+static int parse_style(const char *cmd, const char *opt, const char *v, void *field)
+{
+    style *sty = field;
+    (void)opt;
+    if (!strcmp(v, "semicolon")) *sty = (style){';', ','};
+    else if (!strcmp(v, "comma")) *sty = (style){',', '.'};
+    else if (!strcmp(v, "tab")) *sty = (style){'\t', '.'};
+    else return cli_usage_error(cmd, "--style semicolon, comma or tab, got '%s'", v);
+    return CLI_OK;
+}
+
+/* --stray V, one more into the exports_args */
+static int parse_stray(const char *cmd, const char *opt, const char *v, void *field)
+{
+    exports_args *a = field;
+    long s;
+    (void)opt;
+    if (sc_parse_long(v, &s) || s < 0 || a->n_stray == 64)
+        return cli_usage_error(cmd, "--stray V (a view index, at most 64 times), got '%s'", v);
+    a->stray[a->n_stray++] = (int)s;
+    return CLI_OK;
+}
+
+#define F(field) offsetof(exports_args, field)
+/* simulate exports' options (cli_opts.h), in the order of its --help */
+static const cli_opt SIM_EXPORTS_OPTS[] = {
+    {"--dir", CLI_STRING, F(dir), "DIR", .help = "the folder written (required)"},
+    {"--units", CLI_CUSTOM, F(unit_per_mm), "mm|um", .choices = "mm|um", .parse = parse_units,
+     .def = "um", .help = "the positions' unit"},
+    {"--style", CLI_CUSTOM, F(sty), "semicolon|comma|tab", .choices = "semicolon|comma|tab",
+     .parse = parse_style, .def = "semicolon", .help = "the delimiter and decimal mark"},
+    {"--missing", CLI_CUSTOM, 0, "I,J[@V]", .parse = parse_missing,
+     .help = "a mark left out (of view V; repeatable, at most 64)"},
+    {"--stray", CLI_CUSTOM, 0, "V", .parse = parse_stray,
+     .help = "a stray point in view V (repeatable, at most 64)"},
+    {"--displace", CLI_CUSTOM, 0, "I,J@V:DX,DY", .parse = parse_displace,
+     .help = "a mark of view V moved by DX,DY um (repeatable, at most 64)"},
+    {"--seed", CLI_CUSTOM, F(seed), "S", .parse = cli_opt_seed, .def = "1",
+     .help = "the seed, 0 to 2^64-1"},
+};
+#undef F
+
+const cli_cmd_opts cli_simulate_exports_opts = {
+    "simulate exports", USAGE, SIM_EXPORTS_OPTS,
+    (int)(sizeof SIM_EXPORTS_OPTS / sizeof SIM_EXPORTS_OPTS[0]), offsetof(exports_args, in), NULL,
+    "one input file, got '%s' and '%s'", "unknown option or missing value: '%s' (see --help)",
+    NULL, 0, NULL, NULL,
+};
 
 int cmd_simulate_exports(int argc, char **argv)
 {
@@ -415,24 +446,9 @@ int cmd_simulate_exports(int argc, char **argv)
     a.unit_per_mm = 1000;
     a.sty = (style){';', ','};
     a.seed = 1;
-    for (int k = 1; k < argc; ++k) {
-        const char *o = argv[k];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        if (o[0] != '-' || !o[1]) {
-            if (a.in)
-                return cli_usage_error(cmd, "one input file, got '%s' and '%s'", a.in, o);
-            a.in = o;
-            continue;
-        }
-        if (k + 1 >= argc)
-            return cli_usage_error(cmd, "unknown option or missing value: '%s' (see --help)", o);
-        int rc = parse_option(&a, o, argv[++k]);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    int rc = cli_opts_parse(&cli_simulate_exports_opts, argc, argv, &a);
+    if (rc >= 0)
+        return rc;
     if (!a.in || !a.dir)
         return cli_usage_error(cmd, "IN.csv and --dir DIR are required (see --help)");
     /* which format: the first line says */
@@ -443,7 +459,7 @@ int cmd_simulate_exports(int argc, char **argv)
         return cli_report(&err);
     FILE *fp = sc_open_input(src.path, &err);
     if (!fp) {
-        int rc = cli_report(&err);
+        rc = cli_report(&err);
         cli_input_close(&src);
         return rc;
     }
@@ -451,7 +467,7 @@ int cmd_simulate_exports(int argc, char **argv)
     if (!fgets(first, sizeof first, fp))
         first[0] = '\0';
     fclose(fp);
-    int rc = !strncmp(first, "# selfcal-profile v1", 20)
+    rc = !strncmp(first, "# selfcal-profile v1", 20)
                  ? profile_exports(src.path, a.dir, &a.sty, argc, argv)
                  : grid_exports(src.path, a.dir, a.unit_per_mm, &a.sty, a.miss, a.n_miss, a.disp,
                                 a.n_disp, a.stray, a.n_stray, (uint64_t)a.seed, argc, argv);

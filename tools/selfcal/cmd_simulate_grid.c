@@ -1,10 +1,12 @@
 /* selfcal simulate grid — simulated plate measurements (Petrò 2019 §5) and their truth. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_io.h"
@@ -12,7 +14,7 @@
 #include "selfcal/grid_sim.h"
 #include "selfcal/lut.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal simulate grid --plan {ye,double-shift,stitch,PLAN.csv} --out IN.csv --truth-map G_true.csv\n"
     "                             [--n 25] [--pitch-mm 1] [--origin-mm X,Y]\n"
     "                             [--sigma-g-um 1] [--sigma-a-um 1] [--sigma-r-um 0.01]\n"
@@ -149,8 +151,10 @@ static const char *split_pair(const char *v, char *buf, size_t cap)
     return comma + 1;
 }
 
-static int parse_origin(sim_args *a, const char *v)
+static int parse_origin(const char *cmd, const char *opt, const char *v, void *field)
 {
+    sim_args *a = field;
+    (void)cmd, (void)opt;
     char buf[128];
     const char *second = split_pair(v, buf, sizeof buf);
     if (!second || sc_parse_double(buf, &a->ox) || sc_parse_double(second, &a->oy))
@@ -159,8 +163,10 @@ static int parse_origin(sim_args *a, const char *v)
     return CLI_OK;
 }
 
-static int parse_stage(sim_args *a, const char *v)
+static int parse_stage(const char *cmd, const char *opt, const char *v, void *field)
 {
+    sim_args *a = field;
+    (void)cmd, (void)opt;
     char buf[64];
     const char *second = split_pair(v, buf, sizeof buf);
     if (!second || sc_parse_long(buf, &a->stage_x) || sc_parse_long(second, &a->stage_y) ||
@@ -170,8 +176,10 @@ static int parse_stage(sim_args *a, const char *v)
     return CLI_OK;
 }
 
-static int parse_view_sigmas(sim_args *a, const char *v)
+static int parse_view_sigmas(const char *cmd, const char *opt, const char *v, void *field)
 {
+    sim_args *a = field;
+    (void)cmd, (void)opt;
     size_t len = strlen(v), cap = 1;
     for (const char *c = v; *c; ++c)
         cap += *c == ',';
@@ -196,8 +204,10 @@ static int parse_view_sigmas(sim_args *a, const char *v)
     return rc;
 }
 
-static int parse_drift(sim_args *a, const char *v)
+static int parse_drift(const char *cmd, const char *opt, const char *v, void *field)
 {
+    sim_args *a = field;
+    (void)cmd, (void)opt;
     char buf[128];
     const char *second = split_pair(v, buf, sizeof buf);
     if (!second || sc_parse_double(buf, &a->sp.drift_vx_um_s) ||
@@ -219,8 +229,10 @@ static int parse_value_u(const char *opt, const char *v, double lim, double *val
     return CLI_OK;
 }
 
-static int parse_temps(sim_args *a, const char *v)
+static int parse_temps(const char *cmd, const char *opt, const char *v, void *field)
 {
+    sim_args *a = field;
+    (void)cmd, (void)opt;
     size_t len = strlen(v), cap = 1;
     for (const char *c = v; *c; ++c)
         cap += *c == ',';
@@ -248,113 +260,131 @@ static int parse_temps(sim_args *a, const char *v)
     return rc;
 }
 
-/* The scale and temperature options (SPEC §11); -1: not one of them. */
-static int parse_scale_option(sim_args *a, const char *o, const char *v)
+/* --plate-scale-ppm E[,U], --plate-cte-ppm-per-k A[,U] into the sc_grid_scale */
+static int parse_scale(const char *cmd, const char *o, const char *v, void *field)
 {
-    sc_grid_scale *sc = &a->scale;
+    sc_grid_scale *sc = field;
+    (void)cmd;
     if (!strcmp(o, "--plate-scale-ppm")) {
         sc->has_plate_scale = 1;
         return parse_value_u(o, v, SC_GRID_MAX_SCALE_PPM, &sc->plate_scale_ppm,
                              &sc->u_plate_scale_ppm);
     }
-    if (!strcmp(o, "--plate-cte-ppm-per-k")) {
-        sc->has_cte = 1;
-        return parse_value_u(o, v, SC_GRID_MAX_CTE, &sc->cte_ppm_per_K, &sc->u_cte_ppm_per_K);
-    }
-    if (!strcmp(o, "--view-temp-c"))
-        return parse_temps(a, v);
-    if (!strcmp(o, "--temp-u-k")) {
-        a->temp_u_given = 1;
-        if (sc_parse_double(v, &sc->temp_u_K) || !(sc->temp_u_K >= 0) ||
-            !(sc->temp_u_K <= SC_GRID_MAX_TEMP_U_K))
-            return cli_usage_error("simulate grid", "--temp-u-k needs 0 to %g K, got '%s'",
-                                   SC_GRID_MAX_TEMP_U_K, v);
-        return CLI_OK;
-    }
-    if (!strcmp(o, "--magnification-ppm")) {
-        if (sc_parse_double(v, &a->magnification_ppm) ||
-            !(fabs(a->magnification_ppm) <= SC_GRID_MAX_SCALE_PPM))
-            return cli_usage_error("simulate grid", "--magnification-ppm needs a number of ppm "
-                                                    "(|M| <= %g), got '%s'",
-                                   SC_GRID_MAX_SCALE_PPM, v);
-        return CLI_OK;
-    }
-    return -1;
+    sc->has_cte = 1;
+    return parse_value_u(o, v, SC_GRID_MAX_CTE, &sc->cte_ppm_per_K, &sc->u_cte_ppm_per_K);
 }
 
-/* The options taking one number. */
-static int parse_number_option(sim_args *a, const char *o, const char *v)
+/* --temp-u-k U into the sim_args */
+static int parse_temp_u(const char *cmd, const char *opt, const char *v, void *field)
 {
+    sim_args *a = field;
+    sc_grid_scale *sc = &a->scale;
+    (void)opt;
+    a->temp_u_given = 1;
+    if (sc_parse_double(v, &sc->temp_u_K) || !(sc->temp_u_K >= 0) ||
+        !(sc->temp_u_K <= SC_GRID_MAX_TEMP_U_K))
+        return cli_usage_error(cmd, "--temp-u-k needs 0 to %g K, got '%s'", SC_GRID_MAX_TEMP_U_K, v);
+    return CLI_OK;
+}
+
+/* --magnification-ppm M into the double */
+static int parse_magnification(const char *cmd, const char *opt, const char *v, void *field)
+{
+    double *m = field;
+    (void)opt;
+    if (sc_parse_double(v, m) || !(fabs(*m) <= SC_GRID_MAX_SCALE_PPM))
+        return cli_usage_error(cmd, "--magnification-ppm needs a number of ppm (|M| <= %g), got '%s'",
+                               SC_GRID_MAX_SCALE_PPM, v);
+    return CLI_OK;
+}
+
+/* --n, --pitch-mm (given), --O-urad, --R-ppm (scaled), --dt-s (positive) into the sim_args; with
+ * another option (the table's other), a value that is no number is named first */
+static int sim_number(const char *cmd, const char *o, const char *v, void *field)
+{
+    sim_args *a = field;
     double x;
     if (parse_num(o, v, &x))
         return CLI_BAD_INPUT;
     sc_grid_sim_params *sp = &a->sp;
     if (!strcmp(o, "--n")) a->n_d = x, a->n_given = 1;
     else if (!strcmp(o, "--pitch-mm")) a->pitch = x, a->pitch_given = 1;
-    else if (!strcmp(o, "--sigma-g-um")) sp->sigma_g_um = x;
-    else if (!strcmp(o, "--sigma-a-um")) sp->sigma_a_um = x;
-    else if (!strcmp(o, "--sigma-r-um")) sp->sigma_r_um = x;
-    else if (!strcmp(o, "--sigma-t-um")) sp->sigma_t_um = x;
-    else if (!strcmp(o, "--sigma-theta-urad")) sp->sigma_theta_urad = x;
-    else if (!strcmp(o, "--O")) sp->O = x;
-    else if (!strcmp(o, "--R")) sp->R = x;
     else if (!strcmp(o, "--O-urad")) sp->O = x * 1e-6;
     else if (!strcmp(o, "--R-ppm")) sp->R = x * 1e-6;
-    else if (!strcmp(o, "--rho")) sp->rho = x;
     else if (!strcmp(o, "--dt-s")) {
         if (!(x > 0) || x > 1e6)
-            return cli_usage_error("simulate grid", "--dt-s needs a positive number");
+            return cli_usage_error(cmd, "--dt-s needs a positive number");
         sp->dt_s = x;
-    }
-    else
-        return cli_usage_error("simulate grid", "unknown option '%s' (see --help)", o);
-    return CLI_OK;
-}
-
-static int parse_option(sim_args *a, const char *o, const char *v)
-{
-    int rc = parse_scale_option(a, o, v);
-    if (rc >= 0)
-        return rc;
-    if (!strcmp(o, "--plan")) a->plan_arg = v;
-    else if (!strcmp(o, "--out")) a->out = v;
-    else if (!strcmp(o, "--truth-map")) a->truth_map = v;
-    else if (!strcmp(o, "--truth-artifact")) a->truth_art = v;
-    else if (!strcmp(o, "--truth-summary")) a->truth_sum = v;
-    else if (!strcmp(o, "--compensate-with")) a->comp_table = v;
-    else if (!strcmp(o, "--origin-mm")) return parse_origin(a, v);
-    else if (!strcmp(o, "--stage")) return parse_stage(a, v);
-    else if (!strcmp(o, "--view-sigma-r-um")) return parse_view_sigmas(a, v);
-    else if (!strcmp(o, "--drift-um-s")) return parse_drift(a, v);
-    else if (!strcmp(o, "--seed")) {
-        if (cli_parse_seed("simulate grid", v, &a->sp.seed) != CLI_OK)
-            return CLI_BAD_INPUT;
     } else
-        return parse_number_option(a, o, v);
+        return cli_usage_error(cmd, "unknown option '%s' (see --help)", o);
     return CLI_OK;
 }
 
-/* argv into a, with the required options and ranges checked; *help for --help. */
-static int parse_args(int argc, char **argv, sim_args *a, int *help)
+#define F(field) offsetof(sim_args, field)
+#define NUM(name, f, v, dflt, text)                                                                \
+    {name, CLI_DOUBLE, F(f), v, -HUGE_VAL, HUGE_VAL, .bad = "%s needs a finite number, got '%s'",  \
+     .def = dflt, .help = text}
+#define WHOLE(name, v, fn, dflt, text) /* a parse function of the whole sim_args */                \
+    {name, CLI_CUSTOM, 0, v, .parse = fn, .def = dflt, .help = text}
+/* simulate grid's options (cli_opts.h), in the order of its --help */
+static const cli_opt SIM_GRID_OPTS[] = {
+    {"--plan", CLI_STRING, F(plan_arg), "ye|double-shift|stitch|PLAN.csv",
+     .help = "the views (required)"},
+    {"--out", CLI_STRING, F(out), "IN.csv", .help = "the measurement file (required)"},
+    {"--truth-map", CLI_STRING, F(truth_map), "G_true.csv", .help = "the true G (required)"},
+    WHOLE("--n", "N", sim_number, "25", "the plate's marks per side (odd)"),
+    WHOLE("--pitch-mm", "P", sim_number, "1", "the pitch (mm)"),
+    WHOLE("--origin-mm", "X,Y", parse_origin, "0,0", "the stage node (0,0)'s position (mm)"),
+    NUM("--sigma-g-um", sp.sigma_g_um, "X", "1", "the std of G (um)"),
+    NUM("--sigma-a-um", sp.sigma_a_um, "X", "1", "the std of the plate error A (um)"),
+    NUM("--sigma-r-um", sp.sigma_r_um, "X", "0.01", "the measurement noise (um)"),
+    WHOLE("--O-urad", "O", sim_number, "10", "the non-orthogonality (urad)"),
+    WHOLE("--R-ppm", "R", sim_number, "10", "the scale difference (ppm)"),
+    NUM("--rho", sp.rho, "RHO", "0.9", "the SAR(1) field's correlation"),
+    NUM("--sigma-t-um", sp.sigma_t_um, "X", "0.1", "the views' misplacement (um)"),
+    NUM("--sigma-theta-urad", sp.sigma_theta_urad, "X", "100", "the views' misrotation (urad)"),
+    {"--seed", CLI_CUSTOM, F(sp.seed), "S", .parse = cli_opt_seed, .def = "1",
+     .help = "the seed, 0 to 2^64-1"},
+    {"--truth-artifact", CLI_STRING, F(truth_art), "A_true.csv", .help = "the true plate error"},
+    {"--truth-summary", CLI_STRING, F(truth_sum), "T.json", .help = "the truth's summary"},
+    {"--compensate-with", CLI_STRING, F(comp_table), "T.lut",
+     .help = "the machine measures with this table active"},
+    WHOLE("--stage", "NX,NY", parse_stage, "the plate's", "the stage's nodes (odd)"),
+    WHOLE("--view-sigma-r-um", "S0,S1,...", parse_view_sigmas, NULL, "each view's noise (um)"),
+    WHOLE("--dt-s", "DT", sim_number, NULL, "each measurement's time step (s)"),
+    WHOLE("--drift-um-s", "VX,VY", parse_drift, "0,0", "a translation drift (um/s)"),
+    {"--plate-scale-ppm", CLI_CUSTOM, F(scale), "E[,U]", .parse = parse_scale,
+     .help = "the plate's certified scale error (ppm) and its uncertainty"},
+    {"--plate-cte-ppm-per-k", CLI_CUSTOM, F(scale), "A[,U]", .parse = parse_scale,
+     .help = "the plate's expansion coefficient and its uncertainty"},
+    WHOLE("--view-temp-c", "T0,T1,...", parse_temps, NULL, "each view's plate temperature (C)"),
+    WHOLE("--temp-u-k", "U", parse_temp_u, "0.05", "the temperatures' uncertainty (K)"),
+    {"--magnification-ppm", CLI_CUSTOM, F(magnification_ppm), "M", .parse = parse_magnification,
+     .def = "0", .help = "the stage's magnification (ppm)"},
+    NUM("--O", sp.O, "O", NULL, "the non-orthogonality, dimensionless (kept through 0.3)"),
+    NUM("--R", sp.R, "R", NULL, "the scale difference, dimensionless (kept through 0.3)"),
+};
+#undef NUM
+#undef WHOLE
+#undef F
+
+const cli_cmd_opts cli_simulate_grid_opts = {
+    "simulate grid", USAGE, SIM_GRID_OPTS, (int)(sizeof SIM_GRID_OPTS / sizeof SIM_GRID_OPTS[0]),
+    0, NULL, NULL, "unknown option or missing value: '%s' (see --help)", NULL, CLI_NO_OPERAND,
+    NULL, sim_number,
+};
+
+/* argv into a, with the required options and ranges checked: -1 to go on, else the exit
+ * status (--help, a usage error). */
+static int parse_args(int argc, char **argv, sim_args *a)
 {
     memset(a, 0, sizeof *a);
     a->n_d = 25;
     a->pitch = 1;
     sc_grid_sim_defaults(&a->sp);
-    *help = 0;
-    for (int k = 1; k < argc; ++k) {
-        const char *o = argv[k];
-        if (!strcmp(o, "--help") || !strcmp(o, "-h")) {
-            *help = 1;
-            return CLI_OK;
-        }
-        if (k + 1 >= argc)
-            return cli_usage_error("simulate grid", "unknown option or missing value: '%s' (see --help)",
-                                   o);
-        int rc = parse_option(a, o, argv[++k]);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    int rc = cli_opts_parse(&cli_simulate_grid_opts, argc, argv, a);
+    if (rc >= 0)
+        return rc;
     if (!a->plan_arg || !a->out || !a->truth_map)
         return cli_usage_error("simulate grid", "--plan, --out and --truth-map are required (see --help)");
     if (a->n_d != floor(a->n_d) || a->n_d < 3 || a->n_d > SC_GRID_MAX_N || fmod(a->n_d, 2) == 0)
@@ -369,7 +399,7 @@ static int parse_args(int argc, char **argv, sim_args *a, int *help)
         return cli_usage_error("simulate grid", "--view-temp-c needs --plate-cte-ppm-per-k");
     if (a->temp_u_given && !a->n_temps)
         return cli_usage_error("simulate grid", "--temp-u-k needs --view-temp-c");
-    return CLI_OK;
+    return -1;
 }
 
 /* The scale and temperature options into the plan (a plan file's own lines stay unless an
@@ -486,13 +516,9 @@ static int simulate_grid(sim_args *a);
 int cmd_simulate_grid(int argc, char **argv)
 {
     sim_args a;
-    int help;
-    memset(&a, 0, sizeof a);
-    int rc = parse_args(argc, argv, &a, &help);
-    if (rc == CLI_OK && !help)
+    int rc = parse_args(argc, argv, &a);
+    if (rc < 0)
         rc = simulate_grid(&a);
-    else if (help)
-        fputs(USAGE, stdout);
     free(a.view_sigma);
     free(a.temps);
     return rc;

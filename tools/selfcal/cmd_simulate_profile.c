@@ -1,10 +1,12 @@
 /* selfcal simulate profile — simulated two-scan straightness data (SPEC §2) plus the truth. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "selfcal/profile.h"
@@ -12,7 +14,7 @@
 #include "selfcal/profile_sim.h"
 #include "selfcal/stage_map.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal simulate profile --out IN.csv --truth T.csv [options]\n"
     "  --n N (330)  --s-mm S (1)  --d1 D1 (10)  --d2 D2 (11)\n"
     "  --profile random|FILE.dat (random; FILE.dat: a DABAM profile with its .txt metadata)\n"
@@ -27,21 +29,6 @@ static const char *USAGE =
     "  Writes the selfcal-profile v1 data file and the truth n,x_mm,f_um,uf_um,ey_um (f and e_y\n"
     "  relative to their least-squares lines; uf empty; e_y empty where n >= N - d1).\n";
 
-static int get_double(const char *opt, const char *s, double *out)
-{
-    if (sc_parse_double(s, out) != 0)
-        return cli_usage_error("simulate profile", "%s: '%s' is not a number", opt, s);
-    return 0;
-}
-
-static int get_int(const char *opt, const char *s, long lo, long hi, long *out)
-{
-    if (sc_parse_long(s, out) != 0 || *out < lo || *out > hi)
-        return cli_usage_error("simulate profile", "%s: '%s' must be a whole number in %ld..%ld", opt,
-                               s, lo, hi);
-    return 0;
-}
-
 /* The command line besides the simulation's own parameters. */
 typedef struct {
     const char *out, *truth, *prof;
@@ -52,97 +39,103 @@ typedef struct {
     long gap[3], outlier[2]; /* scan, first, last (0: none); scan, n */
 } sim_profile_args;
 
-enum { NOT_NUMERIC = -1 };
+/* The whole command line: the simulation's parameters and the rest. */
+typedef struct sim_profile_cli {
+    sc_profile_sim p;
+    sim_profile_args a;
+} sim_profile_cli;
 
-/* The options with a number: into the parameters p or a. Returns NOT_NUMERIC for others. */
-static int parse_number_option(const char *o, const char *v, sc_profile_sim *p,
-                               sim_profile_args *a)
+/* --gap K:A..B into the sim_profile_args */
+static int parse_gap(const char *cmd, const char *opt, const char *v, void *field)
 {
-    const struct {
-        const char *name;
-        double *dst;
-    } reals[] = {
-        {"--s-mm", &p->s_mm},
-        {"--amp-um", &a->amp},
-        {"--sigma-disp-um", &p->sigma_disp_um},
-        {"--sigma-angle-urad", &p->sigma_angle_urad},
-        {"--ey-um", &p->ey_amp_um},
-        {"--ep-urad", &p->ep_amp_urad},
-        {"--u1-um", &p->u1_um},
-        {"--u2-um", &p->u2_um},
-        {"--u3-urad", &p->u3_urad},
-        {"--b0-um", &p->b0_um},
-        {"--probe-gain", &a->gain},
-        {"--angle-scale", &a->angle},
-        {"--drift-um", &a->drift_um},
-    };
-    for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k)
-        if (!strcmp(o, reals[k].name))
-            return get_double(o, v, reals[k].dst);
-    const struct {
-        const char *name;
-        int *dst;
-    } ints[] = {{"--n", &p->n}, {"--N", &p->n}, {"--d1", &p->d1}, {"--d2", &p->d2}};
-    long l;
-    for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k)
-        if (!strcmp(o, ints[k].name)) {
-            int bad = get_int(o, v, k < 2 ? 3 : 1, 100000000, &l);
-            if (!bad)
-                *ints[k].dst = (int)l;
-            return bad;
-        }
-    if (!strcmp(o, "--harmonics"))
-        return get_int(o, v, 1, 100000, &a->harmonics);
-    if (!strcmp(o, "--seed")) {
-        uint64_t s;
-        if (cli_parse_seed("simulate profile", v, &s) != CLI_OK)
-            return CLI_BAD_INPUT;
-        p->seed = s;
-        return CLI_OK;
-    }
-    return NOT_NUMERIC;
-}
-
-/* One option (with its value from argv[*i + 1]). */
-static int parse_option(int argc, char **argv, int *i, sc_profile_sim *p, sim_profile_args *a)
-{
-    const char *o = argv[*i];
-    const int hv = *i + 1 < argc;
-    if ((!strcmp(o, "--out") || !strcmp(o, "-o")) && hv)
-        a->out = argv[++*i];
-    else if (!strcmp(o, "--truth") && hv)
-        a->truth = argv[++*i];
-    else if (!strcmp(o, "--profile") && hv)
-        a->prof = argv[++*i];
-    else if (!strcmp(o, "--noise-free"))
-        p->sigma_disp_um = p->sigma_angle_urad = 0;
-    else if (!strcmp(o, "--no-sigma-lines"))
-        p->write_sigma = 0;
-    else if (!strcmp(o, "--gap") && hv) {
-        const char *v = argv[++*i];
-        int used = 0;
-        if (sscanf(v, "%ld:%ld..%ld%n", &a->gap[0], &a->gap[1], &a->gap[2], &used) != 3 ||
-            v[used] || (a->gap[0] != 1 && a->gap[0] != 2) || a->gap[1] < 0 || a->gap[2] < a->gap[1])
-            return cli_usage_error("simulate profile", "--gap: '%s' is not K:A..B (K 1 or 2, "
-                                   "0 <= A <= B)", v);
-    } else if (!strcmp(o, "--outlier") && hv) {
-        const char *v = argv[++*i];
-        int used = 0;
-        if (sscanf(v, "%ld:%ld:%lf%n", &a->outlier[0], &a->outlier[1], &a->outlier_um, &used) != 3 ||
-            v[used] || (a->outlier[0] != 1 && a->outlier[0] != 2) || a->outlier[1] < 0 ||
-            !isfinite(a->outlier_um))
-            return cli_usage_error("simulate profile", "--outlier: '%s' is not K:N:UM", v);
-    }
-    else {
-        int rc = hv ? parse_number_option(o, argv[*i + 1], p, a) : NOT_NUMERIC;
-        if (rc == NOT_NUMERIC)
-            return cli_usage_error("simulate profile",
-                                   "unknown option or missing value: %s (see --help)", o);
-        ++*i;
-        return rc ? CLI_BAD_INPUT : CLI_OK;
-    }
+    sim_profile_args *a = field;
+    int used = 0;
+    (void)opt;
+    if (sscanf(v, "%ld:%ld..%ld%n", &a->gap[0], &a->gap[1], &a->gap[2], &used) != 3 || v[used] ||
+        (a->gap[0] != 1 && a->gap[0] != 2) || a->gap[1] < 0 || a->gap[2] < a->gap[1])
+        return cli_usage_error(cmd, "--gap: '%s' is not K:A..B (K 1 or 2, 0 <= A <= B)", v);
     return CLI_OK;
 }
+
+/* --outlier K:N:UM into the sim_profile_args */
+static int parse_outlier(const char *cmd, const char *opt, const char *v, void *field)
+{
+    sim_profile_args *a = field;
+    int used = 0;
+    (void)opt;
+    if (sscanf(v, "%ld:%ld:%lf%n", &a->outlier[0], &a->outlier[1], &a->outlier_um, &used) != 3 ||
+        v[used] || (a->outlier[0] != 1 && a->outlier[0] != 2) || a->outlier[1] < 0 ||
+        !isfinite(a->outlier_um))
+        return cli_usage_error(cmd, "--outlier: '%s' is not K:N:UM", v);
+    return CLI_OK;
+}
+
+/* --noise-free: both noises 0 (a later --sigma-* sets its own again) */
+static int set_noise_free(const char *cmd, const char *opt, const char *v, void *field)
+{
+    sc_profile_sim *p = field;
+    (void)cmd, (void)opt, (void)v;
+    p->sigma_disp_um = p->sigma_angle_urad = 0;
+    return CLI_OK;
+}
+
+/* --no-sigma-lines */
+static int set_no_sigma_lines(const char *cmd, const char *opt, const char *v, void *field)
+{
+    (void)cmd, (void)opt, (void)v;
+    ((sc_profile_sim *)field)->write_sigma = 0;
+    return CLI_OK;
+}
+
+#define F(field) offsetof(sim_profile_cli, field)
+#define NUM(name, f, v, dflt, text)                                                                \
+    {name, CLI_DOUBLE, F(f), v, -HUGE_VAL, HUGE_VAL, .bad = "%s: '%s' is not a number",            \
+     .def = dflt, .help = text}
+#define WHOLE(kind, name, f, v, lo, hi, dflt, text)                                                \
+    {name, kind, F(f), v, lo, hi, .bad = "%s: '%s' must be a whole number in " #lo ".." #hi,        \
+     .def = dflt, .help = text}
+/* simulate profile's options (cli_opts.h), in the order of its --help */
+static const cli_opt SIM_PROFILE_OPTS[] = {
+    {"--out|-o", CLI_STRING, F(a.out), "IN.csv", .help = "the data file (required)"},
+    {"--truth", CLI_STRING, F(a.truth), "T.csv", .help = "the true profile (required)"},
+    WHOLE(CLI_INT, "--n|--N", p.n, "N", 3, 100000000, "330", "the number of points"),
+    NUM("--s-mm", p.s_mm, "S", "1", "the sampling step (mm)"),
+    WHOLE(CLI_INT, "--d1", p.d1, "D1", 1, 100000000, "10", "scan 1's sensor spacing (samples)"),
+    WHOLE(CLI_INT, "--d2", p.d2, "D2", 1, 100000000, "11", "scan 2's sensor spacing (samples)"),
+    {"--profile", CLI_STRING, F(a.prof), "random|FILE.dat", .def = "random",
+     .help = "the profile: random, or a DABAM file"},
+    NUM("--amp-um", a.amp, "A", "1", "a random profile's RMS (um)"),
+    WHOLE(CLI_LONG, "--harmonics", a.harmonics, "H", 1, 100000, "40", "a random profile's harmonics"),
+    NUM("--sigma-disp-um", p.sigma_disp_um, "X", "0.01", "the displacement probes' noise (um)"),
+    NUM("--sigma-angle-urad", p.sigma_angle_urad, "Y", "1", "the angle probe's noise (urad)"),
+    {"--noise-free", CLI_FLAG, F(p), .parse = set_noise_free, .help = "both noises 0"},
+    {"--no-sigma-lines", CLI_FLAG, F(p), .parse = set_no_sigma_lines,
+     .help = "no noise header lines in the data file"},
+    NUM("--ey-um", p.ey_amp_um, "A", "0.5", "the stage's motion error amplitude (um)"),
+    NUM("--ep-urad", p.ep_amp_urad, "A", "2", "the stage's pitch error amplitude (urad)"),
+    NUM("--u1-um", p.u1_um, "U", "1.5", "probe 1's zero point (um)"),
+    NUM("--u2-um", p.u2_um, "U", "-0.7", "probe 2's zero point (um)"),
+    NUM("--u3-urad", p.u3_urad, "U", "3", "the angle probe's zero point (urad)"),
+    NUM("--b0-um", p.b0_um, "B", "20", "the offset (um)"),
+    {"--seed", CLI_CUSTOM, F(p.seed), "S", .parse = cli_opt_seed, .def = "1",
+     .help = "the seed, 0 to 2^64-1"},
+    NUM("--probe-gain", a.gain, "K", "1", "m2 read K times (0.001 to 1000)"),
+    NUM("--angle-scale", a.angle, "K", "1", "m3 read K times (0.001 to 1000)"),
+    NUM("--drift-um", a.drift_um, "A", "0", "A times tau added to every m2 (tau -1..1)"),
+    {"--gap", CLI_CUSTOM, F(a), "K:A..B", .parse = parse_gap, .help = "scan K's rows A..B left out"},
+    {"--outlier", CLI_CUSTOM, F(a), "K:N:UM", .parse = parse_outlier,
+     .help = "UM added to scan K's m2 at n = N"},
+};
+#undef NUM
+#undef WHOLE
+#undef F
+
+const cli_cmd_opts cli_simulate_profile_opts = {
+    "simulate profile", USAGE, SIM_PROFILE_OPTS,
+    (int)(sizeof SIM_PROFILE_OPTS / sizeof SIM_PROFILE_OPTS[0]), 0, cli_opt_no_operand, NULL,
+    "unknown option or missing value: %s (see --help)",
+    "unknown option or missing value: %s (see --help)", 0, NULL, NULL,
+};
 
 static int check_args(const sc_profile_sim *p, const sim_profile_args *a)
 {
@@ -237,22 +230,15 @@ static sc_status simulate_and_write(const sc_profile_sim *p, const sim_profile_a
 
 int cmd_simulate_profile(int argc, char **argv)
 {
-    sc_profile_sim p;
-    sc_profile_sim_defaults(&p);
-    sim_profile_args a = {NULL, NULL, "random", 1.0, 40, 1.0, 1.0, 0.0, 0.0, {0, 0, 0}, {0, 0}};
-    for (int i = 1; i < argc; ++i) {
-        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        int rc = parse_option(argc, argv, &i, &p, &a);
-        if (rc != CLI_OK)
-            return rc;
-    }
-    int rc = check_args(&p, &a);
+    sim_profile_cli c = {.a = {NULL, NULL, "random", 1.0, 40, 1.0, 1.0, 0.0, 0.0, {0, 0, 0}, {0, 0}}};
+    sc_profile_sim_defaults(&c.p);
+    int rc = cli_opts_parse(&cli_simulate_profile_opts, argc, argv, &c);
+    if (rc >= 0)
+        return rc;
+    rc = check_args(&c.p, &c.a);
     if (rc != CLI_OK)
         return rc;
     sc_error err;
     sc_error_clear(&err);
-    return simulate_and_write(&p, &a, &err) == SC_OK ? CLI_OK : cli_report(&err);
+    return simulate_and_write(&c.p, &c.a, &err) == SC_OK ? CLI_OK : cli_report(&err);
 }

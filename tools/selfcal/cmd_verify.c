@@ -2,17 +2,19 @@
  * plate with what the calibration predicts (model: verify.h); statistics before and after
  * compensation, pass/fail against a tolerance, optional residual file, plot and HTML report. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "cli.h"
+#include "cli_opts.h"
 #include "plots.h"
 #include "report_html.h"
 #include "selfcal/atomic_file.h"
 #include "selfcal/csv.h"
 #include "verify.h"
 
-static const char *USAGE =
+static const char USAGE[] =
     "usage: selfcal verify V.csv --table T.lut --artifact A.csv --tolerance-um T [--raw]\n"
     "                      [--decision-rule simple|guarded] [--u-verify-um U]\n"
     "                      [--sigma-r-um S] [--u-plate-um UA]\n"
@@ -78,39 +80,40 @@ typedef struct {
     const cli_input *src[3]; /* as read (a pipe from its in-memory copy) */
 } verify_outputs;
 
-/* One option (with its value from argv[*a + 1]) into o and out. */
-static int parse_option(int argc, char **argv, int *a, sc_verify_opts *o, verify_outputs *out)
-{
-    const char *cmd = "verify", *s = argv[*a];
-    if (s[0] != '-' || !strcmp(s, "-")) {
-        if (out->names[0])
-            return cli_usage_error(cmd, "more than one measurement ('%s', '%s')", out->names[0], s);
-        out->names[0] = s;
-        return CLI_OK;
-    }
-    if (!strcmp(s, "--raw")) {
-        o->raw = 1;
-        return CLI_OK;
-    }
-    if (*a + 1 >= argc)
-        return cli_usage_error(cmd, "%s: unknown option or missing value (see --help)", s);
-    const char *v = argv[++*a];
-    int rc = verify_parse_option(cmd, s, v, o);
-    if (rc >= 0)
-        return rc;
-    if (!strcmp(s, "--table")) out->names[1] = v;
-    else if (!strcmp(s, "--artifact")) out->names[2] = v;
-    else if (!strcmp(s, "--residuals")) out->res_path = v;
-    else if (!strcmp(s, "--plot")) out->plot = v;
-    else if (!strcmp(s, "--html")) out->html = v;
-    else if (!strcmp(s, "--tolerance-um")) {
-        if (sc_parse_double(v, &o->tolerance_um) || !(o->tolerance_um > 0) ||
-            !(o->tolerance_um <= SC_INPUT_MAX_ABS))
-            return cli_usage_error(cmd, "--tolerance-um needs a positive number, got '%s'", v);
-    } else
-        return cli_usage_error(cmd, "unknown option '%s' (see --help)", s);
-    return CLI_OK;
-}
+/* What the command line asks for: the verification's options and the outputs. */
+typedef struct verify_args {
+    sc_verify_opts o;
+    verify_outputs out;
+} verify_args;
+
+#define F(field) offsetof(verify_args, field)
+#define VERIFY_UM(name, text)                                                                      \
+    {name, CLI_CUSTOM, F(o), "U", 0, SC_INPUT_MAX_ABS, .parse = verify_parse_opt, .help = text}
+/* verify's options (cli_opts.h), in the order of its --help */
+static const cli_opt VERIFY_OPTS[] = {
+    {"--table", CLI_STRING, F(out.names[1]), "T.lut", .help = "the table the machine ran (required)"},
+    {"--artifact", CLI_STRING, F(out.names[2]), "A.csv",
+     .help = "the calibration's plate error (required)"},
+    {"--tolerance-um", CLI_DOUBLE, F(o.tolerance_um), "T", 0, SC_INPUT_MAX_ABS, CLI_MIN_OPEN,
+     .bad = "--tolerance-um needs a positive number, got '%s'", .help = "the tolerance (um; required)"},
+    {"--raw", CLI_FLAG, F(o.raw), .help = "the re-measurement is of the uncompensated machine"},
+    {"--decision-rule", CLI_CUSTOM, F(o), "simple|guarded", .choices = "simple|guarded",
+     .parse = verify_parse_opt, .help = "the verdict's decision rule"},
+    VERIFY_UM("--u-verify-um", "the re-measurement's uncertainty (um)"),
+    VERIFY_UM("--u-plate-um", "the plate error's uncertainty (um)"),
+    VERIFY_UM("--sigma-r-um", "the re-measurement's noise (um)"),
+    {"--residuals", CLI_STRING, F(out.res_path), "R.csv", .help = "the residuals before and after"},
+    {"--plot", CLI_STRING, F(out.plot), "P.svg", .help = "the residual maps"},
+    {"--html", CLI_STRING, F(out.html), "V.html", .help = "the verification as a page"},
+};
+#undef VERIFY_UM
+#undef F
+
+const cli_cmd_opts cli_verify_opts = {
+    "verify", USAGE, VERIFY_OPTS, (int)(sizeof VERIFY_OPTS / sizeof VERIFY_OPTS[0]),
+    offsetof(verify_args, out.names[0]), NULL, "more than one measurement ('%s', '%s')", NULL,
+    NULL, 0, NULL, NULL,
+};
 
 /* The standalone HTML page of the verification. */
 static sc_status write_html(FILE *fp, const verify_outputs *out, const sc_verify_opts *o,
@@ -174,19 +177,14 @@ static void print_summary(const sc_verify_opts *o, const sc_verify_result *r)
 
 int cmd_verify(int argc, char **argv)
 {
-    sc_verify_opts o;
-    sc_verify_opts_init(&o);
-    verify_outputs out;
-    memset(&out, 0, sizeof out);
-    for (int a = 1; a < argc; ++a) {
-        if (!strcmp(argv[a], "--help") || !strcmp(argv[a], "-h")) {
-            fputs(USAGE, stdout);
-            return CLI_OK;
-        }
-        int rc = parse_option(argc, argv, &a, &o, &out);
-        if (rc != CLI_OK)
-            return rc;
-    }
+    verify_args g;
+    memset(&g, 0, sizeof g);
+    sc_verify_opts_init(&g.o);
+    int rc = cli_opts_parse(&cli_verify_opts, argc, argv, &g);
+    if (rc >= 0)
+        return rc;
+    sc_verify_opts o = g.o;
+    verify_outputs out = g.out;
     if (!out.names[0] || !out.names[1] || !out.names[2] || !isfinite(o.tolerance_um))
         return cli_usage_error("verify", "V.csv, --table, --artifact and --tolerance-um are required (see --help)");
     sc_error err;
@@ -204,7 +202,7 @@ int cmd_verify(int argc, char **argv)
     }
     if (st == SC_OK)
         st = write_outputs(&out, &o, &r, argc, argv, &err);
-    int rc = st == SC_OK ? CLI_OK : cli_report(&err);
+    rc = st == SC_OK ? CLI_OK : cli_report(&err);
     cli_input_close_all(src, opened);
     if (st != SC_OK) {
         sc_verify_result_free(&r);

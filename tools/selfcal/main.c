@@ -3,162 +3,19 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <malloc.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "../../libselfcal/src/common/big_alloc.h"
 #include "cli.h"
-#include "input_once.h"
+#include "cli_opts.h"
 #include "selfcal/atomic_file.h"
-#include "selfcal/csv.h"
-#include "selfcal/grid_calibrate.h"
-#include "selfcal/lut.h"
 #include "selfcal/version.h"
 
-int cli_report(const sc_error *err_in)
-{
-    char buf[1024];
-    sc_error e = *err_in, *err = &e;
-    cli_input_rename_in_error(err); /* an input read from its in-memory copy: the name given */
-    sc_error_format(err, buf, sizeof buf);
-    fprintf(stderr, "selfcal: %s\n", buf);
-    return (err->code == SC_E_INPUT || err->code == SC_E_UNSOLVABLE) ? CLI_BAD_INPUT : CLI_FAIL;
-}
-
-int cli_parse_profile_arg(const char *s, int *axis, int *dir, const char **path)
-{
-    if (strlen(s) < 5 || s[1] != ':' || s[3] != ':')
-        return -1;
-    char a[2] = {s[0], 0}, d[2] = {s[2], 0};
-    *axis = sc_lut_axis_from_name(a);
-    *dir = sc_lut_axis_from_name(d);
-    *path = s + 4;
-    return (*axis < 0 || *dir < 0) ? -1 : 0;
-}
-
-int cli_parse_profile_placed(const char *s, int *axis, int *dir, char *path, size_t cap,
-                             double *offset_mm)
-{
-    const char *p;
-    if (cli_parse_profile_arg(s, axis, dir, &p) != 0 || strlen(p) >= cap)
-        return -1;
-    snprintf(path, cap, "%s", p);
-    *offset_mm = 0;
-    char *at = strrchr(path, '@');
-    double off;
-    if (at && at != path && sc_parse_double(at + 1, &off) == 0) {
-        if (!(off >= -SC_INPUT_MAX_ABS && off <= SC_INPUT_MAX_ABS))
-            return -1;
-        *offset_mm = off;
-        *at = '\0';
-    } else if (at && at != path && access(path, F_OK) != 0) {
-        /* "P.csv@abc" naming no file while P.csv is one: a mistyped offset, not a file name */
-        *at = '\0';
-        int prefix_exists = access(path, F_OK) == 0;
-        *at = '@';
-        if (prefix_exists)
-            return -1;
-    }
-    return 0;
-}
-
-int cli_parse_noise(const char *cmd, const char *opt, const char *v, int positive, double *out)
-{
-    double x;
-    const char *unit = strstr(opt, "urad") ? "urad" : "um";
-    if (sc_parse_double(v, &x) != 0 || !(positive ? x > 0 : x >= 0) || !(x <= SC_INPUT_MAX_ABS))
-        return cli_usage_error(cmd, "%s: '%s' is not a noise: a number %s 0 to %g %s", opt, v,
-                               positive ? "above" : "from", SC_INPUT_MAX_ABS, unit);
-    *out = x;
-    return CLI_OK;
-}
-
-int cli_parse_max_nodes(const char *cmd, const char *v, int *out)
-{
-    long n;
-    if (sc_parse_long(v, &n) != 0 || n < 2 || n > SC_LUT_MAX_NX)
-        return cli_usage_error(cmd, "--max-nodes: 2..%d nodes per axis, not '%s'", SC_LUT_MAX_NX, v);
-    *out = (int)n;
-    return CLI_OK;
-}
-
-int cli_parse_seed(const char *cmd, const char *v, uint64_t *out)
-{
-    /* digits only: strtoull would take a sign (and wrap a negative) and saturate silently */
-    int digits = *v != '\0';
-    for (const char *c = v; *c; ++c)
-        digits &= *c >= '0' && *c <= '9';
-    errno = 0;
-    char *e;
-    unsigned long long s = digits ? strtoull(v, &e, 10) : 0;
-    if (!digits || errno == ERANGE)
-        return cli_usage_error(cmd, "--seed needs a whole number from 0 to %llu, got '%s'",
-                               (unsigned long long)UINT64_MAX, v);
-    *out = (uint64_t)s;
-    return CLI_OK;
-}
-
-int cli_parse_lsq_option(const char *cmd, const char *opt, const char *v, sc_grid_options *o)
-{
-    if (!strcmp(opt, "--view-noise")) {
-        if (strcmp(v, "estimate") != 0 && strcmp(v, "stated") != 0)
-            return cli_usage_error(cmd, "--view-noise must be stated or estimate, got '%s'", v);
-        o->estimate_view_noise = !strcmp(v, "estimate");
-        return CLI_OK;
-    }
-    if (!strcmp(opt, "--view-scale")) {
-        if (strcmp(v, "free") != 0 && strcmp(v, "model") != 0)
-            return cli_usage_error(cmd, "--view-scale must be model or free, got '%s'", v);
-        o->view_scale_free = !strcmp(v, "free");
-        return CLI_OK;
-    }
-    int each = !strcmp(opt, "--outlier-alpha-each");
-    if (!each && strcmp(opt, "--outlier-alpha") != 0)
-        return -1;
-    double a;
-    if (sc_parse_double(v, &a) || !(a > 0 && a < 1))
-        return cli_usage_error(cmd, "%s needs a significance between 0 and 1, got '%s'", opt, v);
-    if (o->outlier_alpha > 0 && o->outlier_alpha_each != each)
-        return cli_usage_error(cmd, "--outlier-alpha and --outlier-alpha-each exclude each other");
-    o->outlier_alpha = a;
-    o->outlier_alpha_each = each;
-    return CLI_OK;
-}
-
-sc_status cli_read_map(const char *path, int max_nodes, sc_lut *lut, sc_lut_fit_report *fit,
-                       sc_error *err)
-{
-    memset(fit, 0, sizeof *fit);
-    return max_nodes ? sc_lut_read_map_fitted(path, lut, max_nodes, fit, err)
-                     : sc_lut_read_map(path, lut, err);
-}
-
-void cli_print_fit(const char *map_path, const sc_lut *lut, const sc_lut_fit_report *fit)
-{
-    printf("map %s: %d x %d nodes fitted by a %d x %d table (least squares, pitch %.6f x %.6f mm): "
-           "table - map at the map's nodes rms %.4f um, max %.4f um at (%.6g, %.6g) mm\n",
-           map_path, fit->map_nx, fit->map_ny, lut->nx, lut->ny, lut->px_mm, lut->py_mm,
-           fit->rms_um, fit->max_um, fit->max_at_mm[0], fit->max_at_mm[1]);
-}
-
-int cli_usage_error(const char *cmd, const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fprintf(stderr, "selfcal %s: ", cmd);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-    return CLI_BAD_INPUT;
-}
-
-const char *cli_basename(const char *path)
-{
-    const char *b = strrchr(path, '/');
-    return b && b[1] ? b + 1 : path;
-}
+/* The process-wide allocator and threading settings a command runs with (run_command, which
+ * says why): glibc's own (none), those of the commands that factor a grid's normal matrix, or the
+ * heap thresholds of the profile's transforms. */
+typedef enum { TUNE_NONE = 0, TUNE_FACTOR, TUNE_TRANSFORM } tuning;
 
 /* One row per command line that `selfcal --help` lists. run == NULL: a line of the help only
  * (more forms of a command dispatched by an earlier row, e.g. lut dump). what may be NULL. */
@@ -167,37 +24,55 @@ typedef struct command {
     int (*run)(int argc, char **argv);
     const char *synopsis, *what;
     const char *outputs; /* its output options, space separated (cli_check_output_paths) */
+    tuning tune;         /* its allocator tuning (run_command) */
+    const cli_cmd_opts *opts; /* its option table (cli_opts.h), NULL where not converted yet */
 } command;
 
 static const command commands[] = {
     {"grid", NULL, cmd_grid, "grid --method {ye,double-shift,lsq} IN.csv --map G.csv [...]",
-     "separate stage error G from plate error A", "--map --artifact --summary --residuals --covariance --plot"},
-    {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one", "-o --out"},
+     "separate stage error G from plate error A", "--map --artifact --summary --residuals --covariance --plot",
+     TUNE_FACTOR, &cli_grid_opts},
+    {"plan", NULL, cmd_plan, "plan PLAN.csv | plan --design ...", "does a plan identify G? its uncertainty; design one", "-o --out",
+     TUNE_FACTOR, &cli_plan_opts},
     {"profile", NULL, cmd_profile, "profile --method {dft,lsq} IN.csv --out P.csv",
-     "straightness profile + stage motion error", "--out -o --plot --residuals"},
-    {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)", NULL},
+     "straightness profile + stage motion error", "--out -o --plot --residuals", TUNE_TRANSFORM,
+     &cli_profile_opts},
+    {"profile-plan", NULL, cmd_profile_plan, "profile-plan --n N --s-mm S ...", "rank sensor spacings (d1, d2)", NULL, TUNE_NONE,
+     &cli_profile_plan_opts},
     {"lut", NULL, cmd_lut, "lut build --map G.csv [--profile AXIS:DIR:P.csv[@OFFSET_MM]] -o TABLE",
-     "build a correction table", "-o --out"},
-    {"lut", NULL, NULL, "lut dump TABLE", "print a table as CSV", NULL},
-    {"lut", NULL, NULL, "lut info TABLE", "size, encoding, quantization, provenance", NULL},
-    {"export", NULL, cmd_export, "export --format F --map G.csv -o OUT", "resample the map for a machine controller", "-o --out"},
+     "build a correction table", "-o --out", TUNE_NONE, &cli_lut_build_opts},
+    {"lut", NULL, NULL, "lut dump TABLE", "print a table as CSV", NULL, TUNE_NONE, NULL},
+    {"lut", NULL, NULL, "lut info TABLE", "size, encoding, quantization, provenance", NULL, TUNE_NONE, NULL},
+    {"export", NULL, cmd_export, "export --format F --map G.csv -o OUT", "resample the map for a machine controller", "-o --out", TUNE_NONE,
+     &cli_export_opts},
     {"import", "grid", cmd_import_grid, "import grid --n N --pitch-mm P --view \"rot=R shift=SX,SY\" FILE ... -o IN.csv",
-     "a measuring machine's export -> selfcal-grid v1", "-o --out"},
+     "a measuring machine's export -> selfcal-grid v1", "-o --out", TUNE_NONE,
+     &cli_import_grid_opts},
     {"import", "profile", cmd_import_profile, "import profile --spacing-mm D1 LOG1 --spacing-mm D2 LOG2 -o IN.csv",
-     "two scans' logs -> selfcal-profile v1", "-o --out"},
+     "two scans' logs -> selfcal-profile v1", "-o --out", TUNE_NONE,
+     &cli_import_profile_opts},
     {"simulate", "grid", cmd_simulate_grid, "simulate grid --plan P --out IN.csv --truth-map T.csv",
-     "simulated plate measurements + truth", "--out --truth-map --truth-artifact --truth-summary"},
+     "simulated plate measurements + truth", "--out --truth-map --truth-artifact --truth-summary", TUNE_NONE,
+     &cli_simulate_grid_opts},
     {"simulate", "profile", cmd_simulate_profile, "simulate profile --out IN.csv --truth T.csv",
-     "simulated two-scan data + truth", "--out -o --truth"},
-    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR", "a measuring machine's files", NULL},
-    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg", "arrow plot of an error map", "-o --out"},
-    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves", "-o --out"},
-    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns", "-o --out"},
-    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML, PDF)", "-o --out --pdf"},
+     "simulated two-scan data + truth", "--out -o --truth", TUNE_NONE,
+     &cli_simulate_profile_opts},
+    {"simulate", "exports", cmd_simulate_exports, "simulate exports IN.csv --dir DIR", "a measuring machine's files", NULL, TUNE_NONE,
+     &cli_simulate_exports_opts},
+    {"plot", "map", cmd_plot_map, "plot map G.csv -o map.svg", "arrow plot of an error map", "-o --out", TUNE_NONE,
+     &cli_plot_map_opts},
+    {"plot", "profile", cmd_plot_profile, "plot profile P.csv -o p.svg", "profile and uncertainty curves", "-o --out", TUNE_NONE,
+     &cli_plot_profile_opts},
+    {"plot", "xy", cmd_plot_xy, "plot xy DATA.csv -o c.svg [--logx] [--logy]", "line chart of CSV columns", "-o --out", TUNE_NONE,
+     &cli_plot_xy_opts},
+    {"report", "grid", cmd_report_grid, "report grid IN.csv -o R.html [--method M]", "calibration report (HTML, PDF)", "-o --out --pdf",
+     TUNE_FACTOR, &cli_report_grid_opts},
     {"report", "profile", cmd_report_profile, "report profile IN.csv -o R.html [--method M]",
-     "profile report (HTML, PDF)", "-o --out --pdf"},
+     "profile report (HTML, PDF)", "-o --out --pdf", TUNE_NONE,
+     &cli_report_profile_opts},
     {"verify", NULL, cmd_verify, "verify V.csv --table T.lut --artifact A.csv --tolerance-um T",
-     "check a compensated stage", "--html --plot --residuals"},
+     "check a compensated stage", "--html --plot --residuals", TUNE_NONE,
+     &cli_verify_opts},
 };
 #define N_COMMANDS (sizeof commands / sizeof commands[0])
 
@@ -232,6 +107,22 @@ static void usage(FILE *to, const char *name)
                     "Exit status: 0 success, 2 bad input (one stderr line: selfcal: FILE:LINE: reason),\n"
                     "1 other failures; verify: 3 when the machine fails. Manual: man selfcal.\n",
                 sc_version());
+}
+
+/* selfcal --options COMMAND [SUBCOMMAND]: the command's option table (cli_opts_print), from
+ * which selfcal(1)'s option lists are made. */
+static int print_options(int argc, char **argv)
+{
+    char want[64] = "";
+    for (int k = 0; k < argc && k < 2; ++k)
+        snprintf(want + strlen(want), sizeof want - strlen(want), "%s%.30s", k ? " " : "", argv[k]);
+    for (size_t k = 0; k < N_COMMANDS; ++k)
+        if (commands[k].opts && !strcmp(commands[k].opts->cmd, want)) {
+            cli_opts_print(stdout, commands[k].opts);
+            return CLI_OK;
+        }
+    fprintf(stderr, "selfcal --options: no option table for '%s'\n", want);
+    return CLI_BAD_INPUT;
 }
 
 /* Whatever a command printed must have reached stdout: a full disk, /dev/full or a closed pipe
@@ -347,12 +238,11 @@ static int run_command(const command *c, int argc, char **argv)
         if (rc >= 0)
             return rc;
     }
-    if (!strcmp(c->name, "grid") || !strcmp(c->name, "plan") ||
-        (!strcmp(c->name, "report") && c->sub && !strcmp(c->sub, "grid"))) {
+    if (c->tune == TUNE_FACTOR) {
         openmp_regions_serial();
         suitesparse_huge_pages();
         mallopt(M_MMAP_THRESHOLD, 4 << 20);
-    } else if (!strcmp(c->name, "profile")) {
+    } else if (c->tune == TUNE_TRANSFORM) {
         mallopt(M_MMAP_THRESHOLD, 32 << 20);
         mallopt(M_TRIM_THRESHOLD, 64 << 20);
     }
@@ -370,6 +260,8 @@ int main(int argc, char **argv)
         usage(stdout, NULL);
         return finish(CLI_OK);
     }
+    if (!strcmp(argv[1], "--options"))
+        return finish(print_options(argc - 2, argv + 2));
     if (!strcmp(argv[1], "--version")) {
         printf("selfcal %s\n", sc_version());
         return finish(CLI_OK);

@@ -1,5 +1,5 @@
 /* Progress of long grid solves on stderr (a terminal, or --progress) and the memory a command
- * may use (the machine's available memory, or --max-memory). */
+ * may use (the machine's available memory; --max-memory is read in cli.c). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,29 +14,6 @@
 double cli_memory_bytes(void)
 {
     return sc_memory_available_bytes(); /* MemAvailable: what can be had without swapping */
-}
-
-int cli_parse_max_memory(const char *cmd, const char *v, double *out)
-{
-    char num[64];
-    size_t len = strlen(v);
-    double unit = 1;
-    if (len > 0 && len < sizeof num) {
-        const char *units = "KMGT";
-        const char *u = strchr(units, v[len - 1] & ~0x20); /* K, M, G, T or k, m, g, t */
-        memcpy(num, v, len + 1);
-        if (u && v[len - 1] != '\0') {
-            unit = pow(1024.0, (double)(u - units + 1));
-            num[len - 1] = '\0';
-        }
-    }
-    double x;
-    if (len == 0 || len >= sizeof num || sc_parse_double(num, &x) || !(x > 0) ||
-        !(x * unit <= 1e18))
-        return cli_usage_error(cmd, "--max-memory needs a size such as 12G, 800M or bytes "
-                                    "(K, M, G, T: powers of 1024), got '%s'", v);
-    *out = x * unit;
-    return CLI_OK;
 }
 
 static double now_s(void)

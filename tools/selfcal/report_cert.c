@@ -58,6 +58,11 @@ int report_info_option(const char *cmd, const char *opt, const char *v, report_i
     return CLI_OK;
 }
 
+int report_info_opt(const char *cmd, const char *opt, const char *v, void *field)
+{
+    return report_info_option(cmd, opt, v, field);
+}
+
 static int key_ok(const char *k, size_t len)
 {
     if (len == 0 || len > 64)

@@ -26,6 +26,8 @@ typedef struct report_info {
 /* --info KEY=VALUE, --info-file F or --pdf R.pdf with its value v into ri: CLI_OK, the usage error,
  * or -1 if opt is none of them. */
 int report_info_option(const char *cmd, const char *opt, const char *v, report_info *ri);
+/* The same as a parse function of an option table (cli_opts.h): field is the report_info. */
+int report_info_opt(const char *cmd, const char *opt, const char *v, void *field);
 
 /* Read the --info-file files and apply the --info values, in the order given (a key given again
  * takes the later value). Bad input: SC_E_INPUT naming the file (and line) or the option. */

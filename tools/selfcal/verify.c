@@ -100,6 +100,11 @@ int verify_parse_option(const char *cmd, const char *opt, const char *val, sc_ve
     return CLI_OK;
 }
 
+int verify_parse_opt(const char *cmd, const char *opt, const char *val, void *field)
+{
+    return verify_parse_option(cmd, opt, val, field);
+}
+
 sc_status verify_html_section(FILE *fp, const sc_verify_opts *o, const char *name,
                               const sc_verify_result *r, const char *heading, sc_error *err)
 {

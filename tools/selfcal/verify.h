@@ -20,5 +20,7 @@ void verify_verdict_text(char *buf, size_t size, const sc_verify_result *r);
  * --sigma-r-um; report grid: --verify-sigma-um), the verification's options into o: CLI_OK, a usage error's code, or -1 when opt is none
  * of them. cmd names the command in messages. */
 int verify_parse_option(const char *cmd, const char *opt, const char *val, sc_verify_opts *o);
+/* The same as a parse function of an option table (cli_opts.h): field is the sc_verify_opts. */
+int verify_parse_opt(const char *cmd, const char *opt, const char *val, void *field);
 
 #endif
