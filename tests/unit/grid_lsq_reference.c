@@ -23,7 +23,7 @@ typedef struct ref_ctx {
     long double *x, *r;
 } ref_ctx;
 
-/* y = S x (the pinned matrix), in long double. */
+/* y = S x (the pinned matrix factored: the full one with A kept), in long double. */
 static void matvec_long(const ref_ctx *c, const long double *x, long double *y)
 {
     for (int i = 0; i < c->n; ++i)
@@ -37,26 +37,31 @@ static void matvec_long(const ref_ctx *c, const long double *x, long double *y)
         }
 }
 
-/* vᵀ Σ v (Σ the pinned inverse, 0 on pins) by a refined solve; -1 if memory ran out. */
+/* vᵀ Σ v (Σ the pinned inverse, 0 on pins; v over the n_red reduced unknowns) by a refined
+ * solve of the factored matrix (n unknowns: with A kept, zeros on A); -1 if memory ran out. */
 static double exact_quad(const ref_ctx *c, const double *v)
 {
-    int n = c->n;
+    int n = c->n, nr = c->p.n_red;
     const unsigned char *pinned = c->p.pinned;
     double *b = c->b;
     long double *x = c->x, *r = c->r;
+#define PIN_(i) ((i) < nr && pinned[i])
+#define V_(i) ((i) < nr ? (long double)v[i] : 0.0L)
     for (int i = 0; i < n; ++i)
         x[i] = 0;
     for (int it = 0; it < 6; ++it) {
         matvec_long(c, x, r);
         for (int i = 0; i < n; ++i)
-            b[i] = pinned[i] ? 0.0 : (double)((long double)v[i] - r[i]);
+            b[i] = PIN_(i) ? 0.0 : (double)(V_(i) - r[i]);
         if (sc_grid_lsq_probe_solve(c->q, b) != 0)
             return -1;
         for (int i = 0; i < n; ++i)
-            x[i] += pinned[i] ? 0.0L : (long double)b[i];
+            x[i] += PIN_(i) ? 0.0L : (long double)b[i];
     }
+#undef PIN_
+#undef V_
     long double s = 0;
-    for (int i = 0; i < n; ++i)
+    for (int i = 0; i < nr; ++i)
         s += pinned[i] ? 0.0L : (long double)v[i] * x[i];
     return (double)s;
 }

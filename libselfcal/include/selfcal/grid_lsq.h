@@ -72,7 +72,30 @@ typedef struct sc_grid_lsq_opts {
                                  plan's geometry alone (its σ_C ratios per unit σ_r) */
     sc_grid_progress_fn progress; /* NULL: none */
     void *progress_ctx;
+    int solver;               /* SC_GRID_SOLVER_AUTO (0), _REDUCED or _FULL: which normal
+                                 matrix is factored (docs/grid-lsq.md, "Large stages") */
+    int node_sigma;           /* SC_GRID_NODE_SIGMA_ALL (0), _NONE or _SAMPLE */
+    int node_sigma_sample;    /* SC_GRID_NODE_SIGMA_SAMPLE: the number K of stage nodes whose
+                                 σ is computed (by solves; spread over the measured nodes) */
 } sc_grid_lsq_opts;
+
+/* sc_grid_lsq_opts.solver. REDUCED: A eliminated, the normal matrix of G and the misalignments
+ * (small and fast when each mark is measured in a few views). FULL: A kept as unknowns, the
+ * matrix of every unknown with the misalignments ordered last (its size grows with the
+ * equations only: stitched plans of hundreds of placements). AUTO: FULL when the pairs of stage
+ * unknowns eliminating A would couple, Σ k(k−1)/2 over the plate mark components measured k
+ * times, exceed 32 per equation; REDUCED otherwise. Both give the same results (to rounding). */
+#define SC_GRID_SOLVER_AUTO 0
+#define SC_GRID_SOLVER_REDUCED 1
+#define SC_GRID_SOLVER_FULL 2
+
+/* sc_grid_lsq_opts.node_sigma. ALL: every node's σ and every equation's leverage by the selected
+ * inverse (the outlier test needs the leverages). NONE: neither (σ NaN, no leverages, so no
+ * standardized residuals and no outlier test): the factor and the solve only. SAMPLE: the σ of
+ * node_sigma_sample nodes by solves (2 per node), the others NaN, no leverages. */
+#define SC_GRID_NODE_SIGMA_ALL 0
+#define SC_GRID_NODE_SIGMA_NONE 1
+#define SC_GRID_NODE_SIGMA_SAMPLE 2
 
 /* The memory a plan may take by default, in bytes: the machine's available memory (Linux's
  * MemAvailable: free plus reclaimable caches), else its physical memory; 0 when unknown. */
@@ -175,6 +198,8 @@ typedef struct sc_grid_lsq_stats {
     double factor_flops;         /* multiply-adds of the LDLᵀ factorization */
     double selinv_work;          /* multiply-adds of the selected inverse */
     const char *ordering;        /* fill-reducing order used (a static name) */
+    int solver;                  /* SC_GRID_SOLVER_REDUCED or _FULL: the matrix factored */
+    long n_factored;             /* its unknowns (n_reduced, or with A kept: + the A components) */
     int n_null_pivots;           /* pivots judged null in the pinned reduced matrix */
     int nullity_misalignment;    /* null space of the misalignment block with G held (3 = plate motion) */
     double min_kept_pivot_ratio; /* smallest pivot/diagonal kept: the margin to the tolerance */

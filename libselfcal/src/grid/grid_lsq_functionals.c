@@ -53,20 +53,72 @@ static void sigma_ratios_projection(sc_grid_lsq_plan *q, const double *U, const 
     }
 }
 
-static void sigma_ratios_finish(sc_grid_lsq_plan *q)
+static void sigma_ratios_finish(sc_grid_lsq_plan *q, const double *zdiag)
 {
     double sum2 = 0, mx = 0;
+    long cnt = 0;
     for (int i = 0; i < q->ng; ++i) {
         double *at = i % 2 == 0 ? &q->sgx[i / 2] : &q->sgy[i / 2];
-        double var = (q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i)) + *at;
+        /* zdiag: diag(Σ) of the sampled unknowns (NaN elsewhere: σ NaN there) */
+        double z = zdiag ? zdiag[i] : q->pinned[i] ? 0.0 : sc_spsym_inv(q->f, i, i);
+        if (isnan(z)) {
+            *at = NAN;
+            continue;
+        }
+        double var = z + *at;
         double s = var > 0 ? sqrt(var) : 0.0;
         *at = s;
-        sum2 += s * s;
+        sum2 += s * s, cnt++;
         if (s > mx)
             mx = s;
     }
-    q->info.sigma_c_ratio_rms = sqrt(sum2 / q->ng);
-    q->info.sigma_c_ratio_max = mx;
+    q->info.sigma_c_ratio_rms = cnt ? sqrt(sum2 / (double)cnt) : NAN;
+    q->info.sigma_c_ratio_max = cnt ? mx : NAN;
+}
+
+/* SC_GRID_NODE_SIGMA_SAMPLE: diag(Σ) at both unknowns of k nodes spread evenly over the measured
+ * nodes (in node order), by blocked solves of unit columns; NaN at the others. 0, -1 no memory. */
+static int sampled_diagonal(const sc_grid_lsq_plan *q, int k, double *zdiag)
+{
+    int ng = q->ng, n_meas = 0;
+    size_t n = (size_t)q->n_red;
+    unsigned char *seen = calloc((size_t)q->ns, 1);
+    int *pick = malloc(sizeof(int) * (2 * (size_t)(k > 0 ? k : 1) + 2));
+    double *X = malloc(sizeof(double) * n * 8);
+    int rc = seen && pick && X ? 0 : -1;
+    for (int i = 0; i < ng; ++i)
+        zdiag[i] = NAN;
+    for (long e = 0; rc == 0 && e < q->neq; ++e)
+        seen[q->eq_g[e] / 2] = 1;
+    for (int s = 0; rc == 0 && s < q->ns; ++s)
+        n_meas += seen[s];
+    int np = 0;
+    if (rc == 0 && k > 0 && n_meas > 0) {
+        if (k > n_meas)
+            k = n_meas;
+        long want = 0, at = 0; /* the t-th pick: measured node number floor(t·n_meas/k) */
+        for (int s = 0, t = 0; s < q->ns && t < k; ++s) {
+            if (!seen[s])
+                continue;
+            want = (long)t * n_meas / k;
+            if (at++ == want) {
+                pick[np++] = 2 * s, pick[np++] = 2 * s + 1;
+                ++t;
+            }
+        }
+    }
+    for (int p0 = 0; rc == 0 && p0 < np; p0 += 8) {
+        int c = np - p0 < 8 ? np - p0 : 8;
+        memset(X, 0, sizeof(double) * n * (size_t)c);
+        for (int t = 0; t < c; ++t)
+            X[(size_t)t * n + (size_t)pick[p0 + t]] = 1;
+        if (sc_lsq_pinned_solve(q, X, c, 0, NULL, NULL) != 0)
+            rc = -1;
+        for (int t = 0; rc == 0 && t < c; ++t)
+            zdiag[pick[p0 + t]] = X[(size_t)t * n + (size_t)pick[p0 + t]];
+    }
+    free(seen), free(pick), free(X);
+    return rc;
 }
 
 /* ---------------------------------------------------------------------------------------------
@@ -384,6 +436,17 @@ static int misalignment_variance(sc_grid_lsq_plan *q, int t, int m, const int *s
         q->var_m[t] = part[t] > 0 ? part[t] : 0.0;
         return 0;
     }
+    if (q->full) { /* U_s·col = (ΣU_s)_m = W_s's, D_s·col = (ΣD_s)_m: kept rows */
+        const double *mr = q->m_rows + (size_t)t * 7;
+        double v = sc_spsym_inv(q->f, m, m);
+        for (int s = 0; s < 4; ++s)
+            v -= gam[s] / scale[s] * mr[s];
+        for (int s = 0; s < 3; ++s)
+            v -= gam[4 + s] * mr[4 + s];
+        double var = part[t] + v;
+        q->var_m[t] = var > 0 ? var : 0.0;
+        return 0;
+    }
     if (sc_spsym_inv_column(q->f, slot[t], col) != 0)
         return -1;
     sc_lsq_zero_pinned(q, col, 1);
@@ -677,7 +740,40 @@ static sc_status uncertainty_solves(sc_grid_lsq_plan *q, int functionals, double
     memcpy(D, B + 2 * n, sizeof(double) * 3 * n);
     if (sc_lsq_pinned_solve(q, B, 5, 0, NULL, NULL) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (solves)");
-    return functional_variances(q, 0, scale, U, D, WB, part, err);
+    sc_status st = functional_variances(q, 0, scale, U, D, WB, part, err);
+    /* with A kept the misalignments' columns of Σ are not tracked (nm whole columns of the full
+     * system would not fit at these sizes): their rows of W and of ΣD serve instead */
+    if (st == SC_OK && q->full && (q->m_rows = malloc(sizeof(double) * 7 * (size_t)q->nm)))
+        for (int t = 0; t < q->nm; ++t)
+            for (int c = 0; c < 7; ++c)
+                q->m_rows[(size_t)t * 7 + c] = WB[(size_t)(c < 4 ? c : c + 2) * n + ng + t];
+    if (st == SC_OK && q->full && !q->m_rows)
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    return st;
+}
+
+/* SC_GRID_NODE_SIGMA_NONE or _SAMPLE instead of the selected inverse: no leverages (NaN), the
+ * misalignments' σ NaN; the sampled nodes' diag(Σ) by solves. */
+static sc_status uncertainty_without_selinv(sc_grid_lsq_plan *q, sc_error *err)
+{
+    sc_status st = SC_OK;
+    double *zd = q->node_sigma == SC_GRID_NODE_SIGMA_SAMPLE
+                     ? malloc(sizeof(double) * (size_t)q->ng) : NULL;
+    if (!(q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1))) ||
+        (q->node_sigma == SC_GRID_NODE_SIGMA_SAMPLE &&
+         (!zd || sampled_diagonal(q, q->node_sigma_sample, zd) != 0)))
+        st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory");
+    if (st == SC_OK) {
+        for (long e = 0; e < q->neq; ++e)
+            q->eq_h[e] = NAN;
+        if (zd)
+            sigma_ratios_finish(q, zd);
+        else
+            for (int k = 0; k < q->ns; ++k)
+                q->sgx[k] = q->sgy[k] = NAN;
+    }
+    free(zd);
+    return st;
 }
 
 /* sc_lsq_plan_uncertainties from the selected inverse on (kept: the diagonal, the G pairs on
@@ -688,10 +784,23 @@ static sc_status uncertainty_selinv(sc_grid_lsq_plan *q, int functionals, const 
                                     int n_last, const double *D, double *part, sc_error *err)
 {
     sc_lsq_progress(q, "selected inverse", q->work_total / 2);
-    if (sc_spsym_selinv(q->f, q->ng, last, n_last) != 0) /* leverages: G pairs on S's pattern */
+    /* leverages: G pairs on S's pattern; with A kept every pair of one equation's unknowns,
+     * which the full matrix's own pattern holds (no whole columns) */
+    if ((q->full ? sc_spsym_selinv(q->f, -1, NULL, 0)
+                 : sc_spsym_selinv(q->f, q->ng, last, n_last)) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (selected inverse)");
-    sigma_ratios_finish(q);
-    sc_status st = leverages(q, err);
+    sigma_ratios_finish(q, NULL);
+    sc_status st = SC_OK;
+    if (q->full) {
+        if (!q->eq_h && !(q->eq_h = malloc(sizeof(double) * (size_t)(q->neq + 1))))
+            st = sc_error_set(err, SC_E_NOMEM, NULL, 0, "out of memory (leverage)");
+        else {
+            sc_lsq_full_desc fd;
+            sc_lsq_full_desc_of(q, &fd);
+            sc_lsq_full_leverages(q->full, &fd, q->f, q->eq_h);
+        }
+    } else
+        st = leverages(q, err);
     if (st == SC_OK)
         sc_lsq_redundancy_info(q);
     if (st == SC_OK && q->misalignment_estimable && functionals) {
@@ -745,7 +854,11 @@ sc_status sc_lsq_plan_uncertainties(sc_grid_lsq_plan *q, sc_error *err)
      * kept: making it again takes 3 passes over the equations) */
     free(U), free(WB), free(fg), free(uA);
     if (st == SC_OK)
-        st = uncertainty_selinv(q, functionals, last, n_last, D, part, err);
+        st = q->node_sigma != SC_GRID_NODE_SIGMA_ALL
+                 ? uncertainty_without_selinv(q, err)
+                 : uncertainty_selinv(q, functionals, last, n_last, D, part, err);
+    free(q->m_rows);
+    q->m_rows = NULL;
     free(D), free(part), free(last);
     return st;
 }

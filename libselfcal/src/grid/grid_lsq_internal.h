@@ -8,6 +8,7 @@
 #include "selfcal/grid_lsq.h"
 #include "../linalg/sparse_sym.h"
 #include "../linalg/stats.h" /* sc_grid_sidak_share, the quantiles */
+#include "grid_lsq_full.h"
 #include "selfcal/error.h"
 
 /* Unknowns per view at most (tx, ty, φ, vx, vy): the size of a view's own small blocks. */
@@ -163,6 +164,12 @@ struct sc_grid_lsq_plan {
     int *Ai;
     double *Ax;
     sc_spsym *f;            /* its factorization (sparse_sym.h) */
+    sc_lsq_full *full;      /* A kept as unknowns (grid_lsq_full.h): f factors that matrix */
+    int n_fac;              /* unknowns of the factored matrix: n_red, or more with A kept */
+    int solver;             /* sc_grid_lsq_opts.solver as asked (AUTO, REDUCED, FULL) */
+    int node_sigma, node_sigma_sample; /* sc_grid_lsq_opts' */
+    double *m_rows;         /* with A kept: per misalignment, its entries of W (4) and of the
+                               solves of D (3), for the misalignments' σ (plan_uncertainties) */
     unsigned char *pinned;  /* per unknown (original index) */
     int pin_node[2], pin_view;
     int nullity_pin, nullity_T;
@@ -192,6 +199,9 @@ int sc_lsq_small_nullity(double *a, int m, double tol);
 
 /* Coefficients of w_e = s_e·J_e over x = (g, m): 3 (index, value) pairs, 4 with drift. */
 int sc_lsq_eq_row(const sc_grid_lsq_plan *q, long e, int *idx, double *val);
+
+/* q's equations as grid_lsq_full.h takes them. */
+void sc_lsq_full_desc_of(const sc_grid_lsq_plan *q, sc_lsq_full_desc *d);
 
 /* The free (unpinned) misalignment unknowns: their original indices into at (ascending; may be
  * NULL), and into slot each misalignment's place among them, which is its whole column's in the

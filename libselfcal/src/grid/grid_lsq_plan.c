@@ -44,6 +44,8 @@ void sc_grid_lsq_plan_destroy(sc_grid_lsq_plan *q)
     free(q->view_block), free(q->fit_work);
     sc_grid_plan_free(&q->plan);
     sc_spsym_destroy(q->f);
+    sc_lsq_full_destroy(q->full);
+    free(q->m_rows);
     free(q);
 }
 
@@ -632,7 +634,7 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
     int n_last = sc_lsq_free_misalignments(q, last, NULL);
     sc_spsym_hint hint = {1, q->ng, last, n_last};
     sc_lsq_progress(q, "analyse", 0);
-    int arc = sc_spsym_analyze(q->n_red, q->Ap, q->Ai, &hint, &q->f);
+    int arc = sc_spsym_analyze(q->n_fac, q->Ap, q->Ai, &hint, &q->f);
     free(last);
     if (arc == -3)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0,
@@ -648,7 +650,7 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
     /* the peak from here on, measured on stitched stages of 129² to 513² nodes: what is held
      * (the assembly's node-misalignment groups are freed by now) and 3x the supernodal factor
      * (the factor, the selected inverse's blocks and tracked columns): 1.0-1.2x the peak RSS */
-    double groups = sizeof(double) * (double)q->ng * q->nm;
+    double groups = q->full ? 0.0 : sizeof(double) * (double)q->ng * q->nm;
     double need = (double)q->bytes - groups + 3.0 * (double)sc_spsym_factor_bytes(q->f);
     if (need > q->peak_est)
         q->peak_est = need;
@@ -669,11 +671,56 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
     return SC_OK;
 }
 
+static int full_row_cb(const void *ctx, long e, int *idx, double *val)
+{
+    return sc_lsq_eq_row(ctx, e, idx, val);
+}
+
+void sc_lsq_full_desc_of(const sc_grid_lsq_plan *q, sc_lsq_full_desc *d)
+{
+    d->n_red = q->n_red, d->ng = q->ng, d->nm = q->nm;
+    d->neq = q->neq, d->n_groups = 2 * q->nn;
+    d->grp_ptr = q->grp_ptr, d->grp_eq = q->grp_eq;
+    d->w = q->eq_w, d->pinned = q->pinned;
+    d->row = full_row_cb, d->ctx = q, d->row_max = ROW_MAX;
+}
+
+/* With A kept (grid_lsq_full.h): the misalignment block alone (G held at 0, A eliminated) for
+ * its nullity, then the full pinned matrix, ordered (the free misalignments last) and factored
+ * as the reduced one. */
+static sc_status build_and_factor_full(sc_grid_lsq_plan *q, const sc_lsq_full_desc *fd,
+                                       sc_error *err)
+{
+    int nm = q->nm;
+    q->peak_est = (double)q->bytes + sc_lsq_full_matrix_bytes(fd) +
+                  2.0 * sizeof(double) * (double)nm * nm;
+    sc_lsq_progress(q, "assemble", 0);
+    if (q->max_bytes > 0 && q->peak_est > q->max_bytes)
+        return memory_refused(q, q->peak_est, err);
+    double *mm = malloc(sizeof(double) * ((size_t)nm * nm + 1));
+    if (!mm || sc_lsq_full_misalignment_block(fd, mm) != 0 ||
+        (q->nullity_T = sc_lsq_small_nullity(mm, nm, LSQ_SMALL_TOL)) < 0) {
+        free(mm);
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
+    }
+    free(mm);
+    if (sc_lsq_full_assemble(fd, &q->full, &q->Ap, &q->Ai, &q->Ax, &q->n_fac) != 0)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
+    q->bytes += (size_t)q->Ap[q->n_fac] * (sizeof(int) + sizeof(double)) +
+                (size_t)(q->n_fac + 1) * sizeof(long) + sc_lsq_full_bytes(q->full);
+    return factor_matrix(q, err);
+}
+
 /* Assemble the reduced (A-eliminated) matrix, pin, order and factor; the nullity of the
  * misalignment block alone (G held at 0). */
 static sc_status build_and_factor(sc_grid_lsq_plan *q, sc_error *err)
 {
     int nm = q->nm;
+    sc_lsq_full_desc fd;
+    sc_lsq_full_desc_of(q, &fd);
+    if (q->solver == SC_GRID_SOLVER_FULL ||
+        (q->solver != SC_GRID_SOLVER_REDUCED && sc_lsq_full_preferred(&fd)))
+        return build_and_factor_full(q, &fd, err);
     q->peak_est = assembly_bytes(q); /* with the node-misalignment couplings, ng x nm */
     sc_lsq_progress(q, "assemble", 0);
     if (q->max_bytes > 0 && q->peak_est > q->max_bytes)
@@ -720,6 +767,14 @@ int sc_lsq_pinned_solve(const sc_grid_lsq_plan *q, double *X, int ncol, int refi
     size_t n = (size_t)q->n_red, tot = n * (size_t)ncol;
     for (size_t k = 0; k < tot; ++k)
         X[k] = q->pinned[k % n] ? 0.0 : X[k];
+    if (q->full) { /* a solve of the full matrix with zeros on A: the reduced system's */
+        if (sc_lsq_full_solve(q->full, q->f, X, ncol, refine) != 0)
+            return -1;
+        for (size_t k = 0; k < tot; ++k)
+            if (q->pinned[k % n])
+                X[k] = 0.0;
+        return 0;
+    }
     if (refine > 0)
         memcpy(B, X, sizeof(double) * tot);
     if (sc_spsym_solve(q->f, X, ncol) != 0)
@@ -768,11 +823,15 @@ static sc_status plan_init(sc_grid_lsq_plan *q, const sc_grid_plan *plan,
     q->max_bytes = opts && opts->max_bytes > 0 ? opts->max_bytes : 0;
     q->progress = opts ? opts->progress : NULL;
     q->progress_ctx = opts ? opts->progress_ctx : NULL;
+    q->solver = opts ? opts->solver : SC_GRID_SOLVER_AUTO;
+    q->node_sigma = opts ? opts->node_sigma : SC_GRID_NODE_SIGMA_ALL;
+    q->node_sigma_sample = opts ? opts->node_sigma_sample : 0;
     q->nb = q->drift ? 5 : 3;
     q->L_mm = (plan->n - 1) / 2 * plan->pitch_mm;
     q->ng = 2 * q->ns;
     q->nm = q->nb * q->nv;
     q->n_red = q->ng + q->nm;
+    q->n_fac = q->n_red;
     q->var_O = q->var_R = NAN;
     q->r2_mm2 = 0;
     for (int k = 0; k < q->ns; ++k) {
@@ -940,7 +999,7 @@ void sc_grid_lsq_get_info(const sc_grid_lsq_plan *q, sc_grid_lsq_info *info)
 void sc_grid_lsq_matrix(const sc_grid_lsq_plan *q, int *n, const long **Ap, const int **Ai,
                         const double **Ax)
 {
-    *n = q->n_red;
+    *n = q->n_fac;
     *Ap = q->Ap;
     *Ai = q->Ai;
     *Ax = q->Ax;
@@ -959,7 +1018,9 @@ void sc_grid_lsq_get_stats(const sc_grid_lsq_plan *q, sc_grid_lsq_stats *st)
     sc_spsym_get_stats(q->f, &f);
     memset(st, 0, sizeof *st);
     st->n_reduced = q->n_red;
-    st->nnz_matrix = q->Ap ? q->Ap[q->n_red] : 0;
+    st->nnz_matrix = q->Ap ? q->Ap[q->n_fac] : 0;
+    st->solver = q->full ? SC_GRID_SOLVER_FULL : SC_GRID_SOLVER_REDUCED;
+    st->n_factored = q->n_fac;
     st->nnz_factor = f.nnz_factor;
     st->factor_flops = f.factor_flops;
     st->ordering = sc_spsym_ordering_name(f.ordering);

@@ -1,0 +1,321 @@
+/* The least-squares normal matrix with the plate unknowns A kept (grid_lsq_full.h).
+ *
+ * Each scalar equation e, weighted row r_e = s_e·J_e over (g, m) and coefficient 1 on its A
+ * component, adds w_e r_e r_eᵀ: one G unknown, one A unknown and its view's 3 (5 with drift)
+ * misalignments, all pairs of them. Eliminating A from this matrix gives the reduced one of
+ * grid_lsq.c exactly (each group centred), so a solve with zero right-hand sides on A is a
+ * solve of the reduced system, and the reduced inverse is the (g, m) block of the full one.
+ * The matrix grows with the equations only (about 15 stored entries per equation), whatever the
+ * number of views measuring a mark; A components with one equation are left out as in the
+ * reduced system (their A absorbs the equation: it adds nothing to the rest).
+ */
+#include "grid_lsq_full.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define FULL_ROW_MAX 8 /* entries of one row: G, up to 5 misalignments, A */
+
+struct sc_lsq_full {
+    int n_red, n_full, ng;
+    int *eq_col;     /* per equation: its A column in the full system (-1: alone in its group) */
+    double *work;    /* 3 n_full: one right-hand side's solve and refinement */
+    size_t bytes;
+};
+
+double sc_lsq_full_pairs(const sc_lsq_full_desc *d)
+{
+    double pairs = 0;
+    for (int a = 0; a < d->n_groups; ++a) {
+        double k = (double)(d->grp_ptr[a + 1] - d->grp_ptr[a]);
+        pairs += 0.5 * k * (k - 1);
+    }
+    return pairs;
+}
+
+int sc_lsq_full_preferred(const sc_lsq_full_desc *d)
+{
+    return sc_lsq_full_pairs(d) > SC_LSQ_FULL_PAIRS_PER_EQ * (double)d->neq;
+}
+
+double sc_lsq_full_matrix_bytes(const sc_lsq_full_desc *d)
+{
+    double per_row = d->row_max + 1.0, nm = d->nm;
+    /* every pair of a row once (duplicates within a view's misalignment block merge), the
+     * incidence lists and the column accumulator */
+    double entries = (double)d->neq * per_row * (per_row + 1) / 2 + nm * nm;
+    return entries * (sizeof(double) + sizeof(int)) + (double)d->neq * per_row * sizeof(int) +
+           ((double)d->n_red + (double)d->n_groups) * (sizeof(double) + 2 * sizeof(long));
+}
+
+/* Full row of equation e: the reduced row and its A column (coefficient 1); its length. */
+static int full_row(const sc_lsq_full_desc *d, const int *eq_col, long e, int *idx, double *val)
+{
+    int len = d->row(d->ctx, e, idx, val);
+    idx[len] = eq_col[e];
+    val[len] = 1.0;
+    return len + 1;
+}
+
+static int cmp_int(const void *a, const void *b)
+{
+    int x = *(const int *)a, y = *(const int *)b;
+    return (x > y) - (x < y);
+}
+
+int sc_lsq_full_assemble(const sc_lsq_full_desc *d, sc_lsq_full **out, long **Ap_out,
+                         int **Ai_out, double **Ax_out, int *n_full_out)
+{
+    *out = NULL;
+    if (d->row_max + 1 > FULL_ROW_MAX)
+        return -1;
+    sc_lsq_full *x = calloc(1, sizeof *x);
+    if (!x)
+        return -1;
+    x->n_red = d->n_red, x->ng = d->ng;
+    x->eq_col = malloc(sizeof(int) * ((size_t)d->neq + 1));
+    if (!x->eq_col) {
+        sc_lsq_full_destroy(x);
+        return -1;
+    }
+    int n = d->n_red;
+    for (int a = 0; a < d->n_groups; ++a) {
+        long g0 = d->grp_ptr[a], cnt = d->grp_ptr[a + 1] - g0;
+        for (long t = 0; t < cnt; ++t)
+            x->eq_col[d->grp_eq[g0 + t]] = cnt >= 2 ? n : -1;
+        n += cnt >= 2;
+    }
+    x->n_full = n;
+    /* incidence: the kept equations of each unknown */
+    long *ip = calloc((size_t)n + 1, sizeof(long)), *fill = NULL, *Ap = NULL;
+    int *ie = NULL, *Ai = NULL, *touched = NULL;
+    double *acc = NULL, *Ax = NULL;
+    unsigned char *mark = NULL;
+    int idx[FULL_ROW_MAX], rc = -1;
+    double val[FULL_ROW_MAX];
+    if (!ip)
+        goto out;
+    for (long e = 0; e < d->neq; ++e) {
+        if (x->eq_col[e] < 0)
+            continue;
+        int len = full_row(d, x->eq_col, e, idx, val);
+        for (int r = 0; r < len; ++r)
+            ip[idx[r] + 1]++;
+    }
+    for (int j = 0; j < n; ++j)
+        ip[j + 1] += ip[j];
+    fill = malloc(sizeof(long) * ((size_t)n + 1));
+    ie = malloc(sizeof(int) * ((size_t)ip[n] + 1));
+    acc = calloc((size_t)n, sizeof(double));
+    mark = calloc((size_t)n, 1);
+    touched = malloc(sizeof(int) * ((size_t)n + 1));
+    Ap = malloc(sizeof(long) * ((size_t)n + 1));
+    if (!fill || !ie || !acc || !mark || !touched || !Ap)
+        goto out;
+    memcpy(fill, ip, sizeof(long) * (size_t)n);
+    for (long e = 0; e < d->neq; ++e) {
+        if (x->eq_col[e] < 0)
+            continue;
+        int len = full_row(d, x->eq_col, e, idx, val);
+        for (int r = 0; r < len; ++r)
+            ie[fill[idx[r]]++] = (int)e;
+    }
+    free(fill);
+    fill = NULL;
+    size_t cap = (size_t)ip[n] * 3 + (size_t)n + 16, nnz = 0;
+    Ai = malloc(sizeof(int) * cap);
+    Ax = malloc(sizeof(double) * cap);
+    if (!Ai || !Ax)
+        goto out;
+    for (int j = 0; j < n; ++j) {
+        Ap[j] = (long)nnz;
+        int nt = 0;
+        if (j < d->n_red && d->pinned[j]) {
+            touched[nt++] = j, acc[j] = 1.0, mark[j] = 1;
+        } else {
+            for (long p = ip[j]; p < ip[j + 1]; ++p) {
+                long e = ie[p];
+                int len = full_row(d, x->eq_col, e, idx, val);
+                double vj = 0;
+                for (int r = 0; r < len; ++r)
+                    if (idx[r] == j)
+                        vj = val[r];
+                vj *= d->w[e];
+                for (int r = 0; r < len; ++r) {
+                    int i = idx[r];
+                    if (i > j || (i < d->n_red && d->pinned[i]))
+                        continue;
+                    if (!mark[i])
+                        mark[i] = 1, touched[nt++] = i;
+                    acc[i] += vj * val[r];
+                }
+            }
+            if (!mark[j]) /* an unknown no kept equation touches: an identity row */
+                mark[j] = 1, touched[nt++] = j, acc[j] = 1.0;
+        }
+        qsort(touched, (size_t)nt, sizeof(int), cmp_int);
+        if (nnz + (size_t)nt > cap) {
+            size_t nc = 2 * cap + (size_t)nt;
+            int *ni = realloc(Ai, sizeof(int) * nc);
+            if (ni)
+                Ai = ni;
+            double *nx = ni ? realloc(Ax, sizeof(double) * nc) : NULL;
+            if (!nx)
+                goto out;
+            Ax = nx, cap = nc;
+        }
+        for (int t = 0; t < nt; ++t) {
+            int i = touched[t];
+            Ai[nnz] = i, Ax[nnz] = acc[i];
+            ++nnz;
+            acc[i] = 0, mark[i] = 0;
+        }
+    }
+    Ap[n] = (long)nnz;
+    x->work = malloc(sizeof(double) * 3 * (size_t)n);
+    if (!x->work)
+        goto out;
+    x->bytes = sizeof *x + sizeof(int) * (size_t)d->neq + sizeof(double) * 3 * (size_t)n;
+    *Ap_out = Ap, *Ai_out = Ai, *Ax_out = Ax, *n_full_out = n;
+    Ap = NULL, Ai = NULL, Ax = NULL;
+    *out = x;
+    x = NULL;
+    rc = 0;
+out:
+    free(ip), free(fill), free(ie), free(acc), free(mark), free(touched);
+    free(Ap), free(Ai), free(Ax);
+    sc_lsq_full_destroy(x);
+    return rc;
+}
+
+int sc_lsq_full_misalignment_block(const sc_lsq_full_desc *d, double *mm)
+{
+    int nm = d->nm, ng = d->ng, maxg = 0;
+    for (int a = 0; a < d->n_groups; ++a)
+        if (d->grp_ptr[a + 1] - d->grp_ptr[a] > maxg)
+            maxg = (int)(d->grp_ptr[a + 1] - d->grp_ptr[a]);
+    size_t cap = (size_t)FULL_ROW_MAX * (size_t)maxg + 1;
+    int *si = malloc(sizeof(int) * cap);
+    double *sv = malloc(sizeof(double) * cap);
+    if (!si || !sv) {
+        free(si), free(sv);
+        return -1;
+    }
+    memset(mm, 0, sizeof(double) * (size_t)nm * nm);
+    int idx[FULL_ROW_MAX];
+    double val[FULL_ROW_MAX];
+    for (int a = 0; a < d->n_groups; ++a) {
+        long g0 = d->grp_ptr[a], cnt = d->grp_ptr[a + 1] - g0;
+        if (cnt < 2)
+            continue;
+        double W = 0;
+        int ns = 0;
+        for (long t = 0; t < cnt; ++t) {
+            long e = d->grp_eq[g0 + t];
+            int len = d->row(d->ctx, e, idx, val);
+            double w = d->w[e];
+            W += w;
+            for (int r = 0; r < len; ++r) {
+                if (idx[r] < ng)
+                    continue;
+                int i = idx[r] - ng;
+                for (int c = 0; c < len; ++c)
+                    if (idx[c] >= ng && idx[c] - ng >= i)
+                        mm[(size_t)i * nm + (idx[c] - ng)] += w * val[r] * val[c];
+                si[ns] = i, sv[ns] = w * val[r], ++ns; /* one equation per view: distinct */
+            }
+        }
+        /* − (Σ w r)(Σ w r)ᵀ / W, upper triangle; a group's equations lie in distinct views */
+        for (int p = 0; p < ns; ++p) {
+            double f = sv[p] / W;
+            for (int r = 0; r < ns; ++r)
+                if (si[r] >= si[p])
+                    mm[(size_t)si[p] * nm + si[r]] -= f * sv[r];
+        }
+    }
+    for (int i = 0; i < nm; ++i)
+        for (int j = 0; j < i; ++j)
+            mm[(size_t)i * nm + j] = mm[(size_t)j * nm + i];
+    free(si), free(sv);
+    return 0;
+}
+
+int sc_lsq_full_solve(sc_lsq_full *x, sc_spsym *f, double *X, int ncol, int refine)
+{
+    size_t n = (size_t)x->n_full, nr = (size_t)x->n_red;
+    double *Y = x->work;
+    if (ncol > 1 || refine > 0) {
+        size_t per = n * (size_t)ncol;
+        if (!(Y = malloc(sizeof(double) * (refine > 0 ? 3 : 1) * per)))
+            return -1;
+    }
+    double *B = Y + n * (size_t)ncol, *R = B + n * (size_t)ncol;
+    for (int c = 0; c < ncol; ++c) {
+        memcpy(Y + (size_t)c * n, X + (size_t)c * nr, sizeof(double) * nr);
+        memset(Y + (size_t)c * n + nr, 0, sizeof(double) * (n - nr));
+    }
+    int rc = 0;
+    if (refine > 0)
+        memcpy(B, Y, sizeof(double) * n * (size_t)ncol);
+    if (sc_spsym_solve(f, Y, ncol) != 0)
+        rc = -1;
+    for (int it = 0; rc == 0 && it < refine; ++it) {
+        sc_spsym_matvec(f, Y, R, ncol);
+        for (size_t k = 0; k < n * (size_t)ncol; ++k)
+            R[k] = B[k] - R[k];
+        if (sc_spsym_solve(f, R, ncol) != 0)
+            rc = -1;
+        for (size_t k = 0; rc == 0 && k < n * (size_t)ncol; ++k)
+            Y[k] += R[k];
+    }
+    for (int c = 0; rc == 0 && c < ncol; ++c)
+        memcpy(X + (size_t)c * nr, Y + (size_t)c * n, sizeof(double) * nr);
+    if (Y != x->work)
+        free(Y);
+    return rc;
+}
+
+void sc_lsq_full_leverages(const sc_lsq_full *x, const sc_lsq_full_desc *d, const sc_spsym *f,
+                           double *h)
+{
+    int idx[FULL_ROW_MAX];
+    double val[FULL_ROW_MAX];
+    for (long e = 0; e < d->neq; ++e) {
+        if (x->eq_col[e] < 0) { /* alone in its group: its A absorbs it */
+            h[e] = 1.0;
+            continue;
+        }
+        int len = full_row(d, x->eq_col, e, idx, val);
+        double quad = 0;
+        for (int r = 0; r < len; ++r) {
+            if (idx[r] < d->n_red && d->pinned[idx[r]])
+                continue;
+            for (int c = r; c < len; ++c) {
+                if (idx[c] < d->n_red && d->pinned[idx[c]])
+                    continue;
+                double z = sc_spsym_inv(f, idx[r], idx[c]);
+                quad += (c == r ? 1.0 : 2.0) * val[r] * val[c] * z;
+            }
+        }
+        h[e] = d->w[e] * quad;
+    }
+}
+
+int sc_lsq_full_n(const sc_lsq_full *x)
+{
+    return x->n_full;
+}
+
+size_t sc_lsq_full_bytes(const sc_lsq_full *x)
+{
+    return x ? x->bytes : 0;
+}
+
+void sc_lsq_full_destroy(sc_lsq_full *x)
+{
+    if (!x)
+        return;
+    free(x->eq_col), free(x->work);
+    free(x);
+}
