@@ -60,6 +60,19 @@ double cli_memory_bytes(void);
  * error (cli.c). */
 int cli_parse_max_memory(const char *cmd, const char *v, double *out);
 
+/* --solver auto|reduced|full into *out (SC_GRID_SOLVER_*): CLI_OK, or the usage error.
+ * solver_opts.c */
+int cli_parse_solver(const char *cmd, const char *v, int *out);
+
+/* --node-sigma all|none|sample:K into *mode (SC_GRID_NODE_SIGMA_*) and *sample (K, else 0):
+ * CLI_OK, or the usage error. solver_opts.c */
+int cli_parse_node_sigma(const char *cmd, const char *v, int *mode, int *sample);
+
+/* The same as cli_opts.h parse functions: field an int (SC_GRID_SOLVER_*), an sc_grid_options
+ * (its node_sigma and node_sigma_sample). solver_opts.c */
+int cli_opt_solver(const char *cmd, const char *opt, const char *v, void *field);
+int cli_opt_node_sigma(const char *cmd, const char *opt, const char *v, void *field);
+
 /* Progress of a long solve on stderr: on a terminal (one line, rewritten) or when asked (one line
  * per phase): the phase, the time so far, the time left once the factor's rate is known, and the
  * estimated peak memory once (progress.c). */

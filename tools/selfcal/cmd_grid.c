@@ -21,7 +21,8 @@ static const char USAGE[] =
     "                    [--outlier-alpha A | --outlier-alpha-each A] [--drift linear]\n"
     "                    [--view-noise stated|estimate] [--view-scale model|free]\n"
     "                    [--monte-carlo M [--seed S] [--monte-carlo-out MC.csv]] [--quiet]\n"
-    "                    [--progress] [--max-memory SIZE]\n"
+    "                    [--progress] [--max-memory SIZE] [--solver auto|reduced|full]\n"
+    "                    [--node-sigma all|none|sample:K]\n"
     "\n"
     "Separates the stage error G from the plate error A in a selfcal-grid v1 file and writes G in\n"
     "the SPEC gauge (--map: i,j,x_mm,y_mm,gx_um,gy_um,ugx_um,ugy_um), the plate error (--artifact:\n"
@@ -75,7 +76,17 @@ static const char USAGE[] =
     "time left, and the peak memory estimated before the assembly, on stderr (shown anyway on a\n"
     "terminal: one line, rewritten). A plan whose estimated peak exceeds the memory allowed is\n"
     "refused before it is assembled or factored (exit 1): by default the machine's available\n"
-    "memory (MemAvailable), or --max-memory SIZE (bytes, or K, M, G, T: powers of 1024).\n";
+    "memory (MemAvailable), or --max-memory SIZE (bytes, or K, M, G, T: powers of 1024).\n"
+    "--solver (lsq): which normal matrix is factored: reduced (the plate error A eliminated:\n"
+    "plate-sized stages, a few views), full (A kept as unknowns: stitched stages of hundreds of\n"
+    "placements, where eliminating A would couple every node a mark lands on to every other) or\n"
+    "auto (the default: full when a mark is measured in more than about 65 views on average;\n"
+    "docs/grid-lsq.md gives the rule). Both give the same results.\n"
+    "--node-sigma (lsq): all (the default): every node's uncertainty and every measurement's\n"
+    "leverage (the selected inverse, about the factor's cost again; the outlier test needs it);\n"
+    "none: neither (ugx_um, ugy_um and the residuals' t left empty, no outlier test);\n"
+    "sample:K: the uncertainty of K nodes spread over the stage, by solves (the others empty).\n"
+    "none and sample:K exclude --reject-outliers and --view-noise estimate.\n";
 
 /* Warnings of the calibration (outliers, the χ² test) go to stderr, one line each. */
 static void warn_stderr(void *ctx, const char *msg)
@@ -192,6 +203,10 @@ static const cli_opt GRID_OPTS[] = {
     {"--progress", CLI_FLAG, F(progress), .help = "the phases of a least-squares solve on stderr"},
     {"--max-memory", CLI_CUSTOM, F(opt.max_bytes), "SIZE", .parse = cli_opt_max_memory,
      .def = "the available memory", .help = "refuse a plan estimated to need more (K, M, G, T)"},
+    {"--solver", CLI_CUSTOM, F(opt.solver), "auto|reduced|full", .parse = cli_opt_solver,
+     .def = "auto", .help = "lsq: the normal matrix factored (A eliminated or kept)"},
+    {"--node-sigma", CLI_CUSTOM, F(opt), "all|none|sample:K", .parse = cli_opt_node_sigma,
+     .def = "all", .help = "lsq: every node's sigma and leverage, none, or K nodes' sigma"},
 };
 #undef F
 
@@ -230,6 +245,10 @@ static int parse_args(int argc, char **argv, grid_args *g)
          g->opt.view_scale_free || g->mc_trials))
         return cli_usage_error("grid", "--residuals, --reject-outliers, --covariance, --drift, "
                                        "--view-scale free and --monte-carlo need --method lsq");
+    if (g->opt.node_sigma != SC_GRID_NODE_SIGMA_ALL &&
+        (g->opt.reject_outliers || g->opt.estimate_view_noise || g->mc_trials))
+        return cli_usage_error("grid", "--reject-outliers, --view-noise estimate and --monte-carlo "
+                                       "need every leverage: --node-sigma all");
     if (g->mc_out && !g->mc_trials)
         return cli_usage_error("grid", "--monte-carlo-out needs --monte-carlo M");
     return -1;

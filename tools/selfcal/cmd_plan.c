@@ -88,6 +88,9 @@ static int worth_announcing(const sc_grid_plan *p, int drift, long *unknowns)
     return nodes > ANNOUNCE_NODES;
 }
 
+/* Nodes whose σ plan --design computes where every node's does not fit the memory. */
+#define DESIGN_SIGMA_SAMPLE 64
+
 /* The designer: the largest raster step that identifies G. */
 static int design_print(const sc_grid_plan *bp, const sc_grid_lsq_info *bip, int n, int sx_i,
                         int sy_i, double pitch, const char *out);
@@ -141,7 +144,7 @@ static int design(int argc, char **argv)
     sc_error_clear(&err);
     sc_grid_plan best = {0};
     sc_grid_lsq_info bi;
-    int found = 0;
+    int found = 0, sampled = 0;
     for (int step = n - 1; step >= 1 && !found; step = step > 1 ? step * 2 / 3 : 0) {
         sc_grid_plan p;
         if (sc_grid_plan_stitch_step(n, (int)sx, (int)sy, step, pitch, ox, oy, &p, &err) != SC_OK)
@@ -153,7 +156,18 @@ static int design(int argc, char **argv)
         sc_grid_lsq_plan *q = NULL;
         sc_grid_lsq_opts only = {.node_sigma_only = 1, /* what is printed: no σ of O, R */
                                  .max_bytes = max_bytes};
-        if (sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err) != SC_OK) {
+        sc_status pst = sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err);
+        if (pst == SC_E_NOMEM) { /* every node's σ does not fit: a sample of them may */
+            only.node_sigma = SC_GRID_NODE_SIGMA_SAMPLE;
+            only.node_sigma_sample = DESIGN_SIGMA_SAMPLE;
+            fprintf(stderr, "selfcal: plan --design: every node's sigma does not fit (%s); the "
+                            "sigma of %d nodes instead, as `grid --node-sigma sample:%d` gives "
+                            "it (or none: --node-sigma none)\n",
+                    err.msg, DESIGN_SIGMA_SAMPLE, DESIGN_SIGMA_SAMPLE);
+            sampled = 1;
+            pst = sc_grid_lsq_plan_create(&p, NULL, &only, &q, &err);
+        }
+        if (pst != SC_OK) {
             int views = p.n_views;
             sc_grid_plan_free(&p);
             int rc = cli_report(&err);
@@ -163,7 +177,8 @@ static int design(int argc, char **argv)
                         "for the exact analysis (every node's sigma) within %.3g GB: the raster "
                         "of step %d (%d placements) couples each plate mark to every node it "
                         "lands on (docs/grid-lsq.md, 'Large stages'); a smaller stage, a larger "
-                        "plate or --max-memory SIZE\n",
+                        "plate or --max-memory SIZE; `grid --node-sigma none` needs the factor "
+                        "only\n",
                         (int)sx, (int)sy, n, max_bytes / 1e9, step, views);
             return rc;
         }
@@ -180,6 +195,8 @@ static int design(int argc, char **argv)
                 (int)sx, (int)sy, n);
         return CLI_FAIL;
     }
+    if (sampled) /* the σ_C ratios below are over the sampled nodes */
+        printf("sigma_sampled_nodes: %d\n", DESIGN_SIGMA_SAMPLE);
     rc = design_print(&best, &bi, n, (int)sx, (int)sy, pitch, out);
     sc_grid_plan_free(&best);
     return rc;

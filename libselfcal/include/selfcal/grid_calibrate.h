@@ -60,6 +60,12 @@ typedef struct sc_grid_options {
                                 with its uncertainty and a warning when significant */
     sc_grid_progress_fn progress; /* least squares: its phases (sc_grid_lsq_opts; NULL: none) */
     void *progress_ctx;
+    int solver;              /* least squares: SC_GRID_SOLVER_AUTO (0), _REDUCED, _FULL
+                                (sc_grid_lsq_opts.solver) */
+    int node_sigma;          /* least squares: SC_GRID_NODE_SIGMA_ALL (0), _NONE, _SAMPLE: every
+                                node's σ and the outlier test, neither, or node_sigma_sample
+                                nodes' σ (sc_grid_lsq_opts.node_sigma) */
+    int node_sigma_sample;
 } sc_grid_options;
 
 /* What came out. Allocated by sc_grid_calibrate, freed by sc_grid_solution_free. */

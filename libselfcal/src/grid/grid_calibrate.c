@@ -340,7 +340,8 @@ sc_grid_lsq_opts sc_grid_lsq_opts_of(const sc_grid_options *o)
 {
     sc_grid_lsq_opts q = {.drift = o->drift, .node_sigma_only = o->node_sigma_only,
                           .max_bytes = o->max_bytes, .progress = o->progress,
-                          .progress_ctx = o->progress_ctx};
+                          .progress_ctx = o->progress_ctx, .solver = o->solver,
+                          .node_sigma = o->node_sigma, .node_sigma_sample = o->node_sigma_sample};
     return q;
 }
 

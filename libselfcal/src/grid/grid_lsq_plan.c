@@ -651,7 +651,9 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
      * (the assembly's node-misalignment groups are freed by now) and 3x the supernodal factor
      * (the factor, the selected inverse's blocks and tracked columns): 1.0-1.2x the peak RSS */
     double groups = q->full ? 0.0 : sizeof(double) * (double)q->ng * q->nm;
-    double need = (double)q->bytes - groups + 3.0 * (double)sc_spsym_factor_bytes(q->f);
+    /* without the selected inverse (node_sigma none or sampled): the factor and the solves' */
+    double held = q->node_sigma == SC_GRID_NODE_SIGMA_ALL ? 3.0 : 1.5;
+    double need = (double)q->bytes - groups + held * (double)sc_spsym_factor_bytes(q->f);
     if (need > q->peak_est)
         q->peak_est = need;
     if (q->max_bytes > 0 && need > q->max_bytes)
