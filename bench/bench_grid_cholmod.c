@@ -24,7 +24,13 @@
  * Usage: [REPEAT=3] bench_grid_cholmod [N | S:N ...]   (default 101 201 301; add 401 for the
  * large target). S:N: a stitched S x S stage and an N x N plate instead (`--plan stitch`: rot-0
  * placements at step (N-1)/2 plus a rot-90 and a +1,0 at the centre; hundreds of views, issue 33);
- * the table then gives S, N and the number of views. */
+ * the table then gives S, N and the number of views.
+ * Stitched stages (issue 33): the data carry a noise of 1e-8 µm only (so that G's error shows the
+ * solver's accuracy while the outlier test still has a noise to test), and the table gives the
+ * largest |G − truth| (target 1e-6 µm); the matrix exported and handed to CHOLMOD is the one the
+ * plan factors (reduced, or with A kept: `solver`), with its factor's nonzeros and flops from
+ * selfcal's analysis. SELFCAL_PREV=path: the previous release's selfcal runs the same command
+ * (once per repeat), its CPU time and peak memory, or how it failed (exit status). */
 #define _GNU_SOURCE /* RTLD_DEFAULT */
 #include <dlfcn.h>
 #include <math.h>
@@ -86,8 +92,12 @@ static void petro_plan(sc_grid_plan *p, int n)
 typedef struct figures {
     double seconds, wall, mib;
     char ordering[32];
-    long n_red;      /* the export's: unknowns of the reduced matrix */
+    long n_red;      /* the export's: unknowns of the matrix factored */
     int views;       /* and the plan's views */
+    int solver;      /* the export's: SC_GRID_SOLVER_REDUCED or _FULL */
+    long nnz_l;      /* the export's: nonzeros of the factor, and its flops */
+    double flops;
+    int status;      /* run_command: the child's exit status (-1: a signal) */
 } figures;
 
 /* Run argv as a child; its CPU time, wall time and peak RSS. 0 if it exited 0. */
@@ -111,6 +121,7 @@ static int run_command(char *const argv[], figures *out)
     out->seconds = ru.ru_utime.tv_sec + ru.ru_stime.tv_sec +
                    1e-6 * (ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
     out->mib = ru.ru_maxrss / 1024.0;
+    out->status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? 0 : -1;
 }
 
@@ -126,8 +137,12 @@ static void export_child(int n, int stage, const char *path, figures *fg)
     fg->views = p.n_views;
     sc_error err;
     sc_grid_lsq_plan *q = NULL;
-    if (sc_grid_lsq_plan_create(&p, NULL, NULL, &q, &err) != SC_OK)
+    sc_grid_lsq_opts opts = {.node_sigma = SC_GRID_NODE_SIGMA_NONE}; /* the matrix is the same */
+    if (sc_grid_lsq_plan_create(&p, NULL, &opts, &q, &err) != SC_OK)
         exit(1);
+    sc_grid_lsq_stats st;
+    sc_grid_lsq_get_stats(q, &st);
+    fg->solver = st.solver, fg->nnz_l = st.nnz_factor, fg->flops = st.factor_flops;
     int n_red;
     const long *Ap;
     const int *Ai;
@@ -246,17 +261,65 @@ static int selfcal_data(bench_files *f)
 {
     char *sim[] = {SELFCAL_CLI, "simulate", "grid", "--plan", "double-shift", "--n", f->n, "--out",
                    f->in, "--truth-map", f->truth, "--seed", "7", "--O", "2e-6", "--R", "2e-6",
-                   NULL, NULL, NULL};
+                   NULL, NULL, NULL, NULL, NULL};
     if (strcmp(f->stage, "0,0") != 0)
-        sim[4] = "stitch", sim[17] = "--stage", sim[18] = f->stage;
+        sim[4] = "stitch", sim[17] = "--stage", sim[18] = f->stage, sim[19] = "--sigma-r-um",
+        sim[20] = "1e-8";
     figures sim_fg;
     return run_command(sim, &sim_fg);
 }
 
-/* The whole selfcal grid command (timed). */
-static int selfcal_command(bench_files *f, figures *out)
+/* The largest |G − truth| (µm) of a map against the truth map (both i,j,x_mm,y_mm,gx_um,gy_um,...
+ * in the same node order); NaN if they cannot be read. */
+static double map_error(const char *map, const char *truth)
 {
-    char *grid[] = {SELFCAL_CLI, "grid", "--method", "lsq", f->in, "--map", f->map,
+    FILE *a = fopen(map, "r"), *b = fopen(truth, "r");
+    char la[512], lb[512];
+    double e = a && b ? 0 : NAN;
+    long rows = 0;
+    while (a && b && fgets(la, sizeof la, a) && fgets(lb, sizeof lb, b)) {
+        int i1, j1, i2, j2;
+        double x, y, gx1, gy1, gx2, gy2;
+        if (sscanf(la, "%d,%d,%lf,%lf,%lf,%lf", &i1, &j1, &x, &y, &gx1, &gy1) != 6)
+            continue; /* headers */
+        if (sscanf(lb, "%d,%d,%lf,%lf,%lf,%lf", &i2, &j2, &x, &y, &gx2, &gy2) != 6 || i1 != i2 ||
+            j1 != j2) {
+            e = NAN;
+            break;
+        }
+        e = fmax(e, fmax(fabs(gx1 - gx2), fabs(gy1 - gy2)));
+        rows++;
+    }
+    if (a)
+        fclose(a);
+    if (b)
+        fclose(b);
+    return rows > 0 ? e : NAN;
+}
+
+/* Measurements flagged as outliers in a residuals file (its last column 1); -1 if unreadable. */
+static long flagged(const char *res)
+{
+    FILE *f = fopen(res, "r");
+    char line[512];
+    long n = 0;
+    while (f && fgets(line, sizeof line, f)) {
+        size_t len = strlen(line);
+        while (len > 0 && (line[len - 1] == '\n' || line[len - 1] == '\r'))
+            line[--len] = '\0';
+        if (len >= 2 && line[len - 1] == '1' && line[len - 2] == ',')
+            n++;
+    }
+    if (!f)
+        return -1;
+    fclose(f);
+    return n;
+}
+
+/* The whole selfcal grid command (timed); exe: this tree's or the previous release's. */
+static int selfcal_command(bench_files *f, figures *out, const char *exe)
+{
+    char *grid[] = {(char *)exe, "grid", "--method", "lsq", f->in, "--map", f->map,
                     "--residuals", f->res, "--quiet", NULL};
     if (run_command(grid, out) != 0)
         return -1;
@@ -288,8 +351,10 @@ static int cmp_double(const void *x, const void *y)
 }
 
 static int bench_one(int n, int stage, const char *dir, const char *path, int repeat,
-                     figures *a, figures *c, figures *shipped, double *ratio, figures *e)
+                     figures *a, figures *c, figures *shipped, double *ratio, figures *e,
+                     figures *prev, double *g_err, long *n_flagged)
 {
+    const char *prev_exe = getenv("SELFCAL_PREV");
     double ratios[64];
     if (repeat > 64)
         repeat = 64;
@@ -300,10 +365,19 @@ static int bench_one(int n, int stage, const char *dir, const char *path, int re
         return -1;
     for (int r = 0; r < repeat; ++r) {
         memset(&run, 0, sizeof run);
-        if (selfcal_command(&f, &run) != 0)
+        if (selfcal_command(&f, &run, SELFCAL_CLI) != 0)
             return -1;
         keep_best(a, &run, r == 0);
+        if (r == 0)
+            *g_err = map_error(f.map, f.truth), *n_flagged = flagged(f.res);
         double mine = run.seconds;
+        if (prev_exe) { /* a failure (refused, killed) is a figure too: its status */
+            figures pr;
+            memset(&pr, 0, sizeof pr);
+            if (selfcal_command(&f, &pr, prev_exe) != 0)
+                pr.seconds = -pr.seconds - 1e-9; /* negative: failed after that many seconds */
+            keep_best(prev, &pr, r == 0);
+        }
         if (in_child(&run, 2, n, stage, path) != 0)
             return -1;
         keep_best(c, &run, r == 0);
@@ -356,26 +430,41 @@ int main(int argc, char **argv)
     printf("(selfcal %s huge pages for SuiteSparse's large blocks; the CHOLMOD child uses\n"
            "SuiteSparse's own allocator: SELFCAL_HUGEPAGES=0 runs selfcal the same way)\n",
            huge && !strcmp(huge, "0") ? "without" : "with");
-    printf("%5s %5s %5s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s | %8s %6s\n", "stage",
-           "N", "views", "reduced", "selfcal", "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order",
-           "time x", "mem x", "shipped", "x");
+    printf("(factored: reduced = A eliminated, full = A kept (issue 33); unknowns, nnz(L) and flops\n"
+           "of selfcal's analysis; G err: the largest |G - truth| in um on stitched stages, whose\n"
+           "data carry 1e-8 um of noise; prev: SELFCAL_PREV's CPU s and MiB, '-' if not given,\n"
+           "'exit S after T s' if it failed; flags: measurements the outlier test flagged)\n");
+    printf("%5s %5s %5s %7s %8s %9s %8s | %8s %8s %7s | %8s %8s %7s %-6s | %6s %6s | %8s %6s | "
+           "%8s %5s | %s\n", "stage", "N", "views", "matrix", "unknowns", "nnz(L)", "flops", "selfcal",
+           "(wall)", "MiB", "CHOLMOD", "(wall)", "MiB", "order", "time x", "mem x", "shipped", "x",
+           "G err", "flags", "prev");
     for (int t = 0; t < count; ++t) {
         int n = ns[t];
-        figures a, c, sh, e;
+        figures a, c, sh, e, pv;
+        double g_err = NAN;
+        long n_flagged = -1;
+        memset(&pv, 0, sizeof pv);
         memset(&a, 0, sizeof a);
         memset(&c, 0, sizeof c);
         memset(&sh, 0, sizeof sh);
         memset(&e, 0, sizeof e);
         double ratio;
         int st = stages[t] > 0 ? stages[t] : n;
-        if (bench_one(n, stages[t], dir, path, repeat, &a, &c, &sh, &ratio, &e) != 0) {
+        if (bench_one(n, stages[t], dir, path, repeat, &a, &c, &sh, &ratio, &e, &pv, &g_err, &n_flagged) != 0) {
             printf("%5d %5d failed\n", st, n);
             continue;
         }
-        printf("%5d %5d %5d %8ld | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | %6.2f %6.2f | "
-               "%8.3f %6.2f\n",
-               st, n, e.views, e.n_red, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib,
-               c.ordering, ratio, a.mib / c.mib, sh.seconds, a.seconds / sh.seconds);
+        char prev[96] = "-";
+        if (getenv("SELFCAL_PREV") && pv.seconds >= 0)
+            snprintf(prev, sizeof prev, "%.3f s %.1f MiB", pv.seconds, pv.mib);
+        else if (getenv("SELFCAL_PREV"))
+            snprintf(prev, sizeof prev, "exit %d after %.3f s (%.2f wall), %.1f MiB", pv.status,
+                     -pv.seconds, pv.wall, pv.mib);
+        printf("%5d %5d %5d %7s %8ld %9ld %8.2g | %8.3f %8.2f %7.1f | %8.3f %8.2f %7.1f %-6s | "
+               "%6.2f %6.2f | %8.3f %6.2f | %8.2g %5ld | %s\n",
+               st, n, e.views, e.solver == SC_GRID_SOLVER_FULL ? "full" : "reduced", e.n_red,
+               e.nnz_l, e.flops, a.seconds, a.wall, a.mib, c.seconds, c.wall, c.mib, c.ordering,
+               ratio, a.mib / c.mib, sh.seconds, a.seconds / sh.seconds, g_err, n_flagged, prev);
         fflush(stdout);
     }
     remove(path);

@@ -11,7 +11,7 @@
 
 #include "../linalg/sparse_sym.h"
 
-/* The weighted row w_e = s_e·J_e of equation e over the reduced unknowns: its length, the
+/* The weighted row w_e = s_e·J_e of equation e over the reduced unknowns (its G unknown first): its length, the
  * indices into idx and the coefficients into val (at most row_max of them). Its A coefficient
  * is s_e·s_e = 1. */
 typedef int (*sc_lsq_row_fn)(const void *ctx, long e, int *idx, double *val);
