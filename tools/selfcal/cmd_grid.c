@@ -80,7 +80,7 @@ static const char USAGE[] =
     "--solver (lsq): which normal matrix is factored: reduced (the plate error A eliminated:\n"
     "plate-sized stages, a few views), full (A kept as unknowns: stitched stages of hundreds of\n"
     "placements, where eliminating A would couple every node a mark lands on to every other) or\n"
-    "auto (the default: full when a mark is measured in more than about 65 views on average;\n"
+    "auto (the default: full when a mark is measured in more than about 17 views on average;\n"
     "docs/grid-lsq.md gives the rule). Both give the same results.\n"
     "--node-sigma (lsq): all (the default): every node's uncertainty and every measurement's\n"
     "leverage (the selected inverse, about the factor's cost again; the outlier test needs it);\n"

@@ -84,7 +84,7 @@ typedef struct sc_grid_lsq_opts {
  * matrix of every unknown with the misalignments ordered last (its size grows with the
  * equations only: stitched plans of hundreds of placements). AUTO: FULL when the pairs of stage
  * unknowns eliminating A would couple, Σ k(k−1)/2 over the plate mark components measured k
- * times, exceed 32 per equation; REDUCED otherwise. Both give the same results (to rounding). */
+ * times, exceed 8 per equation (k > 17); REDUCED otherwise. Both give the same results (to rounding). */
 #define SC_GRID_SOLVER_AUTO 0
 #define SC_GRID_SOLVER_REDUCED 1
 #define SC_GRID_SOLVER_FULL 2

@@ -33,7 +33,7 @@ typedef struct sc_lsq_full sc_lsq_full;
 /* The automatic choice, from the plan's counts: 1 (full) when the pairs of stage unknowns that
  * eliminating A would couple, Σ k(k−1)/2 over the A components of k equations, exceed
  * SC_LSQ_FULL_PAIRS_PER_EQ times the equations; 0 (reduced) otherwise. */
-#define SC_LSQ_FULL_PAIRS_PER_EQ 32.0
+#define SC_LSQ_FULL_PAIRS_PER_EQ 8.0
 int sc_lsq_full_preferred(const sc_lsq_full_desc *d);
 
 /* The pairs Σ k(k−1)/2 of the rule above. */
