@@ -23,6 +23,7 @@ if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)
   grid_cli_test(grid_cli_fuzz fuzz 150)
   grid_cli_test(grid_cli_many_views many_views)  # 363 views: a few s, 20 s under ASan and load
   grid_cli_test(grid_cli_memory_progress memory_progress)
+  grid_cli_test(grid_cli_solver solver)  # --solver, --node-sigma (issue 33)
 endif()
 # real measurements (SPEC §5, issue 10)
 if(SELFCAL_PYTHON3 AND TARGET selfcal_cli)

@@ -175,10 +175,9 @@ static int design(int argc, char **argv)
                 fprintf(stderr,
                         "selfcal: plan --design: a %dx%d stage with an N = %d plate is too large "
                         "for the exact analysis (every node's sigma) within %.3g GB: the raster "
-                        "of step %d (%d placements) couples each plate mark to every node it "
-                        "lands on (docs/grid-lsq.md, 'Large stages'); a smaller stage, a larger "
-                        "plate or --max-memory SIZE; `grid --node-sigma none` needs the factor "
-                        "only\n",
+                        "of step %d (%d placements) (docs/grid-lsq.md, 'Large stages'); a "
+                        "smaller stage, a larger plate or --max-memory SIZE; `grid --node-sigma "
+                        "none` needs the factor only\n",
                         (int)sx, (int)sy, n, max_bytes / 1e9, step, views);
             return rc;
         }

@@ -613,7 +613,60 @@ def case_memory_progress():
         fail("stderr without --progress: %r" % p.stderr)
 
 
-CASES = {"fuzz": case_fuzz, "end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
+def case_solver():
+    """grid --solver: the full system (A kept) and the reduced one give the same map, artifact,
+    summary and residuals (1e-9 of each column's scale) on a stitched plan of 27 placements
+    (auto: full); --node-sigma none leaves the uncertainties and t empty, sample:K gives K nodes'
+    σ equal to those of all; bad values and the options it excludes: exit 2."""
+    d = fresh_dir("solver")
+    sim = simulate(d, "s", "stitch", 5, "--stage", "13,13", "--sigma-r-um", 0.01, "--seed", 4)
+    out = {}
+    for solver in ("reduced", "full", "auto"):
+        o = {k: os.path.join(d, solver + "_" + k) for k in ("G.csv", "A.csv", "S.json", "R.csv")}
+        run("grid", "--method", "lsq", sim["inp"], "--map", o["G.csv"], "--artifact", o["A.csv"],
+            "--summary", o["S.json"], "--residuals", o["R.csv"], "--quiet", "--solver", solver)
+        out[solver] = o
+
+    def close(a, b, what):
+        scale = max([abs(x) for x in a] + [1e-300])
+        worst = max(abs(x - y) for x, y in zip(a, b))
+        if len(a) != len(b) or worst > 1e-9 * scale:
+            fail("%s: reduced and full differ by %g (scale %g)" % (what, worst, scale))
+
+    for other in ("full", "auto"):
+        g, h = read_map(out["reduced"]["G.csv"]), read_map(out[other]["G.csv"])
+        for c in (4, 5, 6, 7):
+            close([float(g[k][c]) for k in sorted(g)], [float(h[k][c]) for k in sorted(g)],
+                  "map column %d (%s)" % (c, other))
+        a, b = read_art(out["reduced"]["A.csv"]), read_art(out[other]["A.csv"])
+        close([a[k][0] for k in sorted(a)], [b[k][0] for k in sorted(a)], "artifact")
+        ra = list(csv.reader(open(out["reduced"]["R.csv"])))[1:]
+        rb = list(csv.reader(open(out[other]["R.csv"])))[1:]
+        for c in (3, 4, 5, 6):
+            close([float(r[c]) for r in ra], [float(r[c]) for r in rb], "residuals column %d" % c)
+        sa, sb = json.load(open(out["reduced"]["S.json"])), json.load(open(out[other]["S.json"]))
+        close([v["utx_um"] for v in sa["views"]], [v["utx_um"] for v in sb["views"]], "u(tx)")
+    # --node-sigma none: no uncertainties, no t; sample:5: five nodes, as all gives them
+    m, r = os.path.join(d, "none_G.csv"), os.path.join(d, "none_R.csv")
+    run("grid", "--method", "lsq", sim["inp"], "--map", m, "--residuals", r, "--quiet",
+        "--node-sigma", "none")
+    if any(row[6] or row[7] for row in read_map(m).values()):
+        fail("--node-sigma none: uncertainties written")
+    if any(row[5] or row[6] for row in list(csv.reader(open(r)))[1:]):
+        fail("--node-sigma none: standardized residuals written")
+    m = os.path.join(d, "sample_G.csv")
+    run("grid", "--method", "lsq", sim["inp"], "--map", m, "--quiet", "--node-sigma", "sample:5")
+    g, full = read_map(m), read_map(out["reduced"]["G.csv"])
+    got = [k for k, row in g.items() if row[6]]
+    if len(got) != 5:
+        fail("--node-sigma sample:5: %d nodes with sigma" % len(got))
+    close([float(full[k][6]) for k in got], [float(g[k][6]) for k in got], "sampled sigma")
+    for bad in (("--solver", "dense"), ("--node-sigma", "sample:0"), ("--node-sigma", "some"),
+                ("--node-sigma", "none", "--reject-outliers")):
+        run("grid", "--method", "lsq", sim["inp"], "--map", m, *bad, expect=2)
+
+
+CASES = {"solver": case_solver, "fuzz": case_fuzz, "end_to_end": case_end_to_end, "lsq_noise": case_lsq_noise, "plan": case_plan,
          "plot": case_plot, "simulate": case_simulate, "bad_input": case_bad_input,
          "many_views": case_many_views, "memory_progress": case_memory_progress}
 CASES[CASE]()
