@@ -271,18 +271,21 @@ static void test_memory_limit(void **s)
     sc_error err;
     assert_int_equal(sc_grid_plan_stitch_step(33, 129, 129, 32, 1.0, 0, 0, &p, &err), SC_OK);
     sc_grid_lsq_plan *q = NULL;
-    sc_grid_lsq_opts free_opts = {.node_sigma_only = 1};
+    /* the reduced matrix's estimates (A kept: test_grid_lsq_full) */
+    sc_grid_lsq_opts free_opts = {.node_sigma_only = 1, .solver = SC_GRID_SOLVER_REDUCED};
     assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &free_opts, &q, &err), SC_OK);
     sc_grid_lsq_stats st;
     sc_grid_lsq_get_stats(q, &st);
     sc_grid_lsq_plan_destroy(q);
     q = NULL;
-    sc_grid_lsq_opts tight = {.node_sigma_only = 1, .max_bytes = (double)st.bytes / 3};
+    sc_grid_lsq_opts tight = {.node_sigma_only = 1, .max_bytes = (double)st.bytes / 3,
+                              .solver = SC_GRID_SOLVER_REDUCED};
     assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &tight, &q, &err), SC_E_NOMEM);
     assert_null(q);
     assert_non_null(strstr(err.msg, "needs about"));
     assert_non_null(strstr(err.msg, "33336 unknowns"));
-    sc_grid_lsq_opts room = {.node_sigma_only = 1, .max_bytes = 2.0 * (double)st.bytes};
+    sc_grid_lsq_opts room = {.node_sigma_only = 1, .max_bytes = 2.0 * (double)st.bytes,
+                             .solver = SC_GRID_SOLVER_REDUCED};
     assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &room, &q, &err), SC_OK);
     sc_grid_lsq_plan_destroy(q);
     sc_grid_plan_free(&p);

@@ -290,12 +290,42 @@ static void test_sampled_sigma(void **s)
     sc_grid_plan_free(&p);
 }
 
+/* max_bytes with A kept: refused below the estimate, made with room of three times what the plan
+ * holds after it (the selected inverse's peak is 3x the factor, which the plan then holds once;
+ * here 23 MB held, 52 MB estimated). */
+static void test_memory_limit_full(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    sc_error err;
+    assert_int_equal(sc_grid_plan_stitch_step(33, 129, 129, 32, 1.0, 0, 0, &p, &err), SC_OK);
+    sc_grid_lsq_plan *q = NULL;
+    sc_grid_lsq_opts o = {.node_sigma_only = 1, .solver = SC_GRID_SOLVER_FULL};
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &o, &q, &err), SC_OK);
+    sc_grid_lsq_stats st;
+    sc_grid_lsq_get_stats(q, &st);
+    sc_grid_lsq_plan_destroy(q);
+    q = NULL;
+    o.max_bytes = (double)st.bytes / 3;
+    assert_int_equal(sc_grid_lsq_plan_create(&p, NULL, &o, &q, &err), SC_E_NOMEM);
+    assert_null(q);
+    assert_non_null(strstr(err.msg, "needs about"));
+    o.max_bytes = 3.0 * (double)st.bytes;
+    sc_status rc = sc_grid_lsq_plan_create(&p, NULL, &o, &q, &err);
+    if (rc != SC_OK)
+        fprintf(stderr, "holds %zu bytes: %s\n", st.bytes, err.msg);
+    assert_int_equal(rc, SC_OK);
+    sc_grid_lsq_plan_destroy(q);
+    sc_grid_plan_free(&p);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_full_equals_reduced),
         cmocka_unit_test(test_auto_choice),
         cmocka_unit_test(test_sampled_sigma),
+        cmocka_unit_test(test_memory_limit_full),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
