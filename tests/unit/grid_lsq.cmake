@@ -20,5 +20,6 @@ selfcal_unit_test(NAME test_grid_lsq_full SOURCES unit/test_grid_lsq_full.c unit
                   LABELS grid TIMEOUT 300)
 # a 401 x 401 stage from a 41-mark plate in 363 placements, noise-free (issue 33): A kept, G to
 # 1e-6 um, sampled σ against refined solves
-selfcal_unit_test(NAME test_grid_lsq_large SOURCES unit/test_grid_lsq_large.c LIBS selfcal_static
+selfcal_unit_test(NAME test_grid_lsq_large SOURCES unit/test_grid_lsq_large.c unit/grid_lsq_reference.c
+                  LIBS selfcal_static
                   LABELS grid large TIMEOUT 1800)

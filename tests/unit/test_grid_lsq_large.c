@@ -16,6 +16,7 @@
 #include <string.h>
 
 #include "../../libselfcal/src/grid/grid_lsq_internal.h"
+#include "grid_lsq_reference.h"
 #include "selfcal/grid_io.h"
 #include "selfcal/grid_lsq.h"
 #include "selfcal/grid_sim.h"
