@@ -4,15 +4,14 @@
  * rejection loop and covariance. The command line, the report and Python call only this.
  */
 #include <math.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "selfcal/grid_calibrate.h"
 #include "selfcal/csv.h" /* SC_INPUT_MAX_ABS */
 #include "selfcal/grid_exact.h"
-#include "grid_calibrate_internal.h"
+#include "grid_calibrate_common.h"
+#include "grid_view_noise.h"
 #include "grid_lsq_internal.h"
 #include "grid_scale_internal.h"
 #include "selfcal/rng.h"
@@ -52,11 +51,6 @@ static long line_of(const sc_grid_file_info *info, int which, int v)
     if (!info)
         return 0;
     return which == 0 ? info->header_end_line : which == 1 ? info->n_line : info->view_line[v];
-}
-
-int sc_grid_view_id(const sc_grid_file_info *info, int v)
-{
-    return info ? info->view_id[v] : v;
 }
 
 /* One needed view: declared, with data, every needed mark measured. */
@@ -193,18 +187,6 @@ sc_status sc_grid_check_method(const sc_grid_data *d, const sc_grid_file_info *i
 
 /* ---- solving ---- */
 
-void sc_grid_warnf(const sc_grid_options *o, const char *fmt, ...)
-{
-    if (!o->warn)
-        return;
-    char buf[512];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf, sizeof buf, fmt, ap);
-    va_end(ap);
-    o->warn(o->warn_ctx, buf);
-}
-
 /* The arrays of s and the NaN/neutral defaults of its result. */
 static sc_status solution_alloc(const sc_grid_plan *p, const sc_grid_options *o,
                                 sc_grid_solution *s, sc_error *err)
@@ -333,16 +315,6 @@ static long worst_outlier(const sc_grid_solution *s, size_t tot)
             bt = t, best = (long)k;
     }
     return best;
-}
-
-/* The least squares' model options from the calibration's. */
-sc_grid_lsq_opts sc_grid_lsq_opts_of(const sc_grid_options *o)
-{
-    sc_grid_lsq_opts q = {.drift = o->drift, .node_sigma_only = o->node_sigma_only,
-                          .max_bytes = o->max_bytes, .progress = o->progress,
-                          .progress_ctx = o->progress_ctx, .solver = o->solver,
-                          .node_sigma = o->node_sigma, .node_sigma_sample = o->node_sigma_sample};
-    return q;
 }
 
 /* Solve, then while asked remove the worst flagged measurement and solve again. A removal is

@@ -5,7 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "grid_calibrate_internal.h"
+#include "grid_calibrate_common.h"
+#include "grid_view_noise.h"
 #include "grid_lsq_internal.h"
 #include "selfcal/rng.h"
 

@@ -49,6 +49,28 @@ void sc_spsym_destroy(sc_spsym *s)
     free(s);
 }
 
+/* The selected inverse's storage is the solver object's, so it is freed here (the recurrences
+ * of sparse_sym_selinv.c fill it; a new factorization drops it). */
+void sc_spsym_drop_inverse(sc_spsym *s)
+{
+    if (s->Zt) {
+        s->bytes -= (size_t)s->n_track * ((size_t)s->n * sizeof(double) + sizeof(int));
+        free(s->Zt), free(s->track_slot);
+        s->Zt = NULL;
+        s->track_slot = NULL;
+    }
+    if (s->use_ldl) {
+        free(s->f.Zx), free(s->f.Zd);
+        s->f.Zx = s->f.Zd = NULL;
+    } else if (s->Zd) {
+        free(s->Zd), free(s->ZA), free(s->col2super);
+        s->Zd = s->ZA = NULL;
+        s->col2super = NULL;
+        s->bytes -= ((size_t)s->n + (size_t)s->Ap[s->keep_cols]) * sizeof(double) +
+                    (size_t)(s->n + 1) * sizeof(int);
+    }
+}
+
 const char *sc_spsym_ordering_name(int ordering)
 {
     switch (ordering) {

@@ -464,26 +464,6 @@ int sc_spsym_selinv(sc_spsym *s, int keep_cols, const int *cols, int ncols)
     return rc;
 }
 
-void sc_spsym_drop_inverse(sc_spsym *s)
-{
-    if (s->Zt) {
-        s->bytes -= (size_t)s->n_track * ((size_t)s->n * sizeof(double) + sizeof(int));
-        free(s->Zt), free(s->track_slot);
-        s->Zt = NULL;
-        s->track_slot = NULL;
-    }
-    if (s->use_ldl) {
-        free(s->f.Zx), free(s->f.Zd);
-        s->f.Zx = s->f.Zd = NULL;
-    } else if (s->Zd) {
-        free(s->Zd), free(s->ZA), free(s->col2super);
-        s->Zd = s->ZA = NULL;
-        s->col2super = NULL;
-        s->bytes -= ((size_t)s->n + (size_t)s->Ap[s->keep_cols]) * sizeof(double) +
-                    (size_t)(s->n + 1) * sizeof(int);
-    }
-}
-
 double sc_spsym_inv(const sc_spsym *s, int i, int j)
 {
     int pi = s->iperm[i], pj = s->iperm[j];
