@@ -93,48 +93,6 @@ sc_status sc_lsq_check_data(const sc_grid_lsq_plan *q, const sc_grid_data *d, sc
     return SC_OK;
 }
 
-/* Solve a small dense symmetric system m x m (row-major, destroyed) in place of rhs by Gaussian
- * elimination with partial pivoting; a null pivot gives a NaN solution. */
-void sc_lsq_small_solve(double *a, double *rhs, int m)
-{
-    for (int c = 0; c < m; ++c) {
-        int best = c;
-        for (int r = c + 1; r < m; ++r)
-            if (fabs(a[r * m + c]) > fabs(a[best * m + c]))
-                best = r;
-        if (best != c) {
-            for (int k = 0; k < m; ++k) {
-                double t = a[c * m + k];
-                a[c * m + k] = a[best * m + k];
-                a[best * m + k] = t;
-            }
-            double t = rhs[c];
-            rhs[c] = rhs[best];
-            rhs[best] = t;
-        }
-        double piv = a[c * m + c], scale = 0;
-        for (int k = 0; k < m; ++k)
-            scale = fmax(scale, fabs(a[k * m + k]));
-        if (!(fabs(piv) > 1e-13 * scale)) {
-            for (int k = 0; k < m; ++k)
-                rhs[k] = NAN;
-            return;
-        }
-        for (int r = c + 1; r < m; ++r) {
-            double l = a[r * m + c] / piv;
-            for (int k = c; k < m; ++k)
-                a[r * m + k] -= l * a[c * m + k];
-            rhs[r] -= l * rhs[c];
-        }
-    }
-    for (int c = m - 1; c >= 0; --c) {
-        double t = rhs[c];
-        for (int k = c + 1; k < m; ++k)
-            t -= a[c * m + k] * rhs[k];
-        rhs[c] = t / a[c * m + c];
-    }
-}
-
 /* G (x's first ng entries, interleaved) in the gauge, A as weighted group means moved with G's
  * magnification and gauged over the measured marks (translation, rotation). */
 static void gauge_solution(const sc_grid_lsq_plan *q, const sc_grid_data *d, const double *x, double *gx,
@@ -185,43 +143,6 @@ static void gauge_solution(const sc_grid_lsq_plan *q, const sc_grid_data *d, con
         a[2 * k] -= rhs[0] - rhs[2] * py;
         a[2 * k + 1] -= rhs[1] + rhs[2] * px;
     }
-}
-
-/* One view's misalignment fit from its normal equations nrm (nb x nb, row-major) and rh: the
- * columns taken in order (tx, ty, φ, vx, vy), each kept when the system stays regular with it
- * (Cholesky with diagonal pivoting, LSQ_SMALL_TOL), the kept ones solved, the others 0 — a
- * particular least-squares solution, so the residuals are right whatever the view determines
- * (a single mark: tx, ty fit it exactly, φ stays 0). m: nb values (NaN for a view without
- * equations); returns how many columns were kept (nb: the misalignments are determined). */
-int sc_lsq_fit_view(const double *nrm, const double *rh, int nb, double *m)
-{
-    int keep[SC_GRID_LSQ_MAX_NB], nk = 0;
-    for (int c = 0; c < nb; ++c)
-        m[c] = 0;
-    for (int c = 0; c < nb; ++c) {
-        double sub[SC_GRID_LSQ_MAX_NB * SC_GRID_LSQ_MAX_NB];
-        keep[nk] = c;
-        for (int i = 0; i <= nk; ++i)
-            for (int j = 0; j <= nk; ++j)
-                sub[i * (nk + 1) + j] = nrm[keep[i] * nb + keep[j]];
-        if (sc_lsq_small_nullity(sub, nk + 1, LSQ_SMALL_TOL) == 0)
-            ++nk;
-    }
-    if (nk == 0) {
-        for (int c = 0; c < nb; ++c)
-            m[c] = NAN;
-        return 0;
-    }
-    double sub[SC_GRID_LSQ_MAX_NB * SC_GRID_LSQ_MAX_NB], r[SC_GRID_LSQ_MAX_NB];
-    for (int i = 0; i < nk; ++i) {
-        r[i] = rh[keep[i]];
-        for (int j = 0; j < nk; ++j)
-            sub[i * nk + j] = nrm[keep[i] * nb + keep[j]];
-    }
-    sc_lsq_small_solve(sub, r, nk);
-    for (int i = 0; i < nk; ++i)
-        m[keep[i]] = r[i];
-    return nk;
 }
 
 /* Misalignments (and drift): per view, weighted least squares of d - G - Rot A on its nb columns,

@@ -64,6 +64,149 @@ static int cmp_int(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* Each equation's A column in the full system (-1: alone in its group); the full size. */
+static int assign_a_columns(const sc_lsq_full_desc *d, int *eq_col)
+{
+    int n = d->n_red;
+    for (int a = 0; a < d->n_groups; ++a) {
+        long g0 = d->grp_ptr[a], cnt = d->grp_ptr[a + 1] - g0;
+        for (long t = 0; t < cnt; ++t)
+            eq_col[d->grp_eq[g0 + t]] = cnt >= 2 ? n : -1;
+        n += cnt >= 2;
+    }
+    return n;
+}
+
+/* The assembly's work: the incidence lists (the kept equations of each unknown, ip/ie), one
+ * column's accumulator (acc, mark, touched) and the matrix being written (Ap, Ai, Ax, cap). */
+typedef struct {
+    int n;
+    long *ip, *Ap;
+    int *ie, *Ai, *touched;
+    double *acc, *Ax;
+    unsigned char *mark;
+    size_t cap, nnz;
+} full_work;
+
+static void full_work_free(full_work *w)
+{
+    free(w->ip), free(w->ie), free(w->acc), free(w->mark), free(w->touched);
+    free(w->Ap), free(w->Ai), free(w->Ax);
+}
+
+/* The incidence lists of w (two passes over the kept equations); 0, or -1 without memory. */
+static int build_incidence(const sc_lsq_full_desc *d, const int *eq_col, full_work *w)
+{
+    int n = w->n, idx[FULL_ROW_MAX];
+    double val[FULL_ROW_MAX];
+    w->ip = calloc((size_t)n + 1, sizeof(long));
+    if (!w->ip)
+        return -1;
+    for (long e = 0; e < d->neq; ++e) {
+        if (eq_col[e] < 0)
+            continue;
+        int len = full_row(d, eq_col, e, idx, val);
+        for (int r = 0; r < len; ++r)
+            w->ip[idx[r] + 1]++;
+    }
+    for (int j = 0; j < n; ++j)
+        w->ip[j + 1] += w->ip[j];
+    long *fill = malloc(sizeof(long) * ((size_t)n + 1));
+    w->ie = malloc(sizeof(int) * ((size_t)w->ip[n] + 1));
+    if (!fill || !w->ie) {
+        free(fill);
+        return -1;
+    }
+    memcpy(fill, w->ip, sizeof(long) * (size_t)n);
+    for (long e = 0; e < d->neq; ++e) {
+        if (eq_col[e] < 0)
+            continue;
+        int len = full_row(d, eq_col, e, idx, val);
+        for (int r = 0; r < len; ++r)
+            w->ie[fill[idx[r]]++] = (int)e;
+    }
+    free(fill);
+    return 0;
+}
+
+/* Column j's upper part (rows i <= j) into w's accumulator; the count of touched rows. A pinned
+ * unknown, or one that no kept equation touches, is an identity row. */
+static int accumulate_column(const sc_lsq_full_desc *d, const int *eq_col, full_work *w, int j)
+{
+    int nt = 0, idx[FULL_ROW_MAX];
+    double val[FULL_ROW_MAX];
+    if (j < d->n_red && d->pinned[j]) {
+        w->touched[nt++] = j, w->acc[j] = 1.0, w->mark[j] = 1;
+        return nt;
+    }
+    for (long p = w->ip[j]; p < w->ip[j + 1]; ++p) {
+        long e = w->ie[p];
+        int len = full_row(d, eq_col, e, idx, val);
+        double vj = 0;
+        for (int r = 0; r < len; ++r)
+            if (idx[r] == j)
+                vj = val[r];
+        vj *= d->w[e];
+        for (int r = 0; r < len; ++r) {
+            int i = idx[r];
+            if (i > j || (i < d->n_red && d->pinned[i]))
+                continue;
+            if (!w->mark[i])
+                w->mark[i] = 1, w->touched[nt++] = i;
+            w->acc[i] += vj * val[r];
+        }
+    }
+    if (!w->mark[j]) /* an unknown no kept equation touches: an identity row */
+        w->mark[j] = 1, w->touched[nt++] = j, w->acc[j] = 1.0;
+    return nt;
+}
+
+/* The nt touched rows of the accumulated column, sorted, appended to w's matrix (grown as
+ * needed) and the accumulator cleared; 0, or -1 without memory. */
+static int append_column(full_work *w, int nt)
+{
+    qsort(w->touched, (size_t)nt, sizeof(int), cmp_int);
+    if (w->nnz + (size_t)nt > w->cap) {
+        size_t nc = 2 * w->cap + (size_t)nt;
+        int *ni = realloc(w->Ai, sizeof(int) * nc);
+        if (ni)
+            w->Ai = ni;
+        double *nx = ni ? realloc(w->Ax, sizeof(double) * nc) : NULL;
+        if (!nx)
+            return -1;
+        w->Ax = nx, w->cap = nc;
+    }
+    for (int t = 0; t < nt; ++t) {
+        int i = w->touched[t];
+        w->Ai[w->nnz] = i, w->Ax[w->nnz] = w->acc[i];
+        ++w->nnz;
+        w->acc[i] = 0, w->mark[i] = 0;
+    }
+    return 0;
+}
+
+/* The upper triangle of the full matrix, column by column, into w; 0, or -1 without memory. */
+static int assemble_columns(const sc_lsq_full_desc *d, const int *eq_col, full_work *w)
+{
+    int n = w->n;
+    w->acc = calloc((size_t)n, sizeof(double));
+    w->mark = calloc((size_t)n, 1);
+    w->touched = malloc(sizeof(int) * ((size_t)n + 1));
+    w->Ap = malloc(sizeof(long) * ((size_t)n + 1));
+    w->cap = (size_t)w->ip[n] * 3 + (size_t)n + 16;
+    w->Ai = malloc(sizeof(int) * w->cap);
+    w->Ax = malloc(sizeof(double) * w->cap);
+    if (!w->acc || !w->mark || !w->touched || !w->Ap || !w->Ai || !w->Ax)
+        return -1;
+    for (int j = 0; j < n; ++j) {
+        w->Ap[j] = (long)w->nnz;
+        if (append_column(w, accumulate_column(d, eq_col, w, j)) != 0)
+            return -1;
+    }
+    w->Ap[n] = (long)w->nnz;
+    return 0;
+}
+
 int sc_lsq_full_assemble(const sc_lsq_full_desc *d, sc_lsq_full **out, long **Ap_out,
                          int **Ai_out, double **Ax_out, int *n_full_out)
 {
@@ -79,112 +222,22 @@ int sc_lsq_full_assemble(const sc_lsq_full_desc *d, sc_lsq_full **out, long **Ap
         sc_lsq_full_destroy(x);
         return -1;
     }
-    int n = d->n_red;
-    for (int a = 0; a < d->n_groups; ++a) {
-        long g0 = d->grp_ptr[a], cnt = d->grp_ptr[a + 1] - g0;
-        for (long t = 0; t < cnt; ++t)
-            x->eq_col[d->grp_eq[g0 + t]] = cnt >= 2 ? n : -1;
-        n += cnt >= 2;
-    }
-    x->n_full = n;
-    /* incidence: the kept equations of each unknown */
-    long *ip = calloc((size_t)n + 1, sizeof(long)), *fill = NULL, *Ap = NULL;
-    int *ie = NULL, *Ai = NULL, *touched = NULL;
-    double *acc = NULL, *Ax = NULL;
-    unsigned char *mark = NULL;
-    int idx[FULL_ROW_MAX], rc = -1;
-    double val[FULL_ROW_MAX];
-    if (!ip)
+    int n = x->n_full = assign_a_columns(d, x->eq_col);
+    full_work w = {.n = n};
+    int rc = -1;
+    if (build_incidence(d, x->eq_col, &w) != 0 || assemble_columns(d, x->eq_col, &w) != 0)
         goto out;
-    for (long e = 0; e < d->neq; ++e) {
-        if (x->eq_col[e] < 0)
-            continue;
-        int len = full_row(d, x->eq_col, e, idx, val);
-        for (int r = 0; r < len; ++r)
-            ip[idx[r] + 1]++;
-    }
-    for (int j = 0; j < n; ++j)
-        ip[j + 1] += ip[j];
-    fill = malloc(sizeof(long) * ((size_t)n + 1));
-    ie = malloc(sizeof(int) * ((size_t)ip[n] + 1));
-    acc = calloc((size_t)n, sizeof(double));
-    mark = calloc((size_t)n, 1);
-    touched = malloc(sizeof(int) * ((size_t)n + 1));
-    Ap = malloc(sizeof(long) * ((size_t)n + 1));
-    if (!fill || !ie || !acc || !mark || !touched || !Ap)
-        goto out;
-    memcpy(fill, ip, sizeof(long) * (size_t)n);
-    for (long e = 0; e < d->neq; ++e) {
-        if (x->eq_col[e] < 0)
-            continue;
-        int len = full_row(d, x->eq_col, e, idx, val);
-        for (int r = 0; r < len; ++r)
-            ie[fill[idx[r]]++] = (int)e;
-    }
-    free(fill);
-    fill = NULL;
-    size_t cap = (size_t)ip[n] * 3 + (size_t)n + 16, nnz = 0;
-    Ai = malloc(sizeof(int) * cap);
-    Ax = malloc(sizeof(double) * cap);
-    if (!Ai || !Ax)
-        goto out;
-    for (int j = 0; j < n; ++j) {
-        Ap[j] = (long)nnz;
-        int nt = 0;
-        if (j < d->n_red && d->pinned[j]) {
-            touched[nt++] = j, acc[j] = 1.0, mark[j] = 1;
-        } else {
-            for (long p = ip[j]; p < ip[j + 1]; ++p) {
-                long e = ie[p];
-                int len = full_row(d, x->eq_col, e, idx, val);
-                double vj = 0;
-                for (int r = 0; r < len; ++r)
-                    if (idx[r] == j)
-                        vj = val[r];
-                vj *= d->w[e];
-                for (int r = 0; r < len; ++r) {
-                    int i = idx[r];
-                    if (i > j || (i < d->n_red && d->pinned[i]))
-                        continue;
-                    if (!mark[i])
-                        mark[i] = 1, touched[nt++] = i;
-                    acc[i] += vj * val[r];
-                }
-            }
-            if (!mark[j]) /* an unknown no kept equation touches: an identity row */
-                mark[j] = 1, touched[nt++] = j, acc[j] = 1.0;
-        }
-        qsort(touched, (size_t)nt, sizeof(int), cmp_int);
-        if (nnz + (size_t)nt > cap) {
-            size_t nc = 2 * cap + (size_t)nt;
-            int *ni = realloc(Ai, sizeof(int) * nc);
-            if (ni)
-                Ai = ni;
-            double *nx = ni ? realloc(Ax, sizeof(double) * nc) : NULL;
-            if (!nx)
-                goto out;
-            Ax = nx, cap = nc;
-        }
-        for (int t = 0; t < nt; ++t) {
-            int i = touched[t];
-            Ai[nnz] = i, Ax[nnz] = acc[i];
-            ++nnz;
-            acc[i] = 0, mark[i] = 0;
-        }
-    }
-    Ap[n] = (long)nnz;
     x->work = malloc(sizeof(double) * 3 * (size_t)n);
     if (!x->work)
         goto out;
     x->bytes = sizeof *x + sizeof(int) * (size_t)d->neq + sizeof(double) * 3 * (size_t)n;
-    *Ap_out = Ap, *Ai_out = Ai, *Ax_out = Ax, *n_full_out = n;
-    Ap = NULL, Ai = NULL, Ax = NULL;
+    *Ap_out = w.Ap, *Ai_out = w.Ai, *Ax_out = w.Ax, *n_full_out = n;
+    w.Ap = NULL, w.Ai = NULL, w.Ax = NULL;
     *out = x;
     x = NULL;
     rc = 0;
 out:
-    free(ip), free(fill), free(ie), free(acc), free(mark), free(touched);
-    free(Ap), free(Ai), free(Ax);
+    full_work_free(&w);
     sc_lsq_full_destroy(x);
     return rc;
 }
