@@ -1,7 +1,7 @@
 # Packages with CPack, from a configured build:
 #   cmake --build BUILD && (cd BUILD && cpack -G "DEB;TGZ")
 # DEB: one package per component, as Debian packages a C library with its tools:
-#   libselfcal<soversion>  the shared library (libselfcal0.3 for libselfcal.so.0.3), with the ldconfig trigger
+#   libselfcal<soversion>  the shared library (libselfcal0.4 for libselfcal.so.0.4), with the ldconfig trigger
 #   libselfcal-dev         headers, libselfcal.a, the libselfcal.so link, selfcal.pc, the CMake package
 #   selfcal                the command line, selfcal(1), the documentation and examples
 #   selfcald               the daemon, selfcald(8), its systemd unit and /etc/selfcal/selfcald.conf (a conffile)

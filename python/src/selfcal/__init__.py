@@ -54,7 +54,7 @@ def version() -> str:
     Returns
     -------
     str
-        The version, as the command line's ``--version`` prints it (e.g. ``"0.3.0"``).
+        The version, as the command line's ``--version`` prints it (e.g. ``"0.4.0"``).
     """
     return _native.version()
 
