@@ -24,6 +24,7 @@ static const char USAGE[] =
             "                      [--steps-per-mm SX,SY] [--rotation-distance RX,RY]\n"
             "                      [--profile AXIS:DIR:P.csv[@OFFSET_MM] ...] [--travel [AXIS:]MIN,MAX]\n"
             "                      [--profile-interval MM] [--max-nodes N]\n"
+            "                      [--a1-1d-order ref,out|out,ref]\n"
             "  beckhoff     TwinCAT CNC / ISG plane compensation list of one slave axis (--axis x|y,\n"
             "               default x; both: OUT-x and OUT-y), 0.1 um units, ISG's sign actual -\n"
             "               setpoint (-G)\n"
@@ -63,6 +64,9 @@ static const char USAGE[] =
             "               beckhoff: a cross compensation list OUT-cross-DIR, slave DIR, master\n"
             "               AXIS, ISG's sign (-e); aerotech-a1: one table each in the 1-D file\n"
             "               OUT-1d, reference axis AXIS, output axis DIR, +e (assumed; --negate)\n"
+            "  --a1-1d-order ref,out|out,ref  aerotech-a1's 1-D file: the axis order of its\n"
+            "               :START line (default ref,out: reference axis, then output axis; the\n"
+            "               help page read gives no 1-D syntax)\n"
             "  --profile-interval MM  the profiles' table spacing (default: the profile's own\n"
             "               points; siemens: --interval if given)\n"
             "  --travel [AXIS:]MIN,MAX  beckhoff profiles: the master axis' travel (mm, machine\n"
@@ -242,7 +246,7 @@ static void print_report(const sc_lut *lut, const char *fmt, int f, const char *
 typedef struct {
     const char *map, *out, *fmt, *axis;
     double interval, limit, at, pinterval;
-    int use_at, negate, ax_nr[3], first_table, target_828d, max_nodes;
+    int use_at, negate, ax_nr[3], first_table, target_828d, max_nodes, a1_order;
     char names[2][32];
     double offset[2], steps[2], rdist[2];
     int np, prof_axis[SC_LUT_MAX_PROFILES], prof_dir[SC_LUT_MAX_PROFILES];
@@ -403,6 +407,8 @@ static const cli_opt EXPORT_OPTS[] = {
              "the profiles' table spacing (mm)"),
     {"--max-nodes", CLI_CUSTOM, F(max_nodes), "N", 2, SC_LUT_MAX_NX, .parse = cli_opt_max_nodes,
      .def = "the map as it is", .help = "a larger map fitted by N nodes per axis first"},
+    {"--a1-1d-order", CLI_CHOICE, F(a1_order), "ref,out|out,ref", .choices = "ref,out|out,ref",
+     .def = "ref,out", .help = "aerotech-a1 1-D file: the axis order of its :START line"},
 };
 #undef POSITIVE
 #undef F
@@ -489,6 +495,9 @@ static int check_applicability(const export_args *a, int f)
         return rc;
     if (a->target_828d && f != SC_EXPORT_SIEMENS_CEC)
         return cli_usage_error("export", "--target applies to --format siemens-cec only");
+    if (a->a1_order && (f != SC_EXPORT_AEROTECH_A1 || a->np == 0))
+        return cli_usage_error("export", "--a1-1d-order applies to --format aerotech-a1 with "
+                                         "--profile only");
     if (a->steps[0] > 0 && f != SC_EXPORT_MARLIN && f != SC_EXPORT_REPRAP && f != SC_EXPORT_POWERPMAC)
         return cli_usage_error("export",
                                "--steps-per-mm applies to --format marlin, reprap or powerpmac only");
@@ -509,6 +518,7 @@ static void options_from_args(const export_args *a, sc_export_options *o)
     o->use_line = a->use_at;
     o->line_mm = a->at;
     o->negate = a->negate;
+    o->aerotech_1d_output_first = a->a1_order;
     o->beckhoff_x_axis_nr = a->ax_nr[0];
     o->beckhoff_y_axis_nr = a->ax_nr[1];
     o->beckhoff_z_axis_nr = a->ax_nr[2];

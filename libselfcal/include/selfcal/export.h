@@ -86,6 +86,9 @@ typedef struct sc_export_options {
      * of x and y (0 = 1: motors scaled in mm). */
     double steps_per_mm[2];
     double rotation_distance_mm[2];
+    /* Automation1 1-D file: 1 = write ':START OutputAxis RefAxis' instead of the default
+     * ':START RefAxis OutputAxis' (the help page read gives no 1-D syntax: the open point) */
+    int aerotech_1d_output_first;
 } sc_export_options;
 
 typedef struct sc_export_report {

@@ -24,7 +24,8 @@
  * axis by its own position; naming the output axis after the reference axis follows the 2-D
  * line's order (reference axes, then output axes). The sign is taken as the amount added to the
  * command, +e (--negate: -e, as NEGCOR would), OFFSET as minus the first point's position (index
- * = (position + OFFSET) / SAMPLEDIST, as for 2-D), primary units as mm. */
+ * = (position + OFFSET) / SAMPLEDIST, as for 2-D), primary units as mm. The axis order of the
+ * :START line is the open point: `aerotech_1d_output_first` (--a1-1d-order out,ref) swaps it. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -119,8 +120,10 @@ static void a1_line_write(sc_textbuf *t, const sc_export_options *o, int k, cons
     sc_tb_printf(t, "; %s from %.6f mm every %.6f mm, %d points (OFFSET: minus the first "
                     "position); beyond them Automation1 holds the nearest end point\n",
                  an, l->lo, l->step, l->n);
-    sc_tb_printf(t, ":START %d %d SAMPLEDIST=%.6f POSUNIT=PRIMARY CORUNIT=PRIMARY/1000\n", ref,
-                 out, l->step);
+    const int first = o->aerotech_1d_output_first ? out : ref;
+    const int second = o->aerotech_1d_output_first ? ref : out;
+    sc_tb_printf(t, ":START %d %d SAMPLEDIST=%.6f POSUNIT=PRIMARY CORUNIT=PRIMARY/1000\n", first,
+                 second, l->step);
     sc_tb_printf(t, ":START OFFSET=%.6f\n", l->lo == 0 ? 0.0 : -l->lo);
     for (int i = 0; i < l->n; ++i) {
         const long long v = l->code[i];
@@ -160,9 +163,15 @@ sc_status sc_export_aerotech_1d(const sc_lut *lut, const sc_export_options *o, s
                                              "position of its output axis (the table follows "
                                              "the encoder's sign)"
                                            : "NEGATED: -e, the opposite of the default");
-        sc_tb_printf(t, "; OPEN: the help page read gives no 1-D syntax; ':START RefAxis "
-                        "OutputAxis' follows public A3200/Automation1 scripts' 1-D line and the "
-                        "2-D line's order: check it in Studio's calibration editor\n");
+        sc_tb_printf(t, "%s",
+                     o->aerotech_1d_output_first
+                         ? "; OPEN: the help page read gives no 1-D syntax; written ':START "
+                           "OutputAxis RefAxis' (--a1-1d-order out,ref): check it in Studio's "
+                           "calibration editor\n"
+                         : "; OPEN: the help page read gives no 1-D syntax; ':START RefAxis "
+                           "OutputAxis' follows public A3200/Automation1 scripts' 1-D line and "
+                           "the 2-D line's order (--a1-1d-order out,ref swaps them): check it in "
+                           "Studio's calibration editor\n");
         sc_tb_printf(t, "; residual (tables - profiles): rms %.5f um, max %.5f um; clipped "
                         "points: %ld\n",
                      rep->rms_um, rep->max_um, rep->clipped);

@@ -196,6 +196,42 @@ if rc == 0:
     check(a is not None and a["max"] > 10 * UNIT, f"coarse: resampling shows ({a and a['max']})")
     print(f"aerotech-a1 1-D at 2.5 mm: residual max {a and a['max']:.4f} um, printed {pr}")
 
+# The open point, the :START line's axis order: --a1-1d-order out,ref writes the output axis
+# first; read with that order, the tables are the same ones and the rule's residual is the same.
+base = ["--format", "aerotech-a1", "--map", path("stitch.csv"), "--axis-numbers", "3,5",
+        "--offset", "100,-50", "--profile", PROFS[0], "--profile", PROFS[1]]
+rc1, out1, err1 = run(*base, "-o", path("ord-ro.cal"))
+rc2, out2, err2 = run(*base, "-o", path("ord-or.cal"), "--a1-1d-order", "out,ref")
+check(rc1 == 0 and rc2 == 0, f"--a1-1d-order: {rc1} {err1} {rc2} {err2}")
+if rc1 == 0 and rc2 == 0:
+    t_ro, t_or = read_a1_1d("ord-ro-1d.cal"), read_a1_1d("ord-or-1d.cal")
+    check([(t[0], t[1]) for t in t_ro] == [(3, 5), (5, 3)],
+          f"default order: reference axis first ({[(t[0], t[1]) for t in t_ro]})")
+    check([(t[1], t[0]) for t in t_or] == [(t[0], t[1]) for t in t_ro]
+          and [t[2:] for t in t_or] == [t[2:] for t in t_ro],
+          "out,ref: the same tables with the two axis numbers swapped on :START")
+    check("--a1-1d-order out,ref" in open(path("ord-or-1d.cal")).read(),
+          "out,ref: the file says which order it wrote")
+    sd = selfcald_profiles(path("stitch.csv"), PROFS, "order")
+    swapped = [(t[1], t[0], t[2], t[3]) for t in t_or]  # read as written: output axis first
+    for prof in sd:
+        ai, di = "xy".index(prof[0]), "xy".index(prof[1])
+        nr, off = (3, 5), (100.0, -50.0)
+        r_ro = assess(t_ro, prof, nr[ai], nr[di], off[ai])
+        r_or = assess(swapped, prof, nr[ai], nr[di], off[ai])
+        check(r_ro is not None and r_or is not None and r_ro["max"] == r_or["max"],
+              f"out,ref {prof[:2]}: the same residual read in its order")
+for extra, what in ((["--a1-1d-order", "out,ref"], "--a1-1d-order without --profile"),
+                    (["--profile", PROFS[0], "--a1-1d-order", "sideways"], "a bad --a1-1d-order")):
+    rc, out, err = run("--format", "aerotech-a1", "--map", path("demo.csv"), "-o",
+                       path("bad.cal"), *extra)
+    check(rc == 2 and len(err.strip().splitlines()) == 1 and not os.path.exists(path("bad.cal")),
+          f"{what}: exit 2, one line, no file ({rc} {err!r})")
+rc, out, err = run("--format", "linuxcnc", "--map", path("demo.csv"), "-o", path("bad.cal"),
+                   "--a1-1d-order", "out,ref")
+check(rc == 2 and "--a1-1d-order applies to --format aerotech-a1" in err,
+      f"--a1-1d-order with linuxcnc: exit 2 ({rc} {err!r})")
+
 # Bad input: exit 2, one line, neither file.
 bad_cases = (
     (["--profile", f"x:y:{path('P.csv')}@5000"], "a profile beside the map"),
