@@ -180,7 +180,7 @@ int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args)
     for (int a = 1; a < argc; ++a) {
         const char *name = argv[a];
         if (!(c->flags & CLI_NO_HELP) && (!strcmp(name, "--help") || !strcmp(name, "-h"))) {
-            fputs(c->usage, stdout);
+            cli_opts_help(stdout, c);
             return CLI_OK;
         }
         const cli_opt *o = find_opt(c, name);
@@ -245,6 +245,86 @@ void cli_opts_print(FILE *to, const cli_cmd_opts *c)
     for (int k = 0; c->also && k < c->also->n_opts; ++k)
         if (!find_opt(c, c->also->opts[k].name))
             print_row(to, &c->also->opts[k]);
+}
+
+/* The text of a row's range as print_range puts it ("[2, 10000000]", "(0, 1)", "a|b"). */
+static void range_text(char *buf, size_t n, const cli_opt *o)
+{
+    snprintf(buf, n, "%c%.10g, %.10g%c", (o->ends & CLI_MIN_OPEN) ? '(' : '[', o->min, o->max,
+             (o->ends & CLI_MAX_OPEN) ? ')' : ']');
+}
+
+/* A row's help with what its value may be and its default, for --help ("... (a whole number in
+ * [2, 10000000]; default: 1)"), as the man page's list says it (tools/man_options.py); choices
+ * the value's name already shows ("a|b") are not repeated. */
+static void help_text(char *buf, size_t n, const cli_opt *o)
+{
+    int number = o->kind == CLI_LONG || o->kind == CLI_INT || o->kind == CLI_DOUBLE ||
+                 (o->kind == CLI_CUSTOM && o->min < o->max && !o->choices);
+    int choices = o->choices && !(o->value && strchr(o->value, '|'));
+    char what[160] = "";
+    if (number) {
+        char r[64];
+        range_text(r, sizeof r, o);
+        snprintf(what, sizeof what, "%s%s", o->kind == CLI_LONG || o->kind == CLI_INT
+                                                ? "a whole number in " : "in ", r);
+    } else if (choices) {
+        size_t w = (size_t)snprintf(what, sizeof what, "one of ");
+        for (const char *p = o->choices; *p && w + 3 < sizeof what; ++p)
+            w += (size_t)snprintf(what + w, sizeof what - w, "%s", *p == '|' ? ", " : (char[]){*p, 0});
+    }
+    char def[160] = "";
+    if (o->def)
+        snprintf(def, sizeof def, "%sdefault: %s", what[0] ? "; " : "", o->def);
+    snprintf(buf, n, "%s%s%s%s%s", o->help ? o->help : "", what[0] || def[0] ? " (" : "", what,
+             def, what[0] || def[0] ? ")" : "");
+}
+
+/* One row of --help's option list: "  --name VALUE" and its help from column HELP_COLUMN (on the
+ * next line when the name is longer), wrapped at HELP_WIDTH. */
+enum { HELP_COLUMN = 26, HELP_WIDTH = 100 };
+static void help_row(FILE *to, const cli_opt *o)
+{
+    const char *bar = strchr(o->name, '|');
+    int w = bar ? (int)(bar - o->name) : (int)strlen(o->name);
+    int col = fprintf(to, "  %.*s%s%s", w, o->name, o->value ? " " : "", o->value ? o->value : "");
+    char text[512];
+    help_text(text, sizeof text, o);
+    if (col + 2 > HELP_COLUMN) {
+        fputc('\n', to);
+        col = 0;
+    }
+    fprintf(to, "%*s", HELP_COLUMN - col, "");
+    col = HELP_COLUMN;
+    for (const char *p = text; *p;) {
+        size_t word = strcspn(p, " ");
+        if (col > HELP_COLUMN && col + 1 + (int)word > HELP_WIDTH) {
+            fprintf(to, "\n%*s", HELP_COLUMN, "");
+            col = HELP_COLUMN;
+        } else if (col > HELP_COLUMN) {
+            fputc(' ', to);
+            ++col;
+        }
+        fprintf(to, "%.*s", (int)word, p);
+        col += (int)word;
+        p += word;
+        p += strspn(p, " ");
+    }
+    fputc('\n', to);
+}
+
+void cli_opts_help(FILE *to, const cli_cmd_opts *c)
+{
+    const char *gap = strstr(c->usage, "\n\n");
+    size_t head = gap ? (size_t)(gap - c->usage) + 1 : strlen(c->usage);
+    fprintf(to, "%.*s\nOptions:\n", (int)head, c->usage);
+    for (int k = 0; k < c->n_opts; ++k)
+        help_row(to, &c->opts[k]);
+    for (int k = 0; c->also && k < c->also->n_opts; ++k)
+        if (!find_opt(c, c->also->opts[k].name))
+            help_row(to, &c->also->opts[k]);
+    if (gap)
+        fputs(gap + 1, to);
 }
 
 /* ---- the parse functions of values several commands take (cli_opts.h) ---- */

@@ -11,9 +11,9 @@
  *      .bad = "--node-sigma must be all or none, got '%s'", .def = "all",
  *      .help = "which nodes get an uncertainty"},
  * where F(field) is offsetof(the command's argument struct, field); then run
- * `python3 tools/man_options.py build/bin/selfcal docs/man/selfcal.1.in` to refresh the man page,
- * and say it in the command's --help text. A value the kinds below cannot check takes CLI_CUSTOM
- * and a parse function. */
+ * `python3 tools/man_options.py build/bin/selfcal docs/man/selfcal.1.in` to refresh the man page;
+ * the command's --help lists it (cli_opts_help). A value the kinds below cannot check takes
+ * CLI_CUSTOM and a parse function. */
 #ifndef SELFCAL_CLI_OPTS_H
 #define SELFCAL_CLI_OPTS_H
 
@@ -83,7 +83,8 @@ typedef struct cli_opt {
 /* A command's table and the words of its generic usage errors (NULL: the usual words). */
 typedef struct cli_cmd_opts {
     const char *cmd;        /* "grid", "report grid": the prefix of its usage errors */
-    const char *usage;      /* the --help text (stdout, exit 0) */
+    const char *usage;      /* --help's usage lines, a blank line and its prose (the option list
+                             * between them is the table's: cli_opts_help) */
     const cli_opt *opts;
     int n_opts;
     size_t positional;      /* offsetof the const char * set by the one operand (a file) */
@@ -109,6 +110,11 @@ enum {
  * CLI_OK after --help, CLI_STOP where a parse function said so, else the exit status of the
  * usage error printed. */
 int cli_opts_parse(const cli_cmd_opts *c, int argc, char **argv, void *args);
+
+/* The command's --help on to: its usage text's first paragraph (the usage lines), "Options:" and
+ * one line per row of the table (and its also's rows of other names: name, value, help, range,
+ * default), then the rest of the usage text (the prose that is not per option). */
+void cli_opts_help(FILE *to, const cli_cmd_opts *c);
 
 /* The table (and its also's rows of other names), one option a line: name, value, kind, range,
  * default, help, tab-separated. */
