@@ -1,4 +1,5 @@
 /* cli_opts.c — one parser for every command's option table, and the table's listing (cli_opts.h). */
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -259,8 +260,9 @@ static void range_text(char *buf, size_t n, const cli_opt *o)
  * the value's name already shows ("a|b") are not repeated. */
 static void help_text(char *buf, size_t n, const cli_opt *o)
 {
-    int number = o->kind == CLI_LONG || o->kind == CLI_INT || o->kind == CLI_DOUBLE ||
-                 (o->kind == CLI_CUSTOM && o->min < o->max && !o->choices);
+    int number = (o->kind == CLI_LONG || o->kind == CLI_INT || o->kind == CLI_DOUBLE ||
+                  (o->kind == CLI_CUSTOM && o->min < o->max && !o->choices)) &&
+                 !(isinf(o->min) && isinf(o->max)); /* any number: nothing to say */
     int choices = o->choices && !(o->value && strchr(o->value, '|'));
     char what[160] = "";
     if (number) {
@@ -271,7 +273,7 @@ static void help_text(char *buf, size_t n, const cli_opt *o)
     } else if (choices) {
         size_t w = (size_t)snprintf(what, sizeof what, "one of ");
         for (const char *p = o->choices; *p && w + 3 < sizeof what; ++p)
-            w += (size_t)snprintf(what + w, sizeof what - w, "%s", *p == '|' ? ", " : (char[]){*p, 0});
+            w += (size_t)snprintf(what + w, sizeof what - w, *p == '|' ? ", " : "%c", *p);
     }
     char def[160] = "";
     if (o->def)

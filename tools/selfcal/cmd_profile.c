@@ -23,19 +23,19 @@ static const char USAGE[] =
     "usage: selfcal profile --method {dft,lsq} IN.csv --out P.csv [--sigma-disp-um X]\n"
     "                       [--sigma-angle-urad Y] [--mc K] [--seed S] [--plot p.svg] [--quiet]\n"
     "                       [--drift linear|quadratic] [--residuals R.csv] [--reject-outliers]\n"
-    "  Reconstructs f (relative to its least-squares line) with its standard uncertainty and the\n"
-    "  stage's straightness motion error e_y; writes n,x_mm,f_um,uf_um,ey_um.\n"
-    "  Noise: the options win over the file's '# sigma_disp_um' / '# sigma_angle_urad' lines; with\n"
-    "  neither, it is estimated from the least-squares residuals (equal scan weights).\n"
-    "  --mc K: uncertainty by K seeded Monte Carlo trials instead of the analytic formula.\n"
-    "  Real rigs (lsq; docs/profile.md): missing rows and empty fields are solved around (points\n"
-    "  no row determines are left empty and named); the header's probe_gain, angle_scale and\n"
-    "  spacing_u_mm correct the data and enter uf_um (budget in the summary).\n"
-    "  --drift linear|quadratic: fit a drift common to both scans (costs uncertainty: see the\n"
-    "  summary's drift_cost). --residuals R.csv: scan,n,r_um,t,outlier (data snooping, 5 %);\n"
-    "  each outlier is a warning. --reject-outliers: remove the worst, solve again, repeat.\n"
-    "  With the noise stated, a chi-square test of the residuals (95 %): when it fails high,\n"
-    "  uf_um is scaled by sqrt(wrss/dof).\n";
+    "\n"
+    "Reconstructs f (relative to its least-squares line) with its standard uncertainty and the\n"
+    "stage's straightness motion error e_y; writes n,x_mm,f_um,uf_um,ey_um.\n"
+    "Noise: the options win over the file's '# sigma_disp_um' / '# sigma_angle_urad' lines; with\n"
+    "neither, it is estimated from the least-squares residuals (equal scan weights). The Monte\n"
+    "Carlo's trials (--mc) are seeded and replace the analytic formula.\n"
+    "Real rigs (lsq; docs/profile.md): missing rows and empty fields are solved around (points\n"
+    "no row determines are left empty and named); the header's probe_gain, angle_scale and\n"
+    "spacing_u_mm correct the data and enter uf_um (budget in the summary).\n"
+    "A drift costs uncertainty (the summary's drift_cost). The residuals: scan,n,r_um,t,outlier\n"
+    "(data snooping, 5 %); each outlier is a warning.\n"
+    "With the noise stated, a chi-square test of the residuals (95 %): when it fails high,\n"
+    "uf_um is scaled by sqrt(wrss/dof).\n";
 
 
 static void progress_cb(void *ctx, long done, long total)
