@@ -1,5 +1,4 @@
 /* cli_opts.c — one parser for every command's option table, and the table's listing (cli_opts.h). */
-#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
@@ -248,11 +247,22 @@ void cli_opts_print(FILE *to, const cli_cmd_opts *c)
             print_row(to, &c->also->opts[k]);
 }
 
-/* The text of a row's range as print_range puts it ("[2, 10000000]", "(0, 1)", "a|b"). */
+/* A number row's range in words: "in [2, 100]", "in (0, 1)", or with one end beyond any value
+ * (past 1e15: LONG_MAX, infinity) "at least 1", "above 0", "at most 5"; whole numbers so
+ * called. */
 static void range_text(char *buf, size_t n, const cli_opt *o)
 {
-    snprintf(buf, n, "%c%.10g, %.10g%c", (o->ends & CLI_MIN_OPEN) ? '(' : '[', o->min, o->max,
-             (o->ends & CLI_MAX_OPEN) ? ')' : ']');
+    const char *whole = o->kind == CLI_LONG || o->kind == CLI_INT ? "a whole number" : "";
+    int no_min = o->min <= -1e15, no_max = o->max >= 1e15;
+    if (no_max)
+        snprintf(buf, n, "%s%s%s %.10g", whole, *whole ? ", " : "",
+                 (o->ends & CLI_MIN_OPEN) ? "above" : "at least", o->min);
+    else if (no_min)
+        snprintf(buf, n, "%s%s%s %.10g", whole, *whole ? ", " : "", (o->ends & CLI_MAX_OPEN) ? "below" : "at most",
+                 o->max);
+    else
+        snprintf(buf, n, "%s%sin %c%.10g, %.10g%c", whole, *whole ? " " : "", (o->ends & CLI_MIN_OPEN) ? '(' : '[',
+                 o->min, o->max, (o->ends & CLI_MAX_OPEN) ? ')' : ']');
 }
 
 /* A row's help with what its value may be and its default, for --help ("... (a whole number in
@@ -262,14 +272,11 @@ static void help_text(char *buf, size_t n, const cli_opt *o)
 {
     int number = (o->kind == CLI_LONG || o->kind == CLI_INT || o->kind == CLI_DOUBLE ||
                   (o->kind == CLI_CUSTOM && o->min < o->max && !o->choices)) &&
-                 !(isinf(o->min) && isinf(o->max)); /* any number: nothing to say */
+                 !(o->min <= -1e15 && o->max >= 1e15); /* any number: nothing to say */
     int choices = o->choices && !(o->value && strchr(o->value, '|'));
     char what[160] = "";
     if (number) {
-        char r[64];
-        range_text(r, sizeof r, o);
-        snprintf(what, sizeof what, "%s%s", o->kind == CLI_LONG || o->kind == CLI_INT
-                                                ? "a whole number in " : "in ", r);
+        range_text(what, sizeof what, o);
     } else if (choices) {
         size_t w = (size_t)snprintf(what, sizeof what, "one of ");
         for (const char *p = o->choices; *p && w + 3 < sizeof what; ++p)

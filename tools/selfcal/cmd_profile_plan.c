@@ -20,12 +20,13 @@ static const char USAGE[] =
     "usage: selfcal profile-plan --n N --s-mm S --sigma-disp-um X --sigma-angle-urad Y\n"
     "                            [--d-min A (2)] [--d-max D (30)] [--top K (20)] [--sort rms|max]\n"
     "                            [--drift linear|quadratic]\n"
-    "  Ranks the pairs A <= d1 < d2 <= D that least squares can solve by the predicted RMS (or the\n"
-    "  worst point) of u(f) over the profile; the DFT method's figures where N = p·d1·d2.\n"
-    "  Prints CSV: rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm.\n"
-    "  --drift: also the least squares with drift terms common to both scans (selfcal profile\n"
-    "  --drift): columns drift_rms_nm,drift_max_nm,drift_cost (its RMS u over lsq_rms_nm),\n"
-    "  ranked by them.\n";
+    "\n"
+    "Ranks the pairs A <= d1 < d2 <= D that least squares can solve by the predicted RMS (or the\n"
+    "worst point) of u(f) over the profile; the DFT method's figures where N = p·d1·d2.\n"
+    "Prints CSV: rank,d1,d2,D1_mm,D2_mm,lsq_rms_nm,lsq_max_nm,dft_rms_nm,dft_max_nm.\n"
+    "With a drift, the least squares also with drift terms common to both scans (as selfcal\n"
+    "profile --drift): the columns drift_rms_nm,drift_max_nm,drift_cost (its RMS u over\n"
+    "lsq_rms_nm), ranked by them.\n";
 
 typedef struct plan_row {
     int d1, d2;
