@@ -24,18 +24,13 @@ static const char USAGE[] =
     "       selfcal lut dump TABLE     print the table as CSV (grid, then profiles)\n"
     "       selfcal lut info TABLE     print size, encoding, quantization, bounds, |G| and\n"
     "                                  slope, and provenance\n"
-    "  --profile AXIS:DIR:P.csv  the ey_um column of a profile output file as the error of\n"
-    "                            coordinate DIR (x|y|z) along AXIS (x|y|z); up to "
-    LUT_STR(SC_LUT_MAX_PROFILES) ".\n"
-    "                            The profile's x_mm is placed at machine position\n"
-    "                            x_mm + OFFSET_MM along AXIS (default offset 0); a profile\n"
-    "                            that does not overlap the map gets a warning on stderr\n"
-    "  --max-nodes N             a map with more than N nodes along an axis (a table\n"
-    "                            holds 101) gets N table nodes there spanning it, fitted\n"
-    "                            by least squares; the fit's error at the map's nodes is\n"
-    "                            printed (N = 2..101)\n"
-    "  --sigma UM                estimated sigma of the map (provenance)\n"
-    "  --created                 creation time to record (default: SOURCE_DATE_EPOCH or now)\n";
+    "\n"
+    "A profile (--profile, up to " LUT_STR(SC_LUT_MAX_PROFILES) ") is the ey_um column of a profile output file as the\n"
+    "error of coordinate DIR (x|y|z) along AXIS (x|y|z); its x_mm is placed at machine position\n"
+    "x_mm + OFFSET_MM along AXIS (default offset 0); a profile that does not overlap the map gets\n"
+    "a warning on stderr. A map with more than N nodes along an axis (--max-nodes; a table holds\n"
+    "101) gets N table nodes there spanning it, fitted by least squares; the fit's error at the\n"
+    "map's nodes is printed. --method, --sigma and --created are provenance only.\n";
 
 typedef struct profile_arg {
     int axis, dir;
@@ -450,7 +445,7 @@ int cmd_lut(int argc, char **argv)
     if (argc < 2)
         return cli_usage_error("lut", "expected a subcommand: build, dump or info (see --help)");
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
-        fputs(USAGE, stdout);
+        cli_opts_help(stdout, &cli_lut_build_opts);
         return CLI_OK;
     }
     if (!strcmp(argv[1], "build"))
