@@ -16,18 +16,12 @@
 
 static const char USAGE[] =
     "usage: selfcal simulate profile --out IN.csv --truth T.csv [options]\n"
-    "  --n N (330)  --s-mm S (1)  --d1 D1 (10)  --d2 D2 (11)\n"
-    "  --profile random|FILE.dat (random; FILE.dat: a DABAM profile with its .txt metadata)\n"
-    "  --amp-um A (1: RMS of a random profile)  --harmonics H (40)\n"
-    "  --sigma-disp-um X (0.01)  --sigma-angle-urad Y (1)  [--noise-free] [--no-sigma-lines]\n"
-    "  --ey-um A (0.5)  --ep-urad A (2)  --u1-um U (1.5)  --u2-um U (-0.7)  --u3-urad U (3)\n"
-    "  --b0-um B (20)  --seed S (1)\n"
-    "  A real rig (docs/profile.md, Real rigs; nothing stated in the file's header):\n"
-    "  --probe-gain K (1: m2 read K times)  --angle-scale K (1: m3 read K times)\n"
-    "  --drift-um A (0: A·tau added to every m2, tau = -1..1 along the scan)\n"
-    "  --gap K:A..B (scan K's rows n = A..B left out)  --outlier K:N:UM (UM added to scan K's m2 at n = N)\n"
-    "  Writes the selfcal-profile v1 data file and the truth n,x_mm,f_um,uf_um,ey_um (f and e_y\n"
-    "  relative to their least-squares lines; uf empty; e_y empty where n >= N - d1).\n";
+    "\n"
+    "Writes the selfcal-profile v1 data file and the truth n,x_mm,f_um,uf_um,ey_um (f and e_y\n"
+    "relative to their least-squares lines; uf empty; e_y empty where n >= N - d1).\n"
+    "--profile FILE.dat: a DABAM profile with its .txt metadata. --probe-gain, --angle-scale,\n"
+    "--drift-um, --gap and --outlier simulate a real rig (docs/profile.md, Real rigs): nothing\n"
+    "of them is stated in the file's header.\n";
 
 /* The command line besides the simulation's own parameters. */
 typedef struct {
