@@ -282,8 +282,9 @@ sc_status profile_plot_write(const char *path, const sc_profile_result *a,
 static const char USAGE[] =
     "usage: selfcal plot profile P.csv -o p.svg [--truth T.csv] [--compare Q.csv]\n"
     "                            [--label A] [--compare-label B] [--title T] [--uncertainty-only]\n"
-    "  Charts of a profile result (n,x_mm,f_um,uf_um,ey_um): f, u(f), the error against a truth\n"
-    "  file (selfcal simulate profile --truth) and e_y.\n";
+    "\n"
+    "Charts of a profile result (n,x_mm,f_um,uf_um,ey_um): f, u(f), the error against a truth\n"
+    "file (selfcal simulate profile --truth) and e_y.\n";
 
 /* What the command line asks for. */
 typedef struct plot_profile_args {

@@ -17,11 +17,10 @@
 static const char USAGE[] =
     "usage: selfcal plot xy DATA.csv -o chart.svg [--x COL] [--y COL ...] [--logx] [--logy]\n"
     "                       [--title T] [--xlabel L] [--ylabel L]\n"
-    "  A line chart of a CSV file with a header line: x from column COL (default the first), one\n"
-    "  line with markers per --y column (default every other column); empty fields are gaps.\n"
-    "  --logx/--logy: logarithmic axes (values <= 0 are left out). At most 10^8 values\n"
-    "  (rows x columns). Axis titles: --xlabel (default the x column's name), --ylabel (default\n"
-    "  the y columns' names).\n";
+    "\n"
+    "A line chart of a CSV file with a header line: x from one column, one line with markers per\n"
+    "y column; empty fields are gaps. On a logarithmic axis values <= 0 are left out. At most\n"
+    "10^8 values (rows x columns).\n";
 
 #define XY_MAX_SERIES 16
 #define XY_STR_(x) #x
