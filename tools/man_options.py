@@ -4,8 +4,9 @@ tools/selfcal/cli_opts.h), so that the man page, the table and --help cannot dri
 
   man_options.py SELFCAL MAN.in           rewrite the generated lists in MAN.in
   man_options.py --check SELFCAL MAN.in   exit 1 unless MAN.in holds exactly the lists the
-                                          tables make, and each command's --help names exactly
-                                          the options of its table
+                                          tables make, each command's --help names exactly
+                                          the options of its table, and its option list
+                                          (cli_opts_help) is the table's, row by row
 
 A row's first name is the one shown (in --help and here); the others are aliases the command
 also accepts ("-o|--out"). A list sits at the end of its command's `.SS "selfcal CMD ..."` section between the lines
@@ -91,7 +92,28 @@ def help_problems(selfcal, cmd, rows):
     return (["selfcal %s --help: %s (in its option table) is missing" % (cmd, o)
              for o in sorted(in_table - in_help)] +
             ["selfcal %s: %s (in --help) is not in its option table" % (cmd, o)
-             for o in sorted(in_help - in_table)])
+             for o in sorted(in_help - in_table)] + list_problems(p.stdout, cmd, rows))
+
+
+def list_problems(text, cmd, rows):
+    """--help's option list ("Options:", a row's name and value, then its help, up to a blank
+    line) is the table's: the same names in the same order, each with the table's help."""
+    m = re.search(r"^Options:\n(.*?)(?:\n\n|\Z)", text, re.M | re.S)
+    if not m:
+        return ["selfcal %s --help: no option list (Options:)" % cmd]
+    items = re.split(r"\n(?=  -)", "\n" + m.group(1))[1:]
+    names = [i.split()[0] for i in items]
+    want = [r[0].split("|")[0] for r in rows]
+    if names != want:
+        return ["selfcal %s --help: its option list names %s, its table %s" % (cmd, names, want)]
+    out = []
+    for item, (name, value, _, _, default, help_) in zip(items, rows):
+        flat = " ".join(item.split())
+        head = " ".join([name.split("|")[0]] + ([value] if value else []))
+        if not flat.startswith(head) or " ".join(help_.split()) not in flat or \
+                (default and "default: " + " ".join(default.split()) not in flat):
+            out.append("selfcal %s --help: the list's %r is not the table's %s" % (cmd, flat, head))
+    return out
 
 
 def main(argv):
