@@ -24,6 +24,7 @@ if(SELFCAL_FUZZ)
     # `plot xy`'s reader lives in the CLI's sources
     if(t STREQUAL "plot_xy")
       target_sources(fuzz_${t} PRIVATE ${PROJECT_SOURCE_DIR}/tools/selfcal/cmd_plot_xy.c
+                                       ${PROJECT_SOURCE_DIR}/tools/selfcal/cli_opts.c
                                        ${PROJECT_SOURCE_DIR}/tools/selfcal/svg.c)
     endif()
     if(t STREQUAL "plot_xy")

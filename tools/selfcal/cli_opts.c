@@ -336,43 +336,11 @@ void cli_opts_help(FILE *to, const cli_cmd_opts *c)
         fputs(gap + 1, to);
 }
 
-/* ---- the parse functions of values several commands take (cli_opts.h) ---- */
-
-int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_seed(cmd, v, field);
-}
-
-int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_max_memory(cmd, v, field);
-}
-
-int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_lsq_option(cmd, opt, v, field);
-}
-
-int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_noise(cmd, opt, v, 0, field);
-}
-
-int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_noise(cmd, opt, v, 1, field);
-}
-
+/* A command without operands: anything left over is an unknown option (cli_opts.h). The parse
+ * functions of values several commands take (cli_opt_seed, ...) are in cli.c, beside the value
+ * parsers they call. */
 int cli_opt_no_operand(const char *cmd, const char *opt, const char *v, void *args)
 {
     (void)opt, (void)args;
     return cli_usage_error(cmd, "unknown option or missing value: %s (see --help)", v);
-}
-
-int cli_opt_max_nodes(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_max_nodes(cmd, v, field);
 }

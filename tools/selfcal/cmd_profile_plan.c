@@ -81,7 +81,7 @@ typedef struct {
 
 #define F(field) offsetof(plan_args, field)
 #define WHOLE(name, f, dflt, text)                                                                  \
-    {name, CLI_LONG, F(f), "K", 1, LONG_MAX, .bad = "%s: '%s' must be a positive whole number",    \
+    {name, CLI_LONG, F(f), "K", 1, (double)LONG_MAX, .bad = "%s: '%s' must be a positive whole number",    \
      .def = dflt, .help = text}
 #define NONNEG(name, f, v, text)                                                                   \
     {name, CLI_DOUBLE, F(f), v, 0, HUGE_VAL, .bad = "%s: '%s' must be a non-negative number",      \
