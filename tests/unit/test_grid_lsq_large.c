@@ -2,7 +2,8 @@
  * 363 placements (the SAR-like stitched plan of sc_grid_plan_stitch: a raster at step 20 plus a
  * rotated and a shifted placement at the centre), noise-free: the automatic choice keeps A as
  * unknowns, G is recovered to 1e-6 µm, and the σ of sampled nodes (SC_GRID_NODE_SIGMA_SAMPLE)
- * agrees with refined solves of the factored matrix (sc_grid_lsq_reference). Label `large`: about
+ * agrees with refined solves of the factored matrix (sc_grid_lsq_reference); the misalignment
+ * block's nullity, here from its sparse factor, is the dense rule's. Label `large`: about
  * 6 s CPU in Release, a minute or more under the sanitizers. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -65,6 +66,13 @@ static void test_stitched_401(void **s)
     sc_grid_lsq_get_stats(q, &sst);
     assert_int_equal(sst.solver, SC_GRID_SOLVER_FULL);
     assert_true(sst.n_factored > sst.n_reduced);
+    /* ν₂ of 1 089 misalignments: from the sparse factor of the bordered block (nm above
+     * LSQ_MM_DENSE_MAX), the dense count's, 3 (a global shift and turn) */
+    assert_true(nv * 3 > LSQ_MM_DENSE_MAX);
+    assert_int_equal(sst.nullity_misalignment, 3);
+    sc_lsq_full_desc fd;
+    sc_lsq_full_desc_of(q, &fd);
+    assert_int_equal(sc_lsq_misalignment_nullity(&fd, fd.nm), 3);
     fprintf(stderr, "401x401, %d views: %ld unknowns factored, nnz(L) %ld, %.3g flops\n", nv,
             sst.n_factored, sst.nnz_factor, sst.factor_flops);
 
