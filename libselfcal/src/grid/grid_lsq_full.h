@@ -63,8 +63,8 @@ int sc_lsq_full_misalignment_block(const sc_lsq_full_desc *d, double *mm);
 int sc_lsq_full_misalignment_bordered(const sc_lsq_full_desc *d, int *n, long **Ap, int **Ai,
                                       double **Ax);
 
-/* Nullity of the misalignment block from the sparse factor of K (sc_spsym, CHOLMOD's own
- * order): pivots d_k <= tol·K_kk null, relative to the pivot's own diagonal. The nullity, -1 no memory, -2 CHOLMOD cannot be
+/* Nullity of the misalignment block from the sparse factor of K (sc_spsym, hinted: the A
+ * components ordered last): pivots d_k <= tol·K_kk null, relative to the pivot's own diagonal. The nullity, -1 no memory, -2 CHOLMOD cannot be
  * loaded, -3 the address space limit leaves it too little room (sc_spsym_analyze). */
 int sc_lsq_full_misalignment_nullity_sparse(const sc_lsq_full_desc *d, double tol);
 
