@@ -421,7 +421,8 @@ def test_solver_and_node_sigma(cli: Cli, tmp_path: Path) -> None:
     assert np.allclose(s1.ugx_um[ok], red.ugx_um[ok], rtol=1e-6)
     f = tmp_path / "st.csv"
     m.write(f)
-    cli("grid", f, "--map", tmp_path / "G.csv", "--node-sigma", "sample:5", "--solver", "full",
+    cli("grid", "--method", "lsq", f, "--map", tmp_path / "G.csv", "--node-sigma", "sample:5",
+        "--solver", "full",
         "--quiet")
     g = read_csv(tmp_path / "G.csv")
     i, j = g["i"].astype(int), g["j"].astype(int)
