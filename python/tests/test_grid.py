@@ -433,7 +433,7 @@ def test_solver_and_node_sigma(cli: Cli, tmp_path: Path) -> None:
         selfcal.calibrate_grid(m, solver="fast")
     for bad in ("some", "sample:", "sample:x", "sample:0", ("sample", 0), ("sample", 10**7)):
         with pytest.raises(ValueError, match="node_sigma"):
-            selfcal.calibrate_grid(m, node_sigma=bad)  # type: ignore[arg-type]
+            selfcal.calibrate_grid(m, node_sigma=bad)
     for wrong in (5, None, ("all", 3), ["sample", 5]):
         with pytest.raises(TypeError, match="node_sigma must be"):
             selfcal.calibrate_grid(m, node_sigma=wrong)  # type: ignore[arg-type]
