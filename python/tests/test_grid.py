@@ -398,3 +398,48 @@ def test_scale_and_budget_match_cli(cli: Cli, tmp_path: Path) -> None:
         selfcal.calibrate_grid(str(t), view_scale="loose")
     with pytest.raises(selfcal.Error):
         selfcal.calibrate_grid(str(t), method="ye", monte_carlo=10)
+
+
+def test_solver_and_node_sigma(cli: Cli, tmp_path: Path) -> None:
+    """solver= and node_sigma= as `grid --solver/--node-sigma`: both matrices give the same
+    results; none and sample:K leave the other nodes' σ NaN, as the command line writes them."""
+    m, _ = selfcal.simulate_grid("stitch", n=7, stage=(19, 19), sigma_r_um=0.01, seed=8)
+    red = selfcal.calibrate_grid(m, solver="reduced")
+    full = selfcal.calibrate_grid(m, solver="full")
+    for col in ("gx_um", "gy_um", "ugx_um", "ugy_um", "ax_um"):
+        a, b = getattr(red, col), getattr(full, col)
+        assert np.isfinite(a).all(), col
+        assert np.allclose(a, b, rtol=1e-9, atol=1e-12), col
+    none = selfcal.calibrate_grid(m, node_sigma="none")
+    assert np.isnan(none.ugx_um).all() and np.isnan(none.ugy_um).all()
+    assert np.allclose(none.gx_um, red.gx_um, rtol=1e-9, atol=1e-12)
+    s1 = selfcal.calibrate_grid(m, node_sigma="sample:5", solver="full")
+    s2 = selfcal.calibrate_grid(m, node_sigma=("sample", 5))
+    ok = np.isfinite(s1.ugx_um)
+    assert 1 <= ok.sum() < ok.size
+    assert np.array_equal(ok, np.isfinite(s2.ugx_um))
+    assert np.allclose(s1.ugx_um[ok], red.ugx_um[ok], rtol=1e-6)
+    f = tmp_path / "st.csv"
+    m.write(f)
+    cli("grid", "--method", "lsq", f, "--map", tmp_path / "G.csv", "--node-sigma", "sample:5",
+        "--solver", "full",
+        "--quiet")
+    g = read_csv(tmp_path / "G.csv")
+    i, j = g["i"].astype(int), g["j"].astype(int)
+    c, p = g["ugx_um"], s1.ugx_um[i, j]
+    assert np.array_equal(np.isnan(c), np.isnan(p))
+    assert np.allclose(c[~np.isnan(c)], p[~np.isnan(p)], rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match="'auto', 'reduced', 'full'"):
+        selfcal.calibrate_grid(m, solver="fast")
+    for bad in ("some", "sample:", "sample:x", "sample:0", ("sample", 0), ("sample", 10**7)):
+        with pytest.raises(ValueError, match="node_sigma"):
+            selfcal.calibrate_grid(m, node_sigma=bad)
+    for wrong in (5, None, ("all", 3), ["sample", 5]):
+        with pytest.raises(TypeError, match="node_sigma must be"):
+            selfcal.calibrate_grid(m, node_sigma=wrong)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="node_sigma's K"):
+        selfcal.calibrate_grid(m, node_sigma=("sample", 2.5))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="node_sigma='all'"):
+        selfcal.calibrate_grid(m, node_sigma="none", reject_outliers=True)
+    with pytest.raises(ValueError, match="node_sigma='all'"):
+        selfcal.calibrate_grid(m, node_sigma="sample:3", view_noise="estimate")

@@ -119,6 +119,38 @@ static double rel1(double a, double b)
     return fabs(a - b) / fmax(fabs(a), 1e-300);
 }
 
+/* The misalignment block's nullity (ν₂) the dense way (sc_lsq_small_nullity) and from the sparse
+ * factor of the block bordered by A: the same count. */
+static int check_nullity_rules(const sc_grid_plan *p, const sc_grid_data *d, int drift)
+{
+    sc_grid_lsq_opts o = {.drift = drift, .solver = SC_GRID_SOLVER_FULL};
+    sc_grid_lsq_plan *q = NULL;
+    sc_error err;
+    sc_status rc = sc_grid_lsq_plan_create(p, d, &o, &q, &err);
+    if (rc != SC_OK)
+        fprintf(stderr, "plan: %s\n", err.msg);
+    assert_int_equal(rc, SC_OK);
+    sc_lsq_full_desc fd;
+    sc_lsq_full_desc_of(q, &fd);
+    int dense = sc_lsq_misalignment_nullity(&fd, fd.nm);
+    int sparse = sc_lsq_misalignment_nullity(&fd, 0);
+    assert_true(dense >= 3);
+    assert_int_equal(sparse, dense);
+    /* the bordered matrix grows with the views and marks, not with nm² */
+    long *Ap = NULL;
+    int *Ai = NULL, n = 0;
+    double *Ax = NULL;
+    assert_int_equal(sc_lsq_full_misalignment_bordered(&fd, &n, &Ap, &Ai, &Ax), 0);
+    assert_true(n >= fd.nm && Ap[n] <= (long)fd.nm * (fd.nb + 1) / 2 + fd.neq * fd.nb + n);
+    for (int j = 0; j < n; ++j) /* upper, rows ascending, the diagonal last */
+        for (long k = Ap[j]; k < Ap[j + 1]; ++k)
+            assert_true(Ai[k] <= j && (k == Ap[j] || Ai[k] > Ai[k - 1]) &&
+                        (k + 1 < Ap[j + 1] || Ai[k] == j));
+    free(Ap), free(Ai), free(Ax);
+    sc_grid_lsq_plan_destroy(q);
+    return dense;
+}
+
 /* Reduced and full on the same data: every output to 1e-9 relative. */
 static void check_same(const sc_grid_plan *p, int drift, uint64_t seed)
 {
@@ -135,6 +167,7 @@ static void check_same(const sc_grid_plan *p, int drift, uint64_t seed)
     assert_true(s2.n_factored > s2.n_reduced);
     assert_int_equal(s1.n_null_pivots, s2.n_null_pivots);
     assert_int_equal(s1.nullity_misalignment, s2.nullity_misalignment);
+    assert_int_equal(check_nullity_rules(p, &d, drift), s2.nullity_misalignment);
     long ns = sc_grid_stage_nodes(p), nn = (long)p->n * p->n, m = nn * p->n_views;
     int nv = p->n_views;
     const double tol = 1e-9;
@@ -185,6 +218,31 @@ static void test_full_equals_reduced(void **s)
     /* many placements of a small plate: 2-step raster (each mark in tens of views) */
     assert_int_equal(sc_grid_plan_stitch_step(5, 21, 21, 2, 1.0, 0, 0, &p, NULL), SC_OK);
     check_same(&p, 0, 5);
+    sc_grid_plan_free(&p);
+}
+
+/* A rank-deficient misalignment block: a view that measures one mark leaves one more
+ * combination free; the dense and the sparse rule both count it. */
+static void test_misalignment_nullity_deficient(void **s)
+{
+    (void)s;
+    sc_grid_plan p;
+    assert_int_equal(sc_grid_plan_stitch(7, 13, 13, 1.5, 3, -2, &p, NULL), SC_OK);
+    {
+        sc_grid_data d;
+        make_data(&d, &p, 0.05, 21, 0);
+        int nu = check_nullity_rules(&p, &d, 0);
+        long nn = (long)p.n * p.n, kept = -1;
+        for (long k = 0; k < nn; ++k) {
+            if (kept < 0 && isfinite(d.dx_um[1][k]))
+                kept = k;
+            else
+                d.dx_um[1][k] = d.dy_um[1][k] = NAN;
+        }
+        assert_true(kept >= 0);
+        assert_int_equal(check_nullity_rules(&p, &d, 0), nu + 1);
+        sc_grid_data_free(&d);
+    }
     sc_grid_plan_free(&p);
 }
 
@@ -324,6 +382,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_full_equals_reduced),
         cmocka_unit_test(test_auto_choice),
+        cmocka_unit_test(test_misalignment_nullity_deficient),
         cmocka_unit_test(test_sampled_sigma),
         cmocka_unit_test(test_memory_limit_full),
     };

@@ -59,6 +59,19 @@ int sc_lsq_small_nullity(double *a, int m, double tol)
     return m - r;
 }
 
+int sc_lsq_misalignment_nullity(const sc_lsq_full_desc *fd, int dense_max)
+{
+    int nm = fd->nm;
+    if (nm > dense_max)
+        return sc_lsq_full_misalignment_nullity_sparse(fd, LSQ_SMALL_TOL);
+    double *mm = malloc(sizeof(double) * ((size_t)nm * nm + 1));
+    int nu = -1;
+    if (mm && sc_lsq_full_misalignment_block(fd, mm) == 0)
+        nu = sc_lsq_small_nullity(mm, nm, LSQ_SMALL_TOL);
+    free(mm);
+    return nu;
+}
+
 /* Coefficients of w_e = s_e·J_e over x = (g, m): 3 (index, value) pairs, 4 with drift. */
 int sc_lsq_eq_row(const sc_grid_lsq_plan *q, long e, int *idx, double *val)
 {
@@ -101,7 +114,7 @@ static int full_row_cb(const void *ctx, long e, int *idx, double *val)
 
 void sc_lsq_full_desc_of(const sc_grid_lsq_plan *q, sc_lsq_full_desc *d)
 {
-    d->n_red = q->n_red, d->ng = q->ng, d->nm = q->nm;
+    d->n_red = q->n_red, d->ng = q->ng, d->nm = q->nm, d->nb = q->nb;
     d->neq = q->neq, d->n_groups = 2 * q->nn;
     d->grp_ptr = q->grp_ptr, d->grp_eq = q->grp_eq;
     d->w = q->eq_w, d->pinned = q->pinned;

@@ -18,6 +18,7 @@ typedef int (*sc_lsq_row_fn)(const void *ctx, long e, int *idx, double *val);
 
 typedef struct sc_lsq_full_desc {
     int n_red, ng, nm;              /* reduced unknowns: ng G unknowns, then nm misalignments */
+    int nb;                         /* misalignments per view (consecutive: view v's from nb·v) */
     long neq;                       /* scalar equations */
     int n_groups;                   /* A components (2 per mark) */
     const long *grp_ptr, *grp_eq;   /* the equations of each A component */
@@ -51,6 +52,21 @@ int sc_lsq_full_assemble(const sc_lsq_full_desc *d, sc_lsq_full **out, long **Ap
 /* The misalignment block of the reduced matrix, G held at 0 (A eliminated), dense nm x nm
  * row-major into mm (its nullity is the plan's ν₂), without the reduced matrix. 0 or -1. */
 int sc_lsq_full_misalignment_block(const sc_lsq_full_desc *d, double *mm);
+
+/* The misalignment block bordered by the A components it came from, K = [D Uᵀ; U W] over
+ * (m, A): D the views' own blocks Σ w r rᵀ (nb x nb each), U's column Σ_e w_e r_e of a group of
+ * two or more equations (one per view: one entry per view and misalignment), W its weight
+ * Σ w_e. W is positive, so nullity(K) = nullity(D − U W⁻¹ Uᵀ), the block's; K has
+ * nm·(nb+1)/2 + Σ k·nb + groups entries, linear in the views, though the block itself is dense
+ * when every view places the same plate. Upper CSC, rows sorted, *n = nm + groups unknowns (the
+ * caller frees *Ap, *Ai, *Ax). 0 or -1 (no memory). */
+int sc_lsq_full_misalignment_bordered(const sc_lsq_full_desc *d, int *n, long **Ap, int **Ai,
+                                      double **Ax);
+
+/* Nullity of the misalignment block from the sparse factor of K (sc_spsym, hinted: the A
+ * components ordered last): pivots d_k <= tol·K_kk null, relative to the pivot's own diagonal. The nullity, -1 no memory, -2 CHOLMOD cannot be
+ * loaded, -3 the address space limit leaves it too little room (sc_spsym_analyze). */
+int sc_lsq_full_misalignment_nullity_sparse(const sc_lsq_full_desc *d, double tol);
 
 /* X (n_red x ncol, column after column) := solves of the reduced (pinned) system through the full
  * factor f; refine: steps of iterative refinement against the full matrix. 0, or -1 if memory

@@ -197,6 +197,16 @@ void sc_lsq_progress(const sc_grid_lsq_plan *q, const char *phase, double done);
  * Cholesky with diagonal pivoting; pivots below tol·(largest diagonal) end it. */
 int sc_lsq_small_nullity(double *a, int m, double tol);
 
+/* Misalignment blocks of up to this many unknowns (or the plate's 2N² A components where there
+ * are more) get their nullity densely (sc_lsq_small_nullity, 8·nm² bytes: 2.9 MB here); larger
+ * ones from the sparse factor (docs/grid-lsq.md, "The misalignment block's nullity"). */
+#define LSQ_MM_DENSE_MAX 600
+
+/* ν₂, the nullity of the full system's misalignment block (A eliminated, G held at 0): dense
+ * (LSQ_SMALL_TOL of the largest diagonal) when nm <= dense_max, else sparse (LSQ_SMALL_TOL of
+ * each pivot's own diagonal). The nullity, or -1 no memory, -2 no CHOLMOD, -3 address space. */
+int sc_lsq_misalignment_nullity(const sc_lsq_full_desc *fd, int dense_max);
+
 /* Coefficients of w_e = s_e·J_e over x = (g, m): 3 (index, value) pairs, 4 with drift. */
 int sc_lsq_eq_row(const sc_grid_lsq_plan *q, long e, int *idx, double *val);
 

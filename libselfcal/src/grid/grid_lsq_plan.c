@@ -588,6 +588,14 @@ static sc_status factor_matrix(sc_grid_lsq_plan *q, sc_error *err)
     return SC_OK;
 }
 
+/* The misalignment block's nullity is found densely up to this many misalignments: 600, or
+ * the plate's A components (2N²) where there are more, since the sparse rule's factor holds their
+ * dense block (docs/grid-lsq.md, "The misalignment block's nullity"). */
+static int lsq_mm_dense_max(const sc_grid_lsq_plan *q)
+{
+    return 2 * q->nn > LSQ_MM_DENSE_MAX ? 2 * q->nn : LSQ_MM_DENSE_MAX;
+}
+
 /* With A kept (grid_lsq_full.h): the misalignment block alone (G held at 0, A eliminated) for
  * its nullity, then the full pinned matrix, ordered (the free misalignments last) and factored
  * as the reduced one. */
@@ -595,18 +603,26 @@ static sc_status build_and_factor_full(sc_grid_lsq_plan *q, const sc_lsq_full_de
                                        sc_error *err)
 {
     int nm = q->nm;
+    /* the misalignment block: dense up to LSQ_MM_DENSE_MAX unknowns, else sparse (its pattern
+     * the views that share a mark, far below the full matrix's own entries) */
     q->peak_est = (double)q->bytes + sc_lsq_full_matrix_bytes(fd) +
-                  2.0 * sizeof(double) * (double)nm * nm;
+                  sizeof(double) * (nm <= lsq_mm_dense_max(q) ? (double)nm * nm
+                                                              : 0.5 * 4.0 * q->nn * q->nn);
     sc_lsq_progress(q, "assemble", 0);
     if (q->max_bytes > 0 && q->peak_est > q->max_bytes)
         return memory_refused(q, q->peak_est, err);
-    double *mm = malloc(sizeof(double) * ((size_t)nm * nm + 1));
-    if (!mm || sc_lsq_full_misalignment_block(fd, mm) != 0 ||
-        (q->nullity_T = sc_lsq_small_nullity(mm, nm, LSQ_SMALL_TOL)) < 0) {
-        free(mm);
+    q->nullity_T = sc_lsq_misalignment_nullity(fd, lsq_mm_dense_max(q));
+    if (q->nullity_T == -2)
+        return sc_error_set(err, SC_E_IO, NULL, 0,
+                            "the sparse solver library libcholmod.so (SuiteSparse CHOLMOD) "
+                            "cannot be loaded");
+    if (q->nullity_T == -3)
+        return sc_error_set(err, SC_E_NOMEM, NULL, 0,
+                            "out of memory: the address space limit (ulimit -v) leaves less than "
+                            "768 MiB for the sparse solver (CHOLMOD and OpenBLAS, which would hang "
+                            "rather than fail below that)");
+    if (q->nullity_T < 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
-    }
-    free(mm);
     if (sc_lsq_full_assemble(fd, &q->full, &q->Ap, &q->Ai, &q->Ax, &q->n_fac) != 0)
         return sc_error_set(err, SC_E_NOMEM, NULL, 0, LSQ_NOMEM_MSG);
     q->bytes += (size_t)q->Ap[q->n_fac] * (sizeof(int) + sizeof(double)) +

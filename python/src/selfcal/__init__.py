@@ -189,6 +189,9 @@ class Table:
 # ---- grid plates (SPEC §1, §5) ----
 
 _GRID_METHODS = {"ye": 0, "double-shift": 1, "lsq": 2}
+# sc_grid_options.solver and .node_sigma (selfcal/grid_lsq.h), as `grid --solver/--node-sigma`
+_GRID_SOLVERS = {"auto": 0, "reduced": 1, "full": 2}
+_NODE_SIGMA_ALL, _NODE_SIGMA_NONE, _NODE_SIGMA_SAMPLE = 0, 1, 2
 _VIEW_KEYS = ("rot", "shift", "rows", "cols", "sigma_um", "temp_C")
 
 
@@ -684,6 +687,26 @@ class GridResult:
                 f"sigma_r_est_um={self.sigma_r_est_um:.4g})")
 
 
+def _node_sigma(value: object) -> "tuple[int, int]":
+    """``node_sigma`` of calibrate_grid as (mode, K): "all", "none", ("sample", K), "sample:K"."""
+    known = "'all', 'none', ('sample', K) or 'sample:K'"
+    if isinstance(value, str):
+        if value == "all":
+            return _NODE_SIGMA_ALL, 0
+        if value == "none":
+            return _NODE_SIGMA_NONE, 0
+        if value.startswith("sample:"):
+            try:
+                k = int(value[7:], 10)
+            except ValueError:
+                raise InputError(f"node_sigma must be {known}, not {value!r}") from None
+            return _NODE_SIGMA_SAMPLE, _check.integer(k, "node_sigma's K", 1, 10**6)
+        raise InputError(f"node_sigma must be {known}, not {value!r}")
+    if isinstance(value, tuple) and len(value) == 2 and value[0] == "sample":
+        return _NODE_SIGMA_SAMPLE, _check.integer(value[1], "node_sigma's K", 1, 10**6)
+    raise ArgumentTypeError(f"node_sigma must be {known}, not {type(value).__name__}")
+
+
 def calibrate_grid(source: "_PathLike | GridMeasurement", method: str = "lsq",
                    sigma_r_um: "float | None" = None, drift: bool = False,
                    reject_outliers: bool = False, covariance: bool = False,
@@ -692,7 +715,8 @@ def calibrate_grid(source: "_PathLike | GridMeasurement", method: str = "lsq",
                    view_noise: str = "stated", view_scale: str = "model",
                    monte_carlo: "int | None" = None, seed: int = 1,
                    progress: "_Callable[[str, float, float, float], object] | None" = None,
-                   max_memory: "float | None" = None) -> GridResult:
+                   max_memory: "float | None" = None, solver: str = "auto",
+                   node_sigma: "str | tuple[str, int]" = "all") -> GridResult:
     """Separate the stage error G from the plate error A, as ``selfcal grid``.
 
     Parameters
@@ -732,6 +756,18 @@ def calibrate_grid(source: "_PathLike | GridMeasurement", method: str = "lsq",
         bytes); an exception it raises is raised after the solve.
     max_memory : float, optional
         Bytes a solve may use (default: the machine's available memory).
+    solver : {"auto", "reduced", "full"}
+        Which normal matrix the least squares factor, as ``--solver``: ``"reduced"`` (the plate
+        error A eliminated: plate-sized stages, a few views), ``"full"`` (A kept as unknowns:
+        stitched stages of hundreds of placements) or ``"auto"`` (full when a mark is measured
+        in more than about 17 views on average). Both give the same results.
+    node_sigma : {"all", "none"} or ("sample", K) or "sample:K"
+        Which uncertainties of G the least squares compute, as ``--node-sigma``: ``"all"``
+        every node's and every measurement's leverage (the outlier test needs them);
+        ``"none"`` neither (``ugx_um``, ``ugy_um`` and the residuals' t NaN, no outlier test);
+        ``("sample", K)`` or ``"sample:K"``: K nodes spread over the stage (1 <= K <= 10^6),
+        the others NaN. Other than ``"all"`` it excludes ``reject_outliers``,
+        ``view_noise="estimate"`` and ``monte_carlo``.
 
     Returns
     -------
@@ -773,10 +809,16 @@ def calibrate_grid(source: "_PathLike | GridMeasurement", method: str = "lsq",
     sd = _check.integer(seed, "seed", 0, 2**64 - 1)
     if (view_scale == "free" or mc) and method != "lsq":
         raise InputError("view_scale='free' and monte_carlo need method 'lsq'")
+    _check.choice(solver, "solver", tuple(_GRID_SOLVERS))
+    ns_mode, ns_k = _node_sigma(node_sigma)
+    if ns_mode != _NODE_SIGMA_ALL and (flags[1] or view_noise == "estimate" or mc):
+        raise InputError("reject_outliers, view_noise='estimate' and monte_carlo need every "
+                         "leverage: node_sigma='all'")
     d = _native.grid_calibrate(src, _GRID_METHODS[method], float(sr or 0.0), flags[0],
                                flags[1], flags[2], float(alpha or 0.0), oe is not None,
                                view_noise == "estimate", view_scale == "free", int(mc or 0), sd,
-                               progress, float(mm or 0.0))
+                               progress, float(mm or 0.0), _GRID_SOLVERS[solver], ns_mode,
+                               ns_k)
     r = GridResult(d, method)
     for msg in r.warnings:
         _warnings.warn(msg, stacklevel=2)

@@ -1268,7 +1268,7 @@ static void progress_call(void *ctx, const char *phase, double done, double tota
 
 /* grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha,
  * outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed[, progress,
- * max_bytes]) -> dict */
+ * max_bytes, solver, node_sigma, node_sigma_sample]) -> dict (the last three: sc_grid_options') */
 static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
 {
     (void)self;
@@ -1280,10 +1280,11 @@ static PyObject *py_grid_calibrate(PyObject *self, PyObject *args)
     unsigned long long mc_seed;
     PyObject *progress = Py_None;
     double max_bytes = 0;
-    if (!PyArg_ParseTuple(args, "OidpppdppplK|Od", &src, &method, &o.sigma_r_um, &o.drift,
+    if (!PyArg_ParseTuple(args, "OidpppdppplK|Odiii", &src, &method, &o.sigma_r_um, &o.drift,
                           &o.reject_outliers, &o.covariance, &o.outlier_alpha,
                           &o.outlier_alpha_each, &o.estimate_view_noise, &o.view_scale_free,
-                          &mc_trials, &mc_seed, &progress, &max_bytes))
+                          &mc_trials, &mc_seed, &progress, &max_bytes, &o.solver,
+                          &o.node_sigma, &o.node_sigma_sample))
         return NULL;
     if (progress != Py_None && !PyCallable_Check(progress)) {
         PyErr_SetString(PyExc_TypeError, "progress must be callable");
@@ -1779,7 +1780,8 @@ static PyMethodDef module_methods[] = {
     {"grid_plan", py_grid_plan, METH_VARARGS, "grid_plan(path, plan or measurement) -> analysis dict."},
     {"grid_calibrate", py_grid_calibrate, METH_VARARGS,
      "grid_calibrate(src, method, sigma_r_um, drift, reject_outliers, covariance, outlier_alpha, "
-     "outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed) -> dict."},
+     "outlier_alpha_each, estimate_view_noise, view_scale_free, mc_trials, mc_seed[, progress, "
+     "max_bytes, solver, node_sigma, node_sigma_sample]) -> dict."},
     {"grid_standard_plan", py_grid_standard_plan, METH_VARARGS,
      "grid_standard_plan(name, n, pitch_mm, ox, oy, nx, ny) -> plan dict."},
     {"grid_simulate", py_grid_simulate, METH_VARARGS, "grid_simulate(plan, params) -> (measurement, truth)."},
