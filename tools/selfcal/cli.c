@@ -9,7 +9,6 @@
 #include <unistd.h>
 
 #include "cli.h"
-#include "cli_opts.h"
 #include "input_once.h"
 #include "selfcal/csv.h"
 #include "selfcal/grid_calibrate.h"
@@ -179,40 +178,4 @@ const char *cli_basename(const char *path)
 {
     const char *b = strrchr(path, '/');
     return b && b[1] ? b + 1 : path;
-}
-
-/* ---- the parse functions of values several commands take (cli_opts.h) ---- */
-
-int cli_opt_seed(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_seed(cmd, v, field);
-}
-
-int cli_opt_max_memory(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_max_memory(cmd, v, field);
-}
-
-int cli_opt_lsq(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_lsq_option(cmd, opt, v, field);
-}
-
-int cli_opt_noise(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_noise(cmd, opt, v, 0, field);
-}
-
-int cli_opt_noise_positive(const char *cmd, const char *opt, const char *v, void *field)
-{
-    return cli_parse_noise(cmd, opt, v, 1, field);
-}
-
-
-int cli_opt_max_nodes(const char *cmd, const char *opt, const char *v, void *field)
-{
-    (void)opt;
-    return cli_parse_max_nodes(cmd, v, field);
 }
