@@ -176,32 +176,49 @@ static int parse_stage(const char *cmd, const char *opt, const char *v, void *fi
     return CLI_OK;
 }
 
-static int parse_view_sigmas(const char *cmd, const char *opt, const char *v, void *field)
+/* A comma list of numbers into a fresh array *out, *n of them, each accepted by ok: 0; 1 at a
+ * bad item; -1 without memory. */
+static int parse_number_list(const char *v, int (*ok)(double), double **out, int *n)
 {
-    sim_args *a = field;
-    (void)cmd, (void)opt;
     size_t len = strlen(v), cap = 1;
     for (const char *c = v; *c; ++c)
         cap += *c == ',';
     char *buf = malloc(len + 1);
-    free(a->view_sigma);
-    a->view_sigma = malloc(cap * sizeof *a->view_sigma);
-    if (!buf || !a->view_sigma) {
+    free(*out);
+    *out = malloc(cap * sizeof **out);
+    *n = 0;
+    if (!buf || !*out) {
         free(buf);
-        return cli_usage_error("simulate grid", "--view-sigma-r-um: out of memory");
+        return -1;
     }
     memcpy(buf, v, len + 1);
-    a->n_vs = 0;
-    int rc = CLI_OK;
-    for (char *t = strtok(buf, ","); t && rc == CLI_OK; t = strtok(NULL, ",")) {
-        if ((size_t)a->n_vs == cap || sc_parse_double(t, &a->view_sigma[a->n_vs]) ||
-            !(a->view_sigma[a->n_vs] > 0) || a->view_sigma[a->n_vs] > 1e6)
-            rc = cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
+    int rc = 0;
+    for (char *t = strtok(buf, ","); t && rc == 0; t = strtok(NULL, ",")) {
+        double x;
+        if ((size_t)*n == cap || sc_parse_double(t, &x) || !ok(x))
+            rc = 1;
         else
-            ++a->n_vs;
+            (*out)[(*n)++] = x;
     }
     free(buf);
     return rc;
+}
+
+static int view_sigma_ok(double s_um)
+{
+    return s_um > 0 && s_um <= 1e6;
+}
+
+static int parse_view_sigmas(const char *cmd, const char *opt, const char *v, void *field)
+{
+    sim_args *a = field;
+    (void)cmd, (void)opt;
+    const int rc = parse_number_list(v, view_sigma_ok, &a->view_sigma, &a->n_vs);
+    if (rc < 0)
+        return cli_usage_error("simulate grid", "--view-sigma-r-um: out of memory");
+    if (rc > 0)
+        return cli_usage_error("simulate grid", "--view-sigma-r-um needs positive numbers, got '%s'", v);
+    return CLI_OK;
 }
 
 static int parse_drift(const char *cmd, const char *opt, const char *v, void *field)
@@ -229,35 +246,23 @@ static int parse_value_u(const char *opt, const char *v, double lim, double *val
     return CLI_OK;
 }
 
+static int temp_ok(double t_C)
+{
+    return t_C >= SC_GRID_MIN_TEMP_C && t_C <= SC_GRID_MAX_TEMP_C;
+}
+
 static int parse_temps(const char *cmd, const char *opt, const char *v, void *field)
 {
     sim_args *a = field;
     (void)cmd, (void)opt;
-    size_t len = strlen(v), cap = 1;
-    for (const char *c = v; *c; ++c)
-        cap += *c == ',';
-    char *buf = malloc(len + 1);
-    free(a->temps);
-    a->temps = malloc(cap * sizeof *a->temps);
-    if (!buf || !a->temps) {
-        free(buf);
+    const int rc = parse_number_list(v, temp_ok, &a->temps, &a->n_temps);
+    if (rc < 0)
         return cli_usage_error("simulate grid", "--view-temp-c: out of memory");
-    }
-    memcpy(buf, v, len + 1);
-    a->n_temps = 0;
-    int rc = CLI_OK;
-    for (char *t = strtok(buf, ","); t && rc == CLI_OK; t = strtok(NULL, ",")) {
-        double T;
-        if ((size_t)a->n_temps == cap || sc_parse_double(t, &T) ||
-            !(T >= SC_GRID_MIN_TEMP_C && T <= SC_GRID_MAX_TEMP_C))
-            rc = cli_usage_error("simulate grid", "--view-temp-c needs temperatures of %g to %g "
-                                                  "C, got '%s'", SC_GRID_MIN_TEMP_C,
-                                 SC_GRID_MAX_TEMP_C, v);
-        else
-            a->temps[a->n_temps++] = T;
-    }
-    free(buf);
-    return rc;
+    if (rc > 0)
+        return cli_usage_error("simulate grid", "--view-temp-c needs temperatures of %g to %g "
+                                                "C, got '%s'", SC_GRID_MIN_TEMP_C,
+                               SC_GRID_MAX_TEMP_C, v);
+    return CLI_OK;
 }
 
 /* --plate-scale-ppm E[,U], --plate-cte-ppm-per-k A[,U] into the sc_grid_scale */
